@@ -1,0 +1,1 @@
+"""Comparisons: the paper's reproduction and (later) the harness of mesh sources and post-processes."""

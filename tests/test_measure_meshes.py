@@ -1,0 +1,105 @@
+import subprocess
+import sys
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from contourmesh import Mesh
+from contourmesh.measure import mesh_checks, mesh_volume, triangle_areas
+from contourmesh.meshes import atomic_write, save_mesh
+
+
+def _box():
+    tm = trimesh.creation.box(extents=(2.0, 3.0, 4.0))
+    return Mesh(tm.vertices, tm.faces)
+
+
+def test_box_measures_match_trimesh():
+    m = _box()
+    assert m.area == pytest.approx(2 * (6 + 8 + 12))
+    assert m.volume == pytest.approx(24.0)
+    chk = m.checks()
+    assert chk["ok"] and chk["genus"] == 0 and chk["components"] == 1
+
+
+def test_checks_catch_flipped_face_open_mesh_and_degenerate():
+    m = _box()
+    f = m.faces.copy()
+    f[0] = f[0, ::-1]
+    chk = mesh_checks(m.vertices, f)
+    assert not chk["winding_consistent"] and not chk["ok"]
+    chk = mesh_checks(m.vertices, m.faces[1:])
+    assert not chk["watertight"] and chk["boundary_edges"] == 3
+    inv = mesh_checks(m.vertices, m.faces[:, ::-1])
+    assert inv["volume"] < 0 and not inv["ok"]
+    v = np.vstack([m.vertices, [[0.0, 0.0, 0.0]]])
+    f = np.vstack([m.faces, [[0, 1, 0]]])
+    assert mesh_checks(v, f)["degenerate_faces"] == 1
+
+
+def test_torus_genus():
+    tm = trimesh.creation.torus(major_radius=3, minor_radius=1)
+    chk = Mesh(tm.vertices, tm.faces).checks()
+    assert chk["watertight"] and chk["genus"] == 1
+
+
+def test_mesh_validates_shapes():
+    with pytest.raises(ValueError, match=r"\(n, 3\)"):
+        Mesh(np.zeros((3, 2)), np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="do not exist"):
+        Mesh(np.zeros((3, 3)), np.array([[0, 1, 5]]))
+
+
+@pytest.mark.parametrize("suffix", ["ply", "obj", "stl", "off"])
+def test_save_roundtrip_and_deterministic(tmp_path, suffix):
+    m = _box()
+    p = m.save(tmp_path / f"box.{suffix}")
+    data1 = p.read_bytes()
+    m.save(p)
+    assert p.read_bytes() == data1
+    back = trimesh.load(p, process=True)
+    assert back.area == pytest.approx(m.area)
+    assert abs(back.volume) == pytest.approx(m.volume)
+
+
+def test_save_refuses_unknown_suffix_existing_file_and_directory(tmp_path):
+    m = _box()
+    with pytest.raises(ValueError, match="suffix"):
+        m.save(tmp_path / "x.xyz")
+    p = m.save(tmp_path / "a.ply")
+    with pytest.raises(FileExistsError, match="already exists"):
+        m.save(p, force=False)
+    with pytest.raises(IsADirectoryError):
+        m.save(tmp_path, force=True)
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        m.save(tmp_path / "nope" / "a.ply")
+
+
+def test_atomic_write_killed_midway_leaves_old_file(tmp_path):
+    target = tmp_path / "out.bin"
+    target.write_bytes(b"old")
+    code = f"""
+import os, sys
+sys.path.insert(0, {str(__import__('pathlib').Path(__file__).resolve().parents[1] / 'src')!r})
+import contourmesh.meshes as mm
+real = os.fsync
+def dying(fd):
+    os._exit(9)
+mm.os.fsync = dying
+mm.atomic_write({str(target)!r}, b"new" * 1000000)
+"""
+    r = subprocess.run([sys.executable, "-c", code])
+    assert r.returncode == 9
+    assert target.read_bytes() == b"old"
+
+
+def test_adapters_open3d_pymeshlab():
+    m = _box()
+    pytest.importorskip("open3d", reason="open3d not installed")
+    o = m.to_open3d()
+    assert len(o.triangles) == len(m.faces)
+    pytest.importorskip("pymeshlab", reason="pymeshlab not installed")
+    ms = m.to_pymeshlab()
+    assert ms.current_mesh().face_number() == len(m.faces)
