@@ -1,0 +1,96 @@
+"""Band triangulations between consecutive polygons, and flat caps.
+
+One signature for every strategy: ``triangulate(lower, upper) -> faces``, where ``lower`` is an
+``(n, 3)`` closed polygon at height ``z1``, ``upper`` an ``(m, 3)`` one at ``z2 > z1`` (same
+orientation convention), and ``faces`` an ``(n + m, 3)`` int64 array indexing
+``np.vstack([lower, upper])`` that uses every polygon edge exactly once, with outward normals.
+
+Strategies (registry :data:`TRIANGULATORS`):
+
+``"wiederhold"``
+    Wiederhold & Villafuerte (2009), section 3.4: coordinate comparisons, ``O(n + m)``.
+``"greedy"``
+    Christiansen & Sederberg (1978): shortest next diagonal, ``O(n + m)``.
+``"optimal"``
+    Fuchs, Kedem & Uselton (1977): least total area by dynamic programming, ``O(n^2 m)``.
+
+Folded bands.  On very dissimilar pairs (and between a polygon and a segment-shaped MLP next to
+a pole) the local rules of ``wiederhold`` and ``greedy`` can join all the edges of one contour
+to a single point of the other ("double cone"): every polygon edge is still used once, but one
+diagonal then carries four triangles and the mesh is not a manifold.  :func:`triangulate_band`
+detects this and, with ``fallback=True`` (the default), returns the ``optimal`` band for that
+pair instead, whose search excludes such bands.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .caps import cap_faces
+from .greedy import triangulate_band_greedy
+from .optimal import triangulate_band_optimal
+from .wiederhold import triangulate_band_wiederhold
+
+__all__ = [
+    "TRIANGULATORS",
+    "triangulate_band",
+    "band_is_folded",
+    "triangulate_band_wiederhold",
+    "triangulate_band_greedy",
+    "triangulate_band_optimal",
+    "cap_faces",
+]
+
+#: Band triangulators by name; each maps ``(lower, upper)`` to ``faces``.
+TRIANGULATORS = {
+    "wiederhold": triangulate_band_wiederhold,
+    "greedy": triangulate_band_greedy,
+    "optimal": triangulate_band_optimal,
+}
+
+
+def band_is_folded(faces: np.ndarray) -> bool:
+    """True when some edge of the band is shared by more than two of its triangles."""
+    f = np.asarray(faces, dtype=np.int64)
+    if len(f) == 0:
+        return False
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    return bool((counts > 2).any())
+
+
+def triangulate_band(lower, upper, method: str = "wiederhold", *, fallback: bool = True) -> np.ndarray:
+    """Triangulate the band between two consecutive polygons with the named strategy.
+
+    Parameters
+    ----------
+    lower : array_like, shape (n, 3)
+        Closed polygon at height ``z1``.
+    upper : array_like, shape (m, 3)
+        Closed polygon at height ``z2 > z1``, same orientation convention as ``lower``.
+    method : {"wiederhold", "greedy", "optimal"}
+        Strategy name (see :data:`TRIANGULATORS`).
+    fallback : bool
+        Replace a folded band (see the module docstring) by the ``optimal`` one.
+
+    Returns
+    -------
+    faces : ndarray of int64, shape (n + m, 3)
+        Triangles indexing ``np.vstack([lower, upper])``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown method or invalid polygons.
+    """
+    try:
+        fn = TRIANGULATORS[method]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"unknown band triangulation method {method!r}; expected one of "
+            f"{sorted(TRIANGULATORS)}"
+        ) from None
+    faces = fn(lower, upper)
+    if fallback and method != "optimal" and band_is_folded(faces):
+        faces = triangulate_band_optimal(lower, upper)
+    return faces

@@ -1,0 +1,89 @@
+"""Flat caps: triangulate a planar polygon with holes (ear clipping, via ``mapbox_earcut``).
+
+An end section whose polygon encloses area is closed by a flat cap in its own plane; the
+cap's triangles use the polygon's own vertices, so the cap's boundary is exactly the polygon
+and the band + caps mesh is closed.  The ear clipping is mapbox's earcut (Held's FIST-style
+ear clipping with hole bridging), ``mapbox_earcut.triangulate_float64(vertices, ring_ends)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["cap_faces"]
+
+
+def _as_ring(poly, name: str) -> np.ndarray:
+    p = np.asarray(poly)
+    if p.ndim != 2 or p.shape[1] not in (2, 3):
+        raise ValueError(f"{name} must be a (k, 2) or (k, 3) array of points; got shape {p.shape}")
+    if not np.issubdtype(p.dtype, np.number) or np.issubdtype(p.dtype, np.complexfloating):
+        raise ValueError(f"{name} must hold real numbers; got dtype {p.dtype}")
+    p = np.ascontiguousarray(p[:, :2], dtype=np.float64)
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{name} must contain only finite coordinates; found NaN or inf")
+    return p
+
+
+def _signed_area(p: np.ndarray) -> float:
+    if len(p) < 3:
+        return 0.0
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
+    """Triangulate a flat polygon with holes into a cap.
+
+    Parameters
+    ----------
+    polygon_xy : array_like, shape (k, 2) or (k, 3)
+        Outer boundary, closed implicitly (only the first two columns are used).  Either
+        orientation is accepted.
+    holes_xy : sequence of array_like, optional
+        Hole boundaries, each ``(h, 2)`` or ``(h, 3)``.  A hole with fewer than three points or
+        zero area is ignored (its vertices keep their index range).
+    upward : bool, optional
+        Orient the triangles so that their normals point to ``+z`` (counter-clockwise in raw
+        ``(x, y)``, i.e. positive shoelace area) if True, to ``-z`` otherwise.
+
+    Returns
+    -------
+    faces : ndarray of int64, shape (t, 3)
+        Triangles indexing ``np.vstack([polygon] + list(holes))``.  Empty ``(0, 3)`` if the outer
+        polygon has fewer than three points or zero area.
+
+    Examples
+    --------
+    >>> cap_faces([[0, 0], [2, 0], [2, 2], [0, 2]]).shape
+    (2, 3)
+    """
+    outer = _as_ring(polygon_xy, "polygon_xy")
+    if isinstance(holes_xy, np.ndarray) and holes_xy.ndim == 2:
+        raise ValueError("holes_xy must be a sequence of (h, 2) arrays, not a single array; "
+                         "wrap a single hole in a list")
+    holes = [_as_ring(h, f"holes_xy[{k}]") for k, h in enumerate(holes_xy)]
+    empty = np.empty((0, 3), dtype=np.int64)
+    if len(outer) < 3 or _signed_area(outer) == 0.0:
+        return empty
+
+    import mapbox_earcut
+
+    rings = [outer] + [h for h in holes if len(h) >= 3 and _signed_area(h) != 0.0]
+    offsets = np.cumsum([0] + [len(r) for r in [outer] + holes])[:-1]
+    # global index of each vertex handed to earcut
+    glob = [np.arange(len(outer))]
+    for k, h in enumerate(holes):
+        if len(h) >= 3 and _signed_area(h) != 0.0:
+            glob.append(offsets[k + 1] + np.arange(len(h)))
+    glob = np.concatenate(glob).astype(np.int64)
+    verts = np.ascontiguousarray(np.vstack(rings))
+    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
+    tri = np.asarray(mapbox_earcut.triangulate_float64(verts, ends), dtype=np.int64).reshape(-1, 3)
+    if len(tri) == 0:
+        return empty
+    p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
+    s = (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+    flip = s < 0 if upward else s > 0
+    tri[flip] = tri[flip][:, [0, 2, 1]]
+    return np.ascontiguousarray(glob[tri])
