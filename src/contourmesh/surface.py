@@ -32,7 +32,7 @@ def _polygon(contour: np.ndarray, method: str) -> np.ndarray:
     from .polygons import polygonize
 
     contour = np.asarray(contour)
-    if len(contour) < 3:  # a pole point (or a segment read from a file): nothing to simplify
+    if len(contour) < 3 or method == "none":  # a pole point, or the contour as given
         return contour.astype(np.float64)
     return np.asarray(polygonize(contour, method), dtype=np.float64)
 

@@ -52,8 +52,10 @@ def paper_table(name: str) -> list[dict]:
 
 
 def _fmt(v, digits=6):
-    if v is None or v == "":
+    if v is None or (isinstance(v, str) and v == ""):
         return ""
+    if isinstance(v, str):
+        return v
     if isinstance(v, (bool, np.bool_)):
         return str(bool(v))
     if isinstance(v, (int, np.integer)):
@@ -161,7 +163,8 @@ def plot_figure(rows, which: str, path: Path):
                 continue
             x = [xval(r["size"]) for r in sel]
             for ax, key in zip(axes, ("e", "t")):
-                ax.plot(x, [abs(r[key]) for r in sel], marks[tri], color=styles[pol], ms=3.5, lw=1,
+                ax.plot(x, [abs(r[key]) for r in sel], marks[tri], color=styles[pol], lw=1,
+                        ms=7 if tri == "optimal" else 3.5, mfc="none" if tri == "optimal" else None,
                         label=f"ours {pol.upper()} {tri}")
         sel = [r for r in rows if r["polygon"] == pol and r["triangulation"] == "wiederhold" and r["paper_e"] != ""]
         if sel:
