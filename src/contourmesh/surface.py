@@ -182,48 +182,76 @@ def stack_to_mesh(
     return b.mesh(meta=meta)
 
 
-def _as_stack(source, *, h: float = 1.0):
-    """Turn a mesh source into a ContourStack (shapes and spec strings for now)."""
-    from .types import ContourStack as _CS
-
-    if isinstance(source, _CS):
-        return source
+def _shape_of(source):
     from . import shapes
 
     if isinstance(source, str):
-        source = shapes.parse_shape_spec(source)
+        return shapes.parse_shape_spec(source)
     if isinstance(source, shapes.Shape):
-        from .digitize import outer_jordan_stack
-
-        return outer_jordan_stack(source, h=h)
-    raise TypeError(
-        f"cannot mesh a {type(source).__name__}: expected a shape (contourmesh.shapes), a shape spec "
-        "string such as 'sphere:r=40', or a ContourStack"
-    )
+        return source
+    return None
 
 
 def mesh(source, *, polygon: str = "mlp", triangulation: str = "wiederhold", caps: str = "flat",
-         h: float = 1.0) -> Mesh:
-    """The mesh source of the paper's method: ``source -> Mesh``.
+         h: float = 1.0, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
+         origin=(0.0, 0.0, 0.0), progress: bool = False) -> Mesh:
+    """The mesh source of contourmesh: ``source -> Mesh``, closed and outward-oriented.
 
     Parameters
     ----------
-    source : Shape, str or ContourStack
+    source : Shape, str, ContourStack or numpy.ndarray
         An analytic shape (``contourmesh.shapes.Sphere(40, center=(0.3, 0.1, 0.2))``), a shape spec
-        string (``"sphere:r=40"``, ``"ellipsoid:a=30,b=20,c=10"``, ``"torus:R=30,r=9"``) or a stack.
+        string (``"sphere:r=40"``, ``"ellipsoid:a=30,b=20,c=10"``, ``"torus:R=30,r=9"``), a
+        ContourStack, or a 3D array indexed ``[z, y, x]`` (binary, or labels with ``label=`` /
+        ``threshold=``).
     polygon : {"mlp", "dss", "none"}
         How each contour is simplified.
     triangulation : {"wiederhold", "greedy", "optimal"}
         How consecutive polygons are joined.
     caps : {"flat", "half"}
-        Where end caps go (see the module docstring).
+        Where end caps go (see :mod:`contourmesh.surface` and :mod:`contourmesh.volumes`).
     h : float
         Grid spacing for digitizing analytic shapes (slices at ``z = k h``).
+    spacing, z, axis, label, threshold, origin
+        For arrays: voxel spacing ``(dz, dy, dx)``, explicit slice positions, slicing axis, label
+        or threshold selection, and the physical ``(x, y, z)`` of voxel ``[0, 0, 0]``.
 
     Returns
     -------
     Mesh
-        Closed and outward-oriented; ``meta`` holds ``area_true`` when the source knows it.
+        ``meta`` holds ``area_true`` when the source knows it.
+
+    Notes
+    -----
+    An analytic shape whose slices each hold one contour is meshed exactly as in the paper, from
+    its outer Jordan contour stack.  A shape with several contours in some slice (a torus, a
+    rotated shape) is meshed through its Gauss digitization (the same ``I`` in every slice) by the
+    volume mesher, which handles holes and branching.
     """
-    stack = _as_stack(source, h=h)
-    return stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
+    import numpy as _np
+
+    shape = _shape_of(source)
+    if shape is not None:
+        from .digitize import gauss_volume, outer_jordan_stack
+
+        stack = outer_jordan_stack(shape, h=h)
+        if all(len(s.contours) == 1 for s in stack.sections):
+            return stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
+        vol, org = gauss_volume(shape, h=h)
+        m = mesh(vol, polygon=polygon, triangulation=triangulation, caps=caps, spacing=(h, h, h),
+                 origin=org, progress=progress)
+        meta = dict(stack.meta)
+        meta.update(m.meta)
+        return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
+    if isinstance(source, ContourStack):
+        return stack_to_mesh(source, polygon=polygon, triangulation=triangulation, caps=caps)
+    if isinstance(source, _np.ndarray):
+        from .volumes import volume_to_mesh
+
+        return volume_to_mesh(source, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
+                              origin=origin, polygon=polygon, triangulation=triangulation, caps=caps,
+                              progress=progress)
+    raise TypeError(
+        f"cannot mesh a {type(source).__name__}: expected a shape (contourmesh.shapes), a shape spec "
+        "string such as 'sphere:r=40', a ContourStack or a 3D numpy array"
+    )

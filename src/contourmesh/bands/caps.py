@@ -8,6 +8,8 @@ ear clipping with hole bridging), ``mapbox_earcut.triangulate_float64(vertices, 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ["cap_faces"]
@@ -30,6 +32,57 @@ def _signed_area(p: np.ndarray) -> float:
         return 0.0
     x, y = p[:, 0], p[:, 1]
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def _on_segment(vertices, cand, a, b):
+    """Candidates lying strictly inside segment ab (exactly collinear up to round-off)."""
+    p, q = vertices[a], vertices[b]
+    d = q - p
+    L2 = float(d @ d)
+    if L2 == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    e = vertices[cand] - p
+    t = (e @ d) / L2
+    off = e - t[:, None] * d
+    dist = np.sqrt((off * off).sum(axis=1))
+    ok = (t > 1e-12) & (t < 1 - 1e-12) & (dist <= 1e-9 * math.sqrt(L2))
+    return cand[ok], t[ok]
+
+
+def split_t_junctions(vertices, tris, boundary):
+    """Split triangles whose edges pass through other boundary vertices (T-junctions).
+
+    Ear clipping drops loop vertices lying on the straight line between their neighbours, and
+    with hole bridges on grid-aligned data an edge may even pass through a vertex of another
+    loop.  Every triangle ``(a, b, c)`` whose edge ``ab`` contains loop vertices ``v1 .. vk``
+    (in order) is replaced by the fan ``(a, v1, c), ..., (vk, b, c)``.  Returns None unless
+    afterwards every loop edge is used once and every other edge twice in opposite directions.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    boundary = np.asarray(boundary, dtype=np.int64).reshape(-1, 2)
+    cand = np.unique(boundary)
+    loop_edges = set(map(tuple, boundary.tolist()))
+    out = []
+    for t in np.asarray(tris, dtype=np.int64).tolist():
+        pending = [tuple(t)]
+        while pending:
+            a, b, c = pending.pop()
+            for (p, q, r) in ((a, b, c), (b, c, a), (c, a, b)):
+                if (p, q) in loop_edges:
+                    continue
+                inside, tt = _on_segment(vertices, cand, p, q)
+                if len(inside):
+                    path = [p] + inside[np.argsort(tt)].tolist() + [q]
+                    pending += [(path[i], path[i + 1], r) for i in range(len(path) - 1)]
+                    break
+            else:
+                out.append((a, b, c))
+    edges = {(a, b) for a, b, c in out} | {(b, c) for a, b, c in out} | {(c, a) for a, b, c in out}
+    if len(edges) != 3 * len(out):
+        return None
+    if any((q, p) not in edges and (p, q) not in loop_edges for p, q in edges):
+        return None
+    return np.asarray(out, dtype=np.int64).reshape(-1, 3)
 
 
 def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
@@ -82,6 +135,16 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     tri = np.asarray(mapbox_earcut.triangulate_float64(verts, ends), dtype=np.int64).reshape(-1, 3)
     if len(tri) == 0:
         return empty
+    # earcut drops ring vertices lying on a straight line between their neighbours; put them
+    # back so that every ring edge is an edge of the cap (the bands share those edges)
+    starts = np.concatenate([[0], ends[:-1]]).astype(np.int64)
+    boundary = np.concatenate([
+        np.c_[np.arange(a, b), np.r_[np.arange(a + 1, b), a]] for a, b in zip(starts, ends.astype(np.int64))
+    ])
+    fixed = split_t_junctions(verts, tri, np.concatenate([boundary, boundary[:, ::-1]]))
+    if fixed is None:
+        raise ValueError("cannot triangulate the cap: its rings cross or touch each other")
+    tri = fixed
     p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
     s = (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
     flip = s < 0 if upward else s > 0

@@ -130,61 +130,7 @@ def _retriangulate_facet(vertices, faces, normal):
     return new
 
 
-def _collinear_path(vertices, succ, p, q, limit):
-    """The loop path ``p -> ... -> q`` whose vertices all lie on the segment ``pq``, or None."""
-    d = vertices[q] - vertices[p]
-    L2 = float(d @ d)
-    path, cur = [p], p
-    while cur != q and len(path) <= limit:
-        nxt = None
-        for cand in succ.get(cur, []):
-            e = vertices[cand] - vertices[p]
-            t = float(e @ d) / L2
-            if 0 < t <= 1 and float(np.linalg.norm(e - t * d)) <= 1e-9 * math.sqrt(L2):
-                nxt = cand
-                break
-        if nxt is None:
-            return None
-        path.append(nxt)
-        cur = nxt
-    return path if cur == q else None
-
-
-def _split_t_junctions(vertices, tris, boundary):
-    """Put back the boundary vertices that earcut dropped as collinear.
-
-    Earcut skips a loop vertex lying on the straight line between its neighbours; the triangle
-    edge ``(a, b)`` then spans the loop path ``a -> v1 -> ... -> b``, a T-junction for the facet
-    next door.  Such a triangle ``(a, b, c)`` is replaced by the fan ``(a, v1, c), ..., (vk, b, c)``.
-    Returns None when a spanning edge does not follow a collinear loop path.
-    """
-    succ: dict = {}
-    for a, b in boundary.tolist():
-        succ.setdefault(a, []).append(b)
-    loop_edges = set(map(tuple, boundary.tolist()))
-    out = []
-    for t in tris.tolist():
-        pending = [t]
-        while pending:
-            a, b, c = pending.pop()
-            for (p, q, r) in ((a, b, c), (b, c, a), (c, a, b)):
-                if (p, q) in loop_edges or (q, p) in loop_edges:
-                    continue
-                # Is (p, q) a chord along the loop (collinear vertices skipped) or an interior diagonal?
-                path = _collinear_path(vertices, succ, p, q, len(boundary))
-                if path is None:
-                    back = _collinear_path(vertices, succ, q, p, len(boundary))
-                    path = back[::-1] if back is not None else None
-                if path is not None and len(path) > 2:
-                    pending += [(path[i], path[i + 1], r) for i in range(len(path) - 1)]
-                    break
-            else:
-                out.append((a, b, c))
-    # Every edge is now a loop edge or shared by two new triangles; otherwise give up on the facet.
-    edges = {(a, b) for a, b, c in out} | {(b, c) for a, b, c in out} | {(c, a) for a, b, c in out}
-    if any((q, p) not in edges and (p, q) not in loop_edges for p, q in edges):
-        return None
-    return np.asarray(out, dtype=np.int64).reshape(-1, 3)
+from ..bands.caps import split_t_junctions as _split_t_junctions  # noqa: E402
 
 
 def merge_coplanar(mesh: Mesh, *, rel_tol: float = 1e-9) -> Mesh:
