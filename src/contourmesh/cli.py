@@ -89,6 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--json", action="store_true", help="print a JSON summary")
     m.add_argument("--force", action="store_true", help="overwrite an existing output file")
     m.set_defaults(func=_cmd_mesh)
+
+    from .compare.runner import add_compare_parser
+
+    add_compare_parser(sub)
     return p
 
 

@@ -1,0 +1,752 @@
+"""The comparison runner: a spec file (TOML) -> rows -> ``results.csv``, ``summary.md`` and plots.
+
+A spec is data (``comparisons/*.toml``)::
+
+    title = "Spheres, Gauss digitization"
+    seed = 20090823            # random placements: numpy default_rng sub-seeds (see compare.inputs)
+    repeats = 5                # random placements per size
+    h = 1.0                    # grid spacing of analytic shapes
+    timeout = 600              # seconds per row (optional)
+    methods = ["ours-mlp-wiederhold", "mc-lewiner", "surfels"]
+    postprocess = ["none"]     # applied to every method unless the method says otherwise
+
+    [[inputs]]                 # an analytic shape ...
+    shape = "sphere"
+    sizes = [10, 20, 40]       # scale parameter(s): numbers, or lists [a, b] for two-parameter shapes
+    digitization = "gauss"     # or "outer-jordan"
+    offset = true              # random sub-voxel centre per repeat
+    rotate = false             # uniformly random rotation per repeat
+
+    [[inputs]]                 # ... or a closed mesh from the data folder, voxelized
+    mesh = "meshes/libigl-tutorial-data/bunny.off"
+    name = "bunny"
+    resolutions = [32, 64, 128]
+
+    [method."o3d-poisson-d8"]  # per-method options
+    max_size = 56              # larger inputs: status "skipped" with the reason
+    timeout = 300
+    postprocess = ["none", "merge-coplanar"]   # post-process chains: "none", "a", "a+b"
+
+    [post."merge-coplanar"]    # per-post-process options
+    max_size = 80              # larger inputs: the post-processed rows are "skipped"
+
+Methods: the peers' names (:func:`contourmesh.compare.methods.get_method`) and ours as
+``"ours-<polygon>-<triangulation>"`` (polygon ``dss|mlp|none``, triangulation
+``wiederhold|greedy|optimal``).  Ours on a shape input meshes the shape
+(``contourmesh.mesh(shape, polygon=, triangulation=, h=)``, whose outer Jordan contours are traced
+around the same grid points as the Gauss volume's slices); on a volume input it calls
+``contourmesh.mesh(volume, spacing=, origin=, ...)``.  Every method, ours included, runs through
+:func:`execute`: the same timing, time limit, post-processes, mesh checks and error capture.
+
+Rows, cache, restarts
+---------------------
+One row per input x method x post-process x repeat (columns :data:`~contourmesh.compare.report.COLUMNS`).
+Each finished row is written at once as one small JSON file ``cache/<key>.json`` in the output
+folder (atomically, :func:`contourmesh.meshes.atomic_write`), ``key`` = sha256 of the input's
+identity, the method, its parameters, the post-process and the package version.  A re-run reuses
+them (a corrupt or foreign file is ignored and its row recomputed); a killed run loses no
+finished row.  ``results.csv``, ``summary.md`` and the PNGs are rebuilt from the cache at the end.
+Rows that are ``skipped`` (``max_size``) or ``no-data`` (mesh file missing) are decided when
+planning and never cached; ``not-installed`` rows are cached but re-tried on every run.
+
+Parallelism and time limits
+---------------------------
+``jobs=1`` runs the rows in this process; ``jobs > 1`` in a ``ProcessPoolExecutor`` (fork start
+method on Linux); ``scheduler=ADDRESS`` (or a ``distributed.Client``) on a Dask cluster.  A row's
+``timeout`` is enforced by ``SIGALRM`` in the thread that runs it where that is the main thread
+(this process, pool workers); a pool worker stuck in C code past ``timeout + grace`` writes the
+``timeout`` row itself and exits, and the runner restarts the pool.  A worker that dies
+(segmentation fault) while a row runs gets the row re-tried once, then recorded as ``failed``.
+On Dask worker threads a timed row runs in a spawned subprocess that is killed at the deadline.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import signal
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Optional
+
+from .inputs import Input, mesh_inputs, shape_inputs
+from .report import COLUMNS, PLOTS, markdown_summary, plot_results, write_results_csv
+
+__all__ = [
+    "Spec",
+    "Task",
+    "load_spec",
+    "plan",
+    "execute",
+    "run_spec",
+    "add_compare_parser",
+    "parse_ours",
+    "ours_method",
+    "cache_key",
+    "OURS_POLYGONS",
+    "OURS_TRIANGULATIONS",
+]
+
+OURS_POLYGONS = ("dss", "mlp", "none")
+OURS_TRIANGULATIONS = ("wiederhold", "greedy", "optimal")
+#: Extra seconds a pool worker gets past its row's timeout before it writes the row and exits.
+HARD_GRACE = 30.0
+#: How many pool crashes a row may be caught in before it is recorded as failed.
+MAX_CRASHES = 2
+
+
+# --- ours as a method -------------------------------------------------------------------------------
+def parse_ours(name: str):
+    """``(polygon, triangulation)`` of a name ``"ours-<polygon>-<triangulation>"``, None for other names."""
+    if not isinstance(name, str) or not name.startswith("ours"):
+        return None
+    parts = name.split("-")
+    if len(parts) != 3 or parts[0] != "ours" or parts[1] not in OURS_POLYGONS or parts[2] not in OURS_TRIANGULATIONS:
+        raise ValueError(f"our method's name is ours-<polygon>-<triangulation> with polygon in {OURS_POLYGONS} "
+                         f"and triangulation in {OURS_TRIANGULATIONS}; got {name!r}")
+    return parts[1], parts[2]
+
+
+def ours_method(volume, spacing, origin, *, polygon: str, triangulation: str, shape=None, h: float = 1.0):
+    """The paper's method as a mesh source (Wiederhold & Villafuerte 2009, section 5).
+
+    With ``shape`` it meshes the analytic shape (outer Jordan contours of the grid points strictly
+    inside each slice ``z = k h``, i.e. the slices of the Gauss volume); otherwise it meshes the
+    binary volume ``[z, y, x]`` with ``spacing (dz, dy, dx)`` and ``origin (x0, y0, z0)``.
+    Returns a :class:`~contourmesh.compare.methods.Result` whose ``P`` is the paper's vertex count.
+    """
+    import contourmesh
+
+    from .methods import Result
+
+    if shape is not None:
+        m = contourmesh.mesh(shape, polygon=polygon, triangulation=triangulation, h=h)
+    else:
+        m = contourmesh.mesh(volume, spacing=spacing, origin=origin, polygon=polygon, triangulation=triangulation)
+    return Result(area=float(m.area), mesh=m, P=int(m.P))
+
+
+def _method(name: str):
+    """The :class:`~contourmesh.compare.methods.Method` a name denotes (ours or a peer)."""
+    from .methods import Method, get_method
+
+    ours = parse_ours(name)
+    if ours is None:
+        return get_method(name)
+    return Method(name=name, family="ours", params={"polygon": ours[0], "triangulation": ours[1]}, fn=ours_method)
+
+
+# --- spec -------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Task:
+    """One row to produce: an input, a method, a post-process chain (``"none"`` or names joined by ``+``)."""
+
+    input: Input
+    method: str
+    postprocess: str = "none"
+    timeout: Optional[float] = None
+    skip: Optional[str] = None
+    key: str = ""
+
+
+@dataclass
+class Spec:
+    """A parsed comparison spec (see the module docstring)."""
+
+    path: Path
+    title: str
+    seed: int
+    repeats: int
+    h: float
+    timeout: Optional[float]
+    methods: list
+    postprocess: list
+    options: dict
+    post_options: dict = field(default_factory=dict)
+    inputs: list = field(default_factory=list)
+    notes: str = ""
+
+
+_TOP_KEYS = {"title", "notes", "seed", "repeats", "h", "timeout", "methods", "postprocess", "inputs", "method", "post"}
+_SHAPE_KEYS = {"shape", "sizes", "digitization", "offset", "rotate", "repeats", "fixed", "h"}
+_MESH_KEYS = {"mesh", "name", "resolutions", "offset", "rotate", "repeats"}
+_OPTION_KEYS = {"max_size", "timeout", "postprocess"}
+
+
+def _timeout(value, where):
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+        raise ValueError(f"{where}: timeout must be a positive number of seconds; got {value!r}")
+    return float(value)
+
+
+def _post_list(value, where) -> list:
+    from .postprocess import get_postprocess
+
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        raise ValueError(f"{where}: postprocess must be a list of names ('none' or post-process names); got {value!r}")
+    for chain in value:
+        if chain != "none":
+            for step in chain.split("+"):
+                get_postprocess(step)  # raises ValueError naming the valid ones
+    return list(value)
+
+
+def load_spec(path, *, data_root=None) -> Spec:
+    """Read and validate a comparison spec (TOML); errors say what was expected and found."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"comparison spec {str(path)!r} does not exist")
+    try:
+        doc = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"comparison spec {str(path)!r} is not valid TOML: {exc}") from None
+    unknown = set(doc) - _TOP_KEYS
+    if unknown:
+        raise ValueError(f"{path.name}: unknown top-level keys {sorted(unknown)}; expected {sorted(_TOP_KEYS)}")
+    seed = doc.get("seed", 0)
+    repeats = doc.get("repeats", 1)
+    h = doc.get("h", 1.0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"{path.name}: seed must be a non-negative integer; got {seed!r}")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"{path.name}: repeats must be a positive integer; got {repeats!r}")
+    if isinstance(h, bool) or not isinstance(h, (int, float)) or not h > 0:
+        raise ValueError(f"{path.name}: h must be a positive number; got {h!r}")
+    methods = doc.get("methods")
+    if not isinstance(methods, list) or not methods or not all(isinstance(m, str) for m in methods):
+        raise ValueError(f"{path.name}: methods must be a non-empty list of method names; got {methods!r}")
+    if len(set(methods)) != len(methods):
+        raise ValueError(f"{path.name}: methods lists a name twice")
+    for m in methods:
+        _method(m)  # unknown names raise ValueError listing the valid forms
+    post = _post_list(doc.get("postprocess", ["none"]), path.name)
+    options = doc.get("method", {})
+    if not isinstance(options, dict):
+        raise ValueError(f"{path.name}: [method.NAME] tables expected; got {options!r}")
+    for name, opt in options.items():
+        if name not in methods:
+            raise ValueError(f"{path.name}: [method.{name!r}] is not in methods")
+        bad = set(opt) - _OPTION_KEYS
+        if bad:
+            raise ValueError(f"{path.name}: [method.{name!r}] has unknown keys {sorted(bad)}; expected {sorted(_OPTION_KEYS)}")
+        if "max_size" in opt and (isinstance(opt["max_size"], bool) or not isinstance(opt["max_size"], (int, float))):
+            raise ValueError(f"{path.name}: [method.{name!r}] max_size must be a number; got {opt['max_size']!r}")
+        _timeout(opt.get("timeout"), f"{path.name} [method.{name!r}]")
+        if "postprocess" in opt:
+            _post_list(opt["postprocess"], f"{path.name} [method.{name!r}]")
+    post_options = doc.get("post", {})
+    if not isinstance(post_options, dict):
+        raise ValueError(f"{path.name}: [post.NAME] tables expected; got {post_options!r}")
+    for name, opt in post_options.items():
+        _post_list([name], f"{path.name} [post.{name!r}]")
+        if set(opt) - {"max_size"} or not isinstance(opt.get("max_size"), (int, float)) or isinstance(opt.get("max_size"), bool):
+            raise ValueError(f"{path.name}: [post.{name!r}] takes one key, max_size (a number); got {opt!r}")
+    entries = doc.get("inputs")
+    if not isinstance(entries, list) or not entries:
+        raise ValueError(f"{path.name}: at least one [[inputs]] table is needed")
+    inputs = []
+    for n, e in enumerate(entries):
+        where = f"{path.name} [[inputs]] #{n + 1}"
+        reps = e.get("repeats", repeats)
+        if "shape" in e:
+            bad = set(e) - _SHAPE_KEYS
+            if bad:
+                raise ValueError(f"{where}: unknown keys {sorted(bad)}; a shape takes {sorted(_SHAPE_KEYS)}")
+            if not isinstance(e.get("sizes"), list) or not e["sizes"]:
+                raise ValueError(f"{where}: sizes must be a non-empty list; got {e.get('sizes')!r}")
+            inputs += shape_inputs(e["shape"], e["sizes"], digitization=e.get("digitization", "gauss"),
+                                   repeats=reps, seed=seed, offset=bool(e.get("offset", True)),
+                                   rotate=bool(e.get("rotate", False)), h=float(e.get("h", h)), fixed=e.get("fixed"))
+        elif "mesh" in e:
+            bad = set(e) - _MESH_KEYS
+            if bad:
+                raise ValueError(f"{where}: unknown keys {sorted(bad)}; a mesh takes {sorted(_MESH_KEYS)}")
+            if not isinstance(e.get("resolutions"), list) or not e["resolutions"]:
+                raise ValueError(f"{where}: resolutions must be a non-empty list; got {e.get('resolutions')!r}")
+            inputs += mesh_inputs(e["mesh"], e["resolutions"], name=e.get("name"), repeats=reps, seed=seed,
+                                  offset=bool(e.get("offset", False)), rotate=bool(e.get("rotate", False)),
+                                  root=data_root)
+        else:
+            raise ValueError(f"{where}: expected a 'shape' or a 'mesh' key; got keys {sorted(e)}")
+    return Spec(path=path, title=str(doc.get("title", path.stem)), seed=seed, repeats=repeats, h=float(h),
+                timeout=_timeout(doc.get("timeout"), path.name), methods=list(methods), postprocess=post,
+                options=options, post_options=post_options, inputs=inputs, notes=str(doc.get("notes", "")))
+
+
+def _jsonable(v):
+    try:
+        json.dumps(v)
+        return v
+    except TypeError:
+        return repr(v)
+
+
+def cache_key(inp: Input, method: str, postprocess: str) -> str:
+    """sha256 of the input's identity, the method and its parameters, the post-process, the version."""
+    from .. import __version__
+
+    try:
+        params = {k: _jsonable(v) for k, v in _method(method).params.items()}
+    except ValueError:
+        params = None
+    blob = json.dumps({"input": inp.key, "method": method, "params": params, "postprocess": postprocess,
+                       "version": __version__}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def plan(spec: Spec) -> list:
+    """Every row of the spec as a :class:`Task`, in input order, then method, then post-process."""
+    tasks = []
+    for inp in spec.inputs:
+        for m in spec.methods:
+            opt = spec.options.get(m, {})
+            timeout = _timeout(opt.get("timeout", spec.timeout), m)
+            skip = None
+            if "max_size" in opt and inp.size_value > float(opt["max_size"]):
+                skip = f"size {inp.size_value:g} > max_size {opt['max_size']:g} set for {m} in the spec"
+            for post in opt.get("postprocess", spec.postprocess):
+                pskip = skip
+                pmax = spec.post_options.get(post, {}).get("max_size")
+                if pskip is None and pmax is not None and inp.size_value > float(pmax):
+                    pskip = f"size {inp.size_value:g} > max_size {pmax:g} set for post-process {post} in the spec"
+                tasks.append(Task(inp, m, post, timeout, pskip, cache_key(inp, m, post)))
+    return tasks
+
+
+# --- one row ----------------------------------------------------------------------------------------
+def _base_row(task: Task) -> dict:
+    inp = task.input
+    row = {c: None for c in COLUMNS}
+    row.update(method=task.method, postprocess=task.postprocess, shape=inp.name, size=inp.size, repeat=inp.repeat,
+               area_true=inp.area_true, kind=inp.kind, digitization=inp.digitization, size_value=inp.size_value,
+               key=task.key)
+    try:
+        row["family"] = _method(task.method).family
+    except ValueError:
+        pass
+    return row
+
+
+class RowTimeout(TimeoutError):
+    """Raised in the running thread when a row passes its time limit."""
+
+
+def _on_alarm(signum, frame):  # pragma: no cover - timing dependent
+    raise RowTimeout("time limit reached")
+
+
+def _measure(task: Task) -> dict:
+    """Run the method and its post-processes on the task's input; the fields a run fills."""
+    from .methods import MissingDependency  # noqa: F401 - an ImportError subclass
+    from .methods import Result, check_volume
+
+    out = {}
+    method = _method(task.method)
+    inp = task.input
+    params = dict(method.params)
+    if method.family == "ours" and inp.kind == "shape":
+        vol, sp, org = None, None, None
+        params.update(shape=inp.shape(), h=inp.h)
+    else:
+        vol, sp, org = check_volume(*inp.volume())
+    t0 = time.perf_counter()
+    res = method.fn(vol, sp, org, **params)
+    if not isinstance(res, Result):
+        raise TypeError(f"method {task.method!r} returned {type(res).__name__}, expected Result")
+    mesh, P = res.mesh, res.P
+    if task.postprocess != "none":
+        if mesh is None:
+            raise ValueError(f"method {task.method!r} makes no mesh; post-process {task.postprocess!r} needs one")
+        from .postprocess import apply_postprocess
+
+        for step in task.postprocess.split("+"):
+            mesh, _ = apply_postprocess(step, mesh)
+        P = int(len(mesh.vertices))
+    out["seconds"] = time.perf_counter() - t0
+    out["area"] = float(mesh.area) if mesh is not None else float(res.area)
+    out["P"] = None if P is None else int(P)
+    if mesh is not None:
+        from ..measure import mesh_checks
+
+        chk = mesh_checks(mesh.vertices, mesh.faces)
+        out.update(faces=int(len(mesh.faces)), watertight=bool(chk["watertight"]),
+                   winding_consistent=bool(chk["winding_consistent"]), volume=float(chk["volume"]))
+    return out
+
+
+def _finish(row: dict) -> dict:
+    if row["status"] == "ok" and row["area_true"]:
+        row["e"] = (row["area"] - row["area_true"]) / row["area_true"]
+        row["t"] = abs(row["e"]) * row["P"] if row["P"] is not None else None
+    return row
+
+
+_POOL = {"in_pool": False, "cache_dir": None}
+
+
+def _pool_init(cache_dir):  # runs in every pool worker
+    _POOL.update(in_pool=True, cache_dir=str(cache_dir))
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+
+
+def _hard_timeout(task: Task, t0: float):  # pragma: no cover - runs in a stuck worker
+    row = _base_row(task)
+    row.update(status="timeout", seconds=time.perf_counter() - t0,
+               error=f"no result within {task.timeout} s (the worker was stuck in compiled code and was ended "
+                     f"{HARD_GRACE:g} s later)")
+    try:
+        _write_cache(Path(_POOL["cache_dir"]), row)
+        _running_marker(Path(_POOL["cache_dir"]), task.key).unlink(missing_ok=True)
+    finally:
+        os._exit(3)
+
+
+def _in_subprocess(task: Task) -> dict:
+    """Run a timed row in a spawned subprocess killed at the deadline (for non-main threads)."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    parent, child = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(child, replace(task, timeout=None)), daemon=True)
+    t0 = time.perf_counter()
+    proc.start()
+    child.close()
+    row = None
+    try:
+        # the method's own clock starts after the interpreter and its imports: allow for them
+        if parent.poll(task.timeout + 60.0):
+            try:
+                row = parent.recv()
+            except EOFError:
+                row = None
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        proc.join(5)
+        parent.close()
+    if row is None:
+        row = _base_row(task)
+        elapsed = time.perf_counter() - t0
+        if elapsed >= task.timeout:
+            row.update(status="timeout", seconds=elapsed, error=f"no result within {task.timeout} s")
+        else:
+            row.update(status="failed", seconds=elapsed, error=f"the worker process died (exit code {proc.exitcode})")
+    return row
+
+
+def _child(conn, task):  # pragma: no cover - runs in a subprocess
+    try:
+        conn.send(execute(task))
+    finally:
+        conn.close()
+
+
+def execute(task: Task) -> dict:
+    """Produce one row; never raises for the method's own failure.
+
+    The row's ``status`` is ``ok``, ``not-installed`` (an optional package is missing; the error
+    says what to install), ``failed`` (the error text), ``timeout``, ``skipped`` (``max_size``)
+    or ``no-data`` (the input's file is missing).
+    """
+    row = _base_row(task)
+    if task.skip:
+        return row | {"status": "skipped", "error": task.skip}
+    if task.input.error:
+        return row | {"status": "no-data", "error": task.input.error}
+    main = threading.current_thread() is threading.main_thread()
+    if task.timeout is not None and not main:
+        return _in_subprocess(task)
+    t0 = time.perf_counter()
+    use_alarm = task.timeout is not None and main and hasattr(signal, "setitimer")
+    watchdog = None
+    old = None
+    if use_alarm:
+        old = signal.signal(signal.SIGALRM, _on_alarm)
+        signal.setitimer(signal.ITIMER_REAL, task.timeout)
+        if _POOL["in_pool"]:
+            watchdog = threading.Timer(task.timeout + HARD_GRACE, _hard_timeout, args=(task, t0))
+            watchdog.daemon = True
+            watchdog.start()
+    try:
+        row.update(_measure(task))
+        row["status"] = "ok"
+    except RowTimeout:
+        row.update(status="timeout", seconds=time.perf_counter() - t0, error=f"no result within {task.timeout} s")
+    except ImportError as exc:
+        row.update(status="not-installed", seconds=time.perf_counter() - t0, error=str(exc))
+    except Exception as exc:  # noqa: BLE001 - a method's failure is a row, not a crash
+        last = traceback.extract_tb(exc.__traceback__)[-1:]
+        where = f" [{Path(last[0].filename).name}:{last[0].lineno}]" if last else ""
+        row.update(status="failed", seconds=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}{where}")
+    finally:
+        if use_alarm:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, old)
+        if watchdog is not None:
+            watchdog.cancel()
+    return _finish(row)
+
+
+# --- cache --------------------------------------------------------------------------------------------
+def _cache_path(cache_dir: Path, key: str) -> Path:
+    return cache_dir / f"{key}.json"
+
+
+def _running_marker(cache_dir: Path, key: str) -> Path:
+    return cache_dir / f"{key}.running"
+
+
+def _write_cache(cache_dir: Path, row: dict) -> None:
+    from ..meshes import atomic_write
+
+    clean = {k: _jsonable(row.get(k)) for k in COLUMNS}
+    atomic_write(_cache_path(cache_dir, row["key"]), json.dumps(clean, sort_keys=True).encode())
+
+
+def _read_cache(cache_dir: Path, task: Task) -> Optional[dict]:
+    """The cached row of a task, or None when absent, corrupt, foreign or to be re-tried."""
+    p = _cache_path(cache_dir, task.key)
+    try:
+        row = json.loads(p.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(row, dict) or row.get("key") != task.key or row.get("status") not in (
+            "ok", "failed", "timeout") or set(COLUMNS) - set(row):
+        return None
+    if row["status"] == "ok" and not isinstance(row.get("area"), (int, float)):
+        return None
+    return row
+
+
+def _pooled(task: Task) -> dict:
+    """Pool-worker entry: mark the row as running (for crash accounting), run it, unmark."""
+    marker = _running_marker(Path(_POOL["cache_dir"]), task.key)
+    try:
+        marker.write_text(str(os.getpid()))
+    except OSError:
+        pass
+    try:
+        return execute(task)
+    finally:
+        marker.unlink(missing_ok=True)
+
+
+# --- the run ------------------------------------------------------------------------------------------
+def _progress(total, initial, enabled):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, unit="row", desc="compare", disable=not enabled, dynamic_ncols=True)
+
+
+def _run_pool(todo, jobs, cache_dir, collect, mp_context=None):
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    ctx = mp.get_context(mp_context) if mp_context else (mp.get_context("fork") if os.name == "posix" else None)
+    pending = list(todo)
+    crashes: dict = {}
+    for stale in Path(cache_dir).glob("*.running"):  # left by a run that was killed
+        stale.unlink(missing_ok=True)
+    while pending:
+        broken = False
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_pool_init,
+                                 initargs=(str(cache_dir),)) as ex:
+            futs = {ex.submit(_pooled, t): t for t in pending}
+            done = set()
+            try:
+                for fut in as_completed(futs):
+                    t = futs[fut]
+                    try:
+                        row = fut.result()
+                    except BrokenProcessPool:
+                        broken = True
+                        break
+                    collect(t, row)
+                    done.add(t.key)
+            except BaseException:  # Ctrl-C: drop the queued rows, keep the finished ones
+                ex.shutdown(wait=False, cancel_futures=True)
+                raise
+            if broken:  # rows that finished before the pool broke are kept
+                for fut, t in futs.items():
+                    if t.key not in done and fut.done() and not fut.cancelled() and fut.exception() is None:
+                        collect(t, fut.result())
+                        done.add(t.key)
+        if not broken:
+            return
+        rest = []
+        for t in pending:
+            if t.key in done:
+                continue
+            cached = _read_cache(cache_dir, t)  # a hard timeout wrote its own row
+            marker = _running_marker(cache_dir, t.key)
+            if cached is not None:
+                collect(t, cached, written=True)
+                marker.unlink(missing_ok=True)
+                continue
+            if marker.exists():
+                marker.unlink(missing_ok=True)
+                crashes[t.key] = crashes.get(t.key, 0) + 1
+                if crashes[t.key] >= MAX_CRASHES:
+                    row = _base_row(t)
+                    row.update(status="failed", error="the worker process died while running this row "
+                                                      f"({crashes[t.key]} times; a crash in compiled code?)")
+                    collect(t, row)
+                    continue
+            rest.append(t)
+        pending = rest
+
+
+def _run_dask(todo, scheduler, collect):
+    try:
+        from distributed import Client, as_completed
+    except ImportError as exc:
+        raise ImportError("--scheduler needs Dask distributed: pip install distributed "
+                          "(or pip install 'contourmesh[compare]')") from exc
+    own = not isinstance(scheduler, Client)
+    client = Client(scheduler) if own else scheduler
+    try:
+        futs = {}
+        for t in todo:
+            futs[client.submit(execute, t, key=f"row-{t.key}", pure=False)] = t
+        for fut in as_completed(list(futs)):
+            t = futs[fut]
+            try:
+                row = fut.result()
+            except Exception as exc:  # noqa: BLE001 - a lost worker is a failed row
+                row = _base_row(t)
+                row.update(status="failed", error=f"the Dask task failed: {type(exc).__name__}: {exc}")
+            collect(t, row)
+    finally:
+        if own:
+            client.close()
+
+
+def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bool = True, retry_failed: bool = False,
+             data_root=None, mp_context: Optional[str] = None) -> dict:
+    """Run a comparison spec; write ``results.csv``, ``summary.md`` and the PNGs into ``out``.
+
+    Parameters
+    ----------
+    spec_path : path
+        The TOML spec.
+    out : path, optional
+        Output folder; default ``<spec folder>/<spec stem>/``.  Rows are cached in ``out/cache``.
+    jobs : int
+        Worker processes (1: this process).
+    scheduler : str or distributed.Client, optional
+        Run the rows on this Dask cluster instead.
+    progress : bool
+        Show a tqdm progress bar (rows done / rows in all).
+    retry_failed : bool
+        Re-run cached rows whose status is ``failed`` or ``timeout``.
+    data_root : path, optional
+        The data folder for mesh inputs (default: :func:`contourmesh.compare.inputs.data_dir`).
+
+    Returns
+    -------
+    dict
+        ``rows`` (all rows, in plan order), ``ran`` (rows computed in this run), ``cached`` (rows
+        reused), ``out`` (the folder) and ``files`` (paths written).
+    """
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"jobs must be a positive integer; got {jobs!r}")
+    spec = load_spec(spec_path, data_root=data_root)
+    out = Path(out) if out is not None else spec.path.parent / spec.path.stem
+    cache_dir = out / "cache"
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    tasks = plan(spec)
+    rows: dict = {}
+    todo = []
+    cached = 0
+    for t in tasks:
+        if t.skip or t.input.error:
+            rows[t.key] = execute(t)
+            continue
+        row = _read_cache(cache_dir, t)
+        if row is not None and not (retry_failed and row["status"] in ("failed", "timeout")):
+            rows[t.key] = row
+            cached += 1
+        else:
+            todo.append(t)
+    # rows that share an input run one after another (each worker keeps its last volumes)
+    bar = _progress(len(tasks), len(tasks) - len(todo), progress)
+    ran = 0
+
+    def collect(task, row, written=False):
+        nonlocal ran
+        if not written:
+            _write_cache(cache_dir, row)
+        rows[task.key] = row
+        ran += 1
+        bar.update(1)
+        bar.set_postfix(left=len(tasks) - bar.n, refresh=False)
+
+    try:
+        if not todo:
+            pass
+        elif scheduler is not None:
+            _run_dask(todo, scheduler, collect)
+        elif jobs == 1:
+            for t in todo:
+                collect(t, execute(t))
+        else:
+            _run_pool(todo, jobs, cache_dir, collect, mp_context)
+    finally:
+        bar.close()
+    all_rows = [rows[t.key] for t in tasks if t.key in rows]
+    files = [write_results_csv(all_rows, out / "results.csv")]
+    from ..meshes import atomic_write
+
+    files.append(atomic_write(out / "summary.md", markdown_summary(all_rows, title=spec.title, notes=spec.notes).encode()))
+    files += plot_results(all_rows, out)
+    return {"rows": all_rows, "ran": ran, "cached": cached, "out": out, "files": files}
+
+
+# --- command line ---------------------------------------------------------------------------------
+def _cmd_compare(args) -> int:
+    res = run_spec(args.spec, args.out, jobs=args.jobs, scheduler=args.scheduler, progress=not args.quiet,
+                   retry_failed=args.retry_failed)
+    counts: dict = {}
+    for r in res["rows"]:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    print(f"{res['out']}: {len(res['rows'])} rows ({res['ran']} run, {res['cached']} from the cache; "
+          + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + "); results.csv, summary.md, "
+          + ", ".join(PLOTS))
+    return 0
+
+
+def add_compare_parser(subparsers) -> argparse.ArgumentParser:
+    """Add ``contourmesh compare SPEC.toml [--out DIR] [--jobs N] [--scheduler ADDRESS]`` to a CLI.
+
+    ``subparsers`` is the object ``ArgumentParser.add_subparsers()`` returned; the new parser's
+    ``func(args)`` runs the comparison and returns the exit status.
+    """
+    p = subparsers.add_parser(
+        "compare", help="run a comparison spec (comparisons/*.toml): results.csv, summary.md, plots",
+        description="Run every input x method x post-process x repeat of a comparison spec; finished rows are "
+                    "cached, so an interrupted run resumes where it stopped.")
+    p.add_argument("spec", help="the comparison spec, a TOML file (e.g. comparisons/spheres.toml)")
+    p.add_argument("--out", default=None, help="output folder (default: next to the spec, comparisons/<spec stem>/)")
+    p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on a Dask distributed cluster at this scheduler address (e.g. tcp://host:8786)")
+    p.add_argument("--retry-failed", action="store_true", help="re-run cached rows that failed or timed out")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_compare)
+    return p

@@ -1,0 +1,216 @@
+"""Binary volumes of any topology -> closed, oriented, manifold meshes with the right genus."""
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+import contourmesh
+from contourmesh.volumes import prepare_volume, split_nonmanifold_vertices, volume_to_mesh, voxel_topology
+
+from conftest import assert_closed_outward
+
+COMBOS = list(itertools.product(("mlp", "dss", "none"), ("wiederhold", "greedy", "optimal")))
+
+
+def check_topology(vol, m):
+    ref = voxel_topology(vol)
+    chk = assert_closed_outward(m)
+    assert chk["components"] == ref["surfaces"], (chk, ref)
+    assert chk["genus"] == ref["genus"], (chk, ref)
+    assert chk["nonmanifold_edges"] == 0
+    return chk, ref
+
+
+def test_single_voxel_is_a_unit_cube():
+    vol = np.zeros((3, 3, 3), bool)
+    vol[1, 1, 1] = True
+    m = volume_to_mesh(vol, polygon="none")
+    check_topology(vol, m)
+    assert m.volume == pytest.approx(1.0)
+    assert m.area == pytest.approx(6.0)
+    assert np.allclose(m.vertices.min(0), 0.5) and np.allclose(m.vertices.max(0), 1.5)
+
+
+def test_anisotropic_spacing_scales_the_box():
+    vol = np.ones((2, 3, 4), bool)
+    m = volume_to_mesh(vol, spacing=(2.0, 0.5, 0.25), polygon="none", caps="half")
+    check_topology(vol, m)
+    ext = m.vertices.max(0) - m.vertices.min(0)
+    assert ext == pytest.approx([4 * 0.25, 3 * 0.5, 2 * 2.0])
+    assert m.volume == pytest.approx(1.0 * 1.5 * 4.0)
+
+
+def test_ring_has_genus_one_and_hollow_shell_two_surfaces():
+    ring = np.zeros((3, 7, 7), bool)
+    ring[:, 1:6, 1:6] = True
+    ring[:, 3, 3] = False  # a one-voxel tunnel
+    for polygon, tri in COMBOS:
+        chk, ref = check_topology(ring, volume_to_mesh(ring, polygon=polygon, triangulation=tri))
+        assert ref["genus"] == 1
+    shell = np.zeros((7, 7, 7), bool)
+    shell[1:6, 1:6, 1:6] = True
+    shell[3, 3, 3] = False  # a one-voxel cavity
+    for polygon, tri in COMBOS:
+        chk, ref = check_topology(shell, volume_to_mesh(shell, polygon=polygon, triangulation=tri))
+        assert ref["surfaces"] == 2 and chk["components"] == 2
+
+
+def test_edge_and_corner_contacts_stay_apart():
+    # 6-connectivity: voxels touching along an edge or at a corner are separate objects
+    vol = np.zeros((2, 2, 2), bool)
+    vol[0, 0, 0] = vol[1, 1, 0] = True  # edge contact across slices
+    chk, _ = check_topology(vol, volume_to_mesh(vol))
+    assert chk["components"] == 2
+    vol = np.zeros((1, 2, 2), bool)
+    vol[0, 0, 0] = vol[0, 1, 1] = True  # corner contact in a slice
+    chk, _ = check_topology(vol, volume_to_mesh(vol))
+    assert chk["components"] == 2 and chk["duplicate_vertices"] == 0
+    vol = np.zeros((2, 2, 2), bool)
+    vol[0, 0, 0] = vol[1, 1, 1] = True  # vertex contact
+    chk, _ = check_topology(vol, volume_to_mesh(vol))
+    assert chk["components"] == 2
+
+
+def test_branching_y_shape_and_border_touching():
+    vol = np.zeros((6, 9, 9), bool)
+    vol[:3, 3:6, 3:6] = True  # trunk
+    vol[3:, 0:3, 0:3] = vol[3:, 6:9, 6:9] = True  # two arms touching the border
+    vol[3, 1:8, 1:8] = True  # the fork
+    for polygon, tri in COMBOS:
+        m = volume_to_mesh(vol, polygon=polygon, triangulation=tri)
+        check_topology(vol, m)
+        assert m.meta["exact_joins"] >= 1
+
+
+def test_sphere_volume_path_matches_the_paper_path():
+    from contourmesh.digitize import gauss_volume
+    from contourmesh.shapes import Sphere
+
+    shape = Sphere(14, center=(0.3, 0.1, 0.2))
+    vol, origin = gauss_volume(shape)
+    mv = volume_to_mesh(vol, origin=origin, polygon="mlp")
+    ms = contourmesh.mesh(shape, polygon="mlp")
+    check_topology(vol, mv)
+    # the same I in every slice: the same MLPs, hence areas within the end-cap difference
+    assert mv.area == pytest.approx(ms.area, rel=0.02)
+    assert mv.meta["exact_joins"] == 0
+
+
+def test_uneven_slices_axis_label_threshold():
+    labels = np.zeros((5, 6, 7), np.uint8)
+    labels[1:4, 1:5, 1:6] = 3
+    labels[2, 2:4, 2:4] = 7
+    m3 = volume_to_mesh(labels, label=3, z=[0.0, 3.0, 9.0, 12.0, 13.0])
+    check_topology(labels == 3, m3)
+    zs = np.unique(np.round(m3.vertices[:, 2], 6))
+    assert 3.0 in zs and 9.0 in zs
+    mt = volume_to_mesh(labels.astype(float) * 10, threshold=25)
+    assert mt.volume == pytest.approx(volume_to_mesh(labels >= 3).volume)
+    for axis in (1, 2):
+        ma = volume_to_mesh(labels == 3, axis=axis, polygon="none", caps="half")
+        check_topology(np.moveaxis(labels == 3, axis, 0), ma)
+        assert ma.volume == pytest.approx(3 * 4 * 5 - 4)
+
+
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (np.zeros((3, 3)), "3D"),
+        (np.zeros((2, 2, 2, 2)), "3D"),
+        (np.zeros((3, 3, 3)), "no foreground"),
+        (np.full((2, 2, 2), np.nan), "NaN"),
+        (np.full((2, 2, 2), np.inf), "inf"),
+        (np.ones((2, 2, 2), complex), "complex"),
+        (np.array([[[1]]], dtype=object), "object"),
+        (np.arange(8).reshape(2, 2, 2), "label= .* threshold="),
+        (np.zeros((0, 2, 2), bool), "empty"),
+    ],
+)
+def test_bad_volumes_are_named(bad, match):
+    with pytest.raises(ValueError, match=match):
+        volume_to_mesh(bad)
+
+
+def test_bad_parameters_are_named():
+    vol = np.ones((2, 2, 2), bool)
+    with pytest.raises(ValueError, match="spacing"):
+        volume_to_mesh(vol, spacing=(1, 0, 1))
+    with pytest.raises(ValueError, match="spacing"):
+        volume_to_mesh(vol, spacing=(1, -1, 1))
+    with pytest.raises(ValueError, match="increasing"):
+        volume_to_mesh(vol, z=[1.0, 1.0])
+    with pytest.raises(ValueError, match="one position per slice"):
+        volume_to_mesh(vol, z=[1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="axis"):
+        volume_to_mesh(vol, axis=3)
+    with pytest.raises(ValueError, match="not both"):
+        prepare_volume(vol, label=1, threshold=0)
+    with pytest.raises(ValueError, match="polygon"):
+        volume_to_mesh(vol, polygon="hull")
+    with pytest.raises(ValueError, match="caps"):
+        volume_to_mesh(vol, caps="dome")
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    arrays(np.bool_, st.tuples(st.integers(1, 4), st.integers(1, 5), st.integers(1, 5))),
+    st.sampled_from(COMBOS),
+)
+def test_random_volumes_are_closed_manifolds_with_the_voxel_genus(vol, combo):
+    if not vol.any():
+        return
+    polygon, tri = combo
+    check_topology(vol, volume_to_mesh(vol, polygon=polygon, triangulation=tri))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 2**32 - 1), st.sampled_from(COMBOS), st.floats(0.35, 0.75))
+def test_random_blobs_are_closed_manifolds_with_the_voxel_genus(seed, combo, p):
+    from scipy import ndimage
+
+    rng = np.random.default_rng(seed)
+    vol = ndimage.gaussian_filter(rng.random((6, 12, 12)), 1.0) > np.quantile(rng.random(10), p)
+    vol = ndimage.gaussian_filter(rng.random((6, 12, 12)), 1.2) > 0.5 if not vol.any() else vol
+    if not vol.any():
+        return
+    check_topology(vol, volume_to_mesh(vol, polygon=combo[0], triangulation=combo[1]))
+
+
+def test_split_nonmanifold_vertices_separates_two_tetrahedra_sharing_a_vertex():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 0, -1]], float)
+    t1 = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    t2 = np.array([[0, 4, 5], [0, 6, 4], [0, 5, 6], [4, 6, 5]])
+    V2, F2 = split_nonmanifold_vertices(V, np.vstack([t1, t2]), nudge=1e-3)
+    assert len(V2) == 8
+    assert contourmesh.Mesh(V2, F2).checks()["components"] == 2
+
+
+REAL = [
+    ("dgtal/Al.100.npz", 2), ("dgtal/bunny-32.npz", 0), ("dgtal/bunny-64.npz", 0), ("dgtal/bunny-128.npz", 0),
+    ("dgtal/cat10.npz", 0), ("dgtal/lobsterCroped.npz", None),
+]
+
+
+@pytest.mark.parametrize("name, genus", REAL)
+def test_real_volumes(shared_data, name, genus):
+    z = np.load(shared_data / "volumes" / name, allow_pickle=False)
+    vol = np.transpose(z["mask"], (2, 1, 0))  # the files are indexed [x, y, z]
+    m = contourmesh.mesh(vol, spacing=tuple(float(s) for s in z["spacing_xyz"][::-1]))
+    chk, ref = check_topology(vol, m)
+    if genus is not None:
+        assert chk["genus"] == genus
+
+
+@pytest.mark.parametrize("label", [85, 127, 255])
+def test_liver_labels(shared_data, label):
+    z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz", allow_pickle=False)
+    vol = np.transpose(z["volume"], (2, 1, 0))
+    sel = np.argwhere(vol == label)
+    lo, hi = sel.min(0), sel.max(0) + 1
+    crop = vol[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
+    m = contourmesh.mesh(crop, label=label, spacing=tuple(float(s) for s in z["spacing_xyz"][::-1]))
+    check_topology(crop == label, m)
