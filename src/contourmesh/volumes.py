@@ -198,6 +198,8 @@ class _Slice:
         self.hole_masks = []  # per component: list of (slices, mask) for each hole (local bbox)
         self.crack_outer = []  # raw crack contours (physical xy), used by exact joins
         self.crack_holes = []
+        self.crack_outer_c = []  # the same in corner coordinates (integers)
+        self.crack_holes_c = []
         self.fallbacks = 0
         for c in range(self.n):
             sl = self.objects[c]
@@ -226,6 +228,8 @@ class _Slice:
             self.hole_masks.append((sl, hmasks))
             self.crack_outer.append(to_xy_corner(crack_o))
             self.crack_holes.append([to_xy_corner(h) for h in crack_h])
+            self.crack_outer_c.append(crack_o)
+            self.crack_holes_c.append(crack_h)
             self.outer.append(self._polygon(crack_o, comp, polygon, to_xy_corner, to_xy_center, off, hole=False))
             self.holes.append([
                 self._polygon(h, hm, polygon, to_xy_corner, to_xy_center, off, hole=True)
@@ -290,6 +294,7 @@ class _Mesher:
         self.n = 0
         self.side = 0
         self.necks: list[np.ndarray] = []  # vertices where the background passes through a point
+        self.band_fallbacks = 0
 
     def _add(self, f):
         f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
@@ -314,10 +319,27 @@ class _Mesher:
         return allv[ids]
 
     def band(self, lo_ids, hi_ids):
+        """The selected band triangulation, with a guard against twisted bands.
+
+        The paper's rule and the shortest-diagonal rule assume similar contours.  Real slices
+        can differ a lot (and a contour next to an exact join keeps its crack contour while its
+        partner has an MLP): a band of the local rules whose area exceeds ``1.25`` times that of
+        the arc-length band for the same pair is twisted, and is replaced by the optimal
+        (least-area) band, or by the arc-length band where the optimal one would be too slow.
+        """
         from .bands import triangulate_band
+        from .measure import triangle_areas
 
         lo, hi = self.coords(lo_ids), self.coords(hi_ids)
         f = triangulate_band(lo, hi, self.triangulation)
+        if self.triangulation in ("wiederhold", "greedy") and min(len(lo), len(hi)) > 2:
+            P = np.concatenate([lo, hi])
+            ref_f = triangulate_band(lo, hi, "arclength")
+            ref = triangle_areas(P, ref_f).sum()
+            if triangle_areas(P, f).sum() > 1.25 * ref:
+                n, m = sorted((len(lo), len(hi)))
+                f = triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f
+                self.band_fallbacks += 1
         self._add(np.concatenate([lo_ids, hi_ids])[f])
 
     def quads(self, lo_ids, hi_ids):
@@ -637,15 +659,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             return
         except ValueError:
             pass
-        # the polygons cross (thin parts): a hair-thin collar to the crack contours, capped there
-        s = slices[k]
-        cracks = [s.crack_outer[c]] + list(s.crack_holes[c])
+        # the polygons cross or touch (thin parts): a hair-thin collar down to the pixels
         z0 = M.coords(rs[0][:1])[0, 2]
-        zc2 = z0 + (1e-2 if up else -1e-2) * gap(k, up)
-        cr = [M.ring(xy, zc2) for xy in cracks]
-        for r, t in zip(rs, cr):
-            M.band(r, t) if up else M.band(t, r)
-        M.cap(cr, upward=up)
+        _pixel_cap(M, slices[k], k, c, rs, z0 + (1e-2 if up else -1e-2) * gap(k, up), up, to_xy_corner)
 
     exact_joins = band_joins = 0
     for k, kind, data in joins:
@@ -684,7 +700,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
         "caps": caps, "band_joins": band_joins, "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
-        "crack_rings": len(crack_only),
+        "crack_rings": len(crack_only), "band_fallbacks": M.band_fallbacks,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
     return Mesh(V, F, P=len(V), meta=meta)
@@ -841,6 +857,36 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     return [(i, pos_b[lab]) for i, lab in enumerate(wa)]
 
 
+class _CornerGrid:
+    """Vertices at the pixel corners of a box, at one height, created on demand."""
+
+    def __init__(self, M, x0, y0, hgt, wid, z, to_xy_corner):
+        self.M, self.x0, self.y0, self.z, self.to_xy = M, x0, y0, z, to_xy_corner
+        self.ids = np.full((hgt + 1, wid + 1), -1, dtype=np.int64)
+
+    def __call__(self, cx, cy):
+        lx, ly = np.asarray(cx) - self.x0, np.asarray(cy) - self.y0
+        need = self.ids[ly, lx] < 0
+        if need.any():
+            uniq = np.unique(np.c_[lx[need], ly[need]], axis=0)
+            xy = self.to_xy(np.c_[uniq[:, 0] + self.x0, uniq[:, 1] + self.y0])
+            self.ids[uniq[:, 1], uniq[:, 0]] = self.M.points(np.c_[xy, np.full(len(uniq), self.z)])
+        return self.ids[ly, lx]
+
+
+def _pixel_cap(M, s, k, c, rings, z, up, to_xy_corner):
+    """Close a component with its pixels: bands from its rings to its crack contours at height z,
+    then two triangles per pixel there (always valid, whatever the polygons do)."""
+    sl = s.objects[c]
+    y0, x0 = sl[0].start, sl[1].start
+    comp = s.labels[sl] == c + 1
+    grid = _CornerGrid(M, x0, y0, comp.shape[0], comp.shape[1], z, to_xy_corner)
+    for r, crack in zip(rings, [s.crack_outer_c[c]] + list(s.crack_holes_c[c])):
+        t = grid(crack[:, 0], crack[:, 1])
+        M.band(r, t) if up else M.band(t, r)
+    _pixel_faces(M, comp, x0, y0, grid, up=up)
+
+
 def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner):
     """The voxel-exact join of a group of components between slices k and k+1."""
     from scipy import ndimage
@@ -856,17 +902,7 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     zk, zk1 = zs[k], zs[k + 1]
     zm = 0.5 * (zk + zk1)
     hgt, wid = ra.shape
-    ids = np.full((hgt + 1, wid + 1), -1, dtype=np.int64)  # corner vertex ids at the mid-plane
-
-    def corner_ids(cx, cy):
-        """Vertex ids of global corners (cx, cy) at the mid-plane (created once)."""
-        lx, ly = cx - x0, cy - y0
-        need = ids[ly, lx] < 0
-        if need.any():
-            uniq = np.unique(np.c_[lx[need], ly[need]], axis=0)
-            xy = to_xy_corner(np.c_[uniq[:, 0] + x0, uniq[:, 1] + y0])
-            ids[uniq[:, 1], uniq[:, 0]] = M.points(np.c_[xy, np.full(len(uniq), zm)])
-        return ids[ly, lx]
+    corner_ids = _CornerGrid(M, x0, y0, hgt, wid, zm, to_xy_corner)  # vertices at the mid-plane
 
     def back_to_corners(xy):
         return np.c_[np.rint((xy[:, 0] - ox) / dx + 0.5), np.rint((xy[:, 1] - oy) / dy + 0.5)].astype(np.int64)

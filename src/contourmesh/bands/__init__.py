@@ -13,6 +13,9 @@ Strategies (registry :data:`TRIANGULATORS`):
     Christiansen & Sederberg (1978): shortest next diagonal, ``O(n + m)``.
 ``"optimal"``
     Fuchs, Kedem & Uselton (1977): least total area by dynamic programming, ``O(n^2 m)``.
+``"arclength"``
+    Ganapathy & Dennehy (1982): advance in proportion to normalized arc length, ``O(n + m)``;
+    never folds, the robust reference of the volume mesher's twist guard.
 
 Folded bands.  On very dissimilar pairs (and between a polygon and a segment-shaped MLP next to
 a pole) the local rules of ``wiederhold`` and ``greedy`` can join all the edges of one contour
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arclength import triangulate_band_arclength
 from .caps import cap_faces
 from .greedy import triangulate_band_greedy
 from .optimal import triangulate_band_optimal
@@ -46,6 +50,7 @@ TRIANGULATORS = {
     "wiederhold": triangulate_band_wiederhold,
     "greedy": triangulate_band_greedy,
     "optimal": triangulate_band_optimal,
+    "arclength": triangulate_band_arclength,
 }
 
 
