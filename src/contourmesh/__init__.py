@@ -21,7 +21,13 @@ True
 
 from .types import ContourStack, Mesh, Section, shoelace_area
 from .surface import mesh, stack_to_mesh
+from .io import register_trimesh_loader
+
+try:  # trimesh.load_mesh("x.contours.json") returns our mesh of the contour stack
+    register_trimesh_loader()
+except ImportError:  # pragma: no cover - trimesh is a core dependency
+    pass
 
 __version__ = "0.1.0"
 
-__all__ = ["mesh", "stack_to_mesh", "Mesh", "ContourStack", "Section", "shoelace_area", "__version__"]
+__all__ = ["mesh", "stack_to_mesh", "register_trimesh_loader", "Mesh", "ContourStack", "Section", "shoelace_area", "__version__"]

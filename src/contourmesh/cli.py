@@ -52,7 +52,11 @@ def _cmd_mesh(args) -> int:
     out = Path(args.output)
     if out.exists() and not args.force:
         raise FileExistsError(f"output file {str(out)!r} already exists (use --force to overwrite)")
-    m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps)
+    roi = int(args.roi) if args.roi is not None and args.roi.isdigit() else args.roi
+    spacing = tuple(float(v) for v in args.spacing.split(",")) if args.spacing else (1.0, 1.0, 1.0)
+    extra = {"refine": args.refine} if args.refine else {}
+    m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps, **extra, roi=roi, pixel=args.pixel, label=args.label, threshold=args.threshold,
+             axis=args.axis, spacing=spacing, progress=not args.quiet)
     chk = m.checks()
     if not chk["ok"]:
         raise RuntimeError(f"the mesh failed its checks, not written: {chk}")
@@ -81,11 +85,20 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_reproduce)
 
     m = sub.add_parser("mesh", help="mesh a source and write a mesh file")
-    m.add_argument("source", help="a shape spec NAME:key=value,... e.g. sphere:r=40 or torus:R=30,r=9")
+    m.add_argument("source", help="a shape spec NAME:key=value,... (sphere:r=40, torus:R=30,r=9) or a file: "
+                   "volumes .npy .npz .tif .nii[.gz] .vol .inr[.gz]; contours .json .dcm (RTSTRUCT)")
     m.add_argument("-o", "--output", required=True, help="output mesh file (.ply, .obj, .stl, .off)")
     m.add_argument("--polygon", default="mlp", choices=["dss", "mlp", "none"])
     m.add_argument("--triangulation", default="wiederhold", choices=["wiederhold", "greedy", "optimal"])
     m.add_argument("--caps", default="flat", choices=["flat", "half"])
+    m.add_argument("--refine", default=None, help="a refinement of the polygons across slices (e.g. band)")
+    m.add_argument("--roi", default=None, help="RTSTRUCT structure: name or number")
+    m.add_argument("--pixel", type=float, default=None, help="pixel size for rasterizing contour files")
+    m.add_argument("--label", type=int, default=None, help="use the voxels equal to this label")
+    m.add_argument("--threshold", type=float, default=None, help="use the voxels above this value")
+    m.add_argument("--axis", type=int, default=0, choices=[0, 1, 2], help="slicing axis of a volume")
+    m.add_argument("--spacing", default=None, help="dz,dy,dx for .npy volumes without spacing")
+    m.add_argument("--quiet", action="store_true", help="no progress bar")
     m.add_argument("--json", action="store_true", help="print a JSON summary")
     m.add_argument("--force", action="store_true", help="overwrite an existing output file")
     m.set_defaults(func=_cmd_mesh)

@@ -194,16 +194,17 @@ def _shape_of(source):
 
 def mesh(source, *, polygon: str = "mlp", triangulation: str = "wiederhold", caps: str = "flat",
          h: float = 1.0, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
-         origin=(0.0, 0.0, 0.0), progress: bool = False) -> Mesh:
+         origin=(0.0, 0.0, 0.0), roi=None, pixel=None, progress: bool = False) -> Mesh:
     """The mesh source of contourmesh: ``source -> Mesh``, closed and outward-oriented.
 
     Parameters
     ----------
-    source : Shape, str, ContourStack or numpy.ndarray
+    source : Shape, str, Path, ContourStack or numpy.ndarray
         An analytic shape (``contourmesh.shapes.Sphere(40, center=(0.3, 0.1, 0.2))``), a shape spec
-        string (``"sphere:r=40"``, ``"ellipsoid:a=30,b=20,c=10"``, ``"torus:R=30,r=9"``), a
-        ContourStack, or a 3D array indexed ``[z, y, x]`` (binary, or labels with ``label=`` /
-        ``threshold=``).
+        string (``"sphere:r=40"``, ``"ellipsoid:a=30,b=20,c=10"``, ``"torus:R=30,r=9"``), a file
+        (volumes: ``.npy .npz .tif .nii[.gz] .vol .inr[.gz]``; contours: ``.json``, DICOM RTSTRUCT
+        ``.dcm``), a ContourStack, or a 3D array indexed ``[z, y, x]`` (binary, or labels with
+        ``label=`` / ``threshold=``).
     polygon : {"mlp", "dss", "none"}
         How each contour is simplified.
     triangulation : {"wiederhold", "greedy", "optimal"}
@@ -214,7 +215,11 @@ def mesh(source, *, polygon: str = "mlp", triangulation: str = "wiederhold", cap
         Grid spacing for digitizing analytic shapes (slices at ``z = k h``).
     spacing, z, axis, label, threshold, origin
         For arrays: voxel spacing ``(dz, dy, dx)``, explicit slice positions, slicing axis, label
-        or threshold selection, and the physical ``(x, y, z)`` of voxel ``[0, 0, 0]``.
+        or threshold selection, and the physical ``(x, y, z)`` of voxel ``[0, 0, 0]`` (files carry
+        their own spacing and origin).
+    roi, pixel
+        For contour files: the structure (name or number) and the pixel size used to rasterize
+        stacks with several contours per slice (see :mod:`contourmesh.rasterize`).
 
     Returns
     -------
@@ -230,6 +235,13 @@ def mesh(source, *, polygon: str = "mlp", triangulation: str = "wiederhold", cap
     """
     import numpy as _np
 
+    from .io import is_file_source
+
+    if is_file_source(source):
+        from .io import mesh_file
+
+        return mesh_file(source, roi=roi, pixel=pixel, label=label, threshold=threshold, axis=axis,
+                         polygon=polygon, triangulation=triangulation, caps=caps, progress=progress)
     shape = _shape_of(source)
     if shape is not None:
         from .digitize import gauss_volume, outer_jordan_stack
@@ -244,7 +256,10 @@ def mesh(source, *, polygon: str = "mlp", triangulation: str = "wiederhold", cap
         meta.update(m.meta)
         return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
     if isinstance(source, ContourStack):
-        return stack_to_mesh(source, polygon=polygon, triangulation=triangulation, caps=caps)
+        from .rasterize import mesh_contour_stack
+
+        return mesh_contour_stack(source, polygon=polygon, triangulation=triangulation, caps=caps, pixel=pixel,
+                                  progress=progress)
     if isinstance(source, _np.ndarray):
         from .volumes import volume_to_mesh
 
