@@ -214,3 +214,46 @@ def test_liver_labels(shared_data, label):
     crop = vol[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
     m = contourmesh.mesh(crop, label=label, spacing=tuple(float(s) for s in z["spacing_xyz"][::-1]))
     check_topology(crop == label, m)
+
+
+@pytest.mark.parametrize("roi", ["BODY", "Lt Lung", "Heart"])
+def test_rtstruct_structures(shared_data, roi):
+    from contourmesh.io import read_contours
+    from contourmesh.rasterize import rasterize_stack
+
+    stack = read_contours(shared_data / "contours" / "dicompyler-core" / "rtss.dcm", roi=roi)
+    vol, zs, (dy, dx), origin = rasterize_stack(stack, pixel=2.0)
+    m = volume_to_mesh(vol, z=zs, spacing=(1.0, dy, dx), origin=origin)
+    check_topology(vol, m)
+    assert m.meta["source"] == "volume"
+
+
+def test_whole_lobster_at_threshold_60(shared_data):
+    """The messiest sample: up to 47 contours and 46 holes in one slice, 283 surfaces."""
+    z = np.load(shared_data / "volumes" / "dgtal" / "lobster.npz", allow_pickle=False)
+    vol = np.transpose(z["volume"], (2, 1, 0)) > 60
+    chk, ref = check_topology(vol, volume_to_mesh(vol))
+    assert ref["surfaces"] == 283
+
+
+VOXELIZED = ["trimesh-models/torus.STL", "libigl-tutorial-data/fertility.off", "libigl-tutorial-data/3holes.off",
+             "cgogn/socket.off", "cgogn/aneurysm_3D.off", "libigl-tutorial-data/bunny.off",
+             "common-3d-test-models/spot.obj", "common-3d-test-models/rocker-arm.obj", "trimesh-models/round.stl",
+             "trimesh-models/quadknot.obj"]
+
+
+@pytest.mark.parametrize("n", [64, 128])
+@pytest.mark.parametrize("name", VOXELIZED)
+def test_voxelized_sample_meshes(shared_data, name, n):
+    import trimesh
+
+    from contourmesh.compare.inputs import load_closed_mesh
+    from contourmesh.voxelize import voxelize_mesh
+
+    v, f = load_closed_mesh(shared_data / "meshes" / name)
+    tm = trimesh.Trimesh(v, f, process=False)
+    vol, spacing, origin = voxelize_mesh(v, f, n)
+    m = contourmesh.mesh(vol, spacing=spacing, origin=origin)
+    chk, ref = check_topology(vol, m)
+    if ref["surfaces"] == 1:  # one surface: its genus is the original mesh's
+        assert chk["genus"] == round((2 - tm.euler_number) / 2)
