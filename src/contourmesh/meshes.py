@@ -78,6 +78,10 @@ def atomic_write(path, data: bytes, *, force: bool = True) -> Path:
         raise PermissionError(f"output folder {str(folder)!r} is not writable")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
     try:
+        # mkstemp makes the file private (0600); give it the usual permissions (0666 & ~umask)
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
