@@ -57,11 +57,29 @@ def _cmd_mesh(args) -> int:
     extra = {"refine": args.refine} if args.refine else {}
     m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps, **extra, roi=roi, pixel=args.pixel, label=args.label, threshold=args.threshold,
              axis=args.axis, spacing=spacing, progress=not args.quiet)
+    infos = []
+    posts = list(args.post or []) + [f"mlx:{p}" for p in (args.mlx or [])]
+    if posts:
+        from .compare.postprocess import apply_postprocess
+
+        for name in posts:
+            m, info = apply_postprocess(name, m)
+            infos.append(info)
+    if args.save_mlx:
+        from .compare.postprocess import MESHLAB_STEPS, save_filter_script
+
+        steps = [p.split("-")[0] if p.startswith("meshlab-") else p for p in (args.post or [])]
+        steps = [s for s in steps if s in MESHLAB_STEPS]
+        if not steps:
+            raise ValueError(f"--save-mlx needs MeshLab post-processes among --post; MeshLab steps: {sorted(MESHLAB_STEPS)}")
+        save_filter_script(steps, args.save_mlx)
     chk = m.checks()
     if not chk["ok"]:
         raise RuntimeError(f"the mesh failed its checks, not written: {chk}")
     m.save(out, force=True)
     summary = _mesh_summary(m)
+    if infos:
+        summary["postprocess"] = infos
     if args.json:
         print(json.dumps(summary, sort_keys=True))
     else:
@@ -99,6 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--axis", type=int, default=0, choices=[0, 1, 2], help="slicing axis of a volume")
     m.add_argument("--spacing", default=None, help="dz,dy,dx for .npy volumes without spacing")
     m.add_argument("--quiet", action="store_true", help="no progress bar")
+    m.add_argument("--post", action="append", help="post-process, repeatable: merge-coplanar, taubin, "
+                   "meshlab-planar-qec, mlx:FILE")
+    m.add_argument("--mlx", action="append", help="apply a MeshLab filter script (.mlx) to the mesh")
+    m.add_argument("--save-mlx", default=None, help="save the MeshLab filters among --post as an .mlx script")
     m.add_argument("--json", action="store_true", help="print a JSON summary")
     m.add_argument("--force", action="store_true", help="overwrite an existing output file")
     m.set_defaults(func=_cmd_mesh)
