@@ -36,6 +36,7 @@ def _mesh_summary(m) -> dict:
         "t": abs(e) * m.P if e is not None else None,
         "polygon": m.meta.get("polygon"),
         "triangulation": m.meta.get("triangulation"),
+        "refine": m.meta.get("refine", "none"),
     }
 
 
@@ -107,9 +108,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "volumes .npy .npz .tif .nii[.gz] .vol .inr[.gz]; contours .json .dcm (RTSTRUCT)")
     m.add_argument("-o", "--output", required=True, help="output mesh file (.ply, .obj, .stl, .off)")
     m.add_argument("--polygon", default="mlp", choices=["dss", "mlp", "none"])
-    m.add_argument("--triangulation", default="wiederhold", choices=["wiederhold", "greedy", "optimal"])
+    m.add_argument("--triangulation", default=None, choices=["wiederhold", "greedy", "optimal", "arclength"],
+                   help="band triangulation (default: wiederhold, or optimal with --refine band)")
     m.add_argument("--caps", default="flat", choices=["flat", "half"])
-    m.add_argument("--refine", default=None, help="a refinement of the polygons across slices (e.g. band)")
+    m.add_argument("--refine", default=None, choices=["none", "band"],
+                   help="band: the multigrid-convergent refinement of the polygons across slices")
     m.add_argument("--roi", default=None, help="RTSTRUCT structure: name or number")
     m.add_argument("--pixel", type=float, default=None, help="pixel size for rasterizing contour files")
     m.add_argument("--label", type=int, default=None, help="use the voxels equal to this label")

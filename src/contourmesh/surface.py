@@ -98,6 +98,38 @@ def _cap(builder: _Builder, idx, holes_idx=(), upward=True):
     builder.add_faces(both[local])
 
 
+def _outward(stack: ContourStack) -> ContourStack:
+    """The stack with every contour in the outer orientation (positive shoelace area).
+
+    With one contour per section every contour bounds the solid from outside, so a contour given
+    clockwise-in-raw-numbers (negative area) is reversed, keeping its start point.  A contour that
+    encloses no area (fewer than 3 distinct points, or collinear points) may only end the stack
+    (a pole); between two sections it would pinch the surface to a point or a segment.
+    """
+    from .types import Section
+
+    n = len(stack.sections)
+    sections = []
+    for k, s in enumerate(stack.sections):
+        contours = []
+        for c, cont in enumerate(s.contours):
+            arr = np.asarray(cont)
+            if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
+                raise ValueError(f"section {k} (z={s.z}) contour {c}: expected a non-empty (k, 2) array of "
+                                 f"points (x, y); found shape {arr.shape}")
+            area = shoelace_area(arr)
+            if area == 0.0 and 0 < k < n - 1 and len(s.contours) == 1:
+                raise ValueError(
+                    f"section {k} (z={s.z}) contour {c} encloses no area ({len(arr)} point(s)); expected a closed "
+                    "contour around an area: a point or segment contour can only be the first or last section (a pole)"
+                )
+            if area < 0 and len(s.contours) == 1:
+                arr = np.concatenate([arr[:1], arr[:0:-1]])
+            contours.append(arr)
+        sections.append(Section(s.z, tuple(contours), s.parents))
+    return ContourStack(tuple(sections), stack.spacing, stack.origin, dict(stack.meta))
+
+
 def _runs(stack: ContourStack):
     """Chains of (section index, contour index) joined section to section.
 
@@ -125,8 +157,13 @@ def stack_to_mesh(
     if len(stack.sections) == 0:
         raise ValueError("the contour stack is empty: no section holds a contour")
     zs = stack.z
+    if not np.all(np.isfinite(zs)):
+        bad = int(np.flatnonzero(~np.isfinite(zs))[0])
+        raise ValueError(f"section heights must be finite numbers; found z[{bad}]={zs[bad]}")
     if len(zs) > 1 and not np.all(np.diff(zs) > 0):
-        raise ValueError("section heights must be strictly increasing")
+        bad = int(np.flatnonzero(np.diff(zs) <= 0)[0])
+        raise ValueError(f"section heights must be strictly increasing; found z[{bad}]={zs[bad]} >= z[{bad + 1}]={zs[bad + 1]}")
+    stack = _outward(stack)
     b = _Builder(stack.spacing, stack.origin)
     default_h = float(np.median(np.diff(zs))) if len(zs) > 1 else 1.0
 
@@ -192,7 +229,29 @@ def _shape_of(source):
     return None
 
 
-def mesh(source, *, polygon: str = "mlp", triangulation: str = "wiederhold", caps: str = "flat",
+def _stack_of_volume(volume, *, spacing, axis, label, threshold, origin):
+    """The outer Jordan contour stack of a volume with one component per slice (for refinement)."""
+    from .sections import trace_contours
+    from .types import Section
+    from .volumes import prepare_volume
+
+    mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, axis=axis, label=label,
+                                                  threshold=threshold, origin=origin)
+    if dx != dy:
+        raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
+    sections = []
+    for k in range(mask.shape[0]):
+        if not mask[k].any():
+            continue
+        contours, parents = trace_contours(mask[k])
+        if len(contours) != 1:
+            raise ValueError(f"refine='band' needs one contour per slice; slice {k} has {len(contours)}")
+        sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
+    return ContourStack(tuple(sections), spacing=(dx, dy), origin=(ox, oy), meta={"source": "volume"})
+
+
+def mesh(source, *, polygon: str = "mlp", triangulation: str | None = None, caps: str = "flat",
+         refine: str | None = None,
          h: float = 1.0, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
          origin=(0.0, 0.0, 0.0), roi=None, pixel=None, progress: bool = False) -> Mesh:
     """The mesh source of contourmesh: ``source -> Mesh``, closed and outward-oriented.
@@ -207,10 +266,15 @@ def mesh(source, *, polygon: str = "mlp", triangulation: str = "wiederhold", cap
         ``label=`` / ``threshold=``).
     polygon : {"mlp", "dss", "none"}
         How each contour is simplified.
-    triangulation : {"wiederhold", "greedy", "optimal"}
-        How consecutive polygons are joined.
+    triangulation : {"wiederhold", "greedy", "optimal", "arclength"}
+        How consecutive polygons are joined (default: the paper's ``"wiederhold"``; ``"optimal"``
+        with ``refine="band"``, whose aligned vertices the paper's rule does not pair up).
     caps : {"flat", "half"}
         Where end caps go (see :mod:`contourmesh.surface` and :mod:`contourmesh.volumes`).
+    refine : {None, "none", "band"}
+        ``"band"``: the multigrid-convergent refinement of :mod:`contourmesh.refine` (polygons moved
+        across slices onto the estimated surface, every vertex kept in its slice's digital band);
+        for shapes, contour stacks and volumes with one contour per slice.
     h : float
         Grid spacing for digitizing analytic shapes (slices at ``z = k h``).
     spacing, z, axis, label, threshold, origin
@@ -236,6 +300,18 @@ def mesh(source, *, polygon: str = "mlp", triangulation: str = "wiederhold", cap
     import numpy as _np
 
     from .io import is_file_source
+
+    if refine not in (None, "none"):
+        from .refine import REFINERS, band_mesh
+
+        if refine not in REFINERS:
+            raise ValueError(f"unknown refine method {refine!r}; expected one of {list(REFINERS)}")
+        if isinstance(source, _np.ndarray):
+            source = _stack_of_volume(source, spacing=spacing, axis=axis, label=label, threshold=threshold,
+                                      origin=origin)
+        return band_mesh(source, polygon=polygon, triangulation=triangulation or "optimal", caps=caps, h=h,
+                         refine=refine)
+    triangulation = triangulation or "wiederhold"
 
     if is_file_source(source):
         from .io import mesh_file

@@ -1,0 +1,816 @@
+"""Band refinement: a multigrid-convergent surface from a contour stack (issue 6).
+
+The paper's mesh (Wiederhold & Villafuerte 2009, sect. 5) puts every vertex on its slice's MLP.
+Each MLP is an excellent *curve*, but it is the relative convex hull of the slice's points ``I`` in
+``U``: it runs on the inner side of the band and its vertices jitter by up to one voxel from one
+slice to the next (flat stretches wherever the boundary is nearly parallel to a grid axis or to a
+rational direction).  The band triangles follow that jitter, and the extra slant does not shrink
+with the resolution; the inward bias of the convex-hull vertices adds a negative error of its own.
+The paper's conclusion asks for triangles that "grow over various slices".
+
+Method ``"band"`` (:func:`refine_stack`, :func:`band_mesh`) replaces every slice polygon by a
+polygon whose vertices sit *in their own slice plane* on a smooth estimate of the surface that
+sees several slices at once, aligned from slice to slice, and clamped into the slice's band
+``U_k \\ int(V_k)``; the result is a contour stack of float polygons that the ordinary pipeline
+meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same caps and poles):
+
+1. **Digital object from the contours.**  For every section, ``U_k`` is rasterized from its
+   contours (even-odd rule over the unit cells, so holes are handled) and ``I_k`` is recovered as
+   the grid points whose four surrounding cells are in ``U_k`` (:func:`stack_points`).  Nothing
+   else is used: volumes, files and analytic shapes all reach this step as contour stacks.
+2. **A smooth indicator across slices.**  ``f(x) = sum_{p in I} G_sigma(x - p) / sum_{p in Z^3}
+   G_sigma(p)``, the Gauss-digitized solid blurred by a Gaussian of ``sigma`` voxels
+   (:func:`auto_sigma`: 2 to 3.5, growing like the cube root of the object's size), evaluated
+   exactly at any point with its gradient and Hessian by a sum over the lattice points within
+   ``4 sigma`` (:func:`blurred_indicator`).
+3. **The level set, corrected for curvature.**  For a smooth surface with principal curvatures
+   ``k1, k2`` the level ``f = 1/2`` of the blurred indicator lies *inside* the surface by
+   ``(k1 + k2) sigma^2 / 2`` (to second order: the Gaussian-weighted share of a paraboloid's
+   inside).  A seed vertex is moved along the horizontal direction of ``-grad f`` to the level
+   ``f = 1/2`` (safeguarded Newton), then outward by that shift, with ``k1 + k2 = div(n)`` from
+   the gradient and Hessian of ``f`` there (the horizontal move is the normal shift divided by
+   the horizontal part of the unit normal, capped at one voxel).
+4. **Faithful to the digital object.**  If the target leaves the band ``U_k \\ int(V_k)`` of the
+   vertex's slice, the vertex goes to the band point nearest to the target on the segment from
+   its start (on the seed polygon, in the band) to the target.
+5. **Chord compensation.**  Vertices on the curve make a polygon that is short of it; each vertex
+   is pushed outward by ``kappa L^2 / 24 * (1 + 3 nz^2) / (1 + nz^2)`` (see :func:`_chord_push`),
+   then clamped into the band.
+6. **Meridians** ("triangles that grow over various slices", the paper's sect. 7).  Vertices
+   placed independently in consecutive slices make Schwarz-lantern bands: a vertex facing the
+   middle of an edge of the next slice stands out by the edge's sagitta ``L^2 / (8 rho)``, and
+   the band area grows by about ``(sagitta / h)^2 / 2``, some +0.5 % on a ball whatever its size.
+   So slice ``k + 1`` takes the projections of slice ``k``'s final vertices onto its own curve
+   (the seed polygon moved to the surface), merged where closer than half the seed polygon's
+   mean edge and filled where further than 1.5 of it; the bands then join near-planar quads.
+
+The vertex count stays that of the seed polygons (MLP by default): ``P`` is 1.04-1.10 times the
+MLP stack's on balls r = 20-160.
+
+Functions here are pure: arrays (and a ContourStack) in, arrays (and a Mesh) out.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .types import ContourStack, Mesh
+
+__all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "auto_sigma", "band_mesh", "band_violations"]
+
+#: Refinement methods by name (``"band"``; ``"none"``: no refinement).
+REFINERS = ("band", "none")
+
+
+# ----------------------------------------------------------------------------------------------
+# 1. The digital object I from the contours
+# ----------------------------------------------------------------------------------------------
+def _check_stack(stack) -> np.ndarray:
+    if not isinstance(stack, ContourStack):
+        raise ValueError(f"expected a contourmesh.types.ContourStack; got {type(stack).__name__}")
+    if len(stack.sections) == 0:
+        raise ValueError("the contour stack is empty: no section holds a contour")
+    zs = stack.z
+    if len(zs) > 1:
+        dz = np.diff(zs)
+        if not np.all(dz > 0):
+            raise ValueError("section heights must be strictly increasing")
+    sx, sy = (float(v) for v in stack.spacing)
+    if not (sx > 0 and sy > 0 and abs(sx - sy) <= 1e-9 * max(sx, sy)):
+        raise ValueError(f"band refinement needs square pixels (dx == dy > 0); got spacing {stack.spacing}")
+    for k, s in enumerate(stack.sections):
+        for c in s.contours:
+            c = np.asarray(c)
+            if c.ndim != 2 or c.shape[1] != 2 or not np.issubdtype(c.dtype, np.integer):
+                raise ValueError(
+                    f"section {k} (z={s.z}): band refinement needs integer grid contours (k, 2); "
+                    f"got dtype {c.dtype}, shape {c.shape}"
+                )
+    return zs
+
+
+def _section_grid_index(zs: np.ndarray, spacing: float) -> np.ndarray:
+    """Integer lattice index of each section along z (in units of the in-slice spacing).
+
+    Sections must lie on a regular lattice ``z0 + n * dz`` (gaps allowed, e.g. omitted empty
+    slices); ``dz`` in-slice units is ``dz_phys / dx``.  Returns ``(idx, dz_units)``.
+    """
+    if len(zs) == 1:
+        return np.zeros(1, dtype=np.int64), 1.0
+    dz = float(np.min(np.diff(zs)))
+    idx = np.rint((zs - zs[0]) / dz)
+    if np.max(np.abs(idx * dz - (zs - zs[0]))) > 1e-6 * dz:
+        raise ValueError("band refinement needs sections on a regular lattice of heights z0 + n dz")
+    return idx.astype(np.int64), dz / spacing
+
+
+def stack_points(stack: ContourStack):
+    """The grid points ``I`` of every section, recovered from its contours.
+
+    ``U_k`` (the union of the closed cells with a corner in ``I_k``) is the region the section's
+    contours bound; its cells are found by the even-odd rule (a cell is in ``U`` when a ray from
+    its centre crosses the contours an odd number of times), so holes come out right.  A grid
+    point is in ``I`` when its four cells are in ``U``.  (For contours traced from a mask this
+    gives back the mask, except in configurations where four different points of ``I`` surround
+    a point that is not, which a smooth surface's digitization does not produce.)
+
+    Returns
+    -------
+    points : (nz, ny, nx) bool ndarray
+        ``points[n, j, i]`` is the grid point ``(x0 + i, y0 + j)`` of lattice slice ``n`` (``n``
+        counts in steps of the section spacing from the first section; missing slices are empty).
+    x0, y0 : int
+        Grid coordinates of ``points[:, 0, 0]``; the array has a margin of empty points all round.
+    zidx : (n_sections,) int64
+        The lattice slice of every section.
+    dz : float
+        Slice spacing in in-slice grid units.
+    """
+    zs = _check_stack(stack)
+    zidx, dz = _section_grid_index(zs, float(stack.spacing[0]))
+    allpts = [np.asarray(c, dtype=np.int64) for s in stack.sections for c in s.contours]
+    if not allpts:
+        raise ValueError("the contour stack holds no contour points")
+    cat = np.concatenate(allpts)
+    pad = 6
+    x0, y0 = int(cat[:, 0].min()) - pad, int(cat[:, 1].min()) - pad
+    nx = int(cat[:, 0].max()) - x0 + pad + 1
+    ny = int(cat[:, 1].max()) - y0 + pad + 1
+    nz = int(zidx[-1]) + 1 + 2 * pad
+    pts = np.zeros((nz, ny, nx), dtype=np.bool_)
+    for k, s in enumerate(stack.sections):
+        if not s.contours:
+            continue
+        cells = np.zeros((ny, nx), dtype=np.int64)  # cells[j, i]: cell [x0+i, x0+i+1] x [y0+j, y0+j+1]
+        for c in s.contours:
+            c = np.asarray(c, dtype=np.int64)
+            if len(c) < 3:
+                continue  # a pole point or a segment bounds no cell
+            d = np.roll(c, -1, axis=0) - c
+            vert = d[:, 0] == 0
+            xs = c[vert, 0] - x0
+            ys = np.minimum(c[vert, 1], c[vert, 1] + d[vert, 1]) - y0
+            np.add.at(cells, (ys, xs), 1)  # a vertical edge toggles the parity of the cells to its right
+        inside = (np.cumsum(cells, axis=1) & 1).astype(bool)
+        n = zidx[k] + pad
+        # point (i, j) has the cells (i-1..i, j-1..j) around it
+        pts[n, 1:, 1:] = inside[1:, 1:] & inside[:-1, 1:] & inside[1:, :-1] & inside[:-1, :-1]
+    return pts, x0, y0, zidx + pad, dz
+
+
+# ----------------------------------------------------------------------------------------------
+# 2. The blurred indicator, its gradient and Hessian, at any point
+# ----------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _lattice_norm(sigma, dz):
+    """sum over the lattice Z x Z x dz Z of exp(-|p|^2 / (2 sigma^2)) (the normalisation of f)."""
+    r = int(math.ceil(6.0 * sigma)) + 1
+    s1 = 0.0
+    for i in range(-r, r + 1):
+        s1 += math.exp(-i * i / (2.0 * sigma * sigma))
+    rz = int(math.ceil(6.0 * sigma / dz)) + 1
+    s3 = 0.0
+    for k in range(-rz, rz + 1):
+        s3 += math.exp(-(k * dz) ** 2 / (2.0 * sigma * sigma))
+    return s1 * s1 * s3
+
+
+@njit(cache=True)
+def _field(pts, x, y, z, sigma, dz, norm, out):
+    """f, grad f (3) and Hessian (xx, yy, zz, xy, xz, yz) of the blurred indicator at (x, y, z).
+
+    ``(x, y)`` are array-local grid coordinates, ``z`` the lattice slice (fractional allowed).
+    ``out`` receives the 10 numbers; f = sum_{p in I} exp(-|p - x|^2 / (2 sigma^2)) / norm over
+    the lattice points within ``4 sigma`` on each axis.  The Gaussian is separable, so the
+    weights are products of three 1D tables.
+    """
+    nz, ny, nx = pts.shape
+    rad = 4.0 * sigma
+    i0 = max(int(math.floor(x - rad)), 0)
+    i1 = min(int(math.ceil(x + rad)), nx - 1)
+    j0 = max(int(math.floor(y - rad)), 0)
+    j1 = min(int(math.ceil(y + rad)), ny - 1)
+    k0 = max(int(math.floor(z - rad / dz)), 0)
+    k1 = min(int(math.ceil(z + rad / dz)), nz - 1)
+    s2 = sigma * sigma
+    ex = np.empty(i1 - i0 + 1)
+    ey = np.empty(j1 - j0 + 1)
+    ez = np.empty(k1 - k0 + 1)
+    for i in range(i0, i1 + 1):
+        ex[i - i0] = math.exp(-((i - x) ** 2) / (2.0 * s2))
+    for j in range(j0, j1 + 1):
+        ey[j - j0] = math.exp(-((j - y) ** 2) / (2.0 * s2))
+    for k in range(k0, k1 + 1):
+        ez[k - k0] = math.exp(-(((k - z) * dz) ** 2) / (2.0 * s2))
+    for q in range(10):
+        out[q] = 0.0
+    for k in range(k0, k1 + 1):
+        wz = (k - z) * dz
+        for j in range(j0, j1 + 1):
+            wy = j - y
+            wyz = ey[j - j0] * ez[k - k0]
+            # row sums over i of w, w*wx, w*wx^2
+            s0 = 0.0
+            s1 = 0.0
+            s2x = 0.0
+            for i in range(i0, i1 + 1):
+                if pts[k, j, i]:
+                    e = ex[i - i0]
+                    wx = i - x
+                    s0 += e
+                    s1 += e * wx
+                    s2x += e * wx * wx
+            if s0 == 0.0:
+                continue
+            s0 *= wyz
+            s1 *= wyz
+            s2x *= wyz
+            out[0] += s0
+            out[1] += s1
+            out[2] += s0 * wy
+            out[3] += s0 * wz
+            out[4] += s2x - s0 * s2
+            out[5] += s0 * (wy * wy - s2)
+            out[6] += s0 * (wz * wz - s2)
+            out[7] += s1 * wy
+            out[8] += s1 * wz
+            out[9] += s0 * wy * wz
+    out[0] /= norm
+    for q in range(1, 4):
+        out[q] /= norm * s2
+    for q in range(4, 10):
+        out[q] /= norm * s2 * s2
+
+
+def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0) -> np.ndarray:
+    """The blurred indicator ``f`` (step 2 of the module docstring) and its derivatives at points.
+
+    Parameters
+    ----------
+    points : (nz, ny, nx) bool ndarray
+        Lattice points of the solid (as from :func:`stack_points`).
+    xyz : (n, 3) array_like
+        Array-local coordinates ``(i, j, n)`` (fractional allowed).
+    sigma : float
+        Gaussian width in voxels (in-slice grid units).
+    dz : float
+        Slice spacing in in-slice grid units.
+
+    Returns
+    -------
+    (n, 10) ndarray
+        ``f, fx, fy, fz, fxx, fyy, fzz, fxy, fxz, fyz`` (derivatives per in-slice grid unit).
+    """
+    p = np.ascontiguousarray(xyz, dtype=np.float64).reshape(-1, 3)
+    return _field_many(np.ascontiguousarray(points, dtype=np.bool_), p, float(sigma), float(dz))
+
+
+@njit(cache=True)
+def _field_many(pts, p, sigma, dz):
+    norm = _lattice_norm(sigma, dz)
+    out = np.empty((p.shape[0], 10))
+    buf = np.empty(10)
+    for n in range(p.shape[0]):
+        _field(pts, p[n, 0], p[n, 1], p[n, 2], sigma, dz, norm, buf)
+        out[n, :] = buf
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# 4. The band U_k \ int(V_k) of a slice
+# ----------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _cell_corners(pts, k, i, j):
+    """Number of corners of cell [i, i+1] x [j, j+1] (array-local) in I of slice k."""
+    nz, ny, nx = pts.shape
+    c = 0
+    for dj in range(2):
+        for di in range(2):
+            ii, jj = i + di, j + dj
+            if 0 <= ii < nx and 0 <= jj < ny and pts[k, jj, ii]:
+                c += 1
+    return c
+
+
+@njit(cache=True)
+def _in_band(pts, k, x, y):
+    """Is the point (x, y) (array-local) of slice k in the closed band U_k minus int(V_k)?
+
+    The cells whose closure holds the point are examined (one, two or four of them, with a 1e-9
+    tolerance for points on cell edges): the point is in ``U`` if one of them has a corner in
+    ``I``; it is interior to ``V`` if all of them have their four corners in ``I``.
+    """
+    eps = 1e-9
+    fx = math.floor(x)
+    fy = math.floor(y)
+    ilo = int(fx) - 1 if x - fx < eps else int(fx)
+    ihi = int(fx) if fx + 1.0 - x < eps else int(fx)
+    jlo = int(fy) - 1 if y - fy < eps else int(fy)
+    jhi = int(fy) if fy + 1.0 - y < eps else int(fy)
+    in_u = False
+    all_v = True
+    for i in range(ilo, ihi + 1):
+        for j in range(jlo, jhi + 1):
+            c = _cell_corners(pts, k, i, j)
+            if c > 0:
+                in_u = True
+            if c < 4:
+                all_v = False
+    return in_u and not all_v
+
+
+def band_violations(stack: ContourStack, mesh: Mesh) -> int:
+    """Number of mesh vertices on a section that lie outside that section's band ``U_k \\ int(V_k)``.
+
+    Vertices whose height is not a section's (half-slice caps) are not counted.
+    """
+    pts, x0, y0, zidx, _ = stack_points(stack)
+    zs = stack.z
+    v = mesh.vertices
+    h = float(stack.spacing[0])
+    ox, oy = (float(t) for t in stack.origin)
+    pos = np.clip(np.searchsorted(zs, v[:, 2]), 0, len(zs) - 1)
+    on = np.abs(zs[pos] - v[:, 2]) <= 1e-9 * max(1.0, float(np.abs(zs).max()))
+    bad = 0
+    for n in np.flatnonzero(on):
+        if not _in_band(pts, int(zidx[pos[n]]), (v[n, 0] - ox) / h - x0, (v[n, 1] - oy) / h - y0):
+            bad += 1
+    return bad
+
+
+def in_band(points, k, xy) -> np.ndarray:
+    """Whether each point ``xy (n, 2)`` (array-local grid coordinates) lies in the band of slice ``k``."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    return np.array([_in_band(points, int(k), float(a), float(b)) for a, b in xy], dtype=bool)
+
+
+# ----------------------------------------------------------------------------------------------
+# 3 + 4. Moving the vertices
+# ----------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _mean_curvature_shift(buf, sigma):
+    """Normal shift ``(k1 + k2) sigma^2 / 2`` of the true surface beyond the 1/2-level, and |grad f|."""
+    gx, gy, gz = buf[1], buf[2], buf[3]
+    g2 = gx * gx + gy * gy + gz * gz
+    g = math.sqrt(g2)
+    if g == 0.0:
+        return 0.0, 0.0
+    lap = buf[4] + buf[5] + buf[6]
+    ghg = (gx * gx * buf[4] + gy * gy * buf[5] + gz * gz * buf[6]
+           + 2.0 * (gx * gy * buf[7] + gx * gz * buf[8] + gy * gz * buf[9]))
+    # outward normal n = -grad f / |grad f|; div n = -(lap - g^T H g / |g|^2) / |g| = k1 + k2
+    ksum = -(lap - ghg / g2) / g
+    return 0.5 * ksum * sigma * sigma, g
+
+
+@njit(cache=True)
+def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out):
+    """Steps 3-4 for every vertex: returns the number of vertices clamped into their band.
+
+    ``xy (n, 2)`` array-local positions, ``kz (n,)`` their lattice slice (-1: leave unmoved).
+    """
+    norm = _lattice_norm(sigma, dz)
+    buf = np.empty(10)
+    clamped = 0
+    for n in range(xy.shape[0]):
+        x0, y0 = xy[n, 0], xy[n, 1]
+        out[n, 0], out[n, 1] = x0, y0
+        k = kz[n]
+        if k < 0:
+            continue
+        z = float(k)
+        _field(pts, x0, y0, z, sigma, dz, norm, buf)
+        hx, hy = -buf[1], -buf[2]
+        hn = math.sqrt(hx * hx + hy * hy)
+        gn = math.sqrt(buf[1] ** 2 + buf[2] ** 2 + buf[3] ** 2)
+        if hn <= 1e-3 * gn or hn == 0.0:
+            continue  # the surface is horizontal here (a pole): no horizontal move is defined
+        dx, dy = hx / hn, hy / hn
+        # safeguarded Newton along the outward horizontal direction for f = 1/2
+        lo, hi = -max_move, max_move
+        t = 0.0
+        ok = False
+        for it in range(40):
+            _field(pts, x0 + t * dx, y0 + t * dy, z, sigma, dz, norm, buf)
+            g = buf[0] - 0.5
+            if abs(g) < 1e-12:
+                ok = True
+                break
+            if g > 0.0:
+                lo = t  # still inside: the level is further out
+            else:
+                hi = t
+            d = buf[1] * dx + buf[2] * dy  # derivative along the direction (negative)
+            tn = t - g / d if d < 0.0 else 0.5 * (lo + hi)
+            if not (lo < tn < hi):
+                tn = 0.5 * (lo + hi)
+            if abs(tn - t) < 1e-10:
+                t = tn
+                ok = True
+                break
+            t = tn
+        if not ok and hi - lo > 1e-6:
+            continue  # no level crossing within reach: keep the vertex
+        tx, ty = x0 + t * dx, y0 + t * dy
+        if curvature:
+            _field(pts, tx, ty, z, sigma, dz, norm, buf)
+            shift, gnorm = _mean_curvature_shift(buf, sigma)
+            hz = math.sqrt(buf[1] ** 2 + buf[2] ** 2)
+            if gnorm > 0.0 and hz > 0.0:
+                s = shift * gnorm / hz  # normal shift -> horizontal shift
+                if s > 1.0:
+                    s = 1.0
+                elif s < -1.0:
+                    s = -1.0
+                tx += s * dx
+                ty += s * dy
+        # step 4: stay in the band (the original vertex is in it)
+        if _in_band(pts, k, tx, ty):
+            out[n, 0], out[n, 1] = tx, ty
+            continue
+        clamped += 1
+        steps = 256
+        for q in range(1, steps + 1):
+            a = 1.0 - q / steps
+            px, py = x0 + a * (tx - x0), y0 + a * (ty - y0)
+            if _in_band(pts, k, px, py):
+                out[n, 0], out[n, 1] = px, py
+                break
+    return clamped
+
+
+@njit(cache=True)
+def _clamp_to_band(pts, start, target, kz, out):
+    """Move each point from ``start`` toward ``target`` as far as its band allows (sampled)."""
+    clamped = 0
+    for n in range(start.shape[0]):
+        x0, y0 = start[n, 0], start[n, 1]
+        tx, ty = target[n, 0], target[n, 1]
+        out[n, 0], out[n, 1] = x0, y0
+        k = kz[n]
+        if k < 0:
+            continue
+        if _in_band(pts, k, tx, ty):
+            out[n, 0], out[n, 1] = tx, ty
+            continue
+        clamped += 1
+        steps = 64
+        for q in range(1, steps + 1):
+            a = 1.0 - q / steps
+            px, py = x0 + a * (tx - x0), y0 + a * (ty - y0)
+            if _in_band(pts, k, px, py):
+                out[n, 0], out[n, 1] = px, py
+                break
+    return clamped
+
+
+# ----------------------------------------------------------------------------------------------
+# 5. Chord compensation along each slice polygon
+# ----------------------------------------------------------------------------------------------
+def _chord_push(ring_xy: np.ndarray, nz2=None) -> np.ndarray:
+    """Outward push ``kappa L^2 / 24 * (1 + 3 nz^2) / (1 + nz^2)`` of every polygon vertex (step 5).
+
+    ``kappa`` is the signed curvature of the circle through a vertex and its two neighbours
+    (positive where the polygon is convex for its orientation, ``U`` on the left), ``L^2`` the
+    mean of the squared lengths of the vertex's two edges, ``nz`` the vertical component of the
+    unit surface normal there (``nz2 = nz^2``; 0 when not given).  The push is along the outward
+    vertex normal (to the right of the travel direction).
+
+    Why this amount: between two inscribed polygons of edge ``L`` on circles of radii ``rho1,
+    rho2`` a slice apart, the band's area falls short of the zone's by the relative amount
+    ``a + b nz^2`` with ``a = L^2 / (24 rho^2)`` (the perimeter's chord deficit) and ``b = L^2 /
+    (8 rho^2)`` (the apothem's, which enters through the slant ``sqrt(h^2 + d rho^2)``); scaling
+    both polygons by ``1 + e`` changes the area by ``(1 + nz^2) e``.  So the perimeter-matching
+    push ``kappa L^2 / 24`` holds where the surface is vertical and doubles where it is flat
+    (where what counts is the polygon's enclosed area, short by ``L^2 / (6 rho^2)``).
+    """
+    p = ring_xy
+    a = np.roll(p, 1, axis=0)
+    c = np.roll(p, -1, axis=0)
+    u = p - a
+    v = c - p
+    w = c - a
+    lu = np.hypot(u[:, 0], u[:, 1])
+    lv = np.hypot(v[:, 0], v[:, 1])
+    lw = np.hypot(w[:, 0], w[:, 1])
+    cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]  # > 0: left turn = convex for U on the left
+    den = lu * lv * lw
+    kappa = np.where(den > 0, 2.0 * cross / np.where(den > 0, den, 1.0), 0.0)
+    push = kappa * 0.5 * (lu**2 + lv**2) / 24.0
+    if nz2 is not None:
+        push = push * (1.0 + 3.0 * nz2) / (1.0 + nz2)
+    # outward normal (U on the left, so outward is to the right of the travel direction)
+    t = w / np.where(lw > 0, lw, 1.0)[:, None]
+    nrm = np.stack([t[:, 1], -t[:, 0]], axis=1)
+    return p + push[:, None] * nrm
+
+
+# ----------------------------------------------------------------------------------------------
+# Meridians: vertices of consecutive slices aligned across the slices
+# ----------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _project_to_ring(ring, q):
+    """Nearest point of the closed polygon ``ring`` to each query point.
+
+    Returns ``(param, dist, px, py)``: the arc-length parameter (from ring[0]) of the nearest
+    point, its distance, and its coordinates.
+    """
+    n = ring.shape[0]
+    cum = np.zeros(n + 1)
+    for i in range(n):
+        j = (i + 1) % n
+        cum[i + 1] = cum[i] + math.hypot(ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1])
+    m = q.shape[0]
+    par = np.empty(m)
+    dist = np.empty(m)
+    px = np.empty(m)
+    py = np.empty(m)
+    for a in range(m):
+        best = 1e300
+        for i in range(n):
+            j = (i + 1) % n
+            ex, ey = ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1]
+            l2 = ex * ex + ey * ey
+            t = 0.0
+            if l2 > 0.0:
+                t = ((q[a, 0] - ring[i, 0]) * ex + (q[a, 1] - ring[i, 1]) * ey) / l2
+                t = min(1.0, max(0.0, t))
+            cx, cy = ring[i, 0] + t * ex, ring[i, 1] + t * ey
+            d = math.hypot(q[a, 0] - cx, q[a, 1] - cy)
+            if d < best:
+                best = d
+                par[a] = cum[i] + t * (cum[i + 1] - cum[i])
+                px[a], py[a] = cx, cy
+        dist[a] = best
+    return par, dist, px, py
+
+
+def _ring_point_at(ring: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Points of the closed polygon ``ring`` at arc-length parameters ``s`` (from ring[0])."""
+    closed = np.vstack([ring, ring[:1]])
+    seg = np.hypot(*np.diff(closed, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    s = np.mod(s, cum[-1])
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(ring) - 1)
+    t = np.where(seg[i] > 0, (s - cum[i]) / np.where(seg[i] > 0, seg[i], 1.0), 0.0)
+    return closed[i] + t[:, None] * (closed[i + 1] - closed[i])
+
+
+def _meridian_params(par: np.ndarray, length: float, step: float) -> np.ndarray:
+    """Arc parameters of a slice's vertices from the projections of the previous slice's.
+
+    Projections closer than ``step / 2`` along the arc are merged (the later one is dropped);
+    gaps longer than ``1.5 step`` are filled with evenly spaced new parameters.
+    """
+    s = np.sort(np.mod(par, length))
+    keep = [s[0]]
+    for v in s[1:]:
+        if v - keep[-1] >= 0.5 * step:
+            keep.append(v)
+    while len(keep) > 1 and keep[0] + length - keep[-1] < 0.5 * step:
+        keep.pop()
+    out = []
+    k = np.array(keep)
+    gaps = np.diff(np.concatenate([k, [k[0] + length]]))
+    for v, g in zip(k, gaps):
+        out.append(v)
+        if g > 1.5 * step:
+            m = int(round(g / step))
+            out.extend(v + g * np.arange(1, m) / m)
+    return np.mod(np.array(out), length)
+
+
+@njit(cache=True)
+def _orient(ax, ay, bx, by, cx, cy):
+    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+
+
+@njit(cache=True)
+def _is_simple(ring):
+    """True when no two non-adjacent edges of the closed polygon meet (an O(n^2) check)."""
+    n = ring.shape[0]
+    for i in range(n):
+        ax, ay = ring[i, 0], ring[i, 1]
+        bx, by = ring[(i + 1) % n, 0], ring[(i + 1) % n, 1]
+        for j in range(i + 2, n):
+            if i == 0 and j == n - 1:
+                continue
+            cx, cy = ring[j, 0], ring[j, 1]
+            dx, dy = ring[(j + 1) % n, 0], ring[(j + 1) % n, 1]
+            if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
+                continue
+            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
+                continue
+            d1 = _orient(ax, ay, bx, by, cx, cy)
+            d2 = _orient(ax, ay, bx, by, dx, dy)
+            d3 = _orient(cx, cy, dx, dy, ax, ay)
+            d4 = _orient(cx, cy, dx, dy, bx, by)
+            if d1 * d2 <= 0.0 and d3 * d4 <= 0.0:
+                return False
+    return True
+
+
+def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move):
+    out = np.empty_like(xy)
+    clamped = _move_to_surface(pts, np.ascontiguousarray(xy), kz, sigma, dz, curvature, max_move, out)
+    return out, clamped
+
+
+def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi: float = 3.5) -> float:
+    """The default Gaussian width: ``clip(factor * R^(1/3), lo, hi)`` voxels, ``R = 3 V / A``.
+
+    ``V`` and ``A`` are the volume and lateral area of the stack's contours (sum of the contours'
+    areas and perimeters times the slice spacing, in voxels), so ``R`` is the radius for a ball.
+    The lattice noise of the blurred indicator adds a roughness whose area excess falls like
+    ``sigma^-3.5`` (measured: +0.12 % at sigma = 1.5, +0.03 % at 2, +0.008 % at 2.5 on the ball
+    r = 80), while the curvature correction is exact only to order ``(sigma kappa)^2``; letting
+    ``sigma`` grow slowly with the object's size in voxels (as integral-invariant radii grow like
+    ``h^(-1/3)``) keeps both small; the cap bounds the cost (``sigma^3`` per evaluation).
+    """
+    from .types import shoelace_area
+
+    _check_stack(stack)
+    zs = stack.z
+    dz = float(np.median(np.diff(zs))) / float(stack.spacing[0]) if len(zs) > 1 else 1.0
+    vol = 0.0
+    lat = 0.0
+    for s in stack.sections:
+        for c in s.contours:
+            c = np.asarray(c, dtype=np.float64)
+            if len(c) < 3:
+                continue
+            vol += shoelace_area(c) * dz
+            lat += float(np.hypot(*np.diff(np.vstack([c, c[:1]]), axis=0).T).sum()) * dz * (math.pi / 4)
+    if vol <= 0 or lat <= 0:
+        return float(lo)
+    r = 3.0 * vol / lat
+    return float(min(max(factor * r ** (1.0 / 3.0), lo), hi))
+
+
+def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "mlp", sigma="auto",
+                 curvature: bool = True, chord: bool = True, meridians: bool = True,
+                 density: float = 1.0, max_move: float = 3.0) -> ContourStack:
+    """Refined slice polygons: a ContourStack of float polygons on the estimated surface.
+
+    Parameters
+    ----------
+    stack : ContourStack
+        Integer grid contours on regularly spaced sections.
+    method : {"band"}
+        The refinement (see the module docstring).
+    polygon : {"mlp", "dss", "none"}
+        The polygonizer whose vertices seed every slice (and set its vertex density).
+    sigma : float or "auto"
+        Width of the Gaussian in voxels (>= 0.7); ``"auto"``: :func:`auto_sigma`.
+    curvature, chord : bool
+        Steps 3 (curvature correction) and 5 (chord compensation).
+    meridians : bool
+        Align the vertices of consecutive slices (step 6): each slice takes the projections of the
+        previous slice's vertices, merged or filled to the seed polygon's mean edge length.
+    density : float
+        Vertices per seed-polygon vertex (the mean edge length is divided by it).
+    max_move : float
+        Largest horizontal move searched, in voxels.
+
+    Returns
+    -------
+    ContourStack
+        Same sections, heights, parents, spacing and origin; every contour of three or more points
+        is replaced by its refined polygon (float64, grid units); ``meta`` gains ``refine`` and
+        ``refine_clamped``.  Mesh it with ``stack_to_mesh(..., polygon="none")``.
+    """
+    from .polygons import polygonize
+    from .types import Section, shoelace_area
+
+    if method != "band":
+        raise ValueError(f"unknown refine method {method!r}; expected 'band'")
+    if isinstance(sigma, str):
+        if sigma != "auto":
+            raise ValueError(f"sigma must be a number of voxels or 'auto'; got {sigma!r}")
+        sigma = auto_sigma(stack)
+    sigma = float(sigma)
+    if not (math.isfinite(sigma) and sigma >= 0.7):
+        raise ValueError(f"sigma must be a number >= 0.7 voxels; got {sigma!r}")
+    if not (float(density) > 0):
+        raise ValueError(f"density must be a positive number; got {density!r}")
+    pts, x0, y0, zidx, dz = stack_points(stack)
+    off = np.array([x0, y0], dtype=np.float64)
+    clamped = 0
+    new_sections = []
+    prev = []  # final polygons of the previous section (array-local coordinates)
+    for k, sec in enumerate(stack.sections):
+        kk = int(zidx[k])
+        finals = []
+        for c in sec.contours:
+            c = np.asarray(c, dtype=np.int64)
+            seed = np.asarray(polygonize(c, polygon), dtype=np.float64) if len(c) >= 3 else c.astype(np.float64)
+            if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
+                finals.append(seed - off)  # a pole point or a segment: kept as it is
+                continue
+            seed = seed - off
+            kz = np.full(len(seed), kk, dtype=np.int64)
+            guide, nc = _surface_points(pts, seed, kz, sigma, float(dz), curvature, max_move)
+            clamped += nc
+            ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
+            if meridians and prev:
+                q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
+                length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
+                step = length / (len(seed) * float(density))
+                if len(q):
+                    par, dist, _, _ = _project_to_ring(guide, q)
+                    par = par[dist < 3.0]
+                    if len(par) >= 3:
+                        s = _meridian_params(par, length, step)
+                        if len(s) >= 3:
+                            start = _ring_point_at(guide, s)
+                            kz = np.full(len(start), kk, dtype=np.int64)
+                            cand, nc = _surface_points(pts, start, kz, sigma, float(dz), curvature, max_move)
+                            if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
+                                ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
+                                clamped += nc
+            if chord:
+                loc = np.empty((len(ring), 3))
+                loc[:, :2] = ring
+                loc[:, 2] = kk
+                fld = _field_many(pts, loc, sigma, float(dz))
+                g2 = (fld[:, 1:4] ** 2).sum(axis=1)
+                nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
+                target = _chord_push(ring, nz2)
+                kz = np.full(len(ring), kk, dtype=np.int64)
+                out = np.empty_like(ring)
+                nc = _clamp_to_band(pts, np.ascontiguousarray(ring), target, kz, out)
+                if _is_simple(out):
+                    ring = out
+                    clamped += nc
+            # the guarantee: every vertex in its band.  A vertex whose walk started off the band
+            # (a projection onto a chord of the guide) goes back toward the seed polygon, which
+            # lies in the band (the MLP does), as far as the band allows.
+            kz = np.full(len(ring), kk, dtype=np.int64)
+            bad = np.array([not _in_band(pts, kk, float(a), float(b)) for a, b in ring], dtype=bool)
+            if bad.any():
+                _, _, px, py = _project_to_ring(np.ascontiguousarray(seed), np.ascontiguousarray(ring[bad]))
+                start = np.stack([px, py], axis=1)
+                out = np.empty_like(start)
+                clamped += _clamp_to_band(pts, start, np.ascontiguousarray(ring[bad]), kz[: len(start)], out)
+                cand = ring.copy()
+                cand[bad] = out
+                ring = cand if _is_simple(cand) else seed
+            finals.append(ring)
+        prev = finals
+        new_sections.append(Section(z=sec.z, contours=tuple(f + off for f in finals), parents=sec.parents))
+    meta = dict(stack.meta)
+    meta.update(refine=method, refine_sigma=sigma, refine_clamped=int(clamped), refine_seed=polygon)
+    return ContourStack(sections=tuple(new_sections), spacing=stack.spacing, origin=stack.origin, meta=meta)
+
+
+def band_mesh(source, *, polygon: str = "mlp", triangulation: str = "optimal", caps: str = "flat",
+              h: float = 1.0, refine: str = "band", **options) -> Mesh:
+    """The refined mesh source: ``source -> stack -> refine_stack -> stack_to_mesh``.
+
+    Parameters
+    ----------
+    source : Shape, str or ContourStack
+        As for :func:`contourmesh.surface.mesh`.
+    polygon, triangulation, caps, h
+        As for :func:`contourmesh.surface.mesh`; ``polygon`` seeds the refined polygons.
+    refine : {"band", "none"}
+        ``"none"`` gives the unrefined mesh of :func:`contourmesh.surface.stack_to_mesh`.
+    **options
+        Passed to :func:`refine_stack` (``sigma``, ``curvature``, ``chord``, ``meridians``,
+        ``density``, ``max_move``).
+
+    Examples
+    --------
+    >>> from contourmesh.shapes import Sphere
+    >>> m = band_mesh(Sphere(20, center=(0.3, 0.1, 0.2)))
+    >>> abs(m.area / m.meta["area_true"] - 1) < 0.004
+    True
+    """
+    from . import shapes
+    from .surface import stack_to_mesh
+
+    if isinstance(source, str):
+        source = shapes.parse_shape_spec(source)
+    if isinstance(source, shapes.Shape):
+        from .digitize import outer_jordan_stack
+
+        stack = outer_jordan_stack(source, h=h)
+    elif isinstance(source, ContourStack):
+        stack = source
+    else:
+        raise ValueError(
+            f"cannot mesh a {type(source).__name__}: expected a shape (contourmesh.shapes), a shape spec "
+            "string such as 'sphere:r=40', or a ContourStack"
+        )
+    if refine == "none":
+        return stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
+    if refine not in REFINERS:
+        raise ValueError(f"unknown refine method {refine!r}; expected one of {list(REFINERS)}")
+    fine = refine_stack(stack, refine, polygon=polygon, **options)
+    m = stack_to_mesh(fine, polygon="none", triangulation=triangulation, caps=caps)
+    meta = dict(m.meta)
+    meta.update(polygon=polygon, refine=refine)
+    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
