@@ -103,22 +103,27 @@ MAX_CRASHES = 2
 
 # --- ours as a method -------------------------------------------------------------------------------
 def parse_ours(name: str):
-    """``(polygon, triangulation)`` of a name ``"ours-<polygon>-<triangulation>"``, None for other names."""
+    """``(polygon, triangulation, refine)`` of a name ``"ours-<polygon>-<triangulation>[-<refine>]"``
+    (refine ``band``: :mod:`contourmesh.refine`), None for other names."""
     if not isinstance(name, str) or not name.startswith("ours"):
         return None
     parts = name.split("-")
-    if len(parts) != 3 or parts[0] != "ours" or parts[1] not in OURS_POLYGONS or parts[2] not in OURS_TRIANGULATIONS:
-        raise ValueError(f"our method's name is ours-<polygon>-<triangulation> with polygon in {OURS_POLYGONS} "
+    ok = (len(parts) in (3, 4) and parts[0] == "ours" and parts[1] in OURS_POLYGONS
+          and parts[2] in OURS_TRIANGULATIONS and (len(parts) == 3 or parts[3] == "band"))
+    if not ok:
+        raise ValueError(f"our method's name is ours-<polygon>-<triangulation>[-band] with polygon in {OURS_POLYGONS} "
                          f"and triangulation in {OURS_TRIANGULATIONS}; got {name!r}")
-    return parts[1], parts[2]
+    return parts[1], parts[2], (parts[3] if len(parts) == 4 else "none")
 
 
-def ours_method(volume, spacing, origin, *, polygon: str, triangulation: str, shape=None, h: float = 1.0):
+def ours_method(volume, spacing, origin, *, polygon: str, triangulation: str, refine: str = "none", shape=None,
+                h: float = 1.0):
     """The paper's method as a mesh source (Wiederhold & Villafuerte 2009, section 5).
 
     With ``shape`` it meshes the analytic shape (outer Jordan contours of the grid points strictly
     inside each slice ``z = k h``, i.e. the slices of the Gauss volume); otherwise it meshes the
     binary volume ``[z, y, x]`` with ``spacing (dz, dy, dx)`` and ``origin (x0, y0, z0)``.
+    ``refine="band"`` adds the multigrid-convergent refinement.
     Returns a :class:`~contourmesh.compare.methods.Result` whose ``P`` is the paper's vertex count.
     """
     import contourmesh
@@ -126,9 +131,10 @@ def ours_method(volume, spacing, origin, *, polygon: str, triangulation: str, sh
     from .methods import Result
 
     if shape is not None:
-        m = contourmesh.mesh(shape, polygon=polygon, triangulation=triangulation, h=h)
+        m = contourmesh.mesh(shape, polygon=polygon, triangulation=triangulation, h=h, refine=refine)
     else:
-        m = contourmesh.mesh(volume, spacing=spacing, origin=origin, polygon=polygon, triangulation=triangulation)
+        m = contourmesh.mesh(volume, spacing=spacing, origin=origin, polygon=polygon, triangulation=triangulation,
+                             refine=refine)
     return Result(area=float(m.area), mesh=m, P=int(m.P))
 
 
@@ -139,7 +145,10 @@ def _method(name: str):
     ours = parse_ours(name)
     if ours is None:
         return get_method(name)
-    return Method(name=name, family="ours", params={"polygon": ours[0], "triangulation": ours[1]}, fn=ours_method)
+    params = {"polygon": ours[0], "triangulation": ours[1]}
+    if ours[2] != "none":
+        params["refine"] = ours[2]
+    return Method(name=name, family="ours", params=params, fn=ours_method)
 
 
 # --- spec -------------------------------------------------------------------------------------------
