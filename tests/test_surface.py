@@ -158,3 +158,28 @@ def test_single_section_is_a_prism():
     m = stack_to_mesh(ContourStack(sections=(Section(5.0, (sq,)),)))
     assert_closed_outward(m)
     assert m.volume == pytest.approx(6.0)
+
+
+def test_torus_lying_flat_joins_outer_and_hole_chains():
+    from contourmesh.shapes import Torus
+
+    shape = Torus(12, 4, center=(0.3, 0.1, 0.2))
+    stack = outer_jordan_stack(shape)
+    assert all(len(s.contours) == 2 for s in stack.sections)
+    for polygon, tri in COMBOS:
+        m = stack_to_mesh(stack, polygon=polygon, triangulation=tri)
+        assert_closed_outward(m, genus=1)
+    m = contourmesh.mesh(shape, polygon="mlp", triangulation="optimal")
+    assert "exact_joins" not in m.meta  # the paper's path, not the volume mesher
+    assert abs(m.area / shape.area - 1) < 0.03
+
+
+def test_standing_torus_goes_through_the_volume_mesher():
+    from contourmesh.shapes import Torus
+
+    shape = Torus(10, 3, center=(0.3, 0.1, 0.2), rotation=rotation_from_euler(90, 0, 0))
+    m = contourmesh.mesh(shape)
+    assert_closed_outward(m, genus=1)
+    assert m.meta["exact_joins"] >= 1
+    with pytest.raises(NotImplementedError, match="cannot join"):
+        stack_to_mesh(outer_jordan_stack(shape))

@@ -71,15 +71,17 @@ def instances(quick: bool):
             a, b, c = (s * axes[i]).tolist()
             yield "ellipsoid-rot", s, i, Ellipsoid(a, b, c, center=tuple(centres[i]),
                                                     rotation=rotation_from_euler(*angles[i]))
-    for s in sizes[:2]:  # torus R : r = 3 : 1 (two contours in many slices)
+    for s in sizes[:3]:  # torus R : r = 3 : 1, lying flat: an outer contour and a hole in every slice
         yield "torus", s, 0, Torus(s * 0.75, s * 0.25, center=(0.3, 0.1, 0.2))
 
 
-def run(quick: bool):
+def run(quick: bool, family=None):
     from contourmesh.compare.methods import run_method
 
     rows = []
     for fam, size, inst, shape in instances(quick):
+        if family is not None and fam != family:
+            continue
         true = float(shape.area)
         if fam == "sphere-gauss":
             vol, org = gauss_volume(shape)
@@ -233,9 +235,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="sizes 20-80, fewer instances")
     ap.add_argument("--from-csv", action="store_true", help="only rebuild table.md and loglog.png from results.csv")
+    ap.add_argument("--family", default=None, help="re-run one family only (e.g. torus), replacing its rows")
     args = ap.parse_args(argv)
     if args.from_csv:
         rows = read_csv()
+    elif args.family:
+        rows = [r for r in read_csv() if r["family"] != args.family] + run(args.quick, args.family)
+        write_csv(rows)
     else:
         rows = run(args.quick)
         write_csv(rows)

@@ -130,18 +130,100 @@ def _outward(stack: ContourStack) -> ContourStack:
     return ContourStack(tuple(sections), stack.spacing, stack.origin, dict(stack.meta))
 
 
+def _nested_chains(stack: ContourStack):
+    """For sections that each hold one outer contour and the same number of holes, the hole
+    chains: ``chains[h][k]`` is the index in section k of the hole joined to hole h of section 0.
+
+    Holes of consecutive sections are matched by their nearest centroids; the matching must be
+    one to one and each matched pair must overlap (bounding boxes), else None.
+    """
+    first = stack.sections[0]
+    n_holes = len(first.contours) - 1
+    for s in stack.sections:
+        outer = [i for i, p in enumerate(s.parents) if p == -1]
+        if outer != [0] or len(s.contours) != n_holes + 1 or any(p != 0 for p in s.parents[1:]):
+            return None
+    def centroid_box(c):
+        c = np.asarray(c, dtype=np.float64)
+        return c.mean(axis=0), c.min(axis=0), c.max(axis=0)
+    chains = [[h + 1] for h in range(n_holes)]
+    for k in range(1, len(stack.sections)):
+        prev = [centroid_box(stack.sections[k - 1].contours[ch[-1]]) for ch in chains]
+        cur = [centroid_box(c) for c in stack.sections[k].contours[1:]]
+        used = set()
+        for ch, (pc, plo, phi) in zip(chains, prev):
+            d = [np.linalg.norm(pc - cc) for cc, _, _ in cur]
+            j = int(np.argmin(d))
+            clo, chi = cur[j][1], cur[j][2]
+            if j in used or np.any(plo > chi + 1) or np.any(clo > phi + 1):
+                return None
+            used.add(j)
+            ch.append(j + 1)
+    return chains
+
+
 def _runs(stack: ContourStack):
     """Chains of (section index, contour index) joined section to section.
 
-    One contour per section: the whole stack is one run.  Several contours per section need
-    the correspondence step of :mod:`contourmesh.bands.correspond`.
+    One contour per section: the whole stack is one run.  Sections with one outer contour and
+    holes matched one to one (a torus lying flat) are handled by :func:`_nested_chains`; other
+    stacks with several contours per section go through the volume mesher
+    (:func:`contourmesh.mesh` rasterizes them, :mod:`contourmesh.rasterize`).
     """
     for k, s in enumerate(stack.sections):
         if len(s.contours) != 1:
             raise NotImplementedError(
-                f"section {k} (z={s.z}) has {len(s.contours)} contours; this build joins one contour per section"
+                f"section {k} (z={s.z}) has {len(s.contours)} contours that this stack mesher cannot join "
+                "(it joins one contour per section, or one outer contour with matching holes); "
+                "use contourmesh.mesh(stack), which rasterizes it for the volume mesher"
             )
     return [[(k, 0) for k in range(len(stack.sections))]]
+
+
+def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
+    """Bands along the outer chain and each hole chain; caps with holes at both ends.
+
+    An end section whose polygons cannot be capped (outer and hole polygons of a thin ring that
+    cross) is dropped, so the surface ends at the next section that can be capped.
+    """
+    from .bands.caps import cap_faces
+
+    n = len(stack.sections)
+
+    def poly(k, c):
+        cont = stack.sections[k].contours[c]
+        p = _polygon(cont, polygon)
+        return np.asarray(cont, dtype=np.float64) if _is_degenerate(p) else p
+
+    all_chains = [[0] * n] + chains
+    polys = [[poly(k, ch[k]) for k in range(n)] for ch in all_chains]
+
+    def cappable(k):
+        try:
+            cap_faces(polys[0][k], [p[k] for p in polys[1:]])
+            return True
+        except ValueError:
+            return False
+
+    s0 = next((k for k in range(n) if cappable(k)), None)
+    s1 = next((k for k in range(n - 1, -1, -1) if cappable(k)), None)
+    if s0 is None or s1 is None or s1 - s0 < 1:
+        raise ValueError("the stack's rings cannot be capped (outer and hole polygons cross at both ends)")
+    rings = [[b.add_polygon(p[k], zs[k]) for k in range(s0, s1 + 1)] for p in polys]
+    for ch in rings:
+        for a, c in zip(ch[:-1], ch[1:]):
+            _band(b, a, c, triangulation)
+    for end, k, upward in ((0, s0, False), (-1, s1, True)):
+        ends = [ch[end] for ch in rings]
+        if caps == "half":
+            nb = k + 1 if upward is False else k - 1
+            h = abs(zs[nb] - zs[k])
+            zc = zs[k] + (h / 2 if upward else -h / 2)
+            shifted = [b.add_polygon(p[k], zc) for p in polys]
+            for r, t in zip(ends, shifted):
+                _band(b, r, t, triangulation) if upward else _band(b, t, r, triangulation)
+            ends = shifted
+        _cap(b, ends[0], ends[1:], upward=upward)
 
 
 def stack_to_mesh(
@@ -167,6 +249,12 @@ def stack_to_mesh(
     b = _Builder(stack.spacing, stack.origin)
     default_h = float(np.median(np.diff(zs))) if len(zs) > 1 else 1.0
 
+    chains = _nested_chains(stack) if any(len(sec.contours) > 1 for sec in stack.sections) else None
+    if chains is not None:
+        _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs)
+        meta = dict(stack.meta)
+        meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
+        return b.mesh(meta=meta)
     for run in _runs(stack):
         polys = [_polygon(stack.sections[k].contours[c], polygon) for k, c in run]
         degenerate = [_is_degenerate(p) for p in polys]
@@ -292,8 +380,9 @@ def mesh(source, *, polygon: str = "mlp", triangulation: str | None = None, caps
 
     Notes
     -----
-    An analytic shape whose slices each hold one contour is meshed exactly as in the paper, from
-    its outer Jordan contour stack.  A shape with several contours in some slice (a torus, a
+    An analytic shape whose slices each hold one contour (or one outer contour with matching
+    holes, like a torus lying flat) is meshed exactly as in the paper, from its outer Jordan
+    contour stack.  A shape with several contours in some slice (a torus, a
     rotated shape) is meshed through its Gauss digitization (the same ``I`` in every slice) by the
     volume mesher, which handles holes and branching.
     """
@@ -323,7 +412,7 @@ def mesh(source, *, polygon: str = "mlp", triangulation: str | None = None, caps
         from .digitize import gauss_volume, outer_jordan_stack
 
         stack = outer_jordan_stack(shape, h=h)
-        if all(len(s.contours) == 1 for s in stack.sections):
+        if all(len(s.contours) == 1 for s in stack.sections) or _nested_chains(stack) is not None:
             return stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
         vol, org = gauss_volume(shape, h=h)
         m = mesh(vol, polygon=polygon, triangulation=triangulation, caps=caps, spacing=(h, h, h),
