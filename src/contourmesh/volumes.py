@@ -568,6 +568,13 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         raise ValueError(f"unknown band triangulation method {triangulation!r}; expected one of {sorted(TRIANGULATORS)}")
     if caps not in ("flat", "half"):
         raise ValueError(f"caps must be 'flat' or 'half'; got {caps!r}")
+    from .fastpath import fast_volume_to_mesh
+
+    # the common case (no holes, every slice pair a simple band join) in compiled code, the same mesh
+    fast = fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
+                               origin=origin, polygon=polygon, triangulation=triangulation, caps=caps)
+    if fast is not None:
+        return fast
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                   threshold=threshold, origin=origin)
     from scipy.sparse import coo_matrix

@@ -1,0 +1,468 @@
+"""Volume -> closed mesh + surface area: contourmesh's fast path against marching-cubes-family peers.
+
+Everything from the numpy array to the area is timed, for every method, on the same arrays in
+one process, in alternating order (the method order rotates every repetition).  Peak memory is
+the resident set size of a fresh subprocess per (method, input) (``ru_maxrss``), reported with
+the RSS just before the call (the input volume already resident).
+
+    python benchmarks/volume_speed.py                   # 256^3 and 512^3 balls, 1 and all threads
+    python benchmarks/volume_speed.py --sweep           # seconds against r = 50 .. 400 (log-log slope)
+    python benchmarks/volume_speed.py --cold            # first call in a fresh process, empty numba cache
+    python benchmarks/volume_speed.py --real            # lobster (> 60), liver labels x2
+    python benchmarks/volume_speed.py --all --out comparisons/speed
+
+Thread counts are set explicitly: ``threads=1`` (everyone single-threaded) and ``threads=all``
+(contourmesh's thread pool and ``vtkSMPTools`` on every core; scikit-image is single-threaded).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+METHODS = ["contourmesh", "skimage-mc", "vtk-flyingedges", "vtk-discreteflyingedges", "vtk-surfacenets"]
+
+
+# ------------------------------------------------------------------------------------------------
+# inputs
+# ------------------------------------------------------------------------------------------------
+def ball_volume(n: int, r: float) -> np.ndarray:
+    """A centred binary ball, built slice by slice (no float temporaries the size of the volume)."""
+    c = (n - 1) / 2
+    vol = np.zeros((n, n, n), dtype=bool)
+    yy, xx = np.ogrid[:n, :n]
+    d2 = (xx - c) ** 2 + (yy - c) ** 2
+    for k in range(n):
+        rr = r * r - (k - c) ** 2
+        if rr >= 0:
+            vol[k] = d2 <= rr
+    return vol
+
+
+def real_volume(name: str):
+    data = Path(os.environ.get("CONTOURMESH_DATA", ROOT.parent / "shared" / "data"))
+    if name == "lobster":
+        from contourmesh.io import read_volume
+
+        vol, sp, _ = read_volume(data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+        return np.pad(vol, 1), tuple(sp)
+    if name == "liver-x2":
+        z = np.load(data / "volumes" / "cgogn" / "liver.npz")
+        vol = z["volume"] if "volume" in z.files else z["mask"]
+        vol = np.asarray(vol) > 0
+        vol = vol.repeat(2, 0).repeat(2, 1).repeat(2, 2)  # nearest-neighbour upsampling x2
+        return np.pad(vol, 1), (1.0, 1.0, 1.0)
+    raise ValueError(name)
+
+
+def make_input(spec: str):
+    """``ball-N-R`` or a real-data name -> (bool volume [z, y, x], spacing)."""
+    if spec.startswith("ball-"):
+        _, n, r = spec.split("-")
+        return ball_volume(int(n), float(r)), (1.0, 1.0, 1.0)
+    return real_volume(spec)
+
+
+# ------------------------------------------------------------------------------------------------
+# methods: volume -> (area, triangles)
+# ------------------------------------------------------------------------------------------------
+def _tri_area(pts, tri):
+    a = pts[tri[:, 1]] - pts[tri[:, 0]]
+    b = pts[tri[:, 2]] - pts[tri[:, 0]]
+    return float(0.5 * np.linalg.norm(np.cross(a, b), axis=1).sum())
+
+
+def _vtk_image(vol, spacing):
+    from vtkmodules.util import numpy_support
+    from vtkmodules.vtkCommonDataModel import vtkImageData
+
+    img = vtkImageData()
+    img.SetDimensions(vol.shape[2], vol.shape[1], vol.shape[0])
+    img.SetSpacing(spacing[2], spacing[1], spacing[0])
+    arr = numpy_support.numpy_to_vtk(vol.reshape(-1).view(np.uint8), deep=False)
+    img.GetPointData().SetScalars(arr)
+    return img, arr
+
+
+def _vtk_area(poly):
+    from vtkmodules.util import numpy_support
+
+    pts = numpy_support.vtk_to_numpy(poly.GetPoints().GetData()).astype(np.float64)
+    conn = numpy_support.vtk_to_numpy(poly.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+    return _tri_area(pts, conn), len(conn)
+
+
+def run_method(name, vol, spacing, threads):
+    if name == "contourmesh":
+        from contourmesh.fastpath import fast_volume_to_mesh
+
+        m = fast_volume_to_mesh(vol, spacing=spacing, threads=threads)
+        if m is None:  # outside the fast path: the full mesher
+            from contourmesh.volumes import volume_to_mesh
+
+            m = volume_to_mesh(vol, spacing=spacing)
+        return m.area, len(m.faces), bool(m.meta.get("fast_path", False))
+    if name == "skimage-mc":
+        from skimage import measure
+
+        v, f, _, _ = measure.marching_cubes(vol.view(np.uint8), 0.5, spacing=spacing)
+        return measure.mesh_surface_area(v, f), len(f), None
+    from vtkmodules.vtkCommonCore import vtkSMPTools
+
+    vtkSMPTools.Initialize(threads)
+    img, _keep = _vtk_image(vol, spacing)
+    if name == "vtk-flyingedges":
+        from vtkmodules.vtkFiltersCore import vtkFlyingEdges3D
+
+        alg = vtkFlyingEdges3D()
+        alg.SetValue(0, 0.5)
+    elif name == "vtk-discreteflyingedges":
+        from vtkmodules.vtkFiltersGeneral import vtkDiscreteFlyingEdges3D
+
+        alg = vtkDiscreteFlyingEdges3D()
+        alg.SetValue(0, 1)
+    elif name == "vtk-surfacenets":
+        from vtkmodules.vtkFiltersCore import vtkSurfaceNets3D
+
+        alg = vtkSurfaceNets3D()
+        alg.SetValue(0, 1)
+        alg.SetOutputMeshTypeToTriangles()
+    else:
+        raise ValueError(name)
+    if hasattr(alg, "ComputeNormalsOff"):
+        alg.ComputeNormalsOff()
+        alg.ComputeGradientsOff()
+        alg.ComputeScalarsOff()
+    alg.SetInputData(img)
+    alg.Update()
+    area, ntri = _vtk_area(alg.GetOutput())
+    return area, ntri, None
+
+
+def warm_up():
+    """Load numba's cache and VTK's/skimage's modules before timing."""
+    small = ball_volume(24, 9.0)
+    for name in METHODS:
+        run_method(name, small, (1.0, 1.0, 1.0), 1)
+
+
+# ------------------------------------------------------------------------------------------------
+# measurements
+# ------------------------------------------------------------------------------------------------
+def time_inputs(specs, repeat, threads):
+    rows = []
+    for spec in specs:
+        vol, sp = make_input(spec)
+        res = {m: [] for m in METHODS}
+        info = {}
+        cnz = []
+        for rep in range(repeat):
+            order = METHODS[rep % len(METHODS):] + METHODS[: rep % len(METHODS)]
+            for name in order:
+                t = time.perf_counter()
+                area, ntri, fast = run_method(name, vol, sp, threads)
+                res[name].append(time.perf_counter() - t)
+                info[name] = (area, ntri, fast)
+            t = time.perf_counter()
+            np.count_nonzero(vol)
+            cnz.append(time.perf_counter() - t)
+        base = float(np.median(res["contourmesh"]))
+        floor = float(np.median(cnz))
+        rows.append({"method": "count_nonzero (one read pass)", "input": spec, "shape": "x".join(map(str, vol.shape)),
+                     "threads": threads, "median_s": floor, "min_s": min(cnz), "max_s": max(cnz),
+                     "GB_per_s": vol.nbytes / floor / 1e9, "ratio_to_contourmesh": floor / base})
+        for name in METHODS:
+            ts = res[name]
+            area, ntri, fast = info[name]
+            rows.append({"method": name, "input": spec, "shape": "x".join(map(str, vol.shape)), "threads": threads,
+                         "median_s": float(np.median(ts)), "min_s": min(ts), "max_s": max(ts),
+                         "triangles": ntri, "area": area, "fast_path": fast,
+                         "ratio_to_contourmesh": float(np.median(ts)) / base,
+                         "x_count_nonzero": float(np.median(ts)) / floor})
+        print_rows(rows[-len(METHODS) - 1:])
+        del vol
+    return rows
+
+
+def peak_memory(spec, name, threads):
+    """Peak RSS (MiB) of a fresh process while it runs one method once, and its RSS before the call
+    (input volume resident, modules imported, numba cache loaded).  Linux: the high-water mark
+    ``VmHWM`` is reset through ``/proc/self/clear_refs`` just before the call."""
+    code = (
+        "import sys, json; sys.path.insert(0, %r); sys.path.insert(0, %r);"
+        "import volume_speed as vs; vol, sp = vs.make_input(%r);"
+        "vs.run_method(%r, vs.ball_volume(16, 6.0), (1.0, 1.0, 1.0), %d);"
+        "st = lambda key: [int(l.split()[1]) / 1024 for l in open('/proc/self/status') if l.startswith(key)][0];"
+        "rss0 = st('VmRSS:'); open('/proc/self/clear_refs', 'w').write('5');"
+        "r = vs.run_method(%r, vol, sp, %d);"
+        "print(json.dumps({'rss_before': rss0, 'peak': st('VmHWM:'), 'vol_mib': vol.nbytes / 2**20}))"
+    ) % (str(ROOT / "src"), str(Path(__file__).parent), spec, name, threads, name, threads)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=1800)
+    if out.returncode != 0:
+        return {"error": out.stderr.strip().splitlines()[-1] if out.stderr else "failed"}
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def cold_start():
+    """First call in a fresh process with an empty numba cache (compilation included), and the
+    import of contourmesh (which must not compile anything)."""
+    code = (
+        "import time, sys; sys.path.insert(0, %r); t = time.perf_counter(); import contourmesh;"
+        "from contourmesh import fastpath; t1 = time.perf_counter(); import numpy as np;"
+        "sys.path.insert(0, %r); import volume_speed as vs; v = vs.ball_volume(64, 25.0);"
+        "t2 = time.perf_counter(); m = fastpath.fast_volume_to_mesh(v, threads=1); t3 = time.perf_counter();"
+        "m = fastpath.fast_volume_to_mesh(v, threads=1); t4 = time.perf_counter();"
+        "print(t1 - t, t3 - t2, t4 - t3)"
+    ) % (str(ROOT / "src"), str(Path(__file__).parent))
+    res = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+        for label in ("empty cache", "warm cache"):
+            out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=1800)
+            imp, first, second = (float(x) for x in out.stdout.split())
+            res[label] = {"import_s": imp, "first_call_s": first, "second_call_s": second}
+    return res
+
+
+def _all_kernels(x1, y1, x2, y2, o1, o2):
+    from numba import njit
+
+    from contourmesh.bands.wiederhold import _edges_to_faces, wiederhold_edges
+
+    global _ALL_KERNELS
+    if "_ALL_KERNELS" not in globals():
+        @njit(cache=False)
+        def run(x1, y1, x2, y2, o1, o2):
+            tot = 0
+            for b in range(o1.shape[0] - 1):
+                n, m = o1[b + 1] - o1[b], o2[b + 1] - o2[b]
+                e = wiederhold_edges(x1[o1[b]:o1[b + 1]], y1[o1[b]:o1[b + 1]], x2[o2[b]:o2[b + 1]], y2[o2[b]:o2[b + 1]])
+                tot += _edges_to_faces(e, n, m, 0, 0, n, False).shape[0]
+            return tot
+
+        _ALL_KERNELS = run
+    return _ALL_KERNELS(x1, y1, x2, y2, o1, o2)
+
+
+def kernel_rate():
+    """Polygon vertices per second of the paper's triangulation kernel alone (section 3.4 edge
+    sequence + faces), and of the full band (initial edge, kernel, twist guard), on the rings of
+    the 512^3 ball."""
+    from contourmesh import fastpath as fp
+    from contourmesh.bands.wiederhold import _edges_to_faces, wiederhold_edges
+
+    vol = ball_volume(512, 250)
+    rings = []
+    for k in range(512):
+        if vol[k].any():
+            polys, _ = fp.slice_polygons(vol[k])
+            p = polys[0].astype(np.float64)
+            rings.append(np.c_[p, np.full(len(p), float(k))])
+    pairs = [(rings[i], rings[i + 1]) if len(rings[i]) <= len(rings[i + 1]) else (rings[i + 1], rings[i])
+             for i in range(len(rings) - 1)]
+    n1 = np.array([len(a) for a, _ in pairs])
+    n2 = np.array([len(b) for _, b in pairs])
+    o1 = np.r_[0, np.cumsum(n1)]
+    o2 = np.r_[0, np.cumsum(n2)]
+    c1 = np.concatenate([a for a, _ in pairs])
+    c2 = np.concatenate([b for _, b in pairs])
+    x1, y1 = np.ascontiguousarray(c1[:, 0]), np.ascontiguousarray(c1[:, 1])
+    x2, y2 = np.ascontiguousarray(c2[:, 0]), np.ascontiguousarray(c2[:, 1])
+    nverts = int(n1.sum() + n2.sum())
+    _all_kernels(x1, y1, x2, y2, o1, o2)
+    best_k = best_b = 1e9
+    for _ in range(5):
+        t = time.perf_counter()
+        _all_kernels(x1, y1, x2, y2, o1, o2)
+        best_k = min(best_k, time.perf_counter() - t)
+        t = time.perf_counter()
+        for a, b in pairs:
+            fp._band(a, b, 32)
+        best_b = min(best_b, time.perf_counter() - t)
+    return {"bands": len(pairs), "polygon_vertices": nverts, "kernel_s": best_k, "kernel_vertices_per_s": nverts / best_k,
+            "band_with_guard_s": best_b, "band_vertices_per_s": nverts / best_b}
+
+
+def boundary_voxels(vol):
+    """Object voxels with a 6-neighbour in the background, counted slice by slice."""
+    tot = 0
+    pad = np.zeros(vol.shape[1:], bool)
+    for k in range(vol.shape[0]):
+        s = vol[k]
+        if not s.any():
+            continue
+        inner = s.copy()
+        inner &= vol[k - 1] if k > 0 else pad
+        inner &= vol[k + 1] if k + 1 < vol.shape[0] else pad
+        inner[1:, :] &= s[:-1, :]
+        inner[:-1, :] &= s[1:, :]
+        inner[:, 1:] &= s[:, :-1]
+        inner[:, :-1] &= s[:, 1:]
+        inner[0, :] = inner[-1, :] = False
+        inner[:, 0] = inner[:, -1] = False
+        tot += int(np.count_nonzero(s) - np.count_nonzero(inner))
+    return tot
+
+
+def sweep(radii, repeat, threads):
+    rows = []
+    for r in radii:
+        n = int(2 * r + 12)
+        vol = ball_volume(n, r)
+        from contourmesh.fastpath import fast_volume_to_mesh
+
+        ts = []
+        for _ in range(repeat):
+            t = time.perf_counter()
+            m = fast_volume_to_mesh(vol, threads=threads)
+            ts.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        np.count_nonzero(vol)
+        cnz = time.perf_counter() - t
+        rows.append({"r": r, "n": n, "median_s": float(np.median(ts)), "min_s": min(ts), "max_s": max(ts),
+                     "count_nonzero_s": cnz, "vertices": len(m.vertices), "triangles": len(m.faces),
+                     "boundary_voxels": boundary_voxels(vol)})
+        print(rows[-1], flush=True)
+        del vol
+    lr = np.log([row["r"] for row in rows])
+    lt = np.log([row["median_s"] for row in rows])
+    slope = float(np.polyfit(lr, lt, 1)[0])
+    return rows, slope
+
+
+# ------------------------------------------------------------------------------------------------
+# output
+# ------------------------------------------------------------------------------------------------
+def print_rows(rows):
+    for r in rows:
+        extra = f"  {r['GB_per_s']:.1f} GB/s" if "GB_per_s" in r else \
+            f"  tri={r['triangles']:>8}  x{r['ratio_to_contourmesh']:.2f} of contourmesh"
+        print(f"{r['method']:<30} {r['input']:<14} t={r['threads']}  median {r['median_s']:.3f} s "
+              f"[{r['min_s']:.3f}-{r['max_s']:.3f}]{extra}", flush=True)
+
+
+def write_table(rows, mem, out: Path):
+    out.mkdir(parents=True, exist_ok=True)
+    keys = ["input", "shape", "threads", "method", "median_s", "min_s", "max_s", "peak_rss_mib", "rss_before_mib",
+            "triangles", "area", "ratio_to_contourmesh", "x_count_nonzero", "fast_path"]
+    for r in rows:
+        m = mem.get((r["input"], r["method"], r["threads"]), {})
+        r["peak_rss_mib"] = m.get("peak")
+        r["rss_before_mib"] = m.get("rss_before")
+    with open(out / "volume_speed.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    lines = ["| input | threads | method | median s | min-max s | peak RSS MiB (before) | triangles | x contourmesh | x count_nonzero |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        pk = "" if r.get("peak_rss_mib") is None else f"{r['peak_rss_mib']:.0f} ({r['rss_before_mib']:.0f})"
+        lines.append(
+            f"| {r['input']} ({r['shape']}) | {r['threads']} | {r['method']} | {r['median_s']:.3f} | "
+            f"{r['min_s']:.3f}-{r['max_s']:.3f} | {pk} | {r.get('triangles', '')} | "
+            f"{r['ratio_to_contourmesh']:.3f} | {r.get('x_count_nonzero', 1.0):.1f} |")
+    (out / "volume_speed.md").write_text("\n".join(lines) + "\n")
+
+
+def plot(rows, sweep_rows, slope, out: Path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2 if sweep_rows else 1, figsize=(12 if sweep_rows else 6, 4.5), squeeze=False)
+    ax = axes[0, 0]
+    inputs = sorted({(r["input"], r["threads"]) for r in rows if r["method"] in METHODS})
+    width = 0.8 / len(METHODS)
+    for i, m in enumerate(METHODS):
+        vals = [next((r["median_s"] for r in rows if r["method"] == m and (r["input"], r["threads"]) == key), np.nan)
+                for key in inputs]
+        ax.bar(np.arange(len(inputs)) + i * width, vals, width, label=m)
+    ax.set_xticks(np.arange(len(inputs)) + 0.4 - width / 2)
+    ax.set_xticklabels([f"{a}\n{t} thr" for a, t in inputs], fontsize=8)
+    ax.set_yscale("log")
+    ax.set_ylabel("seconds (array -> mesh + area)")
+    ax.legend(fontsize=7)
+    ax.set_title("volume -> closed mesh + area, median")
+    if sweep_rows:
+        ax = axes[0, 1]
+        r = np.array([s["r"] for s in sweep_rows])
+        t = np.array([s["median_s"] for s in sweep_rows])
+        ax.loglog(r, t, "o-", label=f"contourmesh fast path (slope {slope:.2f})")
+        ax.loglog(r, [s["count_nonzero_s"] for s in sweep_rows], "s--", label="np.count_nonzero (one read pass)")
+        ax.loglog(r, t[0] * (r / r[0]) ** 2, ":", color="grey", label="slope 2 (boundary voxels)")
+        ax.set_xlabel("ball radius r (voxels), volume (2r + 12)^3")
+        ax.set_ylabel("seconds")
+        ax.legend(fontsize=7)
+        ax.set_title("time against r")
+    fig.tight_layout()
+    fig.savefig(out / "volume_speed.png", dpi=120)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--inputs", default="ball-256-120,ball-512-250")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--threads", default="1,all")
+    ap.add_argument("--sweep", action="store_true")
+    ap.add_argument("--cold", action="store_true")
+    ap.add_argument("--real", action="store_true")
+    ap.add_argument("--memory", action="store_true", help="peak RSS per method and input (fresh subprocesses)")
+    ap.add_argument("--kernel", action="store_true")
+    ap.add_argument("--all", action="store_true")
+    ap.add_argument("--out", default=None, help="write volume_speed.{csv,md,png,json} here")
+    a = ap.parse_args(argv)
+    if a.all:
+        a.sweep = a.cold = a.memory = a.kernel = True
+    ncpu = os.cpu_count() or 1
+    threads = [ncpu if t == "all" else int(t) for t in a.threads.split(",")]
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    print(f"machine: {ncpu} CPUs; load average {os.getloadavg()}", flush=True)
+    summary = {"cpus": ncpu, "loadavg_start": os.getloadavg()}
+    warm_up()
+    specs = a.inputs.split(",") + (["lobster", "liver-x2"] if a.real else [])
+    rows = []
+    for th in threads:
+        rows += time_inputs(specs, a.repeat, th)
+    mem = {}
+    if a.memory:
+        for spec in specs:
+            for name in METHODS:
+                mem[(spec, name, threads[0])] = res = peak_memory(spec, name, threads[0])
+                print("memory", spec, name, res, flush=True)
+    if a.kernel:
+        summary["kernel"] = kernel_rate()
+        print("kernel", summary["kernel"], flush=True)
+    if a.cold:
+        summary["cold_start"] = cold_start()
+        print("cold start", summary["cold_start"], flush=True)
+    sweep_rows, slope = [], None
+    if a.sweep:
+        sweep_rows, slope = sweep([50, 71, 100, 141, 200, 283, 400], a.repeat, threads[0])
+        summary["sweep"] = sweep_rows
+        summary["sweep_loglog_slope"] = slope
+        print("log-log slope of seconds against r:", slope, flush=True)
+    summary["loadavg_end"] = os.getloadavg()
+    if a.out:
+        out = Path(a.out)
+        write_table(rows, mem, out)
+        plot(rows, sweep_rows, slope, out)
+        (out / "volume_speed.json").write_text(json.dumps(summary, indent=1, default=float) + "\n")
+        print("wrote", out, flush=True)
+
+
+if __name__ == "__main__":
+    main()

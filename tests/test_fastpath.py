@@ -1,0 +1,248 @@
+"""The fast path gives the full mesher's mesh, vertex for vertex and face for face.
+
+No timings here (speed lives in ``benchmarks/volume_speed.py``): every test compares
+:func:`contourmesh.fastpath.fast_volume_to_mesh` with :func:`contourmesh.volumes.volume_to_mesh`
+on volumes inside the fast path's scope, and checks that it declines (returns None) outside it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from contourmesh.fastpath import (
+    band_faces,
+    fast_volume_to_mesh,
+    outer_jordan_contour,
+    slice_components,
+    slice_polygons,
+    slice_runs,
+)
+from contourmesh.polygons import mlp_polygon
+from contourmesh.sections import trace_contours
+from contourmesh.volumes import _mlp_of_pixels, volume_to_mesh
+
+_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+
+
+def ball(n, r, c=None, shape=None):
+    shape = shape or (n, n, n)
+    c = np.array([(s - 1) / 2 for s in shape]) if c is None else np.asarray(c, float)
+    z, y, x = np.ogrid[: shape[0], : shape[1], : shape[2]]
+    return (x - c[2]) ** 2 + (y - c[1]) ** 2 + (z - c[0]) ** 2 <= r * r
+
+
+def ellipsoid(shape, c, radii):
+    z, y, x = np.ogrid[: shape[0], : shape[1], : shape[2]]
+    return ((x - c[2]) / radii[2]) ** 2 + ((y - c[1]) / radii[1]) ** 2 + ((z - c[0]) / radii[0]) ** 2 <= 1
+
+
+def assert_same(fast, slow):
+    assert fast is not None, "the fast path declined a volume inside its scope"
+    assert fast.vertices.shape == slow.vertices.shape
+    assert fast.faces.shape == slow.faces.shape
+    assert np.array_equal(fast.vertices, slow.vertices)
+    assert np.array_equal(fast.faces, slow.faces)
+    for key in ("band_joins", "exact_joins", "polygon_fallbacks", "band_fallbacks"):
+        assert fast.meta[key] == slow.meta[key], key
+    assert fast.meta["fast_path"] is True
+    assert fast.P == slow.P
+
+
+# ------------------------------------------------------------------------------------------------
+# the pieces against the full mesher's pieces
+# ------------------------------------------------------------------------------------------------
+def test_runs_and_components_match_ndimage():
+    rng = np.random.default_rng(1)
+    for _ in range(30):
+        h, w = rng.integers(1, 40, size=2)
+        m = ndimage.gaussian_filter(rng.random((h, w)), 1.2) > 0.5
+        ry, rx0, rx1, rs = slice_runs(m)
+        back = np.zeros_like(m)
+        for y, a, b in zip(ry, rx0, rx1):
+            back[y, a:b] = True
+        assert np.array_equal(back, m)
+        assert np.all(rs[1:] >= rs[:-1]) and rs[-1] == len(ry)
+        (ry, rx0, rx1, _), lab, n, holes, bbox = slice_components(m)
+        ref, nref = ndimage.label(m, structure=_CROSS)
+        assert n == nref
+        for y, a, b, c in zip(ry, rx0, rx1, lab):
+            assert np.all(ref[y, a:b] == c + 1)  # same numbering (raster order of first pixel)
+        for c in range(n):
+            comp = ref == c + 1
+            bg, nb = ndimage.label(np.pad(~comp, 1, constant_values=True), structure=np.ones((3, 3), bool))
+            assert holes[c] == nb - 1
+            ys, xs = np.nonzero(comp)
+            assert bbox[c].tolist() == [xs.min(), ys.min(), xs.max(), ys.max()]
+
+
+def test_runs_of_unaligned_rows_and_words():
+    # widths that are not multiples of 8 exercise the byte head/tail around the word skip
+    for w in (1, 7, 9, 17, 31):
+        m = np.zeros((3, w), bool)
+        m[1, w // 3:] = True
+        m[2, :1] = True
+        ry, rx0, rx1, _ = slice_runs(m)
+        assert [(int(y), int(a), int(b)) for y, a, b in zip(ry, rx0, rx1)] == [(1, w // 3, w), (2, 0, 1)]
+
+
+def test_outer_contour_and_mlp_match_trace_contours():
+    rng = np.random.default_rng(2)
+    done = 0
+    while done < 40:
+        h, w = rng.integers(2, 30, size=2)
+        m = ndimage.gaussian_filter(rng.random((h, w)), 1.5) > 0.5
+        lab, n = ndimage.label(m, structure=_CROSS)
+        if n == 0:
+            continue
+        comp = lab == 1
+        contours, parents = trace_contours(comp)
+        outer = [c for c, p in zip(contours, parents) if p == -1]
+        assert len(outer) == 1
+        assert np.array_equal(outer_jordan_contour(comp), outer[0])
+        done += 1
+    # the MLPs of every component of a slice, as the full mesher computes them
+    for _ in range(30):
+        m = ndimage.gaussian_filter(rng.random((40, 40)), 2.0) > 0.5
+        lab, n = ndimage.label(m, structure=_CROSS)
+        (_, _, _, _), _, _, holes, _ = slice_components(m)
+        if n == 0 or holes.any():
+            continue
+        polys, degenerate = slice_polygons(m)
+        for c in range(n):
+            sl = ndimage.find_objects(lab)[c]
+            ref = _mlp_of_pixels(lab[sl] == c + 1)
+            if ref is None:
+                assert degenerate[c]
+            else:
+                assert not degenerate[c]
+                assert np.array_equal(polys[c], ref + [sl[1].start, sl[0].start])
+
+
+def test_band_faces_match_the_mesher_band():
+    from contourmesh.bands import triangulate_band
+
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        n, m = rng.integers(3, 90, size=2)
+        t1 = np.sort(rng.uniform(0, 2 * np.pi, n))[::1]
+        t2 = np.sort(rng.uniform(0, 2 * np.pi, m))
+        r1, r2 = rng.uniform(5, 20, 2)
+        lo = np.c_[r1 * np.cos(t1), r1 * np.sin(t1), np.zeros(n)]
+        hi = np.c_[r2 * np.cos(t2) + rng.normal(0, 1), r2 * np.sin(t2), np.ones(m)]
+        f, replaced = band_faces(lo, hi)
+        if not replaced:
+            assert np.array_equal(f, triangulate_band(lo, hi, "wiederhold"))
+        assert f.shape == (n + m, 3)
+
+
+# ------------------------------------------------------------------------------------------------
+# whole meshes
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("n, r", [(9, 3.2), (20, 7.3), (33, 14.6), (48, 21.0), (70, 31.5)])
+def test_balls(n, r):
+    vol = ball(n, r)
+    assert_same(fast_volume_to_mesh(vol, threads=1), volume_to_mesh(vol))
+
+
+def test_balls_off_centre_and_threads():
+    rng = np.random.default_rng(4)
+    for _ in range(4):
+        n = int(rng.integers(16, 40))
+        vol = ball(n, rng.uniform(3, n / 2 - 2), c=rng.uniform(n / 2 - 2, n / 2 + 2, 3))
+        slow = volume_to_mesh(vol)
+        assert_same(fast_volume_to_mesh(vol, threads=1), slow)
+        assert_same(fast_volume_to_mesh(vol, threads=2), slow)
+
+
+def test_random_ellipsoids_and_options():
+    rng = np.random.default_rng(5)
+    checked = 0
+    for it in range(12):
+        shape = tuple(int(s) for s in rng.integers(12, 36, 3))
+        c = [rng.uniform(s * 0.4, s * 0.6) for s in shape]
+        radii = [rng.uniform(2.5, s * 0.45) for s in shape]
+        vol = ellipsoid(shape, c, radii)
+        kw = dict(spacing=tuple(rng.uniform(0.3, 2.0, 3)), origin=tuple(rng.uniform(-5, 5, 3)),
+                  axis=int(rng.integers(0, 3)), caps=("flat", "half")[it % 2])
+        slow = volume_to_mesh(vol, **kw)
+        fast = fast_volume_to_mesh(vol, **kw, threads=1 + it % 2)
+        if fast is None:  # a thin ellipsoid may need an exact join somewhere
+            assert slow.meta["exact_joins"] > 0
+            continue
+        assert_same(fast, slow)
+        checked += 1
+    assert checked >= 8
+
+
+def test_several_components_prisms_and_half_caps():
+    vol = np.zeros((12, 30, 34), bool)
+    vol[1:10] |= ball(0, 5.2, c=(5, 8, 9), shape=(9, 30, 34))[:9]
+    vol[2:11] |= ball(0, 4.1, c=(4, 20, 25), shape=(9, 30, 34))[:9]
+    vol[6, 2:5, 28:32] = True          # a one-slice component: a prism
+    vol[3:5, 25:28, 3:6] = True        # a two-slice box (flat caps on both ends)
+    vol[8, 27, 2] = True               # a single voxel: its MLP degenerates to a point
+    z = np.cumsum(np.r_[0.0, np.linspace(0.5, 1.5, 11)])
+    for caps in ("flat", "half"):
+        kw = dict(spacing=(1.0, 0.7, 1.3), z=z, caps=caps)
+        slow = volume_to_mesh(vol, **kw)
+        assert slow.meta["polygon_fallbacks"] >= 1
+        assert_same(fast_volume_to_mesh(vol, **kw, threads=2), slow)
+
+
+def test_value_kinds():
+    vol = ball(24, 9.3)
+    slow = volume_to_mesh(vol)
+    u8 = vol.astype(np.uint8)
+    assert_same(fast_volume_to_mesh(u8, threads=1), volume_to_mesh(u8))
+    assert_same(fast_volume_to_mesh(u8, threads=1), slow)
+    labels = vol.astype(np.int16) * 7
+    assert_same(fast_volume_to_mesh(labels, label=7, threads=1), slow)
+    grey = vol * 100.0 + 3.0
+    assert_same(fast_volume_to_mesh(grey, threshold=50.0, threads=1), slow)
+    assert_same(fast_volume_to_mesh(np.asfortranarray(vol), threads=1), slow)  # not C-contiguous
+
+
+def test_declines_outside_its_scope():
+    vol = ball(24, 9.3)
+    # options it does not handle
+    assert fast_volume_to_mesh(vol, polygon="dss") is None
+    assert fast_volume_to_mesh(vol, triangulation="greedy") is None
+    # a hole in a slice (a torus)
+    z, y, x = np.ogrid[:16, :32, :32]
+    torus = (np.sqrt((x - 15.5) ** 2 + (y - 15.5) ** 2) - 9) ** 2 + (z - 7.5) ** 2 <= 16
+    assert fast_volume_to_mesh(torus) is None
+    # branching: one component below, two above
+    fork = np.zeros((6, 12, 20), bool)
+    fork[1:3, 3:9, 2:18] = True
+    fork[3:5, 3:9, 2:7] = True
+    fork[3:5, 3:9, 12:18] = True
+    assert fast_volume_to_mesh(fork) is None
+    assert volume_to_mesh(fork).meta["exact_joins"] > 0
+    # invalid input: the full mesher raises the error
+    assert fast_volume_to_mesh(vol.astype(np.uint8) * 2) is None
+    assert fast_volume_to_mesh(np.zeros((4, 4, 4), bool)) is None
+    assert fast_volume_to_mesh(vol, spacing=(1, -1, 1)) is None
+    assert fast_volume_to_mesh(vol.astype(float) * np.nan, threshold=0.5) is None
+
+
+def test_shared_data_in_scope_volumes(shared_data):
+    from contourmesh.io import read_volume
+
+    checked = 0
+    for name in ("cat10.vol", "bunny-64.vol", "cat10b.vol"):
+        path = shared_data / "volumes" / "dgtal" / name
+        if not path.is_file():
+            continue
+        vol, spacing, origin = read_volume(path, threshold=0)
+        vol = np.pad(vol, 1)
+        fast = fast_volume_to_mesh(vol, spacing=spacing, threads=2)
+        slow = volume_to_mesh(vol, spacing=spacing)
+        if fast is None:
+            assert slow.meta["exact_joins"] > 0
+            continue
+        assert_same(fast, slow)
+        checked += 1
+    if checked == 0:
+        pytest.skip("no shared volume inside the fast path's scope")
