@@ -208,6 +208,21 @@ def _read_npy(path: Path, *, max_voxels: int, prefer: str):
         magic = fh.read(6)
     if magic != b"\x93NUMPY":
         raise _bad(path, "a NumPy .npy file (starting with b'\\x93NUMPY')", f"the bytes {magic!r}")
+    try:  # check the declared size before numpy allocates it (no allocation bomb)
+        with open(path, "rb") as fh:
+            major, _ = np.lib.format.read_magic(fh)
+            read_header = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
+            shape, _, dtype = read_header(fh)
+        if dtype.hasobject:
+            raise _bad(path, "a numeric array", "pickled Python objects (dtype object); refusing to unpickle them")
+        n, nbytes = _check_size(path, shape, dtype.itemsize, max_voxels)
+        have = path.stat().st_size
+        if nbytes > have:
+            raise _bad(path, f"{nbytes} bytes of data for shape {tuple(shape)} {dtype}", f"a file of {have} bytes (truncated file)")
+    except (ValueError, EOFError, OSError) as exc:
+        if str(exc).startswith(repr(str(path))):
+            raise
+        raise _wrap(path, ".npy", exc) from None
     try:
         arr = np.load(path, allow_pickle=False)
     except ValueError as exc:
@@ -1015,7 +1030,7 @@ def register_trimesh_loader() -> None:
 def is_file_source(source) -> bool:
     """Whether ``contourmesh.mesh(source)`` should treat ``source`` as a file path.
 
-    True for a ``Path``, and for a string that names an existing file or ends with a suffix this
+    True for a ``Path``, and for a string that names an existing file or folder or ends with a suffix this
     module reads (so a missing file gives FileNotFoundError, not a shape-spec parse error).
     """
     if isinstance(source, Path):
@@ -1025,8 +1040,8 @@ def is_file_source(source) -> bool:
     name = source.lower()
     if name.endswith(VOLUME_SUFFIXES + CONTOUR_SUFFIXES):
         return True
-    try:
-        return Path(source).expanduser().is_file()
+    try:  # an existing directory too, so that it gets "is a directory", not a shape-spec error
+        return Path(source).expanduser().exists()
     except (OSError, ValueError):
         return False
 

@@ -269,6 +269,12 @@ def stack_to_mesh(
                 k, c = run[pos]
                 polys[pos] = np.asarray(stack.sections[k].contours[c], dtype=np.float64)
                 degenerate[pos] = False
+        if len(keep) > 1 and all(degenerate[i] for i in keep):
+            # every polygon of the run degenerates (tiny contours): use the contours themselves, so
+            # that no section is lost and the mesh stays at the sections' own heights
+            keep = list(range(len(run)))
+            polys = [np.asarray(stack.sections[k].contours[c], dtype=np.float64) for k, c in run]
+            degenerate = [_is_degenerate(p) for p in polys]
         if len(keep) == 1 or all(degenerate[i] for i in keep):
             # A run of one section: a prism of the contour, one slice spacing thick.
             k, c = run[keep[0]]

@@ -340,6 +340,11 @@ class _Mesher:
                 n, m = sorted((len(lo), len(hi)))
                 f = triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f
                 self.band_fallbacks += 1
+        from .bands import band_is_folded
+
+        if band_is_folded(f):  # last resort: the arc-length band never folds
+            f = triangulate_band(lo, hi, "arclength")
+            self.band_fallbacks += 1
         self._add(np.concatenate([lo_ids, hi_ids])[f])
 
     def quads(self, lo_ids, hi_ids):
@@ -661,12 +666,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             for r, t in zip(rs, sh):
                 M.band(r, t) if up else M.band(t, r)
             rs = sh
-        try:
-            M.cap(rs, upward=up)
-            return
-        except ValueError:
-            pass
-        # the polygons cross or touch (thin parts): a hair-thin collar down to the pixels
+        xy = M.coords(np.concatenate(rs))[:, :2]
+        if len(np.unique(xy, axis=0)) == len(xy):  # rings that touch go to the pixel cap
+            try:
+                M.cap(rs, upward=up)
+                return
+            except ValueError:
+                pass
+        # the polygons cross or touch (thin parts): a hair-thin collar to the pixels
         z0 = M.coords(rs[0][:1])[0, 2]
         _pixel_cap(M, slices[k], k, c, rs, z0 + (1e-2 if up else -1e-2) * gap(k, up), up, to_xy_corner)
 
@@ -888,9 +895,14 @@ def _pixel_cap(M, s, k, c, rings, z, up, to_xy_corner):
     y0, x0 = sl[0].start, sl[1].start
     comp = s.labels[sl] == c + 1
     grid = _CornerGrid(M, x0, y0, comp.shape[0], comp.shape[1], z, to_xy_corner)
+    z_mid = 0.5 * (M.coords(rings[0][:1])[0, 2] + z)
     for r, crack in zip(rings, [s.crack_outer_c[c]] + list(s.crack_holes_c[c])):
-        t = grid(crack[:, 0], crack[:, 1])
+        # the band goes to the crack contour with one vertex per point (a contour touching itself
+        # keeps two), then vertical quads to the shared corner vertices of the pixel faces
+        t = M.ring(to_xy_corner(crack), z_mid)
         M.band(r, t) if up else M.band(t, r)
+        g = grid(crack[:, 0], crack[:, 1])
+        M.quads(t, g) if up else M.quads(g, t)
     _pixel_faces(M, comp, x0, y0, grid, up=up)
 
 

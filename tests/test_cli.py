@@ -1,0 +1,164 @@
+"""The command line on bad inputs (one line, non-zero exit), --force, and nothing lost on a kill."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from contourmesh.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+ENV = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+
+
+@pytest.fixture
+def blob_npy(tmp_path):
+    v = np.zeros((5, 8, 8), bool)
+    v[1:4, 2:6, 1:7] = True
+    v[2, 3:5, 3:5] = False
+    p = tmp_path / "blob.npy"
+    np.save(p, v)
+    return p
+
+
+def _one_line_error(capsys, argv, *pattern):
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("contourmesh: error: "), err
+    assert "Traceback" not in err
+    for p in pattern:
+        assert p in lines[0], lines[0]
+    return lines[0]
+
+
+@pytest.mark.parametrize("case", ["missing", "directory", "nan", "labels", "pickled", "unknown-suffix", "spec"])
+def test_bad_inputs_print_one_line_and_exit_2(case, tmp_path, capsys):
+    out = str(tmp_path / "out.ply")
+    if case == "missing":
+        _one_line_error(capsys, ["mesh", str(tmp_path / "nope.npy"), "-o", out, "--quiet"], "does not exist")
+    elif case == "directory":
+        _one_line_error(capsys, ["mesh", str(tmp_path), "-o", out, "--quiet"], "directory")
+    elif case == "nan":
+        np.save(tmp_path / "nan.npy", np.full((2, 2, 2), np.nan))
+        _one_line_error(capsys, ["mesh", str(tmp_path / "nan.npy"), "-o", out, "--quiet"], "NaN")
+    elif case == "labels":
+        np.save(tmp_path / "lab.npy", np.arange(8).reshape(2, 2, 2))
+        _one_line_error(capsys, ["mesh", str(tmp_path / "lab.npy"), "-o", out, "--quiet"], "label=")
+    elif case == "pickled":
+        np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+        _one_line_error(capsys, ["mesh", str(tmp_path / "obj.npy"), "-o", out, "--quiet"], "refusing to unpickle")
+    elif case == "unknown-suffix":
+        np.save(tmp_path / "b.npy", np.ones((2, 2, 2), bool))
+        _one_line_error(capsys, ["mesh", str(tmp_path / "b.npy"), "-o", str(tmp_path / "out.xyz"), "--quiet"],
+                        "expected a suffix among")
+    elif case == "spec":
+        _one_line_error(capsys, ["mesh", "sphere:r=-3", "-o", out, "--quiet"])
+    assert not Path(out).exists()
+
+
+def test_debug_shows_the_traceback(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        main(["--debug", "mesh", str(tmp_path / "nope.npy"), "-o", str(tmp_path / "o.ply"), "--quiet"])
+
+
+def test_existing_output_needs_force(blob_npy, tmp_path, capsys):
+    out = tmp_path / "m.ply"
+    out.write_bytes(b"old")
+    _one_line_error(capsys, ["mesh", str(blob_npy), "-o", str(out), "--quiet"], "already exists", "--force")
+    assert out.read_bytes() == b"old"
+    assert main(["mesh", str(blob_npy), "-o", str(out), "--quiet", "--force"]) == 0
+    assert out.read_bytes()[:3] == b"ply"
+
+
+def test_output_is_a_directory_or_in_a_missing_folder(blob_npy, tmp_path, capsys):
+    d = tmp_path / "adir"
+    d.mkdir()
+    _one_line_error(capsys, ["mesh", str(blob_npy), "-o", str(d), "--quiet", "--force"], "directory")
+    _one_line_error(capsys, ["mesh", str(blob_npy), "-o", str(tmp_path / "no" / "m.ply"), "--quiet"], "does not exist")
+
+
+def test_unwritable_output_folder(blob_npy, tmp_path, capsys):
+    d = tmp_path / "ro"
+    d.mkdir()
+    d.chmod(0o500)
+    try:
+        if os.access(d, os.W_OK):
+            pytest.skip("running as root: permissions are not enforced")
+        _one_line_error(capsys, ["mesh", str(blob_npy), "-o", str(d / "m.ply"), "--quiet"], "not writable")
+    finally:
+        d.chmod(0o700)
+
+
+@pytest.mark.parametrize("fmt", ["ply", "obj", "stl", "off"])
+def test_same_input_gives_byte_identical_files(blob_npy, tmp_path, fmt):
+    """In-process twice, and once in a fresh interpreter (another hash seed)."""
+    outs = []
+    for i in range(2):
+        out = tmp_path / f"m{i}.{fmt}"
+        assert main(["mesh", str(blob_npy), "-o", str(out), "--quiet"]) == 0
+        outs.append(out.read_bytes())
+    if fmt == "ply":
+        out = tmp_path / "fresh.ply"
+        r = subprocess.run([sys.executable, "-m", "contourmesh", "mesh", str(blob_npy), "-o", str(out), "--quiet"],
+                           env=dict(ENV, PYTHONHASHSEED="123"), capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        outs.append(out.read_bytes())
+    assert all(o == outs[0] for o in outs)
+    assert len(outs[0]) > 100
+
+
+_WRITER = r"""
+import sys
+from contourmesh.meshes import atomic_write
+path, a, b = sys.argv[1], open(sys.argv[2], 'rb').read(), open(sys.argv[3], 'rb').read()
+print('ready', flush=True)
+i = 0
+while True:
+    atomic_write(path, a if i % 2 == 0 else b)
+    i += 1
+"""
+
+
+def test_a_killed_writer_leaves_the_old_or_the_new_file(tmp_path):
+    """SIGKILL a process that keeps rewriting a 24 MB file: the file is always one whole version."""
+    a = tmp_path / "a.bin"
+    b = tmp_path / "b.bin"
+    a.write_bytes(b"A" * (24 << 20))
+    b.write_bytes(b"B" * (24 << 20))
+    target = tmp_path / "mesh.ply"
+    target.write_bytes(b"old")
+    versions = {b"old", a.read_bytes(), b.read_bytes()}
+    rng = np.random.default_rng(0)
+    for trial in range(5):
+        p = subprocess.Popen([sys.executable, "-c", _WRITER, str(target), str(a), str(b)], env=ENV,
+                             stdout=subprocess.PIPE, text=True)
+        assert p.stdout.readline().strip() == "ready"
+        time.sleep(float(rng.uniform(0.05, 0.6)))
+        p.send_signal(signal.SIGKILL)
+        p.wait(timeout=30)
+        p.stdout.close()
+        assert target.read_bytes() in versions, f"trial {trial}: a partial file ({target.stat().st_size} bytes)"
+    leftovers = [f.name for f in tmp_path.iterdir() if f.name.startswith(".mesh.ply.")]
+    assert all(f.endswith(".tmp") for f in leftovers)  # a killed writer may leave its temp file, never the target
+
+
+def test_a_killed_cli_run_leaves_the_old_mesh(blob_npy, tmp_path):
+    """SIGKILL `contourmesh mesh --force` at random moments: the old mesh or the whole new one."""
+    out = tmp_path / "m.ply"
+    assert main(["mesh", str(blob_npy), "-o", str(out), "--quiet"]) == 0
+    new = out.read_bytes()
+    out.write_bytes(b"old mesh")
+    for delay in (0.3, 1.5, 3.0):
+        p = subprocess.Popen([sys.executable, "-m", "contourmesh", "mesh", str(blob_npy), "-o", str(out), "--quiet",
+                              "--force"], env=ENV)
+        time.sleep(delay)
+        p.send_signal(signal.SIGKILL)
+        p.wait(timeout=60)
+        assert out.read_bytes() in (b"old mesh", new)
