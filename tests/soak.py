@@ -287,7 +287,10 @@ def _check_heights(stack, m):
     inner = [s.z for s in stack.sections[1:-1] if not _is_degenerate(_polygon(s.contours[0], poly))]
     assert np.all(np.isin(inner, zs)), "a section is missing from the mesh (wrong slice heights)"
     if len(stack.z) > 1 and m.meta.get("caps") == "flat":
-        assert zs.min() >= stack.z[0] and zs.max() <= stack.z[-1], "the mesh leaves the stack's z range"
+        # a flat cap lies in the end plane, except the documented fallback for a polygon touching
+        # itself: a collar 1 % of the spacing beyond the end carries a cap made of grid cells
+        tol = 0.0101 * float(np.max(np.diff(stack.z)))
+        assert zs.min() >= stack.z[0] - tol and zs.max() <= stack.z[-1] + tol, "the mesh leaves the stack's z range"
 
 
 def check_int_stack(stack, polygon, triangulation, caps="flat"):
@@ -373,8 +376,8 @@ def check_invariance(vol, polygon, triangulation, name) -> float:
     ca, cb = a.checks(), b.checks()
     assert ca["ok"] and cb["ok"], (ca, cb)
     assert (ca["components"], ca["genus"]) == (cb["components"], cb["genus"]), (name, ca, cb)
-    if name == "shift":  # the same triangles, moved (ties in least-area bands may differ in volume otherwise)
-        assert abs(a.volume - b.volume) <= 1e-6 * a.volume, (name, a.volume, b.volume)
+    if name == "shift":  # the same surface, moved, up to the 1e-3-pixel nudges that separate touching sheets
+        assert abs(a.volume - b.volume) <= 1e-4 * a.volume, (name, a.volume, b.volume)
     rel, absolute = invariance_tolerance(polygon, triangulation, name)
     assert abs(a.area - b.area) <= rel * a.area + absolute, (name, polygon, triangulation, a.area, b.area)
     return abs(a.area - b.area) / a.area

@@ -14,7 +14,9 @@ End rules (stated once, see docs/DESIGN.md):
   by its contour (which always encloses area).
 * An end polygon that encloses area is closed by a flat cap: in its own plane (``caps="flat"``) or,
   with ``caps="half"``, after a prism half a slice spacing beyond it (as SlicerRT does), which adds
-  the prism's side area and ``area(cap) * h / 2`` of volume.
+  the prism's side area and ``area(cap) * h / 2`` of volume.  A polygon that touches itself (the
+  MLP of a thin part goes out and back) cannot be capped by ear clipping: a collar 1 % of the
+  spacing beyond the end then joins it to its contour, capped by the contour's grid cells.
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ class _Builder:
         self.vertices: list[np.ndarray] = []
         self.faces: list[np.ndarray] = []
         self.n = 0
+        self.cell_caps = 0
 
     def add_polygon(self, poly_xy: np.ndarray, z: float) -> np.ndarray:
         """Add a polygon's vertices at height z; returns the vertex index of each polygon point."""
@@ -61,6 +64,18 @@ class _Builder:
         self.vertices.append(v)
         idx = self.n + inverse.reshape(-1)
         self.n += len(v)
+        return idx
+
+    def add_points(self, xy: np.ndarray, z: float) -> np.ndarray:
+        """Add one vertex per point (no merging) at height z."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        v = np.empty((len(xy), 3))
+        v[:, 0] = xy[:, 0] * self.sx + self.ox
+        v[:, 1] = xy[:, 1] * self.sy + self.oy
+        v[:, 2] = z
+        self.vertices.append(v)
+        idx = self.n + np.arange(len(xy))
+        self.n += len(xy)
         return idx
 
     def coords(self, idx: np.ndarray) -> np.ndarray:
@@ -75,6 +90,12 @@ class _Builder:
     def mesh(self, **kw) -> Mesh:
         v = np.concatenate(self.vertices) if self.vertices else np.zeros((0, 3))
         f = np.concatenate(self.faces) if self.faces else np.zeros((0, 3), dtype=np.int64)
+        if self.cell_caps:  # cell caps may touch themselves at corners: make the surface a manifold
+            from .volumes import _separate_coincident, split_nonmanifold_vertices
+
+            nudge = 1e-3 * min(self.sx, self.sy)
+            v, f = split_nonmanifold_vertices(v, f, nudge=nudge)
+            v = _separate_coincident(v, f, nudge)
         return Mesh(v, f, P=len(v), **kw)
 
 
@@ -96,6 +117,42 @@ def _cap(builder: _Builder, idx, holes_idx=(), upward=True):
     local = cap_faces(xy[0], xy[1:], upward=upward)
     both = np.concatenate(rings)
     builder.add_faces(both[local])
+
+
+def _cap_or_cells(b: _Builder, ring, contour, z: float, h: float, upward: bool, triangulation: str):
+    """A flat earcut cap on the ring; where the polygon touches itself (a thin part whose MLP goes
+    out and back), a hair-thin collar to the contour and a cap made of its grid cells instead."""
+    try:
+        _cap(b, ring, upward=upward)
+        return
+    except ValueError:
+        pass
+    c = np.asarray(contour)
+    if not (np.issubdtype(c.dtype, np.integer) or np.all(c == np.round(c))) or len(c) < 4:
+        raise ValueError(f"cannot cap the section at z={z}: its polygon touches itself and its contour is not a "
+                         "grid contour to fall back on")
+    from .rasterize import points_in_rings
+
+    c = c.astype(np.int64)
+    sgn = 1.0 if upward else -1.0
+    t = b.add_points(c, z + sgn * 0.005 * h)
+    _band(b, ring, t, triangulation) if upward else _band(b, t, ring, triangulation)
+    (x0, y0), (x1, y1) = c.min(axis=0), c.max(axis=0)
+    ii, jj = np.meshgrid(np.arange(x0, x1), np.arange(y0, y1))
+    cells = np.c_[ii.ravel(), jj.ravel()]
+    cells = cells[points_in_rings(cells + 0.5, c)]
+    corners = np.unique(np.concatenate([c, cells, cells + [1, 0], cells + [1, 1], cells + [0, 1]]), axis=0)
+    gid = b.add_points(corners, z + sgn * 0.01 * h)
+    lookup = {tuple(p): int(i) for p, i in zip(corners.tolist(), gid)}
+    g = np.array([lookup[tuple(p)] for p in c.tolist()])
+    b.add_faces(np.concatenate([np.c_[t, np.roll(t, -1), np.roll(g, -1)], np.c_[t, np.roll(g, -1), g]])
+                if upward else np.concatenate([np.c_[g, np.roll(g, -1), np.roll(t, -1)], np.c_[g, np.roll(t, -1), t]]))
+    q = [np.array([lookup[tuple(p)] for p in (cells + d).tolist()]) for d in ([0, 0], [1, 0], [1, 1], [0, 1])]
+    if upward:
+        b.add_faces(np.concatenate([np.c_[q[0], q[1], q[2]], np.c_[q[0], q[2], q[3]]]))
+    else:
+        b.add_faces(np.concatenate([np.c_[q[0], q[2], q[1]], np.c_[q[0], q[3], q[2]]]))
+    b.cell_caps += 1
 
 
 def _outward(stack: ContourStack) -> ContourStack:
@@ -306,7 +363,11 @@ def stack_to_mesh(
                 else:
                     _band(b, outer, ring, triangulation)
                 ring = outer
-            _cap(b, ring, upward=upward)
+            k = run[i][0]
+            nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
+            zr = float(b.coords(ring[:1])[0, 2])
+            _cap_or_cells(b, ring, stack.sections[k].contours[run[i][1]], zr, abs(zs[nb] - zs[k]), upward,
+                          triangulation)
 
     meta = dict(stack.meta)
     meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
