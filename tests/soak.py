@@ -356,14 +356,11 @@ def invariance_tolerance(polygon, triangulation, name) -> tuple[float, float]:
       equally valid polygon or triangulation.  The topology is always identical; the areas agree
       within ``50 %`` plus two pixel areas on these small volumes (one-voxel-wide lines are the
       worst case; the soak reports the largest difference seen).
-    * MLP polygons with ``optimal`` bands should be exact too, but ``polygons/mlp.py`` misses a
-      vertex on some thin L-shaped pixel sets (see ``test_mlp_of_a_thin_L_is_mirror_symmetric``),
-      so they get ``5 %`` until that is fixed.
+    * MLP polygons with ``optimal`` bands are exact too (the MLP does not depend on the start
+      point; see ``test_mlp_of_a_thin_L_is_mirror_symmetric``).
     """
-    if name == "shift" or (triangulation == "optimal" and polygon == "none"):
+    if name == "shift" or (triangulation == "optimal" and polygon in ("none", "mlp")):
         return 1e-4, 0.0
-    if triangulation == "optimal" and polygon == "mlp":
-        return 0.05, 0.0
     return 0.5, 2.0
 
 

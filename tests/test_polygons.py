@@ -311,6 +311,26 @@ def test_mlp_hand_worked_cases():
     assert mlp_polygon(one(m)).tolist() == [[0, 0], [2, 0], [2, 2]]
 
 
+
+@pytest.mark.parametrize("k", range(8))
+def test_mlp_of_a_thin_L_under_rotations_and_mirrors(k):
+    """Regression (soak seed 1002106): for I = {(4..8, 0), (8, 1)} the MLP kept a spurious vertex
+    (5, 0).  The first contour point is a convex corner whose diagonal W point is listed both last
+    and first; dropping the last copy put that corner before its W and ended the path early."""
+    m = np.zeros((2, 9), bool)
+    m[0, 4:9] = m[1, 8] = True
+    ends = np.zeros(m.shape, int)
+    ends[0, 4], ends[0, 8], ends[1, 8] = 1, 2, 3  # the three MLP vertices
+    if k & 4:
+        m, ends = m.T, ends.T
+    m, ends = np.rot90(m, k & 3), np.rot90(ends, k & 3)
+    (c,), _ = trace_contours(m)
+    p = mlp_polygon(c)
+    expected = {tuple(np.argwhere(ends == i)[0][::-1]) for i in (1, 2, 3)}  # (row, col) -> (x, y)
+    assert set(map(tuple, p.tolist())) == expected and len(p) == 3
+    assert perimeter(p) == pytest.approx(5 + np.sqrt(17))
+    assert_mlp_ok(c, Band(m))
+
 def test_mlp_of_a_non_convex_shape_is_not_the_convex_hull():
     m = l_mask()
     (c,), _ = trace_contours(m)

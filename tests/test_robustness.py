@@ -153,8 +153,6 @@ def test_subpixel_contour_is_reported_not_silently_lost():
         rasterize_stack(ContourStack((Section(0.0, (tiny,)), Section(1.0, (tiny,)))), pixel=1.0)
 
 
-@pytest.mark.xfail(strict=True, reason="polygons/mlp.py: the MLP of this L of pixel centres keeps a spurious "
-                   "vertex (5, 0) and is longer than the mirrored one; reported to the lead")
 def test_mlp_of_a_thin_L_is_mirror_symmetric():
     """Found by the soak (seed 1002106): the MLP is unique, so a mirrored set has the mirrored MLP."""
     from contourmesh.volumes import _mlp_of_pixels

@@ -109,7 +109,9 @@ def _candidates(pts):
             cand[m, 0], cand[m, 1], kind[m] = qx, qy, 1
             m += 1
             lastw_x, lastw_y, has_w = qx, qy, True
-    # the last W may repeat the first W (cyclically consecutive): drop it
+    # the last W may repeat the first W (cyclically consecutive): drop the later copy, the first
+    # one, as above - the B/C candidates between the two copies (a convex corner is listed after
+    # its diagonal W) must stay after the kept one, or a C is tested before its W is reached
     first = 0
     while first < m and kind[first] != 1:
         first += 1
@@ -118,7 +120,7 @@ def _candidates(pts):
         last -= 1
     if last > first and cand[last, 0] == cand[first, 0] and cand[last, 1] == cand[first, 1]:
         keep = np.ones(m, dtype=np.bool_)
-        keep[last] = False
+        keep[first] = False
         return cand[:m][keep], kind[:m][keep]
     return cand[:m], kind[:m]
 
