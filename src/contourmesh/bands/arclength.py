@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .wiederhold import INITIAL_EDGE_WINDOW, edges_to_faces, initial_edge, oriented_pair, validate_band_polygons
+from .greedy import band_from_edge_rule
+from .wiederhold import INITIAL_EDGE_WINDOW
 
 __all__ = ["triangulate_band_arclength", "arclength_edges"]
 
@@ -59,13 +60,4 @@ def triangulate_band_arclength(lower, upper, *, window: int = INITIAL_EDGE_WINDO
 
     Same signature and result convention as :func:`contourmesh.bands.triangulate_band`.
     """
-    lo, up = validate_band_polygons(lower, upper)
-    if len(lo) == 1 and len(up) == 1:
-        return np.empty((0, 3), dtype=np.int64)
-    c1, c2, swapped = oriented_pair(lo, up)
-    j0 = initial_edge(c1, c2, window=window, radius=radius)
-    if len(c1) == 1:
-        edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
-    else:
-        edges = arclength_edges(c1, np.ascontiguousarray(np.roll(c2, -j0, axis=0)))
-    return edges_to_faces(edges, len(c1), len(c2), 0, j0, len(lo), swapped)
+    return band_from_edge_rule(lower, upper, arclength_edges, window=window, radius=radius)

@@ -92,6 +92,13 @@ def triangulate_band_greedy(lower, upper, *, window: int = INITIAL_EDGE_WINDOW,
         Triangles indexing ``np.vstack([lower, upper])`` (``max(n, m)`` for a pole point,
         none for two points).
     """
+    return band_from_edge_rule(lower, upper, greedy_edges, window=window, radius=radius)
+
+
+def band_from_edge_rule(lower, upper, rule, *, window: int = INITIAL_EDGE_WINDOW, radius: float | None = None):
+    """A band from an edge-sequence rule ``rule(c1, c2) -> edges`` that starts at the initial edge
+    ``(0, 0)``: validation, the paper's contour swap (n <= m) and initial edge (section 3.2), the
+    one-to-many fan for a single point, and the conversion of the edges into oriented faces."""
     lo, up = validate_band_polygons(lower, upper)
     if len(lo) == 1 and len(up) == 1:
         return np.empty((0, 3), dtype=np.int64)
@@ -100,5 +107,5 @@ def triangulate_band_greedy(lower, upper, *, window: int = INITIAL_EDGE_WINDOW,
     if len(c1) == 1:
         edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
     else:
-        edges = greedy_edges(c1, np.ascontiguousarray(np.roll(c2, -j0, axis=0)))
+        edges = rule(c1, np.ascontiguousarray(np.roll(c2, -j0, axis=0)))
     return edges_to_faces(edges, len(c1), len(c2), 0, j0, len(lo), swapped)
