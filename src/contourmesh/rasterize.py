@@ -279,8 +279,8 @@ def mesh_contour_stack(stack: ContourStack, *, polygon: str = "mlp", triangulati
     * Every section has exactly one contour and either the contours are integer grid points or
       ``polygon="none"``: the paper's own path, :func:`contourmesh.surface.stack_to_mesh`
       (real-valued contours are then triangulated as given).
-    * Otherwise (several contours per slice, holes, or DSS/MLP polygons of real-valued rings): the
-      stack is rasterized (:func:`rasterize_stack`) and meshed by
+    * Otherwise (several contours per slice, holes, DSS/MLP polygons of real-valued rings, or a
+      real-valued end ring that cannot be capped as given): the stack is rasterized (:func:`rasterize_stack`) and meshed by
       :func:`contourmesh.volumes.volume_to_mesh` at the sections' own heights.
 
     ``meta["route"]`` records which route was taken and ``meta["pixel"]`` the pixel size.
@@ -290,9 +290,14 @@ def mesh_contour_stack(stack: ContourStack, *, polygon: str = "mlp", triangulati
     if one_each and (integer or polygon == "none"):
         from .surface import stack_to_mesh
 
-        m = stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
-        meta = dict(m.meta, route="stack")
-        return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
+        try:
+            m = stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
+            meta = dict(m.meta, route="stack")
+            return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
+        except ValueError as exc:
+            if integer or "cannot cap" not in str(exc):
+                raise
+            # a real-valued ring that earcut cannot cap (it touches itself): the raster route below
     from .volumes import volume_to_mesh
 
     r = rasterize_stack(stack, pixel)

@@ -39,6 +39,12 @@ def _polygon(contour: np.ndarray, method: str) -> np.ndarray:
     return np.asarray(polygonize(contour, method), dtype=np.float64)
 
 
+def _repeats_a_point(poly: np.ndarray) -> bool:
+    """A polygon of 3 or more distinct points that visits one of them twice."""
+    n = len(np.unique(poly, axis=0))
+    return 3 <= n < len(poly)
+
+
 def _is_degenerate(poly: np.ndarray) -> bool:
     return len(np.unique(poly, axis=0)) < 3 or abs(shoelace_area(poly)) == 0.0
 
@@ -250,7 +256,7 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
     def poly(k, c):
         cont = stack.sections[k].contours[c]
         p = _polygon(cont, polygon)
-        return np.asarray(cont, dtype=np.float64) if _is_degenerate(p) else p
+        return np.asarray(cont, dtype=np.float64) if _is_degenerate(p) or _repeats_a_point(p) else p
 
     all_chains = [[0] * n] + chains
     polys = [[poly(k, ch[k]) for k in range(n)] for ch in all_chains]
@@ -314,6 +320,10 @@ def stack_to_mesh(
         return b.mesh(meta=meta)
     for run in _runs(stack):
         polys = [_polygon(stack.sections[k].contours[c], polygon) for k, c in run]
+        # a polygon that visits a point twice (the MLP of a thin part goes out and back) would
+        # share an edge among four triangles: such a section uses its contour
+        polys = [np.asarray(stack.sections[k].contours[c], dtype=np.float64)
+                 if _repeats_a_point(p) else p for p, (k, c) in zip(polys, run)]
         degenerate = [_is_degenerate(p) for p in polys]
         keep = list(range(len(run)))
         # Keep only the outermost degenerate polygon at each end of the run.

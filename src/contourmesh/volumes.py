@@ -800,6 +800,12 @@ def _separate_coincident(V, F, nudge):
     dup = np.flatnonzero(cnt[inv] > 1)
     if len(dup) == 0:
         return V
+    # the j-th copy of a position moves (1 + j/2) nudges: copies heading the same way stay apart
+    order = np.argsort(inv[dup], kind="stable")
+    rank = np.empty(len(dup), dtype=np.int64)
+    grp = inv[dup][order]
+    starts = np.r_[0, np.flatnonzero(np.diff(grp)) + 1]
+    rank[order] = np.arange(len(dup)) - np.repeat(starts, np.diff(np.r_[starts, len(dup)]))
     V = V.copy()
     cen = V[F].mean(axis=1)
     corner_v = F.reshape(-1)
@@ -811,7 +817,8 @@ def _separate_coincident(V, F, nudge):
     d = target - V[dup]
     nrm = np.linalg.norm(d, axis=1)
     ok = nrm > 0
-    V[dup[ok]] += d[ok] * (nudge / nrm[ok])[:, None]
+    step = nudge * (1.0 + 0.5 * rank)
+    V[dup[ok]] += d[ok] * (step[ok] / nrm[ok])[:, None]
     return V
 
 
