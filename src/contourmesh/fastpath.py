@@ -899,13 +899,9 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     if not occupied:
         raise _OutOfScope  # no foreground: the full mesher raises the error
 
-    def to_center(p):
-        p = np.asarray(p, dtype=np.float64)
-        return np.c_[ox + p[:, 0] * dx, oy + p[:, 1] * dy]
+    from .volumes import grid_to_xy
 
-    def to_corner(p):
-        p = np.asarray(p, dtype=np.float64)
-        return np.c_[ox + (p[:, 0] - 0.5) * dx, oy + (p[:, 1] - 0.5) * dy]
+    to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
 
     # rings (physical xyz) of every slice, concatenated per slice; degenerate MLPs -> crack contours
     fallbacks = 0

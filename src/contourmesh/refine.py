@@ -351,6 +351,18 @@ def in_band(points, k, xy) -> np.ndarray:
 # 3 + 4. Moving the vertices
 # ----------------------------------------------------------------------------------------------
 @njit(cache=True)
+def _back_into_band(pts, k, x0, y0, tx, ty, steps, out, n):
+    """Walk from ``(tx, ty)`` back towards ``(x0, y0)`` (in the band) in ``steps`` samples; write the
+    first sample inside slice ``k``'s band to ``out[n]`` (``out[n]`` keeps its value if none is)."""
+    for q in range(1, steps + 1):
+        a = 1.0 - q / steps
+        px, py = x0 + a * (tx - x0), y0 + a * (ty - y0)
+        if _in_band(pts, k, px, py):
+            out[n, 0], out[n, 1] = px, py
+            return
+
+
+@njit(cache=True)
 def _mean_curvature_shift(buf, sigma):
     """Normal shift ``(k1 + k2) sigma^2 / 2`` of the true surface beyond the 1/2-level, and |grad f|."""
     gx, gy, gz = buf[1], buf[2], buf[3]
@@ -432,13 +444,7 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out):
             out[n, 0], out[n, 1] = tx, ty
             continue
         clamped += 1
-        steps = 256
-        for q in range(1, steps + 1):
-            a = 1.0 - q / steps
-            px, py = x0 + a * (tx - x0), y0 + a * (ty - y0)
-            if _in_band(pts, k, px, py):
-                out[n, 0], out[n, 1] = px, py
-                break
+        _back_into_band(pts, k, x0, y0, tx, ty, 256, out, n)
     return clamped
 
 
@@ -457,13 +463,7 @@ def _clamp_to_band(pts, start, target, kz, out):
             out[n, 0], out[n, 1] = tx, ty
             continue
         clamped += 1
-        steps = 64
-        for q in range(1, steps + 1):
-            a = 1.0 - q / steps
-            px, py = x0 + a * (tx - x0), y0 + a * (ty - y0)
-            if _in_band(pts, k, px, py):
-                out[n, 0], out[n, 1] = px, py
-                break
+        _back_into_band(pts, k, x0, y0, tx, ty, 64, out, n)
     return clamped
 
 

@@ -131,6 +131,23 @@ def prepare_volume(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 # ------------------------------------------------------------------------------------------------
 # topology reference
 # ------------------------------------------------------------------------------------------------
+def grid_to_xy(ox, oy, dx, dy):
+    """Maps from pixel-centre and pixel-corner grid coordinates to physical ``(x, y)``.
+
+    Pixel ``(i, j)`` has its centre at ``(ox + i dx, oy + j dy)``; corner ``(i, j)`` is its
+    lower-left corner, half a pixel below and left of the centre.
+    """
+    def to_center(p):
+        p = np.asarray(p, dtype=np.float64)
+        return np.c_[ox + p[:, 0] * dx, oy + p[:, 1] * dy]
+
+    def to_corner(p):
+        p = np.asarray(p, dtype=np.float64)
+        return np.c_[ox + (p[:, 0] - 0.5) * dx, oy + (p[:, 1] - 0.5) * dy]
+
+    return to_center, to_corner
+
+
 def voxel_topology(mask) -> dict:
     """Components, cavities and total genus of a binary volume's boundary surface (6/26).
 
@@ -589,13 +606,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     nz = mask.shape[0]
     px = min(dx, dy)
 
-    def to_xy_center(p):
-        p = np.asarray(p, dtype=np.float64)
-        return np.c_[ox + p[:, 0] * dx, oy + p[:, 1] * dy]
-
-    def to_xy_corner(p):
-        p = np.asarray(p, dtype=np.float64)
-        return np.c_[ox + (p[:, 0] - 0.5) * dx, oy + (p[:, 1] - 0.5) * dy]
+    to_xy_center, to_xy_corner = grid_to_xy(ox, oy, dx, dy)
 
     # pass 1: contours and polygons of every slice
     slices = [None] * nz
