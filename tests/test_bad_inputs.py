@@ -70,6 +70,43 @@ def _huge_npy_header(tmp_path):
     return read_volume(_write(tmp_path, "huge.npy", buf.getvalue() + b"\0" * 64))
 
 
+def _huge_npz_member(tmp_path):
+    import zipfile
+
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "|u1", "fortran_order": False, "shape": (100000, 100000, 100000)})
+    p = tmp_path / "huge.npz"
+    with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("volume.npy", buf.getvalue() + b"\0" * (1 << 20))  # a megabyte that deflates to a kilobyte
+    return read_volume(p)
+
+
+def _pickled_npz(tmp_path):
+    import zipfile
+
+    p = tmp_path / "evil.npz"
+    marker = tmp_path / "was-unpickled"
+
+    class Evil:
+        def __reduce__(self):
+            return (Path.touch, (marker,))
+
+    np.savez(p, volume=np.array([Evil()], dtype=object))
+    try:
+        read_volume(p)
+    finally:
+        assert not marker.exists(), "the .npz was unpickled"
+        assert zipfile.is_zipfile(p)
+
+
+def _huge_optimal_band():
+    from contourmesh.bands import triangulate_band
+
+    t = np.linspace(0, 2 * np.pi, 5000, endpoint=False)
+    lo = np.c_[np.cos(t), np.sin(t), np.zeros_like(t)] * 100
+    return triangulate_band(lo, lo + [0, 0, 1], "optimal")
+
+
 def _corrupt_tiff(tmp_path):
     return read_volume(_write(tmp_path, "bad.tif", b"II*\0" + b"\xff" * 60))
 
@@ -170,6 +207,10 @@ CASES = {
     "not an .npy at all": (lambda t: read_volume(_write(t, "x.npy", b"hello world")), ValueError, "NUMPY"),
     ".vol header declaring an enormous size": (_huge_vol_header, ValueError, "at most .* voxels"),
     ".npy header declaring an enormous size": (_huge_npy_header, ValueError, "at most .* voxels"),
+    ".npz member declaring an enormous size": (_huge_npz_member, ValueError, "at most .* voxels"),
+    "pickled objects in .npz (never unpickled)": (_pickled_npz, ValueError, "refusing to unpickle"),
+    "optimal band too large for memory (ruled surface of 5000 x 5000 points)": (
+        lambda t: _huge_optimal_band(), ValueError, "optimal band between polygons of 5000 and 5000 vertices.*limits"),
     "a directory instead of a file": (lambda t: contourmesh.mesh(Path(t)), IsADirectoryError, "is a directory"),
     "a missing file": (lambda t: contourmesh.mesh(Path(t) / "nope.npy"), FileNotFoundError, "does not exist"),
     "unknown file suffix": (lambda t: read_volume(_write(t, "x.xyz", b"0")), ValueError, "suffix"),

@@ -153,6 +153,61 @@ def test_subpixel_contour_is_reported_not_silently_lost():
         rasterize_stack(ContourStack((Section(0.0, (tiny,)), Section(1.0, (tiny,)))), pixel=1.0)
 
 
+def test_subpixel_contour_beside_others_is_named_in_a_warning():
+    """A sub-pixel contour next to larger ones, and a section made only of one, are not lost
+    silently: the warning names the section, its height and the contour."""
+    import warnings
+
+    from contourmesh.rasterize import LostContourWarning, rasterize_stack
+    from contourmesh.types import ContourStack, Section
+
+    big = np.array([[0.0, 0.0], [6.0, 0.0], [6.0, 6.0], [0.0, 6.0]])
+    tiny = np.array([[10.1, 10.1], [10.3, 10.1], [10.3, 10.3], [10.1, 10.3]])
+    stack = ContourStack((Section(0.0, (big,)), Section(1.5, (big, tiny)), Section(2.0, (tiny,)), Section(3.0, (big,))))
+    with pytest.warns(LostContourWarning) as rec:
+        r = rasterize_stack(stack, pixel=1.0)
+    msg = str(rec[0].message)
+    assert "section 1 (z=1.5) contour 1" in msg and "section 2 (z=2) contour 0" in msg
+    assert "sections [2] rasterize to no pixel at all" in msg
+    assert not r.volume[2].any() and r.volume[1].any()
+    ok = ContourStack((Section(0.0, (big,)), Section(1.0, (big,))))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", LostContourWarning)
+        rasterize_stack(ok, pixel=1.0)
+
+
+def test_run_whose_polygons_fold_uses_its_contours():
+    """Found by the soak (seed 3053382): a degenerate MLP segment beside a small MLP triangle that
+    it does not lie under folded the band into a closed surface of zero volume; the run is now
+    meshed from its contours (positive volume, closed, outward) for every triangulation."""
+    import contourmesh
+    from contourmesh.types import ContourStack, Section
+
+    c0 = np.array([[0, -2], [0, -1], [0, 0], [1, 0], [2, 0], [3, 0], [3, -1], [3, -2], [2, -2], [1, -2]])
+    c1 = np.array([[0, -2], [0, -1], [-1, -1], [-1, 0], [-1, 1], [0, 1], [1, 1], [2, 1], [2, 0], [2, -1], [2, -2],
+                   [1, -2]])
+    stack = ContourStack((Section(2.79, (c0,)), Section(5.38, (c1,))))
+    for tri in ("wiederhold", "greedy", "optimal"):
+        m = contourmesh.mesh(stack, polygon="mlp", triangulation=tri)
+        assert_closed_outward(m)
+        assert m.volume > 1.0
+
+
+def test_real_ring_that_cannot_be_capped_takes_the_raster_route():
+    """Found by the soak (seed 3051621): a one-section run of a real-valued ring touching itself
+    cannot be capped by earcut; the stack is rasterized instead of failing."""
+    from contourmesh.rasterize import mesh_contour_stack
+    from contourmesh.types import ContourStack, Section
+
+    # a figure-eight-like ring that touches itself at (2, 2)
+    ring = np.array([[0.0, 0.0], [2.0, 2.0], [4.0, 0.0], [4.0, 4.0], [2.0, 2.0], [0.0, 4.0]]) * 2.5
+    sq = np.array([[20.0, 20.0], [26.0, 20.0], [26.0, 26.0], [20.0, 26.0]])
+    stack = ContourStack((Section(0.0, (ring,)), Section(1.0, (sq,))))
+    m = mesh_contour_stack(stack, polygon="none", triangulation="optimal", pixel=0.5)
+    assert m.meta["route"] == "raster"
+    assert_closed_outward(m)
+
+
 def test_mlp_of_a_thin_L_is_mirror_symmetric():
     """Found by the soak (seed 1002106): the MLP is unique, so a mirrored set has the mirrored MLP."""
     from contourmesh.volumes import _mlp_of_pixels

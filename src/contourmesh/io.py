@@ -247,6 +247,23 @@ def _axes_order(path: Path, note) -> tuple | None:
     return tuple(letters.index(c) for c in "zyx")
 
 
+def _check_npz_member(path: Path, zf, name: str, max_voxels: int) -> None:
+    """Read the .npy header of member ``name`` and check its declared size (and that it holds no
+    pickled objects) before numpy allocates or decompresses the array."""
+    member = name if name in zf.namelist() else name + ".npy"
+    with zf.open(member) as fh:
+        major, _ = np.lib.format.read_magic(fh)
+        read_header = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read_header(fh)
+    if dtype.hasobject:
+        raise _bad(path, f"a numeric array {name!r}", "pickled Python objects (dtype object); refusing to unpickle them")
+    n, nbytes = _check_size(path, shape, dtype.itemsize, max_voxels)
+    declared = zf.getinfo(member).file_size
+    if nbytes > declared:
+        raise _bad(path, f"{nbytes} bytes of data for array {name!r} of shape {tuple(shape)} {dtype}",
+                   f"a member of {declared} bytes (truncated archive)")
+
+
 def _read_npz(path: Path, *, max_voxels: int, prefer: str):
     import zipfile
 
@@ -265,6 +282,7 @@ def _read_npz(path: Path, *, max_voxels: int, prefer: str):
                     raise _bad(path, "an array named 'volume' or 'mask', or a single array",
                                f"arrays {names}")
                 pick = arrays[0]
+            _check_npz_member(path, npz.zip, pick, max_voxels)
             try:
                 vol = npz[pick]
             except ValueError as exc:

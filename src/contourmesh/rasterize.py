@@ -26,6 +26,7 @@ Conventions
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -33,7 +34,7 @@ from numba import njit
 
 from .types import ContourStack, Mesh
 
-__all__ = ["Raster", "rasterize_stack", "default_pixel", "points_in_rings", "mesh_contour_stack"]
+__all__ = ["Raster", "rasterize_stack", "default_pixel", "points_in_rings", "mesh_contour_stack", "LostContourWarning"]
 
 #: Largest slice a rasterization may produce (pixels per slice) unless ``max_pixels`` says otherwise.
 MAX_SLICE_PIXELS = 4096 * 4096
@@ -195,6 +196,26 @@ def default_pixel(stack: ContourStack) -> float:
     return min(float(np.median(allsteps)), 1.0) if len(allsteps) else 1.0
 
 
+class LostContourWarning(UserWarning):
+    """A contour encloses no pixel centre at the chosen pixel size, so the raster loses it."""
+
+
+def _ring_area(ring) -> float:
+    x, y = ring[:, 0], ring[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def _ring_covers_a_pixel(ring, x0, y0, pixel) -> bool:
+    """Whether the ring alone (even-odd) contains at least one pixel centre of the grid."""
+    i0, j0 = (int(v) for v in np.floor((ring.min(0) - (x0, y0)) / pixel))
+    i1, j1 = (int(v) for v in np.ceil((ring.max(0) - (x0, y0)) / pixel))
+    out = np.zeros((j1 - j0 + 1, i1 - i0 + 1), dtype=bool)
+    starts = np.array([0, len(ring)], dtype=np.int64)
+    _fill_evenodd(np.ascontiguousarray(ring[:, 0], dtype=np.float64), np.ascontiguousarray(ring[:, 1], dtype=np.float64),
+                  starts, x0 + i0 * pixel, y0 + j0 * pixel, pixel, out)
+    return bool(out.any())
+
+
 def rasterize_stack(stack: ContourStack, pixel: float | None = None, *, max_pixels: int = MAX_SLICE_PIXELS,
                     max_voxels: int = MAX_VOXELS) -> Raster:
     """Even-odd fill of each section's rings on a regular pixel grid: one volume slice per section.
@@ -259,6 +280,7 @@ def rasterize_stack(stack: ContourStack, pixel: float | None = None, *, max_pixe
         )
     x0, y0 = float(lo[0] * pixel), float(lo[1] * pixel)
     vol = np.zeros((len(zs), ny, nx), dtype=bool)
+    lost = []
     for k, rs in enumerate(rings):
         rs = [r for r in rs if len(r) >= 3]
         if not rs:
@@ -267,8 +289,18 @@ def rasterize_stack(stack: ContourStack, pixel: float | None = None, *, max_pixe
         starts = np.zeros(len(rs) + 1, dtype=np.int64)
         starts[1:] = np.cumsum([len(r) for r in rs])
         _fill_evenodd(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), starts, x0, y0, pixel, vol[k])
+        lost += [(k, c, abs(_ring_area(r))) for c, r in enumerate(rs) if not _ring_covers_a_pixel(r, x0, y0, pixel)]
     if not vol.any():
         raise ValueError(f"no pixel centre lies inside any contour at pixel={pixel:g}; pass a smaller pixel=")
+    if lost:
+        empty = sorted({k for k, _, _ in lost if not vol[k].any()})
+        where = ", ".join(f"section {k} (z={zs[k]:g}) contour {c}" for k, c, _ in lost[:5])
+        largest = max(a for _, _, a in lost)
+        more = f" and {len(lost) - 5} more" if len(lost) > 5 else ""
+        whole = (f"; sections {empty} rasterize to no pixel at all and are left out of the mesh" if empty else "")
+        warnings.warn(f"{len(lost)} contour(s) enclose no pixel centre at pixel={pixel:g} and "
+                      f"are lost (the largest encloses {largest:.3g}, {largest / pixel**2:.2g} pixel areas): {where}{more}{whole}; pass a smaller pixel= to keep them",
+                      LostContourWarning, stacklevel=2)
     return Raster(vol, zs.copy(), (pixel, pixel), (x0, y0, float(zs[0])))
 
 
@@ -288,14 +320,15 @@ def mesh_contour_stack(stack: ContourStack, *, polygon: str = "mlp", triangulati
     one_each = all(len(s.contours) == 1 for s in stack.sections)
     integer = all(np.asarray(c).dtype.kind in "iu" for s in stack.sections for c in s.contours)
     if one_each and (integer or polygon == "none"):
+        from .bands.caps import CapError
         from .surface import stack_to_mesh
 
         try:
             m = stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
             meta = dict(m.meta, route="stack")
             return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
-        except ValueError as exc:
-            if integer or "cannot cap" not in str(exc):
+        except CapError:
+            if integer:
                 raise
             # a real-valued ring that earcut cannot cap (it touches itself): the raster route below
     from .volumes import volume_to_mesh

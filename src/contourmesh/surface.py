@@ -93,6 +93,27 @@ class _Builder:
         if len(faces):
             self.faces.append(np.asarray(faces, dtype=np.int64))
 
+    def mark(self) -> tuple[int, int, int]:
+        """The builder's state (vertices, face blocks, cell caps), for :meth:`restore`."""
+        return self.n, len(self.faces), self.cell_caps
+
+    def restore(self, mark: tuple[int, int, int]) -> None:
+        """Drop every vertex and face added since ``mark``."""
+        n, nf, cells = mark
+        if self.vertices:
+            allv = np.concatenate(self.vertices)[:n]
+            self.vertices = [allv] if n else []
+        self.n, self.faces, self.cell_caps = n, self.faces[:nf], cells
+
+    def volume_since(self, mark: tuple[int, int, int]) -> float:
+        """Signed volume enclosed by the faces added since ``mark`` (divergence theorem)."""
+        if len(self.faces) <= mark[1]:
+            return 0.0
+        f = np.concatenate(self.faces[mark[1]:])
+        v = np.concatenate(self.vertices) if len(self.vertices) > 1 else self.vertices[0]
+        p, q, r = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        return float(np.einsum("ij,ij->i", p, np.cross(q, r)).sum() / 6.0)
+
     def mesh(self, **kw) -> Mesh:
         v = np.concatenate(self.vertices) if self.vertices else np.zeros((0, 3))
         f = np.concatenate(self.faces) if self.faces else np.zeros((0, 3), dtype=np.int64)
@@ -125,6 +146,14 @@ def _cap(builder: _Builder, idx, holes_idx=(), upward=True):
     builder.add_faces(both[local])
 
 
+def _is_grid_4_curve(c: np.ndarray) -> bool:
+    """Whether ``c`` is a closed digital 4-curve: integer points, unit axis steps (closing step included)."""
+    if c.ndim != 2 or c.shape[1] != 2 or len(c) < 4 or not np.all(np.isfinite(c)) or not np.all(c == np.round(c)):
+        return False
+    d = np.abs(np.diff(np.vstack([c, c[:1]]), axis=0))
+    return bool(np.all(d.sum(axis=1) == 1))
+
+
 def _cap_or_cells(b: _Builder, ring, contour, z: float, h: float, upward: bool, triangulation: str):
     """A flat earcut cap on the ring; where the polygon touches itself (a thin part whose MLP goes
     out and back), a hair-thin collar to the contour and a cap made of its grid cells instead."""
@@ -134,8 +163,10 @@ def _cap_or_cells(b: _Builder, ring, contour, z: float, h: float, upward: bool, 
     except ValueError:
         pass
     c = np.asarray(contour)
-    if not (np.issubdtype(c.dtype, np.integer) or np.all(c == np.round(c))) or len(c) < 4:
-        raise ValueError(f"cannot cap the section at z={z}: its polygon touches itself and its contour is not a "
+    if not _is_grid_4_curve(c):
+        from .bands.caps import CapError
+
+        raise CapError(f"cannot cap the section at z={z}: its polygon touches itself and its contour is not a "
                          "grid contour to fall back on")
     from .rasterize import points_in_rings
 
@@ -319,69 +350,85 @@ def stack_to_mesh(
         meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
         return b.mesh(meta=meta)
     for run in _runs(stack):
-        polys = [_polygon(stack.sections[k].contours[c], polygon) for k, c in run]
-        # a polygon that visits a point twice (the MLP of a thin part goes out and back) would
-        # share an edge among four triangles: such a section uses its contour
-        polys = [np.asarray(stack.sections[k].contours[c], dtype=np.float64)
-                 if _repeats_a_point(p) else p for p, (k, c) in zip(polys, run)]
-        degenerate = [_is_degenerate(p) for p in polys]
-        keep = list(range(len(run)))
-        # Keep only the outermost degenerate polygon at each end of the run.
-        while len(keep) > 2 and degenerate[keep[0]] and degenerate[keep[1]]:
-            del keep[1]
-        while len(keep) > 2 and degenerate[keep[-1]] and degenerate[keep[-2]]:
-            del keep[-2]
-        for pos in keep[1:-1]:
-            if degenerate[pos]:
-                k, c = run[pos]
-                polys[pos] = np.asarray(stack.sections[k].contours[c], dtype=np.float64)
-                degenerate[pos] = False
-        if len(keep) > 1 and all(degenerate[i] for i in keep):
-            # every polygon of the run degenerates (tiny contours): use the contours themselves, so
-            # that no section is lost and the mesh stays at the sections' own heights
-            keep = list(range(len(run)))
-            polys = [np.asarray(stack.sections[k].contours[c], dtype=np.float64) for k, c in run]
-            degenerate = [_is_degenerate(p) for p in polys]
-        if len(keep) == 1 or all(degenerate[i] for i in keep):
-            # A run of one section: a prism of the contour, one slice spacing thick.
-            k, c = run[keep[0]]
-            cont = np.asarray(stack.sections[k].contours[c], dtype=np.float64)
-            if len(cont) < 3:
-                raise ValueError(f"section {k} (z={zs[k]}) holds an isolated contour of {len(cont)} point(s)")
-            lo = b.add_polygon(cont, zs[k] - default_h / 2)
-            hi = b.add_polygon(cont, zs[k] + default_h / 2)
-            _band(b, lo, hi, triangulation)
-            _cap(b, lo, upward=False)
-            _cap(b, hi, upward=True)
-            continue
-        idx = [b.add_polygon(polys[i], zs[run[i][0]]) for i in keep]
-        for a, c in zip(idx[:-1], idx[1:]):
-            _band(b, a, c, triangulation)
-        for end, upward in ((0, False), (-1, True)):
-            i = keep[end]
-            if degenerate[i]:
-                continue
-            ring = idx[end]
-            if caps == "half":
-                k = run[i][0]
-                nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
-                h = abs(zs[nb] - zs[k])
-                zc = zs[k] + (h / 2 if upward else -h / 2)
-                outer = b.add_polygon(polys[i], zc)
-                if upward:
-                    _band(b, ring, outer, triangulation)
-                else:
-                    _band(b, outer, ring, triangulation)
-                ring = outer
-            k = run[i][0]
-            nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
-            zr = float(b.coords(ring[:1])[0, 2])
-            _cap_or_cells(b, ring, stack.sections[k].contours[run[i][1]], zr, abs(zs[nb] - zs[k]), upward,
-                          triangulation)
+        mark = b.mark()
+        _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=False)
+        if polygon != "none" and b.volume_since(mark) <= 0.0:
+            # the run's polygons fold its surface (e.g. a degenerate MLP segment beside a small
+            # polygon it does not lie under): mesh the run from its contours instead
+            b.restore(mark)
+            _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=True)
 
     meta = dict(stack.meta)
     meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
     return b.mesh(meta=meta)
+
+
+def _mesh_run(b: _Builder, stack: ContourStack, run, polygon: str, triangulation: str, caps: str, zs,
+              default_h: float, use_contours: bool):
+    """Mesh one run of sections (one contour each, overlapping from section to section): bands
+    between consecutive polygons, and caps (or a prism for a run of one section)."""
+    if use_contours:
+        polys = [np.asarray(stack.sections[k].contours[c], dtype=np.float64) for k, c in run]
+    else:
+        polys = [_polygon(stack.sections[k].contours[c], polygon) for k, c in run]
+    # a polygon that visits a point twice (the MLP of a thin part goes out and back) would
+    # share an edge among four triangles: such a section uses its contour
+    polys = [np.asarray(stack.sections[k].contours[c], dtype=np.float64)
+             if _repeats_a_point(p) else p for p, (k, c) in zip(polys, run)]
+    degenerate = [_is_degenerate(p) for p in polys]
+    keep = list(range(len(run)))
+    # Keep only the outermost degenerate polygon at each end of the run.
+    while len(keep) > 2 and degenerate[keep[0]] and degenerate[keep[1]]:
+        del keep[1]
+    while len(keep) > 2 and degenerate[keep[-1]] and degenerate[keep[-2]]:
+        del keep[-2]
+    for pos in keep[1:-1]:
+        if degenerate[pos]:
+            k, c = run[pos]
+            polys[pos] = np.asarray(stack.sections[k].contours[c], dtype=np.float64)
+            degenerate[pos] = False
+    if len(keep) > 1 and all(degenerate[i] for i in keep):
+        # every polygon of the run degenerates (tiny contours): use the contours themselves, so
+        # that no section is lost and the mesh stays at the sections' own heights
+        keep = list(range(len(run)))
+        polys = [np.asarray(stack.sections[k].contours[c], dtype=np.float64) for k, c in run]
+        degenerate = [_is_degenerate(p) for p in polys]
+    if len(keep) == 1 or all(degenerate[i] for i in keep):
+        # A run of one section: a prism of the contour, one slice spacing thick.
+        k, c = run[keep[0]]
+        cont = np.asarray(stack.sections[k].contours[c], dtype=np.float64)
+        if len(cont) < 3:
+            raise ValueError(f"section {k} (z={zs[k]}) holds an isolated contour of {len(cont)} point(s)")
+        lo = b.add_polygon(cont, zs[k] - default_h / 2)
+        hi = b.add_polygon(cont, zs[k] + default_h / 2)
+        _band(b, lo, hi, triangulation)
+        _cap(b, lo, upward=False)
+        _cap(b, hi, upward=True)
+        return
+    idx = [b.add_polygon(polys[i], zs[run[i][0]]) for i in keep]
+    for a, c in zip(idx[:-1], idx[1:]):
+        _band(b, a, c, triangulation)
+    for end, upward in ((0, False), (-1, True)):
+        i = keep[end]
+        if degenerate[i]:
+            continue
+        ring = idx[end]
+        if caps == "half":
+            k = run[i][0]
+            nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
+            h = abs(zs[nb] - zs[k])
+            zc = zs[k] + (h / 2 if upward else -h / 2)
+            outer = b.add_polygon(polys[i], zc)
+            if upward:
+                _band(b, ring, outer, triangulation)
+            else:
+                _band(b, outer, ring, triangulation)
+            ring = outer
+        k = run[i][0]
+        nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
+        zr = float(b.coords(ring[:1])[0, 2])
+        _cap_or_cells(b, ring, stack.sections[k].contours[run[i][1]], zr, abs(zs[nb] - zs[k]), upward,
+                      triangulation)
 
 
 def _shape_of(source):

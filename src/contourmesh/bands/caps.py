@@ -12,7 +12,11 @@ import math
 
 import numpy as np
 
-__all__ = ["cap_faces"]
+__all__ = ["cap_faces", "CapError"]
+
+
+class CapError(ValueError):
+    """A planar cap cannot be triangulated as given (its rings cross or touch each other)."""
 
 
 def _as_ring(poly, name: str) -> np.ndarray:
@@ -143,7 +147,7 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     ])
     fixed = split_t_junctions(verts, tri, np.concatenate([boundary, boundary[:, ::-1]]))
     if fixed is None:
-        raise ValueError("cannot triangulate the cap: its rings cross or touch each other")
+        raise CapError("cannot triangulate the cap: its rings cross or touch each other")
     tri = fixed
     p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
     s = (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])

@@ -33,7 +33,12 @@ from numba import njit
 
 from .wiederhold import edges_to_faces, oriented_pair, validate_band_polygons
 
-__all__ = ["triangulate_band_optimal", "optimal_edges"]
+__all__ = ["triangulate_band_optimal", "optimal_edges", "MAX_OPTIMAL_CELLS", "MAX_OPTIMAL_WORK"]
+
+#: Largest ``n * m`` the optimal band accepts: its tables take 26 bytes per cell (about 420 MB).
+MAX_OPTIMAL_CELLS = 16_000_000
+#: Largest ``min(n, m)^2 * max(n, m)`` it accepts (about 8 ns each here: about a minute).
+MAX_OPTIMAL_WORK = 8_000_000_000
 
 
 @njit(cache=True)
@@ -95,9 +100,10 @@ def _after_c2(layer, i, n):
 def _annulus_dp(A1, A2, s, D, move, parent, keep):
     """Least total area of an annular path from edge ``(s, 0)`` to ``(s + n, m)``.
 
-    Forward ("push") relaxation over rows ``i = 0..n``; ``D[r, layer, j]`` holds row ``i``
-    at ``r = i`` if ``keep`` (full table, with ``move``/``parent`` for backtracking), else at
-    ``r = i % 2`` (two rolling rows).  On equal cost the C(1)-advance (pushed first) wins.
+    Forward ("push") relaxation over rows ``i = 0..n``; ``D[r, layer, j]`` holds row ``i`` at
+    ``r = i % 2`` (two rolling rows); if ``keep``, ``move``/``parent`` (full tables, one byte per
+    cell) record every cell's best step for backtracking.  On equal cost the C(1)-advance (pushed
+    first) wins.
     """
     n, m = A1.shape
     inf = np.inf
@@ -107,7 +113,7 @@ def _annulus_dp(A1, A2, s, D, move, parent, keep):
             D[r0, L, j] = inf
     D[r0, NONE, 0] = 0.0
     for i in range(n + 1):
-        r = i if keep else i % 2
+        r = i % 2
         ib = (s + i) % n                      # the C(1) point of row i
         # C(2)-advances within row i: (i, j) -> (i, j + 1)
         for j in range(m):
@@ -126,7 +132,7 @@ def _annulus_dp(A1, A2, s, D, move, parent, keep):
         if i == n:
             break
         # C(1)-advances to row i + 1: (i, j) -> (i + 1, j)
-        rn = i + 1 if keep else (i + 1) % 2
+        rn = (i + 1) % 2
         for L in range(N_LAYERS):
             for j in range(m + 1):
                 D[rn, L, j] = inf
@@ -143,7 +149,7 @@ def _annulus_dp(A1, A2, s, D, move, parent, keep):
                     if keep:
                         move[i + 1, L1, j] = 0
                         parent[i + 1, L1, j] = L
-    return D[n if keep else n % 2, TWO_ROWS, m]
+    return D[n % 2, TWO_ROWS, m]
 
 
 @njit(cache=True)
@@ -171,10 +177,9 @@ def optimal_edges(c1, c2):
         if c < best:
             best = c
             best_s = s
-    D = np.empty((n + 1, N_LAYERS, m + 1))
     move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    total = _annulus_dp(A1, A2, best_s, D, move, parent, True)
+    total = _annulus_dp(A1, A2, best_s, D2, move, parent, True)
     E = np.empty((n + m, 2), dtype=np.int64)
     i = n
     j = m
@@ -211,6 +216,13 @@ def triangulate_band_optimal(lower, upper) -> np.ndarray:
     if len(lo) == 1 and len(up) == 1:
         return np.empty((0, 3), dtype=np.int64)
     c1, c2, swapped = oriented_pair(lo, up)
+    n, m = len(c1), len(c2)
+    if n * m > MAX_OPTIMAL_CELLS or n * n * m > MAX_OPTIMAL_WORK:
+        raise ValueError(
+            f"the optimal band between polygons of {n} and {m} vertices needs {n * m:,} table cells (about "
+            f"{26 * n * m / 2**20:,.0f} MiB) and {n * n * m:.2g} steps; the limits are {MAX_OPTIMAL_CELLS:,} cells and "
+            f"{MAX_OPTIMAL_WORK:.2g} steps. Use triangulation='wiederhold' or 'greedy' (linear time), or "
+            "polygon='mlp'/'dss' (fewer vertices)")
     if len(c1) == 1:
         edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
         s = 0
