@@ -305,7 +305,7 @@ class _Slice:
 class _Mesher:
     def __init__(self, triangulation: str):
         self.triangulation = triangulation
-        self.V: list[np.ndarray] = []
+        self._V = np.empty((1024, 3))  # vertex buffer (rows [0, n)), grown by doubling
         self.F: list[np.ndarray] = []
         self.S: list[np.ndarray] = []  # side label per face (0, or 1/2 for the two slices of an exact join)
         self.n = 0
@@ -325,15 +325,19 @@ class _Mesher:
         return self.points(np.c_[xy, np.full(len(xy), z)])
 
     def points(self, v: np.ndarray) -> np.ndarray:
-        self.V.append(np.asarray(v, dtype=np.float64))
+        v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+        need = self.n + len(v)
+        if need > len(self._V):
+            grown = np.empty((max(need, 2 * len(self._V)), 3))
+            grown[: self.n] = self._V[: self.n]
+            self._V = grown
+        self._V[self.n: need] = v
         ids = self.n + np.arange(len(v))
-        self.n += len(v)
+        self.n = need
         return ids
 
     def coords(self, ids):
-        allv = np.concatenate(self.V)
-        self.V = [allv]
-        return allv[ids]
+        return self._V[: self.n][ids]
 
     def band(self, lo_ids, hi_ids):
         """The selected band triangulation, with a guard against twisted bands.
@@ -381,7 +385,7 @@ class _Mesher:
         self._add(f)
 
     def result(self):
-        V = np.concatenate(self.V) if self.V else np.zeros((0, 3))
+        V = self._V[: self.n].copy()
         F = np.concatenate(self.F) if self.F else np.zeros((0, 3), dtype=np.int64)
         S = np.concatenate(self.S) if self.S else np.zeros(0, dtype=np.int8)
         N = np.concatenate(self.necks) if self.necks else np.zeros(0, dtype=np.int64)
@@ -741,12 +745,31 @@ def _open_necks(V, F, S, necks, nudge):
     """
     if len(necks) == 0:
         return V, F, S
-    for c in np.unique(necks):  # one at a time: a neck's link may hold another neck
-        star = np.flatnonzero((F == c).any(axis=1))
+    neck_ids = np.unique(necks)
+    # faces (old and new, by index into `faces`) around each neck vertex, kept up to date
+    faces = [tuple(f) for f in F[np.isin(F, neck_ids).any(axis=1)].tolist()]
+    old_index = np.flatnonzero(np.isin(F, neck_ids).any(axis=1))  # their rows in F
+    n_old = len(faces)
+    star_of = {int(c): [] for c in neck_ids}
+    for t, f in enumerate(faces):
+        for v in f:
+            if v in star_of:
+                star_of[v].append(t)
+    alive = [True] * n_old
+    Vs = [V]
+    nv = len(V)
+    pos = {}
+
+    def xyz(ids):
+        return np.array([V[i] if i < len(V) else pos[i] for i in ids])
+
+    for c in neck_ids.tolist():  # one at a time: a neck's link may hold another neck
+        star = [t for t in star_of.pop(c) if alive[t]]
         link = {}
-        for f in F[star]:
-            i = int(np.flatnonzero(f == c)[0])
-            x, y = int(f[(i + 1) % 3]), int(f[(i + 2) % 3])
+        for t in star:
+            f = faces[t]
+            i = f.index(c)
+            x, y = f[(i + 1) % 3], f[(i + 2) % 3]
             if x in link:
                 raise RuntimeError("internal error: a neck vertex is not the apex of two cones")
             link[x] = y
@@ -769,25 +792,30 @@ def _open_necks(V, F, S, necks, nudge):
         # a hair from the apex towards it), then join the two rings by a tube
         new_faces = []
         tube = []
+        pc = xyz([c])[0]
         for n_c, cyc in enumerate(cycles):
             eps = nudge * (1.0 + 0.5 * n_c)
-            dirs = V[cyc] - V[c]
+            dirs = xyz(cyc) - pc
             dirs /= np.maximum(np.linalg.norm(dirs, axis=1), 1e-300)[:, None]
-            ids = len(V) + np.arange(len(cyc))
-            V = np.concatenate([V, V[c] + eps * dirs])
+            ids = nv + np.arange(len(cyc))
+            ring = pc + eps * dirs
+            Vs.append(ring)
+            for q, r in zip(ids.tolist(), ring):
+                pos[q] = r
+            nv += len(cyc)
             k = len(cyc)
             for t in range(k):
                 x, y = cyc[t], cyc[(t + 1) % k]
-                rx, ry = ids[t], ids[(t + 1) % k]
+                rx, ry = int(ids[t]), int(ids[(t + 1) % k])
                 new_faces += [(rx, x, y), (rx, y, ry)]
             tube.append(ids)
         a = tube[0]
         b = tube[1][::-1]
         n, m = len(a), len(b)
-        d = np.linalg.norm(V[a][:, None, :] - V[b][None, :, :], axis=2)
+        d = np.linalg.norm(xyz(a.tolist())[:, None, :] - xyz(b.tolist())[None, :, :], axis=2)
         i0, j0 = np.unravel_index(np.argmin(d), d.shape)
-        a = np.roll(a, -i0)
-        b = np.roll(b, -j0)
+        a = np.roll(a, -i0).tolist()
+        b = np.roll(b, -j0).tolist()
         i = j = 0
         while i < n or j < m:  # advance both rings in proportion (no fold)
             if j >= m or (i < n and (i + 1) * m <= (j + 1) * n):
@@ -796,11 +824,21 @@ def _open_necks(V, F, S, necks, nudge):
             else:
                 new_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
                 j += 1
-        tris = new_faces
-        keep = np.ones(len(F), dtype=bool)
-        keep[star] = False
-        F = np.concatenate([F[keep], np.array(tris, dtype=np.int64)])
-        S = np.concatenate([S[keep], np.zeros(len(tris), dtype=S.dtype)])
+        for t in star:
+            alive[t] = False
+        for f in new_faces:
+            t = len(faces)
+            faces.append(f)
+            alive.append(True)
+            for v in f:
+                if v in star_of:
+                    star_of[v].append(t)
+    keep = np.ones(len(F), dtype=bool)
+    keep[old_index[~np.array(alive[:n_old], dtype=bool)]] = False
+    added = [f for f, ok in zip(faces[n_old:], alive[n_old:]) if ok]
+    F = np.concatenate([F[keep], np.array(added, dtype=np.int64).reshape(-1, 3)])
+    S = np.concatenate([S[keep], np.zeros(len(added), dtype=S.dtype)])
+    V = np.concatenate(Vs)
     return V, F, S
 
 
