@@ -538,27 +538,18 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     fans_per_vertex = np.bincount(fan_vertex, minlength=len(V))
     if not np.any(fans_per_vertex > 1):
         return V, F
-    new_V = [V]
-    fan_to_new = np.empty(ncomp, dtype=np.int64)
-    seen = np.zeros(len(V), dtype=bool)
-    nxt = len(V)
+    # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
+    # in the order of (vertex, fan)
     centroids = V[F].mean(axis=1)
-    extra = []
-    for fan in np.argsort(fan_vertex, kind="stable"):
-        vv = fan_vertex[fan]
-        if not seen[vv]:
-            seen[vv] = True
-            fan_to_new[fan] = vv
-        else:
-            fan_to_new[fan] = nxt
-            nxt += 1
-            extra.append((fan, vv))
+    by_vertex = np.argsort(fan_vertex, kind="stable")
+    sv = fan_vertex[by_vertex]
+    head = np.r_[True, sv[1:] != sv[:-1]]
+    fan_to_new = np.empty(ncomp, dtype=np.int64)
+    fan_to_new[by_vertex[head]] = sv[head]
+    others = by_vertex[~head]
+    fan_to_new[others] = len(V) + np.arange(len(others))
     F2 = fan_to_new[lab].reshape(-1, 3)
-    if extra:
-        add = np.empty((len(extra), 3))
-        for n, (fan, vv) in enumerate(extra):
-            add[n] = V[vv]
-        new_V.append(add)
+    new_V = [V, V[fan_vertex[others]]]
     V2 = np.concatenate(new_V)
     # nudge every copy of a split vertex towards the centroid of its fan
     corner_face = np.arange(3 * m) // 3
@@ -629,7 +620,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         both = (A.labels > 0) & (B.labels > 0)
         if not both.any():
             continue
-        pairs = np.unique(np.c_[A.labels[both], B.labels[both]], axis=0) - 1
+        nbk = np.int64(B.n + 1)  # (a, b) label pairs as one sortable key: same order as unique rows
+        keys = np.unique(A.labels[both].astype(np.int64) * nbk + B.labels[both])
+        pairs = np.c_[keys // nbk, keys % nbk] - 1
         na = A.n
         g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], na + pairs[:, 1])), shape=(na + B.n, na + B.n))
         _, glab = connected_components(g, directed=False)
@@ -844,8 +837,7 @@ def _open_necks(V, F, S, necks, nudge):
 
 def _separate_coincident(V, F, nudge):
     """Move vertices that share a position apart, each towards the centroid of its own faces."""
-    _, inv, cnt = np.unique(V, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.reshape(-1)
+    inv, cnt = _group_rows(V)
     dup = np.flatnonzero(cnt[inv] > 1)
     if len(dup) == 0:
         return V
@@ -871,8 +863,23 @@ def _separate_coincident(V, F, nudge):
     return V
 
 
+def _group_rows(V):
+    """``(inv, cnt)``: a group number per row of ``V`` (rows with equal values share it) and the
+    size of each group; like ``np.unique(V, axis=0, return_inverse=True, return_counts=True)``
+    without sorting the rows as records."""
+    if len(V) == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    order = np.lexsort(V.T[::-1])
+    sv = V[order]
+    new = np.r_[True, np.any(sv[1:] != sv[:-1], axis=1)]
+    gid = np.cumsum(new) - 1
+    inv = np.empty(len(V), dtype=np.int64)
+    inv[order] = gid
+    return inv, np.bincount(gid)
+
+
 def _compact(V, F):
-    used = np.unique(F)
+    used = np.flatnonzero(np.bincount(F.reshape(-1), minlength=len(V)))
     remap = np.full(len(V), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     return V[used], remap[F]
