@@ -93,11 +93,11 @@ def _check_file(path, what: str) -> Path:
         raise TypeError(f"expected a file path for the {what}; got {type(path).__name__}")
     p = Path(path).expanduser()
     if p.is_dir():
-        raise IsADirectoryError(f"{str(p)!r} is a directory; expected a {what} file")
+        raise IsADirectoryError(f"{str(p)!r} is a directory; expected {'an' if what[0] in 'aeiou' else 'a'} {what} file")
     if not p.exists():
         raise FileNotFoundError(f"{what} file {str(p)!r} does not exist")
     if not p.is_file():
-        raise ValueError(f"{str(p)!r} is not a regular file; expected a {what} file")
+        raise ValueError(f"{str(p)!r} is not a regular file; expected {'an' if what[0] in 'aeiou' else 'a'} {what} file")
     return p
 
 
