@@ -208,6 +208,41 @@ def test_real_ring_that_cannot_be_capped_takes_the_raster_route():
     assert_closed_outward(m)
 
 
+@pytest.mark.parametrize("polygon", ["none", "mlp", "dss"])
+def test_keyhole_contours_mesh_as_a_ring_with_a_hole(polygon):
+    """A keyhole contour (RTSTRUCT's way of drawing a hole: a zero-width channel from the outer
+    boundary to the hole, walked in and out) touches itself; it bounds a square with a square hole,
+    so the mesh is closed with genus 1, and its area is that of the even-odd raster's surface."""
+    from contourmesh.rasterize import mesh_contour_stack, rasterize_stack
+    from contourmesh.types import ContourStack, Section
+    from contourmesh.volumes import volume_to_mesh
+
+    ring = np.array([[0, 5], [0, 0], [10, 0], [10, 10], [0, 10], [0, 5], [3, 5], [3, 7], [7, 7], [7, 3], [3, 3],
+                     [3, 5]], float) + 0.25
+    stack = ContourStack(tuple(Section(float(z), (ring,)) for z in range(4)))
+    m = mesh_contour_stack(stack, polygon=polygon, triangulation="optimal", pixel=0.5)
+    assert m.meta["route"] == "raster"
+    assert_closed_outward(m)
+    assert m.checks()["genus"] == 1 and m.checks()["components"] == 1
+    r = rasterize_stack(stack, pixel=0.5)
+    assert r.volume[1].sum() == (20 * 20 - 8 * 8)  # the hole is empty, the channel costs no pixel
+    ref = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation="optimal")
+    assert m.area == pytest.approx(ref.area, rel=1e-12)
+
+
+def test_stack_route_refuses_a_surface_that_does_not_close():
+    """The stack route checks its mesh: a keyhole ring meshed as given would share the channel's
+    edges among four faces; ``stack_to_mesh`` says so instead of returning a broken mesh."""
+    from contourmesh.surface import StackSurfaceError, stack_to_mesh
+    from contourmesh.types import ContourStack, Section
+
+    ring = np.array([[0, 5], [0, 0], [10, 0], [10, 10], [0, 10], [0, 5], [3, 5], [3, 7], [7, 7], [7, 3], [3, 3],
+                     [3, 5]], float) + 0.25
+    stack = ContourStack(tuple(Section(float(z), (ring,)) for z in range(3)))
+    with pytest.raises(StackSurfaceError, match="do not bound a closed surface.*keyhole"):
+        stack_to_mesh(stack, polygon="none", triangulation="wiederhold")
+
+
 def test_mlp_of_a_thin_L_is_mirror_symmetric():
     """Found by the soak (seed 1002106): the MLP is unique, so a mirrored set has the mirrored MLP."""
     from contourmesh.volumes import _mlp_of_pixels

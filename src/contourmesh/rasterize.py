@@ -321,16 +321,17 @@ def mesh_contour_stack(stack: ContourStack, *, polygon: str = "mlp", triangulati
     integer = all(np.asarray(c).dtype.kind in "iu" for s in stack.sections for c in s.contours)
     if one_each and (integer or polygon == "none"):
         from .bands.caps import CapError
-        from .surface import stack_to_mesh
+        from .surface import StackSurfaceError, stack_to_mesh
 
         try:
             m = stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
             meta = dict(m.meta, route="stack")
             return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
-        except CapError:
+        except (CapError, StackSurfaceError):
             if integer:
                 raise
-            # a real-valued ring that earcut cannot cap (it touches itself): the raster route below
+            # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): earcut
+            # cannot cap it or the bands do not close; the raster route below resolves it even-odd
     from .volumes import volume_to_mesh
 
     r = rasterize_stack(stack, pixel)

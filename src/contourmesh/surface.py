@@ -25,7 +25,7 @@ import numpy as np
 
 from .types import ContourStack, Mesh, shoelace_area
 
-__all__ = ["mesh", "stack_to_mesh", "CAPS"]
+__all__ = ["mesh", "stack_to_mesh", "CAPS", "StackSurfaceError"]
 
 CAPS = ("flat", "half")
 
@@ -348,7 +348,7 @@ def stack_to_mesh(
         _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs)
         meta = dict(stack.meta)
         meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
-        return b.mesh(meta=meta)
+        return _verified(b.mesh(meta=meta))
     for run in _runs(stack):
         mark = b.mark()
         _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=False)
@@ -360,7 +360,32 @@ def stack_to_mesh(
 
     meta = dict(stack.meta)
     meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
-    return b.mesh(meta=meta)
+    return _verified(b.mesh(meta=meta))
+
+
+class StackSurfaceError(ValueError):
+    """The contours do not bound a closed surface on the stack route (e.g. a keyhole contour)."""
+
+
+def _verified(m: Mesh) -> Mesh:
+    """The mesh, after checking that it is closed, edge-manifold and consistently oriented outward
+    (a contour that touches or crosses itself, such as a keyhole, breaks this on the stack route)."""
+    f = np.asarray(m.faces, dtype=np.int64)
+    nv = np.int64(len(m.vertices) + 1)
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = directed[:, 0] * nv + directed[:, 1]
+    und = np.minimum(directed[:, 0], directed[:, 1]) * nv + np.maximum(directed[:, 0], directed[:, 1])
+    _, counts = np.unique(und, return_counts=True)
+    boundary, crowded = int((counts == 1).sum()), int((counts > 2).sum())
+    twice = len(key) - len(np.unique(key))
+    vol = m.volume if len(f) else 0.0
+    if boundary or crowded or twice or not vol > 0:
+        raise StackSurfaceError(
+            f"the contours do not bound a closed surface on the stack route: {boundary} boundary edge(s), {crowded} "
+            f"edge(s) in more than two faces, {twice} edge(s) used twice in one direction, volume {vol:.6g}; "
+            "expected contours that do not touch or cross themselves (a keyhole contour does: split it into an "
+            "outer contour and a hole)")
+    return m
 
 
 def _mesh_run(b: _Builder, stack: ContourStack, run, polygon: str, triangulation: str, caps: str, zs,
