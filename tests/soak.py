@@ -140,6 +140,33 @@ def _star(rng, cx, cy, r0, k=None, jitter=0.45):
     return np.c_[cx + r * np.cos(t), cy + r * np.sin(t)]
 
 
+def _ray_hit(ring, cx, cy, th):
+    """Index of the edge of a ring (star-shaped about ``(cx, cy)``) that the ray at angle ``th``
+    crosses, and the crossing point."""
+    d = np.array([np.cos(th), np.sin(th)])
+    for i in range(len(ring)):
+        p, q = ring[i], ring[(i + 1) % len(ring)]
+        m = np.array([d, p - q]).T  # s * d = p + u (q - p) - c
+        if abs(np.linalg.det(m)) < 1e-12:
+            continue
+        s_, u = np.linalg.solve(m, p - [cx, cy])
+        if s_ > 0 and 0 <= u <= 1:
+            return i, np.array([cx, cy]) + s_ * d
+    return None  # the ring does not hold (cx, cy)
+
+
+def _keyhole(outer, hole, cx, cy, th):
+    """One ring for an outer ring and a hole: out along the outer ring from the ray at ``th``,
+    in along a zero-width channel on that ray, round the hole the other way, and back out."""
+    a, b = _ray_hit(outer, cx, cy, th), _ray_hit(hole, cx, cy, th)
+    if a is None or b is None or np.linalg.norm(b[1] - [cx, cy]) >= np.linalg.norm(a[1] - [cx, cy]):
+        return None  # no clean channel on this ray: keep the two rings
+    (i, P), (j, H) = a, b
+    o = np.vstack([P, outer[i + 1:], outer[: i + 1]])           # P, then the outer ring back to P
+    h = np.vstack([H, hole[: j + 1][::-1], hole[j + 1:][::-1]])  # H, then the hole reversed
+    return np.vstack([o, P, h, H])
+
+
 def _uneven_z(rng, n):
     return np.cumsum(np.r_[rng.uniform(-3, 3), rng.uniform(0.3, 3.0, n - 1)])
 
@@ -199,6 +226,10 @@ def make_real_stack(rng: np.random.Generator):
             rings.append(_star(rng, cx, cy, r0, jitter=0.3))
             if rng.random() < 0.4:  # a hole, maybe with an island
                 rings.append(_star(rng, cx, cy, r0 * 0.45, jitter=0.2))
+                if rng.random() < 0.3:  # drawn as one keyhole ring (RTSTRUCT style)
+                    key = _keyhole(rings[-2], rings[-1], cx, cy, rng.uniform(0, 2 * np.pi))
+                    if key is not None:
+                        rings[-2:] = [key]
                 if rng.random() < 0.5:
                     rings.append(_star(rng, cx, cy, r0 * 0.2, jitter=0.1))
         rings = [r[::-1] if rng.random() < 0.5 else r for r in rings]
