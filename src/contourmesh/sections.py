@@ -53,6 +53,14 @@ def _is_boundary_edge(cells, vx, vy, d):
         return cells[vy - 1, vx] and not cells[vy - 1, vx - 1]
 
 
+@njit(cache=True, inline="always")
+def _uniform(cells, vx, vy):
+    """Whether the four cells around vertex ``(vx, vy)`` are all in ``U`` or all outside (no
+    boundary edge starts there)."""
+    a = cells[vy - 1, vx - 1]
+    return a == cells[vy - 1, vx] and a == cells[vy, vx - 1] and a == cells[vy, vx]
+
+
 @njit(cache=True)
 def _follow_boundaries(cells):
     """Crack following on the cell image (every boundary edge of ``U`` exactly once).
@@ -69,6 +77,8 @@ def _follow_boundaries(cells):
     n_edges = 0
     for vy in range(1, h):
         for vx in range(1, w):
+            if _uniform(cells, vx, vy):
+                continue
             for d in range(4):
                 if _is_boundary_edge(cells, vx, vy, d):
                     n_edges += 1
@@ -81,6 +91,8 @@ def _follow_boundaries(cells):
     pos = 0
     for vy0 in range(1, h):
         for vx0 in range(1, w):
+            if _uniform(cells, vx0, vy0):
+                continue
             for d0 in range(4):
                 if visited[vy0, vx0, d0] or not _is_boundary_edge(cells, vx0, vy0, d0):
                     continue

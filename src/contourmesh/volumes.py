@@ -231,15 +231,16 @@ class _Slice:
             crack_h = [cont[i] + off for i in range(len(cont)) if area2[i] < 0]
             # the holes as pixel sets: background 8-components of the component's bbox not
             # connected to the bbox border
-            padded = np.pad(~comp, 1, constant_values=True)
-            blab, nb = ndimage.label(padded, structure=_SQUARE)
-            ext = blab[0, 0]
             hmasks = []
-            for b in range(1, nb + 1):
-                if b == ext:
-                    continue
-                hm = (blab == b)[1:-1, 1:-1]
-                hmasks.append(hm)
+            if crack_h:  # (a component without hole contours has no holes: skip the labelling)
+                padded = np.pad(~comp, 1, constant_values=True)
+                blab, nb = ndimage.label(padded, structure=_SQUARE)
+                ext = blab[0, 0]
+                for b in range(1, nb + 1):
+                    if b == ext:
+                        continue
+                    hm = (blab == b)[1:-1, 1:-1]
+                    hmasks.append(hm)
             # order hole masks like the crack holes: match by a pixel left of each hole contour
             hmasks = self._match_holes(crack_h, hmasks, off)
             self.hole_masks.append((sl, hmasks))

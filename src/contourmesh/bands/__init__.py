@@ -60,8 +60,9 @@ def band_is_folded(faces: np.ndarray) -> bool:
     if len(f) == 0:
         return False
     e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(e, axis=0, return_counts=True)
-    return bool((counts > 2).any())
+    key = np.sort(e[:, 0] * (int(f.max()) + 1) + e[:, 1])  # one integer per undirected edge
+    # some edge in more than two triangles: a key equal to the one two places before it
+    return bool(len(key) > 2 and (key[2:] == key[:-2]).any())
 
 
 def triangulate_band(lower, upper, method: str = "wiederhold", *, fallback: bool = True) -> np.ndarray:
