@@ -474,14 +474,15 @@ def _split_four_face_edges(V, F, side, nudge):
     return V2, F2, S2
 
 
-def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None):
+def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
     """Make a closed mesh a manifold: pair faces at 4-face edges by side, split vertex fans.
 
     Edges shared by four faces occur where two voxels of consecutive slices touch along an
     edge (6-connectivity keeps them apart): each ``side``'s pair of faces gets an edge of its
     own (:func:`_split_four_face_edges`).  Then every vertex whose faces form several fans (touching corners) is split
     into one vertex per fan, and each copy is moved ``nudge`` (absolute units) towards the
-    centroid of its fan so that the touching surfaces no longer share a point.
+    centroid of its fan so that the touching surfaces no longer share a point.  ``four_face=False``
+    skips the first step (for a caller that has already split the four-face edges).
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -491,25 +492,26 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     if m == 0:
         return V, F
     side = np.zeros(m, dtype=np.int64) if side is None else np.asarray(side, dtype=np.int64)
-    V, F, side = _split_four_face_edges(np.asarray(V, dtype=np.float64), F, side, nudge)
+    V = np.asarray(V, dtype=np.float64)
+    if four_face:
+        V, F, side = _split_four_face_edges(V, F, side, nudge)
     m = len(F)
     nv = len(V) + 1
     fi = np.repeat(np.arange(m), 3)
     li = np.tile(np.arange(3), m)
     u = F[fi, li]
     v = F[fi, (li + 1) % 3]
-    und = np.minimum(u, v) * nv + np.maximum(u, v)
-    _, inv, cnt = np.unique(und, return_inverse=True, return_counts=True)
-    mult = cnt[inv]
-    if np.any(mult != 2):
-        bad = int(np.flatnonzero(mult != 2)[0])
-        raise RuntimeError(
-            f"internal error: edge ({u[bad]}, {v[bad]}) is shared by {int(mult[bad])} faces; cannot make a manifold"
-        )
     key_uv = u * nv + v
     key_vu = v * nv + u
     order = np.argsort(key_uv, kind="stable")
     sk = key_uv[order]
+    # every directed edge once and every one with its opposite <=> every edge in exactly two faces
+    same = np.flatnonzero(sk[1:] == sk[:-1])
+    if len(same):
+        bad = int(order[same[0]])
+        raise RuntimeError(
+            f"internal error: edge ({u[bad]}, {v[bad]}) is used twice in one direction; cannot make a manifold"
+        )
     pos = np.clip(np.searchsorted(sk, key_vu), 0, len(order) - 1)
     twin = order[pos]
     ok = key_uv[twin] == key_vu
@@ -717,7 +719,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px)
     V, F, S = _open_necks(V, F, S, N, 1e-2 * px)
     V, F = _compact(V, F)
-    V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px)
+    V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
     meta = {
