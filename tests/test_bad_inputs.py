@@ -107,6 +107,22 @@ def _huge_optimal_band():
     return triangulate_band(lo, lo + [0, 0, 1], "optimal")
 
 
+KEYHOLE = np.array([[0, 5], [0, 0], [10, 0], [10, 10], [0, 10], [0, 5], [3, 5], [3, 7], [7, 7], [7, 3], [3, 3], [3, 5]],
+                   float) + 0.25
+
+
+def _keyhole_on_the_stack_route():
+    from contourmesh.surface import stack_to_mesh
+
+    return stack_to_mesh(_stack(KEYHOLE, KEYHOLE, KEYHOLE), polygon="none")
+
+
+def _figure_eight_cap():
+    from contourmesh.bands.caps import cap_faces
+
+    return cap_faces(np.array([[0.0, 0.0], [2.0, 2.0], [4.0, 0.0], [4.0, 4.0], [2.0, 2.0], [0.0, 4.0]]), [])
+
+
 def _corrupt_tiff(tmp_path):
     return read_volume(_write(tmp_path, "bad.tif", b"II*\0" + b"\xff" * 60))
 
@@ -194,6 +210,10 @@ CASES = {
     "rings that are all 1- or 2-point": (lambda t: stack_from_rings([(0.0, [[[0, 0]], [[0, 0], [1, 1]]])]),
                                          ValueError, "no contour with 3 or more distinct points"),
     "contour outside the declared plane (RTSTRUCT)": (_rtstruct_off_plane, ValueError, "planar"),
+    "keyhole ring meshed as given (stack route)": (lambda t: _keyhole_on_the_stack_route(), ValueError,
+                                                   "do not bound a closed surface.*keyhole"),
+    "cap of a ring that touches itself (figure eight)": (lambda t: _figure_eight_cap(), ValueError,
+                                                         "rings cross or touch"),
     # --- files ---------------------------------------------------------------------------------
     "pickled objects in .npy (never unpickled)": (_pickled_npy, ValueError, "refusing to unpickle"),
     "truncated .npy": (lambda t: _truncated(t, ".npy"), ValueError, "expected"),
