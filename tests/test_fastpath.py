@@ -246,3 +246,43 @@ def test_shared_data_in_scope_volumes(shared_data):
         checked += 1
     if checked == 0:
         pytest.skip("no shared volume inside the fast path's scope")
+
+
+# ------------------------------------------------------------------------------------------------
+# compile time (issue 5): nothing at import, one non-literal signature per kernel
+# ------------------------------------------------------------------------------------------------
+def _dispatchers(*modules):
+    from numba.core.registry import CPUDispatcher
+
+    return {f"{m.__name__}.{k}": v for m in modules for k, v in vars(m).items() if isinstance(v, CPUDispatcher)}
+
+
+def test_import_compiles_nothing():
+    import subprocess
+    import sys
+
+    code = (
+        "import contourmesh, contourmesh.fastpath as fp, contourmesh.polygons.mlp as m\n"
+        "import contourmesh.bands.wiederhold as w, contourmesh.bands.arclength as a\n"
+        "from numba.core.registry import CPUDispatcher\n"
+        "ds = {k: v for mod in (fp, m, w, a) for k, v in vars(mod).items() if isinstance(v, CPUDispatcher)}\n"
+        "assert len(ds) >= 10, sorted(ds)\n"
+        "assert not [k for k, v in ds.items() if v.signatures], [k for k, v in ds.items() if v.signatures]\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
+
+
+def test_kernels_are_compiled_without_literal_arguments():
+    # a literal argument (say a constant 0, or a loop variable starting at 0) makes numba compile a
+    # kernel once more; the fast path passes int64 values only (when its entry points come from the
+    # on-disk cache nothing is compiled and there is nothing to check)
+    from numba.core import types
+
+    from contourmesh import fastpath
+    from contourmesh.bands import arclength, wiederhold
+    from contourmesh.polygons import mlp
+
+    fast_volume_to_mesh(ball(20, 7.3), caps="half", threads=1)
+    for name, d in _dispatchers(fastpath, mlp, wiederhold, arclength).items():
+        for sig in d.signatures:
+            assert not any(isinstance(t, types.Literal) for t in sig), (name, sig)

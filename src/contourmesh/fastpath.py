@@ -53,12 +53,52 @@ import threading
 import numpy as np
 from numba import njit
 
-from .bands.arclength import arclength_edges
-from .bands.wiederhold import INITIAL_EDGE_WINDOW, _edges_to_faces, wiederhold_edges
-from .polygons.mlp import _candidates, _clean_polygon, _string_pulling
+from .bands import arclength as _arclength
+from .bands import wiederhold as _wiederhold
+from .bands.wiederhold import INITIAL_EDGE_WINDOW
+from .polygons import mlp as _mlp_module
 
 __all__ = ["fast_volume_to_mesh", "slice_runs", "slice_components", "outer_jordan_contour",
            "slice_polygons", "band_faces"]
+
+
+# ------------------------------------------------------------------------------------------------
+# compile time: the first call in a fresh process compiles everything below (issue 5)
+# ------------------------------------------------------------------------------------------------
+# Three entry points are called from Python and cached on disk: ``_slice_polygons`` (steps 1-4),
+# ``_pair_joins`` (5) and ``_pair_bands`` (6).  Everything they call is an internal ``@_kernel``:
+# compiled only as their callee, without the Python and C call wrappers (whose code costs about
+# as much compile time as a small kernel's body) and without a cache file of its own (the entry
+# points' cache holds its code).  The MLP, the paper's edge sequence and the arc-length band of
+# the other modules are compiled again here as such kernels, so that the fast path never compiles
+# their wrapped public versions.  A kernel's code is optimized once more in every entry point
+# that links it, so small helpers are written inline instead.  Compile-time rules for all of them:
+# * one signature per kernel: pass int64 values, never literal constants (numba compiles a kernel
+#   once more for a literal argument, even for a loop variable that starts as a literal);
+# * explicit loops instead of slice assignments, and no exceptions (their error formatting pulls
+#   in numba's string machinery);
+# * ``np.empty`` with an explicit dtype only (``np.zeros``, ``np.full``, ``np.arange``, ``min``,
+#   ``max`` are compiled overloads each), ``math.sqrt`` (not the ``np.sqrt`` ufunc), ``len(a)``
+#   (with the rewrite passes off, ``a.shape[0]`` is one more overload).
+# ``no_rewrites``: numba's IR rewrite passes (array expressions, constant getitems) find nothing
+# to do in these loops and only cost compile time.
+_OPTIONS = dict(nogil=True, no_rewrites=True)
+
+
+def _kernel(fn):
+    """``fn`` as an internal numba kernel (see above)."""
+    return njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTIONS)(fn)
+
+
+def _entry(kernel):
+    """A cached, Python-callable twin of an internal kernel (for the Python-level helpers)."""
+    return njit(cache=True, nogil=True)(kernel.py_func)
+
+
+_mlp = _kernel(_mlp_module._mlp.py_func)
+wiederhold_edges = _kernel(_wiederhold.wiederhold_edges.py_func)
+_edges_to_faces = _kernel(_wiederhold._edges_to_faces.py_func)
+arclength_edges = _kernel(_arclength.arclength_edges.py_func)
 
 _ONES = np.uint64(0x0101010101010101)
 _ZERO = np.uint64(0)
@@ -67,18 +107,19 @@ _ZERO = np.uint64(0)
 # ------------------------------------------------------------------------------------------------
 # 1. runs
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
+@_kernel
 def _scan_runs(b8, b64, base, h, w, aligned):
     """Runs of non-zero bytes of the ``h x w`` slice starting at byte ``base`` of ``b8``.
 
     ``b64`` is the ``uint64`` view of ``b8`` (used when ``aligned``).  Returns ``(ry, rx0, rx1,
-    row_start, bad)``: run ``r`` covers pixels ``rx0[r] <= x < rx1[r]`` of row ``ry[r]``; runs of
-    row ``y`` are ``row_start[y]:row_start[y + 1]``; ``bad`` counts bytes other than 0 and 1.
+    row_start, bad)`` (all ``int64``): run ``r`` covers pixels ``rx0[r] <= x < rx1[r]`` of row
+    ``ry[r]``; runs of row ``y`` are ``row_start[y]:row_start[y + 1]``; ``bad`` counts bytes other
+    than 0 and 1.
     """
     cap = 64
-    ry = np.empty(cap, np.int32)
-    rx0 = np.empty(cap, np.int32)
-    rx1 = np.empty(cap, np.int32)
+    ry = np.empty(cap, np.int64)
+    rx0 = np.empty(cap, np.int64)
+    rx1 = np.empty(cap, np.int64)
     row_start = np.empty(h + 1, np.int64)
     n = 0
     bad = 0
@@ -87,9 +128,9 @@ def _scan_runs(b8, b64, base, h, w, aligned):
         if cap - n < w // 2 + 1:
             # grow between rows only: rebinding arrays inside the hot loop costs numba 5-10x
             cap = 2 * cap + w
-            ry = _grow32(ry, cap)
-            rx0 = _grow32(rx0, cap)
-            rx1 = _grow32(rx1, cap)
+            ry = _grow(ry, cap)
+            rx0 = _grow(rx0, cap)
+            rx1 = _grow(rx1, cap)
         start = base + y * w
         end = start + w
         i = start
@@ -132,17 +173,16 @@ def _scan_runs(b8, b64, base, h, w, aligned):
     return ry[:n], rx0[:n], rx1[:n], row_start, bad
 
 
-@njit(cache=True, nogil=True)
-def _grow32(a, cap):
-    b = np.empty(cap, a.dtype)
-    b[: a.shape[0]] = a
-    return b
+_scan_runs_py = _entry(_scan_runs)
 
 
-@njit(cache=True, nogil=True)
-def _grow64(a, cap):
-    b = np.empty(cap, a.dtype)
-    b[: a.shape[0]] = a
+@_kernel
+def _grow(a, cap):
+    """A new ``int64`` array of length ``cap`` starting with ``a`` (an explicit loop: a slice
+    assignment would compile numba's shape-mismatch error formatting)."""
+    b = np.empty(cap, np.int64)
+    for i in range(len(a)):
+        b[i] = a[i]
     return b
 
 
@@ -153,7 +193,7 @@ def slice_runs(mask2d) -> tuple:
         raise ValueError(f"mask must be a 2D array indexed [y, x]; got shape {m.shape}")
     b8 = m.reshape(-1).view(np.uint8)
     b64, aligned = _words(b8)
-    ry, rx0, rx1, rs, _ = _scan_runs(b8, b64, 0, m.shape[0], m.shape[1], aligned)
+    ry, rx0, rx1, rs, _ = _scan_runs_py(b8, b64, 0, m.shape[0], m.shape[1], aligned)
     return ry, rx0, rx1, rs
 
 
@@ -167,7 +207,7 @@ def _words(b8):
 # ------------------------------------------------------------------------------------------------
 # 2. components (4-connected) of the runs
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
+@_kernel
 def _find(parent, i):
     while parent[i] != i:
         parent[i] = parent[parent[i]]
@@ -175,7 +215,7 @@ def _find(parent, i):
     return i
 
 
-@njit(cache=True, nogil=True)
+@_kernel
 def _components(ry, rx0, rx1, row_start, h):
     """4-components of the runs: ``(label per run, n, holes per component, bbox (n, 4) =
     (xmin, ymin, xmax, ymax) inclusive, first run per component)``.
@@ -184,9 +224,10 @@ def _components(ry, rx0, rx1, row_start, h):
     Holes (8-connected background components enclosed) = ``1 - chi`` with ``chi = #runs -
     #(overlapping run pairs in adjacent rows)``.
     """
-    nr = ry.shape[0]
-    parent = np.arange(nr)
-    adj = 0
+    nr = len(ry)
+    parent = np.empty(nr, np.int64)
+    for r in range(nr):
+        parent[r] = r
     for y in range(1, h):
         i, i1 = row_start[y - 1], row_start[y]
         j, j1 = row_start[y], row_start[y + 1]
@@ -202,8 +243,10 @@ def _components(ry, rx0, rx1, row_start, h):
                 i += 1
             else:
                 j += 1
-    lab = np.empty(nr, np.int32)
-    root_lab = np.full(nr, -1, np.int32)
+    lab = np.empty(nr, np.int64)
+    root_lab = np.empty(nr, np.int64)
+    for r in range(nr):
+        root_lab[r] = -1
     n = 0
     for r in range(nr):
         t = _find(parent, r)
@@ -211,12 +254,15 @@ def _components(ry, rx0, rx1, row_start, h):
             root_lab[t] = n
             n += 1
         lab[r] = root_lab[t]
-    chi = np.zeros(n, np.int64)
+    holes = np.empty(n, np.int64)  # 1 - chi, counted down from 1
     bbox = np.empty((n, 4), np.int64)
-    first = np.full(n, -1, np.int64)
+    first = np.empty(n, np.int64)
+    for c in range(n):
+        holes[c] = 1
+        first[c] = -1
     for r in range(nr):
         c = lab[r]
-        chi[c] += 1
+        holes[c] -= 1
         if first[c] < 0:
             first[c] = r
             bbox[c, 0] = rx0[r]
@@ -224,107 +270,122 @@ def _components(ry, rx0, rx1, row_start, h):
             bbox[c, 2] = rx1[r] - 1
             bbox[c, 3] = ry[r]
         else:
-            bbox[c, 0] = min(bbox[c, 0], rx0[r])
-            bbox[c, 2] = max(bbox[c, 2], rx1[r] - 1)
-            bbox[c, 3] = max(bbox[c, 3], ry[r])
+            if rx0[r] < bbox[c, 0]:
+                bbox[c, 0] = rx0[r]
+            if rx1[r] - 1 > bbox[c, 2]:
+                bbox[c, 2] = rx1[r] - 1
+            bbox[c, 3] = ry[r]  # runs come in row order
     for y in range(1, h):
         i, i1 = row_start[y - 1], row_start[y]
         j, j1 = row_start[y], row_start[y + 1]
         while i < i1 and j < j1:
             if rx0[i] < rx1[j] and rx0[j] < rx1[i]:
-                chi[lab[i]] -= 1
+                holes[lab[i]] += 1
             if rx1[i] <= rx1[j]:
                 i += 1
             else:
                 j += 1
-    holes = 1 - chi
     return lab, n, holes, bbox, first
+
+
+_components_py = _entry(_components)
 
 
 def slice_components(mask2d):
     """4-connected components of a 2D mask from its runs: ``(runs, labels, n, holes, bbox)``."""
     ry, rx0, rx1, rs = slice_runs(mask2d)
-    lab, n, holes, bbox, _ = _components(ry, rx0, rx1, rs, np.asarray(mask2d).shape[0])
+    lab, n, holes, bbox, _ = _components_py(ry, rx0, rx1, rs, np.asarray(mask2d).shape[0])
     return (ry, rx0, rx1, rs), lab, n, holes, bbox
 
 
 # ------------------------------------------------------------------------------------------------
 # 3. the outer Jordan contour of one component
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True, inline="always")
-def _pix(pm, x, y, ox, oy):
-    xx = x - ox
-    yy = y - oy
-    if xx < 0 or yy < 0 or yy >= pm.shape[0] or xx >= pm.shape[1]:
-        return False
-    return pm[yy, xx] != 0
+def _next_direction_table():
+    """``_NEXT_DIR[512 * d + mask]``: the direction leaving a boundary vertex entered with
+    direction ``d`` (0 = +x, 1 = +y, 2 = -x, 3 = -y), given the 3 x 3 pixels around the vertex
+    as a 9-bit ``mask`` (bit ``3 j + i`` = pixel ``(vx - 1 + i, vy - 1 + j)``).
 
-
-@njit(cache=True, nogil=True)
-def _walk(pm, ox, oy, sx, sy, vx, vy, d, pts, n):
-    """Walk on from vertex ``(vx, vy)`` (next step ``d``) writing points into ``pts[n:]``; stops
-    when back at the start ``(sx, sy)`` with ``d == 0`` or when ``pts`` is full.
-    Returns ``(n, vx, vy, d, done)``."""
-    cap = pts.shape[0]
-    while n < cap:
-        pts[n, 0] = vx
-        pts[n, 1] = vy
-        n += 1
-        if d == 0:
-            vx += 1
-        elif d == 1:
-            vy += 1
-        elif d == 2:
-            vx -= 1
-        else:
-            vy -= 1
-        a00 = _pix(pm, vx - 1, vy - 1, ox, oy)
-        a10 = _pix(pm, vx, vy - 1, ox, oy)
-        a20 = _pix(pm, vx + 1, vy - 1, ox, oy)
-        a01 = _pix(pm, vx - 1, vy, ox, oy)
-        a11 = _pix(pm, vx, vy, ox, oy)
-        a21 = _pix(pm, vx + 1, vy, ox, oy)
-        a02 = _pix(pm, vx - 1, vy + 1, ox, oy)
-        a12 = _pix(pm, vx, vy + 1, ox, oy)
-        a22 = _pix(pm, vx + 1, vy + 1, ox, oy)
+    The cell with lower-left corner ``(x, y)`` is in ``U`` when one of the pixels ``(x..x+1,
+    y..y+1)`` is set; of the boundary edges leaving the vertex (``U`` on the left) the first among
+    *turn left, go straight, turn right* wins (as :func:`contourmesh.sections._follow_boundaries`).
+    Built once with numpy at import (no compilation); 2 KiB.
+    """
+    table = np.empty(4 * 512, np.uint8)
+    for mask in range(512):
+        a00, a10, a20, a01, a11, a21, a02, a12, a22 = ((mask >> b) & 1 == 1 for b in range(9))
         ll = a00 or a10 or a01 or a11   # cell with lower-left corner (vx-1, vy-1)
         lr = a10 or a20 or a11 or a21   # (vx, vy-1)
         ul = a01 or a11 or a02 or a12   # (vx-1, vy)
         ur = a11 or a21 or a12 or a22   # (vx, vy)
-        e0 = ur and not lr
-        e1 = ul and not ur
-        e2 = ll and not ul
-        e3 = lr and not ll
-        # turn left, straight on, turn right: the first boundary edge wins
-        for t in (1, 0, 3):
-            nd = (d + t) % 4
-            if (nd == 0 and e0) or (nd == 1 and e1) or (nd == 2 and e2) or (nd == 3 and e3):
-                d = nd
-                break
-        if vx == sx and vy == sy and d == 0:
-            return n, vx, vy, d, True
-    return n, vx, vy, d, False
+        edge = (ur and not lr, ul and not ur, ll and not ul, lr and not ll)  # +x, +y, -x, -y
+        for d in range(4):
+            nd = d
+            for t in (1, 0, 3):
+                if edge[(d + t) % 4]:
+                    nd = (d + t) % 4
+                    break
+            table[512 * d + mask] = nd
+    return table
 
 
-@njit(cache=True, nogil=True)
-def _trace_outer(pm, ox, oy, sx, sy):
-    """Boundary of ``U`` (closed cells with a corner in the pixels of ``pm``), from vertex ``(sx, sy)``.
+_NEXT_DIR = _next_direction_table()
 
-    ``pm[y - oy, x - ox]`` is pixel ``(x, y)`` (outside the array: background).  Point ``(x, y)``
-    is a pixel centre; the cell with lower-left corner ``(x, y)`` is in ``U`` when one of the
-    pixels ``(x..x+1, y..y+1)`` is set.  The walk starts with a ``+x`` step at the lowest-then-
-    leftmost vertex and takes, at every vertex, the first boundary edge among *turn left, go
-    straight, turn right* (as :func:`contourmesh.sections._follow_boundaries`).  Only the 3 x 3
+
+@_kernel
+def _trace_outer(img, base, hh, ww, ox, oy, sx, sy):
+    """Boundary of ``U`` (closed cells with a corner in the pixels of ``img``), from vertex ``(sx, sy)``.
+
+    ``img[base + (y - oy) * ww + (x - ox)]`` is pixel ``(x, y)`` for ``0 <= x - ox < ww`` and
+    ``0 <= y - oy < hh`` (outside: background).  Point ``(x, y)`` is a pixel centre; the cell with
+    lower-left corner ``(x, y)`` is in ``U`` when one of the pixels ``(x..x+1, y..y+1)`` is set.
+    The walk starts with a ``+x`` step at the lowest-then-leftmost vertex and takes, at every
+    vertex, the first boundary edge among *turn left, go straight, turn right*
+    (:data:`_NEXT_DIR`, as :func:`contourmesh.sections._follow_boundaries`).  Only the 3 x 3
     pixels around each boundary vertex are read.
     """
-    pts = np.empty((1024, 2), np.int64)
-    n, vx, vy, d, done = _walk(pm, ox, oy, sx, sy, sx, sy, 0, pts, 0)
-    while not done:
-        q = np.empty((2 * pts.shape[0], 2), np.int64)
-        q[:n] = pts[:n]
-        pts = q
-        n, vx, vy, d, done = _walk(pm, ox, oy, sx, sy, vx, vy, d, pts, n)
-    return pts[:n]
+    cap = 1024
+    pts = np.empty((cap, 2), np.int64)
+    n = 0
+    vx = sx
+    vy = sy
+    d = 0  # +x
+    while True:
+        if n == cap:
+            # grow outside the walk below, so that the walk never rebinds ``pts``
+            cap *= 2
+            q = np.empty((cap, 2), np.int64)
+            for i in range(n):
+                q[i, 0] = pts[i, 0]
+                q[i, 1] = pts[i, 1]
+            pts = q
+        while n < cap:
+            pts[n, 0] = vx
+            pts[n, 1] = vy
+            n += 1
+            if d == 0:
+                vx += 1
+            elif d == 1:
+                vy += 1
+            elif d == 2:
+                vx -= 1
+            else:
+                vy -= 1
+            mask = 0
+            for j in range(3):
+                yy = vy - 1 + j - oy
+                if 0 <= yy < hh:
+                    row = base + yy * ww - ox
+                    for i in range(3):
+                        xx = vx - 1 + i
+                        if 0 <= xx - ox < ww and img[row + xx] != 0:
+                            mask |= 1 << (3 * j + i)
+            d = np.int64(_NEXT_DIR[512 * d + mask])
+            if vx == sx and vy == sy and d == 0:
+                return pts[:n]
+
+
+_trace_outer_py = _entry(_trace_outer)
 
 
 def outer_jordan_contour(mask2d) -> np.ndarray:
@@ -338,50 +399,14 @@ def outer_jordan_contour(mask2d) -> np.ndarray:
     ys, xs = np.nonzero(m)
     y0 = ys.min()
     x0 = xs[ys == y0].min()
-    return _trace_outer(m.view(np.uint8), 0, 0, int(x0) - 1, int(y0) - 1)
+    h, w = m.shape
+    return _trace_outer_py(m.reshape(-1).view(np.uint8), 0, h, w, 0, 0, int(x0) - 1, int(y0) - 1)
 
 
 # ------------------------------------------------------------------------------------------------
-# 4. the MLP of a contour (Klette & Yip, as in contourmesh.polygons.mlp)
+# 4. the MLP of each contour (Klette & Yip: the kernel of contourmesh.polygons.mlp), per slice
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
-def _mlp_outer(c):
-    """MLP of an outer 4-contour (positive area), as :func:`contourmesh.polygons.mlp_polygon`."""
-    cand, kind = _candidates(c)
-    nnz = 0
-    last = -1
-    for i in range(kind.shape[0]):
-        if kind[i] != 0:
-            nnz += 1
-            last = i
-    if nnz == 1:
-        poly = cand[last: last + 1].copy()
-    else:
-        s = -1
-        for i in range(kind.shape[0]):
-            if kind[i] == 1:
-                if s < 0 or cand[i, 1] < cand[s, 1] or (cand[i, 1] == cand[s, 1] and cand[i, 0] < cand[s, 0]):
-                    s = i
-        if s < 0:
-            return np.empty((0, 2), np.int64)
-        poly = _clean_polygon(cand[_string_pulling(cand, kind, s)])
-    best = 0
-    bd = -1
-    for i in range(poly.shape[0]):
-        dx = poly[i, 0] - c[0, 0]
-        dy = poly[i, 1] - c[0, 1]
-        d2 = dx * dx + dy * dy
-        if bd < 0 or d2 < bd:
-            bd = d2
-            best = i
-    out = np.empty_like(poly)
-    p = poly.shape[0]
-    for i in range(p):
-        out[i] = poly[(i + best) % p]
-    return out
-
-
-@njit(cache=True, nogil=True)
+@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
 def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
     """Steps 1-4 for one slice.
 
@@ -393,68 +418,86 @@ def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
     """
     ry, rx0, rx1, row_start, bad = _scan_runs(b8, b64, base, h, w, aligned)
     lab, n, holes, bbox, first = _components(ry, rx0, rx1, row_start, h)
-    poly_start = np.zeros(n + 1, np.int64)
-    degenerate = np.zeros(n, np.uint8)
+    poly_start = np.empty(n + 1, np.int64)
+    degenerate = np.empty(n, np.uint8)
+    poly_start[0] = 0
     status = 0
+    for c in range(n):
+        degenerate[c] = 0
+        poly_start[c + 1] = 0
     for c in range(n):
         if holes[c] != 0:
             status = 1
     if status != 0 or bad != 0:
         return ry, rx0, rx1, row_start, lab, n, status, bbox, np.empty((0, 2), np.int64), poly_start, degenerate, bad
-    polys = []
+    # runs of each component (counting sort by label)
+    nr = len(ry)
+    cnt = np.empty(n + 1, np.int64)
+    for c in range(n + 1):
+        cnt[c] = 0
+    for r in range(nr):
+        cnt[lab[r] + 1] += 1
+    for c in range(n):
+        cnt[c + 1] += cnt[c]
+    order = np.empty(nr, np.int64)
+    fill = np.empty(n, np.int64)
+    for c in range(n):
+        fill[c] = cnt[c]
+    for r in range(nr):
+        order[fill[lab[r]]] = r
+        fill[lab[r]] += 1
+    cap = 64
+    poly = np.empty((cap, 2), np.int64)
     total = 0
-    if n == 1:
-        sl = b8[base: base + h * w].reshape(h, w)
-        r = first[0]
-        c0 = _trace_outer(sl, 0, 0, rx0[r] - 1, ry[r] - 1)
-        polys.append(_mlp_outer(c0))
-    else:
-        # runs of each component (counting sort), painted into a local image around its bbox
-        cnt = np.zeros(n + 1, np.int64)
-        for r in range(ry.shape[0]):
-            cnt[lab[r] + 1] += 1
-        for c in range(n):
-            cnt[c + 1] += cnt[c]
-        order = np.empty(ry.shape[0], np.int64)
-        fill = cnt[:n].copy()
-        for r in range(ry.shape[0]):
-            order[fill[lab[r]]] = r
-            fill[lab[r]] += 1
-        for c in range(n):
-            x0, y0, x1, y1 = bbox[c, 0], bbox[c, 1], bbox[c, 2], bbox[c, 3]
-            pm = np.zeros((y1 - y0 + 1, x1 - x0 + 1), np.uint8)
+    outer = np.int64(1)  # the MLP of an outer contour (an int64, not a literal: see _kernel)
+    for c in range(n):
+        if n == 1:
+            # the slice itself is the component's image
+            img, ibase, ih, iw, ox, oy = b8, base, h, w, 0, 0
+        else:
+            # the component's runs painted into a local image around its bbox
+            ox, oy = bbox[c, 0], bbox[c, 1]
+            iw = bbox[c, 2] - ox + 1
+            ih = bbox[c, 3] - oy + 1
+            img = np.empty(ih * iw, np.uint8)
+            for q in range(ih * iw):
+                img[q] = 0
+            ibase = 0
             for t in range(cnt[c], cnt[c + 1]):
                 r = order[t]
-                pm[ry[r] - y0, rx0[r] - x0: rx1[r] - x0] = 1
-            r = first[c]
-            cc = _trace_outer(pm, x0, y0, rx0[r] - 1, ry[r] - 1)
-            polys.append(_mlp_outer(cc))
-    for c in range(n):
-        p = polys[c]
-        k = p.shape[0]
+                row = (ry[r] - oy) * iw - ox
+                for x in range(rx0[r], rx1[r]):
+                    img[row + x] = 1
+        r = first[c]
+        cc = _trace_outer(img, ibase, ih, iw, ox, oy, rx0[r] - 1, ry[r] - 1)
+        _, _, p = _mlp(cc, outer)
+        k = len(p)
         a2 = 0
         for i in range(k):
-            j = (i + 1) % k
+            j = i + 1 if i + 1 < k else 0
             a2 += p[i, 0] * p[j, 1] - p[j, 0] * p[i, 1]
         if k < 3 or a2 == 0:
             degenerate[c] = 1
-        else:
-            total += k
-        poly_start[c + 1] = poly_start[c] + (0 if degenerate[c] else k)
-    poly = np.empty((total, 2), np.int64)
-    for c in range(n):
-        if degenerate[c] == 0:
-            p = polys[c]
-            s = poly_start[c]
-            for i in range(p.shape[0]):
-                poly[s + i, 0] = p[i, 0]
-                poly[s + i, 1] = p[i, 1]
-                x = p[i, 0] + 1
-                y = p[i, 1] + 1
-                if stamp[y, x] == stamp_id:
-                    status = 2
-                stamp[y, x] = stamp_id
-    return ry, rx0, rx1, row_start, lab, n, status, bbox, poly, poly_start, degenerate, bad
+            poly_start[c + 1] = total
+            continue
+        if total + k > cap:
+            cap = 2 * cap + k
+            q = np.empty((cap, 2), np.int64)
+            for i in range(total):
+                q[i, 0] = poly[i, 0]
+                q[i, 1] = poly[i, 1]
+            poly = q
+        for i in range(k):
+            poly[total + i, 0] = p[i, 0]
+            poly[total + i, 1] = p[i, 1]
+            x = p[i, 0] + 1
+            y = p[i, 1] + 1
+            if stamp[y, x] == stamp_id:
+                status = 2
+            stamp[y, x] = stamp_id
+        total += k
+        poly_start[c + 1] = total
+    return ry, rx0, rx1, row_start, lab, n, status, bbox, poly[:total], poly_start, degenerate, bad
 
 
 def slice_polygons(mask2d):
@@ -477,7 +520,7 @@ def slice_polygons(mask2d):
 # ------------------------------------------------------------------------------------------------
 # 5. joins between consecutive slices
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
+@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
 def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
     """Partners of the components of slices k (A) and k + 1 (B).
 
@@ -485,14 +528,18 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
     each side whose overlap ``O`` is connected and hole-free (a simple band join), i.e. when
     each component overlaps at most one of the other slice and ``chi(O) = #components(O) = 1``.
     """
-    pa = np.full(na, -1, np.int64)
-    pb = np.full(nb, -1, np.int64)
+    pa = np.empty(na, np.int64)
+    pb = np.empty(nb, np.int64)
+    for a in range(na):
+        pa[a] = -1
+    for b in range(nb):
+        pb[b] = -1
     cap = 64
     oy = np.empty(cap, np.int64)
     o0 = np.empty(cap, np.int64)
     o1 = np.empty(cap, np.int64)
     oc = np.empty(cap, np.int64)
-    ors = np.zeros(h + 1, np.int64)
+    ors = np.empty(h + 1, np.int64)
     no = 0
     ok = True
     for y in range(h):
@@ -501,13 +548,13 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
         j, j1 = brs[y], brs[y + 1]
         if cap - no < (i1 - i) + (j1 - j):
             cap = 2 * cap + (i1 - i) + (j1 - j)
-            oy = _grow64(oy, cap)
-            o0 = _grow64(o0, cap)
-            o1 = _grow64(o1, cap)
-            oc = _grow64(oc, cap)
+            oy = _grow(oy, cap)
+            o0 = _grow(o0, cap)
+            o1 = _grow(o1, cap)
+            oc = _grow(oc, cap)
         while i < i1 and j < j1:
-            lo = max(ax0[i], bx0[j])
-            hi = min(ax1[i], bx1[j])
+            lo = ax0[i] if ax0[i] > bx0[j] else bx0[j]
+            hi = ax1[i] if ax1[i] < bx1[j] else bx1[j]
             if lo < hi:
                 a = alab[i]
                 b = blab[j]
@@ -531,30 +578,18 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
         if not ok:
             return False, pa, pb
     ors[h] = no
-    # the overlap of each pair: components (union-find) and Euler number
-    parent = np.arange(no)
-    chi = np.zeros(na, np.int64)
-    for r in range(no):
-        chi[oc[r]] += 1
-    for y in range(1, h):
-        i, i1 = ors[y - 1], ors[y]
-        j, j1 = ors[y], ors[y + 1]
-        while i < i1 and j < j1:
-            if o0[i] < o1[j] and o0[j] < o1[i]:
-                chi[oc[i]] -= 1
-                u, v = _find(parent, i), _find(parent, j)
-                if u != v:
-                    parent[max(u, v)] = min(u, v)
-            if o1[i] <= o1[j]:
-                i += 1
-            else:
-                j += 1
-    ncomp = np.zeros(na, np.int64)
-    for r in range(no):
-        if _find(parent, r) == r:
-            ncomp[oc[r]] += 1
+    # the overlap of each pair: its 4-components and their holes, as for a slice (step 2); each
+    # overlap component lies in one component a, which must get exactly one, without holes
+    _, nc, oholes, _, ofirst = _components(oy[:no], o0[:no], o1[:no], ors, h)
+    count = np.empty(na, np.int64)
     for a in range(na):
-        if pa[a] >= 0 and (ncomp[a] != 1 or chi[a] != 1):
+        count[a] = 0
+    for c in range(nc):
+        count[oc[ofirst[c]]] += 1
+        if oholes[c] != 0:
+            ok = False
+    for a in range(na):
+        if pa[a] >= 0 and count[a] != 1:
             ok = False
     return ok, pa, pb
 
@@ -562,110 +597,165 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
 # ------------------------------------------------------------------------------------------------
 # 6. bands (the paper's triangulation with the full mesher's twist guard)
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
-def _initial_edge(c1, c2, window):
-    """:func:`contourmesh.bands.wiederhold.initial_edge` (section 3.2), same ties."""
-    m = c2.shape[0]
-    px, py, pz = c1[0, 0], c1[0, 1], c1[0, 2]
-    radius = 2.0 * abs(c2[0, 2] - pz)
-    if m > 2 * window + 1:
-        best = -1
-        bd = 0.0
-        bo = 0
-        for t in range(2 * window + 1):
-            off = 0 if t == 0 else ((t + 1) // 2 if t % 2 == 1 else -(t // 2))
-            j = off % m
-            dx = c2[j, 0] - px
-            dy = c2[j, 1] - py
-            dz = c2[j, 2] - pz
-            d2 = dx * dx + dy * dy + dz * dz
-            if best < 0 or d2 < bd:
-                bd = d2
-                best = j
-                bo = off
-        if bd <= radius * radius and abs(bo) < window:
-            return best
-    best = 0
-    bd = -1.0
-    for j in range(m):
-        dx = c2[j, 0] - px
-        dy = c2[j, 1] - py
-        dz = c2[j, 2] - pz
-        d2 = dx * dx + dy * dy + dz * dz
-        if bd < 0 or d2 < bd:
-            bd = d2
-            best = j
-    return best
+@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
+def _pair_bands(ringA, startA, ringB, startB, pa, window):
+    """Bands of every pair ``(a, pa[a])`` (in order of ``a``): concatenated local faces, the face
+    offset of each band and a status per band.
+
+    Band ``lo = ringA[a]`` -> ``hi = ringB[pa[a]]`` has faces indexing ``vstack([lo, hi])`` and
+    status 0 when the paper's band passes the full mesher's twist guard, 1 when it is folded,
+    twisted or too close to call (the caller redoes it with the full mesher's code).  One flat
+    loop: the initial edge, the guard's fold and area tests are written inline (as kernels of
+    their own each would be compiled separately, and optimized again here).
+    """
+    na = len(pa)
+    nb = 0
+    tot = 0
+    for a in range(na):
+        if pa[a] >= 0:
+            nb += 1
+            b = pa[a]
+            tot += (startA[a + 1] - startA[a]) + (startB[b + 1] - startB[b])
+    faces = np.empty((tot, 3), np.int64)
+    foff = np.empty(nb + 1, np.int64)
+    status = np.empty(nb, np.int64)
+    foff[0] = 0
+    t = 0
+    for a in range(na):
+        if pa[a] < 0:
+            continue
+        b = pa[a]
+        lo = ringA[startA[a]: startA[a + 1]]
+        hi = ringB[startB[b]: startB[b + 1]]
+        n = len(lo)
+        m = len(hi)
+        # the paper's condition (i): C(1) has the fewer points (faces are flipped back if swapped)
+        if n <= m:
+            c1, c2, swapped = lo, hi, False
+        else:
+            c1, c2, swapped = hi, lo, True
+        n1 = len(c1)
+        n2 = len(c2)
+
+        # section 3.2, the initial edge (as contourmesh.bands.wiederhold.initial_edge, same ties):
+        # the point of C(2) nearest to c1[0], looked for first among the offsets 0, +1, -1, +2, ...
+        # of a window around C(2)'s start, accepted inside the ball of radius 2 |z2 - z1| and
+        # off the window's ends; otherwise the nearest of all
+        px, py, pz = c1[0, 0], c1[0, 1], c1[0, 2]
+        radius = 2.0 * abs(c2[0, 2] - pz)
+        j0 = np.int64(0)  # (not a literal: kernels called with it would compile for the literal)
+        found = False
+        if n2 > 2 * window + 1:
+            bd = 0.0
+            bo = 0
+            for q in range(2 * window + 1):
+                off = 0 if q == 0 else ((q + 1) // 2 if q % 2 == 1 else -(q // 2))
+                j = off % n2
+                dx = c2[j, 0] - px
+                dy = c2[j, 1] - py
+                dz = c2[j, 2] - pz
+                d2 = dx * dx + dy * dy + dz * dz
+                if q == 0 or d2 < bd:
+                    bd = d2
+                    j0 = j
+                    bo = off
+            found = bd <= radius * radius and abs(bo) < window
+        if not found:
+            bd = -1.0
+            for j in range(n2):
+                dx = c2[j, 0] - px
+                dy = c2[j, 1] - py
+                dz = c2[j, 2] - pz
+                d2 = dx * dx + dy * dy + dz * dz
+                if bd < 0 or d2 < bd:
+                    bd = d2
+                    j0 = j
+        # C(2) from its initial point
+        r2 = np.empty((n2, 3), np.float64)
+        for j in range(n2):
+            k = j + j0 if j + j0 < n2 else j + j0 - n2
+            r2[j, 0] = c2[k, 0]
+            r2[j, 1] = c2[k, 1]
+            r2[j, 2] = c2[k, 2]
+
+        # section 3.4: the paper's edge sequence (raw x and y comparisons) and its triangles
+        E = wiederhold_edges(c1[:, 0], c1[:, 1], r2[:, 0], r2[:, 1])
+        f = _edges_to_faces(E, n1, n2, np.int64(0), j0, n, swapped)
+        s = foff[t]
+        for i in range(len(f)):
+            faces[s + i, 0] = f[i, 0]
+            faces[s + i, 1] = f[i, 1]
+            faces[s + i, 2] = f[i, 2]
+        foff[t + 1] = s + len(f)
+
+        # the full mesher's twist guard, on the edge sequences of the paper's band (g = 0) and of
+        # the arc-length band of Ganapathy & Dennehy (g = 1, only when both have > 2 points):
+        # * folded (contourmesh.bands.band_is_folded): some diagonal carries four triangles, i.e.
+        #   all the advances of one polygon happen in one block.  Triangle q (edges q, q + 1) lies
+        #   on a lower edge exactly when C(1) advances (up to the swap, which flips all alike);
+        # * twisted: the paper's band is more than 1.25 times the area of the reference.  The
+        #   triangles are those of edges_to_faces, summed in the faces' order with the faces'
+        #   first vertex c1[i_q], so the sums equal triangle_areas on the faces bit for bit
+        #   (swapping the other two vertices only negates the cross product).
+        st = 0
+        area0 = 0.0
+        e = E
+        for g in range(2):
+            if g == 1:
+                if st != 0 or n <= 2 or m <= 2:
+                    break
+                e = arclength_edges(c1, r2)
+            ne = len(e)
+            changes = 0
+            # (both edge sequences hold indices 0 <= i < n1, 0 <= j < n2: no modulo needed)
+            prev = e[ne - 1, 0] != e[0, 0]  # C(1) advances in triangle ne - 1
+            area = 0.0
+            for q in range(ne):
+                u = q + 1 if q + 1 < ne else 0
+                i1 = e[q, 0]
+                j1 = e[q, 1]
+                i2 = e[u, 0]
+                adv = i1 != i2
+                if adv != prev:
+                    changes += 1
+                prev = adv
+                if adv:  # triangle (c1[i1], c1[i2], c2[j1])
+                    bx, by, bz = c1[i2, 0], c1[i2, 1], c1[i2, 2]
+                else:    # triangle (c1[i1], c2[j2], c2[j1])
+                    j2 = e[u, 1]
+                    bx, by, bz = r2[j2, 0], r2[j2, 1], r2[j2, 2]
+                ux = bx - c1[i1, 0]
+                uy = by - c1[i1, 1]
+                uz = bz - c1[i1, 2]
+                vx = r2[j1, 0] - c1[i1, 0]
+                vy = r2[j1, 1] - c1[i1, 1]
+                vz = r2[j1, 2] - c1[i1, 2]
+                cx = uy * vz - uz * vy
+                cy = uz * vx - ux * vz
+                cz = ux * vy - uy * vx
+                area += 0.5 * math.sqrt(cx * cx + cy * cy + cz * cz)
+            if changes <= 2:
+                st = 1
+            elif g == 0:
+                area0 = area
+            elif area0 > 1.25 * area * (1.0 - 1e-9):
+                st = 1
+        status[t] = st
+        t += 1
+    return faces, foff, status
 
 
-@njit(cache=True, nogil=True)
-def _folded(faces, n_lower):
-    """True when some diagonal of the band carries four triangles (a "double cone"): all the
-    advances of one polygon happen in one block (:func:`contourmesh.bands.band_is_folded`)."""
-    s = faces.shape[0]
-    changes = 0
-    for t in range(s):
-        # a triangle on a lower edge has two lower vertices
-        lo_t = (faces[t, 0] < n_lower) + (faces[t, 1] < n_lower) + (faces[t, 2] < n_lower)
-        u = (t + 1) % s
-        lo_u = (faces[u, 0] < n_lower) + (faces[u, 1] < n_lower) + (faces[u, 2] < n_lower)
-        if (lo_t == 2) != (lo_u == 2):
-            changes += 1
-    return changes <= 2
+def _one_band(lo, hi, window=INITIAL_EDGE_WINDOW):
+    """The guarded band of one pair of rings: ``(faces, status)`` of :func:`_pair_bands`."""
+    lo = np.ascontiguousarray(lo, dtype=np.float64)
+    hi = np.ascontiguousarray(hi, dtype=np.float64)
+    faces, foff, status = _pair_bands(lo, np.array([0, len(lo)], np.int64), hi, np.array([0, len(hi)], np.int64),
+                                      np.zeros(1, np.int64), window)
+    return faces[: foff[1]], int(status[0])
 
 
-@njit(cache=True, nogil=True)
-def _area_sum(P, f):
-    tot = 0.0
-    for t in range(f.shape[0]):
-        a, b, c = f[t, 0], f[t, 1], f[t, 2]
-        ux = P[b, 0] - P[a, 0]
-        uy = P[b, 1] - P[a, 1]
-        uz = P[b, 2] - P[a, 2]
-        vx = P[c, 0] - P[a, 0]
-        vy = P[c, 1] - P[a, 1]
-        vz = P[c, 2] - P[a, 2]
-        cx = uy * vz - uz * vy
-        cy = uz * vx - ux * vz
-        cz = ux * vy - uy * vx
-        tot += 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
-    return tot
-
-
-@njit(cache=True, nogil=True)
-def _band(lo, hi, window):
-    """Faces of the band ``lo`` -> ``hi`` (indices into ``vstack([lo, hi])``) and a status:
-    0 = the paper's band passes the twist guard; 1 = folded, twisted or too close to call
-    (the caller redoes this band with the full mesher's code)."""
-    n = lo.shape[0]
-    m = hi.shape[0]
-    if n <= m:
-        c1, c2, swapped = lo, hi, False
-    else:
-        c1, c2, swapped = hi, lo, True
-    n1 = c1.shape[0]
-    n2 = c2.shape[0]
-    j0 = _initial_edge(c1, c2, window)
-    r2 = np.empty((n2, 3))
-    for j in range(n2):
-        r2[j] = c2[(j + j0) % n2]
-    E = wiederhold_edges(c1[:, 0].copy(), c1[:, 1].copy(), r2[:, 0].copy(), r2[:, 1].copy())
-    f = _edges_to_faces(E, n1, n2, 0, j0, n, swapped)
-    if _folded(f, n):
-        return f, 1
-    if min(n, m) > 2:
-        ref_e = arclength_edges(c1, r2)
-        ref_f = _edges_to_faces(ref_e, n1, n2, 0, j0, n, swapped)
-        if _folded(ref_f, n):
-            return f, 1
-        P = np.empty((n + m, 3))
-        P[:n] = lo
-        P[n:] = hi
-        a = _area_sum(P, f)
-        r = _area_sum(P, ref_f)
-        if a > 1.25 * r * (1.0 - 1e-9):
-            return f, 1
-    return f, 0
+#: one guarded band (benchmarks time it band by band)
+_band = _one_band
 
 
 def band_faces(lower, upper) -> np.ndarray:
@@ -678,7 +768,7 @@ def band_faces(lower, upper) -> np.ndarray:
     hi = np.ascontiguousarray(upper, dtype=np.float64)
     if lo.ndim != 2 or lo.shape[1] != 3 or hi.ndim != 2 or hi.shape[1] != 3 or len(lo) < 1 or len(hi) < 1:
         raise ValueError(f"lower and upper must be (n, 3) arrays; got {lo.shape} and {hi.shape}")
-    f, status = _band(lo, hi, INITIAL_EDGE_WINDOW)
+    f, status = _one_band(lo, hi)
     if status == 0:
         return f, False
     return _band_py(lo, hi)
@@ -700,37 +790,6 @@ def _band_py(lo, hi, triangulation="wiederhold"):
             f = triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f
             replaced = True
     return f, replaced
-
-
-@njit(cache=True, nogil=True)
-def _pair_bands(ringA, startA, ringB, startB, pa, window):
-    """Bands of every pair ``(a, pa[a])`` (in order of ``a``): concatenated local faces, the face
-    offset of each band and a status per band (see :func:`_band`)."""
-    na = pa.shape[0]
-    nb = 0
-    tot = 0
-    for a in range(na):
-        if pa[a] >= 0:
-            nb += 1
-            b = pa[a]
-            tot += (startA[a + 1] - startA[a]) + (startB[b + 1] - startB[b])
-    faces = np.empty((tot, 3), np.int64)
-    foff = np.zeros(nb + 1, np.int64)
-    status = np.zeros(nb, np.int64)
-    t = 0
-    for a in range(na):
-        if pa[a] < 0:
-            continue
-        b = pa[a]
-        lo = ringA[startA[a]: startA[a + 1]]
-        hi = ringB[startB[b]: startB[b + 1]]
-        f, st = _band(lo, hi, window)
-        s = foff[t]
-        faces[s: s + f.shape[0]] = f
-        foff[t + 1] = s + f.shape[0]
-        status[t] = st
-        t += 1
-    return faces, foff, status
 
 
 # ------------------------------------------------------------------------------------------------
@@ -1071,7 +1130,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
 
 
 def _band_or_py(lo, hi):
-    f, status = _band(np.ascontiguousarray(lo), np.ascontiguousarray(hi), INITIAL_EDGE_WINDOW)
+    f, status = _one_band(lo, hi)
     if status == 0:
         return f, False
     return _band_py(lo, hi)

@@ -9,6 +9,8 @@ rule much larger than this one is twisted).  ``O(n + m)``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -18,29 +20,32 @@ from .wiederhold import INITIAL_EDGE_WINDOW
 __all__ = ["triangulate_band_arclength", "arclength_edges"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def arclength_edges(c1, c2):
     """Edge sequence ``(i, j)`` of the arc-length band from the initial edge ``(0, 0)``."""
     n, m = len(c1), len(c2)
-    s1 = np.zeros(n + 1)
-    s2 = np.zeros(m + 1)
+    s1 = np.empty(n + 1, np.float64)
+    s2 = np.empty(m + 1, np.float64)
+    s1[0] = 0.0
+    s2[0] = 0.0
     for i in range(n):
-        d = c1[(i + 1) % n] - c1[i]
-        s1[i + 1] = s1[i] + np.sqrt(d[0] * d[0] + d[1] * d[1])
+        k = i + 1 if i + 1 < n else 0
+        dx = c1[k, 0] - c1[i, 0]
+        dy = c1[k, 1] - c1[i, 1]
+        s1[i + 1] = s1[i] + math.sqrt(dx * dx + dy * dy)
     for j in range(m):
-        d = c2[(j + 1) % m] - c2[j]
-        s2[j + 1] = s2[j] + np.sqrt(d[0] * d[0] + d[1] * d[1])
-    if s1[n] > 0:
-        s1 /= s1[n]
-    else:
-        for i in range(n + 1):
-            s1[i] = i / n
-    if s2[m] > 0:
-        s2 /= s2[m]
-    else:
-        for j in range(m + 1):
-            s2[j] = j / m
-    edges = np.empty((n + m, 2), dtype=np.int64)
+        k = j + 1 if j + 1 < m else 0
+        dx = c2[k, 0] - c2[j, 0]
+        dy = c2[k, 1] - c2[j, 1]
+        s2[j + 1] = s2[j] + math.sqrt(dx * dx + dy * dy)
+    # normalize to [0, 1] (scalar loops: no array expressions to compile)
+    t1 = s1[n]
+    for i in range(n + 1):
+        s1[i] = s1[i] / t1 if t1 > 0 else i / n
+    t2 = s2[m]
+    for j in range(m + 1):
+        s2[j] = s2[j] / t2 if t2 > 0 else j / m
+    edges = np.empty((n + m, 2), np.int64)
     i = 0
     j = 0
     edges[0, 0] = 0
@@ -50,8 +55,8 @@ def arclength_edges(c1, c2):
             i += 1
         else:
             j += 1
-        edges[k, 0] = i % n
-        edges[k, 1] = j % m
+        edges[k, 0] = i if i < n else 0  # i % n (0 <= i <= n)
+        edges[k, 1] = j if j < m else 0
     return edges
 
 

@@ -199,9 +199,9 @@ def wiederhold_edges(x1, y1, x2, y2):
         (the paper's 1-based ``p_i`` is row ``i - 1``; ``p(1)_{n+1}`` is ``p(1)_1``).  Each pair of
         consecutive edges, and the closing pair ``(e_{n+m-1}, e_0)``, forms one triangle.
     """
-    n = x1.shape[0]
-    m = x2.shape[0]
-    E = np.empty((n + m, 2), dtype=np.int64)
+    n = len(x1)
+    m = len(x2)
+    E = np.empty((n + m, 2), np.int64)
     # 02  i = 1, j = 1, k = 0, e_k = (p(1)_1, p(2)_1)
     i = 1
     j = 1
@@ -313,10 +313,10 @@ def edges_to_faces(edges: np.ndarray, n1: int, n2: int, i0: int, j0: int,
 
 @njit(cache=True)
 def _edges_to_faces(e, n1, n2, i0, j0, n_lower, swapped):
-    s = e.shape[0]
+    s = len(e)
     off1 = n_lower if swapped else 0
     off2 = 0 if swapped else n_lower
-    faces = np.empty((s, 3), dtype=np.int64)
+    faces = np.empty((s, 3), np.int64)
     for t in range(s):
         u = (t + 1) % s
         g1 = (e[t, 0] + i0) % n1

@@ -42,11 +42,12 @@ from ..sections import check_contour4
 __all__ = ["mlp_polygon", "mlp_candidates"]
 
 
-@njit(cache=True)
-def _candidates(pts):
-    """Candidates of a closed 4-contour with ``U`` on its left, in contour order (step 1 above).
+@njit(cache=True, nogil=True)
+def _mlp(pts, colour):
+    """Steps 1 and 2 above for a closed 4-contour with ``U`` on its left, in one kernel.
 
-    Returns ``cand (m, 2)`` and ``kind (m,)``:
+    Returns ``(cand, kind, poly)``.  ``cand (m, 2)`` and ``kind (m,)`` are the candidates of step 1
+    in contour order:
 
     * +1 = W: a grid point interior to ``U`` (its four cells in ``U``) next to the band, i.e. a
       corner of the cell on the left of a contour step that is not itself on the contour.  These
@@ -54,24 +55,42 @@ def _candidates(pts):
     * -1 = B: a concave corner of the contour (the outer wall's reflex corners);
     * 0 = C: a convex corner of the contour (outer wall; a constraint only, never a vertex).
 
-    A W equal to the previous W is dropped.
+    A W equal to the previous W is dropped.  ``poly (p, 2)`` is the MLP, starting at its vertex
+    nearest ``pts[0]`` (ties: the first in MLP order), pulled from the lowest-then-leftmost
+    candidate of kind ``colour`` (+1 for an outer contour, -1 for a hole); a single candidate
+    W or B is the whole MLP.  ``poly`` is empty when ``colour`` is 0 (candidates only) or when
+    there is no candidate of kind ``colour``.
+
+    (One kernel with explicit loops, flat ``uint8`` grids and no helper kernels: the fast path
+    compiles it at its first call, and each separately compiled kernel costs compile time.)
     """
-    n = pts.shape[0]
+    # ---- step 1: the candidates
+    n = len(pts)
     xmin, ymin = pts[0, 0], pts[0, 1]
     xmax, ymax = xmin, ymin
     for k in range(n):
-        xmin = min(xmin, pts[k, 0])
-        xmax = max(xmax, pts[k, 0])
-        ymin = min(ymin, pts[k, 1])
-        ymax = max(ymax, pts[k, 1])
+        x, y = pts[k, 0], pts[k, 1]
+        if x < xmin:
+            xmin = x
+        if x > xmax:
+            xmax = x
+        if y < ymin:
+            ymin = y
+        if y > ymax:
+            ymax = y
     ox, oy = xmin - 2, ymin - 2
     w, h = xmax - xmin + 5, ymax - ymin + 5
-    on = np.zeros((h, w), dtype=np.bool_)  # grid points of the contour
-    bg = np.zeros((h, w), dtype=np.bool_)  # cells (by lower-left corner) right of a contour step
+    # flat grids indexed (y - oy) * w + (x - ox)
+    on = np.empty(h * w, np.uint8)  # grid points of the contour
+    bg = np.empty(h * w, np.uint8)  # cells (by lower-left corner) right of a contour step
+    for q in range(h * w):
+        on[q] = 0
+        bg[q] = 0
     for k in range(n):
         x, y = pts[k, 0], pts[k, 1]
-        dx, dy = pts[(k + 1) % n, 0] - x, pts[(k + 1) % n, 1] - y
-        on[y - oy, x - ox] = True
+        kn = k + 1 if k + 1 < n else 0
+        dx, dy = pts[kn, 0] - x, pts[kn, 1] - y
+        on[(y - oy) * w + x - ox] = 1
         # the cell right of the step (x, y) -> (x + dx, y + dy) has lower-left corner:
         if dx > 0:
             cx, cy = x, y - 1
@@ -81,32 +100,39 @@ def _candidates(pts):
             cx, cy = x, y
         else:
             cx, cy = x - 1, y - 1
-        bg[cy - oy, cx - ox] = True
-    cand = np.empty((3 * n, 2), dtype=np.int64)
-    kind = np.empty(3 * n, dtype=np.int64)
+        bg[(cy - oy) * w + cx - ox] = 1
+    cand = np.empty((3 * n, 2), np.int64)
+    kind = np.empty(3 * n, np.int64)
     m = 0
     lastw_x, lastw_y, has_w = 0, 0, False
     for k in range(n):
-        px, py = pts[k - 1, 0], pts[k - 1, 1]
+        kp = k - 1 if k > 0 else n - 1
+        kn = k + 1 if k + 1 < n else 0
+        px, py = pts[kp, 0], pts[kp, 1]
         cx, cy = pts[k, 0], pts[k, 1]
-        nx, ny = pts[(k + 1) % n, 0], pts[(k + 1) % n, 1]
+        nx, ny = pts[kn, 0], pts[kn, 1]
         ix, iy = cx - px, cy - py  # incoming step
         sx, sy = nx - cx, ny - cy  # outgoing step
         turn = ix * sy - iy * sx
         if turn != 0:
-            cand[m, 0], cand[m, 1], kind[m] = cx, cy, (0 if turn > 0 else -1)
+            cand[m, 0] = cx
+            cand[m, 1] = cy
+            kind[m] = 0 if turn > 0 else -1
             m += 1
         # the inner corners of the cell left of the outgoing step: c + left, c + step + left
         lx, ly = -sy, sx
         for j in range(2):
             qx, qy = cx + lx + j * sx, cy + ly + j * sy
-            if on[qy - oy, qx - ox]:
+            q = (qy - oy) * w + qx - ox
+            if on[q]:
                 continue
-            if bg[qy - oy, qx - ox] or bg[qy - oy - 1, qx - ox] or bg[qy - oy, qx - ox - 1] or bg[qy - oy - 1, qx - ox - 1]:
+            if bg[q] or bg[q - w] or bg[q - 1] or bg[q - w - 1]:
                 continue  # a cell around q is not in U: q is not interior to U
             if has_w and qx == lastw_x and qy == lastw_y:
                 continue
-            cand[m, 0], cand[m, 1], kind[m] = qx, qy, 1
+            cand[m, 0] = qx
+            cand[m, 1] = qy
+            kind[m] = 1
             m += 1
             lastw_x, lastw_y, has_w = qx, qy, True
     # the last W may repeat the first W (cyclically consecutive): drop the later copy, the first
@@ -119,127 +145,167 @@ def _candidates(pts):
     while last >= 0 and kind[last] != 1:
         last -= 1
     if last > first and cand[last, 0] == cand[first, 0] and cand[last, 1] == cand[first, 1]:
-        keep = np.ones(m, dtype=np.bool_)
-        keep[first] = False
-        return cand[:m][keep], kind[:m][keep]
-    return cand[:m], kind[:m]
-
-
-@njit(cache=True)
-def _string_pulling(cand, kind, s):
-    """Indices (into ``cand``) of the MLP vertices, starting at the known MLP vertex ``s``.
-
-    Candidates are visited in the unrolled order ``s, s+1, ..., s+m`` (the last one is ``s`` again);
-    ``vl``, ``wc``, ``bc`` are positions in that order.  W candidates lie on the left of the
-    path, B and C candidates on its right; C candidates are never vertices.
-    """
-    m = cand.shape[0]
-    out = np.empty(m, dtype=np.int64)
-    nv = 0
-    out[nv] = s
-    nv += 1
-    vl = s
-    wc = s
-    bc = s
-    k = s + 1
-    while k <= s + m:
-        lx, ly = cand[vl % m, 0], cand[vl % m, 1]
-        vx, vy = cand[k % m, 0] - lx, cand[k % m, 1] - ly
-        wx, wy = cand[wc % m, 0] - lx, cand[wc % m, 1] - ly
-        bx, by = cand[bc % m, 0] - lx, cand[bc % m, 1] - ly
-        new_vertex = -1
-        w_set = wx != 0 or wy != 0
-        b_set = bx != 0 or by != 0
-        is_w = kind[k % m] > 0
-        if kind[k % m] == 0:
-            # a convex corner of the contour (the outer wall) must stay on the right of the path:
-            # if it lies left of WC the path cannot go on straight and turns left at WC
-            if w_set and wx * vy - wy * vx > 0:
-                new_vertex = wc
-        elif vx == 0 and vy == 0:
-            # back at VL's position: the path turned round at the pending crawler
-            if is_w:
-                new_vertex = wc if w_set else (bc if b_set else -1)
+        for i in range(first, m - 1):
+            cand[i, 0] = cand[i + 1, 0]
+            cand[i, 1] = cand[i + 1, 1]
+            kind[i] = kind[i + 1]
+        m -= 1
+    cand = cand[:m]
+    kind = kind[:m]
+    empty = np.empty((0, 2), np.int64)
+    if colour == 0:
+        return cand, kind, empty
+    nnz = 0
+    last = -1
+    for i in range(m):
+        if kind[i] != 0:
+            nnz += 1
+            last = i
+    if nnz == 1:
+        # a single point of I (or a single concave corner): the MLP is that point
+        poly = np.empty((1, 2), np.int64)
+        poly[0, 0] = cand[last, 0]
+        poly[0, 1] = cand[last, 1]
+        p = 1
+    else:
+        # ---- step 2: string pulling from a candidate that is certainly an MLP vertex, the
+        # lowest-then-leftmost W (outer contour) or B (hole)
+        s = -1
+        for i in range(m):
+            if kind[i] == colour:
+                if s < 0 or cand[i, 1] < cand[s, 1] or (cand[i, 1] == cand[s, 1] and cand[i, 0] < cand[s, 0]):
+                    s = i
+        if s < 0:
+            return cand, kind, empty
+        # Candidates are visited in the unrolled order s, s+1, ..., s+m (the last one is s
+        # again); vl, wc, bc are positions in that order.  W candidates lie on the left of the
+        # path, B and C candidates on its right; C candidates are never vertices.
+        out = np.empty(m + 1, np.int64)
+        nv = 0
+        out[nv] = s
+        nv += 1
+        vl = s
+        wc = s
+        bc = s
+        k = s + 1
+        while k <= s + m:
+            lx, ly = cand[vl % m, 0], cand[vl % m, 1]
+            vx, vy = cand[k % m, 0] - lx, cand[k % m, 1] - ly
+            wx, wy = cand[wc % m, 0] - lx, cand[wc % m, 1] - ly
+            bx, by = cand[bc % m, 0] - lx, cand[bc % m, 1] - ly
+            new_vertex = -1
+            w_set = wx != 0 or wy != 0
+            b_set = bx != 0 or by != 0
+            is_w = kind[k % m] > 0
+            if kind[k % m] == 0:
+                # a convex corner of the contour (the outer wall) must stay on the right of the path:
+                # if it lies left of WC the path cannot go on straight and turns left at WC
+                if w_set and wx * vy - wy * vx > 0:
+                    new_vertex = wc
+            elif vx == 0 and vy == 0:
+                # back at VL's position: the path turned round at the pending crawler
+                if is_w:
+                    new_vertex = wc if w_set else (bc if b_set else -1)
+                else:
+                    new_vertex = bc if b_set else (wc if w_set else -1)
+            elif is_w:
+                # a W candidate must stay on the left: the free directions are clockwise of it
+                if b_set and bx * vy - by * vx < 0:
+                    new_vertex = bc  # right of BC: the cone is empty, the path turns right at BC
+                elif w_set:
+                    cw = wx * vy - wy * vx
+                    if cw < 0:
+                        wc = k  # a tighter left bound
+                    elif cw == 0:
+                        if wx * vx + wy * vy < wx * wx + wy * wy:
+                            new_vertex = wc  # turns back along the ray: a U-turn at WC
+                        else:
+                            wc = k  # straight on through WC
+                    elif k == s + m:
+                        new_vertex = wc  # the closing vertex lies left of WC: turn left at WC
+                else:
+                    wc = k
             else:
-                new_vertex = bc if b_set else (wc if w_set else -1)
-        elif is_w:
-            # a W candidate must stay on the left: the free directions are clockwise of it
-            if b_set and bx * vy - by * vx < 0:
-                new_vertex = bc  # right of BC: the cone is empty, the path turns right at BC
-            elif w_set:
-                cw = wx * vy - wy * vx
-                if cw < 0:
-                    wc = k  # a tighter left bound
-                elif cw == 0:
-                    if wx * vx + wy * vy < wx * wx + wy * wy:
-                        new_vertex = wc  # turns back along the ray: a U-turn at WC
-                    else:
-                        wc = k  # straight on through WC
-                elif k == s + m:
-                    new_vertex = wc  # the closing vertex lies left of WC: turn left at WC
-            else:
-                wc = k
-        else:
-            # a B candidate must stay on the right: the free directions are counter-clockwise of it
-            if w_set and wx * vy - wy * vx > 0:
-                new_vertex = wc  # left of WC: the cone is empty, the path turns left at WC
-            elif b_set:
-                cb = bx * vy - by * vx
-                if cb > 0:
-                    bc = k  # a tighter right bound
-                elif cb == 0:
-                    if bx * vx + by * vy < bx * bx + by * by:
-                        new_vertex = bc  # turns back along the ray: a U-turn at BC
-                    else:
-                        bc = k
-                elif k == s + m:
-                    new_vertex = bc  # the closing vertex lies right of BC: turn right at BC
-            else:
-                bc = k
-        if new_vertex >= 0:
-            out[nv] = new_vertex % m
-            nv += 1
-            vl = new_vertex
-            wc = vl
-            bc = vl
-            k = vl + 1
-            continue
-        k += 1
-    return out[:nv]
-
-
-@njit(cache=True)
-def _clean_polygon(poly):
-    """Drop cyclically consecutive duplicates and vertices where the polygon goes straight on."""
-    p = poly.copy()
-    changed = True
-    while changed and p.shape[0] > 1:
-        changed = False
-        n = p.shape[0]
-        keep = np.ones(n, dtype=np.bool_)
-        for i in range(n):
-            ax, ay = p[i - 1, 0], p[i - 1, 1]
-            bx, by = p[i, 0], p[i, 1]
-            cx, cy = p[(i + 1) % n, 0], p[(i + 1) % n, 1]
-            if ax == bx and ay == by:
-                keep[i] = False
-                changed = True
-                break
-            if n > 2:
-                ux, uy, vx, vy = bx - ax, by - ay, cx - bx, cy - by
-                if ux * vy - uy * vx == 0 and ux * vx + uy * vy > 0:
-                    keep[i] = False
-                    changed = True
+                # a B candidate must stay on the right: the free directions are counter-clockwise of it
+                if w_set and wx * vy - wy * vx > 0:
+                    new_vertex = wc  # left of WC: the cone is empty, the path turns left at WC
+                elif b_set:
+                    cb = bx * vy - by * vx
+                    if cb > 0:
+                        bc = k  # a tighter right bound
+                    elif cb == 0:
+                        if bx * vx + by * vy < bx * bx + by * by:
+                            new_vertex = bc  # turns back along the ray: a U-turn at BC
+                        else:
+                            bc = k
+                    elif k == s + m:
+                        new_vertex = bc  # the closing vertex lies right of BC: turn right at BC
+                else:
+                    bc = k
+            if new_vertex >= 0:
+                out[nv] = new_vertex % m
+                nv += 1
+                vl = new_vertex
+                wc = vl
+                bc = vl
+                k = vl + 1
+                continue
+            k += 1
+        # the path's vertices, without cyclically consecutive duplicates and vertices where it
+        # goes straight on (one at a time, rescanning from the start after each removal)
+        poly = np.empty((nv, 2), np.int64)
+        for i in range(nv):
+            poly[i, 0] = cand[out[i], 0]
+            poly[i, 1] = cand[out[i], 1]
+        p = nv
+        changed = True
+        while changed and p > 1:
+            changed = False
+            drop = -1
+            for i in range(p):
+                a = i - 1 if i > 0 else p - 1
+                c = i + 1 if i + 1 < p else 0
+                ax, ay = poly[a, 0], poly[a, 1]
+                bx, by = poly[i, 0], poly[i, 1]
+                cx, cy = poly[c, 0], poly[c, 1]
+                if ax == bx and ay == by:
+                    drop = i
                     break
-        p = p[keep]
-    return p
+                if p > 2:
+                    ux, uy, vx, vy = bx - ax, by - ay, cx - bx, cy - by
+                    if ux * vy - uy * vx == 0 and ux * vx + uy * vy > 0:
+                        drop = i
+                        break
+            if drop >= 0:
+                for i in range(drop, p - 1):
+                    poly[i, 0] = poly[i + 1, 0]
+                    poly[i, 1] = poly[i + 1, 1]
+                p -= 1
+                changed = True
+    # ---- from the vertex nearest pts[0]
+    best = 0
+    bd = -1
+    for i in range(p):
+        dx = poly[i, 0] - pts[0, 0]
+        dy = poly[i, 1] - pts[0, 1]
+        d2 = dx * dx + dy * dy
+        if bd < 0 or d2 < bd:
+            bd = d2
+            best = i
+    out2 = np.empty((p, 2), np.int64)
+    for i in range(p):
+        k = i + best if i + best < p else i + best - p
+        out2[i, 0] = poly[k, 0]
+        out2[i, 1] = poly[k, 1]
+    return cand, kind, out2
 
 
 def mlp_candidates(contour) -> tuple[np.ndarray, np.ndarray]:
     """Candidates of a contour in order: W (+1, points of ``I``), B (-1, concave corners) and
     C (0, convex corners of the contour: constraints only)."""
     c = check_contour4(contour)
-    return _candidates(c)
+    cand, kind, _ = _mlp(c, 0)
+    return cand, kind
 
 
 def mlp_polygon(contour) -> np.ndarray:
@@ -276,22 +342,10 @@ def mlp_polygon(contour) -> np.ndarray:
     """
     c = check_contour4(contour)
     twice_area = int(np.dot(c[:, 0], np.roll(c[:, 1], -1)) - np.dot(np.roll(c[:, 0], -1), c[:, 1]))
-    cand, kind = _candidates(c)
-    if np.count_nonzero(kind) == 1:  # a single point of I
-        poly = cand[kind != 0].copy()
-    else:
-        # start at a candidate that is certainly an MLP vertex: the lowest-then-leftmost W (outer)
-        # or B (hole) candidate
-        colour = 1 if twice_area > 0 else -1
-        idx = np.flatnonzero(kind == colour)
-        if len(idx) == 0:
-            raise ValueError(
-                "contour is not the boundary of an outer Jordan digitization: it encloses no grid "
-                "point whose four surrounding cells are all inside (e.g. a region one cell thin)"
-            )
-        sub = cand[idx]
-        s = int(idx[np.lexsort((sub[:, 0], sub[:, 1]))[0]])
-        poly = _clean_polygon(cand[_string_pulling(cand, kind, s)])
-    d = poly - c[0]
-    i = int(np.argmin((d * d).sum(axis=1)))
-    return np.ascontiguousarray(np.roll(poly, -i, axis=0))
+    _, _, poly = _mlp(c, 1 if twice_area > 0 else -1)
+    if len(poly) == 0:
+        raise ValueError(
+            "contour is not the boundary of an outer Jordan digitization: it encloses no grid "
+            "point whose four surrounding cells are all inside (e.g. a region one cell thin)"
+        )
+    return poly
