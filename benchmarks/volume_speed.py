@@ -362,10 +362,15 @@ def write_table(rows, mem, out: Path):
         m = mem.get((r["input"], r["method"], r["threads"]), {})
         r["peak_rss_mib"] = m.get("peak")
         r["rss_before_mib"] = m.get("rss_before")
-    with open(out / "volume_speed.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
+    import io
+
+    from contourmesh.meshes import atomic_write
+
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
+    w.writeheader()
+    w.writerows(rows)
+    atomic_write(out / "volume_speed.csv", buf.getvalue().encode())
     lines = ["| input | threads | method | median s | min-max s | peak RSS MiB (before) | triangles | x contourmesh | x count_nonzero |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -374,7 +379,7 @@ def write_table(rows, mem, out: Path):
             f"| {r['input']} ({r['shape']}) | {r['threads']} | {r['method']} | {r['median_s']:.3f} | "
             f"{r['min_s']:.3f}-{r['max_s']:.3f} | {pk} | {r.get('triangles', '')} | "
             f"{r['ratio_to_contourmesh']:.3f} | {r.get('x_count_nonzero', 1.0):.1f} |")
-    (out / "volume_speed.md").write_text("\n".join(lines) + "\n")
+    atomic_write(out / "volume_speed.md", ("\n".join(lines) + "\n").encode())
 
 
 def plot(rows, sweep_rows, slope, out: Path):
@@ -409,7 +414,13 @@ def plot(rows, sweep_rows, slope, out: Path):
         ax.legend(fontsize=7)
         ax.set_title("time against r")
     fig.tight_layout()
-    fig.savefig(out / "volume_speed.png", dpi=120)
+    import io
+
+    from contourmesh.meshes import atomic_write
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120, metadata={"Software": None})
+    atomic_write(out / "volume_speed.png", buf.getvalue())
 
 
 def main(argv=None):
@@ -460,7 +471,9 @@ def main(argv=None):
         out = Path(a.out)
         write_table(rows, mem, out)
         plot(rows, sweep_rows, slope, out)
-        (out / "volume_speed.json").write_text(json.dumps(summary, indent=1, default=float) + "\n")
+        from contourmesh.meshes import atomic_write
+
+        atomic_write(out / "volume_speed.json", (json.dumps(summary, indent=1, default=float) + "\n").encode())
         print("wrote", out, flush=True)
 
 
