@@ -43,6 +43,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from .types import Mesh, shoelace_area
 
@@ -208,8 +209,11 @@ class _Slice:
     def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center):
         from scipy import ndimage
 
-        self.labels, self.n = ndimage.label(mask2d, structure=_CROSS)
-        self.objects = ndimage.find_objects(self.labels)
+        labels, self.n = ndimage.label(mask2d, structure=_CROSS)
+        self.objects = ndimage.find_objects(labels)
+        # every slice's labels are kept until the joins are made: the smallest dtype that holds them
+        small = np.uint8 if self.n < 2**8 else np.uint16 if self.n < 2**16 else None
+        self.labels = labels.astype(small) if small is not None else labels
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
         self.hole_masks = []  # per component: list of (slices, mask) for each hole (local bbox)
@@ -474,6 +478,41 @@ def _split_four_face_edges(V, F, side, nudge):
     return V2, F2, S2
 
 
+@njit(cache=True, nogil=True)
+def _corner_components(n, a1, b1, a2, b2):
+    """Connected components of ``n`` nodes under the links ``a1[i] - b1[i]`` and ``a2[i] - b2[i]``:
+    ``(count, label per node, lowest node of each label)``, labels numbered in order of each
+    component's lowest node."""
+    parent = np.arange(n)
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for i in range(len(a1)):
+        for x, y in ((a1[i], b1[i]), (a2[i], b2[i])):
+            rx, ry = find(x), find(y)
+            if rx != ry:
+                if rx < ry:
+                    parent[ry] = rx
+                else:
+                    parent[rx] = ry
+    lab = np.empty(n, np.int64)
+    first = np.empty(n, np.int64)
+    count = 0
+    for x in range(n):
+        r = find(x)
+        if r == x:
+            lab[x] = count
+            first[count] = x
+            count += 1
+        else:
+            lab[x] = lab[r]
+    return count, lab, first[:count]
+
+
 def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
     """Make a closed mesh a manifold: pair faces at 4-face edges by side, split vertex fans.
 
@@ -484,9 +523,6 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     centroid of its fan so that the touching surfaces no longer share a point.  ``four_face=False``
     skips the first step (for a caller that has already split the four-face edges).
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     F = np.asarray(F, dtype=np.int64)
     m = len(F)
     if m == 0:
@@ -514,6 +550,7 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
         )
     pos = np.clip(np.searchsorted(sk, key_vu), 0, len(order) - 1)
     twin = order[pos]
+    del sk, pos, order
     ok = key_uv[twin] == key_vu
     if not ok.all():
         bad = int(np.flatnonzero(~ok)[0])
@@ -521,7 +558,7 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
             f"internal error: half-edge ({u[bad]}, {v[bad]}) has no opposite half-edge; the surface is not closed "
             "and consistently oriented"
         )
-    a = np.arange(3 * m)
+    del key_uv, key_vu, ok
     t = twin
     # corner ids
     c_fu = fi * 3 + li
@@ -530,13 +567,13 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     lg = li[t]  # in face g, the edge starts at v (local lg) and ends at u (local lg+1)
     c_gv = g * 3 + lg
     c_gu = g * 3 + (lg + 1) % 3
-    rows = np.concatenate([c_fu, c_fv])
-    cols = np.concatenate([c_gu, c_gv])
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
-    ncomp, lab = connected_components(graph, directed=False)
+    # fans = connected components of the corners linked across every edge (union-find; labels
+    # numbered in order of each component's lowest corner, as scipy's connected_components does)
+    del fi, li, g, lg, t, twin
+    ncomp, lab, first = _corner_components(3 * m, c_fu, c_gu, c_fv, c_gv)
+    del c_fu, c_fv, c_gu, c_gv
     vert_of_corner = F.reshape(-1)
     # a vertex keeps its first fan; other fans get new vertices
-    uniq_pairs, first = np.unique(lab, return_index=True)
     fan_vertex = vert_of_corner[first]  # vertex of each fan
     fans_per_vertex = np.bincount(fan_vertex, minlength=len(V))
     if not np.any(fans_per_vertex > 1):
