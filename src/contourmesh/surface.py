@@ -105,6 +105,13 @@ class _Builder:
             self.vertices = [allv] if n else []
         self.n, self.faces, self.cell_caps = n, self.faces[:nf], cells
 
+    def box_volume_since(self, mark: tuple[int, int, int]) -> float:
+        """Volume of the bounding box of the vertices added since ``mark`` (a scale for tolerances)."""
+        if self.n <= mark[0]:
+            return 0.0
+        v = (np.concatenate(self.vertices) if len(self.vertices) > 1 else self.vertices[0])[mark[0]: self.n]
+        return float(np.prod(v.max(axis=0) - v.min(axis=0)))
+
     def volume_since(self, mark: tuple[int, int, int]) -> float:
         """Signed volume enclosed by the faces added since ``mark`` (divergence theorem)."""
         if len(self.faces) <= mark[1]:
@@ -352,7 +359,7 @@ def stack_to_mesh(
     for run in _runs(stack):
         mark = b.mark()
         _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=False)
-        if polygon != "none" and b.volume_since(mark) <= 0.0:
+        if polygon != "none" and b.volume_since(mark) <= 1e-9 * b.box_volume_since(mark):
             # the run's polygons fold its surface (e.g. a degenerate MLP segment beside a small
             # polygon it does not lie under): mesh the run from its contours instead
             b.restore(mark)
@@ -379,7 +386,8 @@ def _verified(m: Mesh) -> Mesh:
     boundary, crowded = int((counts == 1).sum()), int((counts > 2).sum())
     twice = len(key) - len(np.unique(key))
     vol = m.volume if len(f) else 0.0
-    if boundary or crowded or twice or not vol > 0:
+    box = float(np.prod(np.ptp(m.vertices, axis=0))) if len(m.vertices) else 0.0
+    if boundary or crowded or twice or not vol > 1e-9 * box:
         raise StackSurfaceError(
             f"the contours do not bound a closed surface on the stack route: {boundary} boundary edge(s), {crowded} "
             f"edge(s) in more than two faces, {twice} edge(s) used twice in one direction, volume {vol:.6g}; "
