@@ -27,4 +27,8 @@ if [ -n "$extras" ] && ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; th
     echo "setup: no apt-get; install libusb-1.0 by hand for Open3D" >&2
   fi
 fi
+# compile the numba kernels once now (cached on disk), so the first mesh is not slowed by it
+echo "setup: compiling the fast path (about 10 s, once)" >&2
+.venv/bin/python -c "import numpy as np, contourmesh; contourmesh.mesh(np.pad(np.ones((3, 4, 5), bool), 1))" \
+  || echo "setup: warming the numba cache failed; the first call will compile instead" >&2
 echo "setup: ready (.venv)" >&2
