@@ -775,21 +775,11 @@ def band_faces(lower, upper) -> np.ndarray:
 
 
 def _band_py(lo, hi, triangulation="wiederhold"):
-    """The full mesher's ``_Mesher.band`` on coordinates (folded/twisted bands)."""
-    from .bands import triangulate_band
-    from .measure import triangle_areas
+    """The full mesher's band with its twist guard (:func:`contourmesh.volumes.twist_guarded_band`),
+    for the folded or twisted bands the kernel hands back."""
+    from .volumes import twist_guarded_band
 
-    f = triangulate_band(lo, hi, triangulation)
-    replaced = False
-    if triangulation in ("wiederhold", "greedy") and min(len(lo), len(hi)) > 2:
-        P = np.concatenate([lo, hi])
-        ref_f = triangulate_band(lo, hi, "arclength")
-        ref = triangle_areas(P, ref_f).sum()
-        if triangle_areas(P, f).sum() > 1.25 * ref:
-            n, m = sorted((len(lo), len(hi)))
-            f = triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f
-            replaced = True
-    return f, replaced
+    return twist_guarded_band(lo, hi, triangulation)
 
 
 # ------------------------------------------------------------------------------------------------

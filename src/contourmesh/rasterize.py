@@ -32,7 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .types import ContourStack, Mesh
+from .types import ContourStack, Mesh, shoelace_area
 
 __all__ = ["Raster", "rasterize_stack", "default_pixel", "points_in_rings", "mesh_contour_stack", "LostContourWarning"]
 
@@ -200,11 +200,6 @@ class LostContourWarning(UserWarning):
     """A contour encloses no pixel centre at the chosen pixel size, so the raster loses it."""
 
 
-def _ring_area(ring) -> float:
-    x, y = ring[:, 0], ring[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
-
 def _ring_covers_a_pixel(ring, x0, y0, pixel) -> bool:
     """Whether the ring alone (even-odd) contains at least one pixel centre of the grid."""
     i0, j0 = (int(v) for v in np.floor((ring.min(0) - (x0, y0)) / pixel))
@@ -289,7 +284,7 @@ def rasterize_stack(stack: ContourStack, pixel: float | None = None, *, max_pixe
         starts = np.zeros(len(rs) + 1, dtype=np.int64)
         starts[1:] = np.cumsum([len(r) for r in rs])
         _fill_evenodd(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), starts, x0, y0, pixel, vol[k])
-        lost += [(k, c, abs(_ring_area(r))) for c, r in enumerate(rs) if not _ring_covers_a_pixel(r, x0, y0, pixel)]
+        lost += [(k, c, abs(shoelace_area(r))) for c, r in enumerate(rs) if not _ring_covers_a_pixel(r, x0, y0, pixel)]
     if not vol.any():
         raise ValueError(f"no pixel centre lies inside any contour at pixel={pixel:g}; pass a smaller pixel=")
     if lost:

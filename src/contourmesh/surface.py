@@ -114,12 +114,12 @@ class _Builder:
 
     def volume_since(self, mark: tuple[int, int, int]) -> float:
         """Signed volume enclosed by the faces added since ``mark`` (divergence theorem)."""
+        from .measure import mesh_volume
+
         if len(self.faces) <= mark[1]:
             return 0.0
-        f = np.concatenate(self.faces[mark[1]:])
         v = np.concatenate(self.vertices) if len(self.vertices) > 1 else self.vertices[0]
-        p, q, r = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-        return float(np.einsum("ij,ij->i", p, np.cross(q, r)).sum() / 6.0)
+        return mesh_volume(v, np.concatenate(self.faces[mark[1]:]))
 
     def mesh(self, **kw) -> Mesh:
         v = np.concatenate(self.vertices) if self.vertices else np.zeros((0, 3))
@@ -377,14 +377,11 @@ class StackSurfaceError(ValueError):
 def _verified(m: Mesh) -> Mesh:
     """The mesh, after checking that it is closed, edge-manifold and consistently oriented outward
     (a contour that touches or crosses itself, such as a keyhole, breaks this on the stack route)."""
+    from .measure import _edge_counts
+
     f = np.asarray(m.faces, dtype=np.int64)
-    nv = np.int64(len(m.vertices) + 1)
-    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    key = directed[:, 0] * nv + directed[:, 1]
-    und = np.minimum(directed[:, 0], directed[:, 1]) * nv + np.maximum(directed[:, 0], directed[:, 1])
-    _, counts = np.unique(und, return_counts=True)
+    _, counts, twice = _edge_counts(f) if len(f) else (None, np.zeros(0, np.int64), 0)
     boundary, crowded = int((counts == 1).sum()), int((counts > 2).sum())
-    twice = len(key) - len(np.unique(key))
     vol = m.volume if len(f) else 0.0
     box = float(np.prod(np.ptp(m.vertices, axis=0))) if len(m.vertices) else 0.0
     if boundary or crowded or twice or not vol > 1e-9 * box:

@@ -307,6 +307,26 @@ class _Slice:
 # ------------------------------------------------------------------------------------------------
 # mesh assembly
 # ------------------------------------------------------------------------------------------------
+def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str) -> tuple[np.ndarray, bool]:
+    """The band of ``triangulation`` between two rings, and whether the twist guard replaced it.
+
+    A band of the local rules (``wiederhold``, ``greedy``) whose area exceeds ``1.25`` times that
+    of the arc-length band for the same pair is twisted; it is replaced by the optimal band, or by
+    the arc-length band where the optimal one would be too slow.
+    """
+    from .bands import triangulate_band
+    from .measure import triangle_areas
+
+    f = triangulate_band(lo, hi, triangulation)
+    if triangulation in ("wiederhold", "greedy") and min(len(lo), len(hi)) > 2:
+        P = np.concatenate([lo, hi])
+        ref_f = triangulate_band(lo, hi, "arclength")
+        if triangle_areas(P, f).sum() > 1.25 * triangle_areas(P, ref_f).sum():
+            n, m = sorted((len(lo), len(hi)))
+            return (triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f), True
+    return f, False
+
+
 class _Mesher:
     def __init__(self, triangulation: str):
         self.triangulation = triangulation
@@ -353,21 +373,11 @@ class _Mesher:
         the arc-length band for the same pair is twisted, and is replaced by the optimal
         (least-area) band, or by the arc-length band where the optimal one would be too slow.
         """
-        from .bands import triangulate_band
-        from .measure import triangle_areas
+        from .bands import band_is_folded, triangulate_band
 
         lo, hi = self.coords(lo_ids), self.coords(hi_ids)
-        f = triangulate_band(lo, hi, self.triangulation)
-        if self.triangulation in ("wiederhold", "greedy") and min(len(lo), len(hi)) > 2:
-            P = np.concatenate([lo, hi])
-            ref_f = triangulate_band(lo, hi, "arclength")
-            ref = triangle_areas(P, ref_f).sum()
-            if triangle_areas(P, f).sum() > 1.25 * ref:
-                n, m = sorted((len(lo), len(hi)))
-                f = triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f
-                self.band_fallbacks += 1
-        from .bands import band_is_folded
-
+        f, replaced = twist_guarded_band(lo, hi, self.triangulation)
+        self.band_fallbacks += replaced
         if band_is_folded(f):  # last resort: the arc-length band never folds
             f = triangulate_band(lo, hi, "arclength")
             self.band_fallbacks += 1
