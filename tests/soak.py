@@ -178,7 +178,7 @@ def make_int_stack(rng: np.random.Generator):
     grid points inside a random star polygon, drifting from section to section; sections whose
     ``U`` has more than one boundary are redrawn.
     """
-    from contourmesh.rasterize import points_in_rings
+    from contourmesh.geometry import points_in_rings
     from contourmesh.sections import trace_contours
     from contourmesh.types import ContourStack, Section
 
@@ -340,7 +340,8 @@ def check_real_stack(stack, pixel, polygon, triangulation, caps="flat"):
     """Real-valued stacks: the raster path (closed, oriented, with the raster's own topology, at
     the sections' heights), or, with one ring per section and ``polygon="none"``, the paper's
     path on the rings as given (one surface of genus 0)."""
-    from contourmesh.rasterize import mesh_contour_stack, rasterize_stack
+    from contourmesh.api import mesh_stack as mesh_contour_stack
+    from contourmesh.rasterize import rasterize_stack
     from contourmesh.volumes import voxel_topology
 
     try:

@@ -50,7 +50,7 @@ def test_bad_inputs_print_one_line_and_exit_2(case, tmp_path, capsys):
         _one_line_error(capsys, ["mesh", str(tmp_path / "nan.npy"), "-o", out, "--quiet"], "NaN")
     elif case == "labels":
         np.save(tmp_path / "lab.npy", np.arange(8).reshape(2, 2, 2))
-        _one_line_error(capsys, ["mesh", str(tmp_path / "lab.npy"), "-o", out, "--quiet"], "label=")
+        _one_line_error(capsys, ["mesh", str(tmp_path / "lab.npy"), "-o", out, "--quiet"], "--label", "--threshold", "int64", "from 0 to 7")
     elif case == "pickled":
         np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
         _one_line_error(capsys, ["mesh", str(tmp_path / "obj.npy"), "-o", out, "--quiet"], "refusing to unpickle")

@@ -11,9 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from contourmesh.io import (is_file_source, load_mesh, mesh_file, read_contours, read_volume, register_trimesh_loader, stack_from_rings,
-                            write_contours_json, write_volume)
-from contourmesh.rasterize import default_pixel, mesh_contour_stack, points_in_rings, rasterize_stack
+from contourmesh.api import is_file_source, mesh_file
+from contourmesh.io import load_mesh, read_contours, read_volume, stack_from_rings, write_contours_json, write_volume
+from contourmesh.trimesh_plugin import register_trimesh_loader
+from contourmesh.api import mesh_stack as mesh_contour_stack
+from contourmesh.geometry import points_in_rings
+from contourmesh.rasterize import default_pixel, rasterize_stack
 from contourmesh.types import ContourStack, Section, shoelace_area
 from contourmesh.volumes import volume_to_mesh, voxel_topology
 
@@ -504,13 +507,13 @@ def test_mesh_file_dispatches_volumes_and_contours(tmp_path):
     m = mesh_file(p, label=7, polygon="none", caps="half")  # half caps: the full voxel box
     assert m.checks()["ok"] and m.volume == pytest.approx(2 * 3 * 4 * 2.0 * 1.0 * 0.5)
     assert m.meta["source"] == str(p)
-    with pytest.raises(ValueError, match="roi= and pixel= apply to contour files"):
+    with pytest.raises(TypeError, match="pixel= does not apply to a volume file"):
         mesh_file(p, label=7, pixel=1.0)
     st = stack_from_rings([(z, [_square(0, 0, 6), _square(10, 0, 6)]) for z in (0.0, 1.0, 2.0)])
     q = write_contours_json(st, tmp_path / "two.json")
     m2 = mesh_file(q, polygon="none")
     assert m2.meta["route"] == "raster" and m2.checks()["components"] == 2
-    with pytest.raises(ValueError, match="label= and threshold= apply to volumes"):
+    with pytest.raises(TypeError, match="threshold= does not apply to a contour file"):
         mesh_file(q, threshold=0)
     assert is_file_source(q) and is_file_source("missing.nii.gz") and is_file_source(Path("x"))
     assert not is_file_source("sphere:r=40") and not is_file_source(np.zeros(3))

@@ -8,12 +8,18 @@ import numpy as np
 import pytest
 
 from contourmesh.digitize import gauss_volume, outer_jordan_stack
-from contourmesh.refine import (auto_sigma, band_mesh, band_violations, blurred_indicator, in_band,
+from contourmesh.refine import (auto_sigma, band_violations, blurred_indicator, in_band,
                                 refine_stack, stack_points)
 from contourmesh.sections import trace_contours
 from contourmesh.shapes import Ellipsoid, Sphere, rotation_from_euler
 from contourmesh.surface import stack_to_mesh
 from contourmesh.types import ContourStack, Section
+import contourmesh
+
+
+def band_mesh(source, *, refine="band", triangulation="optimal", **kw):
+    """The refined mesh source as ``contourmesh.mesh`` composes it."""
+    return contourmesh.mesh(source, refine=refine, triangulation=triangulation, **kw)
 
 CENTRES = [(0.31, -0.17, 0.23), (-0.42, 0.08, -0.29)]
 

@@ -93,7 +93,7 @@ def test_reversing_contour_orientation_keeps_the_mesh(seed, polygon, triangulati
 
 def test_real_stack_reversed_rings_give_the_identical_mesh():
     """Even-odd rasterization ignores winding: reversing every ring changes nothing at all."""
-    from contourmesh.rasterize import mesh_contour_stack
+    from contourmesh.api import mesh_stack as mesh_contour_stack
 
     stack, pixel = soak.make_real_stack(np.random.default_rng(7))
     a = mesh_contour_stack(stack, pixel=pixel)
@@ -214,7 +214,7 @@ def test_soak_failures_replay_clean(seed):
 def test_real_ring_that_cannot_be_capped_takes_the_raster_route():
     """Found by the soak (seed 3051621): a one-section run of a real-valued ring touching itself
     cannot be capped by earcut; the stack is rasterized instead of failing."""
-    from contourmesh.rasterize import mesh_contour_stack
+    from contourmesh.api import mesh_stack as mesh_contour_stack
     from contourmesh.types import ContourStack, Section
 
     # a figure-eight-like ring that touches itself at (2, 2)
@@ -231,7 +231,8 @@ def test_keyhole_contours_mesh_as_a_ring_with_a_hole(polygon):
     """A keyhole contour (RTSTRUCT's way of drawing a hole: a zero-width channel from the outer
     boundary to the hole, walked in and out) touches itself; it bounds a square with a square hole,
     so the mesh is closed with genus 1, and its area is that of the even-odd raster's surface."""
-    from contourmesh.rasterize import mesh_contour_stack, rasterize_stack
+    from contourmesh.api import mesh_stack as mesh_contour_stack
+    from contourmesh.rasterize import rasterize_stack
     from contourmesh.types import ContourStack, Section
     from contourmesh.volumes import volume_to_mesh
 

@@ -20,7 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from contourmesh.digitize import gauss_volume, outer_jordan_stack
-from contourmesh.refine import band_mesh, band_violations
+from contourmesh.refine import band_violations
+import contourmesh
+
+
+def band_mesh(source, *, refine="band", triangulation="optimal", **kw):
+    return contourmesh.mesh(source, refine=refine, triangulation=triangulation, **kw)
 from contourmesh.sections import trace_contours
 from contourmesh.shapes import Ellipsoid, Sphere, Torus, rotation_from_euler
 from contourmesh.surface import stack_to_mesh

@@ -2,11 +2,14 @@
 
 The pipeline (Wiederhold & Villafuerte 2009)::
 
-    source (analytic shape | contour stack)
+    source (analytic shape | contour stack | volume | file)
       -> ContourStack (sections at heights z, each with its closed digital 4-contours)
       -> polygons (each contour -> DSS polygon | MLP | the contour itself)
-      -> bands between consecutive sections (wiederhold | greedy | optimal) + caps
+      -> bands between consecutive sections (wiederhold | greedy | optimal | arclength) + caps
       -> Mesh (vertices, faces) -> area, volume, P, checks -> trimesh / Open3D / PyMeshLab / files
+
+The names below are imported on first use, so ``import contourmesh`` is cheap and changes no
+other library.
 
 Example
 -------
@@ -19,15 +22,31 @@ True
 True
 """
 
-from .types import ContourStack, Mesh, Section, shoelace_area
-from .surface import mesh, stack_to_mesh
-from .io import register_trimesh_loader
+from __future__ import annotations
 
-try:  # trimesh.load_mesh("x.contours.json") returns our mesh of the contour stack
-    register_trimesh_loader()
-except ImportError:  # pragma: no cover - trimesh is a core dependency
-    pass
+import importlib
 
 __version__ = "0.1.0"
 
-__all__ = ["mesh", "stack_to_mesh", "register_trimesh_loader", "Mesh", "ContourStack", "Section", "shoelace_area", "__version__"]
+_LAZY = {
+    "mesh": "api", "mesh_shape": "api", "mesh_stack": "api", "mesh_volume": "api", "mesh_file": "api",
+    "stack_to_mesh": "surface", "volume_to_mesh": "volumes",
+    "Mesh": "types", "ContourStack": "types", "Section": "types", "shoelace_area": "geometry",
+    "read_volume": "io", "read_contours": "io", "load_mesh": "io",
+    "register_trimesh_loader": "trimesh_plugin", "unregister_trimesh_loader": "trimesh_plugin",
+    "ContourMeshError": "errors", "InapplicableOption": "errors", "LostContourWarning": "errors",
+}
+
+__all__ = sorted(_LAZY) + ["__version__"]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'contourmesh' has no attribute {name!r}")
+
+
+def __dir__():
+    return __all__

@@ -1,43 +1,99 @@
-"""Command line: ``contourmesh reproduce`` and ``contourmesh mesh``.
+"""Command line: ``contourmesh mesh``, ``contourmesh reproduce`` and ``contourmesh compare``.
 
 Errors print one line to stderr and exit with status 2 (``--debug`` shows the traceback).
+Messages name the command-line flags (``--label``), not the Python keywords (``label=``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import logging
+import re
 import sys
 from pathlib import Path
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser"]
+
+DESCRIPTION = """\
+Closed triangle meshes and surface-area estimates from serial cross-sections
+(Wiederhold & Villafuerte 2009), and a harness that compares them with other methods.
+
+commands:
+  mesh SOURCE -o FILE    mesh a shape spec, a volume file or a contour file and write the mesh
+  reproduce              reproduce the paper's Tables 1-2 and Figures 2-3
+  compare SPEC.toml      run a comparison (every method on the same inputs): tables and plots
+"""
+
+SHAPES_HELP = """\
+shape specs: NAME:key=value,... with NAME one of sphere:r, ellipsoid:a,b,c, spheroid:a,b,
+torus:R,r, cone:r0,r1,height, hyperboloid:a,c,height, paraboloid:a,height; placement keys
+center=x;y;z and rotation=ax;ay;az, three angles in degrees applied about the x axis first,
+then y, then z (R = Rz Ry Rx), or nine numbers giving the rotation matrix row by row.
+Example: "torus:R=30,r=9,center=0.3;0.1;0.2,rotation=30;0;0".
+
+volume files: .npy .npz .tif .nii[.gz] .vol .inr[.gz], indexed [z, y, x] once read; a volume
+with exactly two values (0/255) is binary, others need --label or --threshold.
+contour files: DICOM RTSTRUCT (.dcm, pick a structure with --roi), .json contour stacks.
+Areas are in the square of the file's (or --spacing's) unit.
+"""
+
+#: Python keywords that the command line spells as flags.
+_FLAGS = ("roi", "label", "threshold", "pixel", "spacing", "axis", "refine", "polygon", "triangulation", "caps", "h")
+_KEYWORD = re.compile(r"\b(" + "|".join(_FLAGS) + r")=(?=[\s,;.)'\"]|$)")
+
+
+def _cli_words(message: str) -> str:
+    """A library message with its keywords (``label=``) spelled as the CLI's flags (``--label``)."""
+    return _KEYWORD.sub(lambda m: "--" + m.group(1), message)
+
+
+def _spacing(text: str) -> tuple:
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected three numbers dz,dy,dx; got {text!r}") from None
+    if len(values) != 3 or not all(v > 0 and v < float("inf") for v in values):
+        raise argparse.ArgumentTypeError(f"expected three positive numbers dz,dy,dx; got {text!r}")
+    return values
+
+
+def _number(text: str):
+    """A label or threshold: an int when it is one (so messages say 7, not 7.0)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number; got {text!r}") from None
+    return int(value) if value.is_integer() else value
 
 
 def _mesh_summary(m) -> dict:
+    from .measure import relative_error, tradeoff
+
     chk = m.checks()
-    area = m.area
     area_true = m.meta.get("area_true")
-    e = (area - area_true) / area_true if area_true else None
-    return {
-        "area": area,
+    e = relative_error(m.area, area_true)
+    summary = {
+        "area": m.area,
         "volume": chk["volume"],
         "P": int(m.P),
         "vertices": int(len(m.vertices)),
         "faces": int(len(m.faces)),
-        "watertight": chk["watertight"],
-        "winding_consistent": chk["winding_consistent"],
-        "boundary_edges": chk["boundary_edges"],
-        "degenerate_faces": chk["degenerate_faces"],
-        "components": chk["components"],
-        "genus": chk["genus"],
         "area_true": area_true,
         "volume_true": m.meta.get("volume_true"),
         "e": e,
-        "t": abs(e) * m.P if e is not None else None,
+        "t": tradeoff(e, m.P) if e is not None else None,
         "polygon": m.meta.get("polygon"),
         "triangulation": m.meta.get("triangulation"),
         "refine": m.meta.get("refine", "none"),
+        "route": m.meta.get("route"),
     }
+    for key in ("watertight", "winding_consistent", "boundary_edges", "degenerate_faces", "components", "genus",
+                "self_intersections"):
+        if key in chk:
+            summary[key] = chk[key]
+    return summary
 
 
 def _cmd_reproduce(args) -> int:
@@ -47,19 +103,38 @@ def _cmd_reproduce(args) -> int:
     return 0
 
 
+def _check_output(out: Path, force: bool) -> None:
+    """Refuse an output path that cannot be written, before any meshing."""
+    from .meshes import MESH_FORMATS
+
+    if out.suffix.lower().lstrip(".") not in MESH_FORMATS:
+        raise ValueError(f"output file {str(out)!r}: expected a suffix among "
+                         f"{', '.join('.' + f for f in MESH_FORMATS)}")
+    if out.is_dir():
+        raise IsADirectoryError(f"output {str(out)!r} is a directory; expected a mesh file name")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"the output folder {str(out.parent)!r} does not exist")
+    if out.exists() and not force:
+        raise FileExistsError(f"output file {str(out)!r} already exists (use --force to overwrite)")
+
+
 def _cmd_mesh(args) -> int:
-    from .surface import mesh
+    from .api import mesh
 
     out = Path(args.output)
-    if out.exists() and not args.force:
-        raise FileExistsError(f"output file {str(out)!r} already exists (use --force to overwrite)")
-    roi = int(args.roi) if args.roi is not None and args.roi.isdigit() else args.roi
-    spacing = tuple(float(v) for v in args.spacing.split(",")) if args.spacing else (1.0, 1.0, 1.0)
-    extra = {"refine": args.refine} if args.refine else {}
-    m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps, **extra, roi=roi, pixel=args.pixel, label=args.label, threshold=args.threshold,
-             axis=args.axis, spacing=spacing, progress=not args.quiet)
-    infos = []
+    _check_output(out, args.force)
     posts = list(args.post or []) + [f"mlx:{p}" for p in (args.mlx or [])]
+    if posts or args.save_mlx:
+        from .compare import postprocess
+
+        for name in posts:  # an unknown post-process or an unreadable script fails before the meshing
+            if hasattr(postprocess, "check_postprocess"):
+                postprocess.check_postprocess(name)
+    roi = int(args.roi) if args.roi is not None and args.roi.isdigit() else args.roi
+    m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps,
+             refine=args.refine, roi=roi, pixel=args.pixel, label=args.label, threshold=args.threshold,
+             axis=args.axis, spacing=args.spacing, progress=not args.quiet)
+    infos = []
     if posts:
         from .compare.postprocess import apply_postprocess
 
@@ -67,12 +142,14 @@ def _cmd_mesh(args) -> int:
             m, info = apply_postprocess(name, m)
             infos.append(info)
     if args.save_mlx:
-        from .compare.postprocess import MESHLAB_STEPS, save_filter_script
+        from .compare.postprocess import save_filter_script
 
-        steps = [p.split("-")[0] if p.startswith("meshlab-") else p for p in (args.post or [])]
-        steps = [s for s in steps if s in MESHLAB_STEPS]
+        if hasattr(postprocess, "meshlab_steps_of"):
+            steps = postprocess.meshlab_steps_of(args.post or [])
+        else:
+            steps = [p for p in (args.post or []) if p in postprocess.MESHLAB_STEPS]
         if not steps:
-            raise ValueError(f"--save-mlx needs MeshLab post-processes among --post; MeshLab steps: {sorted(MESHLAB_STEPS)}")
+            raise ValueError("--save-mlx needs MeshLab post-processes among --post (e.g. --post meshlab-planar-qec)")
         save_filter_script(steps, args.save_mlx)
     chk = m.checks()
     if not chk["ok"]:
@@ -86,39 +163,50 @@ def _cmd_mesh(args) -> int:
     else:
         e = summary["e"]
         print(f"{out}: area {summary['area']:.6g}" + (f" (true {summary['area_true']:.6g}, e {e:+.4%})" if e is not None else "")
-              + f", P {summary['P']}, {summary['faces']} faces, closed and outward")
+              + f", volume {summary['volume']:.6g}, P {summary['P']}, {summary['faces']} faces, closed and outward")
     return 0
+
+
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults shown in every option's help; descriptions keep their line breaks."""
 
 
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    p = argparse.ArgumentParser(prog="contourmesh", description=__doc__.splitlines()[0])
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks on errors")
+    common.add_argument("--verbose", "-v", action="store_true", default=argparse.SUPPRESS,
+                        help="log every route choice and fallback on stderr")
+
+    p = argparse.ArgumentParser(prog="contourmesh", description=DESCRIPTION, formatter_class=_Formatter,
+                                parents=[common])
     p.add_argument("--version", action="version", version=f"contourmesh {__version__}")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-    sub = p.add_subparsers(dest="command", required=True)
+    sub = p.add_subparsers(dest="command", required=True, metavar="{mesh,reproduce,compare}")
 
-    r = sub.add_parser("reproduce", help="reproduce the paper's Tables 1-2 and Figures 2-3")
-    r.add_argument("--out", default=None, help="output folder (default: comparisons/paper/)")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.set_defaults(func=_cmd_reproduce)
-
-    m = sub.add_parser("mesh", help="mesh a source and write a mesh file")
-    m.add_argument("source", help="a shape spec NAME:key=value,... (sphere:r=40, torus:R=30,r=9) or a file: "
-                   "volumes .npy .npz .tif .nii[.gz] .vol .inr[.gz]; contours .json .dcm (RTSTRUCT)")
+    m = sub.add_parser("mesh", help="mesh a source and write a mesh file", parents=[common],
+                       description="Mesh a shape spec, a volume file or a contour file; write the mesh and print "
+                                   "its area.", epilog=SHAPES_HELP, formatter_class=_Formatter)
+    m.add_argument("source", help="a shape spec NAME:key=value,... (sphere:r=40, torus:R=30,r=9) or a file")
     m.add_argument("-o", "--output", required=True, help="output mesh file (.ply, .obj, .stl, .off)")
-    m.add_argument("--polygon", default="mlp", choices=["dss", "mlp", "none"])
+    m.add_argument("--polygon", default="mlp", choices=["dss", "mlp", "none"],
+                   help="each contour becomes its minimum length polygon, its maximal-DSS polygon, or stays as traced")
     m.add_argument("--triangulation", default=None, choices=["wiederhold", "greedy", "optimal", "arclength"],
-                   help="band triangulation (default: wiederhold, or optimal with --refine band)")
-    m.add_argument("--caps", default="flat", choices=["flat", "half"])
+                   help="band triangulation between consecutive polygons (default: wiederhold, "
+                        "or optimal with --refine band)")
+    m.add_argument("--caps", default="flat", choices=["flat", "half"],
+                   help="end caps in the last section's plane, or half a slice spacing beyond it")
     m.add_argument("--refine", default=None, choices=["none", "band"],
-                   help="band: the multigrid-convergent refinement of the polygons across slices")
-    m.add_argument("--roi", default=None, help="RTSTRUCT structure: name or number")
-    m.add_argument("--pixel", type=float, default=None, help="pixel size for rasterizing contour files")
-    m.add_argument("--label", type=int, default=None, help="use the voxels equal to this label")
-    m.add_argument("--threshold", type=float, default=None, help="use the voxels above this value")
-    m.add_argument("--axis", type=int, default=0, choices=[0, 1, 2], help="slicing axis of a volume")
-    m.add_argument("--spacing", default=None, help="dz,dy,dx for .npy volumes without spacing")
+                   help="band: the convergent refinement of the polygons across slices")
+    m.add_argument("--roi", default=None, help="contour files: the structure, by name or number")
+    m.add_argument("--pixel", type=float, default=None,
+                   help="contour files: pixel size for rasterizing (default: the median point spacing)")
+    m.add_argument("--label", type=_number, default=None, help="volumes: use the voxels equal to this label")
+    m.add_argument("--threshold", type=_number, default=None, help="volumes: use the voxels above this value")
+    m.add_argument("--axis", type=int, default=None, choices=[0, 1, 2], help="volumes: slicing axis (default 0)")
+    m.add_argument("--spacing", type=_spacing, default=None, metavar="DZ,DY,DX",
+                   help="volumes: voxel size, replacing the file's own (.npy files carry none: 1,1,1)")
     m.add_argument("--quiet", action="store_true", help="no progress bar")
     m.add_argument("--post", action="append", help="post-process, repeatable: merge-coplanar, taubin, "
                    "meshlab-planar-qec, mlx:FILE")
@@ -128,24 +216,55 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--force", action="store_true", help="overwrite an existing output file")
     m.set_defaults(func=_cmd_mesh)
 
+    r = sub.add_parser("reproduce", help="reproduce the paper's Tables 1-2 and Figures 2-3", parents=[common],
+                       formatter_class=_Formatter)
+    r.add_argument("--out", default=None, help="output folder")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.set_defaults(func=_cmd_reproduce)
+
     from .compare.runner import add_compare_parser
 
-    add_compare_parser(sub)
+    c = add_compare_parser(sub)
+    for action in common._actions:
+        if action.option_strings and not any(o in c._option_string_actions for o in action.option_strings):
+            c._add_action(action)
     return p
 
 
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    debug = getattr(args, "debug", False)
+    if getattr(args, "verbose", False):
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("contourmesh: %(message)s"))
+        log = logging.getLogger("contourmesh")
+        log.addHandler(handler)
+        log.setLevel(logging.DEBUG)
     try:
-        return int(args.func(args) or 0)
+        import warnings
+
+        from .errors import LostContourWarning
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+
+            def show(message, category, filename, lineno, file=None, line=None):
+                if issubclass(category, LostContourWarning) or filename.endswith("cli.py"):
+                    print(f"contourmesh: warning: {_cli_words(str(message))}", file=sys.stderr)
+                else:
+                    print(warnings.formatwarning(message, category, filename, lineno, line), end="", file=sys.stderr)
+
+            warnings.showwarning = show
+            return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("contourmesh: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # one line unless --debug
-        if args.debug:
+        if debug:
             raise
-        print(f"contourmesh: error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        text = " ".join(str(exc).split())
+        print(f"contourmesh: error: {type(exc).__name__}: {_cli_words(text)}", file=sys.stderr)
         return 2
 
 

@@ -777,7 +777,7 @@ def band_faces(lower, upper) -> np.ndarray:
 def _band_py(lo, hi, triangulation="wiederhold"):
     """The full mesher's band with its twist guard (:func:`contourmesh.volumes.twist_guarded_band`),
     for the folded or twisted bands the kernel hands back."""
-    from .volumes import twist_guarded_band
+    from .bands import twist_guarded_band
 
     return twist_guarded_band(lo, hi, triangulation)
 
@@ -948,7 +948,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     if not occupied:
         raise _OutOfScope  # no foreground: the full mesher raises the error
 
-    from .volumes import grid_to_xy
+    from .geometry import grid_to_xy
 
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
 
@@ -966,7 +966,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             ring_xyz[k] = xyz
             ring_start[k] = ps
             continue
-        from .volumes import _crack_contours
+        from .sections import _crack_contours
 
         parts, starts = [], [0]
         for c in range(n):

@@ -12,9 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .types import Mesh
+from typing import TYPE_CHECKING
 
-__all__ = ["to_trimesh", "to_open3d", "to_pymeshlab", "from_trimesh", "save_mesh", "atomic_write", "MESH_FORMATS"]
+from ._files import _bad, _wrap, check_file
+
+if TYPE_CHECKING:  # annotations only: the adapters take any object with vertices and faces
+    from .types import Mesh
+
+__all__ = ["to_trimesh", "to_open3d", "to_pymeshlab", "save_mesh", "atomic_write", "MESH_FORMATS"]
 
 MESH_FORMATS = ("ply", "obj", "stl", "off")
 
@@ -37,10 +42,6 @@ def to_trimesh(mesh: Mesh):
 
     return trimesh.Trimesh(vertices=mesh.vertices.copy(), faces=mesh.faces.copy(), process=False)
 
-
-def from_trimesh(tm, **meta) -> Mesh:
-    """Wrap a ``trimesh.Trimesh`` as a :class:`Mesh`."""
-    return Mesh(np.asarray(tm.vertices), np.asarray(tm.faces), meta=dict(meta))
 
 
 def to_open3d(mesh: Mesh):
@@ -131,3 +132,33 @@ def save_mesh(mesh: Mesh, path, *, force: bool = True) -> Path:
             f"{', '.join('.' + s for s in MESH_FORMATS)}, found {path.suffix or 'none'!r}"
         )
     return atomic_write(path, mesh_bytes(mesh, suffix), force=force)
+
+
+MESH_SUFFIXES = (".ply", ".obj", ".stl", ".off")
+
+
+def read_mesh_arrays(path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a PLY/OBJ/STL/OFF mesh through trimesh, with vertices merged by position.
+
+    The merge (``trimesh.Trimesh(v, f, process=False).merge_vertices(merge_tex=True,
+    merge_norm=True)``) joins copies of a vertex that a file splits at UV or normal seams, so a
+    closed surface reads as closed.  Returns ``(vertices (n, 3) float64, faces (m, 3) int64)``;
+    :func:`contourmesh.io.load_mesh` wraps them as a :class:`~contourmesh.types.Mesh`.
+    """
+    p = check_file(path, "mesh")
+    if p.suffix.lower() not in MESH_SUFFIXES:
+        raise ValueError(f"{str(p)!r}: cannot tell the mesh format; expected a suffix among "
+                         f"{', '.join(MESH_SUFFIXES)}, found {p.suffix or 'none'!r}")
+    import trimesh
+
+    try:
+        loaded = trimesh.load(str(p), force="mesh", process=False)
+        v = np.asarray(loaded.vertices, dtype=np.float64)
+        f = np.asarray(loaded.faces, dtype=np.int64)
+    except Exception as exc:
+        raise _wrap(p, f"{p.suffix} mesh", exc) from None
+    if len(f) == 0:
+        raise _bad(p, "a mesh with triangle faces", "no faces")
+    tm = trimesh.Trimesh(v, f, process=False)
+    tm.merge_vertices(merge_tex=True, merge_norm=True)
+    return np.asarray(tm.vertices, dtype=np.float64), np.asarray(tm.faces, dtype=np.int64)

@@ -26,15 +26,15 @@ Conventions
 
 from __future__ import annotations
 
-import warnings
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from .types import ContourStack, Mesh, shoelace_area
+from .geometry import _fill_evenodd, shoelace_area
+from .errors import LostContourWarning, warn_external
+from .types import ContourStack
 
-__all__ = ["Raster", "rasterize_stack", "default_pixel", "points_in_rings", "mesh_contour_stack", "LostContourWarning"]
+__all__ = ["Raster", "rasterize_stack", "default_pixel", "LostContourWarning"]
 
 #: Largest slice a rasterization may produce (pixels per slice) unless ``max_pixels`` says otherwise.
 MAX_SLICE_PIXELS = 4096 * 4096
@@ -76,86 +76,6 @@ class Raster(NamedTuple):
 # ------------------------------------------------------------------------------------------------
 # even-odd rule (crossing numbers), exact in the half-open convention
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True)
-def _fill_evenodd(xs, ys, starts, x0, y0, pixel, out):
-    """Scanline even-odd fill of one slice.
-
-    For every pixel row ``j`` (centre height ``yc = y0 + j * pixel``) collect the abscissae where
-    the ring edges cross the line ``y = yc`` (an edge ``a -> b`` crosses when exactly one of its
-    ends has ``y <= yc``: the half-open rule, so a vertex on the line counts once), sort them, and
-    fill the pixels whose centres ``xc`` satisfy ``c[2m] <= xc < c[2m + 1]``.
-    """
-    ny, nx = out.shape
-    nring = len(starts) - 1
-    ncross_max = len(xs)
-    cross = np.empty(ncross_max, dtype=np.float64)
-    for j in range(ny):
-        yc = y0 + j * pixel
-        n = 0
-        for r in range(nring):
-            s, e = starts[r], starts[r + 1]
-            k = e - s
-            for q in range(k):
-                a = s + q
-                b = s + (q + 1) % k
-                ya, yb = ys[a], ys[b]
-                if (ya <= yc) != (yb <= yc):
-                    cross[n] = xs[a] + (yc - ya) * (xs[b] - xs[a]) / (yb - ya)
-                    n += 1
-        if n < 2:
-            continue
-        c = np.sort(cross[:n])
-        for m in range(0, n - 1, 2):
-            i0 = int(np.ceil((c[m] - x0) / pixel))
-            i1 = int(np.ceil((c[m + 1] - x0) / pixel)) - 1
-            if i0 < 0:
-                i0 = 0
-            if i1 > nx - 1:
-                i1 = nx - 1
-            for i in range(i0, i1 + 1):
-                out[j, i] = True
-
-
-@njit(cache=True)
-def _points_in_ring(px, py, rx, ry):
-    """Even-odd (crossing number) test of points against one closed ring, half-open rule."""
-    n = len(px)
-    k = len(rx)
-    inside = np.zeros(n, dtype=np.bool_)
-    for p in range(n):
-        x, y = px[p], py[p]
-        odd = False
-        for q in range(k):
-            a = q
-            b = (q + 1) % k
-            if (ry[a] <= y) != (ry[b] <= y):
-                xc = rx[a] + (y - ry[a]) * (rx[b] - rx[a]) / (ry[b] - ry[a])
-                if x < xc:
-                    odd = not odd
-        inside[p] = odd
-    return inside
-
-
-def points_in_rings(points, ring) -> np.ndarray:
-    """Which of ``points`` ``(n, 2)`` lie inside the closed ``ring`` ``(k, 2)`` (even-odd rule).
-
-    Parameters
-    ----------
-    points : array_like, shape (n, 2)
-    ring : array_like, shape (k, 2)
-        Closed implicitly; either winding.
-
-    Returns
-    -------
-    numpy.ndarray of bool, shape (n,)
-    """
-    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
-    r = np.ascontiguousarray(ring, dtype=np.float64).reshape(-1, 2)
-    if len(r) < 3:
-        return np.zeros(len(p), dtype=bool)
-    return _points_in_ring(p[:, 0].copy(), p[:, 1].copy(), r[:, 0].copy(), r[:, 1].copy())
-
-
 # ------------------------------------------------------------------------------------------------
 # rasterization
 # ------------------------------------------------------------------------------------------------
@@ -196,8 +116,6 @@ def default_pixel(stack: ContourStack) -> float:
     return min(float(np.median(allsteps)), 1.0) if len(allsteps) else 1.0
 
 
-class LostContourWarning(UserWarning):
-    """A contour encloses no pixel centre at the chosen pixel size, so the raster loses it."""
 
 
 def _ring_covers_a_pixel(ring, x0, y0, pixel) -> bool:
@@ -293,46 +211,10 @@ def rasterize_stack(stack: ContourStack, pixel: float | None = None, *, max_pixe
         largest = max(a for _, _, a in lost)
         more = f" and {len(lost) - 5} more" if len(lost) > 5 else ""
         whole = (f"; sections {empty} rasterize to no pixel at all and are left out of the mesh" if empty else "")
-        warnings.warn(f"{len(lost)} contour(s) enclose no pixel centre at pixel={pixel:g} and "
-                      f"are lost (the largest encloses {largest:.3g}, {largest / pixel**2:.2g} pixel areas): {where}{more}{whole}; pass a smaller pixel= to keep them",
-                      LostContourWarning, stacklevel=2)
+        warn_external(f"{len(lost)} contour(s) enclose no pixel centre at pixel={pixel:g} and are lost "
+                      f"(the largest lost contour has area {largest:.3g}, about {largest / pixel**2:.2g} pixels of "
+                      f"{pixel:g} x {pixel:g}): {where}{more}{whole}; pass a smaller pixel= to keep them",
+                      LostContourWarning)
     return Raster(vol, zs.copy(), (pixel, pixel), (x0, y0, float(zs[0])))
 
 
-def mesh_contour_stack(stack: ContourStack, *, polygon: str = "mlp", triangulation: str = "wiederhold",
-                       caps: str = "flat", pixel: float | None = None, progress: bool = False) -> Mesh:
-    """Mesh a contour stack read from a file, choosing the route by what the stack holds.
-
-    * Every section has exactly one contour and either the contours are integer grid points or
-      ``polygon="none"``: the paper's own path, :func:`contourmesh.surface.stack_to_mesh`
-      (real-valued contours are then triangulated as given).
-    * Otherwise (several contours per slice, holes, DSS/MLP polygons of real-valued rings, or a
-      real-valued end ring that cannot be capped as given): the stack is rasterized (:func:`rasterize_stack`) and meshed by
-      :func:`contourmesh.volumes.volume_to_mesh` at the sections' own heights.
-
-    ``meta["route"]`` records which route was taken and ``meta["pixel"]`` the pixel size.
-    """
-    one_each = all(len(s.contours) == 1 for s in stack.sections)
-    integer = all(np.asarray(c).dtype.kind in "iu" for s in stack.sections for c in s.contours)
-    if one_each and (integer or polygon == "none"):
-        from .bands.caps import CapError
-        from .surface import StackSurfaceError, stack_to_mesh
-
-        try:
-            m = stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
-            meta = dict(m.meta, route="stack")
-            return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
-        except (CapError, StackSurfaceError):
-            if integer:
-                raise
-            # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): earcut
-            # cannot cap it or the bands do not close; the raster route below resolves it even-odd
-    from .volumes import volume_to_mesh
-
-    r = rasterize_stack(stack, pixel)
-    m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation, caps=caps,
-                       progress=progress)
-    meta = dict(m.meta)
-    meta.update(stack.meta)  # the stack's source, roi, units win over the volume mesher's
-    meta.update(route="raster", pixel=r.spacing[0])
-    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)

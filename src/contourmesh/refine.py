@@ -59,7 +59,7 @@ from numba import njit
 
 from .types import ContourStack, Mesh
 
-__all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "auto_sigma", "band_mesh", "band_violations"]
+__all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "auto_sigma", "band_violations"]
 
 #: Refinement methods by name (``"band"``; ``"none"``: no refinement).
 REFINERS = ("band", "none")
@@ -766,51 +766,3 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     return ContourStack(sections=tuple(new_sections), spacing=stack.spacing, origin=stack.origin, meta=meta)
 
 
-def band_mesh(source, *, polygon: str = "mlp", triangulation: str = "optimal", caps: str = "flat",
-              h: float = 1.0, refine: str = "band", **options) -> Mesh:
-    """The refined mesh source: ``source -> stack -> refine_stack -> stack_to_mesh``.
-
-    Parameters
-    ----------
-    source : Shape, str or ContourStack
-        As for :func:`contourmesh.surface.mesh`.
-    polygon, triangulation, caps, h
-        As for :func:`contourmesh.surface.mesh`; ``polygon`` seeds the refined polygons.
-    refine : {"band", "none"}
-        ``"none"`` gives the unrefined mesh of :func:`contourmesh.surface.stack_to_mesh`.
-    **options
-        Passed to :func:`refine_stack` (``sigma``, ``curvature``, ``chord``, ``meridians``,
-        ``density``, ``max_move``).
-
-    Examples
-    --------
-    >>> from contourmesh.shapes import Sphere
-    >>> m = band_mesh(Sphere(20, center=(0.3, 0.1, 0.2)))
-    >>> abs(m.area / m.meta["area_true"] - 1) < 0.004
-    True
-    """
-    from . import shapes
-    from .surface import stack_to_mesh
-
-    if isinstance(source, str):
-        source = shapes.parse_shape_spec(source)
-    if isinstance(source, shapes.Shape):
-        from .digitize import outer_jordan_stack
-
-        stack = outer_jordan_stack(source, h=h)
-    elif isinstance(source, ContourStack):
-        stack = source
-    else:
-        raise ValueError(
-            f"cannot mesh a {type(source).__name__}: expected a shape (contourmesh.shapes), a shape spec "
-            "string such as 'sphere:r=40', or a ContourStack"
-        )
-    if refine == "none":
-        return stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
-    if refine not in REFINERS:
-        raise ValueError(f"unknown refine method {refine!r}; expected one of {list(REFINERS)}")
-    fine = refine_stack(stack, refine, polygon=polygon, **options)
-    m = stack_to_mesh(fine, polygon="none", triangulation=triangulation, caps=caps)
-    meta = dict(m.meta)
-    meta.update(polygon=polygon, refine=refine)
-    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)

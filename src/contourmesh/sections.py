@@ -269,3 +269,16 @@ def check_contour4(contour, name: str = "contour") -> np.ndarray:
         bad = int(np.flatnonzero(back)[0])
         raise ValueError(f"{name} reverses direction at point {bad} {c[bad].tolist()}; not a cell boundary")
     return c
+
+
+def _crack_contours(cells: np.ndarray):
+    """Crack boundaries of a pixel mask (pixels = unit squares), in corner coordinates.
+
+    Corner ``(i, j)`` is the lower-left corner of pixel ``[j, i]``.  Returns ``(contours,
+    area2)``: the contours with the pixels on their left (outer positive, holes negative).
+    """
+    h, w = cells.shape
+    padded = np.zeros((h + 2, w + 2), dtype=np.bool_)
+    padded[1:-1, 1:-1] = cells
+    pts, starts, area2, _ = _follow_boundaries(padded)
+    return [pts[starts[i]: starts[i + 1]] - 1 for i in range(len(area2))], area2

@@ -23,9 +23,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .types import ContourStack, Mesh, shoelace_area
+from .errors import StackSurfaceError
+from .geometry import shoelace_area
+from .types import ContourStack, Mesh
 
-__all__ = ["mesh", "stack_to_mesh", "CAPS", "StackSurfaceError"]
+__all__ = ["stack_to_mesh", "CAPS", "StackSurfaceError"]
 
 CAPS = ("flat", "half")
 
@@ -125,7 +127,7 @@ class _Builder:
         v = np.concatenate(self.vertices) if self.vertices else np.zeros((0, 3))
         f = np.concatenate(self.faces) if self.faces else np.zeros((0, 3), dtype=np.int64)
         if self.cell_caps:  # cell caps may touch themselves at corners: make the surface a manifold
-            from .volumes import _separate_coincident, split_nonmanifold_vertices
+            from .repair import _separate_coincident, split_nonmanifold_vertices
 
             nudge = 1e-3 * min(self.sx, self.sy)
             v, f = split_nonmanifold_vertices(v, f, nudge=nudge)
@@ -175,7 +177,7 @@ def _cap_or_cells(b: _Builder, ring, contour, z: float, h: float, upward: bool, 
 
         raise CapError(f"cannot cap the section at z={z}: its polygon touches itself and its contour is not a "
                          "grid contour to fall back on")
-    from .rasterize import points_in_rings
+    from .geometry import points_in_rings
 
     c = c.astype(np.int64)
     sgn = 1.0 if upward else -1.0
@@ -370,8 +372,6 @@ def stack_to_mesh(
     return _verified(b.mesh(meta=meta))
 
 
-class StackSurfaceError(ValueError):
-    """The contours do not bound a closed surface on the stack route (e.g. a keyhole contour)."""
 
 
 def _verified(m: Mesh) -> Mesh:
@@ -461,131 +461,3 @@ def _mesh_run(b: _Builder, stack: ContourStack, run, polygon: str, triangulation
                       triangulation)
 
 
-def _shape_of(source):
-    from . import shapes
-
-    if isinstance(source, str):
-        return shapes.parse_shape_spec(source)
-    if isinstance(source, shapes.Shape):
-        return source
-    return None
-
-
-def _stack_of_volume(volume, *, spacing, axis, label, threshold, origin):
-    """The outer Jordan contour stack of a volume with one component per slice (for refinement)."""
-    from .sections import trace_contours
-    from .types import Section
-    from .volumes import prepare_volume
-
-    mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, axis=axis, label=label,
-                                                  threshold=threshold, origin=origin)
-    if dx != dy:
-        raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
-    sections = []
-    for k in range(mask.shape[0]):
-        if not mask[k].any():
-            continue
-        contours, parents = trace_contours(mask[k])
-        if len(contours) != 1:
-            raise ValueError(f"refine='band' needs one contour per slice; slice {k} has {len(contours)}")
-        sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
-    return ContourStack(tuple(sections), spacing=(dx, dy), origin=(ox, oy), meta={"source": "volume"})
-
-
-def mesh(source, *, polygon: str = "mlp", triangulation: str | None = None, caps: str = "flat",
-         refine: str | None = None,
-         h: float = 1.0, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
-         origin=(0.0, 0.0, 0.0), roi=None, pixel=None, progress: bool = False) -> Mesh:
-    """The mesh source of contourmesh: ``source -> Mesh``, closed and outward-oriented.
-
-    Parameters
-    ----------
-    source : Shape, str, Path, ContourStack or numpy.ndarray
-        An analytic shape (``contourmesh.shapes.Sphere(40, center=(0.3, 0.1, 0.2))``), a shape spec
-        string (``"sphere:r=40"``, ``"ellipsoid:a=30,b=20,c=10"``, ``"torus:R=30,r=9"``), a file
-        (volumes: ``.npy .npz .tif .nii[.gz] .vol .inr[.gz]``; contours: ``.json``, DICOM RTSTRUCT
-        ``.dcm``), a ContourStack, or a 3D array indexed ``[z, y, x]`` (binary, or labels with
-        ``label=`` / ``threshold=``).
-    polygon : {"mlp", "dss", "none"}
-        How each contour is simplified.
-    triangulation : {"wiederhold", "greedy", "optimal", "arclength"}
-        How consecutive polygons are joined (default: the paper's ``"wiederhold"``; ``"optimal"``
-        with ``refine="band"``, whose aligned vertices the paper's rule does not pair up).
-    caps : {"flat", "half"}
-        Where end caps go (see :mod:`contourmesh.surface` and :mod:`contourmesh.volumes`).
-    refine : {None, "none", "band"}
-        ``"band"``: the multigrid-convergent refinement of :mod:`contourmesh.refine` (polygons moved
-        across slices onto the estimated surface, every vertex kept in its slice's digital band);
-        for shapes, contour stacks and volumes with one contour per slice.
-    h : float
-        Grid spacing for digitizing analytic shapes (slices at ``z = k h``).
-    spacing, z, axis, label, threshold, origin
-        For arrays: voxel spacing ``(dz, dy, dx)``, explicit slice positions, slicing axis, label
-        or threshold selection, and the physical ``(x, y, z)`` of voxel ``[0, 0, 0]`` (files carry
-        their own spacing and origin).
-    roi, pixel
-        For contour files: the structure (name or number) and the pixel size used to rasterize
-        stacks with several contours per slice (see :mod:`contourmesh.rasterize`).
-
-    Returns
-    -------
-    Mesh
-        ``meta`` holds ``area_true`` when the source knows it.
-
-    Notes
-    -----
-    An analytic shape whose slices each hold one contour (or one outer contour with matching
-    holes, like a torus lying flat) is meshed exactly as in the paper, from its outer Jordan
-    contour stack.  A shape with several contours in some slice (a torus, a
-    rotated shape) is meshed through its Gauss digitization (the same ``I`` in every slice) by the
-    volume mesher, which handles holes and branching.
-    """
-    import numpy as _np
-
-    from .io import is_file_source
-
-    if refine not in (None, "none"):
-        from .refine import REFINERS, band_mesh
-
-        if refine not in REFINERS:
-            raise ValueError(f"unknown refine method {refine!r}; expected one of {list(REFINERS)}")
-        if isinstance(source, _np.ndarray):
-            source = _stack_of_volume(source, spacing=spacing, axis=axis, label=label, threshold=threshold,
-                                      origin=origin)
-        return band_mesh(source, polygon=polygon, triangulation=triangulation or "optimal", caps=caps, h=h,
-                         refine=refine)
-    triangulation = triangulation or "wiederhold"
-
-    if is_file_source(source):
-        from .io import mesh_file
-
-        return mesh_file(source, roi=roi, pixel=pixel, label=label, threshold=threshold, axis=axis,
-                         polygon=polygon, triangulation=triangulation, caps=caps, progress=progress)
-    shape = _shape_of(source)
-    if shape is not None:
-        from .digitize import gauss_volume, outer_jordan_stack
-
-        stack = outer_jordan_stack(shape, h=h)
-        if all(len(s.contours) == 1 for s in stack.sections) or _nested_chains(stack) is not None:
-            return stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
-        vol, org = gauss_volume(shape, h=h)
-        m = mesh(vol, polygon=polygon, triangulation=triangulation, caps=caps, spacing=(h, h, h),
-                 origin=org, progress=progress)
-        meta = dict(stack.meta)
-        meta.update(m.meta)
-        return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
-    if isinstance(source, ContourStack):
-        from .rasterize import mesh_contour_stack
-
-        return mesh_contour_stack(source, polygon=polygon, triangulation=triangulation, caps=caps, pixel=pixel,
-                                  progress=progress)
-    if isinstance(source, _np.ndarray):
-        from .volumes import volume_to_mesh
-
-        return volume_to_mesh(source, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
-                              origin=origin, polygon=polygon, triangulation=triangulation, caps=caps,
-                              progress=progress)
-    raise TypeError(
-        f"cannot mesh a {type(source).__name__}: expected a shape (contourmesh.shapes), a shape spec "
-        "string such as 'sphere:r=40', a ContourStack or a 3D numpy array"
-    )

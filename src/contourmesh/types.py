@@ -21,16 +21,9 @@ from typing import Optional
 
 import numpy as np
 
+from .geometry import shoelace_area
+
 __all__ = ["Section", "ContourStack", "Mesh", "shoelace_area"]
-
-
-def shoelace_area(points: np.ndarray) -> float:
-    """Signed area of a closed polygon given by ``(k, 2)`` points (positive = our outer orientation)."""
-    p = np.asarray(points, dtype=np.float64)
-    if len(p) < 3:
-        return 0.0
-    x, y = p[:, 0], p[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
 @dataclass(frozen=True)
@@ -47,8 +40,11 @@ class Section:
     parents: tuple = ()
 
     def __post_init__(self):
-        if len(self.parents) != len(self.contours):
+        if not self.parents and self.contours:  # no nesting given: every contour is an outer one
             object.__setattr__(self, "parents", tuple([-1] * len(self.contours)))
+        elif len(self.parents) != len(self.contours):
+            raise ValueError(f"Section at z={self.z}: parents must give one entry per contour "
+                             f"({len(self.contours)}); got {len(self.parents)}")
 
 
 @dataclass(frozen=True)

@@ -40,14 +40,19 @@ Conventions (stated once)
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
-from numba import njit
 
-from .types import Mesh, shoelace_area
+from .bands import TRIANGULATORS, twist_guarded_band
+from .fastpath import fast_volume_to_mesh
+from .polygons import POLYGONIZERS
+from .volume_input import binary_label, prepare_volume
+from .geometry import grid_to_xy, shoelace_area
+from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
+from .sections import _crack_contours
+from .types import Mesh
 
-__all__ = ["volume_to_mesh", "prepare_volume", "voxel_topology", "split_nonmanifold_vertices"]
+__all__ = ["volume_to_mesh", "prepare_volume", "voxel_topology"]
 
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
 _SQUARE = np.ones((3, 3), dtype=bool)
@@ -56,99 +61,9 @@ _SQUARE = np.ones((3, 3), dtype=bool)
 # ------------------------------------------------------------------------------------------------
 # input validation
 # ------------------------------------------------------------------------------------------------
-def prepare_volume(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
-                   origin=(0.0, 0.0, 0.0)):
-    """Validate a volume and return ``(mask [z, y, x] bool, zs, (dy, dx), (ox, oy))``.
-
-    ``label=L`` selects voxels equal to ``L``; ``threshold=T`` selects voxels ``> T``; without
-    either the array must be boolean or hold only 0 and 1.  ``axis`` is the slicing axis (its
-    spacing becomes ``dz``); ``z`` gives explicit slice positions (strictly increasing).
-    ``origin`` is the physical ``(x, y, z)`` of voxel ``[0, 0, 0]``'s centre (after ``axis``).
-    """
-    if isinstance(volume, np.ndarray) and volume.dtype == object:
-        raise ValueError("volume has dtype object; expected a numeric or boolean array")
-    vol = np.asarray(volume)
-    if vol.dtype == object or vol.dtype.kind in "OUSV":
-        raise ValueError(f"volume must be a numeric or boolean array; got dtype {vol.dtype}")
-    if vol.dtype.kind == "c":
-        raise ValueError(f"volume must be real-valued; got complex dtype {vol.dtype}")
-    if vol.ndim != 3:
-        raise ValueError(f"volume must be a 3D array indexed [z, y, x]; got {vol.ndim}D with shape {vol.shape}")
-    if 0 in vol.shape:
-        raise ValueError(f"volume is empty (shape {vol.shape})")
-    if axis not in (0, 1, 2):
-        raise ValueError(f"axis must be 0, 1 or 2; got {axis!r}")
-    sp = np.asarray(spacing, dtype=np.float64).reshape(-1)
-    if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
-        raise ValueError(f"spacing must be three positive finite numbers (dz, dy, dx); got {spacing!r}")
-    if label is not None and threshold is not None:
-        raise ValueError("give label= or threshold=, not both")
-    if vol.dtype.kind == "f" and not np.all(np.isfinite(vol)):
-        bad = "NaN" if np.isnan(vol).any() else "inf"
-        raise ValueError(f"volume holds {bad} values; expected finite numbers")
-    if label is not None:
-        mask = vol == label
-    elif threshold is not None:
-        if not np.isfinite(threshold):
-            raise ValueError(f"threshold must be finite; got {threshold!r}")
-        mask = vol > threshold
-    elif vol.dtype == bool:
-        mask = vol
-    else:
-        vals = np.unique(vol)
-        if not np.all(np.isin(vals, (0, 1))):
-            shown = ", ".join(str(v) for v in vals[:6]) + (" ..." if len(vals) > 6 else "")
-            raise ValueError(
-                f"volume holds values other than 0 and 1 ({shown}); pass label= to pick one label "
-                "or threshold= to binarize"
-            )
-        mask = vol.astype(bool)
-    org = np.asarray(origin, dtype=np.float64).reshape(-1)
-    if org.shape != (3,) or not np.all(np.isfinite(org)):
-        raise ValueError(f"origin must be three finite numbers (x, y, z); got {origin!r}")
-    if axis != 0:
-        # the slicing axis goes first; the remaining two keep their order as (y, x)
-        order = [axis] + [a for a in (0, 1, 2) if a != axis]
-        mask = np.transpose(mask, order)
-        sp = sp[order]
-    mask = np.ascontiguousarray(mask, dtype=bool)
-    if not mask.any():
-        raise ValueError("volume holds no foreground voxels (nothing to mesh)")
-    nz = mask.shape[0]
-    if z is None:
-        zs = org[2] + sp[0] * np.arange(nz, dtype=np.float64)
-    else:
-        zs = np.asarray(z, dtype=np.float64).reshape(-1)
-        if zs.shape != (nz,):
-            raise ValueError(f"z must give one position per slice ({nz}); got {zs.shape[0]}")
-        if not np.all(np.isfinite(zs)):
-            raise ValueError("slice positions z must be finite")
-        if nz > 1 and not np.all(np.diff(zs) > 0):
-            bad = int(np.flatnonzero(np.diff(zs) <= 0)[0])
-            raise ValueError(f"slice positions z must be strictly increasing; z[{bad}]={zs[bad]} >= z[{bad + 1}]={zs[bad + 1]}")
-    return mask, zs, (float(sp[1]), float(sp[2])), (float(org[0]), float(org[1]))
-
-
 # ------------------------------------------------------------------------------------------------
 # topology reference
 # ------------------------------------------------------------------------------------------------
-def grid_to_xy(ox, oy, dx, dy):
-    """Maps from pixel-centre and pixel-corner grid coordinates to physical ``(x, y)``.
-
-    Pixel ``(i, j)`` has its centre at ``(ox + i dx, oy + j dy)``; corner ``(i, j)`` is its
-    lower-left corner, half a pixel below and left of the centre.
-    """
-    def to_center(p):
-        p = np.asarray(p, dtype=np.float64)
-        return np.c_[ox + p[:, 0] * dx, oy + p[:, 1] * dy]
-
-    def to_corner(p):
-        p = np.asarray(p, dtype=np.float64)
-        return np.c_[ox + (p[:, 0] - 0.5) * dx, oy + (p[:, 1] - 0.5) * dy]
-
-    return to_center, to_corner
-
-
 def voxel_topology(mask) -> dict:
     """Components, cavities and total genus of a binary volume's boundary surface (6/26).
 
@@ -173,21 +88,6 @@ def voxel_topology(mask) -> dict:
 # ------------------------------------------------------------------------------------------------
 # per-slice contours and polygons
 # ------------------------------------------------------------------------------------------------
-def _crack_contours(cells: np.ndarray):
-    """Crack boundaries of a pixel mask (pixels = unit squares), in corner coordinates.
-
-    Corner ``(i, j)`` is the lower-left corner of pixel ``[j, i]``.  Returns ``(contours,
-    area2)``: the contours with the pixels on their left (outer positive, holes negative).
-    """
-    from .sections import _follow_boundaries
-
-    h, w = cells.shape
-    padded = np.zeros((h + 2, w + 2), dtype=np.bool_)
-    padded[1:-1, 1:-1] = cells
-    pts, starts, area2, _ = _follow_boundaries(padded)
-    return [pts[starts[i]: starts[i + 1]] - 1 for i in range(len(area2))], area2
-
-
 def _mlp_of_pixels(pix: np.ndarray) -> np.ndarray | None:
     """MLP (outer Jordan construction) of an 8- or 4-connected pixel set; centre coordinates."""
     from .polygons import mlp_polygon
@@ -307,26 +207,6 @@ class _Slice:
 # ------------------------------------------------------------------------------------------------
 # mesh assembly
 # ------------------------------------------------------------------------------------------------
-def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str) -> tuple[np.ndarray, bool]:
-    """The band of ``triangulation`` between two rings, and whether the twist guard replaced it.
-
-    A band of the local rules (``wiederhold``, ``greedy``) whose area exceeds ``1.25`` times that
-    of the arc-length band for the same pair is twisted; it is replaced by the optimal band, or by
-    the arc-length band where the optimal one would be too slow.
-    """
-    from .bands import triangulate_band
-    from .measure import triangle_areas
-
-    f = triangulate_band(lo, hi, triangulation)
-    if triangulation in ("wiederhold", "greedy") and min(len(lo), len(hi)) > 2:
-        P = np.concatenate([lo, hi])
-        ref_f = triangulate_band(lo, hi, "arclength")
-        if triangle_areas(P, f).sum() > 1.25 * triangle_areas(P, ref_f).sum():
-            n, m = sorted((len(lo), len(hi)))
-            return (triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f), True
-    return f, False
-
-
 class _Mesher:
     def __init__(self, triangulation: str):
         self.triangulation = triangulation
@@ -407,214 +287,6 @@ class _Mesher:
         return V, F, S, N
 
 
-def _split_four_face_edges(V, F, side, nudge):
-    """Replace every edge shared by four faces by two edges through side-specific midpoints.
-
-    Such an edge joins a voxel of one slice and a voxel of the next that touch only along it;
-    the two faces of each side are split at a midpoint of their own, which is then moved
-    ``nudge`` into its side, so the two sheets no longer share the edge.
-    """
-    m = len(F)
-    nv = len(V) + 1
-    e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
-    und = np.minimum(e[..., 0], e[..., 1]) * nv + np.maximum(e[..., 0], e[..., 1])
-    uniq, inv, cnt = np.unique(und.reshape(-1), return_inverse=True, return_counts=True)
-    mult = cnt[inv].reshape(m, 3)
-    if np.any(mult % 2):
-        bad = np.argwhere(mult % 2 == 1)[0]
-        raise RuntimeError(f"internal error: an edge is shared by {int(mult[tuple(bad)])} faces")
-    if np.any(mult > 4):
-        raise RuntimeError(f"internal error: an edge is shared by {int(mult.max())} faces")
-    hit = mult == 4
-    if not hit.any():
-        return V, F, side
-    work = np.flatnonzero(hit.any(axis=1))
-    faces = {int(i): (list(map(int, F[i])), int(side[i])) for i in work}
-    by_edge: dict = {}
-    for i, (f, _) in faces.items():
-        for t in range(3):
-            key = (min(f[t], f[(t + 1) % 3]), max(f[t], f[(t + 1) % 3]))
-            by_edge.setdefault(key, set()).add(i)
-    todo = sorted({tuple(sorted((int(F[i, t]), int(F[i, (t + 1) % 3])))) for i, t in np.argwhere(hit)})
-    newV = []
-    nxt_v = len(V)
-    nxt_f = m
-    Vl = V
-
-    def coord(i):
-        return Vl[i] if i < len(Vl) else newV[i - len(Vl)]
-
-    for u, v in todo:
-        fs = list(by_edge.get((u, v), ()))
-        if len(fs) != 4:
-            raise RuntimeError(f"internal error: edge ({u}, {v}) is shared by {len(fs)} faces while splitting")
-        groups: dict = {}
-        for i in fs:
-            groups.setdefault(faces[i][1], []).append(i)
-        for sd, group in groups.items():
-            if len(group) != 2:
-                raise RuntimeError("internal error: a four-face edge does not pair by side")
-            mid = 0.5 * (coord(u) + coord(v))
-            opp = []
-            for i in group:
-                f = faces[i][0]
-                opp.append([w for w in f if w != u and w != v][0])
-            toward = np.mean([coord(w) for w in opp], axis=0) - mid
-            nrm = np.linalg.norm(toward)
-            if nrm > 0:
-                mid = mid + toward * (nudge / nrm)
-            newV.append(mid)
-            mv = nxt_v
-            nxt_v += 1
-            for i in group:
-                f, _ = faces.pop(i)
-                for t in range(3):
-                    key = (min(f[t], f[(t + 1) % 3]), max(f[t], f[(t + 1) % 3]))
-                    by_edge[key].discard(i)
-                t = [k for k in range(3) if {f[k], f[(k + 1) % 3]} == {u, v}][0]
-                a, b, c = f[t], f[(t + 1) % 3], f[(t + 2) % 3]
-                for nf in ([a, mv, c], [mv, b, c]):
-                    faces[nxt_f] = (nf, sd)
-                    for k in range(3):
-                        key = (min(nf[k], nf[(k + 1) % 3]), max(nf[k], nf[(k + 1) % 3]))
-                        by_edge.setdefault(key, set()).add(nxt_f)
-                    nxt_f += 1
-    keep = np.ones(m, dtype=bool)
-    keep[work] = False
-    items = list(faces.values())
-    F2 = np.concatenate([F[keep], np.array([f for f, _ in items], dtype=np.int64).reshape(-1, 3)])
-    S2 = np.concatenate([side[keep], np.array([sd for _, sd in items], dtype=side.dtype)])
-    V2 = np.concatenate([V, np.array(newV).reshape(-1, 3)])
-    return V2, F2, S2
-
-
-@njit(cache=True, nogil=True)
-def _corner_components(n, a1, b1, a2, b2):
-    """Connected components of ``n`` nodes under the links ``a1[i] - b1[i]`` and ``a2[i] - b2[i]``:
-    ``(count, label per node, lowest node of each label)``, labels numbered in order of each
-    component's lowest node."""
-    parent = np.arange(n)
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for i in range(len(a1)):
-        for x, y in ((a1[i], b1[i]), (a2[i], b2[i])):
-            rx, ry = find(x), find(y)
-            if rx != ry:
-                if rx < ry:
-                    parent[ry] = rx
-                else:
-                    parent[rx] = ry
-    lab = np.empty(n, np.int64)
-    first = np.empty(n, np.int64)
-    count = 0
-    for x in range(n):
-        r = find(x)
-        if r == x:
-            lab[x] = count
-            first[count] = x
-            count += 1
-        else:
-            lab[x] = lab[r]
-    return count, lab, first[:count]
-
-
-def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
-    """Make a closed mesh a manifold: pair faces at 4-face edges by side, split vertex fans.
-
-    Edges shared by four faces occur where two voxels of consecutive slices touch along an
-    edge (6-connectivity keeps them apart): each ``side``'s pair of faces gets an edge of its
-    own (:func:`_split_four_face_edges`).  Then every vertex whose faces form several fans (touching corners) is split
-    into one vertex per fan, and each copy is moved ``nudge`` (absolute units) towards the
-    centroid of its fan so that the touching surfaces no longer share a point.  ``four_face=False``
-    skips the first step (for a caller that has already split the four-face edges).
-    """
-    F = np.asarray(F, dtype=np.int64)
-    m = len(F)
-    if m == 0:
-        return V, F
-    side = np.zeros(m, dtype=np.int64) if side is None else np.asarray(side, dtype=np.int64)
-    V = np.asarray(V, dtype=np.float64)
-    if four_face:
-        V, F, side = _split_four_face_edges(V, F, side, nudge)
-    m = len(F)
-    nv = len(V) + 1
-    fi = np.repeat(np.arange(m), 3)
-    li = np.tile(np.arange(3), m)
-    u = F[fi, li]
-    v = F[fi, (li + 1) % 3]
-    key_uv = u * nv + v
-    key_vu = v * nv + u
-    order = np.argsort(key_uv, kind="stable")
-    sk = key_uv[order]
-    # every directed edge once and every one with its opposite <=> every edge in exactly two faces
-    same = np.flatnonzero(sk[1:] == sk[:-1])
-    if len(same):
-        bad = int(order[same[0]])
-        raise RuntimeError(
-            f"internal error: edge ({u[bad]}, {v[bad]}) is used twice in one direction; cannot make a manifold"
-        )
-    pos = np.clip(np.searchsorted(sk, key_vu), 0, len(order) - 1)
-    twin = order[pos]
-    del sk, pos, order
-    ok = key_uv[twin] == key_vu
-    if not ok.all():
-        bad = int(np.flatnonzero(~ok)[0])
-        raise RuntimeError(
-            f"internal error: half-edge ({u[bad]}, {v[bad]}) has no opposite half-edge; the surface is not closed "
-            "and consistently oriented"
-        )
-    del key_uv, key_vu, ok
-    t = twin
-    # corner ids
-    c_fu = fi * 3 + li
-    c_fv = fi * 3 + (li + 1) % 3
-    g = fi[t]
-    lg = li[t]  # in face g, the edge starts at v (local lg) and ends at u (local lg+1)
-    c_gv = g * 3 + lg
-    c_gu = g * 3 + (lg + 1) % 3
-    # fans = connected components of the corners linked across every edge (union-find; labels
-    # numbered in order of each component's lowest corner, as scipy's connected_components does)
-    del fi, li, g, lg, t, twin
-    ncomp, lab, first = _corner_components(3 * m, c_fu, c_gu, c_fv, c_gv)
-    del c_fu, c_fv, c_gu, c_gv
-    vert_of_corner = F.reshape(-1)
-    # a vertex keeps its first fan; other fans get new vertices
-    fan_vertex = vert_of_corner[first]  # vertex of each fan
-    fans_per_vertex = np.bincount(fan_vertex, minlength=len(V))
-    if not np.any(fans_per_vertex > 1):
-        return V, F
-    # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
-    # in the order of (vertex, fan)
-    centroids = V[F].mean(axis=1)
-    by_vertex = np.argsort(fan_vertex, kind="stable")
-    sv = fan_vertex[by_vertex]
-    head = np.r_[True, sv[1:] != sv[:-1]]
-    fan_to_new = np.empty(ncomp, dtype=np.int64)
-    fan_to_new[by_vertex[head]] = sv[head]
-    others = by_vertex[~head]
-    fan_to_new[others] = len(V) + np.arange(len(others))
-    F2 = fan_to_new[lab].reshape(-1, 3)
-    new_V = [V, V[fan_vertex[others]]]
-    V2 = np.concatenate(new_V)
-    # nudge every copy of a split vertex towards the centroid of its fan
-    corner_face = np.arange(3 * m) // 3
-    counts = np.bincount(lab, minlength=ncomp).astype(np.float64)
-    target = np.stack([np.bincount(lab, weights=centroids[corner_face, d], minlength=ncomp) for d in range(3)], axis=1)
-    target /= counts[:, None]
-    moved = np.flatnonzero(fans_per_vertex[fan_vertex] > 1)
-    vid = fan_to_new[moved]
-    d = target[moved] - V2[vid]
-    nrm = np.linalg.norm(d, axis=1)
-    good = nrm > 0
-    V2[vid[good]] += d[good] * (nudge / nrm[good])[:, None]
-    return V2, F2
-
-
 def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
                    origin=(0.0, 0.0, 0.0), polygon: str = "mlp", triangulation: str = "wiederhold",
                    caps: str = "flat", progress: bool = False) -> Mesh:
@@ -624,19 +296,15 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     voxel object; ``meta`` records the method, the number of exact (voxel-like) joins and of
     polygon fallbacks.
     """
-    from scipy import ndimage
-
-    from .polygons import POLYGONIZERS
-    from .bands import TRIANGULATORS
-
     if polygon not in POLYGONIZERS:
         raise ValueError(f"unknown polygon method {polygon!r}; expected one of {sorted(POLYGONIZERS)}")
     if triangulation not in TRIANGULATORS:
         raise ValueError(f"unknown band triangulation method {triangulation!r}; expected one of {sorted(TRIANGULATORS)}")
     if caps not in ("flat", "half"):
         raise ValueError(f"caps must be 'flat' or 'half'; got {caps!r}")
-    from .fastpath import fast_volume_to_mesh
-
+    if (label is None and threshold is None and isinstance(volume, np.ndarray) and volume.ndim == 3
+            and volume.size and volume.dtype.kind in "iuf"):
+        label = binary_label(volume)  # a two-valued volume (0/255) is binary: its non-zero value
     # the common case (no holes, every slice pair a simple band join) in compiled code, the same mesh
     fast = fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
                                origin=origin, polygon=polygon, triangulation=triangulation, caps=caps)
@@ -778,163 +446,6 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     return Mesh(V, F, P=len(V), meta=meta)
 
 
-def _open_necks(V, F, S, necks, nudge):
-    """Replace each neck vertex by a small tube joining its two fans.
-
-    At a mid-plane corner where the two empty voxels of the 2 x 2 x 2 block around it touch only
-    at that corner (the six others are object), the surface meets itself in two cones there.  The
-    background is 26-connected, so it passes through the point: the cones are joined by a tube
-    (the star of the vertex is removed and its two link cycles are joined by a band).
-    """
-    if len(necks) == 0:
-        return V, F, S
-    neck_ids = np.unique(necks)
-    # faces (old and new, by index into `faces`) around each neck vertex, kept up to date
-    faces = [tuple(f) for f in F[np.isin(F, neck_ids).any(axis=1)].tolist()]
-    old_index = np.flatnonzero(np.isin(F, neck_ids).any(axis=1))  # their rows in F
-    n_old = len(faces)
-    star_of = {int(c): [] for c in neck_ids}
-    for t, f in enumerate(faces):
-        for v in f:
-            if v in star_of:
-                star_of[v].append(t)
-    alive = [True] * n_old
-    Vs = [V]
-    nv = len(V)
-    pos = {}
-
-    def xyz(ids):
-        return np.array([V[i] if i < len(V) else pos[i] for i in ids])
-
-    for c in neck_ids.tolist():  # one at a time: a neck's link may hold another neck
-        star = [t for t in star_of.pop(c) if alive[t]]
-        link = {}
-        for t in star:
-            f = faces[t]
-            i = f.index(c)
-            x, y = f[(i + 1) % 3], f[(i + 2) % 3]
-            if x in link:
-                raise RuntimeError("internal error: a neck vertex is not the apex of two cones")
-            link[x] = y
-        cycles = []
-        seen = set()
-        for x0 in link:
-            if x0 in seen:
-                continue
-            cyc = [x0]
-            seen.add(x0)
-            x = link[x0]
-            while x != x0:
-                cyc.append(x)
-                seen.add(x)
-                x = link[x]
-            cycles.append(cyc)
-        if len(cycles) != 2:
-            raise RuntimeError(f"internal error: a neck vertex has {len(cycles)} fans, expected 2")
-        # replace the apex of each cone by a tiny ring of new vertices (one per link vertex,
-        # a hair from the apex towards it), then join the two rings by a tube
-        new_faces = []
-        tube = []
-        pc = xyz([c])[0]
-        for n_c, cyc in enumerate(cycles):
-            eps = nudge * (1.0 + 0.5 * n_c)
-            dirs = xyz(cyc) - pc
-            dirs /= np.maximum(np.linalg.norm(dirs, axis=1), 1e-300)[:, None]
-            ids = nv + np.arange(len(cyc))
-            ring = pc + eps * dirs
-            Vs.append(ring)
-            for q, r in zip(ids.tolist(), ring):
-                pos[q] = r
-            nv += len(cyc)
-            k = len(cyc)
-            for t in range(k):
-                x, y = cyc[t], cyc[(t + 1) % k]
-                rx, ry = int(ids[t]), int(ids[(t + 1) % k])
-                new_faces += [(rx, x, y), (rx, y, ry)]
-            tube.append(ids)
-        a = tube[0]
-        b = tube[1][::-1]
-        n, m = len(a), len(b)
-        d = np.linalg.norm(xyz(a.tolist())[:, None, :] - xyz(b.tolist())[None, :, :], axis=2)
-        i0, j0 = np.unravel_index(np.argmin(d), d.shape)
-        a = np.roll(a, -i0).tolist()
-        b = np.roll(b, -j0).tolist()
-        i = j = 0
-        while i < n or j < m:  # advance both rings in proportion (no fold)
-            if j >= m or (i < n and (i + 1) * m <= (j + 1) * n):
-                new_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
-                i += 1
-            else:
-                new_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
-                j += 1
-        for t in star:
-            alive[t] = False
-        for f in new_faces:
-            t = len(faces)
-            faces.append(f)
-            alive.append(True)
-            for v in f:
-                if v in star_of:
-                    star_of[v].append(t)
-    keep = np.ones(len(F), dtype=bool)
-    keep[old_index[~np.array(alive[:n_old], dtype=bool)]] = False
-    added = [f for f, ok in zip(faces[n_old:], alive[n_old:]) if ok]
-    F = np.concatenate([F[keep], np.array(added, dtype=np.int64).reshape(-1, 3)])
-    S = np.concatenate([S[keep], np.zeros(len(added), dtype=S.dtype)])
-    V = np.concatenate(Vs)
-    return V, F, S
-
-
-def _separate_coincident(V, F, nudge):
-    """Move vertices that share a position apart, each towards the centroid of its own faces."""
-    inv, cnt = _group_rows(V)
-    dup = np.flatnonzero(cnt[inv] > 1)
-    if len(dup) == 0:
-        return V
-    # the j-th copy of a position moves (1 + j/2) nudges: copies heading the same way stay apart
-    order = np.argsort(inv[dup], kind="stable")
-    rank = np.empty(len(dup), dtype=np.int64)
-    grp = inv[dup][order]
-    starts = np.r_[0, np.flatnonzero(np.diff(grp)) + 1]
-    rank[order] = np.arange(len(dup)) - np.repeat(starts, np.diff(np.r_[starts, len(dup)]))
-    V = V.copy()
-    cen = V[F].mean(axis=1)
-    corner_v = F.reshape(-1)
-    corner_f = np.repeat(np.arange(len(F)), 3)
-    acc = np.zeros((len(V), 3))
-    np.add.at(acc, corner_v, cen[corner_f])
-    deg = np.bincount(corner_v, minlength=len(V)).astype(np.float64)
-    target = acc[dup] / np.maximum(deg[dup], 1)[:, None]
-    d = target - V[dup]
-    nrm = np.linalg.norm(d, axis=1)
-    ok = nrm > 0
-    step = nudge * (1.0 + 0.5 * rank)
-    V[dup[ok]] += d[ok] * (step[ok] / nrm[ok])[:, None]
-    return V
-
-
-def _group_rows(V):
-    """``(inv, cnt)``: a group number per row of ``V`` (rows with equal values share it) and the
-    size of each group; like ``np.unique(V, axis=0, return_inverse=True, return_counts=True)``
-    without sorting the rows as records."""
-    if len(V) == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    order = np.lexsort(V.T[::-1])
-    sv = V[order]
-    new = np.r_[True, np.any(sv[1:] != sv[:-1], axis=1)]
-    gid = np.cumsum(new) - 1
-    inv = np.empty(len(V), dtype=np.int64)
-    inv[order] = gid
-    return inv, np.bincount(gid)
-
-
-def _compact(V, F):
-    used = np.flatnonzero(np.bincount(F.reshape(-1), minlength=len(V)))
-    remap = np.full(len(V), -1, dtype=np.int64)
-    remap[used] = np.arange(len(used))
-    return V[used], remap[F]
-
-
 def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     """Hole pairs ``[(ha, hb), ...]`` if components a (below) and b (above) join as a band, else None.
 
@@ -1021,7 +532,6 @@ def _pixel_cap(M, s, k, c, rings, z, up, to_xy_corner):
 
 def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner):
     """The voxel-exact join of a group of components between slices k and k+1."""
-    from scipy import ndimage
 
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     y0 = min(s[0].start for s in sl)

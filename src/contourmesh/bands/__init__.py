@@ -36,6 +36,7 @@ from .optimal import triangulate_band_optimal
 from .wiederhold import triangulate_band_wiederhold
 
 __all__ = [
+    "twist_guarded_band",
     "TRIANGULATORS",
     "triangulate_band",
     "band_is_folded",
@@ -100,3 +101,22 @@ def triangulate_band(lower, upper, method: str = "wiederhold", *, fallback: bool
     if fallback and method != "optimal" and band_is_folded(faces):
         faces = triangulate_band_optimal(lower, upper)
     return faces
+
+
+def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str) -> tuple[np.ndarray, bool]:
+    """The band of ``triangulation`` between two rings, and whether the twist guard replaced it.
+
+    A band of the local rules (``wiederhold``, ``greedy``) whose area exceeds ``1.25`` times that
+    of the arc-length band for the same pair is twisted; it is replaced by the optimal band, or by
+    the arc-length band where the optimal one would be too slow.
+    """
+    from ..measure import triangle_areas
+
+    f = triangulate_band(lo, hi, triangulation)
+    if triangulation in ("wiederhold", "greedy") and min(len(lo), len(hi)) > 2:
+        P = np.concatenate([lo, hi])
+        ref_f = triangulate_band(lo, hi, "arclength")
+        if triangle_areas(P, f).sum() > 1.25 * triangle_areas(P, ref_f).sum():
+            n, m = sorted((len(lo), len(hi)))
+            return (triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f), True
+    return f, False

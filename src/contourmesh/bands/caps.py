@@ -15,8 +15,7 @@ import numpy as np
 __all__ = ["cap_faces", "CapError"]
 
 
-class CapError(ValueError):
-    """A planar cap cannot be triangulated as given (its rings cross or touch each other)."""
+from ..errors import CapError  # noqa: F401  (re-exported: raised here)
 
 
 def _as_ring(poly, name: str) -> np.ndarray:

@@ -1,0 +1,71 @@
+"""Checks shared by every reader: file paths, suffixes, declared sizes, optional packages."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["check_file", "MAX_VOXELS", "VOLUME_SUFFIXES"]
+
+#: File suffixes the volume reader understands.
+VOLUME_SUFFIXES = (".npy", ".npz", ".tif", ".tiff", ".nii", ".nii.gz", ".vol", ".inr", ".inr.gz")
+
+#: Largest volume (voxels) a file header may declare; larger headers are refused before allocating.
+MAX_VOXELS = 2**32
+
+
+def _require(module: str):
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise ImportError(
+            f"{module} is needed to read this file; install it with `pip install 'contourmesh[io]'` "
+            f"(or `pip install {module}`): {exc}"
+        ) from exc
+
+
+def _suffix(path: Path) -> str:
+    name = path.name.lower()
+    for double in (".nii.gz", ".inr.gz", ".contours.json"):
+        if name.endswith(double):
+            return double if double != ".contours.json" else ".json"
+    return path.suffix.lower()
+
+
+def check_file(path, what: str) -> Path:
+    """The path as a Path, after checking that it names an existing regular file."""
+    if isinstance(path, (bytes, bytearray)):
+        path = path.decode()
+    if not isinstance(path, (str, Path)):
+        raise TypeError(f"expected a file path for the {what}; got {type(path).__name__}")
+    p = Path(path).expanduser()
+    if p.is_dir():
+        raise IsADirectoryError(f"{str(p)!r} is a directory; expected {'an' if what[0] in 'aeiou' else 'a'} {what} file")
+    if not p.exists():
+        raise FileNotFoundError(f"{what} file {str(p)!r} does not exist")
+    if not p.is_file():
+        raise ValueError(f"{str(p)!r} is not a regular file; expected {'an' if what[0] in 'aeiou' else 'a'} {what} file")
+    return p
+
+
+def _bad(path: Path, expected: str, found) -> ValueError:
+    return ValueError(f"{str(path)!r}: expected {expected}; found {found}")
+
+
+def _check_size(path: Path, shape, itemsize: int, max_voxels: int):
+    n = 1
+    for s in shape:
+        n *= int(s)
+    if n > max_voxels:
+        raise _bad(path, f"a volume of at most {max_voxels} voxels",
+                   f"a header declaring {' x '.join(str(int(s)) for s in shape)} = {n} voxels")
+    return n, n * itemsize
+
+
+_DEFLATE_MAX_RATIO = 1032
+
+
+def _wrap(path: Path, kind: str, exc: BaseException) -> ValueError:
+    msg = str(exc) or type(exc).__name__
+    return ValueError(f"{str(path)!r}: expected a readable {kind} file; the file is truncated or corrupt ({msg})")

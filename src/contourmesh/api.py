@@ -1,0 +1,384 @@
+"""The front door: every route from an input to a closed mesh is chosen here, and only here.
+
+Four kinds of source, one typed entry point each, all returning a :class:`~contourmesh.types.Mesh`:
+
+=====================  ==========================================================================
+entry point            source and the keywords that apply to it
+=====================  ==========================================================================
+:func:`mesh_shape`     an analytic shape or a spec string (``"sphere:r=40"``): ``h``
+:func:`mesh_stack`     a :class:`~contourmesh.types.ContourStack`: ``pixel``
+:func:`mesh_volume`    a 3D array ``[z, y, x]``: ``spacing, z, axis, label, threshold, origin``
+:func:`mesh_file`      a path: contour files take ``roi, pixel``; volume files take
+                       ``spacing, z, axis, label, threshold, origin``
+=====================  ==========================================================================
+
+Every entry point also takes the method keywords ``polygon, triangulation, caps, refine`` and
+``progress``.  :func:`mesh` looks at the source, then calls its entry point; a keyword that does
+not apply to the source raises :class:`~contourmesh.errors.InapplicableOption` (a ``TypeError``)
+that says which keyword and why, so no option is ever dropped silently.
+
+The routes behind the entry points:
+
+* **stack route** (:func:`contourmesh.surface.stack_to_mesh`): the paper's own path, for stacks
+  with one contour per section (or nested outer/hole chains) of grid contours, and for
+  real-valued single contours meshed as drawn (``polygon="none"``);
+* **raster route**: every other contour stack is rasterized even-odd at ``pixel``
+  (:func:`contourmesh.rasterize.rasterize_stack`) and meshed as a volume;
+* **volume route** (:func:`contourmesh.volumes.volume_to_mesh`): any binary volume, several
+  contours per slice, holes and branching; its compiled fast path handles simple slices;
+* **refined route** (``refine="band"``): the outer Jordan contour stack of the source is refined
+  across slices (:func:`contourmesh.refine.refine_stack`) and meshed by the stack route.
+
+Each route switch and fallback is logged on the ``contourmesh`` logger (``logging.DEBUG``).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from . import shapes as _shapes
+from .bands.caps import CapError
+from .digitize import gauss_volume, outer_jordan_stack
+from .errors import InapplicableOption, StackSurfaceError
+from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
+from .io.volumes import VOLUME_SUFFIXES, read_volume
+from .rasterize import rasterize_stack
+from .refine import REFINERS, refine_stack
+from .sections import trace_contours
+from .surface import _nested_chains, stack_to_mesh
+from .types import ContourStack, Mesh, Section
+from .volume_input import prepare_volume
+from .volumes import volume_to_mesh
+
+__all__ = ["mesh", "mesh_shape", "mesh_stack", "mesh_volume", "mesh_file", "source_kind", "is_file_source",
+           "OPTIONS"]
+
+log = logging.getLogger("contourmesh")
+
+#: The keywords that apply to each kind of source, beyond the method keywords.
+OPTIONS = {
+    "shape": ("h",),
+    "stack": ("pixel",),
+    "volume": ("spacing", "z", "axis", "label", "threshold", "origin"),
+    "contour file": ("roi", "pixel"),
+    "volume file": ("spacing", "z", "axis", "label", "threshold", "origin"),
+}
+METHOD_OPTIONS = ("polygon", "triangulation", "caps", "refine", "progress")
+
+_WHY = {
+    ("shape", "spacing"): "an analytic shape is digitized on a cubic grid; use h= for its grid step",
+    ("shape", "origin"): "an analytic shape carries its own placement; use center= on the shape",
+    ("stack", "spacing"): "a ContourStack carries its own heights and pixel spacing",
+    ("stack", "z"): "a ContourStack carries its own section heights",
+    ("stack", "origin"): "a ContourStack carries its own origin",
+    ("contour file", "spacing"): "contour files hold physical coordinates; use pixel= for the raster size",
+    ("contour file", "origin"): "contour files hold physical coordinates",
+    ("contour file", "z"): "contour files carry their own section heights",
+    ("contour file", "label"): "label= and threshold= select voxels of a volume; use roi= to pick a structure",
+    ("contour file", "threshold"): "label= and threshold= select voxels of a volume; use roi= to pick a structure",
+    ("volume", "roi"): "roi= picks a structure of a contour file; use label= for a labelled volume",
+    ("volume file", "roi"): "roi= picks a structure of a contour file; use label= for a labelled volume",
+    ("volume", "pixel"): "pixel= is the raster size for contour files; a volume is already voxels",
+    ("volume file", "pixel"): "pixel= is the raster size for contour files; a volume is already voxels",
+    ("volume", "h"): "h= is the grid step for analytic shapes; use spacing= for a volume",
+    ("volume file", "h"): "h= is the grid step for analytic shapes; use spacing= for a volume",
+}
+
+_ARTICLE = {"shape": "an analytic shape", "stack": "a ContourStack", "volume": "an array",
+            "contour file": "a contour file", "volume file": "a volume file"}
+
+
+def is_file_source(source) -> bool:
+    """Whether ``source`` names a file: a ``Path``, or a string that names an existing file or folder
+    or ends with a suffix contourmesh reads (so a missing file gives FileNotFoundError, not a
+    shape-spec parse error)."""
+    if isinstance(source, Path):
+        return True
+    if not isinstance(source, str):
+        return False
+    if source.lower().endswith(VOLUME_SUFFIXES + CONTOUR_SUFFIXES):
+        return True
+    try:
+        return Path(source).expanduser().exists()
+    except (OSError, ValueError):
+        return False
+
+
+def source_kind(source) -> str:
+    """``"shape"``, ``"stack"``, ``"volume"``, ``"contour file"`` or ``"volume file"``.
+
+    Raises
+    ------
+    TypeError
+        For anything else.
+    """
+    if isinstance(source, (_shapes.Shape)):
+        return "shape"
+    if isinstance(source, ContourStack):
+        return "stack"
+    if isinstance(source, np.ndarray):
+        return "volume"
+    if is_file_source(source):
+        p = Path(source).expanduser()
+        return "contour file" if p.is_file() and is_contour_file(p) else "volume file"
+    if isinstance(source, str):
+        return "shape"
+    raise TypeError(
+        f"cannot mesh a {type(source).__name__}: expected a shape (contourmesh.shapes), a shape spec "
+        "string such as 'sphere:r=40', a file path, a ContourStack or a 3D numpy array"
+    )
+
+
+def _refuse_inapplicable(kind: str, given: dict) -> None:
+    allowed = set(OPTIONS[kind]) | set(METHOD_OPTIONS)
+    for key in given:
+        if key not in allowed:
+            why = _WHY.get((kind, key))
+            if why is None:
+                why = f"{_ARTICLE[kind]} takes {', '.join(k + '=' for k in OPTIONS[kind])}"
+            known = set(METHOD_OPTIONS).union(*OPTIONS.values())
+            if key not in known:
+                raise TypeError(f"mesh() got an unexpected keyword {key}=; expected one of "
+                                f"{', '.join(sorted(k + '=' for k in known))}")
+            raise InapplicableOption(f"{key}= does not apply to {_ARTICLE[kind]}: {why}")
+
+
+def mesh(source, **options) -> Mesh:
+    """The mesh source of contourmesh: ``source -> Mesh``, closed and outward-oriented.
+
+    Looks at ``source`` and calls :func:`mesh_shape`, :func:`mesh_stack`, :func:`mesh_volume` or
+    :func:`mesh_file` with ``options``.  See those functions for the keywords each takes.
+
+    Parameters
+    ----------
+    source : Shape, str, Path, ContourStack or numpy.ndarray
+        An analytic shape (``contourmesh.shapes.Sphere(40, center=(0.3, 0.1, 0.2))``), a shape spec
+        string (``"sphere:r=40"``, ``"torus:R=30,r=9"``), a file (volumes: ``.npy .npz .tif .nii[.gz]
+        .vol .inr[.gz]``; contours: ``.json``, DICOM RTSTRUCT ``.dcm``), a ContourStack, or a 3D array
+        indexed ``[z, y, x]`` (binary, or labels with ``label=`` / ``threshold=``).
+    **options
+        ``polygon`` ({"mlp", "dss", "none"}), ``triangulation`` ({"wiederhold", "greedy", "optimal",
+        "arclength"}; default ``"wiederhold"``, or ``"optimal"`` with ``refine="band"``), ``caps``
+        ({"flat", "half"}), ``refine`` ({None, "none", "band"}), ``progress``, and the keywords of
+        the source's entry point.
+
+    Returns
+    -------
+    Mesh
+        ``meta`` holds ``area_true`` when the source knows it, and ``route``.
+
+    Raises
+    ------
+    InapplicableOption
+        A keyword that does not apply to this kind of source (a ``TypeError``).
+
+    Examples
+    --------
+    >>> import numpy as np, contourmesh
+    >>> box = np.zeros((6, 6, 6), bool); box[1:5, 1:5, 1:5] = True
+    >>> contourmesh.mesh(box, spacing=(2, 1, 1)).area
+    80.0
+    >>> contourmesh.mesh("sphere:r=5", spacing=(2, 1, 1))
+    Traceback (most recent call last):
+    ...
+    contourmesh.errors.InapplicableOption: spacing= does not apply to an analytic shape: an analytic shape is digitized on a cubic grid; use h= for its grid step
+    """
+    kind = source_kind(source)
+    given = {k: v for k, v in options.items() if v is not None}
+    _refuse_inapplicable(kind, given)
+    entry = {"shape": mesh_shape, "stack": mesh_stack, "volume": mesh_volume,
+             "contour file": mesh_file, "volume file": mesh_file}[kind]
+    return entry(source, **given)
+
+
+# ------------------------------------------------------------------------------------------------
+# method keywords
+# ------------------------------------------------------------------------------------------------
+def _refine_method(refine) -> str | None:
+    if refine in (None, "none"):
+        return None
+    if refine not in REFINERS:
+        raise ValueError(f"unknown refine method {refine!r}; expected one of {list(REFINERS)}")
+    return refine
+
+
+def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Mesh:
+    log.debug("refined route: refine_stack(%r) then the stack mesher", refine)
+    fine = refine_stack(stack, refine, polygon=polygon)
+    m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps)
+    return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, polygon=polygon, refine=refine, route="refined"))
+
+
+def _with_meta(m: Mesh, **meta) -> Mesh:
+    return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, **meta))
+
+
+# ------------------------------------------------------------------------------------------------
+# typed entry points
+# ------------------------------------------------------------------------------------------------
+def mesh_shape(shape, *, h: float = 1.0, polygon: str = "mlp", triangulation: str | None = None,
+               caps: str = "flat", refine: str | None = None, progress: bool = False) -> Mesh:
+    """Mesh an analytic shape digitized on the grid ``h * Z^3`` (slices at ``z = k h``).
+
+    A shape whose slices each hold one contour (or nested outer/hole chains, like a torus lying
+    flat) is meshed as in the paper, from its outer Jordan contour stack; any other shape (a
+    standing torus, a rotated shape) through its Gauss digitization by the volume mesher.
+
+    Raises
+    ------
+    ValueError
+        A shape narrower than two grid steps in some direction: the grid cannot resolve it.
+    """
+    if isinstance(shape, str):
+        shape = _shapes.parse_shape_spec(shape)
+    if not isinstance(shape, _shapes.Shape):
+        raise TypeError(f"mesh_shape needs a shape or a spec string; got {type(shape).__name__}")
+    h = float(h)
+    if not (np.isfinite(h) and h > 0):
+        raise ValueError(f"h must be a positive grid step; got {h}")
+    lo, hi = shape._local_bounds()
+    width = float(np.min(np.asarray(hi, float) - np.asarray(lo, float)))
+    if width < 2 * h:
+        raise ValueError(f"{shape.spec} is {width:g} wide in its narrowest direction, less than two grid "
+                         f"steps (h={h:g}): the digitization cannot resolve it; use a smaller h")
+    refine = _refine_method(refine)
+    stack = outer_jordan_stack(shape, h=h)
+    if refine is not None:
+        return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+    triangulation = triangulation or "wiederhold"
+    if all(len(s.contours) == 1 for s in stack.sections) or _nested_chains(stack) is not None:
+        return _with_meta(stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps),
+                          route="stack")
+    log.debug("%s: several contours in a slice; meshing its Gauss digitization", shape.spec)
+    vol, org = gauss_volume(shape, h=h)
+    m = volume_to_mesh(vol, polygon=polygon, triangulation=triangulation, caps=caps, spacing=(h, h, h),
+                       origin=org, progress=progress)
+    meta = dict(stack.meta)
+    meta.update(m.meta)
+    meta["route"] = "volume"
+    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
+
+
+def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str = "mlp",
+               triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
+               progress: bool = False) -> Mesh:
+    """Mesh a contour stack, choosing the route by what the stack holds.
+
+    * Every section has exactly one contour and either the contours are integer grid points or
+      ``polygon="none"``: the stack route (real-valued contours are triangulated as drawn).
+    * Otherwise (several contours per slice, holes, DSS/MLP polygons of real-valued rings, or a
+      real-valued ring that cannot be capped or closed as drawn): the stack is rasterized even-odd
+      at ``pixel`` (default: the median point spacing) and meshed by the volume mesher at the
+      sections' own heights.
+
+    ``meta["route"]`` records the route taken and ``meta["pixel"]`` the raster size.
+    """
+    if not isinstance(stack, ContourStack):
+        raise TypeError(f"mesh_stack needs a ContourStack; got {type(stack).__name__}")
+    refine = _refine_method(refine)
+    if refine is not None:
+        if pixel is not None:
+            raise InapplicableOption("pixel= does not apply with refine='band': the refinement meshes the "
+                                     "stack's own grid contours, without rasterizing")
+        return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+    triangulation = triangulation or "wiederhold"
+    one_each = all(len(s.contours) == 1 for s in stack.sections)
+    integer = all(np.asarray(c).dtype.kind in "iu" for s in stack.sections for c in s.contours)
+    if one_each and (integer or polygon == "none"):
+        try:
+            return _with_meta(stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps),
+                              route="stack")
+        except (CapError, StackSurfaceError) as exc:
+            if integer:
+                raise
+            # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): the
+            # raster route below resolves it even-odd
+            log.debug("stack route failed (%s); re-routing to the raster route", exc)
+    r = rasterize_stack(stack, pixel)
+    m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation, caps=caps,
+                       progress=progress)
+    meta = dict(m.meta)
+    meta.update(stack.meta)  # the stack's source, roi and units win over the volume mesher's
+    meta.update(route="raster", pixel=r.spacing[0])
+    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
+
+
+def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack:
+    """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement)."""
+    if dx != dy:
+        raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
+    sections = []
+    for k in range(mask.shape[0]):
+        if not mask[k].any():
+            continue
+        contours, _ = trace_contours(mask[k])
+        if len(contours) != 1:
+            raise ValueError(f"refine='band' needs one contour per slice; slice {k} has {len(contours)}")
+        sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
+    return ContourStack(tuple(sections), spacing=(dx, dy), origin=(ox, oy), meta={"source": "volume"})
+
+
+def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=None, threshold=None,
+                origin=None, polygon: str = "mlp", triangulation: str | None = None, caps: str = "flat",
+                refine: str | None = None, progress: bool = False) -> Mesh:
+    """Mesh a 3D array indexed ``[z, y, x]`` (any topology: holes, branching, cavities).
+
+    Parameters
+    ----------
+    volume : numpy.ndarray
+        Binary, or labels/values with ``label=`` (voxels equal to it) or ``threshold=`` (voxels
+        above it).  A volume holding exactly two distinct values (0 and 255, say) is binary.
+    spacing : (dz, dy, dx), default (1, 1, 1)
+        Voxel size; areas come out in the square of its unit.
+    z : array, optional
+        Explicit, strictly increasing slice positions (uneven spacing).
+    axis : {0, 1, 2}, default 0
+        The slicing axis.
+    origin : (x, y, z), default (0, 0, 0)
+        Physical position of the centre of voxel ``[0, 0, 0]``.
+    """
+    spacing = (1.0, 1.0, 1.0) if spacing is None else spacing
+    origin = (0.0, 0.0, 0.0) if origin is None else origin
+    axis = 0 if axis is None else axis
+    refine = _refine_method(refine)
+    if refine is not None:
+        mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
+                                                      threshold=threshold, origin=origin)
+        return _refined(_stack_of_mask(mask, zs, dy, dx, ox, oy), polygon=polygon, triangulation=triangulation,
+                        caps=caps, refine=refine)
+    m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
+                       polygon=polygon, triangulation=triangulation or "wiederhold", caps=caps, progress=progress)
+    return _with_meta(m, route="volume")
+
+
+def mesh_file(path, *, roi=None, pixel=None, spacing=None, z=None, axis: int | None = None, label=None,
+              threshold=None, origin=None, polygon: str = "mlp", triangulation: str | None = None,
+              caps: str = "flat", refine: str | None = None, progress: bool = False) -> Mesh:
+    """Mesh a file: a contour stack (``.json``, DICOM RTSTRUCT, contour ``.npz``) or a volume.
+
+    Contour files take ``roi`` (the structure, by name or number) and ``pixel`` (the raster size)
+    and go through :func:`mesh_stack`.  Volume files take the keywords of :func:`mesh_volume`;
+    they carry their own spacing and origin, which ``spacing=`` and ``origin=`` replace when
+    given (``meta["spacing"]`` records the spacing used).  ``meta["source"]`` is the path.
+    """
+    from .io import check_file
+
+    p = check_file(path, "input")
+    kind = "contour file" if is_contour_file(p) else "volume file"
+    _refuse_inapplicable(kind, {k: v for k, v in dict(roi=roi, pixel=pixel, spacing=spacing, z=z, axis=axis,
+                                                      label=label, threshold=threshold, origin=origin).items()
+                                if v is not None})
+    if kind == "contour file":
+        m = mesh_stack(read_contours(p, roi=roi), pixel=pixel, polygon=polygon, triangulation=triangulation,
+                       caps=caps, refine=refine, progress=progress)
+        return _with_meta(m, source=str(p))
+    vol, file_spacing, file_origin = read_volume(p, label=label, threshold=threshold)
+    used = tuple(float(s) for s in spacing) if spacing is not None else file_spacing
+    if spacing is not None:
+        log.debug("%s: spacing=%s replaces the file's %s", p, used, file_spacing)
+    m = mesh_volume(vol, spacing=used, z=z, axis=axis, origin=file_origin if origin is None else origin,
+                    polygon=polygon, triangulation=triangulation, caps=caps, refine=refine, progress=progress)
+    return _with_meta(m, source=str(p), spacing=used)

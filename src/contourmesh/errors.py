@@ -1,0 +1,53 @@
+"""The exceptions and warnings of contourmesh, in one place.
+
+Every error that a bad input can cause derives from :class:`ContourMeshError`, itself a
+``ValueError``; a keyword that does not apply to the source is also a ``TypeError``.  Wrong types
+raise ``TypeError``; wrong values ``ValueError``.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+__all__ = ["ContourMeshError", "InapplicableOption", "CapError", "StackSurfaceError", "MissingDependency",
+           "LostContourWarning", "warn_external"]
+
+
+class ContourMeshError(ValueError):
+    """Base class of contourmesh's own errors about its inputs."""
+
+
+class InapplicableOption(ContourMeshError, TypeError):
+    """A keyword was given that does not apply to this kind of source (it would be ignored)."""
+
+
+class CapError(ContourMeshError):
+    """A planar cap cannot be triangulated as given (its rings cross or touch each other)."""
+
+
+class StackSurfaceError(ContourMeshError):
+    """The contours do not bound a closed surface on the stack route (e.g. a keyhole contour)."""
+
+
+class MissingDependency(ImportError):
+    """An optional package that a method, reader or adapter needs is not installed."""
+
+
+class LostContourWarning(UserWarning):
+    """A contour encloses no pixel centre at the chosen pixel size, so the raster loses it."""
+
+
+_PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def warn_external(message: str, category=UserWarning) -> None:
+    """Warn, attributing the warning to the first frame outside contourmesh (the user's call)."""
+    import sys
+
+    level = 2
+    frame = sys._getframe(1)
+    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE_DIR):
+        frame = frame.f_back
+        level += 1
+    warnings.warn(message, category, stacklevel=level)

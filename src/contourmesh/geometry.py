@@ -1,0 +1,118 @@
+"""Plane geometry shared by the meshers: even-odd point tests and fills, ring areas, grid maps.
+
+Rings are ``(k, 2)`` arrays of ``(x, y)`` points, closed implicitly.  Nothing here knows about
+sections, stacks or meshes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["points_in_rings", "shoelace_area", "grid_to_xy"]
+
+
+def grid_to_xy(ox, oy, dx, dy):
+    """Maps from pixel-centre and pixel-corner grid coordinates to physical ``(x, y)``.
+
+    Pixel ``(i, j)`` has its centre at ``(ox + i dx, oy + j dy)``; corner ``(i, j)`` is its
+    lower-left corner, half a pixel below and left of the centre.
+    """
+    def to_center(p):
+        p = np.asarray(p, dtype=np.float64)
+        return np.c_[ox + p[:, 0] * dx, oy + p[:, 1] * dy]
+
+    def to_corner(p):
+        p = np.asarray(p, dtype=np.float64)
+        return np.c_[ox + (p[:, 0] - 0.5) * dx, oy + (p[:, 1] - 0.5) * dy]
+
+    return to_center, to_corner
+
+
+@njit(cache=True)
+def _fill_evenodd(xs, ys, starts, x0, y0, pixel, out):
+    """Scanline even-odd fill of one slice.
+
+    For every pixel row ``j`` (centre height ``yc = y0 + j * pixel``) collect the abscissae where
+    the ring edges cross the line ``y = yc`` (an edge ``a -> b`` crosses when exactly one of its
+    ends has ``y <= yc``: the half-open rule, so a vertex on the line counts once), sort them, and
+    fill the pixels whose centres ``xc`` satisfy ``c[2m] <= xc < c[2m + 1]``.
+    """
+    ny, nx = out.shape
+    nring = len(starts) - 1
+    ncross_max = len(xs)
+    cross = np.empty(ncross_max, dtype=np.float64)
+    for j in range(ny):
+        yc = y0 + j * pixel
+        n = 0
+        for r in range(nring):
+            s, e = starts[r], starts[r + 1]
+            k = e - s
+            for q in range(k):
+                a = s + q
+                b = s + (q + 1) % k
+                ya, yb = ys[a], ys[b]
+                if (ya <= yc) != (yb <= yc):
+                    cross[n] = xs[a] + (yc - ya) * (xs[b] - xs[a]) / (yb - ya)
+                    n += 1
+        if n < 2:
+            continue
+        c = np.sort(cross[:n])
+        for m in range(0, n - 1, 2):
+            i0 = int(np.ceil((c[m] - x0) / pixel))
+            i1 = int(np.ceil((c[m + 1] - x0) / pixel)) - 1
+            if i0 < 0:
+                i0 = 0
+            if i1 > nx - 1:
+                i1 = nx - 1
+            for i in range(i0, i1 + 1):
+                out[j, i] = True
+
+
+@njit(cache=True)
+def _points_in_ring(px, py, rx, ry):
+    """Even-odd (crossing number) test of points against one closed ring, half-open rule."""
+    n = len(px)
+    k = len(rx)
+    inside = np.zeros(n, dtype=np.bool_)
+    for p in range(n):
+        x, y = px[p], py[p]
+        odd = False
+        for q in range(k):
+            a = q
+            b = (q + 1) % k
+            if (ry[a] <= y) != (ry[b] <= y):
+                xc = rx[a] + (y - ry[a]) * (rx[b] - rx[a]) / (ry[b] - ry[a])
+                if x < xc:
+                    odd = not odd
+        inside[p] = odd
+    return inside
+
+
+def points_in_rings(points, ring) -> np.ndarray:
+    """Which of ``points`` ``(n, 2)`` lie inside the closed ``ring`` ``(k, 2)`` (even-odd rule).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+    ring : array_like, shape (k, 2)
+        Closed implicitly; either winding.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (n,)
+    """
+    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    r = np.ascontiguousarray(ring, dtype=np.float64).reshape(-1, 2)
+    if len(r) < 3:
+        return np.zeros(len(p), dtype=bool)
+    return _points_in_ring(p[:, 0].copy(), p[:, 1].copy(), r[:, 0].copy(), r[:, 1].copy())
+
+
+def shoelace_area(points: np.ndarray) -> float:
+    """Signed area of a closed polygon given by ``(k, 2)`` points (positive = our outer orientation)."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) < 3:
+        return 0.0
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))

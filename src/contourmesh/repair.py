@@ -1,0 +1,380 @@
+"""Mesh repair: make a closed triangle surface edge- and vertex-manifold.
+
+Where two voxels (or two contours) touch only along an edge or at a corner, the surface built
+around them has edges shared by four faces and vertices whose faces form several fans.  The
+functions here split such edges and vertices, one copy per fan, and move each copy a small step
+(``nudge``, in the units of the input) into its own fan, so the result is a 2-manifold with the
+same faces.  Used by the volume mesher and the stack mesher alike; mesh in, mesh out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["split_nonmanifold_vertices"]
+
+
+def _split_four_face_edges(V, F, side, nudge):
+    """Replace every edge shared by four faces by two edges through side-specific midpoints.
+
+    Such an edge joins a voxel of one slice and a voxel of the next that touch only along it;
+    the two faces of each side are split at a midpoint of their own, which is then moved
+    ``nudge`` into its side, so the two sheets no longer share the edge.
+    """
+    m = len(F)
+    nv = len(V) + 1
+    e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
+    und = np.minimum(e[..., 0], e[..., 1]) * nv + np.maximum(e[..., 0], e[..., 1])
+    uniq, inv, cnt = np.unique(und.reshape(-1), return_inverse=True, return_counts=True)
+    mult = cnt[inv].reshape(m, 3)
+    if np.any(mult % 2):
+        bad = np.argwhere(mult % 2 == 1)[0]
+        raise RuntimeError(f"internal error: an edge is shared by {int(mult[tuple(bad)])} faces")
+    if np.any(mult > 4):
+        raise RuntimeError(f"internal error: an edge is shared by {int(mult.max())} faces")
+    hit = mult == 4
+    if not hit.any():
+        return V, F, side
+    work = np.flatnonzero(hit.any(axis=1))
+    faces = {int(i): (list(map(int, F[i])), int(side[i])) for i in work}
+    by_edge: dict = {}
+    for i, (f, _) in faces.items():
+        for t in range(3):
+            key = (min(f[t], f[(t + 1) % 3]), max(f[t], f[(t + 1) % 3]))
+            by_edge.setdefault(key, set()).add(i)
+    todo = sorted({tuple(sorted((int(F[i, t]), int(F[i, (t + 1) % 3])))) for i, t in np.argwhere(hit)})
+    newV = []
+    nxt_v = len(V)
+    nxt_f = m
+    Vl = V
+
+    def coord(i):
+        return Vl[i] if i < len(Vl) else newV[i - len(Vl)]
+
+    for u, v in todo:
+        fs = list(by_edge.get((u, v), ()))
+        if len(fs) != 4:
+            raise RuntimeError(f"internal error: edge ({u}, {v}) is shared by {len(fs)} faces while splitting")
+        groups: dict = {}
+        for i in fs:
+            groups.setdefault(faces[i][1], []).append(i)
+        for sd, group in groups.items():
+            if len(group) != 2:
+                raise RuntimeError("internal error: a four-face edge does not pair by side")
+            mid = 0.5 * (coord(u) + coord(v))
+            opp = []
+            for i in group:
+                f = faces[i][0]
+                opp.append([w for w in f if w != u and w != v][0])
+            toward = np.mean([coord(w) for w in opp], axis=0) - mid
+            nrm = np.linalg.norm(toward)
+            if nrm > 0:
+                mid = mid + toward * (nudge / nrm)
+            newV.append(mid)
+            mv = nxt_v
+            nxt_v += 1
+            for i in group:
+                f, _ = faces.pop(i)
+                for t in range(3):
+                    key = (min(f[t], f[(t + 1) % 3]), max(f[t], f[(t + 1) % 3]))
+                    by_edge[key].discard(i)
+                t = [k for k in range(3) if {f[k], f[(k + 1) % 3]} == {u, v}][0]
+                a, b, c = f[t], f[(t + 1) % 3], f[(t + 2) % 3]
+                for nf in ([a, mv, c], [mv, b, c]):
+                    faces[nxt_f] = (nf, sd)
+                    for k in range(3):
+                        key = (min(nf[k], nf[(k + 1) % 3]), max(nf[k], nf[(k + 1) % 3]))
+                        by_edge.setdefault(key, set()).add(nxt_f)
+                    nxt_f += 1
+    keep = np.ones(m, dtype=bool)
+    keep[work] = False
+    items = list(faces.values())
+    F2 = np.concatenate([F[keep], np.array([f for f, _ in items], dtype=np.int64).reshape(-1, 3)])
+    S2 = np.concatenate([side[keep], np.array([sd for _, sd in items], dtype=side.dtype)])
+    V2 = np.concatenate([V, np.array(newV).reshape(-1, 3)])
+    return V2, F2, S2
+
+
+@njit(cache=True, nogil=True)
+def _corner_components(n, a1, b1, a2, b2):
+    """Connected components of ``n`` nodes under the links ``a1[i] - b1[i]`` and ``a2[i] - b2[i]``:
+    ``(count, label per node, lowest node of each label)``, labels numbered in order of each
+    component's lowest node."""
+    parent = np.arange(n)
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for i in range(len(a1)):
+        for x, y in ((a1[i], b1[i]), (a2[i], b2[i])):
+            rx, ry = find(x), find(y)
+            if rx != ry:
+                if rx < ry:
+                    parent[ry] = rx
+                else:
+                    parent[rx] = ry
+    lab = np.empty(n, np.int64)
+    first = np.empty(n, np.int64)
+    count = 0
+    for x in range(n):
+        r = find(x)
+        if r == x:
+            lab[x] = count
+            first[count] = x
+            count += 1
+        else:
+            lab[x] = lab[r]
+    return count, lab, first[:count]
+
+
+def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
+    """Make a closed mesh a manifold: pair faces at 4-face edges by side, split vertex fans.
+
+    Edges shared by four faces occur where two voxels of consecutive slices touch along an
+    edge (6-connectivity keeps them apart): each ``side``'s pair of faces gets an edge of its
+    own (:func:`_split_four_face_edges`).  Then every vertex whose faces form several fans (touching corners) is split
+    into one vertex per fan, and each copy is moved ``nudge`` (absolute units) towards the
+    centroid of its fan so that the touching surfaces no longer share a point.  ``four_face=False``
+    skips the first step (for a caller that has already split the four-face edges).
+    """
+    F = np.asarray(F, dtype=np.int64)
+    m = len(F)
+    if m == 0:
+        return V, F
+    side = np.zeros(m, dtype=np.int64) if side is None else np.asarray(side, dtype=np.int64)
+    V = np.asarray(V, dtype=np.float64)
+    if four_face:
+        V, F, side = _split_four_face_edges(V, F, side, nudge)
+    m = len(F)
+    nv = len(V) + 1
+    fi = np.repeat(np.arange(m), 3)
+    li = np.tile(np.arange(3), m)
+    u = F[fi, li]
+    v = F[fi, (li + 1) % 3]
+    key_uv = u * nv + v
+    key_vu = v * nv + u
+    order = np.argsort(key_uv, kind="stable")
+    sk = key_uv[order]
+    # every directed edge once and every one with its opposite <=> every edge in exactly two faces
+    same = np.flatnonzero(sk[1:] == sk[:-1])
+    if len(same):
+        bad = int(order[same[0]])
+        raise RuntimeError(
+            f"internal error: edge ({u[bad]}, {v[bad]}) is used twice in one direction; cannot make a manifold"
+        )
+    pos = np.clip(np.searchsorted(sk, key_vu), 0, len(order) - 1)
+    twin = order[pos]
+    del sk, pos, order
+    ok = key_uv[twin] == key_vu
+    if not ok.all():
+        bad = int(np.flatnonzero(~ok)[0])
+        raise RuntimeError(
+            f"internal error: half-edge ({u[bad]}, {v[bad]}) has no opposite half-edge; the surface is not closed "
+            "and consistently oriented"
+        )
+    del key_uv, key_vu, ok
+    t = twin
+    # corner ids
+    c_fu = fi * 3 + li
+    c_fv = fi * 3 + (li + 1) % 3
+    g = fi[t]
+    lg = li[t]  # in face g, the edge starts at v (local lg) and ends at u (local lg+1)
+    c_gv = g * 3 + lg
+    c_gu = g * 3 + (lg + 1) % 3
+    # fans = connected components of the corners linked across every edge (union-find; labels
+    # numbered in order of each component's lowest corner, as scipy's connected_components does)
+    del fi, li, g, lg, t, twin
+    ncomp, lab, first = _corner_components(3 * m, c_fu, c_gu, c_fv, c_gv)
+    del c_fu, c_fv, c_gu, c_gv
+    vert_of_corner = F.reshape(-1)
+    # a vertex keeps its first fan; other fans get new vertices
+    fan_vertex = vert_of_corner[first]  # vertex of each fan
+    fans_per_vertex = np.bincount(fan_vertex, minlength=len(V))
+    if not np.any(fans_per_vertex > 1):
+        return V, F
+    # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
+    # in the order of (vertex, fan)
+    centroids = V[F].mean(axis=1)
+    by_vertex = np.argsort(fan_vertex, kind="stable")
+    sv = fan_vertex[by_vertex]
+    head = np.r_[True, sv[1:] != sv[:-1]]
+    fan_to_new = np.empty(ncomp, dtype=np.int64)
+    fan_to_new[by_vertex[head]] = sv[head]
+    others = by_vertex[~head]
+    fan_to_new[others] = len(V) + np.arange(len(others))
+    F2 = fan_to_new[lab].reshape(-1, 3)
+    new_V = [V, V[fan_vertex[others]]]
+    V2 = np.concatenate(new_V)
+    # nudge every copy of a split vertex towards the centroid of its fan
+    corner_face = np.arange(3 * m) // 3
+    counts = np.bincount(lab, minlength=ncomp).astype(np.float64)
+    target = np.stack([np.bincount(lab, weights=centroids[corner_face, d], minlength=ncomp) for d in range(3)], axis=1)
+    target /= counts[:, None]
+    moved = np.flatnonzero(fans_per_vertex[fan_vertex] > 1)
+    vid = fan_to_new[moved]
+    d = target[moved] - V2[vid]
+    nrm = np.linalg.norm(d, axis=1)
+    good = nrm > 0
+    V2[vid[good]] += d[good] * (nudge / nrm[good])[:, None]
+    return V2, F2
+
+
+def _open_necks(V, F, S, necks, nudge):
+    """Replace each neck vertex by a small tube joining its two fans.
+
+    At a mid-plane corner where the two empty voxels of the 2 x 2 x 2 block around it touch only
+    at that corner (the six others are object), the surface meets itself in two cones there.  The
+    background is 26-connected, so it passes through the point: the cones are joined by a tube
+    (the star of the vertex is removed and its two link cycles are joined by a band).
+    """
+    if len(necks) == 0:
+        return V, F, S
+    neck_ids = np.unique(necks)
+    # faces (old and new, by index into `faces`) around each neck vertex, kept up to date
+    faces = [tuple(f) for f in F[np.isin(F, neck_ids).any(axis=1)].tolist()]
+    old_index = np.flatnonzero(np.isin(F, neck_ids).any(axis=1))  # their rows in F
+    n_old = len(faces)
+    star_of = {int(c): [] for c in neck_ids}
+    for t, f in enumerate(faces):
+        for v in f:
+            if v in star_of:
+                star_of[v].append(t)
+    alive = [True] * n_old
+    Vs = [V]
+    nv = len(V)
+    pos = {}
+
+    def xyz(ids):
+        return np.array([V[i] if i < len(V) else pos[i] for i in ids])
+
+    for c in neck_ids.tolist():  # one at a time: a neck's link may hold another neck
+        star = [t for t in star_of.pop(c) if alive[t]]
+        link = {}
+        for t in star:
+            f = faces[t]
+            i = f.index(c)
+            x, y = f[(i + 1) % 3], f[(i + 2) % 3]
+            if x in link:
+                raise RuntimeError("internal error: a neck vertex is not the apex of two cones")
+            link[x] = y
+        cycles = []
+        seen = set()
+        for x0 in link:
+            if x0 in seen:
+                continue
+            cyc = [x0]
+            seen.add(x0)
+            x = link[x0]
+            while x != x0:
+                cyc.append(x)
+                seen.add(x)
+                x = link[x]
+            cycles.append(cyc)
+        if len(cycles) != 2:
+            raise RuntimeError(f"internal error: a neck vertex has {len(cycles)} fans, expected 2")
+        # replace the apex of each cone by a tiny ring of new vertices (one per link vertex,
+        # a hair from the apex towards it), then join the two rings by a tube
+        new_faces = []
+        tube = []
+        pc = xyz([c])[0]
+        for n_c, cyc in enumerate(cycles):
+            eps = nudge * (1.0 + 0.5 * n_c)
+            dirs = xyz(cyc) - pc
+            dirs /= np.maximum(np.linalg.norm(dirs, axis=1), 1e-300)[:, None]
+            ids = nv + np.arange(len(cyc))
+            ring = pc + eps * dirs
+            Vs.append(ring)
+            for q, r in zip(ids.tolist(), ring):
+                pos[q] = r
+            nv += len(cyc)
+            k = len(cyc)
+            for t in range(k):
+                x, y = cyc[t], cyc[(t + 1) % k]
+                rx, ry = int(ids[t]), int(ids[(t + 1) % k])
+                new_faces += [(rx, x, y), (rx, y, ry)]
+            tube.append(ids)
+        a = tube[0]
+        b = tube[1][::-1]
+        n, m = len(a), len(b)
+        d = np.linalg.norm(xyz(a.tolist())[:, None, :] - xyz(b.tolist())[None, :, :], axis=2)
+        i0, j0 = np.unravel_index(np.argmin(d), d.shape)
+        a = np.roll(a, -i0).tolist()
+        b = np.roll(b, -j0).tolist()
+        i = j = 0
+        while i < n or j < m:  # advance both rings in proportion (no fold)
+            if j >= m or (i < n and (i + 1) * m <= (j + 1) * n):
+                new_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
+                i += 1
+            else:
+                new_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
+                j += 1
+        for t in star:
+            alive[t] = False
+        for f in new_faces:
+            t = len(faces)
+            faces.append(f)
+            alive.append(True)
+            for v in f:
+                if v in star_of:
+                    star_of[v].append(t)
+    keep = np.ones(len(F), dtype=bool)
+    keep[old_index[~np.array(alive[:n_old], dtype=bool)]] = False
+    added = [f for f, ok in zip(faces[n_old:], alive[n_old:]) if ok]
+    F = np.concatenate([F[keep], np.array(added, dtype=np.int64).reshape(-1, 3)])
+    S = np.concatenate([S[keep], np.zeros(len(added), dtype=S.dtype)])
+    V = np.concatenate(Vs)
+    return V, F, S
+
+
+def _separate_coincident(V, F, nudge):
+    """Move vertices that share a position apart, each towards the centroid of its own faces."""
+    inv, cnt = _group_rows(V)
+    dup = np.flatnonzero(cnt[inv] > 1)
+    if len(dup) == 0:
+        return V
+    # the j-th copy of a position moves (1 + j/2) nudges: copies heading the same way stay apart
+    order = np.argsort(inv[dup], kind="stable")
+    rank = np.empty(len(dup), dtype=np.int64)
+    grp = inv[dup][order]
+    starts = np.r_[0, np.flatnonzero(np.diff(grp)) + 1]
+    rank[order] = np.arange(len(dup)) - np.repeat(starts, np.diff(np.r_[starts, len(dup)]))
+    V = V.copy()
+    cen = V[F].mean(axis=1)
+    corner_v = F.reshape(-1)
+    corner_f = np.repeat(np.arange(len(F)), 3)
+    acc = np.zeros((len(V), 3))
+    np.add.at(acc, corner_v, cen[corner_f])
+    deg = np.bincount(corner_v, minlength=len(V)).astype(np.float64)
+    target = acc[dup] / np.maximum(deg[dup], 1)[:, None]
+    d = target - V[dup]
+    nrm = np.linalg.norm(d, axis=1)
+    ok = nrm > 0
+    step = nudge * (1.0 + 0.5 * rank)
+    V[dup[ok]] += d[ok] * (step[ok] / nrm[ok])[:, None]
+    return V
+
+
+def _group_rows(V):
+    """``(inv, cnt)``: a group number per row of ``V`` (rows with equal values share it) and the
+    size of each group; like ``np.unique(V, axis=0, return_inverse=True, return_counts=True)``
+    without sorting the rows as records."""
+    if len(V) == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    order = np.lexsort(V.T[::-1])
+    sv = V[order]
+    new = np.r_[True, np.any(sv[1:] != sv[:-1], axis=1)]
+    gid = np.cumsum(new) - 1
+    inv = np.empty(len(V), dtype=np.int64)
+    inv[order] = gid
+    return inv, np.bincount(gid)
+
+
+def _compact(V, F):
+    used = np.flatnonzero(np.bincount(F.reshape(-1), minlength=len(V)))
+    remap = np.full(len(V), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return V[used], remap[F]

@@ -1,0 +1,170 @@
+"""The front door: every source kind x option pair either applies or raises, never silently ignored."""
+
+import itertools
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import contourmesh
+from contourmesh import api
+from contourmesh.errors import ContourMeshError, InapplicableOption
+from contourmesh.io import write_contours_json
+from contourmesh.stacks import stack_from_rings
+from contourmesh.types import ContourStack, Section
+from contourmesh.digitize import outer_jordan_stack
+from contourmesh.shapes import Sphere
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _box(shape=(6, 6, 6)):
+    v = np.zeros(shape, bool)
+    v[1:-1, 1:-1, 1:-1] = True
+    return v
+
+
+def _square(x, y, s):
+    return np.array([[x, y], [x + s, y], [x + s, y + s], [x, y + s]], float)
+
+
+@pytest.fixture(scope="module")
+def sources(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sources")
+    np.save(d / "box.npy", _box())
+    st = stack_from_rings([(z, [_square(0, 0, 6)]) for z in (0.0, 1.0, 2.0)])
+    write_contours_json(st, d / "c.json")
+    grid = outer_jordan_stack(Sphere(4, center=(0.3, 0.2, 0.1)))
+    return {"shape": "sphere:r=4", "stack": grid, "volume": _box(), "volume file": str(d / "box.npy"),
+            "contour file": str(d / "c.json")}
+
+
+VALUES = {"h": 1.0, "pixel": 0.5, "spacing": (1.0, 1.0, 1.0), "z": None, "axis": 0, "label": 1, "threshold": 0.5,
+          "origin": (0.0, 0.0, 0.0), "roi": 1}
+KINDS = ["shape", "stack", "volume", "volume file", "contour file"]
+
+
+@pytest.mark.parametrize("kind,key", list(itertools.product(KINDS, [k for k in VALUES if k != "z"])))
+def test_every_option_applies_or_raises(sources, kind, key):
+    """For each source kind and option: in OPTIONS, it is used (the call works); else InapplicableOption."""
+    src = sources[kind]
+    applies = key in api.OPTIONS[kind]
+    if applies:
+        if kind == "contour file" and key == "roi":
+            pytest.skip("a JSON contour stack holds one structure; roi= is exercised on RTSTRUCT in test_io")
+        m = contourmesh.mesh(src, **{key: VALUES[key]})
+        assert m.checks()["watertight"]
+    else:
+        with pytest.raises(InapplicableOption, match=f"{key}= does not apply to"):
+            contourmesh.mesh(src, **{key: VALUES[key]})
+
+
+def test_inapplicable_option_is_a_type_error_and_a_value_error():
+    assert issubclass(InapplicableOption, TypeError) and issubclass(InapplicableOption, ContourMeshError)
+    assert issubclass(ContourMeshError, ValueError)
+    with pytest.raises(TypeError, match="use h= for its grid step"):
+        contourmesh.mesh("sphere:r=5", spacing=(2, 1, 1))
+
+
+def test_unknown_keyword_is_a_type_error():
+    with pytest.raises(TypeError, match="unexpected keyword spacings="):
+        contourmesh.mesh(_box(), spacings=(1, 1, 1))
+
+
+def test_spacing_of_an_npy_file_is_used(sources):
+    """The regression: a 4x4x4 cube with spacing (2, 1, 1) has area 2*(16 + 32 + 32) = 160... of the
+    voxel surface; the mesh's area must change with the spacing, as on the array route."""
+    path = sources["volume file"]
+    plain = contourmesh.mesh(path).area
+    arr = contourmesh.mesh(_box(), spacing=(2, 1, 1)).area
+    assert contourmesh.mesh(path, spacing=(2, 1, 1)).area == pytest.approx(arr)
+    assert arr != pytest.approx(plain)
+    assert contourmesh.mesh(path, spacing=(2, 1, 1)).meta["spacing"] == (2.0, 1.0, 1.0)
+
+
+def test_bad_spacing_on_a_file_is_refused(sources):
+    with pytest.raises(ValueError, match="spacing must be three positive"):
+        contourmesh.mesh(sources["volume file"], spacing=(1, 1))
+
+
+@pytest.mark.parametrize("kind", ["volume", "volume file", "shape", "stack"])
+def test_refine_band_on_every_single_contour_source(sources, kind):
+    m = contourmesh.mesh(sources[kind], refine="band")
+    assert m.meta["refine"] == "band" and m.checks()["watertight"] and m.volume > 0
+
+
+def test_refine_band_needs_grid_contours_on_a_contour_file(sources):
+    with pytest.raises(ValueError, match="integer grid contours"):
+        contourmesh.mesh(sources["contour file"], refine="band")
+
+
+def test_two_valued_volume_is_binary():
+    v = _box().astype(np.uint8) * 255
+    assert contourmesh.mesh(v).area == pytest.approx(contourmesh.mesh(_box()).area)
+    w = _box().astype(np.uint8) * 96
+    w[2, 2, 2] = 3
+    with pytest.raises(ValueError, match=r"dtype uint8, from 0 to 96\); pass label="):
+        contourmesh.mesh(w)
+
+
+def test_a_shape_below_the_grid_is_an_error():
+    with pytest.raises(ValueError, match="less than two grid steps"):
+        contourmesh.mesh("sphere:r=0.2")
+    assert contourmesh.mesh("sphere:r=0.2", h=0.05).checks()["watertight"]
+
+
+def test_two_dimensional_arrays_are_refused_by_api_and_files(tmp_path):
+    img = np.ones((4, 4), bool)
+    with pytest.raises(ValueError, match="2D .*image\\[None\\]"):
+        contourmesh.mesh(img)
+    np.save(tmp_path / "img.npy", img)
+    with pytest.raises(ValueError, match="2D .*image\\[None\\]"):
+        contourmesh.mesh(str(tmp_path / "img.npy"))
+
+
+def test_section_parents_of_the_wrong_length_raise():
+    c = np.array([[0, 0], [2, 0], [2, 2], [0, 2]])
+    with pytest.raises(ValueError, match="parents must give one entry per contour"):
+        Section(0.0, (c, c[::-1]), (-1,))
+    assert Section(0.0, (c,)).parents == (-1,)
+
+
+def test_import_changes_no_other_library():
+    code = ("import trimesh, trimesh.exchange.load as L; before = L.mesh_loaders.get('json'); "
+            "import matplotlib; b0 = matplotlib.get_backend(); import contourmesh, numpy as np; "
+            "contourmesh.mesh(np.pad(np.ones((2, 2, 2), bool), 1)); import contourmesh.compare.paper, "
+            "contourmesh.compare.report; "
+            "print(L.mesh_loaders.get('json') is before, matplotlib.get_backend() == b0)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env={"PYTHONPATH": str(ROOT / "src"), "MPLBACKEND": "svg", "PATH": "/usr/bin:/bin"})
+    assert out.stdout.split() == ["True", "True"], out.stderr
+
+
+def test_routes_are_recorded(sources):
+    assert contourmesh.mesh(sources["shape"]).meta["route"] == "stack"
+    assert contourmesh.mesh(sources["volume"]).meta["route"] == "volume"
+    assert contourmesh.mesh(sources["contour file"]).meta["route"] in ("stack", "raster")
+    assert contourmesh.mesh(sources["stack"], refine="band").meta["route"] == "refined"
+
+
+def test_fallbacks_are_logged(caplog):
+    import logging
+
+    ring = np.array([[0, 5], [0, 0], [10, 0], [10, 10], [0, 10], [0, 5], [3, 5], [3, 7], [7, 7], [7, 3], [3, 3],
+                     [3, 5]], float) + 0.25
+    st = ContourStack(tuple(Section(float(z), (ring,)) for z in range(3)))
+    with caplog.at_level(logging.DEBUG, logger="contourmesh"):
+        m = contourmesh.mesh(st, polygon="none")
+    assert m.meta["route"] == "raster"
+    assert any("re-routing to the raster route" in r.getMessage() for r in caplog.records)
+
+
+def test_json_summary_speaks_of_the_route(tmp_path, capsys):
+    from contourmesh.cli import main
+
+    assert main(["mesh", "sphere:r=6", "-o", str(tmp_path / "s.ply"), "--json", "--quiet"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["route"] == "stack" and s["watertight"]
