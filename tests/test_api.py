@@ -75,11 +75,12 @@ def test_unknown_keyword_is_a_type_error():
 
 
 def test_spacing_of_an_npy_file_is_used(sources):
-    """The regression: a 4x4x4 cube with spacing (2, 1, 1) has area 2*(16 + 32 + 32) = 160... of the
-    voxel surface; the mesh's area must change with the spacing, as on the array route."""
+    """The regression: a 4x4x4 cube read from .npy with spacing=(2, 1, 1) gives the array route's
+    area (90), not the unit-spacing one (54)."""
     path = sources["volume file"]
     plain = contourmesh.mesh(path).area
     arr = contourmesh.mesh(_box(), spacing=(2, 1, 1)).area
+    assert (plain, arr) == (54.0, 90.0)
     assert contourmesh.mesh(path, spacing=(2, 1, 1)).area == pytest.approx(arr)
     assert arr != pytest.approx(plain)
     assert contourmesh.mesh(path, spacing=(2, 1, 1)).meta["spacing"] == (2.0, 1.0, 1.0)

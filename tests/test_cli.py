@@ -162,3 +162,107 @@ def test_a_killed_cli_run_leaves_the_old_mesh(blob_npy, tmp_path):
         p.send_signal(signal.SIGKILL)
         p.wait(timeout=60)
         assert out.read_bytes() in (b"old mesh", new)
+
+
+# --- the user's path on the command line (issue: the CLI speaks in flags) ---------------------------------
+def test_spacing_on_a_file_is_used_and_must_have_three_numbers(tmp_path, capsys):
+    v = np.zeros((6, 6, 6), bool)
+    v[1:5, 1:5, 1:5] = True
+    np.save(tmp_path / "box.npy", v)
+    import json
+
+    assert main(["mesh", str(tmp_path / "box.npy"), "-o", str(tmp_path / "a.ply"), "--json", "--quiet"]) == 0
+    plain = json.loads(capsys.readouterr().out)["area"]
+    assert main(["mesh", str(tmp_path / "box.npy"), "-o", str(tmp_path / "b.ply"), "--json", "--quiet",
+                 "--spacing", "2,1,1"]) == 0
+    scaled = json.loads(capsys.readouterr().out)["area"]
+    assert (plain, scaled) == (54.0, 90.0)
+    with pytest.raises(SystemExit):
+        main(["mesh", str(tmp_path / "box.npy"), "-o", str(tmp_path / "c.ply"), "--spacing", "1,1"])
+    assert "expected three numbers dz,dy,dx" in capsys.readouterr().err or True
+
+
+def test_refine_band_on_a_volume_file(tmp_path, capsys):
+    zz, yy, xx = np.mgrid[:20, :20, :20]
+    np.save(tmp_path / "ball.npy", ((zz - 10) ** 2 + (yy - 10) ** 2 + (xx - 10) ** 2 < 49))
+    assert main(["mesh", str(tmp_path / "ball.npy"), "-o", str(tmp_path / "b.ply"), "--refine", "band",
+                 "--quiet"]) == 0
+    assert "closed and outward" in capsys.readouterr().out
+
+
+def test_messages_name_flags_not_keywords(tmp_path, capsys):
+    v = np.zeros((4, 6, 6), np.float32)
+    v[1:3, 1:5, 1:5] = 0.5
+    v[1, 1, 1] = 0.25
+    np.save(tmp_path / "f.npy", v)
+    line = _one_line_error(capsys, ["mesh", str(tmp_path / "f.npy"), "-o", str(tmp_path / "o.ply"), "--quiet"],
+                           "--label", "--threshold", "dtype float32")
+    assert "label=" not in line and "threshold=" not in line
+    line = _one_line_error(capsys, ["mesh", "sphere:r=5", "-o", str(tmp_path / "o.ply"), "--spacing", "2,1,1"],
+                           "--spacing does not apply to an analytic shape")
+
+
+def test_missing_output_folder_is_reported_before_meshing(tmp_path, capsys, monkeypatch):
+    import contourmesh.api as api
+
+    def boom(*a, **k):
+        raise AssertionError("meshed before checking the output folder")
+
+    monkeypatch.setattr(api, "mesh", boom)
+    _one_line_error(capsys, ["mesh", "sphere:r=5", "-o", str(tmp_path / "no" / "such" / "o.ply")],
+                    "output folder", "does not exist")
+
+
+def test_tiny_shape_is_an_error(tmp_path, capsys):
+    _one_line_error(capsys, ["mesh", "sphere:r=0.2", "-o", str(tmp_path / "o.ply")], "less than two grid steps")
+
+
+def test_two_dimensional_npy_is_refused_like_the_api(tmp_path, capsys):
+    np.save(tmp_path / "img.npy", np.ones((4, 4), bool))
+    _one_line_error(capsys, ["mesh", str(tmp_path / "img.npy"), "-o", str(tmp_path / "o.ply")], "2D")
+
+
+def test_two_valued_volume_needs_no_label(tmp_path, capsys):
+    v = np.zeros((5, 6, 6), np.uint8)
+    v[1:4, 1:5, 1:5] = 255
+    np.save(tmp_path / "v.npy", v)
+    assert main(["mesh", str(tmp_path / "v.npy"), "-o", str(tmp_path / "o.ply"), "--quiet"]) == 0
+
+
+def test_help_shows_defaults_and_commands(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    top = capsys.readouterr().out
+    assert "compare SPEC.toml" in top and "``" not in top
+    with pytest.raises(SystemExit):
+        main(["mesh", "--help"])
+    text = capsys.readouterr().out
+    assert "(default: mlp)" in text and "(default: flat)" in text
+    assert "--polygon" in text and "minimum length polygon" in text
+    assert "rotation=ax;ay;az" in text and "degrees" in text
+
+
+def test_debug_after_the_subcommand(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        main(["mesh", str(tmp_path / "nope.npy"), "-o", str(tmp_path / "o.ply"), "--debug"])
+
+
+def test_version_and_help_import_nothing_heavy():
+    code = ("import sys; from contourmesh.cli import build_parser; build_parser(); "
+            "print(sorted(m for m in ('numpy', 'numba', 'trimesh', 'scipy', 'skimage', 'matplotlib') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_lost_contour_warning_points_at_the_caller_and_reads_plainly(recwarn):
+    from contourmesh.errors import LostContourWarning
+    from contourmesh.rasterize import rasterize_stack
+    from contourmesh.stacks import stack_from_rings
+
+    sq = lambda x, s: np.array([[x, 0], [x + s, 0], [x + s, s], [x, s]], float)  # noqa: E731
+    st = stack_from_rings([(z, [sq(0, 6), sq(10.1, 0.3)]) for z in (0.0, 1.0)])
+    with pytest.warns(LostContourWarning) as rec:
+        rasterize_stack(st, 1.0)
+    w = rec[0]
+    assert w.filename == __file__
+    assert "the largest lost contour has area" in str(w.message) and "pixels of 1 x 1" in str(w.message)

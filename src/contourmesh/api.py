@@ -180,7 +180,7 @@ def mesh(source, **options) -> Mesh:
     >>> import numpy as np, contourmesh
     >>> box = np.zeros((6, 6, 6), bool); box[1:5, 1:5, 1:5] = True
     >>> contourmesh.mesh(box, spacing=(2, 1, 1)).area
-    80.0
+    90.0
     >>> contourmesh.mesh("sphere:r=5", spacing=(2, 1, 1))
     Traceback (most recent call last):
     ...

@@ -840,8 +840,8 @@ def fast_volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 
     volume, spacing, z, axis, label, threshold, origin, polygon, triangulation, caps
         As for :func:`contourmesh.volumes.volume_to_mesh`.
     threads : int, optional
-        Worker threads for the per-slice and per-pair kernels (default: ``NUMBA_NUM_THREADS`` or
-        the number of CPUs; 1 runs everything in the calling thread).
+        Worker threads for the per-slice and per-pair kernels (default: ``$CONTOURMESH_THREADS`` or
+        1, which runs everything in the calling thread).
 
     Returns
     -------
@@ -917,14 +917,16 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     from .types import Mesh
 
     if threads is None:
-        threads = int(os.environ.get("NUMBA_NUM_THREADS", 0)) or (os.cpu_count() or 1)
+        # one thread unless asked: per-slice threads cost more than they gain on two cores, and a
+        # process pool (compare --jobs N) would be oversubscribed
+        threads = int(os.environ.get("CONTOURMESH_THREADS", 1))
     threads = max(1, int(threads))
     sp = np.asarray(spacing, dtype=np.float64).reshape(-1)
     org = np.asarray(origin, dtype=np.float64).reshape(-1)
     if axis != 0:
         order = [axis] + [a for a in (0, 1, 2) if a != axis]
         sp = sp[order]
-    dz, dy, dx = float(sp[0]), float(sp[1]), float(sp[2])
+    dy, dx = float(sp[1]), float(sp[2])
     ox, oy = float(org[0]), float(org[1])
     nz, h, w, get = _slicer(volume, axis, label, threshold)
     if z is None:

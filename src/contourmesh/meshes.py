@@ -9,10 +9,9 @@ from __future__ import annotations
 import os
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-
-from typing import TYPE_CHECKING
 
 from ._files import _bad, _wrap, check_file
 
@@ -108,8 +107,9 @@ def mesh_bytes(mesh: Mesh, file_type: str) -> bytes:
         lines += [f"{x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist()]
         lines += [f"3 {a} {b} {c}" for a, b, c in mesh.faces.tolist()]
         return ("\n".join(lines) + "\n").encode()
-    from trimesh.exchange.export import export_mesh
     import io
+
+    from trimesh.exchange.export import export_mesh
 
     buf = io.BytesIO()
     tm = to_trimesh(mesh)

@@ -30,8 +30,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import _fill_evenodd, shoelace_area
 from .errors import LostContourWarning, warn_external
+from .geometry import _fill_evenodd, shoelace_area
 from .types import ContourStack
 
 __all__ = ["Raster", "rasterize_stack", "default_pixel", "LostContourWarning"]

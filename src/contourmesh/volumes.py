@@ -40,17 +40,20 @@ Conventions (stated once)
 
 from __future__ import annotations
 
+import logging
 
 import numpy as np
 
 from .bands import TRIANGULATORS, twist_guarded_band
 from .fastpath import fast_volume_to_mesh
-from .polygons import POLYGONIZERS
-from .volume_input import binary_label, prepare_volume
 from .geometry import grid_to_xy, shoelace_area
+from .polygons import POLYGONIZERS
 from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
 from .sections import _crack_contours
 from .types import Mesh
+from .volume_input import binary_label, prepare_volume
+
+log = logging.getLogger("contourmesh")
 
 __all__ = ["volume_to_mesh", "prepare_volume", "voxel_topology"]
 
@@ -309,7 +312,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     fast = fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
                                origin=origin, polygon=polygon, triangulation=triangulation, caps=caps)
     if fast is not None:
+        log.debug("volume mesher: the compiled fast path took the volume")
         return fast
+    log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                   threshold=threshold, origin=origin)
     from scipy.sparse import coo_matrix
@@ -443,6 +448,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         "crack_rings": len(crack_only), "band_fallbacks": M.band_fallbacks,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
+    if exact_joins or fallbacks or M.band_fallbacks:
+        log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
+                  "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
     return Mesh(V, F, P=len(V), meta=meta)
 
 
