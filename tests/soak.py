@@ -39,8 +39,11 @@ from pathlib import Path
 
 import numpy as np
 
-POLYGONS = ("mlp", "dss", "none")
-TRIANGULATIONS = ("wiederhold", "greedy", "optimal")
+from contourmesh.bands import TRIANGULATORS
+from contourmesh.polygons import POLYGONIZERS
+
+POLYGONS = tuple(sorted(POLYGONIZERS))
+TRIANGULATIONS = tuple(sorted(TRIANGULATORS))  # every registered band, arclength included
 COMBOS = list(itertools.product(POLYGONS, TRIANGULATIONS))
 KINDS = ("blob", "sheet", "line", "tube", "checker", "staircase", "border", "components", "shells", "single",
          "noise", "full")

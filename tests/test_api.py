@@ -11,12 +11,12 @@ import pytest
 
 import contourmesh
 from contourmesh import api
+from contourmesh.digitize import outer_jordan_stack
 from contourmesh.errors import ContourMeshError, InapplicableOption
 from contourmesh.io import write_contours_json
+from contourmesh.shapes import Sphere
 from contourmesh.stacks import stack_from_rings
 from contourmesh.types import ContourStack, Section
-from contourmesh.digitize import outer_jordan_stack
-from contourmesh.shapes import Sphere
 
 ROOT = Path(__file__).resolve().parents[1]
 

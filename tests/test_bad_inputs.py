@@ -6,7 +6,6 @@
 
 import io
 import sys
-import zlib
 from pathlib import Path
 
 import numpy as np

@@ -19,7 +19,6 @@ from contourmesh.fastpath import (
     slice_polygons,
     slice_runs,
 )
-from contourmesh.polygons import mlp_polygon
 from contourmesh.sections import trace_contours
 from contourmesh.volumes import _mlp_of_pixels, volume_to_mesh
 

@@ -1,14 +1,12 @@
 import subprocess
 import sys
-import json
 
 import numpy as np
 import pytest
 import trimesh
 
 from contourmesh import Mesh
-from contourmesh.measure import mesh_checks, mesh_volume, triangle_areas
-from contourmesh.meshes import atomic_write, save_mesh
+from contourmesh.measure import mesh_checks
 
 
 def _box():

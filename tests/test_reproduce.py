@@ -9,7 +9,6 @@ from contourmesh.compare.paper import (
     compute_table,
     paper_table,
     plot_figure,
-    reproduce,
     rows_to_csv,
     rows_to_markdown,
 )

@@ -6,15 +6,16 @@ import numpy as np
 import pytest
 
 import contourmesh
+from conftest import assert_closed_outward
+from contourmesh.bands import TRIANGULATORS
 from contourmesh.digitize import outer_jordan_stack
+from contourmesh.polygons import POLYGONIZERS
 from contourmesh.shapes import Cone, Ellipsoid, Hyperboloid, Paraboloid, Sphere, rotation_from_euler
 from contourmesh.surface import stack_to_mesh
 from contourmesh.types import ContourStack, Section
 
-from conftest import assert_closed_outward
-
-POLYGONS = ("dss", "mlp", "none")
-TRIANGULATIONS = ("wiederhold", "greedy", "optimal")
+POLYGONS = tuple(sorted(POLYGONIZERS))
+TRIANGULATIONS = tuple(sorted(TRIANGULATORS))  # every registered band, arclength included
 COMBOS = list(itertools.product(POLYGONS, TRIANGULATIONS))
 
 rng = np.random.default_rng(20091)
@@ -32,17 +33,20 @@ SHAPES = [
 ]
 
 
+_STACKS = {}
+
+
+@pytest.mark.parametrize("polygon,tri", COMBOS, ids=lambda v: v)
 @pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.spec if hasattr(s, "spec") else repr(s))
-def test_every_shape_meshes_closed_for_every_combination(shape):
-    stack = outer_jordan_stack(shape)
-    for polygon, tri in COMBOS:
-        m = stack_to_mesh(stack, polygon=polygon, triangulation=tri)
-        assert_closed_outward(m, genus=0)
-        e = m.area / shape.area - 1
-        # the contour itself and DSS overestimate (outer digitization); MLP is close
-        bound = {"mlp": 0.12, "dss": 0.35, "none": 0.6}[polygon]
-        assert abs(e) < bound, (polygon, tri, e)
-        assert m.volume == pytest.approx(shape.volume, rel=0.35)
+def test_every_shape_meshes_closed_for_every_combination(shape, polygon, tri):
+    stack = _STACKS.get(id(shape)) or _STACKS.setdefault(id(shape), outer_jordan_stack(shape))
+    m = stack_to_mesh(stack, polygon=polygon, triangulation=tri)
+    assert_closed_outward(m, genus=0)
+    e = m.area / shape.area - 1
+    # the contour itself and DSS overestimate (outer digitization); MLP is close
+    bound = {"mlp": 0.12, "dss": 0.35, "none": 0.6}[polygon]
+    assert abs(e) < bound, (polygon, tri, e)
+    assert m.volume == pytest.approx(shape.volume, rel=0.35)
 
 
 def test_optimal_band_never_above_the_others_on_whole_meshes():

@@ -9,11 +9,12 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import contourmesh
+from conftest import assert_closed_outward
+from contourmesh.bands import TRIANGULATORS
+from contourmesh.polygons import POLYGONIZERS
 from contourmesh.volumes import prepare_volume, split_nonmanifold_vertices, volume_to_mesh, voxel_topology
 
-from conftest import assert_closed_outward
-
-COMBOS = list(itertools.product(("mlp", "dss", "none"), ("wiederhold", "greedy", "optimal")))
+COMBOS = list(itertools.product(sorted(POLYGONIZERS), sorted(TRIANGULATORS)))  # arclength included
 
 
 def check_topology(vol, m):
@@ -44,19 +45,18 @@ def test_anisotropic_spacing_scales_the_box():
     assert m.volume == pytest.approx(1.0 * 1.5 * 4.0)
 
 
-def test_ring_has_genus_one_and_hollow_shell_two_surfaces():
+@pytest.mark.parametrize("polygon,tri", COMBOS)
+def test_ring_has_genus_one_and_hollow_shell_two_surfaces(polygon, tri):
     ring = np.zeros((3, 7, 7), bool)
     ring[:, 1:6, 1:6] = True
     ring[:, 3, 3] = False  # a one-voxel tunnel
-    for polygon, tri in COMBOS:
-        chk, ref = check_topology(ring, volume_to_mesh(ring, polygon=polygon, triangulation=tri))
-        assert ref["genus"] == 1
+    chk, ref = check_topology(ring, volume_to_mesh(ring, polygon=polygon, triangulation=tri))
+    assert ref["genus"] == 1
     shell = np.zeros((7, 7, 7), bool)
     shell[1:6, 1:6, 1:6] = True
     shell[3, 3, 3] = False  # a one-voxel cavity
-    for polygon, tri in COMBOS:
-        chk, ref = check_topology(shell, volume_to_mesh(shell, polygon=polygon, triangulation=tri))
-        assert ref["surfaces"] == 2 and chk["components"] == 2
+    chk, ref = check_topology(shell, volume_to_mesh(shell, polygon=polygon, triangulation=tri))
+    assert ref["surfaces"] == 2 and chk["components"] == 2
 
 
 def test_edge_and_corner_contacts_stay_apart():
@@ -75,15 +75,15 @@ def test_edge_and_corner_contacts_stay_apart():
     assert chk["components"] == 2
 
 
-def test_branching_y_shape_and_border_touching():
+@pytest.mark.parametrize("polygon,tri", COMBOS)
+def test_branching_y_shape_and_border_touching(polygon, tri):
     vol = np.zeros((6, 9, 9), bool)
     vol[:3, 3:6, 3:6] = True  # trunk
     vol[3:, 0:3, 0:3] = vol[3:, 6:9, 6:9] = True  # two arms touching the border
     vol[3, 1:8, 1:8] = True  # the fork
-    for polygon, tri in COMBOS:
-        m = volume_to_mesh(vol, polygon=polygon, triangulation=tri)
-        check_topology(vol, m)
-        assert m.meta["exact_joins"] >= 1
+    m = volume_to_mesh(vol, polygon=polygon, triangulation=tri)
+    check_topology(vol, m)
+    assert m.meta["exact_joins"] >= 1
 
 
 def test_sphere_volume_path_matches_the_paper_path():

@@ -950,7 +950,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     if not occupied:
         raise _OutOfScope  # no foreground: the full mesher raises the error
 
-    from .geometry import grid_to_xy
+    from .geometry import grid_to_xy, slice_gap
 
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
 
@@ -1055,9 +1055,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     from .bands.caps import cap_faces
 
     def gap(k, up):
-        if up:
-            return zs[k + 1] - zs[k] if k + 1 < nz else (zs[k] - zs[k - 1] if k > 0 else 1.0)
-        return zs[k] - zs[k - 1] if k > 0 else (zs[k + 1] - zs[k] if k + 1 < nz else 1.0)
+        return slice_gap(zs, k, up)
 
     shifted_planes = {}
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["points_in_rings", "shoelace_area", "grid_to_xy"]
+__all__ = ["points_in_rings", "shoelace_area", "grid_to_xy", "slice_gap"]
 
 
 def grid_to_xy(ox, oy, dx, dy):
@@ -116,3 +116,13 @@ def shoelace_area(points: np.ndarray) -> float:
         return 0.0
     x, y = p[:, 0], p[:, 1]
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def slice_gap(zs, k: int, up: bool) -> float:
+    """The distance from slice ``k`` to its neighbour above (``up``) or below; at an end, the
+    distance to the neighbour on the other side (1 for a single slice).  Half of it is where
+    ``caps="half"`` puts an end cap."""
+    nz = len(zs)
+    if up:
+        return zs[k + 1] - zs[k] if k + 1 < nz else (zs[k] - zs[k - 1] if k > 0 else 1.0)
+    return zs[k] - zs[k - 1] if k > 0 else (zs[k + 1] - zs[k] if k + 1 < nz else 1.0)

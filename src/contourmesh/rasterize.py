@@ -32,6 +32,7 @@ import numpy as np
 
 from .errors import LostContourWarning, warn_external
 from .geometry import _fill_evenodd, shoelace_area
+from .stacks import check_stack
 from .types import ContourStack
 
 __all__ = ["Raster", "rasterize_stack", "default_pixel", "LostContourWarning"]
@@ -159,16 +160,7 @@ def rasterize_stack(stack: ContourStack, pixel: float | None = None, *, max_pixe
     >>> r.volume.shape, int(r.volume[0].sum()), r.origin
     ((2, 7, 7), 16, (-1.0, -1.0, 0.0))
     """
-    if not isinstance(stack, ContourStack):
-        raise TypeError(f"expected a ContourStack; got {type(stack).__name__}")
-    if len(stack.sections) == 0:
-        raise ValueError("the contour stack is empty: no section to rasterize")
-    zs = stack.z
-    if not np.all(np.isfinite(zs)):
-        raise ValueError("section heights must be finite")
-    if len(zs) > 1 and not np.all(np.diff(zs) > 0):
-        bad = int(np.flatnonzero(np.diff(zs) <= 0)[0])
-        raise ValueError(f"section heights must be strictly increasing; z[{bad}]={zs[bad]} >= z[{bad + 1}]={zs[bad + 1]}")
+    zs = check_stack(stack)
     rings = _physical_rings(stack)
     if pixel is None:
         pixel = default_pixel(stack)

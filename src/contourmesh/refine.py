@@ -57,6 +57,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .stacks import check_stack
 from .types import ContourStack, Mesh
 
 __all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "auto_sigma", "band_violations"]
@@ -69,15 +70,7 @@ REFINERS = ("band", "none")
 # 1. The digital object I from the contours
 # ----------------------------------------------------------------------------------------------
 def _check_stack(stack) -> np.ndarray:
-    if not isinstance(stack, ContourStack):
-        raise ValueError(f"expected a contourmesh.types.ContourStack; got {type(stack).__name__}")
-    if len(stack.sections) == 0:
-        raise ValueError("the contour stack is empty: no section holds a contour")
-    zs = stack.z
-    if len(zs) > 1:
-        dz = np.diff(zs)
-        if not np.all(dz > 0):
-            raise ValueError("section heights must be strictly increasing")
+    zs = check_stack(stack)
     sx, sy = (float(v) for v in stack.spacing)
     if not (sx > 0 and sy > 0 and abs(sx - sy) <= 1e-9 * max(sx, sy)):
         raise ValueError(f"band refinement needs square pixels (dx == dy > 0); got spacing {stack.spacing}")

@@ -10,14 +10,14 @@ negative.
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
+from .errors import warn_external
 from .geometry import shoelace_area
 from .types import ContourStack, Section
 
-__all__ = ["stack_from_rings", "Z_TOLERANCE"]
+__all__ = ["stack_from_rings", "check_stack", "Z_TOLERANCE"]
 
 
 Z_TOLERANCE = 1e-3
@@ -158,8 +158,8 @@ def stack_from_rings(slices, *, z_tol: float = Z_TOLERANCE, meta: dict | None = 
             rings.append(r)
         if dropped:
             dropped_total += dropped
-            warnings.warn(f"{source}: slice z={z:g}: dropped {dropped} contour(s) with fewer than 3 distinct points "
-                          "or no enclosed area", UserWarning, stacklevel=3)
+            warn_external(f"{source}: slice z={z:g}: dropped {dropped} contour(s) with fewer than 3 distinct points "
+                          "or no enclosed area")
         if not rings:
             continue
         contours, parents = _nest_section(rings)
@@ -169,3 +169,21 @@ def stack_from_rings(slices, *, z_tol: float = Z_TOLERANCE, meta: dict | None = 
     m = dict(meta or {})
     m.setdefault("dropped_contours", dropped_total)
     return ContourStack(tuple(sections), spacing=(1.0, 1.0), origin=(0.0, 0.0), meta=m)
+
+
+def check_stack(stack, what: str = "contour stack") -> np.ndarray:
+    """The section heights of a ContourStack, after checking that there is at least one section and
+    that the heights are finite and strictly increasing (the one stack validator)."""
+    if not isinstance(stack, ContourStack):
+        raise TypeError(f"expected a ContourStack; got {type(stack).__name__}")
+    if len(stack.sections) == 0:
+        raise ValueError(f"the {what} is empty: no section holds a contour")
+    zs = stack.z
+    if not np.all(np.isfinite(zs)):
+        bad = int(np.flatnonzero(~np.isfinite(zs))[0])
+        raise ValueError(f"section heights must be finite numbers; found z[{bad}]={zs[bad]}")
+    if len(zs) > 1 and not np.all(np.diff(zs) > 0):
+        bad = int(np.flatnonzero(np.diff(zs) <= 0)[0])
+        raise ValueError(f"section heights must be strictly increasing; found z[{bad}]={zs[bad]} >= "
+                         f"z[{bad + 1}]={zs[bad + 1]}")
+    return zs

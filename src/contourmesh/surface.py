@@ -25,6 +25,7 @@ import numpy as np
 
 from .errors import StackSurfaceError
 from .geometry import shoelace_area
+from .stacks import check_stack
 from .types import ContourStack, Mesh
 
 __all__ = ["stack_to_mesh", "CAPS", "StackSurfaceError"]
@@ -339,15 +340,7 @@ def stack_to_mesh(
     """Mesh a contour stack: polygons, bands and caps (see the module docstring for the end rules)."""
     if caps not in CAPS:
         raise ValueError(f"caps must be one of {CAPS}, got {caps!r}")
-    if len(stack.sections) == 0:
-        raise ValueError("the contour stack is empty: no section holds a contour")
-    zs = stack.z
-    if not np.all(np.isfinite(zs)):
-        bad = int(np.flatnonzero(~np.isfinite(zs))[0])
-        raise ValueError(f"section heights must be finite numbers; found z[{bad}]={zs[bad]}")
-    if len(zs) > 1 and not np.all(np.diff(zs) > 0):
-        bad = int(np.flatnonzero(np.diff(zs) <= 0)[0])
-        raise ValueError(f"section heights must be strictly increasing; found z[{bad}]={zs[bad]} >= z[{bad + 1}]={zs[bad + 1]}")
+    zs = check_stack(stack)
     stack = _outward(stack)
     b = _Builder(stack.spacing, stack.origin)
     default_h = float(np.median(np.diff(zs))) if len(zs) > 1 else 1.0

@@ -46,7 +46,7 @@ import numpy as np
 
 from .bands import TRIANGULATORS, twist_guarded_band
 from .fastpath import fast_volume_to_mesh
-from .geometry import grid_to_xy, shoelace_area
+from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS
 from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
 from .sections import _crack_contours
@@ -383,9 +383,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         return rings[key]
 
     def gap(k, up):
-        if up:
-            return zs[k + 1] - zs[k] if k + 1 < nz else (zs[k] - zs[k - 1] if k > 0 else 1.0)
-        return zs[k] - zs[k - 1] if k > 0 else (zs[k + 1] - zs[k] if k + 1 < nz else 1.0)
+        return slice_gap(zs, k, up)
 
     def shifted(rs, zc):
         return [M.ring(M.coords(r)[:, :2], zc) for r in rs]

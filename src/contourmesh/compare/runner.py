@@ -360,8 +360,11 @@ def _on_alarm(signum, frame):  # pragma: no cover - timing dependent
 
 def _measure(task: Task) -> dict:
     """Run the method and its post-processes on the task's input; the fields a run fills."""
-    from .methods import MissingDependency  # noqa: F401 - an ImportError subclass
-    from .methods import Result, check_volume
+    from .methods import (
+        MissingDependency,  # noqa: F401 - an ImportError subclass
+        Result,
+        check_volume,
+    )
 
     out = {}
     method = _method(task.method)

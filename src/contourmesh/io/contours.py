@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 import zlib
 from pathlib import Path
 
 import numpy as np
 
 from .._files import VOLUME_SUFFIXES, _bad, _require, _suffix, _wrap, check_file
+from ..errors import warn_external
 from ..stacks import Z_TOLERANCE, stack_from_rings
 from ..types import ContourStack
 
@@ -155,8 +155,7 @@ def _read_rtstruct(path: Path, roi) -> ContourStack:
     except Exception as exc:  # pydicom's InvalidDicomError, EOFError, struct.error, ...
         raise _wrap(path, "DICOM RTSTRUCT", exc) from None
     if skipped:
-        warnings.warn(f"{str(path)!r}: ROI {name!r}: skipped contours that are not CLOSED_PLANAR: {skipped}",
-                      UserWarning, stacklevel=3)
+        warn_external(f"{str(path)!r}: ROI {name!r}: skipped contours that are not CLOSED_PLANAR: {skipped}")
     slices = _planar_slices(path, name, contours3d)
     return stack_from_rings(slices, source=f"{path.name} ROI {name!r}",
                             meta={"source": str(path), "roi": name, "roi_number": num, "units": "mm"})

@@ -34,7 +34,6 @@ from __future__ import annotations
 import gzip
 import math
 import re
-import warnings
 import zlib
 from pathlib import Path
 
@@ -51,6 +50,7 @@ from .._files import (
     _wrap,
     check_file,
 )
+from ..errors import warn_external
 from ..volume_input import check_volume_array, select_voxels
 
 __all__ = ["read_volume", "write_volume", "VOLUME_SUFFIXES", "MAX_VOXELS"]
@@ -293,8 +293,8 @@ def _read_nifti(path: Path, *, max_voxels: int, prefer: str):
     if np.allclose(rot, np.diag(np.diag(rot))) and np.all(np.diag(rot) > 0):
         origin = tuple(affine[:3, 3])
     else:
-        warnings.warn(f"{str(path)!r}: the NIfTI affine rotates or flips the axes; origin set to (0, 0, 0) "
-                      "and the voxel axes taken as x, y, z", stacklevel=3)
+        warn_external(f"{str(path)!r}: the NIfTI affine rotates or flips the axes; origin set to (0, 0, 0) "
+                      "and the voxel axes taken as x, y, z")
         origin = (0.0, 0.0, 0.0)
     vol = np.ascontiguousarray(np.transpose(data, (2, 1, 0)))
     return vol, (zooms[2], zooms[1], zooms[0]), origin
