@@ -140,7 +140,7 @@ def test_refine_stack_keeps_structure_and_validates():
         refine_stack(st, sigma="wide")
     with pytest.raises(ValueError, match="refine method"):
         band_mesh(st, refine="smooth")
-    with pytest.raises(ValueError, match="ContourStack"):
+    with pytest.raises(TypeError, match="ContourStack"):
         refine_stack("sphere:r=10")
     float_stack = ContourStack(sections=(Section(z=0.0, contours=(np.array([[0.0, 0], [1, 0], [1, 1]]),)),))
     with pytest.raises(ValueError, match="integer grid contours"):
