@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import contourmesh
+
 from contourmesh.api import is_file_source, mesh_file
 from contourmesh.api import mesh_stack as mesh_contour_stack
 from contourmesh.geometry import points_in_rings
@@ -517,3 +519,49 @@ def test_mesh_file_dispatches_volumes_and_contours(tmp_path):
         mesh_file(q, threshold=0)
     assert is_file_source(q) and is_file_source("missing.nii.gz") and is_file_source(Path("x"))
     assert not is_file_source("sphere:r=40") and not is_file_source(np.zeros(3))
+
+
+# --- readers that keep the geometry (NIfTI affine, NRRD space directions, .seg.nrrd segments) ---------------
+def _world_box_check(m, corner_lo, corner_hi):
+    assert m.checks()["watertight"] and m.checks()["winding_consistent"] and m.volume > 0
+    lo, hi = m.vertices.min(0), m.vertices.max(0)
+    assert lo == pytest.approx(corner_lo, abs=1e-9) and hi == pytest.approx(corner_hi, abs=1e-9)
+
+
+@pytest.mark.parametrize("axis", [0, 2])
+def test_nifti_with_a_flipping_affine_meshes_in_world_coordinates(tmp_path, axis):
+    nib = pytest.importorskip("nibabel")
+    data = np.zeros((10, 12, 14), np.uint8)  # [i, j, k]
+    data[2:6, 3:9, 4:11] = 1
+    affine = np.diag([-2.0, 1.5, 3.0, 1.0])
+    affine[:3, 3] = (100.0, -20.0, 5.0)
+    p = tmp_path / "flip.nii.gz"
+    nib.save(nib.Nifti1Image(data, affine), str(p))
+    m = contourmesh.mesh(str(p), polygon="none", caps="half", axis=axis)
+    # voxels i in 2..5 (x = 100 - 2 i, half a voxel either side), j in 3..8, k in 4..10
+    _world_box_check(m, (100 - 2 * 5.5, -20 + 1.5 * 2.5, 5 + 3 * 3.5), (100 - 2 * 1.5, -20 + 1.5 * 8.5, 5 + 3 * 10.5))
+    assert m.meta["space"] == "RAS" and m.volume == pytest.approx(4 * 6 * 7 * 2 * 1.5 * 3)
+
+
+def test_nrrd_oblique_directions_and_segment_names(tmp_path):
+    nrrd = pytest.importorskip("nrrd")
+    data = np.zeros((10, 12, 14), np.uint8)  # [i, j, k]
+    data[2:6, 3:9, 4:11] = 3
+    data[7:9, 1:3, 1:3] = 5
+    c, s = np.cos(0.4), np.sin(0.4)
+    dirs = np.array([[c * 1.0, s * 1.0, 0.0], [-s * 2.0, c * 2.0, 0.0], [0.0, 0.0, 0.5]])  # rows: i, j, k
+    hdr = {"space": "left-posterior-superior", "space directions": dirs, "space origin": np.array([1.0, 2.0, 3.0]),
+           "Segment0_Name": "lesion", "Segment0_LabelValue": "3", "Segment0_Layer": "0",
+           "Segment1_Name": "node", "Segment1_LabelValue": "5", "Segment1_Layer": "0"}
+    p = tmp_path / "seg.seg.nrrd"
+    nrrd.write(str(p), data, hdr, index_order="F")
+    m = contourmesh.mesh(str(p), label="lesion", polygon="none", caps="half")
+    assert m.checks()["watertight"] and m.volume == pytest.approx(4 * 6 * 7 * 1.0 * 2.0 * 0.5)
+    # every vertex, mapped back to voxel coordinates, lies on the box [1.5, 5.5] x [2.5, 8.5] x [3.5, 10.5]
+    ijk = np.linalg.solve(dirs.T, (m.vertices - [1.0, 2.0, 3.0]).T).T
+    assert ijk.min(0) == pytest.approx([1.5, 2.5, 3.5], abs=1e-9)
+    assert ijk.max(0) == pytest.approx([5.5, 8.5, 10.5], abs=1e-9)
+    assert m.meta["space"] == "left-posterior-superior"
+    assert contourmesh.mesh(str(p), label=5).checks()["components"] == 1
+    with pytest.raises(ValueError, match="no segment named 'liver'; segments: \\['lesion', 'node'\\]"):
+        contourmesh.mesh(str(p), label="liver")

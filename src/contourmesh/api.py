@@ -44,7 +44,7 @@ from .bands.caps import CapError
 from .digitize import gauss_volume, outer_jordan_stack
 from .errors import InapplicableOption, StackSurfaceError
 from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
-from .io.volumes import VOLUME_SUFFIXES, read_volume
+from .io.volumes import VOLUME_SUFFIXES, read_image
 from .rasterize import rasterize_stack
 from .refine import REFINERS, refine_stack
 from .sections import trace_contours
@@ -363,6 +363,11 @@ def mesh_file(path, *, roi=None, pixel=None, spacing=None, z=None, axis: int | N
     and go through :func:`mesh_stack`.  Volume files take the keywords of :func:`mesh_volume`;
     they carry their own spacing and origin, which ``spacing=`` and ``origin=`` replace when
     given (``meta["spacing"]`` records the spacing used).  ``meta["source"]`` is the path.
+
+    Files with a direction matrix (NIfTI's affine, NRRD's space directions) are meshed in their
+    world coordinates, flips and oblique axes included, so the mesh overlays the image in a
+    viewer of that frame (``meta["space"]`` names it: NIfTI ``"RAS"``, NRRD its ``space``).
+    A segment of a 3D Slicer ``.seg.nrrd`` can be picked by name: ``label="Liver"``.
     """
     from .io import check_file
 
@@ -375,10 +380,36 @@ def mesh_file(path, *, roi=None, pixel=None, spacing=None, z=None, axis: int | N
         m = mesh_stack(read_contours(p, roi=roi), pixel=pixel, polygon=polygon, triangulation=triangulation,
                        caps=caps, refine=refine, progress=progress)
         return _with_meta(m, source=str(p))
-    vol, file_spacing, file_origin = read_volume(p, label=label, threshold=threshold)
-    used = tuple(float(s) for s in spacing) if spacing is not None else file_spacing
+    img = read_image(p, label=label, threshold=threshold)
+    used = tuple(float(s) for s in spacing) if spacing is not None else img.spacing
     if spacing is not None:
-        log.debug("%s: spacing=%s replaces the file's %s", p, used, file_spacing)
-    m = mesh_volume(vol, spacing=used, z=z, axis=axis, origin=file_origin if origin is None else origin,
+        log.debug("%s: spacing=%s replaces the file's %s", p, used, img.spacing)
+    world_origin = img.origin if origin is None else tuple(float(o) for o in origin)
+    oriented = not np.allclose(img.direction, np.eye(3), rtol=0, atol=1e-12)
+    m = mesh_volume(img.volume, spacing=used, z=z, axis=axis, origin=(0.0, 0.0, 0.0) if oriented else world_origin,
                     polygon=polygon, triangulation=triangulation, caps=caps, refine=refine, progress=progress)
-    return _with_meta(m, source=str(p), spacing=used)
+    if oriented:
+        m = _to_world(m, img.direction, world_origin, 0 if axis is None else axis)
+        log.debug("%s: mesh placed in world coordinates by the image's direction matrix", p)
+    meta = dict(source=str(p), spacing=used)
+    if img.space:
+        meta["space"] = img.space
+    return _with_meta(m, **meta)
+
+
+def _to_world(m: Mesh, direction: np.ndarray, origin, axis: int) -> Mesh:
+    """Place a mesh made in the volume's own frame in world coordinates.
+
+    The volume mesher's vertex ``(x, y, z)`` lies at index-times-spacing along the array axes
+    ``order[2], order[1], order[0]`` (``order`` puts the slicing axis first); ``direction`` maps
+    the voxel axes ``(i, j, k)`` = array axes ``(2, 1, 0)`` to the world.  A map that reverses
+    orientation (a flip) also reverses the faces, so the mesh stays outward.
+    """
+    order = [axis] + [a for a in (0, 1, 2) if a != axis]
+    to_arr = np.zeros((3, 3))
+    for col, arr_axis in enumerate((order[2], order[1], order[0])):  # mesh x, y, z
+        to_arr[2 - arr_axis, col] = 1.0  # voxel axis i, j, k = array axis 2, 1, 0
+    linear = np.asarray(direction, dtype=np.float64) @ to_arr
+    vertices = m.vertices @ linear.T + np.asarray(origin, dtype=np.float64)
+    faces = m.faces[:, ::-1] if np.linalg.det(linear) < 0 else m.faces
+    return Mesh(vertices, np.ascontiguousarray(faces), P=m.P, meta=dict(m.meta, world=True))

@@ -32,7 +32,8 @@ center=x;y;z and rotation=ax;ay;az, three angles in degrees applied about the x 
 then y, then z (R = Rz Ry Rx), or nine numbers giving the rotation matrix row by row.
 Example: "torus:R=30,r=9,center=0.3;0.1;0.2,rotation=30;0;0".
 
-volume files: .npy .npz .tif .nii[.gz] .vol .inr[.gz], indexed [z, y, x] once read; a volume
+volume files: .npy .npz .tif .nii[.gz] .nrrd .seg.nrrd .vol .inr[.gz], indexed [z, y, x] once read;
+meshes of NIfTI and NRRD files are in the image's world coordinates (its affine applied); a volume
 with exactly two values (0/255) is binary, others need --label or --threshold.
 contour files: DICOM RTSTRUCT (.dcm, pick a structure with --roi), .json contour stacks.
 Areas are in the square of the file's (or --spacing's) unit.
@@ -60,12 +61,20 @@ def _spacing(text: str) -> tuple:
 
 
 def _number(text: str):
-    """A label or threshold: an int when it is one (so messages say 7, not 7.0)."""
+    """A threshold: an int when it is one (so messages say 7, not 7.0)."""
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number; got {text!r}") from None
     return int(value) if value.is_integer() else value
+
+
+def _label(text: str):
+    """A label: a number, or a segment's name in a .seg.nrrd file."""
+    try:
+        return _number(text)
+    except argparse.ArgumentTypeError:
+        return text
 
 
 def _mesh_summary(m) -> dict:
@@ -202,7 +211,8 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--roi", default=None, help="contour files: the structure, by name or number")
     m.add_argument("--pixel", type=float, default=None,
                    help="contour files: pixel size for rasterizing (default: the median point spacing)")
-    m.add_argument("--label", type=_number, default=None, help="volumes: use the voxels equal to this label")
+    m.add_argument("--label", type=_label, default=None,
+                   help="volumes: use the voxels equal to this label (.seg.nrrd: a segment name)")
     m.add_argument("--threshold", type=_number, default=None, help="volumes: use the voxels above this value")
     m.add_argument("--axis", type=int, default=None, choices=[0, 1, 2], help="volumes: slicing axis (default 0)")
     m.add_argument("--spacing", type=_spacing, default=None, metavar="DZ,DY,DX",

@@ -24,7 +24,7 @@ from .contours import (
     read_contours,
     write_contours_json,
 )
-from .volumes import VOLUME_SUFFIXES, read_volume, write_volume
+from .volumes import VOLUME_SUFFIXES, Image, read_image, read_volume, write_volume
 
 
 def load_mesh(path) -> Mesh:
@@ -34,7 +34,7 @@ def load_mesh(path) -> Mesh:
     return Mesh(vertices, faces, meta={"source": str(path)})
 
 __all__ = [
-    "read_volume", "write_volume", "read_contours", "write_contours_json", "contours_json_bytes",
+    "read_volume", "read_image", "Image", "write_volume", "read_contours", "write_contours_json", "contours_json_bytes",
     "stack_from_rings", "load_mesh", "save_mesh", "is_contour_file", "check_file", "VOLUME_SUFFIXES",
     "CONTOUR_SUFFIXES", "MESH_SUFFIXES", "MAX_VOXELS", "CONTOURS_FORMAT", "CONTOURS_VERSION", "Z_TOLERANCE",
 ]

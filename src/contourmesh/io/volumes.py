@@ -36,6 +36,7 @@ import math
 import re
 import zlib
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -50,16 +51,36 @@ from .._files import (
     _wrap,
     check_file,
 )
-from ..errors import warn_external
 from ..volume_input import check_volume_array, select_voxels
 
-__all__ = ["read_volume", "write_volume", "VOLUME_SUFFIXES", "MAX_VOXELS"]
+__all__ = ["read_volume", "read_image", "Image", "write_volume", "VOLUME_SUFFIXES", "MAX_VOXELS"]
 
 
 
 # ================================================================================================
 # volumes
 # ================================================================================================
+class Image(NamedTuple):
+    """A volume read from a file, with the geometry that places it in the world.
+
+    ``volume`` is indexed ``[z, y, x]``; ``spacing = (dz, dy, dx)``; ``origin`` is the world
+    ``(x, y, z)`` of the centre of voxel ``[0, 0, 0]``; ``direction`` is a 3x3 matrix whose
+    columns are the world directions of the x, y and z voxel axes (the identity for formats
+    without one).  World position of voxel ``[k, j, i]``:
+    ``origin + direction @ (i dx, j dy, k dz)``.  ``space`` names the world frame when the file
+    does (NIfTI: ``"RAS"``; NRRD: its ``space`` field, e.g. ``"left-posterior-superior"``).
+    """
+
+    volume: np.ndarray
+    spacing: tuple
+    origin: tuple
+    direction: np.ndarray
+    space: str | None = None
+
+
+_READERS = {}  # suffix -> reader, filled below the readers
+
+
 def read_volume(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXELS):
     """Read a volume file (or pass an array through) as ``(array [z, y, x], spacing, origin)``.
 
@@ -94,8 +115,18 @@ def read_volume(source, *, label=None, threshold=None, max_voxels: int = MAX_VOX
         Unknown suffix; truncated, corrupt or pickled data; a header declaring an impossible or
         over-large size; a volume that is not 3D; a bad ``label``/``threshold``.
     """
+    img = read_image(source, label=label, threshold=threshold, max_voxels=max_voxels)
+    return img.volume, img.spacing, img.origin
+
+
+def read_image(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXELS) -> Image:
+    """Like :func:`read_volume`, with the image's direction matrix and world frame (an :class:`Image`).
+
+    ``label`` may also be a segment's name in a 3D Slicer ``.seg.nrrd`` file.
+    """
     if label is not None and threshold is not None:
         raise ValueError("give label= or threshold=, not both")
+    direction, space = np.eye(3), None
     if isinstance(source, np.ndarray):
         vol, spacing, origin = source, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)
         where = "the array"
@@ -103,15 +134,20 @@ def read_volume(source, *, label=None, threshold=None, max_voxels: int = MAX_VOX
         path = check_file(source, "volume")
         where = repr(str(path))
         suffix = _suffix(path)
-        readers = {".npy": _read_npy, ".npz": _read_npz, ".tif": _read_tiff, ".tiff": _read_tiff,
-                   ".nii": _read_nifti, ".nii.gz": _read_nifti, ".vol": _read_dgtal_vol,
-                   ".inr": _read_inr, ".inr.gz": _read_inr}
-        if suffix not in readers:
+        if suffix not in _READERS:
             hint = " (DICOM RTSTRUCT contours are read by read_contours)" if suffix == ".dcm" else ""
             raise ValueError(f"{str(path)!r}: cannot tell the volume format; expected a suffix among "
                              f"{', '.join(VOLUME_SUFFIXES)}, found {path.suffix or 'none'!r}{hint}")
-        vol, spacing, origin = readers[suffix](path, max_voxels=max_voxels,
-                                               prefer="volume" if (label is not None or threshold is not None) else "mask")
+        prefer = "volume" if (label is not None or threshold is not None) else "mask"
+        if suffix in (".nrrd", ".nhdr"):
+            vol, spacing, origin, direction, space, label = _read_nrrd(path, max_voxels=max_voxels, label=label)
+        else:
+            got = _READERS[suffix](path, max_voxels=max_voxels, prefer=prefer)
+            vol, spacing, origin = got[:3]
+            if len(got) > 3:
+                direction, space = got[3], got[4]
+    if isinstance(label, str):
+        raise TypeError(f"label must be a number (or a segment name of a .seg.nrrd file); got {label!r}")
     vol = check_volume_array(vol, where)
     spacing = tuple(float(s) for s in spacing)
     if len(spacing) != 3 or not all(math.isfinite(s) and s > 0 for s in spacing):
@@ -119,9 +155,12 @@ def read_volume(source, *, label=None, threshold=None, max_voxels: int = MAX_VOX
     origin = tuple(float(o) for o in origin)
     if len(origin) != 3 or not all(math.isfinite(o) for o in origin):
         raise ValueError(f"{where}: expected a finite origin (x, y, z); found {origin}")
+    direction = np.asarray(direction, dtype=np.float64)
+    if direction.shape != (3, 3) or not np.all(np.isfinite(direction)) or abs(np.linalg.det(direction)) < 1e-6:
+        raise ValueError(f"{where}: expected an invertible 3x3 direction matrix; found {direction.tolist()}")
     if label is not None or threshold is not None:
         vol = select_voxels(vol, label=label, threshold=threshold, where=where)
-    return vol, spacing, origin
+    return Image(vol, spacing, origin, direction, space)
 
 
 def _read_npy(path: Path, *, max_voxels: int, prefer: str):
@@ -289,15 +328,70 @@ def _read_nifti(path: Path, *, max_voxels: int, prefer: str):
         raise _wrap(path, "NIfTI", exc) from None
     except Exception as exc:  # nibabel's ImageFileError, EOFError, zlib errors, ...
         raise _wrap(path, "NIfTI", exc) from None
-    rot = affine[:3, :3]
-    if np.allclose(rot, np.diag(np.diag(rot))) and np.all(np.diag(rot) > 0):
-        origin = tuple(affine[:3, 3])
-    else:
-        warn_external(f"{str(path)!r}: the NIfTI affine rotates or flips the axes; origin set to (0, 0, 0) "
-                      "and the voxel axes taken as x, y, z")
-        origin = (0.0, 0.0, 0.0)
+    # the affine maps voxel indices (i, j, k) to RAS world coordinates: its columns are the axes'
+    # directions times the voxel sizes
+    direction = affine[:3, :3] / np.where(np.array(zooms) > 0, zooms, 1.0)[None, :]
+    origin = tuple(affine[:3, 3])
     vol = np.ascontiguousarray(np.transpose(data, (2, 1, 0)))
-    return vol, (zooms[2], zooms[1], zooms[0]), origin
+    return vol, (zooms[2], zooms[1], zooms[0]), origin, direction, "RAS"
+
+
+def _segments(header: dict) -> dict:
+    """3D Slicer segment names of a ``.seg.nrrd`` header: ``{name: (label value, layer)}``."""
+    out = {}
+    for key, name in header.items():
+        m = re.fullmatch(r"Segment(\d+)_Name", key)
+        if m:
+            n = m.group(1)
+            value = header.get(f"Segment{n}_LabelValue", "1")
+            layer = header.get(f"Segment{n}_Layer", "0")
+            try:
+                out[str(name)] = (int(value), int(layer))
+            except ValueError:
+                continue
+    return out
+
+
+def _read_nrrd(path: Path, *, max_voxels: int, label=None):
+    """NRRD (``.nrrd``, ``.seg.nrrd``, detached ``.nhdr``) through pynrrd, in ``[z, y, x]`` with its
+    space directions.  Returns ``(volume, spacing, origin, direction, space, label)``; a segment
+    name given as ``label`` becomes its label value (and picks its layer)."""
+    nrrd = _require("nrrd")
+    try:
+        header = nrrd.read_header(str(path))
+    except Exception as exc:
+        raise _wrap(path, "NRRD", exc) from None
+    sizes = [int(s) for s in np.atleast_1d(header.get("sizes", []))]
+    dirs = header.get("space directions")
+    if dirs is None:
+        spacing_xyz = np.asarray(header.get("spacings", [1.0] * len(sizes)), dtype=np.float64)
+        dirs = [np.eye(3)[i] * (spacing_xyz[i] if i < len(spacing_xyz) else 1.0) for i in range(min(3, len(sizes)))]
+    rows = [np.asarray(d, dtype=np.float64) for d in dirs]
+    spatial = [i for i, d in enumerate(rows) if d.shape == (3,) and np.all(np.isfinite(d))]
+    if len(spatial) != 3 or len(sizes) not in (3, 4):
+        raise _bad(path, "a 3D NRRD image (or a 4D segmentation with one list axis)", f"sizes {sizes}")
+    _check_size(path, sizes, 1, max_voxels)
+    layer = 0
+    if isinstance(label, str):
+        segs = _segments(header)
+        if label not in segs:
+            raise ValueError(f"{str(path)!r}: no segment named {label!r}; segments: {sorted(segs) or 'none'}")
+        label, layer = segs[label]
+    try:
+        data, _ = nrrd.read(str(path), index_order="F")
+    except Exception as exc:
+        raise _wrap(path, "NRRD", exc) from None
+    data = np.asarray(data)
+    if data.ndim == 4:  # layers of a segmentation: the non-spatial axis
+        list_axis = [i for i in range(4) if i not in spatial][0]
+        data = np.take(data, layer, axis=list_axis)
+    d = np.array([rows[i] for i in spatial])  # rows: world vectors of the i, j, k axes
+    spacing_xyz = np.linalg.norm(d, axis=1)
+    direction = (d / spacing_xyz[:, None]).T  # columns: unit directions of i, j, k
+    origin = tuple(np.asarray(header.get("space origin", [0.0, 0.0, 0.0]), dtype=np.float64))
+    vol = np.ascontiguousarray(np.transpose(data, (2, 1, 0)))  # [i, j, k] -> [z, y, x]
+    space = header.get("space")
+    return vol, (spacing_xyz[2], spacing_xyz[1], spacing_xyz[0]), origin, direction, space, label
 
 
 def _read_header_lines(fh, path: Path, limit: int = 1 << 16) -> tuple[dict, int]:
@@ -498,3 +592,8 @@ def write_volume(path, volume, *, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0
 # ================================================================================================
 # files as mesh sources
 # ================================================================================================
+
+
+_READERS.update({".npy": _read_npy, ".npz": _read_npz, ".tif": _read_tiff, ".tiff": _read_tiff, ".nii": _read_nifti,
+                 ".nii.gz": _read_nifti, ".vol": _read_dgtal_vol, ".inr": _read_inr, ".inr.gz": _read_inr,
+                 ".nrrd": _read_nrrd, ".nhdr": _read_nrrd})
