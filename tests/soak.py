@@ -177,12 +177,12 @@ def _uneven_z(rng, n):
 def make_int_stack(rng: np.random.Generator):
     """A stack of integer outer Jordan contours, one per section, at uneven heights.
 
-    Each section is the outer Jordan contour (:func:`contourmesh.sections.trace_contours`) of the
+    Each section is the outer Jordan contour (:func:`contourmesh.tracing.trace_contours`) of the
     grid points inside a random star polygon, drifting from section to section; sections whose
     ``U`` has more than one boundary are redrawn.
     """
     from contourmesh.geometry import points_in_rings
-    from contourmesh.sections import trace_contours
+    from contourmesh.tracing import trace_contours
     from contourmesh.types import ContourStack, Section
 
     n = int(rng.integers(1, 6))

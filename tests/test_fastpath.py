@@ -19,7 +19,7 @@ from contourmesh.fastpath import (
     slice_polygons,
     slice_runs,
 )
-from contourmesh.sections import trace_contours
+from contourmesh.tracing import trace_contours
 from contourmesh.volumes import _mlp_of_pixels, volume_to_mesh
 
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)

@@ -14,7 +14,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "contourmesh"
 
 LAYERS = {
     0: ["errors", "_optional", "_files", "geometry", "measure", "meshes", "types", "intersect"],
-    1: ["shapes", "sections", "polygons", "bands", "digitize", "rasterize", "repair", "stacks", "volume_input",
+    1: ["shapes", "tracing", "polygons", "bands", "digitize", "rasterize", "repair", "stacks", "volume_input",
         "voxelize", "datasets"],
     2: ["surface", "fastpath", "volumes", "refine"],
     3: ["io", "api", "trimesh_plugin"],

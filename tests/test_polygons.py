@@ -7,7 +7,7 @@ import pytest
 
 from contourmesh.polygons import POLYGONIZERS, contour_polygon, dss_polygon, mlp_polygon, polygonize
 from contourmesh.polygons.dss import dss_vertex_indices
-from contourmesh.sections import trace_contours
+from contourmesh.tracing import trace_contours
 from contourmesh.types import shoelace_area
 
 # ----------------------------------------------------------------------------------------------

@@ -10,7 +10,7 @@ import pytest
 import contourmesh
 from contourmesh.digitize import gauss_volume, outer_jordan_stack
 from contourmesh.refine import auto_sigma, band_violations, blurred_indicator, in_band, refine_stack, stack_points
-from contourmesh.sections import trace_contours
+from contourmesh.tracing import trace_contours
 from contourmesh.shapes import Ellipsoid, Sphere, rotation_from_euler
 from contourmesh.surface import stack_to_mesh
 from contourmesh.types import ContourStack, Section

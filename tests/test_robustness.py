@@ -122,7 +122,7 @@ def test_every_kind_is_exercised(kind):
 def test_uneven_slices_land_at_their_own_heights():
     """Uneven spacing never maps a contour to another slice's height."""
     import contourmesh
-    from contourmesh.sections import trace_contours
+    from contourmesh.tracing import trace_contours
     from contourmesh.types import ContourStack, Section
 
     z = [0.0, 0.4, 3.0, 3.1, 10.0]

@@ -26,7 +26,7 @@ import contourmesh
 
 def band_mesh(source, *, refine="band", triangulation="optimal", **kw):
     return contourmesh.mesh(source, refine=refine, triangulation=triangulation, **kw)
-from contourmesh.sections import trace_contours
+from contourmesh.tracing import trace_contours
 from contourmesh.shapes import Ellipsoid, Sphere, Torus, rotation_from_euler
 from contourmesh.surface import stack_to_mesh
 from contourmesh.types import ContourStack, Section

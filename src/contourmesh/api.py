@@ -47,8 +47,8 @@ from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
 from .rasterize import rasterize_stack
 from .refine import REFINERS, refine_stack
-from .sections import trace_contours
 from .surface import _nested_chains, stack_to_mesh
+from .tracing import trace_contours
 from .types import ContourStack, Mesh, Section
 from .volume_input import prepare_volume
 from .volumes import volume_to_mesh

@@ -9,7 +9,7 @@ the previous one.  Here, in every slice:
   (filtered, integer-fallback) inside test of :mod:`contourmesh.shapes`;
 * ``U`` = the union of the closed grid cells with at least one corner in ``I``; its boundary is the
   slice's contour (one or more closed digital 4-curves, traced by
-  :func:`contourmesh.sections.trace_contours`), stored in grid units with ``spacing = (h, h)``.
+  :func:`contourmesh.tracing.trace_contours`), stored in grid units with ``spacing = (h, h)``.
 
 Choices (documented once here)
 ------------------------------
@@ -133,7 +133,7 @@ def outer_jordan_stack(shape: Shape, h: float = 1.0, *, strict: bool = True, pol
     >>> len(outer_jordan_stack(Sphere(15), poles=False))
     29
     """
-    from .sections import rotate_start, trace_contours
+    from .tracing import rotate_start, trace_contours
 
     h = _check_inputs(shape, h)
     (i0, j0, k0), (i1, j1, k1) = grid_box(shape, h)

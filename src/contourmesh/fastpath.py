@@ -26,7 +26,7 @@ same order) and the same faces, because every step is the full mesher's step don
    overlapping runs in adjacent rows)`` (4-connected object, 8-connected background).
 3. *Outer Jordan contour.*  The boundary of ``U`` (cells with a corner in the component's pixels)
    is followed from its lowest-then-leftmost vertex, turning left first, exactly as
-   :func:`contourmesh.sections.trace_contours` does, but reading the 3 x 3 pixels around each
+   :func:`contourmesh.tracing.trace_contours` does, but reading the 3 x 3 pixels around each
    vertex instead of a dilated cell image (so only the boundary is touched).
 4. *MLP.*  The candidates and string pulling of :mod:`contourmesh.polygons.mlp` (Klette & Yip),
    called on that contour; degenerate MLPs fall back to the crack contour as in the full mesher.
@@ -308,7 +308,7 @@ def _next_direction_table():
 
     The cell with lower-left corner ``(x, y)`` is in ``U`` when one of the pixels ``(x..x+1,
     y..y+1)`` is set; of the boundary edges leaving the vertex (``U`` on the left) the first among
-    *turn left, go straight, turn right* wins (as :func:`contourmesh.sections._follow_boundaries`).
+    *turn left, go straight, turn right* wins (as :func:`contourmesh.tracing._follow_boundaries`).
     Built once with numpy at import (no compilation); 2 KiB.
     """
     table = np.empty(4 * 512, np.uint8)
@@ -341,7 +341,7 @@ def _trace_outer(img, base, hh, ww, ox, oy, sx, sy):
     lower-left corner ``(x, y)`` is in ``U`` when one of the pixels ``(x..x+1, y..y+1)`` is set.
     The walk starts with a ``+x`` step at the lowest-then-leftmost vertex and takes, at every
     vertex, the first boundary edge among *turn left, go straight, turn right*
-    (:data:`_NEXT_DIR`, as :func:`contourmesh.sections._follow_boundaries`).  Only the 3 x 3
+    (:data:`_NEXT_DIR`, as :func:`contourmesh.tracing._follow_boundaries`).  Only the 3 x 3
     pixels around each boundary vertex are read.
     """
     cap = 1024
@@ -391,7 +391,7 @@ _trace_outer_py = _entry(_trace_outer)
 def outer_jordan_contour(mask2d) -> np.ndarray:
     """The outer contour of the outer Jordan digitization of a 2D mask (one 4-component).
 
-    Equal to the outer contour of :func:`contourmesh.sections.trace_contours` for that mask.
+    Equal to the outer contour of :func:`contourmesh.tracing.trace_contours` for that mask.
     """
     m = np.ascontiguousarray(mask2d, dtype=bool)
     if m.ndim != 2 or not m.any():
@@ -968,7 +968,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             ring_xyz[k] = xyz
             ring_start[k] = ps
             continue
-        from .sections import _crack_contours
+        from .tracing import _crack_contours
 
         parts, starts = [], [0]
         for c in range(n):

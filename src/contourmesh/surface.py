@@ -14,7 +14,7 @@ End rules (stated once, see docs/DESIGN.md):
   by its contour (which always encloses area).
 * An end polygon that encloses area is closed by a flat cap: in its own plane (``caps="flat"``) or,
   with ``caps="half"``, after a prism half a slice spacing beyond it (as SlicerRT does), which adds
-  the prism's side area and ``area(cap) * h / 2`` of volume.  A polygon that touches itself (the
+  the prism's side area and ``area(cap) * gap / 2`` of volume.  A polygon that touches itself (the
   MLP of a thin part goes out and back) cannot be capped by ear clipping: a collar 1 % of the
   spacing beyond the end then joins it to its contour, capped by the contour's grid cells.
 """
@@ -164,7 +164,7 @@ def _is_grid_4_curve(c: np.ndarray) -> bool:
     return bool(np.all(d.sum(axis=1) == 1))
 
 
-def _cap_or_cells(b: _Builder, ring, contour, z: float, h: float, upward: bool, triangulation: str):
+def _cap_or_cells(b: _Builder, ring, contour, z: float, gap: float, upward: bool, triangulation: str):
     """A flat earcut cap on the ring; where the polygon touches itself (a thin part whose MLP goes
     out and back), a hair-thin collar to the contour and a cap made of its grid cells instead."""
     try:
@@ -182,14 +182,14 @@ def _cap_or_cells(b: _Builder, ring, contour, z: float, h: float, upward: bool, 
 
     c = c.astype(np.int64)
     sgn = 1.0 if upward else -1.0
-    t = b.add_points(c, z + sgn * 0.005 * h)
+    t = b.add_points(c, z + sgn * 0.005 * gap)
     _band(b, ring, t, triangulation) if upward else _band(b, t, ring, triangulation)
     (x0, y0), (x1, y1) = c.min(axis=0), c.max(axis=0)
     ii, jj = np.meshgrid(np.arange(x0, x1), np.arange(y0, y1))
     cells = np.c_[ii.ravel(), jj.ravel()]
     cells = cells[points_in_rings(cells + 0.5, c)]
     corners = np.unique(np.concatenate([c, cells, cells + [1, 0], cells + [1, 1], cells + [0, 1]]), axis=0)
-    gid = b.add_points(corners, z + sgn * 0.01 * h)
+    gid = b.add_points(corners, z + sgn * 0.01 * gap)
     lookup = {tuple(p): int(i) for p, i in zip(corners.tolist(), gid)}
     g = np.array([lookup[tuple(p)] for p in c.tolist()])
     b.add_faces(np.concatenate([np.c_[t, np.roll(t, -1), np.roll(g, -1)], np.c_[t, np.roll(g, -1), g]])
@@ -321,8 +321,8 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
         ends = [ch[end] for ch in rings]
         if caps == "half":
             nb = k + 1 if upward is False else k - 1
-            h = abs(zs[nb] - zs[k])
-            zc = zs[k] + (h / 2 if upward else -h / 2)
+            gap = abs(zs[nb] - zs[k])
+            zc = zs[k] + (gap / 2 if upward else -gap / 2)
             shifted = [b.add_polygon(p[k], zc) for p in polys]
             for r, t in zip(ends, shifted):
                 _band(b, r, t, triangulation) if upward else _band(b, t, r, triangulation)
@@ -439,8 +439,8 @@ def _mesh_run(b: _Builder, stack: ContourStack, run, polygon: str, triangulation
         if caps == "half":
             k = run[i][0]
             nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
-            h = abs(zs[nb] - zs[k])
-            zc = zs[k] + (h / 2 if upward else -h / 2)
+            gap = abs(zs[nb] - zs[k])
+            zc = zs[k] + (gap / 2 if upward else -gap / 2)
             outer = b.add_polygon(polys[i], zc)
             if upward:
                 _band(b, ring, outer, triangulation)

@@ -49,7 +49,7 @@ from .fastpath import fast_volume_to_mesh
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS
 from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
-from .sections import _crack_contours
+from .tracing import _crack_contours
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -94,7 +94,7 @@ def voxel_topology(mask) -> dict:
 def _mlp_of_pixels(pix: np.ndarray) -> np.ndarray | None:
     """MLP (outer Jordan construction) of an 8- or 4-connected pixel set; centre coordinates."""
     from .polygons import mlp_polygon
-    from .sections import trace_contours
+    from .tracing import trace_contours
 
     contours, parents = trace_contours(pix)
     outer = [c for c, p in zip(contours, parents) if p == -1]
@@ -371,14 +371,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     M = _Mesher(triangulation)
     rings = {}  # (k, comp, hole index or -1) -> vertex ids of the ring at z_k
 
-    def ring(k, c, h):
-        key = (k, c, h)
+    def ring(k, c, hole):
+        key = (k, c, hole)
         if key not in rings:
             s = slices[k]
             if (k, c) in crack_only:
-                poly = s.crack_outer[c] if h < 0 else s.crack_holes[c][h]
+                poly = s.crack_outer[c] if hole < 0 else s.crack_holes[c][hole]
             else:
-                poly = s.outer[c] if h < 0 else s.holes[c][h]
+                poly = s.outer[c] if hole < 0 else s.holes[c][hole]
             rings[key] = M.ring(poly, zs[k])
         return rings[key]
 

@@ -47,7 +47,7 @@ def polygonize(contour, method: str = "mlp") -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> from contourmesh.sections import trace_contours
+    >>> from contourmesh.tracing import trace_contours
     >>> (c,), _ = trace_contours(np.ones((2, 2), dtype=bool))
     >>> polygonize(c, "mlp").tolist()
     [[0, 0], [1, 0], [1, 1], [0, 1]]

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..sections import check_contour4
+from ..tracing import check_contour4
 
 __all__ = ["dss_polygon", "dss_vertex_indices"]
 
@@ -130,7 +130,7 @@ def dss_polygon(contour) -> np.ndarray:
     Parameters
     ----------
     contour : (k, 2) array_like of int
-        A closed digital 4-curve as returned by :func:`contourmesh.sections.trace_contours`
+        A closed digital 4-curve as returned by :func:`contourmesh.tracing.trace_contours`
         (either orientation).
 
     Returns
@@ -145,7 +145,7 @@ def dss_polygon(contour) -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> from contourmesh.sections import trace_contours
+    >>> from contourmesh.tracing import trace_contours
     >>> (c,), _ = trace_contours(np.ones((3, 6), dtype=bool))
     >>> dss_polygon(c).tolist()
     [[-1, -1], [6, 0], [5, 3], [-1, 2]]

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..sections import check_contour4
+from ..tracing import check_contour4
 
 __all__ = ["mlp_polygon", "mlp_candidates"]
 
@@ -315,7 +315,7 @@ def mlp_polygon(contour) -> np.ndarray:
     ----------
     contour : (k, 2) array_like of int
         A closed digital 4-curve with ``U`` on its left, as returned by
-        :func:`contourmesh.sections.trace_contours`: an outer contour (positive area; the band is
+        :func:`contourmesh.tracing.trace_contours`: an outer contour (positive area; the band is
         inside it) or a hole (negative area; the band is outside the hole).
 
     Returns
@@ -332,7 +332,7 @@ def mlp_polygon(contour) -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> from contourmesh.sections import trace_contours
+    >>> from contourmesh.tracing import trace_contours
     >>> (c,), _ = trace_contours(np.ones((3, 6), dtype=bool))
     >>> mlp_polygon(c).tolist()
     [[0, 0], [5, 0], [5, 2], [0, 2]]

@@ -1,9 +1,9 @@
-"""Contour following (contourmesh.sections): hand-worked cases and independent checks."""
+"""Contour following (contourmesh.tracing): hand-worked cases and independent checks."""
 
 import numpy as np
 import pytest
 
-from contourmesh.sections import check_contour4, rotate_start, trace_contours
+from contourmesh.tracing import check_contour4, rotate_start, trace_contours
 from contourmesh.types import shoelace_area
 
 
