@@ -32,7 +32,6 @@ row whose ``status`` is ``"ok"``, ``"not-installed"`` (naming what to pip instal
 
 from __future__ import annotations
 
-import importlib
 import math
 import re
 import time
@@ -42,6 +41,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from .._optional import MissingDependency, require
 from ..types import Mesh
 
 __all__ = [
@@ -92,17 +92,8 @@ class Result:
             self.P = int(len(self.mesh.vertices))
 
 
-class MissingDependency(ImportError):
-    """A method's optional package is not installed; the message says what to ``pip install``."""
-
-
 def _require(module: str, pip_name: str):
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise MissingDependency(
-            f"{module} is not installed: pip install {pip_name}  (or pip install 'contourmesh[compare]'); {exc}"
-        ) from exc
+    return require(module, "compare", pip_name)
 
 
 # --- input checks and frames --------------------------------------------------------------------
@@ -204,9 +195,14 @@ def marching_cubes(volume, spacing, origin, *, method: str = "lewiner", blur: fl
 
 
 # --- VTK ----------------------------------------------------------------------------------------
+def _require_vtk():
+    """VTK's Python modules, or the install hint (called before any ``vtkmodules`` import)."""
+    return _require("vtkmodules", "vtk")
+
+
 def _vtk_image(f: np.ndarray, spacing, origin, pad: int):
     """A ``vtkImageData`` of the ``[z, y, x]`` array ``f`` (x fastest = VTK's point order)."""
-    _require("vtk", "vtk")
+    _require_vtk()
     from vtkmodules.util import numpy_support
     from vtkmodules.vtkCommonCore import vtkSMPTools
     from vtkmodules.vtkCommonDataModel import vtkImageData
@@ -242,6 +238,7 @@ def _vtk_polydata_to_mesh(poly, **meta) -> Mesh:
 
 def vtk_flying_edges(volume, spacing, origin, *, blur: float = 0.0) -> Result:
     """``vtkFlyingEdges3D`` (Schroeder et al. 2015) at level 0.5, on the binary volume or its blur."""
+    _require_vtk()
     f, pad = _blurred(volume, float(blur))
     _level(f, 0.5)
     from vtkmodules.vtkFiltersCore import vtkFlyingEdges3D
@@ -258,6 +255,7 @@ def vtk_flying_edges(volume, spacing, origin, *, blur: float = 0.0) -> Result:
 
 def vtk_discrete_flying_edges(volume, spacing, origin) -> Result:
     """``vtkDiscreteFlyingEdges3D``: the label-1 boundary of the (padded) label volume."""
+    _require_vtk()
     f, pad = _blurred(volume, 0.0)
     _level(f, 0.5)
     from vtkmodules.vtkFiltersGeneral import vtkDiscreteFlyingEdges3D
@@ -278,6 +276,7 @@ def vtk_surface_nets(volume, spacing, origin, *, iterations: int = 16) -> Result
     ``iterations`` smoothing passes (16 = VTK's default; 0 turns smoothing off).  Relaxation
     factor and constraint scale stay at VTK's defaults (0.5 and 2).  Triangles out.
     """
+    _require_vtk()
     f, pad = _blurred(volume, 0.0)
     _level(f, 0.5)
     from vtkmodules.vtkFiltersCore import vtkSurfaceNets3D

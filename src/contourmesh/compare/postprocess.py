@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._optional import require
 from ..types import Mesh
 
 __all__ = [
@@ -39,14 +40,7 @@ __all__ = [
 
 
 def _require(module: str, pip_name: str):
-    import importlib
-
-    from .methods import MissingDependency
-
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise MissingDependency(f"{module} is not installed: pip install {pip_name}; {exc}") from exc
+    return require(module, "compare", pip_name)
 
 
 def _compact(vertices, faces, **meta) -> Mesh:
