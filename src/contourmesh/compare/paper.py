@@ -1,6 +1,6 @@
 """Reproduction of the paper's Tables 1-2 and Figures 2-3, beside the published values.
 
-The published values are data typed from the paper (``data/paper/*.csv``); this module computes
+The published values are data typed from the paper (package data ``contourmesh/data/paper/*.csv``); this module computes
 ours for every polygon x triangulation and writes CSV, Markdown and PNG next to each other.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..meshes import atomic_write
 
-__all__ = ["paper_table", "reproduce", "SPHERE_RADII", "SPHEROIDS", "COLUMNS"]
+__all__ = ["paper_table", "reproduce", "DEFAULT_OUT", "SPHERE_RADII", "SPHEROIDS", "COLUMNS"]
 
 SPHERE_RADII = (15, 20, 25, 30, 35, 40, 45, 50, 55, 60, 65, 70, 75, 80, 82)
 SPHEROIDS = ((10, 6), (15, 8), (20, 10), (25, 13), (30, 15), (35, 17))
@@ -34,20 +34,18 @@ FOOTNOTE = (
 )
 
 
-def data_dir() -> Path:
-    """The project's ``data/`` folder (the paper's tables live in ``data/paper``)."""
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        cand = parent / "data" / "paper"
-        if cand.is_dir():
-            return parent / "data"
-    raise FileNotFoundError("cannot find the project's data/paper folder next to the package")
-
-
 def paper_table(name: str) -> list[dict]:
-    """Rows of the paper's table ``"table1_sphere"`` or ``"table2_spheroid"`` as dicts of floats."""
-    path = data_dir() / "paper" / f"{name}.csv"
-    lines = [ln for ln in path.read_text().splitlines() if ln and not ln.startswith("#")]
+    """Rows of the paper's table ``"table1_sphere"`` or ``"table2_spheroid"`` as dicts of floats.
+
+    The tables ship as package data (``contourmesh/data/paper/*.csv``), so an installed package
+    reads them as well as a checkout does.
+    """
+    from importlib.resources import files
+
+    if name not in ("table1_sphere", "table2_spheroid"):
+        raise ValueError(f"unknown paper table {name!r}; expected 'table1_sphere' or 'table2_spheroid'")
+    text = (files("contourmesh") / "data" / "paper" / f"{name}.csv").read_text()
+    lines = [ln for ln in text.splitlines() if ln and not ln.startswith("#")]
     return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(lines)]
 
 
@@ -145,15 +143,15 @@ def rows_to_markdown(rows, title: str) -> str:
 
 def plot_figure(rows, which: str, path: Path):
     """Relative error |e| and trade-off t against size, ours beside the paper's (Figures 2-3)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     def xval(label):
         return float(label.split(",")[0])
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig = Figure(figsize=(11, 4.2))  # the object API: the caller's pyplot backend is left alone
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 2)
     styles = {"dss": "tab:red", "mlp": "tab:blue"}
     marks = {"wiederhold": "o-", "greedy": "s--", "optimal": "^:"}
     for pol in POLYGONS:
@@ -184,25 +182,38 @@ def plot_figure(rows, which: str, path: Path):
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
     atomic_write(path, buf.getvalue())
 
 
-def reproduce(out=None, *, progress: bool = True, echo=print) -> dict:
-    """Write Tables 1-2 (CSV + Markdown) and Figures 2-3 (PNG) to ``out``; return the rows."""
-    out = Path(out) if out is not None else data_dir().parent / "comparisons" / "paper"
+#: Where :func:`reproduce` writes when no folder is given: ``paper/`` in the current directory.
+DEFAULT_OUT = "paper"
+
+
+def reproduce(out=None, *, progress: bool = True, echo=None) -> dict:
+    """Write Tables 1-2 (CSV + Markdown) and Figures 2-3 (PNG) to ``out``; return the rows.
+
+    ``out`` defaults to ``./paper`` under the current working directory (never the checkout's
+    ``comparisons/paper``, which holds the committed results).  ``echo``, when given (e.g.
+    ``print``), receives each table as Markdown.  Returns ``{"sphere": rows, "spheroid": rows,
+    "out": Path, "files": [Path, ...]}``.
+    """
+    out = Path(out) if out is not None else Path.cwd() / DEFAULT_OUT
     out.mkdir(parents=True, exist_ok=True)
     results = {}
+    files = []
     for which, name, fig, title in (
         ("sphere", "table1_sphere", "figure2_sphere.png", "Table 1: sphere"),
         ("spheroid", "table2_spheroid", "figure3_spheroid.png", "Table 2: prolate spheroid (a, b, b)"),
     ):
         rows = compute_table(which, progress=progress)
-        atomic_write(out / f"{name}.csv", rows_to_csv(rows))
+        files.append(atomic_write(out / f"{name}.csv", rows_to_csv(rows)))
         md = rows_to_markdown(rows, title)
-        atomic_write(out / f"{name}.md", md.encode())
+        files.append(atomic_write(out / f"{name}.md", md.encode()))
         plot_figure(rows, which, out / fig)
+        files.append(out / fig)
         if echo:
             echo(md)
         results[which] = rows
+    results["out"] = out
+    results["files"] = files
     return results
