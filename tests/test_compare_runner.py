@@ -71,10 +71,13 @@ def strip(rows):
     return [{k: r[k] for k in COLUMNS if k != "seconds"} for r in rows]
 
 
-def test_tiny_spec_rows_tables_and_plots(fakes, spec):
+def test_tiny_spec_rows_tables_and_plots(fakes, spec, tmp_path, monkeypatch):
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    monkeypatch.chdir(work)
     res = runner.run_spec(spec, progress=False)
-    out = spec.parent / "tiny"  # default: next to the spec
-    assert res["out"] == out
+    out = work / "tiny"  # default: the current directory, not next to the spec (issue 12, item 11)
+    assert res["out"] == out and not (spec.parent / "tiny").exists()
     rows = read_results_csv(out / "results.csv")
     assert len(rows) == 2 * 2 * 3
     assert list(rows[0]) == list(COLUMNS)
@@ -99,7 +102,8 @@ def test_tiny_spec_rows_tables_and_plots(fakes, spec):
     assert fakes["count"] == 4 and fakes["fail"] == 4
 
 
-def test_rerun_uses_the_cache_and_recomputes_a_corrupt_row(fakes, spec):
+def test_rerun_uses_the_cache_and_recomputes_a_corrupt_row(fakes, spec, monkeypatch):
+    monkeypatch.chdir(spec.parent)
     first = runner.run_spec(spec, progress=False)
     assert (fakes["count"], fakes["fail"]) == (4, 4)
     again = runner.run_spec(spec, progress=False)
@@ -119,7 +123,8 @@ def test_rerun_uses_the_cache_and_recomputes_a_corrupt_row(fakes, spec):
     assert not list(cache.glob("*.tmp")) and not list(cache.glob(".*.tmp"))
 
 
-def test_retry_failed(fakes, spec):
+def test_retry_failed(fakes, spec, monkeypatch):
+    monkeypatch.chdir(spec.parent)
     runner.run_spec(spec, progress=False)
     runner.run_spec(spec, progress=False, retry_failed=True)
     assert fakes["fail"] == 8 and fakes["count"] == 4
@@ -144,7 +149,8 @@ def test_dask_local_cluster_gives_the_same_rows(fakes, spec, tmp_path):
     assert strip(dask["rows"]) == strip(serial["rows"])
 
 
-def test_timeout_row(fakes, tmp_path):
+def test_timeout_row(fakes, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     p = tmp_path / "slow.toml"
     p.write_text('methods = ["t-sleep", "t-count"]\n[[inputs]]\nshape = "sphere"\nsizes = [5]\n'
                  '[method."t-sleep"]\ntimeout = 0.3\n')
@@ -155,7 +161,8 @@ def test_timeout_row(fakes, tmp_path):
     assert "0.3 s" in rows[0]["error"]
 
 
-def test_ours_on_a_shape_and_postprocess_of_a_meshless_method(tmp_path, fakes):
+def test_ours_on_a_shape_and_postprocess_of_a_meshless_method(tmp_path, fakes, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     p = tmp_path / "ours.toml"
     p.write_text('methods = ["ours-mlp-wiederhold", "t-count"]\npostprocess = ["none", "merge-coplanar"]\n'
                  '[[inputs]]\nshape = "sphere"\nsizes = [12]\n')
@@ -169,7 +176,8 @@ def test_ours_on_a_shape_and_postprocess_of_a_meshless_method(tmp_path, fakes):
     assert bad["status"] == "failed" and "makes no mesh" in bad["error"]
 
 
-def test_missing_mesh_file_is_a_no_data_row(tmp_path):
+def test_missing_mesh_file_is_a_no_data_row(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     p = tmp_path / "m.toml"
     p.write_text('methods = ["surfels"]\n[[inputs]]\nmesh = "meshes/absent.off"\nresolutions = [16, 32]\n')
     rows = runner.run_spec(p, progress=False, data_root=tmp_path)["rows"]
