@@ -549,6 +549,8 @@ def _run_pool(todo, jobs, cache_dir, collect, mp_context=None):
                     done.add(t.key)
             except BaseException:  # Ctrl-C, SIGTERM: keep the finished rows, end the workers now
                 _end_workers(ex)
+                for marker in Path(cache_dir).glob("*.running"):  # those rows did not finish
+                    marker.unlink(missing_ok=True)
                 raise
             if broken:  # rows that finished before the pool broke are kept
                 for fut, t in futs.items():
