@@ -13,7 +13,7 @@ import pytest
 from contourmesh.compare import methods as M
 from contourmesh.compare import runner
 from contourmesh.compare.inputs import Input, shape_inputs
-from contourmesh.compare.report import COLUMNS, PLOTS, empirical_order, fit_orders, read_results_csv, summarize
+from contourmesh.compare.report import COLUMNS, empirical_order, fit_orders, read_results_csv, summarize
 
 CALLS = {"count": 0, "fail": 0}
 
@@ -97,8 +97,10 @@ def test_tiny_spec_rows_tables_and_plots(fakes, spec, tmp_path, monkeypatch):
     assert sorted({(r["size"], r["repeat"]) for r in rows}) == [("6", 0), ("6", 1), ("9", 0), ("9", 1)]
     md = (out / "summary.md").read_text()
     assert "# tiny" in md and "| 9 | t-count | none | 2/2 |" in md and "deliberate failure" in md
-    for name in PLOTS:
-        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for stem in ("error", "seconds"):  # one file per metric and shape family
+        assert (out / f"{stem}-sphere.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # surfel counting has no vertex count, so no t and no trade-off plot
+    assert sorted(p.name for p in res["files"] if p.suffix == ".png") == ["error-sphere.png", "seconds-sphere.png"]
     assert fakes["count"] == 4 and fakes["fail"] == 4
 
 
@@ -271,3 +273,57 @@ def test_shipped_specs_load():
         assert len({t.key for t in tasks}) == len(tasks)
     spheres = runner.load_spec(root / "spheres.toml")
     assert len({i.size for i in spheres.inputs}) >= 8 and spheres.repeats == 5
+
+
+def _synthetic_rows():
+    """Rows of one shape family: ours (two variants) and five peers with known error levels."""
+    levels = {"ours-mlp-wiederhold": 1e-2, "ours-mlp-optimal-band": 1e-4, "p-best": 2e-4, "p-second": 5e-4,
+              "p-third": 1e-3, "p-fourth": 3e-2, "p-small-only": 1e-6}
+    rows = []
+    for m, level in levels.items():
+        for s in (10, 20, 40, 80):
+            if m == "p-small-only" and s > 20:  # strong at small sizes only: not among the strongest
+                continue
+            rows.append({"shape": "sphere", "size": str(s), "size_value": float(s), "method": m, "postprocess": "none",
+                         "status": "ok", "e": level * (1 + 0.01 * s), "P": 100 if m != "p-second" else None,
+                         "t": level * 100 if m != "p-second" else None, "seconds": 0.1, "area": 1.0,
+                         "watertight": None, "error": None})
+    return rows
+
+
+def test_plots_highlight_ours_and_the_three_strongest_peers(tmp_path):
+    # issue 12 item 13: 25 methods in look-alike colours on one axis; ours could not be found
+    from contourmesh.compare.report import highlighted, plot_results
+
+    summary = summarize(_synthetic_rows())
+    ours, peers = highlighted(summary, "sphere")
+    assert ours == [("ours-mlp-optimal-band", "none"), ("ours-mlp-wiederhold", "none")]
+    assert peers == [("p-best", "none"), ("p-second", "none"), ("p-third", "none")]
+    # for t, a peer without a vertex count gives way to the next one
+    assert highlighted(summary, "sphere", having="t")[1] == [("p-best", "none"), ("p-third", "none"), ("p-fourth", "none")]
+    import matplotlib
+
+    old = matplotlib.get_backend()
+    matplotlib.use("template", force=True)
+    try:
+        files = plot_results(_synthetic_rows(), tmp_path)
+        assert matplotlib.get_backend() == "template"  # the object API: no matplotlib.use
+    finally:
+        matplotlib.use(old, force=True)
+    assert sorted(p.name for p in files) == ["error-sphere.png", "seconds-sphere.png", "tradeoff-sphere.png"]
+    assert all(p.read_bytes()[:4] == b"\x89PNG" for p in files)
+
+
+def test_run_method_runs_ours_like_any_other_method():
+    # issue 11: run_method("ours-mlp-wiederhold", volume) answered "unknown method"
+    vol = np.zeros((12, 12, 12), dtype=bool)
+    vol[2:10, 2:10, 2:10] = True
+    row = M.run_method("ours-mlp-wiederhold", vol, spacing=(2.0, 1.0, 1.0))
+    assert row["status"] == "ok", row["error"]
+    assert row["family"] == "ours" and row["watertight"] is True
+    # the surface through the boundary voxel centres: a 14 x 7 x 7 box (z spacing 2)
+    assert row["area"] == pytest.approx(2 * (7 * 7) + 4 * (7 * 14))
+    assert M.get_method("ours-dss-optimal-band").params == {"polygon": "dss", "triangulation": "optimal",
+                                                            "refine": "band"}
+    with pytest.raises(ValueError, match="ours-<polygon>"):
+        M.get_method("ours-mlp")

@@ -87,7 +87,7 @@ from ..measure import relative_error, tradeoff
 from .execute import HARD_GRACE, ExecutorError, RowTimeout, call_in_subprocess, die_with_parent, time_limit
 from .inputs import Input, mesh_inputs, shape_inputs
 from .methods import get_method
-from .report import COLUMNS, PLOTS, markdown_summary, plot_results, write_results_csv
+from .report import COLUMNS, markdown_summary, plot_results, write_results_csv
 
 __all__ = [
     "Spec",
@@ -726,8 +726,8 @@ def _cmd_compare(args) -> int:
         counts[r["status"]] = counts.get(r["status"], 0) + 1
     out = Path(res["out"]).resolve()
     print(f"wrote {out}: {len(res['rows'])} rows ({res['ran']} run, {res['cached']} from the cache; "
-          + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + "); results.csv, summary.md, "
-          + ", ".join(PLOTS))
+          + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + "); "
+          + ", ".join(Path(f).name for f in res["files"]))
     if res["executor_failed"]:
         print(f"contourmesh: error: {res['executor_failed']} rows were not run (the executor or the scheduler "
               "failed, not the method; see summary.md); they are not cached and a re-run retries them",
