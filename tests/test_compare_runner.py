@@ -267,12 +267,16 @@ def test_shipped_specs_load():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1] / "comparisons"
-    for name in ("spheres", "shapes", "meshes"):
+    for name in ("spheres", "shapes", "meshes", "quick"):
         spec = runner.load_spec(root / f"{name}.toml")
         tasks = runner.plan(spec)
         assert len({t.key for t in tasks}) == len(tasks)
     spheres = runner.load_spec(root / "spheres.toml")
     assert len({i.size for i in spheres.inputs}) >= 8 and spheres.repeats == 5
+    # the quick spec (README: "runs in under a minute") stays small: no slow peers, few rows
+    quick = runner.load_spec(root / "quick.toml")
+    assert len(runner.plan(quick)) <= 60
+    assert not [m for m in quick.methods if m.split("-")[0] in ("o3d", "ml", "dgtal")]
 
 
 def _synthetic_rows():
