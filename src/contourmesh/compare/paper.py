@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..measure import relative_error, tradeoff
 from ..meshes import atomic_write
 
 __all__ = ["paper_table", "reproduce", "DEFAULT_OUT", "SPHERE_RADII", "SPHEROIDS", "COLUMNS"]
@@ -74,11 +75,11 @@ def _rows_for(shape, size_label, paper_row, polygons, triangulations):
         for tri in triangulations:
             m = stack_to_mesh(stack, polygon=pol, triangulation=tri)
             area = m.area
-            e = (area - area_true) / area_true
+            e = relative_error(area, area_true)
             chk = m.checks()
             row = {
                 "size": size_label, "polygon": pol, "triangulation": tri,
-                "area_true": area_true, "area": area, "e": e, "P": m.P, "t": abs(e) * m.P,
+                "area_true": area_true, "area": area, "e": e, "P": m.P, "t": tradeoff(e, m.P),
                 "paper_area": "", "paper_e": "", "paper_P": "", "paper_t": "",
                 "watertight": chk["watertight"], "winding_consistent": chk["winding_consistent"],
                 "volume": chk["volume"],
