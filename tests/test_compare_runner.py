@@ -331,3 +331,25 @@ def test_run_method_runs_ours_like_any_other_method():
                                                             "refine": "band"}
     with pytest.raises(ValueError, match="ours-<polygon>"):
         M.get_method("ours-mlp")
+
+
+def test_cli_compare_writes_to_the_current_directory_and_says_where(tmp_path):
+    # issue 12 item 11: compare wrote into the checkout's comparisons/ from any directory, silently
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    specs = tmp_path / "specs"
+    specs.mkdir()
+    (specs / "one.toml").write_text('methods = ["surfels"]\n[[inputs]]\nshape = "sphere"\nsizes = [4]\n')
+    work = tmp_path / "work"
+    work.mkdir()
+    src = str(Path(runner.__file__).resolve().parents[2])
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
+    run = subprocess.run([sys.executable, "-m", "contourmesh", "compare", str(specs / "one.toml"), "--quiet"],
+                         cwd=work, env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert (work / "one" / "results.csv").is_file()
+    assert sorted(p.name for p in specs.iterdir()) == ["one.toml"]  # nothing next to the spec
+    assert f"wrote {work / 'one'}" in run.stdout
