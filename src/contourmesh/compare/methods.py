@@ -44,8 +44,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .._optional import MissingDependency, require
 from .. import mesh as _mesh_source
+from .._optional import MissingDependency, require
 from ..types import Mesh
 
 __all__ = [
