@@ -104,11 +104,6 @@ __all__ = [
 MAX_CRASHES = 2
 
 
-def _method(name: str):
-    """The :class:`~contourmesh.compare.methods.Method` a name denotes (ours is one like the others)."""
-    return get_method(name)
-
-
 # --- spec -------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Task:
@@ -200,7 +195,7 @@ def load_spec(path, *, data_root=None) -> Spec:
     if len(set(methods)) != len(methods):
         raise ValueError(f"{path.name}: methods lists a name twice")
     for m in methods:
-        _method(m)  # unknown names raise ValueError listing the valid forms
+        get_method(m)  # unknown names raise ValueError listing the valid forms
     post = _post_list(doc.get("postprocess", ["none"]), path.name)
     options = doc.get("method", {})
     if not isinstance(options, dict):
@@ -268,7 +263,7 @@ def cache_key(inp: Input, method: str, postprocess: str) -> str:
     from .. import __version__
 
     try:
-        params = {k: _jsonable(v) for k, v in _method(method).params.items()}
+        params = {k: _jsonable(v) for k, v in get_method(method).params.items()}
     except ValueError:
         params = None
     blob = json.dumps({"input": inp.key, "method": method, "params": params, "postprocess": postprocess,
@@ -303,7 +298,7 @@ def _base_row(task: Task) -> dict:
                area_true=inp.area_true, kind=inp.kind, digitization=inp.digitization, size_value=inp.size_value,
                key=task.key)
     try:
-        row["family"] = _method(task.method).family
+        row["family"] = get_method(task.method).family
     except ValueError:
         pass
     return row
@@ -314,7 +309,7 @@ def _measure(task: Task) -> dict:
     from .methods import Result, check_volume
 
     out = {}
-    method = _method(task.method)
+    method = get_method(task.method)
     inp = task.input
     if inp.kind == "shape" and method.shape_fn is not None:  # ours meshes the shape's own slices
         shape, h = inp.shape(), inp.h
