@@ -46,7 +46,11 @@ import numpy as np
 
 from .. import mesh as _mesh_source
 from .._optional import MissingDependency, require
+from ..measure import mesh_checks
 from ..types import Mesh
+from .execute import ExecutorError, call_in_subprocess
+from .local import boundary_face_counts, lindblad_area, mullikin_verbeek_area, surfel_area
+from .postprocess import apply_postprocess
 
 __all__ = [
     "Method",
@@ -524,23 +528,17 @@ def ml_alpha_wrap(volume, spacing, origin, *, alpha: float = 2.0, offset: float 
 # --- local estimators ---------------------------------------------------------------------------
 def surfel_count(volume, spacing, origin) -> Result:
     """Surfel counting (:func:`contourmesh.compare.local.surfel_area`), about +50 % on smooth shapes."""
-    from .local import boundary_face_counts, surfel_area
-
     return Result(area=surfel_area(volume, spacing), extra={"faces_zyx": boundary_face_counts(volume).tolist()})
 
 
 def mullikin_verbeek(volume, spacing, origin) -> Result:
     """Mullikin & Verbeek (1993) weighted surface-voxel counting (:func:`~contourmesh.compare.local.mullikin_verbeek_area`)."""
-    from .local import mullikin_verbeek_area
-
     area, counts = mullikin_verbeek_area(volume, spacing)
     return Result(area=area, extra=counts)
 
 
 def lindblad(volume, spacing, origin, *, a1: float = 0.6380) -> Result:
     """Lindblad (2005) weighted m-cube configurations (:func:`~contourmesh.compare.local.lindblad_area`)."""
-    from .local import lindblad_area
-
     area, per_case = lindblad_area(volume, spacing, a1=a1)
     return Result(area=area, extra={"cases": per_case.tolist()})
 
@@ -597,8 +595,6 @@ def dgtal_integration(volume, spacing, origin, *, estimator: str = "ii", radius:
         kc += [K.sKCoords(s) for s in surfels]
     n_grid = np.array(n_grid, dtype=np.float64).reshape(-1, 3)
     kc = np.array(kc, dtype=np.int64).reshape(-1, 3)
-    from .local import boundary_face_counts
-
     expected = int(boundary_face_counts(volume).sum())
     if len(kc) != expected or np.any((kc % 2).sum(axis=1) != 2):
         raise RuntimeError(f"DGtal's digital surfaces have {len(kc)} surfels; the volume has {expected} boundary faces")
@@ -793,8 +789,6 @@ def _run_inprocess(name, volume, spacing, origin, postprocess=()) -> dict:
         if postprocess:
             if mesh is None:
                 raise ValueError(f"method {name!r} makes no mesh; post-processes {list(postprocess)} need one")
-            from .postprocess import apply_postprocess
-
             extra["post"] = []
             for pname in postprocess:
                 mesh, info = apply_postprocess(pname, mesh)
@@ -803,8 +797,6 @@ def _run_inprocess(name, volume, spacing, origin, postprocess=()) -> dict:
         row["seconds"] = time.perf_counter() - t0
         row.update(status="ok", area=float(res.area), P=res.P, extra=extra, mesh=mesh)
         if mesh is not None:
-            from ..measure import mesh_checks
-
             chk = mesh_checks(mesh.vertices, mesh.faces)
             row.update(faces=int(len(mesh.faces)), watertight=chk["watertight"],
                        winding_consistent=chk["winding_consistent"], volume=chk["volume"])
@@ -852,8 +844,6 @@ def run_method(name: str, volume, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0
         return _run_inprocess(name, vol, sp, org, post)
     if not timeout > 0:
         raise ValueError(f"timeout must be a positive number of seconds or None; got {timeout!r}")
-    from .execute import ExecutorError, call_in_subprocess
-
     try:
         status, value, seconds = call_in_subprocess(_run_inprocess, name, vol, sp, org, post, timeout=timeout,
                                                     kill_after=timeout)

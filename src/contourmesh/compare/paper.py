@@ -13,8 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import stack_to_mesh
+from ..digitize import outer_jordan_stack
 from ..measure import relative_error, tradeoff
 from ..meshes import atomic_write
+from ..shapes import Ellipsoid, Sphere
 
 __all__ = ["paper_table", "reproduce", "DEFAULT_OUT", "SPHERE_RADII", "SPHEROIDS", "COLUMNS"]
 
@@ -65,9 +68,6 @@ def _fmt(v, digits=6):
 
 
 def _rows_for(shape, size_label, paper_row, polygons, triangulations):
-    from ..digitize import outer_jordan_stack
-    from ..surface import stack_to_mesh
-
     stack = outer_jordan_stack(shape)
     area_true = shape.area
     rows = []
@@ -95,8 +95,6 @@ def _rows_for(shape, size_label, paper_row, polygons, triangulations):
 def compute_table(which: str, *, sizes=None, polygons=POLYGONS, triangulations=TRIANGULATIONS,
                   progress: bool = True) -> list[dict]:
     """Compute the rows of Table 1 (``which="sphere"``) or Table 2 (``which="spheroid"``)."""
-    from ..shapes import Ellipsoid, Sphere
-
     if which == "sphere":
         paper = {int(r["r"]): r for r in paper_table("table1_sphere")}
         sizes = SPHERE_RADII if sizes is None else sizes

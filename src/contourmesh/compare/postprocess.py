@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .._optional import require
+from ..meshes import atomic_write
 from ..types import Mesh
 
 __all__ = [
@@ -352,8 +353,6 @@ def save_filter_script(steps, path) -> Path:
     """
     pymeshlab = _require("pymeshlab", "pymeshlab")
     trimesh = _require("trimesh", "trimesh")
-    from ..meshes import atomic_write
-
     chain = []
     for step in steps:
         if isinstance(step, str):

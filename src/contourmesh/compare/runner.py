@@ -69,12 +69,10 @@ also die with the run if it is killed outright), and the cache keeps only comple
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
 import signal
-import sys
 import threading
 import time
 import traceback
@@ -82,10 +80,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from ..measure import relative_error, tradeoff
+from .. import __version__
+from ..measure import mesh_checks, relative_error, tradeoff
+from ..meshes import atomic_write
+from .command import RunInterrupted, add_compare_parser  # noqa: F401 - the command line lives in command.py
 from .execute import HARD_GRACE, ExecutorError, RowTimeout, call_in_subprocess, die_with_parent, time_limit
 from .inputs import Input, mesh_inputs, shape_inputs
-from .methods import get_method
+from .methods import Result, check_volume, get_method
+from .postprocess import apply_postprocess, get_postprocess
 from .report import COLUMNS, markdown_summary, plot_results, write_results_csv
 
 __all__ = [
@@ -150,8 +152,6 @@ def _timeout(value, where):
 
 
 def _post_list(value, where) -> list:
-    from .postprocess import get_postprocess
-
     if isinstance(value, str):
         value = [value]
     if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
@@ -260,8 +260,6 @@ def _jsonable(v):
 
 def cache_key(inp: Input, method: str, postprocess: str) -> str:
     """sha256 of the input's identity, the method and its parameters, the post-process, the version."""
-    from .. import __version__
-
     try:
         params = {k: _jsonable(v) for k, v in get_method(method).params.items()}
     except ValueError:
@@ -306,8 +304,6 @@ def _base_row(task: Task) -> dict:
 
 def _measure(task: Task) -> dict:
     """Run the method and its post-processes on the task's input; the fields a run fills."""
-    from .methods import Result, check_volume
-
     out = {}
     method = get_method(task.method)
     inp = task.input
@@ -325,8 +321,6 @@ def _measure(task: Task) -> dict:
     if task.postprocess != "none":
         if mesh is None:
             raise ValueError(f"method {task.method!r} makes no mesh; post-process {task.postprocess!r} needs one")
-        from .postprocess import apply_postprocess
-
         for step in task.postprocess.split("+"):
             mesh, _ = apply_postprocess(step, mesh)
         P = int(len(mesh.vertices))
@@ -334,8 +328,6 @@ def _measure(task: Task) -> dict:
     out["area"] = float(mesh.area) if mesh is not None else float(res.area)
     out["P"] = None if P is None else int(P)
     if mesh is not None:
-        from ..measure import mesh_checks
-
         chk = mesh_checks(mesh.vertices, mesh.faces)
         out.update(faces=int(len(mesh.faces)), watertight=bool(chk["watertight"]),
                    winding_consistent=bool(chk["winding_consistent"]), volume=float(chk["volume"]))
@@ -454,8 +446,6 @@ def _running_marker(cache_dir: Path, key: str) -> Path:
 
 
 def _write_cache(cache_dir: Path, row: dict) -> None:
-    from ..meshes import atomic_write
-
     clean = {k: _jsonable(row.get(k)) for k in COLUMNS}
     atomic_write(_cache_path(cache_dir, row["key"]), json.dumps(clean, sort_keys=True).encode())
 
@@ -688,64 +678,8 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
         bar.close()
     all_rows = [rows[t.key] for t in tasks if t.key in rows]
     files = [write_results_csv(all_rows, out / "results.csv")]
-    from ..meshes import atomic_write
-
     files.append(atomic_write(out / "summary.md", markdown_summary(all_rows, title=spec.title, notes=spec.notes).encode()))
     files += plot_results(all_rows, out)
     return {"rows": all_rows, "ran": ran, "cached": cached, "executor_failed": executor_failed, "out": out,
             "files": files}
 
-
-# --- command line ---------------------------------------------------------------------------------
-class RunInterrupted(KeyboardInterrupt):
-    """SIGTERM arrived: the run stops as on Ctrl-C (workers ended, finished rows kept)."""
-
-
-def _on_sigterm(signum, frame):
-    raise RunInterrupted(f"stopped by signal {signum}")
-
-
-def _cmd_compare(args) -> int:
-    old = None
-    if threading.current_thread() is threading.main_thread():
-        old = signal.signal(signal.SIGTERM, _on_sigterm)
-    try:
-        res = run_spec(args.spec, args.out, jobs=args.jobs, scheduler=args.scheduler, progress=not args.quiet,
-                       retry_failed=args.retry_failed)
-    finally:
-        if old is not None:
-            signal.signal(signal.SIGTERM, old)
-    counts: dict = {}
-    for r in res["rows"]:
-        counts[r["status"]] = counts.get(r["status"], 0) + 1
-    out = Path(res["out"]).resolve()
-    print(f"wrote {out}: {len(res['rows'])} rows ({res['ran']} run, {res['cached']} from the cache; "
-          + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + "); "
-          + ", ".join(Path(f).name for f in res["files"]))
-    if res["executor_failed"]:
-        print(f"contourmesh: error: {res['executor_failed']} rows were not run (the executor or the scheduler "
-              "failed, not the method; see summary.md); they are not cached and a re-run retries them",
-              file=sys.stderr)
-        return 1
-    return 0
-
-
-def add_compare_parser(subparsers) -> argparse.ArgumentParser:
-    """Add ``contourmesh compare SPEC.toml [--out DIR] [--jobs N] [--scheduler ADDRESS]`` to a CLI.
-
-    ``subparsers`` is the object ``ArgumentParser.add_subparsers()`` returned; the new parser's
-    ``func(args)`` runs the comparison and returns the exit status.
-    """
-    p = subparsers.add_parser(
-        "compare", help="run a comparison spec (comparisons/*.toml): results.csv, summary.md, plots",
-        description="Run every input x method x post-process x repeat of a comparison spec; finished rows are "
-                    "cached, so an interrupted run resumes where it stopped.")
-    p.add_argument("spec", help="the comparison spec, a TOML file (e.g. comparisons/spheres.toml)")
-    p.add_argument("--out", default=None, help="output folder (default: ./<spec stem>/ in the current directory)")
-    p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on a Dask distributed cluster at this scheduler address (e.g. tcp://host:8786)")
-    p.add_argument("--retry-failed", action="store_true", help="re-run cached rows that failed or timed out")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=_cmd_compare)
-    return p
