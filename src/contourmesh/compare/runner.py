@@ -379,11 +379,12 @@ def _in_subprocess(task: Task) -> dict:
     """Run a timed row in a new Python process (for threads other than the main one, e.g. Dask's).
 
     The child applies the time limit in its own main thread; it is killed ``HARD_GRACE`` seconds
-    later if stuck in compiled code.  ``subprocess`` (not ``multiprocessing``) works inside
+    later if stuck in compiled code.  Each thread keeps its child for the next row (one
+    interpreter start-up per thread, not per row).  ``subprocess`` (not ``multiprocessing``) works inside
     daemonic processes, such as the process workers of a default ``distributed.LocalCluster``.
     """
     try:
-        status, value, seconds = call_in_subprocess(execute, task, kill_after=task.timeout + HARD_GRACE)
+        status, value, seconds = call_in_subprocess(execute, task, kill_after=task.timeout + HARD_GRACE, reuse=True)
     except ExecutorError as exc:
         return _executor_row(task, str(exc))
     if status == "ok":
