@@ -44,9 +44,6 @@ COLUMNS = ("method", "postprocess", "shape", "size", "repeat", "area_true", "are
 #: by the spec (``max_size``); input data missing.
 STATUSES = ("ok", "not-installed", "failed", "timeout", "skipped", "no-data")
 
-#: The figure files :func:`plot_results` writes.
-PLOTS = ("error.png", "tradeoff.png", "seconds.png")
-
 _INT = ("repeat", "P", "faces")
 _FLOAT = ("area_true", "area", "e", "t", "seconds", "size_value", "volume")
 _BOOL = ("watertight", "winding_consistent")
