@@ -268,11 +268,27 @@ def _exists(tmp_path):
         assert p.read_bytes() == b"old"
 
 
+#: Cases whose input also gives our warning on the way to the error (asserted with pytest.warns).
+WARNS = {"rings that are all 1- or 2-point": (UserWarning, "dropped 2 contour")}
+#: Cases where a third-party reader may warn about the garbage it is given (version-dependent): filtered.
+OTHERS_WARN = {"corrupt DICOM"}
+
+
 @pytest.mark.parametrize("name", list(CASES))
 def test_bad_input_is_named(name, tmp_path):
+    import warnings
+
     make, exc, pattern = CASES[name]
     with pytest.raises(exc, match=pattern) as info:
-        make(tmp_path)
+        if name in WARNS:
+            with pytest.warns(WARNS[name][0], match=WARNS[name][1]):
+                make(tmp_path)
+        elif name in OTHERS_WARN:
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", category=UserWarning, module="pydicom")
+                make(tmp_path)
+        else:
+            make(tmp_path)
     msg = str(info.value)
     assert len(msg) > 15 and "\n" not in msg.strip(), msg
 

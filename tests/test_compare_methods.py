@@ -133,11 +133,23 @@ def test_local_and_dgtal_anisotropic_box():
 
 
 # --- statuses -------------------------------------------------------------------------------------
-def test_not_installed_is_reported(monkeypatch):
-    monkeypatch.setitem(sys.modules, "vtk", None)
-    row = run_method("vtk-surfacenets", ball(5))
+def _hide(monkeypatch, top):
+    """Make ``top`` and its submodules unimportable, as if the package were not installed."""
+    for name in [n for n in sys.modules if n == top or n.startswith(top + ".")] + [top]:
+        monkeypatch.setitem(sys.modules, name, None)
+
+
+@pytest.mark.parametrize("name", ["vtk-flyingedges", "vtk-discreteflyingedges", "vtk-surfacenets"])
+def test_vtk_missing_gives_the_install_hint(monkeypatch, name):
+    # issue 11: the VTK methods imported vtkmodules before the helper that names the package
+    _hide(monkeypatch, "vtkmodules")
+    _hide(monkeypatch, "vtk")
+    row = run_method(name, ball(5))
     assert row["status"] == "not-installed"
-    assert "pip install vtk" in row["error"]
+    assert "pip install vtk" in row["error"] and "contourmesh[compare]" in row["error"]
+
+
+def test_not_installed_is_reported(monkeypatch):
     monkeypatch.setitem(sys.modules, "skimage.measure", None)
     row = run_method("mc-lewiner", ball(5))
     assert row["status"] == "not-installed" and "pip install scikit-image" in row["error"]

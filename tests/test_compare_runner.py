@@ -13,7 +13,7 @@ import pytest
 from contourmesh.compare import methods as M
 from contourmesh.compare import runner
 from contourmesh.compare.inputs import Input, shape_inputs
-from contourmesh.compare.report import COLUMNS, PLOTS, empirical_order, fit_orders, read_results_csv, summarize
+from contourmesh.compare.report import COLUMNS, empirical_order, fit_orders, read_results_csv, summarize
 
 CALLS = {"count": 0, "fail": 0}
 
@@ -71,10 +71,13 @@ def strip(rows):
     return [{k: r[k] for k in COLUMNS if k != "seconds"} for r in rows]
 
 
-def test_tiny_spec_rows_tables_and_plots(fakes, spec):
+def test_tiny_spec_rows_tables_and_plots(fakes, spec, tmp_path, monkeypatch):
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    monkeypatch.chdir(work)
     res = runner.run_spec(spec, progress=False)
-    out = spec.parent / "tiny"  # default: next to the spec
-    assert res["out"] == out
+    out = work / "tiny"  # default: the current directory, not next to the spec (issue 12, item 11)
+    assert res["out"] == out and not (spec.parent / "tiny").exists()
     rows = read_results_csv(out / "results.csv")
     assert len(rows) == 2 * 2 * 3
     assert list(rows[0]) == list(COLUMNS)
@@ -94,12 +97,15 @@ def test_tiny_spec_rows_tables_and_plots(fakes, spec):
     assert sorted({(r["size"], r["repeat"]) for r in rows}) == [("6", 0), ("6", 1), ("9", 0), ("9", 1)]
     md = (out / "summary.md").read_text()
     assert "# tiny" in md and "| 9 | t-count | none | 2/2 |" in md and "deliberate failure" in md
-    for name in PLOTS:
-        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for stem in ("error", "seconds"):  # one file per metric and shape family
+        assert (out / f"{stem}-sphere.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # surfel counting has no vertex count, so no t and no trade-off plot
+    assert sorted(p.name for p in res["files"] if p.suffix == ".png") == ["error-sphere.png", "seconds-sphere.png"]
     assert fakes["count"] == 4 and fakes["fail"] == 4
 
 
-def test_rerun_uses_the_cache_and_recomputes_a_corrupt_row(fakes, spec):
+def test_rerun_uses_the_cache_and_recomputes_a_corrupt_row(fakes, spec, monkeypatch):
+    monkeypatch.chdir(spec.parent)
     first = runner.run_spec(spec, progress=False)
     assert (fakes["count"], fakes["fail"]) == (4, 4)
     again = runner.run_spec(spec, progress=False)
@@ -119,7 +125,8 @@ def test_rerun_uses_the_cache_and_recomputes_a_corrupt_row(fakes, spec):
     assert not list(cache.glob("*.tmp")) and not list(cache.glob(".*.tmp"))
 
 
-def test_retry_failed(fakes, spec):
+def test_retry_failed(fakes, spec, monkeypatch):
+    monkeypatch.chdir(spec.parent)
     runner.run_spec(spec, progress=False)
     runner.run_spec(spec, progress=False, retry_failed=True)
     assert fakes["fail"] == 8 and fakes["count"] == 4
@@ -144,7 +151,8 @@ def test_dask_local_cluster_gives_the_same_rows(fakes, spec, tmp_path):
     assert strip(dask["rows"]) == strip(serial["rows"])
 
 
-def test_timeout_row(fakes, tmp_path):
+def test_timeout_row(fakes, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     p = tmp_path / "slow.toml"
     p.write_text('methods = ["t-sleep", "t-count"]\n[[inputs]]\nshape = "sphere"\nsizes = [5]\n'
                  '[method."t-sleep"]\ntimeout = 0.3\n')
@@ -155,7 +163,8 @@ def test_timeout_row(fakes, tmp_path):
     assert "0.3 s" in rows[0]["error"]
 
 
-def test_ours_on_a_shape_and_postprocess_of_a_meshless_method(tmp_path, fakes):
+def test_ours_on_a_shape_and_postprocess_of_a_meshless_method(tmp_path, fakes, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     p = tmp_path / "ours.toml"
     p.write_text('methods = ["ours-mlp-wiederhold", "t-count"]\npostprocess = ["none", "merge-coplanar"]\n'
                  '[[inputs]]\nshape = "sphere"\nsizes = [12]\n')
@@ -169,7 +178,8 @@ def test_ours_on_a_shape_and_postprocess_of_a_meshless_method(tmp_path, fakes):
     assert bad["status"] == "failed" and "makes no mesh" in bad["error"]
 
 
-def test_missing_mesh_file_is_a_no_data_row(tmp_path):
+def test_missing_mesh_file_is_a_no_data_row(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     p = tmp_path / "m.toml"
     p.write_text('methods = ["surfels"]\n[[inputs]]\nmesh = "meshes/absent.off"\nresolutions = [16, 32]\n')
     rows = runner.run_spec(p, progress=False, data_root=tmp_path)["rows"]
@@ -257,9 +267,89 @@ def test_shipped_specs_load():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1] / "comparisons"
-    for name in ("spheres", "shapes", "meshes"):
+    for name in ("spheres", "shapes", "meshes", "quick"):
         spec = runner.load_spec(root / f"{name}.toml")
         tasks = runner.plan(spec)
         assert len({t.key for t in tasks}) == len(tasks)
     spheres = runner.load_spec(root / "spheres.toml")
     assert len({i.size for i in spheres.inputs}) >= 8 and spheres.repeats == 5
+    # the quick spec (README: "runs in under a minute") stays small: no slow peers, few rows
+    quick = runner.load_spec(root / "quick.toml")
+    assert len(runner.plan(quick)) <= 60
+    assert not [m for m in quick.methods if m.split("-")[0] in ("o3d", "ml", "dgtal")]
+
+
+def _synthetic_rows():
+    """Rows of one shape family: ours (two variants) and five peers with known error levels."""
+    levels = {"ours-mlp-wiederhold": 1e-2, "ours-mlp-optimal-band": 1e-4, "p-best": 2e-4, "p-second": 5e-4,
+              "p-third": 1e-3, "p-fourth": 3e-2, "p-small-only": 1e-6}
+    rows = []
+    for m, level in levels.items():
+        for s in (10, 20, 40, 80):
+            if m == "p-small-only" and s > 20:  # strong at small sizes only: not among the strongest
+                continue
+            rows.append({"shape": "sphere", "size": str(s), "size_value": float(s), "method": m, "postprocess": "none",
+                         "status": "ok", "e": level * (1 + 0.01 * s), "P": 100 if m != "p-second" else None,
+                         "t": level * 100 if m != "p-second" else None, "seconds": 0.1, "area": 1.0,
+                         "watertight": None, "error": None})
+    return rows
+
+
+def test_plots_highlight_ours_and_the_three_strongest_peers(tmp_path):
+    # issue 12 item 13: 25 methods in look-alike colours on one axis; ours could not be found
+    from contourmesh.compare.report import highlighted, plot_results
+
+    summary = summarize(_synthetic_rows())
+    ours, peers = highlighted(summary, "sphere")
+    assert ours == [("ours-mlp-optimal-band", "none"), ("ours-mlp-wiederhold", "none")]
+    assert peers == [("p-best", "none"), ("p-second", "none"), ("p-third", "none")]
+    # for t, a peer without a vertex count gives way to the next one
+    assert highlighted(summary, "sphere", having="t")[1] == [("p-best", "none"), ("p-third", "none"), ("p-fourth", "none")]
+    import matplotlib
+
+    old = matplotlib.get_backend()
+    matplotlib.use("template", force=True)
+    try:
+        files = plot_results(_synthetic_rows(), tmp_path)
+        assert matplotlib.get_backend() == "template"  # the object API: no matplotlib.use
+    finally:
+        matplotlib.use(old, force=True)
+    assert sorted(p.name for p in files) == ["error-sphere.png", "seconds-sphere.png", "tradeoff-sphere.png"]
+    assert all(p.read_bytes()[:4] == b"\x89PNG" for p in files)
+
+
+def test_run_method_runs_ours_like_any_other_method():
+    # issue 11: run_method("ours-mlp-wiederhold", volume) answered "unknown method"
+    vol = np.zeros((12, 12, 12), dtype=bool)
+    vol[2:10, 2:10, 2:10] = True
+    row = M.run_method("ours-mlp-wiederhold", vol, spacing=(2.0, 1.0, 1.0))
+    assert row["status"] == "ok", row["error"]
+    assert row["family"] == "ours" and row["watertight"] is True
+    # the surface through the boundary voxel centres: a 14 x 7 x 7 box (z spacing 2)
+    assert row["area"] == pytest.approx(2 * (7 * 7) + 4 * (7 * 14))
+    assert M.get_method("ours-dss-optimal-band").params == {"polygon": "dss", "triangulation": "optimal",
+                                                            "refine": "band"}
+    with pytest.raises(ValueError, match="ours-<polygon>"):
+        M.get_method("ours-mlp")
+
+
+def test_cli_compare_writes_to_the_current_directory_and_says_where(tmp_path):
+    # issue 12 item 11: compare wrote into the checkout's comparisons/ from any directory, silently
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    specs = tmp_path / "specs"
+    specs.mkdir()
+    (specs / "one.toml").write_text('methods = ["surfels"]\n[[inputs]]\nshape = "sphere"\nsizes = [4]\n')
+    work = tmp_path / "work"
+    work.mkdir()
+    src = str(Path(runner.__file__).resolve().parents[2])
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
+    run = subprocess.run([sys.executable, "-m", "contourmesh", "compare", str(specs / "one.toml"), "--quiet"],
+                         cwd=work, env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert (work / "one" / "results.csv").is_file()
+    assert sorted(p.name for p in specs.iterdir()) == ["one.toml"]  # nothing next to the spec
+    assert f"wrote {work / 'one'}" in run.stdout

@@ -102,3 +102,53 @@ def test_cli_reproduce_writes_everything(tmp_path, monkeypatch):
     for name in ("table1_sphere.csv", "table2_spheroid.csv", "table1_sphere.md", "table2_spheroid.md",
                  "figure2_sphere.png", "figure3_spheroid.png"):
         assert (tmp_path / name).stat().st_size > 0, name
+
+
+def _small_tables(monkeypatch):
+    import contourmesh.compare.paper as paper
+
+    small = {"sphere": (15,), "spheroid": ((10, 6),)}
+    real = paper.compute_table
+    monkeypatch.setattr(paper, "compute_table", lambda which, progress=True: real(which, sizes=small[which], progress=False))
+
+
+def test_reproduce_writes_to_the_current_directory_by_default(tmp_path, monkeypatch):
+    # issue 12 item 11: without --out, reproduce wrote into the checkout's comparisons/paper
+    from pathlib import Path
+
+    import contourmesh
+    from contourmesh.cli import main
+
+    checkout_paper = Path(contourmesh.__file__).resolve().parents[2] / "comparisons" / "paper"
+    before = {p.name: p.stat().st_mtime_ns for p in checkout_paper.glob("*")} if checkout_paper.is_dir() else {}
+    _small_tables(monkeypatch)
+    monkeypatch.chdir(tmp_path)
+    assert main(["reproduce", "--quiet"]) == 0
+    for name in ("table1_sphere.csv", "table2_spheroid.md", "figure2_sphere.png"):
+        assert (tmp_path / "paper" / name).stat().st_size > 0, name
+    after = {p.name: p.stat().st_mtime_ns for p in checkout_paper.glob("*")} if checkout_paper.is_dir() else {}
+    assert after == before
+
+
+def test_reproduce_returns_the_folder_and_files(tmp_path, monkeypatch):
+    _small_tables(monkeypatch)
+    res = reproduce(tmp_path / "out", progress=False)
+    assert res["out"] == tmp_path / "out"
+    assert sorted(p.name for p in res["files"]) == sorted(
+        ["table1_sphere.csv", "table1_sphere.md", "figure2_sphere.png",
+         "table2_spheroid.csv", "table2_spheroid.md", "figure3_spheroid.png"])
+    assert all(p.is_file() for p in res["files"])
+
+
+def test_plot_figure_leaves_the_matplotlib_backend_alone(tmp_path, table1):
+    # issue 11: plot_figure called matplotlib.use("Agg"), switching a notebook's backend
+    import matplotlib
+
+    old = matplotlib.get_backend()
+    matplotlib.use("template", force=True)
+    try:
+        plot_figure(table1, "sphere", tmp_path / "f.png")
+        assert matplotlib.get_backend() == "template"
+    finally:
+        matplotlib.use(old, force=True)
+    assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"

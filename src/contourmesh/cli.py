@@ -108,7 +108,8 @@ def _mesh_summary(m) -> dict:
 def _cmd_reproduce(args) -> int:
     from .compare.paper import reproduce
 
-    reproduce(args.out, progress=not args.quiet)
+    res = reproduce(args.out, progress=not args.quiet, echo=print)
+    print(f"wrote {Path(res['out']).resolve()}")
     return 0
 
 
@@ -133,12 +134,14 @@ def _cmd_mesh(args) -> int:
     out = Path(args.output)
     _check_output(out, args.force)
     posts = list(args.post or []) + [f"mlx:{p}" for p in (args.mlx or [])]
-    if posts or args.save_mlx:
-        from .compare import postprocess
+    steps = None
+    if posts or args.save_mlx:  # an unknown post-process or a file that is not a script fails before meshing
+        from .compare.postprocess import get_postprocess, meshlab_steps_of
 
-        for name in posts:  # an unknown post-process or an unreadable script fails before the meshing
-            if hasattr(postprocess, "check_postprocess"):
-                postprocess.check_postprocess(name)
+        for name in posts:
+            get_postprocess(name)
+        if args.save_mlx:
+            steps = meshlab_steps_of(args.post or [])
     roi = int(args.roi) if args.roi is not None and args.roi.isdigit() else args.roi
     m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps,
              refine=args.refine, roi=roi, pixel=args.pixel, label=args.label, threshold=args.threshold,
@@ -153,12 +156,6 @@ def _cmd_mesh(args) -> int:
     if args.save_mlx:
         from .compare.postprocess import save_filter_script
 
-        if hasattr(postprocess, "meshlab_steps_of"):
-            steps = postprocess.meshlab_steps_of(args.post or [])
-        else:
-            steps = [p for p in (args.post or []) if p in postprocess.MESHLAB_STEPS]
-        if not steps:
-            raise ValueError("--save-mlx needs MeshLab post-processes among --post (e.g. --post meshlab-planar-qec)")
         save_filter_script(steps, args.save_mlx)
     chk = m.checks()
     if not chk["ok"]:
@@ -228,11 +225,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("reproduce", help="reproduce the paper's Tables 1-2 and Figures 2-3", parents=[common],
                        formatter_class=_Formatter)
-    r.add_argument("--out", default=None, help="output folder")
+    r.add_argument("--out", default=None, help="output folder (default: ./paper/ in the current directory)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=_cmd_reproduce)
 
-    from .compare.runner import add_compare_parser
+    from .compare.command import add_compare_parser
 
     c = add_compare_parser(sub)
     for action in common._actions:

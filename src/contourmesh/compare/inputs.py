@@ -52,6 +52,10 @@ from typing import Optional
 
 import numpy as np
 
+from ..digitize import gauss_volume
+from ..shapes import SHAPES, parse_shape_spec
+from ..voxelize import voxelize_mesh
+
 __all__ = ["Input", "DIGITIZATIONS", "data_dir", "shape_inputs", "mesh_inputs", "load_closed_mesh", "sub_rng"]
 
 DIGITIZATIONS = ("gauss", "outer-jordan")
@@ -154,8 +158,6 @@ class Input:
         """The placed analytic shape (shape inputs only)."""
         if self.kind != "shape":
             raise ValueError(f"input {self.name!r} is a {self.kind}, not an analytic shape")
-        from ..shapes import parse_shape_spec
-
         return parse_shape_spec(self.source)
 
     def volume(self):
@@ -174,8 +176,6 @@ class Input:
 
     def _build_volume(self):
         if self.kind == "shape":
-            from ..digitize import gauss_volume
-
             vol, origin = gauss_volume(self.shape(), self.h)
             h = float(self.h)
             if self.digitization == "outer-jordan":
@@ -192,8 +192,6 @@ class Input:
             elif self.digitization != "gauss":
                 raise ValueError(f"unknown digitization {self.digitization!r}; expected one of {DIGITIZATIONS}")
             return vol, (h, h, h), tuple(float(o) for o in origin)
-        from ..voxelize import voxelize_mesh
-
         v, f = load_closed_mesh(Path(self.data_root) / self.source)
         v = _place(v, self.rotation, ())
         # the offset is in voxels of the final grid: h = largest extent / N (rotation first)
@@ -246,8 +244,6 @@ def shape_inputs(name: str, sizes, *, digitization: str = "gauss", repeats: int 
     fixed : dict, optional
         Further size parameters fixed for every size (e.g. ``{"height": 30}``).
     """
-    from ..shapes import SHAPES
-
     if name not in SHAPES:
         raise ValueError(f"unknown shape {name!r}; expected one of {', '.join(SHAPES)}")
     if digitization not in DIGITIZATIONS:

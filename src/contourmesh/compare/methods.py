@@ -19,6 +19,9 @@ open3d              ``o3d-poisson`` (``-d<depth>``), ``o3d-bpa`` (``-r<radius>``
                     (:func:`surfel_points`); ``o3d-alpha`` (``-a<alpha>``) from voxel centres.
 meshlab             ``ml-spoisson`` (``-d<depth>``), ``ml-bpa`` (``-r<radius>``) on the same points;
                     ``ml-alphawrap`` (``-a<alpha>-o<offset>``) around the voxel staircase mesh.
+ours                ``ours-<polygon>-<triangulation>[-band]`` (polygon ``dss|mlp|none``,
+                    triangulation ``wiederhold|greedy|optimal``): :func:`contourmesh.mesh`;
+                    on an analytic shape it meshes the shape's slices (``Method.shape_fn``).
 local               ``surfels``, ``mullikin-verbeek``, ``lindblad`` (``-a<A1>``): estimators, no mesh;
                     ``voxel-faces``: the staircase surface of the voxels as a mesh.
 dgtal               ``dgtal-ii`` (``-r<radius>``), ``dgtal-vcm`` (``-R<offset>-r<radius>``):
@@ -32,7 +35,6 @@ row whose ``status`` is ``"ok"``, ``"not-installed"`` (naming what to pip instal
 
 from __future__ import annotations
 
-import importlib
 import math
 import re
 import time
@@ -42,11 +44,22 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from .._optional import MissingDependency, require
+from ..api import mesh as _mesh_source
+from ..measure import mesh_checks
 from ..types import Mesh
+from .execute import ExecutorError, call_in_subprocess
+from .local import boundary_face_counts, lindblad_area, mullikin_verbeek_area, surfel_area
+from .postprocess import apply_postprocess
 
 __all__ = [
     "Method",
     "Result",
+    "parse_ours",
+    "ours_volume",
+    "ours_shape",
+    "OURS_POLYGONS",
+    "OURS_TRIANGULATIONS",
     "MissingDependency",
     "get_method",
     "available_methods",
@@ -66,12 +79,18 @@ FAMILIES = ("ours", "marching-cubes", "vtk", "open3d", "meshlab", "local", "dgta
 # --- public types -------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Method:
-    """A named, parameterised surface method: ``fn(volume, spacing, origin, **params) -> Result``."""
+    """A named, parameterised surface method: ``fn(volume, spacing, origin, **params) -> Result``.
+
+    ``shape_fn(shape, h, **params) -> Result``, when given, meshes an analytic shape directly (ours
+    does: it traces the shape's slices instead of reading its Gauss volume); the runner uses it
+    for shape inputs.
+    """
 
     name: str
     family: str
     params: dict
     fn: Callable
+    shape_fn: Optional[Callable] = None
 
     def __call__(self, volume, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)) -> "Result":
         vol, sp, org = check_volume(volume, spacing, origin)
@@ -92,17 +111,8 @@ class Result:
             self.P = int(len(self.mesh.vertices))
 
 
-class MissingDependency(ImportError):
-    """A method's optional package is not installed; the message says what to ``pip install``."""
-
-
 def _require(module: str, pip_name: str):
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise MissingDependency(
-            f"{module} is not installed: pip install {pip_name}  (or pip install 'contourmesh[compare]'); {exc}"
-        ) from exc
+    return require(module, "compare", pip_name)
 
 
 # --- input checks and frames --------------------------------------------------------------------
@@ -204,9 +214,14 @@ def marching_cubes(volume, spacing, origin, *, method: str = "lewiner", blur: fl
 
 
 # --- VTK ----------------------------------------------------------------------------------------
+def _require_vtk():
+    """VTK's Python modules, or the install hint (called before any ``vtkmodules`` import)."""
+    return _require("vtkmodules", "vtk")
+
+
 def _vtk_image(f: np.ndarray, spacing, origin, pad: int):
     """A ``vtkImageData`` of the ``[z, y, x]`` array ``f`` (x fastest = VTK's point order)."""
-    _require("vtk", "vtk")
+    _require_vtk()
     from vtkmodules.util import numpy_support
     from vtkmodules.vtkCommonCore import vtkSMPTools
     from vtkmodules.vtkCommonDataModel import vtkImageData
@@ -242,6 +257,7 @@ def _vtk_polydata_to_mesh(poly, **meta) -> Mesh:
 
 def vtk_flying_edges(volume, spacing, origin, *, blur: float = 0.0) -> Result:
     """``vtkFlyingEdges3D`` (Schroeder et al. 2015) at level 0.5, on the binary volume or its blur."""
+    _require_vtk()
     f, pad = _blurred(volume, float(blur))
     _level(f, 0.5)
     from vtkmodules.vtkFiltersCore import vtkFlyingEdges3D
@@ -258,6 +274,7 @@ def vtk_flying_edges(volume, spacing, origin, *, blur: float = 0.0) -> Result:
 
 def vtk_discrete_flying_edges(volume, spacing, origin) -> Result:
     """``vtkDiscreteFlyingEdges3D``: the label-1 boundary of the (padded) label volume."""
+    _require_vtk()
     f, pad = _blurred(volume, 0.0)
     _level(f, 0.5)
     from vtkmodules.vtkFiltersGeneral import vtkDiscreteFlyingEdges3D
@@ -278,6 +295,7 @@ def vtk_surface_nets(volume, spacing, origin, *, iterations: int = 16) -> Result
     ``iterations`` smoothing passes (16 = VTK's default; 0 turns smoothing off).  Relaxation
     factor and constraint scale stay at VTK's defaults (0.5 and 2).  Triangles out.
     """
+    _require_vtk()
     f, pad = _blurred(volume, 0.0)
     _level(f, 0.5)
     from vtkmodules.vtkFiltersCore import vtkSurfaceNets3D
@@ -510,23 +528,17 @@ def ml_alpha_wrap(volume, spacing, origin, *, alpha: float = 2.0, offset: float 
 # --- local estimators ---------------------------------------------------------------------------
 def surfel_count(volume, spacing, origin) -> Result:
     """Surfel counting (:func:`contourmesh.compare.local.surfel_area`), about +50 % on smooth shapes."""
-    from .local import boundary_face_counts, surfel_area
-
     return Result(area=surfel_area(volume, spacing), extra={"faces_zyx": boundary_face_counts(volume).tolist()})
 
 
 def mullikin_verbeek(volume, spacing, origin) -> Result:
     """Mullikin & Verbeek (1993) weighted surface-voxel counting (:func:`~contourmesh.compare.local.mullikin_verbeek_area`)."""
-    from .local import mullikin_verbeek_area
-
     area, counts = mullikin_verbeek_area(volume, spacing)
     return Result(area=area, extra=counts)
 
 
 def lindblad(volume, spacing, origin, *, a1: float = 0.6380) -> Result:
     """Lindblad (2005) weighted m-cube configurations (:func:`~contourmesh.compare.local.lindblad_area`)."""
-    from .local import lindblad_area
-
     area, per_case = lindblad_area(volume, spacing, a1=a1)
     return Result(area=area, extra={"cases": per_case.tolist()})
 
@@ -583,8 +595,6 @@ def dgtal_integration(volume, spacing, origin, *, estimator: str = "ii", radius:
         kc += [K.sKCoords(s) for s in surfels]
     n_grid = np.array(n_grid, dtype=np.float64).reshape(-1, 3)
     kc = np.array(kc, dtype=np.int64).reshape(-1, 3)
-    from .local import boundary_face_counts
-
     expected = int(boundary_face_counts(volume).sum())
     if len(kc) != expected or np.any((kc % 2).sum(axis=1) != 2):
         raise RuntimeError(f"DGtal's digital surfaces have {len(kc)} surfels; the volume has {expected} boundary faces")
@@ -595,6 +605,52 @@ def dgtal_integration(volume, spacing, origin, *, estimator: str = "ii", radius:
     face_area = np.prod(dxyz) / dxyz[axis]
     area = math.fsum(face_area * np.abs(n_phys[np.arange(len(axis)), axis]))
     return Result(area=area, extra={"surfels": int(len(kc)), "estimator": estimator})
+
+
+# --- ours ---------------------------------------------------------------------------------------
+OURS_POLYGONS = ("dss", "mlp", "none")
+OURS_TRIANGULATIONS = ("wiederhold", "greedy", "optimal")
+
+
+def parse_ours(name: str):
+    """``(polygon, triangulation, refine)`` of a name ``"ours-<polygon>-<triangulation>[-band]"``
+    (refine ``band``: :mod:`contourmesh.refine`), None for names that are not ours."""
+    if not isinstance(name, str) or not (name == "ours" or name.startswith("ours-")):
+        return None
+    parts = name.split("-")
+    ok = (len(parts) in (3, 4) and parts[1] in OURS_POLYGONS and parts[2] in OURS_TRIANGULATIONS
+          and (len(parts) == 3 or parts[3] == "band"))
+    if not ok:
+        raise ValueError(f"our method's name is ours-<polygon>-<triangulation>[-band] with polygon in {OURS_POLYGONS} "
+                         f"and triangulation in {OURS_TRIANGULATIONS}; got {name!r}")
+    return parts[1], parts[2], (parts[3] if len(parts) == 4 else "none")
+
+
+def ours_volume(volume, spacing, origin, *, polygon: str, triangulation: str, refine: str = "none") -> Result:
+    """The paper's method (Wiederhold & Villafuerte 2009) on a binary volume ``[z, y, x]``.
+
+    ``contourmesh.mesh(volume, spacing=(dz, dy, dx), origin=(x0, y0, z0), ...)``; ``refine="band"``
+    adds the multigrid-convergent refinement.  ``P`` is the paper's vertex count.
+    """
+    kw = {"refine": refine} if refine != "none" else {}
+    m = _mesh_source(volume, spacing=tuple(spacing), origin=tuple(origin), polygon=polygon,
+                     triangulation=triangulation, **kw)
+    return Result(area=float(m.area), mesh=m, P=int(m.P))
+
+
+def ours_shape(shape, h: float = 1.0, *, polygon: str, triangulation: str, refine: str = "none") -> Result:
+    """The paper's method on an analytic shape: the outer Jordan contours of the grid points
+    strictly inside each slice ``z = k h`` (the slices of the shape's Gauss volume)."""
+    kw = {"refine": refine} if refine != "none" else {}
+    m = _mesh_source(shape, polygon=polygon, triangulation=triangulation, h=h, **kw)
+    return Result(area=float(m.area), mesh=m, P=int(m.P))
+
+
+def _ours(name: str, parsed) -> Method:
+    params = {"polygon": parsed[0], "triangulation": parsed[1]}
+    if parsed[2] != "none":
+        params["refine"] = parsed[2]
+    return Method(name=name, family="ours", params=params, fn=ours_volume, shape_fn=ours_shape)
 
 
 # --- registry -----------------------------------------------------------------------------------
@@ -635,7 +691,7 @@ _EXTRA: dict[str, Method] = {}
 
 #: The default line-up of :func:`available_methods`.
 DEFAULT_METHODS = (
-    "mc-lewiner", "mc-lorensen", "mc-lewiner-blur1", "vtk-flyingedges", "vtk-discreteflyingedges",
+    "ours-mlp-wiederhold", "mc-lewiner", "mc-lorensen", "mc-lewiner-blur1", "vtk-flyingedges", "vtk-discreteflyingedges",
     "vtk-surfacenets", "o3d-poisson-d8", "o3d-bpa-r1", "o3d-alpha-a1", "ml-spoisson-d8", "ml-bpa-r1",
     "ml-alphawrap-a2-o0.1", "surfels", "voxel-faces", "mullikin-verbeek", "lindblad", "dgtal-ii-r3", "dgtal-vcm-R5-r3",
 )
@@ -649,6 +705,7 @@ def _valid_names_text() -> str:
         keys = "".join(f"[-{k}<{t.__name__}>]" for k, (_, t, _) in spec.keys.items())
         flags = "".join(f"[-{w}]" for w in spec.flags)
         lines.append(f"{base}{keys}{flags}")
+    lines.append("ours-<dss|mlp|none>-<wiederhold|greedy|optimal>[-band]")
     lines += sorted(_EXTRA)
     return "; ".join(lines)
 
@@ -663,6 +720,9 @@ def get_method(name: str) -> Method:
         raise ValueError(f"a method name is a non-empty string; got {name!r}")
     if name in _EXTRA:
         return _EXTRA[name]
+    ours = parse_ours(name)
+    if ours is not None:
+        return _ours(name, ours)
     base = max((b for b in _REGISTRY if name == b or name.startswith(b + "-")), key=len, default=None)
     if base is None:
         raise ValueError(f"unknown method {name!r}; valid names: {_valid_names_text()}")
@@ -729,8 +789,6 @@ def _run_inprocess(name, volume, spacing, origin, postprocess=()) -> dict:
         if postprocess:
             if mesh is None:
                 raise ValueError(f"method {name!r} makes no mesh; post-processes {list(postprocess)} need one")
-            from .postprocess import apply_postprocess
-
             extra["post"] = []
             for pname in postprocess:
                 mesh, info = apply_postprocess(pname, mesh)
@@ -739,8 +797,6 @@ def _run_inprocess(name, volume, spacing, origin, postprocess=()) -> dict:
         row["seconds"] = time.perf_counter() - t0
         row.update(status="ok", area=float(res.area), P=res.P, extra=extra, mesh=mesh)
         if mesh is not None:
-            from ..measure import mesh_checks
-
             chk = mesh_checks(mesh.vertices, mesh.faces)
             row.update(faces=int(len(mesh.faces)), watertight=chk["watertight"],
                        winding_consistent=chk["winding_consistent"], volume=chk["volume"])
@@ -750,13 +806,6 @@ def _run_inprocess(name, volume, spacing, origin, postprocess=()) -> dict:
         row.update(status="failed", error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
         row["extra"] = {"traceback": traceback.format_exc(limit=6)}
     return row
-
-
-def _child(conn, name, volume, spacing, origin, postprocess):  # pragma: no cover - runs in a subprocess
-    try:
-        conn.send(_run_inprocess(name, volume, spacing, origin, postprocess))
-    finally:
-        conn.close()
 
 
 def run_method(name: str, volume, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0), timeout: float | None = None,
@@ -773,10 +822,11 @@ def run_method(name: str, volume, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0
     spacing, origin : 3-sequences
         ``(dz, dy, dx)`` and the physical ``(x0, y0, z0)`` of voxel ``[0, 0, 0]``'s centre.
     timeout : float, optional
-        Seconds.  ``None`` runs in this process.  Otherwise the method runs in a fresh ``spawn``
-        subprocess that is killed at the deadline (a thread cannot be stopped); this costs the
-        interpreter start-up and the method's imports (about 1-3 s), and registered methods
-        (:func:`register_method`) are not visible there.
+        Seconds.  ``None`` runs in this process.  Otherwise the method runs in a fresh Python
+        process (:func:`contourmesh.compare.execute.call_in_subprocess`) that is killed at the
+        deadline (a thread cannot be stopped); the limit includes the interpreter start-up and
+        the method's imports (about 1-3 s), and registered methods (:func:`register_method`) are
+        not visible there.
     postprocess : str or sequence of str
         Post-process names (:mod:`contourmesh.compare.postprocess`) applied in order to the mesh;
         the row's area and P are then the final mesh's, ``extra["post"]`` has before/after figures.
@@ -794,36 +844,23 @@ def run_method(name: str, volume, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0
         return _run_inprocess(name, vol, sp, org, post)
     if not timeout > 0:
         raise ValueError(f"timeout must be a positive number of seconds or None; got {timeout!r}")
-    import multiprocessing as mp
-
-    ctx = mp.get_context("spawn")
-    parent, child = ctx.Pipe(duplex=False)
-    t0 = time.perf_counter()
-    proc = ctx.Process(target=_child, args=(child, name, vol, sp, org, post), daemon=True)
-    proc.start()
-    child.close()
-    row = None
     try:
-        if parent.poll(timeout):
-            try:
-                row = parent.recv()
-            except EOFError:
-                row = None
-    finally:
-        if proc.is_alive() and row is None:
-            proc.kill()
-        proc.join(5)
-        parent.close()
-    if row is None:
-        row = _row(name)
-        elapsed = time.perf_counter() - t0
-        if elapsed >= timeout:
-            row.update(status="timeout", error=f"no result within {timeout} s", seconds=elapsed)
-        else:
-            row.update(status="failed", error=f"the worker process died (exit code {proc.exitcode})", seconds=elapsed)
-        try:
-            m = get_method(name)
-            row["family"], row["params"] = m.family, dict(m.params)
-        except ValueError:
-            pass
+        status, value, seconds = call_in_subprocess(_run_inprocess, name, vol, sp, org, post, timeout=timeout,
+                                                    kill_after=timeout)
+    except ExecutorError as exc:
+        status, value, seconds = "executor", str(exc), None
+    if status == "ok":
+        return value
+    row = _row(name)
+    if status == "timeout":
+        row.update(status="timeout", error=f"no result within {timeout} s", seconds=seconds)
+    elif status == "died":
+        row.update(status="failed", error=value, seconds=seconds)
+    else:
+        row.update(status="failed", error=f"the executor failed (not the method): {value}", seconds=seconds)
+    try:
+        m = get_method(name)
+        row["family"], row["params"] = m.family, dict(m.params)
+    except ValueError:
+        pass
     return row

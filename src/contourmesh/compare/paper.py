@@ -1,6 +1,6 @@
 """Reproduction of the paper's Tables 1-2 and Figures 2-3, beside the published values.
 
-The published values are data typed from the paper (``data/paper/*.csv``); this module computes
+The published values are data typed from the paper (package data ``contourmesh/data/paper/*.csv``); this module computes
 ours for every polygon x triangulation and writes CSV, Markdown and PNG next to each other.
 """
 
@@ -13,9 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import stack_to_mesh
+from ..digitize import outer_jordan_stack
+from ..measure import relative_error, tradeoff
 from ..meshes import atomic_write
+from ..shapes import Ellipsoid, Sphere
 
-__all__ = ["paper_table", "reproduce", "SPHERE_RADII", "SPHEROIDS", "COLUMNS"]
+__all__ = ["paper_table", "reproduce", "DEFAULT_OUT", "SPHERE_RADII", "SPHEROIDS", "COLUMNS"]
 
 SPHERE_RADII = (15, 20, 25, 30, 35, 40, 45, 50, 55, 60, 65, 70, 75, 80, 82)
 SPHEROIDS = ((10, 6), (15, 8), (20, 10), (25, 13), (30, 15), (35, 17))
@@ -34,20 +38,18 @@ FOOTNOTE = (
 )
 
 
-def data_dir() -> Path:
-    """The project's ``data/`` folder (the paper's tables live in ``data/paper``)."""
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        cand = parent / "data" / "paper"
-        if cand.is_dir():
-            return parent / "data"
-    raise FileNotFoundError("cannot find the project's data/paper folder next to the package")
-
-
 def paper_table(name: str) -> list[dict]:
-    """Rows of the paper's table ``"table1_sphere"`` or ``"table2_spheroid"`` as dicts of floats."""
-    path = data_dir() / "paper" / f"{name}.csv"
-    lines = [ln for ln in path.read_text().splitlines() if ln and not ln.startswith("#")]
+    """Rows of the paper's table ``"table1_sphere"`` or ``"table2_spheroid"`` as dicts of floats.
+
+    The tables ship as package data (``contourmesh/data/paper/*.csv``), so an installed package
+    reads them as well as a checkout does.
+    """
+    from importlib.resources import files
+
+    if name not in ("table1_sphere", "table2_spheroid"):
+        raise ValueError(f"unknown paper table {name!r}; expected 'table1_sphere' or 'table2_spheroid'")
+    text = (files("contourmesh") / "data" / "paper" / f"{name}.csv").read_text()
+    lines = [ln for ln in text.splitlines() if ln and not ln.startswith("#")]
     return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(lines)]
 
 
@@ -66,9 +68,6 @@ def _fmt(v, digits=6):
 
 
 def _rows_for(shape, size_label, paper_row, polygons, triangulations):
-    from ..digitize import outer_jordan_stack
-    from ..surface import stack_to_mesh
-
     stack = outer_jordan_stack(shape)
     area_true = shape.area
     rows = []
@@ -76,11 +75,11 @@ def _rows_for(shape, size_label, paper_row, polygons, triangulations):
         for tri in triangulations:
             m = stack_to_mesh(stack, polygon=pol, triangulation=tri)
             area = m.area
-            e = (area - area_true) / area_true
+            e = relative_error(area, area_true)
             chk = m.checks()
             row = {
                 "size": size_label, "polygon": pol, "triangulation": tri,
-                "area_true": area_true, "area": area, "e": e, "P": m.P, "t": abs(e) * m.P,
+                "area_true": area_true, "area": area, "e": e, "P": m.P, "t": tradeoff(e, m.P),
                 "paper_area": "", "paper_e": "", "paper_P": "", "paper_t": "",
                 "watertight": chk["watertight"], "winding_consistent": chk["winding_consistent"],
                 "volume": chk["volume"],
@@ -96,8 +95,6 @@ def _rows_for(shape, size_label, paper_row, polygons, triangulations):
 def compute_table(which: str, *, sizes=None, polygons=POLYGONS, triangulations=TRIANGULATIONS,
                   progress: bool = True) -> list[dict]:
     """Compute the rows of Table 1 (``which="sphere"``) or Table 2 (``which="spheroid"``)."""
-    from ..shapes import Ellipsoid, Sphere
-
     if which == "sphere":
         paper = {int(r["r"]): r for r in paper_table("table1_sphere")}
         sizes = SPHERE_RADII if sizes is None else sizes
@@ -145,15 +142,15 @@ def rows_to_markdown(rows, title: str) -> str:
 
 def plot_figure(rows, which: str, path: Path):
     """Relative error |e| and trade-off t against size, ours beside the paper's (Figures 2-3)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     def xval(label):
         return float(label.split(",")[0])
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig = Figure(figsize=(11, 4.2))  # the object API: the caller's pyplot backend is left alone
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 2)
     styles = {"dss": "tab:red", "mlp": "tab:blue"}
     marks = {"wiederhold": "o-", "greedy": "s--", "optimal": "^:"}
     for pol in POLYGONS:
@@ -184,25 +181,38 @@ def plot_figure(rows, which: str, path: Path):
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
     atomic_write(path, buf.getvalue())
 
 
-def reproduce(out=None, *, progress: bool = True, echo=print) -> dict:
-    """Write Tables 1-2 (CSV + Markdown) and Figures 2-3 (PNG) to ``out``; return the rows."""
-    out = Path(out) if out is not None else data_dir().parent / "comparisons" / "paper"
+#: Where :func:`reproduce` writes when no folder is given: ``paper/`` in the current directory.
+DEFAULT_OUT = "paper"
+
+
+def reproduce(out=None, *, progress: bool = True, echo=None) -> dict:
+    """Write Tables 1-2 (CSV + Markdown) and Figures 2-3 (PNG) to ``out``; return the rows.
+
+    ``out`` defaults to ``./paper`` under the current working directory (never the checkout's
+    ``comparisons/paper``, which holds the committed results).  ``echo``, when given (e.g.
+    ``print``), receives each table as Markdown.  Returns ``{"sphere": rows, "spheroid": rows,
+    "out": Path, "files": [Path, ...]}``.
+    """
+    out = Path(out) if out is not None else Path.cwd() / DEFAULT_OUT
     out.mkdir(parents=True, exist_ok=True)
     results = {}
+    files = []
     for which, name, fig, title in (
         ("sphere", "table1_sphere", "figure2_sphere.png", "Table 1: sphere"),
         ("spheroid", "table2_spheroid", "figure3_spheroid.png", "Table 2: prolate spheroid (a, b, b)"),
     ):
         rows = compute_table(which, progress=progress)
-        atomic_write(out / f"{name}.csv", rows_to_csv(rows))
+        files.append(atomic_write(out / f"{name}.csv", rows_to_csv(rows)))
         md = rows_to_markdown(rows, title)
-        atomic_write(out / f"{name}.md", md.encode())
+        files.append(atomic_write(out / f"{name}.md", md.encode()))
         plot_figure(rows, which, out / fig)
+        files.append(out / fig)
         if echo:
             echo(md)
         results[which] = rows
+    results["out"] = out
+    results["files"] = files
     return results

@@ -5,24 +5,32 @@
                             (trimesh facets + mapbox earcut, holes respected); area-faithful.
 ``meshlab-planar-qec``      PyMeshLab quadric edge collapse with planar quadrics, no optimal
                             placement, topology preserved; ``-p<fraction>`` of faces kept (0.5).
+``meshlab-taubin``          PyMeshLab Taubin lambda|mu smoothing, ``-it<n>`` iterations (10).
 ``taubin``                  Taubin lambda|mu smoothing (trimesh), ``-it<n>`` iterations (10).
 ``mlx:PATH``                a MeshLab filter script (.mlx) applied with PyMeshLab.
 ==========================  ======================================================================
 
 :func:`apply_postprocess` returns the new mesh and a dict with the area and vertex count before and
-after.  :func:`save_filter_script` writes a chain of MeshLab filters as an ``.mlx`` file; the
-scripts the project uses live in ``comparisons/meshlab/``.
+after.  :func:`save_filter_script` writes the MeshLab steps among them (:func:`meshlab_steps_of`) as an
+``.mlx`` file that :func:`apply_mlx` (``mlx:PATH``) applies again; the scripts the project uses
+live in ``comparisons/meshlab/``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import re
+import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from .._optional import require
+from ..meshes import atomic_write
 from ..types import Mesh
 
 __all__ = [
@@ -32,21 +40,17 @@ __all__ = [
     "merge_coplanar",
     "meshlab_planar_qec",
     "taubin",
+    "meshlab_taubin",
     "apply_mlx",
+    "check_filter_script",
+    "meshlab_steps_of",
     "save_filter_script",
     "MESHLAB_STEPS",
 ]
 
 
 def _require(module: str, pip_name: str):
-    import importlib
-
-    from .methods import MissingDependency
-
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise MissingDependency(f"{module} is not installed: pip install {pip_name}; {exc}") from exc
+    return require(module, "compare", pip_name)
 
 
 def _compact(vertices, faces, **meta) -> Mesh:
@@ -179,6 +183,35 @@ def merge_coplanar(mesh: Mesh, *, rel_tol: float = 1e-9) -> Mesh:
 
 
 # --- MeshLab ------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _quiet_fds():
+    """Send file descriptors 1 and 2 to /dev/null for the duration (PyMeshLab's C++ code prints there)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (AttributeError, ValueError, OSError):
+            pass
+    saved = []
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+    except OSError:  # pragma: no cover - no /dev/null
+        yield
+        return
+    try:
+        for fd in (1, 2):
+            try:
+                saved.append((fd, os.dup(fd)))
+                os.dup2(devnull, fd)
+            except OSError:  # pragma: no cover - fd not open
+                pass
+        yield
+    finally:
+        for fd, copy in saved:
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(devnull)
+
+
 def _to_ms(mesh: Mesh):
     pymeshlab = _require("pymeshlab", "pymeshlab")
     ms = pymeshlab.MeshSet()
@@ -196,10 +229,15 @@ def _planar_qec_params(fraction: float) -> dict:
                 preservenormal=True, autoclean=True)
 
 
-#: MeshLab-backed steps by name: PyMeshLab filter name and parameters (used by :func:`save_filter_script`).
+def _taubin_params(iterations: int, lamb: float = 0.5, mu: float = -0.53) -> dict:
+    return dict(lambda_=float(lamb), mu=float(mu), stepsmoothnum=int(iterations))
+
+
+#: MeshLab-backed steps with their default parameters: PyMeshLab filter name and parameters.  The
+#: same names (with the same ``-<key><number>`` suffixes) are post-processes; see :func:`meshlab_steps_of`.
 MESHLAB_STEPS = {
     "meshlab-planar-qec": ("meshing_decimation_quadric_edge_collapse", _planar_qec_params(0.5)),
-    "meshlab-taubin": ("apply_coord_taubin_smoothing", dict(lambda_=0.5, mu=-0.53, stepsmoothnum=10)),
+    "meshlab-taubin": ("apply_coord_taubin_smoothing", _taubin_params(10)),
 }
 
 
@@ -211,7 +249,18 @@ def meshlab_planar_qec(mesh: Mesh, *, fraction: float = 0.5) -> Mesh:
     if not 0 < fraction < 1:
         raise ValueError(f"fraction of faces to keep must be in (0, 1); got {fraction}")
     _, ms = _to_ms(mesh)
-    ms.meshing_decimation_quadric_edge_collapse(**_planar_qec_params(fraction))
+    with _quiet_fds():
+        ms.meshing_decimation_quadric_edge_collapse(**_planar_qec_params(fraction))
+    return _from_ms(ms, **mesh.meta)
+
+
+def meshlab_taubin(mesh: Mesh, *, iterations: int = 10) -> Mesh:
+    """PyMeshLab ``apply_coord_taubin_smoothing`` (lambda 0.5, mu -0.53), ``iterations`` passes."""
+    if iterations < 1:
+        raise ValueError(f"iterations must be a positive integer; got {iterations}")
+    _, ms = _to_ms(mesh)
+    with _quiet_fds():
+        ms.apply_coord_taubin_smoothing(**_taubin_params(iterations))
     return _from_ms(ms, **mesh.meta)
 
 
@@ -225,32 +274,89 @@ def taubin(mesh: Mesh, *, iterations: int = 10, lamb: float = 0.5, nu: float = 0
     return Mesh(np.asarray(tm.vertices), np.asarray(tm.faces), meta=dict(mesh.meta))
 
 
-def apply_mlx(mesh: Mesh, path) -> Mesh:
-    """Apply a MeshLab filter script (``MeshSet.load_filter_script`` + ``apply_filter_script``)."""
+def check_filter_script(path) -> list[str]:
+    """Check that ``path`` is a MeshLab filter script; return the names of its filters.
+
+    A filter script is XML with a ``<FilterScript>`` root holding one or more ``<filter name=...>``
+    (or ``<xmlfilter name=...>``) elements.  Anything else raises ValueError with one line that
+    names the file and what is wrong.  Whether MeshLab knows each filter is found out when the
+    script is applied (:func:`apply_mlx`).
+    """
+    import xml.etree.ElementTree as ET
+
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"MeshLab filter script {str(path)!r} does not exist")
+    try:
+        root = ET.fromstring(path.read_bytes())
+    except ET.ParseError as exc:
+        raise ValueError(f"{str(path)!r} is not a MeshLab filter script (.mlx): not XML ({exc})") from None
+    if root.tag != "FilterScript":
+        raise ValueError(f"{str(path)!r} is not a MeshLab filter script (.mlx): its root element is "
+                         f"<{root.tag}>, expected <FilterScript>")
+    filters = [el for el in root if el.tag in ("filter", "xmlfilter")]
+    names = [el.get("name") for el in filters]
+    if not filters:
+        raise ValueError(f"MeshLab filter script {str(path)!r} holds no <filter> elements")
+    if not all(names):
+        raise ValueError(f"MeshLab filter script {str(path)!r} has a <filter> without a name")
+    return names
+
+
+def apply_mlx(mesh: Mesh, path) -> Mesh:
+    """Apply a MeshLab filter script (``MeshSet.load_filter_script`` + ``apply_filter_script``).
+
+    The script is checked first (:func:`check_filter_script`); a filter MeshLab does not know, or
+    one that fails, raises ValueError naming the file.  PyMeshLab's own messages are silenced.
+    """
+    names = check_filter_script(path)
     _, ms = _to_ms(mesh)
-    ms.load_filter_script(str(path))
-    ms.apply_filter_script()
+    try:
+        with _quiet_fds():
+            ms.load_filter_script(str(path))
+            ms.apply_filter_script()
+    except Exception as exc:  # PyMeshLabException: "Something really bad happened" for unknown filters
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise ValueError(f"MeshLab could not apply filter script {str(path)!r} (filters {names}): {first}") from None
     return _from_ms(ms, **mesh.meta)
+
+
+def meshlab_steps_of(posts) -> list:
+    """The MeshLab filters ``[(pymeshlab_filter_name, params), ...]`` a list of post-process names denotes.
+
+    For ``contourmesh mesh ... --post meshlab-planar-qec-p0.3 --post meshlab-taubin-it5 --save-mlx
+    F``: every name must be a MeshLab step (:data:`MESHLAB_STEPS`, with its ``-<key><number>``
+    suffixes), so that the saved script does what ``--post`` did; any other name, or none, raises
+    ValueError saying which.
+    """
+    posts = [posts] if isinstance(posts, str) else list(posts or [])
+    if not posts:
+        raise ValueError(f"a MeshLab filter script needs MeshLab post-processes; MeshLab steps: {sorted(MESHLAB_STEPS)}")
+    other = [p for p in posts if _base_of(p) not in MESHLAB_STEPS]
+    if other:
+        raise ValueError(f"only MeshLab steps can be saved as a filter script; not MeshLab: {other} "
+                         f"(MeshLab steps: {sorted(MESHLAB_STEPS)}, with the same suffixes as for the post-process)")
+    out = []
+    for p in posts:
+        base, params = _parse(p)
+        out.append(_MESHLAB_BUILD[base](**params))
+    return out
 
 
 def save_filter_script(steps, path) -> Path:
     """Write a chain of MeshLab filters as an ``.mlx`` script (``MeshSet.save_filter_script``).
 
-    ``steps``: names from :data:`MESHLAB_STEPS` or ``(pymeshlab_filter_name, params)`` pairs.  The
-    filters are recorded by applying them, in order, to a small sample mesh (an icosphere).
+    ``steps``: post-process names of MeshLab steps (``"meshlab-planar-qec-p0.3"``, see
+    :func:`meshlab_steps_of`) or ``(pymeshlab_filter_name, params)`` pairs.  The filters are
+    recorded by applying them, in order, to a small sample mesh (an icosphere); the file is
+    written atomically.  Applying the script (:func:`apply_mlx`) reproduces the steps.
     """
     pymeshlab = _require("pymeshlab", "pymeshlab")
     trimesh = _require("trimesh", "trimesh")
     chain = []
     for step in steps:
         if isinstance(step, str):
-            if step not in MESHLAB_STEPS:
-                raise ValueError(f"unknown MeshLab step {step!r}; expected one of {sorted(MESHLAB_STEPS)} "
-                                 "or a (filter_name, params) pair")
-            chain.append(MESHLAB_STEPS[step])
+            chain += meshlab_steps_of([step])
         else:
             name, params = step
             chain.append((str(name), dict(params)))
@@ -259,11 +365,15 @@ def save_filter_script(steps, path) -> Path:
     sphere = trimesh.creation.icosphere(subdivisions=3)
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(sphere.vertices), face_matrix=np.asarray(sphere.faces, dtype=np.int32)))
-    for name, params in chain:
-        ms.apply_filter(name, **params)
     path = Path(path)
-    ms.save_filter_script(str(path))
-    return path
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp_file = Path(tmp) / "script.mlx"
+        with _quiet_fds():
+            for name, params in chain:
+                ms.apply_filter(name, **params)
+            ms.save_filter_script(str(tmp_file))
+        data = tmp_file.read_bytes()
+    return atomic_write(path, data)
 
 
 # --- registry -----------------------------------------------------------------------------------
@@ -271,7 +381,13 @@ _TOKEN = re.compile(r"^([A-Za-z]+)(\d+(?:\.\d*)?|\.\d+)$")
 _POST = {
     "merge-coplanar": (merge_coplanar, {}),
     "meshlab-planar-qec": (meshlab_planar_qec, {"p": ("fraction", float)}),
+    "meshlab-taubin": (meshlab_taubin, {"it": ("iterations", int)}),
     "taubin": (taubin, {"it": ("iterations", int)}),
+}
+#: The MeshLab filter each MeshLab post-process records in a script, from the same parameters.
+_MESHLAB_BUILD = {
+    "meshlab-planar-qec": lambda fraction=0.5: ("meshing_decimation_quadric_edge_collapse", _planar_qec_params(fraction)),
+    "meshlab-taubin": lambda iterations=10: ("apply_coord_taubin_smoothing", _taubin_params(iterations)),
 }
 
 
@@ -280,17 +396,16 @@ def available_postprocesses() -> list[str]:
     return list(_POST) + ["mlx:PATH"]
 
 
-def get_postprocess(name: str):
-    """The ``Mesh -> Mesh`` callable a post-process name denotes (parameters as ``-<key><number>``)."""
-    if not isinstance(name, str) or not name:
-        raise ValueError(f"a post-process name is a non-empty string; got {name!r}")
-    if name.startswith("mlx:"):
-        path = name[4:]
-        return lambda mesh: apply_mlx(mesh, path)
-    base = max((b for b in _POST if name == b or name.startswith(b + "-")), key=len, default=None)
+def _base_of(name: str):
+    return max((b for b in _POST if name == b or name.startswith(b + "-")), key=len, default=None)
+
+
+def _parse(name: str):
+    """``(base, params)`` of a post-process name ``base[-<key><number>...]``."""
+    base = _base_of(name)
     if base is None:
         raise ValueError(f"unknown post-process {name!r}; expected one of {available_postprocesses()}")
-    fn, keys = _POST[base]
+    _, keys = _POST[base]
     params = {}
     for token in filter(None, name[len(base):].split("-")):
         m = _TOKEN.match(token)
@@ -298,6 +413,23 @@ def get_postprocess(name: str):
             raise ValueError(f"post-process {name!r}: cannot read parameter {token!r}; keys: {sorted(keys)}")
         pname, typ = keys[m.group(1)]
         params[pname] = typ(float(m.group(2)))
+    return base, params
+
+
+def get_postprocess(name: str):
+    """The ``Mesh -> Mesh`` callable a post-process name denotes (parameters as ``-<key><number>``).
+
+    ``mlx:PATH`` checks the script now (:func:`check_filter_script`), so a wrong file is reported
+    before any meshing.
+    """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"a post-process name is a non-empty string; got {name!r}")
+    if name.startswith("mlx:"):
+        path = name[4:]
+        check_filter_script(path)
+        return lambda mesh: apply_mlx(mesh, path)
+    base, params = _parse(name)
+    fn, _ = _POST[base]
     return lambda mesh: fn(mesh, **params)
 
 

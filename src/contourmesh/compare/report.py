@@ -1,4 +1,4 @@
-"""Tables and plots of a comparison run: ``results.csv``, ``summary.md`` and three PNG figures.
+"""Tables and plots of a comparison run: ``results.csv``, ``summary.md`` and PNG figures per shape family.
 
 Everything here works on *rows*: dicts with the columns of :data:`COLUMNS` (one row per input x
 method x post-process x repeat, see :mod:`contourmesh.compare.runner`).  Repeats (random
@@ -31,6 +31,7 @@ __all__ = [
     "fit_orders",
     "markdown_summary",
     "plot_results",
+    "highlighted",
     "PLOTS",
 ]
 
@@ -42,9 +43,6 @@ COLUMNS = ("method", "postprocess", "shape", "size", "repeat", "area_true", "are
 #: Row statuses: ran and measured; optional package missing; raised; over its time limit; left out
 #: by the spec (``max_size``); input data missing.
 STATUSES = ("ok", "not-installed", "failed", "timeout", "skipped", "no-data")
-
-#: The figure files :func:`plot_results` writes.
-PLOTS = ("error.png", "tradeoff.png", "seconds.png")
 
 _INT = ("repeat", "P", "faces")
 _FLOAT = ("area_true", "area", "e", "t", "seconds", "size_value", "volume")
@@ -213,73 +211,181 @@ def markdown_summary(rows, *, title: str = "Comparison", notes: str = "") -> str
 
 
 # --- plots ------------------------------------------------------------------------------------------
+#: The figures :func:`plot_results` writes, one file per metric and shape family:
+#: ``error-<shape>.png``, ``tradeoff-<shape>.png``, ``seconds-<shape>.png``.
+PLOTS = ("error-<shape>.png", "tradeoff-<shape>.png", "seconds-<shape>.png")
+
+#: How many of our variants and how many peers each plot draws in colour.
+N_OURS, N_PEERS = 2, 3
+_OURS_COLOURS = ("#c0392b", "#e67e22")  # ours: red, orange, thick lines
+_PEER_COLOURS = ("#1f77b4", "#2ca02c", "#9467bd")  # the strongest peers: blue, green, purple
+_FADED = "#b8b8b8"
+#: The paper's variant of our method (MLP polygons, Wiederhold-Villafuerte triangulation).
+PAPER_OURS = ("ours-mlp-wiederhold", "none")
+
+
+def _is_ours(method: str) -> bool:
+    return method == "ours" or str(method).startswith("ours-")
+
+
+def _strength(points) -> float:
+    """Mean log10 |e| over the largest half of a family's sizes where the series ran (lower = stronger)."""
+    if not points:
+        return math.inf
+    return float(np.mean([math.log10(e) for _, e in points]))
+
+
+def highlighted(summary, shape, n_ours: int = N_OURS, n_peers: int = N_PEERS, having: str = "abs_e"):
+    """The series ``(method, post)`` drawn in colour for ``shape``: ours' and the peers' strongest.
+
+    Ours: our strongest variant and the paper's (``ours-mlp-wiederhold``) when it ran.  Strength is the mean of ``log10 |e|`` (medians over repeats) over the larger half of the
+    family's sizes; a series that did not run there ranks last.  Only series with values in
+    column ``having`` are candidates (``"t"``: methods without a vertex count have no t).
+    Returns ``(ours, peers)``.
+    """
+    recs = [d for d in summary if d["shape"] == shape and d["abs_e"] and d["size_value"] is not None]
+    sizes = sorted({d["size_value"] for d in recs})
+    large = set(sizes[len(sizes) // 2:]) if sizes else set()
+    pts = defaultdict(list)
+    for d in recs:
+        if d["size_value"] in large:
+            pts[(d["method"], d["postprocess"])].append((d["size_value"], d["abs_e"]))
+    series = sorted({(d["method"], d["postprocess"]) for d in recs}
+                    & {(d["method"], d["postprocess"]) for d in summary if d["shape"] == shape and d[having] is not None})
+    rank = sorted(series, key=lambda k: (_strength(pts.get(k)), k))
+    ours = [k for k in rank if _is_ours(k[0])][:1]
+    if PAPER_OURS in series and PAPER_OURS not in ours:  # the paper's own variant is always shown
+        ours.append(PAPER_OURS)
+    ours += [k for k in rank if _is_ours(k[0]) and k not in ours][:max(0, n_ours - len(ours))]
+    peers = [k for k in rank if not _is_ours(k[0])][:n_peers]
+    return ours, peers
+
+
+def _series_points(summary, shape, method, post, col):
+    pts = sorted((d["size_value"], d) for d in summary
+                 if d["shape"] == shape and d["method"] == method and d["postprocess"] == post
+                 and d[col] is not None and d["size_value"] is not None)
+    if not pts:
+        return None
+    x = np.array([p[0] for p in pts], dtype=float)
+    if col == "abs_e":
+        y = np.array([p[1]["abs_e"] for p in pts])
+        lo = np.array([min(abs(p[1]["e_min"]), abs(p[1]["e_max"])) if p[1]["e_min"] * p[1]["e_max"] > 0 else 0.0
+                       for p in pts])
+        hi = np.array([max(abs(p[1]["e_min"]), abs(p[1]["e_max"])) for p in pts])
+    else:
+        y = np.array([p[1][col] for p in pts], dtype=float)
+        lo = np.array([p[1][col + "_min"] for p in pts], dtype=float)
+        hi = np.array([p[1][col + "_max"] for p in pts], dtype=float)
+    pos = y > 0
+    if not pos.any():
+        return None
+    return x[pos], y[pos], lo[pos], hi[pos]
+
+
+def _label_ends(ax, ends):
+    """Write each highlighted series' name just right of its last point, nudged apart vertically."""
+    if not ends:
+        return
+    ymin, ymax = ax.get_ylim()
+    span = math.log10(ymax) - math.log10(ymin) if ymin > 0 and ymax > ymin else 1.0
+    gap = 0.045 * span
+    placed = []
+    for x, y, text, colour in sorted(ends, key=lambda e: math.log10(e[1])):
+        ly = math.log10(y)
+        if placed and ly < placed[-1] + gap:
+            ly = placed[-1] + gap
+        placed.append(ly)
+        ax.annotate(text, xy=(x, y), xytext=(x * 1.06, 10 ** ly), fontsize=8, color=colour, va="center",
+                    fontweight="bold", annotation_clip=False,
+                    arrowprops=dict(arrowstyle="-", color=colour, lw=0.6, alpha=0.7) if abs(10 ** ly / y - 1) > 0.15 else None)
+
+
+def _plot_family(summary, orders, shape, col, ylabel, with_order, path) -> Path:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    ours, peers = highlighted(summary, shape, having=col)
+    colours = dict(zip(ours, _OURS_COLOURS)) | dict(zip(peers, _PEER_COLOURS))
+    series = sorted({(d["method"], d["postprocess"]) for d in summary if d["shape"] == shape})
+    fig = Figure(figsize=(10.5, 6.0))  # object API: a caller's pyplot backend is left alone
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    faded = 0
+    for key in series:  # the others first, faded, so the highlighted lines sit on top
+        if key in colours:
+            continue
+        pts = _series_points(summary, shape, *key, col)
+        if pts is None:
+            continue
+        x, y, _, _ = pts
+        ax.plot(x, y, color=_FADED, lw=0.8, alpha=0.7, marker=".", ms=3, zorder=1)
+        faded += 1
+    ends = []
+    for rank, key in enumerate(ours + peers):
+        pts = _series_points(summary, shape, *key, col)
+        if pts is None:
+            continue
+        x, y, lo, hi = pts
+        name = _series_label(*key)
+        label = name
+        if with_order:
+            p, _ = orders.get((shape, *key), (float("nan"), 0))
+            label += f"  (order p = {p:.2f})" if math.isfinite(p) else "  (order p = n/a)"
+        is_ours = key in ours
+        # the spread over the repeats as a light band (its lower edge kept within a decade and a
+        # half of the median: |e| of a repeat can pass through zero)
+        lo = np.maximum(np.nan_to_num(lo, nan=0.0), y / 30.0)
+        hi = np.maximum(np.nan_to_num(hi, nan=0.0), y)
+        if np.any(hi > lo * 1.0001):
+            ax.fill_between(x, lo, hi, color=colours[key], alpha=0.12, lw=0, zorder=2)
+        ax.plot(x, y, color=colours[key], lw=2.4 if is_ours else 1.6, marker="o" if is_ours else "s",
+                ms=5 if is_ours else 4, label=label, zorder=4 if is_ours else 3)
+        ends.append((x[-1], y[-1], name, colours[key]))
+    if faded:
+        ax.plot([], [], color=_FADED, lw=0.8, label=f"{faded} other methods")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("size (grid units; meshes: voxels across)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(f"{shape}: ours and the {len(peers)} strongest peers (by |e| at the larger sizes)")
+    ax.grid(True, which="both", alpha=0.25)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, loc="lower left", framealpha=0.9)
+    xmin, xmax = ax.get_xlim()
+    ax.set_xlim(xmin, xmax * 1.7)  # room for the end labels
+    _label_ends(ax, ends)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    return atomic_write(path, buf.getvalue())
+
+
+def _safe(name) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name)) or "shape"
+
+
 def plot_results(rows, out_dir) -> list[Path]:
-    """Write ``error.png`` (|e| vs size, log-log, fitted order in the legend), ``tradeoff.png`` (t vs
-    size) and ``seconds.png`` (seconds vs size), one panel per shape, one line per method and
-    post-process (median over repeats, bars from the smallest to the largest value)."""
-    import matplotlib
+    """Write ``error-<shape>.png`` (|e| vs size, log-log, fitted orders in the legend),
+    ``tradeoff-<shape>.png`` (t = |e| P vs size) and ``seconds-<shape>.png``, one file per shape
+    family and metric.
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
+    Each plot draws ours (our two strongest variants) and the three strongest peers for that
+    family (:func:`highlighted`) in distinct colours, with a light band from the smallest to the
+    largest value over the repeats and each line's name at its end; every other method is a
+    faded grey line behind them.  Returns the paths written.
+    """
     out_dir = Path(out_dir)
     summary = summarize(rows)
     orders = fit_orders(summary)
-    all_shapes = sorted({d["shape"] for d in summary})
-    series = sorted({(d["method"], d["postprocess"]) for d in summary})
-    cmap = plt.get_cmap("tab20")
-    styles = ("-", "--", ":", "-.")
-    markers = ("o", "s", "^", "v", "D", "x", "+", "*")
+    specs = (("error", "abs_e", "|e| (relative area error)", True),
+             ("tradeoff", "t", "t = |e| P", False),
+             ("seconds", "seconds", "seconds (method + post-process)", False))
     paths = []
-    specs = (("error.png", "abs_e", "|e| (relative area error)", True),
-             ("tradeoff.png", "t", "t = |e| P", False),
-             ("seconds.png", "seconds", "seconds (method + post-process)", False))
-    for fname, col, ylabel, with_order in specs:
-        # one panel per shape that has something to plot (a shape whose rows all failed has none)
-        shapes = [s for s in all_shapes if any(d["shape"] == s and d[col] is not None for d in summary)] or ["no data"]
-        ncols = min(2, max(1, len(shapes)))
-        nrows = max(1, math.ceil(len(shapes) / ncols))
-        fig, axes = plt.subplots(nrows, ncols, figsize=(7.5 * ncols + 3.5, 5.0 * nrows), squeeze=False)
-        for ax, shape in zip(axes.ravel(), shapes):
-            for si, (method, post) in enumerate(series):
-                pts = sorted((d["size_value"], d) for d in summary
-                             if d["shape"] == shape and d["method"] == method and d["postprocess"] == post
-                             and d[col] is not None and d["size_value"] is not None)
-                if not pts:
-                    continue
-                x = np.array([p[0] for p in pts], dtype=float)
-                if col == "abs_e":
-                    y = np.array([p[1]["abs_e"] for p in pts])
-                    lo = np.array([min(abs(p[1]["e_min"]), abs(p[1]["e_max"])) if p[1]["e_min"] * p[1]["e_max"] > 0 else 0.0
-                                   for p in pts])
-                    hi = np.array([max(abs(p[1]["e_min"]), abs(p[1]["e_max"])) for p in pts])
-                else:
-                    y = np.array([p[1][col] for p in pts])
-                    lo = np.array([p[1][col + "_min"] for p in pts])
-                    hi = np.array([p[1][col + "_max"] for p in pts])
-                label = _series_label(method, post)
-                if with_order:
-                    p, _ = orders.get((shape, method, post), (float("nan"), 0))
-                    label += f" (p = {p:.2f})" if math.isfinite(p) else " (p = n/a)"
-                pos = y > 0
-                if not pos.any():
-                    continue
-                yerr = np.vstack([np.clip(y - lo, 0, None), np.clip(hi - y, 0, None)])[:, pos]
-                ax.errorbar(x[pos], y[pos], yerr=yerr, color=cmap(si % 20), linestyle=styles[(si // 20) % 4],
-                            marker=markers[si % len(markers)], markersize=4, linewidth=1.2, capsize=2, label=label)
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            ax.set_xlabel("size (grid units; meshes: voxels across)")
-            ax.set_ylabel(ylabel)
-            ax.set_title(str(shape))
-            ax.grid(True, which="both", alpha=0.3)
-            if ax.get_legend_handles_labels()[0]:
-                ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
-        for ax in axes.ravel()[len(shapes):]:
-            ax.axis("off")
-        fig.tight_layout()
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=110)
-        plt.close(fig)
-        paths.append(atomic_write(out_dir / fname, buf.getvalue()))
+    for shape in sorted({d["shape"] for d in summary}):
+        for stem, col, ylabel, with_order in specs:
+            if not any(d["shape"] == shape and d[col] is not None for d in summary):
+                continue
+            paths.append(_plot_family(summary, orders, shape, col, ylabel, with_order,
+                                      out_dir / f"{stem}-{_safe(shape)}.png"))
     return paths

@@ -30,13 +30,12 @@ A spec is data (``comparisons/*.toml``)::
     [post."merge-coplanar"]    # per-post-process options
     max_size = 80              # larger inputs: the post-processed rows are "skipped"
 
-Methods: the peers' names (:func:`contourmesh.compare.methods.get_method`) and ours as
-``"ours-<polygon>-<triangulation>"`` (polygon ``dss|mlp|none``, triangulation
-``wiederhold|greedy|optimal``).  Ours on a shape input meshes the shape
-(``contourmesh.mesh(shape, polygon=, triangulation=, h=)``, whose outer Jordan contours are traced
-around the same grid points as the Gauss volume's slices); on a volume input it calls
-``contourmesh.mesh(volume, spacing=, origin=, ...)``.  Every method, ours included, runs through
-:func:`execute`: the same timing, time limit, post-processes, mesh checks and error capture.
+Methods: names from the method registry (:func:`contourmesh.compare.methods.get_method`), ours
+included as ``"ours-<polygon>-<triangulation>[-band]"``.  On a shape input a method that can mesh
+the shape itself does so (``Method.shape_fn``: ours traces the outer Jordan contours around the
+same grid points as the Gauss volume's slices); every other method, and every method on a mesh
+input, reads the volume.  Every method runs through :func:`execute`: the same timing, time limit,
+post-processes, mesh checks and error capture.
 
 Rows, cache, restarts
 ---------------------
@@ -57,12 +56,19 @@ method on Linux); ``scheduler=ADDRESS`` (or a ``distributed.Client``) on a Dask 
 (this process, pool workers); a pool worker stuck in C code past ``timeout + grace`` writes the
 ``timeout`` row itself and exits, and the runner restarts the pool.  A worker that dies
 (segmentation fault) while a row runs gets the row re-tried once, then recorded as ``failed``.
-On Dask worker threads a timed row runs in a spawned subprocess that is killed at the deadline.
+On Dask worker threads a timed row runs in a new Python process
+(:func:`contourmesh.compare.execute.call_in_subprocess`, plain ``subprocess``, so it also works in
+the daemonic process workers of a default ``distributed.LocalCluster``) that applies the limit
+itself and is killed ``HARD_GRACE`` seconds later if stuck.
+
+Rows that the executor or the scheduler failed (a lost Dask worker, a process that could not
+start) are reported but not cached, and ``contourmesh compare`` then exits with status 1.
+Ctrl-C or SIGTERM stops a run: queued rows are dropped, worker processes are ended (on Linux they
+also die with the run if it is killed outright), and the cache keeps only complete rows.
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
@@ -70,12 +76,19 @@ import signal
 import threading
 import time
 import traceback
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
+from .. import __version__
+from ..measure import mesh_checks, relative_error, tradeoff
+from ..meshes import atomic_write
+from .command import RunInterrupted, add_compare_parser  # noqa: F401 - the command line lives in command.py
+from .execute import HARD_GRACE, ExecutorError, RowTimeout, call_in_subprocess, die_with_parent, time_limit
 from .inputs import Input, mesh_inputs, shape_inputs
-from .report import COLUMNS, PLOTS, markdown_summary, plot_results, write_results_csv
+from .methods import Result, check_volume, get_method
+from .postprocess import apply_postprocess, get_postprocess
+from .report import COLUMNS, markdown_summary, plot_results, write_results_csv
 
 __all__ = [
     "Spec",
@@ -85,69 +98,12 @@ __all__ = [
     "execute",
     "run_spec",
     "add_compare_parser",
-    "parse_ours",
-    "ours_method",
     "cache_key",
-    "OURS_POLYGONS",
-    "OURS_TRIANGULATIONS",
+    "RunInterrupted",
 ]
 
-OURS_POLYGONS = ("dss", "mlp", "none")
-OURS_TRIANGULATIONS = ("wiederhold", "greedy", "optimal")
-#: Extra seconds a pool worker gets past its row's timeout before it writes the row and exits.
-HARD_GRACE = 30.0
 #: How many pool crashes a row may be caught in before it is recorded as failed.
 MAX_CRASHES = 2
-
-
-# --- ours as a method -------------------------------------------------------------------------------
-def parse_ours(name: str):
-    """``(polygon, triangulation, refine)`` of a name ``"ours-<polygon>-<triangulation>[-<refine>]"``
-    (refine ``band``: :mod:`contourmesh.refine`), None for other names."""
-    if not isinstance(name, str) or not name.startswith("ours"):
-        return None
-    parts = name.split("-")
-    ok = (len(parts) in (3, 4) and parts[0] == "ours" and parts[1] in OURS_POLYGONS
-          and parts[2] in OURS_TRIANGULATIONS and (len(parts) == 3 or parts[3] == "band"))
-    if not ok:
-        raise ValueError(f"our method's name is ours-<polygon>-<triangulation>[-band] with polygon in {OURS_POLYGONS} "
-                         f"and triangulation in {OURS_TRIANGULATIONS}; got {name!r}")
-    return parts[1], parts[2], (parts[3] if len(parts) == 4 else "none")
-
-
-def ours_method(volume, spacing, origin, *, polygon: str, triangulation: str, refine: str = "none", shape=None,
-                h: float = 1.0):
-    """The paper's method as a mesh source (Wiederhold & Villafuerte 2009, section 5).
-
-    With ``shape`` it meshes the analytic shape (outer Jordan contours of the grid points strictly
-    inside each slice ``z = k h``, i.e. the slices of the Gauss volume); otherwise it meshes the
-    binary volume ``[z, y, x]`` with ``spacing (dz, dy, dx)`` and ``origin (x0, y0, z0)``.
-    ``refine="band"`` adds the multigrid-convergent refinement.
-    Returns a :class:`~contourmesh.compare.methods.Result` whose ``P`` is the paper's vertex count.
-    """
-    import contourmesh
-
-    from .methods import Result
-
-    if shape is not None:
-        m = contourmesh.mesh(shape, polygon=polygon, triangulation=triangulation, h=h, refine=refine)
-    else:
-        m = contourmesh.mesh(volume, spacing=spacing, origin=origin, polygon=polygon, triangulation=triangulation,
-                             refine=refine)
-    return Result(area=float(m.area), mesh=m, P=int(m.P))
-
-
-def _method(name: str):
-    """The :class:`~contourmesh.compare.methods.Method` a name denotes (ours or a peer)."""
-    from .methods import Method, get_method
-
-    ours = parse_ours(name)
-    if ours is None:
-        return get_method(name)
-    params = {"polygon": ours[0], "triangulation": ours[1]}
-    if ours[2] != "none":
-        params["refine"] = ours[2]
-    return Method(name=name, family="ours", params=params, fn=ours_method)
 
 
 # --- spec -------------------------------------------------------------------------------------------
@@ -196,8 +152,6 @@ def _timeout(value, where):
 
 
 def _post_list(value, where) -> list:
-    from .postprocess import get_postprocess
-
     if isinstance(value, str):
         value = [value]
     if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
@@ -241,7 +195,7 @@ def load_spec(path, *, data_root=None) -> Spec:
     if len(set(methods)) != len(methods):
         raise ValueError(f"{path.name}: methods lists a name twice")
     for m in methods:
-        _method(m)  # unknown names raise ValueError listing the valid forms
+        get_method(m)  # unknown names raise ValueError listing the valid forms
     post = _post_list(doc.get("postprocess", ["none"]), path.name)
     options = doc.get("method", {})
     if not isinstance(options, dict):
@@ -306,10 +260,8 @@ def _jsonable(v):
 
 def cache_key(inp: Input, method: str, postprocess: str) -> str:
     """sha256 of the input's identity, the method and its parameters, the post-process, the version."""
-    from .. import __version__
-
     try:
-        params = {k: _jsonable(v) for k, v in _method(method).params.items()}
+        params = {k: _jsonable(v) for k, v in get_method(method).params.items()}
     except ValueError:
         params = None
     blob = json.dumps({"input": inp.key, "method": method, "params": params, "postprocess": postprocess,
@@ -344,47 +296,31 @@ def _base_row(task: Task) -> dict:
                area_true=inp.area_true, kind=inp.kind, digitization=inp.digitization, size_value=inp.size_value,
                key=task.key)
     try:
-        row["family"] = _method(task.method).family
+        row["family"] = get_method(task.method).family
     except ValueError:
         pass
     return row
 
 
-class RowTimeout(TimeoutError):
-    """Raised in the running thread when a row passes its time limit."""
-
-
-def _on_alarm(signum, frame):  # pragma: no cover - timing dependent
-    raise RowTimeout("time limit reached")
-
-
 def _measure(task: Task) -> dict:
     """Run the method and its post-processes on the task's input; the fields a run fills."""
-    from .methods import (
-        MissingDependency,  # noqa: F401 - an ImportError subclass
-        Result,
-        check_volume,
-    )
-
     out = {}
-    method = _method(task.method)
+    method = get_method(task.method)
     inp = task.input
-    params = dict(method.params)
-    if method.family == "ours" and inp.kind == "shape":
-        vol, sp, org = None, None, None
-        params.update(shape=inp.shape(), h=inp.h)
+    if inp.kind == "shape" and method.shape_fn is not None:  # ours meshes the shape's own slices
+        shape, h = inp.shape(), inp.h
+        t0 = time.perf_counter()
+        res = method.shape_fn(shape, h, **method.params)
     else:
         vol, sp, org = check_volume(*inp.volume())
-    t0 = time.perf_counter()
-    res = method.fn(vol, sp, org, **params)
+        t0 = time.perf_counter()
+        res = method.fn(vol, sp, org, **method.params)
     if not isinstance(res, Result):
         raise TypeError(f"method {task.method!r} returned {type(res).__name__}, expected Result")
     mesh, P = res.mesh, res.P
     if task.postprocess != "none":
         if mesh is None:
             raise ValueError(f"method {task.method!r} makes no mesh; post-process {task.postprocess!r} needs one")
-        from .postprocess import apply_postprocess
-
         for step in task.postprocess.split("+"):
             mesh, _ = apply_postprocess(step, mesh)
         P = int(len(mesh.vertices))
@@ -392,8 +328,6 @@ def _measure(task: Task) -> dict:
     out["area"] = float(mesh.area) if mesh is not None else float(res.area)
     out["P"] = None if P is None else int(P)
     if mesh is not None:
-        from ..measure import mesh_checks
-
         chk = mesh_checks(mesh.vertices, mesh.faces)
         out.update(faces=int(len(mesh.faces)), watertight=bool(chk["watertight"]),
                    winding_consistent=bool(chk["winding_consistent"]), volume=float(chk["volume"]))
@@ -401,9 +335,9 @@ def _measure(task: Task) -> dict:
 
 
 def _finish(row: dict) -> dict:
-    if row["status"] == "ok" and row["area_true"]:
-        row["e"] = (row["area"] - row["area_true"]) / row["area_true"]
-        row["t"] = abs(row["e"]) * row["P"] if row["P"] is not None else None
+    if row["status"] == "ok":
+        row["e"] = relative_error(row["area"], row["area_true"])
+        row["t"] = tradeoff(row["e"], row["P"])
     return row
 
 
@@ -413,6 +347,8 @@ _POOL = {"in_pool": False, "cache_dir": None}
 def _pool_init(cache_dir):  # runs in every pool worker
     _POOL.update(in_pool=True, cache_dir=str(cache_dir))
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    die_with_parent()  # a run killed outright (SIGKILL) takes its workers with it
 
 
 def _hard_timeout(task: Task, t0: float):  # pragma: no cover - runs in a stuck worker
@@ -427,44 +363,39 @@ def _hard_timeout(task: Task, t0: float):  # pragma: no cover - runs in a stuck 
         os._exit(3)
 
 
-def _in_subprocess(task: Task) -> dict:
-    """Run a timed row in a spawned subprocess killed at the deadline (for non-main threads)."""
-    import multiprocessing as mp
+#: Row field that marks a row the executor or the scheduler failed (not the method): such a row
+#: is reported and makes the run exit nonzero, but it is not cached.
+EXECUTOR_FAILED = "_executor_failed"
 
-    ctx = mp.get_context("spawn")
-    parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(child, replace(task, timeout=None)), daemon=True)
-    t0 = time.perf_counter()
-    proc.start()
-    child.close()
-    row = None
-    try:
-        # the method's own clock starts after the interpreter and its imports: allow for them
-        if parent.poll(task.timeout + 60.0):
-            try:
-                row = parent.recv()
-            except EOFError:
-                row = None
-    finally:
-        if proc.is_alive():
-            proc.kill()
-        proc.join(5)
-        parent.close()
-    if row is None:
-        row = _base_row(task)
-        elapsed = time.perf_counter() - t0
-        if elapsed >= task.timeout:
-            row.update(status="timeout", seconds=elapsed, error=f"no result within {task.timeout} s")
-        else:
-            row.update(status="failed", seconds=elapsed, error=f"the worker process died (exit code {proc.exitcode})")
+
+def _executor_row(task: Task, message: str, seconds=None) -> dict:
+    row = _base_row(task)
+    row.update(status="failed", seconds=seconds, error=f"not run: {message}")
+    row[EXECUTOR_FAILED] = True
     return row
 
 
-def _child(conn, task):  # pragma: no cover - runs in a subprocess
+def _in_subprocess(task: Task) -> dict:
+    """Run a timed row in a new Python process (for threads other than the main one, e.g. Dask's).
+
+    The child applies the time limit in its own main thread; it is killed ``HARD_GRACE`` seconds
+    later if stuck in compiled code.  Each thread keeps its child for the next row (one
+    interpreter start-up per thread, not per row).  ``subprocess`` (not ``multiprocessing``) works inside
+    daemonic processes, such as the process workers of a default ``distributed.LocalCluster``.
+    """
     try:
-        conn.send(execute(task))
-    finally:
-        conn.close()
+        status, value, seconds = call_in_subprocess(execute, task, kill_after=task.timeout + HARD_GRACE, reuse=True)
+    except ExecutorError as exc:
+        return _executor_row(task, str(exc))
+    if status == "ok":
+        return value
+    row = _base_row(task)
+    if status == "timeout":
+        row.update(status="timeout", seconds=seconds,
+                   error=f"no result within {task.timeout} s (the row's process was ended {HARD_GRACE:g} s later)")
+    else:
+        row.update(status="failed", seconds=seconds, error=value)
+    return row
 
 
 def execute(task: Task) -> dict:
@@ -483,18 +414,14 @@ def execute(task: Task) -> dict:
     if task.timeout is not None and not main:
         return _in_subprocess(task)
     t0 = time.perf_counter()
-    use_alarm = task.timeout is not None and main and hasattr(signal, "setitimer")
     watchdog = None
-    old = None
-    if use_alarm:
-        old = signal.signal(signal.SIGALRM, _on_alarm)
-        signal.setitimer(signal.ITIMER_REAL, task.timeout)
-        if _POOL["in_pool"]:
-            watchdog = threading.Timer(task.timeout + HARD_GRACE, _hard_timeout, args=(task, t0))
-            watchdog.daemon = True
-            watchdog.start()
+    if task.timeout is not None and _POOL["in_pool"]:
+        watchdog = threading.Timer(task.timeout + HARD_GRACE, _hard_timeout, args=(task, t0))
+        watchdog.daemon = True
+        watchdog.start()
     try:
-        row.update(_measure(task))
+        with time_limit(task.timeout):
+            row.update(_measure(task))
         row["status"] = "ok"
     except RowTimeout:
         row.update(status="timeout", seconds=time.perf_counter() - t0, error=f"no result within {task.timeout} s")
@@ -505,9 +432,6 @@ def execute(task: Task) -> dict:
         where = f" [{Path(last[0].filename).name}:{last[0].lineno}]" if last else ""
         row.update(status="failed", seconds=time.perf_counter() - t0, error=f"{type(exc).__name__}: {exc}{where}")
     finally:
-        if use_alarm:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, old)
         if watchdog is not None:
             watchdog.cancel()
     return _finish(row)
@@ -523,8 +447,6 @@ def _running_marker(cache_dir: Path, key: str) -> Path:
 
 
 def _write_cache(cache_dir: Path, row: dict) -> None:
-    from ..meshes import atomic_write
-
     clean = {k: _jsonable(row.get(k)) for k in COLUMNS}
     atomic_write(_cache_path(cache_dir, row["key"]), json.dumps(clean, sort_keys=True).encode())
 
@@ -564,6 +486,26 @@ def _progress(total, initial, enabled):
     return tqdm(total=total, initial=initial, unit="row", desc="compare", disable=not enabled, dynamic_ncols=True)
 
 
+def _end_workers(ex) -> None:
+    """Stop a process pool at once: queued rows dropped, running rows' workers killed.
+
+    A worker killed mid-row has written nothing (cache files are written whole, by rename), so
+    the cache keeps only complete rows; its ``.running`` marker is cleared by the next run.
+    """
+    procs = list(getattr(ex, "_processes", {}).values())  # the pool's worker processes
+    for proc in procs:
+        try:
+            proc.terminate()
+        except (OSError, AttributeError):  # pragma: no cover - already gone
+            pass
+    ex.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        proc.join(5)
+        if proc.is_alive():  # pragma: no cover - ignores SIGTERM while in compiled code
+            proc.kill()
+            proc.join(5)
+
+
 def _run_pool(todo, jobs, cache_dir, collect, mp_context=None):
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -590,8 +532,10 @@ def _run_pool(todo, jobs, cache_dir, collect, mp_context=None):
                         break
                     collect(t, row)
                     done.add(t.key)
-            except BaseException:  # Ctrl-C: drop the queued rows, keep the finished ones
-                ex.shutdown(wait=False, cancel_futures=True)
+            except BaseException:  # Ctrl-C, SIGTERM: keep the finished rows, end the workers now
+                _end_workers(ex)
+                for marker in Path(cache_dir).glob("*.running"):  # those rows did not finish
+                    marker.unlink(missing_ok=True)
                 raise
             if broken:  # rows that finished before the pool broke are kept
                 for fut, t in futs.items():
@@ -630,20 +574,27 @@ def _run_dask(todo, scheduler, collect):
         raise ImportError("--scheduler needs Dask distributed: pip install distributed "
                           "(or pip install 'contourmesh[compare]')") from exc
     own = not isinstance(scheduler, Client)
-    client = Client(scheduler) if own else scheduler
     try:
-        futs = {}
+        client = Client(scheduler, timeout=30) if own else scheduler
+    except OSError as exc:
+        raise ExecutorError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from exc
+    futs = {}
+    try:
         for t in todo:
             futs[client.submit(execute, t, key=f"row-{t.key}", pure=False)] = t
         for fut in as_completed(list(futs)):
             t = futs[fut]
             try:
                 row = fut.result()
-            except Exception as exc:  # noqa: BLE001 - a lost worker is a failed row
-                row = _base_row(t)
-                row.update(status="failed", error=f"the Dask task failed: {type(exc).__name__}: {exc}")
+            except Exception as exc:  # noqa: BLE001 - a lost worker is the scheduler's failure, not the method's
+                row = _executor_row(t, f"the Dask task failed: {type(exc).__name__}: {exc}")
             collect(t, row)
     finally:
+        if futs:
+            try:
+                client.cancel(list(futs))
+            except Exception:  # noqa: BLE001 - the client may already be gone
+                pass
         if own:
             client.close()
 
@@ -657,7 +608,9 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
     spec_path : path
         The TOML spec.
     out : path, optional
-        Output folder; default ``<spec folder>/<spec stem>/``.  Rows are cached in ``out/cache``.
+        Output folder; default ``./<spec stem>/`` in the current working directory (never next to
+        the spec, so a checkout's committed results are not overwritten).  Rows are cached in
+        ``out/cache``.
     jobs : int
         Worker processes (1: this process).
     scheduler : str or distributed.Client, optional
@@ -673,12 +626,13 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
     -------
     dict
         ``rows`` (all rows, in plan order), ``ran`` (rows computed in this run), ``cached`` (rows
-        reused), ``out`` (the folder) and ``files`` (paths written).
+        reused), ``executor_failed`` (rows the executor or the scheduler could not run: not
+        cached, re-tried by the next run), ``out`` (the folder) and ``files`` (paths written).
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be a positive integer; got {jobs!r}")
     spec = load_spec(spec_path, data_root=data_root)
-    out = Path(out) if out is not None else spec.path.parent / spec.path.stem
+    out = Path(out) if out is not None else Path.cwd() / spec.path.stem
     cache_dir = out / "cache"
     cache_dir.mkdir(parents=True, exist_ok=True)
     tasks = plan(spec)
@@ -698,10 +652,13 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
     # rows that share an input run one after another (each worker keeps its last volumes)
     bar = _progress(len(tasks), len(tasks) - len(todo), progress)
     ran = 0
+    executor_failed = 0
 
     def collect(task, row, written=False):
-        nonlocal ran
-        if not written:
+        nonlocal ran, executor_failed
+        if row.pop(EXECUTOR_FAILED, False):
+            executor_failed += 1
+        elif not written:
             _write_cache(cache_dir, row)
         rows[task.key] = row
         ran += 1
@@ -722,42 +679,8 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
         bar.close()
     all_rows = [rows[t.key] for t in tasks if t.key in rows]
     files = [write_results_csv(all_rows, out / "results.csv")]
-    from ..meshes import atomic_write
-
     files.append(atomic_write(out / "summary.md", markdown_summary(all_rows, title=spec.title, notes=spec.notes).encode()))
     files += plot_results(all_rows, out)
-    return {"rows": all_rows, "ran": ran, "cached": cached, "out": out, "files": files}
+    return {"rows": all_rows, "ran": ran, "cached": cached, "executor_failed": executor_failed, "out": out,
+            "files": files}
 
-
-# --- command line ---------------------------------------------------------------------------------
-def _cmd_compare(args) -> int:
-    res = run_spec(args.spec, args.out, jobs=args.jobs, scheduler=args.scheduler, progress=not args.quiet,
-                   retry_failed=args.retry_failed)
-    counts: dict = {}
-    for r in res["rows"]:
-        counts[r["status"]] = counts.get(r["status"], 0) + 1
-    print(f"{res['out']}: {len(res['rows'])} rows ({res['ran']} run, {res['cached']} from the cache; "
-          + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + "); results.csv, summary.md, "
-          + ", ".join(PLOTS))
-    return 0
-
-
-def add_compare_parser(subparsers) -> argparse.ArgumentParser:
-    """Add ``contourmesh compare SPEC.toml [--out DIR] [--jobs N] [--scheduler ADDRESS]`` to a CLI.
-
-    ``subparsers`` is the object ``ArgumentParser.add_subparsers()`` returned; the new parser's
-    ``func(args)`` runs the comparison and returns the exit status.
-    """
-    p = subparsers.add_parser(
-        "compare", help="run a comparison spec (comparisons/*.toml): results.csv, summary.md, plots",
-        description="Run every input x method x post-process x repeat of a comparison spec; finished rows are "
-                    "cached, so an interrupted run resumes where it stopped.")
-    p.add_argument("spec", help="the comparison spec, a TOML file (e.g. comparisons/spheres.toml)")
-    p.add_argument("--out", default=None, help="output folder (default: next to the spec, comparisons/<spec stem>/)")
-    p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on a Dask distributed cluster at this scheduler address (e.g. tcp://host:8786)")
-    p.add_argument("--retry-failed", action="store_true", help="re-run cached rows that failed or timed out")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=_cmd_compare)
-    return p
