@@ -10,6 +10,8 @@ import time
 import numpy as np
 import pytest
 
+from contourmesh.compare.command import add_compare_parser
+
 from contourmesh.compare import methods as M
 from contourmesh.compare import runner
 from contourmesh.compare.inputs import Input, shape_inputs
@@ -255,7 +257,7 @@ def test_spec_validation(tmp_path, text, match):
 
 def test_cli_parser(fakes, spec, tmp_path, capsys):
     parser = argparse.ArgumentParser(prog="contourmesh")
-    runner.add_compare_parser(parser.add_subparsers(dest="command", required=True))
+    add_compare_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["compare", str(spec), "--out", str(tmp_path / "cli"), "--quiet"])
     assert (args.jobs, args.scheduler) == (1, None)
     assert args.func(args) == 0

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+from contourmesh.compare.command import add_compare_parser
+
 from contourmesh.compare import runner
 from contourmesh.compare.execute import ExecutorError
 from contourmesh.compare.report import read_results_csv
@@ -135,7 +137,7 @@ def test_executor_failures_exit_nonzero_and_are_not_cached(tmp_path, monkeypatch
     import argparse
 
     parser = argparse.ArgumentParser(prog="contourmesh")
-    runner.add_compare_parser(parser.add_subparsers(dest="command", required=True))
+    add_compare_parser(parser.add_subparsers(dest="command", required=True))
     out = tmp_path / "out"
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as c:
         args = parser.parse_args(["compare", str(spec), "--scheduler", c.scheduler_address, "--out", str(out), "--quiet"])

@@ -46,8 +46,16 @@ def blob():
 # ------------------------------------------------------------------------------------------------
 # volume round trips
 # ------------------------------------------------------------------------------------------------
+def _reader_or_skip(suffix):
+    """The optional reader of a suffix ([io] extra), or a skip that names it."""
+    module = {".tif": "tifffile", ".nii": "nibabel", ".nii.gz": "nibabel"}.get(suffix)
+    if module:
+        pytest.importorskip(module)
+
+
 @pytest.mark.parametrize("suffix", [".npz", ".npy", ".vol", ".tif", ".nii", ".nii.gz"])
 def test_volume_round_trip(tmp_path, blob, suffix):
+    _reader_or_skip(suffix)
     sp = (1.0, 1.0, 1.0) if suffix in (".vol", ".npy") else (2.5, 0.5, 0.75)
     org = (3.0, -2.0, 7.5) if suffix in (".npz", ".nii", ".nii.gz") else (0.0, 0.0, 0.0)
     p = write_volume(tmp_path / f"v{suffix}", blob, spacing=sp, origin=org)
@@ -408,6 +416,7 @@ def _truncate(path, keep):
 @pytest.mark.parametrize("suffix", [".npy", ".npz", ".vol", ".tif", ".nii", ".nii.gz"])
 @pytest.mark.parametrize("keep", [0.6, 40])
 def test_truncated_volume_files_raise_clear_errors(tmp_path, blob, suffix, keep):
+    _reader_or_skip(suffix)
     p = write_volume(tmp_path / f"t{suffix}", np.tile(blob, (4, 4, 4)))
     _truncate(p, keep)
     with pytest.raises(ValueError, match=rf"t{suffix.replace('.', '[.]')}'.*expected"):

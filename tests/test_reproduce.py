@@ -7,6 +7,7 @@ import pytest
 
 from contourmesh.compare.paper import (
     compute_table,
+    reproduce,
     paper_table,
     plot_figure,
     rows_to_csv,

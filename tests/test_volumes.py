@@ -220,6 +220,8 @@ def test_liver_labels(shared_data, label):
 def test_rtstruct_structures(shared_data, roi, loses):
     import warnings
 
+    pytest.importorskip("pydicom")
+
     from contourmesh.io import read_contours
     from contourmesh.rasterize import LostContourWarning, rasterize_stack
 

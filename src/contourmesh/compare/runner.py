@@ -83,7 +83,6 @@ from typing import Optional
 from .. import __version__
 from ..measure import mesh_checks, relative_error, tradeoff
 from ..meshes import atomic_write
-from .command import RunInterrupted, add_compare_parser  # noqa: F401 - the command line lives in command.py
 from .execute import HARD_GRACE, ExecutorError, RowTimeout, call_in_subprocess, die_with_parent, time_limit
 from .inputs import Input, mesh_inputs, shape_inputs
 from .methods import Result, check_volume, get_method
@@ -97,9 +96,7 @@ __all__ = [
     "plan",
     "execute",
     "run_spec",
-    "add_compare_parser",
     "cache_key",
-    "RunInterrupted",
 ]
 
 #: How many pool crashes a row may be caught in before it is recorded as failed.
