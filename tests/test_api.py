@@ -171,3 +171,17 @@ def test_json_summary_speaks_of_the_route(tmp_path, capsys):
     assert main(["mesh", "sphere:r=6", "-o", str(tmp_path / "s.ply"), "--json", "--quiet"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["route"] == "stack" and s["watertight"]
+
+
+@pytest.mark.parametrize("module,call", [
+    ("nibabel", lambda p: contourmesh.read_volume(p / "x.nii")),
+    ("open3d", lambda p: contourmesh.mesh("sphere:r=3").to_open3d()),
+    ("pymeshlab", lambda p: contourmesh.mesh("sphere:r=3").to_pymeshlab()),
+])
+def test_a_missing_optional_package_names_what_to_install(module, call, tmp_path, monkeypatch):
+    from contourmesh.errors import MissingDependency
+
+    (tmp_path / "x.nii").write_bytes(b"\0" * 400)
+    monkeypatch.setitem(sys.modules, module, None)  # import of it now fails, as if not installed
+    with pytest.raises(MissingDependency, match=rf"{module} is not installed: pip install .*contourmesh\["):
+        call(tmp_path)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._optional import require
+
 __all__ = ["check_file", "MAX_VOXELS", "VOLUME_SUFFIXES"]
 
 #: File suffixes the volume reader understands.
@@ -13,16 +15,12 @@ VOLUME_SUFFIXES = (".npy", ".npz", ".tif", ".tiff", ".nii", ".nii.gz", ".vol", "
 MAX_VOXELS = 2**32
 
 
-def _require(module: str):
-    import importlib
+_PIP_NAMES = {"nrrd": "pynrrd"}
 
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise ImportError(
-            f"{module} is needed to read this file; install it with `pip install 'contourmesh[io]'` "
-            f"(or `pip install {module}`): {exc}"
-        ) from exc
+
+def _require(module: str):
+    """An optional file reader (the ``[io]`` extra), or MissingDependency naming what to install."""
+    return require(module, "io", _PIP_NAMES.get(module))
 
 
 def _suffix(path: Path) -> str:

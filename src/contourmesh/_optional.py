@@ -13,8 +13,7 @@ import importlib
 __all__ = ["MissingDependency", "require"]
 
 
-class MissingDependency(ImportError):
-    """An optional package is not installed; the message says what to ``pip install``."""
+from .errors import MissingDependency  # the one class: an optional package that is not installed
 
 
 def require(module_name: str, extra: str, pip_name: str | None = None):

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ._files import _bad, _wrap, check_file
+from ._optional import require
 
 if TYPE_CHECKING:  # annotations only: the adapters take any object with vertices and faces
     from .types import Mesh
@@ -23,16 +24,9 @@ __all__ = ["to_trimesh", "to_open3d", "to_pymeshlab", "save_mesh", "atomic_write
 MESH_FORMATS = ("ply", "obj", "stl", "off")
 
 
-def _require(module: str, extra: str = "compare"):
-    import importlib
-
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            f"{module} is needed for this; install it with `pip install 'contourmesh[{extra}]'` "
-            f"(or `pip install {module}`): {exc}"
-        ) from exc
+def _require(module: str):
+    """Open3D or PyMeshLab (the ``[compare]`` extra), or MissingDependency naming what to install."""
+    return require(module, "compare")
 
 
 def to_trimesh(mesh: Mesh):
