@@ -185,5 +185,5 @@ def test_standing_torus_goes_through_the_volume_mesher():
     m = contourmesh.mesh(shape)
     assert_closed_outward(m, genus=1)
     assert m.meta["exact_joins"] >= 1
-    with pytest.raises(NotImplementedError, match="cannot join"):
+    with pytest.raises(ValueError, match="cannot join"):
         stack_to_mesh(outer_jordan_stack(shape))

@@ -43,6 +43,7 @@ from . import shapes as _shapes
 from .bands.caps import CapError
 from .digitize import gauss_volume, outer_jordan_stack
 from .errors import InapplicableOption, StackSurfaceError
+from .io import check_file
 from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
 from .rasterize import rasterize_stack
@@ -369,7 +370,6 @@ def mesh_file(path, *, roi=None, pixel=None, spacing=None, z=None, axis: int | N
     viewer of that frame (``meta["space"]`` names it: NIfTI ``"RAS"``, NRRD its ``space``).
     A segment of a 3D Slicer ``.seg.nrrd`` can be picked by name: ``label="Liver"``.
     """
-    from .io import check_file
 
     p = check_file(path, "input")
     kind = "contour file" if is_contour_file(p) else "volume file"

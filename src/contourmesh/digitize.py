@@ -37,6 +37,7 @@ import math
 import numpy as np
 
 from .shapes import Shape
+from .tracing import rotate_start, trace_contours
 from .types import ContourStack, Section
 
 __all__ = ["outer_jordan_stack", "gauss_volume", "grid_box"]
@@ -133,7 +134,6 @@ def outer_jordan_stack(shape: Shape, h: float = 1.0, *, strict: bool = True, pol
     >>> len(outer_jordan_stack(Sphere(15), poles=False))
     29
     """
-    from .tracing import rotate_start, trace_contours
 
     h = _check_inputs(shape, h)
     (i0, j0, k0), (i1, j1, k1) = grid_box(shape, h)

@@ -54,9 +54,14 @@ import numpy as np
 from numba import njit
 
 from .bands import arclength as _arclength
+from .bands import twist_guarded_band
 from .bands import wiederhold as _wiederhold
+from .bands.caps import cap_faces
 from .bands.wiederhold import INITIAL_EDGE_WINDOW
+from .geometry import grid_to_xy, slice_gap
 from .polygons import mlp as _mlp_module
+from .tracing import _crack_contours
+from .types import Mesh
 
 __all__ = ["fast_volume_to_mesh", "slice_runs", "slice_components", "outer_jordan_contour",
            "slice_polygons", "band_faces"]
@@ -777,7 +782,6 @@ def band_faces(lower, upper) -> np.ndarray:
 def _band_py(lo, hi, triangulation="wiederhold"):
     """The full mesher's band with its twist guard (:func:`contourmesh.volumes.twist_guarded_band`),
     for the folded or twisted bands the kernel hands back."""
-    from .bands import twist_guarded_band
 
     return twist_guarded_band(lo, hi, triangulation)
 
@@ -914,7 +918,6 @@ def _map(fn, items, threads):
 
 
 def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
-    from .types import Mesh
 
     if threads is None:
         # one thread unless asked: per-slice threads cost more than they gain on two cores, and a
@@ -950,7 +953,6 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     if not occupied:
         raise _OutOfScope  # no foreground: the full mesher raises the error
 
-    from .geometry import grid_to_xy, slice_gap
 
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
 
@@ -968,7 +970,6 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             ring_xyz[k] = xyz
             ring_start[k] = ps
             continue
-        from .tracing import _crack_contours
 
         parts, starts = [], [0]
         for c in range(n):
@@ -1052,7 +1053,6 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             t += 1
 
     # ends: caps (and prisms for components without a partner on either side)
-    from .bands.caps import cap_faces
 
     def gap(k, up):
         return slice_gap(zs, k, up)

@@ -57,8 +57,9 @@ import math
 import numpy as np
 from numba import njit
 
+from .polygons import polygonize
 from .stacks import check_stack
-from .types import ContourStack, Mesh
+from .types import ContourStack, Mesh, Section, shoelace_area
 
 __all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "auto_sigma", "band_violations"]
 
@@ -623,7 +624,6 @@ def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi:
     ``sigma`` grow slowly with the object's size in voxels (as integral-invariant radii grow like
     ``h^(-1/3)``) keeps both small; the cap bounds the cost (``sigma^3`` per evaluation).
     """
-    from .types import shoelace_area
 
     _check_stack(stack)
     zs = stack.z
@@ -675,8 +675,6 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
         is replaced by its refined polygon (float64, grid units); ``meta`` gains ``refine`` and
         ``refine_clamped``.  Mesh it with ``stack_to_mesh(..., polygon="none")``.
     """
-    from .polygons import polygonize
-    from .types import Section, shoelace_area
 
     if method != "band":
         raise ValueError(f"unknown refine method {method!r}; expected 'band'")

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from .errors import warn_external
-from .geometry import shoelace_area
+from .geometry import points_in_rings, shoelace_area
 from .types import ContourStack, Section
 
 __all__ = ["stack_from_rings", "check_stack", "Z_TOLERANCE"]
@@ -46,7 +46,6 @@ def _nest_section(rings: list) -> tuple[tuple, tuple]:
     inside ``j`` (even-odd test).  A ring inside an odd number of others is a hole; its parent is
     the smallest ring containing it.
     """
-    from .geometry import points_in_rings
 
     n = len(rings)
     areas = np.array([abs(shoelace_area(r)) for r in rings])

@@ -23,10 +23,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import StackSurfaceError
-from .geometry import shoelace_area
+from .bands import triangulate_band
+from .bands.caps import CapError, cap_faces
+from .errors import ContourMeshError, StackSurfaceError
+from .geometry import points_in_rings, shoelace_area
+from .measure import _edge_counts, mesh_volume
+from .polygons import polygonize
+from .repair import _separate_coincident, split_nonmanifold_vertices
 from .stacks import check_stack
-from .types import ContourStack, Mesh
+from .types import ContourStack, Mesh, Section
 
 __all__ = ["stack_to_mesh", "CAPS", "StackSurfaceError"]
 
@@ -34,7 +39,6 @@ CAPS = ("flat", "half")
 
 
 def _polygon(contour: np.ndarray, method: str) -> np.ndarray:
-    from .polygons import polygonize
 
     contour = np.asarray(contour)
     if len(contour) < 3 or method == "none":  # a pole point, or the contour as given
@@ -117,7 +121,6 @@ class _Builder:
 
     def volume_since(self, mark: tuple[int, int, int]) -> float:
         """Signed volume enclosed by the faces added since ``mark`` (divergence theorem)."""
-        from .measure import mesh_volume
 
         if len(self.faces) <= mark[1]:
             return 0.0
@@ -128,7 +131,6 @@ class _Builder:
         v = np.concatenate(self.vertices) if self.vertices else np.zeros((0, 3))
         f = np.concatenate(self.faces) if self.faces else np.zeros((0, 3), dtype=np.int64)
         if self.cell_caps:  # cell caps may touch themselves at corners: make the surface a manifold
-            from .repair import _separate_coincident, split_nonmanifold_vertices
 
             nudge = 1e-3 * min(self.sx, self.sy)
             v, f = split_nonmanifold_vertices(v, f, nudge=nudge)
@@ -137,7 +139,6 @@ class _Builder:
 
 
 def _band(builder: _Builder, lo_idx, hi_idx, method: str):
-    from .bands import triangulate_band
 
     lo = builder.coords(lo_idx)
     hi = builder.coords(hi_idx)
@@ -147,7 +148,6 @@ def _band(builder: _Builder, lo_idx, hi_idx, method: str):
 
 
 def _cap(builder: _Builder, idx, holes_idx=(), upward=True):
-    from .bands.caps import cap_faces
 
     rings = [idx, *holes_idx]
     xy = [builder.coords(r)[:, :2] for r in rings]
@@ -174,11 +174,9 @@ def _cap_or_cells(b: _Builder, ring, contour, z: float, gap: float, upward: bool
         pass
     c = np.asarray(contour)
     if not _is_grid_4_curve(c):
-        from .bands.caps import CapError
 
         raise CapError(f"cannot cap the section at z={z}: its polygon touches itself and its contour is not a "
                          "grid contour to fall back on")
-    from .geometry import points_in_rings
 
     c = c.astype(np.int64)
     sgn = 1.0 if upward else -1.0
@@ -210,7 +208,6 @@ def _outward(stack: ContourStack) -> ContourStack:
     encloses no area (fewer than 3 distinct points, or collinear points) may only end the stack
     (a pole); between two sections it would pinch the surface to a point or a segment.
     """
-    from .types import Section
 
     n = len(stack.sections)
     sections = []
@@ -276,7 +273,7 @@ def _runs(stack: ContourStack):
     """
     for k, s in enumerate(stack.sections):
         if len(s.contours) != 1:
-            raise NotImplementedError(
+            raise ContourMeshError(
                 f"section {k} (z={s.z}) has {len(s.contours)} contours that this stack mesher cannot join "
                 "(it joins one contour per section, or one outer contour with matching holes); "
                 "use contourmesh.mesh(stack), which rasterizes it for the volume mesher"
@@ -290,7 +287,6 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
     An end section whose polygons cannot be capped (outer and hole polygons of a thin ring that
     cross) is dropped, so the surface ends at the next section that can be capped.
     """
-    from .bands.caps import cap_faces
 
     n = len(stack.sections)
 
@@ -370,7 +366,6 @@ def stack_to_mesh(
 def _verified(m: Mesh) -> Mesh:
     """The mesh, after checking that it is closed, edge-manifold and consistently oriented outward
     (a contour that touches or crosses itself, such as a keyhole, breaks this on the stack route)."""
-    from .measure import _edge_counts
 
     f = np.asarray(m.faces, dtype=np.int64)
     _, counts, twice = _edge_counts(f) if len(f) else (None, np.zeros(0, np.int64), 0)

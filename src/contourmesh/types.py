@@ -22,6 +22,8 @@ from typing import Optional
 import numpy as np
 
 from .geometry import shoelace_area
+from .measure import mesh_checks, mesh_volume, triangle_areas
+from .meshes import save_mesh, to_open3d, to_pymeshlab, to_trimesh
 
 __all__ = ["Section", "ContourStack", "Mesh", "shoelace_area"]
 
@@ -101,7 +103,6 @@ class Mesh:
     # --- measures -------------------------------------------------------------------------
     @property
     def triangle_areas(self) -> np.ndarray:
-        from .measure import triangle_areas
 
         return triangle_areas(self.vertices, self.faces)
 
@@ -113,35 +114,29 @@ class Mesh:
     @property
     def volume(self) -> float:
         """Enclosed volume by the divergence theorem (positive for an outward-oriented mesh)."""
-        from .measure import mesh_volume
 
         return mesh_volume(self.vertices, self.faces)
 
     def checks(self) -> dict:
         """Closedness, orientation and degeneracy checks (see :func:`contourmesh.measure.mesh_checks`)."""
-        from .measure import mesh_checks
 
         return mesh_checks(self.vertices, self.faces)
 
     # --- adapters -------------------------------------------------------------------------
     def to_trimesh(self):
-        from .meshes import to_trimesh
 
         return to_trimesh(self)
 
     def to_open3d(self):
-        from .meshes import to_open3d
 
         return to_open3d(self)
 
     def to_pymeshlab(self):
-        from .meshes import to_pymeshlab
 
         return to_pymeshlab(self)
 
     def save(self, path, *, force: bool = True) -> Path:
         """Write the mesh (``.ply``, ``.obj``, ``.stl``, ``.off``) atomically; returns the path."""
-        from .meshes import save_mesh
 
         return save_mesh(self, path, force=force)
 

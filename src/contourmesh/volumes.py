@@ -44,12 +44,13 @@ import logging
 
 import numpy as np
 
-from .bands import TRIANGULATORS, twist_guarded_band
+from .bands import TRIANGULATORS, band_is_folded, triangulate_band, twist_guarded_band
+from .bands.caps import cap_faces
 from .fastpath import fast_volume_to_mesh
 from .geometry import grid_to_xy, shoelace_area, slice_gap
-from .polygons import POLYGONIZERS
+from .polygons import POLYGONIZERS, dss_polygon, mlp_polygon
 from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
-from .tracing import _crack_contours
+from .tracing import _crack_contours, trace_contours
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -93,8 +94,6 @@ def voxel_topology(mask) -> dict:
 # ------------------------------------------------------------------------------------------------
 def _mlp_of_pixels(pix: np.ndarray) -> np.ndarray | None:
     """MLP (outer Jordan construction) of an 8- or 4-connected pixel set; centre coordinates."""
-    from .polygons import mlp_polygon
-    from .tracing import trace_contours
 
     contours, parents = trace_contours(pix)
     outer = [c for c, p in zip(contours, parents) if p == -1]
@@ -186,7 +185,6 @@ class _Slice:
         return out
 
     def _polygon(self, crack, pixels, method, to_xy_corner, to_xy_center, off, hole):
-        from .polygons import dss_polygon
 
         if method == "none":
             return to_xy_corner(crack)
@@ -256,7 +254,6 @@ class _Mesher:
         the arc-length band for the same pair is twisted, and is replaced by the optimal
         (least-area) band, or by the arc-length band where the optimal one would be too slow.
         """
-        from .bands import band_is_folded, triangulate_band
 
         lo, hi = self.coords(lo_ids), self.coords(hi_ids)
         f, replaced = twist_guarded_band(lo, hi, self.triangulation)
@@ -273,7 +270,6 @@ class _Mesher:
         self._add(np.concatenate([np.c_[a, a1, b1], np.c_[a, b1, b]]))
 
     def cap(self, rings, upward):
-        from .bands.caps import cap_faces
 
         xy = [self.coords(r)[:, :2] for r in rings]
         f = cap_faces(xy[0], xy[1:], upward=upward)

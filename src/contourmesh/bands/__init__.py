@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..measure import triangle_areas
 from .arclength import triangulate_band_arclength
 from .caps import cap_faces
 from .greedy import triangulate_band_greedy
@@ -110,7 +111,6 @@ def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str) -> tu
     of the arc-length band for the same pair is twisted; it is replaced by the optimal band, or by
     the arc-length band where the optimal one would be too slow.
     """
-    from ..measure import triangle_areas
 
     f = triangulate_band(lo, hi, triangulation)
     if triangulation in ("wiederhold", "greedy") and min(len(lo), len(hi)) > 2:

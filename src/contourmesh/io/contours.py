@@ -17,6 +17,7 @@ import numpy as np
 
 from .._files import VOLUME_SUFFIXES, _bad, _require, _suffix, _wrap, check_file
 from ..errors import warn_external
+from ..meshes import atomic_write
 from ..stacks import Z_TOLERANCE, stack_from_rings
 from ..types import ContourStack
 
@@ -274,7 +275,6 @@ def write_contours_json(stack: ContourStack, path, *, name: str | None = None, u
     each ring keeps its orientation and start point, so :func:`read_contours` gives the same
     rings back.  Returns the path.
     """
-    from ..meshes import atomic_write
 
     return atomic_write(Path(path), contours_json_bytes(stack, name=name, units=units), force=force)
 

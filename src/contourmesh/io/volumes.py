@@ -51,6 +51,7 @@ from .._files import (
     _wrap,
     check_file,
 )
+from ..meshes import atomic_write
 from ..volume_input import check_volume_array, select_voxels
 
 __all__ = ["read_volume", "read_image", "Image", "write_volume", "VOLUME_SUFFIXES", "MAX_VOXELS"]
@@ -539,7 +540,6 @@ def write_volume(path, volume, *, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0
     """
     import io as _io
 
-    from ..meshes import atomic_write
 
     path = Path(path)
     vol = np.asarray(volume)
