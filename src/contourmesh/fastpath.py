@@ -62,6 +62,7 @@ from .geometry import grid_to_xy, slice_gap
 from .polygons import mlp as _mlp_module
 from .tracing import _crack_contours
 from .types import Mesh
+from .volume_input import check_origin, check_spacing
 
 __all__ = ["fast_volume_to_mesh", "slice_runs", "slice_components", "outer_jordan_contour",
            "slice_polygons", "band_faces"]
@@ -814,14 +815,10 @@ def _params_ok(volume, spacing, z, axis, label, threshold, origin):
         return False
     if axis not in (0, 1, 2) or isinstance(axis, bool):
         return False
-    try:
-        sp = np.asarray(spacing, dtype=np.float64).reshape(-1)
-        org = np.asarray(origin, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        return False
-    if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
-        return False
-    if org.shape != (3,) or not np.all(np.isfinite(org)):
+    try:  # the volume validator's own checks; the general mesher then reports what is wrong
+        check_spacing(spacing)
+        check_origin(origin)
+    except ValueError:
         return False
     if label is not None and threshold is not None:
         return False

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["check_volume_array", "binary_label", "select_voxels", "prepare_volume"]
+__all__ = ["check_volume_array", "check_spacing", "check_origin", "binary_label", "select_voxels", "binary_volume",
+           "prepare_volume"]
 
 
 def check_volume_array(volume, where: str = "volume") -> np.ndarray:
@@ -93,13 +94,9 @@ def prepare_volume(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     vol = check_volume_array(volume)
     if axis not in (0, 1, 2):
         raise ValueError(f"axis must be 0, 1 or 2; got {axis!r}")
-    sp = np.asarray(spacing, dtype=np.float64).reshape(-1)
-    if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
-        raise ValueError(f"spacing must be three positive finite numbers (dz, dy, dx); got {spacing!r}")
+    sp = check_spacing(spacing)
     mask = select_voxels(vol, label=label, threshold=threshold)
-    org = np.asarray(origin, dtype=np.float64).reshape(-1)
-    if org.shape != (3,) or not np.all(np.isfinite(org)):
-        raise ValueError(f"origin must be three finite numbers (x, y, z); got {origin!r}")
+    org = check_origin(origin)
     if axis != 0:
         # the slicing axis goes first; the remaining two keep their order as (y, x)
         order = [axis] + [a for a in (0, 1, 2) if a != axis]
@@ -121,3 +118,30 @@ def prepare_volume(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             bad = int(np.flatnonzero(np.diff(zs) <= 0)[0])
             raise ValueError(f"slice positions z must be strictly increasing; z[{bad}]={zs[bad]} >= z[{bad + 1}]={zs[bad + 1]}")
     return mask, zs, (float(sp[1]), float(sp[2])), (float(org[0]), float(org[1]))
+
+
+def check_spacing(spacing) -> np.ndarray:
+    """``(dz, dy, dx)`` as a float64 (3,) array, after checking three positive finite numbers."""
+    try:
+        sp = np.asarray(spacing, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"spacing must be three positive finite numbers (dz, dy, dx); got {spacing!r}") from None
+    if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
+        raise ValueError(f"spacing must be three positive finite numbers (dz, dy, dx); got {spacing!r}")
+    return sp
+
+
+def check_origin(origin) -> np.ndarray:
+    """``(x, y, z)`` as a float64 (3,) array, after checking three finite numbers."""
+    try:
+        org = np.asarray(origin, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"origin must be three finite numbers (x, y, z); got {origin!r}") from None
+    if org.shape != (3,) or not np.all(np.isfinite(org)):
+        raise ValueError(f"origin must be three finite numbers (x, y, z); got {origin!r}")
+    return org
+
+
+def binary_volume(volume, where: str = "volume") -> np.ndarray:
+    """A checked volume's object mask, without label/threshold (boolean, 0/1, or two-valued)."""
+    return select_voxels(check_volume_array(volume, where), where=where)

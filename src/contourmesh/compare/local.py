@@ -24,6 +24,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..volume_input import binary_volume, check_spacing
+
 __all__ = [
     "MULLIKIN_VERBEEK_WEIGHTS",
     "LINDBLAD_A1",
@@ -48,22 +50,8 @@ LINDBLAD_A1 = 0.6380
 
 
 # --- input checks -------------------------------------------------------------------------------
-def _check_volume(volume) -> np.ndarray:
-    v = np.asarray(volume)
-    if v.ndim != 3:
-        raise ValueError(f"volume must be a 3-D array indexed [z, y, x]; got an array of shape {v.shape}")
-    if v.dtype != np.bool_:
-        if not (np.issubdtype(v.dtype, np.integer) and np.isin(v, (0, 1)).all()):
-            raise ValueError(f"volume must be boolean (or 0/1 integers); got dtype {v.dtype}")
-        v = v.astype(bool)
-    return v
-
-
-def _check_spacing(spacing) -> np.ndarray:
-    s = np.asarray(spacing, dtype=np.float64).reshape(-1)
-    if s.shape != (3,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise ValueError(f"spacing must be three positive numbers (dz, dy, dx); got {spacing!r}")
-    return s
+_check_volume = binary_volume  # the package's one volume validator
+_check_spacing = check_spacing
 
 
 def _isotropic(spacing) -> float:

@@ -48,6 +48,7 @@ from .._optional import MissingDependency, require
 from ..api import mesh as _mesh_source
 from ..measure import mesh_checks
 from ..types import Mesh
+from ..volume_input import binary_volume, check_origin, check_spacing
 from .execute import ExecutorError, call_in_subprocess
 from .local import boundary_face_counts, lindblad_area, mullikin_verbeek_area, surfel_area
 from .postprocess import apply_postprocess
@@ -122,22 +123,7 @@ def check_volume(volume, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
     Returns ``(volume as bool, spacing float64 (3,), origin float64 (3,))``; raises ValueError
     saying what was expected and what was found.
     """
-    v = np.asarray(volume)
-    if v.ndim != 3:
-        raise ValueError(f"volume must be a 3-D array indexed [z, y, x]; got shape {v.shape}")
-    if v.dtype != np.bool_:
-        if not (np.issubdtype(v.dtype, np.integer) and np.isin(v, (0, 1)).all()):
-            raise ValueError(f"volume must be boolean (or 0/1 integers); got dtype {v.dtype}")
-        v = v.astype(bool)
-    if min(v.shape) < 1:
-        raise ValueError(f"volume is empty: shape {v.shape}")
-    sp = np.asarray(spacing, dtype=np.float64).reshape(-1)
-    if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
-        raise ValueError(f"spacing must be three positive numbers (dz, dy, dx); got {spacing!r}")
-    org = np.asarray(origin, dtype=np.float64).reshape(-1)
-    if org.shape != (3,) or not np.all(np.isfinite(org)):
-        raise ValueError(f"origin must be three finite numbers (x0, y0, z0); got {origin!r}")
-    return v, sp, org
+    return binary_volume(volume), check_spacing(spacing), check_origin(origin)
 
 
 def volume_to_mesh_frame(index_zyx: np.ndarray, spacing, origin) -> np.ndarray:
