@@ -185,3 +185,22 @@ def test_a_missing_optional_package_names_what_to_install(module, call, tmp_path
     monkeypatch.setitem(sys.modules, module, None)  # import of it now fails, as if not installed
     with pytest.raises(MissingDependency, match=rf"{module} is not installed: pip install .*contourmesh\["):
         call(tmp_path)
+
+
+def test_diagnostics_count_axis_walls_and_joins(tmp_path, capsys):
+    from contourmesh.cli import main
+    from contourmesh.shapes import Ellipsoid, rotation_from_euler
+
+    box = contourmesh.mesh(_box(), polygon="none")
+    # flat caps in the end slices' planes: walls 16 x 3 against caps 2 x 16
+    assert box.meta["axis_wall_fraction"] == pytest.approx(48 / 80)
+    smooth = contourmesh.mesh(Ellipsoid(9, 6, 5, center=(0.3, 0.2, 0.1), rotation=rotation_from_euler(20, 30, 40)))
+    assert smooth.meta["axis_wall_fraction"] < box.meta["axis_wall_fraction"]
+    v = np.zeros((6, 9, 9), bool)
+    v[:3, 3:6, 3:6] = True
+    v[3:, 0:3, 0:3] = v[3:, 6:9, 6:9] = True
+    v[3, 1:8, 1:8] = True
+    np.save(tmp_path / "y.npy", v)
+    assert main(["mesh", str(tmp_path / "y.npy"), "-o", str(tmp_path / "y.ply"), "--json", "--quiet"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["exact_joins"] >= 1 and 0 < s["axis_wall_fraction"] < 1

@@ -46,6 +46,7 @@ from .errors import InapplicableOption, StackSurfaceError
 from .io import check_file
 from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
+from .measure import axis_wall_fraction
 from .rasterize import rasterize_stack
 from .refine import REFINERS, refine_stack
 from .surface import _nested_chains, stack_to_mesh
@@ -192,7 +193,15 @@ def mesh(source, **options) -> Mesh:
     _refuse_inapplicable(kind, given)
     entry = {"shape": mesh_shape, "stack": mesh_stack, "volume": mesh_volume,
              "contour file": mesh_file, "volume file": mesh_file}[kind]
-    return entry(source, **given)
+    return diagnose(entry(source, **given))
+
+
+def diagnose(m: Mesh) -> Mesh:
+    """The mesh with its diagnostics in ``meta``: ``axis_wall_fraction``, the share of the area on
+    faces facing exactly +-x or +-y (voxel-like walls; see :func:`contourmesh.measure.axis_wall_fraction`).
+    The volume mesher's counts (``exact_joins``, ``polygon_fallbacks``, ``crack_rings``,
+    ``band_fallbacks``) are already there.  Every entry point's result goes through it."""
+    return _with_meta(m, axis_wall_fraction=axis_wall_fraction(m.vertices, m.faces))
 
 
 # ------------------------------------------------------------------------------------------------

@@ -102,6 +102,10 @@ def _mesh_summary(m) -> dict:
                 "self_intersections"):
         if key in chk:
             summary[key] = chk[key]
+    for key in ("axis_wall_fraction", "exact_joins", "band_joins", "polygon_fallbacks", "crack_rings",
+                "band_fallbacks", "pixel", "space"):
+        if key in m.meta:  # where the mesh came from: the diagnostics of its route
+            summary[key] = m.meta[key]
     return summary
 
 

@@ -44,6 +44,31 @@ def mesh_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0)
 
 
+def axis_wall_fraction(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """The fraction of the area on faces whose normal is exactly along +-x or +-y.
+
+    On the surface of a smooth object in general position such faces carry essentially no area;
+    on a mesh made of voxel faces (or of contours rising vertically to a mid-plane) they carry a
+    lot.  A diagnostic of staircase joins; exact up to a relative tolerance of 1e-12.
+
+    >>> import numpy as np
+    >>> square = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1.0]])  # a wall facing -y
+    >>> axis_wall_fraction(square, np.array([[0, 1, 2], [0, 2, 3]]))
+    1.0
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    if len(f) == 0:
+        return 0.0
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    size = np.linalg.norm(n, axis=1)
+    tol = 1e-12 * size
+    ax, ay, az = np.abs(n[:, 0]), np.abs(n[:, 1]), np.abs(n[:, 2])
+    wall = (az <= tol) & ((ax <= tol) | (ay <= tol)) & (size > 0)
+    total = size.sum()
+    return float(size[wall].sum() / total) if total > 0 else 0.0
+
+
 def relative_error(area: float, area_true: float | None) -> float | None:
     """Signed relative error ``(area - area_true) / area_true`` (None when the truth is unknown)."""
     if area_true is None or not np.isfinite(area_true) or area_true == 0:
