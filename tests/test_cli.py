@@ -266,3 +266,61 @@ def test_lost_contour_warning_points_at_the_caller_and_reads_plainly(recwarn):
     w = rec[0]
     assert w.filename == __file__
     assert "the largest lost contour has area" in str(w.message) and "pixels of 1 x 1" in str(w.message)
+
+
+# --- several objects at once: every label of a volume, several structures of a contour file ----------------
+def _labels_volume():
+    v = np.zeros((10, 12, 14), np.uint16)
+    v[1:4, 1:5, 1:6] = 3
+    v[5:9, 6:11, 2:12] = 7
+    v[5:9, 1:3, 1:3] = 9
+    return v
+
+
+def test_all_labels_writes_one_mesh_per_label_and_a_table(tmp_path, capsys):
+    import csv
+
+    import contourmesh
+
+    v = _labels_volume()
+    np.save(tmp_path / "labels.npy", v)
+    assert main(["mesh", str(tmp_path / "labels.npy"), "--all-labels", "-o", str(tmp_path / "out"), "--quiet",
+                 "--spacing", "2,1,1"]) == 0
+    assert "3 objects" in capsys.readouterr().out
+    rows = list(csv.DictReader(open(tmp_path / "out" / "labels.csv")))
+    assert [int(r["label"]) for r in rows] == [3, 7, 9]
+    for r in rows:
+        lab = int(r["label"])
+        single = contourmesh.mesh(v == lab, spacing=(2, 1, 1))
+        assert float(r["area"]) == pytest.approx(single.area) and r["watertight"] == "True"
+        assert (tmp_path / "out" / f"label_{lab}.ply").is_file()
+        z, y, x = np.nonzero(v == lab)
+        assert [int(r[k]) for k in ("zmin", "zmax", "ymin", "ymax", "xmin", "xmax")] == \
+            [z.min(), z.max(), y.min(), y.max(), x.min(), x.max()]
+    assert main(["mesh", str(tmp_path / "labels.npy"), "--all-labels", "--stats-only", "-o", str(tmp_path / "s"),
+                 "--quiet"]) == 0
+    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == ["labels.csv"]
+
+
+def test_several_objects_refuse_options_that_do_not_apply(tmp_path, capsys):
+    np.save(tmp_path / "labels.npy", _labels_volume())
+    _one_line_error(capsys, ["mesh", str(tmp_path / "labels.npy"), "--all-labels", "--post", "taubin", "-o",
+                             str(tmp_path / "o")], "--post does not apply")
+    _one_line_error(capsys, ["mesh", str(tmp_path / "labels.npy"), "--stats-only", "-o", str(tmp_path / "o.ply")],
+                    "--stats-only applies with")
+
+
+def test_all_rois_and_repeated_roi_on_the_rt_structure_set(shared_data, tmp_path, capsys):
+    import csv
+
+    pytest.importorskip("pydicom")
+    rtss = shared_data / "contours" / "dicompyler-core" / "rtss.dcm"
+    assert main(["mesh", str(rtss), "--roi", "Heart", "--roi", "5", "--roi", "Tumor Bed", "-o",
+                 str(tmp_path / "two"), "--quiet"]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "two" / "rois.csv")))
+    assert [r["roi"] for r in rows] == ["Heart", "Tumor Bed"] and all(r["status"] == "ok" for r in rows)
+    assert (tmp_path / "two" / "Tumor_Bed.ply").is_file()
+    assert main(["mesh", str(rtss), "--all-rois", "--stats-only", "-o", str(tmp_path / "all"), "--quiet"]) == 0
+    assert "contourmesh: warning: " in capsys.readouterr().err  # speck contours lost at the default pixel
+    rows = list(csv.DictReader(open(tmp_path / "all" / "rois.csv")))
+    assert len(rows) == 9 and all(r["watertight"] == "True" for r in rows)  # Areola holds no contour

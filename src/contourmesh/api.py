@@ -422,3 +422,111 @@ def _to_world(m: Mesh, direction: np.ndarray, origin, axis: int) -> Mesh:
     vertices = m.vertices @ linear.T + np.asarray(origin, dtype=np.float64)
     faces = m.faces[:, ::-1] if np.linalg.det(linear) < 0 else m.faces
     return Mesh(vertices, np.ascontiguousarray(faces), P=m.P, meta=dict(m.meta, world=True))
+
+
+# ------------------------------------------------------------------------------------------------
+# many objects at once: every label of a segmentation, every structure of a contour file
+# ------------------------------------------------------------------------------------------------
+def mesh_labels(volume, *, labels=None, spacing=None, origin=None, polygon: str = "mlp",
+                triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
+                progress: bool = False):
+    """Mesh every non-zero label of an integer label volume ``[z, y, x]``; yields ``(label, Mesh, bbox)``.
+
+    One pass over the volume finds each label's bounding box (``scipy.ndimage.find_objects``);
+    each label is then meshed from its own box only, padded by one voxel, so the work grows with
+    the labels' sizes, not with their number times the volume.  ``bbox`` is
+    ``(zmin, zmax, ymin, ymax, xmin, xmax)`` in voxel indices, inclusive.  ``labels`` restricts
+    the labels meshed (default: all that occur).  Vertices are in the volume's frame
+    (``spacing``, ``origin`` as for :func:`mesh_volume`).
+    """
+    from scipy import ndimage
+    from tqdm.auto import tqdm
+
+    from .volume_input import check_volume_array
+
+    vol = check_volume_array(volume)
+    if vol.dtype.kind not in "iub":
+        raise TypeError(f"mesh_labels needs an integer label volume; got dtype {vol.dtype} (use threshold= with "
+                        "mesh_volume for a greyscale one)")
+    if vol.dtype.kind == "i" and vol.min() < 0:
+        raise ValueError("mesh_labels needs labels >= 0 (0 is the background)")
+    sp = np.asarray((1.0, 1.0, 1.0) if spacing is None else spacing, dtype=np.float64)
+    org = np.asarray((0.0, 0.0, 0.0) if origin is None else origin, dtype=np.float64)
+    from .volume_input import check_origin, check_spacing
+
+    sp, org = check_spacing(sp), check_origin(org)
+    boxes = ndimage.find_objects(vol.astype(np.int64, copy=False) if vol.dtype.kind == "b" else vol)
+    present = [i + 1 for i, b in enumerate(boxes) if b is not None]
+    wanted = present if labels is None else [int(v) for v in labels]
+    missing = sorted(set(wanted) - set(present))
+    if missing:
+        raise ValueError(f"no voxel has label {missing[0]}" + (f" (nor {missing[1:]})" if len(missing) > 1 else ""))
+    for lab in tqdm(wanted, desc="labels", disable=not progress, leave=False):
+        box = boxes[lab - 1]
+        lo = [max(s.start - 1, 0) for s in box]
+        hi = [min(s.stop + 1, n) for s, n in zip(box, vol.shape)]
+        crop = vol[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] == lab
+        o = (org[0] + lo[2] * sp[2], org[1] + lo[1] * sp[1], org[2] + lo[0] * sp[0])
+        m = mesh_volume(crop, spacing=tuple(sp), origin=o, polygon=polygon, triangulation=triangulation,
+                        caps=caps, refine=refine)
+        bbox = (box[0].start, box[0].stop - 1, box[1].start, box[1].stop - 1, box[2].start, box[2].stop - 1)
+        yield lab, diagnose(_with_meta(m, label=lab)), bbox
+
+
+def label_row(label, m: Mesh, bbox) -> dict:
+    """One row of ``labels.csv``: the label's area, volume, vertex count and checks, and its box."""
+    chk = m.checks()
+    row = {"label": label, "area": m.area, "volume": chk["volume"], "P": int(m.P), "faces": int(len(m.faces)),
+           "genus": chk["genus"], "components": chk["components"], "watertight": chk["watertight"],
+           "self_intersections": chk.get("self_intersections", "")}
+    row.update(zip(("zmin", "zmax", "ymin", "ymax", "xmin", "xmax"), (int(v) for v in bbox)))
+    return row
+
+
+def mesh_file_labels(path, *, labels=None, spacing=None, origin=None, polygon: str = "mlp",
+                     triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
+                     progress: bool = False):
+    """:func:`mesh_labels` of a label-volume file, in the file's world coordinates (as :func:`mesh_file`)."""
+    img = read_image(path)
+    used = img.spacing if spacing is None else tuple(float(s) for s in spacing)
+    world_origin = img.origin if origin is None else tuple(float(o) for o in origin)
+    oriented = not np.allclose(img.direction, np.eye(3), rtol=0, atol=1e-12)
+    for lab, m, bbox in mesh_labels(img.volume, labels=labels, spacing=used,
+                                    origin=(0.0, 0.0, 0.0) if oriented else world_origin, polygon=polygon,
+                                    triangulation=triangulation, caps=caps, refine=refine, progress=progress):
+        if oriented:
+            m = _to_world(m, img.direction, world_origin, 0)
+        yield lab, _with_meta(m, source=str(path), spacing=used), bbox
+
+
+def mesh_file_rois(path, *, rois=None, pixel=None, polygon: str = "mlp", triangulation: str | None = None,
+                   caps: str = "flat", refine: str | None = None, progress: bool = False):
+    """Mesh several structures of a contour file (default: every non-empty one); yields ``(name, Mesh)``.
+
+    ``rois`` lists names or numbers.  Each structure is meshed as :func:`mesh_file` meshes it with
+    ``roi=`` that structure."""
+    from .io.contours import list_rois
+
+    table = list_rois(path)
+    if rois is None:
+        picks = [(num, name) for num, name, n in table if n > 0]
+    else:
+        picks = []
+        for r in rois:
+            found = [(num, name) for num, name, n in table if r == num or r == name or str(r) == str(num)
+                     or str(r).strip().lower().replace("_", " ") == name.strip().lower().replace("_", " ")]
+            if len(found) != 1:
+                listing = ", ".join(f"{num}: {name!r}" for num, name, _ in table)
+                raise ValueError(f"{str(path)!r}: {'no' if not found else len(found)} ROI matches {r!r}; "
+                                 f"available ROIs: {listing}")
+            if found[0] not in picks:  # the same structure named twice (by name and number) is meshed once
+                picks.append(found[0])
+    for num, name in picks:
+        m = mesh_file(path, roi=num if _suffix_of(path) != ".json" else None, pixel=pixel, polygon=polygon,
+                      triangulation=triangulation, caps=caps, refine=refine, progress=progress)
+        yield name, diagnose(_with_meta(m, roi=name, roi_number=num))
+
+
+def _suffix_of(path) -> str:
+    name = str(path).lower()
+    return ".json" if name.endswith(".json") else Path(name).suffix

@@ -132,9 +132,81 @@ def _check_output(out: Path, force: bool) -> None:
         raise FileExistsError(f"output file {str(out)!r} already exists (use --force to overwrite)")
 
 
+def _cmd_mesh_many(args) -> int:
+    """``--all-labels`` / ``--all-rois`` / several ``--roi``: one mesh file per object and a table."""
+    import csv
+    import io
+
+    from .api import label_row, mesh_file_labels, mesh_file_rois
+    from .meshes import atomic_write
+
+    for flag, value in (("--post", args.post), ("--mlx", args.mlx), ("--save-mlx", args.save_mlx),
+                        ("--label", args.label), ("--threshold", args.threshold), ("--json", args.json or None)):
+        if value:
+            raise ValueError(f"{flag} does not apply when meshing several objects at once")
+    if args.all_labels and (args.roi or args.all_rois or args.pixel is not None):
+        raise ValueError("--all-labels is for label volumes; --roi, --all-rois and --pixel are for contour files")
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"-o {str(out)!r}: several objects need an output folder, and this is a file")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"the output folder's parent {str(out.parent)!r} does not exist")
+    out.mkdir(exist_ok=True)
+    fmt = args.format.lstrip(".")
+    method = dict(polygon=args.polygon, triangulation=args.triangulation, caps=args.caps, refine=args.refine,
+                  progress=not args.quiet)
+    if args.all_labels:
+        table = "labels.csv"
+        objects = ((lab, m, bbox) for lab, m, bbox in mesh_file_labels(args.source, spacing=args.spacing, **method))
+    else:
+        table = "rois.csv"
+        rois = None if args.all_rois else [int(r) if r.isdigit() else r for r in args.roi]
+        objects = ((name, m, None) for name, m in mesh_file_rois(args.source, rois=rois, pixel=args.pixel, **method))
+    rows, failed = [], 0
+    while True:
+        try:
+            key, m, bbox = next(objects)
+        except StopIteration:
+            break
+        if bbox is not None:
+            row = label_row(key, m, bbox)
+            name = f"label_{key}"
+        else:
+            chk = m.checks()
+            row = {"roi": key, "area": m.area, "volume": chk["volume"], "P": int(m.P), "faces": int(len(m.faces)),
+                   "genus": chk["genus"], "components": chk["components"], "watertight": chk["watertight"],
+                   "self_intersections": chk.get("self_intersections", ""), "route": m.meta.get("route")}
+            name = re.sub(r"[^A-Za-z0-9._-]+", "_", str(key)).strip("_") or "roi"
+        ok = m.checks()["ok"]
+        row["status"] = "ok" if ok else "failed its checks (not written)"
+        failed += not ok
+        if ok and not args.stats_only:
+            target = out / f"{name}.{fmt}"
+            if target.exists() and not args.force:
+                raise FileExistsError(f"output file {str(target)!r} already exists (use --force to overwrite)")
+            m.save(target, force=True)
+            row["file"] = target.name
+        rows.append(row)
+    if not rows:
+        raise ValueError(f"{args.source!r}: nothing to mesh")
+    buf = io.StringIO()
+    fields = list(dict.fromkeys(k for r in rows for k in r))
+    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    atomic_write(out / table, buf.getvalue().encode(), force=True)
+    print(f"wrote {(out / table).resolve()}: {len(rows)} objects" + ("" if args.stats_only else f", one .{fmt} each")
+          + (f"; {failed} failed their checks" if failed else ""))
+    return 1 if failed else 0
+
+
 def _cmd_mesh(args) -> int:
     from .api import mesh
 
+    if args.all_labels or args.all_rois or len(args.roi or []) > 1:
+        return _cmd_mesh_many(args)
+    if args.stats_only:
+        raise ValueError("--stats-only applies with --all-labels, --all-rois or several --roi")
     out = Path(args.output)
     _check_output(out, args.force)
     posts = list(args.post or []) + [f"mlx:{p}" for p in (args.mlx or [])]
@@ -146,7 +218,8 @@ def _cmd_mesh(args) -> int:
             get_postprocess(name)
         if args.save_mlx:
             steps = meshlab_steps_of(args.post or [])
-    roi = int(args.roi) if args.roi is not None and args.roi.isdigit() else args.roi
+    roi = args.roi[0] if args.roi else None
+    roi = int(roi) if roi is not None and roi.isdigit() else roi
     m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps,
              refine=args.refine, roi=roi, pixel=args.pixel, label=args.label, threshold=args.threshold,
              axis=args.axis, spacing=args.spacing, progress=not args.quiet)
@@ -199,7 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Mesh a shape spec, a volume file or a contour file; write the mesh and print "
                                    "its area.", epilog=SHAPES_HELP, formatter_class=_Formatter)
     m.add_argument("source", help="a shape spec NAME:key=value,... (sphere:r=40, torus:R=30,r=9) or a file")
-    m.add_argument("-o", "--output", required=True, help="output mesh file (.ply, .obj, .stl, .off)")
+    m.add_argument("-o", "--output", required=True,
+                   help="output mesh file (.ply, .obj, .stl, .off); a folder with --all-labels/--all-rois")
     m.add_argument("--polygon", default="mlp", choices=["dss", "mlp", "none"],
                    help="each contour becomes its minimum length polygon, its maximal-DSS polygon, or stays as traced")
     m.add_argument("--triangulation", default=None, choices=["wiederhold", "greedy", "optimal", "arclength"],
@@ -209,7 +283,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="end caps in the last section's plane, or half a slice spacing beyond it")
     m.add_argument("--refine", default=None, choices=["none", "band"],
                    help="band: the convergent refinement of the polygons across slices")
-    m.add_argument("--roi", default=None, help="contour files: the structure, by name or number")
+    m.add_argument("--roi", action="append", default=None,
+                   help="contour files: the structure, by name or number; repeat it for several (-o is then a folder)")
+    m.add_argument("--all-rois", action="store_true",
+                   help="contour files: every non-empty structure, one mesh file each in the folder -o, and rois.csv")
+    m.add_argument("--all-labels", action="store_true",
+                   help="label volumes: every non-zero label in one pass, one mesh file each in the folder -o, "
+                        "and labels.csv (label, area, volume, P, faces, genus, components, watertight, "
+                        "self_intersections, bounding box)")
+    m.add_argument("--stats-only", action="store_true", help="with --all-labels/--all-rois: the table only, no meshes")
+    m.add_argument("--format", default="ply", choices=["ply", "obj", "stl", "off"],
+                   help="mesh file format with --all-labels/--all-rois")
     m.add_argument("--pixel", type=float, default=None,
                    help="contour files: pixel size for rasterizing (default: the median point spacing)")
     m.add_argument("--label", type=_label, default=None,

@@ -21,7 +21,7 @@ from ..meshes import atomic_write
 from ..stacks import Z_TOLERANCE, stack_from_rings
 from ..types import ContourStack
 
-__all__ = ["read_contours", "write_contours_json", "contours_json_bytes", "is_contour_file", "CONTOUR_SUFFIXES",
+__all__ = ["read_contours", "list_rois", "write_contours_json", "contours_json_bytes", "is_contour_file", "CONTOUR_SUFFIXES",
            "CONTOURS_FORMAT", "CONTOURS_VERSION"]
 
 
@@ -78,8 +78,35 @@ def read_contours(path, *, roi=None) -> ContourStack:
     return _read_rtstruct(p, roi)
 
 
+class _Listing(Exception):
+    """Carries the ROI table out of a reader when :func:`list_rois` asks for it."""
+
+    def __init__(self, rois):
+        self.rois = rois
+
+
+_LIST = object()
+
+
+def list_rois(path) -> list:
+    """The structures of a contour file: ``[(number, name, number of contours), ...]``.
+
+    A JSON contour stack holds one structure (its ``name``, or the file name)."""
+    p = check_file(path, "contour")
+    if _suffix(p) == ".json":
+        st = _read_contours_json(p)
+        return [(1, str(st.meta.get("roi") or st.meta.get("name") or p.stem), sum(len(s.contours) for s in st.sections))]
+    try:
+        read_contours(p, roi=_LIST)
+    except _Listing as listing:
+        return listing.rois
+    raise AssertionError("unreachable: the reader lists its ROIs")
+
+
 def _select_roi(path: Path, rois: list[tuple[int, str, int]], roi):
     """Pick one of ``(number, name, n_contours)``; errors list what is available."""
+    if roi is _LIST:
+        raise _Listing(rois)
     listing = ", ".join(f"{num}: {name!r} ({n} contours)" for num, name, n in rois)
     if roi is None:
         nonempty = [r for r in rois if r[2] > 0]
@@ -153,6 +180,8 @@ def _read_rtstruct(path: Path, roi) -> ContourStack:
         if isinstance(exc, ImportError) or str(path) in str(exc):
             raise
         raise _wrap(path, "DICOM RTSTRUCT", exc) from None
+    except _Listing:
+        raise
     except Exception as exc:  # pydicom's InvalidDicomError, EOFError, struct.error, ...
         raise _wrap(path, "DICOM RTSTRUCT", exc) from None
     if skipped:
