@@ -54,3 +54,4 @@ def test_readme_code_blocks_run(tmp_path):
         ran += 1
     assert ran >= 2
     assert (tmp_path / "sphere.ply").is_file() and (tmp_path / "labels.ply").is_file()
+    assert (tmp_path / "every-label" / "labels.csv").is_file()
