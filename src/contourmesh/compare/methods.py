@@ -74,7 +74,7 @@ __all__ = [
     "volume_to_mesh_frame",
 ]
 
-FAMILIES = ("ours", "marching-cubes", "vtk", "open3d", "meshlab", "local", "dgtal")
+FAMILIES = ("ours", "marching-cubes", "vtk", "multilabel", "open3d", "meshlab", "local", "dgtal")
 
 
 # --- public types -------------------------------------------------------------------------------
@@ -296,6 +296,33 @@ def vtk_surface_nets(volume, spacing, origin, *, iterations: int = 16) -> Result
     alg.Update()
     mesh = _vtk_polydata_to_mesh(alg.GetOutput(), method="vtk-surfacenets", iterations=int(iterations))
     return _mesh_result(mesh, vtk_threads=1)
+
+
+# --- multi-label meshers of connectomics (zmesh, serra-mesh) -----------------------------------
+def zmesh_mc(volume, spacing, origin) -> Result:
+    """``zmesh.Mesher`` (multi-label marching cubes, as connectomics pipelines run it), unsimplified.
+
+    The volume is handed over as ``[x, y, z]`` (zmesh's order) with ``close=True``, which pads one
+    voxel of background; the vertices are shifted back by it and placed at ``origin``.
+    """
+    zmesh = _require("zmesh", "zmesh")
+    dz, dy, dx = (float(s) for s in spacing)
+    labels = np.asfortranarray(np.asarray(volume, dtype=np.uint32).T)
+    mesher = zmesh.Mesher((dx, dy, dz))
+    mesher.mesh(labels, close=True)
+    got = mesher.get(1, normals=False)
+    verts = np.asarray(got.vertices, dtype=np.float64) - (dx, dy, dz) + np.asarray(origin, dtype=np.float64)
+    return _mesh_result(_mesh(verts, got.faces, method="zmesh"))
+
+
+def serra_mesh_dc(volume, spacing, origin, *, taubin: int = 0) -> Result:
+    """``serra_mesh.Mesher`` (multi-material dual contouring) with ``taubin`` smoothing passes (0: none)."""
+    serra = _require("serra_mesh", "serra-mesh")
+    mesher = serra.Mesher(tuple(float(s) for s in spacing), axis_order="ZYX", taubin=int(taubin), threads=1)
+    mesher.mesh(np.ascontiguousarray(np.asarray(volume, dtype=np.uint32)), close=True)
+    got = mesher.get(1)
+    verts = np.asarray(got.vertices, dtype=np.float64) + np.asarray(origin, dtype=np.float64)
+    return _mesh_result(_mesh(verts, got.faces, method="serra-mesh", taubin=int(taubin)))
 
 
 # --- oriented boundary points (for Open3D and MeshLab) ------------------------------------------
@@ -655,6 +682,8 @@ _REGISTRY: dict[str, _Spec] = {
     "vtk-flyingedges": _Spec("vtk", vtk_flying_edges, {"blur": ("blur", float, 0.0)}),
     "vtk-discreteflyingedges": _Spec("vtk", vtk_discrete_flying_edges, {}),
     "vtk-surfacenets": _Spec("vtk", vtk_surface_nets, {"it": ("iterations", int, 16)}),
+    "zmesh": _Spec("multilabel", zmesh_mc, {}),
+    "serra": _Spec("multilabel", serra_mesh_dc, {"taubin": ("taubin", int, 0)}),
     "o3d-poisson": _Spec("open3d", o3d_poisson, {"d": ("depth", int, 8), "nr": ("normal_radius", float, 2.0)},
                          {"estnormals": ("estimate_normals", True)}),
     "o3d-bpa": _Spec("open3d", o3d_ball_pivoting, {"r": ("radius", float, 1.0), "nr": ("normal_radius", float, 2.0)},
