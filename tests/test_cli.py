@@ -324,3 +324,15 @@ def test_all_rois_and_repeated_roi_on_the_rt_structure_set(shared_data, tmp_path
     assert "contourmesh: warning: " in capsys.readouterr().err  # speck contours lost at the default pixel
     rows = list(csv.DictReader(open(tmp_path / "all" / "rois.csv")))
     assert len(rows) == 9 and all(r["watertight"] == "True" for r in rows)  # Areola holds no contour
+
+
+def test_cli_choices_are_the_registries():
+    """The CLI spells its choices out (building it imports no numpy); they must match the registries."""
+    from contourmesh.bands import TRIANGULATORS
+    from contourmesh.cli import build_parser
+    from contourmesh.polygons import POLYGONIZERS
+
+    sub = build_parser()._subparsers._group_actions[0].choices["mesh"]
+    acts = {a.dest: a for a in sub._actions}
+    assert set(acts["polygon"].choices) == set(POLYGONIZERS)
+    assert set(acts["triangulation"].choices) == set(TRIANGULATORS)

@@ -274,7 +274,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("source", help="a shape spec NAME:key=value,... (sphere:r=40, torus:R=30,r=9) or a file")
     m.add_argument("-o", "--output", required=True,
                    help="output mesh file (.ply, .obj, .stl, .off); a folder with --all-labels/--all-rois")
-    m.add_argument("--polygon", default="mlp", choices=["dss", "mlp", "none"],
+    m.add_argument("--polygon", default="mlp", choices=["mlp", "dss", "none"],
                    help="each contour becomes its minimum length polygon, its maximal-DSS polygon, or stays as traced")
     m.add_argument("--triangulation", default=None, choices=["wiederhold", "greedy", "optimal", "arclength"],
                    help="band triangulation between consecutive polygons (default: wiederhold, "

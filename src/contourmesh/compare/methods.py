@@ -46,7 +46,9 @@ import numpy as np
 
 from .._optional import MissingDependency, require
 from ..api import mesh as _mesh_source
+from ..bands import TRIANGULATORS
 from ..measure import mesh_checks
+from ..polygons import POLYGONIZERS
 from ..types import Mesh
 from ..volume_input import binary_volume, check_origin, check_spacing
 from .execute import ExecutorError, call_in_subprocess
@@ -621,8 +623,8 @@ def dgtal_integration(volume, spacing, origin, *, estimator: str = "ii", radius:
 
 
 # --- ours ---------------------------------------------------------------------------------------
-OURS_POLYGONS = ("dss", "mlp", "none")
-OURS_TRIANGULATIONS = ("wiederhold", "greedy", "optimal")
+OURS_POLYGONS = tuple(sorted(POLYGONIZERS))  # the registries' names, so every strategy is reachable
+OURS_TRIANGULATIONS = tuple(sorted(TRIANGULATORS))
 
 
 def parse_ours(name: str):
@@ -720,7 +722,7 @@ def _valid_names_text() -> str:
         keys = "".join(f"[-{k}<{t.__name__}>]" for k, (_, t, _) in spec.keys.items())
         flags = "".join(f"[-{w}]" for w in spec.flags)
         lines.append(f"{base}{keys}{flags}")
-    lines.append("ours-<dss|mlp|none>-<wiederhold|greedy|optimal>[-band]")
+    lines.append(f"ours-<{'|'.join(OURS_POLYGONS)}>-<{'|'.join(OURS_TRIANGULATIONS)}>[-band]")
     lines += sorted(_EXTRA)
     return "; ".join(lines)
 
