@@ -250,8 +250,15 @@ def _cmd_mesh(args) -> int:
     return 0
 
 
-class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Defaults shown in every option's help; descriptions keep their line breaks."""
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    """Every option's default in its help (unless the help states it, or there is none to state);
+    descriptions keep their line breaks."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if "default" in text or action.default in (None, False, argparse.SUPPRESS) or not action.option_strings:
+            return text
+        return text + " (default: %(default)s)"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -282,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--caps", default="flat", choices=["flat", "half"],
                    help="end caps in the last section's plane, or half a slice spacing beyond it")
     m.add_argument("--refine", default=None, choices=["none", "band"],
-                   help="band: the convergent refinement of the polygons across slices")
+                   help="band: the convergent refinement of the polygons across slices (default: none)")
     m.add_argument("--roi", action="append", default=None,
                    help="contour files: the structure, by name or number; repeat it for several (-o is then a folder)")
     m.add_argument("--all-rois", action="store_true",
