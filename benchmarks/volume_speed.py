@@ -33,7 +33,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-METHODS = ["contourmesh", "skimage-mc", "vtk-flyingedges", "vtk-discreteflyingedges", "vtk-surfacenets"]
+METHODS = ["contourmesh", "skimage-mc", "vtk-flyingedges", "vtk-discreteflyingedges", "vtk-surfacenets", "zmesh",
+           "serra-mesh"]
+REAL = ["lobster", "liver-x2", "bunny-128", "Al.100"]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -58,6 +60,11 @@ def real_volume(name: str):
         from contourmesh.io import read_volume
 
         vol, sp, _ = read_volume(data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+        return np.pad(vol, 1), tuple(sp)
+    if name in ("bunny-128", "Al.100"):
+        from contourmesh.io import read_volume
+
+        vol, sp, _ = read_volume(data / "volumes" / "dgtal" / f"{name}.vol", threshold=0)
         return np.pad(vol, 1), tuple(sp)
     if name == "liver-x2":
         z = np.load(data / "volumes" / "cgogn" / "liver.npz")
@@ -115,6 +122,20 @@ def run_method(name, vol, spacing, threads):
 
             m = volume_to_mesh(vol, spacing=spacing)
         return m.area, len(m.faces), bool(m.meta.get("fast_path", False))
+    if name == "zmesh":  # multi-label marching cubes (connectomics); the volume as [x, y, z]
+        import zmesh
+
+        mesher = zmesh.Mesher(tuple(spacing[::-1]))
+        mesher.mesh(np.asfortranarray(vol.view(np.uint8).T), close=True)
+        got = mesher.get(1, normals=False)
+        return _tri_area(np.asarray(got.vertices, np.float64), np.asarray(got.faces)), len(got.faces), None
+    if name == "serra-mesh":  # multi-material dual contouring, no smoothing
+        import serra_mesh
+
+        mesher = serra_mesh.Mesher(tuple(spacing), axis_order="ZYX", threads=threads)
+        mesher.mesh(vol.view(np.uint8), close=True)
+        got = mesher.get(1)
+        return _tri_area(np.asarray(got.vertices, np.float64), np.asarray(got.faces)), len(got.faces), None
     if name == "skimage-mc":
         from skimage import measure
 
@@ -444,7 +465,7 @@ def main(argv=None):
     print(f"machine: {ncpu} CPUs; load average {os.getloadavg()}", flush=True)
     summary = {"cpus": ncpu, "loadavg_start": os.getloadavg()}
     warm_up()
-    specs = a.inputs.split(",") + (["lobster", "liver-x2"] if a.real else [])
+    specs = a.inputs.split(",") + (REAL if a.real else [])
     rows = []
     for th in threads:
         rows += time_inputs(specs, a.repeat, th)
