@@ -21,7 +21,6 @@ import argparse
 import csv
 import json
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -283,7 +282,6 @@ def kernel_rate():
     sequence + faces), and of the full band (initial edge, kernel, twist guard), on the rings of
     the 512^3 ball."""
     from contourmesh import fastpath as fp
-    from contourmesh.bands.wiederhold import _edges_to_faces, wiederhold_edges
 
     vol = ball_volume(512, 250)
     rings = []
