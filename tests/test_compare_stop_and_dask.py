@@ -187,7 +187,7 @@ def test_stopping_compare_ends_its_workers_and_keeps_whole_rows(tmp_path, how):
             os.kill(proc.pid, signal.SIGTERM)  # `kill PID`
         else:
             os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in a terminal reaches the whole group
-        status = proc.wait(30)
+        status = proc.wait(90)  # seconds; a loaded 2-core machine has taken over 30 s to stop a pool
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
