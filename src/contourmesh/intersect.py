@@ -1,0 +1,577 @@
+"""Self-intersections of a triangle mesh: which pairs of faces meet other than as neighbours.
+
+A closed mesh bounds a solid only if it is *embedded*: two faces may meet along an edge they
+share or at a vertex they share, and nowhere else.  :func:`intersecting_pairs` lists the face
+pairs that break this, :func:`self_intersections` counts them.
+
+What counts as an intersection
+------------------------------
+Faces are closed triangles (boundary included).  Vertices are identified by position: two
+vertex indices with bit-identical coordinates are one vertex (meshes of this package are welded;
+a duplicate vertex is reported separately by :func:`contourmesh.measure.mesh_checks`).  For a
+pair of faces, by the number of vertices they share:
+
+* **none**: the pair intersects if the closed triangles have any point in common: crossing,
+  touching at a point or along a segment (a vertex on the other face, an edge across an edge),
+  or overlapping in a common plane.
+* **one vertex** ``p``: the pair intersects if the triangles have a point other than ``p`` in
+  common: an edge of one pierces or touches the other, or the two lie in one plane and their
+  corners at ``p`` overlap (also when they only share a ray from ``p``).
+* **two vertices** (a shared edge): the pair intersects only if the two faces lie in one plane on
+  the same side of the edge (a fold: they overlap); otherwise they meet exactly along the edge.
+* **three vertices**: a face repeated (in either orientation) overlaps itself: counted.
+
+Degenerate faces (a repeated vertex, or three collinear points: ``|(b - a) x (c - a)|`` at most
+``1e-14 |b - a| |c - a|``) have no plane; they are skipped here and counted by
+``mesh_checks``'s ``degenerate_faces``.
+
+Predicates and tolerance
+------------------------
+Every decision is the sign of an orientation determinant (``orient3d`` of four vertices, or
+``orient2d`` of three vertices projected on the coordinate plane that the supporting face's normal
+is most nearly perpendicular to), evaluated in float64 from the vertex coordinates, as in the
+triangle-triangle tests of Moller and Guigue-Devillers.  Each sign is certified with Shewchuk's
+a-priori error bound of the float64 evaluation (``7 eps`` times the permanent for ``orient3d``,
+``3 eps`` for ``orient2d``, ``eps = 2^-53``): a determinant whose magnitude exceeds its bound has
+its exact sign; one within the bound is taken as **zero** (coplanar, collinear, touching).  So
+the test is exact whenever the bound certifies every sign, which includes all meshes on a grid
+of small dyadic numbers (the voxel meshes of this package, whose coordinates are multiples of
+1/2 or 1/4), and otherwise errs towards reporting a contact: faces closer than about ``1e-15``
+times the coordinate magnitude are reported as touching.  There are no other tolerances.
+
+Speed
+-----
+The broad phase is a uniform grid hashed into a table (cell size from the faces' bounding boxes,
+grown until every face lies in a bounded number of cells), filled by a counting sort; each pair
+of faces whose boxes overlap is tested once, in the cell at the low corner of the overlap of
+their boxes.  Everything runs in one numba kernel on one core; it is near-linear in the number
+of faces for meshes whose faces are of comparable size.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["intersecting_pairs", "self_intersections", "canonical_vertices"]
+
+# Compile-time rules as in contourmesh.fastpath: internal kernels without Python wrappers, one
+# entry point cached on disk, int64 arguments only, explicit loops, no exceptions; nothing is
+# compiled at import (the entry point compiles at its first call).
+_OPTIONS = dict(nogil=True, no_rewrites=True)
+
+
+def _kernel(fn):
+    return njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTIONS)(fn)
+
+
+_EPS = 2.0 ** -53
+_O3_BOUND = (7.0 + 56.0 * _EPS) * _EPS  # Shewchuk's o3derrboundA
+_O2_BOUND = (3.0 + 16.0 * _EPS) * _EPS  # Shewchuk's ccwerrboundA
+_COLLINEAR = 1e-14
+_KEY_BITS = 21  # cell coordinates per axis below 2^21
+
+
+# ------------------------------------------------------------------------------------------------
+# predicates (vertex indices into V; a sign of 0 means zero or not certified)
+# ------------------------------------------------------------------------------------------------
+@_kernel
+def _o3(V, a, b, c, d):
+    """Sign of det[a - d, b - d, c - d] (positive when d is below the plane of a, b, c seen with
+    a, b, c counter-clockwise), or 0 if float64 cannot certify it."""
+    adx = V[a, 0] - V[d, 0]
+    ady = V[a, 1] - V[d, 1]
+    adz = V[a, 2] - V[d, 2]
+    bdx = V[b, 0] - V[d, 0]
+    bdy = V[b, 1] - V[d, 1]
+    bdz = V[b, 2] - V[d, 2]
+    cdx = V[c, 0] - V[d, 0]
+    cdy = V[c, 1] - V[d, 1]
+    cdz = V[c, 2] - V[d, 2]
+    bc1 = bdx * cdy
+    bc2 = cdx * bdy
+    ca1 = cdx * ady
+    ca2 = adx * cdy
+    ab1 = adx * bdy
+    ab2 = bdx * ady
+    det = adz * (bc1 - bc2) + bdz * (ca1 - ca2) + cdz * (ab1 - ab2)
+    perm = (abs(bc1) + abs(bc2)) * abs(adz) + (abs(ca1) + abs(ca2)) * abs(bdz) + (abs(ab1) + abs(ab2)) * abs(cdz)
+    err = _O3_BOUND * perm
+    if det > err:
+        return 1
+    if det < -err:
+        return -1
+    return 0
+
+
+@_kernel
+def _o2(V, a, b, c, ax, ay):
+    """Sign of the 2D orientation of a, b, c projected on the axes ``ax``, ``ay`` (0 if uncertain)."""
+    acx = V[a, ax] - V[c, ax]
+    bcx = V[b, ax] - V[c, ax]
+    acy = V[a, ay] - V[c, ay]
+    bcy = V[b, ay] - V[c, ay]
+    l = acx * bcy
+    r = acy * bcx
+    det = l - r
+    err = _O2_BOUND * (abs(l) + abs(r))
+    if det > err:
+        return 1
+    if det < -err:
+        return -1
+    return 0
+
+
+@_kernel
+def _drop_axis(V, a, b, c):
+    """The coordinate axis along which the normal of a, b, c is largest (projecting it away keeps
+    the triangle non-degenerate)."""
+    ux = V[b, 0] - V[a, 0]
+    uy = V[b, 1] - V[a, 1]
+    uz = V[b, 2] - V[a, 2]
+    vx = V[c, 0] - V[a, 0]
+    vy = V[c, 1] - V[a, 1]
+    vz = V[c, 2] - V[a, 2]
+    nx = abs(uy * vz - uz * vy)
+    ny = abs(uz * vx - ux * vz)
+    nz = abs(ux * vy - uy * vx)
+    if nx >= ny and nx >= nz:
+        return 0
+    if ny >= nz:
+        return 1
+    return 2
+
+
+@_kernel
+def _seg_seg_2d(V, p1, p2, q1, q2, ax, ay):
+    """Closed segments p1p2 and q1q2 (in one plane, projected) have a common point."""
+    d1 = _o2(V, q1, q2, p1, ax, ay)
+    d2 = _o2(V, q1, q2, p2, ax, ay)
+    d3 = _o2(V, p1, p2, q1, ax, ay)
+    d4 = _o2(V, p1, p2, q2, ax, ay)
+    if d1 * d2 > 0 or d3 * d4 > 0:
+        return False
+    if (d1 == 0 and d2 == 0) or (d3 == 0 and d4 == 0):
+        # collinear: overlap of the projections on both axes
+        for k in range(2):
+            t = ax
+            if k == 1:
+                t = ay
+            plo = min(V[p1, t], V[p2, t])
+            phi = max(V[p1, t], V[p2, t])
+            qlo = min(V[q1, t], V[q2, t])
+            qhi = max(V[q1, t], V[q2, t])
+            if phi < qlo or qhi < plo:
+                return False
+        return True
+    return True
+
+
+@_kernel
+def _point_in_tri_2d(V, p, a, b, c, ax, ay):
+    """Point p lies in the closed triangle a, b, c (in one plane, projected)."""
+    s = _o2(V, a, b, c, ax, ay)
+    if s == 0:
+        return False
+    return s * _o2(V, a, b, p, ax, ay) >= 0 and s * _o2(V, b, c, p, ax, ay) >= 0 and s * _o2(V, c, a, p, ax, ay) >= 0
+
+
+@_kernel
+def _seg_tri_2d(V, u, v, a, b, c, ax, ay):
+    """Closed segment uv and closed triangle abc, all in one plane."""
+    if _point_in_tri_2d(V, u, a, b, c, ax, ay) or _point_in_tri_2d(V, v, a, b, c, ax, ay):
+        return True
+    return _seg_seg_2d(V, u, v, a, b, ax, ay) or _seg_seg_2d(V, u, v, b, c, ax, ay) or _seg_seg_2d(V, u, v, c, a, ax, ay)
+
+
+@_kernel
+def _tri_tri_2d(V, a, b, c, d, e, f, ax, ay):
+    """Closed triangles abc and def, in one plane."""
+    if _seg_tri_2d(V, a, b, d, e, f, ax, ay) or _seg_tri_2d(V, b, c, d, e, f, ax, ay) or _seg_tri_2d(V, c, a, d, e, f, ax, ay):
+        return True
+    return _point_in_tri_2d(V, d, a, b, c, ax, ay)
+
+
+@_kernel
+def _seg_tri_3d(V, u, v, a, b, c):
+    """Closed segment uv and closed triangle abc meet (3D)."""
+    su = _o3(V, a, b, c, u)
+    sv = _o3(V, a, b, c, v)
+    if su * sv > 0:
+        return False
+    if su == 0 and sv == 0:
+        k = _drop_axis(V, a, b, c)
+        return _seg_tri_2d(V, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
+    w1 = _o3(V, u, v, a, b)
+    w2 = _o3(V, u, v, b, c)
+    w3 = _o3(V, u, v, c, a)
+    if w1 == 0 and w2 == 0 and w3 == 0:  # uncertain: the line looks coplanar with the triangle
+        k = _drop_axis(V, a, b, c)
+        return _seg_tri_2d(V, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
+    pos = w1 > 0 or w2 > 0 or w3 > 0
+    neg = w1 < 0 or w2 < 0 or w3 < 0
+    return not (pos and neg)
+
+
+@_kernel
+def _tri_tri_3d(V, a, b, c, d, e, f):
+    """Closed triangles abc and def (no common vertex) have a common point."""
+    s1 = _o3(V, a, b, c, d)
+    s2 = _o3(V, a, b, c, e)
+    s3 = _o3(V, a, b, c, f)
+    if (s1 > 0 and s2 > 0 and s3 > 0) or (s1 < 0 and s2 < 0 and s3 < 0):
+        return False
+    r1 = _o3(V, d, e, f, a)
+    r2 = _o3(V, d, e, f, b)
+    r3 = _o3(V, d, e, f, c)
+    if (r1 > 0 and r2 > 0 and r3 > 0) or (r1 < 0 and r2 < 0 and r3 < 0):
+        return False
+    if (s1 == 0 and s2 == 0 and s3 == 0) or (r1 == 0 and r2 == 0 and r3 == 0):
+        k = _drop_axis(V, a, b, c)
+        return _tri_tri_2d(V, a, b, c, d, e, f, (k + 1) % 3, (k + 2) % 3)
+    # not coplanar: the intersection, if any, is a segment whose ends lie on edges
+    return (_seg_tri_3d(V, a, b, d, e, f) or _seg_tri_3d(V, b, c, d, e, f) or _seg_tri_3d(V, c, a, d, e, f)
+            or _seg_tri_3d(V, d, e, a, b, c) or _seg_tri_3d(V, e, f, a, b, c) or _seg_tri_3d(V, f, d, a, b, c))
+
+
+@_kernel
+def _ray_in_corner(V, p, a, c, d):
+    """The edge from p to a, with p the common corner of triangle p, c, d, has points other than p
+    in that triangle: a lies in its plane and a - p points into its closed corner at p."""
+    if _o3(V, p, c, d, a) != 0:
+        return False
+    k = _drop_axis(V, p, c, d)
+    ax = (k + 1) % 3
+    ay = (k + 2) % 3
+    t = _o2(V, p, c, d, ax, ay)
+    if t == 0:
+        return False
+    return t * _o2(V, p, c, a, ax, ay) >= 0 and t * _o2(V, p, a, d, ax, ay) >= 0
+
+
+@_kernel
+def _shared_vertex(V, p, a, b, c, d):
+    """Triangles p, a, b and p, c, d (common vertex p only) have a common point other than p."""
+    if _seg_tri_3d(V, a, b, p, c, d) or _seg_tri_3d(V, c, d, p, a, b):
+        return True
+    return (_ray_in_corner(V, p, a, c, d) or _ray_in_corner(V, p, b, c, d)
+            or _ray_in_corner(V, p, c, a, b) or _ray_in_corner(V, p, d, a, b))
+
+
+@_kernel
+def _shared_edge(V, p, q, a, b):
+    """Triangles p, q, a and p, q, b (common edge pq) overlap: coplanar, a and b on one side."""
+    if _o3(V, p, q, a, b) != 0:
+        return False
+    k = _drop_axis(V, p, q, a)
+    ax = (k + 1) % 3
+    ay = (k + 2) % 3
+    return _o2(V, p, q, a, ax, ay) * _o2(V, p, q, b, ax, ay) > 0
+
+
+@_kernel
+def _pair_intersects(V, F, i, j):
+    """Faces i and j (canonical vertex indices in F) intersect other than as neighbours."""
+    a = F[i, 0]
+    b = F[i, 1]
+    c = F[i, 2]
+    d = F[j, 0]
+    e = F[j, 1]
+    f = F[j, 2]
+    # which corners of j are corners of i
+    nshared = 0
+    sd = d == a or d == b or d == c
+    se = e == a or e == b or e == c
+    sf = f == a or f == b or f == c
+    if sd:
+        nshared += 1
+    if se:
+        nshared += 1
+    if sf:
+        nshared += 1
+    if nshared == 0:
+        return _tri_tri_3d(V, a, b, c, d, e, f)
+    if nshared == 3:
+        return True
+    # rotate i so that its shared corners come first, j likewise
+    x0 = a
+    x1 = b
+    x2 = c
+    if nshared == 1:
+        p = d
+        if se:
+            p = e
+        elif sf:
+            p = f
+        if p == b:
+            x0 = b
+            x1 = c
+            x2 = a
+        elif p == c:
+            x0 = c
+            x1 = a
+            x2 = b
+        y1 = e
+        y2 = f
+        if p == e:
+            y1 = f
+            y2 = d
+        elif p == f:
+            y1 = d
+            y2 = e
+        return _shared_vertex(V, p, x1, x2, y1, y2)
+    # two shared corners: the odd ones out
+    y = d
+    if not se:
+        y = e
+    elif not sf:
+        y = f
+    if a != d and a != e and a != f:
+        return _shared_edge(V, b, c, a, y)
+    if b != d and b != e and b != f:
+        return _shared_edge(V, c, a, b, y)
+    return _shared_edge(V, a, b, c, y)
+
+
+# ------------------------------------------------------------------------------------------------
+# broad phase: hashed uniform grid
+# ------------------------------------------------------------------------------------------------
+@_kernel
+def _grow(a, cap):
+    b = np.empty(cap, np.int64)
+    for i in range(len(a)):
+        b[i] = a[i]
+    return b
+
+
+@_kernel
+def _cell(x, lo, h):
+    return np.int64(math.floor((x - lo) / h))
+
+
+@_kernel
+def _count_cells(box, live, glo, h):
+    total = 0
+    for i in range(len(live)):
+        if live[i] == 0:
+            continue
+        n = 1
+        for k in range(3):
+            n *= _cell(box[i, 3 + k], glo[k], h) - _cell(box[i, k], glo[k], h) + 1
+        total += n
+    return total
+
+
+@_kernel
+def _visit_cells(box, live, glo, h, mask, sh, start, fill, ent_face, ent_key, store):
+    """Every (face, grid cell) entry: counted per hash bucket in ``start`` (``store == 0``) or
+    stored at ``fill`` of its bucket (``store == 1``)."""
+    for i in range(len(live)):
+        if live[i] == 0:
+            continue
+        x0 = _cell(box[i, 0], glo[0], h)
+        y0 = _cell(box[i, 1], glo[1], h)
+        z0 = _cell(box[i, 2], glo[2], h)
+        x1 = _cell(box[i, 3], glo[0], h)
+        y1 = _cell(box[i, 4], glo[1], h)
+        z1 = _cell(box[i, 5], glo[2], h)
+        for cx in range(x0, x1 + 1):
+            for cy in range(y0, y1 + 1):
+                for cz in range(z0, z1 + 1):
+                    q = ((cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)) & mask
+                    if store == 0:
+                        start[q] += 1
+                    else:
+                        r = fill[q]
+                        ent_face[r] = i
+                        ent_key[r] = (((cx << sh) | cy) << sh) | cz
+                        fill[q] = r + 1
+
+
+@njit(cache=True, **_OPTIONS)
+def _intersecting_pairs(V, F, budget):
+    """Pairs ``(i, j)``, ``i < j``, of faces that intersect (see the module docstring);
+    ``F`` holds canonical vertex indices.  ``budget`` bounds the grid cells per face on average."""
+    m = len(F)
+    box = np.empty((m, 6), np.float64)
+    live = np.empty(m, np.int64)
+    glo = np.empty(3, np.float64)
+    ghi = np.empty(3, np.float64)
+    for k in range(3):
+        glo[k] = np.inf
+        ghi[k] = -np.inf
+    ext_sum = 0.0
+    nlive = 0
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        for k in range(3):
+            lo = min(V[a, k], min(V[b, k], V[c, k]))
+            hi = max(V[a, k], max(V[b, k], V[c, k]))
+            box[i, k] = lo
+            box[i, 3 + k] = hi
+        live[i] = 0
+        if a == b or b == c or a == c:
+            continue
+        ux = V[b, 0] - V[a, 0]
+        uy = V[b, 1] - V[a, 1]
+        uz = V[b, 2] - V[a, 2]
+        vx = V[c, 0] - V[a, 0]
+        vy = V[c, 1] - V[a, 1]
+        vz = V[c, 2] - V[a, 2]
+        nx = uy * vz - uz * vy
+        ny = uz * vx - ux * vz
+        nz = ux * vy - uy * vx
+        n2 = nx * nx + ny * ny + nz * nz
+        uv2 = (ux * ux + uy * uy + uz * uz) * (vx * vx + vy * vy + vz * vz)
+        if not n2 > _COLLINEAR * _COLLINEAR * uv2:
+            continue
+        live[i] = 1
+        nlive += 1
+        e = 0.0
+        for k in range(3):
+            glo[k] = min(glo[k], box[i, k])
+            ghi[k] = max(ghi[k], box[i, 3 + k])
+            e = max(e, box[i, 3 + k] - box[i, k])
+        ext_sum += e
+    pi = np.empty(16, np.int64)
+    pj = np.empty(16, np.int64)
+    npairs = 0
+    if nlive < 2:
+        return pi[:0], pj[:0]
+    span = 0.0
+    for k in range(3):
+        span = max(span, ghi[k] - glo[k])
+    h = ext_sum / nlive
+    hmin = span / (2.0 ** _KEY_BITS - 2.0)
+    if not h > hmin:
+        h = hmin
+    if not h > 0.0:
+        h = 1.0
+    limit = budget * nlive
+    total = _count_cells(box, live, glo, h)
+    while total > limit:
+        h *= 1.5
+        total = _count_cells(box, live, glo, h)
+    # hash table of cells: counting sort of (face, cell) entries by bucket
+    nb = 1
+    while nb < 2 * total:
+        nb *= 2
+    mask = nb - 1
+    start = np.empty(nb + 1, np.int64)
+    for q in range(nb + 1):
+        start[q] = 0
+    sh = np.int64(_KEY_BITS)
+    dummy = np.empty(0, np.int64)
+    _visit_cells(box, live, glo, h, mask, sh, start, dummy, dummy, dummy, np.int64(0))
+    acc = 0
+    for q in range(nb):
+        cnt = start[q]
+        start[q] = acc
+        acc += cnt
+    start[nb] = acc
+    ent_face = np.empty(acc, np.int64)
+    ent_key = np.empty(acc, np.int64)
+    fill = np.empty(nb, np.int64)
+    for q in range(nb):
+        fill[q] = start[q]
+    _visit_cells(box, live, glo, h, mask, sh, start, fill, ent_face, ent_key, np.int64(1))
+    cmask = (np.int64(1) << sh) - 1
+    for q in range(nb):
+        s0 = start[q]
+        s1 = start[q + 1]
+        for r in range(s0, s1):
+            i0 = ent_face[r]
+            key = ent_key[r]
+            for t in range(r + 1, s1):
+                if ent_key[t] != key:
+                    continue
+                j0 = ent_face[t]
+                i = min(i0, j0)
+                j = max(i0, j0)
+                if (box[i, 0] > box[j, 3] or box[j, 0] > box[i, 3] or box[i, 1] > box[j, 4]
+                        or box[j, 1] > box[i, 4] or box[i, 2] > box[j, 5] or box[j, 2] > box[i, 5]):
+                    continue
+                # test the pair only in the cell of the low corner of the boxes' overlap
+                cx = _cell(max(box[i, 0], box[j, 0]), glo[0], h)
+                cy = _cell(max(box[i, 1], box[j, 1]), glo[1], h)
+                cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h)
+                if cx != (key >> (2 * sh)) or cy != ((key >> sh) & cmask) or cz != (key & cmask):
+                    continue
+                if _pair_intersects(V, F, i, j):
+                    if npairs == len(pi):
+                        pi = _grow(pi, 2 * npairs)
+                        pj = _grow(pj, 2 * npairs)
+                    pi[npairs] = i
+                    pj[npairs] = j
+                    npairs += 1
+    return pi[:npairs], pj[:npairs]
+
+
+# ------------------------------------------------------------------------------------------------
+# Python API
+# ------------------------------------------------------------------------------------------------
+def _as_mesh_arrays(vertices, faces):
+    V = np.ascontiguousarray(vertices, dtype=np.float64)
+    F = np.ascontiguousarray(faces, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise ValueError(f"vertices must have shape (n, 3); got {V.shape}")
+    if F.size == 0:
+        return V, F.reshape(0, 3)
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise ValueError(f"faces must have shape (m, 3); got {F.shape}")
+    if F.min() < 0 or F.max() >= len(V):
+        raise ValueError("faces index vertices that do not exist")
+    if not np.all(np.isfinite(V)):
+        raise ValueError("vertices must be finite (found NaN or infinity)")
+    return V, F
+
+
+def canonical_vertices(vertices) -> np.ndarray:
+    """For every vertex, the lowest index of a vertex with bit-identical coordinates."""
+    V = np.asarray(vertices, dtype=np.float64)
+    n = len(V)
+    if n == 0:
+        return np.zeros(0, np.int64)
+    order = np.lexsort((np.arange(n), V[:, 2], V[:, 1], V[:, 0]))
+    sv = V[order]
+    new = np.ones(n, dtype=bool)
+    new[1:] = np.any(sv[1:] != sv[:-1], axis=1)
+    first = order[new]
+    canon = np.empty(n, dtype=np.int64)
+    canon[order] = first[np.cumsum(new) - 1]
+    return canon
+
+
+def intersecting_pairs(vertices, faces, *, budget: int = 8) -> np.ndarray:
+    """The pairs of faces that intersect other than along a shared edge or at a shared vertex.
+
+    Returns a ``(k, 2)`` int64 array of face indices ``i < j``, sorted; see the module docstring
+    for the exact rule, the predicates and the tolerance.  ``budget`` (the average number of grid
+    cells a face may occupy) only trades memory for speed; the result does not depend on it.
+    """
+    V, F = _as_mesh_arrays(vertices, faces)
+    if len(F) < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    budget = int(budget)
+    if budget < 1:
+        raise ValueError(f"budget must be a positive integer; got {budget}")
+    Fc = canonical_vertices(V)[F]
+    pi, pj = _intersecting_pairs(V, Fc, np.int64(budget))
+    out = np.stack([pi, pj], axis=1).astype(np.int64, copy=False)
+    if len(out):
+        out = out[np.lexsort((out[:, 1], out[:, 0]))]
+    return out
+
+
+def self_intersections(vertices, faces) -> int:
+    """The number of face pairs that intersect other than as neighbours (see :func:`intersecting_pairs`)."""
+    return int(len(intersecting_pairs(vertices, faces)))
+
+
+def intersecting_faces(vertices, faces) -> np.ndarray:
+    """Sorted indices of the faces that belong to at least one intersecting pair."""
+    return np.unique(intersecting_pairs(vertices, faces))
