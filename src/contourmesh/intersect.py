@@ -187,18 +187,31 @@ def _seg_tri_2d(V, u, v, a, b, c, ax, ay):
 
 
 @_kernel
+def _outside(V, u, v, t, a, b, c, ax, ay):
+    """a, b, c all strictly on the outer side of edge uv of a triangle of orientation t."""
+    return t * _o2(V, u, v, a, ax, ay) < 0 and t * _o2(V, u, v, b, ax, ay) < 0 and t * _o2(V, u, v, c, ax, ay) < 0
+
+
+@_kernel
 def _tri_tri_2d(V, a, b, c, d, e, f, ax, ay):
     """Closed triangles abc and def, in one plane."""
+    # quick rejection: the other triangle strictly outside the line of an edge
+    t = _o2(V, a, b, c, ax, ay)
+    u = _o2(V, d, e, f, ax, ay)
+    if t != 0 and u != 0:
+        if (_outside(V, a, b, t, d, e, f, ax, ay) or _outside(V, b, c, t, d, e, f, ax, ay)
+                or _outside(V, c, a, t, d, e, f, ax, ay) or _outside(V, d, e, u, a, b, c, ax, ay)
+                or _outside(V, e, f, u, a, b, c, ax, ay) or _outside(V, f, d, u, a, b, c, ax, ay)):
+            return False
     if _seg_tri_2d(V, a, b, d, e, f, ax, ay) or _seg_tri_2d(V, b, c, d, e, f, ax, ay) or _seg_tri_2d(V, c, a, d, e, f, ax, ay):
         return True
     return _point_in_tri_2d(V, d, a, b, c, ax, ay)
 
 
 @_kernel
-def _seg_tri_3d(V, u, v, a, b, c):
-    """Closed segment uv and closed triangle abc meet (3D)."""
-    su = _o3(V, a, b, c, u)
-    sv = _o3(V, a, b, c, v)
+def _edge_tri_3d(V, u, v, su, sv, a, b, c):
+    """Closed segment uv and closed triangle abc meet (3D); ``su``, ``sv`` are the signs
+    ``_o3(V, a, b, c, u)`` and ``_o3(V, a, b, c, v)``."""
     if su * sv > 0:
         return False
     if su == 0 and sv == 0:
@@ -206,6 +219,8 @@ def _seg_tri_3d(V, u, v, a, b, c):
         return _seg_tri_2d(V, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
     w1 = _o3(V, u, v, a, b)
     w2 = _o3(V, u, v, b, c)
+    if w1 * w2 < 0:
+        return False
     w3 = _o3(V, u, v, c, a)
     if w1 == 0 and w2 == 0 and w3 == 0:  # uncertain: the line looks coplanar with the triangle
         k = _drop_axis(V, a, b, c)
@@ -232,16 +247,15 @@ def _tri_tri_3d(V, a, b, c, d, e, f):
         k = _drop_axis(V, a, b, c)
         return _tri_tri_2d(V, a, b, c, d, e, f, (k + 1) % 3, (k + 2) % 3)
     # not coplanar: the intersection, if any, is a segment whose ends lie on edges
-    return (_seg_tri_3d(V, a, b, d, e, f) or _seg_tri_3d(V, b, c, d, e, f) or _seg_tri_3d(V, c, a, d, e, f)
-            or _seg_tri_3d(V, d, e, a, b, c) or _seg_tri_3d(V, e, f, a, b, c) or _seg_tri_3d(V, f, d, a, b, c))
+    return (_edge_tri_3d(V, a, b, r1, r2, d, e, f) or _edge_tri_3d(V, b, c, r2, r3, d, e, f)
+            or _edge_tri_3d(V, c, a, r3, r1, d, e, f) or _edge_tri_3d(V, d, e, s1, s2, a, b, c)
+            or _edge_tri_3d(V, e, f, s2, s3, a, b, c) or _edge_tri_3d(V, f, d, s3, s1, a, b, c))
 
 
 @_kernel
-def _ray_in_corner(V, p, a, c, d):
-    """The edge from p to a, with p the common corner of triangle p, c, d, has points other than p
-    in that triangle: a lies in its plane and a - p points into its closed corner at p."""
-    if _o3(V, p, c, d, a) != 0:
-        return False
+def _in_corner(V, p, a, c, d):
+    """For a in the plane of triangle p, c, d: a - p points into the triangle's closed corner at p
+    (so the edge from p to a has points other than p in the triangle)."""
     k = _drop_axis(V, p, c, d)
     ax = (k + 1) % 3
     ay = (k + 2) % 3
@@ -253,11 +267,34 @@ def _ray_in_corner(V, p, a, c, d):
 
 @_kernel
 def _shared_vertex(V, p, a, b, c, d):
-    """Triangles p, a, b and p, c, d (common vertex p only) have a common point other than p."""
-    if _seg_tri_3d(V, a, b, p, c, d) or _seg_tri_3d(V, c, d, p, a, b):
+    """Triangles p, a, b and p, c, d (common vertex p only) have a common point other than p.
+
+    Such a point exists if and only if the opposite edge of one meets the other triangle, or an
+    edge from p of one lies in the other's plane and points into its corner at p."""
+    sa = _o3(V, p, c, d, a)
+    sb = _o3(V, p, c, d, b)
+    if sa * sb > 0:  # p, a, b strictly on one side of the plane of p, c, d (but for p)
+        return False
+    sc = _o3(V, p, a, b, c)
+    sd = _o3(V, p, a, b, d)
+    if sc * sd > 0:
+        return False
+    if sa == 0 and sb == 0 and sc == 0 and sd == 0:
+        # one plane: the corners at p overlap iff a side of one corner points into the other
+        k = _drop_axis(V, p, c, d)
+        ax = (k + 1) % 3
+        ay = (k + 2) % 3
+        t1 = _o2(V, p, a, b, ax, ay)
+        t2 = _o2(V, p, c, d, ax, ay)
+        if t1 != 0 and t2 != 0:
+            return ((t2 * _o2(V, p, c, a, ax, ay) >= 0 and t2 * _o2(V, p, a, d, ax, ay) >= 0)
+                    or (t2 * _o2(V, p, c, b, ax, ay) >= 0 and t2 * _o2(V, p, b, d, ax, ay) >= 0)
+                    or (t1 * _o2(V, p, a, c, ax, ay) >= 0 and t1 * _o2(V, p, c, b, ax, ay) >= 0)
+                    or (t1 * _o2(V, p, a, d, ax, ay) >= 0 and t1 * _o2(V, p, d, b, ax, ay) >= 0))
+    if _edge_tri_3d(V, a, b, sa, sb, p, c, d) or _edge_tri_3d(V, c, d, sc, sd, p, a, b):
         return True
-    return (_ray_in_corner(V, p, a, c, d) or _ray_in_corner(V, p, b, c, d)
-            or _ray_in_corner(V, p, c, a, b) or _ray_in_corner(V, p, d, a, b))
+    return ((sa == 0 and _in_corner(V, p, a, c, d)) or (sb == 0 and _in_corner(V, p, b, c, d))
+            or (sc == 0 and _in_corner(V, p, c, a, b)) or (sd == 0 and _in_corner(V, p, d, a, b)))
 
 
 @_kernel
@@ -365,7 +402,7 @@ def _count_cells(box, live, glo, h):
 
 
 @_kernel
-def _visit_cells(box, live, glo, h, mask, sh, start, fill, ent_face, ent_key, store):
+def _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key, store):
     """Every (face, grid cell) entry: counted per hash bucket in ``start`` (``store == 0``) or
     stored at ``fill`` of its bucket (``store == 1``)."""
     for i in range(len(live)):
@@ -380,13 +417,14 @@ def _visit_cells(box, live, glo, h, mask, sh, start, fill, ent_face, ent_key, st
         for cx in range(x0, x1 + 1):
             for cy in range(y0, y1 + 1):
                 for cz in range(z0, z1 + 1):
-                    q = ((cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)) & mask
+                    key = (cx * ny + cy) * nz + cz
+                    q = key & mask
                     if store == 0:
                         start[q] += 1
                     else:
                         r = fill[q]
                         ent_face[r] = i
-                        ent_key[r] = (((cx << sh) | cy) << sh) | cz
+                        ent_key[r] = key
                         fill[q] = r + 1
 
 
@@ -464,9 +502,10 @@ def _intersecting_pairs(V, F, budget):
     start = np.empty(nb + 1, np.int64)
     for q in range(nb + 1):
         start[q] = 0
-    sh = np.int64(_KEY_BITS)
+    ny = _cell(ghi[1], glo[1], h) + 1
+    nz = _cell(ghi[2], glo[2], h) + 1
     dummy = np.empty(0, np.int64)
-    _visit_cells(box, live, glo, h, mask, sh, start, dummy, dummy, dummy, np.int64(0))
+    _visit_cells(box, live, glo, h, mask, ny, nz, start, dummy, dummy, dummy, np.int64(0))
     acc = 0
     for q in range(nb):
         cnt = start[q]
@@ -478,8 +517,7 @@ def _intersecting_pairs(V, F, budget):
     fill = np.empty(nb, np.int64)
     for q in range(nb):
         fill[q] = start[q]
-    _visit_cells(box, live, glo, h, mask, sh, start, fill, ent_face, ent_key, np.int64(1))
-    cmask = (np.int64(1) << sh) - 1
+    _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key, np.int64(1))
     for q in range(nb):
         s0 = start[q]
         s1 = start[q + 1]
@@ -499,7 +537,7 @@ def _intersecting_pairs(V, F, budget):
                 cx = _cell(max(box[i, 0], box[j, 0]), glo[0], h)
                 cy = _cell(max(box[i, 1], box[j, 1]), glo[1], h)
                 cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h)
-                if cx != (key >> (2 * sh)) or cy != ((key >> sh) & cmask) or cz != (key & cmask):
+                if (cx * ny + cy) * nz + cz != key:
                     continue
                 if _pair_intersects(V, F, i, j):
                     if npairs == len(pi):
