@@ -122,14 +122,20 @@ def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-
     ``winding_consistent`` (no directed edge used twice), ``boundary_edges``,
     ``nonmanifold_edges``, ``degenerate_faces`` (repeated vertex or area below
     ``rel_tol`` times the squared bounding-box diagonal), ``duplicate_vertices``,
-    ``volume``, ``components`` and ``genus`` (total, from the Euler characteristic).
+    ``volume``, ``components``, ``genus`` (total, from the Euler characteristic) and
+    ``self_intersections`` (face pairs that meet other than along a shared edge or at a shared
+    vertex, :func:`contourmesh.intersect.self_intersections`).  ``ok`` means closed, consistently
+    oriented outward, without degenerate faces or duplicate vertices, and embedded (no
+    self-intersections).
     """
+    from .intersect import self_intersections
+
     faces = np.asarray(faces, dtype=np.int64)
     if len(faces) == 0:
         return {
             "watertight": False, "winding_consistent": False, "boundary_edges": 0,
             "nonmanifold_edges": 0, "degenerate_faces": 0, "duplicate_vertices": 0,
-            "volume": 0.0, "components": 0, "genus": None, "ok": False,
+            "volume": 0.0, "components": 0, "genus": None, "self_intersections": 0, "ok": False,
         }
     uniq, counts, dup_directed = _edge_counts(faces)
     diag2 = float(np.sum((vertices.max(0) - vertices.min(0)) ** 2)) or 1.0
@@ -151,8 +157,10 @@ def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-
         "volume": volume,
         "components": comps,
         "genus": euler_genus(len(used), len(uniq), len(faces), comps) if watertight else None,
+        "self_intersections": self_intersections(vertices, faces),
     }
     out["ok"] = bool(
         watertight and out["winding_consistent"] and degenerate == 0 and dup_vertices == 0 and volume > 0
+        and out["self_intersections"] == 0
     )
     return out

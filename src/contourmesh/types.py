@@ -118,7 +118,8 @@ class Mesh:
         return mesh_volume(self.vertices, self.faces)
 
     def checks(self) -> dict:
-        """Closedness, orientation and degeneracy checks (see :func:`contourmesh.measure.mesh_checks`)."""
+        """Closedness, orientation, degeneracy and self-intersection checks (see
+        :func:`contourmesh.measure.mesh_checks`)."""
 
         return mesh_checks(self.vertices, self.faces)
 
