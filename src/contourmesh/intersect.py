@@ -21,23 +21,22 @@ pair of faces, by the number of vertices they share:
   the same side of the edge (a fold: they overlap); otherwise they meet exactly along the edge.
 * **three vertices**: a face repeated (in either orientation) overlaps itself: counted.
 
-Degenerate faces (a repeated vertex, or three collinear points: ``|(b - a) x (c - a)|`` at most
-``1e-14 |b - a| |c - a|``) have no plane; they are skipped here and counted by
-``mesh_checks``'s ``degenerate_faces``.
+Degenerate faces (a repeated vertex, or three exactly collinear points) have no plane; they are
+skipped here (``mesh_checks`` counts them, with a tolerance, as ``degenerate_faces``).
 
-Predicates and tolerance
-------------------------
+Predicates: exact
+-----------------
 Every decision is the sign of an orientation determinant (``orient3d`` of four vertices, or
-``orient2d`` of three vertices projected on the coordinate plane that the supporting face's normal
-is most nearly perpendicular to), evaluated in float64 from the vertex coordinates, as in the
-triangle-triangle tests of Moller and Guigue-Devillers.  Each sign is certified with Shewchuk's
-a-priori error bound of the float64 evaluation (``7 eps`` times the permanent for ``orient3d``,
-``3 eps`` for ``orient2d``, ``eps = 2^-53``): a determinant whose magnitude exceeds its bound has
-its exact sign; one within the bound is taken as **zero** (coplanar, collinear, touching).  So
-the test is exact whenever the bound certifies every sign, which includes all meshes on a grid
-of small dyadic numbers (the voxel meshes of this package, whose coordinates are multiples of
-1/2 or 1/4), and otherwise errs towards reporting a contact: faces closer than about ``1e-15``
-times the coordinate magnitude are reported as touching.  There are no other tolerances.
+``orient2d`` of three vertices projected on a coordinate plane that keeps the supporting face
+non-degenerate), as in the triangle-triangle tests of Moller and Guigue-Devillers.  Each sign is
+computed in float64 first and certified with Shewchuk's a-priori error bound (``7 eps`` times the
+permanent for ``orient3d``, ``3 eps`` for ``orient2d``, ``eps = 2^-53``); when the bound does not
+certify it, the determinant is evaluated again exactly (coordinate differences split into two
+doubles, products into error-free pairs, summed into a nonoverlapping expansion).  So every sign
+is the exact sign for the float64 coordinates as given: the answer is exact, with **no
+tolerance**.  Faces that touch count as intersecting however small the contact; faces apart by
+one unit in the last place do not.  (The exact path is rare: voxel meshes, whose coordinates are
+small multiples of 1/2 or 1/4, never need it.)
 
 Speed
 -----
@@ -70,17 +69,143 @@ def _kernel(fn):
 _EPS = 2.0 ** -53
 _O3_BOUND = (7.0 + 56.0 * _EPS) * _EPS  # Shewchuk's o3derrboundA
 _O2_BOUND = (3.0 + 16.0 * _EPS) * _EPS  # Shewchuk's ccwerrboundA
-_COLLINEAR = 1e-14
 _KEY_BITS = 21  # cell coordinates per axis below 2^21
 
 
 # ------------------------------------------------------------------------------------------------
 # predicates (vertex indices into V; a sign of 0 means zero or not certified)
 # ------------------------------------------------------------------------------------------------
+# Exact fallback: the determinant as a sum of products of the coordinate differences, each
+# difference split exactly into two doubles (two_sum) and each product of three doubles into four
+# (two_prod), accumulated without rounding into a nonoverlapping expansion (Shewchuk's
+# Grow-Expansion with zero elimination); the sign of its largest component is the exact sign.
+@_kernel
+def _two_sum(a, b):
+    x = a + b
+    bv = x - a
+    av = x - bv
+    return x, (a - av) + (b - bv)
+
+
+@_kernel
+def _split(a):
+    c = 134217729.0 * a  # 2^27 + 1
+    hi = c - (c - a)
+    return hi, a - hi
+
+
+@_kernel
+def _two_prod(a, b):
+    x = a * b
+    ahi, alo = _split(a)
+    bhi, blo = _split(b)
+    err = x - ahi * bhi
+    err -= alo * bhi
+    err -= ahi * blo
+    return x, alo * blo - err
+
+
+@_kernel
+def _grow_exp(e, n, b, tmp):
+    """Add the double b to the expansion e[:n] (exactly); returns the new length."""
+    q = b
+    k = 0
+    for i in range(n):
+        q, hh = _two_sum(q, e[i])
+        if hh != 0.0:
+            tmp[k] = hh
+            k += 1
+    if q != 0.0:
+        tmp[k] = q
+        k += 1
+    for i in range(k):
+        e[i] = tmp[i]
+    return k
+
+
+@_kernel
+def _add_product3(e, n, tmp, x0, x1, y0, y1, z0, z1, sign):
+    """Add sign * (x0 + x1)(y0 + y1)(z0 + z1) to the expansion e[:n], exactly."""
+    for ix in range(2):
+        x = x0
+        if ix == 1:
+            x = x1
+        if x == 0.0:
+            continue
+        for iy in range(2):
+            y = y0
+            if iy == 1:
+                y = y1
+            if y == 0.0:
+                continue
+            p, q = _two_prod(x, y)
+            for iz in range(2):
+                z = z0
+                if iz == 1:
+                    z = z1
+                if z == 0.0:
+                    continue
+                r0, r1 = _two_prod(p, z)
+                r2, r3 = _two_prod(q, z)
+                n = _grow_exp(e, n, sign * r0, tmp)
+                n = _grow_exp(e, n, sign * r1, tmp)
+                n = _grow_exp(e, n, sign * r2, tmp)
+                n = _grow_exp(e, n, sign * r3, tmp)
+    return n
+
+
+@_kernel
+def _o3_exact(V, a, b, c, d):
+    adx, adx1 = _two_sum(V[a, 0], -V[d, 0])
+    ady, ady1 = _two_sum(V[a, 1], -V[d, 1])
+    adz, adz1 = _two_sum(V[a, 2], -V[d, 2])
+    bdx, bdx1 = _two_sum(V[b, 0], -V[d, 0])
+    bdy, bdy1 = _two_sum(V[b, 1], -V[d, 1])
+    bdz, bdz1 = _two_sum(V[b, 2], -V[d, 2])
+    cdx, cdx1 = _two_sum(V[c, 0], -V[d, 0])
+    cdy, cdy1 = _two_sum(V[c, 1], -V[d, 1])
+    cdz, cdz1 = _two_sum(V[c, 2], -V[d, 2])
+    e = np.empty(256, np.float64)
+    tmp = np.empty(256, np.float64)
+    one = 1.0
+    n = 0
+    n = _add_product3(e, n, tmp, adx, adx1, bdy, bdy1, cdz, cdz1, one)
+    n = _add_product3(e, n, tmp, adx, adx1, bdz, bdz1, cdy, cdy1, -one)
+    n = _add_product3(e, n, tmp, ady, ady1, bdx, bdx1, cdz, cdz1, -one)
+    n = _add_product3(e, n, tmp, ady, ady1, bdz, bdz1, cdx, cdx1, one)
+    n = _add_product3(e, n, tmp, adz, adz1, bdx, bdx1, cdy, cdy1, one)
+    n = _add_product3(e, n, tmp, adz, adz1, bdy, bdy1, cdx, cdx1, -one)
+    if n == 0:
+        return 0
+    if e[n - 1] > 0.0:
+        return 1
+    return -1
+
+
+@_kernel
+def _o2_exact(V, a, b, c, ax, ay):
+    acx, acx1 = _two_sum(V[a, ax], -V[c, ax])
+    bcx, bcx1 = _two_sum(V[b, ax], -V[c, ax])
+    acy, acy1 = _two_sum(V[a, ay], -V[c, ay])
+    bcy, bcy1 = _two_sum(V[b, ay], -V[c, ay])
+    e = np.empty(32, np.float64)
+    tmp = np.empty(32, np.float64)
+    one = 1.0
+    n = 0
+    n = _add_product3(e, n, tmp, acx, acx1, bcy, bcy1, one, 0.0, one)
+    n = _add_product3(e, n, tmp, acy, acy1, bcx, bcx1, one, 0.0, -one)
+    if n == 0:
+        return 0
+    if e[n - 1] > 0.0:
+        return 1
+    return -1
+
+
 @_kernel
 def _o3(V, a, b, c, d):
-    """Sign of det[a - d, b - d, c - d] (positive when d is below the plane of a, b, c seen with
-    a, b, c counter-clockwise), or 0 if float64 cannot certify it."""
+    """Exact sign of det[a - d, b - d, c - d] (positive when d is below the plane of a, b, c seen
+    with a, b, c counter-clockwise): float64 with Shewchuk's error bound, exact arithmetic when
+    the bound does not certify the sign."""
     adx = V[a, 0] - V[d, 0]
     ady = V[a, 1] - V[d, 1]
     adz = V[a, 2] - V[d, 2]
@@ -103,12 +228,14 @@ def _o3(V, a, b, c, d):
         return 1
     if det < -err:
         return -1
-    return 0
+    if perm == 0.0:
+        return 0
+    return _o3_exact(V, a, b, c, d)
 
 
 @_kernel
 def _o2(V, a, b, c, ax, ay):
-    """Sign of the 2D orientation of a, b, c projected on the axes ``ax``, ``ay`` (0 if uncertain)."""
+    """Exact sign of the 2D orientation of a, b, c projected on the axes ``ax``, ``ay``."""
     acx = V[a, ax] - V[c, ax]
     bcx = V[b, ax] - V[c, ax]
     acy = V[a, ay] - V[c, ay]
@@ -121,13 +248,15 @@ def _o2(V, a, b, c, ax, ay):
         return 1
     if det < -err:
         return -1
-    return 0
+    if l == 0.0 and r == 0.0:
+        return 0
+    return _o2_exact(V, a, b, c, ax, ay)
 
 
 @_kernel
 def _drop_axis(V, a, b, c):
-    """The coordinate axis along which the normal of a, b, c is largest (projecting it away keeps
-    the triangle non-degenerate)."""
+    """A coordinate axis along which the normal of the (non-degenerate) triangle a, b, c is
+    largest, such that its projection away keeps the triangle non-degenerate (checked exactly)."""
     ux = V[b, 0] - V[a, 0]
     uy = V[b, 1] - V[a, 1]
     uz = V[b, 2] - V[a, 2]
@@ -137,11 +266,16 @@ def _drop_axis(V, a, b, c):
     nx = abs(uy * vz - uz * vy)
     ny = abs(uz * vx - ux * vz)
     nz = abs(ux * vy - uy * vx)
+    k = 2
     if nx >= ny and nx >= nz:
-        return 0
-    if ny >= nz:
-        return 1
-    return 2
+        k = 0
+    elif ny >= nz:
+        k = 1
+    for t in range(3):
+        kk = (k + t) % 3
+        if _o2(V, a, b, c, (kk + 1) % 3, (kk + 2) % 3) != 0:
+            return kk
+    return k
 
 
 @_kernel
@@ -442,6 +576,9 @@ def _intersecting_pairs(V, F, budget):
         ghi[k] = -np.inf
     ext_sum = 0.0
     nlive = 0
+    ax0 = np.int64(0)
+    ax1 = np.int64(1)
+    ax2 = np.int64(2)
     for i in range(m):
         a = F[i, 0]
         b = F[i, 1]
@@ -454,19 +591,8 @@ def _intersecting_pairs(V, F, budget):
         live[i] = 0
         if a == b or b == c or a == c:
             continue
-        ux = V[b, 0] - V[a, 0]
-        uy = V[b, 1] - V[a, 1]
-        uz = V[b, 2] - V[a, 2]
-        vx = V[c, 0] - V[a, 0]
-        vy = V[c, 1] - V[a, 1]
-        vz = V[c, 2] - V[a, 2]
-        nx = uy * vz - uz * vy
-        ny = uz * vx - ux * vz
-        nz = ux * vy - uy * vx
-        n2 = nx * nx + ny * ny + nz * nz
-        uv2 = (ux * ux + uy * uy + uz * uz) * (vx * vx + vy * vy + vz * vz)
-        if not n2 > _COLLINEAR * _COLLINEAR * uv2:
-            continue
+        if _o2(V, a, b, c, ax1, ax2) == 0 and _o2(V, a, b, c, ax2, ax0) == 0 and _o2(V, a, b, c, ax0, ax1) == 0:
+            continue  # collinear (exactly)
         live[i] = 1
         nlive += 1
         e = 0.0
