@@ -69,6 +69,8 @@ def _kernel(fn):
 _EPS = 2.0 ** -53
 _O3_BOUND = (7.0 + 56.0 * _EPS) * _EPS  # Shewchuk's o3derrboundA
 _O2_BOUND = (3.0 + 16.0 * _EPS) * _EPS  # Shewchuk's ccwerrboundA
+_EXP = 1  # workspace layout: ws[0] flag, then an expansion and its scratch
+_EXP_LEN = 256
 _KEY_BITS = 21  # cell coordinates per axis below 2^21
 
 
@@ -106,26 +108,29 @@ def _two_prod(a, b):
 
 
 @_kernel
-def _grow_exp(e, n, b, tmp):
-    """Add the double b to the expansion e[:n] (exactly); returns the new length."""
+def _grow_exp(ws, e0, n, b, t0):
+    """Add the double b to the expansion ws[e0:e0 + n] exactly (scratch at ws[t0:]); returns
+    the new length."""
     q = b
     k = 0
     for i in range(n):
-        q, hh = _two_sum(q, e[i])
+        q, hh = _two_sum(q, ws[e0 + i])
         if hh != 0.0:
-            tmp[k] = hh
+            ws[t0 + k] = hh
             k += 1
     if q != 0.0:
-        tmp[k] = q
+        ws[t0 + k] = q
         k += 1
     for i in range(k):
-        e[i] = tmp[i]
+        ws[e0 + i] = ws[t0 + i]
     return k
 
 
 @_kernel
-def _add_product3(e, n, tmp, x0, x1, y0, y1, z0, z1, sign):
-    """Add sign * (x0 + x1)(y0 + y1)(z0 + z1) to the expansion e[:n], exactly."""
+def _add_product3(ws, n, x0, x1, y0, y1, z0, z1, sign):
+    """Add sign * (x0 + x1)(y0 + y1)(z0 + z1) to the expansion in ws, exactly."""
+    e0 = _EXP
+    t0 = _EXP + _EXP_LEN
     for ix in range(2):
         x = x0
         if ix == 1:
@@ -147,62 +152,53 @@ def _add_product3(e, n, tmp, x0, x1, y0, y1, z0, z1, sign):
                     continue
                 r0, r1 = _two_prod(p, z)
                 r2, r3 = _two_prod(q, z)
-                n = _grow_exp(e, n, sign * r0, tmp)
-                n = _grow_exp(e, n, sign * r1, tmp)
-                n = _grow_exp(e, n, sign * r2, tmp)
-                n = _grow_exp(e, n, sign * r3, tmp)
+                n = _grow_exp(ws, e0, n, sign * r0, t0)
+                n = _grow_exp(ws, e0, n, sign * r1, t0)
+                n = _grow_exp(ws, e0, n, sign * r2, t0)
+                n = _grow_exp(ws, e0, n, sign * r3, t0)
     return n
 
 
 @_kernel
-def _o3_exact(V, a, b, c, d):
-    adx, adx1 = _two_sum(V[a, 0], -V[d, 0])
-    ady, ady1 = _two_sum(V[a, 1], -V[d, 1])
-    adz, adz1 = _two_sum(V[a, 2], -V[d, 2])
-    bdx, bdx1 = _two_sum(V[b, 0], -V[d, 0])
-    bdy, bdy1 = _two_sum(V[b, 1], -V[d, 1])
-    bdz, bdz1 = _two_sum(V[b, 2], -V[d, 2])
-    cdx, cdx1 = _two_sum(V[c, 0], -V[d, 0])
-    cdy, cdy1 = _two_sum(V[c, 1], -V[d, 1])
-    cdz, cdz1 = _two_sum(V[c, 2], -V[d, 2])
-    e = np.empty(256, np.float64)
-    tmp = np.empty(256, np.float64)
+def _exact_sign(V, ws, a, b, c, d, ax, ay, dim):
+    """Exact sign of orient3d(a, b, c, d) (``dim == 3``) or of orient2d(a, b, c) on the axes ax,
+    ay (``dim == 2``).  One function for both, called from two places, so that the compiler
+    keeps it out of line and the float filters stay small."""
     one = 1.0
     n = 0
-    n = _add_product3(e, n, tmp, adx, adx1, bdy, bdy1, cdz, cdz1, one)
-    n = _add_product3(e, n, tmp, adx, adx1, bdz, bdz1, cdy, cdy1, -one)
-    n = _add_product3(e, n, tmp, ady, ady1, bdx, bdx1, cdz, cdz1, -one)
-    n = _add_product3(e, n, tmp, ady, ady1, bdz, bdz1, cdx, cdx1, one)
-    n = _add_product3(e, n, tmp, adz, adz1, bdx, bdx1, cdy, cdy1, one)
-    n = _add_product3(e, n, tmp, adz, adz1, bdy, bdy1, cdx, cdx1, -one)
+    if dim == 3:
+        adx, adx1 = _two_sum(V[a, 0], -V[d, 0])
+        ady, ady1 = _two_sum(V[a, 1], -V[d, 1])
+        adz, adz1 = _two_sum(V[a, 2], -V[d, 2])
+        bdx, bdx1 = _two_sum(V[b, 0], -V[d, 0])
+        bdy, bdy1 = _two_sum(V[b, 1], -V[d, 1])
+        bdz, bdz1 = _two_sum(V[b, 2], -V[d, 2])
+        cdx, cdx1 = _two_sum(V[c, 0], -V[d, 0])
+        cdy, cdy1 = _two_sum(V[c, 1], -V[d, 1])
+        cdz, cdz1 = _two_sum(V[c, 2], -V[d, 2])
+        n = _add_product3(ws, n, adx, adx1, bdy, bdy1, cdz, cdz1, one)
+        n = _add_product3(ws, n, adx, adx1, bdz, bdz1, cdy, cdy1, -one)
+        n = _add_product3(ws, n, ady, ady1, bdx, bdx1, cdz, cdz1, -one)
+        n = _add_product3(ws, n, ady, ady1, bdz, bdz1, cdx, cdx1, one)
+        n = _add_product3(ws, n, adz, adz1, bdx, bdx1, cdy, cdy1, one)
+        n = _add_product3(ws, n, adz, adz1, bdy, bdy1, cdx, cdx1, -one)
+    else:
+        zero = 0.0
+        acx, acx1 = _two_sum(V[a, ax], -V[c, ax])
+        bcx, bcx1 = _two_sum(V[b, ax], -V[c, ax])
+        acy, acy1 = _two_sum(V[a, ay], -V[c, ay])
+        bcy, bcy1 = _two_sum(V[b, ay], -V[c, ay])
+        n = _add_product3(ws, n, acx, acx1, bcy, bcy1, one, zero, one)
+        n = _add_product3(ws, n, acy, acy1, bcx, bcx1, one, zero, -one)
     if n == 0:
         return 0
-    if e[n - 1] > 0.0:
+    if ws[_EXP + n - 1] > 0.0:
         return 1
     return -1
 
 
 @_kernel
-def _o2_exact(V, a, b, c, ax, ay):
-    acx, acx1 = _two_sum(V[a, ax], -V[c, ax])
-    bcx, bcx1 = _two_sum(V[b, ax], -V[c, ax])
-    acy, acy1 = _two_sum(V[a, ay], -V[c, ay])
-    bcy, bcy1 = _two_sum(V[b, ay], -V[c, ay])
-    e = np.empty(32, np.float64)
-    tmp = np.empty(32, np.float64)
-    one = 1.0
-    n = 0
-    n = _add_product3(e, n, tmp, acx, acx1, bcy, bcy1, one, 0.0, one)
-    n = _add_product3(e, n, tmp, acy, acy1, bcx, bcx1, one, 0.0, -one)
-    if n == 0:
-        return 0
-    if e[n - 1] > 0.0:
-        return 1
-    return -1
-
-
-@_kernel
-def _o3(V, a, b, c, d):
+def _o3(V, ws, a, b, c, d):
     """Exact sign of det[a - d, b - d, c - d] (positive when d is below the plane of a, b, c seen
     with a, b, c counter-clockwise): float64 with Shewchuk's error bound, exact arithmetic when
     the bound does not certify the sign."""
@@ -222,6 +218,12 @@ def _o3(V, a, b, c, d):
     ab1 = adx * bdy
     ab2 = bdx * ady
     det = adz * (bc1 - bc2) + bdz * (ca1 - ca2) + cdz * (ab1 - ab2)
+    if ws[0] == 1.0:  # coordinates on a small dyadic grid: the float evaluation is exact
+        if det > 0.0:
+            return 1
+        if det < 0.0:
+            return -1
+        return 0
     perm = (abs(bc1) + abs(bc2)) * abs(adz) + (abs(ca1) + abs(ca2)) * abs(bdz) + (abs(ab1) + abs(ab2)) * abs(cdz)
     err = _O3_BOUND * perm
     if det > err:
@@ -230,11 +232,11 @@ def _o3(V, a, b, c, d):
         return -1
     if perm == 0.0:
         return 0
-    return _o3_exact(V, a, b, c, d)
+    return _exact_sign(V, ws, a, b, c, d, a, a, np.int64(3))
 
 
 @_kernel
-def _o2(V, a, b, c, ax, ay):
+def _o2(V, ws, a, b, c, ax, ay):
     """Exact sign of the 2D orientation of a, b, c projected on the axes ``ax``, ``ay``."""
     acx = V[a, ax] - V[c, ax]
     bcx = V[b, ax] - V[c, ax]
@@ -243,6 +245,12 @@ def _o2(V, a, b, c, ax, ay):
     l = acx * bcy
     r = acy * bcx
     det = l - r
+    if ws[0] == 1.0:
+        if det > 0.0:
+            return 1
+        if det < 0.0:
+            return -1
+        return 0
     err = _O2_BOUND * (abs(l) + abs(r))
     if det > err:
         return 1
@@ -250,11 +258,11 @@ def _o2(V, a, b, c, ax, ay):
         return -1
     if l == 0.0 and r == 0.0:
         return 0
-    return _o2_exact(V, a, b, c, ax, ay)
+    return _exact_sign(V, ws, a, b, c, c, ax, ay, np.int64(2))
 
 
 @_kernel
-def _drop_axis(V, a, b, c):
+def _drop_axis(V, ws, a, b, c):
     """A coordinate axis along which the normal of the (non-degenerate) triangle a, b, c is
     largest, such that its projection away keeps the triangle non-degenerate (checked exactly)."""
     ux = V[b, 0] - V[a, 0]
@@ -273,18 +281,18 @@ def _drop_axis(V, a, b, c):
         k = 1
     for t in range(3):
         kk = (k + t) % 3
-        if _o2(V, a, b, c, (kk + 1) % 3, (kk + 2) % 3) != 0:
+        if _o2(V, ws, a, b, c, (kk + 1) % 3, (kk + 2) % 3) != 0:
             return kk
     return k
 
 
 @_kernel
-def _seg_seg_2d(V, p1, p2, q1, q2, ax, ay):
+def _seg_seg_2d(V, ws, p1, p2, q1, q2, ax, ay):
     """Closed segments p1p2 and q1q2 (in one plane, projected) have a common point."""
-    d1 = _o2(V, q1, q2, p1, ax, ay)
-    d2 = _o2(V, q1, q2, p2, ax, ay)
-    d3 = _o2(V, p1, p2, q1, ax, ay)
-    d4 = _o2(V, p1, p2, q2, ax, ay)
+    d1 = _o2(V, ws, q1, q2, p1, ax, ay)
+    d2 = _o2(V, ws, q1, q2, p2, ax, ay)
+    d3 = _o2(V, ws, p1, p2, q1, ax, ay)
+    d4 = _o2(V, ws, p1, p2, q2, ax, ay)
     if d1 * d2 > 0 or d3 * d4 > 0:
         return False
     if (d1 == 0 and d2 == 0) or (d3 == 0 and d4 == 0):
@@ -304,146 +312,146 @@ def _seg_seg_2d(V, p1, p2, q1, q2, ax, ay):
 
 
 @_kernel
-def _point_in_tri_2d(V, p, a, b, c, ax, ay):
+def _point_in_tri_2d(V, ws, p, a, b, c, ax, ay):
     """Point p lies in the closed triangle a, b, c (in one plane, projected)."""
-    s = _o2(V, a, b, c, ax, ay)
+    s = _o2(V, ws, a, b, c, ax, ay)
     if s == 0:
         return False
-    return s * _o2(V, a, b, p, ax, ay) >= 0 and s * _o2(V, b, c, p, ax, ay) >= 0 and s * _o2(V, c, a, p, ax, ay) >= 0
+    return s * _o2(V, ws, a, b, p, ax, ay) >= 0 and s * _o2(V, ws, b, c, p, ax, ay) >= 0 and s * _o2(V, ws, c, a, p, ax, ay) >= 0
 
 
 @_kernel
-def _seg_tri_2d(V, u, v, a, b, c, ax, ay):
+def _seg_tri_2d(V, ws, u, v, a, b, c, ax, ay):
     """Closed segment uv and closed triangle abc, all in one plane."""
-    if _point_in_tri_2d(V, u, a, b, c, ax, ay) or _point_in_tri_2d(V, v, a, b, c, ax, ay):
+    if _point_in_tri_2d(V, ws, u, a, b, c, ax, ay) or _point_in_tri_2d(V, ws, v, a, b, c, ax, ay):
         return True
-    return _seg_seg_2d(V, u, v, a, b, ax, ay) or _seg_seg_2d(V, u, v, b, c, ax, ay) or _seg_seg_2d(V, u, v, c, a, ax, ay)
+    return _seg_seg_2d(V, ws, u, v, a, b, ax, ay) or _seg_seg_2d(V, ws, u, v, b, c, ax, ay) or _seg_seg_2d(V, ws, u, v, c, a, ax, ay)
 
 
 @_kernel
-def _outside(V, u, v, t, a, b, c, ax, ay):
+def _outside(V, ws, u, v, t, a, b, c, ax, ay):
     """a, b, c all strictly on the outer side of edge uv of a triangle of orientation t."""
-    return t * _o2(V, u, v, a, ax, ay) < 0 and t * _o2(V, u, v, b, ax, ay) < 0 and t * _o2(V, u, v, c, ax, ay) < 0
+    return t * _o2(V, ws, u, v, a, ax, ay) < 0 and t * _o2(V, ws, u, v, b, ax, ay) < 0 and t * _o2(V, ws, u, v, c, ax, ay) < 0
 
 
 @_kernel
-def _tri_tri_2d(V, a, b, c, d, e, f, ax, ay):
+def _tri_tri_2d(V, ws, a, b, c, d, e, f, ax, ay):
     """Closed triangles abc and def, in one plane."""
     # quick rejection: the other triangle strictly outside the line of an edge
-    t = _o2(V, a, b, c, ax, ay)
-    u = _o2(V, d, e, f, ax, ay)
+    t = _o2(V, ws, a, b, c, ax, ay)
+    u = _o2(V, ws, d, e, f, ax, ay)
     if t != 0 and u != 0:
-        if (_outside(V, a, b, t, d, e, f, ax, ay) or _outside(V, b, c, t, d, e, f, ax, ay)
-                or _outside(V, c, a, t, d, e, f, ax, ay) or _outside(V, d, e, u, a, b, c, ax, ay)
-                or _outside(V, e, f, u, a, b, c, ax, ay) or _outside(V, f, d, u, a, b, c, ax, ay)):
+        if (_outside(V, ws, a, b, t, d, e, f, ax, ay) or _outside(V, ws, b, c, t, d, e, f, ax, ay)
+                or _outside(V, ws, c, a, t, d, e, f, ax, ay) or _outside(V, ws, d, e, u, a, b, c, ax, ay)
+                or _outside(V, ws, e, f, u, a, b, c, ax, ay) or _outside(V, ws, f, d, u, a, b, c, ax, ay)):
             return False
-    if _seg_tri_2d(V, a, b, d, e, f, ax, ay) or _seg_tri_2d(V, b, c, d, e, f, ax, ay) or _seg_tri_2d(V, c, a, d, e, f, ax, ay):
+    if _seg_tri_2d(V, ws, a, b, d, e, f, ax, ay) or _seg_tri_2d(V, ws, b, c, d, e, f, ax, ay) or _seg_tri_2d(V, ws, c, a, d, e, f, ax, ay):
         return True
-    return _point_in_tri_2d(V, d, a, b, c, ax, ay)
+    return _point_in_tri_2d(V, ws, d, a, b, c, ax, ay)
 
 
 @_kernel
-def _edge_tri_3d(V, u, v, su, sv, a, b, c):
+def _edge_tri_3d(V, ws, u, v, su, sv, a, b, c):
     """Closed segment uv and closed triangle abc meet (3D); ``su``, ``sv`` are the signs
-    ``_o3(V, a, b, c, u)`` and ``_o3(V, a, b, c, v)``."""
+    ``_o3(V, ws, a, b, c, u)`` and ``_o3(V, ws, a, b, c, v)``."""
     if su * sv > 0:
         return False
     if su == 0 and sv == 0:
-        k = _drop_axis(V, a, b, c)
-        return _seg_tri_2d(V, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
-    w1 = _o3(V, u, v, a, b)
-    w2 = _o3(V, u, v, b, c)
+        k = _drop_axis(V, ws, a, b, c)
+        return _seg_tri_2d(V, ws, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
+    w1 = _o3(V, ws, u, v, a, b)
+    w2 = _o3(V, ws, u, v, b, c)
     if w1 * w2 < 0:
         return False
-    w3 = _o3(V, u, v, c, a)
+    w3 = _o3(V, ws, u, v, c, a)
     if w1 == 0 and w2 == 0 and w3 == 0:  # uncertain: the line looks coplanar with the triangle
-        k = _drop_axis(V, a, b, c)
-        return _seg_tri_2d(V, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
+        k = _drop_axis(V, ws, a, b, c)
+        return _seg_tri_2d(V, ws, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
     pos = w1 > 0 or w2 > 0 or w3 > 0
     neg = w1 < 0 or w2 < 0 or w3 < 0
     return not (pos and neg)
 
 
 @_kernel
-def _tri_tri_3d(V, a, b, c, d, e, f):
+def _tri_tri_3d(V, ws, a, b, c, d, e, f):
     """Closed triangles abc and def (no common vertex) have a common point."""
-    s1 = _o3(V, a, b, c, d)
-    s2 = _o3(V, a, b, c, e)
-    s3 = _o3(V, a, b, c, f)
+    s1 = _o3(V, ws, a, b, c, d)
+    s2 = _o3(V, ws, a, b, c, e)
+    s3 = _o3(V, ws, a, b, c, f)
     if (s1 > 0 and s2 > 0 and s3 > 0) or (s1 < 0 and s2 < 0 and s3 < 0):
         return False
-    r1 = _o3(V, d, e, f, a)
-    r2 = _o3(V, d, e, f, b)
-    r3 = _o3(V, d, e, f, c)
+    r1 = _o3(V, ws, d, e, f, a)
+    r2 = _o3(V, ws, d, e, f, b)
+    r3 = _o3(V, ws, d, e, f, c)
     if (r1 > 0 and r2 > 0 and r3 > 0) or (r1 < 0 and r2 < 0 and r3 < 0):
         return False
     if (s1 == 0 and s2 == 0 and s3 == 0) or (r1 == 0 and r2 == 0 and r3 == 0):
-        k = _drop_axis(V, a, b, c)
-        return _tri_tri_2d(V, a, b, c, d, e, f, (k + 1) % 3, (k + 2) % 3)
+        k = _drop_axis(V, ws, a, b, c)
+        return _tri_tri_2d(V, ws, a, b, c, d, e, f, (k + 1) % 3, (k + 2) % 3)
     # not coplanar: the intersection, if any, is a segment whose ends lie on edges
-    return (_edge_tri_3d(V, a, b, r1, r2, d, e, f) or _edge_tri_3d(V, b, c, r2, r3, d, e, f)
-            or _edge_tri_3d(V, c, a, r3, r1, d, e, f) or _edge_tri_3d(V, d, e, s1, s2, a, b, c)
-            or _edge_tri_3d(V, e, f, s2, s3, a, b, c) or _edge_tri_3d(V, f, d, s3, s1, a, b, c))
+    return (_edge_tri_3d(V, ws, a, b, r1, r2, d, e, f) or _edge_tri_3d(V, ws, b, c, r2, r3, d, e, f)
+            or _edge_tri_3d(V, ws, c, a, r3, r1, d, e, f) or _edge_tri_3d(V, ws, d, e, s1, s2, a, b, c)
+            or _edge_tri_3d(V, ws, e, f, s2, s3, a, b, c) or _edge_tri_3d(V, ws, f, d, s3, s1, a, b, c))
 
 
 @_kernel
-def _in_corner(V, p, a, c, d):
+def _in_corner(V, ws, p, a, c, d):
     """For a in the plane of triangle p, c, d: a - p points into the triangle's closed corner at p
     (so the edge from p to a has points other than p in the triangle)."""
-    k = _drop_axis(V, p, c, d)
+    k = _drop_axis(V, ws, p, c, d)
     ax = (k + 1) % 3
     ay = (k + 2) % 3
-    t = _o2(V, p, c, d, ax, ay)
+    t = _o2(V, ws, p, c, d, ax, ay)
     if t == 0:
         return False
-    return t * _o2(V, p, c, a, ax, ay) >= 0 and t * _o2(V, p, a, d, ax, ay) >= 0
+    return t * _o2(V, ws, p, c, a, ax, ay) >= 0 and t * _o2(V, ws, p, a, d, ax, ay) >= 0
 
 
 @_kernel
-def _shared_vertex(V, p, a, b, c, d):
+def _shared_vertex(V, ws, p, a, b, c, d):
     """Triangles p, a, b and p, c, d (common vertex p only) have a common point other than p.
 
     Such a point exists if and only if the opposite edge of one meets the other triangle, or an
     edge from p of one lies in the other's plane and points into its corner at p."""
-    sa = _o3(V, p, c, d, a)
-    sb = _o3(V, p, c, d, b)
+    sa = _o3(V, ws, p, c, d, a)
+    sb = _o3(V, ws, p, c, d, b)
     if sa * sb > 0:  # p, a, b strictly on one side of the plane of p, c, d (but for p)
         return False
-    sc = _o3(V, p, a, b, c)
-    sd = _o3(V, p, a, b, d)
+    sc = _o3(V, ws, p, a, b, c)
+    sd = _o3(V, ws, p, a, b, d)
     if sc * sd > 0:
         return False
     if sa == 0 and sb == 0 and sc == 0 and sd == 0:
         # one plane: the corners at p overlap iff a side of one corner points into the other
-        k = _drop_axis(V, p, c, d)
+        k = _drop_axis(V, ws, p, c, d)
         ax = (k + 1) % 3
         ay = (k + 2) % 3
-        t1 = _o2(V, p, a, b, ax, ay)
-        t2 = _o2(V, p, c, d, ax, ay)
+        t1 = _o2(V, ws, p, a, b, ax, ay)
+        t2 = _o2(V, ws, p, c, d, ax, ay)
         if t1 != 0 and t2 != 0:
-            return ((t2 * _o2(V, p, c, a, ax, ay) >= 0 and t2 * _o2(V, p, a, d, ax, ay) >= 0)
-                    or (t2 * _o2(V, p, c, b, ax, ay) >= 0 and t2 * _o2(V, p, b, d, ax, ay) >= 0)
-                    or (t1 * _o2(V, p, a, c, ax, ay) >= 0 and t1 * _o2(V, p, c, b, ax, ay) >= 0)
-                    or (t1 * _o2(V, p, a, d, ax, ay) >= 0 and t1 * _o2(V, p, d, b, ax, ay) >= 0))
-    if _edge_tri_3d(V, a, b, sa, sb, p, c, d) or _edge_tri_3d(V, c, d, sc, sd, p, a, b):
+            return ((t2 * _o2(V, ws, p, c, a, ax, ay) >= 0 and t2 * _o2(V, ws, p, a, d, ax, ay) >= 0)
+                    or (t2 * _o2(V, ws, p, c, b, ax, ay) >= 0 and t2 * _o2(V, ws, p, b, d, ax, ay) >= 0)
+                    or (t1 * _o2(V, ws, p, a, c, ax, ay) >= 0 and t1 * _o2(V, ws, p, c, b, ax, ay) >= 0)
+                    or (t1 * _o2(V, ws, p, a, d, ax, ay) >= 0 and t1 * _o2(V, ws, p, d, b, ax, ay) >= 0))
+    if _edge_tri_3d(V, ws, a, b, sa, sb, p, c, d) or _edge_tri_3d(V, ws, c, d, sc, sd, p, a, b):
         return True
-    return ((sa == 0 and _in_corner(V, p, a, c, d)) or (sb == 0 and _in_corner(V, p, b, c, d))
-            or (sc == 0 and _in_corner(V, p, c, a, b)) or (sd == 0 and _in_corner(V, p, d, a, b)))
+    return ((sa == 0 and _in_corner(V, ws, p, a, c, d)) or (sb == 0 and _in_corner(V, ws, p, b, c, d))
+            or (sc == 0 and _in_corner(V, ws, p, c, a, b)) or (sd == 0 and _in_corner(V, ws, p, d, a, b)))
 
 
 @_kernel
-def _shared_edge(V, p, q, a, b):
+def _shared_edge(V, ws, p, q, a, b):
     """Triangles p, q, a and p, q, b (common edge pq) overlap: coplanar, a and b on one side."""
-    if _o3(V, p, q, a, b) != 0:
+    if _o3(V, ws, p, q, a, b) != 0:
         return False
-    k = _drop_axis(V, p, q, a)
+    k = _drop_axis(V, ws, p, q, a)
     ax = (k + 1) % 3
     ay = (k + 2) % 3
-    return _o2(V, p, q, a, ax, ay) * _o2(V, p, q, b, ax, ay) > 0
+    return _o2(V, ws, p, q, a, ax, ay) * _o2(V, ws, p, q, b, ax, ay) > 0
 
 
 @_kernel
-def _pair_intersects(V, F, i, j):
+def _pair_intersects(V, ws, F, i, j):
     """Faces i and j (canonical vertex indices in F) intersect other than as neighbours."""
     a = F[i, 0]
     b = F[i, 1]
@@ -463,7 +471,7 @@ def _pair_intersects(V, F, i, j):
     if sf:
         nshared += 1
     if nshared == 0:
-        return _tri_tri_3d(V, a, b, c, d, e, f)
+        return _tri_tri_3d(V, ws, a, b, c, d, e, f)
     if nshared == 3:
         return True
     # rotate i so that its shared corners come first, j likewise
@@ -492,7 +500,7 @@ def _pair_intersects(V, F, i, j):
         elif p == f:
             y1 = d
             y2 = e
-        return _shared_vertex(V, p, x1, x2, y1, y2)
+        return _shared_vertex(V, ws, p, x1, x2, y1, y2)
     # two shared corners: the odd ones out
     y = d
     if not se:
@@ -500,10 +508,10 @@ def _pair_intersects(V, F, i, j):
     elif not sf:
         y = f
     if a != d and a != e and a != f:
-        return _shared_edge(V, b, c, a, y)
+        return _shared_edge(V, ws, b, c, a, y)
     if b != d and b != e and b != f:
-        return _shared_edge(V, c, a, b, y)
-    return _shared_edge(V, a, b, c, y)
+        return _shared_edge(V, ws, c, a, b, y)
+    return _shared_edge(V, ws, a, b, c, y)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -563,7 +571,7 @@ def _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key
 
 
 @njit(cache=True, **_OPTIONS)
-def _intersecting_pairs(V, F, budget):
+def _intersecting_pairs(V, ws, F, budget):
     """Pairs ``(i, j)``, ``i < j``, of faces that intersect (see the module docstring);
     ``F`` holds canonical vertex indices.  ``budget`` bounds the grid cells per face on average."""
     m = len(F)
@@ -591,7 +599,7 @@ def _intersecting_pairs(V, F, budget):
         live[i] = 0
         if a == b or b == c or a == c:
             continue
-        if _o2(V, a, b, c, ax1, ax2) == 0 and _o2(V, a, b, c, ax2, ax0) == 0 and _o2(V, a, b, c, ax0, ax1) == 0:
+        if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
             continue  # collinear (exactly)
         live[i] = 1
         nlive += 1
@@ -665,7 +673,7 @@ def _intersecting_pairs(V, F, budget):
                 cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h)
                 if (cx * ny + cy) * nz + cz != key:
                     continue
-                if _pair_intersects(V, F, i, j):
+                if _pair_intersects(V, ws, F, i, j):
                     if npairs == len(pi):
                         pi = _grow(pi, 2 * npairs)
                         pj = _grow(pj, 2 * npairs)
@@ -692,6 +700,24 @@ def _as_mesh_arrays(vertices, faces):
     if not np.all(np.isfinite(V)):
         raise ValueError("vertices must be finite (found NaN or infinity)")
     return V, F
+
+
+def _on_small_dyadic_grid(V) -> bool:
+    """All coordinates are integer multiples of one power of two ``2^-k`` (``k <= 10``) and span
+    less than ``2^16`` such steps per axis: then coordinate differences, the orientation
+    determinants and their partial sums are all exact in float64 (below ``2^51`` steps cubed)."""
+    if len(V) == 0:
+        return True
+    lo = V.min(axis=0)
+    span = V.max(axis=0) - lo
+    for k in range(11):
+        s = 2.0 ** k
+        if float(span.max()) * s >= 2.0 ** 16:
+            return False
+        W = V * s
+        if np.array_equal(W, np.floor(W)):
+            return True
+    return False
 
 
 def canonical_vertices(vertices) -> np.ndarray:
@@ -724,7 +750,9 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8) -> np.ndarray:
     if budget < 1:
         raise ValueError(f"budget must be a positive integer; got {budget}")
     Fc = canonical_vertices(V)[F]
-    pi, pj = _intersecting_pairs(V, Fc, np.int64(budget))
+    ws = np.zeros(1 + 2 * _EXP_LEN, dtype=np.float64)
+    ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
+    pi, pj = _intersecting_pairs(V, ws, Fc, np.int64(budget))
     out = np.stack([pi, pj], axis=1).astype(np.int64, copy=False)
     if len(out):
         out = out[np.lexsort((out[:, 1], out[:, 0]))]
