@@ -582,7 +582,7 @@ def _intersecting_pairs(V, ws, F, budget):
     for k in range(3):
         glo[k] = np.inf
         ghi[k] = -np.inf
-    ext_sum = 0.0
+    ext = np.empty(m, np.float64)
     nlive = 0
     ax0 = np.int64(0)
     ax1 = np.int64(1)
@@ -608,7 +608,7 @@ def _intersecting_pairs(V, ws, F, budget):
             glo[k] = min(glo[k], box[i, k])
             ghi[k] = max(ghi[k], box[i, 3 + k])
             e = max(e, box[i, 3 + k] - box[i, k])
-        ext_sum += e
+        ext[nlive - 1] = e
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
     npairs = 0
@@ -617,7 +617,8 @@ def _intersecting_pairs(V, ws, F, budget):
     span = 0.0
     for k in range(3):
         span = max(span, ghi[k] - glo[k])
-    h = ext_sum / nlive
+    # cell size: the median face extent (a few long faces, such as caps, span many cells)
+    h = np.median(ext[:nlive])
     hmin = span / (2.0 ** _KEY_BITS - 2.0)
     if not h > hmin:
         h = hmin
