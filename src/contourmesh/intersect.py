@@ -69,8 +69,10 @@ def _kernel(fn):
 _EPS = 2.0 ** -53
 _O3_BOUND = (7.0 + 56.0 * _EPS) * _EPS  # Shewchuk's o3derrboundA
 _O2_BOUND = (3.0 + 16.0 * _EPS) * _EPS  # Shewchuk's ccwerrboundA
-_EXP = 1  # workspace layout: ws[0] flag, then an expansion and its scratch
+_EXP = 1  # workspace layout: ws[0] flag, an expansion, its scratch, the terms
 _EXP_LEN = 256
+_TERMS = 1 + 2 * _EXP_LEN
+_EPS53 = 2.0 ** -53
 _KEY_BITS = 21  # cell coordinates per axis below 2^21
 
 
@@ -128,9 +130,9 @@ def _grow_exp(ws, e0, n, b, t0):
 
 @_kernel
 def _add_product3(ws, n, x0, x1, y0, y1, z0, z1, sign):
-    """Add sign * (x0 + x1)(y0 + y1)(z0 + z1) to the expansion in ws, exactly."""
-    e0 = _EXP
-    t0 = _EXP + _EXP_LEN
+    """Append the exact terms of sign * (x0 + x1)(y0 + y1)(z0 + z1) to the term list in ws
+    (four doubles per product of three doubles); returns the new count."""
+    t0 = _TERMS
     for ix in range(2):
         x = x0
         if ix == 1:
@@ -152,10 +154,11 @@ def _add_product3(ws, n, x0, x1, y0, y1, z0, z1, sign):
                     continue
                 r0, r1 = _two_prod(p, z)
                 r2, r3 = _two_prod(q, z)
-                n = _grow_exp(ws, e0, n, sign * r0, t0)
-                n = _grow_exp(ws, e0, n, sign * r1, t0)
-                n = _grow_exp(ws, e0, n, sign * r2, t0)
-                n = _grow_exp(ws, e0, n, sign * r3, t0)
+                ws[t0 + n] = sign * r0
+                ws[t0 + n + 1] = sign * r1
+                ws[t0 + n + 2] = sign * r2
+                ws[t0 + n + 3] = sign * r3
+                n += 4
     return n
 
 
@@ -163,7 +166,12 @@ def _add_product3(ws, n, x0, x1, y0, y1, z0, z1, sign):
 def _exact_sign(V, ws, a, b, c, d, ax, ay, dim):
     """Exact sign of orient3d(a, b, c, d) (``dim == 3``) or of orient2d(a, b, c) on the axes ax,
     ay (``dim == 2``).  One function for both, called from two places, so that the compiler
-    keeps it out of line and the float filters stay small."""
+    keeps it out of line and the float filters stay small.
+
+    The determinant is written exactly as a sum of doubles (the terms); their sum is taken
+    first with compensated summation (Ogita-Rump-Oishi Sum2) and its sign accepted when the
+    error bound certifies it (the common case: a tiny determinant that is not zero); otherwise
+    the terms are summed exactly into a nonoverlapping expansion."""
     one = 1.0
     n = 0
     if dim == 3:
@@ -190,9 +198,29 @@ def _exact_sign(V, ws, a, b, c, d, ax, ay, dim):
         bcy, bcy1 = _two_sum(V[b, ay], -V[c, ay])
         n = _add_product3(ws, n, acx, acx1, bcy, bcy1, one, zero, one)
         n = _add_product3(ws, n, acy, acy1, bcx, bcx1, one, zero, -one)
-    if n == 0:
+    # Sum2: |res - exact| <= eps |res| + gamma(n)^2 sum|t| (with gamma(n) = n eps / (1 - n eps))
+    s = 0.0
+    comp = 0.0
+    sabs = 0.0
+    for i in range(n):
+        t = ws[_TERMS + i]
+        s, e = _two_sum(s, t)
+        comp += e
+        sabs += abs(t)
+    res = s + comp
+    g = n * _EPS53 * 1.01
+    bound = 2.0 * _EPS53 * abs(res) + 2.0 * g * g * sabs
+    if res > bound:
+        return 1
+    if res < -bound:
+        return -1
+    # exact: grow a nonoverlapping expansion term by term
+    m = 0
+    for i in range(n):
+        m = _grow_exp(ws, _EXP, m, ws[_TERMS + i], _EXP + _EXP_LEN)
+    if m == 0:
         return 0
-    if ws[_EXP + n - 1] > 0.0:
+    if ws[_EXP + m - 1] > 0.0:
         return 1
     return -1
 
@@ -751,7 +779,7 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8) -> np.ndarray:
     if budget < 1:
         raise ValueError(f"budget must be a positive integer; got {budget}")
     Fc = canonical_vertices(V)[F]
-    ws = np.zeros(1 + 2 * _EXP_LEN, dtype=np.float64)
+    ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
     pi, pj = _intersecting_pairs(V, ws, Fc, np.int64(budget))
     out = np.stack([pi, pj], axis=1).astype(np.int64, copy=False)
