@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from .intersect import self_intersections
+
 __all__ = [
     "triangle_areas",
     "mesh_area",
@@ -128,8 +130,6 @@ def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-
     oriented outward, without degenerate faces or duplicate vertices, and embedded (no
     self-intersections).
     """
-    from .intersect import self_intersections
-
     faces = np.asarray(faces, dtype=np.int64)
     if len(faces) == 0:
         return {

@@ -120,7 +120,6 @@ class Mesh:
     def checks(self) -> dict:
         """Closedness, orientation, degeneracy and self-intersection checks (see
         :func:`contourmesh.measure.mesh_checks`)."""
-
         return mesh_checks(self.vertices, self.faces)
 
     # --- adapters -------------------------------------------------------------------------
