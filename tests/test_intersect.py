@@ -7,7 +7,6 @@ import pytest
 import trimesh
 
 import contourmesh
-from contourmesh import Mesh
 from contourmesh.intersect import canonical_vertices, intersecting_faces, intersecting_pairs, self_intersections
 from contourmesh.measure import mesh_checks
 

@@ -502,22 +502,19 @@ def _pair_intersects(V, ws, F, i, j):
         return _tri_tri_3d(V, ws, a, b, c, d, e, f)
     if nshared == 3:
         return True
-    # rotate i so that its shared corners come first, j likewise
-    x0 = a
-    x1 = b
-    x2 = c
     if nshared == 1:
+        # the common vertex p, and the other two corners of each face
         p = d
         if se:
             p = e
         elif sf:
             p = f
+        x1 = b
+        x2 = c
         if p == b:
-            x0 = b
             x1 = c
             x2 = a
         elif p == c:
-            x0 = c
             x1 = a
             x2 = b
         y1 = e
