@@ -89,12 +89,20 @@ def _general_mesher():
     contourmesh.mesh(labels, label=7, spacing=(2.0, 1.0, 1.0))
 
 
+def _checks():
+    """Mesh.checks() (and --json): the self-intersection test."""
+    import contourmesh
+
+    contourmesh.mesh(np.pad(np.ones((2, 2, 2), dtype=bool), 1)).checks()
+
+
 STEPS = (
     ("reproduce: DSS and MLP polygons, every triangulation", _reproduce),
     ("clinical contour stack (RTSTRUCT route: rasterize, mesh)", _contour_stack),
     ("refine='band' (--refine band)", _refine_band),
     ("volume fast path", _fast_path),
     ("general volume mesher (holes, branching, cavities, labels)", _general_mesher),
+    ("mesh checks (self-intersection test)", _checks),
 )
 
 
