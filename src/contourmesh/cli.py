@@ -99,7 +99,7 @@ def _mesh_summary(m) -> dict:
         "route": m.meta.get("route"),
     }
     for key in ("watertight", "winding_consistent", "boundary_edges", "degenerate_faces", "components", "genus",
-                "self_intersections"):
+                "self_intersections", "closed", "ok"):
         if key in chk:
             summary[key] = chk[key]
     for key in ("axis_wall_fraction", "exact_joins", "band_joins", "polygon_fallbacks", "crack_rings",
@@ -177,8 +177,10 @@ def _cmd_mesh_many(args) -> int:
                    "genus": chk["genus"], "components": chk["components"], "watertight": chk["watertight"],
                    "self_intersections": chk.get("self_intersections", ""), "route": m.meta.get("route")}
             name = re.sub(r"[^A-Za-z0-9._-]+", "_", str(key)).strip("_") or "roi"
-        ok = m.checks()["ok"]
-        row["status"] = "ok" if ok else "failed its checks (not written)"
+        chk = m.checks()
+        ok = chk["closed"]
+        row["status"] = ("ok" if chk["ok"] else f"closed, {chk['self_intersections']} crossing face pairs") if ok \
+            else "not closed and outward (not written)"
         failed += not ok
         if ok and not args.stats_only:
             target = out / f"{name}.{fmt}"
@@ -235,9 +237,13 @@ def _cmd_mesh(args) -> int:
 
         save_filter_script(steps, args.save_mlx)
     chk = m.checks()
-    if not chk["ok"]:
+    if not chk["closed"]:
         raise RuntimeError(f"the mesh failed its checks, not written: {chk}")
     m.save(out, force=True)
+    if chk["self_intersections"]:
+        print(f"contourmesh: warning: {out}: {chk['self_intersections']} pairs of faces cross (the mesh is closed and "
+              "outward but not embedded; a known limit of joins where voxels touch only along an edge or at a corner)",
+              file=sys.stderr)
     summary = _mesh_summary(m)
     if infos:
         summary["postprocess"] = infos
@@ -246,7 +252,8 @@ def _cmd_mesh(args) -> int:
     else:
         e = summary["e"]
         print(f"{out}: area {summary['area']:.6g}" + (f" (true {summary['area_true']:.6g}, e {e:+.4%})" if e is not None else "")
-              + f", volume {summary['volume']:.6g}, P {summary['P']}, {summary['faces']} faces, closed and outward")
+              + f", volume {summary['volume']:.6g}, P {summary['P']}, {summary['faces']} faces, closed and outward"
+              + ("" if summary.get("self_intersections") else ", no crossing faces"))
     return 0
 
 

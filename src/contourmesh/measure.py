@@ -135,7 +135,7 @@ def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-
         return {
             "watertight": False, "winding_consistent": False, "boundary_edges": 0,
             "nonmanifold_edges": 0, "degenerate_faces": 0, "duplicate_vertices": 0,
-            "volume": 0.0, "components": 0, "genus": None, "self_intersections": 0, "ok": False,
+            "volume": 0.0, "components": 0, "genus": None, "self_intersections": 0, "closed": False, "ok": False,
         }
     uniq, counts, dup_directed = _edge_counts(faces)
     diag2 = float(np.sum((vertices.max(0) - vertices.min(0)) ** 2)) or 1.0
@@ -159,8 +159,8 @@ def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-
         "genus": euler_genus(len(used), len(uniq), len(faces), comps) if watertight else None,
         "self_intersections": self_intersections(vertices, faces),
     }
-    out["ok"] = bool(
-        watertight and out["winding_consistent"] and degenerate == 0 and dup_vertices == 0 and volume > 0
-        and out["self_intersections"] == 0
-    )
+    # closed: a closed, consistently outward 2-manifold without degenerate faces; ok: also embedded
+    out["closed"] = bool(watertight and out["winding_consistent"] and degenerate == 0 and dup_vertices == 0
+                         and volume > 0)
+    out["ok"] = bool(out["closed"] and out["self_intersections"] == 0)
     return out
