@@ -35,7 +35,7 @@ PEERS = ("vtk-surfacenets", "mc-lewiner-blur1")
 COLUMNS = ["phantom", "kind", "tilt", "dz", "ds", "seed", "method", "caps", "polygon", "status", "route",
            "sections", "area_true", "volume_true", "truth", "area", "volume", "area_err", "volume_err",
            "vol_trapezoid", "vol_frustum", "vol_vs_trapezoid", "vol_vs_frustum", "vol_outside_rules",
-           "xsec_max_err", "xsec_median_err", "xsec_checked", "closed_ok", "self_intersections", "faces",
+           "area_vs_surfacenets", "area_vs_mc_blur1", "xsec_max_err", "xsec_median_err", "xsec_checked", "closed_ok", "self_intersections", "faces",
            "seconds", "error"]
 
 
@@ -190,6 +190,11 @@ def measure(ph: Phantom, dz: float, ds: float, *, seed: int = 0, fine: float = 0
                 if res.get("volume") is not None:
                     row.update(_volume_cols(res["volume"], trap, fru))
             rows.append(row)
+    peer_area = {r["method"]: r["area"] for r in rows if r["method"] in PEERS and r["status"] == "ok"}
+    for row in rows:
+        if row["method"] == "ours" and row["status"] == "ok":
+            row["area_vs_surfacenets"] = _rel(row["area"], peer_area.get("vtk-surfacenets"))
+            row["area_vs_mc_blur1"] = _rel(row["area"], peer_area.get("mc-lewiner-blur1"))
     for row in rows:
         for c in COLUMNS:
             row.setdefault(c, None)

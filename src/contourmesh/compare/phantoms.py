@@ -32,7 +32,7 @@ from ..types import ContourStack
 
 __all__ = ["Phantom", "sphere", "cylinder", "frustum", "torus", "two_lobes", "y_branch", "keyhole_tube",
            "rod_in_tube", "hollow_sphere", "draw", "section_areas", "trapezoid_volume", "frustum_volume",
-           "rotation", "implicit_volume"]
+           "rotation", "implicit_volume", "verification_set", "rtstruct_bytes"]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -405,3 +405,108 @@ def implicit_volume(ph: Phantom, h: float, *, margin: int = 2):
         pts[:, 2] = z
         out[k] = (ph.f(pts) <= 0).reshape(X.shape)
     return out, (float(axes[0][0]), float(axes[1][0]), float(axes[2][0]))
+
+
+# ------------------------------------------------------------------------------------------------
+# the verification set and an RTSTRUCT writer
+# ------------------------------------------------------------------------------------------------
+def verification_set(full: bool = False, seed: int = 20150701):
+    """The phantoms and drawing settings of the clinical comparison: a list of ``(phantom, dz, ds, seed)``.
+
+    ``full=True`` is the whole grid: spheres (r = 5, 10, 20, 30), cylinders (r = 5, 15, 30; upright and
+    tilted 30 degrees), frusta (upright and tilted 25 degrees) and a cone, at slice spacings 0.2, 0.5,
+    1, 2, 3 mm and point spacings 0.2, 0.5, 1 mm, plus the branching, keyhole and nested phantoms at
+    every slice spacing (point spacing 0.5 mm).  The default is a subsample of it (same seeds).
+    """
+    analytic = [sphere(5), sphere(10), sphere(20), sphere(30),
+                cylinder(5, 20), cylinder(15, 40), cylinder(30, 60),
+                cylinder(5, 20, tilt=30, azimuth=20), cylinder(15, 40, tilt=30, azimuth=20),
+                cylinder(30, 60, tilt=30, azimuth=20),
+                frustum(15, 5, 30), frustum(15, 5, 30, tilt=25, azimuth=-35), frustum(10, 0, 20)]
+    other = [torus(15, 5), two_lobes(10, 8, 14), y_branch(5, 25), keyhole_tube(12, 6, 30),
+             keyhole_tube(12, 6, 30, tilt=20), rod_in_tube(15, 9, 4, 30), hollow_sphere(15, 8)]
+    dzs, dss = (0.2, 0.5, 1.0, 2.0, 3.0), (0.2, 0.5, 1.0)
+    grid = [(ph, dz, ds) for ph in analytic for dz in dzs for ds in dss]
+    grid += [(ph, dz, 0.5) for ph in other for dz in dzs]
+    out = [(ph, dz, ds, seed + i) for i, (ph, dz, ds) in enumerate(grid)]
+    if full:
+        return out
+    keep = {
+        "sphere-r5": {(0.5, 0.5), (1.0, 0.2), (3.0, 0.5)},
+        "sphere-r10": {(0.2, 0.5), (1.0, 1.0), (2.0, 0.5), (3.0, 0.5)},
+        "sphere-r20": {(0.5, 0.5), (2.0, 0.5), (3.0, 1.0)},
+        "sphere-r30": {(3.0, 1.0)},
+        "cyl-r5-L20": {(1.0, 0.5), (3.0, 0.5)},
+        "cyl-r15-L40": {(2.0, 0.5)},
+        "cyl-r5-L20-t30": {(1.0, 0.5), (3.0, 0.5)},
+        "cyl-r15-L40-t30": {(0.5, 0.5), (2.0, 1.0), (3.0, 0.5)},
+        "frustum-r15-5-h30": {(1.0, 0.5), (3.0, 0.5)},
+        "frustum-r15-5-h30-t25": {(2.0, 0.5), (3.0, 0.5)},
+        "frustum-r10-0-h20": {(2.0, 0.5)},
+        "torus-R15-r5-t90": {(1.0, 0.5), (3.0, 0.5)},
+        "lobes-r10-8-d14": {(1.0, 0.5), (3.0, 0.5)},
+        "Y-r5-L25-a30": {(1.0, 0.5), (3.0, 0.5)},
+        "keyhole-R12-r6-L30": {(2.0, 0.5)},
+        "keyhole-R12-r6-L30-t20": {(3.0, 0.5)},
+        "nested-R15-9-4-L30": {(2.0, 0.5)},
+        "hollow-R15-r8": {(1.0, 0.5), (3.0, 0.5)},
+    }
+    return [t for t in out if (t[1], t[2]) in keep.get(t[0].name, ())]
+
+
+def rtstruct_bytes(stacks: dict) -> bytes:
+    """A minimal DICOM RTSTRUCT holding one ROI per ``{name: ContourStack}`` (CLOSED_PLANAR contours, mm).
+
+    Enough for :func:`contourmesh.io.read_contours` and other RTSTRUCT readers that do not need the
+    referenced image series (the UIDs are fixed, derived from nothing).
+    """
+    import io
+
+    from .._optional import require
+
+    require("pydicom", "io", "pydicom")
+    from pydicom.dataset import Dataset, FileMetaDataset
+    from pydicom.sequence import Sequence
+    from pydicom.uid import ExplicitVRLittleEndian
+
+    ds = Dataset()
+    ds.file_meta = FileMetaDataset()
+    ds.file_meta.TransferSyntaxUID = ExplicitVRLittleEndian
+    ds.file_meta.MediaStorageSOPClassUID = "1.2.840.10008.5.1.4.1.1.481.3"
+    ds.file_meta.MediaStorageSOPInstanceUID = "1.2.826.0.1.3680043.10.1511.1"
+    ds.SOPClassUID = ds.file_meta.MediaStorageSOPClassUID
+    ds.SOPInstanceUID = ds.file_meta.MediaStorageSOPInstanceUID
+    ds.Modality = "RTSTRUCT"
+    ds.PatientName = "PHANTOM^CONTOURMESH"
+    ds.PatientID = "PHANTOM"
+    ds.StructureSetLabel = "CM PHANTOMS"
+    rois, contours = [], []
+    for num, (name, stack) in enumerate(stacks.items(), start=1):
+        roi = Dataset()
+        roi.ROINumber = num
+        roi.ROIName = name
+        rois.append(roi)
+        items = []
+        sx, sy = (float(v) for v in stack.spacing)
+        ox, oy = (float(v) for v in stack.origin)
+        for s in stack.sections:
+            for ring in s.contours:
+                r = np.asarray(ring, dtype=np.float64)
+                xyz = np.c_[r[:, 0] * sx + ox, r[:, 1] * sy + oy, np.full(len(r), float(s.z))]
+                c = Dataset()
+                c.ContourGeometricType = "CLOSED_PLANAR"
+                c.NumberOfContourPoints = len(r)
+                c.ContourData = [f"{v:.10g}"[:16] for v in xyz.ravel()]
+                items.append(c)
+        rc = Dataset()
+        rc.ReferencedROINumber = num
+        rc.ContourSequence = Sequence(items)
+        contours.append(rc)
+    ds.StructureSetROISequence = Sequence(rois)
+    ds.ROIContourSequence = Sequence(contours)
+    buf = io.BytesIO()
+    try:
+        ds.save_as(buf, enforce_file_format=True)
+    except TypeError:  # pydicom < 3
+        ds.save_as(buf, write_like_original=False)
+    return buf.getvalue()
