@@ -37,7 +37,7 @@ HERE = Path(__file__).resolve().parent
 TARGET_VOL, TARGET_AREA, TARGET_RULES, TARGET_XSEC, TARGET_BRANCH = 0.01, 0.015, 0.005, 0.005, 0.02
 
 
-def run(full: bool, fine: float, log=print) -> list[dict]:
+def run(full: bool, fine: float, log=lambda msg: print(msg, flush=True)) -> list[dict]:
     rows = []
     settings = verification_set(full=full)
     t_all = time.perf_counter()
@@ -45,7 +45,7 @@ def run(full: bool, fine: float, log=print) -> list[dict]:
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            got = measure(ph, dz, ds, seed=seed, fine=fine)
+            got = measure(ph, dz, ds, seed=seed, fine=fine, timeout=30.0)
         lost = [str(w.message) for w in caught if "LostContour" in type(w.message).__name__]
         for r in got:
             r["warnings"] = len(lost) if r["method"] == "ours" and r["polygon"] == "mlp" else ""

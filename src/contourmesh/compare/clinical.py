@@ -5,7 +5,8 @@
 
 * one row per mode of ours (``caps`` x ``polygon``): mesh area and volume against the analytic
   values, volume against the trapezoid and frustum rules over the drawn sections' even-odd areas,
-  the mesh's own cross-section at each contour plane against that contour's area, the mesh checks;
+  the mesh's own cross-section just off each contour plane (its triangles cut by the plane, Green's
+  theorem over the oriented cut segments) against that contour's area, the mesh checks;
 * one row per peer (VTK surface nets, marching cubes after a sigma = 1 voxel blur) on the
   even-odd rasterization of the drawn stack at ``fine`` mm in the plane (the sections' own
   heights), through :func:`contourmesh.compare.methods.run_method`.
@@ -51,9 +52,8 @@ def cross_section_errors(m, stack, *, max_planes: int = 40) -> np.ndarray:
     itself flat caps lie in the plane.  At most ``max_planes`` sections are checked (evenly
     spread, the ends always); the worst side counts.
     """
-    import trimesh
-
-    tm = trimesh.Trimesh(m.vertices, m.faces, process=False)
+    tri = np.asarray(m.vertices, dtype=np.float64)[np.asarray(m.faces)]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     zs = np.array([s.z for s in stack.sections])
     ref = section_areas(stack)
     n = len(zs)
@@ -67,29 +67,34 @@ def cross_section_errors(m, stack, *, max_planes: int = 40) -> np.ndarray:
             sides.append(zs[k] + 1e-4 * (zs[k + 1] - zs[k]))
         worst = 0.0
         for z in sides:
-            a = _section_area(tm, z)
+            a = _section_area(tri, normals, z)
             e = a / ref[k] - 1.0
             worst = e if abs(e) > abs(worst) else worst
         out.append(worst)
     return np.asarray(out)
 
 
-def _section_area(tm, z) -> float:
+def _section_area(tri, normals, z) -> float:
     """Even-odd area of the mesh's section by the plane ``z``: Green's theorem over the cut segments,
     each oriented by its face's outward normal (``z x n`` keeps the inside on the left)."""
-    import trimesh
-
-    segs, faces = trimesh.intersections.mesh_plane(tm, plane_normal=[0, 0, 1], plane_origin=[0, 0, z],
-                                                   return_faces=True)
-    if len(segs) == 0:
+    d = tri[:, :, 2] - z
+    d = np.where(d == 0.0, 1e-300, d)
+    cut = (d.min(1) < 0) & (d.max(1) > 0)
+    if not cut.any():
         return 0.0
-    segs = np.asarray(segs)[:, :, :2]
-    n = tm.face_normals[faces]
+    t, d, n = tri[cut], d[cut], normals[cut]
+    a, b = t, np.roll(t, -1, axis=1)  # edges 0-1, 1-2, 2-0
+    da, db = d, np.roll(d, -1, axis=1)
+    crosses = (da < 0) != (db < 0)
+    w = (da / np.where(crosses, da - db, 1.0))[:, :, None]
+    pts = (a + (b - a) * w)[:, :, :2]
+    order = np.argsort(~crosses, axis=1, kind="stable")[:, :2]  # the two crossing edges of each face
+    p0 = np.take_along_axis(pts, order[:, :1, None], axis=1)[:, 0]
+    p1 = np.take_along_axis(pts, order[:, 1:2, None], axis=1)[:, 0]
     tangent = np.c_[-n[:, 1], n[:, 0]]  # z x n, in the plane
-    d = segs[:, 1] - segs[:, 0]
-    flip = np.einsum("ij,ij->i", d, tangent) < 0
-    segs[flip] = segs[flip, ::-1]
-    return float(0.5 * np.sum(segs[:, 0, 0] * segs[:, 1, 1] - segs[:, 1, 0] * segs[:, 0, 1]))
+    flip = np.einsum("ij,ij->i", p1 - p0, tangent) < 0
+    p0[flip], p1[flip] = p1[flip], p0[flip].copy()
+    return float(0.5 * np.sum(p0[:, 0] * p1[:, 1] - p1[:, 0] * p0[:, 1]))
 
 
 _REF_CACHE: dict = {}
@@ -108,6 +113,30 @@ def reference(ph: Phantom, fine: float):
     return _REF_CACHE[key]
 
 
+class _Timeout(Exception):
+    pass
+
+
+def _with_deadline(fn, seconds):
+    """``fn()``, interrupted after ``seconds`` by SIGALRM (main thread, POSIX); otherwise just ``fn()``."""
+    import signal
+    import threading
+
+    if not seconds or not hasattr(signal, "setitimer") or threading.current_thread() is not threading.main_thread():
+        return fn()
+
+    def _alarm(signum, frame):
+        raise _Timeout(f"no result within {seconds:g} s")
+
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        return fn()
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
 def _base(ph, stack, dz, ds, seed, truth):
     area_t, vol_t, kind = truth
     return {"phantom": ph.name, "kind": ph.kind, "tilt": ph.params.get("tilt", 0.0), "dz": dz, "ds": ds,
@@ -123,7 +152,7 @@ def _volume_cols(vol, trap, fru):
 
 
 def measure(ph: Phantom, dz: float, ds: float, *, seed: int = 0, fine: float = 0.25, modes=MODES,
-            peers=PEERS, max_planes: int = 40, stack=None) -> list[dict]:
+            peers=PEERS, max_planes: int = 40, stack=None, timeout: float | None = 120.0) -> list[dict]:
     """Table rows (:data:`COLUMNS`) for one phantom drawn at slice spacing ``dz`` and point spacing ``ds``.
 
     Parameters
@@ -144,8 +173,11 @@ def measure(ph: Phantom, dz: float, ds: float, *, seed: int = 0, fine: float = 0
         Cross-section planes checked per mesh.
     stack : ContourStack, optional
         The drawing, when the caller already has it (else ``draw(ph, dz, ds, seed=seed)``).
+    timeout : float, optional
+        Seconds allowed to each of our modes (SIGALRM, main thread only); ``None``: no limit.
 
-    A mode that raises gives a row with ``status = "failed"`` and the error text; nothing is dropped.
+    A mode that raises gives a row with ``status = "failed"`` and the error text, one that runs out
+    of time ``status = "timeout"``; nothing is dropped.
     """
     if stack is None:
         stack = draw(ph, dz, ds, seed=seed)
@@ -157,7 +189,11 @@ def measure(ph: Phantom, dz: float, ds: float, *, seed: int = 0, fine: float = 0
         row.update(method="ours", caps=caps, polygon=polygon)
         t0 = time.perf_counter()
         try:
-            m = _mesh(stack, caps=caps, polygon=polygon)
+            m = _with_deadline(lambda: _mesh(stack, caps=caps, polygon=polygon), timeout)
+        except _Timeout as exc:
+            row.update(status="timeout", error=str(exc), seconds=time.perf_counter() - t0)
+            rows.append(row)
+            continue
         except Exception as exc:  # a failure is a result: tabulated, not hidden
             row.update(status="failed", error=f"{type(exc).__name__}: {exc}"[:300],
                        seconds=time.perf_counter() - t0)

@@ -12,8 +12,9 @@ several planning systems store holes).
 
 Sections are found on a ``grid`` mm raster of ``f`` in the plane (:func:`skimage.measure.find_contours`),
 resampled by arc length and projected onto ``f = 0`` by in-plane Newton steps, so the vertices
-are on the surface to about 1e-9 mm; section rings smaller than about one ``grid`` step are not
-drawn (as a contouring tool would miss them).
+are on the surface to about 1e-9 mm; thin rings are traced again on finer rasters; rings smaller
+than about one ``grid`` step, or enclosing less than ``MIN_RING_AREA``, are not drawn (as a
+contouring tool would miss them).
 
 Everything is generated from a seed; nothing is read from elsewhere.
 """
@@ -254,8 +255,14 @@ def hollow_sphere(R: float, r: float, *, center=(0.0, 0.0, 0.0)) -> Phantom:
 # ------------------------------------------------------------------------------------------------
 # drawing
 # ------------------------------------------------------------------------------------------------
-def _project(f, xy, z, iters: int = 6, eps: float = 1e-6):
-    """Newton steps in the plane ``z`` onto ``f = 0``."""
+def _project(f, xy, z, iters: int = 6, eps: float = 1e-6, max_move: float | None = None):
+    """Newton steps in the plane ``z`` onto ``f = 0``.
+
+    A point that would move farther than ``max_move`` keeps its place: near a sharp corner (where a
+    flat end meets a side) the step can overshoot onto the extension of the other face and fold
+    the ring; such points stay on the traced polyline, within one raster step inside the corner.
+    """
+    xy = np.asarray(xy, dtype=np.float64)
     p = np.c_[xy, np.full(len(xy), z)]
     for _ in range(iters):
         v = f(p)
@@ -266,7 +273,11 @@ def _project(f, xy, z, iters: int = 6, eps: float = 1e-6):
         step = np.where(ok, v / np.where(ok, g2, 1.0), 0.0)
         p[:, 0] -= step * gx
         p[:, 1] -= step * gy
-    return p[:, :2]
+    out = p[:, :2]
+    if max_move is not None:
+        far = np.hypot(*(out - xy).T) > max_move
+        out[far] = xy[far]
+    return out
 
 
 def _resample(ring: np.ndarray, ds: float, start: float, min_points: int) -> np.ndarray:
@@ -291,6 +302,11 @@ def _keyhole(outer: np.ndarray, hole: np.ndarray) -> np.ndarray:
     o = np.roll(outer, -i, axis=0)
     h = np.roll(hole, -j, axis=0)
     return np.vstack([o, o[:1], h, h[:1]])
+
+
+#: Rings enclosing less than this (mm^2) are not drawn: below any contouring tool's resolution, and
+#: where a raster cuts off the tip of a very acute corner (a sliver's end) the tip is such a crumb.
+MIN_RING_AREA = 1e-3
 
 
 def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None = None,
@@ -325,25 +341,11 @@ def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None
     lo, hi = ph.lo, ph.hi
     z0 = lo[2] + rng.uniform(0.0, dz)
     zs = np.arange(z0, hi[2], dz)
-    x = np.arange(lo[0] - 2 * g, hi[0] + 2 * g + g / 2, g)
-    y = np.arange(lo[1] - 2 * g, hi[1] + 2 * g + g / 2, g)
-    X, Y = np.meshgrid(x, y)  # [row = y, col = x]
-    pts = np.c_[X.ravel(), Y.ravel(), np.zeros(X.size)]
     slices = []
     for z in zs:
-        pts[:, 2] = z
-        F = ph.f(pts).reshape(X.shape)
-        if not (F < 0).any():
-            continue
-        rings = []
-        for c in find_contours(F, 0.0):
-            if len(c) < 4 or np.linalg.norm(c[0] - c[-1]) > 1e-9:
-                continue  # open pieces cannot occur with the margin; tiny fragments are skipped
-            xy = np.c_[x[0] + c[:-1, 1] * g, y[0] + c[:-1, 0] * g]
-            xy = _project(ph.f, xy, z)
-            ring = _project(ph.f, _resample(xy, ds, rng.uniform(), min_points), z)
-            if abs(shoelace_area(ring)) > 0:
-                rings.append(ring)
+        rings = _section_rings(ph, z, lo[:2], hi[:2], g)
+        rings = [_drawn_ring(ph, xy, z, ds, rng.uniform(), min_points, g) for xy in rings]
+        rings = [r for r in rings if abs(shoelace_area(r)) > MIN_RING_AREA]
         if not rings:
             continue
         if ph.style == "keyhole":
@@ -354,6 +356,71 @@ def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None
     meta = {"name": ph.name, "kind": ph.kind, "dz": float(dz), "ds": float(ds), "seed": int(seed),
             "area_true": ph.area, "volume_true": ph.volume, "units": "mm"}
     return stack_from_rings(slices, source=ph.name, meta=meta)
+
+
+def _crossings(r: np.ndarray) -> int:
+    """How many pairs of non-adjacent edges of the closed ring ``r`` properly cross."""
+    a, b = r, np.roll(r, -1, axis=0)
+
+    def side(u, v, w):
+        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (v[..., 1] - u[..., 1]) * (w[..., 0] - u[..., 0])
+
+    A, B, C, D = a[:, None], b[:, None], a[None], b[None]
+    x = (side(A, B, C) * side(A, B, D) < 0) & (side(C, D, A) * side(C, D, B) < 0)
+    return int(np.triu(x, 2).sum())
+
+
+def _drawn_ring(ph, xy, z, ds, start, min_points, g):
+    """The polygon drawn on one traced boundary: resampled every ``ds``, projected onto the surface.
+
+    In the rare case that projection folds the ring at a sharp corner (a sliver where a flat end
+    cuts a tilted side), the ring is drawn unprojected on the traced polyline instead (whose
+    vertices are on the surface; its chords lie within about ``grid^2 / 8R`` of it).
+    """
+    base = _resample(xy, ds, start, min_points)
+    ring = _project(ph.f, base, z, max_move=0.05 * g)
+    if len(ring) <= 2000 and _crossings(ring):
+        return base  # on the traced polyline, whose vertices are on the surface
+    return ring
+
+
+def _section_rings(ph: Phantom, z: float, lo, hi, g: float, depth: int = 0) -> list:
+    """Boundary polylines of the section at ``z`` (on the surface), found on a ``g`` raster of ``f``.
+
+    Where a ring comes out thinner than 8 ``g`` (the sliver where a flat end cuts a tilted side, a
+    ring about to vanish), the section is traced again on a raster 8 times finer over that ring's
+    box, so thin parts are neither split nor dropped.
+    """
+    from skimage.measure import find_contours
+
+    x = np.arange(lo[0] - 2 * g, hi[0] + 2 * g + g / 2, g)
+    y = np.arange(lo[1] - 2 * g, hi[1] + 2 * g + g / 2, g)
+    X, Y = np.meshgrid(x, y)  # [row = y, col = x]
+    F = ph.f(np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)]).reshape(X.shape)
+    if not (F < 0).any():
+        return []
+    out, thin = [], []
+    for c in find_contours(F, 0.0):
+        if len(c) < 4 or np.linalg.norm(c[0] - c[-1]) > 1e-9:
+            continue  # open pieces cannot occur with the margin
+        xy = _project(ph.f, np.c_[x[0] + c[:-1, 1] * g, y[0] + c[:-1, 0] * g], z, max_move=0.05 * g)
+        if depth < 2 and np.min(np.ptp(xy, axis=0)) < 8 * g:
+            thin.append((xy.min(0) - 2 * g, xy.max(0) + 2 * g))
+        else:
+            out.append(xy)
+    if thin:
+        # re-trace the thin rings' boxes (merged, since one sliver may have come out as several pieces)
+        boxes = []
+        for blo, bhi in sorted(thin, key=lambda b: tuple(b[0])):
+            if boxes and np.all(blo <= boxes[-1][1]) and np.all(bhi >= boxes[-1][0]):
+                boxes[-1] = (np.minimum(blo, boxes[-1][0]), np.maximum(bhi, boxes[-1][1]))
+            else:
+                boxes.append((blo, bhi))
+        for blo, bhi in boxes:
+            fine = [r for r in _section_rings(ph, z, blo, bhi, g / 8, depth + 1)
+                    if not any(np.all(np.abs(r.min(0) - o.min(0)) < g) and np.all(np.abs(r.max(0) - o.max(0)) < g) for o in out)]
+            out += fine
+    return out
 
 
 def _keyhole_rings(rings):
