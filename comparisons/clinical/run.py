@@ -183,6 +183,7 @@ def plot_png(rows) -> bytes | None:
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        import matplotlib.ticker
     except ImportError:
         print("matplotlib not installed: no plot", file=sys.stderr)
         return None
@@ -204,6 +205,7 @@ def plot_png(rows) -> bytes | None:
         ax.set_xscale("log")
         ax.set_xticks([0.2, 0.5, 1, 2, 3])
         ax.set_xticklabels(["0.2", "0.5", "1", "2", "3"])
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel("slice spacing dz (mm)")
         ax.set_ylabel("error (%)")
         ax.set_title(f"Analytic phantoms drawn as contours: {title}")
@@ -216,10 +218,11 @@ def plot_png(rows) -> bytes | None:
     return buf.getvalue()
 
 
-def write(rows, out: Path, full: bool, fine: float, seconds=None):
+def write(rows, out: Path, full: bool, fine: float, seconds=None, *, table: bool = True):
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write(out / "results.csv", _csv_bytes(rows))
-    atomic_write(out / "results.md", summary_md(rows, full, fine, seconds).encode())
+    if table:
+        atomic_write(out / "results.csv", _csv_bytes(rows))
+        atomic_write(out / "results.md", summary_md(rows, full, fine, seconds).encode())
     png = plot_png(rows)
     if png is not None:
         atomic_write(out / "errors.png", png)
@@ -230,11 +233,11 @@ def main(argv=None) -> int:
     ap.add_argument("--full", action="store_true", help="the whole grid of settings (long)")
     ap.add_argument("--fine", type=float, default=0.25, help="pixel (mm) of the peers' rasterization (default 0.25)")
     ap.add_argument("--out", type=Path, default=HERE, help="output folder (default: next to this file)")
-    ap.add_argument("--from-csv", action="store_true", help="only rebuild results.md and errors.png from results.csv")
+    ap.add_argument("--from-csv", action="store_true", help="only rebuild errors.png from results.csv")
     args = ap.parse_args(argv)
     if args.from_csv:
         rows = read_csv(args.out / "results.csv")
-        write(rows, args.out, args.full, args.fine)
+        write(rows, args.out, args.full, args.fine, table=False)
         return 0
     t0 = time.perf_counter()
     rows = run(args.full, args.fine)

@@ -18,7 +18,6 @@ isotropic ``fine`` grid: volume = voxel count, area = surface nets of that volum
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np

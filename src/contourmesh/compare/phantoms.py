@@ -332,7 +332,6 @@ def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None
         Rings in mm (``spacing (1, 1)``), outer rings counter-clockwise, holes clockwise;
         ``meta`` holds the phantom's name, ``dz``, ``ds``, ``seed`` and its truths.
     """
-    from skimage.measure import find_contours
 
     if not (dz > 0 and ds > 0):
         raise ValueError(f"dz and ds must be positive; got dz={dz}, ds={ds}")
