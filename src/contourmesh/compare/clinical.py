@@ -1,0 +1,236 @@
+"""The clinical-contour comparison: phantoms drawn as contour stacks, meshed, measured against their truths.
+
+:func:`measure` takes one phantom (:mod:`contourmesh.compare.phantoms`) and one drawing setting
+(slice spacing ``dz``, point spacing ``ds``) and returns table rows:
+
+* one row per mode of ours (``caps`` x ``polygon``): mesh area and volume against the analytic
+  values, volume against the trapezoid and frustum rules over the drawn sections' even-odd areas,
+  the mesh's own cross-section just off each contour plane (its triangles cut by the plane, Green's
+  theorem over the oriented cut segments) against that contour's area, the mesh checks;
+* one row per peer (VTK surface nets, marching cubes after a sigma = 1 voxel blur) on the
+  even-odd rasterization of the drawn stack at ``fine`` mm in the plane (the sections' own
+  heights), through :func:`contourmesh.compare.methods.run_method`.
+
+Phantoms without a closed form (the Y) take their reference from the solid itself sampled on an
+isotropic ``fine`` grid: volume = voxel count, area = surface nets of that volume
+(``truth = "solid-raster"``).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..api import mesh as _mesh
+from ..rasterize import rasterize_stack
+from .methods import run_method
+from .phantoms import Phantom, draw, frustum_volume, implicit_volume, section_areas, trapezoid_volume
+
+__all__ = ["measure", "COLUMNS", "MODES", "PEERS", "cross_section_errors", "reference"]
+
+MODES = (("flat", "mlp"), ("half", "mlp"), ("flat", "none"), ("half", "none"))
+PEERS = ("vtk-surfacenets", "mc-lewiner-blur1")
+
+COLUMNS = ["phantom", "kind", "tilt", "dz", "ds", "seed", "method", "caps", "polygon", "status", "route",
+           "sections", "area_true", "volume_true", "truth", "area", "volume", "area_err", "volume_err",
+           "vol_trapezoid", "vol_frustum", "vol_vs_trapezoid", "vol_vs_frustum", "vol_outside_rules",
+           "area_vs_surfacenets", "area_vs_mc_blur1", "xsec_max_err", "xsec_median_err", "xsec_checked", "closed_ok", "self_intersections", "faces",
+           "seconds", "error"]
+
+
+def _rel(a, b):
+    return float(a / b - 1.0) if (a is not None and b) else None
+
+
+def cross_section_errors(m, stack, *, max_planes: int = 40) -> np.ndarray:
+    """Relative error of the mesh's cross-section area at contour planes against the contours' even-odd area.
+
+    Each plane ``z_k`` is cut just inside the solid (``z_k +- 1e-4`` of the gap to the next section,
+    on both sides for inner sections, the inner side for the end sections), since at ``z_k``
+    itself flat caps lie in the plane.  At most ``max_planes`` sections are checked (evenly
+    spread, the ends always); the worst side counts.
+    """
+    tri = np.asarray(m.vertices, dtype=np.float64)[np.asarray(m.faces)]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    zs = np.array([s.z for s in stack.sections])
+    ref = section_areas(stack)
+    n = len(zs)
+    idx = np.unique(np.r_[np.linspace(0, n - 1, min(n, max_planes)).round().astype(int)])
+    out = []
+    for k in idx:
+        sides = []
+        if k > 0:
+            sides.append(zs[k] - 1e-4 * (zs[k] - zs[k - 1]))
+        if k < n - 1:
+            sides.append(zs[k] + 1e-4 * (zs[k + 1] - zs[k]))
+        worst = 0.0
+        for z in sides:
+            a = _section_area(tri, normals, z)
+            e = a / ref[k] - 1.0
+            worst = e if abs(e) > abs(worst) else worst
+        out.append(worst)
+    return np.asarray(out)
+
+
+def _section_area(tri, normals, z) -> float:
+    """Even-odd area of the mesh's section by the plane ``z``: Green's theorem over the cut segments,
+    each oriented by its face's outward normal (``z x n`` keeps the inside on the left)."""
+    d = tri[:, :, 2] - z
+    d = np.where(d == 0.0, 1e-300, d)
+    cut = (d.min(1) < 0) & (d.max(1) > 0)
+    if not cut.any():
+        return 0.0
+    t, d, n = tri[cut], d[cut], normals[cut]
+    a, b = t, np.roll(t, -1, axis=1)  # edges 0-1, 1-2, 2-0
+    da, db = d, np.roll(d, -1, axis=1)
+    crosses = (da < 0) != (db < 0)
+    w = (da / np.where(crosses, da - db, 1.0))[:, :, None]
+    pts = (a + (b - a) * w)[:, :, :2]
+    order = np.argsort(~crosses, axis=1, kind="stable")[:, :2]  # the two crossing edges of each face
+    p0 = np.take_along_axis(pts, order[:, :1, None], axis=1)[:, 0]
+    p1 = np.take_along_axis(pts, order[:, 1:2, None], axis=1)[:, 0]
+    tangent = np.c_[-n[:, 1], n[:, 0]]  # z x n, in the plane
+    flip = np.einsum("ij,ij->i", p1 - p0, tangent) < 0
+    p0[flip], p1[flip] = p1[flip], p0[flip].copy()
+    return float(0.5 * np.sum(p0[:, 0] * p1[:, 1] - p1[:, 0] * p0[:, 1]))
+
+
+_REF_CACHE: dict = {}
+
+
+def reference(ph: Phantom, fine: float):
+    """``(area, volume, truth)``: the closed form, or surface nets / voxel count of the solid at ``fine`` mm."""
+    if ph.area is not None and ph.volume is not None:
+        return ph.area, ph.volume, "analytic"
+    key = (ph.name, fine)
+    if key not in _REF_CACHE:
+        vol, org = implicit_volume(ph, fine)
+        row = run_method("vtk-surfacenets", vol, spacing=(fine,) * 3, origin=org)
+        area = row["area"] if row["status"] == "ok" else None
+        _REF_CACHE[key] = (area, float(vol.sum()) * fine**3, "solid-raster")
+    return _REF_CACHE[key]
+
+
+class _Timeout(Exception):
+    pass
+
+
+def _with_deadline(fn, seconds):
+    """``fn()``, interrupted after ``seconds`` by SIGALRM (main thread, POSIX); otherwise just ``fn()``."""
+    import signal
+    import threading
+
+    if not seconds or not hasattr(signal, "setitimer") or threading.current_thread() is not threading.main_thread():
+        return fn()
+
+    def _alarm(signum, frame):
+        raise _Timeout(f"no result within {seconds:g} s")
+
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        return fn()
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def _base(ph, stack, dz, ds, seed, truth):
+    area_t, vol_t, kind = truth
+    return {"phantom": ph.name, "kind": ph.kind, "tilt": ph.params.get("tilt", 0.0), "dz": dz, "ds": ds,
+            "seed": seed, "sections": len(stack.sections), "area_true": area_t, "volume_true": vol_t,
+            "truth": kind}
+
+
+def _volume_cols(vol, trap, fru):
+    lo, hi = min(trap, fru), max(trap, fru)
+    outside = 0.0 if lo <= vol <= hi else ((vol - hi) / hi if vol > hi else (vol - lo) / lo)
+    return {"vol_trapezoid": trap, "vol_frustum": fru, "vol_vs_trapezoid": _rel(vol, trap),
+            "vol_vs_frustum": _rel(vol, fru), "vol_outside_rules": float(outside)}
+
+
+def measure(ph: Phantom, dz: float, ds: float, *, seed: int = 0, fine: float = 0.25, modes=MODES,
+            peers=PEERS, max_planes: int = 40, stack=None, timeout: float | None = 120.0) -> list[dict]:
+    """Table rows (:data:`COLUMNS`) for one phantom drawn at slice spacing ``dz`` and point spacing ``ds``.
+
+    Parameters
+    ----------
+    ph : Phantom
+    dz, ds : float
+        Slice spacing and in-plane point spacing (mm).
+    seed : int
+        The drawing's seed (plane offset, ring start points).
+    fine : float
+        Pixel (mm) of the peers' rasterization of the drawn stack, and voxel of the solid's
+        reference raster for phantoms without a closed form.
+    modes : sequence of (caps, polygon)
+        Our modes to run.
+    peers : sequence of str
+        Peer method names (:func:`contourmesh.compare.methods.run_method`).
+    max_planes : int
+        Cross-section planes checked per mesh.
+    stack : ContourStack, optional
+        The drawing, when the caller already has it (else ``draw(ph, dz, ds, seed=seed)``).
+    timeout : float, optional
+        Seconds allowed to each of our modes (SIGALRM, main thread only); ``None``: no limit.
+
+    A mode that raises gives a row with ``status = "failed"`` and the error text, one that runs out
+    of time ``status = "timeout"``; nothing is dropped.
+    """
+    if stack is None:
+        stack = draw(ph, dz, ds, seed=seed)
+    truth = reference(ph, fine)
+    trap, fru = trapezoid_volume(stack), frustum_volume(stack)
+    rows = []
+    for caps, polygon in modes:
+        row = _base(ph, stack, dz, ds, seed, truth)
+        row.update(method="ours", caps=caps, polygon=polygon)
+        t0 = time.perf_counter()
+        try:
+            m = _with_deadline(lambda: _mesh(stack, caps=caps, polygon=polygon), timeout)
+        except _Timeout as exc:
+            row.update(status="timeout", error=str(exc), seconds=time.perf_counter() - t0)
+            rows.append(row)
+            continue
+        except Exception as exc:  # a failure is a result: tabulated, not hidden
+            row.update(status="failed", error=f"{type(exc).__name__}: {exc}"[:300],
+                       seconds=time.perf_counter() - t0)
+            rows.append(row)
+            continue
+        sec = time.perf_counter() - t0
+        chk = m.checks()
+        xs = cross_section_errors(m, stack, max_planes=max_planes)
+        row.update(status="ok", route=m.meta.get("route"), area=m.area, volume=m.volume,
+                   area_err=_rel(m.area, truth[0]), volume_err=_rel(m.volume, truth[1]),
+                   xsec_max_err=float(xs[np.argmax(np.abs(xs))]) if len(xs) else None,
+                   xsec_median_err=float(np.median(np.abs(xs))) if len(xs) else None, xsec_checked=len(xs),
+                   closed_ok=bool(chk.get("watertight") and chk.get("winding_consistent")
+                                  and chk.get("degenerate_faces", 1) == 0),
+                   self_intersections=chk.get("self_intersections"), faces=len(m.faces), seconds=sec, error="")
+        row.update(_volume_cols(m.volume, trap, fru))
+        rows.append(row)
+    if peers:
+        r = rasterize_stack(stack, fine)
+        kw = r.mesh_kwargs
+        for name in peers:
+            row = _base(ph, stack, dz, ds, seed, truth)
+            res = run_method(name, r.volume, spacing=kw["spacing"], origin=kw["origin"])
+            row.update(method=name, caps="", polygon="", status=res["status"], route=f"raster{fine:g}",
+                       area=res.get("area"), volume=res.get("volume"), seconds=res.get("seconds"),
+                       error=(res.get("error") or "")[:300], faces=res.get("faces"))
+            if res["status"] == "ok":
+                row.update(area_err=_rel(res["area"], truth[0]),
+                           volume_err=_rel(res["volume"], truth[1]) if res.get("volume") is not None else None)
+                if res.get("volume") is not None:
+                    row.update(_volume_cols(res["volume"], trap, fru))
+            rows.append(row)
+    peer_area = {r["method"]: r["area"] for r in rows if r["method"] in PEERS and r["status"] == "ok"}
+    for row in rows:
+        if row["method"] == "ours" and row["status"] == "ok":
+            row["area_vs_surfacenets"] = _rel(row["area"], peer_area.get("vtk-surfacenets"))
+            row["area_vs_mc_blur1"] = _rel(row["area"], peer_area.get("mc-lewiner-blur1"))
+    for row in rows:
+        for c in COLUMNS:
+            row.setdefault(c, None)
+    return rows
