@@ -604,3 +604,12 @@ def test_cap_uses_every_boundary_edge_once(kind, k, seed, upward):
     for i in range(n):
         e = (i, (i + 1) % n) if upward else ((i + 1) % n, i)
         assert half[e] == 1 and half[(e[1], e[0])] == 0
+
+
+def test_t_junction_splitting_of_collinear_triangles_ends():
+    """Degenerate triangles along a collinear run once re-split each other for ever (a hang); the
+    splitter now gives up and reports the cap as not triangulable (the caller's CapError)."""
+    from contourmesh.bands.caps import split_t_junctions
+
+    v = np.array([[0, 0], [1, 0], [2, 0], [3, 0], [1.5, 0]], float)
+    assert split_t_junctions(v, [(0, 3, 1), (3, 0, 2)], np.array([[0, 1], [1, 2], [2, 3], [3, 0]])) is None

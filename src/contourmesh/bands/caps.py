@@ -66,9 +66,15 @@ def split_t_junctions(vertices, tris, boundary):
     cand = np.unique(boundary)
     loop_edges = set(map(tuple, boundary.tolist()))
     out = []
+    # every split strictly shortens an edge, so a valid triangulation needs few; degenerate
+    # triangles along a collinear run can re-split each other for ever: give up (None) instead
+    budget = 20 * (len(tris) + len(cand)) + 1000
     for t in np.asarray(tris, dtype=np.int64).tolist():
         pending = [tuple(t)]
         while pending:
+            budget -= 1
+            if budget < 0:
+                return None
             a, b, c = pending.pop()
             for (p, q, r) in ((a, b, c), (b, c, a), (c, a, b)):
                 if (p, q) in loop_edges:
