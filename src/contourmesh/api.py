@@ -52,7 +52,7 @@ from .refine import REFINERS, refine_stack
 from .surface import _nested_chains, stack_to_mesh
 from .tracing import trace_contours
 from .types import ContourStack, Mesh, Section
-from .volume_input import prepare_volume
+from .volume_input import check_origin, check_spacing, check_volume_array, prepare_volume
 from .volumes import volume_to_mesh
 
 __all__ = ["mesh", "mesh_shape", "mesh_stack", "mesh_volume", "mesh_file", "source_kind", "is_file_source",
@@ -394,7 +394,7 @@ def mesh_file(path, *, roi=None, pixel=None, spacing=None, z=None, axis: int | N
     if spacing is not None:
         log.debug("%s: spacing=%s replaces the file's %s", p, used, img.spacing)
     world_origin = img.origin if origin is None else tuple(float(o) for o in origin)
-    oriented = not np.allclose(img.direction, np.eye(3), rtol=0, atol=1e-12)
+    oriented = _oriented(img)
     m = mesh_volume(img.volume, spacing=used, z=z, axis=axis, origin=(0.0, 0.0, 0.0) if oriented else world_origin,
                     polygon=polygon, triangulation=triangulation, caps=caps, refine=refine, progress=progress)
     if oriented:
@@ -404,6 +404,11 @@ def mesh_file(path, *, roi=None, pixel=None, spacing=None, z=None, axis: int | N
     if img.space:
         meta["space"] = img.space
     return _with_meta(m, **meta)
+
+
+def _oriented(img) -> bool:
+    """Whether an image's direction matrix is not the identity (its mesh must be placed in the world)."""
+    return not np.allclose(img.direction, np.eye(3), rtol=0, atol=1e-12)
 
 
 def _to_world(m: Mesh, direction: np.ndarray, origin, axis: int) -> Mesh:
@@ -442,7 +447,6 @@ def mesh_labels(volume, *, labels=None, spacing=None, origin=None, polygon: str 
     from scipy import ndimage
     from tqdm.auto import tqdm
 
-    from .volume_input import check_volume_array
 
     vol = check_volume_array(volume)
     if vol.dtype.kind not in "iub":
@@ -450,11 +454,8 @@ def mesh_labels(volume, *, labels=None, spacing=None, origin=None, polygon: str 
                         "mesh_volume for a greyscale one)")
     if vol.dtype.kind == "i" and vol.min() < 0:
         raise ValueError("mesh_labels needs labels >= 0 (0 is the background)")
-    sp = np.asarray((1.0, 1.0, 1.0) if spacing is None else spacing, dtype=np.float64)
-    org = np.asarray((0.0, 0.0, 0.0) if origin is None else origin, dtype=np.float64)
-    from .volume_input import check_origin, check_spacing
-
-    sp, org = check_spacing(sp), check_origin(org)
+    sp = check_spacing((1.0, 1.0, 1.0) if spacing is None else spacing)
+    org = check_origin((0.0, 0.0, 0.0) if origin is None else origin)
     boxes = ndimage.find_objects(vol.astype(np.int64, copy=False) if vol.dtype.kind == "b" else vol)
     present = [i + 1 for i, b in enumerate(boxes) if b is not None]
     wanted = present if labels is None else [int(v) for v in labels]
@@ -490,7 +491,7 @@ def mesh_file_labels(path, *, labels=None, spacing=None, origin=None, polygon: s
     img = read_image(path)
     used = img.spacing if spacing is None else tuple(float(s) for s in spacing)
     world_origin = img.origin if origin is None else tuple(float(o) for o in origin)
-    oriented = not np.allclose(img.direction, np.eye(3), rtol=0, atol=1e-12)
+    oriented = _oriented(img)
     for lab, m, bbox in mesh_labels(img.volume, labels=labels, spacing=used,
                                     origin=(0.0, 0.0, 0.0) if oriented else world_origin, polygon=polygon,
                                     triangulation=triangulation, caps=caps, refine=refine, progress=progress):
