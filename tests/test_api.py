@@ -203,4 +203,4 @@ def test_diagnostics_count_axis_walls_and_joins(tmp_path, capsys):
     np.save(tmp_path / "y.npy", v)
     assert main(["mesh", str(tmp_path / "y.npy"), "-o", str(tmp_path / "y.ply"), "--json", "--quiet"]) == 0
     s = json.loads(capsys.readouterr().out)
-    assert s["exact_joins"] >= 1 and 0 < s["axis_wall_fraction"] < 1
+    assert s["exact_joins"] + s["bridged_joins"] >= 1 and 0 < s["axis_wall_fraction"] < 1

@@ -83,7 +83,7 @@ def test_branching_y_shape_and_border_touching(polygon, tri):
     vol[3, 1:8, 1:8] = True  # the fork
     m = volume_to_mesh(vol, polygon=polygon, triangulation=tri)
     check_topology(vol, m)
-    assert m.meta["exact_joins"] >= 1
+    assert m.meta["exact_joins"] + m.meta["bridged_joins"] >= 1
 
 
 def test_sphere_volume_path_matches_the_paper_path():
@@ -265,3 +265,87 @@ def test_voxelized_sample_meshes(shared_data, name, n):
     chk, ref = check_topology(vol, m)
     if ref["surfaces"] == 1:  # one surface: its genus is the original mesh's
         assert chk["genus"] == round((2 - tm.euler_number) / 2)
+
+
+# ------------------------------------------------------------------------------------------------
+# branching joins between the polygons themselves (bridges), not voxel staircases
+# ------------------------------------------------------------------------------------------------
+def _fork(nz=12):
+    yy, xx = np.mgrid[:30, :40]
+    v = np.zeros((nz, 30, 40), bool)
+    for k in range(nz):
+        v[k] = ((yy - 15) ** 2 / 100 + (xx - 20) ** 2 / 225 < 1) if k < nz // 2 else \
+            ((yy - 15) ** 2 + (xx - 12) ** 2 < 30) | ((yy - 15) ** 2 + (xx - 28) ** 2 < 30)
+    return v
+
+
+@pytest.mark.parametrize("caps", ["flat", "half"])
+@pytest.mark.parametrize("spacing", [(1.0, 1.0, 1.0), (2.5, 1.0, 1.0)])
+def test_a_fork_is_one_band_to_the_bridged_arms(caps, spacing):
+    v = _fork()
+    m = volume_to_mesh(v, spacing=spacing, caps=caps)
+    chk, _ = check_topology(v, m)
+    assert chk["self_intersections"] == 0 and chk["ok"]
+    assert m.meta["bridged_joins"] == 1 and m.meta["bridges"] == 1
+    assert m.meta["exact_joins"] == 0 and m.meta["crack_rings"] == 0
+    # no voxel staircase at the fork: its vertices are the polygons' own: none at the mid-plane between slices 5 and 6
+    zmid = 5.5 * spacing[0]
+    assert not np.isclose(m.vertices[:, 2], zmid).any()
+
+
+def test_holes_that_open_close_or_last_one_slice_get_lids():
+    # a box with a pit from the top, a pit from the bottom and a one-slice cavity
+    v = np.zeros((9, 12, 12), bool)
+    v[1:8, 1:11, 1:11] = True
+    v[5:8, 3:6, 3:6] = False   # pit open at the top: a hole that closes going down
+    v[1:3, 6:9, 6:9] = False   # pit open at the bottom
+    v[4, 7:10, 2:5] = False    # a cavity one slice thick
+    for caps in ("flat", "half"):
+        m = volume_to_mesh(v, caps=caps)
+        chk, ref = check_topology(v, m)
+        assert ref["cavities"] == 1
+        assert chk["self_intersections"] == 0
+        assert m.meta["exact_joins"] == 0 and m.meta["bridged_joins"] >= 3
+
+
+def test_bridged_joins_keep_the_voxel_topology_on_a_standing_torus_and_two_merging_lobes():
+    zz, yy, xx = np.mgrid[-20:21, -8:9, -20:21]
+    torus = (np.sqrt(xx ** 2 + zz ** 2) - 12) ** 2 + yy ** 2 < 25
+    lobes = np.zeros((14, 24, 36), bool)
+    g = np.mgrid[:24, :36]
+    for k in range(14):
+        r = 6 + 0.8 * k
+        lobes[k] = ((g[0] - 12) ** 2 + (g[1] - 9) ** 2 < r) | ((g[0] - 12) ** 2 + (g[1] - 27) ** 2 < r)
+        if k >= 9:
+            lobes[k] |= ((g[0] - 12) ** 2 / 30 + (g[1] - 18) ** 2 / 160 < 1)
+    for v in (torus, lobes):
+        m = volume_to_mesh(v)
+        chk, _ = check_topology(v, m)
+        assert m.meta["bridged_joins"] >= 1 and m.meta["exact_joins"] == 0
+        assert chk["self_intersections"] == 0
+
+
+def test_bridged_ring_is_an_euler_tour_and_bridges_keep_clear():
+    from contourmesh.bands.bridges import bridge_tree, bridged_ring, segments_cross
+
+    sq = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    rings = [sq, sq + [3, 0], sq + [6, 0]]
+    edges_a = np.concatenate(rings)
+    edges_b = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    br = bridge_tree(rings, edges_a, edges_b)
+    assert len(br) == 2
+    seq = bridged_ring([4, 4, 4], br)
+    assert len(seq) == 12 + 2 * 2  # every vertex once, every bridge end once more
+    assert sorted(set(seq)) == [(r, v) for r in range(3) for v in range(4)]
+    # each bridge is walked once each way
+    walk = [rings[r][v] for r, v in seq]
+    steps = {(tuple(walk[i]), tuple(walk[(i + 1) % len(walk)])) for i in range(len(walk))}
+    for i, vi, j, vj in br:
+        p, q = tuple(rings[i][vi]), tuple(rings[j][vj])
+        assert (p, q) in steps and (q, p) in steps
+    # a wall between two rings leaves no bridge
+    wall_a, wall_b = np.array([[2.0, -5.0]]), np.array([[2.0, 5.0]])
+    assert bridge_tree(rings[:2], np.r_[edges_a[:8], wall_a], np.r_[edges_b[:8], wall_b]) is None
+    # touching counts as crossing
+    assert segments_cross(np.array([0.0, 0.0]), np.array([2.0, 0.0]), [[1.0, 0.0]], [[1.0, 1.0]]).all()
+    assert not segments_cross(np.array([0.0, 0.0]), np.array([2.0, 0.0]), [[1.0, 0.5]], [[1.0, 1.0]]).any()

@@ -208,6 +208,15 @@ class _Slice:
 # ------------------------------------------------------------------------------------------------
 # mesh assembly
 # ------------------------------------------------------------------------------------------------
+def _band_faces(lo, hi, triangulation):
+    """The guarded band between two rings (see :meth:`_Mesher.band`) and how many guards fired."""
+    f, replaced = twist_guarded_band(lo, hi, triangulation)
+    if band_is_folded(f):  # last resort: the arc-length band never folds
+        f = triangulate_band(lo, hi, "arclength")
+        replaced += 1
+    return f, int(replaced)
+
+
 class _Mesher:
     def __init__(self, triangulation: str):
         self.triangulation = triangulation
@@ -255,12 +264,8 @@ class _Mesher:
         (least-area) band, or by the arc-length band where the optimal one would be too slow.
         """
 
-        lo, hi = self.coords(lo_ids), self.coords(hi_ids)
-        f, replaced = twist_guarded_band(lo, hi, self.triangulation)
+        f, replaced = _band_faces(self.coords(lo_ids), self.coords(hi_ids), self.triangulation)
         self.band_fallbacks += replaced
-        if band_is_folded(f):  # last resort: the arc-length band never folds
-            f = triangulate_band(lo, hi, "arclength")
-            self.band_fallbacks += 1
         self._add(np.concatenate([lo_ids, hi_ids])[f])
 
     def quads(self, lo_ids, hi_ids):
@@ -356,12 +361,20 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             matched = None
             if len(ga) == 1 and len(gb) == 1:
                 matched = _simple_join(A, B, next(iter(ga)), next(iter(gb)))
+            plan = None if matched is not None else _bridge_plan(A, B, ga, gb)
             if matched is not None:
                 joins.append((k, "band", (next(iter(ga)), next(iter(gb)), matched)))
+            elif plan is not None:
+                joins.append((k, "bridge", (sorted(ga), sorted(gb), plan)))
             else:
                 joins.append((k, "exact", (sorted(ga), sorted(gb))))
                 crack_only.update((k, a) for a in ga)
                 crack_only.update((k + 1, b) for b in gb)
+
+    # pass 2b: branching joins between the polygons themselves (bridges), where they keep clear of
+    # everything else in their planes; the others become exact joins (their contours then keep
+    # crack rings, which can change other joins' rings: repeat until nothing changes)
+    built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps)
 
     # pass 3: vertices and faces
     M = _Mesher(triangulation)
@@ -402,7 +415,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         z0 = M.coords(rs[0][:1])[0, 2]
         _pixel_cap(M, slices[k], k, c, rs, z0 + (1e-2 if up else -1e-2) * gap(k, up), up, to_xy_corner)
 
-    exact_joins = band_joins = 0
+    exact_joins = band_joins = bridged_joins = n_bridges = 0
     for k, kind, data in joins:
         A, B = slices[k], slices[k + 1]
         if kind == "band":
@@ -411,6 +424,18 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             for ha, hb in matched:
                 M.band(ring(k, a, ha), ring(k + 1, b, hb))
             band_joins += 1
+        elif kind == "bridge":
+            b_ = built[k, tuple(data[0]), tuple(data[1])]
+            ids = np.empty(len(b_.V), dtype=np.int64)
+            for (kk, c, h), off in b_.rings:
+                r = ring(kk, c, h)
+                ids[off: off + len(r)] = r
+            if b_.n_ring < len(b_.V):
+                ids[b_.n_ring:] = M.points(b_.V[b_.n_ring:])
+            M.faces(ids[b_.F])
+            M.band_fallbacks += b_.replaced
+            bridged_joins += 1
+            n_bridges += b_.bridges
         else:
             ga, gb = data
             _exact_join(M, A, B, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
@@ -438,7 +463,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
-        "caps": caps, "band_joins": band_joins, "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
+        "caps": caps, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
+        "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
         "crack_rings": len(crack_only), "band_fallbacks": M.band_fallbacks,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
@@ -596,3 +622,242 @@ def _pixel_faces(M, region, x0, y0, corner_ids, up):
         M.faces(np.concatenate([np.c_[c00, c10, c11], np.c_[c00, c11, c01]]))
     else:
         M.faces(np.concatenate([np.c_[c00, c11, c10], np.c_[c00, c01, c11]]))
+
+
+# ------------------------------------------------------------------------------------------------
+# branching joins by bridges
+# ------------------------------------------------------------------------------------------------
+def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
+    """How a fork or merge group joins between its polygons, or None where it cannot.
+
+    The group has one component on one side (or one on each, with holes that do not match one to
+    one).  It qualifies when every overlap of a pair of components is connected, no overlap lies
+    in a hole of another, and every hole of the overlap ``O`` holds at most one hole from below
+    and one from above: then the voxel object between the slices is a ball (with tubes through
+    the holes) and the join is a band from the single contour to the others bridged into one ring.
+    Returns ``(tubes, lids_below, lids_above)``: hole pairs ``((a, ha), (b, hb))`` joined by a
+    band (a tube), and holes closed by a lid because the other slice covers them.
+    """
+    from scipy import ndimage
+
+    if len(ga) != 1 and len(gb) != 1:
+        return None
+    sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
+    y0 = min(s[0].start for s in sl)
+    y1 = max(s[0].stop for s in sl)
+    x0 = min(s[1].start for s in sl)
+    x1 = max(s[1].stop for s in sl)
+    la = A.labels[y0:y1, x0:x1]
+    lb = B.labels[y0:y1, x0:x1]
+    o = np.isin(la, [a + 1 for a in ga]) & np.isin(lb, [b + 1 for b in gb])
+    nbk = np.int64(B.n + 1)
+    npairs = len(np.unique(la[o].astype(np.int64) * nbk + lb[o]))
+    olab, no = ndimage.label(o, structure=_CROSS)
+    if no != npairs:  # some pair overlaps in more than one piece: a handle
+        return None
+    blab, _ = ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)
+    ext = blab[0, 0]
+    near_ext = ndimage.binary_dilation(blab == ext, structure=_SQUARE)[1:-1, 1:-1]
+    if len(np.unique(olab[near_ext & o])) != no:  # an overlap inside a hole of another
+        return None
+    holes_o = set(np.unique(blab)) - {ext, 0}
+
+    def where(S, comps):
+        at = {}
+        for c in comps:
+            csl, masks = S.hole_masks[c]
+            for h, hm in enumerate(masks):
+                ys, xs = np.nonzero(hm)
+                lab = int(blab[ys[0] + csl[0].start - y0 + 1, xs[0] + csl[1].start - x0 + 1])
+                at.setdefault(lab, []).append((c, h))
+        return at
+
+    wa, wb = where(A, ga), where(B, gb)
+    if ext in wa or ext in wb:  # a hole open to the outside of the overlap
+        return None
+    if any(len(v) > 1 for v in wa.values()) or any(len(v) > 1 for v in wb.values()):
+        return None
+    if set(wa) | set(wb) != holes_o:  # pragma: no cover - a hole of O without a hole inside
+        return None
+    tubes = [(wa[lab][0], wb[lab][0]) for lab in sorted(set(wa) & set(wb))]
+    lids_a = [wa[lab][0] for lab in sorted(set(wa) - set(wb))]
+    lids_b = [wb[lab][0] for lab in sorted(set(wb) - set(wa))]
+    return tubes, lids_a, lids_b
+
+
+class _Bridged:
+    """One bridged join, built in local vertex numbers: ``V[:n_ring]`` are the rings' vertices
+    (``rings``: ``((k, comp, hole), offset)``), the rest new vertices (lid collars)."""
+
+    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "plane", "segments")
+
+    def __init__(self, V, F, rings, n_ring, replaced, bridges, plane, segments):
+        self.V, self.F, self.rings, self.n_ring = V, F, rings, n_ring
+        self.replaced, self.bridges, self.plane, self.segments = replaced, bridges, plane, segments
+
+
+def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, triangulation, caps, double):
+    """Build one bridged join (a :class:`_Bridged`), or None where a bridge, a lid or the faces
+    would not keep clear of each other."""
+    from .bands.bridges import bridge_tree, bridged_ring
+    from .intersect import intersecting_pairs
+
+    tubes, lids_a, lids_b = plan
+    zk, zk1 = float(zs[k]), float(zs[k + 1])
+    pts, rings = [], []
+    n = 0
+
+    def add(kk, c, h):
+        nonlocal n
+        xy = np.asarray(poly(kk, c, h), dtype=np.float64)
+        pts.append(np.c_[xy, np.full(len(xy), zs[kk])])
+        rings.append(((kk, c, h), n))
+        n += len(xy)
+        return n - len(xy) + np.arange(len(xy))
+
+    lo = [add(k, a, -1) for a in ga]
+    hi = [add(k + 1, b, -1) for b in gb]
+    tube_ids = [(add(k, a, ha), add(k + 1, b, hb)) for (a, ha), (b, hb) in tubes]
+    # a hole lidded from both sides (a cavity one slice thick) gets its lids half a gap out, so that
+    # the two do not coincide (as a component alone in its slice becomes a prism)
+    lid_ids = [(add(k, a, h), True, (k, a, h) in double) for a, h in lids_a] + \
+        [(add(k + 1, b, h), False, (k + 1, b, h) in double) for b, h in lids_b]
+    V = np.concatenate(pts)
+    n_ring = len(V)
+    plane, segments, nb = None, [], 0
+    multi = hi if len(gb) > 1 else lo if len(ga) > 1 else None
+    if multi is not None:
+        plane = k + 1 if len(gb) > 1 else k
+        rs = [V[r][:, :2] for r in multi]
+        oa, ob = edges_of(plane)
+        br = bridge_tree(rs, oa, ob)
+        if br is None:
+            return None
+        seq = np.array([multi[r][v] for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
+        segments = [(rs[i][vi], rs[j][vj]) for i, vi, j, vj in br]
+        nb = len(br)
+        if len(gb) > 1:
+            hi = [seq]
+        else:
+            lo = [seq]
+    faces, replaced = [], 0
+    for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
+        ids = np.concatenate([a_ids, b_ids])
+        f, r = _band_faces(V[a_ids], V[b_ids], triangulation)
+        # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice
+        for method in ("optimal", "arclength"):
+            if not band_is_folded(ids[f]):
+                break
+            f, r = triangulate_band(V[a_ids], V[b_ids], method, fallback=False), r + 1
+        if band_is_folded(ids[f]):
+            return None
+        faces.append(ids[f])
+        replaced += r
+    extra = []
+    for ids, below, collar in lid_ids:
+        # a hole of the lower slice covered from above: its lid faces down (and the other way)
+        if caps == "half" or collar:
+            zc = zk + 0.5 * (zk1 - zk) if below else zk1 - 0.5 * (zk1 - zk)
+            top = n_ring + sum(len(e) for e in extra) + np.arange(len(ids))
+            extra.append(np.c_[V[ids][:, :2], np.full(len(ids), zc)])
+            Vx = np.concatenate([V] + extra)
+            pair = (ids, top) if below else (top, ids)
+            f, r = _band_faces(Vx[pair[0]], Vx[pair[1]], triangulation)
+            faces.append(np.concatenate(pair)[f])
+            replaced += r
+            ids = top
+            xy = Vx[ids][:, :2]
+        else:
+            xy = V[ids][:, :2]
+        if len(np.unique(xy, axis=0)) != len(xy):
+            return None
+        try:
+            f = cap_faces(xy, upward=not below)
+        except ValueError:
+            return None
+        if len(f) == 0:
+            return None
+        faces.append(ids[f])
+    if extra:
+        V = np.concatenate([V] + extra)
+    F = np.concatenate(faces)
+    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    if len(e) and np.unique(e, axis=0, return_counts=True)[1].max() > 2:
+        return None
+    if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
+        return None
+    if len(intersecting_pairs(V, F)):
+        return None
+    return _Bridged(V, F, rings, n_ring, replaced, nb, plane, segments)
+
+
+def _build_bridges(joins, slices, zs, crack_only, triangulation, caps):
+    """Decide and build every bridged join; the ones that cannot be built become exact joins
+    (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``."""
+    from collections import defaultdict
+
+    from .bands.bridges import segments_cross
+
+    by_slice = defaultdict(set)
+    for kk, c in crack_only:
+        by_slice[kk].add(c)
+
+    def poly(kk, c, h):
+        s = slices[kk]
+        if c in by_slice[kk]:
+            return s.crack_outer[c] if h < 0 else s.crack_holes[c][h]
+        return s.outer[c] if h < 0 else s.holes[c][h]
+
+    def sig(kk):
+        return tuple(sorted(by_slice[kk]))
+
+    edge_cache = {}
+
+    def edges_of(kk):
+        key = (kk, sig(kk))
+        if key not in edge_cache:
+            s = slices[kk]
+            rs = [np.asarray(poly(kk, c, h), dtype=np.float64) for c in range(s.n)
+                  for h in range(-1, len(s.holes[c]))]
+            edge_cache[key] = (np.concatenate(rs), np.concatenate([np.roll(r, -1, axis=0) for r in rs]))
+        return edge_cache[key]
+
+    lids = defaultdict(int)
+    for k, kind, data in joins:
+        if kind == "bridge":
+            for a, h in data[2][1]:
+                lids[k, a, h] += 1
+            for b, h in data[2][2]:
+                lids[k + 1, b, h] += 1
+    double = {key for key, n in lids.items() if n > 1}
+    cache = {}
+    while True:
+        taken = defaultdict(list)
+        out = {}
+        restart = False
+        for idx, (k, kind, data) in enumerate(joins):
+            if kind != "bridge":
+                continue
+            ga, gb, plan = data
+            key = (idx, sig(k), sig(k + 1))
+            if key not in cache:
+                cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, triangulation, caps, double)
+            b = cache[key]
+            if b is not None and b.segments and taken[b.plane]:
+                sa = np.array([s[0] for s in taken[b.plane]])
+                sb = np.array([s[1] for s in taken[b.plane]])
+                if any(segments_cross(p, q, sa, sb).any() for p, q in b.segments):
+                    b = None
+            if b is None:
+                joins[idx] = (k, "exact", (ga, gb))
+                crack_only.update((k, a) for a in ga)
+                crack_only.update((k + 1, c) for c in gb)
+                by_slice[k].update(ga)
+                by_slice[k + 1].update(gb)
+                restart = True
+                break
+            if b.segments:
+                taken[b.plane].extend(b.segments)
+            out[k, tuple(ga), tuple(gb)] = b
+        if not restart:
+            return out
