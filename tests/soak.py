@@ -391,7 +391,7 @@ def transform(vol, name):
     raise ValueError(f"unknown transform {name!r}")
 
 
-def invariance_tolerance(polygon, triangulation, name) -> tuple[float, float]:
+def invariance_tolerance(polygon, triangulation, name, bridged: bool = False) -> tuple[float, float]:
     """``(relative, absolute)`` area tolerance of a slice-plane transform (absolute in pixel areas).
 
     * Translations, and every transform with ``optimal`` bands over ``mlp`` or ``none``
@@ -405,8 +405,11 @@ def invariance_tolerance(polygon, triangulation, name) -> tuple[float, float]:
       worst case; the soak reports the largest difference seen).
     * MLP polygons with ``optimal`` bands are exact too (the MLP does not depend on the start
       point; see ``test_mlp_of_a_thin_L_is_mirror_symmetric``).
+    * Except with bridged (branching) joins (``bridged``): a bridge is one of several equally
+      short candidates, and whether a bridged band keeps clear of itself (else the join is exact)
+      depends on that choice, so these meshes get the local rules' tolerance.
     """
-    if name == "shift" or (triangulation == "optimal" and polygon in ("none", "mlp")):
+    if name == "shift" or (triangulation == "optimal" and polygon in ("none", "mlp") and not bridged):
         return 1e-4, 0.0
     return 0.5, 2.0
 
@@ -422,7 +425,8 @@ def check_invariance(vol, polygon, triangulation, name) -> float:
     assert (ca["components"], ca["genus"]) == (cb["components"], cb["genus"]), (name, ca, cb)
     if name == "shift":  # the same surface, moved, up to the 1e-3-pixel nudges that separate touching sheets
         assert abs(a.volume - b.volume) <= 1e-4 * a.volume, (name, a.volume, b.volume)
-    rel, absolute = invariance_tolerance(polygon, triangulation, name)
+    bridged = bool(a.meta.get("bridged_joins") or b.meta.get("bridged_joins"))
+    rel, absolute = invariance_tolerance(polygon, triangulation, name, bridged)
     assert abs(a.area - b.area) <= rel * a.area + absolute, (name, polygon, triangulation, a.area, b.area)
     return abs(a.area - b.area) / a.area
 

@@ -374,7 +374,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # pass 2b: branching joins between the polygons themselves (bridges), where they keep clear of
     # everything else in their planes; the others become exact joins (their contours then keep
     # crack rings, which can change other joins' rings: repeat until nothing changes)
-    built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps)
+    built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy), has_above, has_below)
 
     # pass 3: vertices and faces
     M = _Mesher(triangulation)
@@ -633,10 +633,12 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     The group has one component on one side (or one on each, with holes that do not match one to
     one).  It qualifies when every overlap of a pair of components is connected, no overlap lies
     in a hole of another, and every hole of the overlap ``O`` holds at most one hole from below
-    and one from above: then the voxel object between the slices is a ball (with tubes through
-    the holes) and the join is a band from the single contour to the others bridged into one ring.
-    Returns ``(tubes, lids_below, lids_above)``: hole pairs ``((a, ha), (b, hb))`` joined by a
-    band (a tube), and holes closed by a lid because the other slice covers them.
+    and one from above: then the join is one band between the contours of each side bridged into
+    one ring.
+    Returns ``(tubes, lids_below, lids_above, open_below, open_above)``: hole pairs ``((a, ha),
+    (b, hb))`` joined by a band (a tube); holes closed by a lid because the other slice covers
+    them; and holes that open to the outside of the overlap (a handle that ends), which join
+    their component's ring through a keyhole.
     """
     from scipy import ndimage
 
@@ -673,8 +675,8 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
         return at
 
     wa, wb = where(A, ga), where(B, gb)
-    if ext in wa or ext in wb:  # a hole open to the outside of the overlap
-        return None
+    # holes open to the outside of the overlap (a handle ends between the slices): keyholes
+    open_a, open_b = wa.pop(ext, []), wb.pop(ext, [])
     if any(len(v) > 1 for v in wa.values()) or any(len(v) > 1 for v in wb.values()):
         return None
     if set(wa) | set(wb) != holes_o:  # pragma: no cover - a hole of O without a hole inside
@@ -682,27 +684,27 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     tubes = [(wa[lab][0], wb[lab][0]) for lab in sorted(set(wa) & set(wb))]
     lids_a = [wa[lab][0] for lab in sorted(set(wa) - set(wb))]
     lids_b = [wb[lab][0] for lab in sorted(set(wb) - set(wa))]
-    return tubes, lids_a, lids_b
+    return tubes, lids_a, lids_b, open_a, open_b
 
 
 class _Bridged:
     """One bridged join, built in local vertex numbers: ``V[:n_ring]`` are the rings' vertices
     (``rings``: ``((k, comp, hole), offset)``), the rest new vertices (lid collars)."""
 
-    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "plane", "segments")
+    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments")
 
-    def __init__(self, V, F, rings, n_ring, replaced, bridges, plane, segments):
+    def __init__(self, V, F, rings, n_ring, replaced, bridges, segments):
         self.V, self.F, self.rings, self.n_ring = V, F, rings, n_ring
-        self.replaced, self.bridges, self.plane, self.segments = replaced, bridges, plane, segments
+        self.replaced, self.bridges, self.segments = replaced, bridges, segments
 
 
-def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, triangulation, caps, double):
+def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double):
     """Build one bridged join (a :class:`_Bridged`), or None where a bridge, a lid or the faces
     would not keep clear of each other."""
     from .bands.bridges import bridge_tree, bridged_ring
     from .intersect import intersecting_pairs
 
-    tubes, lids_a, lids_b = plan
+    tubes, lids_a, lids_b, open_a, open_b = plan
     zk, zk1 = float(zs[k]), float(zs[k + 1])
     pts, rings = [], []
     n = 0
@@ -715,8 +717,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, triangulation, caps, doubl
         n += len(xy)
         return n - len(xy) + np.arange(len(xy))
 
-    lo = [add(k, a, -1) for a in ga]
-    hi = [add(k + 1, b, -1) for b in gb]
+    lo = [add(k, a, -1) for a in ga] + [add(k, a, h) for a, h in open_a]
+    hi = [add(k + 1, b, -1) for b in gb] + [add(k + 1, b, h) for b, h in open_b]
+    owners_lo = [(a, False) for a in ga] + [(a, True) for a, _ in open_a]
+    owners_hi = [(b, False) for b in gb] + [(b, True) for b, _ in open_b]
     tube_ids = [(add(k, a, ha), add(k + 1, b, hb)) for (a, ha), (b, hb) in tubes]
     # a hole lidded from both sides (a cavity one slice thick) gets its lids half a gap out, so that
     # the two do not coincide (as a component alone in its slice becomes a prism)
@@ -724,22 +728,22 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, triangulation, caps, doubl
         [(add(k + 1, b, h), False, (k + 1, b, h) in double) for b, h in lids_b]
     V = np.concatenate(pts)
     n_ring = len(V)
-    plane, segments, nb = None, [], 0
-    multi = hi if len(gb) > 1 else lo if len(ga) > 1 else None
-    if multi is not None:
-        plane = k + 1 if len(gb) > 1 else k
+    segments, nb = [], 0
+    for plane, multi, owners, other, comps in ((k, lo, owners_lo, k + 1, gb), (k + 1, hi, owners_hi, k, ga)):
+        if len(multi) == 1:
+            continue
         rs = [V[r][:, :2] for r in multi]
         oa, ob = edges_of(plane)
-        br = bridge_tree(rs, oa, ob)
+        br = bridge_tree(rs, oa, ob, owners=owners, allowed=uncovered(other, comps))
         if br is None:
             return None
         seq = np.array([multi[r][v] for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
-        segments = [(rs[i][vi], rs[j][vj]) for i, vi, j, vj in br]
-        nb = len(br)
-        if len(gb) > 1:
-            hi = [seq]
-        else:
+        segments += [(plane, rs[i][vi], rs[j][vj]) for i, vi, j, vj in br]
+        nb += len(br)
+        if plane == k:
             lo = [seq]
+        else:
+            hi = [seq]
     faces, replaced = [], 0
     for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
         ids = np.concatenate([a_ids, b_ids])
@@ -788,10 +792,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, triangulation, caps, doubl
         return None
     if len(intersecting_pairs(V, F)):
         return None
-    return _Bridged(V, F, rings, n_ring, replaced, nb, plane, segments)
+    return _Bridged(V, F, rings, n_ring, replaced, nb, segments)
 
 
-def _build_bridges(joins, slices, zs, crack_only, triangulation, caps):
+def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
     (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``."""
     from collections import defaultdict
@@ -812,6 +816,24 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps):
         return tuple(sorted(by_slice[kk]))
 
     edge_cache = {}
+    ox, oy, dx, dy = grid
+
+    def uncovered(other, comps):
+        """A keyhole must run where the other slice does not cover its component: there the
+        material ends between the slices and the band may come down to the keyhole."""
+        lab = slices[other].labels
+        ids = np.asarray(comps) + 1
+
+        def ok(p, q):
+            steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
+            t = np.arange(1, steps)[:, None] / steps
+            pt = p + t * (q - p)
+            i = np.clip(np.rint((pt[:, 0] - ox) / dx).astype(np.int64), 0, lab.shape[1] - 1)
+            j = np.clip(np.rint((pt[:, 1] - oy) / dy).astype(np.int64), 0, lab.shape[0] - 1)
+            return not np.isin(lab[j, i], ids).any()
+
+        return ok
+
 
     def edges_of(kk):
         key = (kk, sig(kk))
@@ -840,14 +862,22 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps):
                 continue
             ga, gb, plan = data
             key = (idx, sig(k), sig(k + 1))
+            # a keyhole lies in its component's plane, inside the component: a flat cap there (the
+            # component ends on the other side) would meet the fold along it
+            if caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
+                                   or any((k + 1, b) not in has_above for b, _ in plan[4])):
+                cache[key] = None
             if key not in cache:
-                cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, triangulation, caps, double)
+                cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double)
             b = cache[key]
-            if b is not None and b.segments and taken[b.plane]:
-                sa = np.array([s[0] for s in taken[b.plane]])
-                sb = np.array([s[1] for s in taken[b.plane]])
-                if any(segments_cross(p, q, sa, sb).any() for p, q in b.segments):
-                    b = None
+            if b is not None:
+                for plane, p, q in b.segments:
+                    if taken[plane]:
+                        sa = np.array([s[0] for s in taken[plane]])
+                        sb = np.array([s[1] for s in taken[plane]])
+                        if segments_cross(p, q, sa, sb).any():
+                            b = None
+                            break
             if b is None:
                 joins[idx] = (k, "exact", (ga, gb))
                 crack_only.update((k, a) for a in ga)
@@ -856,8 +886,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps):
                 by_slice[k + 1].update(gb)
                 restart = True
                 break
-            if b.segments:
-                taken[b.plane].extend(b.segments)
+            for plane, p, q in b.segments:
+                taken[plane].append((p, q))
             out[k, tuple(ga), tuple(gb)] = b
         if not restart:
             return out

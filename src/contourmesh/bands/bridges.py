@@ -1,10 +1,12 @@
 """Bridging several contours of one slice into a single ring, for branching joins.
 
 A slice pair where one contour below meets several contours above (a fork), or several below
-meet one above (a merge), has no one-to-one band.  Joining the several contours into one ring by
+meet one above (a merge), or where a hole runs out of the side of its component (a handle that
+ends), has no one-to-one band.  Joining the several contours into one ring by
 *bridges* (Christiansen & Sederberg 1978; Bajaj, Coyle & Lin 1996) makes it one: each bridge is a
 straight segment between two of the contours, in their plane, and the ring runs along it once
-each way.  A band between the single contour and that ring uses each bridge edge twice, in
+each way (a bridge from a hole to its own outer contour runs through the material: a keyhole).
+A band between the single contour and that ring uses each bridge edge twice, in
 opposite directions, so the surface folds along the bridge (the crotch of the fork) and stays a
 closed manifold: a band is an annulus, and gluing each bridge's two copies turns it into a
 sphere with ``m + n`` boundary curves, the topology of the voxel object between the slices.
@@ -58,19 +60,26 @@ def segments_cross(p, q, a, b) -> np.ndarray:
 
 
 def _candidates(ri: np.ndarray, rj: np.ndarray, k: int):
-    """The ``k`` nearest vertex pairs ``(i, j, distance)`` between two rings."""
+    """The ``k`` nearest vertex pairs ``(i, j, distance, tie)`` between two rings, with every pair
+    as near as the ``k``-th (so that a rotated or mirrored input sees the same set).  ``tie`` is
+    the distance of the pair's midpoint from the centroid of both rings' vertices: it orders
+    equally short pairs the same way whatever the orientation of the input."""
     from scipy.spatial import cKDTree
 
     kk = min(k, len(ri))
     d, idx = cKDTree(ri).query(rj, k=kk)
-    d = np.asarray(d).reshape(len(rj), kk)
-    idx = np.asarray(idx).reshape(len(rj), kk)
+    d = np.asarray(d).reshape(len(rj), kk).ravel()
+    idx = np.asarray(idx).reshape(len(rj), kk).ravel()
     jj = np.repeat(np.arange(len(rj)), kk)
-    flat = np.argsort(d.ravel(), kind="stable")[:k]
-    return idx.ravel()[flat], jj[flat], d.ravel()[flat]
+    cut = np.sort(d)[min(k, len(d)) - 1] * (1 + 1e-12)
+    sel = d <= cut
+    vi, vj, d = idx[sel], jj[sel], d[sel]
+    centre = np.concatenate([ri, rj]).mean(axis=0)
+    tie = np.hypot(*(0.5 * (ri[vi] + rj[vj]) - centre).T)
+    return vi, vj, d, tie
 
 
-def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None):
+def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
 
     Parameters
@@ -81,6 +90,16 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None):
         Every edge of the slice (the rings' own edges included), as end points.
     avoid : list of ((2,), (2,)) segments, optional
         Segments already in the plane (bridges of another join) that the bridges must not touch.
+    owners : list of (component, is_hole), optional
+        Which region each ring bounds.  Outer rings of different components are bridged through
+        the background between them; a hole is bridged to its own component's outer ring or to
+        another of its holes through the component's material (a *keyhole*).  Other pairs are
+        not bridged.  Default: every ring is the outer ring of its own component.  Rings run
+        counter-clockwise round their component's material when outer, clockwise when holes (the
+        material is on their left).
+    allowed : callable ``(p, q) -> bool``, optional
+        A further test of a candidate keyhole (e.g. that it crosses no overlap with the other
+        slice).
 
     Returns
     -------
@@ -90,11 +109,16 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None):
     n = len(rings)
     if n < 2:
         return []
+    owners = owners or [(i, False) for i in range(n)]
     cand = []
     for i in range(n):
         for j in range(i + 1, n):
-            vi, vj, d = _candidates(rings[i], rings[j], CANDIDATES)
-            cand.extend((float(dd), i, int(a), j, int(b)) for dd, a, b in zip(d, vi, vj))
+            (ci, hi), (cj, hj) = owners[i], owners[j]
+            if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
+                continue
+            vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
+            cand.extend((round(float(dd), 9), round(float(t), 9), i, int(a), j, int(b))
+                        for dd, t, a, b in zip(d, tie, vi, vj))
     cand.sort()
     parent = list(range(n))
 
@@ -107,11 +131,14 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None):
     used = set()
     chosen = []
     segs = [tuple(map(np.asarray, s)) for s in (avoid or [])]
-    for _, i, vi, j, vj in cand:
+    for _, _, i, vi, j, vj in cand:
         if find(i) == find(j) or (i, vi) in used or (j, vj) in used:
             continue
         p, q = rings[i][vi], rings[j][vj]
-        if not _clear(p, q, rings[i], vi, rings[j], vj, obstacles_a, obstacles_b, segs):
+        through_material = owners[i][0] == owners[j][0]
+        if not _clear(p, q, rings[i], vi, rings[j], vj, obstacles_a, obstacles_b, segs, through_material):
+            continue
+        if through_material and allowed is not None and not allowed(p, q):
             continue
         parent[find(i)] = find(j)
         used.update([(i, vi), (j, vj)])
@@ -122,9 +149,9 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None):
     return None
 
 
-def _clear(p, q, ri, vi, rj, vj, oa, ob, segs) -> bool:
+def _clear(p, q, ri, vi, rj, vj, oa, ob, segs, left=False) -> bool:
     """The open segment p q meets no obstacle edge and no other segment; at its ends it meets only
-    the two ring edges there, and leaves each ring on its outside."""
+    the two ring edges there, and leaves each ring on its right (``left``: on its left)."""
     if p[0] == q[0] and p[1] == q[1]:
         return False
     # the edges incident to p and q may touch the segment only at p and q
@@ -145,6 +172,8 @@ def _clear(p, q, ri, vi, rj, vj, oa, ob, segs) -> bool:
     # leave each ring outward: the direction must not lie inside the ring's interior angle
     for r, v, d in ((ri, vi, q - p), (rj, vj, p - q)):
         a, c, b = r[v - 1], r[v], r[(v + 1) % len(r)]
+        if left:  # the left of a ring is the right of the reversed ring
+            a, b = b, a
         if not _outside_corner(a, c, b, d):
             return False
     if segs:
