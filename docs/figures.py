@@ -50,10 +50,11 @@ def main():
         m = contourmesh.mesh(vol, polygon=pol)
         chk = m.checks()
         ax = fig.add_subplot(1, 2, i + 1, projection="3d")
-        draw(ax, m, f"{title}\n{m.meta['band_joins']} band joins, {m.meta['exact_joins']} exact join(s); "
+        draw(ax, m, f"{title}\n{m.meta['band_joins']} band joins, {m.meta['bridged_joins']} bridged, "
+                    f"{m.meta['exact_joins']} exact join(s); "
                     f"closed={chk['watertight']}, genus {chk['genus']:.0f}")
-    fig.suptitle("Branching: one contour below, two above. Bands (blue) where slices join simply; the fork is "
-                 "joined exactly in the mid-plane (orange, flat faces)", fontsize=9)
+    fig.suptitle("Branching: one contour below, two above. The fork is one band from the trunk's polygon\n"
+                 "to the arms' polygons bridged into one ring; flat faces (orange) are the end caps", fontsize=9)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     atomic_write(Path(__file__).with_name("branching.png"), buf.getvalue())

@@ -24,12 +24,20 @@ Conventions (stated once)
 * **Joins** between consecutive slices: the components of both slices that overlap form groups.
   A group of one component below and one above, whose overlap ``O`` is connected and whose holes
   match one to one through the holes of ``O``, is joined by the selected band triangulation
-  (outer to outer, hole to hole): the paper's method.  Every other group (branching, merging,
-  holes opening or closing) is joined *exactly*: each contour rises as a collar to its crack
-  contour in the mid-plane, the lower slice's pixels not covered from above are closed there by
-  up-facing faces, and the upper slice mirrors this; the overlap stays open.  That is the surface
-  of the 6-connected voxel object between the two slices (edges where two voxels touch are kept
-  apart), so the genus is right by construction; the area there is voxel-like.
+  (outer to outer, hole to hole): the paper's method.  A fork or a merge (one component on one
+  side), a hole that closes or opens, and a hole that runs out of the side of its component are
+  **bridged joins**: the contours of each side are joined into one ring by bridges (segments in
+  their plane, through the background between components or through the material from a hole to
+  its component's outer contour: a keyhole) and the two rings by one band; a hole that the other
+  slice covers is closed by a lid.  This needs every pair's overlap connected, no overlap inside
+  a hole of another, at most one hole from each side in each hole of ``O``, and bridges that touch
+  nothing else in their plane; the band and lids are tested for crossing faces before they are
+  used.  Every other group (several components on both sides, handles that form) is joined
+  *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
+  slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
+  mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
+  between the two slices (edges where two voxels touch are kept apart), so the genus is right by
+  construction; the area there is voxel-like.  ``meta`` counts each kind.
 * **Ends**: a component with no partner above (below) is closed by a flat earcut cap (holes
   included) in its plane (``caps="flat"``) or half a slice spacing beyond it (``caps="half"``);
   a component with no partner on either side becomes a prism one spacing thick.
