@@ -57,6 +57,7 @@ from .bands import arclength as _arclength
 from .bands import twist_guarded_band
 from .bands import wiederhold as _wiederhold
 from .bands.caps import cap_faces
+from .polygons import thin_part_polygon
 from .bands.wiederhold import INITIAL_EDGE_WINDOW
 from .geometry import grid_to_xy, slice_gap
 from .polygons import mlp as _mlp_module
@@ -979,7 +980,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
                     comp[ry[r] - y0, rx0[r] - x0: rx1[r] - x0] = True
                 cont, area2 = _crack_contours(comp)
                 outer = [cont[i] for i in range(len(cont)) if area2[i] > 0]
-                xy = to_corner(outer[0] + np.array([x0, y0]))
+                xy = to_corner(thin_part_polygon(outer[0]) + np.array([x0, y0]))
             else:
                 xy = to_center(poly[ps[c]: ps[c + 1]])
             parts.append(xy)

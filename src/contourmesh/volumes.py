@@ -19,8 +19,9 @@ Conventions (stated once)
   ``"mlp"`` is the paper's MLP with the object pixels playing the role of ``I`` (the same outer
   Jordan construction as for analytic shapes: the shortest curve around the component's pixel
   centres inside its ``U``; for a hole, the same for the hole's pixels).  Where an MLP
-  degenerates to a point or a segment (one-pixel-wide parts, one-pixel holes) the crack contour
-  is used for that contour instead, so every polygon encloses area.
+  degenerates to a point or a segment (one-pixel-wide parts, one-pixel holes) the maximal-DSS
+  polygon of the crack contour is used for that contour instead (the crack contour itself where
+  that polygon is not simple), so every polygon encloses area.
 * **Joins** between consecutive slices: the components of both slices that overlap form groups.
   A group of one component below and one above, whose overlap ``O`` is connected and whose holes
   match one to one through the holes of ``O``, is joined by the selected band triangulation
@@ -56,7 +57,7 @@ from .bands import TRIANGULATORS, band_is_folded, triangulate_band, twist_guarde
 from .bands.caps import cap_faces
 from .fastpath import fast_volume_to_mesh
 from .geometry import grid_to_xy, shoelace_area, slice_gap
-from .polygons import POLYGONIZERS, dss_polygon, mlp_polygon
+from .polygons import POLYGONIZERS, dss_polygon, mlp_polygon, thin_part_polygon
 from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
 from .tracing import _crack_contours, trace_contours
 from .types import Mesh
@@ -204,9 +205,9 @@ class _Slice:
             return to_xy_corner(crack)
         # mlp: the outer Jordan construction with these pixels as I
         poly = _mlp_of_pixels(pixels)
-        if poly is None:
+        if poly is None:  # a part one pixel wide: the MLP is a segment or a point
             self.fallbacks += 1
-            return to_xy_corner(crack)
+            return to_xy_corner(thin_part_polygon(crack))
         poly = poly + off
         if hole:
             poly = poly[::-1]

@@ -19,7 +19,8 @@ import numpy as np
 from .dss import dss_polygon
 from .mlp import mlp_polygon
 
-__all__ = ["POLYGONIZERS", "polygonize", "contour_polygon", "dss_polygon", "mlp_polygon"]
+__all__ = ["POLYGONIZERS", "polygonize", "contour_polygon", "dss_polygon", "mlp_polygon", "thin_part_polygon",
+           "is_simple_polygon"]
 
 
 def contour_polygon(contour) -> np.ndarray:
@@ -57,3 +58,37 @@ def polygonize(contour, method: str = "mlp") -> np.ndarray:
     except (KeyError, TypeError):
         raise ValueError(f"unknown polygon method {method!r}; expected one of {sorted(POLYGONIZERS)}") from None
     return fn(contour)
+
+
+def is_simple_polygon(poly) -> bool:
+    """True when the closed polygon has distinct vertices and no two non-adjacent edges meet."""
+    p = np.asarray(poly, dtype=np.float64)
+    n = len(p)
+    if n < 3 or len(np.unique(p, axis=0)) != n:
+        return False
+    a, b = p, np.roll(p, -1, axis=0)
+
+    def orient(u, v, w):
+        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (v[..., 1] - u[..., 1]) * (w[..., 0] - u[..., 0])
+
+    A, B = a[:, None], b[:, None]
+    C, D = a[None, :], b[None, :]
+    d1, d2 = orient(A, B, C), orient(A, B, D)
+    d3, d4 = orient(C, D, A), orient(C, D, B)
+    meet = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    i, j = np.indices((n, n))
+    adjacent = (np.abs(i - j) <= 1) | (np.abs(i - j) == n - 1)
+    return not (meet & ~adjacent).any()
+
+
+def thin_part_polygon(contour) -> np.ndarray:
+    """The polygon of a contour whose MLP degenerates (a part one pixel wide: the MLP is a segment
+    or a point): the maximal-DSS polygon of the crack contour itself where that is a simple
+    polygon of the same orientation, else the crack contour.  Both enclose the pixels, and the DSS
+    polygon has no staircase along a thin diagonal part."""
+    c = np.asarray(contour, dtype=np.int64)
+    d = np.asarray(dss_polygon(c), dtype=np.int64)
+    area = lambda q: float(np.dot(q[:, 0], np.roll(q[:, 1], -1)) - np.dot(np.roll(q[:, 0], -1), q[:, 1]))
+    if len(d) >= 3 and area(d) * area(c) > 0 and is_simple_polygon(d):
+        return d
+    return c
