@@ -643,6 +643,82 @@ def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi:
     return float(min(max(factor * r ** (1.0 / 3.0), lo), hi))
 
 
+def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
+                chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0):
+    """Steps 3-6 of the module docstring for one seed polygon of lattice slice ``kz``.
+
+    Parameters
+    ----------
+    pts : (nz, ny, nx) bool ndarray
+        The digital object ``I`` (as from :func:`stack_points`).
+    seed : (n, 2) float ndarray
+        The seed polygon in array-local grid coordinates, in the band of slice ``kz``; outer
+        polygons counter-clockwise, holes clockwise (the object on the left).
+    prev : (m, 2) float ndarray, optional
+        Final vertices of the polygon(s) below that this one continues (step 6, meridians).
+    curvature, chord, meridians, density, max_move
+        As for :func:`refine_stack`.
+
+    Returns
+    -------
+    ring : (k, 2) float ndarray
+        The refined polygon (array-local), simple and oriented like the seed; the seed itself
+        where a step would fold it.  A seed that is a point or a segment is returned as it is.
+    clamped : int
+        Vertices clamped into the band.
+    """
+    kk = int(kz)
+    if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
+        return seed, 0  # a pole point or a segment: kept as it is
+    clamped = 0
+    kzs = np.full(len(seed), kk, dtype=np.int64)
+    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move)
+    clamped += nc
+    ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
+    if meridians and prev is not None and len(prev):
+        length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
+        step = length / (len(seed) * float(density))
+        par, dist, _, _ = _project_to_ring(guide, np.ascontiguousarray(prev))
+        par = par[dist < 3.0]
+        if len(par) >= 3:
+            s = _meridian_params(par, length, step)
+            if len(s) >= 3:
+                start = _ring_point_at(guide, s)
+                kzs = np.full(len(start), kk, dtype=np.int64)
+                cand, nc = _surface_points(pts, start, kzs, sigma, dz, curvature, max_move)
+                if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
+                    ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
+                    clamped += nc
+    if chord:
+        loc = np.empty((len(ring), 3))
+        loc[:, :2] = ring
+        loc[:, 2] = kk
+        fld = _field_many(pts, loc, sigma, dz)
+        g2 = (fld[:, 1:4] ** 2).sum(axis=1)
+        nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
+        target = _chord_push(ring, nz2)
+        kzs = np.full(len(ring), kk, dtype=np.int64)
+        out = np.empty_like(ring)
+        nc = _clamp_to_band(pts, np.ascontiguousarray(ring), target, kzs, out)
+        if _is_simple(out):
+            ring = out
+            clamped += nc
+    # the guarantee: every vertex in its band.  A vertex whose walk started off the band (a
+    # projection onto a chord of the guide) goes back toward the seed polygon, which lies in the
+    # band (the MLP does), as far as the band allows.
+    kzs = np.full(len(ring), kk, dtype=np.int64)
+    bad = np.array([not _in_band(pts, kk, float(a), float(b)) for a, b in ring], dtype=bool)
+    if bad.any():
+        _, _, px, py = _project_to_ring(np.ascontiguousarray(seed), np.ascontiguousarray(ring[bad]))
+        start = np.stack([px, py], axis=1)
+        out = np.empty_like(start)
+        clamped += _clamp_to_band(pts, start, np.ascontiguousarray(ring[bad]), kzs[: len(start)], out)
+        cand = ring.copy()
+        cand[bad] = out
+        ring = cand if _is_simple(cand) else seed
+    return ring, clamped
+
+
 def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "mlp", sigma="auto",
                  curvature: bool = True, chord: bool = True, meridians: bool = True,
                  density: float = 1.0, max_move: float = 3.0) -> ContourStack:
@@ -689,66 +765,19 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
         raise ValueError(f"density must be a positive number; got {density!r}")
     pts, x0, y0, zidx, dz = stack_points(stack)
     off = np.array([x0, y0], dtype=np.float64)
+    opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move)
     clamped = 0
     new_sections = []
     prev = []  # final polygons of the previous section (array-local coordinates)
     for k, sec in enumerate(stack.sections):
         kk = int(zidx[k])
         finals = []
+        q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
         for c in sec.contours:
             c = np.asarray(c, dtype=np.int64)
             seed = np.asarray(polygonize(c, polygon), dtype=np.float64) if len(c) >= 3 else c.astype(np.float64)
-            if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
-                finals.append(seed - off)  # a pole point or a segment: kept as it is
-                continue
-            seed = seed - off
-            kz = np.full(len(seed), kk, dtype=np.int64)
-            guide, nc = _surface_points(pts, seed, kz, sigma, float(dz), curvature, max_move)
+            ring, nc = refine_ring(pts, seed - off, kk, sigma, float(dz), q if prev else None, **opts)
             clamped += nc
-            ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
-            if meridians and prev:
-                q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
-                length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
-                step = length / (len(seed) * float(density))
-                if len(q):
-                    par, dist, _, _ = _project_to_ring(guide, q)
-                    par = par[dist < 3.0]
-                    if len(par) >= 3:
-                        s = _meridian_params(par, length, step)
-                        if len(s) >= 3:
-                            start = _ring_point_at(guide, s)
-                            kz = np.full(len(start), kk, dtype=np.int64)
-                            cand, nc = _surface_points(pts, start, kz, sigma, float(dz), curvature, max_move)
-                            if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
-                                ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
-                                clamped += nc
-            if chord:
-                loc = np.empty((len(ring), 3))
-                loc[:, :2] = ring
-                loc[:, 2] = kk
-                fld = _field_many(pts, loc, sigma, float(dz))
-                g2 = (fld[:, 1:4] ** 2).sum(axis=1)
-                nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
-                target = _chord_push(ring, nz2)
-                kz = np.full(len(ring), kk, dtype=np.int64)
-                out = np.empty_like(ring)
-                nc = _clamp_to_band(pts, np.ascontiguousarray(ring), target, kz, out)
-                if _is_simple(out):
-                    ring = out
-                    clamped += nc
-            # the guarantee: every vertex in its band.  A vertex whose walk started off the band
-            # (a projection onto a chord of the guide) goes back toward the seed polygon, which
-            # lies in the band (the MLP does), as far as the band allows.
-            kz = np.full(len(ring), kk, dtype=np.int64)
-            bad = np.array([not _in_band(pts, kk, float(a), float(b)) for a, b in ring], dtype=bool)
-            if bad.any():
-                _, _, px, py = _project_to_ring(np.ascontiguousarray(seed), np.ascontiguousarray(ring[bad]))
-                start = np.stack([px, py], axis=1)
-                out = np.empty_like(start)
-                clamped += _clamp_to_band(pts, start, np.ascontiguousarray(ring[bad]), kz[: len(start)], out)
-                cand = ring.copy()
-                cand[bad] = out
-                ring = cand if _is_simple(cand) else seed
             finals.append(ring)
         prev = finals
         new_sections.append(Section(z=sec.z, contours=tuple(f + off for f in finals), parents=sec.parents))
