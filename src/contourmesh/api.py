@@ -316,8 +316,9 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
-def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack:
-    """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement)."""
+def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
+    """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement);
+    None when some slice has several contours (or a hole)."""
     if dx != dy:
         raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
     sections = []
@@ -326,7 +327,7 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack:
             continue
         contours, _ = trace_contours(mask[k])
         if len(contours) != 1:
-            raise ValueError(f"refine='band' needs one contour per slice; slice {k} has {len(contours)}")
+            return None
         sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
     return ContourStack(tuple(sections), spacing=(dx, dy), origin=(ox, oy), meta={"source": "volume"})
 
@@ -357,8 +358,15 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
     if refine is not None:
         mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                       threshold=threshold, origin=origin)
-        return _refined(_stack_of_mask(mask, zs, dy, dx, ox, oy), polygon=polygon, triangulation=triangulation,
-                        caps=caps, refine=refine)
+        stack = _stack_of_mask(mask, zs, dy, dx, ox, oy)
+        if stack is not None:
+            return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+        # several contours in a slice, holes, branching: the volume mesher refines its own polygons
+        log.debug("refined route: several contours in a slice; the volume mesher refines its polygons")
+        m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
+                           polygon=polygon, triangulation=triangulation or "optimal", caps=caps, refine=refine,
+                           progress=progress)
+        return _with_meta(m, route="volume-refined")
     m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
                        polygon=polygon, triangulation=triangulation or "wiederhold", caps=caps, progress=progress)
     return _with_meta(m, route="volume")

@@ -61,7 +61,8 @@ from .polygons import polygonize
 from .stacks import check_stack
 from .types import ContourStack, Mesh, Section, shoelace_area
 
-__all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "auto_sigma", "band_violations"]
+__all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "refine_ring",
+           "refine_volume_rings", "auto_sigma", "band_violations"]
 
 #: Refinement methods by name (``"band"``; ``"none"``: no refinement).
 REFINERS = ("band", "none")
@@ -628,19 +629,43 @@ def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi:
     _check_stack(stack)
     zs = stack.z
     dz = float(np.median(np.diff(zs))) / float(stack.spacing[0]) if len(zs) > 1 else 1.0
+    # grid contours are 4-connected staircases: pi/4 of their length estimates the curve's
+    return _auto_sigma_of([c for s in stack.sections for c in s.contours], dz, math.pi / 4,
+                          factor=factor, lo=lo, hi=hi)
+
+
+def _auto_sigma_of(polygons, dz: float, length_factor: float = 1.0, *, factor: float = 0.8, lo: float = 2.0,
+                   hi: float = 3.5) -> float:
+    """:func:`auto_sigma`'s rule for polygons in grid units (``length_factor`` scales their perimeters)."""
     vol = 0.0
     lat = 0.0
-    for s in stack.sections:
-        for c in s.contours:
-            c = np.asarray(c, dtype=np.float64)
-            if len(c) < 3:
-                continue
-            vol += shoelace_area(c) * dz
-            lat += float(np.hypot(*np.diff(np.vstack([c, c[:1]]), axis=0).T).sum()) * dz * (math.pi / 4)
+    for c in polygons:
+        c = np.asarray(c, dtype=np.float64)
+        if len(c) < 3:
+            continue
+        vol += shoelace_area(c) * dz
+        lat += float(np.hypot(*np.diff(np.vstack([c, c[:1]]), axis=0).T).sum()) * dz * length_factor
     if vol <= 0 or lat <= 0:
         return float(lo)
     r = 3.0 * vol / lat
     return float(min(max(factor * r ** (1.0 / 3.0), lo), hi))
+
+
+def _resolve_sigma(sigma, auto) -> float:
+    """A checked Gaussian width: a number >= 0.7 voxels, or ``"auto"`` (then ``auto()``)."""
+    if isinstance(sigma, str):
+        if sigma != "auto":
+            raise ValueError(f"sigma must be a number of voxels or 'auto'; got {sigma!r}")
+        sigma = auto()
+    sigma = float(sigma)
+    if not (math.isfinite(sigma) and sigma >= 0.7):
+        raise ValueError(f"sigma must be a number >= 0.7 voxels; got {sigma!r}")
+    return sigma
+
+
+def _check_density(density) -> None:
+    if not (float(density) > 0):
+        raise ValueError(f"density must be a positive number; got {density!r}")
 
 
 def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
@@ -754,15 +779,8 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
 
     if method != "band":
         raise ValueError(f"unknown refine method {method!r}; expected 'band'")
-    if isinstance(sigma, str):
-        if sigma != "auto":
-            raise ValueError(f"sigma must be a number of voxels or 'auto'; got {sigma!r}")
-        sigma = auto_sigma(stack)
-    sigma = float(sigma)
-    if not (math.isfinite(sigma) and sigma >= 0.7):
-        raise ValueError(f"sigma must be a number >= 0.7 voxels; got {sigma!r}")
-    if not (float(density) > 0):
-        raise ValueError(f"density must be a positive number; got {density!r}")
+    sigma = _resolve_sigma(sigma, lambda: auto_sigma(stack))
+    _check_density(density)
     pts, x0, y0, zidx, dz = stack_points(stack)
     off = np.array([x0, y0], dtype=np.float64)
     opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move)
@@ -786,3 +804,142 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     return ContourStack(sections=tuple(new_sections), spacing=stack.spacing, origin=stack.origin, meta=meta)
 
 
+@njit(cache=True)
+def _rings_meet(a, b):
+    """True when an edge of the closed polygon ``a`` meets (crosses or touches) an edge of ``b``."""
+    n, m = a.shape[0], b.shape[0]
+    for i in range(n):
+        ax, ay = a[i, 0], a[i, 1]
+        bx, by = a[(i + 1) % n, 0], a[(i + 1) % n, 1]
+        for j in range(m):
+            cx, cy = b[j, 0], b[j, 1]
+            dx, dy = b[(j + 1) % m, 0], b[(j + 1) % m, 1]
+            if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
+                continue
+            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
+                continue
+            d1 = _orient(ax, ay, bx, by, cx, cy)
+            d2 = _orient(ax, ay, bx, by, dx, dy)
+            d3 = _orient(cx, cy, dx, dy, ax, ay)
+            d4 = _orient(cx, cy, dx, dy, bx, by)
+            if d1 * d2 <= 0.0 and d3 * d4 <= 0.0:
+                return True
+    return False
+
+
+def _boxes_meet(a: np.ndarray, b: np.ndarray) -> bool:
+    return bool(np.all(a.min(axis=0) <= b.max(axis=0)) and np.all(b.min(axis=0) <= a.max(axis=0)))
+
+
+def _untangle(rings: list, seeds: list, fixed: list) -> int:
+    """Put back the seed of every refined ring that meets another ring of its slice or a fixed one.
+
+    ``rings`` (refined) and ``seeds`` are parallel lists (a ring that is its seed is not refined);
+    ``fixed`` are rings that stay.  Repeats until no refined ring meets anything (a ring put back
+    can meet a neighbour's refined ring).  Returns the number of rings put back.
+    """
+    back = 0
+    changed = True
+    while changed:
+        changed = False
+        for i in range(len(rings)):
+            if rings[i] is seeds[i]:
+                continue
+            others = [r for j, r in enumerate(rings) if j != i] + list(fixed)
+            if any(_boxes_meet(rings[i], o) and _rings_meet(rings[i], o) for o in others if len(o) >= 2):
+                rings[i] = seeds[i]
+                back += 1
+                changed = True
+    return back
+
+
+def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dict | None = None,
+                        fixed: dict | None = None, *, method: str = "band", sigma="auto", curvature: bool = True,
+                        chord: bool = True, meridians: bool = True, density: float = 1.0,
+                        max_move: float = 3.0):
+    """Refined slice polygons of a binary volume: the band refinement inside the volume mesher.
+
+    The digital object ``I`` is the mask itself (voxel centres); every seed polygon goes through
+    :func:`refine_ring` in the order of its slice, its meridian guide being the final ring of the
+    polygon ``below`` names.  A refined ring that meets another ring of its slice (refined or
+    ``fixed``) is replaced by its seed, so the polygons of a slice stay disjoint as the seeds are.
+
+    Parameters
+    ----------
+    mask : (nz, ny, nx) bool ndarray
+        The volume, indexed ``[k, j, i]``; voxel ``[k, j, i]`` has its centre at
+        ``(ox + i dx, oy + j dy, zs[k])``.
+    zs : (nz,) array
+        Slice heights, evenly spaced.
+    spacing_xy, origin_xy : (dx, dy), (ox, oy)
+        Pixel size (square pixels only) and the centre of pixel ``(0, 0)``.
+    seeds : dict
+        ``key -> (k, polygon)``: the polygons to refine, physical ``(x, y)``, outer ones
+        counter-clockwise and holes clockwise, each in the band of slice ``k``.
+    below : dict, optional
+        ``key -> key``: the polygon of the slice below that a polygon continues (one-to-one band
+        joins); its final ring guides the meridians.
+    fixed : dict, optional
+        ``k -> [polygon, ...]``: polygons of slice ``k`` that stay as they are.
+    method, sigma, curvature, chord, meridians, density, max_move
+        As for :func:`refine_stack` (``sigma="auto"``: :func:`auto_sigma`'s rule applied to the seeds).
+
+    Returns
+    -------
+    rings : dict
+        ``key -> polygon`` (physical ``(x, y)``), the seed itself where refinement would fold it
+        or make it meet a neighbour.
+    info : dict
+        ``refine_sigma``, ``refine_clamped`` and ``refine_kept_seeds`` (rings put back).
+    """
+    if method != "band":
+        raise ValueError(f"unknown refine method {method!r}; expected 'band'")
+    mask = np.asarray(mask, dtype=bool)
+    if mask.ndim != 3:
+        raise ValueError(f"refine_volume_rings needs a 3D mask; got shape {mask.shape}")
+    dx, dy = (float(v) for v in spacing_xy)
+    if not (dx > 0 and dy > 0 and abs(dx - dy) <= 1e-9 * max(dx, dy)):
+        raise ValueError(f"band refinement needs square pixels (dx == dy > 0); got dx={dx}, dy={dy}")
+    zs = np.asarray(zs, dtype=np.float64)
+    if len(zs) != mask.shape[0]:
+        raise ValueError(f"{len(zs)} slice heights for {mask.shape[0]} slices")
+    if len(zs) > 1:
+        steps = np.diff(zs)
+        if np.max(np.abs(steps - steps[0])) > 1e-6 * abs(steps[0]):
+            raise ValueError("band refinement needs evenly spaced slices; got uneven slice heights")
+        dz = float(steps[0]) / dx
+    else:
+        dz = 1.0
+    ox, oy = (float(v) for v in origin_xy)
+    pad = 6
+    pts = np.pad(mask, pad)
+
+    def local(p):
+        return np.c_[(np.asarray(p, dtype=np.float64)[:, 0] - ox) / dx + pad,
+                     (np.asarray(p, dtype=np.float64)[:, 1] - oy) / dx + pad]
+
+    loc = {key: (int(k), local(p)) for key, (k, p) in seeds.items()}
+    sigma = _resolve_sigma(sigma, lambda: _auto_sigma_of([p for _, p in loc.values()], dz))
+    _check_density(density)
+    opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move)
+    below = below or {}
+    fixed = fixed or {}
+    by_slice: dict = {}
+    for key, (k, _) in loc.items():
+        by_slice.setdefault(k, []).append(key)
+    finals = {}
+    clamped = back = 0
+    for k in sorted(by_slice):
+        keys = by_slice[k]
+        rings, starts = [], []
+        for key in keys:
+            seed = loc[key][1]
+            guide = finals.get(below.get(key)) if meridians else None
+            ring, nc = refine_ring(pts, seed, k + pad, sigma, dz, guide, **opts)
+            clamped += nc
+            rings.append(ring)
+            starts.append(seed)
+        back += _untangle(rings, starts, [local(p) for p in fixed.get(k, ())])
+        finals.update(zip(keys, rings))
+    out = {key: np.c_[ox + (r[:, 0] - pad) * dx, oy + (r[:, 1] - pad) * dx] for key, r in finals.items()}
+    return out, {"refine_sigma": sigma, "refine_clamped": int(clamped), "refine_kept_seeds": int(back)}
