@@ -831,25 +831,58 @@ def _boxes_meet(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.all(a.min(axis=0) <= b.max(axis=0)) and np.all(b.min(axis=0) <= a.max(axis=0)))
 
 
+@njit(cache=True)
+def _inside_share(a, b):
+    """Share of the points of ``a`` inside the closed polygon ``b`` (even-odd ray casting)."""
+    n, m = a.shape[0], b.shape[0]
+    hits = 0
+    for i in range(n):
+        x, y = a[i, 0], a[i, 1]
+        inside = False
+        for j in range(m):
+            x1, y1 = b[j, 0], b[j, 1]
+            x2, y2 = b[(j + 1) % m, 0], b[(j + 1) % m, 1]
+            if (y1 > y) != (y2 > y):
+                if x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+                    inside = not inside
+        if inside:
+            hits += 1
+    return hits / n
+
+
 def _untangle(rings: list, seeds: list, fixed: list) -> int:
-    """Put back the seed of every refined ring that meets another ring of its slice or a fixed one.
+    """Put back the seed of every refined ring that meets another ring of its slice or a fixed one,
+    or that changes which of them it lies inside (or which lie inside it).
 
     ``rings`` (refined) and ``seeds`` are parallel lists (a ring that is its seed is not refined);
-    ``fixed`` are rings that stay.  Repeats until no refined ring meets anything (a ring put back
-    can meet a neighbour's refined ring).  Returns the number of rings put back.
+    ``fixed`` are rings that stay.  Where the slice holds no level crossing (a thin end), outer and
+    hole polygons can pass each other inside the band without meeting: the nesting test catches
+    that.  Repeats until nothing changes (a ring put back can disturb a neighbour's refined ring).
+    Returns the number of rings put back.
     """
+    def nested(a, b):  # is a inside b (most of its vertices: touching seeds share a few)
+        return _boxes_meet(a, b) and _inside_share(a, b) > 0.5
+
+    n = len(rings)
+    others_seed = list(seeds) + list(fixed)
     back = 0
     changed = True
     while changed:
         changed = False
-        for i in range(len(rings)):
+        for i in range(n):
             if rings[i] is seeds[i]:
                 continue
-            others = [r for j, r in enumerate(rings) if j != i] + list(fixed)
-            if any(_boxes_meet(rings[i], o) and _rings_meet(rings[i], o) for o in others if len(o) >= 2):
-                rings[i] = seeds[i]
-                back += 1
-                changed = True
+            others = list(rings) + list(fixed)
+            for j, o in enumerate(others):
+                if j == i or len(o) < 3:
+                    continue
+                so = others_seed[j]
+                if ((_boxes_meet(rings[i], o) and _rings_meet(rings[i], o))
+                        or nested(rings[i], o) != nested(seeds[i], so) or nested(o, rings[i]) != nested(so, seeds[i])):
+                    rings[i] = seeds[i]
+                    back += 1
+                    changed = True
+                    break
     return back
 
 
