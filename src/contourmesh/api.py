@@ -27,7 +27,10 @@ The routes behind the entry points:
 * **volume route** (:func:`contourmesh.volumes.volume_to_mesh`): any binary volume, several
   contours per slice, holes and branching; its compiled fast path handles simple slices;
 * **refined route** (``refine="band"``): the outer Jordan contour stack of the source is refined
-  across slices (:func:`contourmesh.refine.refine_stack`) and meshed by the stack route.
+  across slices (:func:`contourmesh.refine.refine_stack`) and meshed by the stack route, when
+  every slice holds one contour; otherwise (several contours, holes, branching) the volume
+  mesher refines the polygons of its band joins and caps (``volume_to_mesh(refine="band")``,
+  ``meta["route"] = "volume-refined"``).
 
 Each route switch and fallback is logged on the ``contourmesh`` logger (``logging.DEBUG``).
 """
@@ -48,7 +51,7 @@ from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
 from .measure import axis_wall_fraction
 from .rasterize import rasterize_stack
-from .refine import REFINERS, refine_stack
+from .refine import REFINERS, refine_stack, stack_points
 from .surface import _nested_chains, stack_to_mesh
 from .tracing import trace_contours
 from .types import ContourStack, Mesh, Section
@@ -216,10 +219,30 @@ def _refine_method(refine) -> str | None:
 
 
 def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Mesh:
+    if any(len(s.contours) != 1 for s in stack.sections):
+        return _refined_volume(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     log.debug("refined route: refine_stack(%r) then the stack mesher", refine)
     fine = refine_stack(stack, refine, polygon=polygon)
     m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps)
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, polygon=polygon, refine=refine, route="refined"))
+
+
+def _refined_volume(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Mesh:
+    """A stack with several contours (or holes) in a section: its digital object (the grid points
+    its contours bound, :func:`contourmesh.refine.stack_points`) meshed by the volume mesher, which
+    refines its own polygons."""
+    log.debug("refined route: several contours in a section; the volume mesher refines its polygons")
+    pts, x0, y0, zidx, dz = stack_points(stack)
+    h = float(stack.spacing[0])
+    dzp = dz * h
+    ox, oy = (float(v) for v in stack.origin)
+    origin = (ox + x0 * h, oy + y0 * h, float(stack.z[0]) - int(zidx[0]) * dzp)
+    m = volume_to_mesh(pts, spacing=(dzp, h, h), origin=origin, polygon=polygon,
+                       triangulation=triangulation or "optimal", caps=caps, refine=refine)
+    meta = dict(stack.meta)
+    meta.update(m.meta)
+    meta.update(route="volume-refined")
+    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
 def _with_meta(m: Mesh, **meta) -> Mesh:
