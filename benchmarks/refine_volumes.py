@@ -9,6 +9,10 @@ marching cubes after a Gaussian blur of 1 voxel (an independent estimate, about 
 
     python benchmarks/refine_volumes.py                      # r = 10, 20, 40
     python benchmarks/refine_volumes.py --radii 10,20 --samples bunny-64,bunny-128
+    python benchmarks/refine_volumes.py --radii "" --meshes libigl-tutorial-data/bunny.off --n 64,128
+
+``--meshes`` voxelizes closed sample meshes (as ``comparisons/voxelized/run.py`` does) and compares
+with their true area.
 """
 
 from __future__ import annotations
@@ -58,14 +62,21 @@ def fork_area_unit(n: int = 64) -> float:
     return float(measure.mesh_surface_area(v, faces))
 
 
-def volumes(r: int):
-    """(name, mask, origin (x, y, z) of voxel [0,0,0], reference area)."""
+def flat_torus(r: int):
+    """A torus lying flat (R = 2r, tube 0.8 r): ``(mask, origin of voxel [0,0,0], area)``."""
     from contourmesh.digitize import gauss_volume
-    from contourmesh.shapes import Sphere, Torus
+    from contourmesh.shapes import Torus
 
     t = Torus(2 * r, 0.8 * r, center=tuple(OFF))
     vol, org = gauss_volume(t)
-    yield "torus", vol, org, t.area
+    return vol, org, t.area
+
+
+def two_balls(r: int):
+    """Two balls of radius r, 2.5 r apart along x: ``(mask, origin, area)``."""
+    from contourmesh.digitize import gauss_volume
+    from contourmesh.shapes import Sphere
+
     a, b = Sphere(r, center=tuple(OFF)), Sphere(r, center=tuple(OFF + [2.5 * r, 0, 0]))
     va, oa = gauss_volume(a)
     vb, ob = gauss_volume(b)
@@ -73,9 +84,20 @@ def volumes(r: int):
     two = np.zeros((va.shape[0], va.shape[1], n + vb.shape[2]), bool)
     two[:, :, : va.shape[2]] |= va
     two[:, :, n:] |= vb
-    yield "two balls", two, oa, 2 * a.area
+    return two, oa, 2 * a.area
+
+
+def fork(r: int):
+    """A trunk capsule of radius r splitting into two slanted ones (a Y): ``(mask, origin)``."""
     P = _grid(np.array([-2.6, -1.1, -1.1]) * r, np.array([2.6, 1.1, 5.1]) * r)
-    yield "fork", fork_sdf(P, r) < 0, tuple(P[0, 0, 0]), FORK_UNIT * r * r
+    return fork_sdf(P, r) < 0, tuple(P[0, 0, 0])
+
+
+def volumes(r: int):
+    """(name, mask, origin, reference area) of the three shapes at size r."""
+    yield "torus", *flat_torus(r)
+    yield "two balls", *two_balls(r)
+    yield "fork", *fork(r), FORK_UNIT * r * r
 
 
 def run(vol, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)):
@@ -89,35 +111,45 @@ def run(vol, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)):
     return out
 
 
+def row(name, n, res, ref, note=""):
+    (mp, tp), (mb, tb) = res["paper"], res["band"]
+    chk = mb.checks()
+    print(f"{name:10s} {n:>4} {mp.area / ref - 1:+9.4%} {mb.area / ref - 1:+9.4%} {tp:7.1f}s {tb:6.1f}s  {note}"
+          f"ok={chk['ok']} genus={chk['genus']:g} route={mb.meta.get('route')} "
+          f"exact_joins={mb.meta.get('exact_joins')} kept_seeds={mb.meta.get('refine_kept_seeds')}", flush=True)
+
+
 def main(argv=None):
     global FORK_UNIT
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--radii", default="10,20,40")
     ap.add_argument("--samples", default="", help="comma-separated: bunny-64,bunny-128")
+    ap.add_argument("--meshes", default="", help="comma-separated paths under DATA/meshes")
+    ap.add_argument("--n", default="64,128", help="voxels across the largest extent, for --meshes")
     a = ap.parse_args(argv)
     FORK_UNIT = fork_area_unit()
     print(f"fork reference area at r=1: {FORK_UNIT:.5f}")
     print(f"{'shape':10s} {'r':>4s} {'paper':>9s} {'band':>9s} {'t paper':>8s} {'t band':>7s}  band mesh")
     for r in [int(x) for x in a.radii.split(",") if x]:
         for name, vol, org, ref in volumes(r):
-            res = run(vol, org)
-            (mp, tp), (mb, tb) = res["paper"], res["band"]
-            chk = mb.checks()
-            print(f"{name:10s} {r:4d} {mp.area / ref - 1:+9.4%} {mb.area / ref - 1:+9.4%} {tp:7.1f}s {tb:6.1f}s  "
-                  f"ok={chk['ok']} genus={chk['genus']:g} route={mb.meta.get('route')} "
-                  f"exact_joins={mb.meta.get('exact_joins')} kept_seeds={mb.meta.get('refine_kept_seeds')}", flush=True)
+            row(name, r, run(vol, org), ref)
     for name in [s for s in a.samples.split(",") if s]:
         from contourmesh.compare.methods import marching_cubes
 
         d = np.load(DATA / "volumes" / "dgtal" / f"{name}.npz")
         vol = np.pad(d["mask"], 1)
         ref = marching_cubes(vol, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), blur=1.0).mesh.area
-        res = run(vol)
-        (mp, tp), (mb, tb) = res["paper"], res["band"]
-        chk = mb.checks()
-        print(f"{name:10s} {'':4s} {mp.area / ref - 1:+9.4%} {mb.area / ref - 1:+9.4%} {tp:7.1f}s {tb:6.1f}s  "
-              f"vs mc-lewiner-blur1 ({ref:.1f}); ok={chk['ok']} genus={chk['genus']:g} "
-              f"route={mb.meta.get('route')} exact_joins={mb.meta.get('exact_joins')}", flush=True)
+        row(name, "", run(vol), ref, f"vs mc-lewiner-blur1 ({ref:.1f}); ")
+    for name in [s for s in a.meshes.split(",") if s]:
+        import trimesh
+
+        from contourmesh.compare.inputs import load_closed_mesh
+        from contourmesh.voxelize import voxelize_mesh
+
+        tm = trimesh.Trimesh(*load_closed_mesh(DATA / "meshes" / name), process=False)
+        for n in [int(x) for x in a.n.split(",")]:
+            vol, spacing, origin = voxelize_mesh(tm.vertices, tm.faces, n)
+            row(Path(name).name[:10], n, run(vol, origin, spacing), tm.area, "vs the mesh's area; ")
 
 
 if __name__ == "__main__":

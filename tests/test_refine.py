@@ -10,9 +10,9 @@ import pytest
 import contourmesh
 from contourmesh.digitize import gauss_volume, outer_jordan_stack
 from contourmesh.refine import auto_sigma, band_violations, blurred_indicator, in_band, refine_stack, stack_points
-from contourmesh.tracing import trace_contours
-from contourmesh.shapes import Ellipsoid, Sphere, Torus, rotation_from_euler
+from contourmesh.shapes import Ellipsoid, Sphere, rotation_from_euler
 from contourmesh.surface import stack_to_mesh
+from contourmesh.tracing import trace_contours
 from contourmesh.types import ContourStack, Section
 
 
@@ -151,38 +151,16 @@ def test_refine_stack_keeps_structure_and_validates():
 # ----------------------------------------------------------------------------------------------
 # refine="band" on volumes with several contours per slice, holes, branching (issue 14, item 3)
 # ----------------------------------------------------------------------------------------------
-OFF = np.array([0.31, -0.17, 0.23])
+def _shapes():
+    """The benchmark's volumes (benchmarks/refine_volumes.py): flat torus, two balls, fork."""
+    import importlib.util
+    from pathlib import Path
 
-
-def _flat_torus(r):
-    t = Torus(2 * r, 0.8 * r, center=tuple(OFF))
-    vol, org = gauss_volume(t)
-    return t, vol, org
-
-
-def _two_balls(r):
-    a, b = Sphere(r, center=tuple(OFF)), Sphere(r, center=tuple(OFF + [2.5 * r, 0, 0]))
-    va, oa = gauss_volume(a)
-    vb, ob = gauss_volume(b)
-    n = int(round(ob[0] - oa[0]))
-    vol = np.zeros((va.shape[0], va.shape[1], n + vb.shape[2]), bool)
-    vol[:, :, : va.shape[2]] |= va
-    vol[:, :, n:] |= vb
-    return 2 * a.area, vol, oa
-
-
-def _fork(r):
-    """A trunk capsule of radius r splitting into two slanted branches (a Y), voxel centres inside."""
-    zz, yy, xx = np.mgrid[0: 6 * r, 0: 2 * r + 6, 0: 6 * r].astype(float)
-    p = np.stack([xx - 3 * r + OFF[0], yy - r - 3 + OFF[1], zz - r - 1 + OFF[2]], -1)
-
-    def capsule(a, b):
-        a, b = np.array(a, float), np.array(b, float)
-        t = np.clip(((p - a) @ (b - a)) / ((b - a) @ (b - a)), 0, 1)
-        return np.linalg.norm(p - (a + t[..., None] * (b - a)), axis=-1) < r
-
-    return capsule((0, 0, 0), (0, 0, 2 * r)) | capsule((0, 0, 2 * r), (-1.5 * r, 0, 4 * r - 2)) \
-        | capsule((0, 0, 2 * r), (1.5 * r, 0, 4 * r - 2))
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "refine_volumes.py"
+    spec = importlib.util.spec_from_file_location("refine_volumes", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def _band_outliers(vol, org, m):
@@ -201,12 +179,10 @@ def _band_outliers(vol, org, m):
 def volume_runs():
     from contourmesh.volumes import voxel_topology
 
-    t, tv, to = _flat_torus(14)
-    area2, bv, bo = _two_balls(8)
-    fv = _fork(6)
+    sh = _shapes()
     out = {}
-    for name, vol, org, area in [("torus", tv, to, t.area), ("two balls", bv, bo, area2),
-                                 ("fork", fv, (0.0, 0.0, 0.0), None)]:
+    for name, (vol, org, area) in [("torus", sh.flat_torus(14)), ("two balls", sh.two_balls(8)),
+                                   ("fork", (*sh.fork(6), None))]:
         paper = contourmesh.mesh(vol, origin=org)
         band = contourmesh.mesh(vol, origin=org, refine="band")
         out[name] = (vol, org, area, paper, band, voxel_topology(vol)["genus"])
@@ -232,18 +208,18 @@ def test_band_beats_the_paper_mesh_on_a_flat_torus_and_two_balls(volume_runs):
     for name in ("torus", "two balls"):
         _, _, area, paper, band, _ = volume_runs[name]
         assert abs(band.area / area - 1) < abs(paper.area / area - 1), name
-    t, vol, org = _flat_torus(20)  # the second resolution (r = 20: -0.20 % against +1.08 %)
+    vol, org, area = _shapes().flat_torus(20)  # the second resolution (r = 20: -0.20 % against +1.08 %)
     paper = contourmesh.mesh(vol, origin=org)
     band = contourmesh.mesh(vol, origin=org, refine="band")
-    assert abs(band.area / t.area - 1) < 0.5 * abs(paper.area / t.area - 1)
-    assert abs(band.area / t.area - 1) < 4e-3
+    assert abs(band.area / area - 1) < 0.5 * abs(paper.area / area - 1)
+    assert abs(band.area / area - 1) < 4e-3
 
 
 def test_band_volume_routes_and_errors():
     from contourmesh.fastpath import fast_volume_to_mesh
     from contourmesh.volumes import volume_to_mesh
 
-    s = Sphere(6, center=tuple(OFF))
+    s = Sphere(6, center=(0.31, -0.17, 0.23))
     vol, org = gauss_volume(s)
     # one contour per slice keeps the stack route (the balls' convergence above)
     assert contourmesh.mesh(vol, origin=org, refine="band").meta["route"] == "refined"
@@ -253,7 +229,7 @@ def test_band_volume_routes_and_errors():
     assert volume_to_mesh(vol, refine="band").meta["refine"] == "band"
     with pytest.raises(ValueError, match="refine method"):
         volume_to_mesh(vol, refine="smooth")
-    _, two, _ = _two_balls(5)
+    two, _, _ = _shapes().two_balls(5)
     zs = np.cumsum(np.r_[0.0, np.where(np.arange(two.shape[0] - 1) % 2, 1.0, 1.5)])
     with pytest.raises(ValueError, match="evenly spaced"):
         contourmesh.mesh(two, z=zs, refine="band")

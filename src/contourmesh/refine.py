@@ -584,6 +584,20 @@ def _orient(ax, ay, bx, by, cx, cy):
 
 
 @njit(cache=True)
+def _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):
+    """Do the closed segments ab and cd meet (cross or touch)?"""
+    if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
+        return False
+    if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
+        return False
+    d1 = _orient(ax, ay, bx, by, cx, cy)
+    d2 = _orient(ax, ay, bx, by, dx, dy)
+    d3 = _orient(cx, cy, dx, dy, ax, ay)
+    d4 = _orient(cx, cy, dx, dy, bx, by)
+    return d1 * d2 <= 0.0 and d3 * d4 <= 0.0
+
+
+@njit(cache=True)
 def _is_simple(ring):
     """True when no two non-adjacent edges of the closed polygon meet (an O(n^2) check)."""
     n = ring.shape[0]
@@ -595,15 +609,7 @@ def _is_simple(ring):
                 continue
             cx, cy = ring[j, 0], ring[j, 1]
             dx, dy = ring[(j + 1) % n, 0], ring[(j + 1) % n, 1]
-            if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
-                continue
-            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
-                continue
-            d1 = _orient(ax, ay, bx, by, cx, cy)
-            d2 = _orient(ax, ay, bx, by, dx, dy)
-            d3 = _orient(cx, cy, dx, dy, ax, ay)
-            d4 = _orient(cx, cy, dx, dy, bx, by)
-            if d1 * d2 <= 0.0 and d3 * d4 <= 0.0:
+            if _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):
                 return False
     return True
 
@@ -814,15 +820,7 @@ def _rings_meet(a, b):
         for j in range(m):
             cx, cy = b[j, 0], b[j, 1]
             dx, dy = b[(j + 1) % m, 0], b[(j + 1) % m, 1]
-            if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
-                continue
-            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
-                continue
-            d1 = _orient(ax, ay, bx, by, cx, cy)
-            d2 = _orient(ax, ay, bx, by, dx, dy)
-            d3 = _orient(cx, cy, dx, dy, ax, ay)
-            d4 = _orient(cx, cy, dx, dy, bx, by)
-            if d1 * d2 <= 0.0 and d3 * d4 <= 0.0:
+            if _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):
                 return True
     return False
 
@@ -887,7 +885,7 @@ def _untangle(rings: list, seeds: list, fixed: list) -> int:
 
 
 def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dict | None = None,
-                        fixed: dict | None = None, *, method: str = "band", sigma="auto", curvature: bool = True,
+                        fixed: dict | None = None, deepest: dict | None = None, *, method: str = "band", sigma="auto", curvature: bool = True,
                         chord: bool = True, meridians: bool = True, density: float = 1.0,
                         max_move: float = 3.0):
     """Refined slice polygons of a binary volume: the band refinement inside the volume mesher.
@@ -914,6 +912,11 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
         joins); its final ring guides the meridians.
     fixed : dict, optional
         ``k -> [polygon, ...]``: polygons of slice ``k`` that stay as they are.
+    deepest : dict, optional
+        ``key -> (x, y)``: the pixel centre of the polygon's component furthest from its
+        boundary.  Where the blurred indicator is below 1/2 there, the slice holds no level set
+        around the component (a part thinner than the blur: a thin tube, a tip) and the polygon
+        keeps its seed; the level-set search would otherwise drag its vertices to the search's end.
     method, sigma, curvature, chord, meridians, density, max_move
         As for :func:`refine_stack` (``sigma="auto"``: :func:`auto_sigma`'s rule applied to the seeds).
 
@@ -923,7 +926,8 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
         ``key -> polygon`` (physical ``(x, y)``), the seed itself where refinement would fold it
         or make it meet a neighbour.
     info : dict
-        ``refine_sigma``, ``refine_clamped`` and ``refine_kept_seeds`` (rings put back).
+        ``refine_sigma``, ``refine_clamped``, ``refine_kept_seeds`` (rings put back) and
+        ``refine_thin`` (rings left as seeds in parts thinner than the blur).
     """
     if method != "band":
         raise ValueError(f"unknown refine method {method!r}; expected 'band'")
@@ -957,6 +961,13 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move)
     below = below or {}
     fixed = fixed or {}
+    deepest = deepest or {}
+    thin = set()
+    if deepest:
+        keys = list(deepest)
+        at = np.array([[*local(np.reshape(deepest[key], (1, 2)))[0], loc[key][0] + pad] for key in keys])
+        f = _field_many(pts, at, sigma, dz)[:, 0]
+        thin = {key for key, v in zip(keys, f) if v < 0.5}
     by_slice: dict = {}
     for key, (k, _) in loc.items():
         by_slice.setdefault(k, []).append(key)
@@ -968,11 +979,12 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
         for key in keys:
             seed = loc[key][1]
             guide = finals.get(below.get(key)) if meridians else None
-            ring, nc = refine_ring(pts, seed, k + pad, sigma, dz, guide, **opts)
+            ring, nc = (seed, 0) if key in thin else refine_ring(pts, seed, k + pad, sigma, dz, guide, **opts)
             clamped += nc
             rings.append(ring)
             starts.append(seed)
         back += _untangle(rings, starts, [local(p) for p in fixed.get(k, ())])
         finals.update(zip(keys, rings))
     out = {key: np.c_[ox + (r[:, 0] - pad) * dx, oy + (r[:, 1] - pad) * dx] for key, r in finals.items()}
-    return out, {"refine_sigma": sigma, "refine_clamped": int(clamped), "refine_kept_seeds": int(back)}
+    return out, {"refine_sigma": sigma, "refine_clamped": int(clamped), "refine_kept_seeds": int(back),
+                 "refine_thin": len(thin)}

@@ -466,19 +466,27 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, origin_xy) -> dict:
     """refine="band": the polygons of every component that is not crack-only become refined polygons,
     each guided by its partner below in a band join; crack rings stay (and bound the others)."""
-    seeds, fixed, below = {}, {}, {}
+    from scipy import ndimage
+
+    seeds, fixed, below, deepest = {}, {}, {}, {}
+    to_xy_center, _ = grid_to_xy(*origin_xy, *spacing_xy)
     for k in occupied:
         s = slices[k]
         for c in range(s.n):
             if (k, c) in crack_only:
                 fixed.setdefault(k, []).extend([s.crack_outer[c]] + list(s.crack_holes[c]))
-            else:
-                seeds.update({(k, c, h): (k, p) for h, p in [(-1, s.outer[c])] + list(enumerate(s.holes[c]))})
+                continue
+            sl = s.objects[c]
+            d = ndimage.distance_transform_edt(np.pad(s.labels[sl] == c + 1, 1))
+            j, i = np.unravel_index(np.argmax(d), d.shape)
+            rings = [(-1, s.outer[c])] + list(enumerate(s.holes[c]))
+            seeds.update({(k, c, h): (k, p) for h, p in rings})
+            deepest.update({(k, c, h): to_xy_center([[sl[1].start + i - 1, sl[0].start + j - 1]])[0] for h, _ in rings})
     for k, kind, data in joins:
         if kind == "band":
             a, b, matched = data
             below.update({(k + 1, b, hb): (k, a, ha) for ha, hb in [(-1, -1)] + list(matched)})
-    rings, info = refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds, below, fixed)
+    rings, info = refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds, below, fixed, deepest)
     for (k, c, h), p in rings.items():
         if h < 0:
             slices[k].outer[c] = p
