@@ -374,10 +374,13 @@ def _mean_curvature_shift(buf, sigma):
 
 
 @njit(cache=True)
-def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out):
+def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict):
     """Steps 3-4 for every vertex: returns the number of vertices clamped into their band.
 
     ``xy (n, 2)`` array-local positions, ``kz (n,)`` their lattice slice (-1: leave unmoved).
+    ``strict``: a vertex moves only where the search ends on the level (``|f - 1/2| < 1e-6``);
+    otherwise one whose slice has no level within reach (a part thinner than the blur) is
+    dragged to the end of the search interval.
     """
     norm = _lattice_norm(sigma, dz)
     buf = np.empty(10)
@@ -421,6 +424,8 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out):
             t = tn
         if not ok and hi - lo > 1e-6:
             continue  # no level crossing within reach: keep the vertex
+        if strict and abs(g) > 1e-6:
+            continue  # the search ended off the level (none within reach): keep the vertex
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
             _field(pts, tx, ty, z, sigma, dz, norm, buf)
@@ -614,9 +619,9 @@ def _is_simple(ring):
     return True
 
 
-def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move):
+def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False):
     out = np.empty_like(xy)
-    clamped = _move_to_surface(pts, np.ascontiguousarray(xy), kz, sigma, dz, curvature, max_move, out)
+    clamped = _move_to_surface(pts, np.ascontiguousarray(xy), kz, sigma, dz, curvature, max_move, out, strict)
     return out, clamped
 
 
@@ -675,7 +680,8 @@ def _check_density(density) -> None:
 
 
 def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
-                chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0):
+                chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0,
+                strict: bool = False):
     """Steps 3-6 of the module docstring for one seed polygon of lattice slice ``kz``.
 
     Parameters
@@ -689,6 +695,10 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
         Final vertices of the polygon(s) below that this one continues (step 6, meridians).
     curvature, chord, meridians, density, max_move
         As for :func:`refine_stack`.
+    strict : bool
+        Move only the vertices whose level-set search ends on the level ``f = 1/2``; the others
+        (no level within reach: a part thinner than the blur) stay where they are.  Off in
+        :func:`refine_stack` (its balls' figures are with it off).
 
     Returns
     -------
@@ -703,7 +713,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
         return seed, 0  # a pole point or a segment: kept as it is
     clamped = 0
     kzs = np.full(len(seed), kk, dtype=np.int64)
-    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move)
+    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move, strict)
     clamped += nc
     ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
     if meridians and prev is not None and len(prev):
@@ -716,7 +726,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
             if len(s) >= 3:
                 start = _ring_point_at(guide, s)
                 kzs = np.full(len(start), kk, dtype=np.int64)
-                cand, nc = _surface_points(pts, start, kzs, sigma, dz, curvature, max_move)
+                cand, nc = _surface_points(pts, start, kzs, sigma, dz, curvature, max_move, strict)
                 if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
@@ -958,7 +968,8 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     loc = {key: (int(k), local(p)) for key, (k, p) in seeds.items()}
     sigma = _resolve_sigma(sigma, lambda: _auto_sigma_of([p for _, p in loc.values()], dz))
     _check_density(density)
-    opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move)
+    opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move,
+                strict=True)
     below = below or {}
     fixed = fixed or {}
     deepest = deepest or {}
