@@ -28,9 +28,9 @@ The routes behind the entry points:
   contours per slice, holes and branching; its compiled fast path handles simple slices;
 * **refined route** (``refine="band"``): the outer Jordan contour stack of the source is refined
   across slices (:func:`contourmesh.refine.refine_stack`) and meshed by the stack route, when
-  every slice holds one contour; otherwise (several contours, holes, branching) the volume
-  mesher refines the polygons of its band joins and caps (``volume_to_mesh(refine="band")``,
-  ``meta["route"] = "volume-refined"``).
+  every slice holds one contour (or one outer contour with holes that the stack route closes);
+  otherwise (several contours, holes, branching) the volume mesher refines the polygons of its
+  band joins and caps (``volume_to_mesh(refine="band")``, ``meta["route"] = "volume-refined"``).
 
 Each route switch and fallback is logged on the ``contourmesh`` logger (``logging.DEBUG``).
 """
@@ -219,11 +219,19 @@ def _refine_method(refine) -> str | None:
 
 
 def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Mesh:
-    if any(len(s.contours) != 1 for s in stack.sections):
+    one_each = all(len(s.contours) == 1 for s in stack.sections)
+    if not one_each and _nested_chains(stack) is None:
         return _refined_volume(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     log.debug("refined route: refine_stack(%r) then the stack mesher", refine)
     fine = refine_stack(stack, refine, polygon=polygon)
-    m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps)
+    try:
+        m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps)
+    except (CapError, StackSurfaceError) as exc:
+        if one_each:
+            raise
+        # an outer contour with holes whose refined rings do not close on the stack route
+        log.debug("refined stack route failed (%s); the volume mesher refines its polygons", exc)
+        return _refined_volume(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, polygon=polygon, refine=refine, route="refined"))
 
 
