@@ -27,7 +27,10 @@ The routes behind the entry points:
 * **volume route** (:func:`contourmesh.volumes.volume_to_mesh`): any binary volume, several
   contours per slice, holes and branching; its compiled fast path handles simple slices;
 * **refined route** (``refine="band"``): the outer Jordan contour stack of the source is refined
-  across slices (:func:`contourmesh.refine.refine_stack`) and meshed by the stack route.
+  across slices (:func:`contourmesh.refine.refine_stack`) and meshed by the stack route, when
+  every slice holds one contour (or one outer contour with holes that the stack route closes);
+  otherwise (several contours, holes, branching) the volume mesher refines the polygons of its
+  band joins and caps (``volume_to_mesh(refine="band")``, ``meta["route"] = "volume-refined"``).
 
 Each route switch and fallback is logged on the ``contourmesh`` logger (``logging.DEBUG``).
 """
@@ -48,7 +51,7 @@ from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
 from .measure import axis_wall_fraction
 from .rasterize import rasterize_stack
-from .refine import REFINERS, refine_stack
+from .refine import REFINERS, refine_stack, stack_points
 from .surface import _nested_chains, stack_to_mesh
 from .tracing import trace_contours
 from .types import ContourStack, Mesh, Section
@@ -216,10 +219,38 @@ def _refine_method(refine) -> str | None:
 
 
 def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Mesh:
+    one_each = all(len(s.contours) == 1 for s in stack.sections)
+    if not one_each and _nested_chains(stack) is None:
+        return _refined_volume(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     log.debug("refined route: refine_stack(%r) then the stack mesher", refine)
     fine = refine_stack(stack, refine, polygon=polygon)
-    m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps)
+    try:
+        m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps)
+    except (CapError, StackSurfaceError) as exc:
+        if one_each:
+            raise
+        # an outer contour with holes whose refined rings do not close on the stack route
+        log.debug("refined stack route failed (%s); the volume mesher refines its polygons", exc)
+        return _refined_volume(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, polygon=polygon, refine=refine, route="refined"))
+
+
+def _refined_volume(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Mesh:
+    """A stack with several contours (or holes) in a section: its digital object (the grid points
+    its contours bound, :func:`contourmesh.refine.stack_points`) meshed by the volume mesher, which
+    refines its own polygons."""
+    log.debug("refined route: several contours in a section; the volume mesher refines its polygons")
+    pts, x0, y0, zidx, dz = stack_points(stack)
+    h = float(stack.spacing[0])
+    dzp = dz * h
+    ox, oy = (float(v) for v in stack.origin)
+    origin = (ox + x0 * h, oy + y0 * h, float(stack.z[0]) - int(zidx[0]) * dzp)
+    m = volume_to_mesh(pts, spacing=(dzp, h, h), origin=origin, polygon=polygon,
+                       triangulation=triangulation or "optimal", caps=caps, refine=refine)
+    meta = dict(stack.meta)
+    meta.update(m.meta)
+    meta.update(route="volume-refined")
+    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
 def _with_meta(m: Mesh, **meta) -> Mesh:
@@ -316,8 +347,9 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
-def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack:
-    """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement)."""
+def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
+    """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement);
+    None when some slice has several contours (or a hole)."""
     if dx != dy:
         raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
     sections = []
@@ -326,7 +358,7 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack:
             continue
         contours, _ = trace_contours(mask[k])
         if len(contours) != 1:
-            raise ValueError(f"refine='band' needs one contour per slice; slice {k} has {len(contours)}")
+            return None
         sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
     return ContourStack(tuple(sections), spacing=(dx, dy), origin=(ox, oy), meta={"source": "volume"})
 
@@ -357,8 +389,15 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
     if refine is not None:
         mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                       threshold=threshold, origin=origin)
-        return _refined(_stack_of_mask(mask, zs, dy, dx, ox, oy), polygon=polygon, triangulation=triangulation,
-                        caps=caps, refine=refine)
+        stack = _stack_of_mask(mask, zs, dy, dx, ox, oy)
+        if stack is not None:
+            return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+        # several contours in a slice, holes, branching: the volume mesher refines its own polygons
+        log.debug("refined route: several contours in a slice; the volume mesher refines its polygons")
+        m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
+                           polygon=polygon, triangulation=triangulation or "optimal", caps=caps, refine=refine,
+                           progress=progress)
+        return _with_meta(m, route="volume-refined")
     m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
                        polygon=polygon, triangulation=triangulation or "wiederhold", caps=caps, progress=progress)
     return _with_meta(m, route="volume")

@@ -834,13 +834,15 @@ def _params_ok(volume, spacing, z, axis, label, threshold, origin):
 
 def fast_volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
                         origin=(0.0, 0.0, 0.0), polygon: str = "mlp", triangulation: str = "wiederhold",
-                        caps: str = "flat", threads: int | None = None):
+                        caps: str = "flat", refine: str | None = None, threads: int | None = None):
     """The mesh of :func:`contourmesh.volumes.volume_to_mesh`, fast, or None outside the fast path's scope.
 
     Parameters
     ----------
     volume, spacing, z, axis, label, threshold, origin, polygon, triangulation, caps
         As for :func:`contourmesh.volumes.volume_to_mesh`.
+    refine : {None, "none", "band"}
+        The fast path has no refinement: with ``"band"`` it declines (returns None).
     threads : int, optional
         Worker threads for the per-slice and per-pair kernels (default: ``$CONTOURMESH_THREADS`` or
         1, which runs everything in the calling thread).
@@ -854,6 +856,8 @@ def fast_volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 
     """
     if polygon != "mlp" or triangulation != "wiederhold" or caps not in ("flat", "half"):
         return None
+    if refine not in (None, "none"):
+        return None  # refined polygons are the general mesher's
     if not _params_ok(volume, spacing, z, axis, label, threshold, origin):
         return None
     try:

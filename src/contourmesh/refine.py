@@ -61,7 +61,8 @@ from .polygons import polygonize
 from .stacks import check_stack
 from .types import ContourStack, Mesh, Section, shoelace_area
 
-__all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "auto_sigma", "band_violations"]
+__all__ = ["REFINERS", "stack_points", "blurred_indicator", "in_band", "refine_stack", "refine_ring",
+           "refine_volume_rings", "auto_sigma", "band_violations"]
 
 #: Refinement methods by name (``"band"``; ``"none"``: no refinement).
 REFINERS = ("band", "none")
@@ -373,10 +374,13 @@ def _mean_curvature_shift(buf, sigma):
 
 
 @njit(cache=True)
-def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out):
+def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict):
     """Steps 3-4 for every vertex: returns the number of vertices clamped into their band.
 
     ``xy (n, 2)`` array-local positions, ``kz (n,)`` their lattice slice (-1: leave unmoved).
+    ``strict``: a vertex moves only where the search ends on the level (``|f - 1/2| < 1e-6``);
+    otherwise one whose slice has no level within reach (a part thinner than the blur) is
+    dragged to the end of the search interval.
     """
     norm = _lattice_norm(sigma, dz)
     buf = np.empty(10)
@@ -420,6 +424,8 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out):
             t = tn
         if not ok and hi - lo > 1e-6:
             continue  # no level crossing within reach: keep the vertex
+        if strict and abs(g) > 1e-6:
+            continue  # the search ended off the level (none within reach): keep the vertex
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
             _field(pts, tx, ty, z, sigma, dz, norm, buf)
@@ -583,6 +589,20 @@ def _orient(ax, ay, bx, by, cx, cy):
 
 
 @njit(cache=True)
+def _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):
+    """Do the closed segments ab and cd meet (cross or touch)?"""
+    if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
+        return False
+    if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
+        return False
+    d1 = _orient(ax, ay, bx, by, cx, cy)
+    d2 = _orient(ax, ay, bx, by, dx, dy)
+    d3 = _orient(cx, cy, dx, dy, ax, ay)
+    d4 = _orient(cx, cy, dx, dy, bx, by)
+    return d1 * d2 <= 0.0 and d3 * d4 <= 0.0
+
+
+@njit(cache=True)
 def _is_simple(ring):
     """True when no two non-adjacent edges of the closed polygon meet (an O(n^2) check)."""
     n = ring.shape[0]
@@ -594,22 +614,14 @@ def _is_simple(ring):
                 continue
             cx, cy = ring[j, 0], ring[j, 1]
             dx, dy = ring[(j + 1) % n, 0], ring[(j + 1) % n, 1]
-            if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
-                continue
-            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
-                continue
-            d1 = _orient(ax, ay, bx, by, cx, cy)
-            d2 = _orient(ax, ay, bx, by, dx, dy)
-            d3 = _orient(cx, cy, dx, dy, ax, ay)
-            d4 = _orient(cx, cy, dx, dy, bx, by)
-            if d1 * d2 <= 0.0 and d3 * d4 <= 0.0:
+            if _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):
                 return False
     return True
 
 
-def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move):
+def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False):
     out = np.empty_like(xy)
-    clamped = _move_to_surface(pts, np.ascontiguousarray(xy), kz, sigma, dz, curvature, max_move, out)
+    clamped = _move_to_surface(pts, np.ascontiguousarray(xy), kz, sigma, dz, curvature, max_move, out, strict)
     return out, clamped
 
 
@@ -628,19 +640,124 @@ def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi:
     _check_stack(stack)
     zs = stack.z
     dz = float(np.median(np.diff(zs))) / float(stack.spacing[0]) if len(zs) > 1 else 1.0
+    # grid contours are 4-connected staircases: pi/4 of their length estimates the curve's
+    return _auto_sigma_of([c for s in stack.sections for c in s.contours], dz, math.pi / 4,
+                          factor=factor, lo=lo, hi=hi)
+
+
+def _auto_sigma_of(polygons, dz: float, length_factor: float = 1.0, *, factor: float = 0.8, lo: float = 2.0,
+                   hi: float = 3.5) -> float:
+    """:func:`auto_sigma`'s rule for polygons in grid units (``length_factor`` scales their perimeters)."""
     vol = 0.0
     lat = 0.0
-    for s in stack.sections:
-        for c in s.contours:
-            c = np.asarray(c, dtype=np.float64)
-            if len(c) < 3:
-                continue
-            vol += shoelace_area(c) * dz
-            lat += float(np.hypot(*np.diff(np.vstack([c, c[:1]]), axis=0).T).sum()) * dz * (math.pi / 4)
+    for c in polygons:
+        c = np.asarray(c, dtype=np.float64)
+        if len(c) < 3:
+            continue
+        vol += shoelace_area(c) * dz
+        lat += float(np.hypot(*np.diff(np.vstack([c, c[:1]]), axis=0).T).sum()) * dz * length_factor
     if vol <= 0 or lat <= 0:
         return float(lo)
     r = 3.0 * vol / lat
     return float(min(max(factor * r ** (1.0 / 3.0), lo), hi))
+
+
+def _resolve_sigma(sigma, auto) -> float:
+    """A checked Gaussian width: a number >= 0.7 voxels, or ``"auto"`` (then ``auto()``)."""
+    if isinstance(sigma, str):
+        if sigma != "auto":
+            raise ValueError(f"sigma must be a number of voxels or 'auto'; got {sigma!r}")
+        sigma = auto()
+    sigma = float(sigma)
+    if not (math.isfinite(sigma) and sigma >= 0.7):
+        raise ValueError(f"sigma must be a number >= 0.7 voxels; got {sigma!r}")
+    return sigma
+
+
+def _check_density(density) -> None:
+    if not (float(density) > 0):
+        raise ValueError(f"density must be a positive number; got {density!r}")
+
+
+def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
+                chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0,
+                strict: bool = False):
+    """Steps 3-6 of the module docstring for one seed polygon of lattice slice ``kz``.
+
+    Parameters
+    ----------
+    pts : (nz, ny, nx) bool ndarray
+        The digital object ``I`` (as from :func:`stack_points`).
+    seed : (n, 2) float ndarray
+        The seed polygon in array-local grid coordinates, in the band of slice ``kz``; outer
+        polygons counter-clockwise, holes clockwise (the object on the left).
+    prev : (m, 2) float ndarray, optional
+        Final vertices of the polygon(s) below that this one continues (step 6, meridians).
+    curvature, chord, meridians, density, max_move
+        As for :func:`refine_stack`.
+    strict : bool
+        Move only the vertices whose level-set search ends on the level ``f = 1/2``; the others
+        (no level within reach: a part thinner than the blur) stay where they are.  Off in
+        :func:`refine_stack` (its balls' figures are with it off).
+
+    Returns
+    -------
+    ring : (k, 2) float ndarray
+        The refined polygon (array-local), simple and oriented like the seed; the seed itself
+        where a step would fold it.  A seed that is a point or a segment is returned as it is.
+    clamped : int
+        Vertices clamped into the band.
+    """
+    kk = int(kz)
+    if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
+        return seed, 0  # a pole point or a segment: kept as it is
+    clamped = 0
+    kzs = np.full(len(seed), kk, dtype=np.int64)
+    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move, strict)
+    clamped += nc
+    ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
+    if meridians and prev is not None and len(prev):
+        length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
+        step = length / (len(seed) * float(density))
+        par, dist, _, _ = _project_to_ring(guide, np.ascontiguousarray(prev))
+        par = par[dist < 3.0]
+        if len(par) >= 3:
+            s = _meridian_params(par, length, step)
+            if len(s) >= 3:
+                start = _ring_point_at(guide, s)
+                kzs = np.full(len(start), kk, dtype=np.int64)
+                cand, nc = _surface_points(pts, start, kzs, sigma, dz, curvature, max_move, strict)
+                if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
+                    ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
+                    clamped += nc
+    if chord:
+        loc = np.empty((len(ring), 3))
+        loc[:, :2] = ring
+        loc[:, 2] = kk
+        fld = _field_many(pts, loc, sigma, dz)
+        g2 = (fld[:, 1:4] ** 2).sum(axis=1)
+        nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
+        target = _chord_push(ring, nz2)
+        kzs = np.full(len(ring), kk, dtype=np.int64)
+        out = np.empty_like(ring)
+        nc = _clamp_to_band(pts, np.ascontiguousarray(ring), target, kzs, out)
+        if _is_simple(out):
+            ring = out
+            clamped += nc
+    # the guarantee: every vertex in its band.  A vertex whose walk started off the band (a
+    # projection onto a chord of the guide) goes back toward the seed polygon, which lies in the
+    # band (the MLP does), as far as the band allows.
+    kzs = np.full(len(ring), kk, dtype=np.int64)
+    bad = np.array([not _in_band(pts, kk, float(a), float(b)) for a, b in ring], dtype=bool)
+    if bad.any():
+        _, _, px, py = _project_to_ring(np.ascontiguousarray(seed), np.ascontiguousarray(ring[bad]))
+        start = np.stack([px, py], axis=1)
+        out = np.empty_like(start)
+        clamped += _clamp_to_band(pts, start, np.ascontiguousarray(ring[bad]), kzs[: len(start)], out)
+        cand = ring.copy()
+        cand[bad] = out
+        ring = cand if _is_simple(cand) else seed
+    return ring, clamped
 
 
 def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "mlp", sigma="auto",
@@ -678,77 +795,23 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
 
     if method != "band":
         raise ValueError(f"unknown refine method {method!r}; expected 'band'")
-    if isinstance(sigma, str):
-        if sigma != "auto":
-            raise ValueError(f"sigma must be a number of voxels or 'auto'; got {sigma!r}")
-        sigma = auto_sigma(stack)
-    sigma = float(sigma)
-    if not (math.isfinite(sigma) and sigma >= 0.7):
-        raise ValueError(f"sigma must be a number >= 0.7 voxels; got {sigma!r}")
-    if not (float(density) > 0):
-        raise ValueError(f"density must be a positive number; got {density!r}")
+    sigma = _resolve_sigma(sigma, lambda: auto_sigma(stack))
+    _check_density(density)
     pts, x0, y0, zidx, dz = stack_points(stack)
     off = np.array([x0, y0], dtype=np.float64)
+    opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move)
     clamped = 0
     new_sections = []
     prev = []  # final polygons of the previous section (array-local coordinates)
     for k, sec in enumerate(stack.sections):
         kk = int(zidx[k])
         finals = []
+        q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
         for c in sec.contours:
             c = np.asarray(c, dtype=np.int64)
             seed = np.asarray(polygonize(c, polygon), dtype=np.float64) if len(c) >= 3 else c.astype(np.float64)
-            if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
-                finals.append(seed - off)  # a pole point or a segment: kept as it is
-                continue
-            seed = seed - off
-            kz = np.full(len(seed), kk, dtype=np.int64)
-            guide, nc = _surface_points(pts, seed, kz, sigma, float(dz), curvature, max_move)
+            ring, nc = refine_ring(pts, seed - off, kk, sigma, float(dz), q if prev else None, **opts)
             clamped += nc
-            ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
-            if meridians and prev:
-                q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
-                length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
-                step = length / (len(seed) * float(density))
-                if len(q):
-                    par, dist, _, _ = _project_to_ring(guide, q)
-                    par = par[dist < 3.0]
-                    if len(par) >= 3:
-                        s = _meridian_params(par, length, step)
-                        if len(s) >= 3:
-                            start = _ring_point_at(guide, s)
-                            kz = np.full(len(start), kk, dtype=np.int64)
-                            cand, nc = _surface_points(pts, start, kz, sigma, float(dz), curvature, max_move)
-                            if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
-                                ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
-                                clamped += nc
-            if chord:
-                loc = np.empty((len(ring), 3))
-                loc[:, :2] = ring
-                loc[:, 2] = kk
-                fld = _field_many(pts, loc, sigma, float(dz))
-                g2 = (fld[:, 1:4] ** 2).sum(axis=1)
-                nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
-                target = _chord_push(ring, nz2)
-                kz = np.full(len(ring), kk, dtype=np.int64)
-                out = np.empty_like(ring)
-                nc = _clamp_to_band(pts, np.ascontiguousarray(ring), target, kz, out)
-                if _is_simple(out):
-                    ring = out
-                    clamped += nc
-            # the guarantee: every vertex in its band.  A vertex whose walk started off the band
-            # (a projection onto a chord of the guide) goes back toward the seed polygon, which
-            # lies in the band (the MLP does), as far as the band allows.
-            kz = np.full(len(ring), kk, dtype=np.int64)
-            bad = np.array([not _in_band(pts, kk, float(a), float(b)) for a, b in ring], dtype=bool)
-            if bad.any():
-                _, _, px, py = _project_to_ring(np.ascontiguousarray(seed), np.ascontiguousarray(ring[bad]))
-                start = np.stack([px, py], axis=1)
-                out = np.empty_like(start)
-                clamped += _clamp_to_band(pts, start, np.ascontiguousarray(ring[bad]), kz[: len(start)], out)
-                cand = ring.copy()
-                cand[bad] = out
-                ring = cand if _is_simple(cand) else seed
             finals.append(ring)
         prev = finals
         new_sections.append(Section(z=sec.z, contours=tuple(f + off for f in finals), parents=sec.parents))
@@ -757,3 +820,182 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     return ContourStack(sections=tuple(new_sections), spacing=stack.spacing, origin=stack.origin, meta=meta)
 
 
+@njit(cache=True)
+def _rings_meet(a, b):
+    """True when an edge of the closed polygon ``a`` meets (crosses or touches) an edge of ``b``."""
+    n, m = a.shape[0], b.shape[0]
+    for i in range(n):
+        ax, ay = a[i, 0], a[i, 1]
+        bx, by = a[(i + 1) % n, 0], a[(i + 1) % n, 1]
+        for j in range(m):
+            cx, cy = b[j, 0], b[j, 1]
+            dx, dy = b[(j + 1) % m, 0], b[(j + 1) % m, 1]
+            if _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):
+                return True
+    return False
+
+
+def _boxes_meet(a: np.ndarray, b: np.ndarray) -> bool:
+    return bool(np.all(a.min(axis=0) <= b.max(axis=0)) and np.all(b.min(axis=0) <= a.max(axis=0)))
+
+
+@njit(cache=True)
+def _inside_share(a, b):
+    """Share of the points of ``a`` inside the closed polygon ``b`` (even-odd ray casting)."""
+    n, m = a.shape[0], b.shape[0]
+    hits = 0
+    for i in range(n):
+        x, y = a[i, 0], a[i, 1]
+        inside = False
+        for j in range(m):
+            x1, y1 = b[j, 0], b[j, 1]
+            x2, y2 = b[(j + 1) % m, 0], b[(j + 1) % m, 1]
+            if (y1 > y) != (y2 > y):
+                if x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+                    inside = not inside
+        if inside:
+            hits += 1
+    return hits / n
+
+
+def _untangle(rings: list, seeds: list, fixed: list) -> int:
+    """Put back the seed of every refined ring that meets another ring of its slice or a fixed one,
+    or that changes which of them it lies inside (or which lie inside it).
+
+    ``rings`` (refined) and ``seeds`` are parallel lists (a ring that is its seed is not refined);
+    ``fixed`` are rings that stay.  Where the slice holds no level crossing (a thin end), outer and
+    hole polygons can pass each other inside the band without meeting: the nesting test catches
+    that.  Repeats until nothing changes (a ring put back can disturb a neighbour's refined ring).
+    Returns the number of rings put back.
+    """
+    def nested(a, b):  # is a inside b (most of its vertices: touching seeds share a few)
+        return _boxes_meet(a, b) and _inside_share(a, b) > 0.5
+
+    n = len(rings)
+    others_seed = list(seeds) + list(fixed)
+    back = 0
+    changed = True
+    while changed:
+        changed = False
+        for i in range(n):
+            if rings[i] is seeds[i]:
+                continue
+            others = list(rings) + list(fixed)
+            for j, o in enumerate(others):
+                if j == i or len(o) < 3:
+                    continue
+                so = others_seed[j]
+                if ((_boxes_meet(rings[i], o) and _rings_meet(rings[i], o))
+                        or nested(rings[i], o) != nested(seeds[i], so) or nested(o, rings[i]) != nested(so, seeds[i])):
+                    rings[i] = seeds[i]
+                    back += 1
+                    changed = True
+                    break
+    return back
+
+
+def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dict | None = None,
+                        fixed: dict | None = None, deepest: dict | None = None, *, method: str = "band", sigma="auto", curvature: bool = True,
+                        chord: bool = True, meridians: bool = True, density: float = 1.0,
+                        max_move: float = 3.0):
+    """Refined slice polygons of a binary volume: the band refinement inside the volume mesher.
+
+    The digital object ``I`` is the mask itself (voxel centres); every seed polygon goes through
+    :func:`refine_ring` in the order of its slice, its meridian guide being the final ring of the
+    polygon ``below`` names.  A refined ring that meets another ring of its slice (refined or
+    ``fixed``) is replaced by its seed, so the polygons of a slice stay disjoint as the seeds are.
+
+    Parameters
+    ----------
+    mask : (nz, ny, nx) bool ndarray
+        The volume, indexed ``[k, j, i]``; voxel ``[k, j, i]`` has its centre at
+        ``(ox + i dx, oy + j dy, zs[k])``.
+    zs : (nz,) array
+        Slice heights, evenly spaced.
+    spacing_xy, origin_xy : (dx, dy), (ox, oy)
+        Pixel size (square pixels only) and the centre of pixel ``(0, 0)``.
+    seeds : dict
+        ``key -> (k, polygon)``: the polygons to refine, physical ``(x, y)``, outer ones
+        counter-clockwise and holes clockwise, each in the band of slice ``k``.
+    below : dict, optional
+        ``key -> key``: the polygon of the slice below that a polygon continues (one-to-one band
+        joins); its final ring guides the meridians.
+    fixed : dict, optional
+        ``k -> [polygon, ...]``: polygons of slice ``k`` that stay as they are.
+    deepest : dict, optional
+        ``key -> (x, y)``: the pixel centre of the polygon's component furthest from its
+        boundary.  Where the blurred indicator is below 1/2 there, the slice holds no level set
+        around the component (a part thinner than the blur: a thin tube, a tip) and the polygon
+        keeps its seed; the level-set search would otherwise drag its vertices to the search's end.
+    method, sigma, curvature, chord, meridians, density, max_move
+        As for :func:`refine_stack` (``sigma="auto"``: :func:`auto_sigma`'s rule applied to the seeds).
+
+    Returns
+    -------
+    rings : dict
+        ``key -> polygon`` (physical ``(x, y)``), the seed itself where refinement would fold it
+        or make it meet a neighbour.
+    info : dict
+        ``refine_sigma``, ``refine_clamped``, ``refine_kept_seeds`` (rings put back) and
+        ``refine_thin`` (rings left as seeds in parts thinner than the blur).
+    """
+    if method != "band":
+        raise ValueError(f"unknown refine method {method!r}; expected 'band'")
+    mask = np.asarray(mask, dtype=bool)
+    if mask.ndim != 3:
+        raise ValueError(f"refine_volume_rings needs a 3D mask; got shape {mask.shape}")
+    dx, dy = (float(v) for v in spacing_xy)
+    if not (dx > 0 and dy > 0 and abs(dx - dy) <= 1e-9 * max(dx, dy)):
+        raise ValueError(f"band refinement needs square pixels (dx == dy > 0); got dx={dx}, dy={dy}")
+    zs = np.asarray(zs, dtype=np.float64)
+    if len(zs) != mask.shape[0]:
+        raise ValueError(f"{len(zs)} slice heights for {mask.shape[0]} slices")
+    if len(zs) > 1:
+        steps = np.diff(zs)
+        if np.max(np.abs(steps - steps[0])) > 1e-6 * abs(steps[0]):
+            raise ValueError("band refinement needs evenly spaced slices; got uneven slice heights")
+        dz = float(steps[0]) / dx
+    else:
+        dz = 1.0
+    ox, oy = (float(v) for v in origin_xy)
+    pad = 6
+    pts = np.pad(mask, pad)
+
+    def local(p):
+        return np.c_[(np.asarray(p, dtype=np.float64)[:, 0] - ox) / dx + pad,
+                     (np.asarray(p, dtype=np.float64)[:, 1] - oy) / dx + pad]
+
+    loc = {key: (int(k), local(p)) for key, (k, p) in seeds.items()}
+    sigma = _resolve_sigma(sigma, lambda: _auto_sigma_of([p for _, p in loc.values()], dz))
+    _check_density(density)
+    opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move,
+                strict=True)
+    below = below or {}
+    fixed = fixed or {}
+    deepest = deepest or {}
+    thin = set()
+    if deepest:
+        keys = list(deepest)
+        at = np.array([[*local(np.reshape(deepest[key], (1, 2)))[0], loc[key][0] + pad] for key in keys])
+        f = _field_many(pts, at, sigma, dz)[:, 0]
+        thin = {key for key, v in zip(keys, f) if v < 0.5}
+    by_slice: dict = {}
+    for key, (k, _) in loc.items():
+        by_slice.setdefault(k, []).append(key)
+    finals = {}
+    clamped = back = 0
+    for k in sorted(by_slice):
+        keys = by_slice[k]
+        rings, starts = [], []
+        for key in keys:
+            seed = loc[key][1]
+            guide = finals.get(below.get(key)) if meridians else None
+            ring, nc = (seed, 0) if key in thin else refine_ring(pts, seed, k + pad, sigma, dz, guide, **opts)
+            clamped += nc
+            rings.append(ring)
+            starts.append(seed)
+        back += _untangle(rings, starts, [local(p) for p in fixed.get(k, ())])
+        finals.update(zip(keys, rings))
+    out = {key: np.c_[ox + (r[:, 0] - pad) * dx, oy + (r[:, 1] - pad) * dx] for key, r in finals.items()}
+    return out, {"refine_sigma": sigma, "refine_clamped": int(clamped), "refine_kept_seeds": int(back),
+                 "refine_thin": len(thin)}

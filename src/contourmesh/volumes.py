@@ -58,6 +58,7 @@ from .bands.caps import cap_faces
 from .fastpath import fast_volume_to_mesh
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS, dss_polygon, mlp_polygon, thin_part_polygon
+from .refine import refine_volume_rings
 from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
 from .tracing import _crack_contours, trace_contours
 from .types import Mesh
@@ -302,8 +303,12 @@ class _Mesher:
 
 def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
                    origin=(0.0, 0.0, 0.0), polygon: str = "mlp", triangulation: str = "wiederhold",
-                   caps: str = "flat", progress: bool = False) -> Mesh:
+                   caps: str = "flat", refine: str | None = None, progress: bool = False) -> Mesh:
     """Mesh a binary (or labelled) volume: the mesh source for volumes (see the module docstring).
+
+    ``refine="band"`` replaces every polygon of a component that is not crack-only (its rings
+    take part in band joins and caps, not in exact joins) by its band-refined polygon
+    (:func:`contourmesh.refine.refine_volume_rings`: needs square pixels and evenly spaced slices).
 
     Returns a closed, outward-oriented, manifold Mesh whose genus equals that of the 6-connected
     voxel object; ``meta`` records the method, the number of exact (voxel-like) joins and of
@@ -315,12 +320,16 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         raise ValueError(f"unknown band triangulation method {triangulation!r}; expected one of {sorted(TRIANGULATORS)}")
     if caps not in ("flat", "half"):
         raise ValueError(f"caps must be 'flat' or 'half'; got {caps!r}")
+    if refine not in (None, "none", "band"):
+        raise ValueError(f"unknown refine method {refine!r}; expected 'band' or 'none'")
+    refine = None if refine == "none" else refine
     if (label is None and threshold is None and isinstance(volume, np.ndarray) and volume.ndim == 3
             and volume.size and volume.dtype.kind in "iuf"):
         label = binary_label(volume)  # a two-valued volume (0/255) is binary: its non-zero value
     # the common case (no holes, every slice pair a simple band join) in compiled code, the same mesh
     fast = fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
-                               origin=origin, polygon=polygon, triangulation=triangulation, caps=caps)
+                               origin=origin, polygon=polygon, triangulation=triangulation, caps=caps,
+                               refine=refine)
     if fast is not None:
         log.debug("volume mesher: the compiled fast path took the volume")
         return fast
@@ -379,6 +388,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                 joins.append((k, "exact", (sorted(ga), sorted(gb))))
                 crack_only.update((k, a) for a in ga)
                 crack_only.update((k + 1, b) for b in gb)
+
+    refine_info = {}
+    if refine is not None:  # the polygons of band joins and caps become their refined polygons
+        refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy))
 
     # pass 2b: branching joins between the polygons themselves (bridges), where they keep clear of
     # everything else in their planes; the others become exact joins (their contours then keep
@@ -477,10 +490,44 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         "crack_rings": len(crack_only), "band_fallbacks": M.band_fallbacks,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
+    if refine is not None:
+        meta.update(refine_info, refine=refine)
     if exact_joins or fallbacks or M.band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
     return Mesh(V, F, P=len(V), meta=meta)
+
+
+def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, origin_xy) -> dict:
+    """refine="band": the polygons of every component that is not crack-only become refined polygons,
+    each guided by its partner below in a band join; crack rings stay (and bound the others)."""
+    from scipy import ndimage
+
+    seeds, fixed, below, deepest = {}, {}, {}, {}
+    to_xy_center, _ = grid_to_xy(*origin_xy, *spacing_xy)
+    for k in occupied:
+        s = slices[k]
+        for c in range(s.n):
+            if (k, c) in crack_only:
+                fixed.setdefault(k, []).extend([s.crack_outer[c]] + list(s.crack_holes[c]))
+                continue
+            sl = s.objects[c]
+            d = ndimage.distance_transform_edt(np.pad(s.labels[sl] == c + 1, 1))
+            j, i = np.unravel_index(np.argmax(d), d.shape)
+            rings = [(-1, s.outer[c])] + list(enumerate(s.holes[c]))
+            seeds.update({(k, c, h): (k, p) for h, p in rings})
+            deepest.update({(k, c, h): to_xy_center([[sl[1].start + i - 1, sl[0].start + j - 1]])[0] for h, _ in rings})
+    for k, kind, data in joins:
+        if kind == "band":
+            a, b, matched = data
+            below.update({(k + 1, b, hb): (k, a, ha) for ha, hb in [(-1, -1)] + list(matched)})
+    rings, info = refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds, below, fixed, deepest)
+    for (k, c, h), p in rings.items():
+        if h < 0:
+            slices[k].outer[c] = p
+        else:
+            slices[k].holes[c][h] = p
+    return info
 
 
 def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
