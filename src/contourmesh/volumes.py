@@ -26,14 +26,15 @@ Conventions (stated once)
   A group of one component below and one above, whose overlap ``O`` is connected and whose holes
   match one to one through the holes of ``O``, is joined by the selected band triangulation
   (outer to outer, hole to hole): the paper's method.  A fork or a merge (one component on one
-  side), a hole that closes or opens, and a hole that runs out of the side of its component are
+  side), chains of several on both sides whose overlaps form a tree, a hole that closes or
+  opens, and a hole that runs out of the side of its component are
   **bridged joins**: the contours of each side are joined into one ring by bridges (segments in
   their plane, through the background between components or through the material from a hole to
   its component's outer contour: a keyhole) and the two rings by one band; a hole that the other
   slice covers is closed by a lid.  This needs every pair's overlap connected, no overlap inside
   a hole of another, at most one hole from each side in each hole of ``O``, and bridges that touch
   nothing else in their plane; the band and lids are tested for crossing faces before they are
-  used.  Every other group (several components on both sides, handles that form) is joined
+  used.  Every other group (overlaps that close a loop: a handle forms) is joined
   *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
   slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
   mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
@@ -686,9 +687,9 @@ def _pixel_faces(M, region, x0, y0, corner_ids, up):
 def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     """How a fork or merge group joins between its polygons, or None where it cannot.
 
-    The group has one component on one side (or one on each, with holes that do not match one to
-    one).  It qualifies when every overlap of a pair of components is connected, no overlap lies
-    in a hole of another, and every hole of the overlap ``O`` holds at most one hole from below
+    The components overlap as a tree (a fork, a merge, or several of each side in a chain; one on
+    each side with holes that do not match one to one).  It qualifies when every overlap of a
+    pair of components is connected, no overlap lies in a hole of another, and every hole of the overlap ``O`` holds at most one hole from below
     and one from above: then the join is one band between the contours of each side bridged into
     one ring.
     Returns ``(tubes, lids_below, lids_above, open_below, open_above)``: hole pairs ``((a, ha),
@@ -698,8 +699,6 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     """
     from scipy import ndimage
 
-    if len(ga) != 1 and len(gb) != 1:
-        return None
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     y0 = min(s[0].start for s in sl)
     y1 = max(s[0].stop for s in sl)
@@ -710,6 +709,8 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     o = np.isin(la, [a + 1 for a in ga]) & np.isin(lb, [b + 1 for b in gb])
     nbk = np.int64(B.n + 1)
     npairs = len(np.unique(la[o].astype(np.int64) * nbk + lb[o]))
+    if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
+        return None
     olab, no = ndimage.label(o, structure=_CROSS)
     if no != npairs:  # some pair overlaps in more than one piece: a handle
         return None
