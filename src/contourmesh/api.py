@@ -42,7 +42,7 @@ import numpy as np
 from . import shapes as _shapes
 from .bands.caps import CapError
 from .digitize import gauss_volume, outer_jordan_stack
-from .errors import InapplicableOption, StackSurfaceError
+from .errors import InapplicableOption, RasterFallbackWarning, StackSurfaceError, warn_external
 from .io import check_file
 from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
@@ -164,7 +164,7 @@ def mesh(source, **options) -> Mesh:
     **options
         ``polygon`` ({"mlp", "dss", "none"}), ``triangulation`` ({"wiederhold", "greedy", "optimal",
         "arclength"}; default ``"wiederhold"``, or ``"optimal"`` with ``refine="band"``), ``caps``
-        ({"flat", "half"}), ``refine`` ({None, "none", "band"}), ``progress``, and the keywords of
+        ({"flat", "half", "smooth"}; ``"smooth"`` on the stack and refined routes only), ``refine`` ({None, "none", "band"}), ``progress``, and the keywords of
         the source's entry point.
 
     Returns
@@ -222,6 +222,15 @@ def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Me
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, polygon=polygon, refine=refine, route="refined"))
 
 
+def _volume_caps(caps: str, why: str) -> str:
+    """``caps`` for the volume mesher; ``"smooth"`` is refused there (it closes contour stacks only)."""
+    if caps == "smooth":
+        raise InapplicableOption(f"caps='smooth' does not apply here: {why}, and the volume mesher closes its ends "
+                                 "with caps='flat' or caps='half' only (the smooth dome is made on the stack route: "
+                                 "one contour per section, grid contours or polygon='none')")
+    return caps
+
+
 def _with_meta(m: Mesh, **meta) -> Mesh:
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, **meta))
 
@@ -263,6 +272,7 @@ def mesh_shape(shape, *, h: float = 1.0, polygon: str = "mlp", triangulation: st
         return _with_meta(stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps),
                           route="stack")
     log.debug("%s: several contours in a slice; meshing its Gauss digitization", shape.spec)
+    _volume_caps(caps, f"{shape.spec} has several contours in a slice, so it is meshed by the volume mesher")
     vol, org = gauss_volume(shape, h=h)
     m = volume_to_mesh(vol, polygon=polygon, triangulation=triangulation, caps=caps, spacing=(h, h, h),
                        origin=org, progress=progress)
@@ -305,14 +315,27 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
             if integer:
                 raise
             # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): the
-            # raster route below resolves it even-odd
-            log.debug("stack route failed (%s); re-routing to the raster route", exc)
+            # raster route below resolves it even-odd; never silently
+            name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
+            _volume_caps(caps, f"{name} cannot be meshed as drawn on the stack route ({exc})")
+            log.info("%s: stack route failed (%s); re-routing to the raster route", name, exc)
+            warn_external(f"{name}: the contours cannot be meshed as drawn ({exc}); rasterized instead (raster "
+                          "route, pixel= sets its size)", RasterFallbackWarning)
+            fallback = str(exc)
+    else:
+        why = ("its sections hold several contours" if not one_each else
+               f"its contours are real-valued and polygon={polygon!r} (use polygon='none' to mesh them as drawn)")
+        _volume_caps(caps, f"this stack goes to the raster route: {why}")
+        log.debug("raster route: %s", why)
+        fallback = None
     r = rasterize_stack(stack, pixel)
     m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation, caps=caps,
                        progress=progress)
     meta = dict(m.meta)
     meta.update(stack.meta)  # the stack's source, roi and units win over the volume mesher's
     meta.update(route="raster", pixel=r.spacing[0])
+    if fallback is not None:
+        meta["stack_route_error"] = fallback
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
@@ -359,6 +382,7 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
                                                       threshold=threshold, origin=origin)
         return _refined(_stack_of_mask(mask, zs, dy, dx, ox, oy), polygon=polygon, triangulation=triangulation,
                         caps=caps, refine=refine)
+    _volume_caps(caps, "a volume is meshed by the volume mesher (refine='band' meshes its contour stack instead)")
     m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
                        polygon=polygon, triangulation=triangulation or "wiederhold", caps=caps, progress=progress)
     return _with_meta(m, route="volume")

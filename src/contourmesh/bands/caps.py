@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 __all__ = ["cap_faces", "CapError"]
 
@@ -139,6 +140,46 @@ def _on_segment(vertices, cand, a, b):
     return cand[ok], t[ok]
 
 
+@njit(cache=True)
+def _busy_edges(vertices, e, cand):  # pragma: no cover (compiled)
+    """For each edge ``e[i]``: whether a candidate point may lie strictly inside it (a slightly wider
+    net than :func:`_on_segment`'s test, so round-off can only send an edge to the exact test)."""
+    out = np.zeros(len(e), dtype=np.bool_)
+    for i in range(len(e)):
+        px, py = vertices[e[i, 0], 0], vertices[e[i, 0], 1]
+        dx, dy = vertices[e[i, 1], 0] - px, vertices[e[i, 1], 1] - py
+        L2 = dx * dx + dy * dy
+        if L2 == 0.0:
+            out[i] = True
+            continue
+        tol = 2e-9 * math.sqrt(L2)
+        xlo, xhi = min(px, px + dx) - tol, max(px, px + dx) + tol
+        ylo, yhi = min(py, py + dy) - tol, max(py, py + dy) + tol
+        for j in range(len(cand)):
+            cx, cy = vertices[cand[j], 0], vertices[cand[j], 1]
+            if cx < xlo or cx > xhi or cy < ylo or cy > yhi:
+                continue
+            wx, wy = cx - px, cy - py
+            t = (wx * dx + wy * dy) / L2
+            if t <= 1e-13 or t >= 1 - 1e-13:
+                continue
+            ox, oy = wx - t * dx, wy - t * dy
+            if math.sqrt(ox * ox + oy * oy) <= tol:
+                out[i] = True
+                break
+    return out
+
+
+def _edges_without_points(vertices, tris, cand) -> set:
+    """The triangles' edges that no candidate point lies on, found for all edges at once, so that the
+    splitting loop only runs the exact test on the few others."""
+    if len(tris) == 0:
+        return set()
+    e = np.ascontiguousarray(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]))
+    busy = _busy_edges(np.ascontiguousarray(vertices, dtype=np.float64), e, np.ascontiguousarray(cand))
+    return set(map(tuple, e[~busy].tolist()))
+
+
 def split_t_junctions(vertices, tris, boundary):
     """Split triangles whose edges pass through other boundary vertices (T-junctions).
 
@@ -152,6 +193,7 @@ def split_t_junctions(vertices, tris, boundary):
     boundary = np.asarray(boundary, dtype=np.int64).reshape(-1, 2)
     cand = np.unique(boundary)
     loop_edges = set(map(tuple, boundary.tolist()))
+    clean = _edges_without_points(vertices, np.asarray(tris, dtype=np.int64).reshape(-1, 3), cand)
     out = []
     # every split strictly shortens an edge, so a valid triangulation needs few; degenerate
     # triangles along a collinear run can re-split each other for ever: give up (None) instead
@@ -164,7 +206,7 @@ def split_t_junctions(vertices, tris, boundary):
                 return None
             a, b, c = pending.pop()
             for (p, q, r) in ((a, b, c), (b, c, a), (c, a, b)):
-                if (p, q) in loop_edges:
+                if (p, q) in loop_edges or (p, q) in clean:
                     continue
                 inside, tt = _on_segment(vertices, cand, p, q)
                 if len(inside):
