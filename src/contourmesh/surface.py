@@ -227,7 +227,7 @@ def _dome(b: _Builder, ring, poly: np.ndarray, z: float, gap: float, upward: boo
     ``cos(theta_k)`` (``theta_k = k pi / (2 (m + 1))``), at a height beyond ``z`` proportional to
     ``sin(theta_k)``: a quarter ellipse from the end polygon's rim toward the centre, its tangent at
     the rim perpendicular to the section plane.  The heights are scaled so that the dome holds the
-    volume of the ``caps="half"`` prism, ``area * gap / 2``: its top lies about 0.79 gap beyond the
+    volume of the ``caps="half"`` prism, ``area * gap / 2``: its top lies about 0.73 gap beyond the
     end section (a dome of the prism's height would hold only about 2/3 of it).  Each horizontal
     section of the dome is a scaled copy of the end polygon, so the dome does not cross itself; the
     rings are joined point to point (planar trapezoids, split in two triangles each).
