@@ -164,8 +164,8 @@ def mesh(source, **options) -> Mesh:
     **options
         ``polygon`` ({"mlp", "dss", "none"}), ``triangulation`` ({"wiederhold", "greedy", "optimal",
         "arclength"}; default ``"wiederhold"``, or ``"optimal"`` with ``refine="band"``), ``caps``
-        ({"flat", "half", "smooth"}; ``"smooth"`` on the stack and refined routes only), ``refine`` ({None, "none", "band"}), ``progress``, and the keywords of
-        the source's entry point.
+        ({"flat", "half", "smooth"}; ``"smooth"`` on the stack and refined routes only), ``refine``
+        ({None, "none", "band"}), ``progress``, and the keywords of the source's entry point.
 
     Returns
     -------
@@ -294,7 +294,10 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
       at ``pixel`` (default: the median point spacing) and meshed by the volume mesher at the
       sections' own heights.
 
-    ``meta["route"]`` records the route taken and ``meta["pixel"]`` the raster size.
+    ``meta["route"]`` records the route taken and ``meta["pixel"]`` the raster size.  A stack that
+    was to be meshed as drawn but cannot be is rasterized with a
+    :class:`~contourmesh.errors.RasterFallbackWarning` (and ``meta["stack_route_error"]``);
+    ``caps="smooth"`` is refused on the raster route (:class:`~contourmesh.errors.InapplicableOption`).
     """
     if not isinstance(stack, ContourStack):
         raise TypeError(f"mesh_stack needs a ContourStack; got {type(stack).__name__}")
