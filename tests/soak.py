@@ -346,12 +346,13 @@ def check_real_stack(stack, pixel, polygon, triangulation, caps="flat"):
     import warnings
 
     from contourmesh.api import mesh_stack as mesh_contour_stack
-    from contourmesh.errors import LostContourWarning
+    from contourmesh.errors import LostContourWarning, RasterFallbackWarning
     from contourmesh.rasterize import rasterize_stack
     from contourmesh.volumes import voxel_topology
 
-    # random rings can be smaller than a pixel: a LostContourWarning is expected then, and it is
-    # the only warning these calls may give
+    # random rings can be smaller than a pixel: a LostContourWarning is expected then; random rings
+    # that cross themselves cannot be meshed as drawn: a RasterFallbackWarning is expected then (and
+    # only on the raster route, with the reason in meta); no other warning
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -361,10 +362,13 @@ def check_real_stack(stack, pixel, polygon, triangulation, caps="flat"):
             r = None
         if r is not None:
             m = mesh_contour_stack(stack, polygon=polygon, triangulation=triangulation, caps=caps, pixel=pixel)
-    unexpected = [w for w in caught if not issubclass(w.category, LostContourWarning)]
+    unexpected = [w for w in caught if not issubclass(w.category, (LostContourWarning, RasterFallbackWarning))]
     assert not unexpected, [str(w.message) for w in unexpected]
     if r is None:
         return None
+    fell_back = any(issubclass(w.category, RasterFallbackWarning) for w in caught)
+    assert fell_back == ("stack_route_error" in m.meta), m.meta
+    assert not fell_back or m.meta["route"] == "raster", m.meta
     if m.meta["route"] == "stack":
         chk = check_mesh(m)
         assert chk["components"] == 1 and chk["genus"] == 0, chk

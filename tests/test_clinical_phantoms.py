@@ -126,6 +126,10 @@ def test_measure_rows_carry_the_truths_and_all_columns(sphere_rows):
     # polygon="none" meshes the drawn rings themselves: their cross-sections are the contours
     none_flat = rows[MODES.index(("flat", "none"))]
     assert none_flat["route"] == "stack" and abs(none_flat["xsec_max_err"]) < 1e-3
+    # the smooth cap: the half prism's volume, less area (no side wall)
+    smooth, half = rows[MODES.index(("smooth", "none"))], rows[MODES.index(("half", "none"))]
+    assert smooth["route"] == "stack" and smooth["volume"] == pytest.approx(half["volume"], rel=1e-9)
+    assert smooth["area"] < half["area"]
 
 
 def test_run_script_writes_its_outputs(sphere_rows, tmp_path):

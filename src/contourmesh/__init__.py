@@ -35,6 +35,7 @@ _LAZY = {
     "read_volume": "io", "read_contours": "io", "load_mesh": "io",
     "register_trimesh_loader": "trimesh_plugin", "unregister_trimesh_loader": "trimesh_plugin",
     "ContourMeshError": "errors", "InapplicableOption": "errors", "LostContourWarning": "errors",
+    "RasterFallbackWarning": "errors",
 }
 
 __all__ = sorted(_LAZY) + ["__version__"]

@@ -45,7 +45,7 @@ import numpy as np
 from . import shapes as _shapes
 from .bands.caps import CapError
 from .digitize import gauss_volume, outer_jordan_stack
-from .errors import InapplicableOption, StackSurfaceError
+from .errors import InapplicableOption, RasterFallbackWarning, StackSurfaceError, warn_external
 from .io import check_file
 from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
@@ -167,8 +167,8 @@ def mesh(source, **options) -> Mesh:
     **options
         ``polygon`` ({"mlp", "dss", "none"}), ``triangulation`` ({"wiederhold", "greedy", "optimal",
         "arclength"}; default ``"wiederhold"``, or ``"optimal"`` with ``refine="band"``), ``caps``
-        ({"flat", "half"}), ``refine`` ({None, "none", "band"}), ``progress``, and the keywords of
-        the source's entry point.
+        ({"flat", "half", "smooth"}; ``"smooth"`` on the stack and refined routes only), ``refine``
+        ({None, "none", "band"}), ``progress``, and the keywords of the source's entry point.
 
     Returns
     -------
@@ -235,10 +235,20 @@ def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Me
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, polygon=polygon, refine=refine, route="refined"))
 
 
+def _volume_caps(caps: str, why: str) -> str:
+    """``caps`` for the volume mesher; ``"smooth"`` is refused there (it closes contour stacks only)."""
+    if caps == "smooth":
+        raise InapplicableOption(f"caps='smooth' does not apply here: {why}, and the volume mesher closes its ends "
+                                 "with caps='flat' or caps='half' only (the smooth dome is made on the stack route: "
+                                 "one contour per section, grid contours or polygon='none')")
+    return caps
+
+
 def _refined_volume(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Mesh:
     """A stack with several contours (or holes) in a section: its digital object (the grid points
     its contours bound, :func:`contourmesh.refine.stack_points`) meshed by the volume mesher, which
     refines its own polygons."""
+    _volume_caps(caps, "a stack with several contours in a section is refined and meshed by the volume mesher")
     log.debug("refined route: several contours in a section; the volume mesher refines its polygons")
     pts, x0, y0, zidx, dz = stack_points(stack)
     h = float(stack.spacing[0])
@@ -294,6 +304,7 @@ def mesh_shape(shape, *, h: float = 1.0, polygon: str = "mlp", triangulation: st
         return _with_meta(stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps),
                           route="stack")
     log.debug("%s: several contours in a slice; meshing its Gauss digitization", shape.spec)
+    _volume_caps(caps, f"{shape.spec} has several contours in a slice, so it is meshed by the volume mesher")
     vol, org = gauss_volume(shape, h=h)
     m = volume_to_mesh(vol, polygon=polygon, triangulation=triangulation, caps=caps, spacing=(h, h, h),
                        origin=org, progress=progress)
@@ -315,7 +326,10 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
       at ``pixel`` (default: the median point spacing) and meshed by the volume mesher at the
       sections' own heights.
 
-    ``meta["route"]`` records the route taken and ``meta["pixel"]`` the raster size.
+    ``meta["route"]`` records the route taken and ``meta["pixel"]`` the raster size.  A stack that
+    was to be meshed as drawn but cannot be is rasterized with a
+    :class:`~contourmesh.errors.RasterFallbackWarning` (and ``meta["stack_route_error"]``);
+    ``caps="smooth"`` is refused on the raster route (:class:`~contourmesh.errors.InapplicableOption`).
     """
     if not isinstance(stack, ContourStack):
         raise TypeError(f"mesh_stack needs a ContourStack; got {type(stack).__name__}")
@@ -336,14 +350,27 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
             if integer:
                 raise
             # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): the
-            # raster route below resolves it even-odd
-            log.debug("stack route failed (%s); re-routing to the raster route", exc)
+            # raster route below resolves it even-odd; never silently
+            name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
+            _volume_caps(caps, f"{name} cannot be meshed as drawn on the stack route ({exc})")
+            log.info("%s: stack route failed (%s); re-routing to the raster route", name, exc)
+            warn_external(f"{name}: the contours cannot be meshed as drawn ({exc}); rasterized instead (raster "
+                          "route, pixel= sets its size)", RasterFallbackWarning)
+            fallback = str(exc)
+    else:
+        why = ("its sections hold several contours" if not one_each else
+               f"its contours are real-valued and polygon={polygon!r} (use polygon='none' to mesh them as drawn)")
+        _volume_caps(caps, f"this stack goes to the raster route: {why}")
+        log.debug("raster route: %s", why)
+        fallback = None
     r = rasterize_stack(stack, pixel)
     m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation, caps=caps,
                        progress=progress)
     meta = dict(m.meta)
     meta.update(stack.meta)  # the stack's source, roi and units win over the volume mesher's
     meta.update(route="raster", pixel=r.spacing[0])
+    if fallback is not None:
+        meta["stack_route_error"] = fallback
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
@@ -393,11 +420,15 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
         if stack is not None:
             return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
         # several contours in a slice, holes, branching: the volume mesher refines its own polygons
+        _volume_caps(caps, "this volume has several contours in a slice, so refine='band' meshes it with the "
+                     "volume mesher")
         log.debug("refined route: several contours in a slice; the volume mesher refines its polygons")
         m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
                            polygon=polygon, triangulation=triangulation or "optimal", caps=caps, refine=refine,
                            progress=progress)
         return _with_meta(m, route="volume-refined")
+    _volume_caps(caps, "a volume is meshed by the volume mesher (with refine='band', a volume with one contour "
+                 "per slice is meshed as its contour stack)")
     m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
                        polygon=polygon, triangulation=triangulation or "wiederhold", caps=caps, progress=progress)
     return _with_meta(m, route="volume")

@@ -293,8 +293,9 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--triangulation", default=None, choices=["wiederhold", "greedy", "optimal", "arclength"],
                    help="band triangulation between consecutive polygons (default: wiederhold, "
                         "or optimal with --refine band)")
-    m.add_argument("--caps", default="flat", choices=["flat", "half"],
-                   help="end caps in the last section's plane, or half a slice spacing beyond it")
+    m.add_argument("--caps", default="flat", choices=["flat", "half", "smooth"],
+                   help="end caps in the last section's plane, half a slice spacing beyond it, or a smooth dome "
+                        "holding the half-spacing volume (smooth: contour stacks on the stack route only)")
     m.add_argument("--refine", default=None, choices=["none", "band"],
                    help="band: the convergent refinement of the polygons across slices (default: none)")
     m.add_argument("--roi", action="append", default=None,
@@ -353,13 +354,13 @@ def main(argv=None) -> int:
     try:
         import warnings
 
-        from .errors import LostContourWarning
+        from .errors import LostContourWarning, RasterFallbackWarning
 
         with warnings.catch_warnings():
             warnings.simplefilter("default")
 
             def show(message, category, filename, lineno, file=None, line=None):
-                if issubclass(category, LostContourWarning) or filename.endswith("cli.py"):
+                if issubclass(category, (LostContourWarning, RasterFallbackWarning)) or filename.endswith("cli.py"):
                     print(f"contourmesh: warning: {_cli_words(str(message))}", file=sys.stderr)
                 else:
                     print(warnings.formatwarning(message, category, filename, lineno, line), end="", file=sys.stderr)

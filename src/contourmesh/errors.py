@@ -11,7 +11,7 @@ import os
 import warnings
 
 __all__ = ["ContourMeshError", "InapplicableOption", "CapError", "StackSurfaceError", "MissingDependency",
-           "LostContourWarning", "warn_external"]
+           "LostContourWarning", "RasterFallbackWarning", "warn_external"]
 
 
 class ContourMeshError(ValueError):
@@ -36,6 +36,10 @@ class MissingDependency(ImportError):
 
 class LostContourWarning(UserWarning):
     """A contour encloses no pixel centre at the chosen pixel size, so the raster loses it."""
+
+
+class RasterFallbackWarning(UserWarning):
+    """A structure that the stack route was to mesh as drawn could not be, and was rasterized instead."""
 
 
 _PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__)) + os.sep

@@ -14,12 +14,17 @@ End rules (stated once, see docs/DESIGN.md):
   by its contour (which always encloses area).
 * An end polygon that encloses area is closed by a flat cap: in its own plane (``caps="flat"``) or,
   with ``caps="half"``, after a prism half a slice spacing beyond it (as SlicerRT does), which adds
-  the prism's side area and ``area(cap) * gap / 2`` of volume.  A polygon that touches itself (the
+  the prism's side area and ``area(cap) * gap / 2`` of volume.  ``caps="smooth"`` closes it by a
+  dome (:func:`_dome`): copies of the end polygon shrunk toward a centre, at heights on a quarter
+  ellipse, the last one closed by a flat cap; the dome holds the half prism's volume, without its
+  side wall.  A polygon that touches itself (the
   MLP of a thin part goes out and back) cannot be capped by ear clipping: a collar 1 % of the
   spacing beyond the end then joins it to its contour, capped by the contour's grid cells.
 """
 
 from __future__ import annotations
+
+import logging
 
 import numpy as np
 
@@ -35,7 +40,12 @@ from .types import ContourStack, Mesh, Section
 
 __all__ = ["stack_to_mesh", "CAPS", "StackSurfaceError"]
 
-CAPS = ("flat", "half")
+log = logging.getLogger("contourmesh")
+
+CAPS = ("flat", "half", "smooth")
+
+#: Shrunk copies of the end polygon in a smooth cap (the dome's rings above the end polygon).
+DOME_RINGS = 4
 
 
 def _polygon(contour: np.ndarray, method: str) -> np.ndarray:
@@ -66,6 +76,7 @@ class _Builder:
         self.faces: list[np.ndarray] = []
         self.n = 0
         self.cell_caps = 0
+        self.smooth_fallbacks = 0
 
     def add_polygon(self, poly_xy: np.ndarray, z: float) -> np.ndarray:
         """Add a polygon's vertices at height z; returns the vertex index of each polygon point."""
@@ -154,6 +165,94 @@ def _cap(builder: _Builder, idx, holes_idx=(), upward=True):
     local = cap_faces(xy[0], xy[1:], upward=upward)
     both = np.concatenate(rings)
     builder.add_faces(both[local])
+
+
+def _dome_centre(poly: np.ndarray) -> tuple[np.ndarray, bool]:
+    """A centre to shrink ``poly`` toward, and whether ``poly`` is star-shaped about it.
+
+    The area centroid when it sees the whole polygon (it lies in the polygon's kernel, the part
+    on the inner side of every edge line); otherwise the point deepest inside the kernel (a
+    linear program); if the kernel is empty, the centroid (the polygon is not star-shaped).
+    """
+    p = np.asarray(poly, dtype=np.float64)
+    if shoelace_area(p) < 0:
+        p = p[::-1]
+    x, y = p[:, 0], p[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    w = x * yn - xn * y
+    a = w.sum() / 2
+    centroid = np.array([((x + xn) * w).sum(), ((y + yn) * w).sum()]) / (6 * a)
+    d = np.c_[xn - x, yn - y]
+    length = np.hypot(d[:, 0], d[:, 1])
+    ok = length > 0
+    d, length, q = d[ok], length[ok], p[ok]
+
+    def depth(c):  # signed distance of c from the edge lines, inner side positive; the least one
+        return float(np.min((d[:, 0] * (c[1] - q[:, 1]) - d[:, 1] * (c[0] - q[:, 0])) / length))
+
+    scale = float(np.sqrt(abs(a)))
+    if depth(centroid) > 1e-9 * scale:
+        return centroid, True
+    from scipy.optimize import linprog
+
+    # maximize r subject to: c lies at least r inside every edge line
+    A = np.c_[d[:, 1], -d[:, 0], length]
+    rhs = d[:, 1] * q[:, 0] - d[:, 0] * q[:, 1]
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    res = linprog([0, 0, -1], A_ub=A, b_ub=rhs, bounds=[(lo[0], hi[0]), (lo[1], hi[1]), (None, scale)],
+                  method="highs")
+    if res.status == 0 and -res.fun > 1e-9 * scale:
+        c = np.asarray(res.x[:2])
+        if depth(c) > 0:
+            return c, True
+    return centroid, False
+
+
+def _dome_profile(m: int = DOME_RINGS):
+    """``(scale, height)`` of the dome's rings 1..m: a quarter ellipse sampled at ``theta_k = k pi / (2 (m + 1))``
+    (``scale = cos theta``), heights in units of the gap, set so that the dome's volume is the half-gap
+    prism's (``area * gap / 2``)."""
+    theta = np.arange(1, m + 1) * np.pi / (2 * (m + 1))
+    lam, h = np.r_[1.0, np.cos(theta)], np.r_[0.0, np.sin(theta)]
+    # volume of the stack of similar frusta (and the flat top), per unit end area and unit height
+    kappa = float(np.sum(np.diff(h) * (lam[:-1] ** 2 + lam[:-1] * lam[1:] + lam[1:] ** 2) / 3))
+    return lam[1:], h[1:] * (0.5 / kappa)
+
+
+def _dome(b: _Builder, ring, poly: np.ndarray, z: float, gap: float, upward: bool):
+    """A smooth cap over the end polygon ``poly`` (its vertices ``ring`` at height ``z``); returns the
+    top ring (its vertex indices), for the flat cap that closes it.
+
+    Ring ``k`` of :data:`DOME_RINGS` is ``poly`` shrunk toward :func:`_dome_centre` by
+    ``cos(theta_k)`` (``theta_k = k pi / (2 (m + 1))``), at a height beyond ``z`` proportional to
+    ``sin(theta_k)``: a quarter ellipse from the end polygon's rim toward the centre, its tangent at
+    the rim perpendicular to the section plane.  The heights are scaled so that the dome holds the
+    volume of the ``caps="half"`` prism, ``area * gap / 2``: its top lies about 0.73 gap beyond the
+    end section (a dome of the prism's height would hold only about 2/3 of it).  Each horizontal
+    section of the dome is a scaled copy of the end polygon, so the dome does not cross itself; the
+    rings are joined point to point (planar trapezoids, split in two triangles each).
+
+    Raises
+    ------
+    CapError
+        If ``ring`` visits a vertex twice (a polygon that touches itself).
+    """
+    ring = np.asarray(ring)
+    if len(np.unique(ring)) != len(ring):
+        raise CapError("the end polygon visits a point twice")
+    centre, _ = _dome_centre(poly)
+    sgn = 1.0 if upward else -1.0
+    ccw = shoelace_area(poly) > 0
+    prev = ring
+    for lam, h in zip(*_dome_profile()):
+        nxt = b.add_points(centre + lam * (poly - centre), z + sgn * gap * h)
+        a0, a1, b0, b1 = prev, np.roll(prev, -1), nxt, np.roll(nxt, -1)
+        if ccw == upward:
+            b.add_faces(np.concatenate([np.c_[a0, a1, b1], np.c_[a0, b1, b0]]))
+        else:
+            b.add_faces(np.concatenate([np.c_[a0, b1, a1], np.c_[a0, b0, b1]]))
+        prev = nxt
+    return prev
 
 
 def _is_grid_4_curve(c: np.ndarray) -> bool:
@@ -289,6 +388,9 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
     """
 
     n = len(stack.sections)
+    if caps == "smooth":
+        raise ContourMeshError("caps='smooth' applies to stacks of one contour per section; this stack's sections "
+                               "hold holes (nested outer and hole chains): use caps='flat' or caps='half'")
 
     def poly(k, c):
         cont = stack.sections[k].contours[c]
@@ -348,19 +450,20 @@ def stack_to_mesh(
         meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
         return _verified(b.mesh(meta=meta))
     for run in _runs(stack):
-        mark = b.mark()
+        mark, fallbacks = b.mark(), b.smooth_fallbacks
         _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=False)
         if polygon != "none" and b.volume_since(mark) <= 1e-9 * b.box_volume_since(mark):
             # the run's polygons fold its surface (e.g. a degenerate MLP segment beside a small
             # polygon it does not lie under): mesh the run from its contours instead
             b.restore(mark)
+            b.smooth_fallbacks = fallbacks
             _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=True)
 
     meta = dict(stack.meta)
     meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
+    if caps == "smooth":
+        meta["smooth_fallbacks"] = b.smooth_fallbacks
     return _verified(b.mesh(meta=meta))
-
-
 
 
 def _verified(m: Mesh) -> Mesh:
@@ -444,6 +547,16 @@ def _mesh_run(b: _Builder, stack: ContourStack, run, polygon: str, triangulation
             ring = outer
         k = run[i][0]
         nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
+        if caps == "smooth":
+            mark = b.mark()
+            try:
+                top = _dome(b, ring, polys[i], zs[k], abs(zs[nb] - zs[k]), upward)
+                _cap(b, top, upward=upward)
+                continue
+            except ValueError as exc:  # a polygon that touches itself: closed flat, as caps="flat" does
+                b.restore(mark)
+                b.smooth_fallbacks += 1
+                log.debug("section z=%g: no dome (%s); closed by a flat cap in its plane", zs[k], exc)
         zr = float(b.coords(ring[:1])[0, 2])
         _cap_or_cells(b, ring, stack.sections[k].contours[run[i][1]], zr, abs(zs[nb] - zs[k]), upward,
                       triangulation)

@@ -4,6 +4,12 @@ An end section whose polygon encloses area is closed by a flat cap in its own pl
 cap's triangles use the polygon's own vertices, so the cap's boundary is exactly the polygon
 and the band + caps mesh is closed.  The ear clipping is mapbox's earcut (Held's FIST-style
 ear clipping with hole bridging), ``mapbox_earcut.triangulate_float64(vertices, ring_ends)``.
+
+Runs of (nearly) collinear points, common in planning-system exports (many points along a
+straight edge), are taken out of each ring before ear clipping and put back afterwards by
+splitting every triangle edge that spans a run into a fan through the run's points: ear clipping
+alone makes zero-area slivers along such runs when round-off puts a point a hair off the line,
+and those slivers cannot be repaired into a consistent cap.
 """
 
 from __future__ import annotations
@@ -11,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 __all__ = ["cap_faces", "CapError"]
 
@@ -37,6 +44,87 @@ def _signed_area(p: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
+#: A point is on the straight line between its neighbours when its distance from their chord is at
+#: most this fraction of the chord's length (and it projects strictly inside the chord).
+COLLINEAR_TOL = 1e-9
+
+
+def _straight(ax, ay, vx, vy, bx, by, tol=COLLINEAR_TOL) -> bool:
+    dx, dy = bx - ax, by - ay
+    L2 = dx * dx + dy * dy
+    if L2 == 0.0:
+        return False
+    ex, ey = vx - ax, vy - ay
+    t = (ex * dx + ey * dy) / L2
+    return 0.0 < t < 1.0 and abs(ex * dy - ey * dx) <= tol * L2
+
+
+def collinear_runs(ring: np.ndarray, tol: float = COLLINEAR_TOL) -> np.ndarray:
+    """Boolean mask of the ring's points to keep: False for a point lying strictly inside the straight
+    segment from the last kept point to the next point (a run of collinear points keeps its ends).
+
+    A point that doubles back (a zero-width spike) is not straight and is kept: that ring really
+    touches itself.
+    """
+    p = np.asarray(ring, dtype=np.float64)
+    n = len(p)
+    keep = np.ones(n, dtype=bool)
+    if n < 4:
+        return keep
+    a, b = np.roll(p, 1, axis=0), np.roll(p, -1, axis=0)
+    d = b - a
+    L2 = (d * d).sum(axis=1)
+    e = p - a
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = (e * d).sum(axis=1) / L2
+    cross = np.abs(e[:, 0] * d[:, 1] - e[:, 1] * d[:, 0])
+    local = (L2 > 0) & (t > 0) & (t < 1) & (cross <= tol * L2)
+    if not local.any():
+        return keep
+    corners = np.flatnonzero(~local)
+    if len(corners) == 0:  # no corner at all: nothing to anchor a run on (encloses no area)
+        return keep
+    s0 = int(corners[0])
+    xs, ys = p[:, 0].tolist(), p[:, 1].tolist()
+    prev = s0
+    for step in range(1, n):
+        j = (s0 + step) % n
+        nxt = (j + 1) % n
+        if local[j] and _straight(xs[prev], ys[prev], xs[j], ys[j], xs[nxt], ys[nxt], tol):
+            keep[j] = False
+        else:
+            prev = j
+    if keep.sum() < 3:
+        return np.ones(n, dtype=bool)
+    return keep
+
+
+def _reinsert_runs(tris: np.ndarray, runs: dict) -> np.ndarray:
+    """Split every triangle edge ``(a, b)`` that spans a collinear run into a fan through the run's points."""
+    out = []
+    for t in tris.tolist():
+        pending = [tuple(t)]
+        while pending:
+            a, b, c = pending.pop()
+            for (p, q, r) in ((a, b, c), (b, c, a), (c, a, b)):
+                inner = runs.get((p, q))
+                if inner:
+                    path = [p, *inner, q]
+                    pending += [(path[i], path[i + 1], r) for i in range(len(path) - 1)]
+                    break
+            else:
+                out.append((a, b, c))
+    return np.asarray(out, dtype=np.int64).reshape(-1, 3)
+
+
+def _drop_flat_triangles(verts: np.ndarray, tri: np.ndarray, tol: float = COLLINEAR_TOL) -> np.ndarray:
+    """The triangles whose corners are not on one straight line (to ``tol`` of their longest edge)."""
+    p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
+    s = np.abs((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+    longest = np.maximum.reduce([((q - p) ** 2).sum(1), ((r - q) ** 2).sum(1), ((p - r) ** 2).sum(1)])
+    return tri[s > tol * longest]
+
+
 def _on_segment(vertices, cand, a, b):
     """Candidates lying strictly inside segment ab (exactly collinear up to round-off)."""
     p, q = vertices[a], vertices[b]
@@ -52,6 +140,46 @@ def _on_segment(vertices, cand, a, b):
     return cand[ok], t[ok]
 
 
+@njit(cache=True)
+def _busy_edges(vertices, e, cand):  # pragma: no cover (compiled)
+    """For each edge ``e[i]``: whether a candidate point may lie strictly inside it (a slightly wider
+    net than :func:`_on_segment`'s test, so round-off can only send an edge to the exact test)."""
+    out = np.zeros(len(e), dtype=np.bool_)
+    for i in range(len(e)):
+        px, py = vertices[e[i, 0], 0], vertices[e[i, 0], 1]
+        dx, dy = vertices[e[i, 1], 0] - px, vertices[e[i, 1], 1] - py
+        L2 = dx * dx + dy * dy
+        if L2 == 0.0:
+            out[i] = True
+            continue
+        tol = 2e-9 * math.sqrt(L2)
+        xlo, xhi = min(px, px + dx) - tol, max(px, px + dx) + tol
+        ylo, yhi = min(py, py + dy) - tol, max(py, py + dy) + tol
+        for j in range(len(cand)):
+            cx, cy = vertices[cand[j], 0], vertices[cand[j], 1]
+            if cx < xlo or cx > xhi or cy < ylo or cy > yhi:
+                continue
+            wx, wy = cx - px, cy - py
+            t = (wx * dx + wy * dy) / L2
+            if t <= 1e-13 or t >= 1 - 1e-13:
+                continue
+            ox, oy = wx - t * dx, wy - t * dy
+            if math.sqrt(ox * ox + oy * oy) <= tol:
+                out[i] = True
+                break
+    return out
+
+
+def _edges_without_points(vertices, tris, cand) -> set:
+    """The triangles' edges that no candidate point lies on, found for all edges at once, so that the
+    splitting loop only runs the exact test on the few others."""
+    if len(tris) == 0:
+        return set()
+    e = np.ascontiguousarray(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]))
+    busy = _busy_edges(np.ascontiguousarray(vertices, dtype=np.float64), e, np.ascontiguousarray(cand))
+    return set(map(tuple, e[~busy].tolist()))
+
+
 def split_t_junctions(vertices, tris, boundary):
     """Split triangles whose edges pass through other boundary vertices (T-junctions).
 
@@ -65,6 +193,7 @@ def split_t_junctions(vertices, tris, boundary):
     boundary = np.asarray(boundary, dtype=np.int64).reshape(-1, 2)
     cand = np.unique(boundary)
     loop_edges = set(map(tuple, boundary.tolist()))
+    clean = _edges_without_points(vertices, np.asarray(tris, dtype=np.int64).reshape(-1, 3), cand)
     out = []
     # every split strictly shortens an edge, so a valid triangulation needs few; degenerate
     # triangles along a collinear run can re-split each other for ever: give up (None) instead
@@ -77,7 +206,7 @@ def split_t_junctions(vertices, tris, boundary):
                 return None
             a, b, c = pending.pop()
             for (p, q, r) in ((a, b, c), (b, c, a), (c, a, b)):
-                if (p, q) in loop_edges:
+                if (p, q) in loop_edges or (p, q) in clean:
                     continue
                 inside, tt = _on_segment(vertices, cand, p, q)
                 if len(inside):
@@ -141,9 +270,38 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     glob = np.concatenate(glob).astype(np.int64)
     verts = np.ascontiguousarray(np.vstack(rings))
     ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
-    tri = np.asarray(mapbox_earcut.triangulate_float64(verts, ends), dtype=np.int64).reshape(-1, 3)
+    # take collinear runs out of each ring (kept: the runs' ends), ear-clip the rest, put them back
+    starts0 = np.concatenate([[0], ends[:-1]]).astype(np.int64)
+    kept_idx, runs, kept_ends = [], {}, []
+    for a, r in zip(starts0, rings):
+        keep = collinear_runs(r)
+        k = a + np.flatnonzero(keep)
+        kept_idx.append(k)
+        kept_ends.append(len(k))
+        if not keep.all():
+            first = int(np.flatnonzero(keep)[0])
+            order = (first + np.arange(len(r))) % len(r)  # ring order starting at a kept point
+            anchor, inner = a + first, []
+            for j in order[1:].tolist() + [first]:
+                if keep[j]:
+                    if inner:
+                        runs[(anchor, a + j)] = inner
+                        runs[(a + j, anchor)] = inner[::-1]
+                    anchor, inner = a + j, []
+                else:
+                    inner.append(a + j)
+    kept_idx = np.concatenate(kept_idx)
+    tri = np.asarray(mapbox_earcut.triangulate_float64(np.ascontiguousarray(verts[kept_idx]),
+                                                       np.cumsum(kept_ends).astype(np.uint32)),
+                     dtype=np.int64).reshape(-1, 3)
     if len(tri) == 0:
         return empty
+    tri = kept_idx[tri]
+    if runs:
+        tri = _reinsert_runs(tri, runs)
+    # a zero-area ear (three vertices on one line, not consecutive on a ring: a notch whose mouth
+    # lines up with a third point) is dropped; the T-junction split below joins its neighbours
+    tri = _drop_flat_triangles(verts, tri)
     # earcut drops ring vertices lying on a straight line between their neighbours; put them
     # back so that every ring edge is an edge of the cap (the bands share those edges)
     starts = np.concatenate([[0], ends[:-1]]).astype(np.int64)
@@ -156,6 +314,9 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     tri = fixed
     p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
     s = (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
-    flip = s < 0 if upward else s > 0
-    tri[flip] = tri[flip][:, [0, 2, 1]]
+    # ear clipping emits its triangles in one winding: orient them together (by their total area),
+    # so that a sliver whose own sign is round-off cannot break the cap's consistency
+    total = float(s.sum())
+    if (total < 0) if upward else (total > 0):
+        tri = tri[:, [0, 2, 1]]
     return np.ascontiguousarray(glob[tri])

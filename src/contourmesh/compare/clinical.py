@@ -3,7 +3,8 @@
 :func:`measure` takes one phantom (:mod:`contourmesh.compare.phantoms`) and one drawing setting
 (slice spacing ``dz``, point spacing ``ds``) and returns table rows:
 
-* one row per mode of ours (``caps`` x ``polygon``): mesh area and volume against the analytic
+* one row per mode of ours (``caps`` x ``polygon``, and ``caps="smooth"`` with ``polygon="none"``, the
+  stack route only: refused, a failed row, where the stack goes to the raster route): mesh area and volume against the analytic
   values, volume against the trapezoid and frustum rules over the drawn sections' even-odd areas,
   the mesh's own cross-section just off each contour plane (its triangles cut by the plane, Green's
   theorem over the oriented cut segments) against that contour's area, the mesh checks;
@@ -29,7 +30,7 @@ from .phantoms import Phantom, draw, frustum_volume, implicit_volume, section_ar
 
 __all__ = ["measure", "COLUMNS", "MODES", "PEERS", "cross_section_errors", "reference"]
 
-MODES = (("flat", "mlp"), ("half", "mlp"), ("flat", "none"), ("half", "none"))
+MODES = (("flat", "mlp"), ("half", "mlp"), ("flat", "none"), ("half", "none"), ("smooth", "none"))
 PEERS = ("vtk-surfacenets", "mc-lewiner-blur1")
 
 COLUMNS = ["phantom", "kind", "tilt", "dz", "ds", "seed", "method", "caps", "polygon", "status", "route",
