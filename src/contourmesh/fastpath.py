@@ -57,10 +57,10 @@ from .bands import arclength as _arclength
 from .bands import twist_guarded_band
 from .bands import wiederhold as _wiederhold
 from .bands.caps import cap_faces
-from .polygons import thin_part_polygon
 from .bands.wiederhold import INITIAL_EDGE_WINDOW
 from .geometry import grid_to_xy, slice_gap
 from .polygons import mlp as _mlp_module
+from .polygons import thin_part_polygon
 from .tracing import _crack_contours
 from .types import Mesh
 from .volume_input import check_origin, check_spacing
