@@ -219,9 +219,9 @@ class _Slice:
 # ------------------------------------------------------------------------------------------------
 # mesh assembly
 # ------------------------------------------------------------------------------------------------
-def _band_faces(lo, hi, triangulation):
+def _band_faces(lo, hi, triangulation, optimal_budget=3e7):
     """The guarded band between two rings (see :meth:`_Mesher.band`) and how many guards fired."""
-    f, replaced = twist_guarded_band(lo, hi, triangulation)
+    f, replaced = twist_guarded_band(lo, hi, triangulation, optimal_budget)
     if band_is_folded(f):  # last resort: the arc-length band never folds
         f = triangulate_band(lo, hi, "arclength")
         replaced += 1
@@ -744,6 +744,11 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     return tubes, lids_a, lids_b, open_a, open_b
 
 
+#: Largest ``n^2 m`` for which a twisted bridged band is replaced by the optimal band (else by the
+#: arc-length band): bridged rings of many small contours are long, and the optimal band is cubic.
+_BRIDGED_OPTIMAL_BUDGET = 3e6
+
+
 class _Bridged:
     """One bridged join, built in local vertex numbers: ``V[:n_ring]`` are the rings' vertices
     (``rings``: ``((k, comp, hole), offset)``), the rest new vertices (lid collars)."""
@@ -804,7 +809,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     faces, replaced = [], 0
     for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
         ids = np.concatenate([a_ids, b_ids])
-        f, r = _band_faces(V[a_ids], V[b_ids], triangulation)
+        f, r = _band_faces(V[a_ids], V[b_ids], triangulation, _BRIDGED_OPTIMAL_BUDGET)
         # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice
         for method in ("optimal", "arclength"):
             if not band_is_folded(ids[f]):

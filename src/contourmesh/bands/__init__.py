@@ -104,12 +104,14 @@ def triangulate_band(lower, upper, method: str = "wiederhold", *, fallback: bool
     return faces
 
 
-def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str) -> tuple[np.ndarray, bool]:
+def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str,
+                       optimal_budget: float = 3e7) -> tuple[np.ndarray, bool]:
     """The band of ``triangulation`` between two rings, and whether the twist guard replaced it.
 
     A band of the local rules (``wiederhold``, ``greedy``) whose area exceeds ``1.25`` times that
     of the arc-length band for the same pair is twisted; it is replaced by the optimal band, or by
-    the arc-length band where the optimal one would be too slow.
+    the arc-length band where the optimal one would be too slow (``n^2 m`` above
+    ``optimal_budget``, ``n <= m`` the two rings' sizes).
     """
 
     f = triangulate_band(lo, hi, triangulation)
@@ -118,5 +120,5 @@ def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str) -> tu
         ref_f = triangulate_band(lo, hi, "arclength")
         if triangle_areas(P, f).sum() > 1.25 * triangle_areas(P, ref_f).sum():
             n, m = sorted((len(lo), len(hi)))
-            return (triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f), True
+            return (triangulate_band(lo, hi, "optimal") if n * n * m <= optimal_budget else ref_f), True
     return f, False

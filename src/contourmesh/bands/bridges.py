@@ -79,6 +79,22 @@ def _candidates(ri: np.ndarray, rj: np.ndarray, k: int):
     return vi, vj, d, tie
 
 
+def _near_pairs(rings, k: int = 6):
+    """Pairs ``(i, j)``, ``i < j``, of rings worth bridging: with few rings every pair; with many,
+    each ring with the ``k`` rings whose bounding boxes are nearest to its own (a spanning tree of
+    shortest bridges almost always joins near neighbours)."""
+    n = len(rings)
+    if n <= k + 1:
+        return [(i, j) for i in range(n) for j in range(i + 1, n)]
+    lo = np.array([r.min(axis=0) for r in rings])
+    hi = np.array([r.max(axis=0) for r in rings])
+    gap = np.maximum(0.0, np.maximum(lo[:, None] - hi[None, :], lo[None, :] - hi[:, None]))
+    d = np.hypot(gap[..., 0], gap[..., 1])
+    np.fill_diagonal(d, np.inf)
+    near = np.argsort(d, axis=1, kind="stable")[:, :k]
+    return sorted({(min(i, int(j)), max(i, int(j))) for i in range(n) for j in near[i]})
+
+
 def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
 
@@ -110,15 +126,15 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     if n < 2:
         return []
     owners = owners or [(i, False) for i in range(n)]
+    pairs = _near_pairs(rings)
     cand = []
-    for i in range(n):
-        for j in range(i + 1, n):
-            (ci, hi), (cj, hj) = owners[i], owners[j]
-            if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
-                continue
-            vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
-            cand.extend((round(float(dd), 9), round(float(t), 9), i, int(a), j, int(b))
-                        for dd, t, a, b in zip(d, tie, vi, vj))
+    for i, j in pairs:
+        (ci, hi), (cj, hj) = owners[i], owners[j]
+        if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
+            continue
+        vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
+        cand.extend((round(float(dd), 9), round(float(t), 9), i, int(a), j, int(b))
+                    for dd, t, a, b in zip(d, tie, vi, vj))
     cand.sort()
     parent = list(range(n))
 
@@ -156,18 +172,20 @@ def _clear(p, q, ri, vi, rj, vj, oa, ob, segs, left=False) -> bool:
         return False
     # the edges incident to p and q may touch the segment only at p and q
     inc = [(ri[vi - 1], ri[vi]), (ri[vi], ri[(vi + 1) % len(ri)]), (rj[vj - 1], rj[vj]), (rj[vj], rj[(vj + 1) % len(rj)])]
-    keep = np.ones(len(oa), dtype=bool)
-    for s, t in inc:
-        keep &= ~(((oa == s).all(axis=1) & (ob == t).all(axis=1)) | ((oa == t).all(axis=1) & (ob == s).all(axis=1)))
     lo = np.minimum(p, q)
     hi = np.maximum(p, q)
-    near = keep & (np.maximum(oa, ob) >= lo).all(axis=1) & (np.minimum(oa, ob) <= hi).all(axis=1)
-    if segments_cross(p, q, oa[near], ob[near]).any():
+    near = np.flatnonzero((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
+                          & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
+    na, nb = oa[near], ob[near]
+    keep = np.ones(len(near), dtype=bool)
+    for s, t in inc:
+        keep &= ~(((na == s).all(axis=1) & (nb == t).all(axis=1)) | ((na == t).all(axis=1) & (nb == s).all(axis=1)))
+    if segments_cross(p, q, na[keep], nb[keep]).any():
         return False
     # another edge may pass through p or q only as one of the incident edges (a ring touching
-    # itself there has two more): refuse those vertices
+    # itself there has two more): refuse those vertices (such edges lie in the box: p, q are its corners)
     for v in (p, q):
-        if (keep & (((oa == v).all(axis=1)) | ((ob == v).all(axis=1)))).any():
+        if (keep & (((na == v).all(axis=1)) | ((nb == v).all(axis=1)))).any():
             return False
     # leave each ring outward: the direction must not lie inside the ring's interior angle
     for r, v, d in ((ri, vi, q - p), (rj, vj, p - q)):
