@@ -294,7 +294,7 @@ def plot(rows, path, *, methods=()) -> Path:
         ax.set_ylabel("median |e| over the meshes")
         ax.set_title(f"{placement}: median |e| vs resolution")
         ax.grid(True, which="both", alpha=0.25)
-        ax.legend(fontsize=7, loc="best", framealpha=0.9)
+        ax.legend(fontsize=7, loc="lower left", framealpha=0.9)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
