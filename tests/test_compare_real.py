@@ -79,6 +79,9 @@ def test_pooled_statistics_and_order():
     orders = real.orders(real.pooled(rows))
     assert orders[("axis-aligned", "m")] == (pytest.approx(1.0), 3)
     assert orders[("axis-aligned", "x")][1] == 1  # the partial resolution 64 does not count
+    part = {(d["method"], d["N"]): d for d in real.pooled(rows, planned={("axis-aligned", 128): 3})}
+    assert part[("x", 128)]["statuses"] == {"not run yet": 1} and part[("x", 128)]["planned"] == 3
+    assert ("axis-aligned", "x") not in real.orders(list(part.values()))  # 64 failed a row, 128 is partial
     md = real.markdown(rows, title="t", methods=["m", "x"])
     assert "| m | 3/3 | +4.00% | 8.00% | 12.00% (b) |" in md
     assert "| x | 64 | failed | 1 | b | no: slice # has # |" in md

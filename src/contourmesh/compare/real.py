@@ -38,7 +38,7 @@ import numpy as np
 from ..meshes import atomic_write
 from .report import empirical_order, read_results_csv, write_results_csv
 
-__all__ = ["ROTATED_SUFFIX", "split_name", "pooled", "orders", "diagnostics", "markdown", "plot", "run", "main"]
+__all__ = ["ROTATED_SUFFIX", "split_name", "planned_counts", "pooled", "orders", "diagnostics", "markdown", "plot", "run", "main"]
 
 #: Input names ending with this are the rotated copies of a mesh.
 ROTATED_SUFFIX = "-rot"
@@ -60,10 +60,20 @@ def _size(row) -> int:
     return int(float(row["size"]))
 
 
-def pooled(rows) -> list[dict]:
-    """Per (placement, method, N): ``n``, ``n_ok``, ``e_median``, ``abs_median``, ``abs_max``, ``worst``
-    (the mesh, and the rotation for the rotated set, with the largest |e|), ``seconds`` (median)
-    and ``statuses`` (counts of the rows that did not run, by status)."""
+def planned_counts(spec) -> dict:
+    """``{(placement, N): rows each method has there}`` from a spec's inputs (one row per input)."""
+    out: dict = defaultdict(int)
+    for inp in spec.inputs:
+        out[(split_name(inp.name)[1], int(inp.size))] += 1
+    return dict(out)
+
+
+def pooled(rows, planned=None) -> list[dict]:
+    """Per (placement, method, N): ``n`` (rows present), ``planned`` (rows the spec plans there, from
+    ``planned`` = :func:`planned_counts`; default ``n``), ``n_ok``, ``e_median``, ``abs_median``,
+    ``abs_max``, ``worst`` (the mesh, and the rotation for the rotated set, with the largest |e|),
+    ``seconds`` (median) and ``statuses`` (counts of the rows that did not run, by status; rows
+    not run yet count as ``"not run yet"``)."""
     groups = defaultdict(list)
     for r in rows:
         mesh, placement = split_name(r["shape"])
@@ -72,8 +82,12 @@ def pooled(rows) -> list[dict]:
     for (placement, method, n), items in groups.items():
         ok = [(m, r) for m, r in items if r["status"] == "ok" and r.get("e") is not None]
         e = np.array([r["e"] for _, r in ok], dtype=np.float64)
-        rec = {"placement": placement, "method": method, "N": n, "n": len(items), "n_ok": len(ok),
-               "statuses": dict(sorted(_count(r["status"] for _, r in items if r["status"] != "ok").items())),
+        want = max(len(items), (planned or {}).get((placement, n), len(items)))
+        statuses = _count(r["status"] for _, r in items if r["status"] != "ok")
+        if want > len(items):
+            statuses["not run yet"] = want - len(items)
+        rec = {"placement": placement, "method": method, "N": n, "n": len(items), "planned": want, "n_ok": len(ok),
+               "statuses": dict(sorted(statuses.items())),
                "e_median": None, "abs_median": None, "abs_max": None, "worst": None, "seconds": None}
         if len(ok):
             i = int(np.argmax(np.abs(e)))
@@ -101,7 +115,7 @@ def orders(pool) -> dict:
     """
     pts = defaultdict(list)
     for d in pool:
-        if d["abs_median"] is not None and d["n_ok"] == d["n"]:
+        if d["abs_median"] is not None and d["n_ok"] == d["planned"]:
             pts[(d["placement"], d["method"])].append((d["N"], d["abs_median"]))
     return {k: (empirical_order(*zip(*p)), len(p)) for k, p in pts.items()}
 
@@ -162,9 +176,9 @@ def _method_order(pool, placement, methods) -> list:
     return ordered
 
 
-def markdown(rows, *, title: str, notes: str = "", methods=(), runs=()) -> str:
+def markdown(rows, *, title: str, notes: str = "", methods=(), runs=(), planned=None) -> str:
     """The report: pooled table per placement set, orders, ours' diagnostics per mesh, failures, runs."""
-    pool = pooled(rows)
+    pool = pooled(rows, planned)
     order = orders(pool)
     sizes = sorted({d["N"] for d in pool})
     meshes = sorted({split_name(r["shape"])[0] for r in rows})
@@ -177,8 +191,10 @@ def markdown(rows, *, title: str, notes: str = "", methods=(), runs=()) -> str:
     lines += ["e = (area - area_true) / area_true, area_true the mesh's own area. Per method and resolution N "
               "(voxels across the largest extent): the median of e and of |e| over the meshes (rotated: 3 "
               "rotations each) and the largest |e| with its mesh (`#r`: rotation r). ok = rows that ran / rows "
-              "planned; the statistics are over the rows that ran. p = empirical order, the slope of log "
-              "median |e| against log N over the resolutions where every row ran (|e| ~ N^-p).", ""]
+              "planned; the statistics are over the rows that ran (a resolution not run for every mesh yet is "
+              "over part of the meshes). p = empirical order, the slope of log median |e| against log N over "
+              "the resolutions where every planned row ran (|e| ~ N^-p); the number of such resolutions in "
+              "brackets. The plot draws those points only.", ""]
     for placement in PLACEMENTS:
         if not any(d["placement"] == placement for d in pool):
             continue
@@ -194,7 +210,7 @@ def markdown(rows, *, title: str, notes: str = "", methods=(), runs=()) -> str:
                     cells.append(" | | | |")
                     continue
                 worst = f"{_pct(d['abs_max'])} ({d['worst']})" if d["abs_max"] is not None else ""
-                cells.append(f" {d['n_ok']}/{d['n']} | {_pct(d['e_median'], True)} | {_pct(d['abs_median'])} | {worst} |")
+                cells.append(f" {d['n_ok']}/{d['planned']} | {_pct(d['e_median'], True)} | {_pct(d['abs_median'])} | {worst} |")
             p, k = order.get((placement, m), (float("nan"), 0))
             lines.append(f"| {m} |" + "".join(cells) + f" {_num(p, '.2f')} ({k}) |")
         lines.append("")
@@ -255,13 +271,14 @@ def _reason(error) -> str:
 
 
 # --- plot -----------------------------------------------------------------------------------------------
-def plot(rows, path, *, methods=()) -> Path:
+def plot(rows, path, *, methods=(), planned=None) -> Path:
     """``error.png``: median |e| over the meshes against N, log-log, one panel per placement set;
-    ours in red / orange, thick; every method's order in the legend."""
+    ours in red / orange, thick; every method's order in the legend.  Only the points where every
+    planned row of the method ran are drawn."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    pool = pooled(rows)
+    pool = [d for d in pooled(rows, planned) if d["n_ok"] == d["planned"]]
     order = orders(pool)
     panels = [p for p in PLACEMENTS if any(d["placement"] == p and d["abs_median"] for d in pool)]
     fig = Figure(figsize=(7.0 * max(1, len(panels)), 6.2))
@@ -352,11 +369,12 @@ def run(spec_path, out, *, resolutions=None, methods=None, meshes=None, jobs: in
         w.writerows(runs)
         atomic_write(out / "runs.csv", buf.getvalue().encode())
     rows = res["rows"]
+    planned = planned_counts(spec)
     files = [write_results_csv(rows, out / "results.csv"),
              atomic_write(out / "summary.md", markdown(rows, title=spec.title, notes=spec.notes, methods=spec.methods,
-                                                       runs=runs).encode())]
+                                                       runs=runs, planned=planned).encode())]
     if any(r["status"] == "ok" for r in rows):
-        files.append(plot(rows, out / "error.png", methods=spec.methods))
+        files.append(plot(rows, out / "error.png", methods=spec.methods, planned=planned))
     return res | {"imported": imported, "seconds": seconds, "files": files}
 
 
@@ -367,10 +385,11 @@ def report_only(spec_path, out) -> list:
     out = Path(out)
     spec = load_spec(spec_path)
     rows = read_results_csv(out / "results.csv")
+    planned = planned_counts(spec)
     files = [atomic_write(out / "summary.md", markdown(rows, title=spec.title, notes=spec.notes, methods=spec.methods,
-                                                       runs=_read_runs(out / "runs.csv")).encode())]
+                                                       runs=_read_runs(out / "runs.csv"), planned=planned).encode())]
     if any(r["status"] == "ok" for r in rows):
-        files.append(plot(rows, out / "error.png", methods=spec.methods))
+        files.append(plot(rows, out / "error.png", methods=spec.methods, planned=planned))
     return files
 
 
