@@ -120,8 +120,12 @@ def test_tiny_run_rows_summary_plot_and_resume(tmp_path):
     spec = tmp_path / "tiny.toml"
     spec.write_text(TINY)
     out = tmp_path / "out"
-    res = real.run(spec, out, jobs=1, progress=False)
-    assert res["ran"] == 4 and res["imported"] == 0
+    with pytest.raises(ValueError, match=r"sizes \['99'\] not in the spec"):
+        real.run(spec, out, resolutions=[99], progress=False)
+    part = real.run(spec, out, methods=["lindblad"], resolutions=[24], progress=False, write_plot=False)  # a part
+    assert part["ran"] == 2 and {r["method"] for r in part["rows"]} == {"lindblad"}
+    res = real.run(spec, out, jobs=1, progress=False)  # the rest; lindblad's rows come from the cache
+    assert res["ran"] == 2 and res["cached"] == 2 and res["imported"] == 0
     rows = read_results_csv(out / "results.csv")
     assert len(rows) == 4 and {r["status"] for r in rows} == {"ok"}
     assert {(r["shape"], r["method"]) for r in rows} == {(s, m) for s in ("socket", "socket-rot")
@@ -143,12 +147,12 @@ def test_tiny_run_rows_summary_plot_and_resume(tmp_path):
     assert "| socket | 24 |" in md.split("## Per mesh")[1]
     assert (out / "error.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     runs = (out / "runs.csv").read_text().splitlines()
-    assert len(runs) == 2 and runs[1].split(",")[-2] == "4"
+    assert len(runs) == 3 and runs[1].split(",")[-2] == "2" and runs[2].split(",")[-2] == "2"
     # a fresh checkout (no cache) resumes from the committed results.csv: nothing is recomputed
     for f in (out / "cache").iterdir():
         f.unlink()
-    again = real.run(spec, out, jobs=1, progress=False)
+    again = real.run(spec, out, jobs=1, progress=False, write_plot=False)
     assert again["ran"] == 0 and again["imported"] == 4
     assert [(r["key"], r["area"]) for r in read_results_csv(out / "results.csv")] == [(r["key"], r["area"]) for r in rows]
-    assert len((out / "runs.csv").read_text().splitlines()) == 2  # a run that computed nothing is not logged
+    assert len((out / "runs.csv").read_text().splitlines()) == 3  # a run that computed nothing is not logged
     np.testing.assert_allclose(sorted(r["e"] for r in again["rows"]), sorted(r["e"] for r in rows))

@@ -343,9 +343,10 @@ def _names(spec, meshes):
 
 
 def run(spec_path, out, *, resolutions=None, methods=None, meshes=None, jobs: int = 1, progress: bool = True,
-        retry_failed: bool = False, data_root=None, reuse_csv: bool = True) -> dict:
-    """Run (a part of) a real-shapes spec into ``out`` and write its four files; returns the runner's
-    result plus ``imported`` (rows taken from an earlier ``results.csv``) and ``seconds`` (wall time)."""
+        retry_failed: bool = False, data_root=None, reuse_csv: bool = True, write_plot: bool = True) -> dict:
+    """Run (a part of) a real-shapes spec into ``out`` and write its four files (``write_plot=False``:
+    all but ``error.png``); returns the runner's result plus ``imported`` (rows taken from an
+    earlier ``results.csv``) and ``seconds`` (wall time)."""
     from .runner import import_rows, load_spec, run_spec
 
     out = Path(out)
@@ -373,7 +374,7 @@ def run(spec_path, out, *, resolutions=None, methods=None, meshes=None, jobs: in
     files = [write_results_csv(rows, out / "results.csv"),
              atomic_write(out / "summary.md", markdown(rows, title=spec.title, notes=spec.notes, methods=spec.methods,
                                                        runs=runs, planned=planned).encode())]
-    if any(r["status"] == "ok" for r in rows):
+    if write_plot and any(r["status"] == "ok" for r in rows):
         files.append(plot(rows, out / "error.png", methods=spec.methods, planned=planned))
     return res | {"imported": imported, "seconds": seconds, "files": files}
 
