@@ -35,7 +35,11 @@ A closed mesh file (path relative to the data folder: env ``CONTOURMESH_DATA``, 
 voxelized at ``N`` voxels across its largest extent (:func:`contourmesh.voxelize.voxelize_mesh`);
 ``size`` is ``N`` and ``area_true`` is the mesh's area in its own units (the volume's spacing is
 in the same units).  Optional ``offset`` / ``rotate`` move the mesh by a random sub-voxel offset
-and rotation before voxelizing.  A missing file gives an input whose :attr:`Input.error` says so;
+and rotation before voxelizing.  ``placement`` says what the random draw depends on:
+``"per-resolution"`` (the default) draws it from the mesh's name, ``N`` and the repeat, so every
+resolution sees other placements; ``"per-repeat"`` draws it from the name and the repeat only, so
+repeat ``r`` is the same rotation and the same offset (in voxels) at every ``N`` (a convergence
+study of one rotated object).  A missing file gives an input whose :attr:`Input.error` says so;
 its rows get status ``"no-data"``.
 """
 
@@ -56,9 +60,12 @@ from ..digitize import gauss_volume
 from ..shapes import SHAPES, parse_shape_spec
 from ..voxelize import voxelize_mesh
 
-__all__ = ["Input", "DIGITIZATIONS", "data_dir", "shape_inputs", "mesh_inputs", "load_closed_mesh", "sub_rng"]
+__all__ = ["Input", "DIGITIZATIONS", "PLACEMENTS", "data_dir", "shape_inputs", "mesh_inputs", "load_closed_mesh", "sub_rng"]
 
 DIGITIZATIONS = ("gauss", "outer-jordan")
+
+#: What the random placement of a mesh input depends on (see the module docstring).
+PLACEMENTS = ("per-resolution", "per-repeat")
 
 
 def data_dir() -> Path:
@@ -276,8 +283,14 @@ def _fingerprint(path: Path) -> str:
 
 
 def mesh_inputs(path: str, resolutions, *, name: str | None = None, repeats: int = 1, seed: int = 0,
-                offset: bool = False, rotate: bool = False, root=None) -> list:
-    """The inputs of one closed mesh file (relative to the data folder ``root``) at every resolution."""
+                offset: bool = False, rotate: bool = False, root=None, placement: str = "per-resolution") -> list:
+    """The inputs of one closed mesh file (relative to the data folder ``root``) at every resolution.
+
+    ``placement``: ``"per-resolution"`` (a random offset / rotation drawn for each resolution and
+    repeat) or ``"per-repeat"`` (the same draw at every resolution for a given repeat).
+    """
+    if placement not in PLACEMENTS:
+        raise ValueError(f"mesh placement must be one of {PLACEMENTS}; got {placement!r}")
     root = Path(root) if root is not None else data_dir()
     name = name or Path(path).stem
     full = root / path
@@ -296,7 +309,7 @@ def mesh_inputs(path: str, resolutions, *, name: str | None = None, repeats: int
         if isinstance(n, bool) or int(n) != n or n < 2:
             raise ValueError(f"mesh resolutions are integers >= 2 (voxels across the largest extent); got {n!r}")
         for r in range(int(repeats)):
-            rng = sub_rng(seed, name, str(int(n)), r)
+            rng = sub_rng(seed, name, str(int(n)) if placement == "per-resolution" else "placement", r)
             off = tuple(float(x) for x in rng.uniform(0.0, 1.0, 3)) if offset else ()
             rot = tuple(float(x) for x in _random_rotation(rng).ravel()) if rotate else ()
             out.append(Input(kind="mesh", name=name, size=str(int(n)), repeat=r, area_true=area, source=str(path),

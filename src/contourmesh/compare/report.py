@@ -38,7 +38,11 @@ __all__ = [
 #: results.csv columns, in order (the first fifteen are the issue's).
 COLUMNS = ("method", "postprocess", "shape", "size", "repeat", "area_true", "area", "e", "P", "t", "faces",
            "watertight", "seconds", "status", "error", "kind", "digitization", "size_value", "family",
-           "winding_consistent", "volume", "key")
+           "winding_consistent", "volume", "key", "meta")
+
+#: ``meta`` is JSON text: the scalar entries of the method's ``Mesh.meta`` (ours: exact joins,
+#: fallbacks, ...) and ``axis_wall_fraction`` of the final mesh
+#: (:func:`contourmesh.measure.axis_wall_fraction`); empty for methods that make no mesh.
 
 #: Row statuses: ran and measured; optional package missing; raised; over its time limit; left out
 #: by the spec (``max_size``); input data missing.

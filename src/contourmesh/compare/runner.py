@@ -21,6 +21,9 @@ A spec is data (``comparisons/*.toml``)::
     mesh = "meshes/libigl-tutorial-data/bunny.off"
     name = "bunny"
     resolutions = [32, 64, 128]
+    rotate = true              # optional: random rotation / sub-voxel offset per repeat, drawn
+    offset = true              # per resolution (placement = "per-resolution", the default) or
+    placement = "per-repeat"   # once per repeat for every resolution ("per-repeat")
 
     [method."o3d-poisson-d8"]  # per-method options
     max_size = 56              # larger inputs: status "skipped" with the reason
@@ -81,7 +84,7 @@ from pathlib import Path
 from typing import Optional
 
 from .. import __version__
-from ..measure import mesh_checks, relative_error, tradeoff
+from ..measure import axis_wall_fraction, mesh_checks, relative_error, tradeoff
 from ..meshes import atomic_write
 from .execute import HARD_GRACE, ExecutorError, RowTimeout, call_in_subprocess, die_with_parent, time_limit
 from .inputs import Input, mesh_inputs, shape_inputs
@@ -96,6 +99,7 @@ __all__ = [
     "plan",
     "execute",
     "run_spec",
+    "import_rows",
     "cache_key",
 ]
 
@@ -136,7 +140,7 @@ class Spec:
 
 _TOP_KEYS = {"title", "notes", "seed", "repeats", "h", "timeout", "methods", "postprocess", "inputs", "method", "post"}
 _SHAPE_KEYS = {"shape", "sizes", "digitization", "offset", "rotate", "repeats", "fixed", "h"}
-_MESH_KEYS = {"mesh", "name", "resolutions", "offset", "rotate", "repeats"}
+_MESH_KEYS = {"mesh", "name", "resolutions", "offset", "rotate", "repeats", "placement"}
 _OPTION_KEYS = {"max_size", "timeout", "postprocess"}
 
 
@@ -239,7 +243,7 @@ def load_spec(path, *, data_root=None) -> Spec:
                 raise ValueError(f"{where}: resolutions must be a non-empty list; got {e.get('resolutions')!r}")
             inputs += mesh_inputs(e["mesh"], e["resolutions"], name=e.get("name"), repeats=reps, seed=seed,
                                   offset=bool(e.get("offset", False)), rotate=bool(e.get("rotate", False)),
-                                  root=data_root)
+                                  root=data_root, placement=e.get("placement", "per-resolution"))
         else:
             raise ValueError(f"{where}: expected a 'shape' or a 'mesh' key; got keys {sorted(e)}")
     return Spec(path=path, title=str(doc.get("title", path.stem)), seed=seed, repeats=repeats, h=float(h),
@@ -328,7 +332,23 @@ def _measure(task: Task) -> dict:
         chk = mesh_checks(mesh.vertices, mesh.faces)
         out.update(faces=int(len(mesh.faces)), watertight=bool(chk["watertight"]),
                    winding_consistent=bool(chk["winding_consistent"]), volume=float(chk["volume"]))
+        out["meta"] = _meta_text(res.mesh, mesh)
     return out
+
+
+def _meta_text(made, final) -> str:
+    """JSON text of the scalar entries of ``made.meta`` (when it has one) and the final mesh's
+    :func:`~contourmesh.measure.axis_wall_fraction` (the row's ``meta`` column)."""
+    meta = getattr(made, "meta", None)
+    out = {}
+    if isinstance(meta, dict):
+        for k, v in meta.items():
+            if getattr(v, "shape", None) == () and hasattr(v, "item"):  # a numpy scalar
+                v = v.item()
+            if isinstance(v, (bool, int, str)) or (isinstance(v, float) and v == v and abs(v) != float("inf")):
+                out[str(k)] = v
+    out["axis_wall_fraction"] = axis_wall_fraction(final.vertices, final.faces)
+    return json.dumps(out, sort_keys=True)
 
 
 def _finish(row: dict) -> dict:
@@ -596,8 +616,41 @@ def _run_dask(todo, scheduler, collect):
             client.close()
 
 
+def _selected(task: Task, sizes, methods, names) -> bool:
+    return ((sizes is None or task.input.size in sizes) and (methods is None or task.method in methods)
+            and (names is None or task.input.name in names))
+
+
+def import_rows(spec_path, out, csv_path, *, data_root=None) -> int:
+    """Put the finished rows of an earlier ``results.csv`` into ``out/cache`` (rows already cached are kept).
+
+    Only rows whose ``key`` belongs to the spec's plan today (same input, method, parameters,
+    post-process and package version) and whose status is ``ok``, ``failed`` or ``timeout`` are
+    taken; the others are ignored.  So a committed ``results.csv`` lets a fresh checkout resume a
+    partial run, or re-run one method, without recomputing the rest.  Returns the rows imported.
+    """
+    from .report import read_results_csv
+
+    csv_path = Path(csv_path)
+    if not csv_path.is_file():
+        return 0
+    keys = {t.key for t in plan(load_spec(spec_path, data_root=data_root)) if not t.skip}
+    cache_dir = Path(out) / "cache"
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    n = 0
+    for row in read_results_csv(csv_path):
+        if row.get("key") not in keys or row.get("status") not in ("ok", "failed", "timeout") or set(COLUMNS) - set(row):
+            continue
+        if _cache_path(cache_dir, row["key"]).exists():
+            continue
+        _write_cache(cache_dir, row)
+        n += 1
+    return n
+
+
 def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bool = True, retry_failed: bool = False,
-             data_root=None, mp_context: Optional[str] = None) -> dict:
+             data_root=None, mp_context: Optional[str] = None, sizes=None, methods=None, names=None,
+             write: bool = True) -> dict:
     """Run a comparison spec; write ``results.csv``, ``summary.md`` and the PNGs into ``out``.
 
     Parameters
@@ -618,6 +671,12 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
         Re-run cached rows whose status is ``failed`` or ``timeout``.
     data_root : path, optional
         The data folder for mesh inputs (default: :func:`contourmesh.compare.inputs.data_dir`).
+    sizes, methods, names : collection of str, optional
+        Run only the rows whose input size (``"128"``), method and input name are in these
+        (None: all).  The other rows are reported when they are in the cache and left out
+        otherwise, so a large spec can be run in parts (e.g. the small resolutions first).
+    write : bool
+        Write ``results.csv``, ``summary.md`` and the PNGs (False: only return the rows).
 
     Returns
     -------
@@ -629,6 +688,17 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"jobs must be a positive integer; got {jobs!r}")
     spec = load_spec(spec_path, data_root=data_root)
+    for what, given, known in (("sizes", sizes, {i.size for i in spec.inputs}), ("methods", methods, set(spec.methods)),
+                               ("names", names, {i.name for i in spec.inputs})):
+        if given is not None:
+            if isinstance(given, str):
+                raise ValueError(f"{what} must be a collection of strings, not the string {given!r}")
+            given = {str(g) for g in given}
+            if not given or given - known:
+                raise ValueError(f"{what} {sorted(given - known) or '(none)'} not in the spec; it has {sorted(known)}")
+    sizes = None if sizes is None else {str(x) for x in sizes}
+    methods = None if methods is None else set(methods)
+    names = None if names is None else set(names)
     out = Path(out) if out is not None else Path.cwd() / spec.path.stem
     cache_dir = out / "cache"
     cache_dir.mkdir(parents=True, exist_ok=True)
@@ -637,15 +707,18 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
     todo = []
     cached = 0
     for t in tasks:
+        chosen = _selected(t, sizes, methods, names)
         if t.skip or t.input.error:
             rows[t.key] = execute(t)
             continue
         row = _read_cache(cache_dir, t)
-        if row is not None and not (retry_failed and row["status"] in ("failed", "timeout")):
+        if row is not None and not (chosen and retry_failed and row["status"] in ("failed", "timeout")):
             rows[t.key] = row
             cached += 1
-        else:
+        elif chosen:
             todo.append(t)
+    todo_keys = {t.key for t in todo}
+    tasks = [t for t in tasks if t.key in rows or t.key in todo_keys]
     # rows that share an input run one after another (each worker keeps its last volumes)
     bar = _progress(len(tasks), len(tasks) - len(todo), progress)
     ran = 0
@@ -675,9 +748,12 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
     finally:
         bar.close()
     all_rows = [rows[t.key] for t in tasks if t.key in rows]
-    files = [write_results_csv(all_rows, out / "results.csv")]
-    files.append(atomic_write(out / "summary.md", markdown_summary(all_rows, title=spec.title, notes=spec.notes).encode()))
-    files += plot_results(all_rows, out)
+    files = []
+    if write:
+        files.append(write_results_csv(all_rows, out / "results.csv"))
+        files.append(atomic_write(out / "summary.md",
+                                  markdown_summary(all_rows, title=spec.title, notes=spec.notes).encode()))
+        files += plot_results(all_rows, out)
     return {"rows": all_rows, "ran": ran, "cached": cached, "executor_failed": executor_failed, "out": out,
             "files": files}
 
