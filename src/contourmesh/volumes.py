@@ -49,7 +49,7 @@ from .bands.caps import cap_faces
 from .fastpath import fast_volume_to_mesh
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS, dss_polygon, mlp_polygon
-from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
+from .repair import resolve_crossings, _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
 from .tracing import _crack_contours, trace_contours
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
@@ -309,7 +309,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                origin=origin, polygon=polygon, triangulation=triangulation, caps=caps)
     if fast is not None:
         log.debug("volume mesher: the compiled fast path took the volume")
-        return fast
+        sp = [float(s) for i, s in enumerate(np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))) if i != axis]
+        return _checked(fast, 1e-3 * min(sp))
     log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                   threshold=threshold, origin=origin)
@@ -445,7 +446,24 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if exact_joins or fallbacks or M.band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
-    return Mesh(V, F, P=len(V), meta=meta)
+    return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px)
+
+
+def _checked(mesh: Mesh, nudge: float) -> Mesh:
+    """The mesh with its crossing faces pulled apart where a small move can
+    (:func:`contourmesh.repair.resolve_crossings`); ``meta`` records the crossing pairs repaired
+    and left, and any left are logged as a warning."""
+    V, info = resolve_crossings(mesh.vertices, mesh.faces, nudge)
+    meta = dict(mesh.meta, self_intersections=info["self_intersections"],
+                crossings_repaired=info["crossings_repaired"])
+    if info["crossings_repaired"]:
+        meta["crossing_repair_max_move"] = info["max_move"]
+    if info["self_intersections"]:
+        log.warning("volume mesher: %d pairs of faces cross (%d repaired); the mesh is closed but not embedded",
+                    info["self_intersections"], info["crossings_repaired"])
+    if info["vertices_moved"] == 0:
+        return Mesh(mesh.vertices, mesh.faces, P=mesh.P, meta=meta)
+    return Mesh(V, mesh.faces, P=mesh.P, meta=meta)
 
 
 def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
