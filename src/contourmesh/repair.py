@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .intersect import intersecting_pairs
+
 __all__ = ["split_nonmanifold_vertices", "resolve_crossings"]
 
 
@@ -434,8 +436,6 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None):
     Returns ``(V, info)``, ``info = {"self_intersections": pairs left, "crossings_repaired":
     pairs removed, "vertices_moved": count, "max_move": largest vertex displacement}``.
     """
-    from .intersect import intersecting_pairs
-
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     p = intersecting_pairs(V, F) if pairs is None else np.asarray(pairs, dtype=np.int64).reshape(-1, 2)

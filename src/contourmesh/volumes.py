@@ -310,8 +310,13 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if fast is not None:
         log.debug("volume mesher: the compiled fast path took the volume")
         sp = [float(s) for i, s in enumerate(np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))) if i != axis]
-        return _checked(fast, 1e-3 * min(sp))
-    log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
+        fast = _checked(fast, 1e-3 * min(sp), warn=False)
+        if not fast.meta["self_intersections"]:
+            return fast
+        # the compiled bands are not checked one by one: the general mesher's are (twisted bands)
+        log.debug("volume mesher: the fast path's mesh has crossing faces; general mesher")
+    else:
+        log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                   threshold=threshold, origin=origin)
     from scipy.sparse import coo_matrix
@@ -449,7 +454,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px)
 
 
-def _checked(mesh: Mesh, nudge: float) -> Mesh:
+def _checked(mesh: Mesh, nudge: float, warn: bool = True) -> Mesh:
     """The mesh with its crossing faces pulled apart where a small move can
     (:func:`contourmesh.repair.resolve_crossings`); ``meta`` records the crossing pairs repaired
     and left, and any left are logged as a warning."""
@@ -458,7 +463,7 @@ def _checked(mesh: Mesh, nudge: float) -> Mesh:
                 crossings_repaired=info["crossings_repaired"])
     if info["crossings_repaired"]:
         meta["crossing_repair_max_move"] = info["max_move"]
-    if info["self_intersections"]:
+    if info["self_intersections"] and warn:
         log.warning("volume mesher: %d pairs of faces cross (%d repaired); the mesh is closed but not embedded",
                     info["self_intersections"], info["crossings_repaired"])
     if info["vertices_moved"] == 0:
