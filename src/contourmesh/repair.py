@@ -302,13 +302,22 @@ def _open_necks(V, F, S, necks, nudge):
         a = tube[0]
         b = tube[1][::-1]
         n, m = len(a), len(b)
-        d = np.linalg.norm(xyz(a.tolist())[:, None, :] - xyz(b.tolist())[None, :, :], axis=2)
-        i0, j0 = np.unravel_index(np.argmin(d), d.shape)
+        # the tube is short and thin: join the rings by their angle around its axis, so that no
+        # two of its triangles overlap (both rings are star-shaped seen along the axis)
+        ta, tb = _ring_angles(xyz(a.tolist()) - pc, xyz(b.tolist()) - pc)
+        i0 = 0
+        j0 = int(np.argmin(np.abs(np.angle(np.exp(1j * (tb - ta[0]))))))
         a = np.roll(a, -i0).tolist()
         b = np.roll(b, -j0).tolist()
+        ua = np.unwrap(np.roll(ta, -i0) - ta[0])
+        ub = np.unwrap(np.roll(tb, -j0) - ta[0])
+        if ua[-1] < 0:  # both rings turn the same way around the axis; measure that way
+            ua, ub = -ua, -ub
+        ua = np.r_[ua, ua[0] + 2 * np.pi]
+        ub = np.r_[ub, ub[0] + 2 * np.pi]
         i = j = 0
-        while i < n or j < m:  # advance both rings in proportion (no fold)
-            if j >= m or (i < n and (i + 1) * m <= (j + 1) * n):
+        while i < n or j < m:  # advance the ring whose next vertex comes first around the axis
+            if j >= m or (i < n and ua[i + 1] <= ub[j + 1]):
                 new_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
                 i += 1
             else:
@@ -330,6 +339,21 @@ def _open_necks(V, F, S, necks, nudge):
     S = np.concatenate([S[keep], np.zeros(len(added), dtype=S.dtype)])
     V = np.concatenate(Vs)
     return V, F, S
+
+
+def _ring_angles(A, B):
+    """Angles of the points of two rings (relative to a common apex) around the axis from the
+    mean direction of ``A`` to that of ``B``."""
+    da = A / np.maximum(np.linalg.norm(A, axis=1), 1e-300)[:, None]
+    db = B / np.maximum(np.linalg.norm(B, axis=1), 1e-300)[:, None]
+    ax = db.mean(axis=0) - da.mean(axis=0)
+    ax /= max(float(np.linalg.norm(ax)), 1e-300)
+    e1 = np.cross(ax, [1.0, 0.0, 0.0])
+    if np.linalg.norm(e1) < 0.5:
+        e1 = np.cross(ax, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(ax, e1)
+    return np.arctan2(A @ e2, A @ e1), np.arctan2(B @ e2, B @ e1)
 
 
 def _separate_coincident(V, F, nudge):
@@ -398,26 +422,36 @@ def _vertex_normals(V, F):
     return out
 
 
-def _faces_near(V, W, F, moved_faces, reach):
-    """Indices of the faces whose bounding box (in ``V`` or ``W``) comes within ``reach`` of the
-    bounding box (in ``V`` or ``W``) of a face in ``moved_faces``: every face that can meet a
-    moved face, whichever position it is in."""
-    from scipy.spatial import cKDTree
-
+def _faces_near(V, W, F, moved_faces):
+    """Indices of the faces whose bounding box (in ``V`` or ``W``) may meet the bounding box (in
+    ``V`` or ``W``) of a face in ``moved_faces`` (a superset: faces sharing a grid cell with one):
+    every face that can meet a moved face, whichever position it is in."""
     P = np.concatenate([V[F], W[F]], axis=1)  # (m, 6, 3): a face in both positions
     lo, hi = P.min(axis=1), P.max(axis=1)
-    mlo, mhi = lo[moved_faces] - reach, hi[moved_faces] + reach
-    c, r = 0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo, axis=1)
-    mc, mr = 0.5 * (mlo + mhi), 0.5 * np.linalg.norm(mhi - mlo, axis=1)
+    glo = lo.min(axis=0)
+    ext = hi - lo
+    # cells as large as the moved faces (so each covers a few), and no smaller than most faces
+    h = max(float(ext[moved_faces].max()), float(np.median(ext.max(axis=1))), 1e-12)
+    clo = np.floor((lo - glo) / h).astype(np.int64)
+    chi = np.floor((hi - glo) / h).astype(np.int64)
+    dims = chi.max(axis=0) + 1
+
+    def keys(idx):
+        span = chi[idx] - clo[idx] + 1
+        cnt = span.prod(axis=1)
+        owner = np.repeat(np.arange(len(idx)), cnt)
+        k = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        sx, sy = span[owner, 0], span[owner, 1]
+        cx = clo[idx][owner, 0] + k % sx
+        cy = clo[idx][owner, 1] + (k // sx) % sy
+        cz = clo[idx][owner, 2] + k // (sx * sy)
+        return owner, (cx * dims[1] + cy) * dims[2] + cz
+
+    _, mk = keys(moved_faces)
+    owner, fk = keys(np.arange(len(F)))
     near = np.zeros(len(F), dtype=bool)
+    near[owner[np.isin(fk, np.unique(mk))]] = True
     near[moved_faces] = True
-    cand = cKDTree(c).query_ball_point(mc, mr + float(r.max()))
-    for k, js in enumerate(cand):
-        js = np.asarray(js, dtype=np.int64)
-        if len(js) == 0:
-            continue
-        hit = np.all((lo[js] <= mhi[k]) & (hi[js] >= mlo[k]), axis=1)
-        near[js[hit]] = True
     return np.flatnonzero(near)
 
 
@@ -455,7 +489,7 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None):
         touched = np.zeros(len(V), dtype=bool)
         touched[verts] = True
         moved_faces = np.flatnonzero(touched[F].any(axis=1))
-        sub = _faces_near(V, W, F, moved_faces, 0.0)
+        sub = _faces_near(V, W, F, moved_faces)
         q = intersecting_pairs(W, F[sub])
         q = sub[q] if len(q) else q.reshape(0, 2)
         if len(q) < len(p):
