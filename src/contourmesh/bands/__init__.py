@@ -121,6 +121,7 @@ def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str) -> tu
         if triangle_areas(P, f).sum() > 1.25 * triangle_areas(P, ref_f).sum():
             return (triangulate_band(lo, hi, "optimal") if n * n * m <= 3e7 else ref_f), True
         if _band_crosses(P, f):  # a twist the area test misses: the first embedded alternative
+            # (rings that touch themselves are left to the mesher's repair, which splits them)
             others = (["optimal"] if n * n * m <= 3e7 else []) + ["arclength"]
             for method in others:
                 g = ref_f if method == "arclength" else triangulate_band(lo, hi, method)
@@ -130,5 +131,8 @@ def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str) -> tu
 
 
 def _band_crosses(P, f) -> bool:
-    """True when two faces of one band cross or touch other than as neighbours (exact test)."""
+    """True when two faces of one band cross or touch other than as neighbours (exact test), for
+    rings whose points are all distinct (a ring touching itself is split later, not here)."""
+    if len(np.unique(P, axis=0)) < len(P):
+        return False
     return len(intersecting_pairs(P, f)) > 0
