@@ -455,7 +455,7 @@ def _faces_near(V, W, F, moved_faces):
     return np.flatnonzero(near)
 
 
-def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None):
+def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
     """Find the face pairs that cross (exactly, :func:`contourmesh.intersect.intersecting_pairs`)
     and pull them apart where a small inward move can.
 
@@ -465,7 +465,9 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None):
     moved ones are checked again, which gives the whole mesh's count since every crossing pair
     involves a moved face.  Two solids touching at a point or along a segment, and faces that
     cross by less than the step, come apart; crossings from a wrong triangulation do not (they
-    are counted and left).
+    are counted and left).  A vertex whose height is one of ``planes`` (the section heights; a
+    callable giving them is called only when there are crossings) moves within its plane only, so
+    the sections stay where they were.
 
     Returns ``(V, info)``, ``info = {"self_intersections": pairs left, "crossings_repaired":
     pairs removed, "vertices_moved": count, "max_move": largest vertex displacement}``.
@@ -479,6 +481,9 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None):
         return V, info
     V0 = V
     nrm = _vertex_normals(V, F)
+    if planes is not None:
+        planes = np.asarray(planes() if callable(planes) else planes, dtype=np.float64)
+        nrm[np.isin(V[:, 2], planes), 2] = 0.0
     for r in range(rounds):
         if len(p) == 0:
             break

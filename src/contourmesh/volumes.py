@@ -310,7 +310,11 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if fast is not None:
         log.debug("volume mesher: the compiled fast path took the volume")
         sp = [float(s) for i, s in enumerate(np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))) if i != axis]
-        fast = _checked(fast, 1e-3 * min(sp), warn=False)
+        def planes():  # the section heights, needed only where faces cross
+            return prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
+                                  origin=origin)[1]
+
+        fast = _checked(fast, 1e-3 * min(sp), planes, warn=False)
         if not fast.meta["self_intersections"]:
             return fast
         # the compiled bands are not checked one by one: the general mesher's are (twisted bands)
@@ -451,14 +455,15 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if exact_joins or fallbacks or M.band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
-    return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px)
+    return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs)
 
 
-def _checked(mesh: Mesh, nudge: float, warn: bool = True) -> Mesh:
+def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True) -> Mesh:
     """The mesh with its crossing faces pulled apart where a small move can
     (:func:`contourmesh.repair.resolve_crossings`); ``meta`` records the crossing pairs repaired
-    and left, and any left are logged as a warning."""
-    V, info = resolve_crossings(mesh.vertices, mesh.faces, nudge)
+    and left, and any left are logged as a warning.  Vertices at the section heights ``planes``
+    move within their plane."""
+    V, info = resolve_crossings(mesh.vertices, mesh.faces, nudge, planes=planes)
     meta = dict(mesh.meta, self_intersections=info["self_intersections"],
                 crossings_repaired=info["crossings_repaired"])
     if info["crossings_repaired"]:
