@@ -49,7 +49,14 @@ from .bands.caps import cap_faces
 from .fastpath import fast_volume_to_mesh
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS, dss_polygon, mlp_polygon
-from .repair import resolve_crossings, _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
+from .repair import (
+    _compact,
+    _open_necks,
+    _separate_coincident,
+    _split_four_face_edges,
+    resolve_crossings,
+    split_nonmanifold_vertices,
+)
 from .tracing import _crack_contours, trace_contours
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
