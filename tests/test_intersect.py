@@ -307,3 +307,100 @@ def test_import_compiles_nothing_and_no_literal_signatures():
             assert len(d.signatures) <= 1, name
             for sig in d.signatures:
                 assert not any(isinstance(t, types.Literal) for t in sig), (name, sig)
+
+
+# ------------------------------------------------------------------------------------------------
+# the volume mesher's own crossings (issue 13, item 2): small hand-made volumes
+# ------------------------------------------------------------------------------------------------
+def _vol(*slices):
+    return np.array(slices, dtype=bool)
+
+
+def _embedded(m):
+    chk = m.checks()
+    assert chk["closed"] and chk["self_intersections"] == 0 and chk["ok"], chk
+    assert m.meta["self_intersections"] == 0
+    return chk
+
+
+def test_touching_prisms_of_consecutive_slices_come_apart():
+    # an L of three voxels and, one slice up, a voxel diagonal to its corner: the L's MLP triangle
+    # and the voxel's square touch at one point of their common mid-plane
+    v = _vol([[0, 0], [1, 1], [1, 0]], [[0, 0], [0, 0], [0, 1]])
+    m = contourmesh.mesh(v)
+    chk = _embedded(m)
+    assert m.meta["crossings_repaired"] > 0
+    assert m.meta["crossing_repair_max_move"] <= 0.032 + 1e-12  # at most 32 nudges of 1e-3 px
+    assert abs(chk["volume"] - 1.5) < 0.01  # only a hair moved
+    assert chk["components"] == 2 and chk["genus"] == 0
+
+
+def test_diagonal_components_of_one_slice_come_apart():
+    # 4-components touching diagonally in one slice: their MLP prisms touched along edges
+    v = _vol([[1, 0, 1, 0], [1, 1, 0, 1], [0, 1, 1, 1]])
+    m = contourmesh.mesh(v)
+    _embedded(m)
+    assert m.meta["crossings_repaired"] > 0
+
+
+def test_twisted_band_between_crossed_dominoes_is_replaced():
+    from contourmesh.bands import triangulate_band, twist_guarded_band
+
+    # two dominoes at right angles overlapping in one voxel: the paper's band fans from one
+    # corner across the band (its area passes the guard); the embedded band replaces it
+    v = _vol([[1, 1], [0, 0]], [[1, 0], [1, 0]])
+    m = contourmesh.mesh(v)
+    _embedded(m)
+    assert m.meta["band_fallbacks"] >= 1 and m.meta["crossings_repaired"] == 0
+    lo = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [1.5, -0.5, 0], [1.5, 0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0.0]])
+    hi = np.array([[-0.5, -0.5, 1], [0.5, -0.5, 1], [0.5, 0.5, 1], [0.5, 1.5, 1], [-0.5, 1.5, 1], [-0.5, 0.5, 1.0]])
+    P = np.concatenate([lo, hi])
+    assert self_intersections(P, triangulate_band(lo, hi, "wiederhold")) > 0
+    f, replaced = twist_guarded_band(lo, hi, "wiederhold")
+    assert replaced and self_intersections(P, f) == 0 and len(f) == len(lo) + len(hi)
+
+
+def test_neck_tube_is_embedded():
+    # two empty voxels of a 2x2x2 block touching at its centre: the background tube through the
+    # corner used to overlap itself
+    from contourmesh.volumes import voxel_topology
+
+    v = _vol([[0, 1], [1, 1]], [[1, 1], [1, 0]])
+    m = contourmesh.mesh(v)
+    chk = _embedded(m)
+    assert m.meta["crossings_repaired"] == 0
+    assert chk["genus"] == voxel_topology(np.pad(v, 1))["genus"] == 1
+
+
+def test_crossings_left_are_reported_not_hidden(caplog):
+    import logging
+
+    # a band from a voxel up to an L sweeps over the diagonal voxel's prism: a move of a hair
+    # cannot undo it, so the mesher says so (meta and a warning) and checks() agrees
+    v = _vol([[0, 1, 0], [1, 0, 0]], [[0, 0, 1], [1, 1, 1]])
+    with caplog.at_level(logging.WARNING, logger="contourmesh"):
+        m = contourmesh.mesh(v, polygon="none")
+    left = m.meta["self_intersections"]
+    assert left > 0 and m.checks()["self_intersections"] == left and not m.checks()["ok"]
+    assert any("pairs of faces cross" in r.getMessage() for r in caplog.records)
+    assert m.checks()["closed"]
+
+
+def test_resolve_crossings_separates_touching_boxes_and_keeps_deep_ones():
+    from contourmesh.repair import resolve_crossings
+
+    a = trimesh.creation.box(extents=(1, 1, 1))
+    b = trimesh.creation.box(extents=(1, 1, 1))
+    # b rests against a: their faces at x = 0.5 overlap in a common plane (a touch, no depth)
+    V = np.vstack([a.vertices, b.vertices + [1.0, 0.3, 0.2]])
+    F = np.vstack([a.faces, b.faces + len(a.vertices)])
+    assert self_intersections(V, F) > 0
+    W, info = resolve_crossings(V, F, 1e-3)
+    assert info["self_intersections"] == 0 and info["crossings_repaired"] > 0
+    assert self_intersections(W, F) == 0 and 0 < info["max_move"] <= 0.032 + 1e-12
+    # pushed half-way through each other: no small move helps, the count says so
+    V = np.vstack([a.vertices, b.vertices + [0.5, 0.3, 0.2]])
+    n = self_intersections(V, F)
+    W, info = resolve_crossings(V, F, 1e-3)
+    assert info["self_intersections"] == self_intersections(W, F) > 0
+    assert info["crossings_repaired"] == n - info["self_intersections"]

@@ -12,7 +12,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["split_nonmanifold_vertices"]
+from .intersect import intersecting_pairs
+
+__all__ = ["split_nonmanifold_vertices", "resolve_crossings"]
 
 
 def _split_four_face_edges(V, F, side, nudge):
@@ -300,13 +302,22 @@ def _open_necks(V, F, S, necks, nudge):
         a = tube[0]
         b = tube[1][::-1]
         n, m = len(a), len(b)
-        d = np.linalg.norm(xyz(a.tolist())[:, None, :] - xyz(b.tolist())[None, :, :], axis=2)
-        i0, j0 = np.unravel_index(np.argmin(d), d.shape)
+        # the tube is short and thin: join the rings by their angle around its axis, so that no
+        # two of its triangles overlap (both rings are star-shaped seen along the axis)
+        ta, tb = _ring_angles(xyz(a.tolist()) - pc, xyz(b.tolist()) - pc)
+        i0 = 0
+        j0 = int(np.argmin(np.abs(np.angle(np.exp(1j * (tb - ta[0]))))))
         a = np.roll(a, -i0).tolist()
         b = np.roll(b, -j0).tolist()
+        ua = np.unwrap(np.roll(ta, -i0) - ta[0])
+        ub = np.unwrap(np.roll(tb, -j0) - ta[0])
+        if ua[-1] < 0:  # both rings turn the same way around the axis; measure that way
+            ua, ub = -ua, -ub
+        ua = np.r_[ua, ua[0] + 2 * np.pi]
+        ub = np.r_[ub, ub[0] + 2 * np.pi]
         i = j = 0
-        while i < n or j < m:  # advance both rings in proportion (no fold)
-            if j >= m or (i < n and (i + 1) * m <= (j + 1) * n):
+        while i < n or j < m:  # advance the ring whose next vertex comes first around the axis
+            if j >= m or (i < n and ua[i + 1] <= ub[j + 1]):
                 new_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
                 i += 1
             else:
@@ -328,6 +339,21 @@ def _open_necks(V, F, S, necks, nudge):
     S = np.concatenate([S[keep], np.zeros(len(added), dtype=S.dtype)])
     V = np.concatenate(Vs)
     return V, F, S
+
+
+def _ring_angles(A, B):
+    """Angles of the points of two rings (relative to a common apex) around the axis from the
+    mean direction of ``A`` to that of ``B``."""
+    da = A / np.maximum(np.linalg.norm(A, axis=1), 1e-300)[:, None]
+    db = B / np.maximum(np.linalg.norm(B, axis=1), 1e-300)[:, None]
+    ax = db.mean(axis=0) - da.mean(axis=0)
+    ax /= max(float(np.linalg.norm(ax)), 1e-300)
+    e1 = np.cross(ax, [1.0, 0.0, 0.0])
+    if np.linalg.norm(e1) < 0.5:
+        e1 = np.cross(ax, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(ax, e1)
+    return np.arctan2(A @ e2, A @ e1), np.arctan2(B @ e2, B @ e1)
 
 
 def _separate_coincident(V, F, nudge):
@@ -378,3 +404,102 @@ def _compact(V, F):
     remap = np.full(len(V), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     return V[used], remap[F]
+
+
+# ------------------------------------------------------------------------------------------------
+# crossing faces: detect them exactly and pull the faces involved apart
+# ------------------------------------------------------------------------------------------------
+def _vertex_normals(V, F):
+    """Area-weighted outward vertex normals (unit length; zero where the faces cancel)."""
+    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    vn = np.zeros_like(V)
+    for k in range(3):
+        np.add.at(vn, F[:, k], fn)
+    nrm = np.linalg.norm(vn, axis=1)
+    out = np.zeros_like(vn)
+    ok = nrm > 0
+    out[ok] = vn[ok] / nrm[ok, None]
+    return out
+
+
+def _faces_near(V, W, F, moved_faces):
+    """Indices of the faces whose bounding box (in ``V`` or ``W``) may meet the bounding box (in
+    ``V`` or ``W``) of a face in ``moved_faces`` (a superset: faces sharing a grid cell with one):
+    every face that can meet a moved face, whichever position it is in."""
+    P = np.concatenate([V[F], W[F]], axis=1)  # (m, 6, 3): a face in both positions
+    lo, hi = P.min(axis=1), P.max(axis=1)
+    glo = lo.min(axis=0)
+    ext = hi - lo
+    # cells as large as the moved faces (so each covers a few), and no smaller than most faces
+    h = max(float(ext[moved_faces].max()), float(np.median(ext.max(axis=1))), 1e-12)
+    clo = np.floor((lo - glo) / h).astype(np.int64)
+    chi = np.floor((hi - glo) / h).astype(np.int64)
+    dims = chi.max(axis=0) + 1
+
+    def keys(idx):
+        span = chi[idx] - clo[idx] + 1
+        cnt = span.prod(axis=1)
+        owner = np.repeat(np.arange(len(idx)), cnt)
+        k = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        sx, sy = span[owner, 0], span[owner, 1]
+        cx = clo[idx][owner, 0] + k % sx
+        cy = clo[idx][owner, 1] + (k // sx) % sy
+        cz = clo[idx][owner, 2] + k // (sx * sy)
+        return owner, (cx * dims[1] + cy) * dims[2] + cz
+
+    _, mk = keys(moved_faces)
+    owner, fk = keys(np.arange(len(F)))
+    near = np.zeros(len(F), dtype=bool)
+    near[owner[np.isin(fk, np.unique(mk))]] = True
+    near[moved_faces] = True
+    return np.flatnonzero(near)
+
+
+def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
+    """Find the face pairs that cross (exactly, :func:`contourmesh.intersect.intersecting_pairs`)
+    and pull them apart where a small inward move can.
+
+    Every vertex of a crossing face moves against its vertex normal (into the solid it bounds)
+    by ``nudge``, doubled every round up to ``2**(rounds-1)`` nudges; a move is kept only where
+    it leaves fewer crossing pairs.  After the first (whole-mesh) check only the faces near the
+    moved ones are checked again, which gives the whole mesh's count since every crossing pair
+    involves a moved face.  Two solids touching at a point or along a segment, and faces that
+    cross by less than the step, come apart; crossings from a wrong triangulation do not (they
+    are counted and left).  A vertex whose height is one of ``planes`` (the section heights; a
+    callable giving them is called only when there are crossings) moves within its plane only, so
+    the sections stay where they were.
+
+    Returns ``(V, info)``, ``info = {"self_intersections": pairs left, "crossings_repaired":
+    pairs removed, "vertices_moved": count, "max_move": largest vertex displacement}``.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    p = intersecting_pairs(V, F) if pairs is None else np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    n0 = len(p)
+    info = {"self_intersections": int(n0), "crossings_repaired": 0, "vertices_moved": 0, "max_move": 0.0}
+    if n0 == 0 or len(F) == 0:
+        return V, info
+    V0 = V
+    nrm = _vertex_normals(V, F)
+    if planes is not None:
+        planes = np.asarray(planes() if callable(planes) else planes, dtype=np.float64)
+        nrm[np.isin(V[:, 2], planes), 2] = 0.0
+    for r in range(rounds):
+        if len(p) == 0:
+            break
+        verts = np.unique(F[np.unique(p)])
+        step = nudge * 2.0 ** r
+        W = V.copy()
+        W[verts] -= step * nrm[verts]
+        touched = np.zeros(len(V), dtype=bool)
+        touched[verts] = True
+        moved_faces = np.flatnonzero(touched[F].any(axis=1))
+        sub = _faces_near(V, W, F, moved_faces)
+        q = intersecting_pairs(W, F[sub])
+        q = sub[q] if len(q) else q.reshape(0, 2)
+        if len(q) < len(p):
+            V, p = W, q
+    moved = np.linalg.norm(V - V0, axis=1)
+    info.update(self_intersections=int(len(p)), crossings_repaired=int(n0 - len(p)),
+                vertices_moved=int(np.count_nonzero(moved)), max_move=float(moved.max()))
+    return V, info

@@ -60,7 +60,14 @@ from .fastpath import fast_volume_to_mesh
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS, dss_polygon, mlp_polygon, thin_part_polygon
 from .refine import refine_volume_rings
-from .repair import _compact, _open_necks, _separate_coincident, _split_four_face_edges, split_nonmanifold_vertices
+from .repair import (
+    _compact,
+    _open_necks,
+    _separate_coincident,
+    _split_four_face_edges,
+    resolve_crossings,
+    split_nonmanifold_vertices,
+)
 from .tracing import _crack_contours, trace_contours
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
@@ -333,8 +340,18 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                refine=refine)
     if fast is not None:
         log.debug("volume mesher: the compiled fast path took the volume")
-        return fast
-    log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
+        sp = [float(s) for i, s in enumerate(np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))) if i != axis]
+        def planes():  # the section heights, needed only where faces cross
+            return prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
+                                  origin=origin)[1]
+
+        fast = _checked(fast, 1e-3 * min(sp), planes, warn=False)
+        if not fast.meta["self_intersections"]:
+            return fast
+        # the compiled bands are not checked one by one: the general mesher's are (twisted bands)
+        log.debug("volume mesher: the fast path's mesh has crossing faces; general mesher")
+    else:
+        log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                   threshold=threshold, origin=origin)
     from scipy.sparse import coo_matrix
@@ -496,7 +513,25 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if exact_joins or fallbacks or M.band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
-    return Mesh(V, F, P=len(V), meta=meta)
+    return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs)
+
+
+def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True) -> Mesh:
+    """The mesh with its crossing faces pulled apart where a small move can
+    (:func:`contourmesh.repair.resolve_crossings`); ``meta`` records the crossing pairs repaired
+    and left, and any left are logged as a warning.  Vertices at the section heights ``planes``
+    move within their plane."""
+    V, info = resolve_crossings(mesh.vertices, mesh.faces, nudge, planes=planes)
+    meta = dict(mesh.meta, self_intersections=info["self_intersections"],
+                crossings_repaired=info["crossings_repaired"])
+    if info["crossings_repaired"]:
+        meta["crossing_repair_max_move"] = info["max_move"]
+    if info["self_intersections"] and warn:
+        log.warning("volume mesher: %d pairs of faces cross (%d repaired); the mesh is closed but not embedded",
+                    info["self_intersections"], info["crossings_repaired"])
+    if info["vertices_moved"] == 0:
+        return Mesh(mesh.vertices, mesh.faces, P=mesh.P, meta=meta)
+    return Mesh(V, mesh.faces, P=mesh.P, meta=meta)
 
 
 def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, origin_xy) -> dict:

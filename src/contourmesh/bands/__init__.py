@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..intersect import intersecting_pairs
 from ..measure import triangle_areas
 from .arclength import triangulate_band_arclength
 from .caps import cap_faces
@@ -118,7 +119,22 @@ def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str,
     if triangulation in ("wiederhold", "greedy") and min(len(lo), len(hi)) > 2:
         P = np.concatenate([lo, hi])
         ref_f = triangulate_band(lo, hi, "arclength")
+        n, m = sorted((len(lo), len(hi)))
         if triangle_areas(P, f).sum() > 1.25 * triangle_areas(P, ref_f).sum():
-            n, m = sorted((len(lo), len(hi)))
             return (triangulate_band(lo, hi, "optimal") if n * n * m <= optimal_budget else ref_f), True
+        if _band_crosses(P, f):  # a twist the area test misses: the first embedded alternative
+            # (rings that touch themselves are left to the mesher's repair, which splits them)
+            others = (["optimal"] if n * n * m <= optimal_budget else []) + ["arclength"]
+            for method in others:
+                g = ref_f if method == "arclength" else triangulate_band(lo, hi, method)
+                if not _band_crosses(P, g):
+                    return g, True
     return f, False
+
+
+def _band_crosses(P, f) -> bool:
+    """True when two faces of one band cross or touch other than as neighbours (exact test), for
+    rings whose points are all distinct (a ring touching itself is split later, not here)."""
+    if len(np.unique(P, axis=0)) < len(P):
+        return False
+    return len(intersecting_pairs(P, f)) > 0
