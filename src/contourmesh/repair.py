@@ -461,9 +461,9 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
 
     Every vertex of a crossing face moves against its vertex normal (into the solid it bounds)
     by ``nudge``, doubled every round up to ``2**(rounds-1)`` nudges; a move is kept only where
-    it leaves fewer crossing pairs.  After the first (whole-mesh) check only the faces near the
-    moved ones are checked again, which gives the whole mesh's count since every crossing pair
-    involves a moved face.  Two solids touching at a point or along a segment, and faces that
+    it leaves fewer crossing pairs.  After the first (whole-mesh) check only the faces that the
+    largest move could bring near a moved one are checked again (found once), which gives the
+    whole mesh's count since every crossing pair involves a moved face.  Two solids touching at a point or along a segment, and faces that
     cross by less than the step, come apart; crossings from a wrong triangulation do not (they
     are counted and left).  A vertex whose height is one of ``planes`` (the section heights; a
     callable giving them is called only when there are crossings) moves within its plane only, so
@@ -484,17 +484,26 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
     if planes is not None:
         planes = np.asarray(planes() if callable(planes) else planes, dtype=np.float64)
         nrm[np.isin(V[:, 2], planes), 2] = 0.0
+    # the faces that any round can bring near a moved face: found once, for the largest total move
+    # of the vertices of every face that takes part (rounds move only vertices of crossing faces,
+    # and a face crossing after a move meets a moved face)
+    reach = np.unique(F[np.unique(p)])
+    Wmax = V.copy()
+    Wmax[reach] -= nudge * (2.0 ** rounds) * nrm[reach]
+    touched = np.zeros(len(V), dtype=bool)
+    touched[reach] = True
+    sub = _faces_near(V, Wmax, F, np.flatnonzero(touched[F].any(axis=1)))
     for r in range(rounds):
         if len(p) == 0:
             break
         verts = np.unique(F[np.unique(p)])
+        if not touched[verts].all():  # a pair outside the region found first: widen it
+            touched[verts] = True
+            Wmax[verts] = V[verts] - nudge * (2.0 ** rounds) * nrm[verts]
+            sub = _faces_near(V, Wmax, F, np.flatnonzero(touched[F].any(axis=1)))
         step = nudge * 2.0 ** r
         W = V.copy()
         W[verts] -= step * nrm[verts]
-        touched = np.zeros(len(V), dtype=bool)
-        touched[verts] = True
-        moved_faces = np.flatnonzero(touched[F].any(axis=1))
-        sub = _faces_near(V, W, F, moved_faces)
         q = intersecting_pairs(W, F[sub])
         q = sub[q] if len(q) else q.reshape(0, 2)
         if len(q) < len(p):
