@@ -18,6 +18,10 @@ Every example is drawn from a seed (so any failure replays with ``--replay SEED`
   outward, one sphere;
 * a random real-valued contour stack (non-convex star polygons, nested rings, branching,
   uneven z), meshed through the rasterizer: closed, outward, with the topology of the raster;
+* a randomly rotated real mesh of the shared data folder (``comparisons/real/real.toml``'s 14
+  meshes, env ``CONTOURMESH_DATA``), voxelized at 16-40 voxels across and meshed in the paper mode
+  or with ``refine="band"``: the same guarantees and the voxels' topology (skipped, and counted
+  as ``real-skipped``, where the folder is absent);
 * an invariance check: the same volume translated, rotated by a multiple of 90 degrees or
   mirrored in the slice plane gives the same topology and the same area (to round-off for
   translations and for ``optimal`` bands; see :func:`check_invariance`).
@@ -438,6 +442,46 @@ def check_invariance(vol, polygon, triangulation, name) -> float:
 # ------------------------------------------------------------------------------------------------
 # the soak
 # ------------------------------------------------------------------------------------------------
+REAL_MESHES = ("libigl-tutorial-data/armadillo.obj", "dgtal/lion-tri.obj", "common-3d-test-models/rocker-arm.obj",
+               "libigl-tutorial-data/fertility.off", "libigl-tutorial-data/bunny.off", "common-3d-test-models/spot.obj",
+               "libigl-tutorial-data/3holes.off", "trimesh-models/quadknot.obj", "cgogn/socket.off",
+               "cgogn/aneurysm_3D.off", "libigl-tutorial-data/elephant.obj", "common-3d-test-models/cheburashka.obj",
+               "libigl-tutorial-data/fandisk.off", "trimesh-models/torus.STL")
+_REAL_CACHE: dict = {}
+
+
+def make_real_volume(rng: np.random.Generator):
+    """A shared real mesh, randomly rotated and offset, voxelized at 16-40 across; None without the data."""
+    from scipy.spatial.transform import Rotation
+
+    from contourmesh.compare.inputs import data_dir, load_closed_mesh
+    from contourmesh.voxelize import voxelize_mesh
+
+    name = REAL_MESHES[int(rng.integers(len(REAL_MESHES)))]
+    n = int(rng.integers(16, 41))
+    rot = Rotation.random(random_state=int(rng.integers(2 ** 31))).as_matrix()
+    off = rng.uniform(0.0, 1.0, 3)
+    path = data_dir() / "meshes" / name
+    if not path.is_file():
+        return name, n, None
+    if name not in _REAL_CACHE:
+        _REAL_CACHE[name] = load_closed_mesh(path)
+    v, f = _REAL_CACHE[name]
+    v = v @ rot.T
+    v = v + off * float((v.max(0) - v.min(0)).max()) / n
+    vol, _, _ = voxelize_mesh(v, f, n)
+    return name, n, vol
+
+
+def check_real(vol, polygon, triangulation, caps, refine):
+    from contourmesh.api import mesh_volume
+    from contourmesh.volumes import voxel_topology
+
+    m = mesh_volume(vol, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+    check_mesh(m, voxel_topology(vol))
+    return m
+
+
 def run_example(seed: int) -> tuple[str, str | None]:
     """Run the example of this seed; returns ``(description, None)`` or ``(description, traceback)``."""
     rng = np.random.default_rng(seed)
@@ -458,6 +502,15 @@ def run_example(seed: int) -> tuple[str, str | None]:
             desc = f"real-stack:{polygon}/{triangulation}/{caps}"
             stack, pixel = make_real_stack(rng)
             check_real_stack(stack, pixel, polygon, triangulation, caps)
+        elif u < 0.9:
+            name, n, vol = make_real_volume(rng)
+            refine = "band" if rng.random() < 0.4 else None
+            if refine:  # the refinement seeds with MLPs (or DSS) and has its own caps
+                polygon = "mlp" if polygon == "none" else polygon
+                caps = "flat"
+            desc = f"real{'-skipped' if vol is None else ''}:{name}@{n}{':band' if refine else ''}:{polygon}/{triangulation}/{caps}"
+            if vol is not None:
+                check_real(vol, polygon, triangulation, caps, refine)
         else:
             kind = KINDS[int(rng.integers(len(KINDS)))]
             name = TRANSFORMS[int(rng.integers(len(TRANSFORMS)))]

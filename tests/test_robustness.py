@@ -273,3 +273,15 @@ def test_mlp_of_a_thin_L_is_mirror_symmetric():
     a, b = _mlp_of_pixels(m), _mlp_of_pixels(m[::-1])
     assert per(a) == pytest.approx(per(b))
     assert len(a) == len(b) == 3
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_rotated_real_meshes_mesh_with_the_voxels_topology(seed):
+    """The soak's real kind: a shared mesh, randomly rotated, voxelized small, in the paper mode
+    and with refine="band" (every guarantee of check_mesh, and the voxels' topology)."""
+    rng = np.random.default_rng(1000 + seed)
+    name, n, vol = soak.make_real_volume(rng)
+    if vol is None:
+        pytest.skip(f"shared mesh {name} not found (set CONTOURMESH_DATA to the shared data folder)")
+    soak.check_real(vol, "mlp", "wiederhold", "flat", None)
+    soak.check_real(vol, "mlp", "optimal", "flat", "band")
