@@ -28,12 +28,14 @@ forms between two sections) keep their crack contours, as on the raster route
 from __future__ import annotations
 
 import logging
+import warnings
 
 import numpy as np
 from numba import njit
 
 from .errors import RasterFallbackWarning, warn_external
 from .geometry import _fill_evenodd, grid_to_xy, shoelace_area
+from .intersect import intersecting_faces
 from .rasterize import _physical_rings, rasterize_stack
 from .stacks import _nest_section
 from .types import ContourStack, Mesh
@@ -42,6 +44,16 @@ from .volumes import volume_to_mesh
 __all__ = ["mesh_drawn"]
 
 log = logging.getLogger("contourmesh")
+
+#: Meshing attempts: after one whose faces cross, the sections of the crossing faces take the raster's polygons.
+_ATTEMPTS = 3
+
+
+class _Quiet(logging.Filter):
+    """Holds back the volume mesher's crossing warning on an attempt that is retried."""
+
+    def filter(self, record):
+        return record.levelno < logging.WARNING
 
 
 @njit(cache=True)
@@ -129,10 +141,11 @@ class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
-    def __init__(self, rings, raster, name):
+    def __init__(self, rings, raster, name, avoid=frozenset()):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
         self.name = name
+        self.avoid = avoid  # sections whose drawn rings made crossing faces: the raster's polygons
         self.unmatched: list[tuple] = []  # (section, z, why)
 
     def _box(self, ring, shape):
@@ -189,14 +202,19 @@ class _DrawnPolygons:
                     why[c] = "a drawn ring touches or crosses itself or another ring"
                     continue
                 hsl, hmasks = s.hole_masks[c]
+                fills = {}
+                for j in holes:
+                    hbox = self._box(rings[j], s.labels.shape)
+                    fills[j] = (hbox, _fill([rings[j]], x0, y0, p, s.labels.shape, hbox))
+                # a hole that holds no pixel centre is lost by the raster (LostContourWarning): dropped
+                holes = [j for j in holes if fills[j][1].any()]
                 if len(hmasks) != len(holes):
                     refused.add(c)
                     why[c] = f"{len(holes)} drawn hole(s) but {len(hmasks)} raster hole(s)"
                     continue
                 pairs, ok = [], True
                 for j in holes:
-                    hbox = self._box(rings[j], s.labels.shape)
-                    hp = _fill([rings[j]], x0, y0, p, s.labels.shape, hbox)
+                    hbox, hp = fills[j]
                     found = []
                     for h, hm in enumerate(hmasks):
                         # the raster hole's pixels in grid coordinates against the drawn hole's fill
@@ -214,6 +232,9 @@ class _DrawnPolygons:
                     why[c] = "its drawn holes do not match the raster's holes one to one"
                     continue
                 owner[c] = (r, pairs)
+            if k in self.avoid:
+                refused.update(range(s.n))
+                why.update({c: "faces between its drawn rings and the next section's crossed" for c in range(s.n)})
             for c in range(s.n):
                 if c in owner and c not in refused:
                     r, pairs = owner[c]
@@ -257,10 +278,36 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     for rs in _physical_rings(stack):
         rs = [q for q in rs if len(q) >= 3 and shoelace_area(q) != 0.0]
         rings.append(_nest_section(rs) if rs else ((), ()))
-    hook = _DrawnPolygons(rings, r, name)
-    m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon="none", triangulation=triangulation, caps=caps,
-                       progress=progress, polygons=hook)
+    avoid: set = set()
+    quiet = _Quiet()
+    for attempt in range(_ATTEMPTS):
+        hook = _DrawnPolygons(rings, r, name, frozenset(avoid))
+        last = attempt == _ATTEMPTS - 1
+        if not last:
+            log.addFilter(quiet)
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon="none", triangulation=triangulation,
+                                   caps=caps, progress=progress, polygons=hook)
+        finally:
+            log.removeFilter(quiet)
+        if not m.meta.get("self_intersections"):
+            break
+        # faces that cross where drawn rings were joined: those sections take the raster's polygons
+        bad = intersecting_faces(m.vertices, m.faces)
+        z = m.vertices[m.faces[bad]][:, :, 2].ravel()
+        k = np.searchsorted(r.z, z, side="left")
+        near = np.unique(np.r_[k, k - 1].clip(0, len(r.z) - 1))
+        grown = set(near.tolist()) - avoid
+        if not grown:
+            break
+        log.debug("contours route: %d crossing face pairs; sections %s take the raster's polygons",
+                  m.meta["self_intersections"], sorted(grown))
+        avoid |= grown
+    for w in caught:  # the warnings of the attempt that is kept
+        warn_external(str(w.message), w.category)
     meta = dict(m.meta)
     meta.update(stack.meta)
-    meta.update(route="contours", pixel=r.spacing[0], polygon="drawn")
+    meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid))
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
