@@ -235,8 +235,10 @@ class _DrawnPolygons:
             if k in self.avoid:
                 refused.update(range(s.n))
                 why.update({c: "faces between its drawn rings and the next section's crossed" for c in range(s.n)})
+            s.own = set()  # these keep their drawn rings in exact joins too (volume_to_mesh)
             for c in range(s.n):
                 if c in owner and c not in refused:
+                    s.own.add(c)
                     r, pairs = owner[c]
                     s.outer[c] = r
                     for hring, h in pairs:

@@ -322,7 +322,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     ``polygons`` (internal): a callable ``polygons(slices, zs, crack_only, joins) -> dict`` run once the
     joins are decided and before the bridged joins are built; it may replace the polygons of any
     component (``slices[k].outer[c]``, ``slices[k].holes[c][h]``, outer rings counter-clockwise and
-    holes clockwise) and returns entries for ``meta``.  The compiled fast path is not used with it
+    holes clockwise) and returns entries for ``meta``.  Components it lists in ``slices[k].own`` (a
+    set) keep its polygons in exact joins too: their collars are bands up to the crack contours.  The compiled fast path is not used with it
     (the contours route, :mod:`contourmesh.drawn`, puts the drawn rings in this way).
 
     Returns a closed, outward-oriented, manifold Mesh whose genus equals that of the 6-connected
@@ -434,7 +435,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         key = (k, c, hole)
         if key not in rings:
             s = slices[k]
-            if (k, c) in crack_only:
+            if (k, c) in crack_only and c not in getattr(s, "own", ()):
                 poly = s.crack_outer[c] if hole < 0 else s.crack_holes[c][hole]
             else:
                 poly = s.outer[c] if hole < 0 else s.holes[c][hole]
@@ -695,15 +696,17 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     # mid-plane) and its pixels not covered above (facing up); side 2 mirrors it from above.
     M.side = 1
     for a in ga:
+        collar = M.band if a in getattr(A, "own", ()) else M.quads  # a caller's polygon: a band to the crack
         for h, crack_xy in [(-1, A.crack_outer[a])] + list(enumerate(A.crack_holes[a])):
             c = back_to_corners(crack_xy)
-            M.quads(ring(k, a, h), corner_ids(c[:, 0], c[:, 1]))
+            collar(ring(k, a, h), corner_ids(c[:, 0], c[:, 1]))
     _pixel_faces(M, ra & ~o, x0, y0, corner_ids, up=True)
     M.side = 2
     for b in gb:
+        collar = M.band if b in getattr(B, "own", ()) else M.quads
         for h, crack_xy in [(-1, B.crack_outer[b])] + list(enumerate(B.crack_holes[b])):
             c = back_to_corners(crack_xy)
-            M.quads(corner_ids(c[:, 0], c[:, 1]), ring(k + 1, b, h))
+            collar(corner_ids(c[:, 0], c[:, 1]), ring(k + 1, b, h))
     _pixel_faces(M, rb & ~o, x0, y0, corner_ids, up=False)
     M.side = 0
     if neck.any():
@@ -916,7 +919,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     def poly(kk, c, h):
         s = slices[kk]
-        if c in by_slice[kk]:
+        if c in by_slice[kk] and c not in getattr(s, "own", ()):
             return s.crack_outer[c] if h < 0 else s.crack_holes[c][h]
         return s.outer[c] if h < 0 else s.holes[c][h]
 
