@@ -292,7 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output mesh file (.ply, .obj, .stl, .off); a folder with --all-labels/--all-rois")
     m.add_argument("--polygon", default=None, choices=["mlp", "dss", "none"],
                    help="each contour becomes its minimum length polygon, its maximal-DSS polygon, or stays as traced "
-                        "(default: mlp; contour files: their drawn rings, see --route)")
+                        "(default: mlp; for contour files: their drawn rings, see --route)")
     m.add_argument("--triangulation", default=None, choices=["wiederhold", "greedy", "optimal", "arclength"],
                    help="band triangulation between consecutive polygons (default: wiederhold, "
                         "or optimal with --refine band)")
