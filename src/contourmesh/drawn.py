@@ -264,22 +264,69 @@ class _DrawnPolygons:
         return {"drawn_components": matched, "drawn_rings": drawn, "unmatched_components": unmatched}
 
 
+#: Halvings of the default pixel where the raster loses or splits a drawn ring, and the voxel budget for them.
+_FINER = 2
+_FINER_VOXELS = 2e7
+
+
+def _raster_splits_rings(r, rings) -> bool:
+    """Whether some drawn outer ring (minus its holes) covers several 4-connected pieces of the raster,
+    or some drawn ring of at least a quarter pixel's area covers no pixel centre."""
+    from scipy import ndimage
+
+    x0, y0, _ = r.origin
+    p = r.spacing[0]
+    shape = r.volume.shape[1:]
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+    for rs, parents in rings:
+        for i, par in enumerate(parents):
+            ring = rs[i]
+            box = (max(int(np.floor((ring[:, 1].min() - y0) / p)) - 1, 0),
+                   min(int(np.ceil((ring[:, 1].max() - y0) / p)) + 2, shape[0]),
+                   max(int(np.floor((ring[:, 0].min() - x0) / p)) - 1, 0),
+                   min(int(np.ceil((ring[:, 0].max() - x0) / p)) + 2, shape[1]))
+            # a lost ring counts where it holds a quarter pixel or more (halving may catch it), not a speck
+            big = abs(shoelace_area(ring)) >= 0.25 * p * p
+            if par != -1:
+                if big and not _fill([ring], x0, y0, p, shape, box).any():
+                    return True
+                continue
+            pix = _fill([ring] + [rs[j] for j, q in enumerate(parents) if q == i], x0, y0, p, shape, box)
+            if (big and not pix.any()) or ndimage.label(pix, structure=cross)[1] > 1:
+                return True
+    return False
+
+
 def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation: str = "wiederhold",
                caps: str = "flat", progress: bool = False) -> Mesh:
     """Mesh a real-valued contour stack between its drawn rings (the contours route; module docstring).
 
     ``pixel`` is the size of the raster that decides the topology (default
-    :func:`contourmesh.rasterize.default_pixel`).  ``meta``: ``route="contours"``, ``pixel``,
+    :func:`contourmesh.rasterize.default_pixel`, halved up to twice, within ``2e7`` voxels, while a
+    drawn ring of a quarter pixel or more holds no pixel centre, or a ring falls apart into several
+    pieces in the raster).  ``meta``: ``route="contours"``, ``pixel``,
     ``drawn_components`` (components meshed from their drawn rings), ``unmatched_components``
     (meshed from the raster's polygons, each named in a RasterFallbackWarning) and the volume
     mesher's join counts.
     """
     name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
-    r = rasterize_stack(stack, pixel)
     rings = []
     for rs in _physical_rings(stack):
         rs = [q for q in rs if len(q) >= 3 and shoelace_area(q) != 0.0]
         rings.append(_nest_section(rs) if rs else ((), ()))
+    with warnings.catch_warnings(record=True) as lost:
+        warnings.simplefilter("always")
+        r = rasterize_stack(stack, pixel)
+        # the default pixel is halved (at most twice, within a voxel budget) where a drawn ring is lost
+        # or falls apart in the raster: the joins are then decided for the rings as drawn
+        for _ in range(_FINER if pixel is None else 0):
+            if r.volume.size * 4 > _FINER_VOXELS or not _raster_splits_rings(r, rings):
+                break
+            log.debug("contours route: a ring is lost or split at pixel=%g; pixel=%g", r.spacing[0], r.spacing[0] / 2)
+            lost.clear()
+            r = rasterize_stack(stack, r.spacing[0] / 2)
+    for w in lost:
+        warn_external(str(w.message), w.category)
     avoid: set = set()
     quiet = _Quiet()
     for attempt in range(_ATTEMPTS):
