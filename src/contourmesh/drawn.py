@@ -271,7 +271,8 @@ _FINER_VOXELS = 2e7
 
 def _raster_splits_rings(r, rings) -> bool:
     """Whether some drawn outer ring (minus its holes) covers several 4-connected pieces of the raster,
-    or some drawn ring of at least a quarter pixel's area covers no pixel centre."""
+    or some drawn ring of at least a quarter pixel's area and 0.25 % of its section's covers no pixel
+    centre."""
     from scipy import ndimage
 
     x0, y0, _ = r.origin
@@ -279,14 +280,17 @@ def _raster_splits_rings(r, rings) -> bool:
     shape = r.volume.shape[1:]
     cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
     for rs, parents in rings:
+        section = abs(sum(shoelace_area(q) for q in rs)) if rs else 0.0
         for i, par in enumerate(parents):
             ring = rs[i]
             box = (max(int(np.floor((ring[:, 1].min() - y0) / p)) - 1, 0),
                    min(int(np.ceil((ring[:, 1].max() - y0) / p)) + 2, shape[0]),
                    max(int(np.floor((ring[:, 0].min() - x0) / p)) - 1, 0),
                    min(int(np.ceil((ring[:, 0].max() - x0) / p)) + 2, shape[1]))
-            # a lost ring counts where it holds a quarter pixel or more (halving may catch it), not a speck
-            big = abs(shoelace_area(ring)) >= 0.25 * p * p
+            # a lost ring counts where it holds a quarter pixel or more (halving may catch it) and a
+            # quarter percent of its section's area or more (not a speck beside a large contour)
+            area = abs(shoelace_area(ring))
+            big = area >= 0.25 * p * p and area >= 2.5e-3 * section
             if par != -1:
                 if big and not _fill([ring], x0, y0, p, shape, box).any():
                     return True
@@ -303,8 +307,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
 
     ``pixel`` is the size of the raster that decides the topology (default
     :func:`contourmesh.rasterize.default_pixel`, halved up to twice, within ``2e7`` voxels, while a
-    drawn ring of a quarter pixel or more holds no pixel centre, or a ring falls apart into several
-    pieces in the raster).  ``meta``: ``route="contours"``, ``pixel``,
+    drawn ring of a quarter pixel and 0.25 % of its section's area or more holds no pixel centre, or a
+    ring falls apart into several pieces in the raster).  ``meta``: ``route="contours"``, ``pixel``,
     ``drawn_components`` (components meshed from their drawn rings), ``unmatched_components``
     (meshed from the raster's polygons, each named in a RasterFallbackWarning) and the volume
     mesher's join counts.
