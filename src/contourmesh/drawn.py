@@ -329,8 +329,9 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
             log.debug("contours route: a ring is lost or split at pixel=%g; pixel=%g", r.spacing[0], r.spacing[0] / 2)
             lost.clear()
             r = rasterize_stack(stack, r.spacing[0] / 2)
-    for w in lost:
-        warn_external(str(w.message), w.category)
+    for w in lost:  # the rasterization's warnings (lost rings), naming the structure
+        text = str(w.message)
+        warn_external(text if text.startswith(f"{name}:") else f"{name}: {text}", w.category)
     avoid: set = set()
     quiet = _Quiet()
     for attempt in range(_ATTEMPTS):
