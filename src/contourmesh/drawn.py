@@ -141,11 +141,12 @@ class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
-    def __init__(self, rings, raster, name, avoid=frozenset()):
+    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why=""):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
         self.name = name
         self.avoid = avoid  # sections whose drawn rings made crossing faces: the raster's polygons
+        self.avoid_why = avoid_why
         self.unmatched: list[tuple] = []  # (section, z, why)
 
     def _box(self, ring, shape):
@@ -234,7 +235,7 @@ class _DrawnPolygons:
                 owner[c] = (r, pairs)
             if k in self.avoid:
                 refused.update(range(s.n))
-                why.update({c: "faces between its drawn rings and the next section's crossed" for c in range(s.n)})
+                why.update({c: self.avoid_why for c in range(s.n)})
             s.own = set()  # these keep their drawn rings in exact joins too (volume_to_mesh)
             for c in range(s.n):
                 if c in owner and c not in refused:
@@ -333,10 +334,13 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
         text = str(w.message)
         warn_external(text if text.startswith(f"{name}:") else f"{name}: {text}", w.category)
     avoid: set = set()
+    everything = set(range(len(r.z)))
+    why = "faces between its drawn rings and the next section's crossed"
     quiet = _Quiet()
-    for attempt in range(_ATTEMPTS):
-        hook = _DrawnPolygons(rings, r, name, frozenset(avoid))
-        last = attempt == _ATTEMPTS - 1
+    attempt = 0
+    while True:
+        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why)
+        last = attempt >= _ATTEMPTS - 1 or avoid == everything
         if not last:
             log.addFilter(quiet)
         try:
@@ -344,9 +348,18 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
                 warnings.simplefilter("always")
                 m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon="none", triangulation=triangulation,
                                    caps=caps, progress=progress, polygons=hook)
+        except RuntimeError as exc:
+            # the drawn rings met the mesher's pixel constructions in a way it cannot make manifold:
+            # every section takes the raster's polygons (named in the warning); never a broken mesh
+            if avoid == everything:
+                raise
+            log.info("contours route: %s; every section takes the raster's polygons", exc)
+            avoid, why = everything, f"the mesher could not join the drawn rings ({exc})"
+            attempt += 1
+            continue
         finally:
             log.removeFilter(quiet)
-        if not m.meta.get("self_intersections"):
+        if last or not m.meta.get("self_intersections"):
             break
         # faces that cross where drawn rings were joined: those sections take the raster's polygons
         bad = intersecting_faces(m.vertices, m.faces)
@@ -359,6 +372,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
         log.debug("contours route: %d crossing face pairs; sections %s take the raster's polygons",
                   m.meta["self_intersections"], sorted(grown))
         avoid |= grown
+        attempt += 1
     for w in caught:  # the warnings of the attempt that is kept
         warn_external(str(w.message), w.category)
     meta = dict(m.meta)
