@@ -344,8 +344,8 @@ def check_int_stack(stack, polygon, triangulation, caps="flat"):
 
 
 def check_real_stack(stack, pixel, polygon, triangulation, caps="flat"):
-    """Real-valued stacks: the raster path (closed, oriented, with the raster's own topology, at
-    the sections' heights), or, with one ring per section and ``polygon="none"``, the paper's
+    """Real-valued stacks: the contours or raster path (closed, oriented, with the raster's own
+    topology, at the sections' heights), or, with one ring per section and ``polygon="none"``, the paper's
     path on the rings as given (one surface of genus 0)."""
     import warnings
 
@@ -370,9 +370,18 @@ def check_real_stack(stack, pixel, polygon, triangulation, caps="flat"):
     assert not unexpected, [str(w.message) for w in unexpected]
     if r is None:
         return None
-    fell_back = any(issubclass(w.category, RasterFallbackWarning) for w in caught)
+    # a stack route failure, or (contours route) components meshed from the raster's polygons
+    fell_back = any(issubclass(w.category, RasterFallbackWarning) and "on the stack route" in str(w.message)
+                    for w in caught)
     assert fell_back == ("stack_route_error" in m.meta), m.meta
-    assert not fell_back or m.meta["route"] == "raster", m.meta
+    assert not fell_back or m.meta["route"] == "contours", m.meta
+    unmatched = any(issubclass(w.category, RasterFallbackWarning) and "not from drawn rings" in str(w.message)
+                    for w in caught)
+    assert unmatched == bool(m.meta.get("unmatched_components")), m.meta
+    if m.meta["route"] == "contours" and m.meta["pixel"] != r.spacing[0]:  # a finer raster decided the joins
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = rasterize_stack(stack, m.meta["pixel"])
     if m.meta["route"] == "stack":
         chk = check_mesh(m)
         assert chk["components"] == 1 and chk["genus"] == 0, chk

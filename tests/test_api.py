@@ -149,7 +149,7 @@ def test_import_changes_no_other_library():
 def test_routes_are_recorded(sources):
     assert contourmesh.mesh(sources["shape"]).meta["route"] == "stack"
     assert contourmesh.mesh(sources["volume"]).meta["route"] == "volume"
-    assert contourmesh.mesh(sources["contour file"]).meta["route"] in ("stack", "raster")
+    assert contourmesh.mesh(sources["contour file"]).meta["route"] in ("stack", "contours")
     assert contourmesh.mesh(sources["stack"], refine="band").meta["route"] == "refined"
 
 
@@ -161,8 +161,8 @@ def test_fallbacks_are_logged(caplog):
     st = ContourStack(tuple(Section(float(z), (ring,)) for z in range(3)))
     with caplog.at_level(logging.DEBUG, logger="contourmesh"):
         m = contourmesh.mesh(st, polygon="none")
-    assert m.meta["route"] == "raster"
-    assert any("re-routing to the raster route" in r.getMessage() for r in caplog.records)
+    assert m.meta["route"] == "contours"
+    assert any("re-routing to the contours route" in r.getMessage() for r in caplog.records)
 
 
 def test_json_summary_speaks_of_the_route(tmp_path, capsys):

@@ -107,9 +107,11 @@ def test_exported_structures_cap_and_mesh_on_the_stack_route(shared_data):
 
 def test_a_stack_route_failure_warns_before_rasterizing():
     stack = draw(keyhole_tube(12, 6, 30), 3.0, 1.0, seed=1)
-    with pytest.warns(RasterFallbackWarning, match="rasterized instead"):
+    with pytest.warns(RasterFallbackWarning, match="meshed on the contours route instead"):
         m = contourmesh.mesh(stack, polygon="none", caps="half")
-    assert m.meta["route"] == "raster" and "stack_route_error" in m.meta
+    assert m.meta["route"] == "contours" and "stack_route_error" in m.meta
+    # the keyhole rings touch themselves: they are not meshed as drawn, and that is counted
+    assert m.meta["unmatched_components"] > 0 and m.checks()["ok"]
     with pytest.raises(InapplicableOption, match="caps='smooth'"):
         contourmesh.mesh(stack, polygon="none", caps="smooth")
 
@@ -157,8 +159,12 @@ def test_smooth_cap_is_refused_where_it_cannot_be_made(tmp_path):
     with pytest.raises(InapplicableOption, match="volume mesher"):
         contourmesh.mesh(box, caps="smooth")
     drawn = draw(sphere(5), 1.0, 0.5, seed=0)
-    with pytest.raises(InapplicableOption, match="polygon='none'"):
-        contourmesh.mesh(drawn, caps="smooth")  # real-valued rings, MLP polygons: the raster route
+    with pytest.raises(InapplicableOption, match="raster route"):
+        contourmesh.mesh(drawn, caps="smooth", polygon="mlp")  # real-valued rings, MLP polygons: the raster route
+    with pytest.raises(InapplicableOption, match="contours route"):
+        contourmesh.mesh(drawn, caps="smooth", route="contours")
+    # one drawn ring per section, polygon unset: the smooth cap is made on the stack route
+    assert contourmesh.mesh(drawn, caps="smooth").meta["route"] == "stack"
     with pytest.raises(ContourMeshError, match="holes"):
         contourmesh.mesh("torus:R=8,r=3", caps="smooth")
     # the refined route and the command line take it

@@ -237,7 +237,9 @@ def test_help_shows_defaults_and_commands(capsys):
     with pytest.raises(SystemExit):
         main(["mesh", "--help"])
     text = capsys.readouterr().out
-    assert "(default: mlp)" in text and "(default: flat)" in text
+    flat = " ".join(text.split())
+    assert "(default: mlp; for contour files: their drawn rings" in flat and "(default: flat)" in text
+    assert "--route {contours,raster}" in text
     assert "--polygon" in text and "minimum length polygon" in text
     assert "rotation=ax;ay;az" in text and "degrees" in text
 

@@ -352,7 +352,7 @@ def test_trimesh_loads_contour_json(tmp_path):
     np.testing.assert_array_equal(tm.vertices, ours.vertices)
     np.testing.assert_array_equal(tm.faces, ours.faces)
     assert tm.volume == pytest.approx(ours.volume) and tm.euler_number == 0  # a tube: genus 1
-    assert tm.metadata["contourmesh"]["route"] == "raster"
+    assert tm.metadata["contourmesh"]["route"] == "contours"  # drawn rings: meshed between them
     assert tm.metadata["contourmesh"]["source"].endswith("ring.contours.json")
     # trimesh 4+/5: plain load() returns a Scene for file types outside its legacy mesh list
     scene = trimesh.load(str(p))
@@ -535,7 +535,8 @@ def test_mesh_file_dispatches_volumes_and_contours(tmp_path):
     st = stack_from_rings([(z, [_square(0, 0, 6), _square(10, 0, 6)]) for z in (0.0, 1.0, 2.0)])
     q = write_contours_json(st, tmp_path / "two.json")
     m2 = mesh_file(q, polygon="none")
-    assert m2.meta["route"] == "raster" and m2.checks()["components"] == 2
+    assert m2.meta["route"] == "contours" and m2.checks()["components"] == 2
+    assert mesh_file(q, route="raster").meta["route"] == "raster"
     with pytest.raises(TypeError, match="threshold= does not apply to a contour file"):
         mesh_file(q, threshold=0)
     assert is_file_source(q) and is_file_source("missing.nii.gz") and is_file_source(Path("x"))

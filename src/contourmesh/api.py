@@ -6,9 +6,9 @@ Four kinds of source, one typed entry point each, all returning a :class:`~conto
 entry point            source and the keywords that apply to it
 =====================  ==========================================================================
 :func:`mesh_shape`     an analytic shape or a spec string (``"sphere:r=40"``): ``h``
-:func:`mesh_stack`     a :class:`~contourmesh.types.ContourStack`: ``pixel``
+:func:`mesh_stack`     a :class:`~contourmesh.types.ContourStack`: ``pixel, route``
 :func:`mesh_volume`    a 3D array ``[z, y, x]``: ``spacing, z, axis, label, threshold, origin``
-:func:`mesh_file`      a path: contour files take ``roi, pixel``; volume files take
+:func:`mesh_file`      a path: contour files take ``roi, pixel, route``; volume files take
                        ``spacing, z, axis, label, threshold, origin``
 =====================  ==========================================================================
 
@@ -21,9 +21,13 @@ The routes behind the entry points:
 
 * **stack route** (:func:`contourmesh.surface.stack_to_mesh`): the paper's own path, for stacks
   with one contour per section (or nested outer/hole chains) of grid contours, and for
-  real-valued single contours meshed as drawn (``polygon="none"``);
-* **raster route**: every other contour stack is rasterized even-odd at ``pixel``
-  (:func:`contourmesh.rasterize.rasterize_stack`) and meshed as a volume;
+  real-valued single contours meshed as drawn (``polygon="none"``, or ``caps="smooth"``);
+* **contours route** (:func:`contourmesh.drawn.mesh_drawn`, ``route="contours"``): the default
+  for real-valued contour stacks (contour files): the drawn rings themselves are the mesh's
+  sections, joined by the volume mesher's joins, which a raster at ``pixel`` decides;
+* **raster route** (``route="raster"``, or ``polygon="mlp"``/``"dss"`` on real-valued rings, and
+  grid contour stacks with several contours per section): the stack is rasterized even-odd at
+  ``pixel`` (:func:`contourmesh.rasterize.rasterize_stack`) and meshed as a volume;
 * **volume route** (:func:`contourmesh.volumes.volume_to_mesh`): any binary volume, several
   contours per slice, holes and branching; its compiled fast path handles simple slices;
 * **refined route** (``refine="band"``): the outer Jordan contour stack of the source is refined
@@ -66,9 +70,9 @@ log = logging.getLogger("contourmesh")
 #: The keywords that apply to each kind of source, beyond the method keywords.
 OPTIONS = {
     "shape": ("h",),
-    "stack": ("pixel",),
+    "stack": ("pixel", "route"),
     "volume": ("spacing", "z", "axis", "label", "threshold", "origin"),
-    "contour file": ("roi", "pixel"),
+    "contour file": ("roi", "pixel", "route"),
     "volume file": ("spacing", "z", "axis", "label", "threshold", "origin"),
 }
 METHOD_OPTIONS = ("polygon", "triangulation", "caps", "refine", "progress")
@@ -88,6 +92,9 @@ _WHY = {
     ("volume file", "roi"): "roi= picks a structure of a contour file; use label= for a labelled volume",
     ("volume", "pixel"): "pixel= is the raster size for contour files; a volume is already voxels",
     ("volume file", "pixel"): "pixel= is the raster size for contour files; a volume is already voxels",
+    ("volume", "route"): "route= chooses how a contour stack is meshed; a volume is meshed by the volume mesher",
+    ("volume file", "route"): "route= chooses how a contour stack is meshed; a volume is meshed by the volume mesher",
+    ("shape", "route"): "route= chooses how a contour stack is meshed; an analytic shape has its own route",
     ("volume", "h"): "h= is the grid step for analytic shapes; use spacing= for a volume",
     ("volume file", "h"): "h= is the grid step for analytic shapes; use spacing= for a volume",
 }
@@ -165,7 +172,8 @@ def mesh(source, **options) -> Mesh:
         .vol .inr[.gz]``; contours: ``.json``, DICOM RTSTRUCT ``.dcm``), a ContourStack, or a 3D array
         indexed ``[z, y, x]`` (binary, or labels with ``label=`` / ``threshold=``).
     **options
-        ``polygon`` ({"mlp", "dss", "none"}), ``triangulation`` ({"wiederhold", "greedy", "optimal",
+        ``polygon`` ({"mlp", "dss", "none"}; default ``"mlp"``, and the drawn rings themselves for
+        real-valued contour stacks), ``triangulation`` ({"wiederhold", "greedy", "optimal",
         "arclength"}; default ``"wiederhold"``, or ``"optimal"`` with ``refine="band"``), ``caps``
         ({"flat", "half", "smooth"}; ``"smooth"`` on the stack and refined routes only), ``refine``
         ({None, "none", "band"}), ``progress``, and the keywords of the source's entry point.
@@ -314,63 +322,90 @@ def mesh_shape(shape, *, h: float = 1.0, polygon: str = "mlp", triangulation: st
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
-def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str = "mlp",
+def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str | None = None,
                triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
-               progress: bool = False) -> Mesh:
+               route: str | None = None, progress: bool = False) -> Mesh:
     """Mesh a contour stack, choosing the route by what the stack holds.
 
-    * Every section has exactly one contour and either the contours are integer grid points or
-      ``polygon="none"``: the stack route (real-valued contours are triangulated as drawn).
-    * Otherwise (several contours per slice, holes, DSS/MLP polygons of real-valued rings, or a
-      real-valued ring that cannot be capped or closed as drawn): the stack is rasterized even-odd
-      at ``pixel`` (default: the median point spacing) and meshed by the volume mesher at the
-      sections' own heights.
+    * Grid contours (integer points): one contour per section goes to the stack route; several
+      contours per section are rasterized (raster route).  ``polygon`` defaults to ``"mlp"``.
+    * Real-valued rings (contour files), ``polygon`` unset or ``"none"``: the drawn rings are the
+      data.  With one ring per section and ``polygon="none"`` or ``caps="smooth"``, the stack route
+      triangulates them as drawn; otherwise (the default) the **contours route**
+      (:func:`contourmesh.drawn.mesh_drawn`) meshes between the drawn rings, with several rings
+      per section, holes, forks and merges; a raster at ``pixel`` (default: the median point
+      spacing, at most 1) decides only which ring joins which.  A stack route failure (a ring that
+      touches itself) goes to the contours route with a
+      :class:`~contourmesh.errors.RasterFallbackWarning` (and ``meta["stack_route_error"]``).
+    * Real-valued rings with ``polygon="mlp"`` or ``"dss"``, or ``route="raster"``: the raster
+      route: the stack is rasterized even-odd at ``pixel`` and meshed by the volume mesher at the
+      sections' own heights with the polygons of the raster.
 
-    ``meta["route"]`` records the route taken and ``meta["pixel"]`` the raster size.  A stack that
-    was to be meshed as drawn but cannot be is rasterized with a
-    :class:`~contourmesh.errors.RasterFallbackWarning` (and ``meta["stack_route_error"]``);
-    ``caps="smooth"`` is refused on the raster route (:class:`~contourmesh.errors.InapplicableOption`).
+    ``route`` (``"contours"`` or ``"raster"``) picks the route instead; ``route="contours"`` with
+    ``polygon="mlp"``/``"dss"`` is refused (the contours route meshes the drawn rings, not polygons
+    of a raster), and so is ``caps="smooth"`` off the stack route
+    (:class:`~contourmesh.errors.InapplicableOption`).  ``meta["route"]`` records the route taken
+    and ``meta["pixel"]`` the raster size.
     """
     if not isinstance(stack, ContourStack):
         raise TypeError(f"mesh_stack needs a ContourStack; got {type(stack).__name__}")
+    if route not in (None, "contours", "raster"):
+        raise ValueError(f"unknown route {route!r}; expected 'contours' or 'raster'")
     refine = _refine_method(refine)
     if refine is not None:
         if pixel is not None:
             raise InapplicableOption("pixel= does not apply with refine='band': the refinement meshes the "
                                      "stack's own grid contours, without rasterizing")
-        return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+        if route is not None:
+            raise InapplicableOption(f"route={route!r} does not apply with refine='band': the refinement has "
+                                     "its own route")
+        return _refined(stack, polygon=polygon or "mlp", triangulation=triangulation, caps=caps, refine=refine)
     triangulation = triangulation or "wiederhold"
     one_each = all(len(s.contours) == 1 for s in stack.sections)
     integer = all(np.asarray(c).dtype.kind in "iu" for s in stack.sections for c in s.contours)
-    if one_each and (integer or polygon == "none"):
+    if route == "contours" and polygon in ("mlp", "dss"):
+        raise InapplicableOption(f"polygon={polygon!r} does not apply with route='contours': that route meshes "
+                                 "the drawn rings themselves (use route='raster' for the polygons of a raster)")
+    drawn = route == "contours" or (route is None and not integer and polygon in (None, "none"))
+    fallback = None
+    if route is None and one_each and (integer or polygon == "none" or (polygon is None and caps == "smooth")):
         try:
-            return _with_meta(stack_to_mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps),
-                              route="stack")
+            return _with_meta(stack_to_mesh(stack, polygon=polygon or ("mlp" if integer else "none"),
+                                            triangulation=triangulation, caps=caps), route="stack")
         except (CapError, StackSurfaceError) as exc:
             if integer:
                 raise
             # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): the
-            # raster route below resolves it even-odd; never silently
+            # contours route below resolves it through its raster; never silently
             name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
             _volume_caps(caps, f"{name} cannot be meshed as drawn on the stack route ({exc})")
-            log.info("%s: stack route failed (%s); re-routing to the raster route", name, exc)
-            warn_external(f"{name}: the contours cannot be meshed as drawn ({exc}); rasterized instead (raster "
-                          "route, pixel= sets its size)", RasterFallbackWarning)
+            log.info("%s: stack route failed (%s); re-routing to the contours route", name, exc)
+            warn_external(f"{name}: the contours cannot be meshed as drawn on the stack route ({exc}); meshed on "
+                          "the contours route instead (its raster decides the joins; pixel= sets its size)",
+                          RasterFallbackWarning)
             fallback = str(exc)
+    elif drawn:
+        _volume_caps(caps, "this stack goes to the contours route (caps='smooth' needs one ring per section)")
     else:
-        why = ("its sections hold several contours" if not one_each else
-               f"its contours are real-valued and polygon={polygon!r} (use polygon='none' to mesh them as drawn)")
+        why = (f"route={route!r}" if route else "its sections hold several grid contours" if not one_each else
+               f"its contours are real-valued and polygon={polygon!r} (leave polygon unset to mesh the drawn rings)")
         _volume_caps(caps, f"this stack goes to the raster route: {why}")
         log.debug("raster route: %s", why)
-        fallback = None
+    if drawn:
+        from .drawn import mesh_drawn
+
+        log.debug("contours route: the drawn rings, joined as a raster at pixel=%s decides", pixel)
+        m = mesh_drawn(stack, pixel=pixel, triangulation=triangulation, caps=caps, progress=progress)
+        if fallback is not None:
+            m = _with_meta(m, stack_route_error=fallback)
+        return m
+    polygon = polygon or "mlp"
     r = rasterize_stack(stack, pixel)
     m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation, caps=caps,
                        progress=progress)
     meta = dict(m.meta)
     meta.update(stack.meta)  # the stack's source, roi and units win over the volume mesher's
     meta.update(route="raster", pixel=r.spacing[0])
-    if fallback is not None:
-        meta["stack_route_error"] = fallback
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
@@ -391,7 +426,7 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
 
 
 def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=None, threshold=None,
-                origin=None, polygon: str = "mlp", triangulation: str | None = None, caps: str = "flat",
+                origin=None, polygon: str | None = "mlp", triangulation: str | None = None, caps: str = "flat",
                 refine: str | None = None, progress: bool = False) -> Mesh:
     """Mesh a 3D array indexed ``[z, y, x]`` (any topology: holes, branching, cavities).
 
@@ -412,6 +447,7 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
     spacing = (1.0, 1.0, 1.0) if spacing is None else spacing
     origin = (0.0, 0.0, 0.0) if origin is None else origin
     axis = 0 if axis is None else axis
+    polygon = polygon or "mlp"
     refine = _refine_method(refine)
     if refine is not None:
         mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
@@ -434,13 +470,14 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
     return _with_meta(m, route="volume")
 
 
-def mesh_file(path, *, roi=None, pixel=None, spacing=None, z=None, axis: int | None = None, label=None,
-              threshold=None, origin=None, polygon: str = "mlp", triangulation: str | None = None,
+def mesh_file(path, *, roi=None, pixel=None, route=None, spacing=None, z=None, axis: int | None = None, label=None,
+              threshold=None, origin=None, polygon: str | None = None, triangulation: str | None = None,
               caps: str = "flat", refine: str | None = None, progress: bool = False) -> Mesh:
     """Mesh a file: a contour stack (``.json``, DICOM RTSTRUCT, contour ``.npz``) or a volume.
 
-    Contour files take ``roi`` (the structure, by name or number) and ``pixel`` (the raster size)
-    and go through :func:`mesh_stack`.  Volume files take the keywords of :func:`mesh_volume`;
+    Contour files take ``roi`` (the structure, by name or number), ``pixel`` (the raster size) and
+    ``route`` (``"contours"``, the default for drawn rings, or ``"raster"``) and go through
+    :func:`mesh_stack`.  Volume files take the keywords of :func:`mesh_volume`;
     they carry their own spacing and origin, which ``spacing=`` and ``origin=`` replace when
     given (``meta["spacing"]`` records the spacing used).  ``meta["source"]`` is the path.
 
@@ -452,12 +489,12 @@ def mesh_file(path, *, roi=None, pixel=None, spacing=None, z=None, axis: int | N
 
     p = check_file(path, "input")
     kind = "contour file" if is_contour_file(p) else "volume file"
-    _refuse_inapplicable(kind, {k: v for k, v in dict(roi=roi, pixel=pixel, spacing=spacing, z=z, axis=axis,
+    _refuse_inapplicable(kind, {k: v for k, v in dict(roi=roi, pixel=pixel, route=route, spacing=spacing, z=z, axis=axis,
                                                       label=label, threshold=threshold, origin=origin).items()
                                 if v is not None})
     if kind == "contour file":
-        m = mesh_stack(read_contours(p, roi=roi), pixel=pixel, polygon=polygon, triangulation=triangulation,
-                       caps=caps, refine=refine, progress=progress)
+        m = mesh_stack(read_contours(p, roi=roi), pixel=pixel, route=route, polygon=polygon,
+                       triangulation=triangulation, caps=caps, refine=refine, progress=progress)
         return _with_meta(m, source=str(p))
     img = read_image(p, label=label, threshold=threshold)
     used = tuple(float(s) for s in spacing) if spacing is not None else img.spacing
@@ -570,8 +607,9 @@ def mesh_file_labels(path, *, labels=None, spacing=None, origin=None, polygon: s
         yield lab, _with_meta(m, source=str(path), spacing=used), bbox
 
 
-def mesh_file_rois(path, *, rois=None, pixel=None, polygon: str = "mlp", triangulation: str | None = None,
-                   caps: str = "flat", refine: str | None = None, progress: bool = False):
+def mesh_file_rois(path, *, rois=None, pixel=None, route=None, polygon: str | None = None,
+                   triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
+                   progress: bool = False):
     """Mesh several structures of a contour file (default: every non-empty one); yields ``(name, Mesh)``.
 
     ``rois`` lists names or numbers.  Each structure is meshed as :func:`mesh_file` meshes it with
@@ -593,7 +631,7 @@ def mesh_file_rois(path, *, rois=None, pixel=None, polygon: str = "mlp", triangu
             if found[0] not in picks:  # the same structure named twice (by name and number) is meshed once
                 picks.append(found[0])
     for num, name in picks:
-        m = mesh_file(path, roi=num if _suffix_of(path) != ".json" else None, pixel=pixel, polygon=polygon,
+        m = mesh_file(path, roi=num if _suffix_of(path) != ".json" else None, pixel=pixel, route=route, polygon=polygon,
                       triangulation=triangulation, caps=caps, refine=refine, progress=progress)
         yield name, diagnose(_with_meta(m, roi=name, roi_number=num))
 

@@ -40,7 +40,7 @@ Areas are in the square of the file's (or --spacing's) unit.
 """
 
 #: Python keywords that the command line spells as flags.
-_FLAGS = ("roi", "label", "threshold", "pixel", "spacing", "axis", "refine", "polygon", "triangulation", "caps", "h")
+_FLAGS = ("roi", "label", "threshold", "pixel", "route", "spacing", "axis", "refine", "polygon", "triangulation", "caps", "h")
 _KEYWORD = re.compile(r"\b(" + "|".join(_FLAGS) + r")=(?=[\s,;.)'\"]|$)")
 
 
@@ -144,8 +144,9 @@ def _cmd_mesh_many(args) -> int:
                         ("--label", args.label), ("--threshold", args.threshold), ("--json", args.json or None)):
         if value:
             raise ValueError(f"{flag} does not apply when meshing several objects at once")
-    if args.all_labels and (args.roi or args.all_rois or args.pixel is not None):
-        raise ValueError("--all-labels is for label volumes; --roi, --all-rois and --pixel are for contour files")
+    if args.all_labels and (args.roi or args.all_rois or args.pixel is not None or args.route is not None):
+        raise ValueError("--all-labels is for label volumes; --roi, --all-rois, --pixel and --route are for contour "
+                         "files")
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"-o {str(out)!r}: several objects need an output folder, and this is a file")
@@ -161,7 +162,8 @@ def _cmd_mesh_many(args) -> int:
     else:
         table = "rois.csv"
         rois = None if args.all_rois else [int(r) if r.isdigit() else r for r in args.roi]
-        objects = ((name, m, None) for name, m in mesh_file_rois(args.source, rois=rois, pixel=args.pixel, **method))
+        objects = ((name, m, None) for name, m in mesh_file_rois(args.source, rois=rois, pixel=args.pixel,
+                                                                    route=args.route, **method))
     rows, failed = [], 0
     while True:
         try:
@@ -223,7 +225,7 @@ def _cmd_mesh(args) -> int:
     roi = args.roi[0] if args.roi else None
     roi = int(roi) if roi is not None and roi.isdigit() else roi
     m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps,
-             refine=args.refine, roi=roi, pixel=args.pixel, label=args.label, threshold=args.threshold,
+             refine=args.refine, roi=roi, pixel=args.pixel, route=args.route, label=args.label, threshold=args.threshold,
              axis=args.axis, spacing=args.spacing, progress=not args.quiet)
     infos = []
     if posts:
@@ -288,8 +290,9 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("source", help="a shape spec NAME:key=value,... (sphere:r=40, torus:R=30,r=9) or a file")
     m.add_argument("-o", "--output", required=True,
                    help="output mesh file (.ply, .obj, .stl, .off); a folder with --all-labels/--all-rois")
-    m.add_argument("--polygon", default="mlp", choices=["mlp", "dss", "none"],
-                   help="each contour becomes its minimum length polygon, its maximal-DSS polygon, or stays as traced")
+    m.add_argument("--polygon", default=None, choices=["mlp", "dss", "none"],
+                   help="each contour becomes its minimum length polygon, its maximal-DSS polygon, or stays as traced "
+                        "(default: mlp; for contour files: their drawn rings, see --route)")
     m.add_argument("--triangulation", default=None, choices=["wiederhold", "greedy", "optimal", "arclength"],
                    help="band triangulation between consecutive polygons (default: wiederhold, "
                         "or optimal with --refine band)")
@@ -310,7 +313,12 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--format", default="ply", choices=["ply", "obj", "stl", "off"],
                    help="mesh file format with --all-labels/--all-rois")
     m.add_argument("--pixel", type=float, default=None,
-                   help="contour files: pixel size for rasterizing (default: the median point spacing)")
+                   help="contour files: pixel size of the raster that decides the joins (contours route) or is "
+                        "meshed (raster route) (default: the median point spacing, at most 1)")
+    m.add_argument("--route", default=None, choices=["contours", "raster"],
+                   help="contour files: mesh between the drawn rings, joined as a raster decides (contours, the "
+                        "default; --polygon mlp/dss does not apply), or mesh the polygons of the raster (raster); "
+                        "one ring per section with --polygon none or --caps smooth goes to the stack route")
     m.add_argument("--label", type=_label, default=None,
                    help="volumes: use the voxels equal to this label (.seg.nrrd: a segment name)")
     m.add_argument("--threshold", type=_number, default=None, help="volumes: use the voxels above this value")

@@ -311,12 +311,20 @@ class _Mesher:
 
 def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
                    origin=(0.0, 0.0, 0.0), polygon: str = "mlp", triangulation: str = "wiederhold",
-                   caps: str = "flat", refine: str | None = None, progress: bool = False) -> Mesh:
+                   caps: str = "flat", refine: str | None = None, progress: bool = False,
+                   polygons=None) -> Mesh:
     """Mesh a binary (or labelled) volume: the mesh source for volumes (see the module docstring).
 
     ``refine="band"`` replaces every polygon of a component that is not crack-only (its rings
     take part in band joins and caps, not in exact joins) by its band-refined polygon
     (:func:`contourmesh.refine.refine_volume_rings`: needs square pixels and evenly spaced slices).
+
+    ``polygons`` (internal): a callable ``polygons(slices, zs, crack_only, joins) -> dict`` run once the
+    joins are decided and before the bridged joins are built; it may replace the polygons of any
+    component (``slices[k].outer[c]``, ``slices[k].holes[c][h]``, outer rings counter-clockwise and
+    holes clockwise) and returns entries for ``meta``.  Components it lists in ``slices[k].own`` (a
+    set) keep its polygons in exact joins too: their collars are bands up to the crack contours.  The compiled fast path is not used with it
+    (the contours route, :mod:`contourmesh.drawn`, puts the drawn rings in this way).
 
     Returns a closed, outward-oriented, manifold Mesh whose genus equals that of the 6-connected
     voxel object; ``meta`` records the method, the number of exact (voxel-like) joins and of
@@ -331,13 +339,15 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if refine not in (None, "none", "band"):
         raise ValueError(f"unknown refine method {refine!r}; expected 'band' or 'none'")
     refine = None if refine == "none" else refine
+    if polygons is not None and refine is not None:
+        raise ValueError("polygons= and refine='band' both replace the polygons; give one of them")
     if (label is None and threshold is None and isinstance(volume, np.ndarray) and volume.ndim == 3
             and volume.size and volume.dtype.kind in "iuf"):
         label = binary_label(volume)  # a two-valued volume (0/255) is binary: its non-zero value
     # the common case (no holes, every slice pair a simple band join) in compiled code, the same mesh
-    fast = fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
-                               origin=origin, polygon=polygon, triangulation=triangulation, caps=caps,
-                               refine=refine)
+    fast = None if polygons is not None else \
+        fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
+                            origin=origin, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     if fast is not None:
         log.debug("volume mesher: the compiled fast path took the volume")
         sp = [float(s) for i, s in enumerate(np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))) if i != axis]
@@ -410,6 +420,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     refine_info = {}
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
         refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy))
+    hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
 
     # pass 2b: branching joins between the polygons themselves (bridges), where they keep clear of
     # everything else in their planes; the others become exact joins (their contours then keep
@@ -424,7 +435,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         key = (k, c, hole)
         if key not in rings:
             s = slices[k]
-            if (k, c) in crack_only:
+            if (k, c) in crack_only and c not in getattr(s, "own", ()):
                 poly = s.crack_outer[c] if hole < 0 else s.crack_holes[c][hole]
             else:
                 poly = s.outer[c] if hole < 0 else s.holes[c][hole]
@@ -510,6 +521,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     }
     if refine is not None:
         meta.update(refine_info, refine=refine)
+    meta.update(hook_info or {})
     if exact_joins or fallbacks or M.band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
@@ -684,15 +696,17 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     # mid-plane) and its pixels not covered above (facing up); side 2 mirrors it from above.
     M.side = 1
     for a in ga:
+        collar = M.band if a in getattr(A, "own", ()) else M.quads  # a caller's polygon: a band to the crack
         for h, crack_xy in [(-1, A.crack_outer[a])] + list(enumerate(A.crack_holes[a])):
             c = back_to_corners(crack_xy)
-            M.quads(ring(k, a, h), corner_ids(c[:, 0], c[:, 1]))
+            collar(ring(k, a, h), corner_ids(c[:, 0], c[:, 1]))
     _pixel_faces(M, ra & ~o, x0, y0, corner_ids, up=True)
     M.side = 2
     for b in gb:
+        collar = M.band if b in getattr(B, "own", ()) else M.quads
         for h, crack_xy in [(-1, B.crack_outer[b])] + list(enumerate(B.crack_holes[b])):
             c = back_to_corners(crack_xy)
-            M.quads(corner_ids(c[:, 0], c[:, 1]), ring(k + 1, b, h))
+            collar(corner_ids(c[:, 0], c[:, 1]), ring(k + 1, b, h))
     _pixel_faces(M, rb & ~o, x0, y0, corner_ids, up=False)
     M.side = 0
     if neck.any():
@@ -905,7 +919,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     def poly(kk, c, h):
         s = slices[kk]
-        if c in by_slice[kk]:
+        if c in by_slice[kk] and c not in getattr(s, "own", ()):
             return s.crack_outer[c] if h < 0 else s.crack_holes[c][h]
         return s.outer[c] if h < 0 else s.holes[c][h]
 

@@ -147,6 +147,22 @@ def _planar_slices(path: Path, name: str, contours3d):
     return out
 
 
+def _contour_data(item) -> np.ndarray:
+    """An item's ContourData as float64: parsed from the raw bytes where pydicom has not decoded them yet
+    (its per-value DS checks cost seconds on a body contour); otherwise through pydicom."""
+    raw = item.get_item("ContourData")
+    value = getattr(raw, "value", None)
+    if isinstance(value, bytes):
+        text = value.rstrip(b"\x00 ")
+        if not text:
+            return np.zeros(0, dtype=np.float64)
+        try:
+            return np.array(text.split(b"\\")).astype(np.float64)
+        except ValueError:
+            pass  # not plain decimal strings: pydicom says what is wrong below
+    return np.asarray([float(v) for v in item.ContourData], dtype=np.float64)
+
+
 def _read_rtstruct(path: Path, roi) -> ContourStack:
     pydicom = _require("pydicom")
     try:
@@ -165,7 +181,7 @@ def _read_rtstruct(path: Path, roi) -> ContourStack:
         contours3d, skipped = [], {}
         for i, item in enumerate(by_number[num]):
             kind = str(getattr(item, "ContourGeometricType", "CLOSED_PLANAR"))
-            data = np.asarray([float(v) for v in item.ContourData], dtype=np.float64)
+            data = _contour_data(item)
             if data.size % 3:
                 raise _bad(path, f"ROI {name!r} contour {i}: ContourData as x, y, z triplets", f"{data.size} numbers")
             npts = getattr(item, "NumberOfContourPoints", None)

@@ -1,0 +1,381 @@
+"""The contours route: real-valued contour stacks meshed between their own drawn rings.
+
+A contour file holds the rings a planner drew, section by section, often several per section,
+with holes and structures that fork and merge.  The volume mesher
+(:func:`contourmesh.volumes.volume_to_mesh`) knows how to join such sections (bands, bridged
+joins for forks, merges and holes that open, lids, caps, and exact joins where a handle forms),
+but it works on pixels.  This route uses a raster only for the **topology**:
+
+1. the stack is rasterized even-odd (:func:`contourmesh.rasterize.rasterize_stack`, pixel as on
+   the raster route); the raster's components, holes and overlaps between consecutive sections
+   decide which component joins which, and how;
+2. before any join is built, every raster component whose pixels are exactly those of one drawn
+   outer ring minus its drawn holes gets that ring as its outer polygon, and each of its raster
+   holes the drawn hole ring whose pixels it holds (rings oriented as the mesher wants: outer
+   rings counter-clockwise, holes clockwise);
+3. bands, bridged joins, lids and caps are then made between the drawn rings, so the mesh's
+   section at a contour plane is the drawn section.
+
+A component that cannot be matched one to one (two drawn rings that the raster merges, a ring
+that touches or crosses itself or another ring, a ring thinner than a pixel, an even-odd fill that
+disagrees with the nesting of the rings) keeps its raster polygon (the MLP of its pixels); each
+such component is counted in ``meta["unmatched_components"]`` and named in a
+:class:`~contourmesh.errors.RasterFallbackWarning`.  Components in exact joins (where a handle
+forms between two sections) keep their crack contours, as on the raster route
+(``meta["crack_rings"]``).
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+
+import numpy as np
+from numba import njit
+
+from .errors import RasterFallbackWarning, warn_external
+from .geometry import _fill_evenodd, grid_to_xy, shoelace_area
+from .intersect import intersecting_faces
+from .rasterize import _physical_rings, rasterize_stack
+from .stacks import _nest_section
+from .types import ContourStack, Mesh
+from .volumes import volume_to_mesh
+
+__all__ = ["mesh_drawn"]
+
+log = logging.getLogger("contourmesh")
+
+#: Meshing attempts: after one whose faces cross, the sections of the crossing faces take the raster's polygons.
+_ATTEMPTS = 3
+
+
+class _Quiet(logging.Filter):
+    """Holds back the volume mesher's crossing warning on an attempt that is retried."""
+
+    def filter(self, record):
+        return record.levelno < logging.WARNING
+
+
+@njit(cache=True)
+def _edges_meet(xs, ys, starts) -> np.ndarray:
+    """Per ring (``starts`` delimits the rings in ``xs, ys``): whether any of its edges meets an edge
+    of itself (other than its neighbours) or of another ring.  Touching counts.  A sweep over
+    the edges sorted by their smallest x."""
+    n = len(xs)
+    nr = len(starts) - 1
+    ring = np.empty(n, np.int64)
+    nxt = np.empty(n, np.int64)
+    for r in range(nr):
+        for i in range(starts[r], starts[r + 1]):
+            ring[i] = r
+            nxt[i] = i + 1 if i + 1 < starts[r + 1] else starts[r]
+    lo = np.empty(n)
+    for i in range(n):
+        lo[i] = min(xs[i], xs[nxt[i]])
+    order = np.argsort(lo)
+    bad = np.zeros(nr, np.bool_)
+    for oi in range(n):
+        i = order[oi]
+        ax, ay, bx, by = xs[i], ys[i], xs[nxt[i]], ys[nxt[i]]
+        hi_x = max(ax, bx)
+        ylo, yhi = min(ay, by), max(ay, by)
+        for oj in range(oi + 1, n):
+            j = order[oj]
+            if lo[j] > hi_x:
+                break
+            cx, cy, dx, dy = xs[j], ys[j], xs[nxt[j]], ys[nxt[j]]
+            if max(cy, dy) < ylo or min(cy, dy) > yhi:
+                continue
+            same = ring[i] == ring[j]
+            if same and (nxt[i] == j or nxt[j] == i):
+                # neighbours share a vertex: they meet elsewhere only when collinear and folding back
+                u1, u2 = bx - ax, by - ay
+                v1, v2 = dx - cx, dy - cy
+                if u1 * v2 - u2 * v1 == 0 and u1 * v1 + u2 * v2 < 0:
+                    bad[ring[i]] = True
+                continue
+            d1 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+            d2 = (bx - ax) * (dy - ay) - (by - ay) * (dx - ax)
+            d3 = (dx - cx) * (ay - cy) - (dy - cy) * (ax - cx)
+            d4 = (dx - cx) * (by - cy) - (dy - cy) * (bx - cx)
+            meet = False
+            if ((d1 > 0 and d2 < 0) or (d1 < 0 and d2 > 0)) and ((d3 > 0 and d4 < 0) or (d3 < 0 and d4 > 0)):
+                meet = True
+            elif d1 == 0 and min(ax, bx) <= cx <= max(ax, bx) and min(ay, by) <= cy <= max(ay, by):
+                meet = True
+            elif d2 == 0 and min(ax, bx) <= dx <= max(ax, bx) and min(ay, by) <= dy <= max(ay, by):
+                meet = True
+            elif d3 == 0 and min(cx, dx) <= ax <= max(cx, dx) and min(cy, dy) <= ay <= max(cy, dy):
+                meet = True
+            elif d4 == 0 and min(cx, dx) <= bx <= max(cx, dx) and min(cy, dy) <= by <= max(cy, dy):
+                meet = True
+            if meet:
+                bad[ring[i]] = True
+                bad[ring[j]] = True
+    return bad
+
+
+def _rings_that_meet(rings) -> np.ndarray:
+    if not rings:
+        return np.zeros(0, dtype=bool)
+    xy = np.concatenate(rings)
+    starts = np.zeros(len(rings) + 1, dtype=np.int64)
+    starts[1:] = np.cumsum([len(r) for r in rings])
+    return _edges_meet(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), starts)
+
+
+def _fill(rings, x0, y0, pixel, shape_yx, box):
+    """Even-odd fill of ``rings`` on the raster grid, within ``box = (j0, j1, i0, i1)``: a bool array of
+    the box's shape (pixel ``[j, i]`` of the box is grid pixel ``[j0 + j, i0 + i]``)."""
+    j0, j1, i0, i1 = box
+    out = np.zeros((j1 - j0, i1 - i0), dtype=bool)
+    xy = np.concatenate(rings)
+    starts = np.zeros(len(rings) + 1, dtype=np.int64)
+    starts[1:] = np.cumsum([len(r) for r in rings])
+    _fill_evenodd(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), starts,
+                  x0 + i0 * pixel, y0 + j0 * pixel, pixel, out)
+    return out
+
+
+class _DrawnPolygons:
+    """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
+    raster's polygons (see the module docstring).  Called once, after the joins are decided."""
+
+    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why=""):
+        self.rings = rings  # per section: (oriented rings, parents)
+        self.raster = raster
+        self.name = name
+        self.avoid = avoid  # sections whose drawn rings made crossing faces: the raster's polygons
+        self.avoid_why = avoid_why
+        self.unmatched: list[tuple] = []  # (section, z, why)
+
+    def _box(self, ring, shape):
+        x0, y0, _ = self.raster.origin
+        p = self.raster.spacing[0]
+        i0 = max(int(np.floor((ring[:, 0].min() - x0) / p)) - 1, 0)
+        i1 = min(int(np.ceil((ring[:, 0].max() - x0) / p)) + 2, shape[1])
+        j0 = max(int(np.floor((ring[:, 1].min() - y0) / p)) - 1, 0)
+        j1 = min(int(np.ceil((ring[:, 1].max() - y0) / p)) + 2, shape[0])
+        return j0, j1, i0, i1
+
+    def __call__(self, slices, zs, crack_only, joins) -> dict:
+        x0, y0, _ = self.raster.origin
+        p = self.raster.spacing[0]
+        to_xy_center, to_xy_corner = grid_to_xy(x0, y0, p, p)
+        matched = drawn = unmatched = 0
+        for k, s in enumerate(slices):
+            if s is None:
+                continue
+            rings, parents = self.rings[k]
+            meets = _rings_that_meet(list(rings))
+            owner = {}  # component -> (outer ring, [(hole ring, raster hole)])
+            refused = set()  # components that some ring claims but cannot have
+            why = {}
+            for i, (r, par) in enumerate(zip(rings, parents)):
+                if par != -1:
+                    continue
+                holes = [j for j, q in enumerate(parents) if q == i]
+                box = self._box(r, s.labels.shape)
+                pix = _fill([r] + [rings[j] for j in holes], x0, y0, p, s.labels.shape, box)
+                lab = s.labels[box[0]:box[1], box[2]:box[3]][pix]
+                if lab.size == 0:
+                    continue  # a ring thinner than a pixel: the raster lost it (LostContourWarning)
+                comps = np.unique(lab)
+                c = int(comps[-1]) - 1
+                if comps[0] == 0 or len(comps) != 1:
+                    for cc in comps[comps > 0]:
+                        refused.add(int(cc) - 1)
+                        why[int(cc) - 1] = "the even-odd fill of its rings differs from the rings' nesting" \
+                            if comps[0] == 0 else "one drawn ring covers several raster components"
+                    continue
+                if c in owner:
+                    refused.add(c)
+                    why[c] = "the raster merges two drawn rings"
+                    continue
+                sl = s.objects[c]
+                # the component is exactly this ring's fill: no other ring's pixels join it
+                if int(np.count_nonzero(s.labels[sl] == c + 1)) != lab.size:
+                    refused.add(c)
+                    why[c] = "the raster merges two drawn rings"
+                    continue
+                if meets[i] or any(meets[j] for j in holes):
+                    refused.add(c)
+                    why[c] = "a drawn ring touches or crosses itself or another ring"
+                    continue
+                hsl, hmasks = s.hole_masks[c]
+                fills = {}
+                for j in holes:
+                    hbox = self._box(rings[j], s.labels.shape)
+                    fills[j] = (hbox, _fill([rings[j]], x0, y0, p, s.labels.shape, hbox))
+                # a hole that holds no pixel centre is lost by the raster (LostContourWarning): dropped
+                holes = [j for j in holes if fills[j][1].any()]
+                if len(hmasks) != len(holes):
+                    refused.add(c)
+                    why[c] = f"{len(holes)} drawn hole(s) but {len(hmasks)} raster hole(s)"
+                    continue
+                pairs, ok = [], True
+                for j in holes:
+                    hbox, hp = fills[j]
+                    found = []
+                    for h, hm in enumerate(hmasks):
+                        # the raster hole's pixels in grid coordinates against the drawn hole's fill
+                        ys, xs = np.nonzero(hm)
+                        ys, xs = ys + hsl[0].start, xs + hsl[1].start
+                        inb = (ys >= hbox[0]) & (ys < hbox[1]) & (xs >= hbox[2]) & (xs < hbox[3])
+                        if inb.all() and hp.sum() == len(ys) and hp[ys - hbox[0], xs - hbox[2]].all():
+                            found.append(h)
+                    if len(found) != 1:
+                        ok = False
+                        break
+                    pairs.append((rings[j], found[0]))
+                if not ok or len({h for _, h in pairs}) != len(pairs):
+                    refused.add(c)
+                    why[c] = "its drawn holes do not match the raster's holes one to one"
+                    continue
+                owner[c] = (r, pairs)
+            if k in self.avoid:
+                refused.update(range(s.n))
+                why.update({c: self.avoid_why for c in range(s.n)})
+            s.own = set()  # these keep their drawn rings in exact joins too (volume_to_mesh)
+            for c in range(s.n):
+                if c in owner and c not in refused:
+                    s.own.add(c)
+                    r, pairs = owner[c]
+                    s.outer[c] = r
+                    for hring, h in pairs:
+                        s.holes[c][h] = hring
+                    matched += 1
+                    drawn += 1 + len(pairs)
+                    continue
+                # no drawn ring of its own: the MLP of its pixels, as on the raster route
+                unmatched += 1
+                self.unmatched.append((k, float(zs[k]), why.get(c, "no drawn ring matches it")))
+                sl = s.objects[c]
+                off = np.array([sl[1].start, sl[0].start])
+                comp = s.labels[sl] == c + 1
+                s.outer[c] = s._polygon(s.crack_outer_c[c], comp, "mlp", to_xy_corner, to_xy_center, off, hole=False)
+                hsl, hmasks = s.hole_masks[c]
+                s.holes[c] = [s._polygon(hc, hm, "mlp", to_xy_corner, to_xy_center, off, hole=True)
+                              for hc, hm in zip(s.crack_holes_c[c], hmasks)]
+        if self.unmatched:
+            where = "; ".join(f"section {k} (z={z:g}): {w}" for k, z, w in self.unmatched[:5])
+            more = f"; and {len(self.unmatched) - 5} more" if len(self.unmatched) > 5 else ""
+            warn_external(f"{self.name}: {len(self.unmatched)} component(s) are meshed from the raster's polygons "
+                          f"(pixel={p:g}), not from drawn rings: {where}{more}", RasterFallbackWarning)
+        return {"drawn_components": matched, "drawn_rings": drawn, "unmatched_components": unmatched}
+
+
+#: Halvings of the default pixel where the raster loses or splits a drawn ring, and the voxel budget for them.
+_FINER = 2
+_FINER_VOXELS = 2e7
+
+
+def _raster_splits_rings(r, rings) -> bool:
+    """Whether some drawn outer ring (minus its holes) covers several 4-connected pieces of the raster,
+    or some drawn ring of at least a quarter pixel's area and 0.25 % of its section's covers no pixel
+    centre."""
+    from scipy import ndimage
+
+    x0, y0, _ = r.origin
+    p = r.spacing[0]
+    shape = r.volume.shape[1:]
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+    for rs, parents in rings:
+        section = abs(sum(shoelace_area(q) for q in rs)) if rs else 0.0
+        for i, par in enumerate(parents):
+            ring = rs[i]
+            box = (max(int(np.floor((ring[:, 1].min() - y0) / p)) - 1, 0),
+                   min(int(np.ceil((ring[:, 1].max() - y0) / p)) + 2, shape[0]),
+                   max(int(np.floor((ring[:, 0].min() - x0) / p)) - 1, 0),
+                   min(int(np.ceil((ring[:, 0].max() - x0) / p)) + 2, shape[1]))
+            # a lost ring counts where it holds a quarter pixel or more (halving may catch it) and a
+            # quarter percent of its section's area or more (not a speck beside a large contour)
+            area = abs(shoelace_area(ring))
+            big = area >= 0.25 * p * p and area >= 2.5e-3 * section
+            if par != -1:
+                if big and not _fill([ring], x0, y0, p, shape, box).any():
+                    return True
+                continue
+            pix = _fill([ring] + [rs[j] for j, q in enumerate(parents) if q == i], x0, y0, p, shape, box)
+            if (big and not pix.any()) or ndimage.label(pix, structure=cross)[1] > 1:
+                return True
+    return False
+
+
+def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation: str = "wiederhold",
+               caps: str = "flat", progress: bool = False) -> Mesh:
+    """Mesh a real-valued contour stack between its drawn rings (the contours route; module docstring).
+
+    ``pixel`` is the size of the raster that decides the topology (default
+    :func:`contourmesh.rasterize.default_pixel`, halved up to twice, within ``2e7`` voxels, while a
+    drawn ring of a quarter pixel and 0.25 % of its section's area or more holds no pixel centre, or a
+    ring falls apart into several pieces in the raster).  ``meta``: ``route="contours"``, ``pixel``,
+    ``drawn_components`` (components meshed from their drawn rings), ``unmatched_components``
+    (meshed from the raster's polygons, each named in a RasterFallbackWarning) and the volume
+    mesher's join counts.
+    """
+    name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
+    rings = []
+    for rs in _physical_rings(stack):
+        rs = [q for q in rs if len(q) >= 3 and shoelace_area(q) != 0.0]
+        rings.append(_nest_section(rs) if rs else ((), ()))
+    with warnings.catch_warnings(record=True) as lost:
+        warnings.simplefilter("always")
+        r = rasterize_stack(stack, pixel)
+        # the default pixel is halved (at most twice, within a voxel budget) where a drawn ring is lost
+        # or falls apart in the raster: the joins are then decided for the rings as drawn
+        for _ in range(_FINER if pixel is None else 0):
+            if r.volume.size * 4 > _FINER_VOXELS or not _raster_splits_rings(r, rings):
+                break
+            log.debug("contours route: a ring is lost or split at pixel=%g; pixel=%g", r.spacing[0], r.spacing[0] / 2)
+            lost.clear()
+            r = rasterize_stack(stack, r.spacing[0] / 2)
+    for w in lost:  # the rasterization's warnings (lost rings), naming the structure
+        text = str(w.message)
+        warn_external(text if text.startswith(f"{name}:") else f"{name}: {text}", w.category)
+    avoid: set = set()
+    everything = set(range(len(r.z)))
+    why = "faces between its drawn rings and the next section's crossed"
+    quiet = _Quiet()
+    attempt = 0
+    while True:
+        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why)
+        last = attempt >= _ATTEMPTS - 1 or avoid == everything
+        if not last:
+            log.addFilter(quiet)
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon="none", triangulation=triangulation,
+                                   caps=caps, progress=progress, polygons=hook)
+        except RuntimeError as exc:
+            # the drawn rings met the mesher's pixel constructions in a way it cannot make manifold:
+            # every section takes the raster's polygons (named in the warning); never a broken mesh
+            if avoid == everything:
+                raise
+            log.info("contours route: %s; every section takes the raster's polygons", exc)
+            avoid, why = everything, f"the mesher could not join the drawn rings ({exc})"
+            attempt += 1
+            continue
+        finally:
+            log.removeFilter(quiet)
+        if last or not m.meta.get("self_intersections"):
+            break
+        # faces that cross where drawn rings were joined: those sections take the raster's polygons
+        bad = intersecting_faces(m.vertices, m.faces)
+        z = m.vertices[m.faces[bad]][:, :, 2].ravel()
+        k = np.searchsorted(r.z, z, side="left")
+        near = np.unique(np.r_[k, k - 1].clip(0, len(r.z) - 1))
+        grown = set(near.tolist()) - avoid
+        if not grown:
+            break
+        log.debug("contours route: %d crossing face pairs; sections %s take the raster's polygons",
+                  m.meta["self_intersections"], sorted(grown))
+        avoid |= grown
+        attempt += 1
+    for w in caught:  # the warnings of the attempt that is kept
+        warn_external(str(w.message), w.category)
+    meta = dict(m.meta)
+    meta.update(stack.meta)
+    meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid))
+    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
