@@ -273,7 +273,7 @@ def _check_method(method: dict) -> dict:
 def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polygon: str = "mlp",
                         triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
                         meshes: bool = True, jobs: int | None = None, client=None, scheduler: str | None = None,
-                        cache=None, max_box_voxels: int = DEFAULT_MAX_BOX_VOXELS, batch: int = 16,
+                        cache=None, max_box_voxels: int = DEFAULT_MAX_BOX_VOXELS, batch: int | None = None,
                         slab: int | None = None, dataset: str | None = None, progress: bool = False, scan=None,
                         stats: dict | None = None):
     """Mesh every non-zero label of a chunked label volume; yields ``(label, Mesh or None, bbox, row)``.
@@ -301,8 +301,9 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
     max_box_voxels : int
         Per-task budget: the largest padded label box (and batch union box) read by one task.
         A label above it raises :class:`LabelTooLarge` before any meshing.
-    batch : int
-        At most this many labels per task.
+    batch : int, optional
+        At most this many labels per task (default: about eight tasks per worker, at most 16
+        labels each).
     slab : int, optional
         Slab depth of the scan pass (default: the store's chunk depth).
     scan : LabelScan, optional
@@ -321,7 +322,7 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
     method = _check_method(dict(polygon=polygon, triangulation=triangulation, caps=caps, refine=refine))
     if int(max_box_voxels) < 27:
         raise ValueError(f"max_box_voxels must be at least 27 (a one-voxel label's padded box); got {max_box_voxels}")
-    if int(batch) < 1:
+    if batch is not None and int(batch) < 1:
         raise ValueError(f"batch must be at least 1; got {batch}")
     stats = {} if stats is None else stats
     cache_dir = None
@@ -360,6 +361,8 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
                                 f"{int(max_box_voxels)}: {'; '.join(big[:10])}{' ...' if len(big) > 10 else ''}. "
                                 "They are not meshed in pieces; raise max_box_voxels (--max-box-voxels) and the "
                                 "workers' memory to mesh them")
+        if batch is None:
+            batch = max(1, min(16, -(-len(idx) // (8 * ex.workers()))))
         plan = _plan(scan, idx, vol.chunks, int(max_box_voxels), int(batch))
         tasks = []
         for members, ulo, uhi in plan:
@@ -410,6 +413,7 @@ class _Executor:
         self._own_client = False
         self._pool = None
         self._vol_ref = vol
+        self._started = False
 
     def __enter__(self):
         if self.scheduler is not None or self.client is not None:
@@ -419,6 +423,9 @@ class _Executor:
         return self
 
     def _start(self):
+        if self._started:
+            return
+        self._started = True
         if self.scheduler is not None and self.client is None:
             from distributed import Client
 
@@ -433,6 +440,12 @@ class _Executor:
             from concurrent.futures import ProcessPoolExecutor
 
             self._pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"))
+
+    def workers(self) -> int:
+        self._start()
+        if self.client is not None:
+            return max(1, sum(self.client.nthreads().values()))
+        return self.jobs
 
     def map(self, fn, arg_list, *, progress=False, desc=""):
         from tqdm.auto import tqdm
@@ -516,3 +529,51 @@ def write_label_outputs(results, out, *, fmt: str = "ply", write_meshes: bool = 
     w.writerows(rows)
     atomic_write(out / "labels.csv", buf.getvalue().encode(), force=True)
     return rows, failed
+
+
+# ------------------------------------------------------------------------------------------------
+# the command line's --all-labels route for chunked inputs
+# ------------------------------------------------------------------------------------------------
+_CHUNK_FLAGS = ("jobs", "scheduler", "cache", "max_box_voxels")
+
+
+def cli_wants_chunked(args) -> bool:
+    """Whether ``contourmesh mesh --all-labels`` takes the piece-by-piece route: a Zarr store or
+    HDF5 file, or any of ``--jobs --scheduler --cache --max-box-voxels``."""
+    from .io.chunked import _HDF5, _is_zarr_dir
+
+    given = [f for f in _CHUNK_FLAGS if getattr(args, f, None) is not None]
+    if not args.all_labels:
+        if given:
+            raise ValueError(f"--{given[0].replace('_', '-')} applies with --all-labels only")
+        return False
+    p = Path(args.source).expanduser()
+    return bool(given) or _is_zarr_dir(p) or p.name.lower().endswith(_HDF5 + (".zarr", ".n5"))
+
+
+def run_cli_chunked(args, out: Path) -> int:
+    import shutil
+
+    if args.axis not in (None, 0):
+        raise ValueError("--axis does not apply with --all-labels: label volumes are sliced along their first axis")
+    if args.jobs is not None and args.scheduler is not None:
+        raise ValueError("--jobs sets the local process pool; with --scheduler the cluster's workers run the tasks")
+    vol = open_chunked(args.source)  # a bad input fails before the output folder is made
+    out.mkdir(exist_ok=True)
+    cache = Path(args.cache) if args.cache is not None else out / ".contourmesh-cache"
+    stats = {}
+    results = mesh_labels_chunked(
+        vol, spacing=args.spacing, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps,
+        refine=args.refine, meshes=not args.stats_only, jobs=args.jobs, scheduler=args.scheduler, cache=cache,
+        max_box_voxels=args.max_box_voxels or DEFAULT_MAX_BOX_VOXELS, progress=not args.quiet, stats=stats)
+    rows, failed = write_label_outputs(results, out, fmt=args.format.lstrip("."), write_meshes=not args.stats_only,
+                                       force=args.force)
+    if not rows:
+        raise ValueError(f"{args.source!r}: nothing to mesh (no non-zero label)")
+    if args.cache is None:
+        shutil.rmtree(cache, ignore_errors=True)
+    print(f"wrote {(out / 'labels.csv').resolve()}: {len(rows)} labels"
+          + ("" if args.stats_only else f", one .{args.format.lstrip('.')} each")
+          + f" ({stats.get('tasks', 0)} tasks, {stats.get('cached', 0)} from the cache)"
+          + (f"; {failed} failed their checks" if failed else ""))
+    return 1 if failed else 0
