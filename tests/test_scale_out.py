@@ -119,6 +119,23 @@ def test_stats_only_rows_equal_mesh_rows(store):
     assert {k: r for k, (_, r) in rows.items()} == with_meshes
 
 
+def test_a_label_the_mesher_refuses_is_a_failed_row_not_a_stopped_run(monkeypatch, volume):
+    from contourmesh import api
+
+    real = api.mesh_volume
+
+    def picky(crop, **kw):
+        if np.count_nonzero(crop) == 12:  # label 1000's 2 x 3 x 2 block
+            raise ValueError("cannot mesh this one")
+        return real(crop, **kw)
+
+    monkeypatch.setattr(api, "mesh_volume", picky)
+    rows = {lab: row for lab, _m, _b, row in mesh_labels_chunked(volume, jobs=1, labels=[1, 1000, 2])}
+    assert rows[1000]["status"] == "failed: ValueError: cannot mesh this one"
+    assert rows[1]["status"] == "ok" and rows[2]["status"] == "ok"
+    assert rows[1000]["voxels"] == 12 and rows[1000]["zmax"] == 1
+
+
 # ---------------------------------------------------------------------------------------------- Dask
 def test_local_cluster_with_a_killed_worker_changes_nothing(store, volume):
     distributed = pytest.importorskip("distributed", reason="Dask distributed is not installed")

@@ -233,9 +233,13 @@ def _mesh_batch(vol: ChunkedVolume, labels, los, his, ulo, uhi, spacing, origin,
         sub = box[lo[0] - ulo[0]:hi[0] - ulo[0], lo[1] - ulo[1]:hi[1] - ulo[1], lo[2] - ulo[2]:hi[2] - ulo[2]]
         crop = (sub == lab).view(np.uint8)  # the same mask mesh_labels cuts from the whole volume
         o = (origin[0] + lo[2] * spacing[2], origin[1] + lo[1] * spacing[1], origin[2] + lo[0] * spacing[0])
-        (_, m, _), = mesh_labels(crop, labels=[1], spacing=tuple(spacing), origin=o, **method)
-        bbox = None  # filled by the caller from the scan (global box)
-        row = label_row(int(lab), m, (0,) * 6 if bbox is None else bbox)
+        try:
+            (_, m, _), = mesh_labels(crop, labels=[1], spacing=tuple(spacing), origin=o, **method)
+        except Exception as exc:  # one label the mesher cannot mesh does not stop the other thousands
+            msg = " ".join(str(exc).split())
+            rows.append({"label": int(lab), "status": f"failed: {type(exc).__name__}: {msg}"})
+            continue
+        row = label_row(int(lab), m, (0,) * 6)  # the box is filled in by the driver, from the scan
         row["status"] = _status(m.checks())
         rows.append(row)
         if meshes:
@@ -384,7 +388,7 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
                 row.update(zip(("zmin", "zmax", "ymin", "ymax", "xmin", "xmax"), bbox))
                 row["voxels"] = int(scan.voxels[i])
                 m = None
-                if arrays is not None:
+                if arrays is not None and f"v{lab}" in arrays:
                     meta = json.loads(bytes(arrays[f"m{lab}"]).decode())
                     m = Mesh(arrays[f"v{lab}"], arrays[f"f{lab}"], P=row["P"], meta=meta)
                     m = _with_meta(m, label=lab)
@@ -512,7 +516,7 @@ def write_label_outputs(results, out, *, fmt: str = "ply", write_meshes: bool = 
     out = Path(out)
     rows, failed = [], 0
     for lab, m, _bbox, row in results:
-        ok = not row["status"].startswith("not closed")
+        ok = not row["status"].startswith(("not closed", "failed"))
         failed += not ok
         if ok and write_meshes and m is not None:
             target = out / f"label_{lab}.{fmt}"
