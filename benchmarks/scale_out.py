@@ -92,7 +92,7 @@ def run_cluster(store, workers: int, refine, memory_limit: str):
         n_workers_end = len(client.scheduler_info()["workers"])
     return rows, {"workers": workers, "refine": refine or "none", "wall_s": wall, "scan_s": stats["scan_s"],
                   "mesh_s": stats["mesh_s"], "tasks": stats["tasks"], "task_s_sum": stats["task_s"],
-                  "read_s_sum": stats["read_s"], "baseline_rss_mib": sorted(base.values()),
+                  "read_s_sum": stats["read_s"], "cpu_s_sum": stats.get("cpu_s"), "baseline_rss_mib": sorted(base.values()),
                   "peak_rss_mib": sorted(peaks.values()), "workers_at_end": n_workers_end}
 
 

@@ -1,7 +1,6 @@
 """Every label of a chunked label volume, meshed piece by piece (issue 17): the chunked reader,
 identity with the in-memory mesh_labels, a Dask run with a killed worker, the cache, bad input."""
 
-import json
 import os
 import pickle
 import subprocess
@@ -66,6 +65,20 @@ def test_zarr_reader_serves_boxes_and_pickles_without_data(tmp_path, volume, fmt
     assert len(blob) < 2000  # a description of the store, not its voxels
     np.testing.assert_array_equal(pickle.loads(blob).read((0, 2)), volume[0:2])
     assert open_chunked(arr).kind == "zarr"  # an on-disk zarr Array is reopened by path on workers
+
+
+@pytest.mark.parametrize("fmt", [2, 3])
+def test_generator_writes_the_same_volume_to_zarr_slab_by_slab(tmp_path, cells, fmt):
+    write_cells_zarr(str(tmp_path / "g.zarr"), SHAPE, cells, chunks=(8, 32, 32), zarr_format=fmt)
+    np.testing.assert_array_equal(open_chunked(tmp_path / "g.zarr").read((0, SHAPE[0])), cells_volume(SHAPE, cells))
+    assert {c.kind for c in cells} == {"ellipsoid"}  # cells of 16 voxels are too small for tori
+    v = cells_volume(SHAPE, cells)
+    a, b = v[:, :, 1:], v[:, :, :-1]
+    meet = (a != b) & (a > 0) & (b > 0)
+    assert len(set(zip(a[meet], b[meet]))) >= 2  # neighbours that touch (face-adjacent voxels)
+    big = synthetic_cells((96, 96, 96), cell=32, seed=1)
+    assert {c.kind for c in big} == {"ellipsoid", "torus"}
+    assert all(c.area > 0 and c.volume > 0 for c in big)
 
 
 def test_npy_memmap_reader(tmp_path, volume):

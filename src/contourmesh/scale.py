@@ -17,6 +17,9 @@ A label whose padded box holds more than ``max_box_voxels`` voxels is **refused*
 label, its box and the budget); it is not meshed slab by slab.  Raise the budget (and the
 workers' memory) to mesh it.
 
+A label the mesher raises on becomes a row with ``status`` ``"failed: <error>"`` (and no mesh)
+instead of stopping the run; in memory, :func:`contourmesh.mesh_labels` raises.
+
 Each batch's result is written atomically to a cache folder under a key made of the options, the
 labels and their boxes, and the content hashes of the slabs the batch reads, so a rerun after a
 crash or Ctrl-C skips the batches already done, and a changed voxel invalidates exactly the
@@ -225,7 +228,7 @@ def _mesh_batch(vol: ChunkedVolume, labels, los, his, ulo, uhi, spacing, origin,
             return _load_batch(cache_file, meshes)
         except Exception as exc:  # a damaged cache file is recomputed, never trusted
             log.warning("cache file %s unreadable (%s); recomputing", cache_file, exc)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     box = vol.read((ulo[0], uhi[0]), (ulo[1], uhi[1]), (ulo[2], uhi[2]))
     t_read = time.perf_counter() - t0
     rows, arrays = [], {}
@@ -246,7 +249,8 @@ def _mesh_batch(vol: ChunkedVolume, labels, los, his, ulo, uhi, spacing, origin,
             arrays[f"v{lab}"] = m.vertices
             arrays[f"f{lab}"] = m.faces
             arrays[f"m{lab}"] = np.frombuffer(json.dumps(_jsonable(dict(m.meta, label=int(lab)))).encode(), np.uint8)
-    info = {"rows": rows, "read_s": t_read, "total_s": time.perf_counter() - t0, "voxels": int(box.size),
+    info = {"rows": rows, "read_s": t_read, "total_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+            "voxels": int(box.size),
             "pid": os.getpid()}
     arrays["info"] = np.frombuffer(json.dumps(info).encode(), np.uint8)
     if cache_file is not None:
@@ -313,7 +317,9 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
     scan : LabelScan, optional
         A scan from :func:`scan_labels` of the same source, to skip pass 1.
     stats : dict, optional
-        Filled with timings: ``scan_s``, ``mesh_s``, ``tasks``, ``cached``, ``read_s`` (sum over tasks).
+        Filled with timings: ``scan_s`` and ``mesh_s`` (wall time of the two passes), ``tasks``,
+        ``cached`` (tasks served from the cache), and sums over the mesh tasks run: ``read_s``
+        (reading boxes), ``task_s`` (wall) and ``cpu_s`` (CPU time of the worker process).
     """
     from .api import _with_meta
     from .types import Mesh
@@ -375,12 +381,13 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
             cf = None if cache_dir is None else str(cache_dir / f"batch-{key}.npz")
             tasks.append(([int(scan.labels[i]) for i in members], list(los), list(his), ulo, uhi, sp, org, method,
                           bool(meshes), cf))
-        stats.update(tasks=len(tasks), cached=0, read_s=0.0, task_s=0.0, labels=len(idx))
+        stats.update(tasks=len(tasks), cached=0, read_s=0.0, task_s=0.0, cpu_s=0.0, labels=len(idx))
         t1 = time.perf_counter()
         for _args, (info, arrays, cached) in ex.map(_mesh_batch, tasks, progress=progress, desc="labels"):
             stats["cached"] += bool(cached)
             stats["read_s"] += info["read_s"]
             stats["task_s"] += info["total_s"]
+            stats["cpu_s"] += info.get("cpu_s", 0.0)
             for row in info["rows"]:
                 lab = int(row["label"])
                 i = index[lab]
