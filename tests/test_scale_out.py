@@ -101,6 +101,26 @@ def test_npy_memmap_reader(tmp_path, volume):
     assert sorted(scan.labels) == sorted(int(v) for v in np.unique(volume) if v)
 
 
+def test_hdf5_and_dask_array_readers(tmp_path, volume):
+    h5py = pytest.importorskip("h5py", reason="h5py is not installed (pip install 'contourmesh[scale]')")
+    da = pytest.importorskip("dask.array", reason="dask.array is not installed")
+    with h5py.File(tmp_path / "v.h5", "w") as f:
+        f.create_dataset("seg/labels", data=volume, chunks=(8, 16, 16), compression="gzip")
+        f.create_dataset("raw", data=np.zeros((2, 2, 2), np.float32))
+    with pytest.raises(ValueError, match="holds 2 datasets.*name one with dataset="):
+        open_chunked(tmp_path / "v.h5").read((0, 1))
+    cv = open_chunked(tmp_path / "v.h5", dataset="seg/labels")
+    assert cv.kind == "hdf5" and cv.shape == volume.shape and cv.chunks == (8, 16, 16)
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(cv)).read((4, 9), (1, 30), (2, 3)), volume[4:9, 1:30, 2:3])
+    d = da.from_array(volume, chunks=(8, 48, 48))
+    cd = open_chunked(d)
+    assert cd.kind == "dask" and cd.chunks == (8, 48, 48)
+    np.testing.assert_array_equal(cd.read((7, 20)), volume[7:20])
+    a = {lab: row for lab, _m, _b, row in mesh_labels_chunked(cv, jobs=1, labels=[2, 1000], meshes=False)}
+    b = {lab: row for lab, _m, _b, row in mesh_labels_chunked(d, jobs=1, labels=[2, 1000], meshes=False)}
+    assert a == b and a[1000]["voxels"] == 12
+
+
 # ---------------------------------------------------------------------------------------------- identity
 @pytest.mark.parametrize("refine", [None, "band"])
 def test_identical_to_in_memory_mesh_labels(store, volume, refine):
