@@ -81,6 +81,28 @@ def test_generator_writes_the_same_volume_to_zarr_slab_by_slab(tmp_path, cells, 
     assert all(c.area > 0 and c.volume > 0 for c in big)
 
 
+def test_zarr_groups_and_damaged_stores(tmp_path, volume):
+    g = zarr.open_group(str(tmp_path / "g.zarr"), mode="w")
+    g.create_array("raw", shape=(2, 2, 2), dtype="uint8")
+    sub = g.create_group("seg")
+    a = sub.create_array("cells", shape=volume.shape, chunks=(8, 48, 48), dtype="uint32")
+    a[:] = volume
+    g.create_array("other", shape=(2, 2, 2), dtype="uint8")
+    with pytest.raises(ValueError, match=r"holds 2 arrays \['other', 'raw'\]; name one with dataset="):
+        open_chunked(tmp_path / "g.zarr")
+    cv = open_chunked(tmp_path / "g.zarr", dataset="seg/cells")
+    np.testing.assert_array_equal(cv.read((5, 6)), volume[5:6])
+    via_array = open_chunked(zarr.open_array(str(tmp_path / "g.zarr"), path="seg/cells", mode="r"))
+    assert (via_array.kind, via_array.dataset) == ("zarr", "seg/cells")
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(via_array)).read((0, 1)), volume[0:1])
+    with pytest.raises(ValueError, match="no array 'nope'"):
+        open_chunked(tmp_path / "g.zarr", dataset="nope")
+    (tmp_path / "bad.zarr").mkdir()
+    (tmp_path / "bad.zarr" / "zarr.json").write_text("{not json")
+    with pytest.raises(ValueError, match="expected a readable Zarr store"):
+        open_chunked(tmp_path / "bad.zarr")
+
+
 def test_npy_memmap_reader(tmp_path, volume):
     path = tmp_path / "v.npy"
     np.save(path, volume)

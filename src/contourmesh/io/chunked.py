@@ -29,7 +29,7 @@ import numpy as np
 
 from .._optional import require
 
-__all__ = ["ChunkedVolume", "open_chunked", "CHUNKED_SUFFIXES", "is_chunked_source"]
+__all__ = ["ChunkedVolume", "open_chunked", "CHUNKED_SUFFIXES", "digest"]
 
 #: Path suffixes read piece by piece (a Zarr store is recognised by its metadata file too).
 CHUNKED_SUFFIXES = (".zarr", ".npy", ".h5", ".hdf5", ".hdf", ".n5")
@@ -42,17 +42,6 @@ def _zarr():
 
 def _is_zarr_dir(p: Path) -> bool:
     return p.is_dir() and any((p / f).is_file() for f in (".zarray", "zarr.json", ".zgroup"))
-
-
-def is_chunked_source(source) -> bool:
-    """Whether ``source`` is something :func:`open_chunked` reads piece by piece (by type or path)."""
-    if isinstance(source, ChunkedVolume):
-        return True
-    if isinstance(source, (str, Path)):
-        p = Path(source).expanduser()
-        return _is_zarr_dir(p) or p.name.lower().endswith(CHUNKED_SUFFIXES)
-    mod = type(source).__module__ or ""
-    return mod.startswith(("zarr", "dask")) or isinstance(source, np.ndarray)
 
 
 def _check_dtype(dtype, shape, where: str):
@@ -115,13 +104,20 @@ class ChunkedVolume:
             self._handle = np.load(self.path, mmap_mode="r", allow_pickle=False)
         elif self.kind == "zarr":
             zarr = _zarr()
-            node = zarr.open(self.path, mode="r") if self._array is None else self._array
+            try:
+                node = zarr.open(self.path, mode="r")
+            except Exception as exc:
+                raise ValueError(f"{self.path!r}: expected a readable Zarr store; {type(exc).__name__}: {exc}") from None
             if hasattr(node, "array_keys"):  # a group
                 names = sorted(node.array_keys())
                 if self.dataset is not None:
-                    if self.dataset not in names:
-                        raise ValueError(f"{self.path!r}: the Zarr group has no array {self.dataset!r}; it holds {names}")
-                    node = node[self.dataset]
+                    try:
+                        node = node[self.dataset]
+                    except KeyError:
+                        raise ValueError(f"{self.path!r}: the Zarr group has no array {self.dataset!r}; its arrays "
+                                         f"are {names}") from None
+                    if hasattr(node, "array_keys"):
+                        raise ValueError(f"{self.path!r}: {self.dataset!r} is a group, not an array")
                 elif len(names) == 1:
                     node = node[names[0]]
                 else:
