@@ -143,6 +143,16 @@ def test_hdf5_and_dask_array_readers(tmp_path, volume):
     assert a == b and a[1000]["voxels"] == 12
 
 
+def test_scan_tiles_follow_the_chunk_grid_and_give_the_same_boxes(store):
+    whole = scan_labels(store)
+    tiled = scan_labels(store, scan_voxels=8 * 24 * 24)
+    assert len(whole.tiles) == 4 and len(tiled.tiles) == 16
+    assert (0, 8, 24, 48, 0, 24) in tiled.tiles
+    for a in ("labels", "boxes", "voxels"):
+        np.testing.assert_array_equal(getattr(whole, a), getattr(tiled, a))
+    assert open_chunked(store).tiles(8, 1) == tiled.tiles  # never less than one chunk
+
+
 # ---------------------------------------------------------------------------------------------- identity
 @pytest.mark.parametrize("refine", [None, "band"])
 def test_identical_to_in_memory_mesh_labels(store, volume, refine):
@@ -151,7 +161,7 @@ def test_identical_to_in_memory_mesh_labels(store, volume, refine):
     stats = {}
     got = {lab: (m, bbox, row) for lab, m, bbox, row in mesh_labels_chunked(
         store, spacing=(2.0, 1.0, 1.0), origin=(5.0, -3.0, 1.5), refine=refine, jobs=1, batch=4, slab=5,
-        stats=stats)}
+        scan_voxels=5 * 24 * 24, stats=stats)}
     assert sorted(got) == sorted(ref) and len(ref) == 19
     assert stats["tasks"] >= 5
     for lab, (r, rbox) in ref.items():

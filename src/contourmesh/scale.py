@@ -3,9 +3,10 @@
 Two passes over a :class:`~contourmesh.io.chunked.ChunkedVolume` (a Zarr store, a ``.npy``
 memory map, HDF5, a dask array):
 
-1. **Scan**, one task per z-slab: each label's bounding box and voxel count in the slab
-   (``scipy.ndimage.find_objects`` and ``bincount``), and a content hash of the slab.  The
-   slabs' boxes are merged into one box per label.  A task holds one slab.
+1. **Scan**, one task per tile (a z-slab, cut in y and x along the store's chunks when a whole
+   slab would exceed ``scan_voxels``): each label's bounding box and voxel count in the tile
+   (``scipy.ndimage.find_objects`` and ``bincount``), and a content hash of the tile.  The
+   tiles' boxes are merged into one box per label.  A task holds one tile.
 2. **Mesh**, one task per batch of labels: the task reads the union of its labels' padded boxes
    from the store (one read), cuts each label's box out of it (its bounding box padded by one
    voxel and clipped to the volume, exactly the crop that :func:`contourmesh.mesh_labels` cuts)
@@ -21,9 +22,9 @@ A label the mesher raises on becomes a row with ``status`` ``"failed: <error>"``
 instead of stopping the run; in memory, :func:`contourmesh.mesh_labels` raises.
 
 Each batch's result is written atomically to a cache folder under a key made of the options, the
-labels and their boxes, and the content hashes of the slabs the batch reads, so a rerun after a
+labels and their boxes, and the content hashes of the tiles the batch reads, so a rerun after a
 crash or Ctrl-C skips the batches already done, and a changed voxel invalidates exactly the
-batches whose boxes cross its slab.  Tasks are pure: a task rerun by Dask after its worker died
+batches whose boxes cross its tile.  Tasks are pure: a task rerun by Dask after its worker died
 writes the same file.
 
 See ``docs/scale-out.md``.
@@ -53,7 +54,7 @@ log = logging.getLogger("contourmesh")
 #: box of this size is 256 MiB; the mesher's working memory on it is a few times its boolean mask.
 DEFAULT_MAX_BOX_VOXELS = 2**26
 
-_CACHE_VERSION = 1
+_CACHE_VERSION = 2
 _LARGE_LABEL = 2**24  # above this label value (or 4 x the slab's voxels) the scan compacts labels first
 
 
@@ -66,8 +67,8 @@ class LabelScan:
     """What the scan pass found.
 
     ``labels`` (n,) int64, sorted; ``boxes`` (n, 6) int64 ``zmin, zmax, ymin, ymax, xmin, xmax``
-    inclusive; ``voxels`` (n,) int64 counts; ``slabs`` the ``(z0, z1)`` ranges scanned and
-    ``digests`` their content hashes.
+    inclusive; ``voxels`` (n,) int64 counts; ``tiles`` the ``(z0, z1, y0, y1, x0, x1)`` boxes
+    scanned and ``digests`` their content hashes.
     """
 
     shape: tuple
@@ -75,7 +76,7 @@ class LabelScan:
     labels: np.ndarray
     boxes: np.ndarray
     voxels: np.ndarray
-    slabs: list
+    tiles: list
     digests: list
 
     def padded(self, i: int):
@@ -89,11 +90,11 @@ class LabelScan:
 # ------------------------------------------------------------------------------------------------
 # pass 1: boxes and counts, slab by slab
 # ------------------------------------------------------------------------------------------------
-def _scan_slab(vol: ChunkedVolume, z0: int, z1: int):
-    """Labels present in slices ``z0:z1``, their boxes (global, inclusive), voxel counts and the slab's hash."""
+def _scan_slab(vol: ChunkedVolume, z0: int, z1: int, y0: int, y1: int, x0: int, x1: int):
+    """Labels present in the tile, their boxes (global, inclusive), voxel counts and the tile's hash."""
     from scipy import ndimage
 
-    slab = vol.read((z0, z1))
+    slab = vol.read((z0, z1), (y0, y1), (x0, x1))
     h = digest(slab)
     if slab.dtype.kind == "b":
         slab = slab.view(np.uint8)
@@ -119,7 +120,8 @@ def _scan_slab(vol: ChunkedVolume, z0: int, z1: int):
         if b is None:
             continue
         labs.append(i + 1 if values is None else int(values[i + 1]))
-        boxes.append((b[0].start + z0, b[0].stop - 1 + z0, b[1].start, b[1].stop - 1, b[2].start, b[2].stop - 1))
+        boxes.append((b[0].start + z0, b[0].stop - 1 + z0, b[1].start + y0, b[1].stop - 1 + y0, b[2].start + x0,
+                      b[2].stop - 1 + x0))
         n.append(counts[i + 1])
     return np.array(labs, np.int64), np.array(boxes, np.int64).reshape(-1, 6), np.array(n, np.int64), h
 
@@ -140,20 +142,24 @@ def _merge_scans(parts):
     return labs[starts], out, np.add.reduceat(n, starts)
 
 
-def scan_labels(source, *, slab: int | None = None, jobs: int | None = 1, client=None, scheduler=None,
-                dataset: str | None = None, progress: bool = False) -> LabelScan:
-    """Pass 1: every label's bounding box and voxel count, one z-slab at a time.
+def scan_labels(source, *, slab: int | None = None, scan_voxels: int = DEFAULT_MAX_BOX_VOXELS, jobs: int | None = 1,
+                client=None, scheduler=None, dataset: str | None = None, progress: bool = False) -> LabelScan:
+    """Pass 1: every label's bounding box and voxel count, one tile at a time.
 
-    ``slab`` is the slab depth in slices (default: the store's chunk depth).  Memory per task:
-    one slab.
+    ``slab`` is the tiles' depth in slices (default: the store's chunk depth); a slab larger
+    than ``scan_voxels`` is cut in y and x along the store's chunks.  Memory per task: one tile.
     """
     vol = open_chunked(source, dataset=dataset)
-    slabs = vol.slabs(slab)
     with _Executor(jobs, client, scheduler, vol) as ex:
-        parts = dict(ex.map(_scan_slab, [(z0, z1) for z0, z1 in slabs], progress=progress, desc="scan"))
-    ordered = [parts[s] for s in slabs]
+        return _scan(vol, ex, slab, scan_voxels, progress)
+
+
+def _scan(vol, ex, slab, scan_voxels, progress) -> LabelScan:
+    tiles = vol.tiles(slab, int(scan_voxels))
+    parts = dict(ex.map(_scan_slab, tiles, progress=progress, desc="scan"))
+    ordered = [parts[t] for t in tiles]
     labs, boxes, n = _merge_scans([p[:3] for p in ordered])
-    return LabelScan(vol.shape, vol.dtype.str, labs, boxes, n, slabs, [p[3] for p in ordered])
+    return LabelScan(vol.shape, vol.dtype.str, labs, boxes, n, tiles, [p[3] for p in ordered])
 
 
 # ------------------------------------------------------------------------------------------------
@@ -186,11 +192,12 @@ def _method_key(method: dict) -> dict:
 
 
 def _batch_key(scan: LabelScan, idx, ulo, uhi, spacing, origin, method, meshes: bool) -> str:
-    slabs = [(s, d) for s, d in zip(scan.slabs, scan.digests) if s[0] < uhi[0] and s[1] > ulo[0]]
+    tiles = [(t, d) for t, d in zip(scan.tiles, scan.digests)
+             if all(t[2 * a] < uhi[a] and t[2 * a + 1] > ulo[a] for a in range(3))]
     desc = {"v": _CACHE_VERSION, "shape": list(scan.shape), "dtype": scan.dtype,
             "labels": [int(scan.labels[i]) for i in idx], "boxes": [scan.boxes[i].tolist() for i in idx],
             "spacing": list(map(float, spacing)), "origin": list(map(float, origin)), "method": _method_key(method),
-            "meshes": bool(meshes), "slabs": slabs}
+            "meshes": bool(meshes), "tiles": tiles}
     from . import __version__
 
     desc["contourmesh"] = __version__
@@ -282,7 +289,8 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
                         triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
                         meshes: bool = True, jobs: int | None = None, client=None, scheduler: str | None = None,
                         cache=None, max_box_voxels: int = DEFAULT_MAX_BOX_VOXELS, batch: int | None = None,
-                        slab: int | None = None, dataset: str | None = None, progress: bool = False, scan=None,
+                        slab: int | None = None, scan_voxels: int = DEFAULT_MAX_BOX_VOXELS,
+                        dataset: str | None = None, progress: bool = False, scan=None,
                         stats: dict | None = None):
     """Mesh every non-zero label of a chunked label volume; yields ``(label, Mesh or None, bbox, row)``.
 
@@ -312,8 +320,9 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
     batch : int, optional
         At most this many labels per task (default: about eight tasks per worker, at most 16
         labels each).
-    slab : int, optional
-        Slab depth of the scan pass (default: the store's chunk depth).
+    slab, scan_voxels
+        Tiles of the scan pass: ``slab`` slices deep (default: the store's chunk depth), a slab
+        cut in y and x along the store's chunks when it holds more than ``scan_voxels``.
     scan : LabelScan, optional
         A scan from :func:`scan_labels` of the same source, to skip pass 1.
     stats : dict, optional
@@ -342,11 +351,7 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
     with _Executor(jobs, client, scheduler, vol) as ex:
         t0 = time.perf_counter()
         if scan is None:
-            slabs = vol.slabs(slab)
-            parts = dict(ex.map(_scan_slab, slabs, progress=progress, desc="scan"))
-            ordered = [parts[s] for s in slabs]
-            labs, boxes, n = _merge_scans([p[:3] for p in ordered])
-            scan = LabelScan(vol.shape, vol.dtype.str, labs, boxes, n, slabs, [p[3] for p in ordered])
+            scan = _scan(vol, ex, slab, scan_voxels, progress)
         elif tuple(scan.shape) != vol.shape:
             raise ValueError(f"scan= was made on a volume of shape {scan.shape}, not {vol.shape}")
         stats["scan_s"] = time.perf_counter() - t0

@@ -161,6 +161,23 @@ class ChunkedVolume:
             raise ValueError(f"slab depth must be at least 1; got {depth}")
         return [(z0, min(z0 + depth, self.shape[0])) for z0 in range(0, self.shape[0], depth)]
 
+    def tiles(self, depth: int | None = None, max_voxels: int = 2**26):
+        """``(z0, z1, y0, y1, x0, x1)`` boxes covering the array: slabs of ``depth`` slices (default:
+        the store's chunk depth), each cut in y and x along the store's chunk grid into tiles of at
+        most ``max_voxels`` voxels (a whole slab when it fits; never less than one chunk)."""
+        slabs = self.slabs(depth)
+        d = max(z1 - z0 for z0, z1 in slabs)
+        ny, nx = self.shape[1], self.shape[2]
+        cy, cx = min(self.chunks[1], ny), min(self.chunks[2], nx)
+        ty, tx = ny, nx
+        while d * ty * tx > max_voxels and (ty > cy or tx > cx):
+            if tx > cx and (tx >= ty or ty <= cy):
+                tx = max(cx, -(-(tx // 2) // cx) * cx)
+            else:
+                ty = max(cy, -(-(ty // 2) // cy) * cy)
+        return [(z0, z1, y0, min(y0 + ty, ny), x0, min(x0 + tx, nx))
+                for z0, z1 in slabs for y0 in range(0, ny, ty) for x0 in range(0, nx, tx)]
+
     def __repr__(self):
         return f"ChunkedVolume({self.kind}, {self.where!r}, shape={self.shape}, dtype={self.dtype}, chunks={self.chunks})"
 
