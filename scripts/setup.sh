@@ -2,7 +2,7 @@
 # Set up contourmesh in ./.venv (idempotent).
 #   bash scripts/setup.sh          core package (enough for `contourmesh reproduce` and `contourmesh mesh`)
 #   bash scripts/setup.sh --dev    core + comparison peers (scikit-image, VTK, Open3D, PyMeshLab, DGtal, Dask),
-#                                  file readers and the test tools
+#                                  file readers, Zarr for chunked label volumes and the test tools
 # System libraries that a dependency needs (Open3D needs libusb-1.0) are installed with apt-get when missing.
 # Every step says what it is doing on stderr, with the seconds it took.
 set -euo pipefail
@@ -14,7 +14,7 @@ t_step=$SECONDS
 done_step() { say "  done in $((SECONDS - t_step)) s"; t_step=$SECONDS; }
 
 extras=""
-if [ "${1:-}" = "--dev" ]; then extras="[dev,compare,io]"; fi
+if [ "${1:-}" = "--dev" ]; then extras="[dev,compare,io,scale]"; fi
 
 py=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then

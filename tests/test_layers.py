@@ -15,9 +15,9 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "contourmesh"
 LAYERS = {
     0: ["errors", "_optional", "_files", "geometry", "measure", "meshes", "types", "intersect"],
     1: ["shapes", "tracing", "polygons", "bands", "digitize", "rasterize", "repair", "stacks", "volume_input",
-        "voxelize", "datasets"],
+        "voxelize", "datasets", "cells"],
     2: ["surface", "fastpath", "volumes", "refine", "drawn"],
-    3: ["io", "api", "trimesh_plugin"],
+    3: ["io", "api", "trimesh_plugin", "scale"],
     4: ["compare", "cli", "__main__", ""],
 }
 LAYER = {name: k for k, names in LAYERS.items() for name in names}

@@ -36,6 +36,7 @@ _LAZY = {
     "register_trimesh_loader": "trimesh_plugin", "unregister_trimesh_loader": "trimesh_plugin",
     "ContourMeshError": "errors", "InapplicableOption": "errors", "LostContourWarning": "errors",
     "RasterFallbackWarning": "errors",
+    "mesh_labels": "api", "mesh_labels_chunked": "scale", "scan_labels": "scale",
 }
 
 __all__ = sorted(_LAZY) + ["__version__"]

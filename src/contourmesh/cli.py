@@ -152,6 +152,10 @@ def _cmd_mesh_many(args) -> int:
         raise NotADirectoryError(f"-o {str(out)!r}: several objects need an output folder, and this is a file")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"the output folder's parent {str(out.parent)!r} does not exist")
+    from .scale import cli_wants_chunked, run_cli_chunked
+
+    if cli_wants_chunked(args):  # a chunked store, or --jobs/--scheduler/--cache: the two-pass route
+        return run_cli_chunked(args, out)
     out.mkdir(exist_ok=True)
     fmt = args.format.lstrip(".")
     method = dict(polygon=args.polygon, triangulation=args.triangulation, caps=args.caps, refine=args.refine,
@@ -211,6 +215,9 @@ def _cmd_mesh(args) -> int:
         return _cmd_mesh_many(args)
     if args.stats_only:
         raise ValueError("--stats-only applies with --all-labels, --all-rois or several --roi")
+    for flag in ("jobs", "scheduler", "cache", "max_box_voxels"):
+        if getattr(args, flag, None) is not None:
+            raise ValueError(f"--{flag.replace('_', '-')} applies with --all-labels only")
     out = Path(args.output)
     _check_output(out, args.force)
     posts = list(args.post or []) + [f"mlx:{p}" for p in (args.mlx or [])]
@@ -310,6 +317,17 @@ def build_parser() -> argparse.ArgumentParser:
                         "and labels.csv (label, area, volume, P, faces, genus, components, watertight, "
                         "self_intersections, bounding box)")
     m.add_argument("--stats-only", action="store_true", help="with --all-labels/--all-rois: the table only, no meshes")
+    m.add_argument("--jobs", type=int, default=None,
+                   help="--all-labels: read the volume piece by piece and mesh labels in this many local processes "
+                        "(a Zarr store, HDF5 or .npy is read this way by default, with one process per core)")
+    m.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="--all-labels: run the label tasks on the Dask cluster at this scheduler address")
+    m.add_argument("--cache", default=None, metavar="DIR",
+                   help="--all-labels, piece by piece: keep per-batch results here so a rerun resumes "
+                        "(default: OUTDIR/.contourmesh-cache, removed after a complete run)")
+    m.add_argument("--max-box-voxels", type=int, default=None,
+                   help="--all-labels, piece by piece: per-task budget, the largest padded label box read by one "
+                        "task; a larger label is refused by name (default: 2**26)")
     m.add_argument("--format", default="ply", choices=["ply", "obj", "stl", "off"],
                    help="mesh file format with --all-labels/--all-rois")
     m.add_argument("--pixel", type=float, default=None,
