@@ -450,7 +450,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                 M.band(r, t) if up else M.band(t, r)
             rs = sh
         xy = M.coords(np.concatenate(rs))[:, :2]
-        if len(np.unique(xy, axis=0)) == len(xy):  # rings that touch go to the pixel cap
+        if _distinct_rows(xy):  # rings that touch go to the pixel cap
             try:
                 M.cap(rs, upward=up)
                 return
@@ -519,6 +519,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs)
+
+
+def _distinct_rows(xy) -> bool:
+    """No two rows of ``xy`` are equal (``len(np.unique(xy, axis=0)) == len(xy)``, sorted faster)."""
+    if len(xy) < 2:
+        return True
+    s = xy[np.lexsort(xy.T[::-1])]
+    return not bool((s[1:] == s[:-1]).all(axis=1).any())
 
 
 def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True) -> Mesh:
@@ -631,9 +639,12 @@ class _CornerGrid:
         lx, ly = np.asarray(cx) - self.x0, np.asarray(cy) - self.y0
         need = self.ids[ly, lx] < 0
         if need.any():
-            uniq = np.unique(np.c_[lx[need], ly[need]], axis=0)
-            xy = self.to_xy(np.c_[uniq[:, 0] + self.x0, uniq[:, 1] + self.y0])
-            self.ids[uniq[:, 1], uniq[:, 0]] = self.M.points(np.c_[xy, np.full(len(uniq), self.z)])
+            # the new corners in (x, y) order, as one integer key each (x major)
+            hh = np.int64(self.ids.shape[0])
+            key = np.unique(lx[need].astype(np.int64) * hh + ly[need])
+            ux, uy = key // hh, key % hh
+            xy = self.to_xy(np.c_[ux + self.x0, uy + self.y0])
+            self.ids[uy, ux] = self.M.points(np.c_[xy, np.full(len(key), self.z)])
         return self.ids[ly, lx]
 
 
