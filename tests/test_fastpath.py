@@ -307,7 +307,7 @@ def test_pixels_mlp_matches_the_python_mlp_on_components_and_hole_sets():
 
     rng = np.random.default_rng(11)
     seen = {"poly": 0, "none": 0}
-    for _ in range(120):
+    for _ in range(60):
         m = rng.random((int(rng.integers(1, 24)), int(rng.integers(1, 24)))) < rng.uniform(0.3, 0.9)
         for struct in (_CROSS, np.ones((3, 3), bool)):  # components, and 8-connected sets like holes
             lab, n = ndimage.label(m, structure=struct)
