@@ -34,7 +34,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 METHODS = ["contourmesh", "skimage-mc", "vtk-flyingedges", "vtk-discreteflyingedges", "vtk-surfacenets", "zmesh",
            "serra-mesh"]
-REAL = ["lobster", "liver-x2", "bunny-128", "Al.100"]
+REAL = ["lobster", "liver", "liver-x2", "bunny-128", "Al.100"]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -65,11 +65,12 @@ def real_volume(name: str):
 
         vol, sp, _ = read_volume(data / "volumes" / "dgtal" / f"{name}.vol", threshold=0)
         return np.pad(vol, 1), tuple(sp)
-    if name == "liver-x2":
+    if name in ("liver", "liver-x2"):
         z = np.load(data / "volumes" / "cgogn" / "liver.npz")
         vol = z["volume"] if "volume" in z.files else z["mask"]
-        vol = np.asarray(vol) > 0
-        vol = vol.repeat(2, 0).repeat(2, 1).repeat(2, 2)  # nearest-neighbour upsampling x2
+        vol = np.asarray(vol) > 0  # every label: one object
+        if name == "liver-x2":
+            vol = vol.repeat(2, 0).repeat(2, 1).repeat(2, 2)  # nearest-neighbour upsampling x2
         return np.pad(vol, 1), (1.0, 1.0, 1.0)
     raise ValueError(name)
 

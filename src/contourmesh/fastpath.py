@@ -507,6 +507,39 @@ def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
     return ry, rx0, rx1, row_start, lab, n, status, bbox, poly[:total], poly_start, degenerate, bad
 
 
+@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
+def _pixels_mlp(img, h, w):
+    """Steps 3-4 for one pixel set (any connectivity whose ``U`` is connected, such as a
+    4-component or a hole's 8-component): the MLP of the outer contour of ``U`` (pixel-centre
+    coordinates, local to the image) and twice its signed area.  ``img`` is the ``(h, w)`` set as
+    ``uint8`` bytes in raster order, not empty."""
+    q = 0
+    while img[q] == 0:
+        q += 1
+    cc = _trace_outer(img, 0, h, w, 0, 0, q % w - 1, q // w - 1)
+    _, _, p = _mlp(cc, np.int64(1))
+    k = len(p)
+    a2 = 0
+    for i in range(k):
+        j = i + 1 if i + 1 < k else 0
+        a2 += p[i, 0] * p[j, 1] - p[j, 0] * p[i, 1]
+    return p, a2
+
+
+def pixels_mlp(pixels):
+    """The general mesher's MLP of a pixel set (the outer Jordan construction with these pixels as
+    ``I``), in compiled code: ``(p, 2)`` int64 pixel-centre coordinates, or ``None`` where the MLP
+    encloses no area (a part one pixel wide: a segment or a point)."""
+    m = np.ascontiguousarray(pixels, dtype=bool)
+    if m.ndim != 2 or not m.any():
+        raise ValueError(f"pixels must be a non-empty 2D array indexed [y, x]; got shape {m.shape}")
+    h, w = m.shape
+    p, a2 = _pixels_mlp(m.reshape(-1).view(np.uint8), h, w)
+    if len(p) < 3 or a2 == 0:
+        return None
+    return p
+
+
 def slice_polygons(mask2d):
     """MLPs of the 4-components of a 2D mask (the full mesher's ``"mlp"`` rings, in pixel-centre
     coordinates): ``(polygons, degenerate, holes)`` with ``polygons[c]`` a ``(p, 2)`` int64 array."""

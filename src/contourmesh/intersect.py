@@ -775,6 +775,9 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8) -> np.ndarray:
     budget = int(budget)
     if budget < 1:
         raise ValueError(f"budget must be a positive integer; got {budget}")
+    if 3 * len(F) < len(V):  # a few faces of a large mesh: only the vertices they use
+        used = np.unique(F)
+        V, F = V[used], np.searchsorted(used, F)
     Fc = canonical_vertices(V)[F]
     ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0

@@ -54,11 +54,11 @@ import logging
 
 import numpy as np
 
-from .bands import TRIANGULATORS, band_is_folded, triangulate_band, twist_guarded_band
+from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
-from .fastpath import fast_volume_to_mesh
+from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp
 from .geometry import grid_to_xy, shoelace_area, slice_gap
-from .polygons import POLYGONIZERS, dss_polygon, mlp_polygon, thin_part_polygon
+from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
 from .refine import refine_volume_rings
 from .repair import (
     _compact,
@@ -68,7 +68,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, trace_contours
+from .tracing import _crack_contours
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -111,16 +111,13 @@ def voxel_topology(mask) -> dict:
 # per-slice contours and polygons
 # ------------------------------------------------------------------------------------------------
 def _mlp_of_pixels(pix: np.ndarray) -> np.ndarray | None:
-    """MLP (outer Jordan construction) of an 8- or 4-connected pixel set; centre coordinates."""
+    """MLP (outer Jordan construction) of an 8- or 4-connected pixel set; centre coordinates.
 
-    contours, parents = trace_contours(pix)
-    outer = [c for c, p in zip(contours, parents) if p == -1]
-    if len(outer) != 1:
-        return None
-    poly = np.asarray(mlp_polygon(outer[0]), dtype=np.float64)
-    if len(np.unique(poly, axis=0)) < 3 or abs(shoelace_area(poly)) <= 0:
-        return None
-    return poly
+    ``None`` where it encloses no area.  Compiled (:func:`contourmesh.fastpath.pixels_mlp`): the
+    outer contour of ``U`` (connected for such a set) and the MLP kernel of
+    :func:`contourmesh.polygons.mlp_polygon`, the same polygon."""
+    poly = pixels_mlp(pix)
+    return None if poly is None else poly.astype(np.float64)
 
 
 class _Slice:
@@ -227,7 +224,15 @@ class _Slice:
 # mesh assembly
 # ------------------------------------------------------------------------------------------------
 def _band_faces(lo, hi, triangulation, optimal_budget=3e7):
-    """The guarded band between two rings (see :meth:`_Mesher.band`) and how many guards fired."""
+    """The guarded band between two rings (see :meth:`_Mesher.band`) and how many guards fired.
+
+    The paper's band is made in compiled code (:func:`contourmesh.fastpath._one_band`: the same
+    faces and the same twist guard); the bands it hands back (folded, twisted, too close to call)
+    and the ones whose faces cross go through :func:`~contourmesh.bands.twist_guarded_band`."""
+    if triangulation == "wiederhold" and min(len(lo), len(hi)) > 2:
+        f, status = _one_band(lo, hi)
+        if status == 0 and not _band_crosses(np.concatenate([lo, hi]), f):
+            return f, 0
     f, replaced = twist_guarded_band(lo, hi, triangulation, optimal_budget)
     if band_is_folded(f):  # last resort: the arc-length band never folds
         f = triangulate_band(lo, hi, "arclength")
@@ -456,7 +461,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                 M.band(r, t) if up else M.band(t, r)
             rs = sh
         xy = M.coords(np.concatenate(rs))[:, :2]
-        if len(np.unique(xy, axis=0)) == len(xy):  # rings that touch go to the pixel cap
+        if _distinct_rows(xy):  # rings that touch go to the pixel cap
             try:
                 M.cap(rs, upward=up)
                 return
@@ -526,6 +531,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs)
+
+
+def _distinct_rows(xy) -> bool:
+    """No two rows of ``xy`` are equal (``len(np.unique(xy, axis=0)) == len(xy)``, sorted faster)."""
+    if len(xy) < 2:
+        return True
+    s = xy[np.lexsort(xy.T[::-1])]
+    return not bool((s[1:] == s[:-1]).all(axis=1).any())
 
 
 def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True) -> Mesh:
@@ -638,9 +651,12 @@ class _CornerGrid:
         lx, ly = np.asarray(cx) - self.x0, np.asarray(cy) - self.y0
         need = self.ids[ly, lx] < 0
         if need.any():
-            uniq = np.unique(np.c_[lx[need], ly[need]], axis=0)
-            xy = self.to_xy(np.c_[uniq[:, 0] + self.x0, uniq[:, 1] + self.y0])
-            self.ids[uniq[:, 1], uniq[:, 0]] = self.M.points(np.c_[xy, np.full(len(uniq), self.z)])
+            # the new corners in (x, y) order, as one integer key each (x major)
+            hh = np.int64(self.ids.shape[0])
+            key = np.unique(lx[need].astype(np.int64) * hh + ly[need])
+            ux, uy = key // hh, key % hh
+            xy = self.to_xy(np.c_[ux + self.x0, uy + self.y0])
+            self.ids[uy, ux] = self.M.points(np.c_[xy, np.full(len(key), self.z)])
         return self.ids[ly, lx]
 
 
