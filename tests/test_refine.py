@@ -274,3 +274,18 @@ def test_two_scale_selection_acts_at_edges():
     assert m.meta["refine_fine_share"] > 0.05  # the blurred edges: the two scales part there
     chk = m.checks()
     assert chk["watertight"] and chk["winding_consistent"] and chk["volume"] > 0
+
+
+def test_band_on_a_single_voxel_and_a_speck_label():
+    """A part one pixel wide has a point or a segment as its seed polygon: the refined stack route
+    cannot close it, so the volume mesher takes it (it used to raise)."""
+    v = np.zeros((3, 3, 3), bool)
+    v[1, 1, 1] = True
+    m = contourmesh.mesh(v, refine="band")
+    chk = m.checks()
+    assert m.meta["route"] == "volume-refined" and chk["watertight"] and chk["volume"] > 0
+    lab = np.zeros((6, 8, 8), np.uint8)
+    lab[1:5, 1:6, 1:6] = 1
+    lab[3, 7, 7] = 2  # a one-voxel speck
+    rows = {k: mm for k, mm, _ in contourmesh.mesh_labels(lab, refine="band")}
+    assert set(rows) == {1, 2} and all(mm.checks()["watertight"] for mm in rows.values())

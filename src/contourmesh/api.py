@@ -58,7 +58,7 @@ from .rasterize import rasterize_stack
 from .refine import REFINERS, refine_stack, stack_points
 from .surface import _nested_chains, stack_to_mesh
 from .tracing import trace_contours
-from .types import ContourStack, Mesh, Section
+from .types import ContourStack, Mesh, Section, shoelace_area
 from .volume_input import check_origin, check_spacing, check_volume_array, prepare_volume
 from .volumes import volume_to_mesh
 
@@ -411,7 +411,8 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
 
 def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
     """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement);
-    None when some slice has several contours (or a hole)."""
+    None when some slice has several contours (or a hole), or a contour that bounds no area (a part
+    one pixel wide: the stack mesher cannot close it, the volume mesher can)."""
     if dx != dy:
         raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
     sections = []
@@ -419,7 +420,7 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
         if not mask[k].any():
             continue
         contours, _ = trace_contours(mask[k])
-        if len(contours) != 1:
+        if len(contours) != 1 or len(contours[0]) < 3 or shoelace_area(contours[0]) == 0:
             return None
         sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
     return ContourStack(tuple(sections), spacing=(dx, dy), origin=(ox, oy), meta={"source": "volume"})
@@ -454,10 +455,17 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
                                                       threshold=threshold, origin=origin)
         stack = _stack_of_mask(mask, zs, dy, dx, ox, oy)
         if stack is not None:
-            return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+            try:
+                return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+            except (CapError, StackSurfaceError, ValueError) as exc:
+                # a slice whose seed polygon is a point or a segment (a part one pixel wide): the
+                # stack mesher cannot close it, the volume mesher below can
+                if caps == "smooth":
+                    raise
+                log.debug("refined stack route failed (%s); the volume mesher refines its polygons", exc)
         # several contours in a slice, holes, branching: the volume mesher refines its own polygons
-        _volume_caps(caps, "this volume has several contours in a slice, so refine='band' meshes it with the "
-                     "volume mesher")
+        _volume_caps(caps, "this volume has several contours in a slice (or a part one pixel wide), so "
+                     "refine='band' meshes it with the volume mesher")
         log.debug("refined route: several contours in a slice; the volume mesher refines its polygons")
         m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
                            polygon=polygon, triangulation=triangulation or "optimal", caps=caps, refine=refine,
