@@ -542,9 +542,13 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         _pixel_cap(M, slices[k], k, c, rs, z0 + (1e-2 if up else -1e-2) * gap(k, up), up, to_xy_corner)
 
     tags = []  # (number of faces so far, tag) where a new tag starts
+    seen = [0, 0]  # faces counted, face blocks counted
 
     def tag(t):
-        tags.append((sum(len(f) for f in M.F), t))
+        while seen[1] < len(M.F):
+            seen[0] += len(M.F[seen[1]])
+            seen[1] += 1
+        tags.append((seen[0], t))
 
     exact_joins = band_joins = bridged_joins = n_bridges = 0
     for idx, (k, kind, data) in enumerate(joins):
