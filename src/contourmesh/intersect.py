@@ -563,7 +563,7 @@ def _count_cells(box, live, glo, h):
             continue
         n = 1
         for k in range(3):
-            n *= _cell(box[i, 3 + k], glo[k], h) - _cell(box[i, k], glo[k], h) + 1
+            n *= _cell(box[i, 3 + k], glo[k], h[k]) - _cell(box[i, k], glo[k], h[k]) + 1
         total += n
     return total
 
@@ -575,12 +575,12 @@ def _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key
     for i in range(len(live)):
         if live[i] == 0:
             continue
-        x0 = _cell(box[i, 0], glo[0], h)
-        y0 = _cell(box[i, 1], glo[1], h)
-        z0 = _cell(box[i, 2], glo[2], h)
-        x1 = _cell(box[i, 3], glo[0], h)
-        y1 = _cell(box[i, 4], glo[1], h)
-        z1 = _cell(box[i, 5], glo[2], h)
+        x0 = _cell(box[i, 0], glo[0], h[0])
+        y0 = _cell(box[i, 1], glo[1], h[1])
+        z0 = _cell(box[i, 2], glo[2], h[2])
+        x1 = _cell(box[i, 3], glo[0], h[0])
+        y1 = _cell(box[i, 4], glo[1], h[1])
+        z1 = _cell(box[i, 5], glo[2], h[2])
         for cx in range(x0, x1 + 1):
             for cy in range(y0, y1 + 1):
                 for cz in range(z0, z1 + 1):
@@ -607,7 +607,7 @@ def _intersecting_pairs(V, ws, F, budget):
     for k in range(3):
         glo[k] = np.inf
         ghi[k] = -np.inf
-    ext = np.empty(m, np.float64)
+    ext = np.empty((m, 3), np.float64)
     nlive = 0
     ax0 = np.int64(0)
     ax1 = np.int64(1)
@@ -628,31 +628,32 @@ def _intersecting_pairs(V, ws, F, budget):
             continue  # collinear (exactly)
         live[i] = 1
         nlive += 1
-        e = 0.0
         for k in range(3):
             glo[k] = min(glo[k], box[i, k])
             ghi[k] = max(ghi[k], box[i, 3 + k])
-            e = max(e, box[i, 3 + k] - box[i, k])
-        ext[nlive - 1] = e
+            ext[nlive - 1, k] = box[i, 3 + k] - box[i, k]
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
     npairs = 0
     if nlive < 2:
         return pi[:0], pj[:0]
-    span = 0.0
+    # cell sizes: per axis, the median face extent along it (slices make faces thin across them),
+    # no smaller than 1/16 of the largest (a few long faces, such as caps, span many cells)
+    h = np.empty(3, np.float64)
     for k in range(3):
-        span = max(span, ghi[k] - glo[k])
-    # cell size: the median face extent (a few long faces, such as caps, span many cells)
-    h = np.median(ext[:nlive])
-    hmin = span / (2.0 ** _KEY_BITS - 2.0)
-    if not h > hmin:
-        h = hmin
-    if not h > 0.0:
-        h = 1.0
+        h[k] = np.median(ext[:nlive, k])
+    hbig = max(h[0], max(h[1], h[2]))
+    for k in range(3):
+        hmin = max((ghi[k] - glo[k]) / (2.0 ** _KEY_BITS - 2.0), hbig / 16.0)
+        if not h[k] > hmin:
+            h[k] = hmin
+        if not h[k] > 0.0:
+            h[k] = 1.0
     limit = budget * nlive
     total = _count_cells(box, live, glo, h)
     while total > limit:
-        h *= 1.5
+        for k in range(3):
+            h[k] *= 1.5
         total = _count_cells(box, live, glo, h)
     # hash table of cells: counting sort of (face, cell) entries by bucket
     nb = 1
@@ -662,8 +663,8 @@ def _intersecting_pairs(V, ws, F, budget):
     start = np.empty(nb + 1, np.int64)
     for q in range(nb + 1):
         start[q] = 0
-    ny = _cell(ghi[1], glo[1], h) + 1
-    nz = _cell(ghi[2], glo[2], h) + 1
+    ny = _cell(ghi[1], glo[1], h[1]) + 1
+    nz = _cell(ghi[2], glo[2], h[2]) + 1
     dummy = np.empty(0, np.int64)
     _visit_cells(box, live, glo, h, mask, ny, nz, start, dummy, dummy, dummy, np.int64(0))
     acc = 0
@@ -694,9 +695,9 @@ def _intersecting_pairs(V, ws, F, budget):
                         or box[j, 1] > box[i, 4] or box[i, 2] > box[j, 5] or box[j, 2] > box[i, 5]):
                     continue
                 # test the pair only in the cell of the low corner of the boxes' overlap
-                cx = _cell(max(box[i, 0], box[j, 0]), glo[0], h)
-                cy = _cell(max(box[i, 1], box[j, 1]), glo[1], h)
-                cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h)
+                cx = _cell(max(box[i, 0], box[j, 0]), glo[0], h[0])
+                cy = _cell(max(box[i, 1], box[j, 1]), glo[1], h[1])
+                cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h[2])
                 if (cx * ny + cy) * nz + cz != key:
                     continue
                 if _pair_intersects(V, ws, F, i, j):
