@@ -539,6 +539,74 @@ def _pair_intersects(V, ws, F, i, j):
     return _shared_edge(V, ws, a, b, c, y)
 
 
+@_kernel
+def _plane_part(F, V, i, c):
+    """The corners of face i at height c: ``(count, first, second)`` (-1 where absent)."""
+    n = 0
+    u = np.int64(-1)
+    w = np.int64(-1)
+    for t in range(3):
+        v = F[i, t]
+        if V[v, 2] == c:
+            if n == 0:
+                u = v
+            else:
+                w = v
+            n += 1
+    return n, u, w
+
+
+@_kernel
+def _across_plane(V, ws, F, box, i, j):
+    """Faces i and j whose boxes meet only in a plane ``z = c``, one face below it and the other
+    above it, neither flat: 1 if they intersect (module docstring), 0 if not, -1 if the boxes do
+    not meet that way (then the general test decides).
+
+    Every common point lies in the plane, in the hull of each face's corners there (a corner or an
+    edge), and so does every common vertex: the test is two segments in the plane.  With no common
+    vertex they intersect if the segments meet; with one, ``p``, if both are segments from ``p``
+    along one ray; with two (a common edge) they meet along it only, from opposite sides."""
+    if box[i, 5] == box[j, 2] and box[i, 2] < box[i, 5] and box[j, 2] < box[j, 5]:
+        c = box[i, 5]
+    elif box[j, 5] == box[i, 2] and box[j, 2] < box[j, 5] and box[i, 2] < box[i, 5]:
+        c = box[j, 5]
+    else:
+        return -1
+    na, a1, a2 = _plane_part(F, V, i, c)
+    nb, b1, b2 = _plane_part(F, V, j, c)
+    if na == 1:
+        a2 = a1
+    if nb == 1:
+        b2 = b1
+    # cull: the xy boxes of the two parts
+    if (max(V[a1, 0], V[a2, 0]) < min(V[b1, 0], V[b2, 0]) or max(V[b1, 0], V[b2, 0]) < min(V[a1, 0], V[a2, 0])
+            or max(V[a1, 1], V[a2, 1]) < min(V[b1, 1], V[b2, 1]) or max(V[b1, 1], V[b2, 1]) < min(V[a1, 1], V[a2, 1])):
+        return 0
+    s11 = a1 == b1 or a1 == b2
+    s12 = na == 2 and (a2 == b1 or a2 == b2)
+    shared = np.int64(s11) + np.int64(s12)
+    ax = np.int64(0)
+    ay = np.int64(1)
+    if shared == 0:
+        return 1 if _seg_seg_2d(V, ws, a1, a2, b1, b2, ax, ay) else 0
+    if shared == 2:
+        return 0
+    if na == 1 or nb == 1:  # a corner and a segment from it: only the corner in common
+        return 0
+    p = a1 if s11 else a2
+    q = a2 if s11 else a1
+    r = b2 if b1 == p else b1
+    if _o2(V, ws, p, q, r, ax, ay) != 0:
+        return 0
+    # collinear: one ray from p when q - p and r - p point the same way along an axis where they move
+    for t in range(2):
+        dq = V[q, t] - V[p, t]
+        dr = V[r, t] - V[p, t]
+        if dq != 0.0 or dr != 0.0:
+            return 1 if (dq > 0.0 and dr > 0.0) or (dq < 0.0 and dr < 0.0) else 0
+    return 0  # pragma: no cover - q and r differ from p
+
+
 # ------------------------------------------------------------------------------------------------
 # broad phase: hashed uniform grid
 # ------------------------------------------------------------------------------------------------
@@ -700,7 +768,10 @@ def _intersecting_pairs(V, ws, F, budget):
                 cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h[2])
                 if (cx * ny + cy) * nz + cz != key:
                     continue
-                if _pair_intersects(V, ws, F, i, j):
+                hit = _across_plane(V, ws, F, box, i, j)
+                if hit < 0:
+                    hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+                if hit == 1:
                     if npairs == len(pi):
                         pi = _grow(pi, 2 * npairs)
                         pj = _grow(pj, 2 * npairs)
