@@ -637,7 +637,7 @@ def _count_cells(box, live, glo, h):
 
 
 @_kernel
-def _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key, store):
+def _visit_cells(box, live, glo, h, mask, ny, nx, start, fill, ent_face, ent_key, store):
     """Every (face, grid cell) entry: counted per hash bucket in ``start`` (``store == 0``) or
     stored at ``fill`` of its bucket (``store == 1``)."""
     for i in range(len(live)):
@@ -652,7 +652,7 @@ def _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key
         for cx in range(x0, x1 + 1):
             for cy in range(y0, y1 + 1):
                 for cz in range(z0, z1 + 1):
-                    key = (cx * ny + cy) * nz + cz
+                    key = (cz * ny + cy) * nx + cx  # z-major: a slab's cells are close in the table
                     q = key & mask
                     if store == 0:
                         start[q] += 1
@@ -732,9 +732,9 @@ def _intersecting_pairs(V, ws, F, budget):
     for q in range(nb + 1):
         start[q] = 0
     ny = _cell(ghi[1], glo[1], h[1]) + 1
-    nz = _cell(ghi[2], glo[2], h[2]) + 1
+    nx = _cell(ghi[0], glo[0], h[0]) + 1
     dummy = np.empty(0, np.int64)
-    _visit_cells(box, live, glo, h, mask, ny, nz, start, dummy, dummy, dummy, np.int64(0))
+    _visit_cells(box, live, glo, h, mask, ny, nx, start, dummy, dummy, dummy, np.int64(0))
     acc = 0
     for q in range(nb):
         cnt = start[q]
@@ -746,7 +746,7 @@ def _intersecting_pairs(V, ws, F, budget):
     fill = np.empty(nb, np.int64)
     for q in range(nb):
         fill[q] = start[q]
-    _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key, np.int64(1))
+    _visit_cells(box, live, glo, h, mask, ny, nx, start, fill, ent_face, ent_key, np.int64(1))
     for q in range(nb):
         s0 = start[q]
         s1 = start[q + 1]
@@ -766,7 +766,7 @@ def _intersecting_pairs(V, ws, F, budget):
                 cx = _cell(max(box[i, 0], box[j, 0]), glo[0], h[0])
                 cy = _cell(max(box[i, 1], box[j, 1]), glo[1], h[1])
                 cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h[2])
-                if (cx * ny + cy) * nz + cz != key:
+                if (cz * ny + cy) * nx + cx != key:
                     continue
                 hit = _across_plane(V, ws, F, box, i, j)
                 if hit < 0:
