@@ -46,6 +46,15 @@ Conventions (stated once)
 * **Manifold**: where two contours touch at a corner (diagonal pixels), the touching vertex is
   split per fan of faces and each copy is moved a hair (``1e-3`` of a pixel) into its own fan, so
   the mesh is an edge- and vertex-manifold surface.
+* **Embedded**: the finished mesh is checked for crossing faces (exactly,
+  :mod:`contourmesh.intersect`); faces that cross by a hair are pulled apart
+  (:func:`contourmesh.repair.resolve_crossings`).  Where faces still cross, each band or bridged
+  join that made one becomes an exact join and each capped component that made one keeps its crack
+  rings, and the mesh is built again (a few rounds at most; ``meta["crossing_fallbacks"]`` counts
+  the joins and caps changed).  This covers a band sweeping through the prism of a component that
+  touches its own only diagonally, polygons of 8-adjacent components that overlap, and bands from
+  a crack ring that touches itself.  Whatever is left is counted in ``meta["self_intersections"]``
+  and logged as a warning.
 """
 
 from __future__ import annotations
