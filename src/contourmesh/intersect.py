@@ -40,11 +40,15 @@ small multiples of 1/2 or 1/4, never need it.)
 
 Speed
 -----
-The broad phase is a uniform grid hashed into a table (cell size from the faces' bounding boxes,
-grown until every face lies in a bounded number of cells), filled by a counting sort; each pair
-of faces whose boxes overlap is tested once, in the cell at the low corner of the overlap of
-their boxes.  Everything runs in one numba kernel on one core; it is near-linear in the number
-of faces for meshes whose faces are of comparable size.
+The broad phase is a uniform grid hashed into a table (cell sizes per axis from the faces'
+bounding boxes, grown until every face lies in a bounded number of cells; keys z-major), filled
+by a counting sort; each pair of faces whose boxes overlap is tested once, in the cell at the low
+corner of the overlap of their boxes.  Meshes made from sections have most vertices in the
+section planes: two faces whose boxes meet only in a plane ``z = c`` (one below, one above) can
+meet only there, in the hull of their corners at that height, so such a pair is decided by one
+segment test in that plane (the same rules, the same exact ``orient2d``).  Everything runs in one
+numba kernel on one core; it is near-linear in the number of faces for meshes whose faces are of
+comparable size.
 """
 
 from __future__ import annotations
