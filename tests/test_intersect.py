@@ -372,16 +372,24 @@ def test_neck_tube_is_embedded():
     assert chk["genus"] == voxel_topology(np.pad(v, 1))["genus"] == 1
 
 
-def test_crossings_left_are_reported_not_hidden(caplog):
+def test_crossings_left_are_reported_not_hidden(caplog, monkeypatch):
     import logging
 
+    import contourmesh.volumes as volumes
+
     # a band from a voxel up to an L sweeps over the diagonal voxel's prism: a move of a hair
-    # cannot undo it, so the mesher says so (meta and a warning) and checks() agrees
+    # cannot undo it; the mesher rebuilds that join exactly (counted in meta) ...
     v = _vol([[0, 1, 0], [1, 0, 0]], [[0, 0, 1], [1, 1, 1]])
+    m = contourmesh.mesh(v, polygon="none")
+    assert m.meta["self_intersections"] == 0 and m.meta["crossing_fallbacks"] > 0
+    assert _embedded(m)["self_intersections"] == 0
+    # ... and without that fallback it says so (meta and a warning), and checks() agrees
+    monkeypatch.setattr(volumes, "_MAX_REBUILDS", 0)
     with caplog.at_level(logging.WARNING, logger="contourmesh"):
         m = contourmesh.mesh(v, polygon="none")
     left = m.meta["self_intersections"]
     assert left > 0 and m.checks()["self_intersections"] == left and not m.checks()["ok"]
+    assert m.meta["crossing_fallbacks"] == 0
     assert any("pairs of faces cross" in r.getMessage() for r in caplog.records)
     assert m.checks()["closed"]
 

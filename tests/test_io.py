@@ -172,9 +172,7 @@ def test_rtstruct_roi_selection_errors():
     assert len(read_contours(RTSS, roi="lt lung")) == 80  # case-insensitive fallback
 
 
-@pytest.mark.xfail(strict=True, reason="issue 13: the 2 mm raster's mesh has crossing faces (35 pairs, 15 of them found "
-                   "by Open3D too, all confirmed by exact arithmetic)")
-def test_lt_lung_raster_mesh_is_embedded():
+def test_lt_lung_raster_mesh_is_embedded():  # issue 13: it had 35 crossing pairs before the crossing fallback
     stack = read_contours(need(RTSS_NPZ), roi="Lt_Lung")
     with pytest.warns(LostContourWarning):
         r2 = rasterize_stack(stack, pixel=2.0)

@@ -40,11 +40,15 @@ small multiples of 1/2 or 1/4, never need it.)
 
 Speed
 -----
-The broad phase is a uniform grid hashed into a table (cell size from the faces' bounding boxes,
-grown until every face lies in a bounded number of cells), filled by a counting sort; each pair
-of faces whose boxes overlap is tested once, in the cell at the low corner of the overlap of
-their boxes.  Everything runs in one numba kernel on one core; it is near-linear in the number
-of faces for meshes whose faces are of comparable size.
+The broad phase is a uniform grid hashed into a table (cell sizes per axis from the faces'
+bounding boxes, grown until every face lies in a bounded number of cells; keys z-major), filled
+by a counting sort; each pair of faces whose boxes overlap is tested once, in the cell at the low
+corner of the overlap of their boxes.  Meshes made from sections have most vertices in the
+section planes: two faces whose boxes meet only in a plane ``z = c`` (one below, one above) can
+meet only there, in the hull of their corners at that height, so such a pair is decided by one
+segment test in that plane (the same rules, the same exact ``orient2d``).  Everything runs in one
+numba kernel on one core; it is near-linear in the number of faces for meshes whose faces are of
+comparable size.
 """
 
 from __future__ import annotations
@@ -539,6 +543,74 @@ def _pair_intersects(V, ws, F, i, j):
     return _shared_edge(V, ws, a, b, c, y)
 
 
+@_kernel
+def _plane_part(F, V, i, c):
+    """The corners of face i at height c: ``(count, first, second)`` (-1 where absent)."""
+    n = 0
+    u = np.int64(-1)
+    w = np.int64(-1)
+    for t in range(3):
+        v = F[i, t]
+        if V[v, 2] == c:
+            if n == 0:
+                u = v
+            else:
+                w = v
+            n += 1
+    return n, u, w
+
+
+@_kernel
+def _across_plane(V, ws, F, box, i, j):
+    """Faces i and j whose boxes meet only in a plane ``z = c``, one face below it and the other
+    above it, neither flat: 1 if they intersect (module docstring), 0 if not, -1 if the boxes do
+    not meet that way (then the general test decides).
+
+    Every common point lies in the plane, in the hull of each face's corners there (a corner or an
+    edge), and so does every common vertex: the test is two segments in the plane.  With no common
+    vertex they intersect if the segments meet; with one, ``p``, if both are segments from ``p``
+    along one ray; with two (a common edge) they meet along it only, from opposite sides."""
+    if box[i, 5] == box[j, 2] and box[i, 2] < box[i, 5] and box[j, 2] < box[j, 5]:
+        c = box[i, 5]
+    elif box[j, 5] == box[i, 2] and box[j, 2] < box[j, 5] and box[i, 2] < box[i, 5]:
+        c = box[j, 5]
+    else:
+        return -1
+    na, a1, a2 = _plane_part(F, V, i, c)
+    nb, b1, b2 = _plane_part(F, V, j, c)
+    if na == 1:
+        a2 = a1
+    if nb == 1:
+        b2 = b1
+    # cull: the xy boxes of the two parts
+    if (max(V[a1, 0], V[a2, 0]) < min(V[b1, 0], V[b2, 0]) or max(V[b1, 0], V[b2, 0]) < min(V[a1, 0], V[a2, 0])
+            or max(V[a1, 1], V[a2, 1]) < min(V[b1, 1], V[b2, 1]) or max(V[b1, 1], V[b2, 1]) < min(V[a1, 1], V[a2, 1])):
+        return 0
+    s11 = a1 == b1 or a1 == b2
+    s12 = na == 2 and (a2 == b1 or a2 == b2)
+    shared = np.int64(s11) + np.int64(s12)
+    ax = np.int64(0)
+    ay = np.int64(1)
+    if shared == 0:
+        return 1 if _seg_seg_2d(V, ws, a1, a2, b1, b2, ax, ay) else 0
+    if shared == 2:
+        return 0
+    if na == 1 or nb == 1:  # a corner and a segment from it: only the corner in common
+        return 0
+    p = a1 if s11 else a2
+    q = a2 if s11 else a1
+    r = b2 if b1 == p else b1
+    if _o2(V, ws, p, q, r, ax, ay) != 0:
+        return 0
+    # collinear: one ray from p when q - p and r - p point the same way along an axis where they move
+    for t in range(2):
+        dq = V[q, t] - V[p, t]
+        dr = V[r, t] - V[p, t]
+        if dq != 0.0 or dr != 0.0:
+            return 1 if (dq > 0.0 and dr > 0.0) or (dq < 0.0 and dr < 0.0) else 0
+    return 0  # pragma: no cover - q and r differ from p
+
+
 # ------------------------------------------------------------------------------------------------
 # broad phase: hashed uniform grid
 # ------------------------------------------------------------------------------------------------
@@ -563,28 +635,28 @@ def _count_cells(box, live, glo, h):
             continue
         n = 1
         for k in range(3):
-            n *= _cell(box[i, 3 + k], glo[k], h) - _cell(box[i, k], glo[k], h) + 1
+            n *= _cell(box[i, 3 + k], glo[k], h[k]) - _cell(box[i, k], glo[k], h[k]) + 1
         total += n
     return total
 
 
 @_kernel
-def _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key, store):
+def _visit_cells(box, live, glo, h, mask, ny, nx, start, fill, ent_face, ent_key, store):
     """Every (face, grid cell) entry: counted per hash bucket in ``start`` (``store == 0``) or
     stored at ``fill`` of its bucket (``store == 1``)."""
     for i in range(len(live)):
         if live[i] == 0:
             continue
-        x0 = _cell(box[i, 0], glo[0], h)
-        y0 = _cell(box[i, 1], glo[1], h)
-        z0 = _cell(box[i, 2], glo[2], h)
-        x1 = _cell(box[i, 3], glo[0], h)
-        y1 = _cell(box[i, 4], glo[1], h)
-        z1 = _cell(box[i, 5], glo[2], h)
+        x0 = _cell(box[i, 0], glo[0], h[0])
+        y0 = _cell(box[i, 1], glo[1], h[1])
+        z0 = _cell(box[i, 2], glo[2], h[2])
+        x1 = _cell(box[i, 3], glo[0], h[0])
+        y1 = _cell(box[i, 4], glo[1], h[1])
+        z1 = _cell(box[i, 5], glo[2], h[2])
         for cx in range(x0, x1 + 1):
             for cy in range(y0, y1 + 1):
                 for cz in range(z0, z1 + 1):
-                    key = (cx * ny + cy) * nz + cz
+                    key = (cz * ny + cy) * nx + cx  # z-major: a slab's cells are close in the table
                     q = key & mask
                     if store == 0:
                         start[q] += 1
@@ -607,7 +679,7 @@ def _intersecting_pairs(V, ws, F, budget):
     for k in range(3):
         glo[k] = np.inf
         ghi[k] = -np.inf
-    ext = np.empty(m, np.float64)
+    ext = np.empty((m, 3), np.float64)
     nlive = 0
     ax0 = np.int64(0)
     ax1 = np.int64(1)
@@ -628,31 +700,32 @@ def _intersecting_pairs(V, ws, F, budget):
             continue  # collinear (exactly)
         live[i] = 1
         nlive += 1
-        e = 0.0
         for k in range(3):
             glo[k] = min(glo[k], box[i, k])
             ghi[k] = max(ghi[k], box[i, 3 + k])
-            e = max(e, box[i, 3 + k] - box[i, k])
-        ext[nlive - 1] = e
+            ext[nlive - 1, k] = box[i, 3 + k] - box[i, k]
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
     npairs = 0
     if nlive < 2:
         return pi[:0], pj[:0]
-    span = 0.0
+    # cell sizes: per axis, the median face extent along it (slices make faces thin across them),
+    # no smaller than 1/16 of the largest (a few long faces, such as caps, span many cells)
+    h = np.empty(3, np.float64)
     for k in range(3):
-        span = max(span, ghi[k] - glo[k])
-    # cell size: the median face extent (a few long faces, such as caps, span many cells)
-    h = np.median(ext[:nlive])
-    hmin = span / (2.0 ** _KEY_BITS - 2.0)
-    if not h > hmin:
-        h = hmin
-    if not h > 0.0:
-        h = 1.0
+        h[k] = np.median(ext[:nlive, k])
+    hbig = max(h[0], max(h[1], h[2]))
+    for k in range(3):
+        hmin = max((ghi[k] - glo[k]) / (2.0 ** _KEY_BITS - 2.0), hbig / 16.0)
+        if not h[k] > hmin:
+            h[k] = hmin
+        if not h[k] > 0.0:
+            h[k] = 1.0
     limit = budget * nlive
     total = _count_cells(box, live, glo, h)
     while total > limit:
-        h *= 1.5
+        for k in range(3):
+            h[k] *= 1.5
         total = _count_cells(box, live, glo, h)
     # hash table of cells: counting sort of (face, cell) entries by bucket
     nb = 1
@@ -662,10 +735,10 @@ def _intersecting_pairs(V, ws, F, budget):
     start = np.empty(nb + 1, np.int64)
     for q in range(nb + 1):
         start[q] = 0
-    ny = _cell(ghi[1], glo[1], h) + 1
-    nz = _cell(ghi[2], glo[2], h) + 1
+    ny = _cell(ghi[1], glo[1], h[1]) + 1
+    nx = _cell(ghi[0], glo[0], h[0]) + 1
     dummy = np.empty(0, np.int64)
-    _visit_cells(box, live, glo, h, mask, ny, nz, start, dummy, dummy, dummy, np.int64(0))
+    _visit_cells(box, live, glo, h, mask, ny, nx, start, dummy, dummy, dummy, np.int64(0))
     acc = 0
     for q in range(nb):
         cnt = start[q]
@@ -677,7 +750,7 @@ def _intersecting_pairs(V, ws, F, budget):
     fill = np.empty(nb, np.int64)
     for q in range(nb):
         fill[q] = start[q]
-    _visit_cells(box, live, glo, h, mask, ny, nz, start, fill, ent_face, ent_key, np.int64(1))
+    _visit_cells(box, live, glo, h, mask, ny, nx, start, fill, ent_face, ent_key, np.int64(1))
     for q in range(nb):
         s0 = start[q]
         s1 = start[q + 1]
@@ -694,12 +767,15 @@ def _intersecting_pairs(V, ws, F, budget):
                         or box[j, 1] > box[i, 4] or box[i, 2] > box[j, 5] or box[j, 2] > box[i, 5]):
                     continue
                 # test the pair only in the cell of the low corner of the boxes' overlap
-                cx = _cell(max(box[i, 0], box[j, 0]), glo[0], h)
-                cy = _cell(max(box[i, 1], box[j, 1]), glo[1], h)
-                cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h)
-                if (cx * ny + cy) * nz + cz != key:
+                cx = _cell(max(box[i, 0], box[j, 0]), glo[0], h[0])
+                cy = _cell(max(box[i, 1], box[j, 1]), glo[1], h[1])
+                cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h[2])
+                if (cz * ny + cy) * nx + cx != key:
                     continue
-                if _pair_intersects(V, ws, F, i, j):
+                hit = _across_plane(V, ws, F, box, i, j)
+                if hit < 0:
+                    hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+                if hit == 1:
                     if npairs == len(pi):
                         pi = _grow(pi, 2 * npairs)
                         pj = _grow(pj, 2 * npairs)

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .intersect import self_intersections
+from .intersect import canonical_vertices, self_intersections
 
 __all__ = [
     "triangle_areas",
@@ -87,10 +87,15 @@ def tradeoff(e: float | None, P: int | None) -> float | None:
 
 def _edge_counts(faces: np.ndarray):
     """Undirected edges with their use counts, and directed-edge duplicates."""
-    directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    und = np.sort(directed, axis=1)
-    uniq, counts = np.unique(und, axis=0, return_counts=True)
-    _, dcounts = np.unique(directed, axis=0, return_counts=True)
+    faces = np.asarray(faces, dtype=np.int64)
+    a = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
+    b = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
+    n = int(max(a.max(), b.max())) + 1 if len(a) else 1
+    # one int64 key per edge (sorted like the rows (u, v)): far faster than unique rows
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    keys, counts = np.unique(lo * n + hi, return_counts=True)
+    uniq = np.stack([keys // n, keys % n], axis=1)
+    _, dcounts = np.unique(a * n + b, return_counts=True)
     return uniq, counts, int((dcounts > 1).sum())
 
 
@@ -143,7 +148,8 @@ def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-
     repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
     degenerate = int((repeated | (areas <= rel_tol * diag2)).sum())
     used = np.unique(faces)
-    dup_vertices = len(used) - len(np.unique(vertices[used], axis=0))
+    # positions shared by several used vertices (lexsort of the coordinates, not unique rows)
+    dup_vertices = len(used) - int(np.count_nonzero(canonical_vertices(vertices[used]) == np.arange(len(used))))
     comps = _components(len(vertices), faces)
     watertight = bool(np.all(counts == 2))
     volume = mesh_volume(vertices, faces)

@@ -470,13 +470,15 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
     the sections stay where they were.
 
     Returns ``(V, info)``, ``info = {"self_intersections": pairs left, "crossings_repaired":
-    pairs removed, "vertices_moved": count, "max_move": largest vertex displacement}``.
+    pairs removed, "vertices_moved": count, "max_move": largest vertex displacement, "pairs": the
+    crossing pairs left, (k, 2)}``.
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     p = intersecting_pairs(V, F) if pairs is None else np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     n0 = len(p)
-    info = {"self_intersections": int(n0), "crossings_repaired": 0, "vertices_moved": 0, "max_move": 0.0}
+    info = {"self_intersections": int(n0), "crossings_repaired": 0, "vertices_moved": 0, "max_move": 0.0,
+            "pairs": p}
     if n0 == 0 or len(F) == 0:
         return V, info
     V0 = V
@@ -510,5 +512,5 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
             V, p = W, q
     moved = np.linalg.norm(V - V0, axis=1)
     info.update(self_intersections=int(len(p)), crossings_repaired=int(n0 - len(p)),
-                vertices_moved=int(np.count_nonzero(moved)), max_move=float(moved.max()))
+                vertices_moved=int(np.count_nonzero(moved)), max_move=float(moved.max()), pairs=p)
     return V, info

@@ -46,6 +46,15 @@ Conventions (stated once)
 * **Manifold**: where two contours touch at a corner (diagonal pixels), the touching vertex is
   split per fan of faces and each copy is moved a hair (``1e-3`` of a pixel) into its own fan, so
   the mesh is an edge- and vertex-manifold surface.
+* **Embedded**: the finished mesh is checked for crossing faces (exactly,
+  :mod:`contourmesh.intersect`); faces that cross by a hair are pulled apart
+  (:func:`contourmesh.repair.resolve_crossings`).  Where faces still cross, each band or bridged
+  join that made one becomes an exact join and each capped component that made one keeps its crack
+  rings, and the mesh is built again (a few rounds at most; ``meta["crossing_fallbacks"]`` counts
+  the joins and caps changed).  This covers a band sweeping through the prism of a component that
+  touches its own only diagonally, polygons of 8-adjacent components that overlap, and bands from
+  a crack ring that touches itself.  Whatever is left is counted in ``meta["self_intersections"]``
+  and logged as a warning.
 """
 
 from __future__ import annotations
@@ -430,9 +439,96 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # pass 2b: branching joins between the polygons themselves (bridges), where they keep clear of
     # everything else in their planes; the others become exact joins (their contours then keep
     # crack rings, which can change other joins' rings: repeat until nothing changes)
-    built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy), has_above, has_below)
+    # pass 3: vertices and faces.  Every face is tagged with what made it (a join or a cap); where
+    # faces still cross after the repair, the band and bridged joins and the caps involved fall back
+    # to the exact join (their components to crack rings) and the mesh is built again.
+    fallback_joins = fallback_caps = 0
+    for attempt in range(_MAX_REBUILDS + 1):
+        built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
+                               has_above, has_below)
+        V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
+                                       triangulation, caps, (ox, oy, dx, dy), to_xy_corner)
+        V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs)
+        left = info.pop("pairs")
+        if not len(left) or attempt == _MAX_REBUILDS:
+            break
+        n_j, n_c = _fall_back(np.unique(tags[np.unique(left)]), joins, crack_only, slices, has_above, has_below)
+        if n_j + n_c == 0:  # only exact joins involved: nothing left to fall back to
+            break
+        fallback_joins += n_j
+        fallback_caps += n_c
+        log.debug("volume mesher: %d crossing pairs left; %d joins and %d caps fall back to crack rings",
+                  len(left), n_j, n_c)
+    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks = counts
+    fallbacks = sum(s.fallbacks for s in slices if s is not None)
+    meta = {
+        "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
+        "caps": caps, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
+        "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
+        "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks,
+        "crossing_fallbacks": fallback_joins + fallback_caps,
+        "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
+    }
+    if refine is not None:
+        meta.update(refine_info, refine=refine)
+    meta.update(hook_info or {})
+    if exact_joins or fallbacks or band_fallbacks:
+        log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
+                  "%d twisted bands replaced", exact_joins, fallbacks, band_fallbacks)
+    return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
 
-    # pass 3: vertices and faces
+
+#: How many times the general mesher rebuilds a mesh whose faces cross after the repair, with the
+#: joins and caps involved falling back to crack rings and exact joins.
+_MAX_REBUILDS = 6
+
+
+def _fall_back(tags, joins, crack_only, slices, has_above, has_below):
+    """Joins and caps whose faces cross (``tags`` from :func:`_assemble`) fall back: a band or
+    bridged join becomes exact (its components keep crack rings), a capped component keeps its
+    crack rings.  Returns how many joins and how many caps changed."""
+    n_j = n_c = 0
+    ncaps = sum(s.n for s in slices if s is not None)
+    for t in tags.tolist():
+        if t < 0:
+            continue
+        if t < len(joins):
+            k, kind, data = joins[t]
+            if kind == "exact":
+                continue
+            ga, gb = ([data[0]], [data[1]]) if kind == "band" else (list(data[0]), list(data[1]))
+            joins[t] = (k, "exact", (sorted(ga), sorted(gb)))
+            crack_only.update((k, a) for a in ga)
+            crack_only.update((k + 1, b) for b in gb)
+            n_j += 1
+        elif t - len(joins) < ncaps:
+            key = _cap_key(slices, t - len(joins))
+            if key not in crack_only:
+                crack_only.add(key)
+                n_c += 1
+    return n_j, n_c
+
+
+def _cap_key(slices, i):
+    """The ``(k, c)`` of the ``i``-th component over all slices (caps are tagged this way)."""
+    for k, s in enumerate(slices):
+        if s is None:
+            continue
+        if i < s.n:
+            return (k, i)
+        i -= s.n
+    raise IndexError(i)  # pragma: no cover
+
+
+def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
+              to_xy_corner):
+    """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
+    manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
+    it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
+    (faces the manifold repair made); ``counts = (exact, band, bridged joins, bridges, twisted
+    bands replaced)``."""
+    ox, oy, dx, dy = grid
+    px = min(dx, dy)
     M = _Mesher(triangulation)
     rings = {}  # (k, comp, hole index or -1) -> vertex ids of the ring at z_k
 
@@ -471,9 +567,19 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         z0 = M.coords(rs[0][:1])[0, 2]
         _pixel_cap(M, slices[k], k, c, rs, z0 + (1e-2 if up else -1e-2) * gap(k, up), up, to_xy_corner)
 
+    tags = []  # (number of faces so far, tag) where a new tag starts
+    seen = [0, 0]  # faces counted, face blocks counted
+
+    def tag(t):
+        while seen[1] < len(M.F):
+            seen[0] += len(M.F[seen[1]])
+            seen[1] += 1
+        tags.append((seen[0], t))
+
     exact_joins = band_joins = bridged_joins = n_bridges = 0
-    for k, kind, data in joins:
+    for idx, (k, kind, data) in enumerate(joins):
         A, B = slices[k], slices[k + 1]
+        tag(idx)
         if kind == "band":
             a, b, matched = data
             M.band(ring(k, a, -1), ring(k + 1, b, -1))
@@ -496,9 +602,13 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             ga, gb = data
             _exact_join(M, A, B, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
             exact_joins += 1
-    for k in occupied:
+    first = len(joins)
+    for k in range(len(slices)):
         s = slices[k]
+        if s is None:
+            continue
         for c in range(s.n):
+            tag(first + c)
             above, below = (k, c) in has_above, (k, c) in has_below
             if above and below:
                 continue
@@ -510,27 +620,19 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             up = not above
             zc = zs[k] + (gap(k, up) / 2 if up else -gap(k, up) / 2) if caps == "half" else None
             close(k, c, rs, up, zc)
+        first += s.n
     V, F, S, N = M.result()
+    starts = np.array([t[0] for t in tags] + [len(F)], dtype=np.int64)
+    T = np.repeat(np.array([t[1] for t in tags], dtype=np.int64), np.diff(starts))
+    # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
+    # the repair adds get side 0 and tag -1)
+    S = S.astype(np.int64) + 4 * (T + 1)
     V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px)
     V, F, S = _open_necks(V, F, S, N, 1e-2 * px)
     V, F = _compact(V, F)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
-    fallbacks = sum(s.fallbacks for s in slices if s is not None)
-    meta = {
-        "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
-        "caps": caps, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
-        "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
-        "crack_rings": len(crack_only), "band_fallbacks": M.band_fallbacks,
-        "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
-    }
-    if refine is not None:
-        meta.update(refine_info, refine=refine)
-    meta.update(hook_info or {})
-    if exact_joins or fallbacks or M.band_fallbacks:
-        log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
-                  "%d twisted bands replaced", exact_joins, fallbacks, M.band_fallbacks)
-    return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs)
+    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, M.band_fallbacks)
 
 
 def _distinct_rows(xy) -> bool:
@@ -541,12 +643,14 @@ def _distinct_rows(xy) -> bool:
     return not bool((s[1:] == s[:-1]).all(axis=1).any())
 
 
-def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True) -> Mesh:
+def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True, resolved=None) -> Mesh:
     """The mesh with its crossing faces pulled apart where a small move can
     (:func:`contourmesh.repair.resolve_crossings`); ``meta`` records the crossing pairs repaired
     and left, and any left are logged as a warning.  Vertices at the section heights ``planes``
-    move within their plane."""
-    V, info = resolve_crossings(mesh.vertices, mesh.faces, nudge, planes=planes)
+    move within their plane.  ``resolved``: that function's result, where the caller has it."""
+    V, info = resolve_crossings(mesh.vertices, mesh.faces, nudge, planes=planes) if resolved is None else resolved
+
+
     meta = dict(mesh.meta, self_intersections=info["self_intersections"],
                 crossings_repaired=info["crossings_repaired"])
     if info["crossings_repaired"]:

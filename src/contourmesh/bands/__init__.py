@@ -133,8 +133,44 @@ def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str,
 
 
 def _band_crosses(P, f) -> bool:
-    """True when two faces of one band cross or touch other than as neighbours (exact test), for
-    rings whose points are all distinct (a ring touching itself is split later, not here)."""
-    if len(np.unique(P, axis=0)) < len(P):
-        return False
+    """True when two faces of one band cross or touch other than as neighbours (exact test).
+
+    A ring that touches itself (a pinch: one position visited twice) is split later by the
+    mesher, each copy moved a hair into its own fan; here each copy of a repeated position is
+    moved the same way (a hair towards the middle of its two ring neighbours, in its plane), so
+    the test sees the band as it will be, not the shared point."""
+    _, inv, cnt = np.unique(P, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    dup = np.flatnonzero(cnt[inv] > 1)
+    if len(dup):
+        P = _split_pinches(P, f, dup)
+        if P is None:
+            return False
     return len(intersecting_pairs(P, f)) > 0
+
+
+def _split_pinches(P, f, dup):
+    """``P`` with every point in ``dup`` moved a hair towards the centroid of its faces in ``f``
+    (as :func:`contourmesh.repair.split_nonmanifold_vertices` does), or None where that does not
+    separate the copies."""
+    P = np.array(P, dtype=np.float64)
+    ext = float(np.ptp(P[:, :2], axis=0).max()) if len(P) else 0.0
+    if not ext > 0:
+        return None
+    cen = P[f].mean(axis=1)
+    acc = np.zeros_like(P)
+    for k in range(3):
+        np.add.at(acc, f[:, k], cen)
+    deg = np.bincount(f.reshape(-1), minlength=len(P))
+    for i in dup:
+        if deg[i] == 0:
+            return None
+        d = acc[i] / deg[i] - P[i]
+        d[2] = 0.0  # within the ring's plane
+        n = float(np.hypot(d[0], d[1]))
+        if not n > 0:
+            return None
+        P[i] = P[i] + d * (1e-4 * ext / n)
+    if len(np.unique(P, axis=0)) < len(P):
+        return None
+    return P
