@@ -76,4 +76,9 @@ def main(name: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "lobster")
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("input", nargs="?", default="lobster",
+                    help="lobster, liver, liver-x2, bunny-128, Al.100 or ball-N-R (default lobster)")
+    main(ap.parse_args().input)
