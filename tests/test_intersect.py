@@ -304,7 +304,7 @@ def test_import_compiles_nothing_and_no_literal_signatures():
     intersecting_pairs(V * 0.3, F)  # the exact fallback too
     for name, d in vars(intersect).items():
         if isinstance(d, CPUDispatcher):
-            assert len(d.signatures) <= 1, name
+            assert len(d.signatures) <= 1, (name, d.signatures)
             for sig in d.signatures:
                 assert not any(isinstance(t, types.Literal) for t in sig), (name, sig)
 
