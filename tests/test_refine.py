@@ -238,11 +238,13 @@ def test_band_volume_routes_and_errors():
     # contour stacks and shapes with several contours in a section take the volume mesher's refinement
     secs = [Section(z=float(n), contours=tuple(cs), parents=tuple(ps))
             for n in range(two.shape[0]) if two[n].any() for cs, ps in [trace_contours(two[n])]]
-    # (a flat torus off centre: its refined rings do not close on the stack route, which falls back)
-    for src, genus in [(ContourStack(sections=tuple(secs)), 0), ("torus:R=20,r=8,center=0.3;0.2;0.1", 1)]:
+    # (a flat torus off centre: an outer contour and a hole per section, refined on the stack route
+    # where its refined rings close there, else by the volume mesher)
+    for src, genus, routes in [(ContourStack(sections=tuple(secs)), 0, {"volume-refined"}),
+                               ("torus:R=20,r=8,center=0.3;0.2;0.1", 1, {"refined", "volume-refined"})]:
         m = contourmesh.mesh(src, refine="band")
         chk = m.checks()
-        assert m.meta["route"] == "volume-refined" and chk["ok"] and chk["genus"] == genus, (src, chk)
+        assert m.meta["route"] in routes and chk["ok"] and chk["genus"] == genus, (src, chk)
 
 
 # ----------------------------------------------------------------------------------------------
