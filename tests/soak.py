@@ -269,7 +269,7 @@ def component_volumes(mesh) -> np.ndarray:
     return np.bincount(lab, weights=vol6) / 6.0
 
 
-def check_mesh(mesh, ref: dict | None = None) -> dict:
+def check_mesh(mesh, ref: dict | None = None, embedded: bool = False) -> dict:
     """Assert the guarantees of every emitted mesh; compare the topology with ``ref`` if given.
 
     ``ref`` is a :func:`contourmesh.volumes.voxel_topology` dict (components, cavities,
@@ -282,6 +282,8 @@ def check_mesh(mesh, ref: dict | None = None) -> dict:
     assert chk["winding_consistent"], chk
     assert chk["degenerate_faces"] == 0, chk
     assert chk["duplicate_vertices"] == 0, chk
+    if embedded:  # closed means embedded (issue 13); asserted for the volume mesher's outputs
+        assert chk["self_intersections"] == 0, chk
     assert chk["volume"] > 0, chk
     vols = component_volumes(mesh)
     assert np.all(vols != 0), f"a component encloses no volume: {vols}"
@@ -300,7 +302,7 @@ def check_volume(vol, polygon, triangulation, caps="flat"):
     from contourmesh.volumes import volume_to_mesh, voxel_topology
 
     m = volume_to_mesh(vol, polygon=polygon, triangulation=triangulation, caps=caps)
-    check_mesh(m, voxel_topology(vol))
+    check_mesh(m, voxel_topology(vol), embedded=True)
     return m
 
 
@@ -487,7 +489,7 @@ def check_real(vol, polygon, triangulation, caps, refine):
     from contourmesh.volumes import voxel_topology
 
     m = mesh_volume(vol, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
-    check_mesh(m, voxel_topology(vol))
+    check_mesh(m, voxel_topology(vol), embedded=True)
     return m
 
 
