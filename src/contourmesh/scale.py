@@ -478,26 +478,12 @@ class _Executor:
                     f = self.client.submit(fn, self._vol_ref, *args, pure=False, retries=2,
                                            key=f"contourmesh-{fn.__name__}-{k}-{os.getpid()}-{id(arg_list)}")
                     futs[f] = args
-                try:
-                    for f in as_completed(futs):
-                        res = f.result()
-                        bar.update()
-                        yield futs[f], res
-                finally:
-                    for f in futs:
-                        f.cancel()
+                yield from _drain(futs, as_completed, bar)
             elif self._pool is not None:
                 from concurrent.futures import as_completed
 
                 futs = {self._pool.submit(fn, self.vol, *args): args for args in arg_list}
-                try:
-                    for f in as_completed(futs):
-                        res = f.result()
-                        bar.update()
-                        yield futs[f], res
-                finally:
-                    for f in futs:
-                        f.cancel()
+                yield from _drain(futs, as_completed, bar)
             else:
                 for args in arg_list:
                     res = fn(self.vol, *args)
@@ -593,3 +579,16 @@ def run_cli_chunked(args, out: Path) -> int:
           + f" ({stats.get('tasks', 0)} tasks, {stats.get('cached', 0)} from the cache)"
           + (f"; {failed} failed their checks" if failed else ""))
     return 1 if failed else 0
+
+
+def _drain(futs: dict, as_completed, bar):
+    """Yield ``(args, result)`` of the futures ``futs`` (future -> args) as they finish, advancing
+    ``bar``; the ones left are cancelled if the caller stops early or a task raises."""
+    try:
+        for f in as_completed(futs):
+            res = f.result()
+            bar.update()
+            yield futs[f], res
+    finally:
+        for f in futs:
+            f.cancel()
