@@ -37,6 +37,7 @@ from .errors import RasterFallbackWarning, warn_external
 from .geometry import _fill_evenodd, grid_to_xy, shoelace_area
 from .intersect import intersecting_faces
 from .rasterize import _physical_rings, rasterize_stack
+from .refine import _segments_meet
 from .stacks import _nest_section
 from .types import ContourStack, Mesh
 from .volumes import volume_to_mesh
@@ -94,21 +95,7 @@ def _edges_meet(xs, ys, starts) -> np.ndarray:
                 if u1 * v2 - u2 * v1 == 0 and u1 * v1 + u2 * v2 < 0:
                     bad[ring[i]] = True
                 continue
-            d1 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-            d2 = (bx - ax) * (dy - ay) - (by - ay) * (dx - ax)
-            d3 = (dx - cx) * (ay - cy) - (dy - cy) * (ax - cx)
-            d4 = (dx - cx) * (by - cy) - (dy - cy) * (bx - cx)
-            meet = False
-            if ((d1 > 0 and d2 < 0) or (d1 < 0 and d2 > 0)) and ((d3 > 0 and d4 < 0) or (d3 < 0 and d4 > 0)):
-                meet = True
-            elif d1 == 0 and min(ax, bx) <= cx <= max(ax, bx) and min(ay, by) <= cy <= max(ay, by):
-                meet = True
-            elif d2 == 0 and min(ax, bx) <= dx <= max(ax, bx) and min(ay, by) <= dy <= max(ay, by):
-                meet = True
-            elif d3 == 0 and min(cx, dx) <= ax <= max(cx, dx) and min(cy, dy) <= ay <= max(cy, dy):
-                meet = True
-            elif d4 == 0 and min(cx, dx) <= bx <= max(cx, dx) and min(cy, dy) <= by <= max(cy, dy):
-                meet = True
+            meet = _segments_meet(ax, ay, bx, by, cx, cy, dx, dy)
             if meet:
                 bad[ring[i]] = True
                 bad[ring[j]] = True
