@@ -34,6 +34,7 @@ import numpy as np
 from numba import njit
 
 from .errors import RasterFallbackWarning, warn_external
+from .bands.fidelity import FaithfulBands
 from .geometry import _fill_evenodd, grid_to_xy, shoelace_area
 from .intersect import intersecting_faces
 from .rasterize import _physical_rings, rasterize_stack
@@ -135,6 +136,8 @@ class _DrawnPolygons:
         self.avoid = avoid  # sections whose drawn rings made crossing faces: the raster's polygons
         self.avoid_why = avoid_why
         self.unmatched: list[tuple] = []  # (section, z, why)
+        # every band between drawn rings keeps a volume within the frustum and trapezoid rules
+        self.band_guard = FaithfulBands()
 
     def _box(self, ring, shape):
         x0, y0, _ = self.raster.origin
@@ -364,5 +367,6 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
         warn_external(str(w.message), w.category)
     meta = dict(m.meta)
     meta.update(stack.meta)
-    meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid))
+    meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid),
+                faithful_bands=hook.band_guard.replaced)
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)

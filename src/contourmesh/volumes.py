@@ -250,8 +250,9 @@ def _band_faces(lo, hi, triangulation, optimal_budget=3e7):
 
 
 class _Mesher:
-    def __init__(self, triangulation: str):
+    def __init__(self, triangulation: str, band_guard=None):
         self.triangulation = triangulation
+        self.band_guard = band_guard  # band_guard(lo_xyz, hi_xyz, faces) -> faces (the contours route's)
         self._V = np.empty((1024, 3))  # vertex buffer (rows [0, n)), grown by doubling
         self.F: list[np.ndarray] = []
         self.S: list[np.ndarray] = []  # side label per face (0, or 1/2 for the two slices of an exact join)
@@ -296,7 +297,10 @@ class _Mesher:
         (least-area) band, or by the arc-length band where the optimal one would be too slow.
         """
 
-        f, replaced = _band_faces(self.coords(lo_ids), self.coords(hi_ids), self.triangulation)
+        lo, hi = self.coords(lo_ids), self.coords(hi_ids)
+        f, replaced = _band_faces(lo, hi, self.triangulation)
+        if self.band_guard is not None:
+            f = self.band_guard(lo, hi, f)
         self.band_fallbacks += replaced
         self._add(np.concatenate([lo_ids, hi_ids])[f])
 
@@ -337,7 +341,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     joins are decided and before the bridged joins are built; it may replace the polygons of any
     component (``slices[k].outer[c]``, ``slices[k].holes[c][h]``, outer rings counter-clockwise and
     holes clockwise) and returns entries for ``meta``.  Components it lists in ``slices[k].own`` (a
-    set) keep its polygons in exact joins too: their collars are bands up to the crack contours.  The compiled fast path is not used with it
+    set) keep its polygons in exact joins too: their collars are bands up to the crack contours.  A
+    ``band_guard`` attribute of it, when set, is called on every band as ``band_guard(lo, hi, faces)``
+    (ring coordinates, the band's faces) and returns the faces to use.  The compiled fast path is not used with it
     (the contours route, :mod:`contourmesh.drawn`, puts the drawn rings in this way).
 
     Returns a closed, outward-oriented, manifold Mesh whose genus equals that of the 6-connected
@@ -447,7 +453,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
                                has_above, has_below)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
-                                       triangulation, caps, (ox, oy, dx, dy), to_xy_corner)
+                                       triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
+                                       getattr(polygons, "band_guard", None))
         V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs)
         left = info.pop("pairs")
         if not len(left) or attempt == _MAX_REBUILDS:
@@ -521,7 +528,7 @@ def _cap_key(slices, i):
 
 
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
-              to_xy_corner):
+              to_xy_corner, band_guard=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
@@ -529,7 +536,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     bands replaced)``."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
-    M = _Mesher(triangulation)
+    M = _Mesher(triangulation, band_guard)
     rings = {}  # (k, comp, hole index or -1) -> vertex ids of the ring at z_k
 
     def ring(k, c, hole):
