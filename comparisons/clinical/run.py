@@ -4,7 +4,7 @@ Per phantom and drawing setting (slice spacing dz, point spacing ds; the set of
 :func:`contourmesh.compare.phantoms.verification_set`), :func:`contourmesh.compare.clinical.measure`
 reports our mesh's area and volume against the analytic values (caps flat/half x polygon mlp/none/default, where
 default leaves polygon unset so drawn rings take the contours route, and
-caps smooth with polygon none),
+caps smooth with polygon none (the stack route) and with route="contours"),
 its volume against the trapezoid and frustum rules over the drawn sections' even-odd areas, its
 cross-section at the contour planes against those areas, and the areas of VTK surface nets and
 blurred marching cubes on a 0.25 mm rasterization of the drawn stack.
@@ -193,7 +193,7 @@ def plot_png(rows) -> bytes | None:
     fig, axs = plt.subplots(1, 2, figsize=(11, 4.2))
     styles = {"ours caps=flat polygon=mlp": "bo", "ours caps=half polygon=mlp": "rs",
               "ours caps=flat polygon=none": "c^", "ours caps=half polygon=none": "mv",
-              "ours caps=smooth polygon=none": "yD",
+              "ours caps=smooth polygon=none": "yD", "ours caps=smooth polygon=contours": "gD",
               "ours caps=flat polygon=default": "b*", "ours caps=half polygon=default": "r*",
               "vtk-surfacenets": "kx", "mc-lewiner-blur1": "g+"}
     offs = dict(zip(styles, np.linspace(-0.12, 0.12, len(styles))))

@@ -175,7 +175,7 @@ def mesh(source, **options) -> Mesh:
         ``polygon`` ({"mlp", "dss", "none"}; default ``"mlp"``, and the drawn rings themselves for
         real-valued contour stacks), ``triangulation`` ({"wiederhold", "greedy", "optimal",
         "arclength"}; default ``"wiederhold"``, or ``"optimal"`` with ``refine="band"``), ``caps``
-        ({"flat", "half", "smooth"}; ``"smooth"`` on the stack and refined routes only), ``refine``
+        ({"flat", "half", "smooth"}; ``"smooth"`` on the stack, contours and refined routes only), ``refine``
         ({None, "none", "band"}), ``progress``, and the keywords of the source's entry point.
 
     Returns
@@ -343,7 +343,7 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
 
     ``route`` (``"contours"`` or ``"raster"``) picks the route instead; ``route="contours"`` with
     ``polygon="mlp"``/``"dss"`` is refused (the contours route meshes the drawn rings, not polygons
-    of a raster), and so is ``caps="smooth"`` off the stack route
+    of a raster), and so is ``caps="smooth"`` off the stack and contours routes
     (:class:`~contourmesh.errors.InapplicableOption`).  ``meta["route"]`` records the route taken
     and ``meta["pixel"]`` the raster size.
     """
@@ -378,15 +378,12 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
             # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): the
             # contours route below resolves it through its raster; never silently
             name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
-            _volume_caps(caps, f"{name} cannot be meshed as drawn on the stack route ({exc})")
             log.info("%s: stack route failed (%s); re-routing to the contours route", name, exc)
             warn_external(f"{name}: the contours cannot be meshed as drawn on the stack route ({exc}); meshed on "
                           "the contours route instead (its raster decides the joins; pixel= sets its size)",
                           RasterFallbackWarning)
             fallback = str(exc)
-    elif drawn:
-        _volume_caps(caps, "this stack goes to the contours route (caps='smooth' needs one ring per section)")
-    else:
+    elif not drawn:
         why = (f"route={route!r}" if route else "its sections hold several grid contours" if not one_each else
                f"its contours are real-valued and polygon={polygon!r} (leave polygon unset to mesh the drawn rings)")
         _volume_caps(caps, f"this stack goes to the raster route: {why}")

@@ -129,7 +129,7 @@ class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
-    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why=""):
+    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
         self.name = name
@@ -138,6 +138,8 @@ class _DrawnPolygons:
         self.unmatched: list[tuple] = []  # (section, z, why)
         # every band between drawn rings keeps a volume within the frustum and trapezoid rules
         self.band_guard = FaithfulBands()
+        # caps="smooth": the ends of band-joined rings close on the profile of their last sections
+        self.end_cap = _SmoothEnds() if smooth else None
 
     def _box(self, ring, shape):
         x0, y0, _ = self.raster.origin
@@ -152,6 +154,8 @@ class _DrawnPolygons:
         x0, y0, _ = self.raster.origin
         p = self.raster.spacing[0]
         to_xy_center, to_xy_corner = grid_to_xy(x0, y0, p, p)
+        if self.end_cap is not None:
+            self.end_cap.attach(slices, zs, joins)
         matched = drawn = unmatched = 0
         for k, s in enumerate(slices):
             if s is None:
@@ -255,6 +259,127 @@ class _DrawnPolygons:
         return {"drawn_components": matched, "drawn_rings": drawn, "unmatched_components": unmatched}
 
 
+#: Shrunk copies of the end ring in a smooth end: a dome (the section closes within a spacing) or a
+#: taper to a flat end half a spacing out.
+_DOME_RINGS = 4
+_TAPER_RINGS = 2
+
+
+def _end_profile(areas, dists, gap):
+    """Where the section's area goes beyond an end ring, from the last sections' areas.
+
+    ``areas``: the end ring's area and those of the one or two sections joined to it, at outward
+    positions ``0, -dists[0], -(dists[0] + dists[1])``.  The area is extrapolated outward (a
+    quadratic through three sections, exact for a sphere, a cone or a cylinder; a line through
+    two), never above the end's own.  If it closes (falls to zero, or to a minimum below 5 % of the end's area) within one
+    spacing ``gap``, the surface closes there: ``(t, lam)`` of a dome whose rings are the end ring
+    scaled by ``lam`` at distances ``t`` beyond it (``lam`` evenly spread on a quarter circle).
+    Otherwise the object ends somewhere within the next spacing, half of it on average: a taper
+    to a flat end at ``gap / 2``.  Returns ``(t, lam, kind)``.
+    """
+    areas = np.asarray(areas, dtype=np.float64)
+    tp = -np.r_[0.0, np.cumsum(dists)]
+    coef = np.polyfit(tp, areas, min(len(areas) - 1, 2))
+    t = np.linspace(0.0, gap, 513)
+    a = np.minimum.accumulate(np.minimum(np.polyval(coef, t), areas[0]))
+    neg = a <= 0.0
+    if neg.any() or a.min() <= 0.05 * areas[0]:
+        if neg.any():  # a root: where the line between the samples crosses zero
+            i = int(np.argmax(neg))
+            t0 = t[i] if i == 0 else t[i - 1] + (t[i] - t[i - 1]) * a[i - 1] / (a[i - 1] - a[i])
+        else:  # touches (nearly) zero: a double root, as at a cone's tip
+            i = int(np.argmin(a))
+            t0 = t[i]
+        lam_of_t = np.sqrt(np.r_[np.clip(a[:i], 0.0, None), 0.0] / areas[0])
+        theta = np.arange(1, _DOME_RINGS + 1) * np.pi / (2 * (_DOME_RINGS + 1))
+        lam = np.cos(theta)
+        tt = np.interp(lam, lam_of_t[::-1], np.r_[t[:i], t0][::-1])
+        return tt, lam, "dome"
+    tt = gap / 2 * np.arange(1, _TAPER_RINGS + 1) / _TAPER_RINGS
+    lam = np.sqrt(np.interp(tt, t, a) / areas[0])
+    return tt, lam, "taper"
+
+
+class _SmoothEnds:
+    """``caps="smooth"`` on the contours route (the volume mesher's ``end_cap`` hook).
+
+    An end ring joined by a band to the ring below it (or above, at a lower end) is closed by
+    shrunk copies of itself beyond it (:func:`_end_profile`), each moved along the line through
+    the last two rings' centroids and joined to the next point to point, the last one closed flat.
+    Each section of this cap is a scaled copy of the end ring, so it does not cross itself.  An
+    end with holes, one without a band join (a fork, a merge, an exact join) or one that cannot
+    be capped is left to the mesher (``caps="half"``: a prism half a spacing out).
+    """
+
+    def __init__(self):
+        self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper" or "half" (the last mesh built)
+
+    def count(self, kind) -> int:
+        return sum(v == kind for v in self.kinds.values())
+
+    def attach(self, slices, zs, joins):
+        self.slices, self.zs = slices, zs
+        self.below, self.above = {}, {}
+        for k, kind, data in joins:
+            if kind == "band":
+                a, b = data[0], data[1]
+                self.above[(k, a)] = (k + 1, b)
+                self.below[(k + 1, b)] = (k, a)
+
+    def _area_centre(self, k, c):
+        s = self.slices[k]
+        xy = np.asarray(s.outer[c], dtype=np.float64)
+        area = abs(shoelace_area(xy)) - sum(abs(shoelace_area(np.asarray(h, np.float64))) for h in s.holes[c])
+        return area, xy.mean(axis=0)
+
+    def __call__(self, M, k, c, rings, up) -> bool:
+        from .bands.caps import cap_faces
+        from .geometry import slice_gap
+        from .surface import _dome_centre
+
+        inward = self.below if up else self.above
+        self.kinds[(k, c, up)] = "half"
+        if len(rings) != 1 or (k, c) not in inward:
+            return False
+        ring = rings[0]
+        xyz = M.coords(ring)
+        xy, z = xyz[:, :2], float(xyz[0, 2])
+        a0 = abs(shoelace_area(xy))
+        if a0 == 0.0 or len(np.unique(xy, axis=0)) != len(xy):
+            return False
+        areas, dists, centres = [a0], [], [xy.mean(axis=0)]
+        cur = (k, c)
+        for _ in range(2):
+            nxt = inward.get(cur)
+            if nxt is None:
+                break
+            a, ctr = self._area_centre(*nxt)
+            if a <= 0:
+                break
+            areas.append(a)
+            dists.append(abs(float(self.zs[nxt[0]] - self.zs[cur[0]])))
+            centres.append(ctr)
+            cur = nxt
+        gap = float(slice_gap(self.zs, k, up))
+        t, lam, kind = _end_profile(areas, dists, gap)
+        drift = (centres[0] - centres[1]) / dists[0]  # the centroids' line, per unit distance outward
+        centre, _ = _dome_centre(xy)
+        last = centre + lam[-1] * (xy - centre) + drift * t[-1]
+        try:
+            cap_faces(last, [], upward=up)
+        except ValueError:
+            return False
+        sgn = 1.0 if up else -1.0
+        prev = ring
+        for tk, lk in zip(t, lam):
+            nxt_ids = M.ring(centre + lk * (xy - centre) + drift * tk, z + sgn * tk)
+            M.quads(prev, nxt_ids) if up else M.quads(nxt_ids, prev)
+            prev = nxt_ids
+        M.cap([prev], upward=up)
+        self.kinds[(k, c, up)] = kind
+        return True
+
+
 #: Halvings of the default pixel where the raster loses or splits a drawn ring, and the voxel budget for them.
 _FINER = 2
 _FINER_VOXELS = 2e7
@@ -329,7 +454,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     quiet = _Quiet()
     attempt = 0
     while True:
-        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why)
+        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth")
         last = attempt >= _ATTEMPTS - 1 or avoid == everything
         if not last:
             log.addFilter(quiet)
@@ -337,7 +462,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon="none", triangulation=triangulation,
-                                   caps=caps, progress=progress, polygons=hook)
+                                   caps="half" if caps == "smooth" else caps, progress=progress, polygons=hook)
         except RuntimeError as exc:
             # the drawn rings met the mesher's pixel constructions in a way it cannot make manifold:
             # every section takes the raster's polygons (named in the warning); never a broken mesh
@@ -369,4 +494,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     meta.update(stack.meta)
     meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid),
                 faithful_bands=hook.band_guard.replaced)
+    if caps == "smooth":
+        e = hook.end_cap
+        meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
+                    smooth_half_prisms=e.count("half"))
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)

@@ -343,7 +343,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     holes clockwise) and returns entries for ``meta``.  Components it lists in ``slices[k].own`` (a
     set) keep its polygons in exact joins too: their collars are bands up to the crack contours.  A
     ``band_guard`` attribute of it, when set, is called on every band as ``band_guard(lo, hi, faces)``
-    (ring coordinates, the band's faces) and returns the faces to use.  The compiled fast path is not used with it
+    (ring coordinates, the band's faces) and returns the faces to use; an ``end_cap`` attribute is
+    called on every end of a component that is not crack-only as ``end_cap(mesher, k, c, ring_ids,
+    upward)`` and returns True where it closed that end itself.  The compiled fast path is not used with it
     (the contours route, :mod:`contourmesh.drawn`, puts the drawn rings in this way).
 
     Returns a closed, outward-oriented, manifold Mesh whose genus equals that of the 6-connected
@@ -454,7 +456,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                has_above, has_below)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
-                                       getattr(polygons, "band_guard", None))
+                                       getattr(polygons, "band_guard", None), getattr(polygons, "end_cap", None))
         V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs)
         left = info.pop("pairs")
         if not len(left) or attempt == _MAX_REBUILDS:
@@ -528,7 +530,7 @@ def _cap_key(slices, i):
 
 
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
-              to_xy_corner, band_guard=None):
+              to_xy_corner, band_guard=None, end_cap=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
@@ -625,6 +627,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                 close(k, c, rs, True, zs[k] + gap(k, True) / 2)
                 continue
             up = not above
+            if end_cap is not None and (k, c) not in crack_only and end_cap(M, k, c, rs, up):
+                continue  # the hook closed this end itself
             zc = zs[k] + (gap(k, up) / 2 if up else -gap(k, up) / 2) if caps == "half" else None
             close(k, c, rs, up, zc)
         first += s.n

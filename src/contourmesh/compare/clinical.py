@@ -30,9 +30,11 @@ from .phantoms import Phantom, draw, frustum_volume, implicit_volume, section_ar
 
 __all__ = ["measure", "COLUMNS", "MODES", "PEERS", "cross_section_errors", "reference"]
 
-#: Our modes (caps, polygon); polygon ``"default"`` leaves it unset: drawn rings go to the contours route.
+#: Our modes (caps, polygon); polygon ``"default"`` leaves it unset: drawn rings go to the contours route
+#: (with ``caps="smooth"`` one ring per section goes to the stack route; ``"contours"`` asks for the
+#: contours route with ``route="contours"``).
 MODES = (("flat", "mlp"), ("half", "mlp"), ("flat", "none"), ("half", "none"), ("smooth", "none"),
-         ("flat", "default"), ("half", "default"))
+         ("flat", "default"), ("half", "default"), ("smooth", "contours"))
 PEERS = ("vtk-surfacenets", "mc-lewiner-blur1")
 
 COLUMNS = ["phantom", "kind", "tilt", "dz", "ds", "seed", "method", "caps", "polygon", "status", "route",
@@ -191,7 +193,8 @@ def measure(ph: Phantom, dz: float, ds: float, *, seed: int = 0, fine: float = 0
         row.update(method="ours", caps=caps, polygon=polygon)
         t0 = time.perf_counter()
         try:
-            m = _with_deadline(lambda: _mesh(stack, caps=caps, polygon=None if polygon == "default" else polygon),
+            m = _with_deadline(lambda: _mesh(stack, caps=caps, polygon=None if polygon in ("default", "contours")
+                                             else polygon, **({"route": "contours"} if polygon == "contours" else {})),
                                timeout)
         except _Timeout as exc:
             row.update(status="timeout", error=str(exc), seconds=time.perf_counter() - t0)
