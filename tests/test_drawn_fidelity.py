@@ -153,3 +153,39 @@ def test_smooth_ends_with_several_rings_per_section():
     assert_sound(m)
     assert m.volume > contourmesh.mesh(st).volume
     assert abs(section_areas(st)).min() > 0
+
+
+# --- keyhole rings (item 4) ----------------------------------------------------------------------
+def test_split_at_repeats_gives_the_outer_ring_and_the_hole():
+    from contourmesh.drawn import _split_at_repeats
+    from contourmesh.geometry import shoelace_area
+
+    outer = ellipse(0, 0, 10, 10, 40)
+    hole = ellipse(2, 0, 4, 4, 24)[::-1]
+    ring = np.vstack([outer, outer[:1], hole, hole[:1]])  # in along a zero-width channel and back out
+    pieces = sorted(_split_at_repeats(ring), key=lambda q: -abs(shoelace_area(q)))
+    assert len(pieces) == 2
+    assert np.array_equal(pieces[0], outer) and np.array_equal(pieces[1], hole)
+    assert sum(shoelace_area(q) for q in pieces) == pytest.approx(shoelace_area(ring))
+    # a duplicate closing point is no keyhole
+    assert len(_split_at_repeats(np.vstack([outer, outer[:1]]))) == 1
+
+
+def test_keyhole_tube_is_meshed_from_its_drawn_rings():
+    from contourmesh.compare.clinical import cross_section_errors
+    from contourmesh.compare.phantoms import keyhole_tube
+
+    ph = keyhole_tube(12, 6, 30)
+    st = draw(ph, 3.0, 1.0, seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no raster fallback to warn about
+        m = contourmesh.mesh(st)
+    assert m.meta["route"] == "contours" and m.meta["split_rings"] == len(st.sections)
+    assert m.meta["unmatched_components"] == 0 and m.meta["drawn_rings"] == 2 * len(st.sections)
+    assert_sound(m)
+    assert np.abs(cross_section_errors(m, st)).max() < 5e-3
+    assert abs(outside_rules(m, st)) <= 5e-3
+    sm = contourmesh.mesh(st, caps="smooth", route="contours")
+    assert sm.meta["smooth_half_prisms"] == 0 and sm.meta["smooth_tapers"] == 2  # the ends with their holes
+    assert_sound(sm)
+    assert abs(sm.volume / ph.volume - 1) < 0.01

@@ -103,6 +103,35 @@ def _edges_meet(xs, ys, starts) -> np.ndarray:
     return bad
 
 
+def _split_at_repeats(ring: np.ndarray) -> list:
+    """A ring that visits a point twice, split there into the rings it is made of (keyholes).
+
+    Planning systems draw a hole as part of its outer ring: around the outer boundary, in along a
+    zero-width channel, around the hole the other way, and back out.  Such a ring repeats the
+    channel's two ends; cut at each repeated point it falls apart into the outer ring, the hole
+    ring and the channel (two points, no area, dropped), whose even-odd fill is the keyhole
+    ring's.  Consecutive repeats (a duplicate closing point) are removed first.  Pieces of fewer
+    than three points or no area are dropped.
+    """
+    out, todo = [], [np.asarray(ring, dtype=np.float64)]
+    while todo:
+        r = todo.pop()
+        r = r[np.any(r != np.roll(r, 1, axis=0), axis=1)] if len(r) > 1 else r
+        if len(r) < 3:
+            continue
+        _, inv, cnt = np.unique(r, axis=0, return_inverse=True, return_counts=True)
+        inv = inv.reshape(-1)
+        dup = np.flatnonzero(cnt[inv] > 1)
+        if not len(dup):
+            if shoelace_area(r) != 0.0:
+                out.append(r)
+            continue
+        i = int(dup[0])
+        j = i + 1 + int(np.flatnonzero(inv[i + 1:] == inv[i])[0])
+        todo += [r[i:j], np.concatenate([r[j:], r[:i]])]
+    return out
+
+
 def _rings_that_meet(rings) -> np.ndarray:
     if not rings:
         return np.zeros(0, dtype=bool)
@@ -306,9 +335,10 @@ class _SmoothEnds:
     An end ring joined by a band to the ring below it (or above, at a lower end) is closed by
     shrunk copies of itself beyond it (:func:`_end_profile`), each moved along the line through
     the last two rings' centroids and joined to the next point to point, the last one closed flat.
-    Each section of this cap is a scaled copy of the end ring, so it does not cross itself.  An
-    end with holes, one without a band join (a fork, a merge, an exact join) or one that cannot
-    be capped is left to the mesher (``caps="half"``: a prism half a spacing out).
+    Holes shrink with their outer ring (about the same centre): each section of this cap is a
+    scaled copy of the end section, so it does not cross itself.  An end without a band join (a
+    fork, a merge, an exact join) or one that cannot be capped is left to the mesher
+    (``caps="half"``: a prism half a spacing out).
     """
 
     def __init__(self):
@@ -339,15 +369,15 @@ class _SmoothEnds:
 
         inward = self.below if up else self.above
         self.kinds[(k, c, up)] = "half"
-        if len(rings) != 1 or (k, c) not in inward:
+        if (k, c) not in inward:
             return False
-        ring = rings[0]
-        xyz = M.coords(ring)
-        xy, z = xyz[:, :2], float(xyz[0, 2])
-        a0 = abs(shoelace_area(xy))
-        if a0 == 0.0 or len(np.unique(xy, axis=0)) != len(xy):
+        xyzs = [M.coords(r) for r in rings]
+        xys, z = [q[:, :2] for q in xyzs], float(xyzs[0][0, 2])
+        a0 = abs(shoelace_area(xys[0])) - sum(abs(shoelace_area(q)) for q in xys[1:])
+        allxy = np.concatenate(xys)
+        if a0 <= 0.0 or len(np.unique(allxy, axis=0)) != len(allxy):
             return False
-        areas, dists, centres = [a0], [], [xy.mean(axis=0)]
+        areas, dists, centres = [a0], [], [xys[0].mean(axis=0)]
         cur = (k, c)
         for _ in range(2):
             nxt = inward.get(cur)
@@ -363,19 +393,24 @@ class _SmoothEnds:
         gap = float(slice_gap(self.zs, k, up))
         t, lam, kind = _end_profile(areas, dists, gap)
         drift = (centres[0] - centres[1]) / dists[0]  # the centroids' line, per unit distance outward
-        centre, _ = _dome_centre(xy)
-        last = centre + lam[-1] * (xy - centre) + drift * t[-1]
+        centre, _ = _dome_centre(xys[0])  # outer ring and holes shrink together: similar sections
+
+        def placed(i):
+            return [centre + lam[i] * (q - centre) + drift * t[i] for q in xys]
+
+        last = placed(-1)
         try:
-            cap_faces(last, [], upward=up)
+            cap_faces(last[0], last[1:], upward=up)
         except ValueError:
             return False
         sgn = 1.0 if up else -1.0
-        prev = ring
-        for tk, lk in zip(t, lam):
-            nxt_ids = M.ring(centre + lk * (xy - centre) + drift * tk, z + sgn * tk)
-            M.quads(prev, nxt_ids) if up else M.quads(nxt_ids, prev)
+        prev = list(rings)
+        for i in range(len(t)):
+            nxt_ids = [M.ring(q, z + sgn * t[i]) for q in placed(i)]
+            for p_ids, n_ids in zip(prev, nxt_ids):
+                M.quads(p_ids, n_ids) if up else M.quads(n_ids, p_ids)
             prev = nxt_ids
-        M.cap([prev], upward=up)
+        M.cap(prev, upward=up)
         self.kinds[(k, c, up)] = kind
         return True
 
@@ -431,9 +466,14 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     """
     name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
     rings = []
+    keyholes = 0
     for rs in _physical_rings(stack):
-        rs = [q for q in rs if len(q) >= 3 and shoelace_area(q) != 0.0]
-        rings.append(_nest_section(rs) if rs else ((), ()))
+        split = []
+        for q in rs:
+            pieces = _split_at_repeats(q) if len(q) >= 3 else []
+            keyholes += len(pieces) > 1
+            split += pieces
+        rings.append(_nest_section(split) if split else ((), ()))
     with warnings.catch_warnings(record=True) as lost:
         warnings.simplefilter("always")
         r = rasterize_stack(stack, pixel)
@@ -493,7 +533,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     meta = dict(m.meta)
     meta.update(stack.meta)
     meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid),
-                faithful_bands=hook.band_guard.replaced)
+                faithful_bands=hook.band_guard.replaced, split_rings=keyholes)
     if caps == "smooth":
         e = hook.end_cap
         meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
