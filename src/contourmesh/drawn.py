@@ -154,30 +154,89 @@ def _fill(rings, x0, y0, pixel, shape_yx, box):
     return out
 
 
+def _ring_box(ring, raster, shape):
+    """The raster box ``(j0, j1, i0, i1)`` around ``ring``, a pixel of margin."""
+    x0, y0, _ = raster.origin
+    p = raster.spacing[0]
+    i0 = max(int(np.floor((ring[:, 0].min() - x0) / p)) - 1, 0)
+    i1 = min(int(np.ceil((ring[:, 0].max() - x0) / p)) + 2, shape[1])
+    j0 = max(int(np.floor((ring[:, 1].min() - y0) / p)) - 1, 0)
+    j1 = min(int(np.ceil((ring[:, 1].max() - y0) / p)) + 2, shape[0])
+    return j0, j1, i0, i1
+
+
+def _edge_pixels(ring, raster, box) -> np.ndarray:
+    """The pixels of ``box`` that the ring's edges pass through (the edges sampled every eighth pixel)."""
+    x0, y0, _ = raster.origin
+    p = raster.spacing[0]
+    j0, j1, i0, i1 = box
+    out = np.zeros((j1 - j0, i1 - i0), dtype=bool)
+    a, b = ring, np.roll(ring, -1, axis=0)
+    n = np.maximum(np.ceil(np.hypot(*(b - a).T) / (p / 8)).astype(np.int64), 1)
+    t = np.concatenate([np.arange(k) / k for k in n])
+    seg = np.repeat(np.arange(len(a)), n)
+    pts = a[seg] + (b[seg] - a[seg]) * t[:, None]
+    ii = np.rint((pts[:, 0] - x0) / p).astype(np.int64) - i0
+    jj = np.rint((pts[:, 1] - y0) / p).astype(np.int64) - j0
+    ok = (ii >= 0) & (ii < out.shape[1]) & (jj >= 0) & (jj < out.shape[0])
+    out[jj[ok], ii[ok]] = True
+    return out
+
+
+def _connect_split_rings(raster, rings) -> dict:
+    """Where the raster cuts a drawn outer ring (minus its holes) into several 4-connected pieces (a
+    sliver thinner than a pixel, as at the end of a tilted tube), the pixels its edges pass through
+    join them, so that the raster keeps the ring one component and its joins are decided for it.
+    Only where that makes one piece and touches no other ring's pixels.  Edits ``raster.volume``
+    in place; returns ``{(section, ring): (box, pixels)}``, the pixels each such ring now owns."""
+    from scipy import ndimage
+
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+    x0, y0, _ = raster.origin
+    p = raster.spacing[0]
+    shape = raster.volume.shape[1:]
+    grown = {}
+    for k, (rs, parents) in enumerate(rings):
+        for i, par in enumerate(parents):
+            if par != -1:
+                continue
+            holes = [rs[j] for j, q in enumerate(parents) if q == i]
+            box = _ring_box(rs[i], raster, shape)
+            pix = _fill([rs[i]] + holes, x0, y0, p, shape, box)
+            if ndimage.label(pix, structure=cross)[1] < 2:
+                continue
+            inner = _fill(holes, x0, y0, p, shape, box) if holes else np.zeros_like(pix)
+            new = pix | (_edge_pixels(rs[i], raster, box) & ~inner)
+            if ndimage.label(new, structure=cross)[1] != 1:
+                continue
+            sl = raster.volume[k, box[0]:box[1], box[2]:box[3]]
+            others = sl & ~pix  # other rings' pixels: the new ones must not touch them
+            if (ndimage.binary_dilation(new & ~pix, structure=cross) & others).any():
+                continue
+            sl |= new
+            grown[(k, i)] = (box, new)
+    return grown
+
+
 class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
-    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False):
+    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, grown=None):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
         self.name = name
         self.avoid = avoid  # sections whose drawn rings made crossing faces: the raster's polygons
         self.avoid_why = avoid_why
         self.unmatched: list[tuple] = []  # (section, z, why)
+        self.grown = grown or {}  # (section, ring) -> (box, pixels) of rings the raster was joined for
         # every band between drawn rings keeps a volume within the frustum and trapezoid rules
         self.band_guard = FaithfulBands()
         # caps="smooth": the ends of band-joined rings close on the profile of their last sections
         self.end_cap = _SmoothEnds() if smooth else None
 
     def _box(self, ring, shape):
-        x0, y0, _ = self.raster.origin
-        p = self.raster.spacing[0]
-        i0 = max(int(np.floor((ring[:, 0].min() - x0) / p)) - 1, 0)
-        i1 = min(int(np.ceil((ring[:, 0].max() - x0) / p)) + 2, shape[1])
-        j0 = max(int(np.floor((ring[:, 1].min() - y0) / p)) - 1, 0)
-        j1 = min(int(np.ceil((ring[:, 1].max() - y0) / p)) + 2, shape[0])
-        return j0, j1, i0, i1
+        return _ring_box(ring, self.raster, shape)
 
     def __call__(self, slices, zs, crack_only, joins) -> dict:
         x0, y0, _ = self.raster.origin
@@ -199,7 +258,10 @@ class _DrawnPolygons:
                     continue
                 holes = [j for j, q in enumerate(parents) if q == i]
                 box = self._box(r, s.labels.shape)
-                pix = _fill([r] + [rings[j] for j in holes], x0, y0, p, s.labels.shape, box)
+                if (k, i) in self.grown:  # a sliver whose pieces the raster was joined for (its edge pixels)
+                    box, pix = self.grown[(k, i)]
+                else:
+                    pix = _fill([r] + [rings[j] for j in holes], x0, y0, p, s.labels.shape, box)
                 lab = s.labels[box[0]:box[1], box[2]:box[3]][pix]
                 if lab.size == 0:
                     continue  # a ring thinner than a pixel: the raster lost it (LostContourWarning)
@@ -485,6 +547,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
             log.debug("contours route: a ring is lost or split at pixel=%g; pixel=%g", r.spacing[0], r.spacing[0] / 2)
             lost.clear()
             r = rasterize_stack(stack, r.spacing[0] / 2)
+    grown = _connect_split_rings(r, rings)
     for w in lost:  # the rasterization's warnings (lost rings), naming the structure
         text = str(w.message)
         warn_external(text if text.startswith(f"{name}:") else f"{name}: {text}", w.category)
@@ -494,7 +557,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     quiet = _Quiet()
     attempt = 0
     while True:
-        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth")
+        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", grown=grown)
         last = attempt >= _ATTEMPTS - 1 or avoid == everything
         if not last:
             log.addFilter(quiet)
@@ -533,7 +596,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     meta = dict(m.meta)
     meta.update(stack.meta)
     meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid),
-                faithful_bands=hook.band_guard.replaced, split_rings=keyholes)
+                faithful_bands=hook.band_guard.replaced, split_rings=keyholes,
+                joined_slivers=len(grown))
     if caps == "smooth":
         e = hook.end_cap
         meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
