@@ -189,3 +189,17 @@ def test_keyhole_tube_is_meshed_from_its_drawn_rings():
     assert sm.meta["smooth_half_prisms"] == 0 and sm.meta["smooth_tapers"] == 2  # the ends with their holes
     assert_sound(sm)
     assert abs(sm.volume / ph.volume - 1) < 0.01
+
+
+# --- slivers at a tilted tube's end (item 3) -----------------------------------------------------
+def test_tilted_cylinder_end_sliver_is_meshed_as_drawn():
+    from contourmesh.compare.clinical import cross_section_errors
+
+    ph = cylinder(5, 20, tilt=30, azimuth=20)
+    st = draw(ph, 3.0, 0.5, seed=20150819)  # a drawing of the verification set whose end sliver the raster cut
+    m = contourmesh.mesh(st)
+    assert m.meta["joined_slivers"] >= 1 and m.meta["unmatched_components"] == 0
+    assert m.meta["bridged_joins"] == 0  # the sliver joins its neighbour by a band, not as a fork
+    assert_sound(m)
+    assert np.abs(cross_section_errors(m, st)).max() < 5e-3
+    assert abs(outside_rules(m, st)) <= 5e-3
