@@ -132,18 +132,21 @@ def _best_edges(A1, A2, starts):
 
 #: Work (``starts * n * m``) of one dynamic programme; beyond it the start points are thinned.
 _DP_WORK = 1e6
+#: After the first programme (the least-area band), the start points within this many of its best one.
+_WINDOW = 3
 
 
 def _lagrange_band(lo, hi, mu, starts, sign):
+    """``(faces, s)``: the band minimising ``area - mu * sign * Am`` over the start points ``starts``."""
     c1, c2, swapped = oriented_pair(lo, hi)
     A1, A2 = _costs(np.ascontiguousarray(c1), np.ascontiguousarray(c2), float(mu), float(sign))
     E, s = _best_edges(A1, A2, starts)
     if s < 0:
-        return None
-    return edges_to_faces(E, len(c1), len(c2), int(s), 0, len(lo), swapped)
+        return None, -1
+    return edges_to_faces(E, len(c1), len(c2), int(s), 0, len(lo), swapped), int(s)
 
 
-def faithful_band(lo: np.ndarray, hi: np.ndarray, f: np.ndarray, *, slack: float = 1e-3,
+def faithful_band(lo: np.ndarray, hi: np.ndarray, f: np.ndarray, *, slack: float = 2e-3,
                   crosses=None, max_steps: int = 14):
     """``(faces, replaced)``: ``f`` when its volume lies within the rules' interval for the rings
     ``lo``, ``hi`` (``(n, 3)``, ``(m, 3)``, at two heights, oriented as the mesher's rings), widened by
@@ -173,19 +176,23 @@ def faithful_band(lo: np.ndarray, hi: np.ndarray, f: np.ndarray, *, slack: float
     centre = np.r_[np.concatenate([lo, hi])[:, :2].mean(axis=0), 0.0]
     lo_c, hi_c = lo - centre, hi - centre
     starts = np.arange(0, k1, step, dtype=np.int64)
-    if step > 1:  # and the start points of the original band's rungs at the larger ring's first point
-        c1_is_lo = n <= m
-        at = n if c1_is_lo else 0  # the first point of C(2) in vstack([lo, hi])
-        touching = f[(f == at).any(axis=1)].ravel()
-        own = touching[touching < n] if c1_is_lo else touching[touching >= n] - n
-        starts = np.unique(np.r_[starts, own]).astype(np.int64)
+    # and the start points of the original band's rungs at the larger ring's first point
+    c1_is_lo = n <= m
+    at = n if c1_is_lo else 0  # the first point of C(2) in vstack([lo, hi])
+    touching = f[(f == at).any(axis=1)].ravel()
+    starts_own = (touching[touching < n] if c1_is_lo else touching[touching >= n] - n).astype(np.int64)
+    starts = np.unique(np.r_[starts, starts_own]).astype(np.int64)
     P = np.concatenate([lo, hi])
     best, best_miss = f, abs(miss(v))
     cache = {}
 
+    near = [None]  # after the first programme: start points near its best one (they move little with mu)
+
     def attempt(mu):
         if mu not in cache:
-            g = _lagrange_band(lo_c, hi_c, mu, starts, sign)
+            g, s = _lagrange_band(lo_c, hi_c, mu, starts if near[0] is None else near[0], sign)
+            if near[0] is None and s >= 0 and len(starts) > 2 * _WINDOW + 1:
+                near[0] = np.unique(np.r_[np.arange(s - _WINDOW, s + _WINDOW + 1) % k1, starts_own]).astype(np.int64)
             cache[mu] = (g, None if g is None else band_volume(lo, hi, g))
         return cache[mu]
 
@@ -238,7 +245,7 @@ class FaithfulBands:
     between two rings at different heights goes through :func:`faithful_band`; counts the bands
     it replaced (``replaced``) and those it checked (``checked``)."""
 
-    def __init__(self, slack: float = 1e-3):
+    def __init__(self, slack: float = 2e-3):
         from . import _band_crosses
 
         self.slack = slack

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import zlib
 from pathlib import Path
 
@@ -163,10 +164,26 @@ def _contour_data(item) -> np.ndarray:
     return np.asarray([float(v) for v in item.ContourData], dtype=np.float64)
 
 
+#: The last RTSTRUCT parsed: ``((path, mtime_ns, size), dataset)``.  Meshing every ROI of a file reads
+#: it once per ROI; parsing a large structure set takes about a second.
+_LAST_RTSTRUCT: list = []
+
+
+def _dcmread_once(pydicom, path: Path):
+    """``pydicom.dcmread(path)``, reused while the file's path, modification time and size stay the same."""
+    st = os.stat(path)
+    key = (str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+    if _LAST_RTSTRUCT and _LAST_RTSTRUCT[0][0] == key:
+        return _LAST_RTSTRUCT[0][1]
+    ds = pydicom.dcmread(str(path))
+    _LAST_RTSTRUCT[:] = [(key, ds)]
+    return ds
+
+
 def _read_rtstruct(path: Path, roi) -> ContourStack:
     pydicom = _require("pydicom")
     try:
-        ds = pydicom.dcmread(str(path))
+        ds = _dcmread_once(pydicom, path)
         modality = getattr(ds, "Modality", None)
         if modality != "RTSTRUCT":
             raise _bad(path, "a DICOM RTSTRUCT (Modality 'RTSTRUCT')", f"Modality {modality!r}")
