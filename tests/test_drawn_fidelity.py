@@ -68,7 +68,8 @@ def test_faithful_band_brings_a_sliding_pair_into_the_rules():
     g, replaced = faithful_band(lo, hi, f, crosses=_band_crosses)
     assert replaced and len(g) == len(lo) + len(hi)
     v = band_volume(lo, hi, g)
-    assert vlo * (1 - 2e-3) <= v <= vhi * (1 + 2e-3)
+    # inside the interval, or the closest band tried when the volume jumps across it (at most 0.5 %)
+    assert vlo * (1 - 5e-3) <= v <= vhi * (1 + 5e-3)
     assert not _band_crosses(np.concatenate([lo, hi]), g)
     # a band already within the interval is kept as it is
     same = np.c_[lo[:, :2], np.full(36, 3.0)]
