@@ -33,8 +33,8 @@ import warnings
 import numpy as np
 from numba import njit
 
-from .errors import RasterFallbackWarning, warn_external
 from .bands.fidelity import FaithfulBands
+from .errors import RasterFallbackWarning, warn_external
 from .geometry import _fill_evenodd, grid_to_xy, shoelace_area
 from .intersect import intersecting_faces
 from .rasterize import _physical_rings, rasterize_stack
@@ -514,6 +514,29 @@ def _raster_splits_rings(r, rings) -> bool:
     return False
 
 
+def _drawn_rings(stack: ContourStack):
+    """Per section, ``(oriented rings, parents)`` of the drawn rings in physical units, keyhole rings
+    split (:func:`_split_at_repeats`); and how many rings were split."""
+    rings = []
+    keyholes = 0
+    for rs in _physical_rings(stack):
+        split = []
+        for q in rs:
+            pieces = _split_at_repeats(q) if len(q) >= 3 else []
+            keyholes += len(pieces) > 1
+            split += pieces
+        rings.append(_nest_section(split) if split else ((), ()))
+    return rings, keyholes
+
+
+def decision_raster(stack: ContourStack, pixel: float):
+    """The raster that decides the joins on the contours route at ``pixel`` (as ``meta["pixel"]`` records):
+    the even-odd rasterization with the pixels that keep split slivers whole."""
+    r = rasterize_stack(stack, pixel)
+    _connect_split_rings(r, _drawn_rings(stack)[0])
+    return r
+
+
 def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation: str = "wiederhold",
                caps: str = "flat", progress: bool = False) -> Mesh:
     """Mesh a real-valued contour stack between its drawn rings (the contours route; module docstring).
@@ -527,15 +550,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     mesher's join counts.
     """
     name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
-    rings = []
-    keyholes = 0
-    for rs in _physical_rings(stack):
-        split = []
-        for q in rs:
-            pieces = _split_at_repeats(q) if len(q) >= 3 else []
-            keyholes += len(pieces) > 1
-            split += pieces
-        rings.append(_nest_section(split) if split else ((), ()))
+    rings, keyholes = _drawn_rings(stack)
     with warnings.catch_warnings(record=True) as lost:
         warnings.simplefilter("always")
         r = rasterize_stack(stack, pixel)
