@@ -166,8 +166,9 @@ def test_smooth_cap_is_refused_where_it_cannot_be_made(tmp_path):
         contourmesh.mesh(drawn, caps="smooth", polygon="mlp")  # real-valued rings, MLP polygons: the raster route
     # route='contours' makes its own smooth ends (test_drawn_fidelity)
     assert contourmesh.mesh(drawn, caps="smooth", route="contours").meta["route"] == "contours"
-    # one drawn ring per section, polygon unset: the smooth cap is made on the stack route
-    assert contourmesh.mesh(drawn, caps="smooth").meta["route"] == "stack"
+    # one drawn ring per section, polygon unset: the contours route (polygon='none': the stack route)
+    assert contourmesh.mesh(drawn, caps="smooth").meta["route"] == "contours"
+    assert contourmesh.mesh(drawn, caps="smooth", polygon="none").meta["route"] == "stack"
     with pytest.raises(ContourMeshError, match="holes"):
         contourmesh.mesh("torus:R=8,r=3", caps="smooth")
     # the refined route and the command line take it

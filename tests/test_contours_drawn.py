@@ -149,9 +149,10 @@ def test_options_that_do_not_apply_to_the_contours_route_are_refused():
         contourmesh.mesh(st, route="drawn")
     # polygon='mlp' on drawn rings asks for the raster's polygons: the raster route, recorded
     assert contourmesh.mesh(st, polygon="mlp").meta["route"] == "raster"
-    # one ring per section: caps='smooth' and polygon='none' keep the stack route; route= picks another
+    # one ring per section: polygon='none' keeps the stack route (caps='smooth' too); route= picks another
     one = stack_from_rings([(2.0 * k, [circle(0, 0, 5)]) for k in range(4)])
-    assert contourmesh.mesh(one, caps="smooth").meta["route"] == "stack"
+    assert contourmesh.mesh(one, caps="smooth").meta["route"] == "contours"
+    assert contourmesh.mesh(one, caps="smooth", polygon="none").meta["route"] == "stack"
     assert contourmesh.mesh(one, polygon="none").meta["route"] == "stack"
     assert contourmesh.mesh(one).meta["route"] == "contours"
     with warnings.catch_warnings():

@@ -21,7 +21,7 @@ The routes behind the entry points:
 
 * **stack route** (:func:`contourmesh.surface.stack_to_mesh`): the paper's own path, for stacks
   with one contour per section (or nested outer/hole chains) of grid contours, and for
-  real-valued single contours meshed as drawn (``polygon="none"``, or ``caps="smooth"``);
+  real-valued single contours meshed as drawn (``polygon="none"``);
 * **contours route** (:func:`contourmesh.drawn.mesh_drawn`, ``route="contours"``): the default
   for real-valued contour stacks (contour files): the drawn rings themselves are the mesh's
   sections, joined by the volume mesher's joins, which a raster at ``pixel`` decides;
@@ -330,7 +330,7 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     * Grid contours (integer points): one contour per section goes to the stack route; several
       contours per section are rasterized (raster route).  ``polygon`` defaults to ``"mlp"``.
     * Real-valued rings (contour files), ``polygon`` unset or ``"none"``: the drawn rings are the
-      data.  With one ring per section and ``polygon="none"`` or ``caps="smooth"``, the stack route
+      data.  With one ring per section and ``polygon="none"``, the stack route
       triangulates them as drawn; otherwise (the default) the **contours route**
       (:func:`contourmesh.drawn.mesh_drawn`) meshes between the drawn rings, with several rings
       per section, holes, forks and merges; a raster at ``pixel`` (default: the median point
@@ -368,7 +368,7 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
                                  "the drawn rings themselves (use route='raster' for the polygons of a raster)")
     drawn = route == "contours" or (route is None and not integer and polygon in (None, "none"))
     fallback = None
-    if route is None and one_each and (integer or polygon == "none" or (polygon is None and caps == "smooth")):
+    if route is None and one_each and (integer or polygon == "none"):
         try:
             return _with_meta(stack_to_mesh(stack, polygon=polygon or ("mlp" if integer else "none"),
                                             triangulation=triangulation, caps=caps), route="stack")
