@@ -247,8 +247,9 @@ def _volume_caps(caps: str, why: str) -> str:
     """``caps`` for the volume mesher; ``"smooth"`` is refused there (it closes contour stacks only)."""
     if caps == "smooth":
         raise InapplicableOption(f"caps='smooth' does not apply here: {why}, and the volume mesher closes its ends "
-                                 "with caps='flat' or caps='half' only (the smooth dome is made on the stack route: "
-                                 "one contour per section, grid contours or polygon='none')")
+                                 "with caps='flat' or caps='half' only (smooth ends are made on the stack route: "
+                                 "one contour per section, grid contours or polygon='none'; and on the contours route "
+                                 "of drawn rings)")
     return caps
 
 
