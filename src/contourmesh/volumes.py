@@ -69,8 +69,10 @@ from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
 from .refine import refine_volume_rings
+from .intersect import intersecting_pairs
 from .repair import (
     _compact,
+    crossing_pairs_after_change,
     _open_necks,
     _separate_coincident,
     _split_four_face_edges,
@@ -443,12 +445,18 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # faces still cross after the repair, the band and bridged joins and the caps involved fall back
     # to the exact join (their components to crack rings) and the mesh is built again.
     fallback_joins = fallback_caps = 0
+    bridge_cache: dict = {}  # bridged joins built so far, kept across rebuilds (see _build_bridges)
+    previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
-                               has_above, has_below)
+                               has_above, has_below, bridge_cache)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner)
-        V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs)
+        # the first build is checked whole; a rebuild differs from it only around the joins and caps
+        # that fell back, and only pairs with a changed face are tested again (the same pairs)
+        pairs = _crossing_pairs(V, F, previous)
+        previous = (V, F, pairs)
+        V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
         left = info.pop("pairs")
         if not len(left) or attempt == _MAX_REBUILDS:
             break
@@ -476,6 +484,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, band_fallbacks)
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
+
+
+def _crossing_pairs(V, F, previous):
+    """The crossing face pairs of a built mesh: checked whole, or from the ``previous`` build's
+    ``(V, F, pairs)`` where there is one (:func:`contourmesh.repair.crossing_pairs_after_change`)."""
+    if previous is None:
+        return intersecting_pairs(V, F)
+    return crossing_pairs_after_change(*previous, V, F)
 
 
 #: How many times the general mesher rebuilds a mesh whose faces cross after the repair, with the
@@ -1026,9 +1042,15 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     return _Bridged(V, F, rings, n_ring, replaced, nb, segments)
 
 
-def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below):
+def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
-    (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``."""
+    (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``.
+
+    ``cache`` (a dict kept by the caller across rebuilds of one mesh with the same ``joins`` list)
+    holds every join built so far, keyed by all that its result depends on: the join (its index),
+    the crack-only components of its two planes (they decide its rings and the edges its bridges
+    must avoid) and which of its lids are lidded from both sides.  A rebuild after a crossing
+    fallback then builds only the joins whose planes or lids changed."""
     from collections import defaultdict
 
     from .bands.bridges import segments_cross
@@ -1083,7 +1105,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             for b, h in data[2][2]:
                 lids[k + 1, b, h] += 1
     double = {key for key, n in lids.items() if n > 1}
-    cache = {}
+    cache = {} if cache is None else cache
     while True:
         taken = defaultdict(list)
         out = {}
@@ -1092,7 +1114,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             if kind != "bridge":
                 continue
             ga, gb, plan = data
-            key = (idx, sig(k), sig(k + 1))
+            dbl = tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
+            key = (idx, sig(k), sig(k + 1), dbl)
             # a keyhole lies in its component's plane, inside the component: a flat cap there (the
             # component ends on the other side) would meet the fold along it
             if caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
