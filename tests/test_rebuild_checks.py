@@ -1,0 +1,98 @@
+"""Issue 16 (speed on real segmentations): a rebuild after a crossing fallback reuses the bridged
+joins it can and tests only the faces that changed; the meshes and the crossing pairs stay the
+same as when everything is built and checked again."""
+
+import numpy as np
+import pytest
+import trimesh
+from scipy import ndimage
+
+import contourmesh
+from contourmesh import volumes
+from contourmesh.intersect import intersecting_pairs
+from contourmesh.repair import crossing_pairs_after_change
+
+
+def _blob(seed, shape=(10, 24, 24)):
+    rng = np.random.default_rng(seed)
+    return ndimage.gaussian_filter(rng.random(shape), 1.2) > 0.5
+
+
+# a blob whose mesh needs a crossing fallback, with bridged joins on both sides of it
+BLOB_WITH_FALLBACK = 18
+
+
+def _two_spheres():
+    a = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    b = trimesh.creation.icosphere(subdivisions=2, radius=0.8)
+    V = np.concatenate([a.vertices, b.vertices + [0.9, 0.1, 0.05]])
+    F = np.concatenate([a.faces, b.faces + len(a.vertices)])
+    return V, F
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_pairs_after_change_equal_the_whole_check(seed):
+    rng = np.random.default_rng(seed)
+    V0, F0 = _two_spheres()
+    p0 = intersecting_pairs(V0, F0)
+    assert len(p0) > 0  # the spheres cross: there are old pairs to carry over
+    V1, F1 = V0.copy(), F0.copy()
+    # some vertices move (their faces change), a face is repeated (it overlaps itself), the faces
+    # are shuffled and the vertices renumbered
+    moved = rng.choice(len(V1), 12, replace=False)
+    V1[moved] += rng.normal(scale=0.15, size=(12, 3))
+    F1 = np.concatenate([F1, F1[rng.integers(len(F1))][None, ::-1]])
+    F1 = F1[rng.permutation(len(F1))]
+    perm = rng.permutation(len(V1))
+    V1 = V1[np.argsort(perm)]
+    F1 = perm[F1]
+    got = crossing_pairs_after_change(V0, F0, p0, V1, F1)
+    want = intersecting_pairs(V1, F1)
+    assert len(want) > 0
+    np.testing.assert_array_equal(got, want)
+
+
+def test_pairs_after_change_of_an_unchanged_mesh_are_the_old_ones():
+    V0, F0 = _two_spheres()
+    p0 = intersecting_pairs(V0, F0)
+    np.testing.assert_array_equal(crossing_pairs_after_change(V0, F0, p0, V0, F0), p0)
+    # a mesh whose pairs are all gone after the change (the second sphere moved away)
+    V1 = V0.copy()
+    V1[len(trimesh.creation.icosphere(subdivisions=2).vertices):] += [5.0, 0, 0]
+    assert len(crossing_pairs_after_change(V0, F0, p0, V1, F0)) == 0 == len(intersecting_pairs(V1, F0))
+
+
+def test_rebuilds_check_the_same_pairs_and_reuse_bridged_joins(monkeypatch):
+    v = _blob(BLOB_WITH_FALLBACK)
+    checks = []
+    whole = volumes._crossing_pairs
+
+    def crossing_pairs(V, F, previous):
+        got = whole(V, F, previous)
+        checks.append(previous is not None)
+        np.testing.assert_array_equal(got, intersecting_pairs(V, F))
+        return got
+
+    calls = []
+    join = volumes._bridge_join
+
+    def bridge_join(*args, **kw):
+        calls.append(args[:3])
+        return join(*args, **kw)
+
+    monkeypatch.setattr(volumes, "_crossing_pairs", crossing_pairs)
+    monkeypatch.setattr(volumes, "_bridge_join", bridge_join)
+    m = contourmesh.mesh(v)
+    assert m.meta["crossing_fallbacks"] > 0 and m.meta["bridged_joins"] > 0
+    assert m.meta["self_intersections"] == 0 and m.checks()["ok"]
+    assert checks[0] is False and any(checks[1:])  # a rebuild was checked from the first build
+    cached_calls = len(calls)
+
+    # the same mesh when every rebuild builds every bridged join again
+    build = volumes._build_bridges
+    monkeypatch.setattr(volumes, "_build_bridges", lambda *a: build(*a[:9], None))
+    calls.clear()
+    m2 = contourmesh.mesh(v)
+    assert cached_calls < len(calls)
+    np.testing.assert_array_equal(m.vertices, m2.vertices)
+    np.testing.assert_array_equal(m.faces, m2.faces)
