@@ -1,6 +1,7 @@
 """Issue 16 (speed on real segmentations): a rebuild after a crossing fallback reuses the bridged
 joins it can and tests only the faces that changed; the meshes and the crossing pairs stay the
-same as when everything is built and checked again."""
+same as when everything is built and checked again.  The optimal band that bridged joins retry on
+folded bands is bounded in time (a window of start points)."""
 
 import numpy as np
 import pytest
@@ -96,3 +97,33 @@ def test_rebuilds_check_the_same_pairs_and_reuse_bridged_joins(monkeypatch):
     assert cached_calls < len(calls)
     np.testing.assert_array_equal(m.vertices, m2.vertices)
     np.testing.assert_array_equal(m.faces, m2.faces)
+
+
+def _ring(n, r, z, phase=0.0, wobble=0.0):
+    t = phase + 2 * np.pi * np.arange(n) / n
+    rr = r * (1 + wobble * np.sin(5 * t))
+    return np.c_[rr * np.cos(t), rr * np.sin(t), np.full(n, z)]
+
+
+def test_bounded_optimal_band_is_a_band_no_smaller_than_the_optimum():
+    from contourmesh.bands import band_is_folded
+    from contourmesh.bands.optimal import triangulate_band_optimal
+    from contourmesh.measure import triangle_areas
+
+    lo, hi = _ring(40, 5.0, 0.0, wobble=0.2), _ring(150, 5.5, 1.0, phase=0.3, wobble=0.1)
+    full = triangulate_band_optimal(lo, hi)
+    P = np.concatenate([lo, hi])
+    # a budget above n^2 m is the optimum itself
+    np.testing.assert_array_equal(triangulate_band_optimal(lo, hi, max_work=40 * 40 * 150), full)
+    for k in (1, 3, 7):
+        f = triangulate_band_optimal(lo, hi, max_work=k * 40 * 150)
+        assert len(f) == len(lo) + len(hi) and not band_is_folded(f)
+        # every edge of the rings is used once: a closed annulus
+        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        ring_edges = {tuple(sorted((i, (i + 1) % 40))) for i in range(40)} | \
+            {tuple(sorted((40 + j, 40 + (j + 1) % 150))) for j in range(150)}
+        assert ring_edges <= {tuple(x) for x in e.tolist()}
+        assert triangle_areas(P, f).sum() >= triangle_areas(P, full).sum() - 1e-9
+    # these rings are alike: the window round the nearest point holds the optimal start
+    assert triangle_areas(P, triangulate_band_optimal(lo, hi, max_work=7 * 40 * 150)).sum() == \
+        pytest.approx(triangle_areas(P, full).sum(), rel=1e-12)

@@ -65,6 +65,7 @@ import numpy as np
 
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
+from .bands.optimal import triangulate_band_optimal
 from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
@@ -995,11 +996,14 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
         ids = np.concatenate([a_ids, b_ids])
         f, r = _band_faces(V[a_ids], V[b_ids], triangulation, _BRIDGED_OPTIMAL_BUDGET)
-        # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice
+        # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
+        # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
         for method in ("optimal", "arclength"):
             if not band_is_folded(ids[f]):
                 break
-            f, r = triangulate_band(V[a_ids], V[b_ids], method, fallback=False), r + 1
+            f = triangulate_band_optimal(V[a_ids], V[b_ids], max_work=_BRIDGED_OPTIMAL_BUDGET) \
+                if method == "optimal" else triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
+            r += 1
         if band_is_folded(ids[f]):
             return None
         faces.append(ids[f])
