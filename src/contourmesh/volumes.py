@@ -1052,8 +1052,9 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     ``cache`` (a dict kept by the caller across rebuilds of one mesh with the same ``joins`` list)
     holds every join built so far, keyed by all that its result depends on: the join (its index),
-    the crack-only components of its two planes (they decide its rings and the edges its bridges
-    must avoid) and which of its lids are lidded from both sides.  A rebuild after a crossing
+    the crack-only components of its two planes whose rings may meet the box of its own rings in
+    that plane (they decide its rings and the edges near its bridges, which lie in that box) and
+    which of its lids are lidded from both sides.  A rebuild after a crossing
     fallback then builds only the joins whose planes or lids changed."""
     from collections import defaultdict
 
@@ -1071,6 +1072,24 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     def sig(kk):
         return tuple(sorted(by_slice[kk]))
+
+    boxes = {}
+
+    def box(kk, c):
+        """A box holding every ring of component c of slice kk, as polygon and as crack ring."""
+        if (kk, c) not in boxes:
+            s = slices[kk]
+            rs = np.concatenate([s.crack_outer[c], s.outer[c]] + list(s.crack_holes[c]) + list(s.holes[c]))
+            boxes[kk, c] = (rs.min(axis=0), rs.max(axis=0))
+        return boxes[kk, c]
+
+    def near_sig(kk, comps):
+        """The crack-only components of slice kk whose rings may meet the box of ``comps``' rings:
+        the only ones whose edges a bridge between ``comps``' rings can meet."""
+        lo = np.min([box(kk, c)[0] for c in comps], axis=0)
+        hi = np.max([box(kk, c)[1] for c in comps], axis=0)
+        return tuple(c for c in sorted(by_slice[kk])
+                     if (box(kk, c)[0] <= hi).all() and (box(kk, c)[1] >= lo).all())
 
     edge_cache = {}
     ox, oy, dx, dy = grid
@@ -1119,7 +1138,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 continue
             ga, gb, plan = data
             dbl = tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
-            key = (idx, sig(k), sig(k + 1), dbl)
+            key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl)
             # a keyhole lies in its component's plane, inside the component: a flat cap there (the
             # component ends on the other side) would meet the fold along it
             if caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
