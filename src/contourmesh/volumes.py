@@ -1075,23 +1075,23 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     def sig(kk):
         return tuple(sorted(by_slice[kk]))
 
-    boxes = {}
-
-    def box(kk, c):
-        """A box holding every ring of component c of slice kk, as polygon and as crack ring."""
-        if (kk, c) not in boxes:
-            s = slices[kk]
-            rs = np.concatenate([s.crack_outer[c], s.outer[c]] + list(s.crack_holes[c]) + list(s.holes[c]))
-            boxes[kk, c] = (rs.min(axis=0), rs.max(axis=0))
-        return boxes[kk, c]
+    boxes = {}  # slice -> (lo, hi): per component a box holding all its rings, as polygons and as crack rings
+    near = {}  # (slice, components) -> the components of that slice whose boxes meet theirs
 
     def near_sig(kk, comps):
         """The crack-only components of slice kk whose rings may meet the box of ``comps``' rings:
         the only ones whose edges a bridge between ``comps``' rings can meet."""
-        lo = np.min([box(kk, c)[0] for c in comps], axis=0)
-        hi = np.max([box(kk, c)[1] for c in comps], axis=0)
-        return tuple(c for c in sorted(by_slice[kk])
-                     if (box(kk, c)[0] <= hi).all() and (box(kk, c)[1] >= lo).all())
+        key = (kk, tuple(comps))
+        if key not in near:
+            if kk not in boxes:
+                s = slices[kk]
+                rs = [np.concatenate([s.crack_outer[c], s.outer[c]] + list(s.crack_holes[c]) + list(s.holes[c]))
+                      for c in range(s.n)]
+                boxes[kk] = (np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs]))
+            blo, bhi = boxes[kk]
+            lo, hi = blo[list(comps)].min(axis=0), bhi[list(comps)].max(axis=0)
+            near[key] = frozenset(np.flatnonzero((blo <= hi).all(axis=1) & (bhi >= lo).all(axis=1)).tolist())
+        return tuple(sorted(near[key] & by_slice[kk]))
 
     edge_cache = {}
     ox, oy, dx, dy = grid
