@@ -14,7 +14,7 @@ from numba import njit
 
 from .intersect import intersecting_pairs
 
-__all__ = ["split_nonmanifold_vertices", "resolve_crossings"]
+__all__ = ["split_nonmanifold_vertices", "resolve_crossings", "crossing_pairs_after_change"]
 
 
 def _split_four_face_edges(V, F, side, nudge):
@@ -453,6 +453,192 @@ def _faces_near(V, W, F, moved_faces):
     near[owner[np.isin(fk, np.unique(mk))]] = True
     near[moved_faces] = True
     return np.flatnonzero(near)
+
+
+@njit(cache=True, nogil=True)
+def _row_ids(R, sort_rows):
+    """A group number per row of the int64 array ``R`` (rows with equal values share it; with
+    ``sort_rows``, rows equal up to the order of their values), numbered in order of first
+    occurrence; an open-addressing hash table, linear in the number of rows."""
+    n, k = R.shape
+    if sort_rows:  # (insertion sort of each short row)
+        R = R.copy()
+        for i in range(n):
+            for c in range(1, k):
+                x = R[i, c]
+                j = c - 1
+                while j >= 0 and R[i, j] > x:
+                    R[i, j + 1] = R[i, j]
+                    j -= 1
+                R[i, j + 1] = x
+    size = 1
+    while size < 2 * n + 2:
+        size *= 2
+    table = np.full(size, -1, np.int64)  # the first row of each group in this slot
+    gid_of = np.empty(n, np.int64)
+    ids = np.empty(n, np.int64)
+    count = 0
+    for i in range(n):
+        h = np.uint64(0x9E3779B97F4A7C15)
+        for c in range(k):
+            h ^= np.uint64(R[i, c]) + np.uint64(0x9E3779B97F4A7C15) + (h << np.uint64(6)) + (h >> np.uint64(2))
+            h *= np.uint64(0xBF58476D1CE4E5B9)
+            h ^= h >> np.uint64(31)
+        slot = np.int64(h & np.uint64(size - 1))
+        while True:
+            j = table[slot]
+            if j < 0:
+                table[slot] = i
+                gid_of[i] = count
+                ids[i] = count
+                count += 1
+                break
+            same = True
+            for c in range(k):
+                if R[j, c] != R[i, c]:
+                    same = False
+                    break
+            if same:
+                ids[i] = gid_of[j]
+                break
+            slot = (slot + 1) & (size - 1)
+    return ids
+
+
+def _face_position_keys(V0, F0, V1, F1):
+    """One integer per face of two meshes such that two faces (of either mesh) get the same
+    number exactly when they have the same three corner positions (in any order; positions equal
+    bit for bit after ``-0.0`` becomes ``0.0``)."""
+    bits = (np.concatenate([V0, V1]) + 0.0).view(np.int64)
+    pos = _row_ids(np.ascontiguousarray(bits), False)
+    key = _row_ids(np.concatenate([pos[: len(V0)][F0], pos[len(V0):][F1]]), True)
+    return key[: len(F0)], key[len(F0):]
+
+
+@njit(cache=True, nogil=True)
+def _boxes_near(V, F, chosen):
+    """Faces sharing a cell of a grid with a face in ``chosen``: a superset of the faces whose
+    closed bounding boxes meet the box of a chosen face.  The cells are as large as the chosen
+    faces and no smaller than most faces."""
+    n = F.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    ext = np.empty(n)
+    for i in range(n):
+        e = 0.0
+        for d in range(3):
+            a, b, c = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
+            lo[i, d] = min(a, b, c)
+            hi[i, d] = max(a, b, c)
+            e = max(e, hi[i, d] - lo[i, d])
+        ext[i] = e
+    h = max(np.median(ext), 1e-12)
+    for t in range(len(chosen)):
+        h = max(h, ext[chosen[t]])
+    glo = np.empty(3)
+    for d in range(3):
+        glo[d] = lo[:, d].min()
+    ncell = 0
+    for t in range(len(chosen)):
+        i = chosen[t]
+        span = 1
+        for d in range(3):
+            span *= np.int64(np.floor((hi[i, d] - glo[d]) / h)) - np.int64(np.floor((lo[i, d] - glo[d]) / h)) + 1
+        ncell += span
+    size = 1
+    while size < 2 * ncell + 2:
+        size *= 2
+    keys = np.empty((size, 3), np.int64)
+    used = np.zeros(size, np.bool_)
+    for t in range(len(chosen)):
+        i = chosen[t]
+        a = np.empty(3, np.int64)
+        b = np.empty(3, np.int64)
+        for d in range(3):
+            a[d] = np.int64(np.floor((lo[i, d] - glo[d]) / h))
+            b[d] = np.int64(np.floor((hi[i, d] - glo[d]) / h))
+        for x in range(a[0], b[0] + 1):
+            for y in range(a[1], b[1] + 1):
+                for z in range(a[2], b[2] + 1):
+                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
+                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
+                    while used[slot] and not (keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z):
+                        slot = (slot + 1) & (size - 1)
+                    used[slot] = True
+                    keys[slot, 0], keys[slot, 1], keys[slot, 2] = x, y, z
+    near = np.zeros(n, np.bool_)
+    for t in range(len(chosen)):
+        near[chosen[t]] = True
+    for i in range(n):
+        if near[i]:
+            continue
+        a0 = np.int64(np.floor((lo[i, 0] - glo[0]) / h))
+        a1 = np.int64(np.floor((lo[i, 1] - glo[1]) / h))
+        a2 = np.int64(np.floor((lo[i, 2] - glo[2]) / h))
+        b0 = np.int64(np.floor((hi[i, 0] - glo[0]) / h))
+        b1 = np.int64(np.floor((hi[i, 1] - glo[1]) / h))
+        b2 = np.int64(np.floor((hi[i, 2] - glo[2]) / h))
+        found = False
+        for x in range(a0, b0 + 1):
+            for y in range(a1, b1 + 1):
+                for z in range(a2, b2 + 1):
+                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
+                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
+                    while used[slot]:
+                        if keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z:
+                            found = True
+                            break
+                        slot = (slot + 1) & (size - 1)
+                    if found:
+                        break
+                if found:
+                    break
+            if found:
+                break
+        near[i] = found
+    return np.flatnonzero(near)
+
+
+def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):
+    """The crossing face pairs of a mesh ``(V1, F1)`` that is a changed copy of ``(V0, F0)``, whose
+    crossing pairs ``pairs0`` (:func:`contourmesh.intersect.intersecting_pairs`) are known.
+
+    Whether two faces intersect depends only on the positions of their corners (vertices are
+    identified by position).  So a pair of faces of the new mesh that both occur, corner for corner,
+    in the old mesh crosses exactly when the old pair did; only pairs with a face that is new (or
+    repeated: a face that occurs twice overlaps itself) are tested, against the faces whose boxes may
+    meet them.  The result equals ``intersecting_pairs(V1, F1)``: ``(k, 2)`` face indices ``i < j``,
+    sorted."""
+    from .intersect import intersecting_pairs as _pairs
+
+    V0 = np.asarray(V0, dtype=np.float64)
+    V1 = np.asarray(V1, dtype=np.float64)
+    F0 = np.asarray(F0, dtype=np.int64).reshape(-1, 3)
+    F1 = np.asarray(F1, dtype=np.int64).reshape(-1, 3)
+    k0, k1 = _face_position_keys(V0, F0, V1, F1)
+    nk = int(max(k0.max(initial=-1), k1.max(initial=-1))) + 1
+    c0 = np.bincount(k0, minlength=nk)
+    c1 = np.bincount(k1, minlength=nk)
+    old_of_key = np.full(nk, -1, dtype=np.int64)
+    once0 = c0[k0] == 1
+    old_of_key[k0[once0]] = np.flatnonzero(once0)
+    kept = (c0[k1] == 1) & (c1[k1] == 1)  # the face occurs once in each mesh
+    new_of_old = np.full(len(F0), -1, dtype=np.int64)
+    new_of_old[old_of_key[k1[kept]]] = np.flatnonzero(kept)
+    p0 = np.asarray(pairs0, dtype=np.int64).reshape(-1, 2)
+    q = new_of_old[p0] if len(p0) else np.zeros((0, 2), dtype=np.int64)
+    out = [q[(q >= 0).all(axis=1)]]
+    changed = np.flatnonzero(~kept)
+    if len(changed) and len(F1) > 1:
+        sub = _boxes_near(V1, F1, changed)
+        r = _pairs(V1, F1[sub])
+        if len(r):
+            r = sub[r]
+            out.append(r[(~kept[r]).any(axis=1)])
+    p = np.sort(np.concatenate(out), axis=1)
+    if len(p):
+        p = np.unique(p, axis=0)  # sorted rows, i < j
+    return p.reshape(-1, 2)
 
 
 def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):

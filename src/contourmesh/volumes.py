@@ -51,7 +51,9 @@ Conventions (stated once)
   (:func:`contourmesh.repair.resolve_crossings`).  Where faces still cross, each band or bridged
   join that made one becomes an exact join and each capped component that made one keeps its crack
   rings, and the mesh is built again (a few rounds at most; ``meta["crossing_fallbacks"]`` counts
-  the joins and caps changed).  This covers a band sweeping through the prism of a component that
+  the joins and caps changed).  A rebuild keeps the bridged joins whose rings and neighbourhood
+  did not change, and only its faces that did not occur in the previous build are tested again
+  (the other pairs are known: the same answer as a whole check).  This covers a band sweeping through the prism of a component that
   touches its own only diagonally, polygons of 8-adjacent components that overlap, and bands from
   a crack ring that touches itself.  Whatever is left is counted in ``meta["self_intersections"]``
   and logged as a warning.
@@ -65,12 +67,15 @@ import numpy as np
 
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
+from .bands.optimal import triangulate_band_optimal
 from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
 from .refine import refine_volume_rings
+from .intersect import intersecting_pairs
 from .repair import (
     _compact,
+    crossing_pairs_after_change,
     _open_necks,
     _separate_coincident,
     _split_four_face_edges,
@@ -451,13 +456,19 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # faces still cross after the repair, the band and bridged joins and the caps involved fall back
     # to the exact join (their components to crack rings) and the mesh is built again.
     fallback_joins = fallback_caps = 0
+    bridge_cache: dict = {}  # bridged joins built so far, kept across rebuilds (see _build_bridges)
+    previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
-                               has_above, has_below)
+                               has_above, has_below, bridge_cache)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), getattr(polygons, "end_cap", None))
-        V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs)
+        # the first build is checked whole; a rebuild differs from it only around the joins and caps
+        # that fell back, and only pairs with a changed face are tested again (the same pairs)
+        pairs = _crossing_pairs(V, F, previous)
+        previous = (V, F, pairs)
+        V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
         left = info.pop("pairs")
         if not len(left) or attempt == _MAX_REBUILDS:
             break
@@ -485,6 +496,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, band_fallbacks)
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
+
+
+def _crossing_pairs(V, F, previous):
+    """The crossing face pairs of a built mesh: checked whole, or from the ``previous`` build's
+    ``(V, F, pairs)`` where there is one (:func:`contourmesh.repair.crossing_pairs_after_change`)."""
+    if previous is None:
+        return intersecting_pairs(V, F)
+    return crossing_pairs_after_change(*previous, V, F)
 
 
 #: How many times the general mesher rebuilds a mesh whose faces cross after the repair, with the
@@ -990,11 +1009,14 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
         ids = np.concatenate([a_ids, b_ids])
         f, r = _band_faces(V[a_ids], V[b_ids], triangulation, _BRIDGED_OPTIMAL_BUDGET)
-        # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice
+        # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
+        # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
         for method in ("optimal", "arclength"):
             if not band_is_folded(ids[f]):
                 break
-            f, r = triangulate_band(V[a_ids], V[b_ids], method, fallback=False), r + 1
+            f = triangulate_band_optimal(V[a_ids], V[b_ids], max_work=_BRIDGED_OPTIMAL_BUDGET) \
+                if method == "optimal" else triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
+            r += 1
         if band_is_folded(ids[f]):
             return None
         faces.append(ids[f])
@@ -1037,9 +1059,16 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     return _Bridged(V, F, rings, n_ring, replaced, nb, segments)
 
 
-def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below):
+def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
-    (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``."""
+    (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``.
+
+    ``cache`` (a dict kept by the caller across rebuilds of one mesh with the same ``joins`` list)
+    holds every join built so far, keyed by all that its result depends on: the join (its index),
+    the crack-only components of its two planes whose rings may meet the box of its own rings in
+    that plane (they decide its rings and the edges near its bridges, which lie in that box) and
+    which of its lids are lidded from both sides.  A rebuild after a crossing
+    fallback then builds only the joins whose planes or lids changed."""
     from collections import defaultdict
 
     from .bands.bridges import segments_cross
@@ -1056,6 +1085,24 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     def sig(kk):
         return tuple(sorted(by_slice[kk]))
+
+    boxes = {}  # slice -> (lo, hi): per component a box holding all its rings, as polygons and as crack rings
+    near = {}  # (slice, components) -> the components of that slice whose boxes meet theirs
+
+    def near_sig(kk, comps):
+        """The crack-only components of slice kk whose rings may meet the box of ``comps``' rings:
+        the only ones whose edges a bridge between ``comps``' rings can meet."""
+        key = (kk, tuple(comps))
+        if key not in near:
+            if kk not in boxes:
+                s = slices[kk]
+                rs = [np.concatenate([s.crack_outer[c], s.outer[c]] + list(s.crack_holes[c]) + list(s.holes[c]))
+                      for c in range(s.n)]
+                boxes[kk] = (np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs]))
+            blo, bhi = boxes[kk]
+            lo, hi = blo[list(comps)].min(axis=0), bhi[list(comps)].max(axis=0)
+            near[key] = frozenset(np.flatnonzero((blo <= hi).all(axis=1) & (bhi >= lo).all(axis=1)).tolist())
+        return tuple(sorted(near[key] & by_slice[kk]))
 
     edge_cache = {}
     ox, oy, dx, dy = grid
@@ -1094,7 +1141,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             for b, h in data[2][2]:
                 lids[k + 1, b, h] += 1
     double = {key for key, n in lids.items() if n > 1}
-    cache = {}
+    cache = {} if cache is None else cache
     while True:
         taken = defaultdict(list)
         out = {}
@@ -1103,7 +1150,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             if kind != "bridge":
                 continue
             ga, gb, plan = data
-            key = (idx, sig(k), sig(k + 1))
+            dbl = tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
+            key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl)
             # a keyhole lies in its component's plane, inside the component: a flat cap there (the
             # component ends on the other side) would meet the fold along it
             if caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])

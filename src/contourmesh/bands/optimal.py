@@ -154,7 +154,15 @@ def _annulus_dp(A1, A2, s, D, move, parent, keep):
 
 @njit(cache=True)
 def optimal_edges(c1, c2):
-    """Least-area annular edge sequence between ``c1`` (``n >= 2``) and ``c2`` (``m >= n``).
+    """See :func:`optimal_edges_from`: every start point of ``c1`` is tried (the optimum)."""
+    return optimal_edges_from(c1, c2, np.arange(c1.shape[0]))
+
+
+@njit(cache=True)
+def optimal_edges_from(c1, c2, starts):
+    """Least-area annular edge sequence between ``c1`` (``n >= 2``) and ``c2`` (``m >= n``) among
+    those whose edge at ``c2``'s first point starts at one of ``starts`` (increasing indices of
+    ``c1``; all of them for the optimum).
 
     Returns
     -------
@@ -170,9 +178,9 @@ def optimal_edges(c1, c2):
     m = c2.shape[0]
     D2 = np.empty((2, N_LAYERS, m + 1))
     dummy = np.empty((1, 1, 1), dtype=np.int8)
-    best_s = 0
+    best_s = starts[0]
     best = np.inf
-    for s in range(n):
+    for s in starts:
         c = _annulus_dp(A1, A2, s, D2, dummy, dummy, False)
         if c < best:
             best = c
@@ -196,7 +204,7 @@ def optimal_edges(c1, c2):
     return E, best_s, total
 
 
-def triangulate_band_optimal(lower, upper) -> np.ndarray:
+def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.ndarray:
     """Triangulate a band with the least total triangle area (Fuchs-Kedem-Uselton).
 
     Parameters
@@ -211,13 +219,19 @@ def triangulate_band_optimal(lower, upper) -> np.ndarray:
     faces : ndarray of int64, shape (n + m, 3)
         Triangles indexing ``np.vstack([lower, upper])`` (``max(n, m)`` for a pole point,
         none for two points).  ``O(min(n, m)^2 max(n, m))`` time.
+
+    ``max_work`` bounds that time: where ``n^2 m`` exceeds it (``n <= m``), only the
+    ``max(1, max_work // (n m))`` start points of the smaller polygon nearest (in index) to the
+    point closest to the larger polygon's first point are tried, so the band has the least area
+    among those whose edge at that first point is nearly the shortest (not always the least area).
     """
     lo, up = validate_band_polygons(lower, upper)
     if len(lo) == 1 and len(up) == 1:
         return np.empty((0, 3), dtype=np.int64)
     c1, c2, swapped = oriented_pair(lo, up)
     n, m = len(c1), len(c2)
-    if n * m > MAX_OPTIMAL_CELLS or n * n * m > MAX_OPTIMAL_WORK:
+    bounded = max_work is not None and n * n * m > max_work
+    if n * m > MAX_OPTIMAL_CELLS or (n * n * m > MAX_OPTIMAL_WORK and not bounded):
         raise ValueError(
             f"the optimal band between polygons of {n} and {m} vertices needs {n * m:,} table cells (about "
             f"{26 * n * m / 2**20:,.0f} MiB) and {n * n * m:.2g} steps; the limits are {MAX_OPTIMAL_CELLS:,} cells and "
@@ -226,6 +240,11 @@ def triangulate_band_optimal(lower, upper) -> np.ndarray:
     if len(c1) == 1:
         edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
         s = 0
+    elif bounded:
+        k = int(max(1, max_work // (n * m)))
+        near = int(np.argmin(((c1 - c2[0]) ** 2).sum(axis=1)))
+        starts = np.sort((near - k // 2 + np.arange(k)) % n).astype(np.int64)
+        edges, s, _ = optimal_edges_from(c1, c2, starts)
     else:
         edges, s, _ = optimal_edges(c1, c2)
     return edges_to_faces(edges, len(c1), len(c2), s, 0, len(lo), swapped)

@@ -1,0 +1,129 @@
+"""Issue 16 (speed on real segmentations): a rebuild after a crossing fallback reuses the bridged
+joins it can and tests only the faces that changed; the meshes and the crossing pairs stay the
+same as when everything is built and checked again.  The optimal band that bridged joins retry on
+folded bands is bounded in time (a window of start points)."""
+
+import numpy as np
+import pytest
+import trimesh
+from scipy import ndimage
+
+import contourmesh
+from contourmesh import volumes
+from contourmesh.intersect import intersecting_pairs
+from contourmesh.repair import crossing_pairs_after_change
+
+
+def _blob(seed, shape=(10, 24, 24)):
+    rng = np.random.default_rng(seed)
+    return ndimage.gaussian_filter(rng.random(shape), 1.2) > 0.5
+
+
+# a blob whose mesh needs a crossing fallback, with bridged joins on both sides of it
+BLOB_WITH_FALLBACK = 18
+
+
+def _two_spheres():
+    a = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    b = trimesh.creation.icosphere(subdivisions=2, radius=0.8)
+    V = np.concatenate([a.vertices, b.vertices + [0.9, 0.1, 0.05]])
+    F = np.concatenate([a.faces, b.faces + len(a.vertices)])
+    return V, F
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_pairs_after_change_equal_the_whole_check(seed):
+    rng = np.random.default_rng(seed)
+    V0, F0 = _two_spheres()
+    p0 = intersecting_pairs(V0, F0)
+    assert len(p0) > 0  # the spheres cross: there are old pairs to carry over
+    V1, F1 = V0.copy(), F0.copy()
+    # some vertices move (their faces change), a face is repeated (it overlaps itself), the faces
+    # are shuffled and the vertices renumbered
+    moved = rng.choice(len(V1), 12, replace=False)
+    V1[moved] += rng.normal(scale=0.15, size=(12, 3))
+    F1 = np.concatenate([F1, F1[rng.integers(len(F1))][None, ::-1]])
+    F1 = F1[rng.permutation(len(F1))]
+    perm = rng.permutation(len(V1))
+    V1 = V1[np.argsort(perm)]
+    F1 = perm[F1]
+    got = crossing_pairs_after_change(V0, F0, p0, V1, F1)
+    want = intersecting_pairs(V1, F1)
+    assert len(want) > 0
+    np.testing.assert_array_equal(got, want)
+
+
+def test_pairs_after_change_of_an_unchanged_mesh_are_the_old_ones():
+    V0, F0 = _two_spheres()
+    p0 = intersecting_pairs(V0, F0)
+    np.testing.assert_array_equal(crossing_pairs_after_change(V0, F0, p0, V0, F0), p0)
+    # a mesh whose pairs are all gone after the change (the second sphere moved away)
+    V1 = V0.copy()
+    V1[len(trimesh.creation.icosphere(subdivisions=2).vertices):] += [5.0, 0, 0]
+    assert len(crossing_pairs_after_change(V0, F0, p0, V1, F0)) == 0 == len(intersecting_pairs(V1, F0))
+
+
+def test_rebuilds_check_the_same_pairs_and_reuse_bridged_joins(monkeypatch):
+    v = _blob(BLOB_WITH_FALLBACK)
+    checks = []
+    whole = volumes._crossing_pairs
+
+    def crossing_pairs(V, F, previous):
+        got = whole(V, F, previous)
+        checks.append(previous is not None)
+        np.testing.assert_array_equal(got, intersecting_pairs(V, F))
+        return got
+
+    calls = []
+    join = volumes._bridge_join
+
+    def bridge_join(*args, **kw):
+        calls.append(args[:3])
+        return join(*args, **kw)
+
+    monkeypatch.setattr(volumes, "_crossing_pairs", crossing_pairs)
+    monkeypatch.setattr(volumes, "_bridge_join", bridge_join)
+    m = contourmesh.mesh(v)
+    assert m.meta["crossing_fallbacks"] > 0 and m.meta["bridged_joins"] > 0
+    assert m.meta["self_intersections"] == 0 and m.checks()["ok"]
+    assert checks[0] is False and any(checks[1:])  # a rebuild was checked from the first build
+    cached_calls = len(calls)
+
+    # the same mesh when every rebuild builds every bridged join again
+    build = volumes._build_bridges
+    monkeypatch.setattr(volumes, "_build_bridges", lambda *a: build(*a[:9], None))
+    calls.clear()
+    m2 = contourmesh.mesh(v)
+    assert cached_calls < len(calls)
+    np.testing.assert_array_equal(m.vertices, m2.vertices)
+    np.testing.assert_array_equal(m.faces, m2.faces)
+
+
+def _ring(n, r, z, phase=0.0, wobble=0.0):
+    t = phase + 2 * np.pi * np.arange(n) / n
+    rr = r * (1 + wobble * np.sin(5 * t))
+    return np.c_[rr * np.cos(t), rr * np.sin(t), np.full(n, z)]
+
+
+def test_bounded_optimal_band_is_a_band_no_smaller_than_the_optimum():
+    from contourmesh.bands import band_is_folded
+    from contourmesh.bands.optimal import triangulate_band_optimal
+    from contourmesh.measure import triangle_areas
+
+    lo, hi = _ring(40, 5.0, 0.0, wobble=0.2), _ring(150, 5.5, 1.0, phase=0.3, wobble=0.1)
+    full = triangulate_band_optimal(lo, hi)
+    P = np.concatenate([lo, hi])
+    # a budget above n^2 m is the optimum itself
+    np.testing.assert_array_equal(triangulate_band_optimal(lo, hi, max_work=40 * 40 * 150), full)
+    for k in (1, 3, 7):
+        f = triangulate_band_optimal(lo, hi, max_work=k * 40 * 150)
+        assert len(f) == len(lo) + len(hi) and not band_is_folded(f)
+        # every edge of the rings is used once: a closed annulus
+        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        ring_edges = {tuple(sorted((i, (i + 1) % 40))) for i in range(40)} | \
+            {tuple(sorted((40 + j, 40 + (j + 1) % 150))) for j in range(150)}
+        assert ring_edges <= {tuple(x) for x in e.tolist()}
+        assert triangle_areas(P, f).sum() >= triangle_areas(P, full).sum() - 1e-9
+    # these rings are alike: the window round the nearest point holds the optimal start
+    assert triangle_areas(P, triangulate_band_optimal(lo, hi, max_work=7 * 40 * 150)).sum() == \
+        pytest.approx(triangle_areas(P, full).sum(), rel=1e-12)
