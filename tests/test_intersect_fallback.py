@@ -96,3 +96,30 @@ def test_band_crossing_test_sees_pinched_rings():
     sq = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
     a, b = np.c_[sq, np.zeros(4)], np.c_[sq * 2 - 0.5, np.ones(4)]
     assert not _band_crosses(np.concatenate([a, b]), triangulate_band(a, b, "wiederhold"))
+
+
+def test_bridged_join_whose_band_crosses_takes_another_strategy(monkeypatch):
+    """A bridged join whose band crosses itself tries the other band strategies before it gives
+    up and becomes a voxel-exact join (fandisk rotated as in comparisons/real, 64 across)."""
+    from contourmesh import volumes
+    from contourmesh.compare.inputs import data_dir, mesh_inputs
+
+    path = data_dir() / "meshes" / "libigl-tutorial-data" / "fandisk.off"
+    if not path.is_file():
+        pytest.skip(f"the shared data folder is absent ({path} not found; set CONTOURMESH_DATA)")
+    inp = next(i for i in mesh_inputs("meshes/libigl-tutorial-data/fandisk.off", [64], name="fandisk-rot",
+                                      repeats=3, seed=20090823, offset=True, rotate=True, root=data_dir(),
+                                      placement="per-repeat") if i.repeat == 1)
+    vol, sp, org = inp.volume()
+    out = {}
+    for key, alts in (("with", volumes._BRIDGED_ALTERNATIVES), ("without", ())):
+        monkeypatch.setattr(volumes, "_BRIDGED_ALTERNATIVES", alts)
+        m = contourmesh.mesh(vol, spacing=sp, origin=org, refine="band")
+        c = m.checks()
+        assert c["watertight"] and c["winding_consistent"] and c["volume"] > 0
+        assert c["self_intersections"] == 0
+        out[key] = m
+    with_alts, without = out["with"], out["without"]
+    assert with_alts.meta["exact_joins"] < without.meta["exact_joins"]
+    assert with_alts.meta["bridged_joins"] > without.meta["bridged_joins"]
+    assert with_alts.meta["axis_wall_fraction"] < without.meta["axis_wall_fraction"]

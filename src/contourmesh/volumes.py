@@ -959,6 +959,10 @@ class _Bridged:
         self.replaced, self.bridges, self.segments = replaced, bridges, segments
 
 
+#: Band strategies tried, in order, on a bridged join whose band crosses itself.
+_BRIDGED_ALTERNATIVES = ("optimal", "arclength", "wiederhold", "greedy")
+
+
 def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double):
     """Build one bridged join (a :class:`_Bridged`), or None where a bridge, a lid or the faces
     would not keep clear of each other."""
@@ -1019,6 +1023,18 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             r += 1
         if band_is_folded(ids[f]):
             return None
+        # a bridged ring is far from convex (its slits): the chosen band may cross itself where
+        # another strategy does not; take the first embedded one before giving the join up
+        P = np.concatenate([V[a_ids], V[b_ids]])
+        if _band_crosses(P, f):
+            n_, m_ = sorted((len(a_ids), len(b_ids)))
+            for method in _BRIDGED_ALTERNATIVES:
+                if method == "optimal" and (triangulation == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
+                    continue  # already tried, or too slow (cubic)
+                g = triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
+                if not band_is_folded(ids[g]) and not _band_crosses(P, g):
+                    f, r = g, r + 1
+                    break
         faces.append(ids[f])
         replaced += r
     extra = []
