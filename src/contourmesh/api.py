@@ -49,7 +49,7 @@ import numpy as np
 from . import shapes as _shapes
 from .bands.caps import CapError
 from .digitize import gauss_volume, outer_jordan_stack
-from .errors import InapplicableOption, RasterFallbackWarning, StackSurfaceError, warn_external
+from .errors import CrossingFacesError, InapplicableOption, RasterFallbackWarning, StackSurfaceError, warn_external
 from .io import check_file
 from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
@@ -233,11 +233,13 @@ def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Me
     log.debug("refined route: refine_stack(%r) then the stack mesher", refine)
     fine = refine_stack(stack, refine, polygon=polygon)
     try:
-        m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps)
+        m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps,
+                          crossings="warn" if caps == "smooth" else "raise")
     except (CapError, StackSurfaceError) as exc:
-        if one_each:
+        if one_each and not isinstance(exc, CrossingFacesError):
             raise
-        # an outer contour with holes whose refined rings do not close on the stack route
+        # an outer contour with holes whose refined rings do not close on the stack route, or
+        # refined rings whose faces cross: the stack's digital object, by the volume mesher
         log.debug("refined stack route failed (%s); the volume mesher refines its polygons", exc)
         return _refined_volume(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, polygon=polygon, refine=refine, route="refined"))
@@ -370,8 +372,11 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     fallback = None
     if route is None and one_each and (integer or polygon == "none" or (polygon is None and caps == "smooth")):
         try:
+            # grid contours: crossings left are warned about; drawn rings: the contours route below
             return _with_meta(stack_to_mesh(stack, polygon=polygon or ("mlp" if integer else "none"),
-                                            triangulation=triangulation, caps=caps), route="stack")
+                                            triangulation=triangulation, caps=caps,
+                                            crossings="warn" if integer or caps == "smooth" else "raise"),
+                              route="stack")
         except (CapError, StackSurfaceError) as exc:
             if integer:
                 raise
