@@ -20,6 +20,21 @@ End rules (stated once, see docs/DESIGN.md):
   side wall.  A polygon that touches itself (the
   MLP of a thin part goes out and back) cannot be capped by ear clipping: a collar 1 % of the
   spacing beyond the end then joins it to its contour, capped by the contour's grid cells.
+
+Crossing faces (issue 13: closed means embedded).  Every band is guarded: of the requested
+triangulation and then ``optimal``, ``arclength``, ``wiederhold``, ``greedy``, the first whose own
+faces neither fold nor cross is used (``meta["band_fallbacks"]`` counts the bands that were not the
+requested one).  The finished mesh is tested exactly (:mod:`contourmesh.intersect`); where faces of
+different bands or caps still cross, each band involved takes its next triangulation, and a band
+that no triangulation keeps clear, or a cap, has its sections meshed from their contours instead of
+their polygons (``meta["polygon_fallbacks"]``); the mesh is built again, at most
+``_MAX_REBUILDS`` times (``meta["crossing_fallbacks"]`` counts the changes).  Faces that then touch
+or cross by a hair are pulled apart (:func:`contourmesh.repair.resolve_crossings`, section vertices
+moving in their plane; ``meta["crossings_repaired"]``).  Whatever is left is counted in
+``meta["self_intersections"]`` and, with ``crossings="warn"`` (the default), warned about
+(:class:`~contourmesh.errors.SelfIntersectionWarning`), or raised with ``crossings="raise"``
+(:class:`~contourmesh.errors.CrossingFacesError`): :func:`contourmesh.mesh` then meshes drawn rings on
+the contours route and refined stacks by the volume mesher.  No crossing mesh is returned silently.
 """
 
 from __future__ import annotations
