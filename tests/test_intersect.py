@@ -409,7 +409,10 @@ def test_crossings_left_are_reported_not_hidden(caplog, monkeypatch):
     assert _embedded(m)["self_intersections"] == 0
     # ... and without that fallback it says so (meta and a warning), and checks() agrees
     monkeypatch.setattr(volumes, "_MAX_REBUILDS", 0)
-    with caplog.at_level(logging.WARNING, logger="contourmesh"):
+    from contourmesh.errors import SelfIntersectionWarning
+
+    with caplog.at_level(logging.WARNING, logger="contourmesh"), \
+            pytest.warns(SelfIntersectionWarning, match="pairs of faces still cross"):
         m = contourmesh.mesh(v, polygon="none")
     left = m.meta["self_intersections"]
     assert left > 0 and m.checks()["self_intersections"] == left and not m.checks()["ok"]
