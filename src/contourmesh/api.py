@@ -60,7 +60,7 @@ from .surface import _nested_chains, stack_to_mesh
 from .tracing import trace_contours
 from .types import ContourStack, Mesh, Section, shoelace_area
 from .volume_input import check_origin, check_spacing, check_volume_array, prepare_volume
-from .volumes import volume_to_mesh
+from .volumes import volume_to_mesh, voxel_topology
 
 __all__ = ["mesh", "mesh_shape", "mesh_stack", "mesh_volume", "mesh_file", "source_kind", "is_file_source",
            "OPTIONS"]
@@ -417,7 +417,8 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
 def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
     """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement);
     None when some slice has several contours (or a hole), or a contour that bounds no area (a part
-    one pixel wide: the stack mesher cannot close it, the volume mesher can)."""
+    one pixel wide: the stack mesher cannot close it, the volume mesher can), or when the voxels'
+    surface is not one sphere (6/26 connectivity: slices overlapping in two places make a handle)."""
     if dx != dy:
         raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
     sections = []
@@ -428,6 +429,11 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
         if len(contours) != 1 or len(contours[0]) < 3 or shoelace_area(contours[0]) == 0:
             return None
         sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
+    topo = voxel_topology(mask)
+    if topo["surfaces"] != 1 or topo["genus"] != 0:
+        # one contour per slice, but the slices overlap in several places (a handle), or an empty
+        # slice parts them: the stack route would make one sphere, the volume mesher keeps the topology
+        return None
     return ContourStack(tuple(sections), spacing=(dx, dy), origin=(ox, oy), meta={"source": "volume"})
 
 
