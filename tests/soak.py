@@ -26,6 +26,9 @@ Every example is drawn from a seed (so any failure replays with ``--replay SEED`
   mirrored in the slice plane gives the same topology and the same area (to round-off for
   translations and for ``optimal`` bands; see :func:`check_invariance`).
 
+Every mesh, on every route (volumes, integer stacks, drawn rings, refined), must also be free of
+crossing faces (``checks()["self_intersections"] == 0``, issue 13).
+
 The helpers here are imported by ``tests/test_robustness.py``, which runs the same checks
 under hypothesis with a CI-sized budget.
 """
