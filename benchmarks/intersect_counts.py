@@ -1,12 +1,17 @@
 """Self-intersections of contourmesh's own meshes (issue 13): shared samples and random volumes.
 
-For every shared sample volume (default mode and ``polygon="none"``) prints the faces, the
-intersecting face pairs (``contourmesh.intersect``), the faces involved, and the time of the
-check against the meshing time; then the counts over random volumes of the issue's five kinds.
+For every shared sample volume (default mode and ``polygon="none"``, or every mode with
+``--modes all``) prints the faces, the intersecting face pairs (``contourmesh.intersect``), the
+faces involved, the route and its repair counts, and the time of the check against the meshing
+time; then the counts over random volumes of the issue's five kinds.
 
     python benchmarks/intersect_counts.py                  # samples + 150 random volumes
     python benchmarks/intersect_counts.py --random 0 --samples bunny-64,liver
+    python benchmarks/intersect_counts.py --random 0 --modes all --json out.json   # every sample, every mode
     python benchmarks/intersect_counts.py --speed          # the 512^3 ball and the liver, timed
+
+A mode is ``default``, a polygon name (``none``), or ``polygon/triangulation/refine`` (``mlp/greedy/band``,
+``none/optimal/-``); ``all`` is every ``polygon x triangulation x refine`` (3 x 4 x 2 = 24 modes).
 """
 
 from __future__ import annotations
@@ -47,6 +52,34 @@ def load(name):
     return np.pad(mask, 1), tuple(float(s) for s in d["spacing_xyz"])
 
 
+POLYGONS = ("mlp", "dss", "none")
+TRIANGULATIONS = ("wiederhold", "greedy", "optimal", "arclength")
+REFINES = ("-", "band")
+ALL_MODES = tuple(f"{p}/{t}/{r}" for r in REFINES for p in POLYGONS for t in TRIANGULATIONS)
+
+
+def mode_kwargs(mode: str) -> dict:
+    """The ``contourmesh.mesh`` keywords of a mode name (see the module docstring)."""
+    if mode == "default":
+        return {}
+    if "/" not in mode:
+        return {"polygon": mode}
+    p, t, r = mode.split("/")
+    if p not in POLYGONS or t not in TRIANGULATIONS or r not in REFINES:
+        raise ValueError(f"unknown mode {mode!r}; expected polygon/triangulation/refine with polygon in {POLYGONS}, "
+                         f"triangulation in {TRIANGULATIONS}, refine in {REFINES}")
+    return {"polygon": p, "triangulation": t, **({"refine": r} if r != "-" else {})}
+
+
+def expand_modes(text: str) -> list[str]:
+    out = []
+    for m in (x for x in text.split(",") if x):
+        out.extend(ALL_MODES if m == "all" else [m])
+    for m in out:
+        mode_kwargs(m)  # a bad name fails before any meshing
+    return out
+
+
 def measure(vol, spacing=(1.0, 1.0, 1.0), **kw):
     import contourmesh
     from contourmesh.intersect import intersecting_pairs
@@ -59,8 +92,11 @@ def measure(vol, spacing=(1.0, 1.0, 1.0), **kw):
     t = time.perf_counter()
     p = intersecting_pairs(m.vertices, m.faces)
     tc = time.perf_counter() - t
+    keys = ("route", "self_intersections", "crossings_repaired", "crossing_fallbacks", "band_fallbacks",
+            "polygon_fallbacks")
     return dict(faces=int(len(m.faces)), pairs=int(len(p)), faces_involved=int(len(np.unique(p))),
-                mesh_s=round(tm, 3), check_s=round(tc, 3), ratio=round(tc / tm, 3))
+                mesh_s=round(tm, 3), check_s=round(tc, 3), ratio=round(tc / tm, 3),
+                **{k: m.meta[k] for k in keys if k in m.meta})
 
 
 def ball(n, r):
@@ -75,12 +111,20 @@ def main(argv=None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", default=",".join(SAMPLES))
-    ap.add_argument("--modes", default="default,none")
+    ap.add_argument("--modes", default="default,none",
+                    help="comma-separated modes: default, a polygon name, polygon/triangulation/refine, or all")
     ap.add_argument("--random", type=int, default=150)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--speed", action="store_true")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
+    modes = expand_modes(args.modes)
+
+    def save(out):  # after every mesh, atomically: a long run can be read while it goes
+        if args.json:
+            tmp = args.json.with_suffix(args.json.suffix + ".tmp")
+            tmp.write_text(json.dumps(out, indent=1))
+            os.replace(tmp, args.json)
     intersecting_pairs(np.eye(3), np.array([[0, 1, 2], [0, 2, 1]]))  # compile outside the timings
     measure(ball(12, 4))
     out = {"samples": {}, "random": {}, "speed": {}}
@@ -100,13 +144,13 @@ def main(argv=None) -> int:
             print(f"{name}: not found under {DATA}", flush=True)
             continue
         vol, spacing = load(name)
-        for mode in args.modes.split(","):
-            kw = {} if mode == "default" else {"polygon": mode}
-            r = measure(vol, spacing, **kw)
+        for mode in modes:
+            r = measure(vol, spacing, **mode_kwargs(mode))
             out["samples"][f"{name}:{mode}"] = r
             print(name, mode, r, flush=True)
-    for mode in args.modes.split(",") if args.random else []:
-        kw = {} if mode == "default" else {"polygon": mode}
+            save(out)
+    for mode in modes if args.random else []:
+        kw = mode_kwargs(mode)
         rs = np.random.default_rng(args.seed)
         for i in range(args.random):
             kind = VOLUME_KINDS[i % 5]
@@ -120,8 +164,10 @@ def main(argv=None) -> int:
         for k, b in out["random"].items():
             if k.endswith(":" + mode):
                 print("random", k, b, flush=True)
-    if args.json:
-        args.json.write_text(json.dumps(out, indent=1))
+    save(out)
+    crossing = sorted(k for k, r in out["samples"].items() if r["pairs"])
+    print(f"samples x modes: {len(out['samples'])} meshes, {len(crossing)} with crossing faces"
+          + (f": {', '.join(crossing)}" if crossing else ""), flush=True)
     return 0
 
 

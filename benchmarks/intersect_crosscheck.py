@@ -187,6 +187,10 @@ def main(argv=None) -> int:
         if (missed or pml_missed or extra - shared - points) and len(examples) < 20:
             examples.append(dict(i=i, label=label, o3d_missed=sorted(missed)[:5], pml_missed=sorted(pml_missed)[:5],
                                  extra_other=sorted(extra - shared - points)[:5]))
+        if (i + 1) % 50 == 0:  # progress, and the figures so far (a long run can be read while it goes)
+            print(json.dumps(dict(done=i + 1, **{k: tot[k] for k in ("o3d_missed", "pml_missed", "ours_extra_other",
+                                                                       "meshes_crossing", "ours_pairs", "o3d_pairs")})),
+                  file=sys.stderr, flush=True)
     tot["seconds_total"] = time.time() - t0
     out = dict(args=vars(args) | {"json": str(args.json) if args.json else None}, totals=tot, by_label=by_label,
                examples=examples)

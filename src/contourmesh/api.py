@@ -49,7 +49,7 @@ import numpy as np
 from . import shapes as _shapes
 from .bands.caps import CapError
 from .digitize import gauss_volume, outer_jordan_stack
-from .errors import InapplicableOption, RasterFallbackWarning, StackSurfaceError, warn_external
+from .errors import CrossingFacesError, InapplicableOption, RasterFallbackWarning, StackSurfaceError, warn_external
 from .io import check_file
 from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
@@ -60,7 +60,7 @@ from .surface import _nested_chains, stack_to_mesh
 from .tracing import trace_contours
 from .types import ContourStack, Mesh, Section, shoelace_area
 from .volume_input import check_origin, check_spacing, check_volume_array, prepare_volume
-from .volumes import volume_to_mesh
+from .volumes import volume_to_mesh, voxel_topology
 
 __all__ = ["mesh", "mesh_shape", "mesh_stack", "mesh_volume", "mesh_file", "source_kind", "is_file_source",
            "OPTIONS"]
@@ -233,11 +233,13 @@ def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Me
     log.debug("refined route: refine_stack(%r) then the stack mesher", refine)
     fine = refine_stack(stack, refine, polygon=polygon)
     try:
-        m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps)
+        m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps,
+                          crossings="warn" if caps == "smooth" else "raise")
     except (CapError, StackSurfaceError) as exc:
-        if one_each:
+        if one_each and not isinstance(exc, CrossingFacesError):
             raise
-        # an outer contour with holes whose refined rings do not close on the stack route
+        # an outer contour with holes whose refined rings do not close on the stack route, or
+        # refined rings whose faces cross: the stack's digital object, by the volume mesher
         log.debug("refined stack route failed (%s); the volume mesher refines its polygons", exc)
         return _refined_volume(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, polygon=polygon, refine=refine, route="refined"))
@@ -371,8 +373,11 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     fallback = None
     if route is None and one_each and (integer or polygon == "none"):
         try:
+            # grid contours: crossings left are warned about; drawn rings: the contours route below
             return _with_meta(stack_to_mesh(stack, polygon=polygon or ("mlp" if integer else "none"),
-                                            triangulation=triangulation, caps=caps), route="stack")
+                                            triangulation=triangulation, caps=caps,
+                                            crossings="warn" if integer or caps == "smooth" else "raise"),
+                              route="stack")
         except (CapError, StackSurfaceError) as exc:
             if integer:
                 raise
@@ -410,7 +415,8 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
 def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
     """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement);
     None when some slice has several contours (or a hole), or a contour that bounds no area (a part
-    one pixel wide: the stack mesher cannot close it, the volume mesher can)."""
+    one pixel wide: the stack mesher cannot close it, the volume mesher can), or when the voxels'
+    surface is not one sphere (6/26 connectivity: slices overlapping in two places make a handle)."""
     if dx != dy:
         raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
     sections = []
@@ -421,6 +427,11 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
         if len(contours) != 1 or len(contours[0]) < 3 or shoelace_area(contours[0]) == 0:
             return None
         sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
+    topo = voxel_topology(mask)
+    if topo["surfaces"] != 1 or topo["genus"] != 0:
+        # one contour per slice, but the slices overlap in several places (a handle), or an empty
+        # slice parts them: the stack route would make one sphere, the volume mesher keeps the topology
+        return None
     return ContourStack(tuple(sections), spacing=(dx, dy), origin=(ox, oy), meta={"source": "volume"})
 
 

@@ -10,8 +10,9 @@ from __future__ import annotations
 import os
 import warnings
 
-__all__ = ["ContourMeshError", "InapplicableOption", "CapError", "StackSurfaceError", "MissingDependency",
-           "LostContourWarning", "RasterFallbackWarning", "warn_external"]
+__all__ = ["ContourMeshError", "InapplicableOption", "CapError", "StackSurfaceError", "CrossingFacesError",
+           "MissingDependency",
+           "LostContourWarning", "RasterFallbackWarning", "SelfIntersectionWarning", "warn_external"]
 
 
 class ContourMeshError(ValueError):
@@ -30,6 +31,11 @@ class StackSurfaceError(ContourMeshError):
     """The contours do not bound a closed surface on the stack route (e.g. a keyhole contour)."""
 
 
+class CrossingFacesError(StackSurfaceError):
+    """Faces of a stack-route mesh still cross after its local repair (asked for with
+    ``crossings="raise"``; the front door then takes another route)."""
+
+
 class MissingDependency(ImportError):
     """An optional package that a method, reader or adapter needs is not installed."""
 
@@ -40,6 +46,11 @@ class LostContourWarning(UserWarning):
 
 class RasterFallbackWarning(UserWarning):
     """A structure that the stack route was to mesh as drawn could not be, and was rasterized instead."""
+
+
+class SelfIntersectionWarning(UserWarning):
+    """A mesh is closed but some of its faces cross (its repair was exhausted); the number of
+    crossing face pairs is in ``meta["self_intersections"]``."""
 
 
 _PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__)) + os.sep

@@ -315,14 +315,23 @@ def _open_necks(V, F, S, necks, nudge):
             ua, ub = -ua, -ub
         ua = np.r_[ua, ua[0] + 2 * np.pi]
         ub = np.r_[ub, ub[0] + 2 * np.pi]
-        i = j = 0
-        while i < n or j < m:  # advance the ring whose next vertex comes first around the axis
-            if j >= m or (i < n and ua[i + 1] <= ub[j + 1]):
-                new_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
-                i += 1
-            else:
-                new_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
-                j += 1
+        # advance the ring whose next vertex comes first around the axis; where that path laps one
+        # ring while the other waits (rings that are not star-shaped about the axis: the same
+        # diagonal twice, four faces on an edge), advance both in proportion to their sizes instead
+        for first_of in (lambda i, j: ua[i + 1] <= ub[j + 1], lambda i, j: (i + 1) * m <= (j + 1) * n):
+            i = j = 0
+            path, tube_faces = [(0, 0)], []
+            while i < n or j < m:
+                if j >= m or (i < n and first_of(i, j)):
+                    tube_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
+                    i += 1
+                else:
+                    tube_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
+                    j += 1
+                path.append((i % n, j % m))
+            if len(set(path[:-1])) == len(path) - 1:
+                break
+        new_faces += tube_faces
         for t in star:
             alive[t] = False
         for f in new_faces:

@@ -20,6 +20,21 @@ End rules (stated once, see docs/DESIGN.md):
   side wall.  A polygon that touches itself (the
   MLP of a thin part goes out and back) cannot be capped by ear clipping: a collar 1 % of the
   spacing beyond the end then joins it to its contour, capped by the contour's grid cells.
+
+Crossing faces (issue 13: closed means embedded).  Every band is guarded: of the requested
+triangulation and then ``optimal``, ``arclength``, ``wiederhold``, ``greedy``, the first whose own
+faces neither fold nor cross is used (``meta["band_fallbacks"]`` counts the bands that were not the
+requested one).  The finished mesh is tested exactly (:mod:`contourmesh.intersect`); where faces of
+different bands or caps still cross, each band involved takes its next triangulation, and a band
+that no triangulation keeps clear, or a cap, has its sections meshed from their contours instead of
+their polygons (``meta["polygon_fallbacks"]``); the mesh is built again, at most
+``_MAX_REBUILDS`` times (``meta["crossing_fallbacks"]`` counts the changes).  Faces that then touch
+or cross by a hair are pulled apart (:func:`contourmesh.repair.resolve_crossings`, section vertices
+moving in their plane; ``meta["crossings_repaired"]``).  Whatever is left is counted in
+``meta["self_intersections"]`` and, with ``crossings="warn"`` (the default), warned about
+(:class:`~contourmesh.errors.SelfIntersectionWarning`), or raised with ``crossings="raise"``
+(:class:`~contourmesh.errors.CrossingFacesError`): :func:`contourmesh.mesh` then meshes drawn rings on
+the contours route and refined stacks by the volume mesher.  No crossing mesh is returned silently.
 """
 
 from __future__ import annotations
@@ -28,13 +43,20 @@ import logging
 
 import numpy as np
 
-from .bands import triangulate_band
+from .bands import band_is_folded, triangulate_band
 from .bands.caps import CapError, cap_faces
-from .errors import ContourMeshError, StackSurfaceError
+from .errors import (
+    ContourMeshError,
+    CrossingFacesError,
+    SelfIntersectionWarning,
+    StackSurfaceError,
+    warn_external,
+)
 from .geometry import points_in_rings, shoelace_area
+from .intersect import intersecting_pairs
 from .measure import _edge_counts, mesh_volume
 from .polygons import polygonize
-from .repair import _separate_coincident, split_nonmanifold_vertices
+from .repair import _separate_coincident, resolve_crossings, split_nonmanifold_vertices
 from .stacks import check_stack
 from .types import ContourStack, Mesh, Section
 
@@ -77,6 +99,14 @@ class _Builder:
         self.n = 0
         self.cell_caps = 0
         self.smooth_fallbacks = 0
+        self.keys: list = []  # what made each face block (a band's key, or None), parallel to faces
+        self.key = None  # the key of the blocks added now
+        self.levels: dict = {}  # band key -> first triangulation to try (index into _band_order)
+        self.used: dict = {}  # band key -> the triangulation index the band took
+        self.band_fallbacks = 0  # bands whose own faces crossed with the requested triangulation
+        self.exhausted: set = set()  # band keys for which no triangulation keeps clear of itself
+        self.sections_of: dict = {}  # key -> the sections whose rings its faces use
+        self.contour_sections: set = set()  # sections meshed from their contours (crossing fallback)
 
     def add_polygon(self, poly_xy: np.ndarray, z: float) -> np.ndarray:
         """Add a polygon's vertices at height z; returns the vertex index of each polygon point."""
@@ -110,6 +140,11 @@ class _Builder:
     def add_faces(self, faces: np.ndarray):
         if len(faces):
             self.faces.append(np.asarray(faces, dtype=np.int64))
+            self.keys.append(self.key)
+
+    def face_keys(self) -> list:
+        """The key of every face (see :attr:`key`)."""
+        return [k for k, f in zip(self.keys, self.faces) for _ in range(len(f))]
 
     def mark(self) -> tuple[int, int, int]:
         """The builder's state (vertices, face blocks, cell caps), for :meth:`restore`."""
@@ -122,6 +157,7 @@ class _Builder:
             allv = np.concatenate(self.vertices)[:n]
             self.vertices = [allv] if n else []
         self.n, self.faces, self.cell_caps = n, self.faces[:nf], cells
+        self.keys = self.keys[:nf]
 
     def box_volume_since(self, mark: tuple[int, int, int]) -> float:
         """Volume of the bounding box of the vertices added since ``mark`` (a scale for tolerances)."""
@@ -149,13 +185,52 @@ class _Builder:
         return Mesh(v, f, P=len(v), **kw)
 
 
-def _band(builder: _Builder, lo_idx, hi_idx, method: str):
+#: Largest ``n^2 m`` (ring sizes ``n <= m``) for which the band guard tries the optimal band.
+_OPTIMAL_BUDGET = 3e7
 
+
+def _band_order(method: str) -> list[str]:
+    """The triangulations a band tries, the requested one first (see :func:`_band`)."""
+    return [method] + [m for m in ("optimal", "arclength", "wiederhold", "greedy") if m != method]
+
+
+def _band(builder: _Builder, lo_idx, hi_idx, method: str, key=None):
+    """The band between two rings, guarded: the first triangulation (the requested one, then
+    :func:`_band_order`'s others, from the key's level in ``builder.levels``) whose faces neither
+    fold nor cross each other (exact test, :mod:`contourmesh.intersect`).  Where every one does,
+    the first that does not fold is kept (the mesh-wide check then counts the crossings)."""
     lo = builder.coords(lo_idx)
     hi = builder.coords(hi_idx)
-    local = triangulate_band(lo, hi, method)
     both = np.concatenate([lo_idx, hi_idx])
+    order = _band_order(method)
+    key = builder.key if key is None else key
+    start = builder.levels.get(key, 0)
+    n, m = sorted((len(lo), len(hi)))
+    P = np.concatenate([lo, hi])
+    first, clear = None, False
+    for i in range(start, len(order)):
+        if order[i] == "optimal" and order[i] != method and n * n * m > _OPTIMAL_BUDGET:
+            continue
+        local = triangulate_band(lo, hi, order[i], fallback=False)
+        if band_is_folded(local):
+            continue
+        if first is None:
+            first = (i, local)
+        if not len(intersecting_pairs(P, local)):
+            first, clear = (i, local), True
+            break
+    if first is None:  # every band folds: the requested one, with its own fold fallback
+        first = (0, triangulate_band(lo, hi, method))
+    i, local = first
+    if i > 0 and key is not None:
+        builder.band_fallbacks += 1
+    if key is not None:
+        builder.used[key] = i
+        if not clear:
+            builder.exhausted.add(key)
+    prev, builder.key = builder.key, key
     builder.add_faces(both[local])
+    builder.key = prev
 
 
 def _cap(builder: _Builder, idx, holes_idx=(), upward=True):
@@ -395,7 +470,8 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
     def poly(k, c):
         cont = stack.sections[k].contours[c]
         p = _polygon(cont, polygon)
-        return np.asarray(cont, dtype=np.float64) if _is_degenerate(p) or _repeats_a_point(p) else p
+        bad = _is_degenerate(p) or _repeats_a_point(p) or k in b.contour_sections
+        return np.asarray(cont, dtype=np.float64) if bad else p
 
     all_chains = [[0] * n] + chains
     polys = [[poly(k, ch[k]) for k in range(n)] for ch in all_chains]
@@ -412,10 +488,14 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
     if s0 is None or s1 is None or s1 - s0 < 1:
         raise ValueError("the stack's rings cannot be capped (outer and hole polygons cross at both ends)")
     rings = [[b.add_polygon(p[k], zs[k]) for k in range(s0, s1 + 1)] for p in polys]
-    for ch in rings:
-        for a, c in zip(ch[:-1], ch[1:]):
-            _band(b, a, c, triangulation)
+    for h, ch in enumerate(rings):
+        for k, (a, c) in enumerate(zip(ch[:-1], ch[1:]), start=s0):
+            key = ("band", h, k, k + 1)
+            b.sections_of[key] = {k, k + 1}
+            _band(b, a, c, triangulation, key)
     for end, k, upward in ((0, s0, False), (-1, s1, True)):
+        b.key = ("cap", 0, k)
+        b.sections_of[b.key] = {k}
         ends = [ch[end] for ch in rings]
         if caps == "half":
             nb = k + 1 if upward is False else k - 1
@@ -426,6 +506,7 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
                 _band(b, r, t, triangulation) if upward else _band(b, t, r, triangulation)
             ends = shifted
         _cap(b, ends[0], ends[1:], upward=upward)
+        b.key = None
 
 
 def stack_to_mesh(
@@ -434,36 +515,104 @@ def stack_to_mesh(
     polygon: str = "mlp",
     triangulation: str = "wiederhold",
     caps: str = "flat",
+    crossings: str = "warn",
 ) -> Mesh:
-    """Mesh a contour stack: polygons, bands and caps (see the module docstring for the end rules)."""
+    """Mesh a contour stack: polygons, bands and caps (see the module docstring for the end rules
+    and for crossing faces).
+
+    ``crossings``: what to do where faces still cross after the local repair: ``"warn"`` (a
+    :class:`~contourmesh.errors.SelfIntersectionWarning`; the count is in
+    ``meta["self_intersections"]``) or ``"raise"`` (:class:`~contourmesh.errors.CrossingFacesError`).
+    """
     if caps not in CAPS:
         raise ValueError(f"caps must be one of {CAPS}, got {caps!r}")
+    if crossings not in ("warn", "raise"):
+        raise ValueError(f"crossings must be 'warn' or 'raise', got {crossings!r}")
     zs = check_stack(stack)
     stack = _outward(stack)
-    b = _Builder(stack.spacing, stack.origin)
     default_h = float(np.median(np.diff(zs))) if len(zs) > 1 else 1.0
-
     chains = _nested_chains(stack) if any(len(sec.contours) > 1 for sec in stack.sections) else None
-    if chains is not None:
-        _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs)
-        meta = dict(stack.meta)
-        meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
-        return _verified(b.mesh(meta=meta))
-    for run in _runs(stack):
-        mark, fallbacks = b.mark(), b.smooth_fallbacks
-        _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=False)
-        if polygon != "none" and b.volume_since(mark) <= 1e-9 * b.box_volume_since(mark):
-            # the run's polygons fold its surface (e.g. a degenerate MLP segment beside a small
-            # polygon it does not lie under): mesh the run from its contours instead
-            b.restore(mark)
-            b.smooth_fallbacks = fallbacks
-            _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=True)
-
     meta = dict(stack.meta)
     meta.update(polygon=polygon, triangulation=triangulation, caps=caps)
+
+    # Build; where faces of the finished mesh cross, each band involved takes its next
+    # triangulation (:func:`_band_order`) and the mesh is built again (a few rounds at most).
+    levels: dict = {}
+    contour_sections: set = set()
+    rebuilt = 0
+    for attempt in range(_MAX_REBUILDS + 1):
+        b = _Builder(stack.spacing, stack.origin)
+        b.levels, b.contour_sections = levels, contour_sections
+        if chains is not None:
+            _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs)
+        else:
+            for run in _runs(stack):
+                mark, fallbacks = b.mark(), b.smooth_fallbacks
+                _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=False)
+                if polygon != "none" and b.volume_since(mark) <= 1e-9 * b.box_volume_since(mark):
+                    # the run's polygons fold its surface (e.g. a degenerate MLP segment beside a
+                    # small polygon it does not lie under): mesh the run from its contours instead
+                    b.restore(mark)
+                    b.smooth_fallbacks = fallbacks
+                    _mesh_run(b, stack, run, polygon, triangulation, caps, zs, default_h, use_contours=True)
+        m = _verified(b.mesh(meta=meta))
+        pairs = intersecting_pairs(m.vertices, m.faces)
+        if not len(pairs) or attempt == _MAX_REBUILDS:
+            break
+        keys = b.face_keys()
+        if len(keys) != len(m.faces):  # pragma: no cover - the builder keeps one key per face
+            break
+        changed, to_contours = 0, set()
+        for key in {keys[f] for f in np.unique(pairs).tolist()}:
+            if key is None:
+                continue
+            nxt = b.used.get(key, len(_band_order(triangulation))) + 1
+            if key in b.used and key not in b.exhausted and nxt < len(_band_order(triangulation)):
+                levels[key] = nxt
+                changed += 1
+            elif polygon != "none":  # every triangulation tried (or a cap): the sections take their contours
+                to_contours |= b.sections_of.get(key, set()) - contour_sections
+        if to_contours:
+            contour_sections |= to_contours
+            for key in [k for k in levels if b.sections_of.get(k, set()) & to_contours]:
+                del levels[key]  # new rings: the bands start again from the requested triangulation
+        if not changed and not to_contours:  # nothing left to change
+            break
+        rebuilt += changed + len(to_contours)
+        log.debug("stack route: %d crossing face pairs; %d bands take another triangulation, sections %s "
+                  "their contours", len(pairs), changed, sorted(to_contours))
     if caps == "smooth":
         meta["smooth_fallbacks"] = b.smooth_fallbacks
-    return _verified(b.mesh(meta=meta))
+    meta.update(band_fallbacks=b.band_fallbacks, crossing_fallbacks=rebuilt,
+                polygon_fallbacks=len(contour_sections))
+    return _embedded(m, meta, pairs, min(b.sx, b.sy), zs, crossings)
+
+
+#: How many times the stack mesher rebuilds a mesh whose faces cross, with the bands involved
+#: taking their next triangulation.
+_MAX_REBUILDS = 8
+
+
+def _embedded(m: Mesh, meta: dict, pairs, pixel: float, zs, crossings: str = "warn") -> Mesh:
+    """The stack mesh with crossing faces that a small move separates pulled apart
+    (:func:`contourmesh.repair.resolve_crossings`, vertices at section heights moving in their
+    plane), and ``meta`` recording the pairs repaired and left.  Pairs left are warned about
+    (:class:`~contourmesh.errors.SelfIntersectionWarning`): never a crossing mesh in silence."""
+    V = m.vertices
+    meta = dict(meta, self_intersections=0, crossings_repaired=0)
+    if len(pairs):
+        V, info = resolve_crossings(m.vertices, m.faces, 1e-3 * pixel, pairs=pairs, planes=zs)
+        meta.update(self_intersections=info["self_intersections"], crossings_repaired=info["crossings_repaired"])
+        if info["crossings_repaired"]:
+            meta["crossing_repair_max_move"] = info["max_move"]
+        if info["self_intersections"]:
+            what = (f"{info['self_intersections']} pairs of faces still cross after {meta['crossing_fallbacks']} "
+                    f"rebuilds and {info['crossings_repaired']} pairs pulled apart")
+            if crossings == "raise":
+                raise CrossingFacesError(f"the stack route cannot mesh these contours without crossing faces: {what}")
+            warn_external(f"stack route: {what}; the mesh is closed but not embedded (meta['self_intersections'])",
+                          SelfIntersectionWarning)
+    return Mesh(V, m.faces, P=m.P, meta=meta)
 
 
 def _verified(m: Mesh) -> Mesh:
@@ -495,7 +644,7 @@ def _mesh_run(b: _Builder, stack: ContourStack, run, polygon: str, triangulation
     # a polygon that visits a point twice (the MLP of a thin part goes out and back) would
     # share an edge among four triangles: such a section uses its contour
     polys = [np.asarray(stack.sections[k].contours[c], dtype=np.float64)
-             if _repeats_a_point(p) else p for p, (k, c) in zip(polys, run)]
+             if _repeats_a_point(p) or k in b.contour_sections else p for p, (k, c) in zip(polys, run)]
     degenerate = [_is_degenerate(p) for p in polys]
     keep = list(range(len(run)))
     # Keep only the outermost degenerate polygon at each end of the run.
@@ -522,43 +671,55 @@ def _mesh_run(b: _Builder, stack: ContourStack, run, polygon: str, triangulation
             raise ValueError(f"section {k} (z={zs[k]}) holds an isolated contour of {len(cont)} point(s)")
         lo = b.add_polygon(cont, zs[k] - default_h / 2)
         hi = b.add_polygon(cont, zs[k] + default_h / 2)
+        b.key = ("prism", k)
         _band(b, lo, hi, triangulation)
         _cap(b, lo, upward=False)
         _cap(b, hi, upward=True)
+        b.key = None
         return
     idx = [b.add_polygon(polys[i], zs[run[i][0]]) for i in keep]
-    for a, c in zip(idx[:-1], idx[1:]):
-        _band(b, a, c, triangulation)
+    for i0, i1, a, c in zip(keep[:-1], keep[1:], idx[:-1], idx[1:]):
+        key = ("band", 0, run[i0][0], run[i1][0])
+        b.sections_of[key] = {run[i0][0], run[i1][0]}
+        _band(b, a, c, triangulation, key)
     for end, upward in ((0, False), (-1, True)):
         i = keep[end]
         if degenerate[i]:
             continue
-        ring = idx[end]
-        if caps == "half":
-            k = run[i][0]
-            nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
-            gap = abs(zs[nb] - zs[k])
-            zc = zs[k] + (gap / 2 if upward else -gap / 2)
-            outer = b.add_polygon(polys[i], zc)
-            if upward:
-                _band(b, ring, outer, triangulation)
-            else:
-                _band(b, outer, ring, triangulation)
-            ring = outer
+        b.key = ("cap", 0, run[i][0])
+        b.sections_of[b.key] = {run[i][0]}
+        _run_end(b, stack, run, keep, polys, idx, i, end, upward, caps, zs, triangulation)
+        b.key = None
+
+
+def _run_end(b, stack, run, keep, polys, idx, i, end, upward, caps, zs, triangulation):
+    """Close one end of a run: a half prism (``caps="half"``), then a dome or a flat cap."""
+    ring = idx[end]
+    if caps == "half":
         k = run[i][0]
         nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
-        if caps == "smooth":
-            mark = b.mark()
-            try:
-                top = _dome(b, ring, polys[i], zs[k], abs(zs[nb] - zs[k]), upward)
-                _cap(b, top, upward=upward)
-                continue
-            except ValueError as exc:  # a polygon that touches itself: closed flat, as caps="flat" does
-                b.restore(mark)
-                b.smooth_fallbacks += 1
-                log.debug("section z=%g: no dome (%s); closed by a flat cap in its plane", zs[k], exc)
-        zr = float(b.coords(ring[:1])[0, 2])
-        _cap_or_cells(b, ring, stack.sections[k].contours[run[i][1]], zr, abs(zs[nb] - zs[k]), upward,
-                      triangulation)
+        gap = abs(zs[nb] - zs[k])
+        zc = zs[k] + (gap / 2 if upward else -gap / 2)
+        outer = b.add_polygon(polys[i], zc)
+        if upward:
+            _band(b, ring, outer, triangulation)
+        else:
+            _band(b, outer, ring, triangulation)
+        ring = outer
+    k = run[i][0]
+    nb = run[keep[1]][0] if end == 0 else run[keep[-2]][0]
+    if caps == "smooth":
+        mark = b.mark()
+        try:
+            top = _dome(b, ring, polys[i], zs[k], abs(zs[nb] - zs[k]), upward)
+            _cap(b, top, upward=upward)
+            return
+        except ValueError as exc:  # a polygon that touches itself: closed flat, as caps="flat" does
+            b.restore(mark)
+            b.smooth_fallbacks += 1
+            log.debug("section z=%g: no dome (%s); closed by a flat cap in its plane", zs[k], exc)
+    zr = float(b.coords(ring[:1])[0, 2])
+    _cap_or_cells(b, ring, stack.sections[k].contours[run[i][1]], zr, abs(zs[nb] - zs[k]), upward,
+                  triangulation)
 
 

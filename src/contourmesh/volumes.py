@@ -688,6 +688,11 @@ def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True, resolved=None)
     if info["self_intersections"] and warn:
         log.warning("volume mesher: %d pairs of faces cross (%d repaired); the mesh is closed but not embedded",
                     info["self_intersections"], info["crossings_repaired"])
+        from .errors import SelfIntersectionWarning, warn_external
+
+        warn_external(f"volume mesher: {info['self_intersections']} pairs of faces still cross "
+                      f"({info['crossings_repaired']} repaired); the mesh is closed but not embedded "
+                      "(meta['self_intersections'])", SelfIntersectionWarning)
     if info["vertices_moved"] == 0:
         return Mesh(mesh.vertices, mesh.faces, P=mesh.P, meta=meta)
     return Mesh(V, mesh.faces, P=mesh.P, meta=meta)
