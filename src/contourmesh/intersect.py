@@ -806,7 +806,8 @@ def _intersecting_pairs(V, ws, F, budget):
 @_kernel
 def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
     """Candidate pairs among the entries ``ids``: closed xy boxes overlapping, not two entries of
-    one group unless the group is 2 (with ``need2``: only pairs with an entry of group 2),
+    one group unless the group is 2, an entry of group 3 only with one of group 2 (with
+    ``need2``: only pairs with an entry of group 2),
     appended to out_i/out_j from ``n_out``.  Returns the new count and the work done (box
     tests), or ``-1`` as count when ``work`` exceeds ``limit``.
 
@@ -850,7 +851,7 @@ def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2
                     continue
                 if grp[a] == grp[b] and grp[a] != 2:
                     continue
-                if need2 == 1 and grp[a] != 2 and grp[b] != 2:
+                if (need2 == 1 or grp[a] == 3 or grp[b] == 3) and grp[a] != 2 and grp[b] != 2:
                     continue
                 if n_out == len(out_i):
                     out_i = _grow(out_i, 2 * n_out)
@@ -933,21 +934,22 @@ def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, cert, all2,
 def _slab_pairs(V, ws, F, lev, nlev, budget):
     """The pairs of :func:`_intersecting_pairs` for a mesh whose vertex heights have level indices
     ``lev`` (``0 .. nlev-1``, in the order of the heights), by slabs and planes (see above).
-    Returns ``(pi, pj, ok)``; ``ok == 0`` when the mesh is not sectioned that way (a face spans
-    more than two consecutive heights) or a sweep does more than ``budget`` box tests per face:
-    then nothing is decided here."""
+    Returns ``(pi, pj, ok)``: ``ok == 1`` done; ``0`` the mesh is not sectioned (its faces span
+    more than four slabs per face on average); ``-1`` the sweeps did more than ``budget`` box
+    tests per face (very long thin faces): then nothing is decided here."""
     m = len(F)
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
     box = np.empty((m, 6), np.float64)
-    kind = np.empty(m, np.int64)  # -1 not live, 0 slab face, 1 flat face
-    lo = np.empty(m, np.int64)
+    lo = np.full(m, -1, np.int64)  # -1: not live (skipped, as in the grid path)
+    hi = np.full(m, -1, np.int64)
     ax0 = np.int64(0)
     ax1 = np.int64(1)
     ax2 = np.int64(2)
     nslab = max(nlev - 1, 1)
-    cnt_s = np.zeros(nslab + 1, np.int64)
-    cnt_f = np.zeros(nlev + 1, np.int64)
+    cnt_s = np.zeros(nslab + 1, np.int64)  # slab memberships
+    cnt_p = np.zeros(nlev + 1, np.int64)  # plane memberships
+    total = 0
     for i in range(m):
         a = F[i, 0]
         b = F[i, 1]
@@ -955,39 +957,38 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
         for k in range(3):
             box[i, k] = min(V[a, k], min(V[b, k], V[c, k]))
             box[i, 3 + k] = max(V[a, k], max(V[b, k], V[c, k]))
-        kind[i] = -1
         if a == b or b == c or a == c:
             continue
         if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
-            continue  # collinear (exactly): skipped, as in the grid path
+            continue  # collinear (exactly)
         la = min(lev[a], min(lev[b], lev[c]))
         ha = max(lev[a], max(lev[b], lev[c]))
         lo[i] = la
-        if ha == la:
-            kind[i] = 1
-            cnt_f[la + 1] += 1
-        elif ha == la + 1:
-            kind[i] = 0
-            cnt_s[la + 1] += 1
-        else:
+        hi[i] = ha
+        total += ha - la
+        if total > 4 * m + 1000:
             return pi[:0], pj[:0], np.int64(0)
+        for k in range(la, ha):
+            cnt_s[k + 1] += 1
+        for k in range(la, ha + 1):
+            cnt_p[k + 1] += 1
     for k in range(nslab):
         cnt_s[k + 1] += cnt_s[k]
     for k in range(nlev):
-        cnt_f[k + 1] += cnt_f[k]
+        cnt_p[k + 1] += cnt_p[k]
     slab_faces = np.empty(cnt_s[nslab], np.int64)
-    flat_faces = np.empty(cnt_f[nlev], np.int64)
+    plane_faces = np.empty(cnt_p[nlev], np.int64)
     fs = cnt_s[:nslab].copy()
-    ff = cnt_f[:nlev].copy()
+    fp = cnt_p[:nlev].copy()
     for i in range(m):
-        if kind[i] == 0:
-            slab_faces[fs[lo[i]]] = i
-            fs[lo[i]] += 1
-        elif kind[i] == 1:
-            flat_faces[ff[lo[i]]] = i
-            ff[lo[i]] += 1
-    # entries: slab faces (whole xy box, group 0), then the parts in a plane (groups 0: from the
-    # slab below, 1: from the slab above, 2: flat faces)
+        if lo[i] < 0:
+            continue
+        for k in range(lo[i], hi[i]):
+            slab_faces[fs[k]] = i
+            fs[k] += 1
+        for k in range(lo[i], hi[i] + 1):
+            plane_faces[fp[k]] = i
+            fp[k] += 1
     xlo = np.empty(m, np.float64)
     xhi = np.empty(m, np.float64)
     ylo = np.empty(m, np.float64)
@@ -1004,113 +1005,116 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
     ci = np.empty(64, np.int64)
     cj = np.empty(64, np.int64)
     npairs = 0
-    # plane entries (reused per plane): at most every slab face twice and every flat face once
-    ne = 2 * len(slab_faces) + len(flat_faces)
-    pxlo = np.empty(ne, np.float64)
-    pxhi = np.empty(ne, np.float64)
-    pylo = np.empty(ne, np.float64)
-    pyhi = np.empty(ne, np.float64)
-    pgrp = np.zeros(ne, np.int64)
-    pface = np.empty(ne, np.int64)
-    ids = np.empty(ne, np.int64)
-    for t in range(ne):
-        ids[t] = t
-    pu = np.empty(ne, np.int64)
-    pw = np.empty(ne, np.int64)
-    cert = np.empty(ne, np.int64)
-    all2 = np.full(ne, 2, np.int64)
+    # plane entries (reused per plane: a face at most once)
+    pxlo = np.empty(m, np.float64)
+    pxhi = np.empty(m, np.float64)
+    pylo = np.empty(m, np.float64)
+    pyhi = np.empty(m, np.float64)
+    pgrp = np.zeros(m, np.int64)
+    pface = np.empty(m, np.int64)
+    ids = np.arange(m)
+    pu = np.empty(m, np.int64)
+    pw = np.empty(m, np.int64)
+    cert = np.empty(m, np.int64)
+    all2 = np.full(m, 2, np.int64)
     stamp = np.full(len(V), -1, np.int64)
     for k in range(nlev):
-        # slab k: pairs of its faces
-        if k < nlev - 1:
-            s0 = cnt_s[k]
-            s1 = cnt_s[k + 1]
-            if s1 - s0 > 1:
-                ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, grp, slab_faces[s0:s1], ci, cj, np.int64(0), work, limit,
-                                             np.int64(0))
-                if n_out < 0:
-                    return pi[:0], pj[:0], np.int64(0)
-                for t in range(n_out):
-                    i = min(ci[t], cj[t])
-                    j = max(ci[t], cj[t])
-                    if _pair_intersects(V, ws, F, i, j):
-                        if npairs == len(pi):
-                            pi = _grow(pi, 2 * npairs)
-                            pj = _grow(pj, 2 * npairs)
-                        pi[npairs] = i
-                        pj[npairs] = j
-                        npairs += 1
-        # plane k: the parts at z_k of the faces of slabs k-1 (group 0) and k (group 1), and the
-        # flat faces there (group 2)
+        # slab k: pairs of its faces, each tested in the lowest slab of the two
+        if k < nlev - 1 and cnt_s[k + 1] - cnt_s[k] > 1:
+            ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, grp, slab_faces[cnt_s[k]:cnt_s[k + 1]], ci, cj,
+                                         np.int64(0), work, limit, np.int64(0))
+            if n_out < 0:
+                return pi[:0], pj[:0], np.int64(-1)
+            for t in range(n_out):
+                i = min(ci[t], cj[t])
+                j = max(ci[t], cj[t])
+                if max(lo[i], lo[j]) != k:
+                    continue
+                if _pair_intersects(V, ws, F, i, j):
+                    if npairs == len(pi):
+                        pi = _grow(pi, 2 * npairs)
+                        pj = _grow(pj, 2 * npairs)
+                    pi[npairs] = i
+                    pj[npairs] = j
+                    npairs += 1
+        # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
+        # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
+        # meet the others in a slab, only flat faces here)
         ne = 0
-        for g in range(2):
-            sl = k - 1 + g
-            if sl < 0 or sl >= nlev - 1:
+        n0 = 0
+        n1 = 0
+        for t in range(cnt_p[k], cnt_p[k + 1]):
+            i = plane_faces[t]
+            if lo[i] == hi[i] or (lo[i] < k and k < hi[i]):
                 continue
-            for t in range(cnt_s[sl], cnt_s[sl + 1]):
-                i = slab_faces[t]
-                e = ne
-                first = True
-                pu[e] = -1
-                for q in range(3):
-                    v = F[i, q]
-                    if lev[v] != k:
-                        continue
-                    if pu[e] < 0:
-                        pu[e] = v
-                        pw[e] = v
-                    else:
-                        pu[e] = min(pu[e], v)
-                        pw[e] = max(pw[e], v)
-                    if first:
-                        pxlo[e] = V[v, 0]
-                        pxhi[e] = V[v, 0]
-                        pylo[e] = V[v, 1]
-                        pyhi[e] = V[v, 1]
-                        first = False
-                    else:
-                        pxlo[e] = min(pxlo[e], V[v, 0])
-                        pxhi[e] = max(pxhi[e], V[v, 0])
-                        pylo[e] = min(pylo[e], V[v, 1])
-                        pyhi[e] = max(pyhi[e], V[v, 1])
-                pgrp[e] = g
-                pface[e] = i
-                ne += 1
-        nflat = cnt_f[k + 1] - cnt_f[k]
-        if ne == 0 and nflat < 2:
+            e = ne
+            pu[e] = -1
+            for q in range(3):
+                v = F[i, q]
+                if lev[v] != k:
+                    continue
+                if pu[e] < 0:
+                    pu[e] = v
+                    pw[e] = v
+                    pxlo[e] = V[v, 0]
+                    pxhi[e] = V[v, 0]
+                    pylo[e] = V[v, 1]
+                    pyhi[e] = V[v, 1]
+                else:
+                    pu[e] = min(pu[e], v)
+                    pw[e] = max(pw[e], v)
+                    pxlo[e] = min(pxlo[e], V[v, 0])
+                    pxhi[e] = max(pxhi[e], V[v, 0])
+                    pylo[e] = min(pylo[e], V[v, 1])
+                    pyhi[e] = max(pyhi[e], V[v, 1])
+            if hi[i] == k:
+                pgrp[e] = 0
+                n0 += 1
+            else:
+                pgrp[e] = 1
+                n1 += 1
+            pface[e] = i
+            ne += 1
+        ne01 = ne
+        nflat = 0
+        for t in range(cnt_p[k], cnt_p[k + 1]):
+            i = plane_faces[t]
+            if lo[i] == hi[i]:
+                pgrp[ne] = 2
+                nflat += 1
+            elif lo[i] < k and k < hi[i]:
+                pgrp[ne] = 3
+            else:
+                continue
+            pxlo[ne] = box[i, 0]
+            pxhi[ne] = box[i, 3]
+            pylo[ne] = box[i, 1]
+            pyhi[ne] = box[i, 4]
+            pface[ne] = i
+            ne += 1
+        if nflat == 0 and (n0 == 0 or n1 == 0):
             continue
-        # the pairs of a face below and a face above are all decided at once (none intersects)
-        # when the parts at z_k form an embedded planar graph (_plane_embedded)
+        # the pairs of a face ending here and a face starting here are all decided at once (none
+        # intersects) when their parts form an embedded planar graph (_plane_embedded)
         need2 = np.int64(0)
-        if ne > 0:
-            emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne), np.int64(k), stamp,
-                                                   cert, all2, ci, cj,
-                                                   work, limit)
+        if n0 > 0 and n1 > 0:
+            emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01), np.int64(k),
+                                                stamp, cert, all2, ci, cj, work, limit)
             if emb:
                 if nflat == 0:
                     continue
                 need2 = np.int64(1)
-        for t in range(cnt_f[k], cnt_f[k + 1]):
-            i = flat_faces[t]
-            e = ne
-            pxlo[e] = box[i, 0]
-            pxhi[e] = box[i, 3]
-            pylo[e] = box[i, 1]
-            pyhi[e] = box[i, 4]
-            pgrp[e] = 2
-            pface[e] = i
-            ne += 1
         ci, cj, n_out, work = _sweep(pxlo, pxhi, pylo, pyhi, pgrp, ids[:ne], ci, cj, np.int64(0), work, limit,
                                      need2)
         if n_out < 0:
-            return pi[:0], pj[:0], np.int64(0)
+            return pi[:0], pj[:0], np.int64(-1)
         for t in range(n_out):
             a = pface[ci[t]]
             b = pface[cj[t]]
             i = min(a, b)
             j = max(a, b)
             hit = np.int64(-1)
-            if kind[i] == 0 and kind[j] == 0:
+            if pgrp[ci[t]] < 2 and pgrp[cj[t]] < 2:
                 hit = _across_plane(V, ws, F, box, i, j)
             if hit < 0:
                 hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
@@ -1245,7 +1249,8 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
     cells a face may occupy) only trades memory for speed; the result does not depend on it.
     ``method``: ``"grid"`` the general broad phase (a 3D grid), ``"slabs"`` the broad phase by
     slabs between consecutive vertex heights (for meshes made from sections; an error for a mesh
-    without that structure), ``"auto"`` slabs where the mesh has that structure, else the grid.
+    without that structure; where a sweep would test too many boxes, the grid takes over),
+    ``"auto"`` slabs where the mesh has that structure, else the grid.
     The pairs are the same whichever method decides them.
     """
     if method not in ("auto", "grid", "slabs"):
@@ -1274,10 +1279,10 @@ def _pairs(V, F, canon, budget, method):
         levels, lev = np.unique(V[:, 2], return_inverse=True)
         pi, pj, ok = _slab_pairs(V, ws, Fc, lev.astype(np.int64).reshape(-1), np.int64(len(levels)),
                                  np.int64(64))
-        if not ok and method == "slabs":
-            raise ValueError("method='slabs' needs a mesh whose every face lies in one plane z = c or "
-                             "spans two consecutive vertex heights; this one has a face spanning more")
-    if not ok:
+        if ok == 0 and method == "slabs":
+            raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
+                             "than four slabs between consecutive vertex heights per face on average")
+    if ok != 1:  # not sectioned, or a sweep over its budget: the grid (the same pairs)
         pi, pj = _intersecting_pairs(V, ws, Fc, np.int64(budget))
     out = np.stack([pi, pj], axis=1).astype(np.int64, copy=False)
     if len(out):
