@@ -49,6 +49,11 @@ meet only there, in the hull of their corners at that height, so such a pair is 
 segment test in that plane (the same rules, the same exact ``orient2d``).  Everything runs in one
 numba kernel on one core; it is near-linear in the number of faces for meshes whose faces are of
 comparable size.
+
+Meshes made from sections take a cheaper broad phase that gives the same pairs (``method``):
+per slab between consecutive vertex heights a 2D sweep, per height a sweep over the faces' parts
+in that plane, and a planar-graph certificate that decides all pairs meeting only in a plane at
+once (see "broad phase for sectioned meshes" below).
 """
 
 from __future__ import annotations
@@ -789,20 +794,23 @@ def _intersecting_pairs(V, ws, F, budget):
 # broad phase for sectioned meshes: slabs between consecutive heights, 2D sweeps
 # ------------------------------------------------------------------------------------------------
 # Meshes made from sections have every vertex at one of a few heights z_0 < z_1 < ... (the
-# section planes, and mid-planes between them).  When every face is either flat (its corners at
-# one height) or spans exactly two consecutive heights z_k, z_k+1 (a "slab face" of slab k), the
-# faces' z-ranges say which pairs can meet at all:
-#   * two slab faces of one slab: their boxes overlap in z, the pair is a candidate when their xy
-#     boxes overlap;
-#   * faces whose z-ranges meet only at one height c (a face of slab c-1 and one of slab c, a flat
-#     face at c and a slab face touching c, two flat faces at c): every common point lies in the
-#     plane z = c, in the part of each face at that height (a corner, an edge, or the whole flat
-#     face), so the pair is a candidate when the xy boxes of those parts overlap;
+# section planes, and mid-planes between them).  A face is flat (its corners at one height) or
+# spans the slabs between its lowest and highest corner heights (one slab, mostly).  The faces'
+# z-ranges say which pairs can meet at all:
+#   * two faces whose z-ranges overlap in more than a point share a slab: the pair is a candidate
+#     when their xy boxes overlap, found in the lowest slab both span (so once);
+#   * faces whose z-ranges meet only at one height c (a face ending at c and one starting there, a
+#     flat face at c and a face ending, starting or passing there, two flat faces at c): every
+#     common point lies in the plane z = c, in the part of each face at that height (a corner, an
+#     edge, the whole flat face; the xy box of the face for one passing through), so the pair is a
+#     candidate when the xy boxes of those parts overlap;
 #   * all other pairs have disjoint z-ranges and cannot meet.
-# The candidates of each slab and of each plane are found by a sweep over x (sorted box starts)
-# with a y-overlap test, and every candidate gets the same exact test as in the grid path (the
-# in-plane test for faces of two slabs, the general test otherwise).  Since those tests are exact
-# and every pair that can meet is a candidate, the pairs are exactly those of the grid path.
+# The candidates of each slab and of each plane are found by a sweep over x with a y-overlap
+# test, and every candidate gets the same exact test as in the grid path (the in-plane test for a
+# face ending and one starting at c, the general test otherwise).  Since those tests are exact
+# and every pair that can meet is a candidate, the pairs are exactly those of the grid path.  The
+# pairs of a face ending and a face starting at c are all decided without a test when their parts
+# at c form an embedded planar graph (_plane_embedded), which is checked once per plane.
 @_kernel
 def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
     """Candidate pairs among the entries ``ids``: closed xy boxes overlapping, not two entries of
