@@ -938,6 +938,146 @@ def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, cert, all2,
     return True, work, ci, cj
 
 
+@_kernel
+def _slab_embedded(V, F, lev, faces, k, keys):
+    """The faces ``faces``, each with its corners on the heights ``k`` and ``k + 1`` only, on a small
+    dyadic grid (float arithmetic exact), do not meet each other in the open slab
+    ``z_k < z < z_k+1`` except along common edges between the heights ("rungs"), and no two such
+    faces fold onto each other along a rung.  A certificate, not a test: False means "not shown".
+
+    Argument.  At a height between the planes (``t`` in (0, 1) of the way up) a face cuts a
+    segment from the point on one rung to the point on the other; name the rung that the face's
+    boundary runs down the *start*, the other the *end*.  Let ``c`` be the centre of the faces' xy
+    box.  For a face with bottom corners ``b1, b2`` and top ``u`` (in boundary order) the
+    orientation of ``c``, start point, end point is ``(1 - t)((1 - t) X + t Y)`` with
+    ``X = (b1 - c) x (b2 - c)``, ``Y = (b1 - c) x (u - c) + (u - c) x (b2 - c)``; for bottom ``b``
+    and top ``u1, u2`` it is ``t((1 - t) Y' + t X')`` with ``X' = (u2 - c) x (u1 - c)``,
+    ``Y' = (b - c) x (u1 - c) + (u2 - c) x (b - c)``.  When all ``X, X'`` have one strict sign and
+    ``Y, Y'`` that sign or zero, every segment at every such height turns strictly one way around
+    ``c``: it covers an open arc of directions from ``c`` (less than a half turn).  When every
+    rung is the start of exactly one face and the end of exactly one, the arcs chain end to start,
+    so the number of arcs over a direction is the same for all directions and all heights; it is
+    counted where the faces reach the lower plane (the arcs become those of the bottom edges): the
+    bottom edges that cross the ray from ``c`` along +x.  When it is 1, at every height the arcs
+    are disjoint and tile the directions once: two faces meet there only in the point of a rung
+    they share (two chained arcs), distinct rungs never meet, and two faces on one rung do not
+    overlap.  Every sign here is exact: the coordinates and ``c`` lie on a dyadic grid of under
+    ``2^17`` steps per axis, so the products and sums are exact in float64.  ``keys`` is a
+    workspace of twice the number of faces."""
+    n = len(faces)
+    if n < 2:
+        return False
+    xlo = np.inf
+    xhi = -np.inf
+    ylo = np.inf
+    yhi = -np.inf
+    for t in range(n):
+        i = faces[t]
+        for q in range(3):
+            v = F[i, q]
+            xlo = min(xlo, V[v, 0])
+            xhi = max(xhi, V[v, 0])
+            ylo = min(ylo, V[v, 1])
+            yhi = max(yhi, V[v, 1])
+    cx = 0.5 * (xlo + xhi)
+    cy = 0.5 * (ylo + yhi)
+    sigma = 0.0
+    nv = np.int64(len(V))
+    wind = 0
+    for t in range(n):
+        i = faces[t]
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        nb = (lev[a] == k) + (lev[b] == k) + (lev[c] == k)
+        # rotate: two bottom corners -> (b1, b2, u); one -> (b, u1, u2)
+        if nb == 2:
+            if lev[a] != k:
+                a, b, c = b, c, a
+            elif lev[b] != k:
+                a, b, c = c, a, b
+        else:
+            if lev[b] == k:
+                a, b, c = b, c, a
+            elif lev[c] == k:
+                a, b, c = c, a, b
+        ax = V[a, 0] - cx
+        ay = V[a, 1] - cy
+        bx = V[b, 0] - cx
+        by = V[b, 1] - cy
+        ux = V[c, 0] - cx
+        uy = V[c, 1] - cy
+        if nb == 2:  # a = b1, b = b2, c = u
+            X = ax * by - ay * bx
+            Y = (ax * uy - ay * ux) + (ux * by - uy * bx)
+            start = a * nv + c
+            end = b * nv + c
+        else:  # a = b, b = u1, c = u2
+            if ax == 0.0 and ay == 0.0:
+                return False  # its arc would not shrink to nothing at the lower plane
+            X = ux * by - uy * bx
+            Y = (ax * by - ay * bx) + (ux * ay - uy * ax)
+            start = a * nv + c
+            end = a * nv + b
+        if sigma == 0.0:
+            sigma = 1.0 if X > 0.0 else -1.0
+        if not sigma * X > 0.0 or sigma * Y < 0.0:
+            return False
+        keys[2 * t] = 2 * start
+        keys[2 * t + 1] = 2 * end + 1
+        if nb == 2:  # the bottom edge's arc over the +x ray (half-open)
+            if sigma > 0.0:
+                py, qy = ay, by
+            else:
+                py, qy = by, ay
+            if py < 0.0 and qy >= 0.0:
+                wind += 1
+    if wind != 1:
+        return False
+    # every rung the start of one face and the end of one: sorted, the keys pair up
+    kk = keys[:2 * n]
+    kk.sort()
+    for t in range(n):
+        if kk[2 * t] & 1 != 0 or kk[2 * t + 1] != kk[2 * t] + 1:
+            return False
+    return True
+
+
+@_kernel
+def _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp, faces, k, pemb, keys, ci, cj, npairs, pi, pj,
+               work, limit):
+    """Slab k of :func:`_slab_pairs`: its pairs, each tested in the lowest slab the two faces
+    share; none when the planes on both sides hold embedded planar graphs and the slab's faces
+    (all within it) have the certificate of :func:`_slab_embedded`.  ``npairs`` is -1 when the
+    sweep went over ``limit``."""
+    if len(faces) < 2:
+        return ci, cj, npairs, pi, pj, work
+    if ws[0] == 1.0 and pemb[k] == 1 and pemb[k + 1] == 1:
+        single = True
+        for t in range(len(faces)):
+            if lo[faces[t]] != k or hi[faces[t]] != k + 1:
+                single = False
+                break
+        if single and _slab_embedded(V, F, lev, faces, k, keys):
+            return ci, cj, npairs, pi, pj, work
+    ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, grp, faces, ci, cj, np.int64(0), work, limit, np.int64(0))
+    if n_out < 0:
+        return ci, cj, np.int64(-1), pi, pj, work
+    for t in range(n_out):
+        i = min(ci[t], cj[t])
+        j = max(ci[t], cj[t])
+        if max(lo[i], lo[j]) != k:
+            continue
+        if _pair_intersects(V, ws, F, i, j):
+            if npairs == len(pi):
+                pi = _grow(pi, 2 * npairs)
+                pj = _grow(pj, 2 * npairs)
+            pi[npairs] = i
+            pj[npairs] = j
+            npairs += 1
+    return ci, cj, npairs, pi, pj, work
+
+
 @njit(cache=True, **_OPTIONS)
 def _slab_pairs(V, ws, F, lev, nlev, budget):
     """The pairs of :func:`_intersecting_pairs` for a mesh whose vertex heights have level indices
@@ -1012,7 +1152,7 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
     n_out = np.int64(0)
     ci = np.empty(64, np.int64)
     cj = np.empty(64, np.int64)
-    npairs = 0
+    npairs = np.int64(0)
     # plane entries (reused per plane: a face at most once)
     pxlo = np.empty(m, np.float64)
     pxhi = np.empty(m, np.float64)
@@ -1026,25 +1166,9 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
     cert = np.empty(m, np.int64)
     all2 = np.full(m, 2, np.int64)
     stamp = np.full(len(V), -1, np.int64)
+    pemb = np.zeros(nlev, np.int64)
+    keys = np.empty(2 * m + 2, np.int64)
     for k in range(nlev):
-        # slab k: pairs of its faces, each tested in the lowest slab of the two
-        if k < nlev - 1 and cnt_s[k + 1] - cnt_s[k] > 1:
-            ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, grp, slab_faces[cnt_s[k]:cnt_s[k + 1]], ci, cj,
-                                         np.int64(0), work, limit, np.int64(0))
-            if n_out < 0:
-                return pi[:0], pj[:0], np.int64(-1)
-            for t in range(n_out):
-                i = min(ci[t], cj[t])
-                j = max(ci[t], cj[t])
-                if max(lo[i], lo[j]) != k:
-                    continue
-                if _pair_intersects(V, ws, F, i, j):
-                    if npairs == len(pi):
-                        pi = _grow(pi, 2 * npairs)
-                        pj = _grow(pj, 2 * npairs)
-                    pi[npairs] = i
-                    pj[npairs] = j
-                    npairs += 1
         # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
         # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
         # meet the others in a slab, only flat faces here)
@@ -1100,18 +1224,22 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
             pyhi[ne] = box[i, 4]
             pface[ne] = i
             ne += 1
-        if nflat == 0 and (n0 == 0 or n1 == 0):
-            continue
         # the pairs of a face ending here and a face starting here are all decided at once (none
         # intersects) when their parts form an embedded planar graph (_plane_embedded)
-        need2 = np.int64(0)
-        if n0 > 0 and n1 > 0:
+        emb = True
+        if n0 + n1 > 0:
             emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01), np.int64(k),
                                                 stamp, cert, all2, ci, cj, work, limit)
-            if emb:
-                if nflat == 0:
-                    continue
-                need2 = np.int64(1)
+        pemb[k] = 1 if emb else 0
+        if k > 0:
+            ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp,
+                                                      slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, keys,
+                                                      ci, cj, npairs, pi, pj, work, limit)
+            if npairs < 0:
+                return pi[:0], pj[:0], np.int64(-1)
+        if nflat == 0 and (n0 == 0 or n1 == 0 or emb):
+            continue
+        need2 = np.int64(1) if emb else np.int64(0)
         ci, cj, n_out, work = _sweep(pxlo, pxhi, pylo, pyhi, pgrp, ids[:ne], ci, cj, np.int64(0), work, limit,
                                      need2)
         if n_out < 0:
