@@ -939,7 +939,7 @@ def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, cert, all2,
 
 
 @_kernel
-def _slab_embedded(V, F, lev, faces, k, keys):
+def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     """The faces ``faces``, each with its corners on the heights ``k`` and ``k + 1`` only, on a small
     dyadic grid (float arithmetic exact), do not meet each other in the open slab
     ``z_k < z < z_k+1`` except along common edges between the heights ("rungs"), and no two such
@@ -962,8 +962,9 @@ def _slab_embedded(V, F, lev, faces, k, keys):
     are disjoint and tile the directions once: two faces meet there only in the point of a rung
     they share (two chained arcs), distinct rungs never meet, and two faces on one rung do not
     overlap.  Every sign here is exact: the coordinates and ``c`` lie on a dyadic grid of under
-    ``2^17`` steps per axis, so the products and sums are exact in float64.  ``keys`` is a
-    workspace of twice the number of faces."""
+    ``2^17`` steps per axis, so the products and sums are exact in float64.  Workspaces: ``keys``
+    (two per face), ``nxt`` (one per face), ``head`` and ``hstamp`` (one per vertex, ``hstamp``
+    never equal to ``k + 1`` on entry for a vertex of these faces)."""
     n = len(faces)
     if n < 2:
         return False
@@ -1023,8 +1024,8 @@ def _slab_embedded(V, F, lev, faces, k, keys):
             sigma = 1.0 if X > 0.0 else -1.0
         if not sigma * X > 0.0 or sigma * Y < 0.0:
             return False
-        keys[2 * t] = 2 * start
-        keys[2 * t + 1] = 2 * end + 1
+        keys[2 * t] = start
+        keys[2 * t + 1] = end
         if nb == 2:  # the bottom edge's arc over the +x ray (half-open)
             if sigma > 0.0:
                 py, qy = ay, by
@@ -1034,18 +1035,43 @@ def _slab_embedded(V, F, lev, faces, k, keys):
                 wind += 1
     if wind != 1:
         return False
-    # every rung the start of one face and the end of one: sorted, the keys pair up
-    kk = keys[:2 * n]
-    kk.sort()
+    # every rung the start of exactly one face and the end of exactly one: the ends in lists by
+    # bottom corner (no rung twice), then each start takes an end of its list once (n of each)
+    tag = k + 1
     for t in range(n):
-        if kk[2 * t] & 1 != 0 or kk[2 * t + 1] != kk[2 * t] + 1:
+        e = keys[2 * t + 1]
+        b = e // nv
+        if hstamp[b] != tag:
+            hstamp[b] = tag
+            head[b] = -1
+        r = head[b]
+        while r >= 0:
+            if keys[2 * r + 1] == e:
+                return False
+            r = nxt[r]
+        nxt[t] = head[b]
+        head[b] = t
+    for t in range(n):
+        st = keys[2 * t]
+        b = st // nv
+        if hstamp[b] != tag:
+            return False
+        r = head[b]
+        found = False
+        while r >= 0:
+            if keys[2 * r + 1] == st:
+                keys[2 * r + 1] = -1  # taken
+                found = True
+                break
+            r = nxt[r]
+        if not found:
             return False
     return True
 
 
 @_kernel
-def _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp, faces, k, pemb, keys, ci, cj, npairs, pi, pj,
-               work, limit):
+def _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
+               npairs, pi, pj, work, limit):
     """Slab k of :func:`_slab_pairs`: its pairs, each tested in the lowest slab the two faces
     share; none when the planes on both sides hold embedded planar graphs and the slab's faces
     (all within it) have the certificate of :func:`_slab_embedded`.  ``npairs`` is -1 when the
@@ -1058,7 +1084,7 @@ def _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp, faces, k, pemb, k
             if lo[faces[t]] != k or hi[faces[t]] != k + 1:
                 single = False
                 break
-        if single and _slab_embedded(V, F, lev, faces, k, keys):
+        if single and _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
             return ci, cj, npairs, pi, pj, work
     ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, grp, faces, ci, cj, np.int64(0), work, limit, np.int64(0))
     if n_out < 0:
@@ -1168,6 +1194,9 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
     stamp = np.full(len(V), -1, np.int64)
     pemb = np.zeros(nlev, np.int64)
     keys = np.empty(2 * m + 2, np.int64)
+    head = np.empty(len(V), np.int64)
+    hstamp = np.full(len(V), -1, np.int64)
+    nxt = np.empty(m + 1, np.int64)
     for k in range(nlev):
         # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
         # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
@@ -1234,6 +1263,7 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
         if k > 0:
             ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp,
                                                       slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, keys,
+                                                      head, hstamp, nxt,
                                                       ci, cj, npairs, pi, pj, work, limit)
             if npairs < 0:
                 return pi[:0], pj[:0], np.int64(-1)
