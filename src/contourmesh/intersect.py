@@ -873,7 +873,7 @@ def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2
 
 
 @_kernel
-def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, cert, all2, ci, cj, work, limit):
+def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cert, all2, ci, cj, work, limit):
     """The parts at one height of the faces below and above it (entries ``0 .. ne-1``: a segment
     ``pu - pw`` or a point ``pu == pw``, canonical vertex indices) form an embedded planar graph:
     two distinct segments meet at most in a common endpoint (not along a common ray from it), and
@@ -884,15 +884,31 @@ def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, cert, all2,
     which meet at most in a common endpoint, from which they do not run along one ray.  A point
     part that ends some segment is not an element of its own: a part that contains it meets that
     segment beyond a common endpoint, or along its ray, which the test sees.  ``stamp`` (per
-    vertex), ``cert``, ``ci``, ``cj`` are workspaces (``all2`` all 2s); more than ``limit`` box
+    vertex, with ``d1``, ``d2``: the segments seen from a lower end), ``cert``, ``ci``, ``cj`` are
+    workspaces (``all2`` all 2s); more than ``limit`` box
     tests in all: not embedded.  Returns ``(embedded, work, ci, cj)``."""
     n = 0
-    for e in range(ne):  # the segments (both copies of a common edge: equal pairs are skipped)
-        if pu[e] != pw[e]:
-            cert[n] = e
-            n += 1
-            stamp[pu[e]] = k
-            stamp[pw[e]] = k
+    for e in range(ne):  # the segments, a common edge once (up to two per lower end are remembered)
+        u = pu[e]
+        w = pw[e]
+        if u == w:
+            continue
+        if stamp[u] != k:
+            d1[u] = -1
+            d2[u] = -1
+        elif d1[u] == w or d2[u] == w:
+            continue
+        if d1[u] < 0:
+            d1[u] = w
+        elif d2[u] < 0:
+            d2[u] = w
+        cert[n] = e
+        n += 1
+        if stamp[w] != k:
+            d1[w] = -1
+            d2[w] = -1
+        stamp[u] = k
+        stamp[w] = k
     for e in range(ne):  # the points that end no segment, once each
         if pu[e] == pw[e] and stamp[pu[e]] != k:
             stamp[pu[e]] = k
@@ -1192,6 +1208,8 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
     cert = np.empty(m, np.int64)
     all2 = np.full(m, 2, np.int64)
     stamp = np.full(len(V), -1, np.int64)
+    d1 = np.empty(len(V), np.int64)
+    d2 = np.empty(len(V), np.int64)
     pemb = np.zeros(nlev, np.int64)
     keys = np.empty(2 * m + 2, np.int64)
     head = np.empty(len(V), np.int64)
@@ -1258,7 +1276,7 @@ def _slab_pairs(V, ws, F, lev, nlev, budget):
         emb = True
         if n0 + n1 > 0:
             emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01), np.int64(k),
-                                                stamp, cert, all2, ci, cj, work, limit)
+                                                stamp, d1, d2, cert, all2, ci, cj, work, limit)
         pemb[k] = 1 if emb else 0
         if k > 0:
             ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp,
