@@ -49,6 +49,11 @@ meet only there, in the hull of their corners at that height, so such a pair is 
 segment test in that plane (the same rules, the same exact ``orient2d``).  Everything runs in one
 numba kernel on one core; it is near-linear in the number of faces for meshes whose faces are of
 comparable size.
+
+Meshes made from sections take a cheaper broad phase that gives the same pairs (``method``):
+per slab between consecutive vertex heights a 2D sweep, per height a sweep over the faces' parts
+in that plane, and a planar-graph certificate that decides all pairs meeting only in a plane at
+once (see "broad phase for sectioned meshes" below).
 """
 
 from __future__ import annotations
@@ -177,7 +182,7 @@ def _exact_sign(V, ws, a, b, c, d, ax, ay, dim):
     error bound certifies it (the common case: a tiny determinant that is not zero); otherwise
     the terms are summed exactly into a nonoverlapping expansion."""
     one = 1.0
-    n = 0
+    n = np.int64(0)
     if dim == 3:
         adx, adx1 = _two_sum(V[a, 0], -V[d, 0])
         ady, ady1 = _two_sum(V[a, 1], -V[d, 1])
@@ -219,9 +224,9 @@ def _exact_sign(V, ws, a, b, c, d, ax, ay, dim):
     if res < -bound:
         return -1
     # exact: grow a nonoverlapping expansion term by term
-    m = 0
+    m = np.int64(0)
     for i in range(n):
-        m = _grow_exp(ws, _EXP, m, ws[_TERMS + i], _EXP + _EXP_LEN)
+        m = _grow_exp(ws, np.int64(_EXP), m, ws[_TERMS + i], _EXP + _EXP_LEN)
     if m == 0:
         return 0
     if ws[_EXP + m - 1] > 0.0:
@@ -786,6 +791,528 @@ def _intersecting_pairs(V, ws, F, budget):
 
 
 # ------------------------------------------------------------------------------------------------
+# broad phase for sectioned meshes: slabs between consecutive heights, 2D sweeps
+# ------------------------------------------------------------------------------------------------
+# Meshes made from sections have every vertex at one of a few heights z_0 < z_1 < ... (the
+# section planes, and mid-planes between them).  A face is flat (its corners at one height) or
+# spans the slabs between its lowest and highest corner heights (one slab, mostly).  The faces'
+# z-ranges say which pairs can meet at all:
+#   * two faces whose z-ranges overlap in more than a point share a slab: the pair is a candidate
+#     when their xy boxes overlap, found in the lowest slab both span (so once);
+#   * faces whose z-ranges meet only at one height c (a face ending at c and one starting there, a
+#     flat face at c and a face ending, starting or passing there, two flat faces at c): every
+#     common point lies in the plane z = c, in the part of each face at that height (a corner, an
+#     edge, the whole flat face; the xy box of the face for one passing through), so the pair is a
+#     candidate when the xy boxes of those parts overlap;
+#   * all other pairs have disjoint z-ranges and cannot meet.
+# The candidates of each slab and of each plane are found by a sweep over x with a y-overlap
+# test, and every candidate gets the same exact test as in the grid path (the in-plane test for a
+# face ending and one starting at c, the general test otherwise).  Since those tests are exact
+# and every pair that can meet is a candidate, the pairs are exactly those of the grid path.  The
+# pairs of a face ending and a face starting at c are all decided without a test when their parts
+# at c form an embedded planar graph (_plane_embedded), which is checked once per plane.
+@_kernel
+def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
+    """Candidate pairs among the entries ``ids``: closed xy boxes overlapping, not two entries of
+    one group unless the group is 2, an entry of group 3 only with one of group 2 (with
+    ``need2``: only pairs with an entry of group 2),
+    appended to out_i/out_j from ``n_out``.  Returns the new count and the work done (box
+    tests), or ``-1`` as count when ``work`` exceeds ``limit``.
+
+    The entries are sorted into ``len(ids)`` equal buckets by the low end of their x-range (a
+    counting sort; the bucket of x is monotone in x), and each entry meets the later ones of its
+    own bucket and those of the buckets up to the one of its high end: each overlapping pair once."""
+    n = len(ids)
+    if n < 2:
+        return out_i, out_j, n_out, work
+    lo = np.inf
+    hi = -np.inf
+    for t in range(n):
+        lo = min(lo, xlo[ids[t]])
+        hi = max(hi, xhi[ids[t]])
+    nb = n
+    h = (hi - lo) / nb
+    if not h > 0.0:
+        h = 1.0
+    start = np.zeros(nb + 1, np.int64)
+    bk = np.empty(n, np.int64)
+    for t in range(n):
+        q = min(np.int64((xlo[ids[t]] - lo) / h), nb - 1)
+        bk[t] = q
+        start[q + 1] += 1
+    for q in range(nb):
+        start[q + 1] += start[q]
+    fill = start[:nb].copy()
+    order = np.empty(n, np.int64)
+    for t in range(n):
+        order[fill[bk[t]]] = ids[t]
+        fill[bk[t]] += 1
+    for q in range(nb):
+        for s in range(start[q], start[q + 1]):
+            a = order[s]
+            xa = xhi[a]
+            qh = min(np.int64((xa - lo) / h), nb - 1)
+            for u in range(s + 1, start[qh + 1]):
+                b = order[u]
+                work += 1
+                if xlo[b] > xa or xlo[a] > xhi[b] or ylo[a] > yhi[b] or ylo[b] > yhi[a]:
+                    continue
+                if grp[a] == grp[b] and grp[a] != 2:
+                    continue
+                if (need2 == 1 or grp[a] == 3 or grp[b] == 3) and grp[a] != 2 and grp[b] != 2:
+                    continue
+                if n_out == len(out_i):
+                    out_i = _grow(out_i, 2 * n_out)
+                    out_j = _grow(out_j, 2 * n_out)
+                out_i[n_out] = a
+                out_j[n_out] = b
+                n_out += 1
+            if work > limit:
+                return out_i, out_j, np.int64(-1), work
+    return out_i, out_j, n_out, work
+
+
+@_kernel
+def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cert, all2, ci, cj, work, limit):
+    """The parts at one height of the faces below and above it (entries ``0 .. ne-1``: a segment
+    ``pu - pw`` or a point ``pu == pw``, canonical vertex indices) form an embedded planar graph:
+    two distinct segments meet at most in a common endpoint (not along a common ray from it), and
+    a point lies on no segment but the ones it ends.  Returns ``(embedded, work)``.
+
+    Then no face below and face above intersect (``_across_plane``): their parts are one
+    element (a common edge, or a common corner that is a point part), or two distinct elements,
+    which meet at most in a common endpoint, from which they do not run along one ray.  A point
+    part that ends some segment is not an element of its own: a part that contains it meets that
+    segment beyond a common endpoint, or along its ray, which the test sees.  ``stamp`` (per
+    vertex, with ``d1``, ``d2``: the segments seen from a lower end), ``cert``, ``ci``, ``cj`` are
+    workspaces (``all2`` all 2s); more than ``limit`` box
+    tests in all: not embedded.  Returns ``(embedded, work, ci, cj)``."""
+    n = 0
+    for e in range(ne):  # the segments, a common edge once (up to two per lower end are remembered)
+        u = pu[e]
+        w = pw[e]
+        if u == w:
+            continue
+        if stamp[u] != k:
+            d1[u] = -1
+            d2[u] = -1
+        elif d1[u] == w or d2[u] == w:
+            continue
+        if d1[u] < 0:
+            d1[u] = w
+        elif d2[u] < 0:
+            d2[u] = w
+        cert[n] = e
+        n += 1
+        if stamp[w] != k:
+            d1[w] = -1
+            d2[w] = -1
+        stamp[u] = k
+        stamp[w] = k
+    for e in range(ne):  # the points that end no segment, once each
+        if pu[e] == pw[e] and stamp[pu[e]] != k:
+            stamp[pu[e]] = k
+            cert[n] = e
+            n += 1
+    ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, all2, cert[:n], ci, cj, np.int64(0), work, limit,
+                                 np.int64(0))
+    if n_out < 0:
+        return False, work, ci, cj
+    ax = np.int64(0)
+    ay = np.int64(1)
+    for t in range(n_out):
+        a = ci[t]
+        b = cj[t]
+        u1 = pu[a]
+        w1 = pw[a]
+        u2 = pu[b]
+        w2 = pw[b]
+        if u1 == u2 and w1 == w2:
+            continue
+        p = np.int64(-1)
+        if u1 == u2 or u1 == w2:
+            p = u1
+        elif w1 == u2 or w1 == w2:
+            p = w1
+        if p < 0:
+            if _seg_seg_2d(V, ws, u1, w1, u2, w2, ax, ay):
+                return False, work, ci, cj
+            continue
+        if u1 == w1 or u2 == w2:
+            continue  # a point that ends the other segment
+        q = w1 if u1 == p else u1
+        r = w2 if u2 == p else u2
+        if _o2(V, ws, p, q, r, ax, ay) != 0:
+            continue
+        for c in range(2):
+            dq = V[q, c] - V[p, c]
+            dr = V[r, c] - V[p, c]
+            if dq != 0.0 or dr != 0.0:
+                if (dq > 0.0 and dr > 0.0) or (dq < 0.0 and dr < 0.0):
+                    return False, work, ci, cj
+                break
+    return True, work, ci, cj
+
+
+@_kernel
+def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
+    """The faces ``faces``, each with its corners on the heights ``k`` and ``k + 1`` only, on a small
+    dyadic grid (float arithmetic exact), do not meet each other in the open slab
+    ``z_k < z < z_k+1`` except along common edges between the heights ("rungs"), and no two such
+    faces fold onto each other along a rung.  A certificate, not a test: False means "not shown".
+
+    Argument.  At a height between the planes (``t`` in (0, 1) of the way up) a face cuts a
+    segment from the point on one rung to the point on the other; name the rung that the face's
+    boundary runs down the *start*, the other the *end*.  Let ``c`` be the centre of the faces' xy
+    box.  For a face with bottom corners ``b1, b2`` and top ``u`` (in boundary order) the
+    orientation of ``c``, start point, end point is ``(1 - t)((1 - t) X + t Y)`` with
+    ``X = (b1 - c) x (b2 - c)``, ``Y = (b1 - c) x (u - c) + (u - c) x (b2 - c)``; for bottom ``b``
+    and top ``u1, u2`` it is ``t((1 - t) Y' + t X')`` with ``X' = (u2 - c) x (u1 - c)``,
+    ``Y' = (b - c) x (u1 - c) + (u2 - c) x (b - c)``.  When all ``X, X'`` have one strict sign and
+    ``Y, Y'`` that sign or zero, every segment at every such height turns strictly one way around
+    ``c``: it covers an open arc of directions from ``c`` (less than a half turn).  When every
+    rung is the start of exactly one face and the end of exactly one, the arcs chain end to start,
+    so the number of arcs over a direction is the same for all directions and all heights; it is
+    counted where the faces reach the lower plane (the arcs become those of the bottom edges): the
+    bottom edges that cross the ray from ``c`` along +x.  When it is 1, at every height the arcs
+    are disjoint and tile the directions once: two faces meet there only in the point of a rung
+    they share (two chained arcs), distinct rungs never meet, and two faces on one rung do not
+    overlap.  Every sign here is exact: the coordinates and ``c`` lie on a dyadic grid of under
+    ``2^17`` steps per axis, so the products and sums are exact in float64.  Workspaces: ``keys``
+    (two per face), ``nxt`` (one per face), ``head`` and ``hstamp`` (one per vertex, ``hstamp``
+    never equal to ``k + 1`` on entry for a vertex of these faces)."""
+    n = len(faces)
+    if n < 2:
+        return False
+    xlo = np.inf
+    xhi = -np.inf
+    ylo = np.inf
+    yhi = -np.inf
+    for t in range(n):
+        i = faces[t]
+        for q in range(3):
+            v = F[i, q]
+            xlo = min(xlo, V[v, 0])
+            xhi = max(xhi, V[v, 0])
+            ylo = min(ylo, V[v, 1])
+            yhi = max(yhi, V[v, 1])
+    cx = 0.5 * (xlo + xhi)
+    cy = 0.5 * (ylo + yhi)
+    sigma = 0.0
+    nv = np.int64(len(V))
+    wind = 0
+    for t in range(n):
+        i = faces[t]
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        nb = (lev[a] == k) + (lev[b] == k) + (lev[c] == k)
+        # rotate: two bottom corners -> (b1, b2, u); one -> (b, u1, u2)
+        if nb == 2:
+            if lev[a] != k:
+                a, b, c = b, c, a
+            elif lev[b] != k:
+                a, b, c = c, a, b
+        else:
+            if lev[b] == k:
+                a, b, c = b, c, a
+            elif lev[c] == k:
+                a, b, c = c, a, b
+        ax = V[a, 0] - cx
+        ay = V[a, 1] - cy
+        bx = V[b, 0] - cx
+        by = V[b, 1] - cy
+        ux = V[c, 0] - cx
+        uy = V[c, 1] - cy
+        if nb == 2:  # a = b1, b = b2, c = u
+            X = ax * by - ay * bx
+            Y = (ax * uy - ay * ux) + (ux * by - uy * bx)
+            start = a * nv + c
+            end = b * nv + c
+        else:  # a = b, b = u1, c = u2
+            if ax == 0.0 and ay == 0.0:
+                return False  # its arc would not shrink to nothing at the lower plane
+            X = ux * by - uy * bx
+            Y = (ax * by - ay * bx) + (ux * ay - uy * ax)
+            start = a * nv + c
+            end = a * nv + b
+        if sigma == 0.0:
+            sigma = 1.0 if X > 0.0 else -1.0
+        if not sigma * X > 0.0 or sigma * Y < 0.0:
+            return False
+        keys[2 * t] = start
+        keys[2 * t + 1] = end
+        if nb == 2:  # the bottom edge's arc over the +x ray (half-open)
+            if sigma > 0.0:
+                py, qy = ay, by
+            else:
+                py, qy = by, ay
+            if py < 0.0 and qy >= 0.0:
+                wind += 1
+    if wind != 1:
+        return False
+    # every rung the start of exactly one face and the end of exactly one: the ends in lists by
+    # bottom corner (no rung twice), then each start takes an end of its list once (n of each)
+    tag = k + 1
+    for t in range(n):
+        e = keys[2 * t + 1]
+        b = e // nv
+        if hstamp[b] != tag:
+            hstamp[b] = tag
+            head[b] = -1
+        r = head[b]
+        while r >= 0:
+            if keys[2 * r + 1] == e:
+                return False
+            r = nxt[r]
+        nxt[t] = head[b]
+        head[b] = t
+    for t in range(n):
+        st = keys[2 * t]
+        b = st // nv
+        if hstamp[b] != tag:
+            return False
+        r = head[b]
+        found = False
+        while r >= 0:
+            if keys[2 * r + 1] == st:
+                keys[2 * r + 1] = -1  # taken
+                found = True
+                break
+            r = nxt[r]
+        if not found:
+            return False
+    return True
+
+
+@_kernel
+def _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
+               npairs, pi, pj, work, limit):
+    """Slab k of :func:`_slab_pairs`: its pairs, each tested in the lowest slab the two faces
+    share; none when the planes on both sides hold embedded planar graphs and the slab's faces
+    (all within it) have the certificate of :func:`_slab_embedded`.  ``npairs`` is -1 when the
+    sweep went over ``limit``."""
+    if len(faces) < 2:
+        return ci, cj, npairs, pi, pj, work
+    if ws[0] == 1.0 and pemb[k] == 1 and pemb[k + 1] == 1:
+        single = True
+        for t in range(len(faces)):
+            if lo[faces[t]] != k or hi[faces[t]] != k + 1:
+                single = False
+                break
+        if single and _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
+            return ci, cj, npairs, pi, pj, work
+    ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, grp, faces, ci, cj, np.int64(0), work, limit, np.int64(0))
+    if n_out < 0:
+        return ci, cj, np.int64(-1), pi, pj, work
+    for t in range(n_out):
+        i = min(ci[t], cj[t])
+        j = max(ci[t], cj[t])
+        if max(lo[i], lo[j]) != k:
+            continue
+        if _pair_intersects(V, ws, F, i, j):
+            if npairs == len(pi):
+                pi = _grow(pi, 2 * npairs)
+                pj = _grow(pj, 2 * npairs)
+            pi[npairs] = i
+            pj[npairs] = j
+            npairs += 1
+    return ci, cj, npairs, pi, pj, work
+
+
+@njit(cache=True, **_OPTIONS)
+def _slab_pairs(V, ws, F, lev, nlev, budget):
+    """The pairs of :func:`_intersecting_pairs` for a mesh whose vertex heights have level indices
+    ``lev`` (``0 .. nlev-1``, in the order of the heights), by slabs and planes (see above).
+    Returns ``(pi, pj, ok)``: ``ok == 1`` done; ``0`` the mesh is not sectioned (its faces span
+    more than four slabs per face on average); ``-1`` the sweeps did more than ``budget`` box
+    tests per face (very long thin faces): then nothing is decided here."""
+    m = len(F)
+    pi = np.empty(16, np.int64)
+    pj = np.empty(16, np.int64)
+    box = np.empty((m, 6), np.float64)
+    lo = np.full(m, -1, np.int64)  # -1: not live (skipped, as in the grid path)
+    hi = np.full(m, -1, np.int64)
+    ax0 = np.int64(0)
+    ax1 = np.int64(1)
+    ax2 = np.int64(2)
+    nslab = max(nlev - 1, 1)
+    cnt_s = np.zeros(nslab + 1, np.int64)  # slab memberships
+    cnt_p = np.zeros(nlev + 1, np.int64)  # plane memberships
+    total = 0
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        for k in range(3):
+            box[i, k] = min(V[a, k], min(V[b, k], V[c, k]))
+            box[i, 3 + k] = max(V[a, k], max(V[b, k], V[c, k]))
+        if a == b or b == c or a == c:
+            continue
+        if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
+            continue  # collinear (exactly)
+        la = min(lev[a], min(lev[b], lev[c]))
+        ha = max(lev[a], max(lev[b], lev[c]))
+        lo[i] = la
+        hi[i] = ha
+        total += ha - la
+        if total > 4 * m + 1000:
+            return pi[:0], pj[:0], np.int64(0)
+        for k in range(la, ha):
+            cnt_s[k + 1] += 1
+        for k in range(la, ha + 1):
+            cnt_p[k + 1] += 1
+    for k in range(nslab):
+        cnt_s[k + 1] += cnt_s[k]
+    for k in range(nlev):
+        cnt_p[k + 1] += cnt_p[k]
+    slab_faces = np.empty(cnt_s[nslab], np.int64)
+    plane_faces = np.empty(cnt_p[nlev], np.int64)
+    fs = cnt_s[:nslab].copy()
+    fp = cnt_p[:nlev].copy()
+    for i in range(m):
+        if lo[i] < 0:
+            continue
+        for k in range(lo[i], hi[i]):
+            slab_faces[fs[k]] = i
+            fs[k] += 1
+        for k in range(lo[i], hi[i] + 1):
+            plane_faces[fp[k]] = i
+            fp[k] += 1
+    xlo = np.empty(m, np.float64)
+    xhi = np.empty(m, np.float64)
+    ylo = np.empty(m, np.float64)
+    yhi = np.empty(m, np.float64)
+    grp = np.full(m, 2, np.int64)  # every pair of one slab's faces is a candidate
+    for i in range(m):
+        xlo[i] = box[i, 0]
+        xhi[i] = box[i, 3]
+        ylo[i] = box[i, 1]
+        yhi[i] = box[i, 4]
+    limit = budget * m + 1000000
+    work = np.int64(0)
+    n_out = np.int64(0)
+    ci = np.empty(64, np.int64)
+    cj = np.empty(64, np.int64)
+    npairs = np.int64(0)
+    # plane entries (reused per plane: a face at most once)
+    pxlo = np.empty(m, np.float64)
+    pxhi = np.empty(m, np.float64)
+    pylo = np.empty(m, np.float64)
+    pyhi = np.empty(m, np.float64)
+    pgrp = np.zeros(m, np.int64)
+    pface = np.empty(m, np.int64)
+    ids = np.arange(m)
+    pu = np.empty(m, np.int64)
+    pw = np.empty(m, np.int64)
+    cert = np.empty(m, np.int64)
+    all2 = np.full(m, 2, np.int64)
+    stamp = np.full(len(V), -1, np.int64)
+    d1 = np.empty(len(V), np.int64)
+    d2 = np.empty(len(V), np.int64)
+    pemb = np.zeros(nlev, np.int64)
+    keys = np.empty(2 * m + 2, np.int64)
+    head = np.empty(len(V), np.int64)
+    hstamp = np.full(len(V), -1, np.int64)
+    nxt = np.empty(m + 1, np.int64)
+    for k in range(nlev):
+        # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
+        # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
+        # meet the others in a slab, only flat faces here)
+        ne = 0
+        n0 = 0
+        n1 = 0
+        for t in range(cnt_p[k], cnt_p[k + 1]):
+            i = plane_faces[t]
+            if lo[i] == hi[i] or (lo[i] < k and k < hi[i]):
+                continue
+            e = ne
+            pu[e] = -1
+            for q in range(3):
+                v = F[i, q]
+                if lev[v] != k:
+                    continue
+                if pu[e] < 0:
+                    pu[e] = v
+                    pw[e] = v
+                    pxlo[e] = V[v, 0]
+                    pxhi[e] = V[v, 0]
+                    pylo[e] = V[v, 1]
+                    pyhi[e] = V[v, 1]
+                else:
+                    pu[e] = min(pu[e], v)
+                    pw[e] = max(pw[e], v)
+                    pxlo[e] = min(pxlo[e], V[v, 0])
+                    pxhi[e] = max(pxhi[e], V[v, 0])
+                    pylo[e] = min(pylo[e], V[v, 1])
+                    pyhi[e] = max(pyhi[e], V[v, 1])
+            if hi[i] == k:
+                pgrp[e] = 0
+                n0 += 1
+            else:
+                pgrp[e] = 1
+                n1 += 1
+            pface[e] = i
+            ne += 1
+        ne01 = ne
+        nflat = 0
+        for t in range(cnt_p[k], cnt_p[k + 1]):
+            i = plane_faces[t]
+            if lo[i] == hi[i]:
+                pgrp[ne] = 2
+                nflat += 1
+            elif lo[i] < k and k < hi[i]:
+                pgrp[ne] = 3
+            else:
+                continue
+            pxlo[ne] = box[i, 0]
+            pxhi[ne] = box[i, 3]
+            pylo[ne] = box[i, 1]
+            pyhi[ne] = box[i, 4]
+            pface[ne] = i
+            ne += 1
+        # the pairs of a face ending here and a face starting here are all decided at once (none
+        # intersects) when their parts form an embedded planar graph (_plane_embedded)
+        emb = True
+        if n0 + n1 > 0:
+            emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01), np.int64(k),
+                                                stamp, d1, d2, cert, all2, ci, cj, work, limit)
+        pemb[k] = 1 if emb else 0
+        if k > 0:
+            ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp,
+                                                      slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, keys,
+                                                      head, hstamp, nxt,
+                                                      ci, cj, npairs, pi, pj, work, limit)
+            if npairs < 0:
+                return pi[:0], pj[:0], np.int64(-1)
+        if nflat == 0 and (n0 == 0 or n1 == 0 or emb):
+            continue
+        need2 = np.int64(1) if emb else np.int64(0)
+        ci, cj, n_out, work = _sweep(pxlo, pxhi, pylo, pyhi, pgrp, ids[:ne], ci, cj, np.int64(0), work, limit,
+                                     need2)
+        if n_out < 0:
+            return pi[:0], pj[:0], np.int64(-1)
+        for t in range(n_out):
+            a = pface[ci[t]]
+            b = pface[cj[t]]
+            i = min(a, b)
+            j = max(a, b)
+            hit = np.int64(-1)
+            if pgrp[ci[t]] < 2 and pgrp[cj[t]] < 2:
+                hit = _across_plane(V, ws, F, box, i, j)
+            if hit < 0:
+                hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+            if hit == 1:
+                if npairs == len(pi):
+                    pi = _grow(pi, 2 * npairs)
+                    pj = _grow(pj, 2 * npairs)
+                pi[npairs] = i
+                pj[npairs] = j
+                npairs += 1
+    return pi[:npairs], pj[:npairs], np.int64(1)
+
+
+# ------------------------------------------------------------------------------------------------
 # Python API
 # ------------------------------------------------------------------------------------------------
 def _as_mesh_arrays(vertices, faces):
@@ -804,47 +1331,114 @@ def _as_mesh_arrays(vertices, faces):
     return V, F
 
 
+@njit(cache=True, **_OPTIONS)
+def _dyadic_kernel(V):
+    """See :func:`_on_small_dyadic_grid`: 1 or 0."""
+    n = len(V)
+    if n == 0:
+        return np.int64(1)
+    kmin = 0
+    s = 1.0
+    for k3 in range(3):
+        for i in range(n):
+            x = V[i, k3]
+            w = x * s
+            while w != math.floor(w):  # the smallest k with every coordinate a multiple of 2^-k
+                kmin += 1
+                if kmin > 10:
+                    return np.int64(0)
+                s = 2.0 ** kmin
+                w = x * s
+    span = 0.0
+    for k3 in range(3):
+        lo = np.inf
+        hi = -np.inf
+        for i in range(n):
+            lo = min(lo, V[i, k3])
+            hi = max(hi, V[i, k3])
+        span = max(span, hi - lo)
+    return np.int64(1) if span * 2.0 ** kmin < 2.0 ** 16 else np.int64(0)
+
+
 def _on_small_dyadic_grid(V) -> bool:
     """All coordinates are integer multiples of one power of two ``2^-k`` (``k <= 10``) and span
     less than ``2^16`` such steps per axis: then coordinate differences, the orientation
     determinants and their partial sums are all exact in float64 (below ``2^51`` steps cubed)."""
-    if len(V) == 0:
-        return True
-    lo = V.min(axis=0)
-    span = V.max(axis=0) - lo
-    for k in range(11):
-        s = 2.0 ** k
-        if float(span.max()) * s >= 2.0 ** 16:
-            return False
-        W = V * s
-        if np.array_equal(W, np.floor(W)):
-            return True
-    return False
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    return bool(_dyadic_kernel(V if V.flags.writeable else V.copy()))
+
+
+@njit(cache=True, **_OPTIONS)
+def _canonical_kernel(B):
+    """For rows of bit patterns ``B`` (n, 3) uint64: the lowest index of a row equal to each
+    (a hash table with open addressing, filled in index order)."""
+    n = len(B)
+    cap = 2
+    bits = 1
+    while cap < 2 * n:
+        cap *= 2
+        bits += 1
+    mask = np.uint64(cap - 1)
+    shift = np.uint64(64 - bits)
+    table = np.full(cap, -1, np.int64)
+    canon = np.empty(n, np.int64)
+    m1 = np.uint64(0x9E3779B97F4A7C15)
+    m2 = np.uint64(0xC2B2AE3D27D4EB4F)
+    m3 = np.uint64(0x165667B19E3779F9)
+    for i in range(n):
+        h = (B[i, 0] ^ (B[i, 0] >> np.uint64(29))) * m1
+        h = ((h >> np.uint64(32)) ^ h ^ B[i, 1]) * m2
+        h = ((h >> np.uint64(32)) ^ h ^ B[i, 2]) * m3
+        q = h >> shift  # the high bits: they depend on every bit of the three numbers
+        while True:
+            j = table[q]
+            if j < 0:
+                table[q] = i
+                canon[i] = i
+                break
+            if B[j, 0] == B[i, 0] and B[j, 1] == B[i, 1] and B[j, 2] == B[i, 2]:
+                canon[i] = j
+                break
+            q = (q + np.uint64(1)) & mask
+    return canon
 
 
 def canonical_vertices(vertices) -> np.ndarray:
-    """For every vertex, the lowest index of a vertex with bit-identical coordinates."""
+    """For every vertex, the lowest index of a vertex with equal coordinates (``-0.0`` equals
+    ``0.0``; compared as float64 numbers, so bit-identical up to the sign of zero)."""
     V = np.asarray(vertices, dtype=np.float64)
     n = len(V)
     if n == 0:
         return np.zeros(0, np.int64)
-    order = np.lexsort((np.arange(n), V[:, 2], V[:, 1], V[:, 0]))
-    sv = V[order]
-    new = np.ones(n, dtype=bool)
-    new[1:] = np.any(sv[1:] != sv[:-1], axis=1)
-    first = order[new]
-    canon = np.empty(n, dtype=np.int64)
-    canon[order] = first[np.cumsum(new) - 1]
-    return canon
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise ValueError(f"vertices must have shape (n, 3); got {V.shape}")
+    if np.isnan(V).any():  # NaN equals nothing, not even itself: sort
+        order = np.lexsort((np.arange(n), V[:, 2], V[:, 1], V[:, 0]))
+        sv = V[order]
+        new = np.ones(n, dtype=bool)
+        new[1:] = np.any(sv[1:] != sv[:-1], axis=1)
+        first = order[new]
+        canon = np.empty(n, dtype=np.int64)
+        canon[order] = first[np.cumsum(new) - 1]
+        return canon
+    W = np.ascontiguousarray(V + 0.0)  # -0.0 + 0.0 == +0.0: one bit pattern per number
+    return _canonical_kernel(W.view(np.uint64))
 
 
-def intersecting_pairs(vertices, faces, *, budget: int = 8) -> np.ndarray:
+def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto") -> np.ndarray:
     """The pairs of faces that intersect other than along a shared edge or at a shared vertex.
 
     Returns a ``(k, 2)`` int64 array of face indices ``i < j``, sorted; see the module docstring
     for the exact rule, the predicates and the tolerance.  ``budget`` (the average number of grid
     cells a face may occupy) only trades memory for speed; the result does not depend on it.
+    ``method``: ``"grid"`` the general broad phase (a 3D grid), ``"slabs"`` the broad phase by
+    slabs between consecutive vertex heights (for meshes made from sections; an error for a mesh
+    without that structure; where a sweep would test too many boxes, the grid takes over),
+    ``"auto"`` slabs where the mesh has that structure, else the grid.
+    The pairs are the same whichever method decides them.
     """
+    if method not in ("auto", "grid", "slabs"):
+        raise ValueError(f"method must be 'auto', 'grid' or 'slabs'; got {method!r}")
     V, F = _as_mesh_arrays(vertices, faces)
     if len(F) < 2:
         return np.zeros((0, 2), dtype=np.int64)
@@ -854,10 +1448,26 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8) -> np.ndarray:
     if 3 * len(F) < len(V):  # a few faces of a large mesh: only the vertices they use
         used = np.unique(F)
         V, F = V[used], np.searchsorted(used, F)
-    Fc = canonical_vertices(V)[F]
+    return _pairs(V, F, canonical_vertices(V), budget, method)
+
+
+def _pairs(V, F, canon, budget, method):
+    """:func:`intersecting_pairs` on checked arrays, ``canon`` from :func:`canonical_vertices`."""
+    if not V.flags.writeable:  # one compiled signature: writable C arrays
+        V = V.copy()
+    Fc = canon[F]
     ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
-    pi, pj = _intersecting_pairs(V, ws, Fc, np.int64(budget))
+    ok = 0
+    if method != "grid":
+        levels, lev = np.unique(V[:, 2], return_inverse=True)
+        pi, pj, ok = _slab_pairs(V, ws, Fc, lev.astype(np.int64).reshape(-1), np.int64(len(levels)),
+                                 np.int64(64))
+        if ok == 0 and method == "slabs":
+            raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
+                             "than four slabs between consecutive vertex heights per face on average")
+    if ok != 1:  # not sectioned, or a sweep over its budget: the grid (the same pairs)
+        pi, pj = _intersecting_pairs(V, ws, Fc, np.int64(budget))
     out = np.stack([pi, pj], axis=1).astype(np.int64, copy=False)
     if len(out):
         out = out[np.lexsort((out[:, 1], out[:, 0]))]

@@ -8,8 +8,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-from .intersect import canonical_vertices, self_intersections
+from .intersect import _as_mesh_arrays, _pairs, canonical_vertices, self_intersections
 
 __all__ = [
     "triangle_areas",
@@ -122,6 +123,148 @@ def _components(n: int, faces: np.ndarray) -> int:
     return int(connected_components(g, directed=False)[0])
 
 
+@njit(cache=True, nogil=True)
+def _topology_kernel(F, n):
+    """One pass over the faces (vertex indices below ``n``): ``(used vertices, undirected edges,
+    boundary edges, non-manifold edges, directed edges used more than once, components, a root
+    label per vertex)``; the edges are bucketed by their lower vertex (a counting sort), each
+    bucket counted on its own; components by union-find over the face edges."""
+    m = len(F)
+    cnt = np.zeros(n + 1, np.int64)
+    used = np.zeros(n, np.uint8)
+    parent = np.arange(n)
+    for i in range(m):
+        for t in range(3):
+            a = F[i, t]
+            b = F[i, (t + 1) % 3]
+            used[a] = 1
+            cnt[min(a, b) + 1] += 1
+            # union (path halving)
+            ra = a
+            while parent[ra] != ra:
+                parent[ra] = parent[parent[ra]]
+                ra = parent[ra]
+            rb = b
+            while parent[rb] != rb:
+                parent[rb] = parent[parent[rb]]
+                rb = parent[rb]
+            if ra != rb:
+                if ra < rb:
+                    parent[rb] = ra
+                else:
+                    parent[ra] = rb
+    for v in range(n):
+        cnt[v + 1] += cnt[v]
+    fill = cnt[:n].copy()
+    key = np.empty(3 * m, np.int64)  # 2 * upper vertex + (1 if the edge runs downward)
+    for i in range(m):
+        for t in range(3):
+            a = F[i, t]
+            b = F[i, (t + 1) % 3]
+            lo = min(a, b)
+            key[fill[lo]] = 2 * max(a, b) + (1 if a > b else 0)
+            fill[lo] += 1
+    n_used = 0
+    n_edges = 0
+    boundary = 0
+    nonmanifold = 0
+    dup_directed = 0
+    comps = 0
+    for v in range(n):
+        if used[v] == 0:
+            continue
+        n_used += 1
+        r = v
+        while parent[r] != r:
+            r = parent[r]
+        if r == v:
+            comps += 1
+        s0 = cnt[v]
+        s1 = cnt[v + 1]
+        if s1 - s0 > 16:
+            key[s0:s1].sort()
+        else:
+            for x in range(s0 + 1, s1):  # insertion sort: the buckets are short
+                kx = key[x]
+                y = x - 1
+                while y >= s0 and key[y] > kx:
+                    key[y + 1] = key[y]
+                    y -= 1
+                key[y + 1] = kx
+        t = s0
+        while t < s1:  # runs of one undirected edge; within a run, runs of one direction
+            u = t
+            while u < s1 and key[u] >> 1 == key[t] >> 1:
+                u += 1
+            c = u - t
+            n_edges += 1
+            if c == 1:
+                boundary += 1
+            elif c > 2:
+                nonmanifold += 1
+            w = t
+            while w < u:
+                x = w
+                while x < u and key[x] == key[w]:
+                    x += 1
+                if x - w > 1:
+                    dup_directed += 1
+                w = x
+            t = u
+    return n_used, n_edges, boundary, nonmanifold, dup_directed, comps
+
+
+@njit(cache=True, nogil=True)
+def _face_kernel(V, F, c, thr, canon):
+    """Per face the volume term ``t0 . (t1 x t2)`` (corners less ``c``, as in
+    :func:`mesh_volume`), and the counts of degenerate faces (a repeated index, or area at most
+    ``thr``) and of used vertices whose position an earlier used vertex has (``canon``)."""
+    m = len(F)
+    vol = np.empty(m, np.float64)
+    degenerate = 0
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        d = F[i, 2]
+        ux = V[b, 0] - V[a, 0]
+        uy = V[b, 1] - V[a, 1]
+        uz = V[b, 2] - V[a, 2]
+        wx = V[d, 0] - V[a, 0]
+        wy = V[d, 1] - V[a, 1]
+        wz = V[d, 2] - V[a, 2]
+        cx = uy * wz - uz * wy
+        cy = uz * wx - ux * wz
+        cz = ux * wy - uy * wx
+        area = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+        if a == b or b == d or a == d or area <= thr:
+            degenerate += 1
+        p0 = V[a, 0] - c[0]
+        p1 = V[a, 1] - c[1]
+        p2 = V[a, 2] - c[2]
+        q0 = V[b, 0] - c[0]
+        q1 = V[b, 1] - c[1]
+        q2 = V[b, 2] - c[2]
+        r0 = V[d, 0] - c[0]
+        r1 = V[d, 1] - c[1]
+        r2 = V[d, 2] - c[2]
+        vol[i] = p0 * (q1 * r2 - q2 * r1) + p1 * (q2 * r0 - q0 * r2) + p2 * (q0 * r1 - q1 * r0)
+    n = len(V)
+    seen = np.zeros(n, np.uint8)  # 1: used, 2: a used vertex has this position
+    for i in range(m):
+        for t in range(3):
+            seen[F[i, t]] = 1
+    distinct = 0
+    n_used = 0
+    for v in range(n):
+        if seen[v] & 1:
+            n_used += 1
+            r = canon[v]
+            if (seen[r] & 2) == 0:
+                seen[r] |= 2
+                distinct += 1
+    return vol, degenerate, n_used - distinct
+
+
 def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-12) -> dict:
     """The checks every emitted mesh must pass, computed without third-party mesh code.
 
@@ -142,28 +285,34 @@ def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-
             "nonmanifold_edges": 0, "degenerate_faces": 0, "duplicate_vertices": 0,
             "volume": 0.0, "components": 0, "genus": None, "self_intersections": 0, "closed": False, "ok": False,
         }
-    uniq, counts, dup_directed = _edge_counts(faces)
-    diag2 = float(np.sum((vertices.max(0) - vertices.min(0)) ** 2)) or 1.0
-    areas = triangle_areas(vertices, faces)
-    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    degenerate = int((repeated | (areas <= rel_tol * diag2)).sum())
-    used = np.unique(faces)
-    # positions shared by several used vertices (lexsort of the coordinates, not unique rows)
-    dup_vertices = len(used) - int(np.count_nonzero(canonical_vertices(vertices[used]) == np.arange(len(used))))
-    comps = _components(len(vertices), faces)
-    watertight = bool(np.all(counts == 2))
-    volume = mesh_volume(vertices, faces)
+    V, F = _as_mesh_arrays(vertices, faces)
+    if not V.flags.writeable:  # one compiled signature: writable C arrays
+        V = V.copy()
+    if not F.flags.writeable:
+        F = F.copy()
+    n_used, n_edges, boundary, nonmanifold, dup_directed, comps = _topology_kernel(F, np.int64(len(V)))
+    diag2 = float(np.sum((V.max(0) - V.min(0)) ** 2)) or 1.0
+    canon = canonical_vertices(V)
+    vol, degenerate, dup_vertices = _face_kernel(V, F, V.mean(axis=0), float(rel_tol * diag2), canon)
+    volume = float(vol.sum() / 6.0)
+    watertight = boundary == 0 and nonmanifold == 0
+    # the pairs on the used vertices only when the mesh is a few faces of many vertices (as
+    # intersecting_pairs does)
+    if 3 * len(F) < len(V):
+        pairs = self_intersections(V, F)
+    else:
+        pairs = int(len(_pairs(V, F, canon, 8, "auto")))
     out = {
-        "watertight": watertight,
+        "watertight": bool(watertight),
         "winding_consistent": dup_directed == 0,
-        "boundary_edges": int((counts == 1).sum()),
-        "nonmanifold_edges": int((counts > 2).sum()),
-        "degenerate_faces": degenerate,
+        "boundary_edges": int(boundary),
+        "nonmanifold_edges": int(nonmanifold),
+        "degenerate_faces": int(degenerate),
         "duplicate_vertices": int(dup_vertices),
         "volume": volume,
-        "components": comps,
-        "genus": euler_genus(len(used), len(uniq), len(faces), comps) if watertight else None,
-        "self_intersections": self_intersections(vertices, faces),
+        "components": int(comps),
+        "genus": euler_genus(int(n_used), int(n_edges), len(F), int(comps)) if watertight else None,
+        "self_intersections": pairs,
     }
     # closed: a closed, consistently outward 2-manifold without degenerate faces; ok: also embedded
     out["closed"] = bool(watertight and out["winding_consistent"] and degenerate == 0 and dup_vertices == 0

@@ -1,0 +1,217 @@
+"""Issue 13 (cost of the check): the broad phase by slabs and planes (``method="slabs"``) must give
+exactly the pairs of the general grid (``method="grid"``) on our own meshes, on our meshes with
+crossings put in, and on random meshes with the sectioned structure; ``mesh_checks``' compiled
+counts must equal the plain numpy ones."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+import contourmesh
+from contourmesh.intersect import intersecting_pairs
+from contourmesh.measure import _components, _edge_counts, mesh_checks, mesh_volume, triangle_areas
+
+
+def _sectioned(V, F):
+    li = np.searchsorted(np.unique(V[:, 2]), V[F, 2])
+    return int((li.max(1) - li.min(1)).sum()) <= 4 * len(F) + 1000
+
+
+def _same(V, F, *, expect_slabs=None):
+    grid = intersecting_pairs(V, F, method="grid")
+    if expect_slabs is None:
+        expect_slabs = _sectioned(V, F)
+    if expect_slabs:
+        slabs = intersecting_pairs(V, F, method="slabs")
+        assert np.array_equal(slabs, grid), (len(slabs), len(grid))
+    assert np.array_equal(intersecting_pairs(V, F), grid)  # auto
+    return len(grid)
+
+
+def _volumes(rng, n):
+    for t in range(n):
+        if t % 3 == 0:  # a smoothed noise blob
+            v = ndimage.gaussian_filter(rng.random((9, 11, 12)), 1.2) > 0.5
+        elif t % 3 == 1:  # sparse voxels with edge and corner contacts
+            v = rng.random((6, 7, 8)) < 0.25
+        else:  # boxes touching each other
+            v = np.zeros((8, 9, 9), bool)
+            for _ in range(3):
+                z, y, x = rng.integers(0, 6, 3)
+                v[z:z + rng.integers(1, 4), y:y + rng.integers(1, 5), x:x + rng.integers(1, 5)] = True
+        if v.any():
+            yield np.pad(v, 1)
+
+
+def _our_meshes(seed=0, n=12):
+    rng = np.random.default_rng(seed)
+    for v in _volumes(rng, n):
+        for kw in ({}, {"polygon": "none"}):
+            m = contourmesh.mesh(v, **kw)
+            yield m.vertices.copy(), m.faces.copy()
+
+
+def test_our_meshes_give_the_same_pairs_by_slabs():
+    n = sectioned = 0
+    for V, F in _our_meshes():
+        _same(V, F)
+        n += 1
+        sectioned += _sectioned(V, F)
+    assert n >= 16 and 4 * sectioned >= 3 * n, (n, sectioned)
+
+
+def test_our_meshes_with_crossings_put_in():
+    # a vertex moved far within its plane (the structure stays, its faces sweep through others),
+    # or to the height of a neighbour plane where that keeps every face within two heights
+    rng = np.random.default_rng(5)
+    found = moved_z = 0
+    for V, F in _our_meshes(seed=1, n=10):
+        if not _sectioned(V, F):
+            continue
+        levels = np.unique(V[:, 2])
+        for _ in range(4):
+            W = V.copy()
+            v = int(rng.integers(len(W)))
+            if rng.random() < 0.5:
+                W[v, :2] += rng.uniform(-3, 3, 2)
+                found += _same(W, F) > 0
+            else:
+                k = int(np.searchsorted(levels, W[v, 2]))
+                k2 = k + (1 if rng.random() < 0.5 else -1)
+                if not 0 <= k2 < len(levels):
+                    continue
+                W[v, 2] = levels[k2]
+                structured = _sectioned(W, F)
+                found += _same(W, F) > 0
+                moved_z += structured
+    assert found >= 10 and moved_z >= 5, (found, moved_z)
+
+
+def _random_sectioned(rng, n_levels, n_vertices, n_faces, flat_share):
+    """Random faces whose corners lie on ``n_levels`` heights, each flat or spanning one slab
+    between consecutive heights (some two or three), on a coarse dyadic grid (many touching,
+    collinear, coplanar and shared cases)."""
+    z = np.sort(rng.choice(np.arange(0, 3 * n_levels) * 0.5, n_levels, replace=False))
+    lev = rng.integers(0, n_levels, n_vertices)
+    V = np.c_[rng.integers(0, 6, (n_vertices, 2)) * 0.5, z[lev]]
+    by_level = [np.flatnonzero(lev == k) for k in range(n_levels)]
+    F = []
+    while len(F) < n_faces:
+        k = int(rng.integers(n_levels))
+        if rng.random() < flat_share:
+            pool = by_level[k]
+        else:  # over one slab, or now and then two or three (faces through a plane)
+            span = 1 + int(rng.integers(3) * (rng.random() < 0.3))
+            if k + span >= n_levels:
+                continue
+            pool = np.concatenate(by_level[k:k + span + 1])
+        if len(pool) < 3:
+            continue
+        f = rng.choice(pool, 3, replace=False)
+        if len(set(lev[f])) == 1 and pool is not by_level[k]:
+            continue
+        F.append(f)
+    return V.astype(float), np.array(F)
+
+
+@pytest.mark.parametrize("flat_share", [0.0, 0.3])
+def test_random_sectioned_meshes(flat_share):
+    rng = np.random.default_rng(11)
+    hits = 0
+    for _ in range(60):
+        V, F = _random_sectioned(rng, int(rng.integers(2, 6)), 30, 40, flat_share)
+        hits += _same(V, F, expect_slabs=True) > 0
+        # not on the dyadic grid: the exact predicates' other branch
+        _same(V * 0.1 + 0.37, F, expect_slabs=True)
+    assert hits >= 30
+
+
+def test_random_unsectioned_meshes_fall_back_to_the_grid():
+    rng = np.random.default_rng(2)
+    V = rng.uniform(0, 4, (2000, 3))  # every vertex at its own height
+    F = rng.integers(0, 2000, (300, 3))
+    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    with pytest.raises(ValueError, match="sections"):
+        intersecting_pairs(V, F, method="slabs")
+    assert np.array_equal(intersecting_pairs(V, F), intersecting_pairs(V, F, method="grid"))
+    with pytest.raises(ValueError, match="method"):
+        intersecting_pairs(V, F, method="bvh")
+
+
+def test_plane_where_ring_edges_cross():
+    # two prisms between z = 0 and z = 1 whose bottom edges cross in z = 0 (the planar graph there
+    # is not embedded), and whose slab faces cross: all found, by slabs as by the grid
+    a = np.array([[0, 0, 0], [2, 0, 0], [1, 2, 0], [0, 0, 1], [2, 0, 1], [1, 2, 1.0]])
+    b = a + [1, -1, 0]
+    b[:, 1] *= -1
+    V = np.vstack([a, b])
+    side = [[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [2, 0, 3], [2, 3, 5]]
+    F = np.array(side + [[i + 6, j + 6, k + 6] for i, j, k in side] + [[0, 2, 1], [6, 8, 7], [3, 4, 5], [9, 11, 10]])
+    n = _same(V, F)
+    assert n > 0
+    # the same prisms one above the other meet only in z = 1, in the crossing edges there
+    b2 = b.copy()
+    b2[:, 2] += 1
+    n2 = _same(np.vstack([a, b2]), F)
+    assert 0 < n2 < n
+
+
+def test_mesh_checks_counts_match_numpy():
+    rng = np.random.default_rng(4)
+    for t in range(80):
+        V = rng.integers(0, 4, (20, 3)) * 0.5
+        F = rng.integers(0, 20, (int(rng.integers(1, 30)), 3))
+        if t % 4 == 0:  # a closed mesh, sometimes with a duplicated vertex or face
+            m = contourmesh.mesh(np.pad(rng.random((4, 4, 4)) < 0.5, 1))
+            V, F = m.vertices.copy(), m.faces.copy()
+            if t % 8 == 0:
+                V = np.vstack([V, V[F[0, 0]]])
+                F = np.vstack([F, F[:1]])
+                F[-1, 0] = len(V) - 1
+        chk = mesh_checks(V, F)
+        uniq, counts, dup_directed = _edge_counts(F)
+        used = np.unique(F)
+        assert chk["boundary_edges"] == int((counts == 1).sum())
+        assert chk["nonmanifold_edges"] == int((counts > 2).sum())
+        assert chk["winding_consistent"] == (dup_directed == 0)
+        assert chk["watertight"] == bool(np.all(counts == 2))
+        assert chk["components"] == _components(len(V), F)
+        assert chk["duplicate_vertices"] == len(used) - len(np.unique(V[used], axis=0))
+        diag2 = float(np.sum((V.max(0) - V.min(0)) ** 2)) or 1.0
+        rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+        assert chk["degenerate_faces"] == int((rep | (triangle_areas(V, F) <= 1e-12 * diag2)).sum())
+        assert chk["volume"] == pytest.approx(mesh_volume(V, F), rel=1e-12, abs=1e-12)
+        assert chk["self_intersections"] == len(intersecting_pairs(V, F, method="grid"))
+
+
+def _twisted_tube(shifts, ring=((3, 1), (1, 3), (-1, 3), (-3, 1), (-3, -1), (-1, -3), (1, -3), (3, -1)), caps=True):
+    """A closed tube through the planes z = 0, 1, ..: the ring of plane k turned by ``shifts[k]``
+    places against the one below (0: a prism; half the ring: the band passes through the axis)."""
+    ring = np.asarray(ring, float)
+    n = len(ring)
+    V, F, turn = [], [], 0
+    for k in range(len(shifts) + 1):
+        V += [(x, y, float(k)) for x, y in ring]
+    for k, s in enumerate(shifts):
+        turn += s
+        b, t = k * n, (k + 1) * n
+        for i in range(n):
+            F.append([b + i, b + (i + 1) % n, t + (i + 1) % n])
+            F.append([b + i, t + (i + 1) % n, t + i])
+        # the ring above reindexed: the vertex above i is the ring's (i + turn)
+        V[t:t + n] = [V[t + (i + turn) % n] for i in range(n)]
+    if caps:
+        top = len(shifts) * n
+        F += [[0, i + 1, i] for i in range(1, n - 1)] + [[top, top + i, top + i + 1] for i in range(1, n - 1)]
+    return np.array(V), np.array(F)
+
+
+@pytest.mark.parametrize("shifts, crossing", [((0, 0, 0), False), ((1, 0, 2), False), ((0, 0, 7), False),
+                                              ((0, 4, 0), True), ((3, 0, 0), True)])
+def test_twisted_tubes(shifts, crossing):
+    # embedded bands (decided by the slab certificate) and bands turned far enough to pass through
+    # the axis or fold (decided pair by pair): the same pairs as the grid
+    V, F = _twisted_tube(shifts)
+    n = _same(V, F, expect_slabs=True)
+    assert (n > 0) == crossing, n
+    _same(V * 0.3 + 0.1, F, expect_slabs=True)  # off the dyadic grid: no certificate, pair by pair
