@@ -70,16 +70,16 @@ from .bands.caps import cap_faces
 from .bands.optimal import triangulate_band_optimal
 from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp
 from .geometry import grid_to_xy, shoelace_area, slice_gap
+from .intersect import intersecting_pairs
 from .measure import triangle_areas
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
 from .refine import refine_volume_rings
-from .intersect import intersecting_pairs
 from .repair import (
     _compact,
-    crossing_pairs_after_change,
     _open_necks,
     _separate_coincident,
     _split_four_face_edges,
+    crossing_pairs_after_change,
     resolve_crossings,
     split_nonmanifold_vertices,
 )
