@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .optimal import N_LAYERS, TWO_ROWS, _annulus_dp
+from .optimal import N_LAYERS, _annulus_dp, _trace_back
 from .wiederhold import edges_to_faces, oriented_pair
 
 __all__ = ["band_volume", "rule_interval", "faithful_band", "FaithfulBands"]
@@ -109,25 +109,12 @@ def _best_edges(A1, A2, starts):
         if c < best:
             best = c
             best_s = s
-    E = np.empty((n + m, 2), dtype=np.int64)
     if best_s < 0:
-        return E, best_s
+        return np.empty((n + m, 2), dtype=np.int64), best_s
     move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     _annulus_dp(A1, A2, best_s, D2, move, parent, True)
-    i = n
-    j = m
-    L = TWO_ROWS
-    for k in range(n + m - 1, -1, -1):
-        mv = move[i, L, j]
-        L = parent[i, L, j]
-        if mv == 0:
-            i -= 1
-        else:
-            j -= 1
-        E[k, 0] = i
-        E[k, 1] = j
-    return E, best_s
+    return _trace_back(move, parent, n, m), best_s
 
 
 #: Work (``starts * n * m``) of one dynamic programme; beyond it the start points are thinned.

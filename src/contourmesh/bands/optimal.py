@@ -188,6 +188,12 @@ def optimal_edges_from(c1, c2, starts):
     move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     total = _annulus_dp(A1, A2, best_s, D2, move, parent, True)
+    return _trace_back(move, parent, n, m), best_s, total
+
+
+@njit(cache=True)
+def _trace_back(move, parent, n, m):
+    """The band's edges ``(i, j)`` read back from the programme's moves, from the goal layer."""
     E = np.empty((n + m, 2), dtype=np.int64)
     i = n
     j = m
@@ -201,7 +207,7 @@ def optimal_edges_from(c1, c2, starts):
             j -= 1
         E[k, 0] = i
         E[k, 1] = j
-    return E, best_s, total
+    return E
 
 
 def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.ndarray:
