@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .optimal import N_LAYERS, _annulus_dp, _trace_back
+from .optimal import N_LAYERS, _annulus_dp, _best_start, _trace_back
 from .wiederhold import edges_to_faces, oriented_pair
 
 __all__ = ["band_volume", "rule_interval", "faithful_band", "FaithfulBands"]
@@ -101,14 +101,7 @@ def _best_edges(A1, A2, starts):
     """The cheapest annular path over the start points ``starts`` of ``C(1)``: ``(edges, s)``."""
     n, m = A1.shape
     D2 = np.empty((2, N_LAYERS, m + 1))
-    dummy = np.empty((1, 1, 1), dtype=np.int8)
-    best_s = -1
-    best = np.inf
-    for s in starts:
-        c = _annulus_dp(A1, A2, s, D2, dummy, dummy, False)
-        if c < best:
-            best = c
-            best_s = s
+    best_s = _best_start(A1, A2, starts, D2)
     if best_s < 0:
         return np.empty((n + m, 2), dtype=np.int64), best_s
     move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)

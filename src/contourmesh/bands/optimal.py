@@ -177,18 +177,27 @@ def optimal_edges_from(c1, c2, starts):
     n = c1.shape[0]
     m = c2.shape[0]
     D2 = np.empty((2, N_LAYERS, m + 1))
+    best_s = _best_start(A1, A2, starts, D2)
+    if best_s < 0:
+        best_s = starts[0]
+    move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
+    parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
+    total = _annulus_dp(A1, A2, best_s, D2, move, parent, True)
+    return _trace_back(move, parent, n, m), best_s, total
+
+
+@njit(cache=True)
+def _best_start(A1, A2, starts, D2):
+    """The start point of ``starts`` whose annular path costs least (-1 if none is finite)."""
     dummy = np.empty((1, 1, 1), dtype=np.int8)
-    best_s = starts[0]
+    best_s = -1
     best = np.inf
     for s in starts:
         c = _annulus_dp(A1, A2, s, D2, dummy, dummy, False)
         if c < best:
             best = c
             best_s = s
-    move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    total = _annulus_dp(A1, A2, best_s, D2, move, parent, True)
-    return _trace_back(move, parent, n, m), best_s, total
+    return best_s
 
 
 @njit(cache=True)
