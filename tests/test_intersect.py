@@ -261,17 +261,21 @@ def test_matches_an_exact_reference_on_random_meshes(kind):
         assert pairs(V, F) == reference_pairs(V, F)
 
 
+def _soup_or_folded_sphere(rng, it):
+    """A random triangle soup (odd ``it``) or an icosphere whose jittered vertices fold it (even)."""
+    if it % 2:
+        V, F = rng.uniform(0, 10, (60, 3)), rng.integers(0, 60, (40, 3))
+        return V, F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    s = trimesh.creation.icosphere(2)
+    return s.vertices + rng.normal(0, 0.15, s.vertices.shape), s.faces
+
+
 def test_finds_every_crossing_open3d_finds():
     o3d = pytest.importorskip("open3d")
     rng = np.random.default_rng(2026)
     extra_seen = 0
     for it in range(50):
-        if it % 2:
-            V, F = rng.uniform(0, 10, (60, 3)), rng.integers(0, 60, (40, 3))
-            F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
-        else:
-            s = trimesh.creation.icosphere(2)
-            V, F = s.vertices + rng.normal(0, 0.15, s.vertices.shape), s.faces
+        V, F = _soup_or_folded_sphere(rng, it)
         m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
         theirs = {tuple(sorted(p)) for p in np.asarray(m.get_self_intersecting_triangles()).tolist()}
         ours = pairs(V, F)
@@ -291,12 +295,7 @@ def test_finds_every_face_pymeshlab_selects():
     rng = np.random.default_rng(2027)
     selected = 0
     for it in range(30):
-        if it % 2:
-            V, F = rng.uniform(0, 10, (60, 3)), rng.integers(0, 60, (40, 3))
-            F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
-        else:
-            s = trimesh.creation.icosphere(2)
-            V, F = s.vertices + rng.normal(0, 0.15, s.vertices.shape), s.faces
+        V, F = _soup_or_folded_sphere(rng, it)
         ms = pymeshlab.MeshSet()
         ms.add_mesh(pymeshlab.Mesh(vertex_matrix=V, face_matrix=F.astype(np.int32)))
         ms.compute_selection_by_self_intersections_per_face()
