@@ -49,7 +49,14 @@ import numpy as np
 from . import shapes as _shapes
 from .bands.caps import CapError
 from .digitize import gauss_volume, outer_jordan_stack
-from .errors import CrossingFacesError, InapplicableOption, RasterFallbackWarning, StackSurfaceError, warn_external
+from .errors import (
+    CrossingFacesError,
+    InapplicableOption,
+    RasterFallbackWarning,
+    StackSurfaceError,
+    ThinRegionError,
+    warn_external,
+)
 from .io import check_file
 from .io.contours import CONTOUR_SUFFIXES, is_contour_file, read_contours
 from .io.volumes import VOLUME_SUFFIXES, read_image
@@ -466,9 +473,9 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
         if stack is not None:
             try:
                 return _refined(stack, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
-            except (CapError, StackSurfaceError, ValueError) as exc:
-                # a slice whose seed polygon is a point or a segment (a part one pixel wide): the
-                # stack mesher cannot close it, the volume mesher below can
+            except (CapError, StackSurfaceError, ThinRegionError) as exc:
+                # a slice whose seed polygon is a point or a segment (a part one pixel wide), or
+                # rings the stack mesher cannot close: the volume mesher below can
                 if caps == "smooth":
                     raise
                 log.debug("refined stack route failed (%s); the volume mesher refines its polygons", exc)

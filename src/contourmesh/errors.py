@@ -11,6 +11,7 @@ import os
 import warnings
 
 __all__ = ["ContourMeshError", "InapplicableOption", "CapError", "StackSurfaceError", "CrossingFacesError",
+           "ThinRegionError",
            "MissingDependency",
            "LostContourWarning", "RasterFallbackWarning", "SelfIntersectionWarning", "warn_external"]
 
@@ -34,6 +35,11 @@ class StackSurfaceError(ContourMeshError):
 class CrossingFacesError(StackSurfaceError):
     """Faces of a stack-route mesh still cross after its local repair (asked for with
     ``crossings="raise"``; the front door then takes another route)."""
+
+
+class ThinRegionError(ContourMeshError):
+    """A contour bounds no grid point whose four surrounding cells are inside (a region one cell
+    thin), so it has no minimum length polygon."""
 
 
 class MissingDependency(ImportError):

@@ -486,7 +486,7 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
     s0 = next((k for k in range(n) if cappable(k)), None)
     s1 = next((k for k in range(n - 1, -1, -1) if cappable(k)), None)
     if s0 is None or s1 is None or s1 - s0 < 1:
-        raise ValueError("the stack's rings cannot be capped (outer and hole polygons cross at both ends)")
+        raise StackSurfaceError("the stack's rings cannot be capped (outer and hole polygons cross at both ends)")
     rings = [[b.add_polygon(p[k], zs[k]) for k in range(s0, s1 + 1)] for p in polys]
     for h, ch in enumerate(rings):
         for k, (a, c) in enumerate(zip(ch[:-1], ch[1:]), start=s0):
@@ -668,7 +668,7 @@ def _mesh_run(b: _Builder, stack: ContourStack, run, polygon: str, triangulation
         k, c = run[keep[0]]
         cont = np.asarray(stack.sections[k].contours[c], dtype=np.float64)
         if len(cont) < 3:
-            raise ValueError(f"section {k} (z={zs[k]}) holds an isolated contour of {len(cont)} point(s)")
+            raise StackSurfaceError(f"section {k} (z={zs[k]}) holds an isolated contour of {len(cont)} point(s)")
         lo = b.add_polygon(cont, zs[k] - default_h / 2)
         hi = b.add_polygon(cont, zs[k] + default_h / 2)
         b.key = ("prism", k)

@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..errors import ThinRegionError
 from ..tracing import check_contour4
 
 __all__ = ["mlp_polygon", "mlp_candidates"]
@@ -344,7 +345,7 @@ def mlp_polygon(contour) -> np.ndarray:
     twice_area = int(np.dot(c[:, 0], np.roll(c[:, 1], -1)) - np.dot(np.roll(c[:, 0], -1), c[:, 1]))
     _, _, poly = _mlp(c, 1 if twice_area > 0 else -1)
     if len(poly) == 0:
-        raise ValueError(
+        raise ThinRegionError(
             "contour is not the boundary of an outer Jordan digitization: it encloses no grid "
             "point whose four surrounding cells are all inside (e.g. a region one cell thin)"
         )
