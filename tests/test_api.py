@@ -204,3 +204,45 @@ def test_diagnostics_count_axis_walls_and_joins(tmp_path, capsys):
     assert main(["mesh", str(tmp_path / "y.npy"), "-o", str(tmp_path / "y.ply"), "--json", "--quiet"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["exact_joins"] + s["bridged_joins"] >= 1 and 0 < s["axis_wall_fraction"] < 1
+
+
+#: Five grid contours at uneven heights (found by the soak, seed 15961): the first two sections
+#: barely overlap, and every band between them crosses itself with polygon="none".
+_CROSSING_GRID_STACK = (
+    (0.0078, [[-2, 0], [-2, 1], [-2, 2], [-2, 3], [-1, 3], [-1, 4], [-1, 5], [-1, 6], [0, 6], [1, 6], [1, 7], [2, 7],
+              [3, 7], [3, 6], [3, 5], [3, 4], [2, 4], [2, 3], [2, 2], [2, 1], [2, 0], [1, 0], [0, 0], [-1, 0]]),
+    (2.6803, [[3, -1], [3, 0], [3, 1], [3, 2], [3, 3], [3, 4], [4, 4], [5, 4], [5, 3], [6, 3], [6, 2], [6, 1], [7, 1],
+              [7, 0], [7, -1], [6, -1], [5, -1], [4, -1]]),
+    (3.1131, [[0, -1], [0, 0], [0, 1], [-1, 1], [-1, 2], [-1, 3], [-1, 4], [0, 4], [1, 4], [2, 4], [3, 4], [4, 4],
+              [5, 4], [5, 3], [5, 2], [4, 2], [4, 1], [4, 0], [3, 0], [3, -1], [2, -1], [1, -1]]),
+    (4.9144, [[2, -1], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2], [0, 3], [0, 4], [0, 5], [0, 6], [1, 6], [2, 6], [3, 6],
+              [3, 5], [4, 5], [5, 5], [6, 5], [6, 4], [6, 3], [5, 3], [5, 2], [5, 1], [5, 0], [5, -1], [4, -1],
+              [3, -1]]),
+    (7.1731, [[2, -2], [2, -1], [1, -1], [0, -1], [0, 0], [0, 1], [0, 2], [1, 2], [1, 3], [1, 4], [2, 4], [3, 4],
+              [4, 4], [4, 3], [5, 3], [5, 2], [6, 2], [6, 1], [6, 0], [6, -1], [5, -1], [5, -2], [4, -2], [3, -2]]),
+)
+
+
+def test_grid_stack_whose_bands_cross_goes_to_the_volume_mesher_with_a_warning():
+    from contourmesh.errors import RasterFallbackWarning, SelfIntersectionWarning
+    from contourmesh.refine import stack_points
+    from contourmesh.volumes import voxel_topology
+
+    st = ContourStack(tuple(Section(z, (np.array(c, dtype=np.int64),)) for z, c in _CROSSING_GRID_STACK))
+    with pytest.warns(RasterFallbackWarning, match="crossing faces"):
+        m = contourmesh.mesh(st, polygon="none", triangulation="arclength")
+    chk = m.checks()
+    assert m.meta["route"] == "volume" and "crossing faces" in m.meta["stack_route_error"]
+    assert chk["ok"] and chk["self_intersections"] == 0 and chk["volume"] > 0
+    topo = voxel_topology(stack_points(st, lattice=False)[0])
+    assert chk["components"] == topo["components"] and chk["genus"] == topo["genus"]
+    z = np.unique(m.vertices[:, 2])
+    assert np.all(np.isin([s.z for s in st.sections], z))  # every section at its own height
+    # the stack route itself, asked directly, keeps its mesh and says that faces cross
+    with pytest.warns(SelfIntersectionWarning):
+        direct = contourmesh.surface.stack_to_mesh(st, polygon="none", triangulation="arclength")
+    assert direct.meta["self_intersections"] > 0 and not direct.checks()["ok"]
+    # smooth ends exist only on the stack route: there the crossing is warned about, not rerouted
+    with pytest.warns(SelfIntersectionWarning):
+        smooth = contourmesh.mesh(st, polygon="none", triangulation="arclength", caps="smooth")
+    assert smooth.meta["route"] == "stack"

@@ -380,22 +380,24 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     fallback = None
     if route is None and one_each and (integer or polygon == "none"):
         try:
-            # grid contours: crossings left are warned about; drawn rings: the contours route below
+            # crossings left: grid contours go to the volume mesher, drawn rings to the contours
+            # route below (smooth ends exist on the stack route only: there they are warned about)
             return _with_meta(stack_to_mesh(stack, polygon=polygon or ("mlp" if integer else "none"),
                                             triangulation=triangulation, caps=caps,
-                                            crossings="warn" if integer or caps == "smooth" else "raise"),
+                                            crossings="warn" if caps == "smooth" else "raise"),
                               route="stack")
+        except CrossingFacesError as exc:
+            if not integer:
+                fallback = _stack_route_failed(stack, exc)
+            else:
+                return _grid_stack_volume(stack, polygon=polygon or "mlp", triangulation=triangulation, caps=caps,
+                                          why=str(exc), progress=progress)
         except (CapError, StackSurfaceError) as exc:
             if integer:
                 raise
             # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): the
             # contours route below resolves it through its raster; never silently
-            name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
-            log.info("%s: stack route failed (%s); re-routing to the contours route", name, exc)
-            warn_external(f"{name}: the contours cannot be meshed as drawn on the stack route ({exc}); meshed on "
-                          "the contours route instead (its raster decides the joins; pixel= sets its size)",
-                          RasterFallbackWarning)
-            fallback = str(exc)
+            fallback = _stack_route_failed(stack, exc)
     elif not drawn:
         why = (f"route={route!r}" if route else "its sections hold several grid contours" if not one_each else
                f"its contours are real-valued and polygon={polygon!r} (leave polygon unset to mesh the drawn rings)")
@@ -416,6 +418,45 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     meta = dict(m.meta)
     meta.update(stack.meta)  # the stack's source, roi and units win over the volume mesher's
     meta.update(route="raster", pixel=r.spacing[0])
+    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
+
+
+def _stack_route_failed(stack: ContourStack, exc: Exception) -> str:
+    """Warn that drawn rings go to the contours route after the stack route failed; returns the reason."""
+    name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
+    log.info("%s: stack route failed (%s); re-routing to the contours route", name, exc)
+    warn_external(f"{name}: the contours cannot be meshed as drawn on the stack route ({exc}); meshed on "
+                  "the contours route instead (its raster decides the joins; pixel= sets its size)",
+                  RasterFallbackWarning)
+    return str(exc)
+
+
+def _grid_stack_volume(stack: ContourStack, *, polygon, triangulation, caps, why: str, progress=False) -> Mesh:
+    """Grid contours whose stack-route mesh keeps crossing faces: their digital object (the grid
+    points the contours bound, :func:`contourmesh.refine.stack_points`, one slice per section at
+    the sections' own heights) meshed by the volume mesher, with a warning."""
+    from .refine import stack_points
+
+    name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
+    _volume_caps(caps, "these grid contours are meshed by the volume mesher (their stack-route mesh has crossing "
+                 "faces)")
+    warn_external(f"{name}: the stack route leaves crossing faces ({why}); meshed by the volume mesher from the "
+                  "grid points the contours bound instead", RasterFallbackWarning)
+    pts, x0, y0, zidx, _ = stack_points(stack, lattice=False)
+    zs = np.asarray(stack.z, dtype=np.float64)
+    step = float(np.median(np.diff(zs))) if len(zs) > 1 else float(stack.spacing[0])
+    first = int(zidx[0])
+    z = np.empty(pts.shape[0])
+    z[first:first + len(zs)] = zs  # the margin's empty slices continue the end spacings
+    z[:first] = zs[0] - step * np.arange(first, 0, -1)
+    z[first + len(zs):] = zs[-1] + step * np.arange(1, pts.shape[0] - first - len(zs) + 1)
+    h = float(stack.spacing[0])
+    ox, oy = (float(v) for v in stack.origin)
+    m = volume_to_mesh(pts, z=z, spacing=(step, h, h), origin=(ox + x0 * h, oy + y0 * h, 0.0), polygon=polygon,
+                       triangulation=triangulation, caps=caps, progress=progress)
+    meta = dict(stack.meta)
+    meta.update(m.meta)
+    meta.update(route="volume", stack_route_error=why)
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 

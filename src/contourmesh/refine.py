@@ -119,7 +119,7 @@ def _section_grid_index(zs: np.ndarray, spacing: float) -> np.ndarray:
     return idx.astype(np.int64), dz / spacing
 
 
-def stack_points(stack: ContourStack):
+def stack_points(stack: ContourStack, *, lattice: bool = True):
     """The grid points ``I`` of every section, recovered from its contours.
 
     ``U_k`` (the union of the closed cells with a corner in ``I_k``) is the region the section's
@@ -140,9 +140,15 @@ def stack_points(stack: ContourStack):
         The lattice slice of every section.
     dz : float
         Slice spacing in in-slice grid units.
+
+    With ``lattice=False`` the sections may lie at any heights: section ``k`` is slice ``k`` (plus
+    the margin), and ``dz`` is None.
     """
     zs = _check_stack(stack)
-    zidx, dz = _section_grid_index(zs, float(stack.spacing[0]))
+    if lattice:
+        zidx, dz = _section_grid_index(zs, float(stack.spacing[0]))
+    else:
+        zidx, dz = np.arange(len(zs), dtype=np.int64), None
     allpts = [np.asarray(c, dtype=np.int64) for s in stack.sections for c in s.contours]
     if not allpts:
         raise ValueError("the contour stack holds no contour points")

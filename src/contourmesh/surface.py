@@ -394,7 +394,7 @@ def _outward(stack: ContourStack) -> ContourStack:
                                  f"points (x, y); found shape {arr.shape}")
             area = shoelace_area(arr)
             if area == 0.0 and 0 < k < n - 1 and len(s.contours) == 1:
-                raise ValueError(
+                raise StackSurfaceError(
                     f"section {k} (z={s.z}) contour {c} encloses no area ({len(arr)} point(s)); expected a closed "
                     "contour around an area: a point or segment contour can only be the first or last section (a pole)"
                 )
