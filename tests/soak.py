@@ -338,10 +338,9 @@ def _check_heights(stack, m):
 
 def check_int_stack(stack, polygon, triangulation, caps="flat"):
     """The paper's path: one closed outward sphere-like surface (genus 0, one component)."""
-    import contourmesh
-
     import warnings
 
+    import contourmesh
     from contourmesh.errors import RasterFallbackWarning
     from contourmesh.refine import stack_points
     from contourmesh.volumes import voxel_topology
