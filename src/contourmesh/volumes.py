@@ -1146,9 +1146,12 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
             t = np.arange(1, steps)[:, None] / steps
             pt = p + t * (q - p)
-            i = np.clip(np.rint((pt[:, 0] - ox) / dx).astype(np.int64), 0, lab.shape[1] - 1)
-            j = np.clip(np.rint((pt[:, 1] - oy) / dy).astype(np.int64), 0, lab.shape[0] - 1)
-            return not np.isin(lab[j, i], ids).any()
+            # the nearest pixel, halves rounded up (np.rint rounds them to even, which made the answer
+            # depend on where the object sits in its array); beyond the array lies background
+            i = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64)
+            j = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64)
+            inside = (i >= 0) & (i < lab.shape[1]) & (j >= 0) & (j < lab.shape[0])
+            return not np.isin(lab[j[inside], i[inside]], ids).any()
 
         return ok
 
