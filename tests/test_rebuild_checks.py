@@ -99,6 +99,31 @@ def test_rebuilds_check_the_same_pairs_and_reuse_bridged_joins(monkeypatch):
     np.testing.assert_array_equal(m.faces, m2.faces)
 
 
+
+def test_rebuilds_reuse_unchanged_joins_and_caps_and_make_the_same_mesh(monkeypatch):
+    """Issue 16: a rebuild makes again only the joins and caps whose kind or rings changed; the
+    mesh is the one made when every rebuild makes every join and cap again."""
+    v = _blob(BLOB_WITH_FALLBACK)
+    made = []
+    record = volumes._Unit.record.__func__
+
+    def counted(cls, key, *args):
+        made.append(key[0])
+        return record(cls, key, *args)
+
+    monkeypatch.setattr(volumes._Unit, "record", classmethod(counted))
+    m = contourmesh.mesh(v)
+    assert m.meta["crossing_fallbacks"] > 0 and m.checks()["ok"]
+    reused = len(made)
+    assemble = volumes._assemble
+    monkeypatch.setattr(volumes, "_assemble", lambda *a: assemble(*a[:14], None))
+    made.clear()
+    m2 = contourmesh.mesh(v)
+    assert reused < len(made)  # the rebuild made fewer units than the whole mesh
+    np.testing.assert_array_equal(m.vertices, m2.vertices)
+    np.testing.assert_array_equal(m.faces, m2.faces)
+    assert m.meta == m2.meta
+
 def _ring(n, r, z, phase=0.0, wobble=0.0):
     t = phase + 2 * np.pi * np.arange(n) / n
     rr = r * (1 + wobble * np.sin(5 * t))

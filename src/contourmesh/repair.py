@@ -421,9 +421,7 @@ def _compact(V, F):
 def _vertex_normals(V, F):
     """Area-weighted outward vertex normals (unit length; zero where the faces cancel)."""
     fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    vn = np.zeros_like(V)
-    for k in range(3):
-        np.add.at(vn, F[:, k], fn)
+    vn = _add_at_rows(np.zeros_like(V), F, fn)
     nrm = np.linalg.norm(vn, axis=1)
     out = np.zeros_like(vn)
     ok = nrm > 0
@@ -431,37 +429,101 @@ def _vertex_normals(V, F):
     return out
 
 
+@njit(cache=True, nogil=True)
+def _add_at_rows(acc, F, rows):
+    """``np.add.at(acc, F[:, k], rows)`` for k = 0, 1, 2 in turn (the same sums, in the same order)."""
+    for k in range(3):
+        for i in range(F.shape[0]):
+            v = F[i, k]
+            for d in range(acc.shape[1]):
+                acc[v, d] += rows[i, d]
+    return acc
+
+
 def _faces_near(V, W, F, moved_faces):
     """Indices of the faces whose bounding box (in ``V`` or ``W``) may meet the bounding box (in
     ``V`` or ``W``) of a face in ``moved_faces`` (a superset: faces sharing a grid cell with one):
     every face that can meet a moved face, whichever position it is in."""
-    P = np.concatenate([V[F], W[F]], axis=1)  # (m, 6, 3): a face in both positions
-    lo, hi = P.min(axis=1), P.max(axis=1)
+    lo, hi = _two_position_boxes(V, W, F)
     glo = lo.min(axis=0)
     ext = hi - lo
     # cells as large as the moved faces (so each covers a few), and no smaller than most faces
     h = max(float(ext[moved_faces].max()), float(np.median(ext.max(axis=1))), 1e-12)
     clo = np.floor((lo - glo) / h).astype(np.int64)
     chi = np.floor((hi - glo) / h).astype(np.int64)
-    dims = chi.max(axis=0) + 1
+    return np.flatnonzero(_share_cell(clo, chi, np.asarray(moved_faces, dtype=np.int64)))
 
-    def keys(idx):
-        span = chi[idx] - clo[idx] + 1
-        cnt = span.prod(axis=1)
-        owner = np.repeat(np.arange(len(idx)), cnt)
-        k = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        sx, sy = span[owner, 0], span[owner, 1]
-        cx = clo[idx][owner, 0] + k % sx
-        cy = clo[idx][owner, 1] + (k // sx) % sy
-        cz = clo[idx][owner, 2] + k // (sx * sy)
-        return owner, (cx * dims[1] + cy) * dims[2] + cz
 
-    _, mk = keys(moved_faces)
-    owner, fk = keys(np.arange(len(F)))
-    near = np.zeros(len(F), dtype=bool)
-    near[owner[np.isin(fk, np.unique(mk))]] = True
-    near[moved_faces] = True
-    return np.flatnonzero(near)
+@njit(cache=True, nogil=True)
+def _two_position_boxes(V, W, F):
+    """Per face, the bounding box of its corners in ``V`` and in ``W`` together: ``(lo, hi)``."""
+    m = F.shape[0]
+    lo = np.empty((m, 3))
+    hi = np.empty((m, 3))
+    for i in range(m):
+        for d in range(3):
+            a = V[F[i, 0], d]
+            b = a
+            for P in (V, W):
+                for c in range(3):
+                    x = P[F[i, c], d]
+                    a = min(a, x)
+                    b = max(b, x)
+            lo[i, d] = a
+            hi[i, d] = b
+    return lo, hi
+
+
+@njit(cache=True, nogil=True)
+def _share_cell(clo, chi, chosen):
+    """Per face (cells ``clo[i] .. chi[i]`` of a grid), whether it shares a cell with a face in
+    ``chosen`` (the chosen ones included)."""
+    ncell = 0
+    for t in range(len(chosen)):
+        i = chosen[t]
+        ncell += (chi[i, 0] - clo[i, 0] + 1) * (chi[i, 1] - clo[i, 1] + 1) * (chi[i, 2] - clo[i, 2] + 1)
+    size = 1
+    while size < 2 * ncell + 2:
+        size *= 2
+    keys = np.empty((size, 3), np.int64)
+    used = np.zeros(size, np.bool_)
+    for t in range(len(chosen)):
+        i = chosen[t]
+        for x in range(clo[i, 0], chi[i, 0] + 1):
+            for y in range(clo[i, 1], chi[i, 1] + 1):
+                for z in range(clo[i, 2], chi[i, 2] + 1):
+                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
+                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
+                    while used[slot] and not (keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z):
+                        slot = (slot + 1) & (size - 1)
+                    used[slot] = True
+                    keys[slot, 0], keys[slot, 1], keys[slot, 2] = x, y, z
+    n = clo.shape[0]
+    near = np.zeros(n, np.bool_)
+    for t in range(len(chosen)):
+        near[chosen[t]] = True
+    for i in range(n):
+        if near[i]:
+            continue
+        found = False
+        for x in range(clo[i, 0], chi[i, 0] + 1):
+            for y in range(clo[i, 1], chi[i, 1] + 1):
+                for z in range(clo[i, 2], chi[i, 2] + 1):
+                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
+                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
+                    while used[slot]:
+                        if keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z:
+                            found = True
+                            break
+                        slot = (slot + 1) & (size - 1)
+                    if found:
+                        break
+                if found:
+                    break
+            if found:
+                break
+        near[i] = found
+    return near
 
 
 @njit(cache=True, nogil=True)

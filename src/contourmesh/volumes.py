@@ -52,7 +52,9 @@ Conventions (stated once)
   join that made one becomes an exact join and each capped component that made one keeps its crack
   rings, and the mesh is built again (a few rounds at most; ``meta["crossing_fallbacks"]`` counts
   the joins and caps changed).  A rebuild keeps the bridged joins whose rings and neighbourhood
-  did not change, and only its faces that did not occur in the previous build are tested again
+  did not change, makes again only the joins and caps whose kind or rings changed (each is made in
+  local vertex numbers and the mesh numbered from them in order: the same mesh as making them one
+  after the other), and only its faces that did not occur in the previous build are tested again
   (the other pairs are known: the same answer as a whole check).  This covers a band sweeping through the prism of a component that
   touches its own only diagonally, polygons of 8-adjacent components that overlap, and bands from
   a crack ring that touches itself.  Whatever is left is counted in ``meta["self_intersections"]``
@@ -256,10 +258,10 @@ def _band_faces(lo, hi, triangulation, optimal_budget=3e7):
 
 
 class _Mesher:
-    def __init__(self, triangulation: str, band_guard=None):
+    def __init__(self, triangulation: str, band_guard=None, size: int = 1024):
         self.triangulation = triangulation
         self.band_guard = band_guard  # band_guard(lo_xyz, hi_xyz, faces) -> faces (the contours route's)
-        self._V = np.empty((1024, 3))  # vertex buffer (rows [0, n)), grown by doubling
+        self._V = np.empty((size, 3))  # vertex buffer (rows [0, n)), grown by doubling
         self.F: list[np.ndarray] = []
         self.S: list[np.ndarray] = []  # side label per face (0, or 1/2 for the two slices of an exact join)
         self.n = 0
@@ -458,13 +460,17 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # to the exact join (their components to crack rings) and the mesh is built again.
     fallback_joins = fallback_caps = 0
     bridge_cache: dict = {}  # bridged joins built so far, kept across rebuilds (see _build_bridges)
+    # the joins and caps made so far, kept across rebuilds (see _assemble); not with the hooks of
+    # the contours route, which count what they do on every build
+    unit_cache = {} if polygons is None else None
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
                                has_above, has_below, bridge_cache)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
-                                       getattr(polygons, "band_guard", None), getattr(polygons, "end_cap", None))
+                                       getattr(polygons, "band_guard", None), getattr(polygons, "end_cap", None),
+                                       unit_cache)
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         pairs = _crossing_pairs(V, F, previous)
@@ -550,86 +556,127 @@ def _cap_key(slices, i):
 
 
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
-              to_xy_corner, band_guard=None, end_cap=None):
+              to_xy_corner, band_guard=None, end_cap=None, cache=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
     (faces the manifold repair made); ``counts = (exact, band, bridged joins, bridges, twisted
-    bands replaced)``."""
+    bands replaced)``.
+
+    Each join and each cap is made on its own, in local vertex numbers (a :class:`_Unit`), and the
+    units are then numbered in order (:func:`_number_units`): the same vertices and faces, in the
+    same order, as making them one after the other into one mesh.  ``cache`` (a dict kept by the
+    caller across rebuilds of one mesh) keeps the units made so far, each with all that it depends
+    on (its join or cap, and which of its rings are crack rings): a rebuild after a crossing
+    fallback makes again only the joins and caps whose rings or kind changed."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
-    M = _Mesher(triangulation, band_guard)
-    rings = {}  # (k, comp, hole index or -1) -> vertex ids of the ring at z_k
 
-    def ring(k, c, hole):
-        key = (k, c, hole)
-        if key not in rings:
-            s = slices[k]
-            if (k, c) in crack_only and c not in getattr(s, "own", ()):
-                poly = s.crack_outer[c] if hole < 0 else s.crack_holes[c][hole]
-            else:
-                poly = s.outer[c] if hole < 0 else s.holes[c][hole]
-            rings[key] = M.ring(poly, zs[k])
-        return rings[key]
+    def is_crack(k, c):
+        return (k, c) in crack_only and c not in getattr(slices[k], "own", ())
+
+    def polygon_of(k, c, hole):
+        s = slices[k]
+        if is_crack(k, c):
+            return s.crack_outer[c] if hole < 0 else s.crack_holes[c][hole]
+        return s.outer[c] if hole < 0 else s.holes[c][hole]
 
     def gap(k, up):
         return slice_gap(zs, k, up)
 
-    def shifted(rs, zc):
-        return [M.ring(M.coords(r)[:, :2], zc) for r in rs]
+    def cap_unit(k, c):
+        s = slices[k]
+        above, below = (k, c) in has_above, (k, c) in has_below
 
-    def close(k, c, rs, up, zc=None):
-        """Cap the rings rs facing up or down, in their plane or at zc (after a collar)."""
-        if zc is not None:
-            sh = shifted(rs, zc)
-            for r, t in zip(rs, sh):
-                M.band(r, t) if up else M.band(t, r)
-            rs = sh
-        xy = M.coords(np.concatenate(rs))[:, :2]
-        if _distinct_rows(xy):  # rings that touch go to the pixel cap
-            try:
-                M.cap(rs, upward=up)
+        def make(M, ring):
+            def shifted(rs, zc):
+                return [M.ring(M.coords(r)[:, :2], zc) for r in rs]
+
+            def close(rs, up, zc=None):
+                """Cap the rings rs facing up or down, in their plane or at zc (after a collar)."""
+                if zc is not None:
+                    sh = shifted(rs, zc)
+                    for r, t in zip(rs, sh):
+                        M.band(r, t) if up else M.band(t, r)
+                    rs = sh
+                xy = M.coords(np.concatenate(rs))[:, :2]
+                if _distinct_rows(xy):  # rings that touch go to the pixel cap
+                    try:
+                        M.cap(rs, upward=up)
+                        return
+                    except ValueError:
+                        pass
+                # the polygons cross or touch (thin parts): a hair-thin collar to the pixels
+                z0 = M.coords(rs[0][:1])[0, 2]
+                _pixel_cap(M, s, k, c, rs, z0 + (1e-2 if up else -1e-2) * gap(k, up), up, to_xy_corner)
+
+            rs = [ring(k, c, -1)] + [ring(k, c, h) for h in range(len(s.holes[c]))]
+            if not above and not below:  # a prism one spacing thick
+                close(rs, False, zs[k] - gap(k, False) / 2)
+                close(rs, True, zs[k] + gap(k, True) / 2)
                 return
-            except ValueError:
-                pass
-        # the polygons cross or touch (thin parts): a hair-thin collar to the pixels
-        z0 = M.coords(rs[0][:1])[0, 2]
-        _pixel_cap(M, slices[k], k, c, rs, z0 + (1e-2 if up else -1e-2) * gap(k, up), up, to_xy_corner)
+            up = not above
+            if end_cap is not None and (k, c) not in crack_only and end_cap(M, k, c, rs, up):
+                return  # the hook closed this end itself
+            zc = zs[k] + (gap(k, up) / 2 if up else -gap(k, up) / 2) if caps == "half" else None
+            close(rs, up, zc)
 
-    tags = []  # (number of faces so far, tag) where a new tag starts
-    seen = [0, 0]  # faces counted, face blocks counted
+        return ("cap", is_crack(k, c)), make
 
-    def tag(t):
-        while seen[1] < len(M.F):
-            seen[0] += len(M.F[seen[1]])
-            seen[1] += 1
-        tags.append((seen[0], t))
-
-    exact_joins = band_joins = bridged_joins = n_bridges = 0
-    for idx, (k, kind, data) in enumerate(joins):
-        A, B = slices[k], slices[k + 1]
-        tag(idx)
+    def join_unit(idx):
+        k, kind, data = joins[idx]
         if kind == "band":
             a, b, matched = data
-            M.band(ring(k, a, -1), ring(k + 1, b, -1))
-            for ha, hb in matched:
-                M.band(ring(k, a, ha), ring(k + 1, b, hb))
+
+            def make(M, ring):
+                M.band(ring(k, a, -1), ring(k + 1, b, -1))
+                for ha, hb in matched:
+                    M.band(ring(k, a, ha), ring(k + 1, b, hb))
+
+            return ("band", is_crack(k, a), is_crack(k + 1, b)), make
+        if kind == "bridge":
+            b_ = built[k, tuple(data[0]), tuple(data[1])]
+
+            def make(M, ring):
+                ids = np.empty(len(b_.V), dtype=np.int64)
+                for (kk, c, h), off in b_.rings:
+                    r = ring(kk, c, h)
+                    ids[off: off + len(r)] = r
+                if b_.n_ring < len(b_.V):
+                    ids[b_.n_ring:] = M.points(b_.V[b_.n_ring:])
+                M.faces(ids[b_.F])
+                M.band_fallbacks += b_.replaced
+
+            return ("bridge", b_, tuple(is_crack(kk, c) for (kk, c, _), _o in b_.rings)), make
+        ga, gb = data
+
+        def make(M, ring):
+            _exact_join(M, slices[k], slices[k + 1], k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
+
+        return ("exact", tuple(ga), tuple(gb), tuple(is_crack(k, a) for a in ga),
+                tuple(is_crack(k + 1, b) for b in gb)), make
+
+    def unit(uid, key, make):
+        old = None if cache is None else cache.get(uid)
+        if old is not None and old.key == key:
+            return old
+        u = _Unit.record(key, make, polygon_of, zs, triangulation, band_guard)
+        if cache is not None:
+            cache[uid] = u
+        return u
+
+    units, tags = [], []
+    exact_joins = band_joins = bridged_joins = n_bridges = 0
+    for idx, (k, kind, data) in enumerate(joins):
+        key, make = join_unit(idx)
+        units.append(unit(("join", idx), key, make))
+        tags.append(idx)
+        if kind == "band":
             band_joins += 1
         elif kind == "bridge":
-            b_ = built[k, tuple(data[0]), tuple(data[1])]
-            ids = np.empty(len(b_.V), dtype=np.int64)
-            for (kk, c, h), off in b_.rings:
-                r = ring(kk, c, h)
-                ids[off: off + len(r)] = r
-            if b_.n_ring < len(b_.V):
-                ids[b_.n_ring:] = M.points(b_.V[b_.n_ring:])
-            M.faces(ids[b_.F])
-            M.band_fallbacks += b_.replaced
             bridged_joins += 1
-            n_bridges += b_.bridges
+            n_bridges += key[1].bridges
         else:
-            ga, gb = data
-            _exact_join(M, A, B, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
             exact_joins += 1
     first = len(joins)
     for k in range(len(slices)):
@@ -637,24 +684,14 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         if s is None:
             continue
         for c in range(s.n):
-            tag(first + c)
-            above, below = (k, c) in has_above, (k, c) in has_below
-            if above and below:
+            if (k, c) in has_above and (k, c) in has_below:
                 continue
-            rs = [ring(k, c, -1)] + [ring(k, c, h) for h in range(len(s.holes[c]))]
-            if not above and not below:  # a prism one spacing thick
-                close(k, c, rs, False, zs[k] - gap(k, False) / 2)
-                close(k, c, rs, True, zs[k] + gap(k, True) / 2)
-                continue
-            up = not above
-            if end_cap is not None and (k, c) not in crack_only and end_cap(M, k, c, rs, up):
-                continue  # the hook closed this end itself
-            zc = zs[k] + (gap(k, up) / 2 if up else -gap(k, up) / 2) if caps == "half" else None
-            close(k, c, rs, up, zc)
+            key, make = cap_unit(k, c)
+            units.append(unit(("cap", k, c), key, make))
+            tags.append(first + c)
         first += s.n
-    V, F, S, N = M.result()
-    starts = np.array([t[0] for t in tags] + [len(F)], dtype=np.int64)
-    T = np.repeat(np.array([t[1] for t in tags], dtype=np.int64), np.diff(starts))
+    V, F, S, N, T = _number_units(units, tags)
+    band_fallbacks = sum(u.replaced for u in units)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     S = S.astype(np.int64) + 4 * (T + 1)
@@ -663,7 +700,87 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     V, F = _compact(V, F)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
-    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, M.band_fallbacks)
+    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks)
+
+
+class _Unit:
+    """The vertices and faces one join or one cap adds to the mesh, in local vertex numbers:
+    ``rings`` lists the rings it uses as ``((k, comp, hole), start, stop)`` ranges of its local
+    vertices (in the order it first used them); its other vertices are its own.  ``key`` is all
+    that the unit depends on besides the fixed input (see :func:`_assemble`)."""
+
+    __slots__ = ("key", "V", "F", "S", "N", "rings", "replaced")
+
+    @classmethod
+    def record(cls, key, make, polygon_of, zs, triangulation, band_guard):
+        """Run ``make(M, ring)`` on a mesher of its own; ``ring(k, c, hole)`` gives the local
+        vertex ids of a ring (made at its first use, from ``polygon_of(k, c, hole)`` at ``zs[k]``)."""
+        M = _Mesher(triangulation, band_guard, size=64)
+        rings, spans = {}, []
+
+        def ring(k, c, hole):
+            rk = (k, c, hole)
+            r = rings.get(rk)
+            if r is None:
+                r = rings[rk] = M.ring(polygon_of(k, c, hole), zs[k])
+                if len(r):
+                    spans.append((rk, int(r[0]), int(r[0]) + len(r)))
+            return r
+
+        make(M, ring)
+        u = cls()
+        u.key = key
+        u.V, u.F, u.S, u.N = M.result()
+        u.rings = spans
+        u.replaced = M.band_fallbacks
+        return u
+
+
+def _number_units(units, tags):
+    """The units' vertices and faces numbered into one mesh, in order: a ring gets its vertices
+    where it is first used, a unit's own vertices where the unit makes them.  Returns ``(V, F, S,
+    N, T)``: vertices, faces, side per face, neck vertices, and per face the tag of its unit."""
+    ring_ids = {}
+    Vb, Fb, Sb, Nb, Tb = [], [], [], [], []
+    n = 0
+    for u, t in zip(units, tags):
+        nl = len(u.V)
+        if not u.rings:  # (all its vertices its own: one block)
+            g = np.arange(n, n + nl)
+            if nl:
+                Vb.append(u.V)
+            n += nl
+        else:
+            g = np.empty(nl, dtype=np.int64)
+            pos = 0
+            for rk, a, b in u.rings:
+                if a > pos:
+                    g[pos:a] = np.arange(n, n + a - pos)
+                    Vb.append(u.V[pos:a])
+                    n += a - pos
+                r = ring_ids.get(rk)
+                if r is None:
+                    r = ring_ids[rk] = np.arange(n, n + b - a)
+                    Vb.append(u.V[a:b])
+                    n += b - a
+                g[a:b] = r
+                pos = b
+            if nl > pos:
+                g[pos:] = np.arange(n, n + nl - pos)
+                Vb.append(u.V[pos:])
+                n += nl - pos
+        if len(u.F):
+            Fb.append(g[u.F])
+            Sb.append(u.S)
+            Tb.append(np.full(len(u.F), t, dtype=np.int64))
+        if len(u.N):
+            Nb.append(g[u.N])
+    V = np.concatenate(Vb) if Vb else np.zeros((0, 3))
+    F = np.concatenate(Fb) if Fb else np.zeros((0, 3), dtype=np.int64)
+    S = np.concatenate(Sb) if Sb else np.zeros(0, dtype=np.int8)
+    N = np.concatenate(Nb) if Nb else np.zeros(0, dtype=np.int64)
+    T = np.concatenate(Tb) if Tb else np.zeros(0, dtype=np.int64)
+    return V, F, S, N, T
 
 
 def _distinct_rows(xy) -> bool:
