@@ -391,6 +391,16 @@ def _end_profile(areas, dists, gap):
     return tt, lam, "taper"
 
 
+def _end_rate(areas, dists) -> float:
+    """``d(lam)/dt`` at an end ring: the rate at which the section's linear scale shrinks outward, from the
+    area profile of :func:`_end_profile` (0 where the area would grow)."""
+    areas = np.asarray(areas, dtype=np.float64)
+    tp = -np.r_[0.0, np.cumsum(dists)]
+    coef = np.polyfit(tp, areas, min(len(areas) - 1, 2))
+    da = float(np.polyval(np.polyder(coef), 0.0))
+    return min(da, 0.0) / (2.0 * areas[0])
+
+
 class _SmoothEnds:
     """``caps="smooth"`` on the contours route (the volume mesher's ``end_cap`` hook).
 
@@ -405,6 +415,7 @@ class _SmoothEnds:
 
     def __init__(self):
         self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper" or "half" (the last mesh built)
+        self.slopes: dict = {}  # (x, y, z) of an end ring's vertex -> d(x, y)/dz of its cap at the ring
 
     def count(self, kind) -> int:
         return sum(v == kind for v in self.kinds.values())
@@ -456,6 +467,7 @@ class _SmoothEnds:
         t, lam, kind = _end_profile(areas, dists, gap)
         drift = (centres[0] - centres[1]) / dists[0]  # the centroids' line, per unit distance outward
         centre, _ = _dome_centre(xys[0])  # outer ring and holes shrink together: similar sections
+        rate = _end_rate(areas, dists)  # d(lam)/dt at the end ring
 
         def placed(i):
             return [centre + lam[i] * (q - centre) + drift * t[i] for q in xys]
@@ -474,7 +486,26 @@ class _SmoothEnds:
             prev = nxt_ids
         M.cap(prev, upward=up)
         self.kinds[(k, c, up)] = kind
+        # the cap's slope at the end ring (outward t is +z at an upper end, -z at a lower one): curved
+        # bands (bands="curved") meet it without a kink
+        for q in xys:
+            d = (rate * (q - centre) + drift) * sgn
+            for (x, y), (sx, sy) in zip(q, d):
+                self.slopes[(float(x), float(y), z)] = (float(sx), float(sy))
         return True
+
+
+def _curved(m: Mesh, zs, end_slopes) -> Mesh:
+    """``bands="curved"``: the mesh with its bands between drawn sections bent (no face may cross)."""
+    from .bands.curved import curved_without_crossings
+
+    V, F, info = curved_without_crossings(m.vertices, m.faces, zs, end_slopes=end_slopes)
+    bent = info["levels"][info["levels"] > 1]
+    log.debug("contours route: curved bands, %d section pairs bent (up to %d segments), %d left ruled",
+              len(bent), int(bent.max()) if len(bent) else 1, info["ruled_pairs"])
+    meta = dict(m.meta, bands="curved", curved_levels=int(info["levels"].max()) if len(info["levels"]) else 1,
+                ruled_pairs=info["ruled_pairs"])
+    return Mesh(V, F, P=m.P, meta=meta)
 
 
 #: Halvings of the default pixel where the raster loses or splits a drawn ring, and the voxel budget for them.
@@ -538,7 +569,7 @@ def decision_raster(stack: ContourStack, pixel: float):
 
 
 def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation: str = "wiederhold",
-               caps: str = "flat", progress: bool = False) -> Mesh:
+               caps: str = "flat", bands: str = "ruled", progress: bool = False) -> Mesh:
     """Mesh a real-valued contour stack between its drawn rings (the contours route; module docstring).
 
     ``pixel`` is the size of the raster that decides the topology (default
@@ -548,7 +579,14 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     ``drawn_components`` (components meshed from their drawn rings), ``unmatched_components``
     (meshed from the raster's polygons, each named in a RasterFallbackWarning) and the volume
     mesher's join counts.
+
+    ``bands="curved"`` bends the bands between consecutive sections onto cubic rungs
+    (:mod:`contourmesh.bands.curved`; ``meta["curved_levels"]``, the most segments per rung, and
+    ``meta["ruled_pairs"]``, section pairs left ruled because their bent faces crossed); the default
+    ``"ruled"`` keeps every band's volume within the frustum-trapezoid interval of its rings' areas.
     """
+    if bands not in ("ruled", "curved"):
+        raise ValueError(f"unknown bands {bands!r}; expected 'ruled' or 'curved'")
     name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
     rings, keyholes = _drawn_rings(stack)
     with warnings.catch_warnings(record=True) as lost:
@@ -608,6 +646,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
         attempt += 1
     for w in caught:  # the warnings of the attempt that is kept
         warn_external(str(w.message), w.category)
+    if bands == "curved":
+        m = _curved(m, r.z, hook.end_cap.slopes if hook.end_cap is not None else None)
     meta = dict(m.meta)
     meta.update(stack.meta)
     meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid),
