@@ -222,7 +222,7 @@ class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
-    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, grown=None):
+    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, grown=None, curved=False):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
         self.name = name
@@ -231,7 +231,7 @@ class _DrawnPolygons:
         self.unmatched: list[tuple] = []  # (section, z, why)
         self.grown = grown or {}  # (section, ring) -> (box, pixels) of rings the raster was joined for
         # every band between drawn rings keeps a volume within the frustum and trapezoid rules
-        self.band_guard = FaithfulBands()
+        self.band_guard = FaithfulBands(record=curved)
         # caps="smooth": the ends of band-joined rings close on the profile of their last sections
         self.end_cap = _SmoothEnds() if smooth else None
 
@@ -391,6 +391,28 @@ def _end_profile(areas, dists, gap):
     return tt, lam, "taper"
 
 
+#: An end section whose roundness (4 pi area / perimeter^2) is below this fraction of the previous
+#: section's is a slanted cut (a tilted tube's end): caps="smooth" moves it half a spacing along the axis.
+_CUT = 0.85
+
+
+def _centroid(xy) -> np.ndarray:
+    """The area centroid of a simple polygon (the vertex mean where it has no area)."""
+    x, y = xy[:, 0], xy[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    w = x * yn - xn * y
+    a = w.sum() / 2
+    if a == 0.0:
+        return xy.mean(axis=0)
+    return np.array([((x + xn) * w).sum(), ((y + yn) * w).sum()]) / (6 * a)
+
+
+def _roundness(xy) -> float:
+    """``4 pi area / perimeter^2``: 1 for a circle, small for a sliver."""
+    per = float(np.hypot(*(np.roll(xy, -1, axis=0) - xy).T).sum())
+    return 4 * np.pi * abs(shoelace_area(xy)) / per**2 if per > 0 else 0.0
+
+
 def _end_rate(areas, dists) -> float:
     """``d(lam)/dt`` at an end ring: the rate at which the section's linear scale shrinks outward, from the
     area profile of :func:`_end_profile` (0 where the area would grow)."""
@@ -414,7 +436,7 @@ class _SmoothEnds:
     """
 
     def __init__(self):
-        self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper" or "half" (the last mesh built)
+        self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper", "cut" or "half" (the last mesh built)
         self.slopes: dict = {}  # (x, y, z) of an end ring's vertex -> d(x, y)/dz of its cap at the ring
 
     def count(self, kind) -> int:
@@ -433,7 +455,7 @@ class _SmoothEnds:
         s = self.slices[k]
         xy = np.asarray(s.outer[c], dtype=np.float64)
         area = abs(shoelace_area(xy)) - sum(abs(shoelace_area(np.asarray(h, np.float64))) for h in s.holes[c])
-        return area, xy.mean(axis=0)
+        return area, _centroid(xy), _roundness(xy)
 
     def __call__(self, M, k, c, rings, up) -> bool:
         from .bands.caps import cap_faces
@@ -450,24 +472,32 @@ class _SmoothEnds:
         allxy = np.concatenate(xys)
         if a0 <= 0.0 or len(np.unique(allxy, axis=0)) != len(allxy):
             return False
-        areas, dists, centres = [a0], [], [xys[0].mean(axis=0)]
+        areas, dists, centres, round_ = [a0], [], [_centroid(xys[0])], [_roundness(xys[0])]
         cur = (k, c)
         for _ in range(2):
             nxt = inward.get(cur)
             if nxt is None:
                 break
-            a, ctr = self._area_centre(*nxt)
+            a, ctr, q = self._area_centre(*nxt)
             if a <= 0:
                 break
             areas.append(a)
             dists.append(abs(float(self.zs[nxt[0]] - self.zs[cur[0]])))
             centres.append(ctr)
+            round_.append(q)
             cur = nxt
+        if len(areas) < 2:
+            return False
         gap = float(slice_gap(self.zs, k, up))
-        t, lam, kind = _end_profile(areas, dists, gap)
         drift = (centres[0] - centres[1]) / dists[0]  # the centroids' line, per unit distance outward
         centre, _ = _dome_centre(xys[0])  # outer ring and holes shrink together: similar sections
-        rate = _end_rate(areas, dists)  # d(lam)/dt at the end ring
+        if round_[0] < _CUT * round_[1]:
+            # the end section is much less round than the one before: a flat end cut at a slant (a
+            # tilted tube), not a closing dome; its copy moves along the axis half a spacing out
+            t, lam, kind, rate = np.array([gap / 2]), np.array([1.0]), "cut", 0.0
+        else:
+            t, lam, kind = _end_profile(areas, dists, gap)
+            rate = _end_rate(areas, dists)  # d(lam)/dt at the end ring
 
         def placed(i):
             return [centre + lam[i] * (q - centre) + drift * t[i] for q in xys]
@@ -495,11 +525,11 @@ class _SmoothEnds:
         return True
 
 
-def _curved(m: Mesh, zs, end_slopes) -> Mesh:
-    """``bands="curved"``: the mesh with its bands between drawn sections bent (no face may cross)."""
+def _curved(m: Mesh, zs, end_slopes, band_faces) -> Mesh:
+    """``bands="curved"``: the mesh with the faces of its band joins bent (no face may cross)."""
     from .bands.curved import curved_without_crossings
 
-    V, F, info = curved_without_crossings(m.vertices, m.faces, zs, end_slopes=end_slopes)
+    V, F, info = curved_without_crossings(m.vertices, m.faces, zs, end_slopes=end_slopes, band_faces=band_faces)
     bent = info["levels"][info["levels"] > 1]
     log.debug("contours route: curved bands, %d section pairs bent (up to %d segments), %d left ruled",
               len(bent), int(bent.max()) if len(bent) else 1, info["ruled_pairs"])
@@ -610,7 +640,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     quiet = _Quiet()
     attempt = 0
     while True:
-        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", grown=grown)
+        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", grown=grown,
+                              curved=bands == "curved")
         last = attempt >= _ATTEMPTS - 1 or avoid == everything
         if not last:
             log.addFilter(quiet)
@@ -647,7 +678,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     for w in caught:  # the warnings of the attempt that is kept
         warn_external(str(w.message), w.category)
     if bands == "curved":
-        m = _curved(m, r.z, hook.end_cap.slopes if hook.end_cap is not None else None)
+        m = _curved(m, r.z, hook.end_cap.slopes if hook.end_cap is not None else None, hook.band_guard.faces())
     meta = dict(m.meta)
     meta.update(stack.meta)
     meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid),
@@ -656,5 +687,5 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     if caps == "smooth":
         e = hook.end_cap
         meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
-                    smooth_half_prisms=e.count("half"))
+                    smooth_cut_ends=e.count("cut"), smooth_half_prisms=e.count("half"))
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)

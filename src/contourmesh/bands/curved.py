@@ -68,6 +68,11 @@ def _slopes(V: np.ndarray, E: np.ndarray, on_plane: np.ndarray, tol: float):
     return slope, both
 
 
+def _face_key(t) -> tuple:
+    """A face by its corners' coordinates, whatever its vertex order."""
+    return tuple(sorted(map(tuple, t.tolist())))
+
+
 def _ring_directions(V: np.ndarray, E: np.ndarray) -> np.ndarray:
     """Per vertex, the unit direction of the ring through it (the principal direction of its ring
     edges ``E``); zero where it has none."""
@@ -108,7 +113,7 @@ def _hermite(p, q, mp, mq, h, s):
 
 
 def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, max_levels: int = 8,
-                flat_pairs=frozenset(), end_slopes=None):
+                flat_pairs=frozenset(), end_slopes=None, band_faces=None):
     """Bend the bands between consecutive section planes ``zs`` onto cubic rungs (module docstring).
 
     ``V``, ``F``: a closed, outward-oriented mesh whose drawn rings lie on the planes ``zs``.
@@ -116,7 +121,9 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
     median length of the in-plane edges).  ``flat_pairs``: indices ``k`` of plane pairs
     ``(zs[k], zs[k + 1])`` left ruled.  ``end_slopes``: ``{(x, y, z): (dx/dz, dy/dz)}`` for vertices
     of end rings whose slope is known (the smooth ends' profile), used where a vertex has no
-    neighbour on its far side (instead of a natural end).  Returns ``(V, F, info)``; ``info``: ``levels`` (per plane
+    neighbour on its far side (instead of a natural end).  ``band_faces``: ``(n, 3, 3)`` corner
+    coordinates of the faces that may be bent (the band joins'; default every face between two
+    consecutive planes); the slopes are taken along these faces' rungs only.  Returns ``(V, F, info)``; ``info``: ``levels`` (per plane
     pair, the segments per rung; 1 where it is left ruled), ``bent_faces``, ``face_pair`` (per
     output face, the plane pair of the band it comes from, or -1).
     """
@@ -135,6 +142,10 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
     cand = (fk >= 0).all(axis=1) & (fk.max(axis=1) - fk.min(axis=1) == 1)
     if flat_pairs:
         cand &= ~np.isin(fk.min(axis=1), np.fromiter(flat_pairs, dtype=np.int64))
+    if band_faces is not None:
+        known = {_face_key(t) for t in np.asarray(band_faces, dtype=np.float64).reshape(-1, 3, 3)}
+        idx = np.flatnonzero(cand)
+        cand[idx] = [_face_key(V[F[i]]) in known for i in idx]
     # the edges, each with its two faces
     e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1).reshape(-1, 2)
     key = np.sort(e, axis=1)
@@ -161,7 +172,7 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
     bent_edge = np.zeros(len(uniq), dtype=bool)
     bent_edge[inv[cand[face_of]]] = True
     bent_edge &= rung
-    slope, both = _slopes(V, uniq, on, tol)
+    slope, both = _slopes(V, uniq[bent_edge], on, tol)
     if end_slopes:
         ends = np.flatnonzero(on & ~both)
         for i in ends:
@@ -263,7 +274,7 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
 _ATTEMPTS = 3
 
 
-def curved_without_crossings(V, F, zs, *, end_slopes=None):
+def curved_without_crossings(V, F, zs, *, end_slopes=None, band_faces=None):
     """:func:`curve_bands`, then the exact crossing test: the plane pairs holding crossing faces are
     left ruled and the bands bent again (at most 3 times; then every pair is left ruled if faces still
     cross).  Returns ``(V, F, info)``, ``info`` as :func:`curve_bands`'s plus ``ruled_pairs`` (pairs
@@ -276,7 +287,7 @@ def curved_without_crossings(V, F, zs, *, end_slopes=None):
         last = attempt == _ATTEMPTS
         if last:
             flat = set(range(len(zs)))
-        V2, F2, info = curve_bands(V, F, zs, end_slopes=end_slopes, flat_pairs=frozenset(flat))
+        V2, F2, info = curve_bands(V, F, zs, end_slopes=end_slopes, flat_pairs=frozenset(flat), band_faces=band_faces)
         if last or not info["bent_faces"]:
             break
         bad = intersecting_faces(V2, F2)

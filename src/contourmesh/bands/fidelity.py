@@ -223,15 +223,23 @@ def faithful_band(lo: np.ndarray, hi: np.ndarray, f: np.ndarray, *, slack: float
 class FaithfulBands:
     """A band guard for :func:`contourmesh.volumes.volume_to_mesh` (``band_guard``): every band made
     between two rings at different heights goes through :func:`faithful_band`; counts the bands
-    it replaced (``replaced``) and those it checked (``checked``)."""
+    it replaced (``replaced``) and those it checked (``checked``).  With ``record=True`` it keeps the
+    corner coordinates of the faces of every band it returns (:meth:`faces`)."""
 
-    def __init__(self, slack: float = 2e-3):
+    def __init__(self, slack: float = 2e-3, record: bool = False):
         from . import _band_crosses
 
         self.slack = slack
         self._crosses = _band_crosses
         self.checked = 0
         self.replaced = 0
+        self._record = [] if record else None
+
+    def faces(self) -> np.ndarray:
+        """``(n, 3, 3)``: the corners of the faces of the bands returned (``record=True``)."""
+        if not self._record:
+            return np.zeros((0, 3, 3))
+        return np.concatenate(self._record)
 
     def __call__(self, lo: np.ndarray, hi: np.ndarray, f: np.ndarray) -> np.ndarray:
         if lo[0, 2] == hi[0, 2]:
@@ -239,4 +247,6 @@ class FaithfulBands:
         self.checked += 1
         g, replaced = faithful_band(lo, hi, f, slack=self.slack, crosses=self._crosses)
         self.replaced += bool(replaced)
+        if self._record is not None:
+            self._record.append(np.concatenate([lo, hi])[g])
         return g
