@@ -119,6 +119,11 @@ def _split_at_repeats(ring: np.ndarray) -> list:
         r = r[np.any(r != np.roll(r, 1, axis=0), axis=1)] if len(r) > 1 else r
         if len(r) < 3:
             continue
+        o = np.lexsort((r[:, 1], r[:, 0]))
+        if not (r[o[1:]] == r[o[:-1]]).all(axis=1).any():  # no point visited twice (the common case)
+            if shoelace_area(r) != 0.0:
+                out.append(r)
+            continue
         _, inv, cnt = np.unique(r, axis=0, return_inverse=True, return_counts=True)
         inv = inv.reshape(-1)
         dup = np.flatnonzero(cnt[inv] > 1)
@@ -165,6 +170,52 @@ def _ring_box(ring, raster, shape):
     return j0, j1, i0, i1
 
 
+class _RingFills:
+    """The even-odd fills of each section's drawn rings on one raster's grid, each made once (the
+    split check, the sliver joining and the matching all look at them)."""
+
+    _cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+
+    def __init__(self, rings, raster):
+        self.rings, self.raster = rings, raster
+        self.shape = raster.volume.shape[1:]
+        self.x0, self.y0 = raster.origin[0], raster.origin[1]
+        self.p = raster.spacing[0]
+        self._fills: dict = {}
+        self._pieces: dict = {}
+
+    def holes_of(self, k, i) -> list:
+        return [j for j, q in enumerate(self.rings[k][1]) if q == i]
+
+    def outer(self, k, i):
+        """``(box, pixels)``: the fill of outer ring ``i`` of section ``k`` minus its drawn holes."""
+        key = ("o", k, i)
+        if key not in self._fills:
+            rs = self.rings[k][0]
+            box = _ring_box(rs[i], self.raster, self.shape)
+            self._fills[key] = (box, _fill([rs[i]] + [rs[j] for j in self.holes_of(k, i)], self.x0, self.y0,
+                                           self.p, self.shape, box))
+        return self._fills[key]
+
+    def ring(self, k, j):
+        """``(box, pixels)``: the fill of ring ``j`` of section ``k`` alone."""
+        key = ("r", k, j)
+        if key not in self._fills:
+            rs = self.rings[k][0]
+            box = _ring_box(rs[j], self.raster, self.shape)
+            self._fills[key] = (box, _fill([rs[j]], self.x0, self.y0, self.p, self.shape, box))
+        return self._fills[key]
+
+    def pieces(self, k, i) -> int:
+        """The 4-connected pieces of :meth:`outer`."""
+        from scipy import ndimage
+
+        key = (k, i)
+        if key not in self._pieces:
+            self._pieces[key] = int(ndimage.label(self.outer(k, i)[1], structure=self._cross)[1])
+        return self._pieces[key]
+
+
 def _edge_pixels(ring, raster, box) -> np.ndarray:
     """The pixels of ``box`` that the ring's edges pass through (the edges sampled every eighth pixel)."""
     x0, y0, _ = raster.origin
@@ -183,7 +234,7 @@ def _edge_pixels(ring, raster, box) -> np.ndarray:
     return out
 
 
-def _connect_split_rings(raster, rings) -> dict:
+def _connect_split_rings(raster, rings, fills=None) -> dict:
     """Where the raster cuts a drawn outer ring (minus its holes) into several 4-connected pieces (a
     sliver thinner than a pixel, as at the end of a tilted tube), the pixels its edges pass through
     join them, so that the raster keeps the ring one component and its joins are decided for it.
@@ -195,16 +246,16 @@ def _connect_split_rings(raster, rings) -> dict:
     x0, y0, _ = raster.origin
     p = raster.spacing[0]
     shape = raster.volume.shape[1:]
+    fills = fills or _RingFills(rings, raster)
     grown = {}
     for k, (rs, parents) in enumerate(rings):
         for i, par in enumerate(parents):
             if par != -1:
                 continue
-            holes = [rs[j] for j, q in enumerate(parents) if q == i]
-            box = _ring_box(rs[i], raster, shape)
-            pix = _fill([rs[i]] + holes, x0, y0, p, shape, box)
-            if ndimage.label(pix, structure=cross)[1] < 2:
+            if fills.pieces(k, i) < 2:
                 continue
+            holes = [rs[j] for j, q in enumerate(parents) if q == i]
+            box, pix = fills.outer(k, i)
             inner = _fill(holes, x0, y0, p, shape, box) if holes else np.zeros_like(pix)
             new = pix | (_edge_pixels(rs[i], raster, box) & ~inner)
             if ndimage.label(new, structure=cross)[1] != 1:
@@ -222,9 +273,11 @@ class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
-    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, grown=None, curved=False):
+    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, grown=None, curved=False,
+                 fills=None):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
+        self.fills = fills or _RingFills(rings, raster)
         self.name = name
         self.avoid = avoid  # sections whose drawn rings made crossing faces: the raster's polygons
         self.avoid_why = avoid_why
@@ -257,11 +310,11 @@ class _DrawnPolygons:
                 if par != -1:
                     continue
                 holes = [j for j, q in enumerate(parents) if q == i]
-                box = self._box(r, s.labels.shape)
                 if (k, i) in self.grown:  # a sliver whose pieces the raster was joined for (its edge pixels)
                     box, pix = self.grown[(k, i)]
                 else:
-                    pix = _fill([r] + [rings[j] for j in holes], x0, y0, p, s.labels.shape, box)
+                    box, pix = self.fills.outer(k, i)
+                assert pix.shape == (box[1] - box[0], box[3] - box[2]) and s.labels.shape == self.fills.shape
                 lab = s.labels[box[0]:box[1], box[2]:box[3]][pix]
                 if lab.size == 0:
                     continue  # a ring thinner than a pixel: the raster lost it (LostContourWarning)
@@ -290,8 +343,7 @@ class _DrawnPolygons:
                 hsl, hmasks = s.hole_masks[c]
                 fills = {}
                 for j in holes:
-                    hbox = self._box(rings[j], s.labels.shape)
-                    fills[j] = (hbox, _fill([rings[j]], x0, y0, p, s.labels.shape, hbox))
+                    fills[j] = self.fills.ring(k, j)
                 # a hole that holds no pixel centre is lost by the raster (LostContourWarning): dropped
                 holes = [j for j in holes if fills[j][1].any()]
                 if len(hmasks) != len(holes):
@@ -543,34 +595,24 @@ _FINER = 2
 _FINER_VOXELS = 2e7
 
 
-def _raster_splits_rings(r, rings) -> bool:
+def _raster_splits_rings(r, rings, fills=None) -> bool:
     """Whether some drawn outer ring (minus its holes) covers several 4-connected pieces of the raster,
     or some drawn ring of at least a quarter pixel's area and 0.25 % of its section's covers no pixel
     centre."""
-    from scipy import ndimage
-
-    x0, y0, _ = r.origin
     p = r.spacing[0]
-    shape = r.volume.shape[1:]
-    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
-    for rs, parents in rings:
+    fills = fills or _RingFills(rings, r)
+    for k, (rs, parents) in enumerate(rings):
         section = abs(sum(shoelace_area(q) for q in rs)) if rs else 0.0
         for i, par in enumerate(parents):
-            ring = rs[i]
-            box = (max(int(np.floor((ring[:, 1].min() - y0) / p)) - 1, 0),
-                   min(int(np.ceil((ring[:, 1].max() - y0) / p)) + 2, shape[0]),
-                   max(int(np.floor((ring[:, 0].min() - x0) / p)) - 1, 0),
-                   min(int(np.ceil((ring[:, 0].max() - x0) / p)) + 2, shape[1]))
             # a lost ring counts where it holds a quarter pixel or more (halving may catch it) and a
             # quarter percent of its section's area or more (not a speck beside a large contour)
-            area = abs(shoelace_area(ring))
+            area = abs(shoelace_area(rs[i]))
             big = area >= 0.25 * p * p and area >= 2.5e-3 * section
             if par != -1:
-                if big and not _fill([ring], x0, y0, p, shape, box).any():
+                if big and not fills.ring(k, i)[1].any():
                     return True
                 continue
-            pix = _fill([ring] + [rs[j] for j, q in enumerate(parents) if q == i], x0, y0, p, shape, box)
-            if (big and not pix.any()) or ndimage.label(pix, structure=cross)[1] > 1:
+            if (big and not fills.outer(k, i)[1].any()) or fills.pieces(k, i) > 1:
                 return True
     return False
 
@@ -624,13 +666,15 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
         r = rasterize_stack(stack, pixel)
         # the default pixel is halved (at most twice, within a voxel budget) where a drawn ring is lost
         # or falls apart in the raster: the joins are then decided for the rings as drawn
+        fills = _RingFills(rings, r)
         for _ in range(_FINER if pixel is None else 0):
-            if r.volume.size * 4 > _FINER_VOXELS or not _raster_splits_rings(r, rings):
+            if r.volume.size * 4 > _FINER_VOXELS or not _raster_splits_rings(r, rings, fills):
                 break
             log.debug("contours route: a ring is lost or split at pixel=%g; pixel=%g", r.spacing[0], r.spacing[0] / 2)
             lost.clear()
             r = rasterize_stack(stack, r.spacing[0] / 2)
-    grown = _connect_split_rings(r, rings)
+            fills = _RingFills(rings, r)
+    grown = _connect_split_rings(r, rings, fills)
     for w in lost:  # the rasterization's warnings (lost rings), naming the structure
         text = str(w.message)
         warn_external(text if text.startswith(f"{name}:") else f"{name}: {text}", w.category)
@@ -641,7 +685,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     attempt = 0
     while True:
         hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", grown=grown,
-                              curved=bands == "curved")
+                              curved=bands == "curved", fills=fills)
         last = attempt >= _ATTEMPTS - 1 or avoid == everything
         if not last:
             log.addFilter(quiet)
