@@ -30,6 +30,10 @@ import numpy as np
 __all__ = ["curve_bands"]
 
 
+#: Where a rung runs one way, its end slopes along the chord are at most this many times the chord's.
+_MAX_SLOPE = 2.0
+
+
 def _plane_index(z: np.ndarray, zs: np.ndarray, tol: float) -> np.ndarray:
     """Per vertex, the index of the section plane it lies on (within ``tol``), or -1."""
     k = np.searchsorted(zs, z)
@@ -195,6 +199,19 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
     h = V[hi_v, 2] - V[lo_v, 2]
     p, q = V[lo_v, :2], V[hi_v, :2]
     chord = (q - p) / h[:, None]
+    # where a vertex's rungs run one way across the ring, its slope across the ring is at most twice
+    # theirs (so a^2 + b^2 <= 8 < 9 on each rung, Fritsch and Carlson's condition for a cubic without
+    # overshoot): near a pole the section's slope grows without bound, and a cubic with that slope would
+    # bulge past the next ring.  One factor per vertex, so that the rungs of a fan stay apart.
+    normal = np.c_[-tdir[:, 1], tdir[:, 0]]
+    sx = (slope * normal).sum(axis=1)  # each vertex's slope across its ring
+    tau = np.ones(len(V))
+    for v in (lo_v, hi_v):
+        cx = (chord * normal[v]).sum(axis=1)
+        sv = sx[v]
+        lim = (sv * cx > 0) & (np.abs(sv) > _MAX_SLOPE * np.abs(cx))
+        np.minimum.at(tau, v[lim], _MAX_SLOPE * np.abs(cx[lim]) / np.abs(sv[lim]))
+    slope = slope - ((1.0 - tau) * sx)[:, None] * normal
     tp, tq = tdir[lo_v], tdir[hi_v]
     mp = _across(slope[lo_v], tp) + _along(chord, tp)
     mq = _across(slope[hi_v], tq) + _along(chord, tq)
