@@ -712,12 +712,12 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
         z = m.vertices[m.faces[bad]][:, :, 2].ravel()
         k = np.searchsorted(r.z, z, side="left")
         near = np.unique(np.r_[k, k - 1].clip(0, len(r.z) - 1))
-        grown = set(near.tolist()) - avoid
-        if not grown:
+        fresh = set(near.tolist()) - avoid  # (not `grown`: the slivers joined in the raster stay joined)
+        if not fresh:
             break
         log.debug("contours route: %d crossing face pairs; sections %s take the raster's polygons",
-                  m.meta["self_intersections"], sorted(grown))
-        avoid |= grown
+                  m.meta["self_intersections"], sorted(fresh))
+        avoid |= fresh
         attempt += 1
     for w in caught:  # the warnings of the attempt that is kept
         warn_external(str(w.message), w.category)
