@@ -194,6 +194,7 @@ def plot_png(rows) -> bytes | None:
     styles = {"ours caps=flat polygon=mlp": "bo", "ours caps=half polygon=mlp": "rs",
               "ours caps=flat polygon=none": "c^", "ours caps=half polygon=none": "mv",
               "ours caps=smooth polygon=none": "yD", "ours caps=smooth polygon=contours": "gD",
+              "ours caps=smooth polygon=curved": "mD",
               "ours caps=flat polygon=default": "b*", "ours caps=half polygon=default": "r*",
               "vtk-surfacenets": "kx", "mc-lewiner-blur1": "g+"}
     offs = dict(zip(styles, np.linspace(-0.12, 0.12, len(styles))))

@@ -77,9 +77,9 @@ log = logging.getLogger("contourmesh")
 #: The keywords that apply to each kind of source, beyond the method keywords.
 OPTIONS = {
     "shape": ("h",),
-    "stack": ("pixel", "route"),
+    "stack": ("pixel", "route", "bands"),
     "volume": ("spacing", "z", "axis", "label", "threshold", "origin"),
-    "contour file": ("roi", "pixel", "route"),
+    "contour file": ("roi", "pixel", "route", "bands"),
     "volume file": ("spacing", "z", "axis", "label", "threshold", "origin"),
 }
 METHOD_OPTIONS = ("polygon", "triangulation", "caps", "refine", "progress")
@@ -95,6 +95,9 @@ _WHY = {
     ("contour file", "z"): "contour files carry their own section heights",
     ("contour file", "label"): "label= and threshold= select voxels of a volume; use roi= to pick a structure",
     ("contour file", "threshold"): "label= and threshold= select voxels of a volume; use roi= to pick a structure",
+    ("shape", "bands"): "bands= shapes the bands between drawn contour sections (contour files and ContourStacks)",
+    ("volume", "bands"): "bands= shapes the bands between drawn contour sections (contour files and ContourStacks)",
+    ("volume file", "bands"): "bands= shapes the bands between drawn contour sections (contour files and ContourStacks)",
     ("volume", "roi"): "roi= picks a structure of a contour file; use label= for a labelled volume",
     ("volume file", "roi"): "roi= picks a structure of a contour file; use label= for a labelled volume",
     ("volume", "pixel"): "pixel= is the raster size for contour files; a volume is already voxels",
@@ -334,7 +337,7 @@ def mesh_shape(shape, *, h: float = 1.0, polygon: str = "mlp", triangulation: st
 
 def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str | None = None,
                triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
-               route: str | None = None, progress: bool = False) -> Mesh:
+               route: str | None = None, bands: str | None = None, progress: bool = False) -> Mesh:
     """Mesh a contour stack, choosing the route by what the stack holds.
 
     * Grid contours (integer points): one contour per section goes to the stack route; several
@@ -356,13 +359,26 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     of a raster), and so is ``caps="smooth"`` off the stack and contours routes
     (:class:`~contourmesh.errors.InapplicableOption`).  ``meta["route"]`` records the route taken
     and ``meta["pixel"]`` the raster size.
+
+    ``bands`` (contours route only): ``"ruled"`` (the default) keeps every band between two drawn
+    sections ruled, its volume within the frustum-trapezoid interval of the two rings' areas;
+    ``"curved"`` bends the bands onto cubic rungs through the neighbouring sections
+    (:mod:`contourmesh.bands.curved`), so that smooth solids converge to their true volume and
+    area (at the price of volumes above the trapezoid rule on convex profiles).  Elsewhere
+    ``bands="curved"`` is refused (:class:`~contourmesh.errors.InapplicableOption`).
     """
     if not isinstance(stack, ContourStack):
         raise TypeError(f"mesh_stack needs a ContourStack; got {type(stack).__name__}")
+    if bands not in (None, "ruled", "curved"):
+        raise ValueError(f"unknown bands {bands!r}; expected 'ruled' or 'curved'")
+    curved = bands == "curved"
     if route not in (None, "contours", "raster"):
         raise ValueError(f"unknown route {route!r}; expected 'contours' or 'raster'")
     refine = _refine_method(refine)
     if refine is not None:
+        if curved:
+            raise InapplicableOption("bands='curved' does not apply with refine='band': curved bands are made "
+                                     "between drawn rings on the contours route")
         if pixel is not None:
             raise InapplicableOption("pixel= does not apply with refine='band': the refinement meshes the "
                                      "stack's own grid contours, without rasterizing")
@@ -377,6 +393,12 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
         raise InapplicableOption(f"polygon={polygon!r} does not apply with route='contours': that route meshes "
                                  "the drawn rings themselves (use route='raster' for the polygons of a raster)")
     drawn = route == "contours" or (route is None and not integer and polygon in (None, "none"))
+    if curved and not (drawn and (route == "contours" or polygon is None)):
+        why = ("route='raster' meshes the polygons of a raster" if route == "raster" else
+               "grid contours go to the stack or raster route" if integer else
+               f"polygon={polygon!r} sends the drawn rings to the " + ("stack route" if polygon == "none" else "raster route")
+               + " (leave polygon unset, or route='contours')")
+        raise InapplicableOption(f"bands='curved' applies on the contours route only: {why}")
     fallback = None
     if route is None and one_each and (integer or polygon == "none"):
         try:
@@ -407,7 +429,8 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
         from .drawn import mesh_drawn
 
         log.debug("contours route: the drawn rings, joined as a raster at pixel=%s decides", pixel)
-        m = mesh_drawn(stack, pixel=pixel, triangulation=triangulation, caps=caps, progress=progress)
+        m = mesh_drawn(stack, pixel=pixel, triangulation=triangulation, caps=caps, bands=bands or "ruled",
+                       progress=progress)
         if fallback is not None:
             m = _with_meta(m, stack_route_error=fallback)
         return m
@@ -537,7 +560,7 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
 
 def mesh_file(path, *, roi=None, pixel=None, route=None, spacing=None, z=None, axis: int | None = None, label=None,
               threshold=None, origin=None, polygon: str | None = None, triangulation: str | None = None,
-              caps: str = "flat", refine: str | None = None, progress: bool = False) -> Mesh:
+              caps: str = "flat", refine: str | None = None, bands: str | None = None, progress: bool = False) -> Mesh:
     """Mesh a file: a contour stack (``.json``, DICOM RTSTRUCT, contour ``.npz``) or a volume.
 
     Contour files take ``roi`` (the structure, by name or number), ``pixel`` (the raster size) and
@@ -555,11 +578,12 @@ def mesh_file(path, *, roi=None, pixel=None, route=None, spacing=None, z=None, a
     p = check_file(path, "input")
     kind = "contour file" if is_contour_file(p) else "volume file"
     _refuse_inapplicable(kind, {k: v for k, v in dict(roi=roi, pixel=pixel, route=route, spacing=spacing, z=z, axis=axis,
-                                                      label=label, threshold=threshold, origin=origin).items()
+                                                      label=label, threshold=threshold, origin=origin,
+                                                      bands=bands).items()
                                 if v is not None})
     if kind == "contour file":
         m = mesh_stack(read_contours(p, roi=roi), pixel=pixel, route=route, polygon=polygon,
-                       triangulation=triangulation, caps=caps, refine=refine, progress=progress)
+                       triangulation=triangulation, caps=caps, refine=refine, bands=bands, progress=progress)
         return _with_meta(m, source=str(p))
     img = read_image(p, label=label, threshold=threshold)
     used = tuple(float(s) for s in spacing) if spacing is not None else img.spacing
@@ -674,7 +698,7 @@ def mesh_file_labels(path, *, labels=None, spacing=None, origin=None, polygon: s
 
 def mesh_file_rois(path, *, rois=None, pixel=None, route=None, polygon: str | None = None,
                    triangulation: str | None = None, caps: str = "flat", refine: str | None = None,
-                   progress: bool = False):
+                   bands: str | None = None, progress: bool = False):
     """Mesh several structures of a contour file (default: every non-empty one); yields ``(name, Mesh)``.
 
     ``rois`` lists names or numbers.  Each structure is meshed as :func:`mesh_file` meshes it with
@@ -697,7 +721,7 @@ def mesh_file_rois(path, *, rois=None, pixel=None, route=None, polygon: str | No
                 picks.append(found[0])
     for num, name in picks:
         m = mesh_file(path, roi=num if _suffix_of(path) != ".json" else None, pixel=pixel, route=route, polygon=polygon,
-                      triangulation=triangulation, caps=caps, refine=refine, progress=progress)
+                      triangulation=triangulation, caps=caps, refine=refine, bands=bands, progress=progress)
         yield name, diagnose(_with_meta(m, roi=name, roi_number=num))
 
 

@@ -144,9 +144,10 @@ def _cmd_mesh_many(args) -> int:
                         ("--label", args.label), ("--threshold", args.threshold), ("--json", args.json or None)):
         if value:
             raise ValueError(f"{flag} does not apply when meshing several objects at once")
-    if args.all_labels and (args.roi or args.all_rois or args.pixel is not None or args.route is not None):
-        raise ValueError("--all-labels is for label volumes; --roi, --all-rois, --pixel and --route are for contour "
-                         "files")
+    if args.all_labels and (args.roi or args.all_rois or args.pixel is not None or args.route is not None
+                            or args.bands is not None):
+        raise ValueError("--all-labels is for label volumes; --roi, --all-rois, --pixel, --route and --bands are for "
+                         "contour files")
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"-o {str(out)!r}: several objects need an output folder, and this is a file")
@@ -167,7 +168,7 @@ def _cmd_mesh_many(args) -> int:
         table = "rois.csv"
         rois = None if args.all_rois else [int(r) if r.isdigit() else r for r in args.roi]
         objects = ((name, m, None) for name, m in mesh_file_rois(args.source, rois=rois, pixel=args.pixel,
-                                                                    route=args.route, **method))
+                                                                    route=args.route, bands=args.bands, **method))
     rows, failed = [], 0
     while True:
         try:
@@ -233,7 +234,7 @@ def _cmd_mesh(args) -> int:
     roi = int(roi) if roi is not None and roi.isdigit() else roi
     m = mesh(args.source, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps,
              refine=args.refine, roi=roi, pixel=args.pixel, route=args.route, label=args.label, threshold=args.threshold,
-             axis=args.axis, spacing=args.spacing, progress=not args.quiet)
+             axis=args.axis, spacing=args.spacing, bands=args.bands, progress=not args.quiet)
     infos = []
     if posts:
         from .compare.postprocess import apply_postprocess
@@ -337,6 +338,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="contour files: mesh between the drawn rings, joined as a raster decides (contours, the "
                         "default; --polygon mlp/dss does not apply), or mesh the polygons of the raster (raster); "
                         "one ring per section with --polygon none or --caps smooth goes to the stack route")
+    m.add_argument("--bands", default=None, choices=["ruled", "curved"],
+                   help="contour files, contours route: ruled bands between drawn sections (the default; volume "
+                        "within the frustum-trapezoid interval) or curved bands through the neighbouring sections "
+                        "(smooth shapes converge to their true volume and area)")
     m.add_argument("--label", type=_label, default=None,
                    help="volumes: use the voxels equal to this label (.seg.nrrd: a segment name)")
     m.add_argument("--threshold", type=_number, default=None, help="volumes: use the voxels above this value")

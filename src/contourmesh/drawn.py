@@ -119,6 +119,11 @@ def _split_at_repeats(ring: np.ndarray) -> list:
         r = r[np.any(r != np.roll(r, 1, axis=0), axis=1)] if len(r) > 1 else r
         if len(r) < 3:
             continue
+        o = np.lexsort((r[:, 1], r[:, 0]))
+        if not (r[o[1:]] == r[o[:-1]]).all(axis=1).any():  # no point visited twice (the common case)
+            if shoelace_area(r) != 0.0:
+                out.append(r)
+            continue
         _, inv, cnt = np.unique(r, axis=0, return_inverse=True, return_counts=True)
         inv = inv.reshape(-1)
         dup = np.flatnonzero(cnt[inv] > 1)
@@ -165,6 +170,52 @@ def _ring_box(ring, raster, shape):
     return j0, j1, i0, i1
 
 
+class _RingFills:
+    """The even-odd fills of each section's drawn rings on one raster's grid, each made once (the
+    split check, the sliver joining and the matching all look at them)."""
+
+    _cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+
+    def __init__(self, rings, raster):
+        self.rings, self.raster = rings, raster
+        self.shape = raster.volume.shape[1:]
+        self.x0, self.y0 = raster.origin[0], raster.origin[1]
+        self.p = raster.spacing[0]
+        self._fills: dict = {}
+        self._pieces: dict = {}
+
+    def holes_of(self, k, i) -> list:
+        return [j for j, q in enumerate(self.rings[k][1]) if q == i]
+
+    def outer(self, k, i):
+        """``(box, pixels)``: the fill of outer ring ``i`` of section ``k`` minus its drawn holes."""
+        key = ("o", k, i)
+        if key not in self._fills:
+            rs = self.rings[k][0]
+            box = _ring_box(rs[i], self.raster, self.shape)
+            self._fills[key] = (box, _fill([rs[i]] + [rs[j] for j in self.holes_of(k, i)], self.x0, self.y0,
+                                           self.p, self.shape, box))
+        return self._fills[key]
+
+    def ring(self, k, j):
+        """``(box, pixels)``: the fill of ring ``j`` of section ``k`` alone."""
+        key = ("r", k, j)
+        if key not in self._fills:
+            rs = self.rings[k][0]
+            box = _ring_box(rs[j], self.raster, self.shape)
+            self._fills[key] = (box, _fill([rs[j]], self.x0, self.y0, self.p, self.shape, box))
+        return self._fills[key]
+
+    def pieces(self, k, i) -> int:
+        """The 4-connected pieces of :meth:`outer`."""
+        from scipy import ndimage
+
+        key = (k, i)
+        if key not in self._pieces:
+            self._pieces[key] = int(ndimage.label(self.outer(k, i)[1], structure=self._cross)[1])
+        return self._pieces[key]
+
+
 def _edge_pixels(ring, raster, box) -> np.ndarray:
     """The pixels of ``box`` that the ring's edges pass through (the edges sampled every eighth pixel)."""
     x0, y0, _ = raster.origin
@@ -183,7 +234,7 @@ def _edge_pixels(ring, raster, box) -> np.ndarray:
     return out
 
 
-def _connect_split_rings(raster, rings) -> dict:
+def _connect_split_rings(raster, rings, fills=None) -> dict:
     """Where the raster cuts a drawn outer ring (minus its holes) into several 4-connected pieces (a
     sliver thinner than a pixel, as at the end of a tilted tube), the pixels its edges pass through
     join them, so that the raster keeps the ring one component and its joins are decided for it.
@@ -195,16 +246,16 @@ def _connect_split_rings(raster, rings) -> dict:
     x0, y0, _ = raster.origin
     p = raster.spacing[0]
     shape = raster.volume.shape[1:]
+    fills = fills or _RingFills(rings, raster)
     grown = {}
     for k, (rs, parents) in enumerate(rings):
         for i, par in enumerate(parents):
             if par != -1:
                 continue
-            holes = [rs[j] for j, q in enumerate(parents) if q == i]
-            box = _ring_box(rs[i], raster, shape)
-            pix = _fill([rs[i]] + holes, x0, y0, p, shape, box)
-            if ndimage.label(pix, structure=cross)[1] < 2:
+            if fills.pieces(k, i) < 2:
                 continue
+            holes = [rs[j] for j, q in enumerate(parents) if q == i]
+            box, pix = fills.outer(k, i)
             inner = _fill(holes, x0, y0, p, shape, box) if holes else np.zeros_like(pix)
             new = pix | (_edge_pixels(rs[i], raster, box) & ~inner)
             if ndimage.label(new, structure=cross)[1] != 1:
@@ -222,16 +273,18 @@ class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
-    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, grown=None):
+    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, grown=None, curved=False,
+                 fills=None):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
+        self.fills = fills or _RingFills(rings, raster)
         self.name = name
         self.avoid = avoid  # sections whose drawn rings made crossing faces: the raster's polygons
         self.avoid_why = avoid_why
         self.unmatched: list[tuple] = []  # (section, z, why)
         self.grown = grown or {}  # (section, ring) -> (box, pixels) of rings the raster was joined for
         # every band between drawn rings keeps a volume within the frustum and trapezoid rules
-        self.band_guard = FaithfulBands()
+        self.band_guard = FaithfulBands(record=curved)
         # caps="smooth": the ends of band-joined rings close on the profile of their last sections
         self.end_cap = _SmoothEnds() if smooth else None
 
@@ -257,11 +310,11 @@ class _DrawnPolygons:
                 if par != -1:
                     continue
                 holes = [j for j, q in enumerate(parents) if q == i]
-                box = self._box(r, s.labels.shape)
                 if (k, i) in self.grown:  # a sliver whose pieces the raster was joined for (its edge pixels)
                     box, pix = self.grown[(k, i)]
                 else:
-                    pix = _fill([r] + [rings[j] for j in holes], x0, y0, p, s.labels.shape, box)
+                    box, pix = self.fills.outer(k, i)
+                assert pix.shape == (box[1] - box[0], box[3] - box[2]) and s.labels.shape == self.fills.shape
                 lab = s.labels[box[0]:box[1], box[2]:box[3]][pix]
                 if lab.size == 0:
                     continue  # a ring thinner than a pixel: the raster lost it (LostContourWarning)
@@ -290,8 +343,7 @@ class _DrawnPolygons:
                 hsl, hmasks = s.hole_masks[c]
                 fills = {}
                 for j in holes:
-                    hbox = self._box(rings[j], s.labels.shape)
-                    fills[j] = (hbox, _fill([rings[j]], x0, y0, p, s.labels.shape, hbox))
+                    fills[j] = self.fills.ring(k, j)
                 # a hole that holds no pixel centre is lost by the raster (LostContourWarning): dropped
                 holes = [j for j in holes if fills[j][1].any()]
                 if len(hmasks) != len(holes):
@@ -391,6 +443,38 @@ def _end_profile(areas, dists, gap):
     return tt, lam, "taper"
 
 
+#: An end section whose roundness (4 pi area / perimeter^2) is below this fraction of the previous
+#: section's is a slanted cut (a tilted tube's end): caps="smooth" moves it half a spacing along the axis.
+_CUT = 0.85
+
+
+def _centroid(xy) -> np.ndarray:
+    """The area centroid of a simple polygon (the vertex mean where it has no area)."""
+    x, y = xy[:, 0], xy[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    w = x * yn - xn * y
+    a = w.sum() / 2
+    if a == 0.0:
+        return xy.mean(axis=0)
+    return np.array([((x + xn) * w).sum(), ((y + yn) * w).sum()]) / (6 * a)
+
+
+def _roundness(xy) -> float:
+    """``4 pi area / perimeter^2``: 1 for a circle, small for a sliver."""
+    per = float(np.hypot(*(np.roll(xy, -1, axis=0) - xy).T).sum())
+    return 4 * np.pi * abs(shoelace_area(xy)) / per**2 if per > 0 else 0.0
+
+
+def _end_rate(areas, dists) -> float:
+    """``d(lam)/dt`` at an end ring: the rate at which the section's linear scale shrinks outward, from the
+    area profile of :func:`_end_profile` (0 where the area would grow)."""
+    areas = np.asarray(areas, dtype=np.float64)
+    tp = -np.r_[0.0, np.cumsum(dists)]
+    coef = np.polyfit(tp, areas, min(len(areas) - 1, 2))
+    da = float(np.polyval(np.polyder(coef), 0.0))
+    return min(da, 0.0) / (2.0 * areas[0])
+
+
 class _SmoothEnds:
     """``caps="smooth"`` on the contours route (the volume mesher's ``end_cap`` hook).
 
@@ -404,7 +488,8 @@ class _SmoothEnds:
     """
 
     def __init__(self):
-        self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper" or "half" (the last mesh built)
+        self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper", "cut" or "half" (the last mesh built)
+        self.slopes: dict = {}  # (x, y, z) of an end ring's vertex -> d(x, y)/dz of its cap at the ring
 
     def count(self, kind) -> int:
         return sum(v == kind for v in self.kinds.values())
@@ -422,7 +507,7 @@ class _SmoothEnds:
         s = self.slices[k]
         xy = np.asarray(s.outer[c], dtype=np.float64)
         area = abs(shoelace_area(xy)) - sum(abs(shoelace_area(np.asarray(h, np.float64))) for h in s.holes[c])
-        return area, xy.mean(axis=0)
+        return area, _centroid(xy), _roundness(xy)
 
     def __call__(self, M, k, c, rings, up) -> bool:
         from .bands.caps import cap_faces
@@ -439,23 +524,32 @@ class _SmoothEnds:
         allxy = np.concatenate(xys)
         if a0 <= 0.0 or len(np.unique(allxy, axis=0)) != len(allxy):
             return False
-        areas, dists, centres = [a0], [], [xys[0].mean(axis=0)]
+        areas, dists, centres, round_ = [a0], [], [_centroid(xys[0])], [_roundness(xys[0])]
         cur = (k, c)
         for _ in range(2):
             nxt = inward.get(cur)
             if nxt is None:
                 break
-            a, ctr = self._area_centre(*nxt)
+            a, ctr, q = self._area_centre(*nxt)
             if a <= 0:
                 break
             areas.append(a)
             dists.append(abs(float(self.zs[nxt[0]] - self.zs[cur[0]])))
             centres.append(ctr)
+            round_.append(q)
             cur = nxt
+        if len(areas) < 2:
+            return False
         gap = float(slice_gap(self.zs, k, up))
-        t, lam, kind = _end_profile(areas, dists, gap)
         drift = (centres[0] - centres[1]) / dists[0]  # the centroids' line, per unit distance outward
         centre, _ = _dome_centre(xys[0])  # outer ring and holes shrink together: similar sections
+        if round_[0] < _CUT * round_[1]:
+            # the end section is much less round than the one before: a flat end cut at a slant (a
+            # tilted tube), not a closing dome; its copy moves along the axis half a spacing out
+            t, lam, kind, rate = np.array([gap / 2]), np.array([1.0]), "cut", 0.0
+        else:
+            t, lam, kind = _end_profile(areas, dists, gap)
+            rate = _end_rate(areas, dists)  # d(lam)/dt at the end ring
 
         def placed(i):
             return [centre + lam[i] * (q - centre) + drift * t[i] for q in xys]
@@ -474,7 +568,26 @@ class _SmoothEnds:
             prev = nxt_ids
         M.cap(prev, upward=up)
         self.kinds[(k, c, up)] = kind
+        # the cap's slope at the end ring (outward t is +z at an upper end, -z at a lower one): curved
+        # bands (bands="curved") meet it without a kink
+        for q in xys:
+            d = (rate * (q - centre) + drift) * sgn
+            for (x, y), (sx, sy) in zip(q, d):
+                self.slopes[(float(x), float(y), z)] = (float(sx), float(sy))
         return True
+
+
+def _curved(m: Mesh, zs, end_slopes, band_faces) -> Mesh:
+    """``bands="curved"``: the mesh with the faces of its band joins bent (no face may cross)."""
+    from .bands.curved import curved_without_crossings
+
+    V, F, info = curved_without_crossings(m.vertices, m.faces, zs, end_slopes=end_slopes, band_faces=band_faces)
+    bent = info["levels"][info["levels"] > 1]
+    log.debug("contours route: curved bands, %d section pairs bent (up to %d segments), %d left ruled",
+              len(bent), int(bent.max()) if len(bent) else 1, info["ruled_pairs"])
+    meta = dict(m.meta, bands="curved", curved_levels=int(info["levels"].max()) if len(info["levels"]) else 1,
+                ruled_pairs=info["ruled_pairs"])
+    return Mesh(V, F, P=m.P, meta=meta)
 
 
 #: Halvings of the default pixel where the raster loses or splits a drawn ring, and the voxel budget for them.
@@ -482,34 +595,24 @@ _FINER = 2
 _FINER_VOXELS = 2e7
 
 
-def _raster_splits_rings(r, rings) -> bool:
+def _raster_splits_rings(r, rings, fills=None) -> bool:
     """Whether some drawn outer ring (minus its holes) covers several 4-connected pieces of the raster,
     or some drawn ring of at least a quarter pixel's area and 0.25 % of its section's covers no pixel
     centre."""
-    from scipy import ndimage
-
-    x0, y0, _ = r.origin
     p = r.spacing[0]
-    shape = r.volume.shape[1:]
-    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
-    for rs, parents in rings:
+    fills = fills or _RingFills(rings, r)
+    for k, (rs, parents) in enumerate(rings):
         section = abs(sum(shoelace_area(q) for q in rs)) if rs else 0.0
         for i, par in enumerate(parents):
-            ring = rs[i]
-            box = (max(int(np.floor((ring[:, 1].min() - y0) / p)) - 1, 0),
-                   min(int(np.ceil((ring[:, 1].max() - y0) / p)) + 2, shape[0]),
-                   max(int(np.floor((ring[:, 0].min() - x0) / p)) - 1, 0),
-                   min(int(np.ceil((ring[:, 0].max() - x0) / p)) + 2, shape[1]))
             # a lost ring counts where it holds a quarter pixel or more (halving may catch it) and a
             # quarter percent of its section's area or more (not a speck beside a large contour)
-            area = abs(shoelace_area(ring))
+            area = abs(shoelace_area(rs[i]))
             big = area >= 0.25 * p * p and area >= 2.5e-3 * section
             if par != -1:
-                if big and not _fill([ring], x0, y0, p, shape, box).any():
+                if big and not fills.ring(k, i)[1].any():
                     return True
                 continue
-            pix = _fill([ring] + [rs[j] for j, q in enumerate(parents) if q == i], x0, y0, p, shape, box)
-            if (big and not pix.any()) or ndimage.label(pix, structure=cross)[1] > 1:
+            if (big and not fills.outer(k, i)[1].any()) or fills.pieces(k, i) > 1:
                 return True
     return False
 
@@ -538,7 +641,7 @@ def decision_raster(stack: ContourStack, pixel: float):
 
 
 def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation: str = "wiederhold",
-               caps: str = "flat", progress: bool = False) -> Mesh:
+               caps: str = "flat", bands: str = "ruled", progress: bool = False) -> Mesh:
     """Mesh a real-valued contour stack between its drawn rings (the contours route; module docstring).
 
     ``pixel`` is the size of the raster that decides the topology (default
@@ -548,7 +651,14 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     ``drawn_components`` (components meshed from their drawn rings), ``unmatched_components``
     (meshed from the raster's polygons, each named in a RasterFallbackWarning) and the volume
     mesher's join counts.
+
+    ``bands="curved"`` bends the bands between consecutive sections onto cubic rungs
+    (:mod:`contourmesh.bands.curved`; ``meta["curved_levels"]``, the most segments per rung, and
+    ``meta["ruled_pairs"]``, section pairs left ruled because their bent faces crossed); the default
+    ``"ruled"`` keeps every band's volume within the frustum-trapezoid interval of its rings' areas.
     """
+    if bands not in ("ruled", "curved"):
+        raise ValueError(f"unknown bands {bands!r}; expected 'ruled' or 'curved'")
     name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
     rings, keyholes = _drawn_rings(stack)
     with warnings.catch_warnings(record=True) as lost:
@@ -556,13 +666,15 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
         r = rasterize_stack(stack, pixel)
         # the default pixel is halved (at most twice, within a voxel budget) where a drawn ring is lost
         # or falls apart in the raster: the joins are then decided for the rings as drawn
+        fills = _RingFills(rings, r)
         for _ in range(_FINER if pixel is None else 0):
-            if r.volume.size * 4 > _FINER_VOXELS or not _raster_splits_rings(r, rings):
+            if r.volume.size * 4 > _FINER_VOXELS or not _raster_splits_rings(r, rings, fills):
                 break
             log.debug("contours route: a ring is lost or split at pixel=%g; pixel=%g", r.spacing[0], r.spacing[0] / 2)
             lost.clear()
             r = rasterize_stack(stack, r.spacing[0] / 2)
-    grown = _connect_split_rings(r, rings)
+            fills = _RingFills(rings, r)
+    grown = _connect_split_rings(r, rings, fills)
     for w in lost:  # the rasterization's warnings (lost rings), naming the structure
         text = str(w.message)
         warn_external(text if text.startswith(f"{name}:") else f"{name}: {text}", w.category)
@@ -572,7 +684,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     quiet = _Quiet()
     attempt = 0
     while True:
-        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", grown=grown)
+        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", grown=grown,
+                              curved=bands == "curved", fills=fills)
         last = attempt >= _ATTEMPTS - 1 or avoid == everything
         if not last:
             log.addFilter(quiet)
@@ -599,15 +712,17 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
         z = m.vertices[m.faces[bad]][:, :, 2].ravel()
         k = np.searchsorted(r.z, z, side="left")
         near = np.unique(np.r_[k, k - 1].clip(0, len(r.z) - 1))
-        grown = set(near.tolist()) - avoid
-        if not grown:
+        fresh = set(near.tolist()) - avoid  # (not `grown`: the slivers joined in the raster stay joined)
+        if not fresh:
             break
         log.debug("contours route: %d crossing face pairs; sections %s take the raster's polygons",
-                  m.meta["self_intersections"], sorted(grown))
-        avoid |= grown
+                  m.meta["self_intersections"], sorted(fresh))
+        avoid |= fresh
         attempt += 1
     for w in caught:  # the warnings of the attempt that is kept
         warn_external(str(w.message), w.category)
+    if bands == "curved":
+        m = _curved(m, r.z, hook.end_cap.slopes if hook.end_cap is not None else None, hook.band_guard.faces())
     meta = dict(m.meta)
     meta.update(stack.meta)
     meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid),
@@ -616,5 +731,5 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     if caps == "smooth":
         e = hook.end_cap
         meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
-                    smooth_half_prisms=e.count("half"))
+                    smooth_cut_ends=e.count("cut"), smooth_half_prisms=e.count("half"))
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)

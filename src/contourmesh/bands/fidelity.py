@@ -114,6 +114,8 @@ def _best_edges(A1, A2, starts):
 _DP_WORK = 1e6
 #: After the first programme (the least-area band), the start points within this many of its best one.
 _WINDOW = 3
+#: The first programme's start points away from the original band's: at most this many, evenly spread.
+_SPREAD = 8
 
 
 def _lagrange_band(lo, hi, mu, starts, sign):
@@ -155,13 +157,15 @@ def faithful_band(lo: np.ndarray, hi: np.ndarray, f: np.ndarray, *, slack: float
     off = n + m  # centre the rings: the shoelace terms are then small
     centre = np.r_[np.concatenate([lo, hi])[:, :2].mean(axis=0), 0.0]
     lo_c, hi_c = lo - centre, hi - centre
-    starts = np.arange(0, k1, step, dtype=np.int64)
-    # and the start points of the original band's rungs at the larger ring's first point
+    # the start points of the original band's rungs at the larger ring's first point, those near them,
+    # and a coarse spread of at most _SPREAD others (the best start moves little from the original's)
     c1_is_lo = n <= m
     at = n if c1_is_lo else 0  # the first point of C(2) in vstack([lo, hi])
     touching = f[(f == at).any(axis=1)].ravel()
     starts_own = (touching[touching < n] if c1_is_lo else touching[touching >= n] - n).astype(np.int64)
-    starts = np.unique(np.r_[starts, starts_own]).astype(np.int64)
+    around = (starts_own[:, None] + np.arange(-_WINDOW, _WINDOW + 1)[None, :]).ravel() % k1
+    starts = np.arange(0, k1, max(step, -(-k1 // _SPREAD)), dtype=np.int64)
+    starts = np.unique(np.r_[starts, around, starts_own]).astype(np.int64)
     P = np.concatenate([lo, hi])
     best, best_miss = f, abs(miss(v))
     cache = {}
@@ -223,15 +227,23 @@ def faithful_band(lo: np.ndarray, hi: np.ndarray, f: np.ndarray, *, slack: float
 class FaithfulBands:
     """A band guard for :func:`contourmesh.volumes.volume_to_mesh` (``band_guard``): every band made
     between two rings at different heights goes through :func:`faithful_band`; counts the bands
-    it replaced (``replaced``) and those it checked (``checked``)."""
+    it replaced (``replaced``) and those it checked (``checked``).  With ``record=True`` it keeps the
+    corner coordinates of the faces of every band it returns (:meth:`faces`)."""
 
-    def __init__(self, slack: float = 2e-3):
+    def __init__(self, slack: float = 2e-3, record: bool = False):
         from . import _band_crosses
 
         self.slack = slack
         self._crosses = _band_crosses
         self.checked = 0
         self.replaced = 0
+        self._record = [] if record else None
+
+    def faces(self) -> np.ndarray:
+        """``(n, 3, 3)``: the corners of the faces of the bands returned (``record=True``)."""
+        if not self._record:
+            return np.zeros((0, 3, 3))
+        return np.concatenate(self._record)
 
     def __call__(self, lo: np.ndarray, hi: np.ndarray, f: np.ndarray) -> np.ndarray:
         if lo[0, 2] == hi[0, 2]:
@@ -239,4 +251,6 @@ class FaithfulBands:
         self.checked += 1
         g, replaced = faithful_band(lo, hi, f, slack=self.slack, crosses=self._crosses)
         self.replaced += bool(replaced)
+        if self._record is not None:
+            self._record.append(np.concatenate([lo, hi])[g])
         return g

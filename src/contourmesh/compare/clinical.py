@@ -32,9 +32,9 @@ __all__ = ["measure", "COLUMNS", "MODES", "PEERS", "cross_section_errors", "refe
 
 #: Our modes (caps, polygon); polygon ``"default"`` leaves it unset: drawn rings go to the contours route
 #: (with ``caps="smooth"`` one ring per section goes to the stack route; ``"contours"`` asks for the
-#: contours route with ``route="contours"``).
+#: contours route with ``route="contours"``; ``"curved"`` the contours route with ``bands="curved"``).
 MODES = (("flat", "mlp"), ("half", "mlp"), ("flat", "none"), ("half", "none"), ("smooth", "none"),
-         ("flat", "default"), ("half", "default"), ("smooth", "contours"))
+         ("flat", "default"), ("half", "default"), ("smooth", "contours"), ("smooth", "curved"))
 PEERS = ("vtk-surfacenets", "mc-lewiner-blur1")
 
 COLUMNS = ["phantom", "kind", "tilt", "dz", "ds", "seed", "method", "caps", "polygon", "status", "route",
@@ -193,8 +193,9 @@ def measure(ph: Phantom, dz: float, ds: float, *, seed: int = 0, fine: float = 0
         row.update(method="ours", caps=caps, polygon=polygon)
         t0 = time.perf_counter()
         try:
-            m = _with_deadline(lambda: _mesh(stack, caps=caps, polygon=None if polygon in ("default", "contours")
-                                             else polygon, **({"route": "contours"} if polygon == "contours" else {})),
+            extra = {"contours": {"route": "contours"}, "curved": {"route": "contours", "bands": "curved"}}
+            m = _with_deadline(lambda: _mesh(stack, caps=caps, polygon=None if polygon in ("default", "contours", "curved")
+                                             else polygon, **extra.get(polygon, {})),
                                timeout)
         except _Timeout as exc:
             row.update(status="timeout", error=str(exc), seconds=time.perf_counter() - t0)
