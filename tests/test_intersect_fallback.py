@@ -147,3 +147,18 @@ def test_a_pixel_cap_at_a_mid_plane_stays_in_its_own_slab(caps, polygon, spacing
     m = _embedded_and_right(np.pad(_MIDPLANE_PIXEL_CAP, 1), polygon=polygon, caps=caps, spacing=spacing)
     z = np.unique(m.vertices[:, 2])
     assert z.min() >= 0.5 * spacing[0] - 1e-9 and z.max() <= 2.5 * spacing[0] + 1e-9  # within the mid-planes
+
+
+# soak seeds 24136, 37637 (real-valued rings on the raster route), shrunk: the neck of two voxels
+# of the background that meet only at a corner, with slices four pixels apart.  Its two cones are
+# flat, and the tube that joins them, walked around its axis or in proportion to the two rings,
+# crossed itself; the tube now starts from the first point of the second ring that keeps it clear
+@pytest.mark.parametrize("polygon", ["mlp", "dss", "none"])
+def test_the_tube_of_a_flat_neck_keeps_clear(polygon):
+    v = np.zeros((4, 4, 4), bool)
+    v[1, 1:3, 1:3] = [[1, 1], [1, 0]]
+    v[2, 1:3, 1:3] = [[0, 1], [1, 1]]
+    for triangulation in ("wiederhold", "greedy", "optimal", "arclength"):
+        m = _embedded_and_right(v[1:-1, 1:-1, 1:-1], spacing=(2.98, 0.75, 0.75), polygon=polygon,
+                                triangulation=triangulation)
+        assert m.checks()["genus"] == 1  # the background passes through the neck: a handle
