@@ -9,6 +9,7 @@ other, with the same inputs; the pair counts of both are printed, and must agree
 
     PYTHONPATH=src .venv/bin/python benchmarks/check_cost.py                       # ball, liver, lobster, bunny-128
     PYTHONPATH=src .venv/bin/python benchmarks/check_cost.py --inputs ball,bunny-128 --repeat 5
+    PYTHONPATH=src .venv/bin/python benchmarks/check_cost.py --inputs ball,liver --repeat 1 --after-only
 """
 
 from __future__ import annotations
@@ -79,6 +80,7 @@ def main(argv=None) -> int:
     ap.add_argument("--inputs", default=",".join(INPUTS))
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--before", default=BEFORE, help="git revision measured as 'before' (default %(default)s)")
+    ap.add_argument("--after-only", action="store_true", help="measure this checkout only (no 'before' columns)")
     ap.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     inputs = [s for s in args.inputs.split(",") if s]
@@ -87,7 +89,9 @@ def main(argv=None) -> int:
         return 0
     rows = {}
     with tempfile.TemporaryDirectory(prefix="check_cost_") as tmp:
-        for variant, src in (("before", _export(args.before, tmp)), ("after", str(ROOT / "src"))):
+        variants = (("after", str(ROOT / "src")),) if args.after_only else \
+            (("before", _export(args.before, tmp)), ("after", str(ROOT / "src")))
+        for variant, src in variants:
             env = dict(os.environ, PYTHONPATH=src)
             out = subprocess.run([sys.executable, __file__, "--worker", src, "--inputs", ",".join(inputs),
                                   "--repeat", str(args.repeat)], env=env, check=True, capture_output=True, text=True)
@@ -95,11 +99,19 @@ def main(argv=None) -> int:
                 if line.startswith("{"):
                     r = json.loads(line)
                     rows[(variant, r["input"])] = r
-    print(f"CPU seconds, medians of {args.repeat} runs; before = {args.before}, after = this checkout")
-    print(f"{'input':10s} {'faces':>8s} {'pairs':>6s} | {'mesh':>7s} {'checks':>7s} {'ratio':>6s} (before) | "
-          f"{'mesh':>7s} {'checks':>7s} {'ratio':>6s} (after)")
+    if args.after_only:
+        print(f"CPU seconds, medians of {args.repeat} runs; this checkout")
+        print(f"{'input':10s} {'faces':>8s} {'pairs':>6s} | {'mesh':>7s} {'checks':>7s} {'ratio':>6s}")
+    else:
+        print(f"CPU seconds, medians of {args.repeat} runs; before = {args.before}, after = this checkout")
+        print(f"{'input':10s} {'faces':>8s} {'pairs':>6s} | {'mesh':>7s} {'checks':>7s} {'ratio':>6s} (before) | "
+              f"{'mesh':>7s} {'checks':>7s} {'ratio':>6s} (after)")
     for name in inputs:
-        b, a = rows[("before", name)], rows[("after", name)]
+        a = rows[("after", name)]
+        if args.after_only:
+            print(f"{name:10s} {a['faces']:8d} {a['pairs']:6d} | {a['mesh_s']:7.3f} {a['checks_s']:7.3f} {a['ratio']:6.2f}")
+            continue
+        b = rows[("before", name)]
         same = "" if (b["pairs"], b["faces"]) == (a["pairs"], a["faces"]) else "  PAIRS OR FACES DIFFER"
         print(f"{name:10s} {a['faces']:8d} {a['pairs']:6d} | {b['mesh_s']:7.3f} {b['checks_s']:7.3f} {b['ratio']:6.2f}"
               f"          | {a['mesh_s']:7.3f} {a['checks_s']:7.3f} {a['ratio']:6.2f}{same}")

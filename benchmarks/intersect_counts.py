@@ -3,7 +3,7 @@
 For every shared sample volume (default mode and ``polygon="none"``, or every mode with
 ``--modes all``) prints the faces, the intersecting face pairs (``contourmesh.intersect``), the
 faces involved, the route and its repair counts, and the time of the check against the meshing
-time; then the counts over random volumes of the issue's five kinds.
+time (wall and CPU seconds; an error raised by the mesher is recorded as the row's ``error``); then the counts over random volumes of the issue's five kinds.
 
     python benchmarks/intersect_counts.py                  # samples + 150 random volumes
     python benchmarks/intersect_counts.py --random 0 --samples bunny-64,liver
@@ -86,16 +86,21 @@ def measure(vol, spacing=(1.0, 1.0, 1.0), **kw):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        t = time.perf_counter()
-        m = contourmesh.mesh(vol, spacing=spacing, **kw)
-        tm = time.perf_counter() - t
-    t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
+        try:
+            m = contourmesh.mesh(vol, spacing=spacing, **kw)
+        except Exception as e:  # a refusal or a crash is recorded, and the run goes on
+            return dict(error=f"{type(e).__name__}: {e}"[:400], pairs=0, faces=0,
+                        mesh_cpu_s=round(time.process_time() - c, 3))
+        tm, cm = time.perf_counter() - t, time.process_time() - c
+    t, c = time.perf_counter(), time.process_time()
     p = intersecting_pairs(m.vertices, m.faces)
-    tc = time.perf_counter() - t
+    tc, cc = time.perf_counter() - t, time.process_time() - c
     keys = ("route", "self_intersections", "crossings_repaired", "crossing_fallbacks", "band_fallbacks",
             "polygon_fallbacks")
     return dict(faces=int(len(m.faces)), pairs=int(len(p)), faces_involved=int(len(np.unique(p))),
                 mesh_s=round(tm, 3), check_s=round(tc, 3), ratio=round(tc / tm, 3),
+                mesh_cpu_s=round(cm, 3), check_cpu_s=round(cc, 3),
                 **{k: m.meta[k] for k in keys if k in m.meta})
 
 
@@ -166,8 +171,10 @@ def main(argv=None) -> int:
                 print("random", k, b, flush=True)
     save(out)
     crossing = sorted(k for k, r in out["samples"].items() if r["pairs"])
+    failed = sorted(k for k, r in out["samples"].items() if "error" in r)
     print(f"samples x modes: {len(out['samples'])} meshes, {len(crossing)} with crossing faces"
-          + (f": {', '.join(crossing)}" if crossing else ""), flush=True)
+          + (f": {', '.join(crossing)}" if crossing else "")
+          + (f"; {len(failed)} raised: {', '.join(failed)}" if failed else ""), flush=True)
     return 0
 
 

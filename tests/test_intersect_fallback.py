@@ -14,6 +14,9 @@ from contourmesh.volumes import voxel_topology
 
 
 def _vol(*slices):
+    """A volume from its slices: nested lists of 0/1, or rows of text ('#' is object)."""
+    if isinstance(slices[0][0], str):
+        slices = [[[ch == "#" for ch in row] for row in sl] for sl in slices]
     return np.array(slices, dtype=bool)
 
 
@@ -123,3 +126,39 @@ def test_bridged_join_whose_band_crosses_takes_another_strategy(monkeypatch):
     assert with_alts.meta["exact_joins"] < without.meta["exact_joins"]
     assert with_alts.meta["bridged_joins"] > without.meta["bridged_joins"]
     assert with_alts.meta["axis_wall_fraction"] < without.meta["axis_wall_fraction"]
+
+
+# soak seeds 7625, 11814, 28637 (real-valued rings on the raster route), shrunk: a one-slice
+# component whose polygon touches itself is closed by pixels at its mid-planes (a prism one
+# spacing thick); their hair-thin collar went 1 % of the spacing past the mid-plane, into the slab
+# where the diagonal neighbour's exact join begins, and crossed its walls (coplanar overlaps)
+_MIDPLANE_PIXEL_CAP = _vol(
+    ["....###.", "...##.##", "...#.#.#", "...##.#.", "....###.", "........", "........", ".##.....",
+     "..#....."],
+    ["........", "........", "........", "..#.....", "..##....", "...#....", "####....", ".#......",
+     "..#....."],
+)
+
+
+@pytest.mark.parametrize("caps", ["flat", "half"])
+@pytest.mark.parametrize("polygon", ["mlp", "dss"])
+@pytest.mark.parametrize("spacing", [(1.0, 1.0, 1.0), (1.48, 1.5, 1.5)])
+def test_a_pixel_cap_at_a_mid_plane_stays_in_its_own_slab(caps, polygon, spacing):
+    m = _embedded_and_right(np.pad(_MIDPLANE_PIXEL_CAP, 1), polygon=polygon, caps=caps, spacing=spacing)
+    z = np.unique(m.vertices[:, 2])
+    assert z.min() >= 0.5 * spacing[0] - 1e-9 and z.max() <= 2.5 * spacing[0] + 1e-9  # within the mid-planes
+
+
+# soak seeds 24136, 37637 (real-valued rings on the raster route), shrunk: the neck of two voxels
+# of the background that meet only at a corner, with slices four pixels apart.  Its two cones are
+# flat, and the tube that joins them, walked around its axis or in proportion to the two rings,
+# crossed itself; the tube now starts from the first point of the second ring that keeps it clear
+@pytest.mark.parametrize("polygon", ["mlp", "dss", "none"])
+def test_the_tube_of_a_flat_neck_keeps_clear(polygon):
+    v = np.zeros((4, 4, 4), bool)
+    v[1, 1:3, 1:3] = [[1, 1], [1, 0]]
+    v[2, 1:3, 1:3] = [[0, 1], [1, 1]]
+    for triangulation in ("wiederhold", "greedy", "optimal", "arclength"):
+        m = _embedded_and_right(v[1:-1, 1:-1, 1:-1], spacing=(2.98, 0.75, 0.75), polygon=polygon,
+                                triangulation=triangulation)
+        assert m.checks()["genus"] == 1  # the background passes through the neck: a handle

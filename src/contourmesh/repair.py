@@ -318,7 +318,7 @@ def _open_necks(V, F, S, necks, nudge):
         # advance the ring whose next vertex comes first around the axis; where that path laps one
         # ring while the other waits (rings that are not star-shaped about the axis: the same
         # diagonal twice, four faces on an edge), advance both in proportion to their sizes instead
-        for first_of in (lambda i, j: ua[i + 1] <= ub[j + 1], lambda i, j: (i + 1) * m <= (j + 1) * n):
+        def walk(b, first_of):
             i = j = 0
             path, tube_faces = [(0, 0)], []
             while i < n or j < m:
@@ -329,8 +329,20 @@ def _open_necks(V, F, S, necks, nudge):
                     tube_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
                     j += 1
                 path.append((i % n, j % m))
-            if len(set(path[:-1])) == len(path) - 1:
+            return len(set(path[:-1])) == len(path) - 1, tube_faces
+
+        for first_of in (lambda i, j: ua[i + 1] <= ub[j + 1], lambda i, j: (i + 1) * m <= (j + 1) * n):
+            simple, tube_faces = walk(b, first_of)
+            if simple:
                 break
+        if _tube_crosses(new_faces, tube_faces, xyz):
+            # very flat cones (slices far apart against the pixel size) can defeat both rules: the
+            # proportional walk from every start on the second ring, the first whose faces keep clear
+            for r in range(m):
+                simple, faces_r = walk(b[r:] + b[:r], lambda i, j: (i + 1) * m <= (j + 1) * n)
+                if simple and not _tube_crosses(new_faces, faces_r, xyz):
+                    tube_faces = faces_r
+                    break
         new_faces += tube_faces
         for t in star:
             alive[t] = False
@@ -348,6 +360,13 @@ def _open_necks(V, F, S, necks, nudge):
     S = np.concatenate([S[keep], np.zeros(len(added), dtype=S.dtype)])
     V = np.concatenate(Vs)
     return V, F, S
+
+
+def _tube_crosses(fans, tube, xyz) -> bool:
+    """True when the faces of a neck's tube cross each other or its two fans (exact test)."""
+    f = np.array(fans + tube, dtype=np.int64)
+    ids, local = np.unique(f, return_inverse=True)
+    return len(intersecting_pairs(xyz(ids.tolist()), local.reshape(-1, 3))) > 0
 
 
 def _ring_angles(A, B):

@@ -594,21 +594,33 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
 
             def close(rs, up, zc=None):
                 """Cap the rings rs facing up or down, in their plane or at zc (after a collar)."""
+                xy = [M.coords(r)[:, :2] for r in rs]
+                f = None
+                if _distinct_rows(np.concatenate(xy)):  # rings that touch go to the pixel cap
+                    try:
+                        f = cap_faces(xy[0], xy[1:], upward=up)
+                    except ValueError:
+                        pass
+                z_pixels = None
+                if f is None:
+                    # the polygons cross or touch (thin parts): a hair-thin collar to the pixels, 1 % of
+                    # the spacing beyond the rings.  A cap at a mid-plane (zc) keeps its pixels short of
+                    # it: that plane is where the joins of the next slab begin (an exact join's walls,
+                    # another component's cap from the other side), and pixels beyond it would cross them.
+                    step = (1e-2 if up else -1e-2) * gap(k, up)
+                    if zc is None:
+                        z_pixels = M.coords(rs[0][:1])[0, 2] + step
+                    else:
+                        zc, z_pixels = zc - step, zc - 0.5 * step
                 if zc is not None:
                     sh = shifted(rs, zc)
                     for r, t in zip(rs, sh):
                         M.band(r, t) if up else M.band(t, r)
                     rs = sh
-                xy = M.coords(np.concatenate(rs))[:, :2]
-                if _distinct_rows(xy):  # rings that touch go to the pixel cap
-                    try:
-                        M.cap(rs, upward=up)
-                        return
-                    except ValueError:
-                        pass
-                # the polygons cross or touch (thin parts): a hair-thin collar to the pixels
-                z0 = M.coords(rs[0][:1])[0, 2]
-                _pixel_cap(M, s, k, c, rs, z0 + (1e-2 if up else -1e-2) * gap(k, up), up, to_xy_corner)
+                if f is not None:
+                    M.faces(np.concatenate(rs)[f])
+                    return
+                _pixel_cap(M, s, k, c, rs, z_pixels, up, to_xy_corner)
 
             rs = [ring(k, c, -1)] + [ring(k, c, h) for h in range(len(s.holes[c]))]
             if not above and not below:  # a prism one spacing thick
