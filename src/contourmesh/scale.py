@@ -455,7 +455,7 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
         if big:
             why = ("refine='band' is not meshed in slabs (its blur width, meridians and route are decided on "
                    "the whole object)" if _refine_method_of(method) is not None else
-                   "they cannot be cut into slabs within it")
+                   "They cannot be cut into slabs within it")
             raise LabelTooLarge(f"{vol.where}: {len(big)} label(s) exceed the per-task budget max_box_voxels="
                                 f"{int(max_box_voxels)}: {'; '.join(big[:10])}{' ...' if len(big) > 10 else ''}. "
                                 f"{why}; raise max_box_voxels (--max-box-voxels) and the workers' memory to mesh "
