@@ -238,8 +238,8 @@ def _piece_stats(V, F, owner, j, zs, cuts):
     remap = np.full(len(V), -1, np.int64)
     remap[used] = np.arange(len(used))
     f = remap[Fm]
-    seam_z = [float(zs[cuts[s]]) for s in (j, j + 1) if 1 <= s <= len(cuts) - 2]
-    on_seam = np.isin(Vu[:, 2], seam_z) if seam_z else np.zeros(len(Vu), bool)
+    # the vertices this slab shares with its neighbours: those that faces owned by another slab use
+    on_seam = np.isin(used, np.unique(F[~mine])) if (~mine).any() else np.zeros(len(used), bool)
     # components of the owned faces; the seam vertices carry them to the driver
     if len(f):
         g = coo_matrix((np.ones(2 * len(f)), (np.r_[f[:, 0], f[:, 1]], np.r_[f[:, 1], f[:, 2]])),
