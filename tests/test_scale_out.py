@@ -406,3 +406,28 @@ def test_identical_on_the_real_lobster_cut_into_touching_labels(shared_data, tmp
         for a, b in zip(canonical(m), canonical(r)):
             np.testing.assert_array_equal(a, b)
         assert m.area == r.area and row["area"] == exact_area_volume(r.vertices, r.faces)[0]
+
+
+def test_exact_area_volume_does_not_depend_on_order_or_cut(memory):
+    """The rows' area and volume: the same bits whatever the order of vertices and faces, where each
+    face starts, and however the faces are split into parts whose exact sums are added."""
+    import math
+
+    from contourmesh.seams import _area_terms, _volume_parts, exact_parts
+
+    m = memory[5][0]
+    a0, v0 = exact_area_volume(m.vertices, m.faces)
+    assert abs(a0 - m.area) <= 1e-12 * a0 and abs(v0 - m.volume) <= 1e-10 * v0
+    rng = np.random.default_rng(0)
+    perm = rng.permutation(len(m.vertices))
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(len(perm))
+    F = inv[m.faces][rng.permutation(len(m.faces))]
+    F = np.stack([np.roll(f, int(s)) for f, s in zip(F, rng.integers(0, 3, len(F)))])
+    assert exact_area_volume(m.vertices[perm], F) == (a0, v0)
+    halves = (F[: len(F) // 3], F[len(F) // 3:])
+    V = m.vertices[perm]
+    assert math.fsum(x for h in halves for x in exact_parts(_area_terms(V, h))) == a0
+    assert math.fsum(x for h in halves for x in _volume_parts(V, h)) / 6.0 == v0
+    x = rng.normal(size=1000) * 10.0 ** rng.integers(-8, 8, 1000)
+    assert math.fsum(exact_parts(x)) == math.fsum(x)
