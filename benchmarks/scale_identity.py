@@ -17,13 +17,13 @@ structure set rasterized at 2 mm, ROIs painted in order into one label volume), 
 from __future__ import annotations
 
 import argparse
-import warnings
 import hashlib
 import json
 import os
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
