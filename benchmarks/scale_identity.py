@@ -128,6 +128,7 @@ def main(argv=None):
     ap.add_argument("--cell", type=int, default=128)
     ap.add_argument("--slab-budget", type=int, default=2**20, help="max_box_voxels of the slabbed paper-mode run")
     ap.add_argument("--band-labels", type=int, default=0, help="at most this many labels in band mode (0: all)")
+    ap.add_argument("--max-labels", type=int, default=0, help="at most this many labels in any mode (0: all)")
     ap.add_argument("--out", default=None, help="append one JSON line per comparison to this file")
     a = ap.parse_args(argv)
     import zarr
@@ -144,9 +145,11 @@ def main(argv=None):
         for mode in a.modes.split(","):
             refine = None if mode == "none" else mode
             if refine is None:
-                compare(src, vol, sp, None, a.slab_budget, store, out=a.out)
+                compare(src, vol, sp, None, a.slab_budget, store, labels=labs[:a.max_labels] if a.max_labels else None,
+                        out=a.out)
             else:
-                pick = labs[:a.band_labels] if a.band_labels else None
+                n = min(v for v in (a.band_labels, a.max_labels, len(labs)) if v)
+                pick = labs[:n] if n < len(labs) else None
                 compare(src, vol, sp, refine, 2**26, store, labels=pick, out=a.out)
 
 
