@@ -15,6 +15,7 @@ import contourmesh  # noqa: E402
 from contourmesh.cells import cells_volume, synthetic_cells, write_cells_zarr  # noqa: E402
 from contourmesh.io.chunked import open_chunked  # noqa: E402
 from contourmesh.scale import LabelTooLarge, mesh_labels_chunked, scan_labels  # noqa: E402
+from contourmesh.seams import exact_area_volume  # noqa: E402
 
 SHAPE = (32, 48, 48)
 
@@ -169,10 +170,79 @@ def test_identical_to_in_memory_mesh_labels(store, volume, refine):
         assert bbox == rbox
         for a, b in zip(canonical(m), canonical(r)):
             np.testing.assert_array_equal(a, b)
-        assert m.area == r.area and row["area"] == r.area  # to the last bit
-        assert row["volume"] == r.checks()["volume"] and row["P"] == r.P
+        area, volume = exact_area_volume(r.vertices, r.faces)
+        assert m.area == r.area and row["area"] == area  # to the last bit
+        assert row["volume"] == volume and row["P"] == r.P
+        assert abs(area - r.area) <= 1e-12 * area and abs(volume - r.checks()["volume"]) <= 1e-9 * volume
         assert row["status"] in ("ok",) or row["status"].startswith("closed")
         assert m.meta["label"] == lab
+
+
+ROW_KEYS = ("area", "volume", "P", "faces", "genus", "components", "watertight", "self_intersections")
+SLAB_BUDGET = 1600  # voxels: 7 of the 19 labels exceed it and are cut into 4 to 9 slabs each
+
+
+@pytest.fixture(scope="module")
+def memory(volume):
+    """In-memory meshes and rows of every label (paper mode)."""
+    return {lab: (m, contourmesh.api.label_row(lab, m, bbox)) for lab, m, bbox in contourmesh.mesh_labels(volume)}
+
+
+@pytest.mark.parametrize("meshes", [True, False])
+def test_labels_above_the_budget_are_meshed_in_slabs_identical_to_memory(store, memory, meshes):
+    """Issue 17: a label larger than max_box_voxels is meshed in slabs of slices (halo 3) joined by
+    vertex identity: the in-memory mesh after canonical ordering, the same row to the last bit;
+    with meshes=False the row is summed slab by slab without a mesh and is the same."""
+    stats = {}
+    got = {lab: (m, row) for lab, m, _b, row in mesh_labels_chunked(
+        store, jobs=1, max_box_voxels=SLAB_BUDGET, meshes=meshes, stats=stats)}
+    assert stats["slabbed_labels"] == 7 and stats["slab_tasks"] >= 40
+    assert sorted(got) == sorted(memory)
+    for lab, (r, ref) in memory.items():
+        m, row = got[lab]
+        assert row["status"] == "ok", (lab, row["status"])
+        assert {k: row[k] for k in ROW_KEYS} == {k: ref[k] for k in ROW_KEYS}, lab
+        if meshes:
+            for a, b in zip(canonical(m), canonical(r)):
+                np.testing.assert_array_equal(a, b)
+            assert m.checks()["ok"]
+        else:
+            assert m is None
+
+
+def test_slab_seams_that_disagree_are_failed_rows_never_a_different_mesh(volume, memory):
+    """A halo of one slice is too small for the seam check (the slab's own cut end lies within one
+    gap of the seam): the labels concerned fail with SeamMismatch; the others equal memory."""
+    rows = {lab: row for lab, _m, _b, row in mesh_labels_chunked(volume, jobs=1, max_box_voxels=SLAB_BUDGET,
+                                                                 meshes=False, halo=1)}
+    failed = [lab for lab, row in rows.items() if row["status"] != "ok"]
+    assert failed
+    for lab, row in rows.items():
+        if lab in failed:
+            assert row["status"].startswith("failed: SeamMismatch: label ")
+        else:
+            assert {k: row[k] for k in ROW_KEYS} == {k: memory[lab][1][k] for k in ROW_KEYS}
+    with pytest.raises(LabelTooLarge, match="refine='band' is not meshed in slabs"):
+        list(mesh_labels_chunked(volume, jobs=1, max_box_voxels=SLAB_BUDGET, refine="band"))
+    with pytest.raises(ValueError, match="halo must be a positive number"):
+        list(mesh_labels_chunked(volume, jobs=1, halo=0))
+
+
+def test_slab_results_are_cached_and_a_damaged_piece_is_recomputed(tmp_path, volume, memory):
+    cache = tmp_path / "cache"
+    first = {lab: row for lab, _m, _b, row in mesh_labels_chunked(volume, jobs=1, max_box_voxels=SLAB_BUDGET,
+                                                                  labels=[3, 7], cache=cache)}
+    pieces = sorted(cache.glob("slab-*.npz"))
+    assert len(pieces) >= 8
+    pieces[0].write_bytes(b"damaged")
+    stats = {}
+    again = {lab: (m, row) for lab, m, _b, row in mesh_labels_chunked(
+        volume, jobs=1, max_box_voxels=SLAB_BUDGET, labels=[3, 7], cache=cache, stats=stats)}
+    assert stats["cached"] == stats["tasks"] - 1
+    assert {lab: r for lab, (_m, r) in again.items()} == first
+    for lab, (m, _row) in again.items():
+        for a, b in zip(canonical(m), canonical(memory[lab][0])):
+            np.testing.assert_array_equal(a, b)
 
 
 def test_stats_only_rows_equal_mesh_rows(store):
@@ -211,7 +281,9 @@ def test_local_cluster_with_a_killed_worker_changes_nothing(store, volume):
         victim = sorted(client.scheduler_info()["workers"])[0]
         killed = []
         rows = {}
-        for lab, m, _bbox, row in mesh_labels_chunked(store, client=client, batch=1, meshes=False):
+        # labels above the budget are cut into slabs, so slab tasks die with the worker too
+        for lab, m, _bbox, row in mesh_labels_chunked(store, client=client, batch=1, meshes=False,
+                                                      max_box_voxels=SLAB_BUDGET):
             rows[lab] = row
             if not killed:
                 pid = client.run(os.getpid, workers=[victim])[victim]
@@ -333,4 +405,29 @@ def test_identical_on_the_real_lobster_cut_into_touching_labels(shared_data, tmp
             continue
         for a, b in zip(canonical(m), canonical(r)):
             np.testing.assert_array_equal(a, b)
-        assert m.area == r.area == row["area"]
+        assert m.area == r.area and row["area"] == exact_area_volume(r.vertices, r.faces)[0]
+
+
+def test_exact_area_volume_does_not_depend_on_order_or_cut(memory):
+    """The rows' area and volume: the same bits whatever the order of vertices and faces, where each
+    face starts, and however the faces are split into parts whose exact sums are added."""
+    import math
+
+    from contourmesh.seams import _area_terms, _volume_parts, exact_parts
+
+    m = memory[5][0]
+    a0, v0 = exact_area_volume(m.vertices, m.faces)
+    assert abs(a0 - m.area) <= 1e-12 * a0 and abs(v0 - m.volume) <= 1e-10 * v0
+    rng = np.random.default_rng(0)
+    perm = rng.permutation(len(m.vertices))
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(len(perm))
+    F = inv[m.faces][rng.permutation(len(m.faces))]
+    F = np.stack([np.roll(f, int(s)) for f, s in zip(F, rng.integers(0, 3, len(F)))])
+    assert exact_area_volume(m.vertices[perm], F) == (a0, v0)
+    halves = (F[: len(F) // 3], F[len(F) // 3:])
+    V = m.vertices[perm]
+    assert math.fsum(x for h in halves for x in exact_parts(_area_terms(V, h))) == a0
+    assert math.fsum(x for h in halves for x in _volume_parts(V, h)) / 6.0 == v0
+    x = rng.normal(size=1000) * 10.0 ** rng.integers(-8, 8, 1000)
+    assert math.fsum(exact_parts(x)) == math.fsum(x)

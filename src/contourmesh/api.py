@@ -672,8 +672,13 @@ def mesh_labels(volume, *, labels=None, spacing=None, origin=None, polygon: str 
 
 def label_row(label, m: Mesh, bbox) -> dict:
     """One row of ``labels.csv``: the label's area, volume, vertex count and checks, and its box."""
+    from .seams import exact_area_volume
+
     chk = m.checks()
-    row = {"label": label, "area": m.area, "volume": chk["volume"], "P": int(m.P), "faces": int(len(m.faces)),
+    # area and volume summed independently of the faces' order (the same numbers when a label is
+    # meshed in slabs and joined, or summed slab by slab without a mesh)
+    area, volume = exact_area_volume(m.vertices, m.faces)
+    row = {"label": label, "area": area, "volume": volume, "P": int(m.P), "faces": int(len(m.faces)),
            "genus": chk["genus"], "components": chk["components"], "watertight": chk["watertight"],
            "self_intersections": chk.get("self_intersections", "")}
     row.update(zip(("zmin", "zmax", "ymin", "ymax", "xmin", "xmax"), (int(v) for v in bbox)))

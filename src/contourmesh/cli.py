@@ -327,8 +327,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="--all-labels, piece by piece: keep per-batch results here so a rerun resumes "
                         "(default: OUTDIR/.contourmesh-cache, removed after a complete run)")
     m.add_argument("--max-box-voxels", type=int, default=None,
-                   help="--all-labels, piece by piece: per-task budget, the largest padded label box read by one "
-                        "task; a larger label is refused by name (default: 2**26)")
+                   help="--all-labels, piece by piece: per-task budget, the largest box read by one task; a "
+                        "larger label is meshed in slabs of slices joined at their seams (the in-memory mesh; "
+                        "refused by name with --refine band) (default: 2**26)")
     m.add_argument("--format", default="ply", choices=["ply", "obj", "stl", "off"],
                    help="mesh file format with --all-labels/--all-rois")
     m.add_argument("--pixel", type=float, default=None,

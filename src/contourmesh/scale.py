@@ -13,10 +13,14 @@ memory map, HDF5, a dask array):
    and meshes it with :func:`contourmesh.mesh_labels` itself.  The mesh is therefore the
    in-memory one, vertex for vertex, by construction.
 
-A label whose padded box holds more than ``max_box_voxels`` voxels is **refused** (a
-:class:`LabelTooLarge` error, raised after the scan and before any meshing, naming each such
-label, its box and the budget); it is not meshed slab by slab.  Raise the budget (and the
-workers' memory) to mesh it.
+A label whose padded box holds more than ``max_box_voxels`` voxels is meshed in **slabs** of
+slices, one task per slab, each reading its slices plus a halo of ``halo`` slices each side; the
+slabs' faces are joined at their seams by identical vertex coordinates, and the result is the
+in-memory mesh after a canonical ordering (:mod:`contourmesh.seams`).  With ``meshes=False`` the
+slabs send their area, volume, vertex, edge and component counts and no faces, and the label's
+row is summed from them without assembling its mesh.  With ``refine="band"`` such a label is
+refused (:class:`LabelTooLarge`, raised before any meshing): the refinement is not local to a
+slab (see :mod:`contourmesh.seams`).
 
 A label the mesher raises on becomes a row with ``status`` ``"failed: <error>"`` (and no mesh)
 instead of stopping the run; in memory, :func:`contourmesh.mesh_labels` raises.
@@ -191,13 +195,13 @@ def _method_key(method: dict) -> dict:
     return {k: method.get(k) for k in ("polygon", "triangulation", "caps", "refine")}
 
 
-def _batch_key(scan: LabelScan, idx, ulo, uhi, spacing, origin, method, meshes: bool) -> str:
+def _batch_key(scan: LabelScan, idx, ulo, uhi, spacing, origin, method, meshes: bool, slab=None) -> str:
     tiles = [(t, d) for t, d in zip(scan.tiles, scan.digests)
              if all(t[2 * a] < uhi[a] and t[2 * a + 1] > ulo[a] for a in range(3))]
     desc = {"v": _CACHE_VERSION, "shape": list(scan.shape), "dtype": scan.dtype,
             "labels": [int(scan.labels[i]) for i in idx], "boxes": [scan.boxes[i].tolist() for i in idx],
             "spacing": list(map(float, spacing)), "origin": list(map(float, origin)), "method": _method_key(method),
-            "meshes": bool(meshes), "tiles": tiles}
+            "meshes": bool(meshes), "tiles": tiles, "slab": slab}
     from . import __version__
 
     desc["contourmesh"] = __version__
@@ -269,6 +273,62 @@ def _mesh_batch(vol: ChunkedVolume, labels, los, his, ulo, uhi, spacing, origin,
     return info, (arrays if meshes else None), False
 
 
+def _mesh_slab(vol: ChunkedVolume, lab, lo, hi, cuts, j, halo, spacing, origin, method, meshes: bool,
+               cache_file: str | None):
+    """One slab of a label too large for one task (:func:`contourmesh.seams.slab_piece`); cached."""
+    from .seams import slab_piece
+    from .volume_input import check_origin, check_spacing
+
+    if cache_file is not None and os.path.isfile(cache_file):
+        try:
+            return _load_piece(cache_file)
+        except Exception as exc:  # a damaged cache file is recomputed, never trusted
+            log.warning("cache file %s unreadable (%s); recomputing", cache_file, exc)
+    t0, c0 = time.perf_counter(), time.process_time()
+    nz = hi[0] - lo[0]
+    a = max(cuts[j] - halo, 0)
+    b = min(cuts[j + 1] + halo, nz - 1) + 1
+    sub = vol.read((lo[0] + a, lo[0] + b), (lo[1], hi[1]), (lo[2], hi[2]))
+    t_read = time.perf_counter() - t0
+    mask = (sub == lab).view(np.uint8)
+    del sub
+    # the heights and origin of the whole padded box, computed as mesh_labels and prepare_volume do
+    o = check_origin((origin[0] + lo[2] * spacing[2], origin[1] + lo[1] * spacing[1], origin[2] + lo[0] * spacing[0]))
+    sp = check_spacing(spacing)
+    zs = o[2] + sp[0] * np.arange(nz, dtype=np.float64)
+    piece = slab_piece(mask, zs, j, cuts, halo, tuple(spacing), tuple(float(v) for v in o), method, meshes)
+    piece["label"] = int(lab)
+    piece["info"] = {"read_s": t_read, "total_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+                     "voxels": int(mask.size), "pid": os.getpid()}
+    if cache_file is not None:
+        from .meshes import atomic_write
+
+        arrays = {k: v for k, v in piece.items() if isinstance(v, np.ndarray)}
+        rest = {k: v for k, v in piece.items() if not isinstance(v, np.ndarray)}
+        rest["hash_own"] = {str(k): v for k, v in rest["hash_own"].items()}
+        rest["hash_seen"] = {str(k): v for k, v in rest["hash_seen"].items()}
+        arrays["json"] = np.frombuffer(json.dumps(rest).encode(), np.uint8)
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        atomic_write(cache_file, buf.getvalue(), force=True)
+    piece["cached"] = False
+    return piece
+
+
+def _load_piece(path: str):
+    with np.load(path, allow_pickle=False) as z:
+        piece = json.loads(bytes(z["json"]).decode())
+        piece.update({k: z[k] for k in z.files if k != "json"})
+    piece["hash_own"] = {int(k): v for k, v in piece["hash_own"].items()}
+    piece["hash_seen"] = {int(k): v for k, v in piece["hash_seen"].items()}
+    piece["cached"] = True
+    return piece
+
+
+def _task(vol: ChunkedVolume, kind: str, *args):
+    return (_mesh_batch if kind == "batch" else _mesh_slab)(vol, *args)
+
+
 def _load_batch(path: str, meshes: bool):
     with np.load(path, allow_pickle=False) as z:
         info = json.loads(bytes(z["info"]).decode())
@@ -291,7 +351,7 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
                         cache=None, max_box_voxels: int = DEFAULT_MAX_BOX_VOXELS, batch: int | None = None,
                         slab: int | None = None, scan_voxels: int = DEFAULT_MAX_BOX_VOXELS,
                         dataset: str | None = None, progress: bool = False, scan=None,
-                        stats: dict | None = None):
+                        stats: dict | None = None, halo: int | None = None):
     """Mesh every non-zero label of a chunked label volume; yields ``(label, Mesh or None, bbox, row)``.
 
     The results are those of :func:`contourmesh.mesh_labels` on the whole array (the same meshes,
@@ -316,7 +376,12 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
         reuses the batches already there.  With Dask it must be reachable from the workers.
     max_box_voxels : int
         Per-task budget: the largest padded label box (and batch union box) read by one task.
-        A label above it raises :class:`LabelTooLarge` before any meshing.
+        A label above it is meshed in slabs of slices joined at their seams, each slab reading at
+        most this many voxels (:mod:`contourmesh.seams`); with ``refine="band"``, or when not even
+        one slice gap and the halo fit, it raises :class:`LabelTooLarge` before any meshing.
+    halo : int, optional
+        Slices a slab reads beyond each of its ends (default
+        :data:`contourmesh.seams.DEFAULT_HALO` = 3).
     batch : int, optional
         At most this many labels per task (default: about eight tasks per worker, at most 16
         labels each).
@@ -364,31 +429,76 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
             if missing:
                 raise ValueError(f"no voxel has label {missing[0]}" + (f" (nor {missing[1:]})" if len(missing) > 1 else ""))
             idx = sorted({index[v] for v in wanted})
-        big = []
+        from .seams import DEFAULT_HALO, slab_cuts
+
+        halo = DEFAULT_HALO if halo is None else halo
+        if int(halo) != halo or halo < 1:
+            raise ValueError(f"halo must be a positive number of slices; got {halo!r}")
+        halo = int(halo)
+        big, small, slabbed = [], [], {}
         for i in idx:
             lo, hi = scan.padded(i)
             size = int(np.prod([b - a for a, b in zip(lo, hi)]))
-            if size > max_box_voxels:
-                big.append(f"label {int(scan.labels[i])} (padded box {' x '.join(str(b - a) for a, b in zip(lo, hi))}"
-                           f" = {size} voxels)")
+            if size <= max_box_voxels:
+                small.append(i)
+                continue
+            desc = (f"label {int(scan.labels[i])} (padded box {' x '.join(str(b - a) for a, b in zip(lo, hi))}"
+                    f" = {size} voxels)")
+            if _refine_method_of(method) is not None:
+                big.append(desc)
+                continue
+            cuts = slab_cuts(hi[0] - lo[0], (hi[1] - lo[1]) * (hi[2] - lo[2]), int(max_box_voxels), halo)
+            if cuts is None:
+                big.append(desc + f": one slice of it with a halo of {halo} slices each side does not fit")
+                continue
+            slabbed[i] = cuts
         if big:
+            why = ("refine='band' is not meshed in slabs (its blur width, meridians and route are decided on "
+                   "the whole object)" if _refine_method_of(method) is not None else
+                   "They cannot be cut into slabs within it")
             raise LabelTooLarge(f"{vol.where}: {len(big)} label(s) exceed the per-task budget max_box_voxels="
                                 f"{int(max_box_voxels)}: {'; '.join(big[:10])}{' ...' if len(big) > 10 else ''}. "
-                                "They are not meshed in pieces; raise max_box_voxels (--max-box-voxels) and the "
-                                "workers' memory to mesh them")
+                                f"{why}; raise max_box_voxels (--max-box-voxels) and the workers' memory to mesh "
+                                "them")
         if batch is None:
-            batch = max(1, min(16, -(-len(idx) // (8 * ex.workers()))))
-        plan = _plan(scan, idx, vol.chunks, int(max_box_voxels), int(batch))
+            batch = max(1, min(16, -(-len(small) // (8 * ex.workers()))))
+        plan = _plan(scan, small, vol.chunks, int(max_box_voxels), int(batch)) if small else []
         tasks = []
         for members, ulo, uhi in plan:
             los, his = zip(*(scan.padded(i) for i in members))
             key = _batch_key(scan, members, ulo, uhi, sp, org, method, meshes)
             cf = None if cache_dir is None else str(cache_dir / f"batch-{key}.npz")
-            tasks.append(([int(scan.labels[i]) for i in members], list(los), list(his), ulo, uhi, sp, org, method,
-                          bool(meshes), cf))
-        stats.update(tasks=len(tasks), cached=0, read_s=0.0, task_s=0.0, cpu_s=0.0, labels=len(idx))
+            tasks.append(("batch", [int(scan.labels[i]) for i in members], list(los), list(his), ulo, uhi, sp, org,
+                          method, bool(meshes), cf))
+        pending = {}
+        for i, cuts in slabbed.items():
+            lo, hi = scan.padded(i)
+            lab = int(scan.labels[i])
+            pending[lab] = []
+            for j in range(len(cuts) - 1):
+                a = max(cuts[j] - halo, 0)
+                b = min(cuts[j + 1] + halo, hi[0] - lo[0] - 1) + 1
+                key = _batch_key(scan, [i], [lo[0] + a, lo[1], lo[2]], [lo[0] + b, hi[1], hi[2]], sp, org, method,
+                                 meshes, slab=[j, cuts, halo])
+                cf = None if cache_dir is None else str(cache_dir / f"slab-{key}.npz")
+                tasks.append(("slab", lab, lo, hi, cuts, j, halo, sp, org, method, bool(meshes), cf))
+        stats.update(tasks=len(tasks), cached=0, read_s=0.0, task_s=0.0, cpu_s=0.0, labels=len(idx),
+                     slabbed_labels=len(slabbed), slab_tasks=len(tasks) - len(plan))
         t1 = time.perf_counter()
-        for _args, (info, arrays, cached) in ex.map(_mesh_batch, tasks, progress=progress, desc="labels"):
+        for args, res in ex.map(_task, tasks, progress=progress, desc="labels"):
+            if args[0] == "slab":
+                info = res["info"]
+                stats["cached"] += bool(res["cached"])
+                stats["read_s"] += info["read_s"]
+                stats["task_s"] += info["total_s"]
+                stats["cpu_s"] += info.get("cpu_s", 0.0)
+                lab = int(args[1])
+                pending[lab].append(res)
+                if len(pending[lab]) < len(args[4]) - 1:
+                    continue
+                yield _join_label(pending.pop(lab), lab, scan, index, meshes)
+                continue
+            info, arrays, cached = res
             stats["cached"] += bool(cached)
             stats["read_s"] += info["read_s"]
             stats["task_s"] += info["total_s"]
@@ -406,6 +516,41 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
                     m = _with_meta(m, label=lab)
                 yield lab, m, bbox, row
         stats["mesh_s"] = time.perf_counter() - t1
+
+
+def _refine_method_of(method: dict):
+    r = method.get("refine")
+    return None if r in (None, "none") else r
+
+
+def _join_label(pieces, lab: int, scan: LabelScan, index: dict, meshes: bool):
+    """A slabbed label's ``(label, Mesh or None, bbox, row)`` from its slabs."""
+    from .api import _with_meta, label_row
+    from .seams import SeamMismatch, join_pieces, join_stats
+    from .types import Mesh
+
+    i = index[lab]
+    bbox = tuple(int(v) for v in scan.boxes[i])
+    m = None
+    try:
+        if meshes:
+            V, F = join_pieces(pieces, lab)
+            m = _with_meta(Mesh(V, F, P=len(V), meta={"method": "contourmesh", "source": "volume",
+                                                       "route": "volume-slabs", "slabs": len(pieces)}), label=lab)
+            row = label_row(lab, m, bbox)
+            row["status"] = _status(m.checks())
+        else:
+            st = join_stats(pieces, lab)
+            row = {"label": lab, **{k: st[k] for k in ("area", "volume", "P", "faces", "genus", "components",
+                                                        "watertight", "self_intersections")}}
+            row.update(zip(("zmin", "zmax", "ymin", "ymax", "xmin", "xmax"), bbox))
+            row["status"] = _status(st)
+    except SeamMismatch as exc:
+        row = {"label": lab, "status": f"failed: SeamMismatch: {exc}"}
+        row.update(zip(("zmin", "zmax", "ymin", "ymax", "xmin", "xmax"), bbox))
+        m = None
+    row["voxels"] = int(scan.voxels[i])
+    return lab, m, bbox, row
 
 
 # ------------------------------------------------------------------------------------------------
