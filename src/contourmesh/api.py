@@ -672,7 +672,7 @@ def mesh_labels(volume, *, labels=None, spacing=None, origin=None, polygon: str 
 
 def label_row(label, m: Mesh, bbox) -> dict:
     """One row of ``labels.csv``: the label's area, volume, vertex count and checks, and its box."""
-    from .seams import exact_area_volume
+    from .measure import exact_area_volume
 
     chk = m.checks()
     # area and volume summed independently of the faces' order (the same numbers when a label is

@@ -39,6 +39,8 @@ import math
 
 import numpy as np
 
+from .measure import _area_terms, _rotated, _volume_parts, exact_area_volume, exact_parts
+
 __all__ = ["DEFAULT_HALO", "SeamMismatch", "exact_parts", "exact_area_volume", "face_owner", "slab_cuts",
            "slab_piece", "join_pieces", "join_stats"]
 
@@ -48,85 +50,6 @@ DEFAULT_HALO = 3
 
 class SeamMismatch(RuntimeError):
     """Two slabs disagree on the faces next to their seam (the halo is too small for this label)."""
-
-
-# ------------------------------------------------------------------------------------------------
-# order-independent area and volume
-# ------------------------------------------------------------------------------------------------
-def exact_parts(x) -> list:
-    """Floats whose exact sum is the exact sum of ``x`` (a non-overlapping expansion, largest first)."""
-    terms = np.asarray(x, dtype=np.float64).ravel().tolist()
-    parts: list = []
-    for _ in range(80):
-        s = math.fsum(terms + [-p for p in parts])
-        if s == 0.0:
-            return parts
-        parts.append(s)
-    raise ArithmeticError("exact_parts: the expansion did not terminate")  # pragma: no cover
-
-
-def _split(a):
-    c = 134217729.0 * a  # 2^27 + 1 (Veltkamp)
-    h = c - (c - a)
-    return h, a - h
-
-
-def _two_prod(a, b):
-    p = a * b
-    ah, al = _split(a)
-    bh, bl = _split(b)
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
-
-
-def _rotated(V, F):
-    """Faces rotated (orientation kept) to start at their lexicographically smallest corner."""
-    if not len(F):
-        return F
-    order = np.lexsort(V.T[::-1])
-    rank = np.empty(len(V), np.int64)
-    rank[order] = np.arange(len(V))
-    r = np.argmin(rank[F], axis=1)
-    rows = np.arange(len(F))
-    return np.stack([F[rows, (r + i) % 3] for i in range(3)], axis=1)
-
-
-def _area_terms(V, F):
-    T = V[_rotated(V, F)]
-    c = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
-    return 0.5 * np.sqrt(np.einsum("ij,ij->i", c, c))
-
-
-def _volume_terms(V, F, chunk: int = 200_000):
-    """Yields arrays of floats whose exact sum is ``sum_f a . (b x c)`` over the faces (six times
-    the enclosed volume), exactly (barring overflow and underflow)."""
-    for s in range(0, len(F), chunk):
-        T = V[F[s:s + chunk]]
-        a, b, c = T[:, 0], T[:, 1], T[:, 2]
-        out = []
-        for sign, (u, v, w) in ((1, (a[:, 0], b[:, 1], c[:, 2])), (-1, (a[:, 0], b[:, 2], c[:, 1])),
-                                (1, (a[:, 1], b[:, 2], c[:, 0])), (-1, (a[:, 1], b[:, 0], c[:, 2])),
-                                (1, (a[:, 2], b[:, 0], c[:, 1])), (-1, (a[:, 2], b[:, 1], c[:, 0]))):
-            p, e = _two_prod(u, v)
-            p2, e2 = _two_prod(p, w)
-            p3, e3 = _two_prod(e, w)
-            out.extend(sign * t for t in (p2, e2, p3, e3))
-        yield np.concatenate(out)
-
-
-def _volume_parts(V, F) -> list:
-    parts: list = []
-    for t in _volume_terms(V, F):
-        parts = exact_parts(np.concatenate([t, parts]))
-    return parts
-
-
-def exact_area_volume(vertices, faces):
-    """``(area, volume)`` of a mesh, independent of the order of its vertices and faces and of
-    where its faces start: the correctly rounded sum of the per-face areas, and the correctly
-    rounded exact divergence-theorem volume (divided by 6)."""
-    V = np.asarray(vertices, dtype=np.float64) + 0.0
-    F = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    return math.fsum(_area_terms(V, F)), math.fsum(_volume_parts(V, F)) / 6.0
 
 
 # ------------------------------------------------------------------------------------------------
