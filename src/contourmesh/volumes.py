@@ -973,9 +973,15 @@ _BRIDGED_ALTERNATIVES = ("optimal", "arclength", "wiederhold", "greedy")
 _BRIDGED_AREA_SLACK = 1.25
 
 
-def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double):
+def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double, waypoints=None):
     """Build one bridged join (a :class:`_Bridged`), or None where a bridge, a lid or the faces
-    would not keep clear of each other."""
+    would not keep clear of each other.
+
+    ``waypoints(plane, other, comps)``, where given, returns ``(step, points_of)`` for polyline
+    keyholes (:func:`contourmesh.bands.bridges.keyhole_path`): ``points_of(c)`` are the pixel
+    centres of component ``c`` of ``plane`` that the components ``comps`` of slice ``other`` do
+    not cover.  The interior points of such a keyhole become new vertices of the join, in its
+    plane, after the rings' (``V[n_ring:]``, with the lid collars)."""
     from .bands.bridges import bridge_tree, bridged_ring
     from .intersect import intersecting_pairs
 
@@ -1004,21 +1010,36 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     V = np.concatenate(pts)
     n_ring = len(V)
     segments, nb = [], 0
+    path_pts = []  # interior points of polyline keyholes: new vertices after the rings'
     for plane, multi, owners, other, comps in ((k, lo, owners_lo, k + 1, gb), (k + 1, hi, owners_hi, k, ga)):
         if len(multi) == 1:
             continue
         rs = [V[r][:, :2] for r in multi]
         oa, ob = edges_of(plane)
-        br = bridge_tree(rs, oa, ob, owners=owners, allowed=uncovered(other, comps))
+        step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
+        br = bridge_tree(rs, oa, ob, owners=owners, allowed=uncovered(other, comps), waypoints=points_of,
+                         step=step)
         if br is None:
             return None
-        seq = np.array([multi[r][v] for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
-        segments += [(plane, rs[i][vi], rs[j][vj]) for i, vi, j, vj in br]
+        ids_of = {}
+        for b, bridge in enumerate(br):
+            if len(bridge) > 4:
+                base = n_ring + sum(len(p) for p in path_pts)
+                path_pts.append(np.c_[bridge[4], np.full(len(bridge[4]), zs[plane])])
+                ids_of[len(rs) + b] = base + np.arange(len(bridge[4]))
+        seq = np.array([multi[r][v] if r < len(rs) else ids_of[r][v]
+                        for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
+        for bridge in br:
+            i, vi, j, vj = bridge[:4]
+            line = [rs[i][vi]] + (list(bridge[4]) if len(bridge) > 4 else []) + [rs[j][vj]]
+            segments += [(plane, line[t], line[t + 1]) for t in range(len(line) - 1)]
         nb += len(br)
         if plane == k:
             lo = [seq]
         else:
             hi = [seq]
+    if path_pts:
+        V = np.concatenate([V] + path_pts)
     faces, replaced = [], 0
     for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
         ids = np.concatenate([a_ids, b_ids])
@@ -1055,7 +1076,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         # a hole of the lower slice covered from above: its lid faces down (and the other way)
         if caps == "half" or collar:
             zc = zk + 0.5 * (zk1 - zk) if below else zk1 - 0.5 * (zk1 - zk)
-            top = n_ring + sum(len(e) for e in extra) + np.arange(len(ids))
+            top = len(V) + sum(len(e) for e in extra) + np.arange(len(ids))
             extra.append(np.c_[V[ids][:, :2], np.full(len(ids), zc)])
             Vx = np.concatenate([V] + extra)
             pair = (ids, top) if below else (top, ids)
@@ -1152,6 +1173,19 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
         return ok
 
+    def waypoints(plane, other, comps):
+        """Polyline keyholes pass through the pixel centres of their component that the other
+        slice's components ``comps`` do not cover (see :func:`_bridge_join`)."""
+        s, lab = slices[plane], slices[other].labels
+        ids = np.asarray(comps) + 1
+
+        def points_of(c):
+            sl = s.objects[c]
+            free = (s.labels[sl] == c + 1) & ~np.isin(lab[sl], ids)
+            j, i = np.nonzero(free)
+            return np.c_[ox + (i + sl[1].start) * dx, oy + (j + sl[0].start) * dy]
+
+        return max(dx, dy), points_of
 
     def edges_of(kk):
         key = (kk, sig(kk))
@@ -1187,7 +1221,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                                    or any((k + 1, b) not in has_above for b, _ in plan[4])):
                 cache[key] = None
             if key not in cache:
-                cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double)
+                cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double,
+                                          waypoints)
             b = cache[key]
             if b is not None:
                 for plane, p, q in b.segments:
