@@ -1174,16 +1174,21 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         return ok
 
     def waypoints(plane, other, comps):
-        """Polyline keyholes pass through the pixel centres of their component that the other
-        slice's components ``comps`` do not cover (see :func:`_bridge_join`)."""
+        """Polyline keyholes pass through the pixel centres near their component (its pixels and
+        their 8-neighbours: a polygon may enclose a notch one pixel deep) that the other slice's
+        components ``comps`` do not cover (see :func:`_bridge_join`)."""
+        from scipy import ndimage
+
         s, lab = slices[plane], slices[other].labels
         ids = np.asarray(comps) + 1
 
         def points_of(c):
             sl = s.objects[c]
-            free = (s.labels[sl] == c + 1) & ~np.isin(lab[sl], ids)
-            j, i = np.nonzero(free)
-            return np.c_[ox + (i + sl[1].start) * dx, oy + (j + sl[0].start) * dy]
+            y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
+            box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
+            near = ndimage.binary_dilation(s.labels[box] == c + 1, structure=_SQUARE)
+            j, i = np.nonzero(near & ~np.isin(lab[box], ids))
+            return np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
 
         return max(dx, dy), points_of
 

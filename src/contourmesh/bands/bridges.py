@@ -218,7 +218,9 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
     A* over the graph of the waypoints (neighbours at most ``1.5 step`` apart) and the rings'
     vertices (joined to waypoints at most ``2.5 step`` away), each edge tested when it is first
     used; the path found is then straightened (each point joined to the farthest later one that
-    keeps clear), so it bends only where the material does.  Vertices in ``used_i`` / ``used_j``
+    keeps clear), so it bends only where the material does.  ``allowed`` is asked only of the
+    part of a piece more than ``step`` from a ring's vertex (a polygon's vertex may lie a pixel
+    off the pixels it bounds, in the part another slice covers).  Vertices in ``used_i`` / ``used_j``
     (ends of other bridges) are not used.
 
     Returns ``(vi, vj, points)``: the end vertices and the ``(m, 2)`` interior points, ``m >= 1``
@@ -255,7 +257,14 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
         p, q = P[u], P[v]
         if not _clear_ends(p, q, end(u), end(v), oa, ob, segs, left=True):
             return False
-        return allowed is None or bool(allowed(p, q))
+        if allowed is None:
+            return True
+        # a ring's vertex may lie up to a pixel off the pixels it bounds: ``allowed`` is asked of
+        # the piece more than a step away from a ring's end
+        d = float(np.hypot(*(q - p)))
+        t0 = step / d if end(u) is not None else 0.0
+        t1 = 1.0 - step / d if end(v) is not None else 1.0
+        return t0 >= t1 or bool(allowed(p + t0 * (q - p), p + t1 * (q - p)))
 
     tw, tj = cKDTree(W), cKDTree(rj)
     bad_j = set(used_j)
