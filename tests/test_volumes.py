@@ -409,3 +409,24 @@ def test_bridged_ring_walks_a_polyline_bridge_out_and_back():
     seq = bridged_ring([4, 3], [(0, 1, 1, 2, pts)])
     assert seq == [(0, 0), (0, 1), (2, 0), (2, 1), (1, 2), (1, 0), (1, 1), (1, 2), (2, 1), (2, 0), (0, 1),
                    (0, 2), (0, 3)]
+
+
+def test_bridged_joins_of_drawn_rings_keep_the_volume_within_the_rules(monkeypatch):
+    """Issue 15 (through issue 14's bridged joins): on the contours route a fork or merge is a
+    bridged join, and its band goes through the same volume guard as every other band: the two
+    lobes drawn 3 mm apart with flat caps hold a volume between the frustum and trapezoid rules."""
+    from contourmesh import volumes
+    from contourmesh.compare.phantoms import draw, frustum_volume, trapezoid_volume, two_lobes
+
+    stack = draw(two_lobes(10, 8, 14), 3.0, 0.5, seed=0)
+    lo, hi = sorted((trapezoid_volume(stack), frustum_volume(stack)))
+    m = contourmesh.mesh(stack, caps="flat")
+    assert m.meta["route"] == "contours" and m.meta["bridged_joins"] >= 1
+    assert m.meta["self_intersections"] == 0 and m.checks()["ok"]
+    assert lo * (1 - 1e-4) <= m.volume <= hi * (1 + 1e-4)
+    # without the guard on its bridged joins the volume falls below the frustum rule
+    join = volumes._bridge_join
+    monkeypatch.setattr(volumes, "_bridge_join", lambda *a: join(*a[:12]))
+    m2 = contourmesh.mesh(stack, caps="flat")
+    assert m2.meta["bridged_joins"] == m.meta["bridged_joins"]
+    assert m2.volume < lo * (1 - 1e-4)

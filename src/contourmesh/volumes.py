@@ -461,7 +461,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
-                               has_above, has_below, bridge_cache)
+                               has_above, has_below, bridge_cache, band_guard=getattr(polygons, "band_guard", None))
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), getattr(polygons, "end_cap", None))
@@ -973,7 +973,8 @@ _BRIDGED_ALTERNATIVES = ("optimal", "arclength", "wiederhold", "greedy")
 _BRIDGED_AREA_SLACK = 1.25
 
 
-def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double, waypoints=None):
+def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double, waypoints=None,
+                 band_guard=None):
     """Build one bridged join (a :class:`_Bridged`), or None where a bridge, a lid or the faces
     would not keep clear of each other.
 
@@ -981,7 +982,11 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     keyholes (:func:`contourmesh.bands.bridges.keyhole_path`): ``points_of(c)`` are the pixel
     centres of component ``c`` of ``plane`` that the components ``comps`` of slice ``other`` do
     not cover.  The interior points of such a keyhole become new vertices of the join, in its
-    plane, after the rings' (``V[n_ring:]``, with the lid collars)."""
+    plane, after the rings' (``V[n_ring:]``, with the lid collars).
+
+    ``band_guard`` (the contours route's volume guard, see :meth:`_Mesher.band`), where given, may
+    replace each band of the join (the bridged rings' band and the tubes'); its band is kept
+    only where it neither folds nor crosses itself."""
     from .bands.bridges import bridge_tree, bridged_ring
     from .intersect import intersecting_pairs
 
@@ -1069,6 +1074,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
                         and not _band_crosses(P, g)):
                     f, r = g, r + 1
                     break
+        if band_guard is not None:  # a bridged ring's area is the sum of its contours' (slits add none)
+            g = np.asarray(band_guard(V[a_ids], V[b_ids], f))
+            if not np.array_equal(g, f) and not band_is_folded(ids[g]) and not _band_crosses(P, g):
+                f = g
         faces.append(ids[f])
         replaced += r
     extra = []
@@ -1109,7 +1118,8 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     return _Bridged(V, F, rings, n_ring, replaced, nb, segments)
 
 
-def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None):
+def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
+                   band_guard=None):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
     (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``.
 
@@ -1118,7 +1128,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     the crack-only components of its two planes whose rings may meet the box of its own rings in
     that plane (they decide its rings and the edges near its bridges, which lie in that box) and
     which of its lids are lidded from both sides.  A rebuild after a crossing
-    fallback then builds only the joins whose planes or lids changed."""
+    fallback then builds only the joins whose planes or lids changed.  ``band_guard``: see
+    :func:`_bridge_join`."""
     from collections import defaultdict
 
     from .bands.bridges import segments_cross
@@ -1227,7 +1238,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 cache[key] = None
             if key not in cache:
                 cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double,
-                                          waypoints)
+                                          waypoints, band_guard)
             b = cache[key]
             if b is not None:
                 for plane, p, q in b.segments:
