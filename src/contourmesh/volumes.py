@@ -979,9 +979,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     would not keep clear of each other.
 
     ``waypoints(plane, other, comps)``, where given, returns ``(step, points_of)`` for polyline
-    keyholes (:func:`contourmesh.bands.bridges.keyhole_path`): ``points_of(c)`` are the pixel
-    centres of component ``c`` of ``plane`` that the components ``comps`` of slice ``other`` do
-    not cover.  The interior points of such a keyhole become new vertices of the join, in its
+    keyholes (:func:`contourmesh.bands.bridges.keyhole_path`): ``points_of(c)`` is ``(points,
+    allowed)``, the pixel centres near component ``c`` of ``plane`` outside its overlap with the
+    components ``comps`` of slice ``other``, and the test that a keyhole's pieces stay out of
+    that overlap.  The interior points of such a keyhole become new vertices of the join, in its
     plane, after the rings' (``V[n_ring:]``, with the lid collars).
 
     ``band_guard`` (the contours route's volume guard, see :meth:`_Mesher.band`), where given, may
@@ -1186,8 +1187,10 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     def waypoints(plane, other, comps):
         """Polyline keyholes pass through the pixel centres near their component (its pixels and
-        their 8-neighbours: a polygon may enclose a notch one pixel deep) that the other slice's
-        components ``comps`` do not cover (see :func:`_bridge_join`)."""
+        their 8-neighbours: a polygon may enclose a notch one pixel deep) outside its overlap with
+        the other slice's components ``comps`` (see :func:`_bridge_join`).  A straight keyhole
+        keeps out of every pixel those components cover (``uncovered``); a polyline one only out
+        of the overlap, so it may cut through a notch the other slice covers."""
         from scipy import ndimage
 
         s, lab = slices[plane], slices[other].labels
@@ -1197,9 +1200,21 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             sl = s.objects[c]
             y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
             box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
-            near = ndimage.binary_dilation(s.labels[box] == c + 1, structure=_SQUARE)
-            j, i = np.nonzero(near & ~np.isin(lab[box], ids))
-            return np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
+            own = s.labels[box] == c + 1
+            over = own & np.isin(lab[box], ids)
+            j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
+            pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
+
+            def ok(p, q):
+                steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
+                t = np.arange(1, steps)[:, None] / steps
+                pt = p + t * (q - p)
+                ii = np.rint((pt[:, 0] - ox) / dx).astype(np.int64) - x0
+                jj = np.rint((pt[:, 1] - oy) / dy).astype(np.int64) - y0
+                inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
+                return not over[jj[inside], ii[inside]].any()
+
+            return pts, ok
 
         return max(dx, dy), points_of
 

@@ -117,11 +117,11 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     allowed : callable ``(p, q) -> bool``, optional
         A further test of a candidate keyhole (e.g. that it crosses no overlap with the other
         slice).
-    waypoints : callable ``component -> (m, 2) array``, optional
-        Points inside a component's material that a keyhole may pass through (e.g. the centres
-        of its pixels the other slice does not cover).  Where no straight keyhole keeps clear, a
-        *polyline* keyhole is searched through them (:func:`keyhole_path`); without it only
-        straight bridges are made.
+    waypoints : callable ``component -> ((m, 2) array, allowed)``, optional
+        Points in a component's material that a keyhole may pass through (e.g. the centres of its
+        pixels that do not overlap the other slice), and the test its pieces must pass (``None``:
+        ``allowed``).  Where no straight keyhole keeps clear, a *polyline* keyhole is searched
+        through them (:func:`keyhole_path`); without it only straight bridges are made.
     step : float
         The spacing of the waypoints (the pixel size): neighbours are at most ``1.5 step`` apart.
 
@@ -186,8 +186,9 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         for i, j in pairs_left:
             if find(i) == find(j):
                 continue
-            got = keyhole_path(rings[i], rings[j], waypoints(owners[i][0]), step, obstacles_a, obstacles_b,
-                               segs, allowed=allowed, used_i={v for r, v in used if r == i},
+            pts_c, allowed_c = waypoints(owners[i][0])
+            got = keyhole_path(rings[i], rings[j], pts_c, step, obstacles_a, obstacles_b,
+                               segs, allowed=allowed if allowed_c is None else allowed_c, used_i={v for r, v in used if r == i},
                                used_j={v for r, v in used if r == j})
             if got is None:
                 continue
