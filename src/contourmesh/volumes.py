@@ -30,7 +30,8 @@ Conventions (stated once)
   opens, and a hole that runs out of the side of its component are
   **bridged joins**: the contours of each side are joined into one ring by bridges (segments in
   their plane, through the background between components or through the material from a hole to
-  its component's outer contour: a keyhole) and the two rings by one band; a hole that the other
+  its component's outer contour: a keyhole, a polyline through the pixels outside the overlap
+  where no straight one keeps clear) and the two rings by one band; a hole that the other
   slice covers is closed by a lid.  This needs every pair's overlap connected, no overlap inside
   a hole of another, at most one hole from each side in each hole of ``O``, and bridges that touch
   nothing else in their plane; the band and lids are tested for crossing faces before they are
