@@ -91,7 +91,7 @@ def test_rebuilds_check_the_same_pairs_and_reuse_bridged_joins(monkeypatch):
 
     # the same mesh when every rebuild builds every bridged join again
     build = volumes._build_bridges
-    monkeypatch.setattr(volumes, "_build_bridges", lambda *a: build(*a[:9], None))
+    monkeypatch.setattr(volumes, "_build_bridges", lambda *a, **k: build(*a[:9], None, **k))
     calls.clear()
     m2 = contourmesh.mesh(v)
     assert cached_calls < len(calls)

@@ -357,3 +357,84 @@ def test_bridged_ring_is_an_euler_tour_and_bridges_keep_clear():
     # touching counts as crossing
     assert segments_cross(np.array([0.0, 0.0]), np.array([2.0, 0.0]), [[1.0, 0.0]], [[1.0, 1.0]]).all()
     assert not segments_cross(np.array([0.0, 0.0]), np.array([2.0, 0.0]), [[1.0, 0.5]], [[1.0, 1.0]]).any()
+
+
+def _bent_keyhole_volume():
+    """A square with a square hole (slices 1-2) under the same square whose hole runs out of its
+    side through an L-shaped channel (slices 3-4): the hole opens between slices 2 and 3, and no
+    straight segment from the hole to the outer contour stays in the channel."""
+    v = np.zeros((6, 26, 26), bool)
+    a = np.zeros((26, 26), bool)
+    a[2:22, 2:22] = True
+    a[10:14, 10:14] = False
+    b = a.copy()
+    b[11:13, 14:20] = False  # the channel: right from the hole ...
+    b[11:22, 18:22] = False  # ... then up and out at the top-right corner
+    v[1] = v[2] = a
+    v[3] = v[4] = b
+    return v
+
+
+@pytest.mark.parametrize("kw", [dict(triangulation="optimal"), dict(refine="band")])
+def test_polyline_keyhole_where_no_straight_keyhole_keeps_clear(monkeypatch, kw):
+    """Issue 14 (a): a keyhole follows the uncovered channel as a polyline, so the join is bridged
+    between the polygons instead of becoming a voxel-exact join."""
+    from contourmesh.bands import bridges
+
+    v = _bent_keyhole_volume()
+    found = []
+    path = bridges.keyhole_path
+
+    def keyhole_path(*a, **k):
+        got = path(*a, **k)
+        found.append(got)
+        return got
+
+    monkeypatch.setattr(bridges, "keyhole_path", keyhole_path)
+    m = volume_to_mesh(v, **kw)
+    chk, _ = check_topology(v, m)
+    assert m.meta["exact_joins"] == 0 and m.meta["bridged_joins"] == 1
+    assert chk["self_intersections"] == 0 and m.meta["self_intersections"] == 0
+    got = [g for g in found if g is not None]
+    assert len(got) == 1 and len(got[0][2]) >= 1  # a bent keyhole, with interior points
+    # its interior points are mesh vertices in the plane of the opening hole (z = 2), inside the channel
+    pts = got[0][2]
+    for p in pts:
+        assert np.isclose(np.hypot(*(m.vertices[:, :2] - p).T), 0, atol=1e-2).any()
+        i, j = np.rint(p).astype(int)
+        assert v[2, j, i] and not v[3, j, i]
+    # only straight keyholes: none keeps clear, and the join is exact (voxel walls)
+    monkeypatch.setattr(bridges, "keyhole_path", lambda *a, **k: None)
+    m2 = volume_to_mesh(v, **kw)
+    check_topology(v, m2)
+    assert m2.meta["exact_joins"] == 1 and m2.meta["bridged_joins"] == 0
+
+
+def test_bridged_ring_walks_a_polyline_bridge_out_and_back():
+    from contourmesh.bands.bridges import bridged_ring
+
+    pts = np.array([[5.0, 5.0], [6.0, 5.0]])
+    seq = bridged_ring([4, 3], [(0, 1, 1, 2, pts)])
+    assert seq == [(0, 0), (0, 1), (2, 0), (2, 1), (1, 2), (1, 0), (1, 1), (1, 2), (2, 1), (2, 0), (0, 1),
+                   (0, 2), (0, 3)]
+
+
+def test_bridged_joins_of_drawn_rings_keep_the_volume_within_the_rules(monkeypatch):
+    """Issue 15 (through issue 14's bridged joins): on the contours route a fork or merge is a
+    bridged join, and its band goes through the same volume guard as every other band: the two
+    lobes drawn 3 mm apart with flat caps hold a volume between the frustum and trapezoid rules."""
+    from contourmesh import volumes
+    from contourmesh.compare.phantoms import draw, frustum_volume, trapezoid_volume, two_lobes
+
+    stack = draw(two_lobes(10, 8, 14), 3.0, 0.5, seed=0)
+    lo, hi = sorted((trapezoid_volume(stack), frustum_volume(stack)))
+    m = contourmesh.mesh(stack, caps="flat")
+    assert m.meta["route"] == "contours" and m.meta["bridged_joins"] >= 1
+    assert m.meta["self_intersections"] == 0 and m.checks()["ok"]
+    assert lo * (1 - 1e-4) <= m.volume <= hi * (1 + 1e-4)
+    # without the guard on its bridged joins the volume falls below the frustum rule
+    join = volumes._bridge_join
+    monkeypatch.setattr(volumes, "_bridge_join", lambda *a: join(*a[:12]))
+    m2 = contourmesh.mesh(stack, caps="flat")
+    assert m2.meta["bridged_joins"] == m.meta["bridged_joins"]
+    assert m2.volume < lo * (1 - 1e-4)

@@ -30,7 +30,8 @@ Conventions (stated once)
   opens, and a hole that runs out of the side of its component are
   **bridged joins**: the contours of each side are joined into one ring by bridges (segments in
   their plane, through the background between components or through the material from a hole to
-  its component's outer contour: a keyhole) and the two rings by one band; a hole that the other
+  its component's outer contour: a keyhole, a polyline through the pixels outside the overlap
+  where no straight one keeps clear) and the two rings by one band; a hole that the other
   slice covers is closed by a lid.  This needs every pair's overlap connected, no overlap inside
   a hole of another, at most one hole from each side in each hole of ``O``, and bridges that touch
   nothing else in their plane; the band and lids are tested for crossing faces before they are
@@ -466,7 +467,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
-                               has_above, has_below, bridge_cache)
+                               has_above, has_below, bridge_cache, band_guard=getattr(polygons, "band_guard", None))
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), getattr(polygons, "end_cap", None),
@@ -1087,11 +1088,12 @@ class _Bridged:
     """One bridged join, built in local vertex numbers: ``V[:n_ring]`` are the rings' vertices
     (``rings``: ``((k, comp, hole), offset)``), the rest new vertices (lid collars)."""
 
-    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments")
+    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments", "polyline")
 
-    def __init__(self, V, F, rings, n_ring, replaced, bridges, segments):
+    def __init__(self, V, F, rings, n_ring, replaced, bridges, segments, polyline=False):
         self.V, self.F, self.rings, self.n_ring = V, F, rings, n_ring
         self.replaced, self.bridges, self.segments = replaced, bridges, segments
+        self.polyline = polyline  # a keyhole of the join is a polyline
 
 
 #: Band strategies tried, in order, on a bridged join whose band crosses itself.
@@ -1102,9 +1104,21 @@ _BRIDGED_ALTERNATIVES = ("optimal", "arclength", "wiederhold", "greedy")
 _BRIDGED_AREA_SLACK = 1.25
 
 
-def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double):
+def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double, waypoints=None,
+                 band_guard=None):
     """Build one bridged join (a :class:`_Bridged`), or None where a bridge, a lid or the faces
-    would not keep clear of each other."""
+    would not keep clear of each other.
+
+    ``waypoints(plane, other, comps)``, where given, returns ``(step, points_of)`` for polyline
+    keyholes (:func:`contourmesh.bands.bridges.keyhole_path`): ``points_of(c)`` is ``(points,
+    allowed)``, the pixel centres near component ``c`` of ``plane`` outside its overlap with the
+    components ``comps`` of slice ``other``, and the test that a keyhole's pieces stay out of
+    that overlap.  The interior points of such a keyhole become new vertices of the join, in its
+    plane, after the rings' (``V[n_ring:]``, with the lid collars).
+
+    ``band_guard`` (the contours route's volume guard, see :meth:`_Mesher.band`), where given, may
+    replace each band of the join (the bridged rings' band and the tubes'); its band is kept
+    only where it neither folds nor crosses itself."""
     from .bands.bridges import bridge_tree, bridged_ring
     from .intersect import intersecting_pairs
 
@@ -1133,21 +1147,36 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     V = np.concatenate(pts)
     n_ring = len(V)
     segments, nb = [], 0
+    path_pts = []  # interior points of polyline keyholes: new vertices after the rings'
     for plane, multi, owners, other, comps in ((k, lo, owners_lo, k + 1, gb), (k + 1, hi, owners_hi, k, ga)):
         if len(multi) == 1:
             continue
         rs = [V[r][:, :2] for r in multi]
         oa, ob = edges_of(plane)
-        br = bridge_tree(rs, oa, ob, owners=owners, allowed=uncovered(other, comps))
+        step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
+        br = bridge_tree(rs, oa, ob, owners=owners, allowed=uncovered(other, comps), waypoints=points_of,
+                         step=step)
         if br is None:
             return None
-        seq = np.array([multi[r][v] for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
-        segments += [(plane, rs[i][vi], rs[j][vj]) for i, vi, j, vj in br]
+        ids_of = {}
+        for b, bridge in enumerate(br):
+            if len(bridge) > 4:
+                base = n_ring + sum(len(p) for p in path_pts)
+                path_pts.append(np.c_[bridge[4], np.full(len(bridge[4]), zs[plane])])
+                ids_of[len(rs) + b] = base + np.arange(len(bridge[4]))
+        seq = np.array([multi[r][v] if r < len(rs) else ids_of[r][v]
+                        for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
+        for bridge in br:
+            i, vi, j, vj = bridge[:4]
+            line = [rs[i][vi]] + (list(bridge[4]) if len(bridge) > 4 else []) + [rs[j][vj]]
+            segments += [(plane, line[t], line[t + 1]) for t in range(len(line) - 1)]
         nb += len(br)
         if plane == k:
             lo = [seq]
         else:
             hi = [seq]
+    if path_pts:
+        V = np.concatenate([V] + path_pts)
     faces, replaced = [], 0
     for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
         ids = np.concatenate([a_ids, b_ids])
@@ -1177,6 +1206,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
                         and not _band_crosses(P, g)):
                     f, r = g, r + 1
                     break
+        if band_guard is not None:  # a bridged ring's area is the sum of its contours' (slits add none)
+            g = np.asarray(band_guard(V[a_ids], V[b_ids], f))
+            if not np.array_equal(g, f) and not band_is_folded(ids[g]) and not _band_crosses(P, g):
+                f = g
         faces.append(ids[f])
         replaced += r
     extra = []
@@ -1184,7 +1217,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         # a hole of the lower slice covered from above: its lid faces down (and the other way)
         if caps == "half" or collar:
             zc = zk + 0.5 * (zk1 - zk) if below else zk1 - 0.5 * (zk1 - zk)
-            top = n_ring + sum(len(e) for e in extra) + np.arange(len(ids))
+            top = len(V) + sum(len(e) for e in extra) + np.arange(len(ids))
             extra.append(np.c_[V[ids][:, :2], np.full(len(ids), zc)])
             Vx = np.concatenate([V] + extra)
             pair = (ids, top) if below else (top, ids)
@@ -1214,10 +1247,33 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         return None
     if len(intersecting_pairs(V, F)):
         return None
-    return _Bridged(V, F, rings, n_ring, replaced, nb, segments)
+    return _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
 
 
-def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None):
+#: A bridged join with a polyline keyhole is given up (it becomes exact) where its area exceeds this
+#: many times the voxel-exact join's (:func:`_exact_area`).  On the rotated real shapes good ones
+#: stay below 1.2; rocker arm rotated #2 at 64 across had one at 2.1 (+8 % on the whole mesh).
+_POLYLINE_AREA_LIMIT = 1.5
+
+
+def _exact_area(slices, zs, k, ga, gb, pixel_area):
+    """The area of the voxel-exact join of a group (:func:`_exact_join`): crack contours' collars
+    half a gap high on each side, and the pixels each slice does not share with the other."""
+    A, B = slices[k], slices[k + 1]
+    h = 0.5 * float(zs[k + 1] - zs[k])
+
+    def perimeter(rings):
+        return sum(float(np.hypot(*(np.roll(r, -1, axis=0) - r).T).sum()) for r in rings)
+
+    collars = sum(perimeter([A.crack_outer[a]] + list(A.crack_holes[a])) for a in ga) + \
+        sum(perimeter([B.crack_outer[b]] + list(B.crack_holes[b])) for b in gb)
+    ra = np.isin(A.labels, [a + 1 for a in ga])
+    rb = np.isin(B.labels, [b + 1 for b in gb])
+    return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
+
+
+def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
+                   band_guard=None):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
     (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``.
 
@@ -1226,7 +1282,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     the crack-only components of its two planes whose rings may meet the box of its own rings in
     that plane (they decide its rings and the edges near its bridges, which lie in that box) and
     which of its lids are lidded from both sides.  A rebuild after a crossing
-    fallback then builds only the joins whose planes or lids changed."""
+    fallback then builds only the joins whose planes or lids changed.  ``band_guard``: see
+    :func:`_bridge_join`."""
     from collections import defaultdict
 
     from .bands.bridges import segments_cross
@@ -1284,6 +1341,38 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
         return ok
 
+    def waypoints(plane, other, comps):
+        """Polyline keyholes pass through the pixel centres near their component (its pixels and
+        their 8-neighbours: a polygon may enclose a notch one pixel deep) outside its overlap with
+        the other slice's components ``comps`` (see :func:`_bridge_join`).  A straight keyhole
+        keeps out of every pixel those components cover (``uncovered``); a polyline one only out
+        of the overlap, so it may cut through a notch the other slice covers."""
+        from scipy import ndimage
+
+        s, lab = slices[plane], slices[other].labels
+        ids = np.asarray(comps) + 1
+
+        def points_of(c):
+            sl = s.objects[c]
+            y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
+            box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
+            own = s.labels[box] == c + 1
+            over = own & np.isin(lab[box], ids)
+            j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
+            pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
+
+            def ok(p, q):
+                steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
+                t = np.arange(1, steps)[:, None] / steps
+                pt = p + t * (q - p)
+                ii = np.rint((pt[:, 0] - ox) / dx).astype(np.int64) - x0
+                jj = np.rint((pt[:, 1] - oy) / dy).astype(np.int64) - y0
+                inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
+                return not over[jj[inside], ii[inside]].any()
+
+            return pts, ok
+
+        return max(dx, dy), points_of
 
     def edges_of(kk):
         key = (kk, sig(kk))
@@ -1319,7 +1408,14 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                                    or any((k + 1, b) not in has_above for b, _ in plan[4])):
                 cache[key] = None
             if key not in cache:
-                cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double)
+                cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double,
+                                          waypoints, band_guard)
+                got = cache[key]
+                # a polyline keyhole can leave a band that fans across the slice: such a join may not
+                # have much more area than the voxel-exact join it replaces
+                if got is not None and got.polyline and float(triangle_areas(got.V, got.F).sum()) > \
+                        _POLYLINE_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
+                    cache[key] = None
             b = cache[key]
             if b is not None:
                 for plane, p, q in b.segments:

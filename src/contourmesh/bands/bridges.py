@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bridge_tree", "bridged_ring", "segments_cross"]
+__all__ = ["bridge_tree", "bridged_ring", "keyhole_path", "segments_cross"]
 
 #: Candidate vertex pairs tried per pair of contours (nearest first).
 CANDIDATES = 12
@@ -95,7 +95,8 @@ def _near_pairs(rings, k: int = 6):
     return sorted({(min(i, int(j)), max(i, int(j))) for i in range(n) for j in near[i]})
 
 
-def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None):
+def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None, waypoints=None,
+                step=1.0):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
 
     Parameters
@@ -116,11 +117,20 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     allowed : callable ``(p, q) -> bool``, optional
         A further test of a candidate keyhole (e.g. that it crosses no overlap with the other
         slice).
+    waypoints : callable ``component -> ((m, 2) array, allowed)``, optional
+        Points in a component's material that a keyhole may pass through (e.g. the centres of its
+        pixels that do not overlap the other slice), and the test its pieces must pass (``None``:
+        ``allowed``).  Where no straight keyhole keeps clear, a *polyline* keyhole is searched
+        through them (:func:`keyhole_path`); without it only straight bridges are made.
+    step : float
+        The spacing of the waypoints (the pixel size): neighbours are at most ``1.5 step`` apart.
 
     Returns
     -------
-    list of (i, vi, j, vj)
+    list of (i, vi, j, vj) or (i, vi, j, vj, points)
         Ring ``i``'s vertex ``vi`` joined to ring ``j``'s vertex ``vj``; ``len(rings) - 1`` of them.
+        A polyline keyhole has a fifth entry, its interior points from ``i``'s end to ``j``'s
+        (an ``(m, 2)`` array, ``m >= 1``); a straight bridge has four.
     """
     n = len(rings)
     if n < 2:
@@ -162,16 +172,183 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         segs.append((p, q))
         if len(chosen) == n - 1:
             return chosen
+    if waypoints is None:
+        return None
+    # no spanning tree of straight bridges: join what is left by polyline keyholes through the
+    # material (nearest pairs of rings first)
+    pairs_left = []
+    for _, _, i, _, j, _ in cand:
+        if owners[i][0] == owners[j][0] and (i, j) not in pairs_left:
+            pairs_left.append((i, j))
+    progress = True
+    while progress and len(chosen) < n - 1:
+        progress = False
+        for i, j in pairs_left:
+            if find(i) == find(j):
+                continue
+            pts_c, allowed_c = waypoints(owners[i][0])
+            got = keyhole_path(rings[i], rings[j], pts_c, step, obstacles_a, obstacles_b,
+                               segs, allowed=allowed if allowed_c is None else allowed_c, used_i={v for r, v in used if r == i},
+                               used_j={v for r, v in used if r == j})
+            if got is None:
+                continue
+            vi, vj, pts = got
+            parent[find(i)] = find(j)
+            used.update([(i, vi), (j, vj)])
+            chosen.append((i, vi, j, vj, pts))
+            path = np.concatenate([rings[i][vi][None], pts, rings[j][vj][None]])
+            segs.extend((path[t], path[t + 1]) for t in range(len(path) - 1))
+            progress = True
+            if len(chosen) == n - 1:
+                return chosen
     return None
+
+
+#: Largest number of waypoints a polyline keyhole search settles before it gives up.
+KEYHOLE_MAX_NODES = 20000
+
+
+def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, allowed=None,
+                 used_i=(), used_j=(), max_nodes=KEYHOLE_MAX_NODES):
+    """The shortest polyline keyhole from ring ``ri`` to ring ``rj`` through ``waypoints``, or None.
+
+    Both rings bound the same material, which lies on their left (an outer ring counter-clockwise
+    and its holes clockwise), and the keyhole runs through it: it leaves each end vertex into the
+    material, each of its pieces keeps clear of every obstacle edge (the rings' own edges only
+    meet it at its two ends) and of the segments ``segs``, and passes ``allowed``.  The search is
+    A* over the graph of the waypoints (neighbours at most ``1.5 step`` apart) and the rings'
+    vertices (joined to waypoints at most ``2.5 step`` away), each edge tested when it is first
+    used; the path found is then straightened (each point joined to the farthest later one that
+    keeps clear), so it bends only where the material does.  ``allowed`` is asked only of the
+    part of a piece more than ``step`` from a ring's vertex (a polygon's vertex may lie a pixel
+    off the pixels it bounds, in the part another slice covers).  Vertices in ``used_i`` / ``used_j``
+    (ends of other bridges) are not used.
+
+    Returns ``(vi, vj, points)``: the end vertices and the ``(m, 2)`` interior points, ``m >= 1``
+    (a keyhole that straightens to one segment is returned with its nearest waypoint kept, since
+    the straight bridges were tried first).
+    """
+    import heapq
+
+    from scipy.spatial import cKDTree
+
+    ri = np.asarray(ri, dtype=np.float64)
+    rj = np.asarray(rj, dtype=np.float64)
+    W = np.asarray(waypoints, dtype=np.float64).reshape(-1, 2)
+    if len(W) == 0:
+        return None
+    allp = np.concatenate([ri, rj, W])
+    lo, hi = allp.min(axis=0) - step, allp.max(axis=0) + step
+    oa = np.asarray(obstacles_a, dtype=np.float64)
+    ob = np.asarray(obstacles_b, dtype=np.float64)
+    keep = ((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
+            & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
+    oa, ob = oa[keep], ob[keep]
+    segs = list(segs)
+    m, ni = len(W), len(ri)
+    # nodes: waypoints [0, m), ri's vertices [m, m + ni), rj's vertices [m + ni, ...)
+    P = np.concatenate([W, ri, rj])
+
+    def end(node):
+        if node < m:
+            return None
+        return (ri, node - m) if node < m + ni else (rj, node - m - ni)
+
+    def ok(u, v):
+        p, q = P[u], P[v]
+        if not _clear_ends(p, q, end(u), end(v), oa, ob, segs, left=True):
+            return False
+        if allowed is None:
+            return True
+        # a ring's vertex may lie up to a pixel off the pixels it bounds: ``allowed`` is asked of
+        # the piece more than a step away from a ring's end
+        d = float(np.hypot(*(q - p)))
+        t0 = step / d if end(u) is not None else 0.0
+        t1 = 1.0 - step / d if end(v) is not None else 1.0
+        return t0 >= t1 or bool(allowed(p + t0 * (q - p), p + t1 * (q - p)))
+
+    tw, tj = cKDTree(W), cKDTree(rj)
+    bad_j = set(used_j)
+
+    def h(node):
+        return float(tj.query(P[node])[0])
+
+    heap = []
+    came = {}
+    for v in range(ni):
+        if v not in used_i:
+            heapq.heappush(heap, (h(m + v), 0.0, m + v, -1))
+    settled = 0
+    goal = None
+    while heap:
+        _, g, u, frm = heapq.heappop(heap)
+        if u in came:
+            continue
+        if frm >= 0 and not ok(frm, u):
+            continue
+        came[u] = frm
+        if u >= m + ni:
+            goal = u
+            break
+        settled += 1
+        if settled > max_nodes:
+            return None
+        if u >= m:  # a vertex of ri: to the waypoints near it
+            nbr = tw.query_ball_point(P[u], 2.5 * step)
+        else:
+            nbr = tw.query_ball_point(P[u], 1.5 * step)
+            nbr = list(nbr) + [m + ni + v for v in tj.query_ball_point(P[u], 2.5 * step) if v not in bad_j]
+        for v in nbr:
+            if v not in came and v != u:
+                gv = g + float(np.hypot(*(P[v] - P[u])))
+                heapq.heappush(heap, (gv + h(v), gv, v, u))
+    if goal is None:
+        return None
+    path = [goal]
+    while came[path[-1]] >= 0:
+        path.append(came[path[-1]])
+    path = path[::-1]
+    if len(path) < 3:  # pragma: no cover - ring to ring edges are not in the graph
+        return None
+    # straighten: from each point, the farthest later point that keeps clear (the last point of a
+    # keyhole must stay a ring vertex and the first too; at least one waypoint stays)
+    out = [path[0]]
+    i = 0
+    while i < len(path) - 1:
+        for j in range(len(path) - 1, i, -1):
+            if j == len(path) - 1 and i == 0:
+                continue
+            if j == i + 1 or ok(path[i], path[j]):
+                out.append(path[j])
+                i = j
+                break
+    pts = P[out[1:-1]]
+    # the pieces of the path must not meet each other (only consecutive pieces, at their common end)
+    full = P[out]
+    for t in range(len(full) - 1):
+        others = [u for u in range(len(full) - 1) if abs(u - t) > 1]
+        if others and segments_cross(full[t], full[t + 1], full[others], full[[u + 1 for u in others]]).any():
+            return None
+    return out[0] - m, out[-1] - m - ni, pts
 
 
 def _clear(p, q, ri, vi, rj, vj, oa, ob, segs, left=False) -> bool:
     """The open segment p q meets no obstacle edge and no other segment; at its ends it meets only
     the two ring edges there, and leaves each ring on its right (``left``: on its left)."""
+    return _clear_ends(p, q, (ri, vi), (rj, vj), oa, ob, segs, left)
+
+
+def _clear_ends(p, q, end_p, end_q, oa, ob, segs, left=False) -> bool:
+    """:func:`_clear` where either end may be a free point (``None``) instead of a ring vertex
+    ``(ring, vertex)``: a free end touches nothing at all."""
     if p[0] == q[0] and p[1] == q[1]:
         return False
     # the edges incident to p and q may touch the segment only at p and q
-    inc = [(ri[vi - 1], ri[vi]), (ri[vi], ri[(vi + 1) % len(ri)]), (rj[vj - 1], rj[vj]), (rj[vj], rj[(vj + 1) % len(rj)])]
+    inc = []
+    for e in (end_p, end_q):
+        if e is not None:
+            r, v = e
+            inc += [(r[v - 1], r[v]), (r[v], r[(v + 1) % len(r)])]
     lo = np.minimum(p, q)
     hi = np.maximum(p, q)
     near = np.flatnonzero((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
@@ -188,7 +365,10 @@ def _clear(p, q, ri, vi, rj, vj, oa, ob, segs, left=False) -> bool:
         if (keep & (((na == v).all(axis=1)) | ((nb == v).all(axis=1)))).any():
             return False
     # leave each ring outward: the direction must not lie inside the ring's interior angle
-    for r, v, d in ((ri, vi, q - p), (rj, vj, p - q)):
+    for e, d in ((end_p, q - p), (end_q, p - q)):
+        if e is None:
+            continue
+        r, v = e
         a, c, b = r[v - 1], r[v], r[(v + 1) % len(r)]
         if left:  # the left of a ring is the right of the reversed ring
             a, b = b, a
@@ -221,13 +401,19 @@ def _outside_corner(a, c, b, d) -> bool:
 
 def bridged_ring(lengths, bridges, root: int = 0):
     """The vertex sequence ``[(ring, vertex), ...]`` of the ring that runs round every contour and
-    along every bridge once each way (an Euler tour of the bridge tree), starting on ``root``."""
+    along every bridge once each way (an Euler tour of the bridge tree), starting on ``root``.
+
+    The interior points of a polyline bridge ``b`` (a fifth entry, see :func:`bridge_tree`) appear
+    as ``(len(lengths) + b, t)``, ``t`` counted from the bridge's ``i`` end: once on the way out
+    and once, in reverse, on the way back."""
     n = len(lengths)
     at = {}
     adj = [[] for _ in range(n)]
-    for i, vi, j, vj in bridges:
-        at[(i, vi)] = (j, vj)
-        at[(j, vj)] = (i, vi)
+    for b, br in enumerate(bridges):
+        i, vi, j, vj = br[:4]
+        m = len(br[4]) if len(br) > 4 else 0
+        at[(i, vi)] = (j, vj, [(n + b, t) for t in range(m)])
+        at[(j, vj)] = (i, vi, [(n + b, t) for t in range(m - 1, -1, -1)])
         adj[i].append(j)
         adj[j].append(i)
     out = []
@@ -242,7 +428,9 @@ def bridged_ring(lengths, bridges, root: int = 0):
                 break
             other = at.get((r, v))
             if other is not None and other[0] != parent:
+                out.extend(other[2])
                 tour(other[0], other[1], r, True)
+                out.extend(other[2][::-1])
                 out.append((r, v))
 
     seen_start = next((v for v in range(lengths[root]) if (root, v) not in at), 0)
