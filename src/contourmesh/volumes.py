@@ -1365,8 +1365,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
                 t = np.arange(1, steps)[:, None] / steps
                 pt = p + t * (q - p)
-                ii = np.rint((pt[:, 0] - ox) / dx).astype(np.int64) - x0
-                jj = np.rint((pt[:, 1] - oy) / dy).astype(np.int64) - y0
+                ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - x0  # halves up, as in uncovered
+                jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - y0
                 inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
                 return not over[jj[inside], ii[inside]].any()
 
