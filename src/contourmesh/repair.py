@@ -628,65 +628,13 @@ def _boxes_near(V, F, chosen):
     glo = np.empty(3)
     for d in range(3):
         glo[d] = lo[:, d].min()
-    ncell = 0
-    for t in range(len(chosen)):
-        i = chosen[t]
-        span = 1
-        for d in range(3):
-            span *= np.int64(np.floor((hi[i, d] - glo[d]) / h)) - np.int64(np.floor((lo[i, d] - glo[d]) / h)) + 1
-        ncell += span
-    size = 1
-    while size < 2 * ncell + 2:
-        size *= 2
-    keys = np.empty((size, 3), np.int64)
-    used = np.zeros(size, np.bool_)
-    for t in range(len(chosen)):
-        i = chosen[t]
-        a = np.empty(3, np.int64)
-        b = np.empty(3, np.int64)
-        for d in range(3):
-            a[d] = np.int64(np.floor((lo[i, d] - glo[d]) / h))
-            b[d] = np.int64(np.floor((hi[i, d] - glo[d]) / h))
-        for x in range(a[0], b[0] + 1):
-            for y in range(a[1], b[1] + 1):
-                for z in range(a[2], b[2] + 1):
-                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
-                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
-                    while used[slot] and not (keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z):
-                        slot = (slot + 1) & (size - 1)
-                    used[slot] = True
-                    keys[slot, 0], keys[slot, 1], keys[slot, 2] = x, y, z
-    near = np.zeros(n, np.bool_)
-    for t in range(len(chosen)):
-        near[chosen[t]] = True
+    clo = np.empty((n, 3), np.int64)
+    chi = np.empty((n, 3), np.int64)
     for i in range(n):
-        if near[i]:
-            continue
-        a0 = np.int64(np.floor((lo[i, 0] - glo[0]) / h))
-        a1 = np.int64(np.floor((lo[i, 1] - glo[1]) / h))
-        a2 = np.int64(np.floor((lo[i, 2] - glo[2]) / h))
-        b0 = np.int64(np.floor((hi[i, 0] - glo[0]) / h))
-        b1 = np.int64(np.floor((hi[i, 1] - glo[1]) / h))
-        b2 = np.int64(np.floor((hi[i, 2] - glo[2]) / h))
-        found = False
-        for x in range(a0, b0 + 1):
-            for y in range(a1, b1 + 1):
-                for z in range(a2, b2 + 1):
-                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
-                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
-                    while used[slot]:
-                        if keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z:
-                            found = True
-                            break
-                        slot = (slot + 1) & (size - 1)
-                    if found:
-                        break
-                if found:
-                    break
-            if found:
-                break
-        near[i] = found
-    return np.flatnonzero(near)
+        for d in range(3):
+            clo[i, d] = np.int64(np.floor((lo[i, d] - glo[d]) / h))
+            chi[i, d] = np.int64(np.floor((hi[i, d] - glo[d]) / h))
+    return np.flatnonzero(_share_cell(clo, chi, chosen))
 
 
 def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):
