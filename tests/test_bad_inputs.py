@@ -135,7 +135,7 @@ def _corrupt_dicom(tmp_path):
 
 
 def _rtstruct_off_plane(tmp_path):
-    pydicom = pytest.importorskip("pydicom")
+    pytest.importorskip("pydicom")
     from pydicom.dataset import Dataset, FileMetaDataset
     from pydicom.sequence import Sequence
     from pydicom.uid import ExplicitVRLittleEndian

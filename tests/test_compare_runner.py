@@ -10,10 +10,9 @@ import time
 import numpy as np
 import pytest
 
-from contourmesh.compare.command import add_compare_parser
-
 from contourmesh.compare import methods as M
 from contourmesh.compare import runner
+from contourmesh.compare.command import add_compare_parser
 from contourmesh.compare.inputs import Input, shape_inputs
 from contourmesh.compare.report import COLUMNS, empirical_order, fit_orders, read_results_csv, summarize
 

@@ -18,9 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from contourmesh.compare.command import add_compare_parser
-
 from contourmesh.compare import runner
+from contourmesh.compare.command import add_compare_parser
 from contourmesh.compare.execute import ExecutorError
 from contourmesh.compare.report import read_results_csv
 

@@ -12,12 +12,11 @@ import numpy as np
 import pytest
 
 import contourmesh
-
 from contourmesh.api import is_file_source, mesh_file
 from contourmesh.api import mesh_stack as mesh_contour_stack
+from contourmesh.errors import LostContourWarning
 from contourmesh.geometry import points_in_rings
 from contourmesh.io import load_mesh, read_contours, read_volume, stack_from_rings, write_contours_json, write_volume
-from contourmesh.errors import LostContourWarning
 from contourmesh.rasterize import default_pixel, rasterize_stack
 from contourmesh.trimesh_plugin import register_trimesh_loader
 from contourmesh.types import ContourStack, Section, shoelace_area

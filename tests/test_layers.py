@@ -145,7 +145,8 @@ def test_layer_zero_imports_nothing_heavy(name):
 
 
 def test_ruff_is_clean():
-    """The linter configured in pyproject.toml finds nothing (unused or undefined names, import order)."""
+    """The linter configured in pyproject.toml finds nothing (unused or undefined names, import order) in
+    the package, its tests, benchmarks, comparisons and scripts."""
     import shutil
     import subprocess
     import sys
@@ -153,5 +154,7 @@ def test_ruff_is_clean():
     ruff = shutil.which("ruff") or str(Path(sys.executable).parent / "ruff")
     if not Path(ruff).exists():
         pytest.skip("ruff is not installed (it comes with the [dev] extra)")
-    r = subprocess.run([ruff, "check", str(SRC)], capture_output=True, text=True, cwd=SRC.parents[1])
+    root = SRC.parents[1]
+    paths = [str(SRC)] + [str(root / d) for d in ("tests", "benchmarks", "comparisons", "scripts") if (root / d).is_dir()]
+    r = subprocess.run([ruff, "check", *paths], capture_output=True, text=True, cwd=root)
     assert r.returncode == 0, r.stdout[-3000:]

@@ -7,9 +7,9 @@ import pytest
 
 from contourmesh.compare.paper import (
     compute_table,
-    reproduce,
     paper_table,
     plot_figure,
+    reproduce,
     rows_to_csv,
     rows_to_markdown,
 )

@@ -12,23 +12,21 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+import contourmesh
 from contourmesh.digitize import gauss_volume, outer_jordan_stack
 from contourmesh.refine import band_violations
-import contourmesh
 
 
 def band_mesh(source, *, refine="band", triangulation="optimal", **kw):
     return contourmesh.mesh(source, refine=refine, triangulation=triangulation, **kw)
-from contourmesh.tracing import trace_contours
 from contourmesh.shapes import Ellipsoid, Sphere, Torus, rotation_from_euler
-from contourmesh.surface import stack_to_mesh
+from contourmesh.tracing import trace_contours
 from contourmesh.types import ContourStack, Section
 
 HERE = Path(__file__).resolve().parent

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 HERE = Path(__file__).resolve().parent
 
@@ -50,7 +50,7 @@ def main(argv=None) -> int:
     from matplotlib.collections import PolyCollection
 
     import contourmesh
-    from contourmesh.compare.inputs import data_dir, load_closed_mesh, _place
+    from contourmesh.compare.inputs import _place, data_dir, load_closed_mesh
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("name", help="an input name of real.toml, e.g. socket-rot")

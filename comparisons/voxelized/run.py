@@ -16,8 +16,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 import contourmesh
 from contourmesh.compare.inputs import load_closed_mesh
 from contourmesh.meshes import atomic_write
