@@ -58,6 +58,16 @@ REFINES = ("-", "band")
 ALL_MODES = tuple(f"{p}/{t}/{r}" for r in REFINES for p in POLYGONS for t in TRIANGULATIONS)
 
 
+def present_samples(text: str):
+    """``(name, volume, spacing)`` for each comma-separated sample name found under DATA (the others
+    are reported and skipped)."""
+    for name in [s for s in text.split(",") if s]:
+        if not (DATA / SAMPLES[name][0]).exists():
+            print(f"{name}: not found under {DATA}", flush=True)
+            continue
+        yield (name, *load(name))
+
+
 def mode_kwargs(mode: str) -> dict:
     """The ``contourmesh.mesh`` keywords of a mode name (see the module docstring)."""
     if mode == "default":
@@ -144,11 +154,7 @@ def main(argv=None) -> int:
                 best = r if best is None or r["check_s"] < best["check_s"] else best
             out["speed"][name] = best
             print("speed", name, best, flush=True)
-    for name in [s for s in args.samples.split(",") if s]:
-        if not (DATA / SAMPLES[name][0]).exists():
-            print(f"{name}: not found under {DATA}", flush=True)
-            continue
-        vol, spacing = load(name)
+    for name, vol, spacing in present_samples(args.samples):
         for mode in modes:
             r = measure(vol, spacing, **mode_kwargs(mode))
             out["samples"][f"{name}:{mode}"] = r

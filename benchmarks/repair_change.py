@@ -119,7 +119,7 @@ def measure(vol, spacing, **kw):
 
 
 def main(argv=None) -> int:
-    from intersect_counts import DATA, SAMPLES, expand_modes, load, mode_kwargs
+    from intersect_counts import SAMPLES, expand_modes, mode_kwargs, present_samples
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", default=",".join(SAMPLES))
@@ -132,11 +132,7 @@ def main(argv=None) -> int:
             f"{'move dA':>10s} {'<= L d':>10s} {'move dV':>10s} {'<= A d':>10s} {'rebuild dA':>11s} "
             f"{'rebuild dV':>11s} {'A changed':>10s} {'rel dA':>9s} {'rel dV':>9s}")
     print(head, flush=True)
-    for name in [s for s in args.samples.split(",") if s]:
-        if not (DATA / SAMPLES[name][0]).exists():
-            print(f"{name}: not found under {DATA}", flush=True)
-            continue
-        vol, spacing = load(name)
+    for name, vol, spacing in present_samples(args.samples):
         for mode in modes:
             r = measure(vol, spacing, **mode_kwargs(mode))
             rows[f"{name}:{mode}"] = r
