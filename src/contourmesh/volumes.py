@@ -241,12 +241,18 @@ class _Slice:
 # ------------------------------------------------------------------------------------------------
 # mesh assembly
 # ------------------------------------------------------------------------------------------------
-def _band_faces(lo, hi, triangulation, optimal_budget=3e7):
+def _band_faces(lo, hi, triangulation, optimal_budget=3e7, mixed=False):
     """The guarded band between two rings (see :meth:`_Mesher.band`) and how many guards fired.
 
     The paper's band is made in compiled code (:func:`contourmesh.fastpath._one_band`: the same
     faces and the same twist guard); the bands it hands back (folded, twisted, too close to call)
-    and the ones whose faces cross go through :func:`~contourmesh.bands.twist_guarded_band`."""
+    and the ones whose faces cross go through :func:`~contourmesh.bands.twist_guarded_band`.
+
+    ``mixed``: one ring is a crack ring and the other a polygon (next to an exact join).  Such
+    pairs differ most, and a band of any rule can cross itself there; its faces are then tested
+    whatever the rule, and the first other rule whose band keeps clear is taken.  Without this, the
+    whole-mesh test turns the band into an exact join, which makes the next section a crack ring
+    and its next band mixed in turn: a cascade up a tube, one slice per rebuild."""
     if triangulation == "wiederhold" and min(len(lo), len(hi)) > 2:
         f, status = _one_band(lo, hi)
         if status == 0 and not _band_crosses(np.concatenate([lo, hi]), f):
@@ -255,6 +261,16 @@ def _band_faces(lo, hi, triangulation, optimal_budget=3e7):
     if band_is_folded(f):  # last resort: the arc-length band never folds
         f = triangulate_band(lo, hi, "arclength")
         replaced += 1
+    if mixed and min(len(lo), len(hi)) > 2:
+        P = np.concatenate([lo, hi])
+        if _band_crosses(P, f):
+            n, m = sorted((len(lo), len(hi)))
+            for method in ("optimal", "arclength", "wiederhold", "greedy"):
+                if method == triangulation or (method == "optimal" and n * n * m > optimal_budget):
+                    continue
+                g = triangulate_band(lo, hi, method)
+                if not band_is_folded(g) and not _band_crosses(P, g):
+                    return g, int(replaced) + 1
     return f, int(replaced)
 
 
@@ -269,6 +285,7 @@ class _Mesher:
         self.side = 0
         self.necks: list[np.ndarray] = []  # vertices where the background passes through a point
         self.band_fallbacks = 0
+        self.pixel_caps = 0  # ends closed by their pixels (see _pixel_cap)
 
     def _add(self, f):
         f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
@@ -296,8 +313,9 @@ class _Mesher:
     def coords(self, ids):
         return self._V[: self.n][ids]
 
-    def band(self, lo_ids, hi_ids):
-        """The selected band triangulation, with a guard against twisted bands.
+    def band(self, lo_ids, hi_ids, mixed=False):
+        """The selected band triangulation, with a guard against twisted bands (``mixed``: see
+        :func:`_band_faces`).
 
         The paper's rule and the shortest-diagonal rule assume similar contours.  Real slices
         can differ a lot (and a contour next to an exact join keeps its crack contour while its
@@ -307,7 +325,7 @@ class _Mesher:
         """
 
         lo, hi = self.coords(lo_ids), self.coords(hi_ids)
-        f, replaced = _band_faces(lo, hi, self.triangulation)
+        f, replaced = _band_faces(lo, hi, self.triangulation, mixed=mixed)
         if self.band_guard is not None:
             f = self.band_guard(lo, hi, f)
         self.band_fallbacks += replaced
@@ -487,13 +505,13 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         fallback_caps += n_c
         log.debug("volume mesher: %d crossing pairs left; %d joins and %d caps fall back to crack rings",
                   len(left), n_j, n_c)
-    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks = counts
+    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps = counts
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
         "caps": caps, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
         "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
-        "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks,
+        "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks, "pixel_caps": pixel_caps,
         "crossing_fallbacks": fallback_joins + fallback_caps,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
@@ -515,8 +533,9 @@ def _crossing_pairs(V, F, previous):
 
 
 #: How many times the general mesher rebuilds a mesh whose faces cross after the repair, with the
-#: joins and caps involved falling back to crack rings and exact joins.
-_MAX_REBUILDS = 6
+#: joins and caps involved falling back to crack rings and exact joins.  Every rebuild changes at
+#: least one join or cap (else the loop stops), so the loop ends anyway; the bound caps its time.
+_MAX_REBUILDS = 16
 
 
 def _fall_back(tags, joins, crack_only, slices, has_above, has_below):
@@ -641,10 +660,12 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         if kind == "band":
             a, b, matched = data
 
+            mixed = is_crack(k, a) != is_crack(k + 1, b)
+
             def make(M, ring):
-                M.band(ring(k, a, -1), ring(k + 1, b, -1))
+                M.band(ring(k, a, -1), ring(k + 1, b, -1), mixed)
                 for ha, hb in matched:
-                    M.band(ring(k, a, ha), ring(k + 1, b, hb))
+                    M.band(ring(k, a, ha), ring(k + 1, b, hb), mixed)
 
             return ("band", is_crack(k, a), is_crack(k + 1, b)), make
         if kind == "bridge":
@@ -705,6 +726,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         first += s.n
     V, F, S, N, T = _number_units(units, tags)
     band_fallbacks = sum(u.replaced for u in units)
+    pixel_caps = sum(u.pixel_caps for u in units)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     S = S.astype(np.int64) + 4 * (T + 1)
@@ -713,7 +735,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     V, F = _compact(V, F)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
-    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks)
+    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps)
 
 
 class _Unit:
@@ -722,7 +744,7 @@ class _Unit:
     vertices (in the order it first used them); its other vertices are its own.  ``key`` is all
     that the unit depends on besides the fixed input (see :func:`_assemble`)."""
 
-    __slots__ = ("key", "V", "F", "S", "N", "rings", "replaced")
+    __slots__ = ("key", "V", "F", "S", "N", "rings", "replaced", "pixel_caps")
 
     @classmethod
     def record(cls, key, make, polygon_of, zs, triangulation, band_guard):
@@ -746,6 +768,7 @@ class _Unit:
         u.V, u.F, u.S, u.N = M.result()
         u.rings = spans
         u.replaced = M.band_fallbacks
+        u.pixel_caps = M.pixel_caps
         return u
 
 
@@ -932,7 +955,10 @@ class _CornerGrid:
 
 def _pixel_cap(M, s, k, c, rings, z, up, to_xy_corner):
     """Close a component with its pixels: bands from its rings to its crack contours at height z,
-    then two triangles per pixel there (always valid, whatever the polygons do)."""
+    then two triangles per pixel there (always valid, whatever the polygons do).  Seen from above,
+    the collar and the pixels both cover the sliver between a polygon and its contour, so such an
+    end counts that sliver's area twice (counted in ``meta["pixel_caps"]``)."""
+    M.pixel_caps += 1
     sl = s.objects[c]
     y0, x0 = sl[0].start, sl[1].start
     comp = s.labels[sl] == c + 1
