@@ -1,8 +1,9 @@
 """Crossing faces on every ROI of the shared RT structure set, in every mode (issue 13).
 
-Meshes every ROI of ``contours/dicompyler-core/rtss.dcm`` with ``polygon`` in (none, mlp, dss),
-``triangulation`` in (wiederhold, greedy, optimal, arclength) and ``caps`` in (flat, half, smooth)
-and counts the intersecting face pairs (:func:`contourmesh.intersect.intersecting_pairs`) of each
+Meshes every ROI of ``contours/dicompyler-core/rtss.dcm`` with ``polygon`` unset (the default: the
+drawn rings on the contours route) or in (none, mlp, dss),
+``triangulation`` in (wiederhold, greedy, optimal, arclength), ``caps`` in (flat, half, smooth),
+``refine`` in (none, band) and ``bands`` in (ruled, curved), and counts the intersecting face pairs (:func:`contourmesh.intersect.intersecting_pairs`) of each
 mesh; ``polygon="none"`` meshes the drawn rings (stack route with one ring per section, else the
 contours route), ``mlp``/``dss`` rasterize the rings at ``--pixel`` (raster route).  A mode that
 refuses an input (``caps="smooth"`` on the raster route) is recorded with its error.
@@ -14,6 +15,7 @@ refuses an input (``caps="smooth"`` on the raster route) is recorded with its er
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import sys
@@ -36,9 +38,12 @@ def main(argv=None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rois", default=None, help="comma-separated ROI names (default: every non-empty ROI)")
-    ap.add_argument("--polygons", default="none,mlp,dss")
+    ap.add_argument("--polygons", default="default,none,mlp,dss",
+                    help="'default' leaves polygon unset: the drawn rings on the contours route")
     ap.add_argument("--triangulations", default="wiederhold,greedy,optimal,arclength")
     ap.add_argument("--caps", default="flat,half,smooth")
+    ap.add_argument("--refines", default="none,band")
+    ap.add_argument("--bands", default="ruled,curved")
     ap.add_argument("--pixel", type=float, default=2.0, help="raster size in mm (default %(default)s)")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
@@ -57,36 +62,43 @@ def main(argv=None) -> int:
             print(f"{roi}: not read ({type(e).__name__}: {e})", flush=True)
             continue
         for p in args.polygons.split(","):
-            for t in args.triangulations.split(","):
-                for c in args.caps.split(","):
-                    key = f"{roi}:{p}/{t}/{c}"
-                    cpu = time.process_time()
-                    try:
-                        with warnings.catch_warnings():
-                            warnings.simplefilter("ignore")
-                            m = contourmesh.mesh(stack, polygon=p, triangulation=t, caps=c, pixel=args.pixel)
-                    except contourmesh.errors.InapplicableOption as e:
-                        r = dict(refused=str(e)[:200])
-                        refused.append(key)
-                    except Exception as e:
-                        r = dict(error=f"{type(e).__name__}: {e}"[:300])
-                        failed.append(key)
-                    else:
-                        cpu = time.process_time() - cpu
-                        pairs = len(intersecting_pairs(m.vertices, m.faces))
-                        chk = m.checks()
-                        r = dict(route=m.meta.get("route"), faces=int(len(m.faces)), pairs=int(pairs),
-                                 closed=bool(chk["closed"]), ok=bool(chk["ok"]), cpu_s=round(cpu, 2),
-                                 crossing_fallbacks=m.meta.get("crossing_fallbacks"),
-                                 crossings_repaired=m.meta.get("crossings_repaired"))
-                        if pairs or not chk["closed"]:
-                            crossing.append(key)
-                    out[key] = r
-                    print(key, r, flush=True)
-                    if args.json:
-                        tmp = args.json.with_suffix(args.json.suffix + ".tmp")
-                        tmp.write_text(json.dumps(out, indent=1))
-                        os.replace(tmp, args.json)
+            for t, c, rf, bd in itertools.product(args.triangulations.split(","), args.caps.split(","),
+                                                  args.refines.split(","), args.bands.split(",")):
+                key = f"{roi}:{p}/{t}/{c}/{rf}/{bd}"
+                opts = {} if p == "default" else dict(polygon=p)
+                if rf == "none":
+                    opts["pixel"] = args.pixel  # the refinement meshes the stack's own grid: no raster
+                else:
+                    opts["refine"] = rf
+                if bd != "ruled":
+                    opts["bands"] = bd
+                cpu = time.process_time()
+                try:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        m = contourmesh.mesh(stack, triangulation=t, caps=c, **opts)
+                except contourmesh.errors.InapplicableOption as e:
+                    r = dict(refused=str(e)[:200])
+                    refused.append(key)
+                except Exception as e:
+                    r = dict(error=f"{type(e).__name__}: {e}"[:300])
+                    failed.append(key)
+                else:
+                    cpu = time.process_time() - cpu
+                    pairs = len(intersecting_pairs(m.vertices, m.faces))
+                    chk = m.checks()
+                    r = dict(route=m.meta.get("route"), faces=int(len(m.faces)), pairs=int(pairs),
+                             closed=bool(chk["closed"]), ok=bool(chk["ok"]), cpu_s=round(cpu, 2),
+                             crossing_fallbacks=m.meta.get("crossing_fallbacks"),
+                             crossings_repaired=m.meta.get("crossings_repaired"))
+                    if pairs or not chk["closed"]:
+                        crossing.append(key)
+                out[key] = r
+                print(key, r, flush=True)
+                if args.json:
+                    tmp = args.json.with_suffix(args.json.suffix + ".tmp")
+                    tmp.write_text(json.dumps(out, indent=1))
+                    os.replace(tmp, args.json)
     meshed = [k for k, r in out.items() if "faces" in r]
     print(f"{len(out)} ROI x mode: {len(meshed)} meshed, {len(crossing)} with crossing faces or not closed"
           + (f" ({', '.join(crossing)})" if crossing else "") + f", {len(refused)} refused (InapplicableOption)"
