@@ -9,6 +9,7 @@ Writes ``results.csv`` and ``results.md`` next to this file.
 
 from __future__ import annotations
 
+import argparse
 import csv
 import io
 import os
@@ -32,9 +33,9 @@ RESOLUTIONS = (64, 128)
 HERE = Path(__file__).resolve().parent
 
 
-def data_root(argv) -> Path:
-    if len(argv) > 1:
-        return Path(argv[1])
+def data_root(path=None) -> Path:
+    if path:
+        return Path(path)
     return Path(os.environ.get("CONTOURMESH_DATA", HERE.parents[2] / "shared" / "data"))
 
 
@@ -59,8 +60,11 @@ def run_one(path: Path, n: int, polygon="mlp", triangulation="wiederhold") -> di
     }
 
 
-def main(argv=sys.argv) -> int:
-    root = data_root(argv) / "meshes"
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("data", nargs="?", default=None,
+                    help="the shared data folder (default: $CONTOURMESH_DATA or ../shared/data)")
+    root = data_root(ap.parse_args(argv).data) / "meshes"
     if not root.is_dir():
         print(f"no sample meshes at {root}; pass the data folder or set CONTOURMESH_DATA", file=sys.stderr)
         return 2
