@@ -61,7 +61,7 @@ def run_one(path: Path, n: int, polygon="mlp", triangulation="wiederhold") -> di
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].replace("\n", " "))
     ap.add_argument("data", nargs="?", default=None,
                     help="the shared data folder (default: $CONTOURMESH_DATA or ../shared/data)")
     root = data_root(ap.parse_args(argv).data) / "meshes"
