@@ -351,9 +351,11 @@ def check_int_stack(stack, polygon, triangulation, caps="flat"):
         warnings.simplefilter("always")
         m = contourmesh.mesh(stack, polygon=polygon, triangulation=triangulation, caps=caps)
     if m.meta.get("route") == "volume":
-        # the documented fallback: a stack-route mesh with crossing faces goes to the volume mesher,
-        # with a warning; the mesh then has the topology of the contours' grid points
-        assert "crossing faces" in m.meta.get("stack_route_error", ""), m.meta
+        # the documented fallback: a stack-route mesh with crossing faces, or one that is no closed
+        # surface (a contour touching itself), goes to the volume mesher, with a warning; the mesh
+        # then has the topology of the contours' grid points
+        why = m.meta.get("stack_route_error", "")
+        assert "crossing faces" in why or "do not bound a closed surface" in why, m.meta
         assert any(issubclass(w.category, RasterFallbackWarning) for w in caught), [str(w.message) for w in caught]
         return check_mesh(m, voxel_topology(stack_points(stack, lattice=False)[0]), embedded=True)
     assert m.meta.get("route") == "stack", m.meta

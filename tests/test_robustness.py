@@ -210,7 +210,8 @@ def test_run_whose_polygons_fold_uses_its_contours():
                                   # the volume mesher's crossings (pixel caps at mid-planes, neck tubes)
                                   7625, 11814, 24136, 28637, 37637, 72545, 90419, 91111,
                                   # invariance: nudges made in another order (1e-3), other choices
-                                  9721, 97461, 119830, 29613, 89038, 124324])
+                                  9721, 97461, 119830, 29613, 89038, 124324,
+                                  214439])  # a grid contour that touches itself: the volume mesher
 def test_soak_failures_replay_clean(seed):
     """Every example the soak has failed on (``python tests/soak.py --replay SEED``) now passes."""
     desc, err = soak.run_example(seed)
@@ -298,6 +299,35 @@ def test_stack_route_refuses_a_surface_that_does_not_close():
     stack = ContourStack(tuple(Section(float(z), (ring,)) for z in range(3)))
     with pytest.raises(StackSurfaceError, match="do not bound a closed surface.*keyhole"):
         stack_to_mesh(stack, polygon="none", triangulation="wiederhold")
+
+
+def test_grid_stack_whose_contour_touches_itself_goes_to_the_volume_mesher():
+    """Found by the soak (seed 214439): a grid contour whose pixels meet at a corner only visits
+    that corner twice; the stack route's mesh there is no closed surface.  The grid points the
+    contours bound are a digital object all the same: the volume mesher meshes them, with a
+    warning that gives the stack route's reason."""
+    import warnings
+
+    import contourmesh
+    from contourmesh.errors import RasterFallbackWarning
+    from contourmesh.refine import stack_points
+    from contourmesh.volumes import voxel_topology
+
+    rng = np.random.default_rng(214439)
+    rng.integers(len(soak.COMBOS)), rng.random(), rng.random()
+    stack = soak.make_int_stack(rng)
+    ring = stack.sections[0].contours[0]
+    assert len(np.unique(ring, axis=0)) < len(ring)  # the pinch
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        m = contourmesh.mesh(stack, polygon="none", triangulation="wiederhold")
+    assert m.meta["route"] == "volume"
+    assert "do not bound a closed surface" in m.meta["stack_route_error"]
+    assert any(issubclass(w.category, RasterFallbackWarning) for w in caught)
+    chk = m.checks()
+    ref = voxel_topology(stack_points(stack, lattice=False)[0])
+    assert chk["ok"] and chk["self_intersections"] == 0 and m.volume > 0
+    assert (chk["components"], chk["genus"]) == (ref["surfaces"], ref["genus"])
 
 
 def test_mlp_of_a_thin_L_is_mirror_symmetric():

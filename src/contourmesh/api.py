@@ -52,6 +52,7 @@ from .digitize import gauss_volume, outer_jordan_stack
 from .errors import (
     CrossingFacesError,
     InapplicableOption,
+    OpenSurfaceError,
     RasterFallbackWarning,
     StackSurfaceError,
     ThinRegionError,
@@ -415,7 +416,13 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
                 return _grid_stack_volume(stack, polygon=polygon or "mlp", triangulation=triangulation, caps=caps,
                                           why=str(exc), progress=progress)
         except (CapError, StackSurfaceError) as exc:
-            if integer:
+            if integer and isinstance(exc, OpenSurfaceError):
+                # a grid contour that touches itself (two of its pixels meet at a corner only): the
+                # stack route cannot always split the pinch; the grid points it bounds are a
+                # digital object all the same, and the volume mesher meshes it (with the warning)
+                return _grid_stack_volume(stack, polygon=polygon or "mlp", triangulation=triangulation, caps=caps,
+                                          why=str(exc), progress=progress)
+            if integer:  # bad input (a point contour between sections, ...): said as it is
                 raise
             # a real-valued ring that touches or crosses itself (a keyhole, a figure eight): the
             # contours route below resolves it through its raster; never silently
@@ -455,15 +462,15 @@ def _stack_route_failed(stack: ContourStack, exc: Exception) -> str:
 
 
 def _grid_stack_volume(stack: ContourStack, *, polygon, triangulation, caps, why: str, progress=False) -> Mesh:
-    """Grid contours whose stack-route mesh keeps crossing faces: their digital object (the grid
-    points the contours bound, :func:`contourmesh.refine.stack_points`, one slice per section at
-    the sections' own heights) meshed by the volume mesher, with a warning."""
+    """Grid contours whose stack-route mesh keeps crossing faces, or is no closed surface (a
+    contour touching itself): their digital object (the grid points the contours bound,
+    :func:`contourmesh.refine.stack_points`, one slice per section at the sections' own heights)
+    meshed by the volume mesher, with a warning."""
     from .refine import stack_points
 
     name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
-    _volume_caps(caps, "these grid contours are meshed by the volume mesher (their stack-route mesh has crossing "
-                 "faces)")
-    warn_external(f"{name}: the stack route leaves crossing faces ({why}); meshed by the volume mesher from the "
+    _volume_caps(caps, "these grid contours are meshed by the volume mesher (the stack route fails on them)")
+    warn_external(f"{name}: the stack route fails ({why}); meshed by the volume mesher from the "
                   "grid points the contours bound instead", RasterFallbackWarning)
     pts, x0, y0, zidx, _ = stack_points(stack, lattice=False)
     zs = np.asarray(stack.z, dtype=np.float64)

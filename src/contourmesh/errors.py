@@ -32,6 +32,11 @@ class StackSurfaceError(ContourMeshError):
     """The contours do not bound a closed surface on the stack route (e.g. a keyhole contour)."""
 
 
+class OpenSurfaceError(StackSurfaceError):
+    """The stack route's finished mesh is not a closed, edge-manifold, outward surface (a contour
+    that touches or crosses itself); the front door then takes another route."""
+
+
 class CrossingFacesError(StackSurfaceError):
     """Faces of a stack-route mesh still cross after its local repair (asked for with
     ``crossings="raise"``; the front door then takes another route)."""

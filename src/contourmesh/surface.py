@@ -48,6 +48,7 @@ from .bands.caps import CapError, cap_faces
 from .errors import (
     ContourMeshError,
     CrossingFacesError,
+    OpenSurfaceError,
     SelfIntersectionWarning,
     StackSurfaceError,
     warn_external,
@@ -625,7 +626,7 @@ def _verified(m: Mesh) -> Mesh:
     vol = m.volume if len(f) else 0.0
     box = float(np.prod(np.ptp(m.vertices, axis=0))) if len(m.vertices) else 0.0
     if boundary or crowded or twice or not vol > 1e-9 * box:
-        raise StackSurfaceError(
+        raise OpenSurfaceError(
             f"the contours do not bound a closed surface on the stack route: {boundary} boundary edge(s), {crowded} "
             f"edge(s) in more than two faces, {twice} edge(s) used twice in one direction, volume {vol:.6g}; "
             "expected contours that do not touch or cross themselves (a keyhole contour does: split it into an "
