@@ -99,9 +99,22 @@ def test_refine_band_on_every_single_contour_source(sources, kind):
     assert m.meta["refine"] == "band" and m.checks()["watertight"] and m.volume > 0
 
 
-def test_refine_band_needs_grid_contours_on_a_contour_file(sources):
-    with pytest.raises(ValueError, match="integer grid contours"):
-        contourmesh.mesh(sources["contour file"], refine="band")
+def test_refine_band_on_a_contour_file_refines_its_raster(sources):
+    """Drawn rings are refined on their raster (the refinement needs a digital object); pixel=
+    sets the raster's size, and the contours route, which meshes the rings as drawn, is refused."""
+    from contourmesh.io import read_contours
+    from contourmesh.rasterize import rasterize_stack
+    from contourmesh.volumes import volume_to_mesh
+
+    m = contourmesh.mesh(sources["contour file"], refine="band", pixel=0.5)
+    chk = m.checks()
+    assert m.meta["route"] == "raster-refined" and m.meta["refine"] == "band" and m.meta["pixel"] == 0.5
+    assert chk["ok"] and chk["self_intersections"] == 0 and m.volume > 0
+    r = rasterize_stack(read_contours(sources["contour file"]), 0.5)
+    ref = volume_to_mesh(r.volume, **r.mesh_kwargs, triangulation="optimal", refine="band")
+    assert m.area == pytest.approx(ref.area, rel=1e-12)
+    with pytest.raises(InapplicableOption, match="drawn rings are refined on their raster"):
+        contourmesh.mesh(sources["contour file"], refine="band", route="contours")
 
 
 def test_two_valued_volume_is_binary():

@@ -143,8 +143,10 @@ def test_options_that_do_not_apply_to_the_contours_route_are_refused():
     assert contourmesh.mesh(st, caps="smooth").meta["caps"] == "smooth"
     with pytest.raises(InapplicableOption, match="route= does not apply to an array"):
         contourmesh.mesh(np.ones((3, 3, 3), bool), route="raster")
-    with pytest.raises(InapplicableOption, match="route="):
-        contourmesh.mesh(st, route="raster", refine="band")
+    # drawn rings are refined on their raster: route='raster' says so, route='contours' is refused
+    assert contourmesh.mesh(st, route="raster", refine="band").meta["route"] == "raster-refined"
+    with pytest.raises(InapplicableOption, match="route='contours' does not apply with refine='band'"):
+        contourmesh.mesh(st, route="contours", refine="band")
     with pytest.raises(ValueError, match="unknown route"):
         contourmesh.mesh(st, route="drawn")
     # polygon='mlp' on drawn rings asks for the raster's polygons: the raster route, recorded

@@ -35,6 +35,9 @@ The routes behind the entry points:
   every slice holds one contour (or one outer contour with holes that the stack route closes);
   otherwise (several contours, holes, branching) the volume mesher refines the polygons of its
   band joins and caps (``volume_to_mesh(refine="band")``, ``meta["route"] = "volume-refined"``).
+  Drawn (real-valued) rings are refined on their raster at ``pixel`` (``meta["route"] =
+  "raster-refined"``): the refinement keeps each vertex in its slice's digital band, so it needs a
+  digital object.
 
 Each route switch and fallback is logged on the ``contourmesh`` logger (``logging.DEBUG``).
 """
@@ -285,6 +288,21 @@ def _refined_volume(stack: ContourStack, *, polygon, triangulation, caps, refine
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
+def _refined_raster(stack: ContourStack, pixel, *, polygon, triangulation, caps, refine, progress=False) -> Mesh:
+    """Drawn (real-valued) rings with ``refine``: the refinement keeps each polygon vertex in its
+    slice's digital band, so it needs a digital object; that is the rings' even-odd raster at
+    ``pixel`` (as on the raster route), meshed by the volume mesher with its polygons refined."""
+    _volume_caps(caps, "drawn rings with refine= are refined on their raster by the volume mesher")
+    r = rasterize_stack(stack, pixel)
+    log.debug("refined raster route: the drawn rings rasterized at %s, refined by the volume mesher", r.spacing[0])
+    m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation or "optimal",
+                       caps=caps, refine=refine, progress=progress)
+    meta = dict(m.meta)
+    meta.update(stack.meta)
+    meta.update(route="raster-refined", pixel=r.spacing[0])
+    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
+
+
 def _with_meta(m: Mesh, **meta) -> Mesh:
     return Mesh(m.vertices, m.faces, P=m.P, meta=dict(m.meta, **meta))
 
@@ -376,20 +394,24 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
     if route not in (None, "contours", "raster"):
         raise ValueError(f"unknown route {route!r}; expected 'contours' or 'raster'")
     refine = _refine_method(refine)
+    integer = all(np.asarray(c).dtype.kind in "iu" for s in stack.sections for c in s.contours)
     if refine is not None:
         if curved:
             raise InapplicableOption("bands='curved' does not apply with refine='band': curved bands are made "
                                      "between drawn rings on the contours route")
-        if pixel is not None:
-            raise InapplicableOption("pixel= does not apply with refine='band': the refinement meshes the "
-                                     "stack's own grid contours, without rasterizing")
-        if route is not None:
-            raise InapplicableOption(f"route={route!r} does not apply with refine='band': the refinement has "
-                                     "its own route")
+        if integer and pixel is not None:
+            raise InapplicableOption("pixel= does not apply with refine='band' on grid contours: the refinement "
+                                     "meshes the stack's own grid contours, without rasterizing")
+        if route is not None and (integer or route != "raster"):
+            raise InapplicableOption(f"route={route!r} does not apply with refine='band': " + (
+                "grid contours are refined on their own grid" if integer else
+                "drawn rings are refined on their raster (route='raster', or leave route unset)"))
+        if not integer:
+            return _refined_raster(stack, pixel, polygon=polygon or "mlp", triangulation=triangulation, caps=caps,
+                                   refine=refine, progress=progress)
         return _refined(stack, polygon=polygon or "mlp", triangulation=triangulation, caps=caps, refine=refine)
     triangulation = triangulation or "wiederhold"
     one_each = all(len(s.contours) == 1 for s in stack.sections)
-    integer = all(np.asarray(c).dtype.kind in "iu" for s in stack.sections for c in s.contours)
     if route == "contours" and polygon in ("mlp", "dss"):
         raise InapplicableOption(f"polygon={polygon!r} does not apply with route='contours': that route meshes "
                                  "the drawn rings themselves (use route='raster' for the polygons of a raster)")
