@@ -275,3 +275,15 @@ def test_cross_sections_best_side_at_a_flat_lid():
     assert np.abs(cross_section_errors(m, st, side="worst")).max() > 0.1
     with pytest.raises(ValueError, match="side"):
         cross_section_errors(m, st, side="left")
+
+
+def test_end_profile_follows_a_widening_end():
+    # a cone's base: the area grows toward the end (quadratically); the taper's copies grow with it,
+    # to the section half a spacing out, within the flare limit
+    dz = 2.0
+    r = np.array([9.0, 8.0, 7.0])  # radii at the end and one and two spacings inside
+    t, lam, kind = _end_profile(np.pi * r**2, [dz, dz], dz)
+    assert kind == "taper" and t[-1] == pytest.approx(dz / 2)
+    assert lam[-1] == pytest.approx(9.5 / 9.0, rel=1e-9)
+    t, lam, kind = _end_profile([10.0, 5.0, 1.0], [dz, dz], dz)  # steep growth: clipped at the flare limit
+    assert kind == "taper" and lam.max() <= 1.25 + 1e-12

@@ -415,11 +415,13 @@ def _end_profile(areas, dists, gap):
     ``areas``: the end ring's area and those of the one or two sections joined to it, at outward
     positions ``0, -dists[0], -(dists[0] + dists[1])``.  The area is extrapolated outward (a
     quadratic through three sections, exact for a sphere, a cone or a cylinder; a line through
-    two), never above the end's own.  If it closes (falls to zero, or to a minimum below 5 % of the end's area) within one
-    spacing ``gap``, the surface closes there: ``(t, lam)`` of a dome whose rings are the end ring
+    two).  If it closes (falls to zero, or to a minimum below 5 % of the end's area; a profile that
+    grows first counts from the end's own area) within one spacing ``gap``, the surface closes there: ``(t, lam)`` of a dome whose rings are the end ring
     scaled by ``lam`` at distances ``t`` beyond it (``lam`` evenly spread on a quarter circle).
     Otherwise the object ends somewhere within the next spacing, half of it on average: a taper
-    to a flat end at ``gap / 2``.  Returns ``(t, lam, kind)``.
+    to a flat end at ``gap / 2``, its copies following the trend, growth included (a widening end,
+    as at a cone's base, flares up to ``_MAX_FLARE`` times the end's linear size).  Returns
+    ``(t, lam, kind)``.
     """
     areas = np.asarray(areas, dtype=np.float64)
     tp = -np.r_[0.0, np.cumsum(dists)]
@@ -440,9 +442,16 @@ def _end_profile(areas, dists, gap):
         tt = np.interp(lam, lam_of_t[::-1], np.r_[t[:i], t0][::-1])
         return tt, lam, "dome"
     tt = gap / 2 * np.arange(1, _TAPER_RINGS + 1) / _TAPER_RINGS
-    lam = np.sqrt(np.interp(tt, t, a) / areas[0])
+    # the trend, growth included (a cone's base, a widening end: the section goes on growing up to
+    # the flat end), within _MAX_FLARE of the end section's linear size
+    grow = np.polyval(coef, tt)
+    at = np.where(grow > areas[0], np.minimum(grow, _MAX_FLARE**2 * areas[0]), np.interp(tt, t, a))
+    lam = np.sqrt(at / areas[0])
     return tt, lam, "taper"
 
+
+#: A taper's last copy is at most this many times the end section's linear size (a widening end).
+_MAX_FLARE = 1.25
 
 #: An end section whose roundness (4 pi area / perimeter^2) is below this fraction of the previous
 #: section's is a slanted cut (a tilted tube's end): caps="smooth" moves it half a spacing along the axis.
