@@ -141,7 +141,8 @@ def test_smooth_ends_on_the_contours_route(ph, dz, vol_tol, area_tol):
 
 
 def test_smooth_ends_with_several_rings_per_section():
-    # two columns merging into one, and an end ring with a hole (a half prism there)
+    # two columns merging into one, and an end ring with a hole whose inward join is no band (a hole
+    # opens): a dome holding the half prism's volume there, no prism
     def circle(cx, r):
         return ellipse(cx, 0.0, r, r, 40)
 
@@ -149,7 +150,7 @@ def test_smooth_ends_with_several_rings_per_section():
                           + [(12.0, [circle(0, 9), circle(0, 3)[::-1]])], meta={"roi": "merge"})
     m = contourmesh.mesh(st, caps="smooth")
     assert m.meta["route"] == "contours" and m.meta["caps"] == "smooth"
-    assert m.meta["smooth_half_prisms"] >= 1  # the ring with a hole
+    assert m.meta["smooth_branch_domes"] >= 1 and m.meta["smooth_half_prisms"] == 0  # the ring with a hole
     assert m.meta["smooth_domes"] + m.meta["smooth_tapers"] >= 2  # the two columns' lower ends
     assert_sound(m)
     assert m.volume > contourmesh.mesh(st).volume
@@ -204,3 +205,85 @@ def test_tilted_cylinder_end_sliver_is_meshed_as_drawn():
     assert_sound(m)
     assert np.abs(cross_section_errors(m, st)).max() < 5e-3
     assert abs(outside_rules(m, st)) <= 5e-3
+
+
+# --- ends and the rules (issue 15, follow-up: flat ends, the interval for every file) ---------------
+def test_padded_rules_are_the_slab_sum_on_even_spacing():
+    from contourmesh.compare.clinical import padded_rules, slab_volume
+
+    st = stack_from_rings([(1.5 * k, [ellipse(0, 0, 4 + k, 3, 40)]) for k in range(5)])
+    a = section_areas(st)
+    fru, trap = padded_rules(st)
+    assert trap == pytest.approx(slab_volume(st), rel=1e-12) == pytest.approx(a.sum() * 1.5, rel=1e-12)
+    # the padded frustum puts a cone one spacing high on each end section
+    assert fru == pytest.approx(frustum_volume(st) + (a[0] + a[-1]) * 1.5 / 3, rel=1e-12)
+
+
+def test_one_drawing_several_lengths():
+    # six circles 3 mm apart: a cylinder of any length in (15, 21) mm is drawn the same, so no cap can
+    # know its length (the information limit behind the flat-ended misses)
+    vols, truths = [], []
+    for L in (16.5, 20.0):
+        ph = cylinder(5, L)
+        st = draw(ph, 3.0, 1.0, seed=3, offset=(L / 2 - 7.5) / 3.0)
+        assert len(st.sections) == 6 and st.sections[0].z == pytest.approx(-7.5)
+        vols.append(contourmesh.mesh(st, caps="half", route="contours").volume)
+        truths.append(ph.volume)
+    assert vols[0] == pytest.approx(vols[1], rel=1e-9)
+    assert truths[1] / truths[0] - 1 > 0.2
+
+
+def _merging_columns():
+    def circle(cx, r):
+        return ellipse(cx, 0.0, r, r, 40)
+
+    # two columns; the right one stops at z = 4 while the left one goes on and widens
+    return stack_from_rings([(2.0 * k, [circle(-6, 4), circle(6, 4)] if k < 3 else [circle(-6, 4 + 0.3 * k)])
+                             for k in range(6)], meta={"roi": "columns"})
+
+
+def test_flat_caps_close_a_branch_inside_the_stack_within_the_rules():
+    from contourmesh.compare.clinical import cross_section_errors
+
+    st = _merging_columns()
+    m = contourmesh.mesh(st)
+    assert m.meta["route"] == "contours" and m.meta["interior_end_domes"] == 1
+    assert_sound(m)
+    assert abs(outside_rules(m, st)) <= 5e-3
+    # the stack's own ends stay flat, in the planes of the first and last sections
+    zs = [s.z for s in st.sections]
+    assert m.vertices[:, 2].min() == pytest.approx(zs[0]) and m.vertices[:, 2].max() == pytest.approx(zs[-1])
+    # every section is the drawn one, on both sides of its plane (the ended column's dome is beyond it)
+    assert np.abs(cross_section_errors(m, st, side="worst")).max() < 5e-3
+    # with half caps too; the one-sided measure sees a flat cap in a plane as a missing ring
+    half = contourmesh.mesh(st, caps="half")
+    assert np.abs(cross_section_errors(half, st, side="worst")).max() < 5e-3
+
+
+def test_cross_sections_best_side_at_a_flat_lid():
+    from contourmesh.compare.clinical import cross_section_errors
+
+    # a cavity that ends at z = 4 (a hole drawn on sections 1 and 2): with flat caps its lid lies in
+    # the plane, so the drawn section (with the hole) is the mesh's section on the cavity's side only
+    def circle(r, n=40):
+        return ellipse(0.0, 0.0, r, r, n)
+
+    st = stack_from_rings([(2.0 * k, [circle(8)] + ([circle(3)[::-1]] if k in (1, 2) else [])) for k in range(5)])
+    m = contourmesh.mesh(st)
+    assert_sound(m)
+    assert np.abs(cross_section_errors(m, st)).max() < 5e-3
+    assert np.abs(cross_section_errors(m, st, side="worst")).max() > 0.1
+    with pytest.raises(ValueError, match="side"):
+        cross_section_errors(m, st, side="left")
+
+
+def test_end_profile_follows_a_widening_end():
+    # a cone's base: the area grows toward the end (quadratically); the taper's copies grow with it,
+    # to the section half a spacing out, within the flare limit
+    dz = 2.0
+    r = np.array([9.0, 8.0, 7.0])  # radii at the end and one and two spacings inside
+    t, lam, kind = _end_profile(np.pi * r**2, [dz, dz], dz)
+    assert kind == "taper" and t[-1] == pytest.approx(dz / 2)
+    assert lam[-1] == pytest.approx(9.5 / 9.0, rel=1e-9)
+    t, lam, kind = _end_profile([10.0, 5.0, 1.0], [dz, dz], dz)  # steep growth: clipped at the flare limit
+    assert kind == "taper" and lam.max() <= 1.25 + 1e-12

@@ -23,6 +23,7 @@ import argparse
 import csv
 import io
 import math
+import os
 import sys
 import time
 import warnings
@@ -30,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from contourmesh.compare.clinical import COLUMNS, MODES, PEERS, measure
+from contourmesh.compare.clinical import COLUMNS, MODES, PEERS, RULE_COLUMNS, RULE_SETTINGS, measure, rules_rows
 from contourmesh.compare.phantoms import verification_set
 from contourmesh.meshes import atomic_write
 
@@ -39,7 +40,11 @@ HERE = Path(__file__).resolve().parent
 TARGET_VOL, TARGET_AREA, TARGET_RULES, TARGET_XSEC, TARGET_BRANCH = 0.01, 0.015, 0.005, 0.005, 0.02
 
 
-def run(full: bool, fine: float, log=lambda msg: print(msg, flush=True)) -> list[dict]:
+#: ``--contours-only``: the contours route's modes (the default for contour files) and the peers.
+CONTOURS_MODES = tuple(m for m in MODES if m[1] in ("default", "contours", "curved"))
+
+
+def run(full: bool, fine: float, log=lambda msg: print(msg, flush=True), modes=MODES) -> list[dict]:
     rows = []
     settings = verification_set(full=full)
     t_all = time.perf_counter()
@@ -47,7 +52,7 @@ def run(full: bool, fine: float, log=lambda msg: print(msg, flush=True)) -> list
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            got = measure(ph, dz, ds, seed=seed, fine=fine, timeout=30.0)
+            got = measure(ph, dz, ds, seed=seed, fine=fine, timeout=30.0, modes=modes)
         lost = [str(w.message) for w in caught if "LostContour" in type(w.message).__name__]
         for r in got:
             r["warnings"] = len(lost) if r["method"] == "ours" and r["polygon"] == "mlp" else ""
@@ -57,9 +62,74 @@ def run(full: bool, fine: float, log=lambda msg: print(msg, flush=True)) -> list
     return rows
 
 
-def _csv_bytes(rows) -> bytes:
+def rt_path() -> Path:
+    data = Path(os.environ.get("CONTOURMESH_DATA", HERE.parents[2] / "shared" / "data"))
+    return data / "contours" / "dicompyler-core" / "rtss.dcm"
+
+
+def run_rt(path: Path, log=lambda msg: print(msg, flush=True)) -> list[dict]:
+    """Every non-empty ROI of the shared RT structure set in every setting of ``RULE_SETTINGS``
+    (one warm-up mesh first, so numba's compilation is not counted in the CPU seconds)."""
+    import contourmesh
+    from contourmesh.io.contours import list_rois, read_contours
+
+    rois = [(num, name) for num, name, n in list_rois(path) if n]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for _, kw in RULE_SETTINGS:
+            contourmesh.mesh(read_contours(path, roi=rois[0][0]), **kw)
+    rows = []
+    for num, name in rois:
+        st = read_contours(path, roi=num)
+        got = rules_rows(st, name)
+        rows += got
+        log(f"RT {name}: " + ", ".join(f"{r['setting']} {r['status']} {r['cpu']:.1f} s" for r in got))
+    return rows
+
+
+def rt_md(rows) -> str:
+    if not rows:
+        return ""
+    lines = ["", "## Every ROI of the shared RT structure set (`contours/dicompyler-core/rtss.dcm`)", "",
+             "No truth here: the mesh volume against the frustum-trapezoid interval over the drawn sections' even-odd "
+             "areas (`outside rules`, 0 inside), against the same rules with an empty plane one spacing beyond each "
+             "end (`outside padded rules`: the half-spacing convention; the padded trapezoid is the slab sum "
+             "area x slice thickness), and the worst cross-section error at up to 40 contour planes. "
+             "`default` is `contourmesh.mesh(stack)` with no options (flat caps, ruled bands); the others "
+             "`route=\"contours\"`. CPU seconds per ROI (after a warm-up).", "",
+             "| setting | ROIs | within 0.5 % of the rules | max \\|outside rules\\| | within 0.5 % of the padded rules | "
+             "max \\|outside padded rules\\| | x-sec within 0.5 % | max \\|x-sec err\\| | meshes with crossing faces | "
+             "CPU s (all ROIs) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for label, _ in RULE_SETTINGS:
+        rs = [r for r in rows if r["setting"] == label and r["status"] == "ok"]
+        failed = sum(1 for r in rows if r["setting"] == label and r["status"] != "ok")
+        if not rs:
+            continue
+        o = [abs(r["vol_outside_rules"]) for r in rs]
+        po = [abs(r["vol_outside_padded_rules"]) for r in rs]
+        xs = [abs(r["xsec_max_err"]) for r in rs if r["xsec_max_err"] is not None]
+        lines.append(f"| {label} | {len(rs)}{f' ({failed} failed)' if failed else ''} | "
+                     f"{sum(v <= TARGET_RULES for v in o)}/{len(o)} | {100 * max(o):.2f} | "
+                     f"{sum(v <= TARGET_RULES for v in po)}/{len(po)} | {100 * max(po):.2f} | "
+                     f"{sum(v <= TARGET_XSEC for v in xs)}/{len(xs)} | {100 * max(xs):.2f} | "
+                     f"{sum(1 for r in rs if (r['self_intersections'] or 0) > 0)}/{len(rs)} | "
+                     f"{sum(r['cpu'] for r in rs):.1f} |")
+    lines += ["", "| ROI | sections | rings | setting | outside rules | outside padded rules | vs slab sum | x-sec max err | "
+              "crossings | closed | CPU s |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r["status"] != "ok":
+            lines.append(f"| {r['structure']} | {r['sections']} | {r['rings']} | {r['setting']} | {r['status']}: {r['error']} "
+                         "| | | | | | |")
+            continue
+        lines.append(f"| {r['structure']} | {r['sections']} | {r['rings']} | {r['setting']} | {_pct(r['vol_outside_rules'])} | "
+                     f"{_pct(r['vol_outside_padded_rules'])} | {_pct(r['vol_vs_slabs'])} | {_pct(r['xsec_max_err'])} | "
+                     f"{r['self_intersections']} | {'yes' if r['closed_ok'] else 'NO'} | {r['cpu']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def _csv_bytes(rows, columns=None) -> bytes:
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=COLUMNS + ["warnings"], extrasaction="ignore", lineterminator="\n")
+    w = csv.DictWriter(buf, fieldnames=columns or (COLUMNS + ["warnings"]), extrasaction="ignore", lineterminator="\n")
     w.writeheader()
     for r in rows:
         w.writerow({k: ("" if v is None else (f"{v:.6g}" if isinstance(v, float) else v)) for k, v in r.items()})
@@ -109,7 +179,8 @@ def summary_md(rows, full: bool, fine: float, seconds: float | None) -> str:
     ok = [r for r in rows if r["status"] == "ok"]
     analytic = [r for r in ok if r["kind"] == "analytic"]
     lines = ["# Clinical contour files: analytic phantoms drawn as contours", "",
-             f"Generated by `comparisons/clinical/run.py{' --full' if full else ''}` "
+             f"Generated by `comparisons/clinical/run.py{' --full' if full else ''}"
+             f"{' --contours-only' if not any(r['polygon'] in ('mlp', 'none') for r in rows) else ''}` "
              f"({len({(r['phantom'], r['dz'], r['ds']) for r in rows})} drawings, {len(rows)} rows"
              + (f", {seconds:.0f} s" if seconds else "") + "). Errors in %, relative to the analytic value "
              "(`truth = analytic`) or, for the Y, to the solid sampled on an isotropic "
@@ -121,8 +192,8 @@ def summary_md(rows, full: bool, fine: float, seconds: float | None) -> str:
              "branching phantoms' area within 2 % of surface nets.", ""]
     lines += ["## Analytic phantoms (spheres, cylinders, frusta, cone; one ring per section)", "",
               "| method | rows | median / max \\|volume err\\| | median / max \\|area err\\| | vol within 1 % | "
-              "area within 1.5 % | median / max \\|outside rules\\| | rules within 0.5 % | max \\|cross-section err\\| | "
-              "x-sec within 0.5 % |", "|---|---|---|---|---|---|---|---|---|---|"]
+              "area within 1.5 % | median / max \\|outside rules\\| | rules within 0.5 % | padded rules within 0.5 % | "
+              "max \\|cross-section err\\| | x-sec within 0.5 % |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for lab, rs in _groups(analytic):
         if not rs:
             continue
@@ -134,24 +205,38 @@ def summary_md(rows, full: bool, fine: float, seconds: float | None) -> str:
         within = lambda key, t: f"{sum(abs(r[key]) <= t for r in rs if r[key] is not None)}/{n}"
         lines.append(f"| {lab} | {n} | {mv} / {xv} | {ma} / {xa} | {within('volume_err', TARGET_VOL)} | "
                      f"{within('area_err', TARGET_AREA)} | {mo} / {xo} | {within('vol_outside_rules', TARGET_RULES)} | "
+                     f"{within('vol_outside_padded_rules', TARGET_RULES)} | "
                      + (f"{100 * max(xs):.2f} | {sum(x <= TARGET_XSEC for x in xs)}/{len(xs)} |" if xs else " | |"))
     other = [r for r in ok if r["kind"] != "analytic"]
     lines += ["", "## Branching, keyhole and nested phantoms", "",
-              "| method | rows | median / max \\|volume err\\| | median / max \\|area err\\| | median / max \\|area vs surface nets\\| "
-              "| area within 2 % of surface nets | median / max \\|outside rules\\| | max \\|cross-section err\\| |",
-              "|---|---|---|---|---|---|---|---|"]
+              f"`surface nets (solid)`: VTK surface nets of the solid itself sampled on an isotropic {fine:g} mm grid "
+              "(the branching target's reference); `surface nets (drawing)`: of the drawing's even-odd raster, "
+              f"{fine:g} mm in the plane but one slice spacing along z (its rims are rounded over a spacing).", "",
+              "| method | rows | median / max \\|volume err\\| | median / max \\|area err\\| | median / max \\|area vs surface nets (solid)\\| "
+              "| within 2 % of surface nets (solid) | median / max \\|area vs surface nets (drawing)\\| | within 2 % (drawing) "
+              "| median / max \\|outside rules\\| | rules within 0.5 % | padded rules within 0.5 % "
+              "| max \\|cross-section err\\| | x-sec within 0.5 % |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for lab, rs in _groups(other):
         if not rs:
             continue
         mv, xv = _stat(r["volume_err"] for r in rs)
         ma, xa = _stat(r["area_err"] for r in rs)
         ms, xsn = _stat(r["area_vs_surfacenets"] for r in rs)
+        ms2, xsn2 = _stat(r.get("area_vs_solid_surfacenets") for r in rs)
         mo, xo = _stat(r["vol_outside_rules"] for r in rs)
         xs = [abs(r["xsec_max_err"]) for r in rs if r["xsec_max_err"] is not None]
-        nsn = [r for r in rs if r["area_vs_surfacenets"] is not None]
-        lines.append(f"| {lab} | {len(rs)} | {mv} / {xv} | {ma} / {xa} | {ms} / {xsn} | "
-                     + (f"{sum(abs(r['area_vs_surfacenets']) <= TARGET_BRANCH for r in nsn)}/{len(nsn)}" if nsn else "")
-                     + f" | {mo} / {xo} | " + (f"{100 * max(xs):.2f} |" if xs else " |"))
+        n = len(rs)
+
+        def within(key, t):
+            have = [r for r in rs if r.get(key) is not None]
+            return f"{sum(abs(r[key]) <= t for r in have)}/{len(have)}" if have else ""
+
+        lines.append(f"| {lab} | {n} | {mv} / {xv} | {ma} / {xa} | {ms2} / {xsn2} | "
+                     f"{within('area_vs_solid_surfacenets', TARGET_BRANCH)} | {ms} / {xsn} | "
+                     f"{within('area_vs_surfacenets', TARGET_BRANCH)} | {mo} / {xo} | "
+                     f"{within('vol_outside_rules', TARGET_RULES)} | {within('vol_outside_padded_rules', TARGET_RULES)} | "
+                     + (f"{100 * max(xs):.2f} | {sum(x <= TARGET_XSEC for x in xs)}/{len(xs)} |" if xs else " | |"))
     failed = [r for r in rows if r["status"] != "ok"]
     lines += ["", "## Failures", ""]
     lines += [f"- {r['phantom']} dz={r['dz']:g} ds={r['ds']:g} {_label(r)}: {r['status']} {r['error']}" for r in failed] or ["none"]
@@ -168,13 +253,15 @@ def summary_md(rows, full: bool, fine: float, seconds: float | None) -> str:
                                             "not reported (`Mesh.checks()` has no `self_intersections` key in this version)"),
               "", "## Every row", "",
               "| phantom | dz | ds | method | route | sections | volume err | area err | vs trapezoid | vs frustum | "
-              "outside rules | x-sec max err | area vs surface nets | closed | s |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+              "outside rules | outside padded rules | x-sec max err | area vs surface nets (drawing) | "
+              "area vs surface nets (solid) | closed | s |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['phantom']} | {r['dz']:g} | {r['ds']:g} | {_label(r)} | {r['route'] or r['status']} | "
                      f"{int(r['sections'])} | {_pct(r['volume_err'])} | {_pct(r['area_err'])} | {_pct(r['vol_vs_trapezoid'])} | "
-                     f"{_pct(r['vol_vs_frustum'])} | {_pct(r['vol_outside_rules'])} | {_pct(r['xsec_max_err'])} | "
-                     f"{_pct(r['area_vs_surfacenets'])} | {'' if r['closed_ok'] is None else ('yes' if r['closed_ok'] else 'NO')} | "
+                     f"{_pct(r['vol_vs_frustum'])} | {_pct(r['vol_outside_rules'])} | {_pct(r.get('vol_outside_padded_rules'))} | "
+                     f"{_pct(r['xsec_max_err'])} | {_pct(r['area_vs_surfacenets'])} | {_pct(r.get('area_vs_solid_surfacenets'))} | "
+                     f"{'' if r['closed_ok'] is None else ('yes' if r['closed_ok'] else 'NO')} | "
                      f"{(r['seconds'] or 0):.2f} |")
     return "\n".join(lines) + "\n"
 
@@ -223,11 +310,15 @@ def plot_png(rows) -> bytes | None:
     return buf.getvalue()
 
 
-def write(rows, out: Path, full: bool, fine: float, seconds=None, *, table: bool = True):
+def write(rows, out: Path, full: bool, fine: float, seconds=None, *, table: bool = True, rt_rows=()):
     out.mkdir(parents=True, exist_ok=True)
     if table:
         atomic_write(out / "results.csv", _csv_bytes(rows))
-        atomic_write(out / "results.md", summary_md(rows, full, fine, seconds).encode())
+        if rt_rows:
+            atomic_write(out / "rt_results.csv", _csv_bytes(rt_rows, RULE_COLUMNS))
+        md = summary_md(rows, full, fine, seconds)
+        head, sep, tail = md.partition("\n## Failures")
+        atomic_write(out / "results.md", (head + rt_md(rt_rows) + sep + tail).encode())
     png = plot_png(rows)
     if png is not None:
         atomic_write(out / "errors.png", png)
@@ -239,14 +330,23 @@ def main(argv=None) -> int:
     ap.add_argument("--fine", type=float, default=0.25, help="pixel (mm) of the peers' rasterization (default 0.25)")
     ap.add_argument("--out", type=Path, default=HERE, help="output folder (default: next to this file)")
     ap.add_argument("--from-csv", action="store_true", help="only rebuild errors.png from results.csv")
+    ap.add_argument("--no-rt", action="store_true", help="skip the shared RT structure set")
+    ap.add_argument("--contours-only", action="store_true",
+                    help="only the contours route's modes (flat, half, smooth, smooth + curved bands) and the peers")
     args = ap.parse_args(argv)
     if args.from_csv:
         rows = read_csv(args.out / "results.csv")
         write(rows, args.out, args.full, args.fine, table=False)
         return 0
     t0 = time.perf_counter()
-    rows = run(args.full, args.fine)
-    write(rows, args.out, args.full, args.fine, time.perf_counter() - t0)
+    rt_rows = []
+    if not args.no_rt:
+        if rt_path().exists():
+            rt_rows = run_rt(rt_path())
+        else:
+            print(f"the shared RT structure set is not here ({rt_path()}): its section is left out", file=sys.stderr)
+    rows = run(args.full, args.fine, modes=CONTOURS_MODES if args.contours_only else MODES)
+    write(rows, args.out, args.full, args.fine, time.perf_counter() - t0, rt_rows=rt_rows)
     print(f"wrote {args.out / 'results.csv'}, results.md, errors.png ({time.perf_counter() - t0:.0f} s)")
     return 0
 

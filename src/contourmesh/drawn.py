@@ -273,8 +273,8 @@ class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
-    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, grown=None, curved=False,
-                 fills=None):
+    def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, flat=False, grown=None,
+                 curved=False, fills=None):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
         self.fills = fills or _RingFills(rings, raster)
@@ -285,8 +285,9 @@ class _DrawnPolygons:
         self.grown = grown or {}  # (section, ring) -> (box, pixels) of rings the raster was joined for
         # every band between drawn rings keeps a volume within the frustum and trapezoid rules
         self.band_guard = FaithfulBands(record=curved)
-        # caps="smooth": the ends of band-joined rings close on the profile of their last sections
-        self.end_cap = _SmoothEnds() if smooth else None
+        # caps="smooth": the ends of band-joined rings close on the profile of their last sections;
+        # caps="flat": ends inside the stack (a branch that stops) hold the trapezoid rule's share
+        self.end_cap = _SmoothEnds() if smooth else _SmoothEnds(interior_only=True) if flat else None
 
     def _box(self, ring, shape):
         return _ring_box(ring, self.raster, shape)
@@ -404,7 +405,7 @@ class _DrawnPolygons:
 
 #: Shrunk copies of the end ring in a smooth end: a dome (the section closes within a spacing) or a
 #: taper to a flat end half a spacing out.
-_DOME_RINGS = 4
+_DOME_RINGS = 8
 _TAPER_RINGS = 2
 
 
@@ -414,11 +415,13 @@ def _end_profile(areas, dists, gap):
     ``areas``: the end ring's area and those of the one or two sections joined to it, at outward
     positions ``0, -dists[0], -(dists[0] + dists[1])``.  The area is extrapolated outward (a
     quadratic through three sections, exact for a sphere, a cone or a cylinder; a line through
-    two), never above the end's own.  If it closes (falls to zero, or to a minimum below 5 % of the end's area) within one
-    spacing ``gap``, the surface closes there: ``(t, lam)`` of a dome whose rings are the end ring
+    two).  If it closes (falls to zero, or to a minimum below 5 % of the end's area; a profile that
+    grows first counts from the end's own area) within one spacing ``gap``, the surface closes there: ``(t, lam)`` of a dome whose rings are the end ring
     scaled by ``lam`` at distances ``t`` beyond it (``lam`` evenly spread on a quarter circle).
     Otherwise the object ends somewhere within the next spacing, half of it on average: a taper
-    to a flat end at ``gap / 2``.  Returns ``(t, lam, kind)``.
+    to a flat end at ``gap / 2``, its copies following the trend, growth included (a widening end,
+    as at a cone's base, flares up to ``_MAX_FLARE`` times the end's linear size).  Returns
+    ``(t, lam, kind)``.
     """
     areas = np.asarray(areas, dtype=np.float64)
     tp = -np.r_[0.0, np.cumsum(dists)]
@@ -439,9 +442,16 @@ def _end_profile(areas, dists, gap):
         tt = np.interp(lam, lam_of_t[::-1], np.r_[t[:i], t0][::-1])
         return tt, lam, "dome"
     tt = gap / 2 * np.arange(1, _TAPER_RINGS + 1) / _TAPER_RINGS
-    lam = np.sqrt(np.interp(tt, t, a) / areas[0])
+    # the trend, growth included (a cone's base, a widening end: the section goes on growing up to
+    # the flat end), within _MAX_FLARE of the end section's linear size
+    grow = np.polyval(coef, tt)
+    at = np.where(grow > areas[0], np.minimum(grow, _MAX_FLARE**2 * areas[0]), np.interp(tt, t, a))
+    lam = np.sqrt(at / areas[0])
     return tt, lam, "taper"
 
+
+#: A taper's last copy is at most this many times the end section's linear size (a widening end).
+_MAX_FLARE = 1.25
 
 #: An end section whose roundness (4 pi area / perimeter^2) is below this fraction of the previous
 #: section's is a slanted cut (a tilted tube's end): caps="smooth" moves it half a spacing along the axis.
@@ -483,12 +493,14 @@ class _SmoothEnds:
     the last two rings' centroids and joined to the next point to point, the last one closed flat.
     Holes shrink with their outer ring (about the same centre): each section of this cap is a
     scaled copy of the end section, so it does not cross itself.  An end without a band join (a
-    fork, a merge, an exact join) or one that cannot be capped is left to the mesher
-    (``caps="half"``: a prism half a spacing out).
+    fork, a merge, an exact join: no trend of its own) gets a dome of shrunk copies on a quarter
+    ellipse holding the half prism's volume (``"branch"``); one that cannot be capped is left to the
+    mesher (``caps="half"``: a prism half a spacing out).
     """
 
-    def __init__(self):
-        self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper", "cut" or "half" (the last mesh built)
+    def __init__(self, interior_only: bool = False):
+        self.interior_only = interior_only  # caps="flat": only ends inside the stack (see _InteriorEnds)
+        self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper", "cut", "branch" or "half" (the last mesh built)
         self.slopes: dict = {}  # (x, y, z) of an end ring's vertex -> d(x, y)/dz of its cap at the ring
 
     def count(self, kind) -> int:
@@ -510,20 +522,29 @@ class _SmoothEnds:
         return area, _centroid(xy), _roundness(xy)
 
     def __call__(self, M, k, c, rings, up) -> bool:
-        from .bands.caps import cap_faces
         from .geometry import slice_gap
         from .surface import _dome_centre
 
         inward = self.below if up else self.above
-        self.kinds[(k, c, up)] = "half"
-        if (k, c) not in inward:
+        interior = k < len(self.zs) - 1 if up else k > 0
+        if self.interior_only and not interior:
             return False
+        self.kinds[(k, c, up)] = "half"
         xyzs = [M.coords(r) for r in rings]
         xys, z = [q[:, :2] for q in xyzs], float(xyzs[0][0, 2])
         a0 = abs(shoelace_area(xys[0])) - sum(abs(shoelace_area(q)) for q in xys[1:])
         allxy = np.concatenate(xys)
         if a0 <= 0.0 or len(np.unique(allxy, axis=0)) != len(allxy):
             return False
+        gap = float(slice_gap(self.zs, k, up))
+        centre, _ = _dome_centre(xys[0])  # outer ring and holes shrink together: similar sections
+        if (k, c) not in inward or self.interior_only:
+            # an end whose inward join is a fork, a merge or an exact join: no trend of its own to
+            # extrapolate; a dome of shrunk copies on a quarter ellipse holding the half prism's
+            # volume (0.75 gap high: 2/3 x area x height = area x gap / 2), without its wall
+            theta = np.arange(1, _DOME_RINGS + 1) * np.pi / (2 * (_DOME_RINGS + 1))
+            return self._build(M, k, c, rings, xys, z, up, 0.75 * gap * np.sin(theta), np.cos(theta),
+                               np.zeros(2), centre, 0.0, "branch")
         areas, dists, centres, round_ = [a0], [], [_centroid(xys[0])], [_roundness(xys[0])]
         cur = (k, c)
         for _ in range(2):
@@ -540,9 +561,7 @@ class _SmoothEnds:
             cur = nxt
         if len(areas) < 2:
             return False
-        gap = float(slice_gap(self.zs, k, up))
         drift = (centres[0] - centres[1]) / dists[0]  # the centroids' line, per unit distance outward
-        centre, _ = _dome_centre(xys[0])  # outer ring and holes shrink together: similar sections
         if round_[0] < _CUT * round_[1]:
             # the end section is much less round than the one before: a flat end cut at a slant (a
             # tilted tube), not a closing dome; its copy moves along the axis half a spacing out
@@ -550,6 +569,12 @@ class _SmoothEnds:
         else:
             t, lam, kind = _end_profile(areas, dists, gap)
             rate = _end_rate(areas, dists)  # d(lam)/dt at the end ring
+        return self._build(M, k, c, rings, xys, z, up, t, lam, drift, centre, rate, kind)
+
+    def _build(self, M, k, c, rings, xys, z, up, t, lam, drift, centre, rate, kind) -> bool:
+        """The end's shrunk copies (scale ``lam[i]`` about ``centre``, moved ``drift * t[i]``) at
+        distances ``t`` beyond the end ring, joined point to point, the last one closed flat."""
+        from .bands.caps import cap_faces
 
         def placed(i):
             return [centre + lam[i] * (q - centre) + drift * t[i] for q in xys]
@@ -684,8 +709,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     quiet = _Quiet()
     attempt = 0
     while True:
-        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", grown=grown,
-                              curved=bands == "curved", fills=fills)
+        hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", flat=caps == "flat",
+                              grown=grown, curved=bands == "curved", fills=fills)
         last = attempt >= _ATTEMPTS - 1 or avoid == everything
         if not last:
             log.addFilter(quiet)
@@ -731,5 +756,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     if caps == "smooth":
         e = hook.end_cap
         meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
-                    smooth_cut_ends=e.count("cut"), smooth_half_prisms=e.count("half"))
+                    smooth_cut_ends=e.count("cut"), smooth_branch_domes=e.count("branch"),
+                    smooth_half_prisms=e.count("half"))
+    elif caps == "flat":
+        meta.update(interior_end_domes=hook.end_cap.count("branch"))
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)

@@ -310,7 +310,7 @@ MIN_RING_AREA = 1e-3
 
 
 def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None = None,
-         min_points: int = 8) -> ContourStack:
+         min_points: int = 8, offset: float | None = None) -> ContourStack:
     """Slice a phantom by the planes ``z = z0 + k dz`` and draw each section's boundary.
 
     Parameters
@@ -325,6 +325,10 @@ def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None
         ring's start point.
     grid : float, optional
         The raster step used to find the sections (default ``min(0.25, ds)``).
+    offset : float, optional
+        The first plane's height above the solid's lowest point ``lo[2]``, as a fraction of ``dz``
+        (in ``[0, 1)``); default: drawn from the seed (uniform), so a flat end lies anywhere within
+        one spacing beyond its last section, as when a planner contours a real object.
 
     Returns
     -------
@@ -338,7 +342,12 @@ def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None
     rng = np.random.default_rng(seed)
     g = float(grid) if grid is not None else min(0.25, ds)
     lo, hi = ph.lo, ph.hi
-    z0 = lo[2] + rng.uniform(0.0, dz)
+    u = rng.uniform(0.0, dz)
+    if offset is not None:
+        if not 0.0 <= offset < 1.0:
+            raise ValueError(f"offset is a fraction of dz in [0, 1); got {offset}")
+        u = offset * dz
+    z0 = lo[2] + u
     zs = np.arange(z0, hi[2], dz)
     slices = []
     for z in zs:
