@@ -92,6 +92,7 @@ _EXP_LEN = 256
 _TERMS = 1 + 2 * _EXP_LEN
 _EPS53 = 2.0 ** -53
 _KEY_BITS = 21  # cell coordinates per axis below 2^21
+_SLAB_BUDGET = 256  # box tests per face in the slab sweeps before the grid takes over
 
 
 # ------------------------------------------------------------------------------------------------
@@ -1470,8 +1471,10 @@ def _pairs(V, F, canon, budget, method):
     ok = 0
     if method != "grid":
         levels, lev = np.unique(V[:, 2], return_inverse=True)
+        # a box test is cheap next to the grid's cost per face: on the liver's whole mesh a budget
+        # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
         pi, pj, ok = _slab_pairs(V, ws, Fc, lev.astype(np.int64).reshape(-1), np.int64(len(levels)),
-                                 np.int64(64))
+                                 np.int64(_SLAB_BUDGET))
         if ok == 0 and method == "slabs":
             raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
                              "than four slabs between consecutive vertex heights per face on average")
