@@ -115,6 +115,9 @@ def test_bridged_join_whose_band_crosses_takes_another_strategy(monkeypatch):
                                       placement="per-repeat") if i.repeat == 1)
     vol, sp, org = inp.volume()
     out = {}
+    from contourmesh import sections
+
+    monkeypatch.setattr(sections, "MAX_DEPTH", 0)  # (intermediate sections would rescue the join too)
     for key, alts in (("with", volumes._BRIDGED_ALTERNATIVES), ("without", ())):
         monkeypatch.setattr(volumes, "_BRIDGED_ALTERNATIVES", alts)
         m = contourmesh.mesh(vol, spacing=sp, origin=org, refine="band")

@@ -403,11 +403,18 @@ def test_polyline_keyhole_where_no_straight_keyhole_keeps_clear(monkeypatch, kw)
         assert np.isclose(np.hypot(*(m.vertices[:, :2] - p).T), 0, atol=1e-2).any()
         i, j = np.rint(p).astype(int)
         assert v[2, j, i] and not v[3, j, i]
-    # only straight keyholes: none keeps clear, and the join is exact (voxel walls)
+    # only straight keyholes: none keeps clear, and an intermediate section splits the join
+    # (contourmesh.sections); without sections too, the join is exact (voxel walls)
+    from contourmesh import sections
+
     monkeypatch.setattr(bridges, "keyhole_path", lambda *a, **k: None)
     m2 = volume_to_mesh(v, **kw)
-    check_topology(v, m2)
-    assert m2.meta["exact_joins"] == 1 and m2.meta["bridged_joins"] == 0
+    check_embedded(v, m2)
+    assert m2.meta["exact_joins"] == 0 and m2.meta["intermediate_sections"] >= 1
+    monkeypatch.setattr(sections, "MAX_DEPTH", 0)
+    m3 = volume_to_mesh(v, **kw)
+    check_topology(v, m3)
+    assert m3.meta["exact_joins"] == 1 and m3.meta["bridged_joins"] == 0
 
 
 def test_bridged_ring_walks_a_polyline_bridge_out_and_back():

@@ -224,7 +224,7 @@ def mesh(source, **options) -> Mesh:
 def diagnose(m: Mesh) -> Mesh:
     """The mesh with its diagnostics in ``meta``: ``axis_wall_fraction``, the share of the area on
     faces facing exactly +-x or +-y (voxel-like walls; see :func:`contourmesh.measure.axis_wall_fraction`).
-    The volume mesher's counts (``exact_joins``, ``polygon_fallbacks``, ``crack_rings``,
+    The volume mesher's counts (``exact_joins``, ``intermediate_sections``, ``polygon_fallbacks``, ``crack_rings``,
     ``band_fallbacks``) are already there.  Every entry point's result goes through it."""
     return _with_meta(m, axis_wall_fraction=axis_wall_fraction(m.vertices, m.faces))
 

@@ -102,7 +102,8 @@ def _mesh_summary(m) -> dict:
                 "self_intersections", "closed", "ok"):
         if key in chk:
             summary[key] = chk[key]
-    for key in ("axis_wall_fraction", "exact_joins", "bridged_joins", "bridges", "band_joins", "polygon_fallbacks", "crack_rings",
+    for key in ("axis_wall_fraction", "exact_joins", "bridged_joins", "bridges", "intermediate_sections", "band_joins",
+                "polygon_fallbacks", "crack_rings",
                 "band_fallbacks", "pixel", "space"):
         if key in m.meta:  # where the mesh came from: the diagnostics of its route
             summary[key] = m.meta[key]

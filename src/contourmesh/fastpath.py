@@ -1147,9 +1147,10 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     F = np.concatenate(face_blocks) if face_blocks else np.zeros((0, 3), np.int64)
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": "mlp", "triangulation": "wiederhold",
-        "caps": caps, "band_joins": band_joins, "bridged_joins": 0, "bridges": 0, "exact_joins": 0,
+        "caps": caps, "band_joins": band_joins, "bridged_joins": 0, "bridges": 0, "intermediate_sections": 0,
+        "exact_joins": 0,
         "polygon_fallbacks": fallbacks,
-        "crack_rings": 0, "band_fallbacks": band_fallbacks,
+        "crack_rings": 0, "band_fallbacks": band_fallbacks, "pixel_caps": 0,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)", "fast_path": True,
     }
     return Mesh(V, F, P=len(V), meta=meta)

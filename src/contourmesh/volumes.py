@@ -485,7 +485,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
-                               has_above, has_below, bridge_cache, band_guard=getattr(polygons, "band_guard", None))
+                               has_above, has_below, bridge_cache, band_guard=getattr(polygons, "band_guard", None),
+                               polygon=polygon)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), getattr(polygons, "end_cap", None),
@@ -505,11 +506,12 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         fallback_caps += n_c
         log.debug("volume mesher: %d crossing pairs left; %d joins and %d caps fall back to crack rings",
                   len(left), n_j, n_c)
-    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps = counts
+    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections = counts
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
         "caps": caps, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
+        "intermediate_sections": n_sections,
         "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
         "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks, "pixel_caps": pixel_caps,
         "crossing_fallbacks": fallback_joins + fallback_caps,
@@ -581,7 +583,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
     (faces the manifold repair made); ``counts = (exact, band, bridged joins, bridges, twisted
-    bands replaced)``.
+    bands replaced, intermediate sections)``.
 
     Each join and each cap is made on its own, in local vertex numbers (a :class:`_Unit`), and the
     units are then numbered in order (:func:`_number_units`): the same vertices and faces, in the
@@ -700,7 +702,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         return u
 
     units, tags = [], []
-    exact_joins = band_joins = bridged_joins = n_bridges = 0
+    exact_joins = band_joins = bridged_joins = n_bridges = n_sections = 0
     for idx, (k, kind, data) in enumerate(joins):
         key, make = join_unit(idx)
         units.append(unit(("join", idx), key, make))
@@ -710,6 +712,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         elif kind == "bridge":
             bridged_joins += 1
             n_bridges += key[1].bridges
+            n_sections += key[1].sections
         else:
             exact_joins += 1
     first = len(joins)
@@ -735,7 +738,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     V, F = _compact(V, F)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
-    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps)
+    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps,
+                              n_sections)
 
 
 class _Unit:
@@ -1114,12 +1118,13 @@ class _Bridged:
     """One bridged join, built in local vertex numbers: ``V[:n_ring]`` are the rings' vertices
     (``rings``: ``((k, comp, hole), offset)``), the rest new vertices (lid collars)."""
 
-    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments", "polyline")
+    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments", "polyline", "sections")
 
     def __init__(self, V, F, rings, n_ring, replaced, bridges, segments, polyline=False):
         self.V, self.F, self.rings, self.n_ring = V, F, rings, n_ring
         self.replaced, self.bridges, self.segments = replaced, bridges, segments
         self.polyline = polyline  # a keyhole of the join is a polyline
+        self.sections = 0  # intermediate sections in the gap (contourmesh.sections)
 
 
 #: Band strategies tried, in order, on a bridged join whose band crosses itself.
@@ -1299,7 +1304,7 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
 
 
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
-                   band_guard=None):
+                   band_guard=None, polygon="mlp"):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
     (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``.
 
@@ -1309,10 +1314,15 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     that plane (they decide its rings and the edges near its bridges, which lie in that box) and
     which of its lids are lidded from both sides.  A rebuild after a crossing
     fallback then builds only the joins whose planes or lids changed.  ``band_guard``: see
-    :func:`_bridge_join`."""
+    :func:`_bridge_join`.
+
+    A join that cannot be bridged whole gets intermediate sections in its gap
+    (:func:`contourmesh.sections.sectioned_join`, with ``polygon`` the sections' polygon method)
+    before it becomes exact; not on the contours route (``band_guard`` given)."""
     from collections import defaultdict
 
     from .bands.bridges import segments_cross
+    from .sections import sectioned_join
 
     by_slice = defaultdict(set)
     for kk, c in crack_only:
@@ -1442,6 +1452,13 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 if got is not None and got.polyline and float(triangle_areas(got.V, got.F).sum()) > \
                         _POLYLINE_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
                     cache[key] = None
+                if cache[key] is None and band_guard is None:
+                    # split the gap by intermediate sections; held to the same area limit
+                    got = sectioned_join(k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
+                                         polygon, grid)
+                    if got is not None and float(triangle_areas(got.V, got.F).sum()) <= \
+                            _POLYLINE_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
+                        cache[key] = got
             b = cache[key]
             if b is not None:
                 for plane, p, q in b.segments:

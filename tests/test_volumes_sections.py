@@ -1,0 +1,72 @@
+"""Intermediate sections (issue 14): a branching join that cannot be bridged whole is split in its gap
+by the zero level of the interpolated signed distance of the two slices (contourmesh.sections)."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from contourmesh import sections
+from contourmesh.volumes import volume_to_mesh
+from test_volumes import check_embedded
+
+
+def _blobs(seed=8, shape=(5, 14, 14)):
+    """Smoothed noise: forks, merges and holes in most slice pairs, some whose bridged join crosses itself."""
+    rng = np.random.default_rng(seed)
+    return ndimage.gaussian_filter(rng.random(shape), 1.0) > 0.5 + 0.04 * rng.standard_normal()
+
+
+def test_mid_section_lies_between_the_two_regions():
+    yy, xx = np.mgrid[:41, :41]
+    r2 = (yy - 20) ** 2 + (xx - 20) ** 2
+    small, large = r2 < 6 ** 2, r2 < 14 ** 2
+    m = sections.mid_section(small, large)
+    assert (m >= (small & large)).all() and not (m & ~(small | large)).any()
+    # a disc of radius about 10: the mean of the two radii
+    assert abs(np.sqrt(m.sum() / np.pi) - 10) < 0.75
+    # it is symmetric in the two regions, and a region with itself is itself
+    assert (sections.mid_section(large, small) == m).all()
+    assert (sections.mid_section(small, small) == small).all()
+    # anisotropic pixels: distances in physical units (an ellipse of pixels is a physical disc)
+    yy, xx = np.mgrid[:41, :81]
+    e2 = (yy - 20) ** 2 + ((xx - 40) / 2) ** 2
+    me = sections.mid_section(e2 < 36, e2 < 196, sampling=(1.0, 0.5))
+    assert abs(np.sqrt(me.sum() / 2 / np.pi) - 10) < 0.75
+
+
+def test_stack_invariants_see_a_tube_closed_by_a_section():
+    ring = np.zeros((9, 9), bool)
+    ring[1:8, 1:8] = True
+    ring[3:6, 3:6] = False
+    disc = np.zeros((9, 9), bool)
+    disc[1:8, 1:8] = True
+    two = sections.stack_invariants([ring, ring])
+    assert two == (1, 1, 0)  # one solid torus: chi 0
+    assert sections.stack_invariants([ring, disc, ring]) != two  # the section closes the tube
+    assert sections.stack_invariants([ring, ring, ring]) == two
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(refine="band"), dict(caps="half"),
+                                dict(polygon="dss", triangulation="optimal")])
+def test_sections_replace_exact_joins_and_keep_the_voxel_topology(kw):
+    vol = _blobs()
+    m = volume_to_mesh(vol, **kw)
+    check_embedded(vol, m)
+    # (with DSS polygons every join of this volume is bridged whole)
+    assert m.meta["intermediate_sections"] >= (0 if kw.get("polygon") == "dss" else 1)
+
+
+def test_sections_are_the_last_step_before_the_exact_join(monkeypatch):
+    vol = _blobs()
+    with_sections = volume_to_mesh(vol)
+    monkeypatch.setattr(sections, "MAX_DEPTH", 0)  # no section: those joins become exact
+    without = volume_to_mesh(vol)
+    check_embedded(vol, without)
+    assert without.meta["intermediate_sections"] == 0
+    assert with_sections.meta["exact_joins"] < without.meta["exact_joins"]
+    assert with_sections.meta["crack_rings"] < without.meta["crack_rings"]
+    # the staircase goes: less area than with the voxel-exact joins
+    assert with_sections.area < without.area
+    # the sections' vertices lie between the slices, off the pixel corners' mid-planes only where made
+    z = with_sections.vertices[:, 2]
+    assert (np.abs(z - np.rint(z)) > 1e-6).any()
