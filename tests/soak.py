@@ -465,7 +465,7 @@ def invariance_tolerance(polygon, triangulation, name, bridged: bool = False) ->
 #: mirrored one (a band's start point and a tie in the optimal band move with the orientation).
 #: Each choice gives a valid mesh, but their areas differ by what a voxel-exact join or a pixel cap
 #: adds, up to 3x on the soak's smallest lines and sheets.
-CHOICES = ("route", "exact_joins", "crack_rings", "polygon_fallbacks", "pixel_caps", "crossing_fallbacks",
+CHOICES = ("route", "fast_path", "exact_joins", "crack_rings", "polygon_fallbacks", "pixel_caps", "crossing_fallbacks",
            "bridged_joins")
 
 
