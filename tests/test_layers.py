@@ -16,7 +16,7 @@ LAYERS = {
     0: ["errors", "_optional", "_files", "geometry", "measure", "meshes", "types", "intersect"],
     1: ["shapes", "tracing", "polygons", "bands", "digitize", "rasterize", "repair", "stacks", "volume_input",
         "voxelize", "datasets", "cells"],
-    2: ["surface", "fastpath", "volumes", "refine", "drawn"],
+    2: ["surface", "fastpath", "volumes", "sections", "refine", "drawn"],
     3: ["io", "api", "trimesh_plugin", "scale", "seams"],
     4: ["compare", "cli", "__main__", ""],
 }

@@ -79,11 +79,10 @@ class _Layer:
         return self._edges()
 
 
-def _section_layer(S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
+def _section_layer(ops, S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
     """The intermediate section between components ``ga`` of ``S_lo`` and ``gb`` of ``S_hi``
     (inside ``box``, a pair of slices), as a :class:`_Layer` of a new :class:`_Slice`."""
     from .geometry import grid_to_xy
-    from .volumes import _Slice
 
     ra = np.isin(S_lo.labels[box], np.asarray(ga) + 1)
     rb = np.isin(S_hi.labels[box], np.asarray(gb) + 1)
@@ -94,7 +93,7 @@ def _section_layer(S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
     full[box] = m
     ox, oy, dx, dy = grid
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
-    S = _Slice(full, polygon, to_corner, to_center)
+    S = ops.Slice(full, polygon, to_corner, to_center)
 
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]
@@ -131,14 +130,18 @@ def _groups(P: _Layer, Q: _Layer):
     return [(sorted(a), sorted(b)) for a, b in groups.values()], lone_p, lone_q
 
 
-def sectioned_join(k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid):
+def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid):
     """Join components ``ga`` of slice ``k`` and ``gb`` of slice ``k + 1`` through intermediate
     sections (see the module docstring).  Returns a :class:`contourmesh.volumes._Bridged` (its
     ``sections`` counts the sections made) or None where no sectioning keeps every rule.
 
-    ``poly(kk, c, h)`` and ``edges_of(kk)`` are the mesher's polygons and every edge of a slice (as
-    for :func:`contourmesh.volumes._bridge_join`); ``double`` the ``(k, c, h)`` of holes lidded from
-    both sides; ``grid = (ox, oy, dx, dy)``; ``polygon`` the polygon method for the sections."""
+    ``ops`` holds the volume mesher's own pieces that a section join is built from (``Slice``,
+    ``simple_join``, ``bridge_plan``, ``bridge_join``, ``band_faces``, ``Bridged``): the mesher
+    passes them in (:func:`contourmesh.volumes._section_ops`), so that this module does not import
+    the mesher that imports it.  ``poly(kk, c, h)`` and ``edges_of(kk)`` are the mesher's polygons
+    and every edge of a slice (as for :func:`contourmesh.volumes._bridge_join`); ``double`` the
+    ``(k, c, h)`` of holes lidded from both sides; ``grid = (ox, oy, dx, dy)``; ``polygon`` the
+    polygon method for the sections."""
     A, B = slices[k], slices[k + 1]
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     ny, nx = A.labels.shape
@@ -162,12 +165,12 @@ def sectioned_join(k, ga, gb, slices, zs, poly, edges_of, double, caps, triangul
 
     def split(P, Q, depth, first):
         """The layers strictly between P and Q and the pieces joining them, or None."""
-        pieces = None if first else _pieces(P, Q, caps, triangulation, grid)
+        pieces = None if first else _pieces(ops, P, Q, caps, triangulation, grid)
         if pieces is not None:
             return [], pieces
         if depth == 0:
             return None
-        M, m = _section_layer(P.S, P.comps, Q.S, Q.comps, box, 0.5 * (P.z + Q.z), polygon, grid, sampling)
+        M, m = _section_layer(ops, P.S, P.comps, Q.S, Q.comps, box, 0.5 * (P.z + Q.z), polygon, grid, sampling)
         if M is None:
             return None
         masks[id(M)] = m
@@ -187,14 +190,14 @@ def sectioned_join(k, ga, gb, slices, zs, poly, edges_of, double, caps, triangul
     if stack_invariants([mask_of(lo), mask_of(hi)]) != \
             stack_invariants([mask_of(L) for L in [lo] + layers + [hi]]):
         return None
-    return _assemble_pieces(pieces, layers, triangulation)
+    return _assemble_pieces(ops, pieces, layers, triangulation)
 
 
-def _pieces(P: _Layer, Q: _Layer, caps, triangulation, grid):
+def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
     """The joins between two adjacent layers, each ``("band", P, Q, a, b, matched)``, ``("bridged",
     P, Q, built)`` or ``("cap", layer, c, upward)``; None where some group is neither a band join
     nor a bridged join that builds, or where a slice's component would have no partner."""
-    from .volumes import _bridge_join, _bridge_plan, _simple_join
+    _bridge_join, _bridge_plan, _simple_join = ops.bridge_join, ops.bridge_plan, ops.simple_join
 
     groups, lone_p, lone_q = _groups(P, Q)
     if (P.main is not None and lone_p) or (Q.main is not None and lone_q):
@@ -251,14 +254,14 @@ def _uncovered(lab, comps, grid):
     return ok
 
 
-def _assemble_pieces(pieces, layers, triangulation):
+def _assemble_pieces(ops, pieces, layers, triangulation):
     """One :class:`contourmesh.volumes._Bridged` of all pieces: the slices' rings first (in order of
     first use), then the sections' rings and the pieces' own vertices; None where the result is
     not a valid piece of mesh."""
     from .bands.bridges import segments_cross
     from .bands.caps import cap_faces
     from .intersect import intersecting_pairs
-    from .volumes import _band_faces, _Bridged
+    _band_faces, _Bridged = ops.band_faces, ops.Bridged
 
     used = []  # ring keys (layer, c, h) in order of first use
     seen = set()

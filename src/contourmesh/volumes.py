@@ -1454,7 +1454,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     cache[key] = None
                 if cache[key] is None and band_guard is None:
                     # split the gap by intermediate sections; held to the same area limit
-                    got = sectioned_join(k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
+                    got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
                                          polygon, grid)
                     if got is not None and float(triangle_areas(got.V, got.F).sum()) <= \
                             _POLYLINE_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
@@ -1481,3 +1481,12 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             out[k, tuple(ga), tuple(gb)] = b
         if not restart:
             return out
+
+
+def _section_ops():
+    """The pieces :func:`contourmesh.sections.sectioned_join` builds a sectioned join from (passed
+    in, so that ``sections`` does not import this module back)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(Slice=_Slice, simple_join=_simple_join, bridge_plan=_bridge_plan,
+                           bridge_join=_bridge_join, band_faces=_band_faces, Bridged=_Bridged)
