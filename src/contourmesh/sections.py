@@ -197,6 +197,8 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
     """The joins between two adjacent layers, each ``("band", P, Q, a, b, matched)``, ``("bridged",
     P, Q, built)`` or ``("cap", layer, c, upward)``; None where some group is neither a band join
     nor a bridged join that builds, or where a slice's component would have no partner."""
+    from .bands.bridges import keyhole_uncovered
+
     _bridge_join, _bridge_plan, _simple_join = ops.bridge_join, ops.bridge_plan, ops.simple_join
 
     groups, lone_p, lone_q = _groups(P, Q)
@@ -214,7 +216,7 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
         return pair[kk].edges()
 
     def uncovered(other, comps):
-        return _uncovered(pair[other].S.labels, comps, grid)
+        return keyhole_uncovered(pair[other].S.labels, comps, grid)
 
     dbl = {(0, c, h) for c, h in P.double} | {(1, c, h) for c, h in Q.double}
     for gp, gq in groups:
@@ -234,24 +236,6 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
             return None
         out.append(("bridged", P, Q, b, plan))
     return out
-
-
-def _uncovered(lab, comps, grid):
-    """The test that a straight keyhole ``p q`` runs where ``lab`` has none of ``comps`` (as the
-    mesher's, :func:`contourmesh.volumes._build_bridges`)."""
-    ox, oy, dx, dy = grid
-    ids = np.asarray(comps) + 1
-
-    def ok(p, q):
-        steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
-        t = np.arange(1, steps)[:, None] / steps
-        pt = p + t * (q - p)
-        i = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64)
-        j = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64)
-        inside = (i >= 0) & (i < lab.shape[1]) & (j >= 0) & (j < lab.shape[0])
-        return not np.isin(lab[j[inside], i[inside]], ids).any()
-
-    return ok
 
 
 def _assemble_pieces(ops, pieces, layers, triangulation):

@@ -1321,7 +1321,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     before it becomes exact; not on the contours route (``band_guard`` given)."""
     from collections import defaultdict
 
-    from .bands.bridges import segments_cross
+    from .bands.bridges import keyhole_uncovered, segments_cross
     from .sections import sectioned_join
 
     by_slice = defaultdict(set)
@@ -1361,21 +1361,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     def uncovered(other, comps):
         """A keyhole must run where the other slice does not cover its component: there the
         material ends between the slices and the band may come down to the keyhole."""
-        lab = slices[other].labels
-        ids = np.asarray(comps) + 1
-
-        def ok(p, q):
-            steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
-            t = np.arange(1, steps)[:, None] / steps
-            pt = p + t * (q - p)
-            # the nearest pixel, halves rounded up (np.rint rounds them to even, which made the answer
-            # depend on where the object sits in its array); beyond the array lies background
-            i = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64)
-            j = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64)
-            inside = (i >= 0) & (i < lab.shape[1]) & (j >= 0) & (j < lab.shape[0])
-            return not np.isin(lab[j[inside], i[inside]], ids).any()
-
-        return ok
+        return keyhole_uncovered(slices[other].labels, comps, (ox, oy, dx, dy))
 
     def waypoints(plane, other, comps):
         """Polyline keyholes pass through the pixel centres near their component (its pixels and

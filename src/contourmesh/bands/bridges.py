@@ -24,10 +24,33 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bridge_tree", "bridged_ring", "keyhole_path", "segments_cross"]
+__all__ = ["bridge_tree", "bridged_ring", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
 #: Candidate vertex pairs tried per pair of contours (nearest first).
 CANDIDATES = 12
+
+
+def keyhole_uncovered(lab, comps, grid):
+    """The test ``ok(p, q)`` that a straight keyhole from ``p`` to ``q`` runs where the label image
+    ``lab`` (of the other slice) has none of the components ``comps`` (0-based): there the material
+    ends between the slices and a band may come down to the keyhole.  ``grid = (ox, oy, dx, dy)``
+    maps pixel ``(i, j)`` to its centre ``(ox + i dx, oy + j dy)``; the segment is sampled 8 times
+    per pixel."""
+    ox, oy, dx, dy = grid
+    ids = np.asarray(comps) + 1
+
+    def ok(p, q):
+        steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
+        t = np.arange(1, steps)[:, None] / steps
+        pt = p + t * (q - p)
+        # the nearest pixel, halves rounded up (np.rint rounds them to even, which made the answer
+        # depend on where the object sits in its array); beyond the array lies background
+        i = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64)
+        j = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64)
+        inside = (i >= 0) & (i < lab.shape[1]) & (j >= 0) & (j < lab.shape[0])
+        return not np.isin(lab[j[inside], i[inside]], ids).any()
+
+    return ok
 
 
 def _orient(ax, ay, bx, by, cx, cy):
