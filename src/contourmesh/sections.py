@@ -108,26 +108,14 @@ def _section_layer(ops, S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
 def _groups(P: _Layer, Q: _Layer):
     """The overlap groups of two layers' components (as the mesher's pass 2), and the components
     of each layer that overlap nothing on the other."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from .tracing import overlap_groups
 
     la = np.where(np.isin(P.S.labels, np.asarray(P.comps) + 1), P.S.labels, 0)
     lb = np.where(np.isin(Q.S.labels, np.asarray(Q.comps) + 1), Q.S.labels, 0)
-    both = (la > 0) & (lb > 0)
-    nbk = np.int64(Q.S.n + 1)
-    keys = np.unique(la[both].astype(np.int64) * nbk + lb[both])
-    pairs = np.c_[keys // nbk, keys % nbk] - 1
-    na = P.S.n
-    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], na + pairs[:, 1])), shape=(na + Q.S.n, na + Q.S.n))
-    _, glab = connected_components(g, directed=False)
-    groups: dict = {}
-    for a, b in pairs:
-        ga_, gb_ = groups.setdefault(int(glab[a]), (set(), set()))
-        ga_.add(int(a))
-        gb_.add(int(b))
+    pairs, groups = overlap_groups(la, lb, P.S.n, Q.S.n)
     lone_p = sorted(set(P.comps) - set(int(a) for a in pairs[:, 0]))
     lone_q = sorted(set(Q.comps) - set(int(b) for b in pairs[:, 1]))
-    return [(sorted(a), sorted(b)) for a, b in groups.values()], lone_p, lone_q
+    return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
 
 
 def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid):

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["trace_contours", "rotate_start", "check_contour4"]
+__all__ = ["trace_contours", "rotate_start", "check_contour4", "overlap_groups"]
 
 # Directions of a unit step, counter-clockwise with y up: 0 = +x, 1 = +y, 2 = -x, 3 = -y.
 _DX = np.array([1, 0, -1, 0], dtype=np.int64)
@@ -282,3 +282,26 @@ def _crack_contours(cells: np.ndarray):
     padded[1:-1, 1:-1] = cells
     pts, starts, area2, _ = _follow_boundaries(padded)
     return [pts[starts[i]: starts[i + 1]] - 1 for i in range(len(area2))], area2
+
+
+def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
+    """The overlap groups of two slices' components: ``la``, ``lb`` are their label images (0 the
+    background, component ``c`` labelled ``c + 1``; ``na``, ``nb`` components).  Two components
+    overlap where both labels are set; a group is a connected set of overlaps.  Returns ``(pairs,
+    groups)``: the overlapping ``(a, b)`` pairs (0-based, sorted) and the groups as ``(set of a,
+    set of b)`` in the order of their first pair."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    both = (la > 0) & (lb > 0)
+    nbk = np.int64(nb + 1)  # (a, b) label pairs as one sortable key: same order as unique rows
+    keys = np.unique(la[both].astype(np.int64) * nbk + lb[both])
+    pairs = np.c_[keys // nbk, keys % nbk] - 1
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], na + pairs[:, 1])), shape=(na + nb, na + nb))
+    _, glab = connected_components(g, directed=False)
+    groups: dict = {}
+    for a, b in pairs:
+        ga_, gb_ = groups.setdefault(int(glab[a]), (set(), set()))
+        ga_.add(int(a))
+        gb_.add(int(b))
+    return pairs, list(groups.values())

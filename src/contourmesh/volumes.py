@@ -86,7 +86,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours
+from .tracing import _crack_contours, overlap_groups
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -413,8 +413,6 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                   threshold=threshold, origin=origin)
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from tqdm.auto import tqdm
 
     nz = mask.shape[0]
@@ -439,18 +437,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         both = (A.labels > 0) & (B.labels > 0)
         if not both.any():
             continue
-        nbk = np.int64(B.n + 1)  # (a, b) label pairs as one sortable key: same order as unique rows
-        keys = np.unique(A.labels[both].astype(np.int64) * nbk + B.labels[both])
-        pairs = np.c_[keys // nbk, keys % nbk] - 1
-        na = A.n
-        g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], na + pairs[:, 1])), shape=(na + B.n, na + B.n))
-        _, glab = connected_components(g, directed=False)
-        groups: dict = {}
-        for a, b in pairs:
-            ga_, gb_ = groups.setdefault(int(glab[a]), (set(), set()))
-            ga_.add(int(a))
-            gb_.add(int(b))
-        for ga, gb in groups.values():
+        _, groups = overlap_groups(A.labels, B.labels, A.n, B.n)
+        for ga, gb in groups:
             has_above.update((k, a) for a in ga)
             has_below.update((k + 1, b) for b in gb)
             matched = None
