@@ -293,13 +293,20 @@ def _refined_raster(stack: ContourStack, pixel, *, polygon, triangulation, caps,
     slice's digital band, so it needs a digital object; that is the rings' even-odd raster at
     ``pixel`` (as on the raster route), meshed by the volume mesher with its polygons refined."""
     _volume_caps(caps, "drawn rings with refine= are refined on their raster by the volume mesher")
+    log.debug("refined raster route: the drawn rings rasterized, refined by the volume mesher")
+    return _raster_route(stack, pixel, polygon=polygon, triangulation=triangulation or "optimal", caps=caps,
+                         refine=refine, progress=progress)
+
+
+def _raster_route(stack: ContourStack, pixel, *, polygon, triangulation, caps, refine=None, progress=False) -> Mesh:
+    """The stack's even-odd raster at ``pixel``, meshed by the volume mesher (route ``"raster"``, or
+    ``"raster-refined"`` with ``refine``)."""
     r = rasterize_stack(stack, pixel)
-    log.debug("refined raster route: the drawn rings rasterized at %s, refined by the volume mesher", r.spacing[0])
-    m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation or "optimal",
-                       caps=caps, refine=refine, progress=progress)
+    m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation, caps=caps,
+                       refine=refine, progress=progress)
     meta = dict(m.meta)
-    meta.update(stack.meta)
-    meta.update(route="raster-refined", pixel=r.spacing[0])
+    meta.update(stack.meta)  # the stack's source, roi and units win over the volume mesher's
+    meta.update(route="raster" if refine is None else "raster-refined", pixel=r.spacing[0])
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
@@ -463,14 +470,8 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
         if fallback is not None:
             m = _with_meta(m, stack_route_error=fallback)
         return m
-    polygon = polygon or "mlp"
-    r = rasterize_stack(stack, pixel)
-    m = volume_to_mesh(r.volume, **r.mesh_kwargs, polygon=polygon, triangulation=triangulation, caps=caps,
-                       progress=progress)
-    meta = dict(m.meta)
-    meta.update(stack.meta)  # the stack's source, roi and units win over the volume mesher's
-    meta.update(route="raster", pixel=r.spacing[0])
-    return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
+    return _raster_route(stack, pixel, polygon=polygon or "mlp", triangulation=triangulation, caps=caps,
+                         progress=progress)
 
 
 def _stack_route_failed(stack: ContourStack, exc: Exception) -> str:
