@@ -162,6 +162,14 @@ repeats = 1
 """
 
 
+#: ``python -m contourmesh`` as a terminal starts it.  A process started in the background by a
+#: non-interactive shell (``cmd &``; nohup; some CI runners) inherits SIGINT *ignored*, Python then
+#: installs no KeyboardInterrupt handler, and Ctrl-C to the group would not reach the run at all:
+#: that, not the run, was this test's rare "hang" when the suite itself had been started so.
+AS_FROM_A_TERMINAL = ("import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+                      "sys.argv = ['contourmesh'] + sys.argv[1:]; runpy.run_module('contourmesh', run_name='__main__')")
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("how", ["SIGTERM", "SIGINT"])
 def test_stopping_compare_ends_its_workers_and_keeps_whole_rows(tmp_path, how):
@@ -169,7 +177,7 @@ def test_stopping_compare_ends_its_workers_and_keeps_whole_rows(tmp_path, how):
     spec = tmp_path / "stop.toml"
     spec.write_text(STOP_SPEC)
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "contourmesh", "compare", str(spec), "--jobs", "2", "--out", str(out),
+    proc = subprocess.Popen([sys.executable, "-c", AS_FROM_A_TERMINAL, "compare", str(spec), "--jobs", "2", "--out", str(out),
                              "--quiet"], cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             start_new_session=True)
     try:
@@ -199,3 +207,73 @@ def test_stopping_compare_ends_its_workers_and_keeps_whole_rows(tmp_path, how):
     rows = [json.loads((cache / name).read_text()) for name in files]
     assert all(r["status"] == "ok" and r["method"] == "ml-spoisson-d8" and r["area"] > 0 for r in rows)
     assert len(rows) < 16  # it was stopped, not finished
+
+
+def _interrupt_from_another_thread(after=0.3, give_up=20.0):
+    """SIGINT handed by the kernel to a thread other than the main one (as it may be in a run with
+    executor and tqdm threads); returns the thread and an event set when the waiter was released
+    by the fallback instead (the bug: the main thread slept on until then)."""
+    import threading
+
+    fallback = threading.Event()
+    # as in a terminal, whatever started this test (a background job inherits SIGINT ignored)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    def poke():
+        time.sleep(after)
+        signal.pthread_kill(threading.get_ident(), signal.SIGINT)
+
+    threading.Thread(target=poke, daemon=True).start()
+    return fallback, give_up
+
+
+@pytest.fixture
+def sigint_restored():
+    old = signal.getsignal(signal.SIGINT)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_waiting_for_pool_rows_answers_ctrl_c_delivered_to_another_thread(sigint_restored):
+    # the rare CI hang: Ctrl-C reached an executor thread and the main thread, blocked in
+    # as_completed, slept on until a row finished (minutes with slow rows)
+    import threading
+    from concurrent.futures import Future
+
+    fut = Future()  # a row that does not finish before the fallback below
+    fallback, give_up = _interrupt_from_another_thread()
+
+    def release():
+        if not fallback.wait(give_up):
+            fallback.set()
+            fut.set_result({})
+
+    threading.Thread(target=release, daemon=True).start()
+    with pytest.raises(KeyboardInterrupt):
+        list(runner._completed({fut: None}))
+    assert not fallback.is_set(), "the main thread woke only when the row finished"
+    fallback.set()
+
+
+def test_reading_a_row_process_answers_ctrl_c_delivered_to_another_thread(sigint_restored):
+    import threading
+
+    from contourmesh.compare import execute
+
+    r, w = os.pipe()
+    fallback, give_up = _interrupt_from_another_thread()
+
+    def release():
+        if not fallback.wait(give_up):
+            fallback.set()
+            os.write(w, b"x" * 4)
+
+    threading.Thread(target=release, daemon=True).start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            execute._read_exact(r, 4, None)
+        assert not fallback.is_set(), "the main thread woke only when the row's process answered"
+        fallback.set()
+    finally:
+        os.close(r)
+        os.close(w)

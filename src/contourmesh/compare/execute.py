@@ -100,6 +100,10 @@ _CHILD = "from contourmesh.compare.execute import _serve; _serve()"
 _LEN = 8  # bytes of the length that precedes each pickle on the pipes
 
 
+#: Longest single wait (seconds) in :func:`_read_exact`, so that signal handlers run promptly.
+_WAKE = 0.25
+
+
 def _read_exact(fd: int, n: int, deadline) -> bytes | None:
     """``n`` bytes from ``fd``; None when ``deadline`` (``time.monotonic()``) passes first; fewer at EOF."""
     import selectors
@@ -108,10 +112,12 @@ def _read_exact(fd: int, n: int, deadline) -> bytes | None:
     with selectors.DefaultSelector() as sel:
         sel.register(fd, selectors.EVENT_READ)
         while len(buf) < n:
-            wait = None if deadline is None else deadline - time.monotonic()
-            if wait is not None and wait <= 0:
+            wait = _WAKE if deadline is None else deadline - time.monotonic()
+            if wait <= 0:
                 return None
-            if not sel.select(wait):
+            # wake up regularly: a signal the kernel hands to another thread (tqdm's monitor, an
+            # executor's) interrupts no system call here, and its handler runs only once we return
+            if not sel.select(min(wait, _WAKE)):
                 continue
             chunk = os.read(fd, n - len(buf))
             if not chunk:

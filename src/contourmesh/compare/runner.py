@@ -523,9 +523,30 @@ def _end_workers(ex) -> None:
             proc.join(5)
 
 
+#: Seconds between the main thread's wake-ups while it waits for pool rows (see :func:`_completed`).
+SIGNAL_POLL = 0.25
+
+
+def _completed(futures):
+    """Yield futures as they finish, waking the main thread every :data:`SIGNAL_POLL` seconds.
+
+    ``concurrent.futures.as_completed`` without a timeout blocks the main thread on a lock.  A
+    signal that the kernel delivers to one of the executor's own threads (its manager or queue
+    feeder thread) then only sets Python's flag: the main thread sleeps on until the next row
+    finishes, so Ctrl-C or SIGTERM could go unanswered for as long as the running rows take.
+    Waking up regularly lets the main thread run the signal handlers at once.
+    """
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    left = set(futures)
+    while left:
+        finished, left = wait(left, timeout=SIGNAL_POLL, return_when=FIRST_COMPLETED)
+        yield from finished
+
+
 def _run_pool(todo, jobs, cache_dir, collect, mp_context=None):
     import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
 
     ctx = mp.get_context(mp_context) if mp_context else (mp.get_context("fork") if os.name == "posix" else None)
@@ -540,7 +561,7 @@ def _run_pool(todo, jobs, cache_dir, collect, mp_context=None):
             futs = {ex.submit(_pooled, t): t for t in pending}
             done = set()
             try:
-                for fut in as_completed(futs):
+                for fut in _completed(futs):
                     t = futs[fut]
                     try:
                         row = fut.result()
