@@ -1173,8 +1173,9 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         rs = [V[r][:, :2] for r in multi]
         oa, ob = edges_of(plane)
         step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
-        br = bridge_tree(rs, oa, ob, owners=owners, allowed=uncovered(other, comps), waypoints=points_of,
-                         step=step)
+        cover = uncovered(other, comps)
+        br = bridge_tree(rs, oa, ob, owners=owners, allowed=cover, waypoints=points_of, step=step,
+                         prefer=lambda p, q: cover.share(p, q) >= 0.5)
         if br is None:
             return None
         ids_of = {}

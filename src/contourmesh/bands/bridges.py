@@ -30,16 +30,18 @@ __all__ = ["bridge_tree", "bridged_ring", "keyhole_path", "keyhole_uncovered", "
 CANDIDATES = 12
 
 
-def keyhole_uncovered(lab, comps, grid):
-    """The test ``ok(p, q)`` that a straight keyhole from ``p`` to ``q`` runs where the label image
-    ``lab`` (of the other slice) has none of the components ``comps`` (0-based): there the material
-    ends between the slices and a band may come down to the keyhole.  ``grid = (ox, oy, dx, dy)``
-    maps pixel ``(i, j)`` to its centre ``(ox + i dx, oy + j dy)``; the segment is sampled 8 times
-    per pixel."""
-    ox, oy, dx, dy = grid
-    ids = np.asarray(comps) + 1
+class _Coverage:
+    """How much of a straight segment in one slice's plane lies over components ``comps`` (0-based)
+    of the other slice's label image ``lab``.  ``grid = (ox, oy, dx, dy)`` maps pixel ``(i, j)`` to
+    its centre ``(ox + i dx, oy + j dy)``; a segment is sampled 8 times per pixel, its ends left
+    out.  Calling it is the keyhole test: ``True`` where none of the segment is covered."""
 
-    def ok(p, q):
+    def __init__(self, lab, comps, grid):
+        self.lab, self.ids, self.grid = lab, np.asarray(comps) + 1, grid
+
+    def _hits(self, p, q):
+        ox, oy, dx, dy = self.grid
+        lab = self.lab
         steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
         t = np.arange(1, steps)[:, None] / steps
         pt = p + t * (q - p)
@@ -48,9 +50,26 @@ def keyhole_uncovered(lab, comps, grid):
         i = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64)
         j = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64)
         inside = (i >= 0) & (i < lab.shape[1]) & (j >= 0) & (j < lab.shape[0])
-        return not np.isin(lab[j[inside], i[inside]], ids).any()
+        hit = np.zeros(len(pt), dtype=bool)
+        hit[inside] = np.isin(lab[j[inside], i[inside]], self.ids)
+        return hit
 
-    return ok
+    def __call__(self, p, q) -> bool:
+        return not self._hits(p, q).any()
+
+    def share(self, p, q) -> float:
+        """The covered share of the segment's samples (0 to 1)."""
+        return float(self._hits(p, q).mean())
+
+
+def keyhole_uncovered(lab, comps, grid):
+    """The test ``ok(p, q)`` that a straight keyhole from ``p`` to ``q`` runs where the label image
+    ``lab`` (of the other slice) has none of the components ``comps`` (0-based): there the material
+    ends between the slices and a band may come down to the keyhole.  ``grid = (ox, oy, dx, dy)``
+    maps pixel ``(i, j)`` to its centre ``(ox + i dx, oy + j dy)``; the segment is sampled 8 times
+    per pixel.  The test's ``share(p, q)`` is the covered share of a segment (see
+    :func:`bridge_tree`'s ``prefer``)."""
+    return _Coverage(lab, comps, grid)
 
 
 def _orient(ax, ay, bx, by, cx, cy):
@@ -119,7 +138,7 @@ def _near_pairs(rings, k: int = 6):
 
 
 def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None, waypoints=None,
-                step=1.0):
+                step=1.0, prefer=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
 
     Parameters
@@ -147,6 +166,12 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         through them (:func:`keyhole_path`); without it only straight bridges are made.
     step : float
         The spacing of the waypoints (the pixel size): neighbours are at most ``1.5 step`` apart.
+    prefer : callable ``(p, q) -> bool``, optional
+        Bridges between different components for which it holds are tried before the others
+        (each kind shortest first).  The mesher prefers bridges over the other slice's material:
+        the crotch of a fork lies above what the branches grew from.  A shorter bridge across
+        empty space (the mouth of a C whose two arms part above it) would make the band fold
+        across the whole opening.
 
     Returns
     -------
@@ -166,8 +191,11 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
             continue
         vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
-        cand.extend((round(float(dd), 9), round(float(t), 9), i, int(a), j, int(b))
+        cand.extend((0, round(float(dd), 9), round(float(t), 9), i, int(a), j, int(b))
                     for dd, t, a, b in zip(d, tie, vi, vj))
+    if prefer is not None:  # preferred bridges between components first, each kind shortest first
+        cand = [(int(ci != cj and not prefer(rings[i][a], rings[j][b])), dd, t, i, a, j, b)
+                for _, dd, t, i, a, j, b in cand for ci, cj in [(owners[i][0], owners[j][0])]]
     cand.sort()
     parent = list(range(n))
 
@@ -180,7 +208,7 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     used = set()
     chosen = []
     segs = [tuple(map(np.asarray, s)) for s in (avoid or [])]
-    for _, _, i, vi, j, vj in cand:
+    for _, _, _, i, vi, j, vj in cand:
         if find(i) == find(j) or (i, vi) in used or (j, vj) in used:
             continue
         p, q = rings[i][vi], rings[j][vj]
@@ -200,7 +228,7 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     # no spanning tree of straight bridges: join what is left by polyline keyholes through the
     # material (nearest pairs of rings first)
     pairs_left = []
-    for _, _, i, _, j, _ in cand:
+    for _, _, _, i, _, j, _ in cand:
         if owners[i][0] == owners[j][0] and (i, j) not in pairs_left:
             pairs_left.append((i, j))
     progress = True
