@@ -1270,10 +1270,12 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     return _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
 
 
-#: A bridged join with a polyline keyhole is given up (it becomes exact) where its area exceeds this
-#: many times the voxel-exact join's (:func:`_exact_area`).  On the rotated real shapes good ones
-#: stay below 1.2; rocker arm rotated #2 at 64 across had one at 2.1 (+8 % on the whole mesh).
-_POLYLINE_AREA_LIMIT = 1.5
+#: A bridged join is given up (it gets intermediate sections, or becomes exact) where its area
+#: exceeds this many times the voxel-exact join's (:func:`_exact_area`): its band folds over itself,
+#: fanning across the slice.  On the rotated real shapes good polyline-keyhole joins stay below 1.2;
+#: rocker arm rotated #2 at 64 across had one at 2.1 (+8 % on the whole mesh), and a slanted torus
+#: of the scale-out synthetic, whose C-shaped section closes into a ring, one at 3 (+28 %).
+_BRIDGED_AREA_LIMIT = 1.5
 
 
 def _exact_area(slices, zs, k, ga, gb, pixel_area):
@@ -1422,17 +1424,18 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double,
                                           waypoints, band_guard)
                 got = cache[key]
-                # a polyline keyhole can leave a band that fans across the slice: such a join may not
-                # have much more area than the voxel-exact join it replaces
-                if got is not None and got.polyline and float(triangle_areas(got.V, got.F).sum()) > \
-                        _POLYLINE_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
+                # a band can fan across the slice (from a polyline keyhole, or from the tips of a C
+                # whose mouth closes into a ring): such a join folds over itself, and may not have
+                # much more area than the voxel-exact join it replaces
+                if got is not None and float(triangle_areas(got.V, got.F).sum()) > \
+                        _BRIDGED_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
                     cache[key] = None
                 if cache[key] is None and band_guard is None:
                     # split the gap by intermediate sections; held to the same area limit
                     got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
                                          polygon, grid)
                     if got is not None and float(triangle_areas(got.V, got.F).sum()) <= \
-                            _POLYLINE_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
+                            _BRIDGED_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
                         cache[key] = got
             b = cache[key]
             if b is not None:
