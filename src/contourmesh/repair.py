@@ -396,10 +396,10 @@ def _open_necks(V, F, S, necks, nudge):
         ta, tb = _ring_angles(xyz(a.tolist()) - pc, xyz(b.tolist()) - pc)
         i0 = 0
         j0 = int(np.argmin(np.abs(np.angle(np.exp(1j * (tb - ta[0]))))))
-        a = np.roll(a, -i0).tolist()
-        b = np.roll(b, -j0).tolist()
-        ua = np.unwrap(np.roll(ta, -i0) - ta[0])
-        ub = np.unwrap(np.roll(tb, -j0) - ta[0])
+        a = _rolled(a, i0).tolist()
+        b = _rolled(b, j0).tolist()
+        ua = np.unwrap(_rolled(ta, i0) - ta[0])
+        ub = np.unwrap(_rolled(tb, j0) - ta[0])
         if ua[-1] < 0:  # both rings turn the same way around the axis; measure that way
             ua, ub = -ua, -ub
         ua = np.r_[ua, ua[0] + 2 * np.pi]
@@ -458,6 +458,19 @@ def _tube_crosses(fans, tube, xyz) -> bool:
     return len(intersecting_pairs(xyz(ids.tolist()), local.reshape(-1, 3))) > 0
 
 
+def _rolled(a, k):
+    """``np.roll(a, -k)`` for a 1-D array and ``0 <= k < len(a)``."""
+    return np.concatenate([a[k:], a[:k]])
+
+
+def _cross3(a, b):
+    """``np.cross(a, b)`` of two 3-vectors (the same products and differences, in floats: np.cross
+    is slow on single vectors)."""
+    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
+    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def _ring_angles(A, B):
     """Angles of the points of two rings (relative to a common apex) around the axis from the
     mean direction of ``A`` to that of ``B``."""
@@ -465,11 +478,11 @@ def _ring_angles(A, B):
     db = B / np.maximum(np.linalg.norm(B, axis=1), 1e-300)[:, None]
     ax = db.mean(axis=0) - da.mean(axis=0)
     ax /= max(float(np.linalg.norm(ax)), 1e-300)
-    e1 = np.cross(ax, [1.0, 0.0, 0.0])
+    e1 = _cross3(ax, (1.0, 0.0, 0.0))
     if np.linalg.norm(e1) < 0.5:
-        e1 = np.cross(ax, [0.0, 1.0, 0.0])
+        e1 = _cross3(ax, (0.0, 1.0, 0.0))
     e1 /= np.linalg.norm(e1)
-    e2 = np.cross(ax, e1)
+    e2 = _cross3(ax, e1)
     return np.arctan2(A @ e2, A @ e1), np.arctan2(B @ e2, B @ e1)
 
 
