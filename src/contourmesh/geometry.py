@@ -20,11 +20,11 @@ def grid_to_xy(ox, oy, dx, dy):
     """
     def to_center(p):
         p = np.asarray(p, dtype=np.float64)
-        return np.c_[ox + p[:, 0] * dx, oy + p[:, 1] * dy]
+        return np.stack([ox + p[:, 0] * dx, oy + p[:, 1] * dy], axis=1)  # (np.c_ is slow on small arrays)
 
     def to_corner(p):
         p = np.asarray(p, dtype=np.float64)
-        return np.c_[ox + (p[:, 0] - 0.5) * dx, oy + (p[:, 1] - 0.5) * dy]
+        return np.stack([ox + (p[:, 0] - 0.5) * dx, oy + (p[:, 1] - 0.5) * dy], axis=1)
 
     return to_center, to_corner
 

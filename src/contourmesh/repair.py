@@ -25,11 +25,7 @@ def _split_four_face_edges(V, F, side, nudge):
     ``nudge`` into its side, so the two sheets no longer share the edge.
     """
     m = len(F)
-    nv = len(V) + 1
-    e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
-    und = np.minimum(e[..., 0], e[..., 1]) * nv + np.maximum(e[..., 0], e[..., 1])
-    uniq, inv, cnt = np.unique(und.reshape(-1), return_inverse=True, return_counts=True)
-    mult = cnt[inv].reshape(m, 3)
+    mult = _edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V))
     if np.any(mult % 2):
         bad = np.argwhere(mult % 2 == 1)[0]
         raise RuntimeError(f"internal error: an edge is shared by {int(mult[tuple(bad)])} faces")
@@ -99,6 +95,52 @@ def _split_four_face_edges(V, F, side, nudge):
 
 
 @njit(cache=True, nogil=True)
+def _half_edges_by_vertex(F, nv, which):
+    """The half-edges ``3 i + k`` (face ``i``'s edge from corner ``k`` to ``k + 1``) bucketed by a
+    vertex: ``which`` 0 their start, 1 their end, 2 their lower vertex.  Returns ``(start, items)``,
+    bucket ``v`` being ``items[start[v]:start[v + 1]]`` in increasing order (a counting sort)."""
+    n = 3 * F.shape[0]
+    key = np.empty(n, np.int64)
+    for h in range(n):
+        a = F[h // 3, h % 3]
+        b = F[h // 3, (h % 3 + 1) % 3]
+        key[h] = a if which == 0 else b if which == 1 else min(a, b)
+    start = np.zeros(nv + 1, np.int64)
+    for h in range(n):
+        start[key[h] + 1] += 1
+    for v in range(nv):
+        start[v + 1] += start[v]
+    fill = start[:nv].copy()
+    items = np.empty(n, np.int64)
+    for h in range(n):
+        items[fill[key[h]]] = h
+        fill[key[h]] += 1
+    return start, items
+
+
+@njit(cache=True, nogil=True)
+def _edge_multiplicity(F, nv):
+    """Per face edge ``(F[i, k], F[i, k + 1])``, the number of face edges with the same two
+    vertices (either direction): an ``(m, 3)`` array (the edges bucketed by their lower vertex,
+    counted per bucket in a scratch array indexed by the upper one)."""
+    m = F.shape[0]
+    start, items = _half_edges_by_vertex(F, nv, np.int64(2))
+    out = np.empty((m, 3), np.int64)
+    cnt = np.zeros(nv, np.int64)
+    for v in range(nv):
+        for t in range(start[v], start[v + 1]):
+            h = items[t]
+            cnt[max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])] += 1
+        for t in range(start[v], start[v + 1]):
+            h = items[t]
+            out[h // 3, h % 3] = cnt[max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])]
+        for t in range(start[v], start[v + 1]):
+            h = items[t]
+            cnt[max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])] = 0
+    return out
+
+
+@njit(cache=True, nogil=True)
 def _corner_components(n, a1, b1, a2, b2):
     """Connected components of ``n`` nodes under the links ``a1[i] - b1[i]`` and ``a2[i] - b2[i]``:
     ``(count, label per node, lowest node of each label)``, labels numbered in order of each
@@ -155,6 +197,66 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     nv = len(V) + 1
     fi = np.repeat(np.arange(m), 3)
     li = np.tile(np.arange(3), m)
+    # every directed edge once and every one with its opposite <=> every edge in exactly two faces
+    twin, status = _half_edge_twins(np.ascontiguousarray(F), len(V))
+    if status != 0:  # the sorted search names the edge at fault
+        twin = _half_edge_twins_reference(F, nv)
+    t = twin
+    # corner ids
+    c_fu = fi * 3 + li
+    c_fv = fi * 3 + (li + 1) % 3
+    g = fi[t]
+    lg = li[t]  # in face g, the edge starts at v (local lg) and ends at u (local lg+1)
+    c_gv = g * 3 + lg
+    c_gu = g * 3 + (lg + 1) % 3
+    # fans = connected components of the corners linked across every edge (union-find; labels
+    # numbered in order of each component's lowest corner, as scipy's connected_components does)
+    del fi, li, g, lg, t, twin
+    ncomp, lab, first = _corner_components(3 * m, c_fu, c_gu, c_fv, c_gv)
+    del c_fu, c_fv, c_gu, c_gv
+    vert_of_corner = F.reshape(-1)
+    # a vertex keeps its first fan; other fans get new vertices
+    fan_vertex = vert_of_corner[first]  # vertex of each fan
+    fans_per_vertex = np.bincount(fan_vertex, minlength=len(V))
+    if not np.any(fans_per_vertex > 1):
+        return V, F
+    # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
+    # in the order of (vertex, fan)
+    by_vertex = np.argsort(fan_vertex, kind="stable")
+    sv = fan_vertex[by_vertex]
+    head = np.r_[True, sv[1:] != sv[:-1]]
+    fan_to_new = np.empty(ncomp, dtype=np.int64)
+    fan_to_new[by_vertex[head]] = sv[head]
+    others = by_vertex[~head]
+    fan_to_new[others] = len(V) + np.arange(len(others))
+    F2 = fan_to_new[lab].reshape(-1, 3)
+    new_V = [V, V[fan_vertex[others]]]
+    V2 = np.concatenate(new_V)
+    # nudge every copy of a split vertex towards the centroid of its fan (the mean of its faces'
+    # centroids, summed over its corners in order: only the corners of those fans are visited)
+    moved = np.flatnonzero(fans_per_vertex[fan_vertex] > 1)
+    in_moved = np.zeros(ncomp, dtype=bool)
+    in_moved[moved] = True
+    corners = np.flatnonzero(in_moved[lab])
+    centroids = V[F[corners // 3]].mean(axis=1)
+    counts = np.bincount(lab[corners], minlength=ncomp).astype(np.float64)
+    target = np.stack([np.bincount(lab[corners], weights=centroids[:, d], minlength=ncomp) for d in range(3)], axis=1)
+    target = target[moved] / counts[moved][:, None]
+    vid = fan_to_new[moved]
+    d = target - V2[vid]
+    nrm = np.linalg.norm(d, axis=1)
+    good = nrm > 0
+    V2[vid[good]] += d[good] * (nudge / nrm[good])[:, None]
+    return V2, F2
+
+
+def _half_edge_twins_reference(F, nv):
+    """Per half-edge ``3 i + k`` (face ``i``'s edge from corner ``k`` to ``k + 1``), the index of
+    its opposite half-edge, by a sorted search; a RuntimeError naming the edge where one is used
+    twice in one direction or has no opposite."""
+    m = len(F)
+    fi = np.repeat(np.arange(m), 3)
+    li = np.tile(np.arange(3), m)
     u = F[fi, li]
     v = F[fi, (li + 1) % 3]
     key_uv = u * nv + v
@@ -179,51 +281,38 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
             "and consistently oriented"
         )
     del key_uv, key_vu, ok
-    t = twin
-    # corner ids
-    c_fu = fi * 3 + li
-    c_fv = fi * 3 + (li + 1) % 3
-    g = fi[t]
-    lg = li[t]  # in face g, the edge starts at v (local lg) and ends at u (local lg+1)
-    c_gv = g * 3 + lg
-    c_gu = g * 3 + (lg + 1) % 3
-    # fans = connected components of the corners linked across every edge (union-find; labels
-    # numbered in order of each component's lowest corner, as scipy's connected_components does)
-    del fi, li, g, lg, t, twin
-    ncomp, lab, first = _corner_components(3 * m, c_fu, c_gu, c_fv, c_gv)
-    del c_fu, c_fv, c_gu, c_gv
-    vert_of_corner = F.reshape(-1)
-    # a vertex keeps its first fan; other fans get new vertices
-    fan_vertex = vert_of_corner[first]  # vertex of each fan
-    fans_per_vertex = np.bincount(fan_vertex, minlength=len(V))
-    if not np.any(fans_per_vertex > 1):
-        return V, F
-    # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
-    # in the order of (vertex, fan)
-    centroids = V[F].mean(axis=1)
-    by_vertex = np.argsort(fan_vertex, kind="stable")
-    sv = fan_vertex[by_vertex]
-    head = np.r_[True, sv[1:] != sv[:-1]]
-    fan_to_new = np.empty(ncomp, dtype=np.int64)
-    fan_to_new[by_vertex[head]] = sv[head]
-    others = by_vertex[~head]
-    fan_to_new[others] = len(V) + np.arange(len(others))
-    F2 = fan_to_new[lab].reshape(-1, 3)
-    new_V = [V, V[fan_vertex[others]]]
-    V2 = np.concatenate(new_V)
-    # nudge every copy of a split vertex towards the centroid of its fan
-    corner_face = np.arange(3 * m) // 3
-    counts = np.bincount(lab, minlength=ncomp).astype(np.float64)
-    target = np.stack([np.bincount(lab, weights=centroids[corner_face, d], minlength=ncomp) for d in range(3)], axis=1)
-    target /= counts[:, None]
-    moved = np.flatnonzero(fans_per_vertex[fan_vertex] > 1)
-    vid = fan_to_new[moved]
-    d = target[moved] - V2[vid]
-    nrm = np.linalg.norm(d, axis=1)
-    good = nrm > 0
-    V2[vid[good]] += d[good] * (nudge / nrm[good])[:, None]
-    return V2, F2
+    return twin
 
+
+@njit(cache=True, nogil=True)
+def _half_edge_twins(F, nv):
+    """:func:`_half_edge_twins_reference` with the half-edges bucketed by their start and by their
+    end vertex: ``(twin, status)``, status 0, or 1 where an edge is used twice in one direction, 2
+    where a half-edge has no opposite (then the twins are not all set)."""
+    n = 3 * F.shape[0]
+    s_out, out_items = _half_edges_by_vertex(F, nv, np.int64(0))
+    s_in, in_items = _half_edges_by_vertex(F, nv, np.int64(1))
+    twin = np.empty(n, np.int64)
+    cnt = np.zeros(nv, np.int64)
+    pos = np.empty(nv, np.int64)
+    for x in range(nv):
+        for t in range(s_out[x], s_out[x + 1]):  # the half-edges x -> w, by w
+            g = out_items[t]
+            w = F[g // 3, (g % 3 + 1) % 3]
+            cnt[w] += 1
+            pos[w] = g
+            if cnt[w] > 1:
+                return twin, np.int64(1)
+        for t in range(s_in[x], s_in[x + 1]):  # each half-edge u -> x: its twin is x -> u
+            h = in_items[t]
+            u = F[h // 3, h % 3]
+            if cnt[u] == 0:
+                return twin, np.int64(2)
+            twin[h] = pos[u]
+        for t in range(s_out[x], s_out[x + 1]):
+            g = out_items[t]
+            cnt[F[g // 3, (g % 3 + 1) % 3]] = 0
+    return twin, np.int64(0)
 
 def _open_necks(V, F, S, necks, nudge):
     """Replace each neck vertex by a small tube joining its two fans.
@@ -307,10 +396,10 @@ def _open_necks(V, F, S, necks, nudge):
         ta, tb = _ring_angles(xyz(a.tolist()) - pc, xyz(b.tolist()) - pc)
         i0 = 0
         j0 = int(np.argmin(np.abs(np.angle(np.exp(1j * (tb - ta[0]))))))
-        a = np.roll(a, -i0).tolist()
-        b = np.roll(b, -j0).tolist()
-        ua = np.unwrap(np.roll(ta, -i0) - ta[0])
-        ub = np.unwrap(np.roll(tb, -j0) - ta[0])
+        a = _rolled(a, i0).tolist()
+        b = _rolled(b, j0).tolist()
+        ua = np.unwrap(_rolled(ta, i0) - ta[0])
+        ub = np.unwrap(_rolled(tb, j0) - ta[0])
         if ua[-1] < 0:  # both rings turn the same way around the axis; measure that way
             ua, ub = -ua, -ub
         ua = np.r_[ua, ua[0] + 2 * np.pi]
@@ -369,6 +458,19 @@ def _tube_crosses(fans, tube, xyz) -> bool:
     return len(intersecting_pairs(xyz(ids.tolist()), local.reshape(-1, 3))) > 0
 
 
+def _rolled(a, k):
+    """``np.roll(a, -k)`` for a 1-D array and ``0 <= k < len(a)``."""
+    return np.concatenate([a[k:], a[:k]])
+
+
+def _cross3(a, b):
+    """``np.cross(a, b)`` of two 3-vectors (the same products and differences, in floats: np.cross
+    is slow on single vectors)."""
+    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
+    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def _ring_angles(A, B):
     """Angles of the points of two rings (relative to a common apex) around the axis from the
     mean direction of ``A`` to that of ``B``."""
@@ -376,16 +478,58 @@ def _ring_angles(A, B):
     db = B / np.maximum(np.linalg.norm(B, axis=1), 1e-300)[:, None]
     ax = db.mean(axis=0) - da.mean(axis=0)
     ax /= max(float(np.linalg.norm(ax)), 1e-300)
-    e1 = np.cross(ax, [1.0, 0.0, 0.0])
+    e1 = _cross3(ax, (1.0, 0.0, 0.0))
     if np.linalg.norm(e1) < 0.5:
-        e1 = np.cross(ax, [0.0, 1.0, 0.0])
+        e1 = _cross3(ax, (0.0, 1.0, 0.0))
     e1 /= np.linalg.norm(e1)
-    e2 = np.cross(ax, e1)
+    e2 = _cross3(ax, e1)
     return np.arctan2(A @ e2, A @ e1), np.arctan2(B @ e2, B @ e1)
 
 
 def _separate_coincident(V, F, nudge):
-    """Move vertices that share a position apart, each towards the centroid of its own faces."""
+    """Move vertices that share a position apart, each towards the centroid of its own faces.
+
+    Only the shared positions' vertices and their faces are touched (a hash groups the positions;
+    the sums run over each vertex's corners in face order, as ``np.add.at`` over all of them did):
+    the same result as :func:`_separate_coincident_reference`, in time linear in the vertices."""
+    V = np.asarray(V, dtype=np.float64)
+    if len(V) == 0:
+        return V
+    F = np.asarray(F, dtype=np.int64)
+    inv = _row_ids(np.ascontiguousarray(V + 0.0).view(np.int64), False)  # -0.0 and 0.0: one position
+    cnt = np.bincount(inv)
+    dup = np.flatnonzero(cnt[inv] > 1)
+    if len(dup) == 0:
+        return V
+    # the j-th copy of a position (in index order) moves (1 + j/2) nudges: copies heading the same
+    # way stay apart
+    order = np.argsort(inv[dup], kind="stable")
+    rank = np.empty(len(dup), dtype=np.int64)
+    grp = inv[dup][order]
+    starts = np.r_[0, np.flatnonzero(np.diff(grp)) + 1]
+    rank[order] = np.arange(len(dup)) - np.repeat(starts, np.diff(np.r_[starts, len(dup)]))
+    V = V.copy()
+    is_dup = np.zeros(len(V), dtype=bool)
+    is_dup[dup] = True
+    corner_v = F.reshape(-1)
+    corners = np.flatnonzero(is_dup[corner_v])  # the corners at a shared position, in face order
+    faces = corners // 3
+    cen = V[F[faces]].mean(axis=1)
+    acc = np.zeros((len(V), 3))
+    np.add.at(acc, corner_v[corners], cen)
+    deg = np.bincount(corner_v[corners], minlength=len(V)).astype(np.float64)
+    target = acc[dup] / np.maximum(deg[dup], 1)[:, None]
+    d = target - V[dup]
+    nrm = np.linalg.norm(d, axis=1)
+    ok = nrm > 0
+    step = nudge * (1.0 + 0.5 * rank)
+    V[dup[ok]] += d[ok] * (step[ok] / nrm[ok])[:, None]
+    return V
+
+
+def _separate_coincident_reference(V, F, nudge):
+    """:func:`_separate_coincident` over the whole mesh (sorted groups, ``np.add.at`` over every
+    corner): the reference it is tested against."""
     inv, cnt = _group_rows(V)
     dup = np.flatnonzero(cnt[inv] > 1)
     if len(dup) == 0:

@@ -98,6 +98,21 @@ _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
 _SQUARE = np.ones((3, 3), dtype=bool)
 
 
+def _with_z(xy, z) -> np.ndarray:
+    """Points ``(x, y)`` at height ``z``: ``np.c_[xy, np.full(len(xy), z)]`` (np.c_ is slow on
+    the many small arrays of the mesher)."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    out = np.empty((len(xy), 3))
+    out[:, :2] = xy
+    out[:, 2] = z
+    return out
+
+
+def _next(a) -> np.ndarray:
+    """``np.roll(a, -1, axis=0)``: each element's successor round the ring."""
+    return np.concatenate([a[1:], a[:1]])
+
+
 # ------------------------------------------------------------------------------------------------
 # input validation
 # ------------------------------------------------------------------------------------------------
@@ -296,7 +311,7 @@ class _Mesher:
         """A polygon's vertices at height z, one vertex per point (a contour that touches itself
         keeps two vertices at the touching point)."""
         xy = np.asarray(xy, dtype=np.float64)
-        return self.points(np.c_[xy, np.full(len(xy), z)])
+        return self.points(_with_z(xy, z))
 
     def points(self, v: np.ndarray) -> np.ndarray:
         v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
@@ -334,8 +349,8 @@ class _Mesher:
     def quads(self, lo_ids, hi_ids):
         """Band between two rings with the same points (a prism wall): two triangles per edge."""
         a, b = lo_ids, hi_ids
-        a1, b1 = np.roll(a, -1), np.roll(b, -1)
-        self._add(np.concatenate([np.c_[a, a1, b1], np.c_[a, b1, b]]))
+        a1, b1 = _next(a), _next(b)
+        self._add(np.concatenate([np.stack([a, a1, b1], axis=1), np.stack([a, b1, b], axis=1)]))
 
     def cap(self, rings, upward):
 
@@ -940,8 +955,8 @@ class _CornerGrid:
             hh = np.int64(self.ids.shape[0])
             key = np.unique(lx[need].astype(np.int64) * hh + ly[need])
             ux, uy = key // hh, key % hh
-            xy = self.to_xy(np.c_[ux + self.x0, uy + self.y0])
-            self.ids[uy, ux] = self.M.points(np.c_[xy, np.full(len(key), self.z)])
+            xy = self.to_xy(np.stack([ux + self.x0, uy + self.y0], axis=1))
+            self.ids[uy, ux] = self.M.points(_with_z(xy, self.z))
         return self.ids[ly, lx]
 
 
@@ -983,7 +998,7 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     corner_ids = _CornerGrid(M, x0, y0, hgt, wid, zm, to_xy_corner)  # vertices at the mid-plane
 
     def back_to_corners(xy):
-        return np.c_[np.rint((xy[:, 0] - ox) / dx + 0.5), np.rint((xy[:, 1] - oy) / dy + 0.5)].astype(np.int64)
+        return np.stack([np.rint((xy[:, 0] - ox) / dx + 0.5), np.rint((xy[:, 1] - oy) / dy + 0.5)], axis=1).astype(np.int64)
 
     # corners where the empty voxels of the 2 x 2 x 2 block touch only at the corner: three of
     # the four pixels below, three above, the two missing ones diagonally opposite
@@ -1029,9 +1044,9 @@ def _pixel_faces(M, region, x0, y0, corner_ids, up):
     c11 = corner_ids(gx + 1, gy + 1)
     c01 = corner_ids(gx, gy + 1)
     if up:
-        M.faces(np.concatenate([np.c_[c00, c10, c11], np.c_[c00, c11, c01]]))
+        M.faces(np.concatenate([np.stack([c00, c10, c11], axis=1), np.stack([c00, c11, c01], axis=1)]))
     else:
-        M.faces(np.concatenate([np.c_[c00, c11, c10], np.c_[c00, c01, c11]]))
+        M.faces(np.concatenate([np.stack([c00, c11, c10], axis=1), np.stack([c00, c01, c11], axis=1)]))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -1149,7 +1164,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     def add(kk, c, h):
         nonlocal n
         xy = np.asarray(poly(kk, c, h), dtype=np.float64)
-        pts.append(np.c_[xy, np.full(len(xy), zs[kk])])
+        pts.append(_with_z(xy, zs[kk]))
         rings.append(((kk, c, h), n))
         n += len(xy)
         return n - len(xy) + np.arange(len(xy))
@@ -1182,7 +1197,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         for b, bridge in enumerate(br):
             if len(bridge) > 4:
                 base = n_ring + sum(len(p) for p in path_pts)
-                path_pts.append(np.c_[bridge[4], np.full(len(bridge[4]), zs[plane])])
+                path_pts.append(_with_z(bridge[4], zs[plane]))
                 ids_of[len(rs) + b] = base + np.arange(len(bridge[4]))
         seq = np.array([multi[r][v] if r < len(rs) else ids_of[r][v]
                         for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
@@ -1238,7 +1253,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         if caps == "half" or collar:
             zc = zk + 0.5 * (zk1 - zk) if below else zk1 - 0.5 * (zk1 - zk)
             top = len(V) + sum(len(e) for e in extra) + np.arange(len(ids))
-            extra.append(np.c_[V[ids][:, :2], np.full(len(ids), zc)])
+            extra.append(_with_z(V[ids][:, :2], zc))
             Vx = np.concatenate([V] + extra)
             pair = (ids, top) if below else (top, ids)
             f, r = _band_faces(Vx[pair[0]], Vx[pair[1]], triangulation)
@@ -1393,7 +1408,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             s = slices[kk]
             rs = [np.asarray(poly(kk, c, h), dtype=np.float64) for c in range(s.n)
                   for h in range(-1, len(s.holes[c]))]
-            edge_cache[key] = (np.concatenate(rs), np.concatenate([np.roll(r, -1, axis=0) for r in rs]))
+            edge_cache[key] = (np.concatenate(rs), np.concatenate([_next(r) for r in rs]))
         return edge_cache[key]
 
     lids = defaultdict(int)

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..intersect import intersecting_pairs
+from ..intersect import canonical_vertices, intersecting_pairs
 from ..measure import triangle_areas
 from .arclength import triangulate_band_arclength
 from .caps import cap_faces
@@ -139,9 +139,8 @@ def _band_crosses(P, f) -> bool:
     mesher, each copy moved a hair into its own fan; here each copy of a repeated position is
     moved the same way (a hair towards the middle of its two ring neighbours, in its plane), so
     the test sees the band as it will be, not the shared point."""
-    _, inv, cnt = np.unique(P, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.reshape(-1)
-    dup = np.flatnonzero(cnt[inv] > 1)
+    canon = canonical_vertices(P)  # (as np.unique(P, axis=0), hashed: the same groups)
+    dup = np.flatnonzero(np.bincount(canon, minlength=len(P))[canon] > 1)
     if len(dup):
         P = _split_pinches(P, f, dup)
         if P is None:
@@ -171,6 +170,7 @@ def _split_pinches(P, f, dup):
         if not n > 0:
             return None
         P[i] = P[i] + d * (1e-4 * ext / n)
-    if len(np.unique(P, axis=0)) < len(P):
+    canon = canonical_vertices(P)
+    if (canon != np.arange(len(P))).any():  # two points still at one position
         return None
     return P

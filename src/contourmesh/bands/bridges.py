@@ -23,6 +23,7 @@ Functions here are pure: arrays in, arrays out.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 __all__ = ["bridge_tree", "bridged_ring", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
@@ -76,13 +77,49 @@ def _orient(ax, ay, bx, by, cx, cy):
     return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _on(ox, oy, sx, sy, tx, ty, d):
+    """Point ``o`` on the closed segment ``s t`` given ``d``, the orientation of ``s t o``."""
+    return d == 0 and min(sx, tx) <= ox <= max(sx, tx) and min(sy, ty) <= oy <= max(sy, ty)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cross1(px, py, qx, qy, ax, ay, bx, by):
+    """Whether the closed segments ``p q`` and ``a b`` share a point: :func:`segments_cross` for
+    one segment, the same arithmetic (exact float signs, a zero counts as touching)."""
+    d1 = (qx - px) * (ay - py) - (qy - py) * (ax - px)
+    d2 = (qx - px) * (by - py) - (qy - py) * (bx - px)
+    d3 = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+    d4 = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax)
+    if ((d1 > 0 and d2 < 0) or (d1 < 0 and d2 > 0)) and ((d3 > 0 and d4 < 0) or (d3 < 0 and d4 > 0)):
+        return True
+    return (_on(ax, ay, px, py, qx, qy, d1) or _on(bx, by, px, py, qx, qy, d2)
+            or _on(px, py, ax, ay, bx, by, d3) or _on(qx, qy, ax, ay, bx, by, d4))
+
+
+@njit(cache=True, nogil=True)
+def _segments_cross_kernel(px, py, qx, qy, a, b):
+    out = np.zeros(a.shape[0], np.bool_)
+    for i in range(a.shape[0]):
+        out[i] = _cross1(px, py, qx, qy, a[i, 0], a[i, 1], b[i, 0], b[i, 1])
+    return out
+
+
 def segments_cross(p, q, a, b) -> np.ndarray:
     """For the segment ``p q`` and segments ``a[i] b[i]``: whether they share any point.
 
     Touching counts (an end on the other segment, collinear overlap).  ``p, q`` have shape (2,);
     ``a, b`` shape (k, 2).  Coordinates are expected on a grid of halves or reals; the tests use
     exact float arithmetic on the orientation determinants and count a zero as touching.
+    Compiled (:func:`_segments_cross_reference` is the vectorized reference it is tested against).
     """
+    a = np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 2)
+    b = np.ascontiguousarray(b, dtype=np.float64).reshape(-1, 2)
+    return _segments_cross_kernel(float(p[0]), float(p[1]), float(q[0]), float(q[1]), a, b)
+
+
+def _segments_cross_reference(p, q, a, b) -> np.ndarray:
+    """:func:`segments_cross` in numpy (the reference of the compiled kernel, for the tests)."""
     a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
     b = np.asarray(b, dtype=np.float64).reshape(-1, 2)
     px, py, qx, qy = float(p[0]), float(p[1]), float(q[0]), float(q[1])
@@ -208,12 +245,17 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     used = set()
     chosen = []
     segs = [tuple(map(np.asarray, s)) for s in (avoid or [])]
+    seg_arrays = None  # segs as arrays, made again after each new bridge
+    obstacles_a = np.ascontiguousarray(obstacles_a, dtype=np.float64)
+    obstacles_b = np.ascontiguousarray(obstacles_b, dtype=np.float64)
     for _, _, _, i, vi, j, vj in cand:
         if find(i) == find(j) or (i, vi) in used or (j, vj) in used:
             continue
         p, q = rings[i][vi], rings[j][vj]
         through_material = owners[i][0] == owners[j][0]
-        if not _clear(p, q, rings[i], vi, rings[j], vj, obstacles_a, obstacles_b, segs, through_material):
+        if seg_arrays is None:
+            seg_arrays = _segment_arrays(segs)
+        if not _clear(p, q, rings[i], vi, rings[j], vj, obstacles_a, obstacles_b, seg_arrays, through_material):
             continue
         if through_material and allowed is not None and not allowed(p, q):
             continue
@@ -221,6 +263,7 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         used.update([(i, vi), (j, vj)])
         chosen.append((i, vi, j, vj))
         segs.append((p, q))
+        seg_arrays = None
         if len(chosen) == n - 1:
             return chosen
     if waypoints is None:
@@ -295,7 +338,7 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
     keep = ((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
             & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
     oa, ob = oa[keep], ob[keep]
-    segs = list(segs)
+    segs = _segment_arrays(list(segs))
     m, ni = len(W), len(ri)
     # nodes: waypoints [0, m), ri's vertices [m, m + ni), rj's vertices [m + ni, ...)
     P = np.concatenate([W, ri, rj])
@@ -320,9 +363,10 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
 
     tw, tj = cKDTree(W), cKDTree(rj)
     bad_j = set(used_j)
+    dist_j = tj.query(P)[0]  # the heuristic of every node at once (the same distances)
 
     def h(node):
-        return float(tj.query(P[node])[0])
+        return float(dist_j[node])
 
     heap = []
     came = {}
@@ -389,9 +433,117 @@ def _clear(p, q, ri, vi, rj, vj, oa, ob, segs, left=False) -> bool:
     return _clear_ends(p, q, (ri, vi), (rj, vj), oa, ob, segs, left)
 
 
+_NO_SEGMENTS = np.zeros((0, 2))
+
+
+def _segment_arrays(segs):
+    """``segs`` (a list of ``(p, q)`` pairs, or already a pair of ``(k, 2)`` arrays) as two
+    contiguous float64 arrays."""
+    if isinstance(segs, tuple) and len(segs) == 2 and isinstance(segs[0], np.ndarray) and segs[0].ndim == 2:
+        return segs
+    if not len(segs):
+        return _NO_SEGMENTS, _NO_SEGMENTS
+    return (np.array([s[0] for s in segs], dtype=np.float64).reshape(-1, 2),
+            np.array([s[1] for s in segs], dtype=np.float64).reshape(-1, 2))
+
+
 def _clear_ends(p, q, end_p, end_q, oa, ob, segs, left=False) -> bool:
     """:func:`_clear` where either end may be a free point (``None``) instead of a ring vertex
-    ``(ring, vertex)``: a free end touches nothing at all."""
+    ``(ring, vertex)``: a free end touches nothing at all.  ``segs``: a list of ``(p, q)`` pairs
+    or a pair of arrays (:func:`_segment_arrays`).  Compiled (:func:`_clear_kernel`;
+    :func:`_clear_ends_reference` is the reference it is tested against)."""
+    corners = np.zeros((2, 3, 2))
+    has = [0, 0]
+    for t, e in enumerate((end_p, end_q)):
+        if e is not None:
+            r, v = e
+            corners[t, 0] = r[v - 1]
+            corners[t, 1] = r[v]
+            corners[t, 2] = r[(v + 1) % len(r)]
+            has[t] = 1
+    sa, sb = _segment_arrays(segs)
+    return bool(_clear_kernel(float(p[0]), float(p[1]), float(q[0]), float(q[1]), corners, has[0], has[1],
+                              np.ascontiguousarray(oa, dtype=np.float64), np.ascontiguousarray(ob, dtype=np.float64),
+                              sa, sb, bool(left)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _same_point(ax, ay, bx, by):
+    return ax == bx and ay == by
+
+
+@njit(cache=True, nogil=True)
+def _clear_kernel(px, py, qx, qy, corners, has_p, has_q, oa, ob, sa, sb, left):
+    """:func:`_clear_ends_reference` compiled: ``corners[t]`` the previous, own and next vertex of
+    end ``t`` (p, q) on its ring where ``has_p`` / ``has_q``; ``sa, sb`` the other segments."""
+    if px == qx and py == qy:
+        return False
+    lox, hix = min(px, qx), max(px, qx)
+    loy, hiy = min(py, qy), max(py, qy)
+    has = (has_p, has_q)
+    for e in range(oa.shape[0]):
+        ax, ay, bx, by = oa[e, 0], oa[e, 1], ob[e, 0], ob[e, 1]
+        if not (max(ax, bx) >= lox and min(ax, bx) <= hix and max(ay, by) >= loy and min(ay, by) <= hiy):
+            continue
+        # the edges incident to p and q may touch the segment only at p and q
+        incident = False
+        for t in range(2):
+            if has[t] == 0:
+                continue
+            for u in range(2):  # the edges (prev, v) and (v, next)
+                sx, sy = corners[t, u, 0], corners[t, u, 1]
+                tx, ty = corners[t, u + 1, 0], corners[t, u + 1, 1]
+                if (_same_point(ax, ay, sx, sy) and _same_point(bx, by, tx, ty)) or \
+                        (_same_point(ax, ay, tx, ty) and _same_point(bx, by, sx, sy)):
+                    incident = True
+        if incident:
+            continue
+        if _cross1(px, py, qx, qy, ax, ay, bx, by):
+            return False
+        # another edge may pass through p or q only as one of the incident edges
+        if _same_point(ax, ay, px, py) or _same_point(bx, by, px, py) or _same_point(ax, ay, qx, qy) \
+                or _same_point(bx, by, qx, qy):
+            return False
+    # leave each ring outward: the direction must not lie inside the ring's interior angle
+    for t in range(2):
+        if has[t] == 0:
+            continue
+        if t == 0:
+            dx, dy = qx - px, qy - py
+        else:
+            dx, dy = px - qx, py - qy
+        a0, a1 = corners[t, 0, 0], corners[t, 0, 1]
+        c0, c1 = corners[t, 1, 0], corners[t, 1, 1]
+        b0, b1 = corners[t, 2, 0], corners[t, 2, 1]
+        if left:  # the left of a ring is the right of the reversed ring
+            a0, a1, b0, b1 = b0, b1, a0, a1
+        if not _outside_corner_k(a0, a1, c0, c1, b0, b1, dx, dy):
+            return False
+    for e in range(sa.shape[0]):
+        if _cross1(px, py, qx, qy, sa[e, 0], sa[e, 1], sb[e, 0], sb[e, 1]):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _outside_corner_k(a0, a1, c0, c1, b0, b1, d0, d1):
+    """:func:`_outside_corner` on scalars (the same arithmetic)."""
+    u0, u1 = a0 - c0, a1 - c1
+    w0, w1 = b0 - c0, b1 - c1
+    cross_wu = w0 * u1 - w1 * u0
+    s_w = w0 * d1 - w1 * d0
+    s_u = u0 * d1 - u1 * d0
+    if cross_wu > 0:
+        inside = s_w >= 0 and s_u <= 0
+    elif cross_wu < 0:
+        inside = not ((s_w < 0) and (s_u > 0))
+    else:
+        inside = s_w >= 0
+    return not inside
+
+
+def _clear_ends_reference(p, q, end_p, end_q, oa, ob, segs, left=False) -> bool:
+    """:func:`_clear_ends` in numpy (the reference of the compiled kernel, for the tests)."""
     if p[0] == q[0] and p[1] == q[1]:
         return False
     # the edges incident to p and q may touch the segment only at p and q
@@ -408,7 +560,7 @@ def _clear_ends(p, q, end_p, end_q, oa, ob, segs, left=False) -> bool:
     keep = np.ones(len(near), dtype=bool)
     for s, t in inc:
         keep &= ~(((na == s).all(axis=1) & (nb == t).all(axis=1)) | ((na == t).all(axis=1) & (nb == s).all(axis=1)))
-    if segments_cross(p, q, na[keep], nb[keep]).any():
+    if _segments_cross_reference(p, q, na[keep], nb[keep]).any():
         return False
     # another edge may pass through p or q only as one of the incident edges (a ring touching
     # itself there has two more): refuse those vertices (such edges lie in the box: p, q are its corners)
@@ -428,7 +580,7 @@ def _clear_ends(p, q, end_p, end_q, oa, ob, segs, left=False) -> bool:
     if segs:
         sa = np.array([s[0] for s in segs], dtype=np.float64)
         sb = np.array([s[1] for s in segs], dtype=np.float64)
-        if segments_cross(p, q, sa, sb).any():
+        if _segments_cross_reference(p, q, sa, sb).any():
             return False
     return True
 
