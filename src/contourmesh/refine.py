@@ -655,14 +655,23 @@ def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False, f
     near = np.empty_like(xy)
     _move_to_surface(pts, xy, kz, float(fine), dz, curvature, max_move, near, strict)
     # a vertex that one of the two searches left where it was (no level within reach) keeps the
-    # coarse decision; elsewhere the fine estimate weighs in where the two scales disagree
+    # coarse decision; elsewhere the extrapolated estimate weighs in where the two scales disagree
     moved = np.any(near != xy, axis=1) & np.any(out != xy, axis=1)
     gap = np.hypot(*(near - out).T)
     w = np.clip((gap - FINE_TOLERANCE[0]) / (FINE_TOLERANCE[1] - FINE_TOLERANCE[0]), 0.0, 1.0) * moved
     if counts is not None:
         counts[0] += int(np.count_nonzero(w > 0.5))
         counts[1] += len(w)
-    return out + w[:, None] * (near - out), clamped
+    if not np.any(w > 0):
+        return out, clamped
+    # the fine place keeps a residual bias of order fine^4 (the curvature correction removes the
+    # sigma^2 term): with both places x(s) = x0 + c s^4, x0 = x_fine + rho (x_fine - x_coarse)
+    r4 = (float(fine) / sigma) ** 4
+    ext = near + (r4 / (1.0 - r4)) * (near - out)
+    target = np.ascontiguousarray(out + w[:, None] * (ext - out))
+    res = np.empty_like(xy)
+    _clamp_to_band(pts, np.ascontiguousarray(out), target, np.ascontiguousarray(kz, dtype=np.int64), res)
+    return res, clamped
 
 
 def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi: float = 3.5) -> float:
