@@ -101,7 +101,7 @@ def stages(pts, seed, kz, sigma, dz, prev, opts):
     _move_noclamp(pts, np.ascontiguousarray(seed), kzs, sigma, dz, True, mm, cur, strict)
     out["curv"] = cur
     cb = np.empty_like(seed)
-    R._move_to_surface(pts, np.ascontiguousarray(seed), kzs, sigma, dz, True, mm, cb, strict)
+    R._move_to_surface(pts, np.ascontiguousarray(seed), kzs, sigma, dz, True, mm, cb, strict, np.empty(len(seed), bool))
     out["curv+band"] = cb
     guide, _ = R._surface_points(pts, seed, kzs, sigma, dz, True, mm, strict, fine, None)
     out["2scale"] = guide
