@@ -310,7 +310,7 @@ def _prism_ring(curve, nz=15):
     sl = MPath(curve).contains_points(np.c_[X.ravel(), Y.ravel()]).reshape(X.shape)
     pts = np.pad(np.repeat(sl[None], nz, axis=0), 6)
     (c, *_), _ = trace_contours(sl, x0=0, y0=0)
-    seed = np.asarray(polygonize(np.asarray(c), "mlp"), dtype=np.float64) + 6 - g[0]
+    seed = np.asarray(polygonize(np.asarray(c), "mlp"), dtype=np.float64) + 6  # pixel (0, 0) is x = g[0]
     return pts, seed, 6 + nz // 2, _auto_sigma_of([seed], 1.0), curve + 6 - g[0]
 
 
