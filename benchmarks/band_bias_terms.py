@@ -207,11 +207,11 @@ def _build_noclamp():
 def run(mesh_name, rot, n, max_rings=None, verbose=True):
     global _move_noclamp
     import trimesh
+    from real_shapes import MESHES
 
     import contourmesh
     from contourmesh import refine as R
     from contourmesh.compare.inputs import load_closed_mesh, mesh_inputs
-    from real_shapes import MESHES
 
     if _move_noclamp is None:
         _move_noclamp = _build_noclamp()
