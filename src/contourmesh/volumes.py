@@ -1442,15 +1442,14 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 # a band can fan across the slice (from a polyline keyhole, or from the tips of a C
                 # whose mouth closes into a ring): such a join folds over itself, and may not have
                 # much more area than the voxel-exact join it replaces
-                if got is not None and float(triangle_areas(got.V, got.F).sum()) > \
-                        _BRIDGED_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
+                limit = _BRIDGED_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy)
+                if got is not None and float(triangle_areas(got.V, got.F).sum()) > limit:
                     cache[key] = None
                 if cache[key] is None and band_guard is None:
                     # split the gap by intermediate sections; held to the same area limit
                     got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
                                          polygon, grid)
-                    if got is not None and float(triangle_areas(got.V, got.F).sum()) <= \
-                            _BRIDGED_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy):
+                    if got is not None and float(triangle_areas(got.V, got.F).sum()) <= limit:
                         cache[key] = got
             b = cache[key]
             if b is not None:

@@ -228,12 +228,10 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
             continue
         vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
-        cand.extend((0, round(float(dd), 9), round(float(t), 9), i, int(a), j, int(b))
-                    for dd, t, a, b in zip(d, tie, vi, vj))
-    if prefer is not None:  # preferred bridges between components first, each kind shortest first
-        cand = [(int(ci != cj and not prefer(rings[i][a], rings[j][b])), dd, t, i, a, j, b)
-                for _, dd, t, i, a, j, b in cand for ci, cj in [(owners[i][0], owners[j][0])]]
-    cand.sort()
+        ranked = prefer is not None and ci != cj  # preferred bridges between components first
+        cand.extend((int(ranked and not prefer(rings[i][a], rings[j][b])), round(float(dd), 9), round(float(t), 9),
+                     i, int(a), j, int(b)) for dd, t, a, b in zip(d, tie, vi, vj))
+    cand.sort()  # (not preferred, length, tie-break, ...): each kind shortest first
     parent = list(range(n))
 
     def find(x):
