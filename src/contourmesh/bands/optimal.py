@@ -188,7 +188,26 @@ def optimal_edges_from(c1, c2, starts):
 
 @njit(cache=True)
 def _best_start(A1, A2, starts, D2):
-    """The start point of ``starts`` whose annular path costs least (-1 if none is finite)."""
+    """The start point of ``starts`` whose annular path costs least (-1 if none is finite).
+
+    Where ``starts`` is a run of consecutive start points (cyclically) the programme runs once
+    per start point only inside the strip that the paths of its neighbours leave
+    (:func:`_best_start_strips`, ``O(n m log k)`` plus a full programme for each start point
+    tied with the best) instead of ``O(n m k)``; same answer, and one full programme per start
+    point where the shortcut cannot certify it.
+    """
+    if starts.shape[0] >= _STRIP_MIN_STARTS:
+        a = _cyclic_run(starts, A1.shape[0])
+        if a >= 0:
+            s = _best_start_strips(A1, A2, a, starts.shape[0], D2)
+            if s >= -1:
+                return s
+    return _best_start_each(A1, A2, starts, D2)
+
+
+@njit(cache=True)
+def _best_start_each(A1, A2, starts, D2):
+    """:func:`_best_start` by one full programme per start point (``O(n m)`` each)."""
     dummy = np.empty((1, 1, 1), dtype=np.int8)
     best_s = -1
     best = np.inf
@@ -197,6 +216,173 @@ def _best_start(A1, A2, starts, D2):
         if c < best:
             best = c
             best_s = s
+    return best_s
+
+
+#: Fewest start points for which the strip search is used (below it, one programme each).
+_STRIP_MIN_STARTS = 4
+
+
+@njit(cache=True)
+def _cyclic_run(starts, n):
+    """``a`` if the increasing ``starts`` are ``a, a + 1, ..., a + k - 1`` modulo ``n``, else -1."""
+    k = starts.shape[0]
+    if k > n:
+        return -1
+    gaps = 0
+    a = starts[0]
+    for t in range(k):
+        nxt = starts[(t + 1) % k]
+        cur = starts[t]
+        if t == k - 1:
+            nxt += n
+        if nxt != cur + 1:
+            gaps += 1
+            a = starts[(t + 1) % k]
+    if k == n:
+        return 0
+    return a if gaps == 1 else -1
+
+
+@njit(cache=True)
+def _strip_dp(A1, A2, s, lo, hi, D, move):
+    """Least cost of a monotone path (annulus or not) from start ``s`` over the cells
+    ``lo[i] <= j <= hi[i]`` of each row ``i`` only; records the moves for :func:`_strip_path`.
+    ``D`` is two rolling rows."""
+    n, m = A1.shape
+    inf = np.inf
+    for j in range(m + 1):
+        D[0, j] = inf
+    D[0, 0] = 0.0
+    for i in range(n + 1):
+        r = i % 2
+        ib = (s + i) % n
+        for j in range(lo[i], hi[i]):
+            d = D[r, j]
+            if d != inf:
+                c = d + A2[ib, j % m]
+                if c < D[r, j + 1]:
+                    D[r, j + 1] = c
+                    move[i, j + 1] = 1
+        if i == n:
+            break
+        rn = (i + 1) % 2
+        for j in range(lo[i + 1], hi[i + 1] + 1):
+            D[rn, j] = inf
+        for j in range(max(lo[i], lo[i + 1]), min(hi[i], hi[i + 1]) + 1):
+            d = D[r, j]
+            if d != inf:
+                c = d + A1[ib, j % m]
+                if c < D[rn, j]:
+                    D[rn, j] = c
+                    move[i + 1, j] = 0
+    return D[n % 2, m] if hi[n] == m else inf
+
+
+@njit(cache=True)
+def _strip_path(move, n, m, first):
+    """Column where the traced path enters each row ``i`` (``first[i]``, the row's smallest column)."""
+    i = n
+    j = m
+    first[n] = m
+    for _ in range(n + m):
+        if move[i, j] == 0:
+            i -= 1
+        else:
+            j -= 1
+        first[i] = j
+
+
+@njit(cache=True)
+def _strip_costs(A1, A2, a, k):
+    """Least cost of a monotone path (annulus or not) from each start point ``a .. a + k - 1``
+    (cyclically).  Two least paths from different start points can be taken not to cross: where
+    they meet, exchanging their tails leaves both least.  So each start point's programme runs
+    only between the paths of two start points on either side of it, found first (bisection:
+    ``O(n m log k)`` in all).  Returns the costs and whether every programme found a path."""
+    n, m = A1.shape
+    D = np.empty((2, m + 1))
+    move = np.zeros((n + 1, m + 1), dtype=np.int8)
+    cost = np.full(k, np.inf)
+    first = np.empty((k, n + 1), dtype=np.int32)   # per start, per row of its own: entry column
+    lo = np.zeros(n + 1, dtype=np.int64)
+    hi = np.full(n + 1, m, dtype=np.int64)
+    for t in (0, k - 1):
+        c = _strip_dp(A1, A2, a + t, lo, hi, D, move)
+        if c == np.inf:
+            return cost, False
+        cost[t] = c
+        _strip_path(move, n, m, first[t])
+    stack = np.empty((2 * k + 2, 2), dtype=np.int64)
+    stack[0, 0] = 0
+    stack[0, 1] = k - 1
+    top = 1
+    while top > 0:
+        top -= 1
+        t0 = stack[top, 0]
+        t1 = stack[top, 1]
+        if t1 - t0 <= 1:
+            continue
+        t = (t0 + t1) // 2
+        for i in range(n + 1):
+            u = t + i - t0          # this row among the rows of start t0: the path above
+            hi[i] = m if u >= n else first[t0, u + 1]
+            v = t + i - t1          # ... and of start t1: the path below
+            lo[i] = first[t1, v] if v >= 0 else 0
+        c = _strip_dp(A1, A2, a + t, lo, hi, D, move)
+        if c == np.inf:
+            return cost, False
+        cost[t] = c
+        _strip_path(move, n, m, first[t])
+        stack[top, 0] = t0
+        stack[top, 1] = t
+        stack[top + 1, 0] = t
+        stack[top + 1, 1] = t1
+        top += 2
+    return cost, True
+
+
+#: Relative margin (times ``(n + m) max |cost|``) within which start points count as tied.
+_TIE = 1e-9
+
+
+@njit(cache=True)
+def _best_start_strips(A1, A2, a, k, D2):
+    """:func:`_best_start` over the run ``a .. a + k - 1``, or -2 where it cannot be certified.
+
+    The least monotone path of each start point (:func:`_strip_costs`) bounds its least annulus
+    from below.  Every start point whose bound is within a margin of the least bound gets the
+    full annulus programme, in increasing order as :func:`_best_start_each` takes them; where the
+    best of these is itself within the margin, no other start point can beat it, and the answer
+    is the one that function gives (floating-point ties broken alike).  Otherwise (a double cone
+    is cheaper than every annulus near the bound) -2 sends the caller to the full search."""
+    n, m = A1.shape
+    free, ok = _strip_costs(A1, A2, a, k)
+    if not ok:
+        return -2
+    low = np.inf
+    for t in range(k):
+        low = min(low, free[t])
+    amax = 0.0
+    for i in range(n):
+        for j in range(m):
+            amax = max(amax, abs(A1[i, j]), abs(A2[i, j]))
+    tol = _TIE * (n + m) * amax
+    near = np.zeros(n, dtype=np.bool_)
+    for t in range(k):
+        if free[t] <= low + 2.0 * tol:
+            near[(a + t) % n] = True
+    dummy = np.empty((1, 1, 1), dtype=np.int8)
+    best_s = -1
+    best = np.inf
+    for s in range(n):
+        if near[s]:
+            c = _annulus_dp(A1, A2, s, D2, dummy, dummy, False)
+            if c < best:
+                best = c
+                best_s = s
+    if best_s < 0 or best > low + tol:
+        return -2
     return best_s
 
 

@@ -1,0 +1,136 @@
+"""The minimum-area band's start-point search by strips gives the answer of the full search.
+
+``bands.optimal._best_start`` runs one programme per start point inside the strip that the
+least paths of two other start points leave (``_best_start_strips``).  These tests hold it to the
+search that runs the full programme for every start point (``_best_start_each``): the same start
+point on random rings, on rings whose points lie on a coarse grid (where distinct bands tie in
+area and floating-point sums decide), on the signed costs of the drawn-fidelity band, and on runs
+of start points that wrap around the ring.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from contourmesh.bands.fidelity import _costs
+from contourmesh.bands.optimal import (
+    N_LAYERS,
+    _best_start,
+    _best_start_each,
+    _best_start_strips,
+    _cyclic_run,
+    _step_areas,
+    _strip_costs,
+    triangulate_band_optimal,
+)
+
+
+def _ring(rs, n, r, z, noise, turn=0.0, grid=None):
+    t = np.sort(rs.uniform(0, 2 * np.pi, n)) + turn
+    rr = r * (1 + noise * rs.standard_normal(n))
+    P = np.c_[rr * np.cos(t), rr * np.sin(t) * rs.uniform(0.5, 1.5), np.full(n, z)]
+    if grid:
+        P[:, :2] = np.round(P[:, :2] * grid) / grid
+    return P
+
+
+def _both(A1, A2, starts):
+    D2 = np.empty((2, N_LAYERS, A1.shape[1] + 1))
+    return _best_start_each(A1, A2, starts, D2), _best_start(A1, A2, starts, D2)
+
+
+@pytest.mark.parametrize("grid", [None, 2, 3])
+def test_strips_pick_the_start_point_of_the_full_search(grid):
+    rs = np.random.default_rng(11 + (grid or 0))
+    declined = 0
+    for _ in range(150):
+        n = int(rs.integers(4, 40))
+        m = int(rs.integers(n, 60))
+        c1 = _ring(rs, n, rs.uniform(0.2, 2), 0.0, rs.uniform(0, 0.3), grid=grid)
+        c2 = _ring(rs, m, rs.uniform(0.2, 2), 1.0, rs.uniform(0, 0.3), rs.uniform(0, 6), grid=grid)
+        A1, A2 = _step_areas(c1, c2)
+        each, strips = _both(A1, A2, np.arange(n, dtype=np.int64))
+        assert each == strips
+        D2 = np.empty((2, N_LAYERS, m + 1))
+        declined += _best_start_strips(A1, A2, 0, n, D2) == -2
+    assert declined <= 8   # the shortcut answers nearly always (else this test proves little)
+
+
+def test_strips_on_signed_costs_and_wrapping_runs():
+    rs = np.random.default_rng(5)
+    for _ in range(150):
+        n = int(rs.integers(4, 30))
+        m = int(rs.integers(n, 45))
+        c1 = _ring(rs, n, rs.uniform(0.2, 2), 0.0, 0.2, grid=3)
+        c2 = _ring(rs, m, rs.uniform(0.2, 2), 1.0, 0.2, rs.uniform(0, 6), grid=3)
+        A1, A2 = _costs(c1, c2, rs.uniform(0, 3), 1.0 if rs.random() < 0.5 else -1.0)
+        k = int(rs.integers(4, n + 1))
+        near = int(rs.integers(0, n))
+        starts = np.sort((near - k // 2 + np.arange(k)) % n).astype(np.int64)
+        each, strips = _both(A1, A2, starts)
+        assert each == strips
+
+
+def test_strip_costs_are_the_least_monotone_paths():
+    """Each strip cost equals the least monotone path of its start point over the whole grid."""
+    rs = np.random.default_rng(2)
+    c1 = _ring(rs, 17, 1.0, 0.0, 0.2)
+    c2 = _ring(rs, 23, 1.3, 1.0, 0.2, 1.0)
+    A1, A2 = _step_areas(c1, c2)
+    n, m = A1.shape
+    costs, ok = _strip_costs(A1, A2, 0, n)
+    assert ok
+    for s in range(n):  # plain dynamic programme over the whole (n + 1) x (m + 1) grid
+        D = np.full((n + 1, m + 1), np.inf)
+        D[0, 0] = 0.0
+        for i in range(n + 1):
+            for j in range(m + 1):
+                if i > 0:
+                    D[i, j] = min(D[i, j], D[i - 1, j] + A1[(s + i - 1) % n, j % m])
+                if j > 0:
+                    D[i, j] = min(D[i, j], D[i, j - 1] + A2[(s + i) % n, (j - 1) % m])
+        assert costs[s] == pytest.approx(D[n, m], rel=1e-12, abs=1e-12)
+
+
+def test_strips_are_used_and_the_band_is_unchanged_on_long_rings():
+    """On two long rings the strip search certifies its answer itself (no fallback), and the
+    triangulation equals the one from the full search."""
+    t = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+    lo = np.c_[10 * np.cos(t), 6 * np.sin(t), np.zeros_like(t)]
+    u = np.linspace(0, 2 * np.pi, 230, endpoint=False) + 0.3
+    hi = np.c_[10.5 * np.cos(u), 6.2 * np.sin(u), np.ones_like(u)]
+    A1, A2 = _step_areas(lo, hi)
+    D2 = np.empty((2, N_LAYERS, A1.shape[1] + 1))
+    s = _best_start_strips(A1, A2, 0, 200, D2)
+    assert s >= 0
+    assert s == _best_start_each(A1, A2, np.arange(200, dtype=np.int64), D2)
+    f = triangulate_band_optimal(lo, hi)
+    assert f.shape == (430, 3)
+
+
+def test_a_double_cone_sends_the_search_to_the_full_programme():
+    """Costs under which the least monotone path is a double cone (every step along ``C(2)`` at
+    one point of ``C(1)``: not an annulus).  The strip search cannot certify and declines (-2),
+    and the full search's answer stands."""
+    rs = np.random.default_rng(3)
+    n, m = 9, 14
+    A1 = rs.uniform(1, 2, (n, m))
+    A2 = rs.uniform(1, 2, (n, m))
+    A2[0, :] = 0.0   # start 0: along C(2) at C(1)'s point 0 for free ...
+    A1[:, 0] = 0.0   # ... then down C(1) at C(2)'s point 0 for free
+    D2 = np.empty((2, N_LAYERS, m + 1))
+    starts = np.arange(n, dtype=np.int64)
+    costs, ok = _strip_costs(A1, A2, 0, n)
+    assert ok and costs[0] == 0.0
+    assert _best_start_strips(A1, A2, 0, n, D2) == -2
+    each, strips = _both(A1, A2, starts)
+    assert each == strips
+
+
+@pytest.mark.parametrize(
+    ("starts", "n", "a"),
+    [([0, 1, 2, 3], 4, 0), ([2, 3, 4], 9, 2), ([0, 1, 7, 8], 9, 7), ([0, 2, 3], 9, -1), ([0, 1, 5, 8], 9, -1)],
+)
+def test_cyclic_run(starts, n, a):
+    assert _cyclic_run(np.array(starts, dtype=np.int64), n) == a
