@@ -22,7 +22,9 @@ meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same
    G_sigma(p)``, the Gauss-digitized solid blurred by a Gaussian of ``sigma`` voxels
    (:func:`auto_sigma`: 2 to 3.5, growing like the cube root of the object's size), evaluated
    exactly at any point with its gradient and Hessian by a sum over the lattice points within
-   ``4 sigma`` (:func:`blurred_indicator`).
+   ``4 sigma`` (:func:`blurred_indicator`).  The level-set search of steps 3-4 evaluates it in the
+   vertex's own slice, where the sum across the slices is done once per slice and search
+   (:func:`_slice_moments`): each evaluation then sums ``(8 sigma)^2`` terms, not ``(8 sigma)^3``.
 3. **The level set, corrected for curvature.**  For a smooth surface with principal curvatures
    ``k1, k2`` the level ``f = 1/2`` of the blurred indicator lies *inside* the surface by
    ``(k1 + k2) sigma^2 / 2`` (to second order: the Gaussian-weighted share of a paraboloid's
@@ -272,6 +274,97 @@ def _field(pts, x, y, z, sigma, dz, norm, out):
         out[q] /= norm * s2 * s2
 
 
+@njit(cache=True)
+def _slice_moments(pts, k, sigma, dz, i0, i1, j0, j1):
+    """The solid blurred across the slices around lattice slice ``k``: three images of the box
+    ``[j0, j1] x [i0, i1]``, ``M_p[j, i] = sum_n pts[n, j, i] G(w_n) w_n^p`` (``p = 0, 1, 2``) with
+    ``w_n = (n - k) dz`` and ``G(w) = exp(-w^2 / (2 sigma^2))`` over the slices within ``4 sigma``.
+
+    The Gaussian is separable, so at every point of slice ``k`` the field and its derivatives are
+    sums over the in-slice window of these images (:func:`_field_in_slice`): ``(8 sigma)^2``
+    terms per evaluation instead of the ``(8 sigma)^3`` of :func:`_field`, which the level-set
+    search of :func:`_move_to_surface` evaluates five times per vertex and search on average."""
+    nz = pts.shape[0]
+    rad = 4.0 * sigma
+    z = float(k)
+    k0 = max(int(math.floor(z - rad / dz)), 0)
+    k1 = min(int(math.ceil(z + rad / dz)), nz - 1)
+    s2 = sigma * sigma
+    mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
+    for n in range(k0, k1 + 1):
+        w = (n - z) * dz
+        e = math.exp(-(w * w) / (2.0 * s2))
+        ew = e * w
+        eww = ew * w
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                if pts[n, j, i]:
+                    mom[0, j - j0, i - i0] += e
+                    mom[1, j - j0, i - i0] += ew
+                    mom[2, j - j0, i - i0] += eww
+    return mom
+
+
+@njit(cache=True)
+def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
+    """:func:`_field` at ``(x, y)`` of the slice whose :func:`_slice_moments` are ``mom`` (taken
+    over the box from ``(i0, j0)``, which holds the window ``4 sigma`` around the point; ``nx, ny``
+    are the volume's, the window is clipped to them as there).  Equal to :func:`_field` up to the
+    rounding of the sums' order."""
+    rad = 4.0 * sigma
+    a0 = max(int(math.floor(x - rad)), 0)
+    a1 = min(int(math.ceil(x + rad)), nx - 1)
+    b0 = max(int(math.floor(y - rad)), 0)
+    b1 = min(int(math.ceil(y + rad)), ny - 1)
+    s2 = sigma * sigma
+    ex = np.empty(a1 - a0 + 1)
+    for i in range(a0, a1 + 1):
+        ex[i - a0] = math.exp(-((i - x) ** 2) / (2.0 * s2))
+    for q in range(10):
+        out[q] = 0.0
+    for j in range(b0, b1 + 1):
+        wy = j - y
+        ey = math.exp(-(wy * wy) / (2.0 * s2))
+        r0 = 0.0  # sum over the row of G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2
+        r1 = 0.0
+        r2 = 0.0
+        q0 = 0.0
+        q1 = 0.0
+        p0 = 0.0
+        jj = j - j0
+        for i in range(a0, a1 + 1):
+            ii = i - i0
+            m0 = mom[0, jj, ii]
+            if m0 == 0.0:
+                continue
+            e = ex[i - a0]
+            wx = i - x
+            ew = e * wx
+            r0 += e * m0
+            r1 += ew * m0
+            r2 += ew * wx * m0
+            q0 += e * mom[1, jj, ii]
+            q1 += ew * mom[1, jj, ii]
+            p0 += e * mom[2, jj, ii]
+        if r0 == 0.0:
+            continue
+        out[0] += ey * r0
+        out[1] += ey * r1
+        out[2] += ey * r0 * wy
+        out[3] += ey * q0
+        out[4] += ey * (r2 - r0 * s2)
+        out[5] += ey * r0 * (wy * wy - s2)
+        out[6] += ey * (p0 - r0 * s2)
+        out[7] += ey * r1 * wy
+        out[8] += ey * q1
+        out[9] += ey * q0 * wy
+    out[0] /= norm
+    for q in range(1, 4):
+        out[q] /= norm * s2
+    for q in range(4, 10):
+        out[q] /= norm * s2 * s2
+
+
 def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0) -> np.ndarray:
     """The blurred indicator ``f`` (step 2 of the module docstring) and its derivatives at points.
 
@@ -420,6 +513,11 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
     norm = _lattice_norm(sigma, dz)
     buf = np.empty(10)
     clamped = 0
+    nz, ny, nx = pts.shape
+    reach = max_move + 4.0 * sigma + 1.0  # the search's points and their windows: within this of the start
+    cur = -1
+    mom = np.zeros((3, 1, 1))
+    i0 = j0 = 0
     for n in range(xy.shape[0]):
         x0, y0 = xy[n, 0], xy[n, 1]
         out[n, 0], out[n, 1] = x0, y0
@@ -427,8 +525,19 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
         k = kz[n]
         if k < 0:
             continue
-        z = float(k)
-        _field(pts, x0, y0, z, sigma, dz, norm, buf)
+        if k != cur:  # the slice's blurred images over the box the searches of its vertices can reach
+            xlo, xhi, ylo, yhi = x0, x0, y0, y0
+            for m in range(n + 1, xy.shape[0]):
+                if kz[m] == k:
+                    xlo, xhi = min(xlo, xy[m, 0]), max(xhi, xy[m, 0])
+                    ylo, yhi = min(ylo, xy[m, 1]), max(yhi, xy[m, 1])
+            i0 = min(max(int(math.floor(xlo - reach)), 0), nx - 1)
+            i1 = max(min(int(math.ceil(xhi + reach)), nx - 1), i0)
+            j0 = min(max(int(math.floor(ylo - reach)), 0), ny - 1)
+            j1 = max(min(int(math.ceil(yhi + reach)), ny - 1), j0)
+            mom = _slice_moments(pts, k, sigma, dz, i0, i1, j0, j1)
+            cur = k
+        _field_in_slice(mom, i0, j0, nx, ny, x0, y0, sigma, norm, buf)
         hx, hy = -buf[1], -buf[2]
         hn = math.sqrt(hx * hx + hy * hy)
         gn = math.sqrt(buf[1] ** 2 + buf[2] ** 2 + buf[3] ** 2)
@@ -440,7 +549,8 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
         t = 0.0
         ok = False
         for it in range(40):
-            _field(pts, x0 + t * dx, y0 + t * dy, z, sigma, dz, norm, buf)
+            if it > 0:  # at t = 0, buf holds the field at the start already
+                _field_in_slice(mom, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, norm, buf)
             g = buf[0] - 0.5
             if abs(g) < 1e-12:
                 ok = True
@@ -465,7 +575,7 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
         found[n] = True
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
-            _field(pts, tx, ty, z, sigma, dz, norm, buf)
+            _field_in_slice(mom, i0, j0, nx, ny, tx, ty, sigma, norm, buf)
             shift, gnorm = _mean_curvature_shift(buf, sigma)
             hz = math.sqrt(buf[1] ** 2 + buf[2] ** 2)
             if gnorm > 0.0 and hz > 0.0:
