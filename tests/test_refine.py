@@ -417,3 +417,13 @@ def test_move_to_surface_is_the_same_for_one_vertex_or_many_slices_at_once():
         assert alone == clamped
         assert found[kz >= 0].sum() > n // 2 and np.all(out[kz < 0] == xy[kz < 0])
         assert np.abs(out - xy).max() > 1.0  # the searches moved vertices well into the box margins
+
+
+def test_fields_in_slice_equal_the_direct_sums():
+    pts = _lumpy_points()
+    xy = np.random.default_rng(2).uniform(-2, 31, (50, 2))
+    for k in (0, 9, 23):
+        loc = np.c_[xy, np.full(len(xy), float(k))]
+        assert np.allclose(R._fields_in_slice(pts, xy, k, 2.4, 1.0), R._field_many(pts, loc, 2.4, 1.0),
+                           rtol=1e-12, atol=1e-14)
+    assert R._fields_in_slice(pts, np.zeros((0, 2)), 3, 2.4, 1.0).shape == (0, 10)

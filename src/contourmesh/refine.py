@@ -365,6 +365,29 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
         out[q] /= norm * s2 * s2
 
 
+@njit(cache=True)
+def _fields_in_slice(pts, xy, k, sigma, dz):
+    """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
+    (:func:`_slice_moments`) over the box that holds the points' windows: ``(n, 10)``."""
+    nz, ny, nx = pts.shape
+    n = xy.shape[0]
+    out = np.zeros((n, 10))
+    if n == 0:
+        return out
+    reach = 4.0 * sigma + 1.0
+    i0 = min(max(int(math.floor(np.min(xy[:, 0]) - reach)), 0), nx - 1)
+    i1 = max(min(int(math.ceil(np.max(xy[:, 0]) + reach)), nx - 1), i0)
+    j0 = min(max(int(math.floor(np.min(xy[:, 1]) - reach)), 0), ny - 1)
+    j1 = max(min(int(math.ceil(np.max(xy[:, 1]) + reach)), ny - 1), j0)
+    mom = _slice_moments(pts, k, sigma, dz, i0, i1, j0, j1)
+    norm = _lattice_norm(sigma, dz)
+    buf = np.empty(10)
+    for m in range(n):
+        _field_in_slice(mom, i0, j0, nx, ny, xy[m, 0], xy[m, 1], sigma, norm, buf)
+        out[m, :] = buf
+    return out
+
+
 def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0) -> np.ndarray:
     """The blurred indicator ``f`` (step 2 of the module docstring) and its derivatives at points.
 
@@ -926,10 +949,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:
-        loc = np.empty((len(ring), 3))
-        loc[:, :2] = ring
-        loc[:, 2] = kk
-        fld = _field_many(pts, loc, sigma, dz)
+        fld = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, sigma, dz)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
         target = _chord_push(ring, nz2)
