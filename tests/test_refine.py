@@ -394,6 +394,9 @@ def test_field_in_slice_equals_the_direct_sum(sigma, dz):
             R._field(pts, x, y, float(k), sigma, dz, norm, direct)
             R._field_in_slice(mom, 0, 0, nx, ny, x, y, sigma, norm, fast)
             assert np.allclose(fast, direct, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(direct).max()))
+            level = np.full(10, 7.0)
+            R._level_in_slice(mom, 0, 0, nx, ny, x, y, sigma, norm, level)
+            assert np.array_equal(level[:3], fast[:3]) and np.all(level[3:] == 7.0)  # the search's steps
 
 
 def test_move_to_surface_is_the_same_for_one_vertex_or_many_slices_at_once():
@@ -424,6 +427,23 @@ def test_fields_in_slice_equal_the_direct_sums():
     xy = np.random.default_rng(2).uniform(-2, 31, (50, 2))
     for k in (0, 9, 23):
         loc = np.c_[xy, np.full(len(xy), float(k))]
-        assert np.allclose(R._fields_in_slice(pts, xy, k, 2.4, 1.0), R._field_many(pts, loc, 2.4, 1.0),
-                           rtol=1e-12, atol=1e-14)
-    assert R._fields_in_slice(pts, np.zeros((0, 2)), 3, 2.4, 1.0).shape == (0, 10)
+        got, _ = R._fields_in_slice(pts, xy, k, 2.4, 1.0, *R._no_images(), 0.0)
+        assert np.allclose(got, R._field_many(pts, loc, 2.4, 1.0), rtol=1e-12, atol=1e-14)
+    assert R._fields_in_slice(pts, np.zeros((0, 2)), 3, 2.4, 1.0, *R._no_images(), 0.0)[0].shape == (0, 10)
+
+
+def test_searches_sharing_slice_images_give_the_same_places():
+    """The images kept between the searches of a slice (and from another slice, replaced) change nothing."""
+    pts = _lumpy_points()
+    rng = np.random.default_rng(8)
+    ang = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    rings = [np.c_[13.2 + r * np.cos(ang), 14.6 + 1.1 * r * np.sin(ang)] + rng.normal(0, 0.4, (40, 2))
+             for r in (8.0, 9.5, 3.0)]
+    shared = {}  # kept from slice 9 into slice 12: replaced there
+    for k in (9, 12):
+        kz = np.full(40, k, dtype=np.int64)
+        for ring in rings:
+            alone, n1 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, None)
+            kept, n2 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, shared)
+            assert np.array_equal(alone, kept) and n1 == n2
+        assert set(shared) == {2.6, 1.8} and all(box[0] == k for _, box in shared.values())

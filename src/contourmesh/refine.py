@@ -94,6 +94,10 @@ FINE_RATIO = 0.7
 #: Disagreement between the two scales (voxels) below which the coarse estimate stands alone and
 #: above which the fine one replaces it (linear in between).
 FINE_TOLERANCE = (0.1, 0.3)
+#: New slice images (:func:`_slice_moments`) of a ring's first search reach this many ``max_move``
+#: (plus 2 voxels) beyond what it needs, so that the ring's later searches (its meridian points lie
+#: within ``max_move + 1`` of its seed) and its chord step reuse them.
+IMAGE_MARGIN = 1.0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -366,26 +370,90 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
 
 
 @njit(cache=True)
-def _fields_in_slice(pts, xy, k, sigma, dz):
+def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
+    """``f, fx, fy`` of :func:`_field_in_slice` into ``out[:3]`` (the same sums, so the same values;
+    ``out[3:]`` is left as it was): what the level-set search needs at its steps."""
+    rad = 4.0 * sigma
+    a0 = max(int(math.floor(x - rad)), 0)
+    a1 = min(int(math.ceil(x + rad)), nx - 1)
+    b0 = max(int(math.floor(y - rad)), 0)
+    b1 = min(int(math.ceil(y + rad)), ny - 1)
+    s2 = sigma * sigma
+    ex = np.empty(a1 - a0 + 1)
+    for i in range(a0, a1 + 1):
+        ex[i - a0] = math.exp(-((i - x) ** 2) / (2.0 * s2))
+    f = 0.0
+    fx = 0.0
+    fy = 0.0
+    for j in range(b0, b1 + 1):
+        wy = j - y
+        ey = math.exp(-(wy * wy) / (2.0 * s2))
+        r0 = 0.0
+        r1 = 0.0
+        jj = j - j0
+        for i in range(a0, a1 + 1):
+            m0 = mom[0, jj, i - i0]
+            if m0 == 0.0:
+                continue
+            e = ex[i - a0]
+            ew = e * (i - x)
+            r0 += e * m0
+            r1 += ew * m0
+        if r0 == 0.0:
+            continue
+        f += ey * r0
+        fx += ey * r1
+        fy += ey * r0 * wy
+    out[0] = f / norm
+    out[1] = fx / (norm * s2)
+    out[2] = fy / (norm * s2)
+
+
+@njit(cache=True)
+def _images_for(pts, k, sigma, dz, xlo, xhi, ylo, yhi, reach, margin, mom, box):
+    """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
+    point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach``: ``mom`` itself when its box
+    (``box = (k, i0, i1, j0, j1)``, ``k = -1``: none) holds that already, else new images over
+    that box widened by ``margin`` more (so the next searches of the slice find them), ``box``
+    updated in place.  The images at a lattice point do not depend on the box."""
+    nz, ny, nx = pts.shape
+    i0 = min(max(int(math.floor(xlo - reach)), 0), nx - 1)
+    i1 = max(min(int(math.ceil(xhi + reach)), nx - 1), i0)
+    j0 = min(max(int(math.floor(ylo - reach)), 0), ny - 1)
+    j1 = max(min(int(math.ceil(yhi + reach)), ny - 1), j0)
+    if box[0] == k and box[1] <= i0 and i1 <= box[2] and box[3] <= j0 and j1 <= box[4]:
+        return mom
+    box[0] = k
+    box[1] = min(max(int(math.floor(xlo - reach - margin)), 0), nx - 1)
+    box[2] = max(min(int(math.ceil(xhi + reach + margin)), nx - 1), box[1])
+    box[3] = min(max(int(math.floor(ylo - reach - margin)), 0), ny - 1)
+    box[4] = max(min(int(math.ceil(yhi + reach + margin)), ny - 1), box[3])
+    return _slice_moments(pts, k, sigma, dz, box[1], box[2], box[3], box[4])
+
+
+def _no_images():
+    """An empty slot for :func:`_images_for`: ``(mom, box)``."""
+    return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64)
+
+
+@njit(cache=True)
+def _fields_in_slice(pts, xy, k, sigma, dz, mom, box, margin):
     """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
-    (:func:`_slice_moments`) over the box that holds the points' windows: ``(n, 10)``."""
+    (:func:`_images_for`, reused from ``mom, box`` where they cover the points' windows):
+    ``(out (n, 10), mom)``."""
     nz, ny, nx = pts.shape
     n = xy.shape[0]
     out = np.zeros((n, 10))
     if n == 0:
-        return out
-    reach = 4.0 * sigma + 1.0
-    i0 = min(max(int(math.floor(np.min(xy[:, 0]) - reach)), 0), nx - 1)
-    i1 = max(min(int(math.ceil(np.max(xy[:, 0]) + reach)), nx - 1), i0)
-    j0 = min(max(int(math.floor(np.min(xy[:, 1]) - reach)), 0), ny - 1)
-    j1 = max(min(int(math.ceil(np.max(xy[:, 1]) + reach)), ny - 1), j0)
-    mom = _slice_moments(pts, k, sigma, dz, i0, i1, j0, j1)
+        return out, mom
+    mom = _images_for(pts, k, sigma, dz, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]), np.max(xy[:, 1]),
+                      4.0 * sigma + 1.0, margin, mom, box)
     norm = _lattice_norm(sigma, dz)
     buf = np.empty(10)
     for m in range(n):
-        _field_in_slice(mom, i0, j0, nx, ny, xy[m, 0], xy[m, 1], sigma, norm, buf)
+        _field_in_slice(mom, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, norm, buf)
         out[m, :] = buf
-    return out
+    return out, mom
 
 
 def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0) -> np.ndarray:
@@ -465,6 +533,15 @@ def _in_band(pts, k, x, y):
     return in_u and not all_v
 
 
+@njit(cache=True)
+def _off_band(pts, k, xy):
+    """Whether each point ``xy (n, 2)`` lies outside slice ``k``'s band (:func:`_in_band`)."""
+    out = np.empty(xy.shape[0], dtype=np.bool_)
+    for n in range(xy.shape[0]):
+        out[n] = not _in_band(pts, k, xy[n, 0], xy[n, 1])
+    return out
+
+
 def band_violations(stack: ContourStack, mesh: Mesh) -> int:
     """Number of mesh vertices on a section that lie outside that section's band ``U_k \\ int(V_k)``.
 
@@ -533,13 +610,21 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
     otherwise one whose slice has no level within reach (a part thinner than the blur) is
     dragged to the end of the search interval.
     """
+    clamped, _ = _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found,
+                                   np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), 0.0)
+    return clamped
+
+
+@njit(cache=True)
+def _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found, mom, box, margin):
+    """:func:`_move_to_surface` with the slice images ``mom, box`` of an earlier search (see
+    :func:`_images_for`; ``margin``: how much wider new images are made); ``(clamped, mom)``."""
     norm = _lattice_norm(sigma, dz)
     buf = np.empty(10)
     clamped = 0
     nz, ny, nx = pts.shape
     reach = max_move + 4.0 * sigma + 1.0  # the search's points and their windows: within this of the start
     cur = -1
-    mom = np.zeros((3, 1, 1))
     i0 = j0 = 0
     for n in range(xy.shape[0]):
         x0, y0 = xy[n, 0], xy[n, 1]
@@ -554,11 +639,8 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
                 if kz[m] == k:
                     xlo, xhi = min(xlo, xy[m, 0]), max(xhi, xy[m, 0])
                     ylo, yhi = min(ylo, xy[m, 1]), max(yhi, xy[m, 1])
-            i0 = min(max(int(math.floor(xlo - reach)), 0), nx - 1)
-            i1 = max(min(int(math.ceil(xhi + reach)), nx - 1), i0)
-            j0 = min(max(int(math.floor(ylo - reach)), 0), ny - 1)
-            j1 = max(min(int(math.ceil(yhi + reach)), ny - 1), j0)
-            mom = _slice_moments(pts, k, sigma, dz, i0, i1, j0, j1)
+            mom = _images_for(pts, k, sigma, dz, xlo, xhi, ylo, yhi, reach, margin, mom, box)
+            i0, j0 = box[1], box[3]
             cur = k
         _field_in_slice(mom, i0, j0, nx, ny, x0, y0, sigma, norm, buf)
         hx, hy = -buf[1], -buf[2]
@@ -573,7 +655,7 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
         ok = False
         for it in range(40):
             if it > 0:  # at t = 0, buf holds the field at the start already
-                _field_in_slice(mom, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, norm, buf)
+                _level_in_slice(mom, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, norm, buf)
             g = buf[0] - 0.5
             if abs(g) < 1e-12:
                 ok = True
@@ -615,7 +697,7 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
             continue
         clamped += 1
         _back_into_band(pts, k, x0, y0, tx, ty, 256, out, n)
-    return clamped
+    return clamped, mom
 
 
 @njit(cache=True)
@@ -789,20 +871,32 @@ def _is_simple(ring):
     return True
 
 
-def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False, fine=None, counts=None):
+def _search(images, pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found) -> int:
+    """:func:`_move_to_surface` keeping the slice images in ``images`` (``width -> (mom, box)``, see
+    :func:`_images_for`) for the next searches and field evaluations of the slice."""
+    if images is None:
+        return _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found)
+    mom, box = images.get(float(sigma)) or _no_images()
+    clamped, mom = _move_with_images(pts, xy, kz, float(sigma), dz, curvature, max_move, out, strict, found, mom, box,
+                                     IMAGE_MARGIN * max_move + 2.0)
+    images[float(sigma)] = (mom, box)
+    return clamped
+
+
+def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False, fine=None, counts=None, images=None):
     """Steps 3-4 at ``sigma``; with ``fine`` (a smaller width), the two-scale selection of step 3b.
 
     ``counts`` (a two-item list) accumulates the vertices that took the fine estimate and the
-    vertices seen."""
+    vertices seen; ``images`` (a dict, or None) keeps the slice images between searches of one slice."""
     xy = np.ascontiguousarray(xy)
     out = np.empty_like(xy)
     found = np.empty(len(xy), dtype=np.bool_)
-    clamped = _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found)
+    clamped = _search(images, pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found)
     if fine is None or not fine < sigma or len(xy) < 3:
         return out, clamped
     near = np.empty_like(xy)
     found_fine = np.empty(len(xy), dtype=np.bool_)
-    _move_to_surface(pts, xy, kz, float(fine), dz, curvature, max_move, near, strict, found_fine)
+    _search(images, pts, xy, kz, float(fine), dz, curvature, max_move, near, strict, found_fine)
     # a vertex that one of the two searches left where it was (no level within reach) keeps the
     # coarse decision; elsewhere the extrapolated estimate weighs in where the two scales disagree
     # (also where the band clamp put the wide place back on the seed: that search did find the level)
@@ -894,7 +988,8 @@ def _check_density(density) -> None:
 
 def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
                 chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0,
-                strict: bool = False, fine_sigma: float | None = None, counts: list | None = None):
+                strict: bool = False, fine_sigma: float | None = None, counts: list | None = None,
+                images: dict | None = None):
     """Steps 3-6 of the module docstring for one seed polygon of lattice slice ``kz``.
 
     Parameters
@@ -916,6 +1011,9 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
         The fine width of the two-scale selection (step 3b); None: one scale.
     counts : list, optional
         ``[fine, seen]``: accumulates the vertices that took the fine estimate.
+    images : dict, optional
+        Slice images kept between the searches of slice ``kz`` (pass the same dict for the rings of
+        one slice; a new one per slice).  The results do not depend on it.
 
     Returns
     -------
@@ -929,8 +1027,9 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
     if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
         return seed, 0  # a pole point or a segment: kept as it is
     clamped = 0
+    images = {} if images is None else images
     kzs = np.full(len(seed), kk, dtype=np.int64)
-    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move, strict, fine_sigma, counts)
+    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move, strict, fine_sigma, counts, images)
     clamped += nc
     ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
     if meridians and prev is not None and len(prev):
@@ -944,12 +1043,15 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
                 start = _ring_point_at(guide, s)
                 kzs = np.full(len(start), kk, dtype=np.int64)
                 cand, nc = _surface_points(pts, start, kzs, sigma, dz, curvature, max_move, strict, fine_sigma,
-                                           counts)
+                                           counts, images)
                 if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:
-        fld = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, sigma, dz)
+        mom, box = images.get(float(sigma)) or _no_images()
+        fld, mom = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), dz, mom, box,
+                                    IMAGE_MARGIN * max_move + 2.0)
+        images[float(sigma)] = (mom, box)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
         target = _chord_push(ring, nz2)
@@ -963,7 +1065,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
     # projection onto a chord of the guide) goes back toward the seed polygon, which lies in the
     # band (the MLP does), as far as the band allows.
     kzs = np.full(len(ring), kk, dtype=np.int64)
-    bad = np.array([not _in_band(pts, kk, float(a), float(b)) for a, b in ring], dtype=bool)
+    bad = _off_band(pts, kk, np.ascontiguousarray(ring, dtype=np.float64))
     if bad.any():
         _, _, px, py = _project_to_ring(np.ascontiguousarray(seed), np.ascontiguousarray(ring[bad]))
         start = np.stack([px, py], axis=1)
@@ -1029,10 +1131,11 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
         kk = int(zidx[k])
         finals = []
         q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
+        images = {}  # the section's slice images, shared by its contours
         for c in sec.contours:
             c = np.asarray(c, dtype=np.int64)
             seed = np.asarray(polygonize(c, polygon), dtype=np.float64) if len(c) >= 3 else c.astype(np.float64)
-            ring, nc = refine_ring(pts, seed - off, kk, sigma, float(dz), q if prev else None, **opts)
+            ring, nc = refine_ring(pts, seed - off, kk, sigma, float(dz), q if prev else None, images=images, **opts)
             clamped += nc
             finals.append(ring)
         prev = finals
@@ -1212,10 +1315,12 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     for k in sorted(by_slice):
         keys = by_slice[k]
         rings, starts = [], []
+        images = {}  # the slice's images, shared by its rings
         for key in keys:
             seed = loc[key][1]
             guide = finals.get(below.get(key)) if meridians else None
-            ring, nc = (seed, 0) if key in thin else refine_ring(pts, seed, k + pad, sigma, dz, guide, **opts)
+            ring, nc = ((seed, 0) if key in thin
+                        else refine_ring(pts, seed, k + pad, sigma, dz, guide, images=images, **opts))
             clamped += nc
             rings.append(ring)
             starts.append(seed)
