@@ -316,13 +316,19 @@ def _warm_volumes() -> list:
     return [ball, general, np.pad(noise, 1)]
 
 
-def _warm_repair() -> None:
-    """The crossing repair (rare on small volumes): two overlapping cubes pulled apart, and the
-    crossing pairs recounted after one cube moved."""
+def _warm_rare() -> None:
+    """Kernels of paths that small volumes rarely take: the crossing repair (two overlapping cubes
+    pulled apart, and the crossing pairs recounted after one cube moved) and the optimal band
+    with its work bounded (large polygons)."""
     import numpy as np
 
+    from ..bands.optimal import triangulate_band_optimal
     from ..repair import crossing_pairs_after_change, resolve_crossings
     from ..volumes import volume_to_mesh
+
+    t = np.linspace(0, 2 * np.pi, 9, endpoint=False)
+    ring = np.c_[np.cos(t), np.sin(t), np.zeros_like(t)]
+    triangulate_band_optimal(ring[:-1], ring + [0.1, 0.0, 1.0], max_work=10.0)
 
     cube = volume_to_mesh(np.pad(np.ones((2, 2, 2), dtype=bool), 1))
     V = np.vstack([cube.vertices, cube.vertices + 0.3])
@@ -365,7 +371,7 @@ def warm_up(methods) -> list:
         warmed.append(name)
     if warmed:
         try:
-            _warm_repair()
+            _warm_rare()
         except Exception:  # noqa: BLE001 - the rows that need it compile it
             pass
     return warmed
