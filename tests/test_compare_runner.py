@@ -356,3 +356,61 @@ def test_cli_compare_writes_to_the_current_directory_and_says_where(tmp_path):
     assert (work / "one" / "results.csv").is_file()
     assert sorted(p.name for p in specs.iterdir()) == ["one.toml"]  # nothing next to the spec
     assert f"wrote {work / 'one'}" in run.stdout
+
+
+# issue 14: the band's rows on the real shapes took 50-90x the paper mode's time where a worker's
+# first row compiled the numba kernels (the disk cache was stale after a merge); run_spec now warms
+# our methods up before the rows.  The probe counts the kernel signatures a row adds in a fresh
+# process: compiled or loaded from the cache inside the row without the warm-up, none with it.
+_WARM_PROBE = r"""
+import sys
+import numpy as np
+import numba.core.registry as reg
+from scipy.ndimage import gaussian_filter
+from contourmesh.compare import runner
+from contourmesh.compare.methods import get_method
+
+def signatures():
+    return sum(len(v.signatures) for name, mod in list(sys.modules.items()) if name.startswith("contourmesh")
+               for v in vars(mod).values() if isinstance(v, reg.CPUDispatcher))
+
+methods = ["ours-mlp-wiederhold", "ours-mlp-optimal-band"]
+if sys.argv[1] == "warm":
+    assert runner.warm_up(methods + ["mc-lewiner"]) == methods
+zz, yy, xx = np.mgrid[:16, :19, :17]
+ellipsoid = (zz - 7.6) ** 2 / 1.8 + (yy - 9.2) ** 2 + (xx - 8.1) ** 2 / 1.3 < 36
+noise = np.pad(gaussian_filter(np.random.default_rng(5).standard_normal((18, 20, 19)), 1.7) > 0.0, 1)
+before = signatures()
+for vol in (ellipsoid, noise):
+    for name in methods:
+        m = get_method(name)
+        m.fn(vol, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), **m.params)
+print(signatures() - before)
+"""
+
+
+def test_warm_up_leaves_no_kernel_to_compile_or_load_in_a_row():
+    import subprocess
+    import sys
+
+    def added(mode):
+        run = subprocess.run([sys.executable, "-c", _WARM_PROBE, mode], capture_output=True, text=True, timeout=900)
+        assert run.returncode == 0, run.stderr[-2000:]
+        return int(run.stdout.split()[-1])
+
+    assert added("cold") > 0  # without the warm-up the rows pay for the kernels
+    assert added("warm") == 0
+
+
+def test_run_spec_warms_our_methods_before_the_rows(fakes, tmp_path, monkeypatch):
+    order = []
+    monkeypatch.setattr(runner, "warm_up", lambda methods: order.append(("warm", sorted(set(methods)))))
+    real_execute = runner.execute
+    monkeypatch.setattr(runner, "execute", lambda task: order.append(("row", task.method)) or real_execute(task))
+    p = tmp_path / "s.toml"
+    p.write_text('methods = ["t-count"]\n[[inputs]]\nshape = "sphere"\nsizes = [5]\n')
+    runner.run_spec(p, tmp_path / "out", progress=False)
+    assert order == [("warm", ["t-count"]), ("row", "t-count")]
+    order.clear()
+    runner.run_spec(p, tmp_path / "out2", progress=False, warm=False)
+    assert order == [("row", "t-count")]

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import contourmesh
+from contourmesh import refine as R
 from contourmesh.digitize import gauss_volume, outer_jordan_stack
 from contourmesh.refine import auto_sigma, band_violations, blurred_indicator, in_band, refine_stack, stack_points
 from contourmesh.shapes import Ellipsoid, Sphere, rotation_from_euler
@@ -369,3 +370,80 @@ def test_two_scale_step_recovers_detail_the_wide_blur_flattens(amp, waves):
         assert stuck.any() and not np.all(got[stuck] == seed[stuck])
     blend = wide + w[:, None] * (narrow - wide)
     assert _dist(got[act], truth).mean() < _dist(blend[act], truth).mean() - 0.004
+
+
+# issue 14: the level-set search evaluates the blurred field at every step; per slice it sums
+# pre-blurred images over the in-slice window (O(sigma^2) terms) instead of the 3D window
+def _lumpy_points(shape=(24, 30, 28), seed=3):
+    rng = np.random.default_rng(seed)
+    zz, yy, xx = np.mgrid[: shape[0], : shape[1], : shape[2]]
+    ball = (zz - 11.3) ** 2 / 1.4 + (yy - 14.6) ** 2 + (xx - 13.2) ** 2 / 0.8 < 90
+    return np.ascontiguousarray(ball ^ (rng.random(shape) < 0.03))
+
+
+@pytest.mark.parametrize("sigma, dz", [(2.0, 1.0), (2.9, 1.0), (1.4, 1.7), (3.5, 0.6)])
+def test_field_in_slice_equals_the_direct_sum(sigma, dz):
+    pts = _lumpy_points()
+    nz, ny, nx = pts.shape
+    norm = R._lattice_norm(sigma, dz)
+    rng = np.random.default_rng(11)
+    direct, fast = np.empty(10), np.empty(10)
+    for k in (0, 5, 11, nz - 1):
+        mom = R._slice_moments(pts, k, sigma, dz, 0, nx - 1, 0, ny - 1)
+        for x, y in rng.uniform(-4, max(nx, ny) + 4, (60, 2)):
+            R._field(pts, x, y, float(k), sigma, dz, norm, direct)
+            R._field_in_slice(mom, 0, 0, nx, ny, x, y, sigma, norm, fast)
+            assert np.allclose(fast, direct, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(direct).max()))
+            level = np.full(10, 7.0)
+            R._level_in_slice(mom, 0, 0, nx, ny, x, y, sigma, norm, level)
+            assert np.array_equal(level[:3], fast[:3]) and np.all(level[3:] == 7.0)  # the search's steps
+
+
+def test_move_to_surface_is_the_same_for_one_vertex_or_many_slices_at_once():
+    """Each slice's images cover the box its vertices' searches reach: moving every vertex alone
+    (the smallest box) gives the same places as one call over vertices of several slices."""
+    pts = _lumpy_points()
+    rng = np.random.default_rng(5)
+    n = 80
+    kz = rng.choice([-1, 4, 9, 11, 16], n).astype(np.int64)
+    ang = rng.uniform(0, 2 * np.pi, n)
+    xy = np.ascontiguousarray(np.c_[13.2 + 8.5 * np.cos(ang), 14.6 + 9.5 * np.sin(ang)] + rng.normal(0, 1.5, (n, 2)))
+    for curvature, strict in ((True, False), (False, True)):
+        out, found = np.empty_like(xy), np.empty(n, dtype=np.bool_)
+        clamped = R._move_to_surface(pts, xy, kz, 2.3, 1.0, curvature, 3.0, out, strict, found)
+        one, f1 = np.empty((1, 2)), np.empty(1, dtype=np.bool_)
+        alone = 0
+        for i in range(n):
+            alone += R._move_to_surface(pts, xy[i : i + 1].copy(), kz[i : i + 1].copy(), 2.3, 1.0, curvature, 3.0,
+                                        one, strict, f1)
+            assert np.array_equal(one[0], out[i]) and f1[0] == found[i]
+        assert alone == clamped
+        assert found[kz >= 0].sum() > n // 2 and np.all(out[kz < 0] == xy[kz < 0])
+        assert np.abs(out - xy).max() > 1.0  # the searches moved vertices well into the box margins
+
+
+def test_fields_in_slice_equal_the_direct_sums():
+    pts = _lumpy_points()
+    xy = np.random.default_rng(2).uniform(-2, 31, (50, 2))
+    for k in (0, 9, 23):
+        loc = np.c_[xy, np.full(len(xy), float(k))]
+        got, _ = R._fields_in_slice(pts, xy, k, 2.4, 1.0, *R._no_images(), 0.0)
+        assert np.allclose(got, R._field_many(pts, loc, 2.4, 1.0), rtol=1e-12, atol=1e-14)
+    assert R._fields_in_slice(pts, np.zeros((0, 2)), 3, 2.4, 1.0, *R._no_images(), 0.0)[0].shape == (0, 10)
+
+
+def test_searches_sharing_slice_images_give_the_same_places():
+    """The images kept between the searches of a slice (and from another slice, replaced) change nothing."""
+    pts = _lumpy_points()
+    rng = np.random.default_rng(8)
+    ang = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    rings = [np.c_[13.2 + r * np.cos(ang), 14.6 + 1.1 * r * np.sin(ang)] + rng.normal(0, 0.4, (40, 2))
+             for r in (8.0, 9.5, 3.0)]
+    shared = {}  # kept from slice 9 into slice 12: replaced there
+    for k in (9, 12):
+        kz = np.full(40, k, dtype=np.int64)
+        for ring in rings:
+            alone, n1 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, None)
+            kept, n2 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, shared)
+            assert np.array_equal(alone, kept) and n1 == n2
+        assert set(shared) == {2.6, 1.8} and all(box[0] == k for _, box in shared.values())

@@ -22,7 +22,9 @@ meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same
    G_sigma(p)``, the Gauss-digitized solid blurred by a Gaussian of ``sigma`` voxels
    (:func:`auto_sigma`: 2 to 3.5, growing like the cube root of the object's size), evaluated
    exactly at any point with its gradient and Hessian by a sum over the lattice points within
-   ``4 sigma`` (:func:`blurred_indicator`).
+   ``4 sigma`` (:func:`blurred_indicator`).  The level-set search of steps 3-4 evaluates it in the
+   vertex's own slice, where the sum across the slices is done once per slice and search
+   (:func:`_slice_moments`): each evaluation then sums ``(8 sigma)^2`` terms, not ``(8 sigma)^3``.
 3. **The level set, corrected for curvature.**  For a smooth surface with principal curvatures
    ``k1, k2`` the level ``f = 1/2`` of the blurred indicator lies *inside* the surface by
    ``(k1 + k2) sigma^2 / 2`` (to second order: the Gaussian-weighted share of a paraboloid's
@@ -92,6 +94,10 @@ FINE_RATIO = 0.7
 #: Disagreement between the two scales (voxels) below which the coarse estimate stands alone and
 #: above which the fine one replaces it (linear in between).
 FINE_TOLERANCE = (0.1, 0.3)
+#: New slice images (:func:`_slice_moments`) of a ring's first search reach this many ``max_move``
+#: (plus 2 voxels) beyond what it needs, so that the ring's later searches (its meridian points lie
+#: within ``max_move + 1`` of its seed) and its chord step reuse them.
+IMAGE_MARGIN = 1.0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -272,6 +278,184 @@ def _field(pts, x, y, z, sigma, dz, norm, out):
         out[q] /= norm * s2 * s2
 
 
+@njit(cache=True)
+def _slice_moments(pts, k, sigma, dz, i0, i1, j0, j1):
+    """The solid blurred across the slices around lattice slice ``k``: three images of the box
+    ``[j0, j1] x [i0, i1]``, ``M_p[j, i] = sum_n pts[n, j, i] G(w_n) w_n^p`` (``p = 0, 1, 2``) with
+    ``w_n = (n - k) dz`` and ``G(w) = exp(-w^2 / (2 sigma^2))`` over the slices within ``4 sigma``.
+
+    The Gaussian is separable, so at every point of slice ``k`` the field and its derivatives are
+    sums over the in-slice window of these images (:func:`_field_in_slice`): ``(8 sigma)^2``
+    terms per evaluation instead of the ``(8 sigma)^3`` of :func:`_field`, which the level-set
+    search of :func:`_move_to_surface` evaluates five times per vertex and search on average."""
+    nz = pts.shape[0]
+    rad = 4.0 * sigma
+    z = float(k)
+    k0 = max(int(math.floor(z - rad / dz)), 0)
+    k1 = min(int(math.ceil(z + rad / dz)), nz - 1)
+    s2 = sigma * sigma
+    mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
+    for n in range(k0, k1 + 1):
+        w = (n - z) * dz
+        e = math.exp(-(w * w) / (2.0 * s2))
+        ew = e * w
+        eww = ew * w
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                if pts[n, j, i]:
+                    mom[0, j - j0, i - i0] += e
+                    mom[1, j - j0, i - i0] += ew
+                    mom[2, j - j0, i - i0] += eww
+    return mom
+
+
+@njit(cache=True)
+def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
+    """:func:`_field` at ``(x, y)`` of the slice whose :func:`_slice_moments` are ``mom`` (taken
+    over the box from ``(i0, j0)``, which holds the window ``4 sigma`` around the point; ``nx, ny``
+    are the volume's, the window is clipped to them as there).  Equal to :func:`_field` up to the
+    rounding of the sums' order."""
+    rad = 4.0 * sigma
+    a0 = max(int(math.floor(x - rad)), 0)
+    a1 = min(int(math.ceil(x + rad)), nx - 1)
+    b0 = max(int(math.floor(y - rad)), 0)
+    b1 = min(int(math.ceil(y + rad)), ny - 1)
+    s2 = sigma * sigma
+    ex = np.empty(a1 - a0 + 1)
+    for i in range(a0, a1 + 1):
+        ex[i - a0] = math.exp(-((i - x) ** 2) / (2.0 * s2))
+    for q in range(10):
+        out[q] = 0.0
+    for j in range(b0, b1 + 1):
+        wy = j - y
+        ey = math.exp(-(wy * wy) / (2.0 * s2))
+        r0 = 0.0  # sum over the row of G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2
+        r1 = 0.0
+        r2 = 0.0
+        q0 = 0.0
+        q1 = 0.0
+        p0 = 0.0
+        jj = j - j0
+        for i in range(a0, a1 + 1):
+            ii = i - i0
+            m0 = mom[0, jj, ii]
+            if m0 == 0.0:
+                continue
+            e = ex[i - a0]
+            wx = i - x
+            ew = e * wx
+            r0 += e * m0
+            r1 += ew * m0
+            r2 += ew * wx * m0
+            q0 += e * mom[1, jj, ii]
+            q1 += ew * mom[1, jj, ii]
+            p0 += e * mom[2, jj, ii]
+        if r0 == 0.0:
+            continue
+        out[0] += ey * r0
+        out[1] += ey * r1
+        out[2] += ey * r0 * wy
+        out[3] += ey * q0
+        out[4] += ey * (r2 - r0 * s2)
+        out[5] += ey * r0 * (wy * wy - s2)
+        out[6] += ey * (p0 - r0 * s2)
+        out[7] += ey * r1 * wy
+        out[8] += ey * q1
+        out[9] += ey * q0 * wy
+    out[0] /= norm
+    for q in range(1, 4):
+        out[q] /= norm * s2
+    for q in range(4, 10):
+        out[q] /= norm * s2 * s2
+
+
+@njit(cache=True)
+def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
+    """``f, fx, fy`` of :func:`_field_in_slice` into ``out[:3]`` (the same sums, so the same values;
+    ``out[3:]`` is left as it was): what the level-set search needs at its steps."""
+    rad = 4.0 * sigma
+    a0 = max(int(math.floor(x - rad)), 0)
+    a1 = min(int(math.ceil(x + rad)), nx - 1)
+    b0 = max(int(math.floor(y - rad)), 0)
+    b1 = min(int(math.ceil(y + rad)), ny - 1)
+    s2 = sigma * sigma
+    ex = np.empty(a1 - a0 + 1)
+    for i in range(a0, a1 + 1):
+        ex[i - a0] = math.exp(-((i - x) ** 2) / (2.0 * s2))
+    f = 0.0
+    fx = 0.0
+    fy = 0.0
+    for j in range(b0, b1 + 1):
+        wy = j - y
+        ey = math.exp(-(wy * wy) / (2.0 * s2))
+        r0 = 0.0
+        r1 = 0.0
+        jj = j - j0
+        for i in range(a0, a1 + 1):
+            m0 = mom[0, jj, i - i0]
+            if m0 == 0.0:
+                continue
+            e = ex[i - a0]
+            ew = e * (i - x)
+            r0 += e * m0
+            r1 += ew * m0
+        if r0 == 0.0:
+            continue
+        f += ey * r0
+        fx += ey * r1
+        fy += ey * r0 * wy
+    out[0] = f / norm
+    out[1] = fx / (norm * s2)
+    out[2] = fy / (norm * s2)
+
+
+@njit(cache=True)
+def _images_for(pts, k, sigma, dz, xlo, xhi, ylo, yhi, reach, margin, mom, box):
+    """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
+    point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach``: ``mom`` itself when its box
+    (``box = (k, i0, i1, j0, j1)``, ``k = -1``: none) holds that already, else new images over
+    that box widened by ``margin`` more (so the next searches of the slice find them), ``box``
+    updated in place.  The images at a lattice point do not depend on the box."""
+    nz, ny, nx = pts.shape
+    i0 = min(max(int(math.floor(xlo - reach)), 0), nx - 1)
+    i1 = max(min(int(math.ceil(xhi + reach)), nx - 1), i0)
+    j0 = min(max(int(math.floor(ylo - reach)), 0), ny - 1)
+    j1 = max(min(int(math.ceil(yhi + reach)), ny - 1), j0)
+    if box[0] == k and box[1] <= i0 and i1 <= box[2] and box[3] <= j0 and j1 <= box[4]:
+        return mom
+    box[0] = k
+    box[1] = min(max(int(math.floor(xlo - reach - margin)), 0), nx - 1)
+    box[2] = max(min(int(math.ceil(xhi + reach + margin)), nx - 1), box[1])
+    box[3] = min(max(int(math.floor(ylo - reach - margin)), 0), ny - 1)
+    box[4] = max(min(int(math.ceil(yhi + reach + margin)), ny - 1), box[3])
+    return _slice_moments(pts, k, sigma, dz, box[1], box[2], box[3], box[4])
+
+
+def _no_images():
+    """An empty slot for :func:`_images_for`: ``(mom, box)``."""
+    return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64)
+
+
+@njit(cache=True)
+def _fields_in_slice(pts, xy, k, sigma, dz, mom, box, margin):
+    """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
+    (:func:`_images_for`, reused from ``mom, box`` where they cover the points' windows):
+    ``(out (n, 10), mom)``."""
+    nz, ny, nx = pts.shape
+    n = xy.shape[0]
+    out = np.zeros((n, 10))
+    if n == 0:
+        return out, mom
+    mom = _images_for(pts, k, sigma, dz, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]), np.max(xy[:, 1]),
+                      4.0 * sigma + 1.0, margin, mom, box)
+    norm = _lattice_norm(sigma, dz)
+    buf = np.empty(10)
+    for m in range(n):
+        _field_in_slice(mom, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, norm, buf)
+        out[m, :] = buf
+    return out, mom
+
+
 def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0) -> np.ndarray:
     """The blurred indicator ``f`` (step 2 of the module docstring) and its derivatives at points.
 
@@ -349,6 +533,15 @@ def _in_band(pts, k, x, y):
     return in_u and not all_v
 
 
+@njit(cache=True)
+def _off_band(pts, k, xy):
+    """Whether each point ``xy (n, 2)`` lies outside slice ``k``'s band (:func:`_in_band`)."""
+    out = np.empty(xy.shape[0], dtype=np.bool_)
+    for n in range(xy.shape[0]):
+        out[n] = not _in_band(pts, k, xy[n, 0], xy[n, 1])
+    return out
+
+
 def band_violations(stack: ContourStack, mesh: Mesh) -> int:
     """Number of mesh vertices on a section that lie outside that section's band ``U_k \\ int(V_k)``.
 
@@ -417,9 +610,22 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
     otherwise one whose slice has no level within reach (a part thinner than the blur) is
     dragged to the end of the search interval.
     """
+    clamped, _ = _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found,
+                                   np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), 0.0)
+    return clamped
+
+
+@njit(cache=True)
+def _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found, mom, box, margin):
+    """:func:`_move_to_surface` with the slice images ``mom, box`` of an earlier search (see
+    :func:`_images_for`; ``margin``: how much wider new images are made); ``(clamped, mom)``."""
     norm = _lattice_norm(sigma, dz)
     buf = np.empty(10)
     clamped = 0
+    nz, ny, nx = pts.shape
+    reach = max_move + 4.0 * sigma + 1.0  # the search's points and their windows: within this of the start
+    cur = -1
+    i0 = j0 = 0
     for n in range(xy.shape[0]):
         x0, y0 = xy[n, 0], xy[n, 1]
         out[n, 0], out[n, 1] = x0, y0
@@ -427,8 +633,16 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
         k = kz[n]
         if k < 0:
             continue
-        z = float(k)
-        _field(pts, x0, y0, z, sigma, dz, norm, buf)
+        if k != cur:  # the slice's blurred images over the box the searches of its vertices can reach
+            xlo, xhi, ylo, yhi = x0, x0, y0, y0
+            for m in range(n + 1, xy.shape[0]):
+                if kz[m] == k:
+                    xlo, xhi = min(xlo, xy[m, 0]), max(xhi, xy[m, 0])
+                    ylo, yhi = min(ylo, xy[m, 1]), max(yhi, xy[m, 1])
+            mom = _images_for(pts, k, sigma, dz, xlo, xhi, ylo, yhi, reach, margin, mom, box)
+            i0, j0 = box[1], box[3]
+            cur = k
+        _field_in_slice(mom, i0, j0, nx, ny, x0, y0, sigma, norm, buf)
         hx, hy = -buf[1], -buf[2]
         hn = math.sqrt(hx * hx + hy * hy)
         gn = math.sqrt(buf[1] ** 2 + buf[2] ** 2 + buf[3] ** 2)
@@ -440,7 +654,8 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
         t = 0.0
         ok = False
         for it in range(40):
-            _field(pts, x0 + t * dx, y0 + t * dy, z, sigma, dz, norm, buf)
+            if it > 0:  # at t = 0, buf holds the field at the start already
+                _level_in_slice(mom, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, norm, buf)
             g = buf[0] - 0.5
             if abs(g) < 1e-12:
                 ok = True
@@ -465,7 +680,7 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
         found[n] = True
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
-            _field(pts, tx, ty, z, sigma, dz, norm, buf)
+            _field_in_slice(mom, i0, j0, nx, ny, tx, ty, sigma, norm, buf)
             shift, gnorm = _mean_curvature_shift(buf, sigma)
             hz = math.sqrt(buf[1] ** 2 + buf[2] ** 2)
             if gnorm > 0.0 and hz > 0.0:
@@ -482,7 +697,7 @@ def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, f
             continue
         clamped += 1
         _back_into_band(pts, k, x0, y0, tx, ty, 256, out, n)
-    return clamped
+    return clamped, mom
 
 
 @njit(cache=True)
@@ -656,20 +871,32 @@ def _is_simple(ring):
     return True
 
 
-def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False, fine=None, counts=None):
+def _search(images, pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found) -> int:
+    """:func:`_move_to_surface` keeping the slice images in ``images`` (``width -> (mom, box)``, see
+    :func:`_images_for`) for the next searches and field evaluations of the slice."""
+    if images is None:
+        return _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found)
+    mom, box = images.get(float(sigma)) or _no_images()
+    clamped, mom = _move_with_images(pts, xy, kz, float(sigma), dz, curvature, max_move, out, strict, found, mom, box,
+                                     IMAGE_MARGIN * max_move + 2.0)
+    images[float(sigma)] = (mom, box)
+    return clamped
+
+
+def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False, fine=None, counts=None, images=None):
     """Steps 3-4 at ``sigma``; with ``fine`` (a smaller width), the two-scale selection of step 3b.
 
     ``counts`` (a two-item list) accumulates the vertices that took the fine estimate and the
-    vertices seen."""
+    vertices seen; ``images`` (a dict, or None) keeps the slice images between searches of one slice."""
     xy = np.ascontiguousarray(xy)
     out = np.empty_like(xy)
     found = np.empty(len(xy), dtype=np.bool_)
-    clamped = _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found)
+    clamped = _search(images, pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found)
     if fine is None or not fine < sigma or len(xy) < 3:
         return out, clamped
     near = np.empty_like(xy)
     found_fine = np.empty(len(xy), dtype=np.bool_)
-    _move_to_surface(pts, xy, kz, float(fine), dz, curvature, max_move, near, strict, found_fine)
+    _search(images, pts, xy, kz, float(fine), dz, curvature, max_move, near, strict, found_fine)
     # a vertex that one of the two searches left where it was (no level within reach) keeps the
     # coarse decision; elsewhere the extrapolated estimate weighs in where the two scales disagree
     # (also where the band clamp put the wide place back on the seed: that search did find the level)
@@ -761,7 +988,8 @@ def _check_density(density) -> None:
 
 def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
                 chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0,
-                strict: bool = False, fine_sigma: float | None = None, counts: list | None = None):
+                strict: bool = False, fine_sigma: float | None = None, counts: list | None = None,
+                images: dict | None = None):
     """Steps 3-6 of the module docstring for one seed polygon of lattice slice ``kz``.
 
     Parameters
@@ -783,6 +1011,9 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
         The fine width of the two-scale selection (step 3b); None: one scale.
     counts : list, optional
         ``[fine, seen]``: accumulates the vertices that took the fine estimate.
+    images : dict, optional
+        Slice images kept between the searches of slice ``kz`` (pass the same dict for the rings of
+        one slice; a new one per slice).  The results do not depend on it.
 
     Returns
     -------
@@ -796,8 +1027,9 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
     if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
         return seed, 0  # a pole point or a segment: kept as it is
     clamped = 0
+    images = {} if images is None else images
     kzs = np.full(len(seed), kk, dtype=np.int64)
-    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move, strict, fine_sigma, counts)
+    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move, strict, fine_sigma, counts, images)
     clamped += nc
     ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
     if meridians and prev is not None and len(prev):
@@ -811,15 +1043,15 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
                 start = _ring_point_at(guide, s)
                 kzs = np.full(len(start), kk, dtype=np.int64)
                 cand, nc = _surface_points(pts, start, kzs, sigma, dz, curvature, max_move, strict, fine_sigma,
-                                           counts)
+                                           counts, images)
                 if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:
-        loc = np.empty((len(ring), 3))
-        loc[:, :2] = ring
-        loc[:, 2] = kk
-        fld = _field_many(pts, loc, sigma, dz)
+        mom, box = images.get(float(sigma)) or _no_images()
+        fld, mom = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), dz, mom, box,
+                                    IMAGE_MARGIN * max_move + 2.0)
+        images[float(sigma)] = (mom, box)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
         target = _chord_push(ring, nz2)
@@ -833,7 +1065,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
     # projection onto a chord of the guide) goes back toward the seed polygon, which lies in the
     # band (the MLP does), as far as the band allows.
     kzs = np.full(len(ring), kk, dtype=np.int64)
-    bad = np.array([not _in_band(pts, kk, float(a), float(b)) for a, b in ring], dtype=bool)
+    bad = _off_band(pts, kk, np.ascontiguousarray(ring, dtype=np.float64))
     if bad.any():
         _, _, px, py = _project_to_ring(np.ascontiguousarray(seed), np.ascontiguousarray(ring[bad]))
         start = np.stack([px, py], axis=1)
@@ -899,10 +1131,11 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
         kk = int(zidx[k])
         finals = []
         q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
+        images = {}  # the section's slice images, shared by its contours
         for c in sec.contours:
             c = np.asarray(c, dtype=np.int64)
             seed = np.asarray(polygonize(c, polygon), dtype=np.float64) if len(c) >= 3 else c.astype(np.float64)
-            ring, nc = refine_ring(pts, seed - off, kk, sigma, float(dz), q if prev else None, **opts)
+            ring, nc = refine_ring(pts, seed - off, kk, sigma, float(dz), q if prev else None, images=images, **opts)
             clamped += nc
             finals.append(ring)
         prev = finals
@@ -1082,10 +1315,12 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     for k in sorted(by_slice):
         keys = by_slice[k]
         rings, starts = [], []
+        images = {}  # the slice's images, shared by its rings
         for key in keys:
             seed = loc[key][1]
             guide = finals.get(below.get(key)) if meridians else None
-            ring, nc = (seed, 0) if key in thin else refine_ring(pts, seed, k + pad, sigma, dz, guide, **opts)
+            ring, nc = ((seed, 0) if key in thin
+                        else refine_ring(pts, seed, k + pad, sigma, dz, guide, images=images, **opts))
             clamped += nc
             rings.append(ring)
             starts.append(seed)

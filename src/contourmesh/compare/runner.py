@@ -64,6 +64,12 @@ On Dask worker threads a timed row runs in a new Python process
 the daemonic process workers of a default ``distributed.LocalCluster``) that applies the limit
 itself and is killed ``HARD_GRACE`` seconds later if stuck.
 
+Before the rows, our methods run once on small inputs in this process (:func:`warm_up`, off with
+``warm=False``): a row's ``seconds`` then holds no compiling or loading of their numba kernels (the
+first row of each worker used to pay for it: over 100 s for the band refinement's rows after a
+change of the sources).  Pool workers are forked from this process and inherit the kernels; Dask
+workers and timed subprocesses load them from the refreshed disk cache in their first row.
+
 Rows that the executor or the scheduler failed (a lost Dask worker, a process that could not
 start) are reported but not cached, and ``contourmesh compare`` then exits with status 1.
 Ctrl-C or SIGTERM stops a run: queued rows are dropped, worker processes are ended (on Linux they
@@ -101,6 +107,7 @@ __all__ = [
     "run_spec",
     "import_rows",
     "cache_key",
+    "warm_up",
 ]
 
 #: How many pool crashes a row may be caught in before it is recorded as failed.
@@ -287,6 +294,87 @@ def plan(spec: Spec) -> list:
                     pskip = f"size {inp.size_value:g} > max_size {pmax:g} set for post-process {post} in the spec"
                 tasks.append(Task(inp, m, post, timeout, pskip, cache_key(inp, m, post)))
     return tasks
+
+
+# --- warm-up --------------------------------------------------------------------------------------------
+def _warm_volumes() -> list:
+    """Small binary volumes that take every route of our mesher: one contour per slice (the fast
+    path; the stack route of ``refine="band"``), holes, branching and a cavity (the general volume
+    mesher; its refined polygons), and thresholded smoothed noise (many components, bridged
+    joins, crack rings, intermediate sections)."""
+    import numpy as np
+    from scipy.ndimage import gaussian_filter
+
+    zz, yy, xx = np.mgrid[:14, :14, :14]
+    ball = (zz - 6.6) ** 2 + (yy - 6.3) ** 2 + (xx - 6.8) ** 2 < 25
+    general = np.zeros((9, 12, 12), dtype=bool)
+    general[1:8, 2:10, 2:10] = True
+    general[1:8, 5:7, 5:7] = False  # a tunnel: slices with holes
+    general[4, 3:9, 3:9] = True  # ... closed in one slice: branching above and below
+    general[2:4, 3, 8] = False  # a small cavity
+    noise = gaussian_filter(np.random.default_rng(1).standard_normal((22, 22, 22)), 2.0) > 0.02
+    return [ball, general, np.pad(noise, 1)]
+
+
+def _warm_rare() -> None:
+    """Kernels of paths that small volumes rarely take: the crossing repair (two overlapping cubes
+    pulled apart, and the crossing pairs recounted after one cube moved) and the optimal band
+    with its work bounded (large polygons)."""
+    import numpy as np
+
+    from ..bands.optimal import triangulate_band_optimal
+    from ..repair import crossing_pairs_after_change, resolve_crossings
+    from ..volumes import volume_to_mesh
+
+    t = np.linspace(0, 2 * np.pi, 9, endpoint=False)
+    ring = np.c_[np.cos(t), np.sin(t), np.zeros_like(t)]
+    triangulate_band_optimal(ring[:-1], ring + [0.1, 0.0, 1.0], max_work=10.0)
+
+    cube = volume_to_mesh(np.pad(np.ones((2, 2, 2), dtype=bool), 1))
+    V = np.vstack([cube.vertices, cube.vertices + 0.3])
+    F = np.vstack([cube.faces, cube.faces + len(cube.vertices)])
+    V1, info = resolve_crossings(V, F, 1e-3)
+    V2 = V1.copy()
+    V2[len(cube.vertices):] += 0.1
+    crossing_pairs_after_change(V1, F, info["pairs"], V2, F)
+
+
+def warm_up(methods) -> list:
+    """Run each of our methods (family ``ours``) once on small volumes and a small shape, untimed.
+
+    Our mesher's kernels are compiled by numba on their first call in a process (or loaded from
+    the on-disk cache, which goes stale when the sources change); without this step the first
+    row of each worker that reaches a kernel pays for it: 70 s of CPU for the band refinement's
+    kernels after a change of the sources, about 4 s for the stack route's MLP kernel, 0.1-0.5 s
+    to load them.  Run in the parent before the rows, the warm-up also refreshes the disk cache,
+    and pool workers (forked) inherit the compiled kernels.  Other families are not run: their
+    compiled code comes built.  Returns the names warmed; a method that fails here is left to
+    fail in its own rows, where the error is recorded.
+    """
+    from ..shapes import Sphere
+
+    warmed = []
+    for name in dict.fromkeys(methods):
+        try:
+            m = get_method(name)
+        except ValueError:
+            continue
+        if m.family != "ours":
+            continue
+        try:
+            for vol in _warm_volumes():
+                m.fn(vol, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), **m.params)
+            if m.shape_fn is not None:
+                m.shape_fn(Sphere(5.2, center=(0.31, 0.17, 0.43)), 1.0, **m.params)
+        except Exception:  # noqa: BLE001 - the method's own rows record its failure
+            continue
+        warmed.append(name)
+    if warmed:
+        try:
+            _warm_rare()
+        except Exception:  # noqa: BLE001 - the rows that need it compile it
+            pass
+    return warmed
 
 
 # --- one row ----------------------------------------------------------------------------------------
@@ -671,7 +759,7 @@ def import_rows(spec_path, out, csv_path, *, data_root=None) -> int:
 
 def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bool = True, retry_failed: bool = False,
              data_root=None, mp_context: Optional[str] = None, sizes=None, methods=None, names=None,
-             write: bool = True) -> dict:
+             write: bool = True, warm: bool = True) -> dict:
     """Run a comparison spec; write ``results.csv``, ``summary.md`` and the PNGs into ``out``.
 
     Parameters
@@ -698,6 +786,9 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
         otherwise, so a large spec can be run in parts (e.g. the small resolutions first).
     write : bool
         Write ``results.csv``, ``summary.md`` and the PNGs (False: only return the rows).
+    warm : bool
+        Before the rows, run our methods once on small inputs (:func:`warm_up`) so that no row's
+        ``seconds`` includes compiling or loading our kernels.
 
     Returns
     -------
@@ -756,6 +847,8 @@ def run_spec(spec_path, out=None, *, jobs: int = 1, scheduler=None, progress: bo
         bar.update(1)
         bar.set_postfix(left=len(tasks) - bar.n, refresh=False)
 
+    if todo and warm:
+        warm_up(t.method for t in todo)
     try:
         if not todo:
             pass
