@@ -12,7 +12,8 @@ Strategies (registry :data:`TRIANGULATORS`):
 ``"greedy"``
     Christiansen & Sederberg (1978): shortest next diagonal, ``O(n + m)``.
 ``"optimal"``
-    Fuchs, Kedem & Uselton (1977): least total area by dynamic programming, ``O(n^2 m)``.
+    Fuchs, Kedem & Uselton (1977): least total area by dynamic programming, ``O(n m log n)``
+    (start points searched by strips; ``O(n^2 m)`` where that search cannot certify its answer).
 ``"arclength"``
     Ganapathy & Dennehy (1982): advance in proportion to normalized arc length, ``O(n + m)``;
     never folds, the robust reference of the volume mesher's twist guard.

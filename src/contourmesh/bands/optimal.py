@@ -7,7 +7,11 @@ column: in particular it contains an edge at the fixed point ``p(2)_1`` of the l
 paired with some start point ``p(1)_s``.  For each ``s`` a dynamic programme over the
 ``(n + 1) x (m + 1)`` grid finds the cheapest path from ``(s, 1)`` to ``(s + n, m + 1)``; the
 minimum over ``s`` is the optimum.  Cost = total triangle area, so the result is the band of
-least surface area.  Time ``O(n^2 m)`` (the smaller contour is ``C(1)``), memory ``O(n m)``.
+least surface area.  Memory ``O(n m)``; time ``O(n^2 m)`` for one programme per start point (the
+smaller contour is ``C(1)``), ``O(n m log n)`` plus one programme per start point tied with the best
+where the start points are searched by strips (:func:`_best_start`, below): least paths from
+different start points can be taken not to cross, so each start point's programme runs between the
+paths of two others (Fuchs, Kedem and Uselton's own divide and conquer over the start points).
 
 Valid band = a topological annulus.  A monotone path whose ``C(2)``-advances all happen at one
 point of ``C(1)`` (equivalently, all ``C(1)``-advances at one point of ``C(2)``) visits one torus
