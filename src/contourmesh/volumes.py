@@ -256,6 +256,28 @@ class _Slice:
 # ------------------------------------------------------------------------------------------------
 # mesh assembly
 # ------------------------------------------------------------------------------------------------
+#: The local band rules (the paper's and the shortest-diagonal rule): made for two similar contours.
+_LOCAL_RULES = ("wiederhold", "greedy")
+
+
+def _dissimilar_rule(n_lo: int, n_hi: int, triangulation: str, budget: float) -> str:
+    """The band rule for two rings that are not two similar contours: a crack ring against a
+    polygon (next to an exact join), or two bridged rings (each runs along its bridges twice).
+
+    The local rules step along both rings by their own measure (the paper's by length, greedy
+    by the shorter diagonal); on such a pair they fan: a crack ring's steps across the surface
+    each take a long thin triangle to a far vertex of the polygon, and a bridged band can be
+    twice the area of the surface it stands for while passing the twist guard (1.25 times the
+    arc-length band).  There the least-area band (``"optimal"``) is used, where its cubic cost
+    ``n^2 m`` (``n <= m`` the ring sizes) is within ``budget``; otherwise, and for the other
+    rules, ``triangulation`` itself."""
+    if triangulation in _LOCAL_RULES:
+        n, m = sorted((n_lo, n_hi))
+        if n > 2 and n * n * m <= budget:
+            return "optimal"
+    return triangulation
+
+
 def _band_faces(lo, hi, triangulation, optimal_budget=3e7, mixed=False):
     """The guarded band between two rings (see :meth:`_Mesher.band`) and how many guards fired.
 
@@ -267,7 +289,10 @@ def _band_faces(lo, hi, triangulation, optimal_budget=3e7, mixed=False):
     pairs differ most, and a band of any rule can cross itself there; its faces are then tested
     whatever the rule, and the first other rule whose band keeps clear is taken.  Without this, the
     whole-mesh test turns the band into an exact join, which makes the next section a crack ring
-    and its next band mixed in turn: a cascade up a tube, one slice per rebuild."""
+    and its next band mixed in turn: a cascade up a tube, one slice per rebuild.  A mixed pair is
+    joined by the least-area band rather than a local rule (:func:`_dissimilar_rule`)."""
+    if mixed:
+        triangulation = _dissimilar_rule(len(lo), len(hi), triangulation, optimal_budget)
     if triangulation == "wiederhold" and min(len(lo), len(hi)) > 2:
         f, status = _one_band(lo, hi)
         if status == 0 and not _band_crosses(np.concatenate([lo, hi]), f):
@@ -1213,9 +1238,13 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     if path_pts:
         V = np.concatenate([V] + path_pts)
     faces, replaced = [], 0
-    for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
+    for t, (a_ids, b_ids) in enumerate([(lo[0], hi[0])] + tube_ids):
         ids = np.concatenate([a_ids, b_ids])
-        f, r = _band_faces(V[a_ids], V[b_ids], triangulation, _BRIDGED_OPTIMAL_BUDGET)
+        # the bridged rings' band by the least-area rule (see _dissimilar_rule); the tubes (pairs
+        # of holes) by the selected one
+        rule = triangulation if t else _dissimilar_rule(len(a_ids), len(b_ids), triangulation,
+                                                        _BRIDGED_OPTIMAL_BUDGET)
+        f, r = _band_faces(V[a_ids], V[b_ids], rule, _BRIDGED_OPTIMAL_BUDGET)
         # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
         # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
         for method in ("optimal", "arclength"):
@@ -1234,7 +1263,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
             n_, m_ = sorted((len(a_ids), len(b_ids)))
             for method in _BRIDGED_ALTERNATIVES:
-                if method == "optimal" and (triangulation == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
+                if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
                     continue  # already tried, or too slow (cubic)
                 g = triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
                 if (not band_is_folded(ids[g]) and float(triangle_areas(P, g).sum()) <= limit
