@@ -278,7 +278,12 @@ def _dissimilar_rule(n_lo: int, n_hi: int, triangulation: str, budget: float) ->
     return triangulation
 
 
-def _band_faces(lo, hi, triangulation, optimal_budget=3e7, mixed=False):
+#: Largest ``n^2 m`` for which a band is made optimal (least-area): a twisted band's replacement,
+#: and the least-area band of a mixed pair (:func:`_band_faces`).
+_MIXED_OPTIMAL_BUDGET = 3e7
+
+
+def _band_faces(lo, hi, triangulation, optimal_budget=_MIXED_OPTIMAL_BUDGET, mixed=False):
     """The guarded band between two rings (see :meth:`_Mesher.band`) and how many guards fired.
 
     The paper's band is made in compiled code (:func:`contourmesh.fastpath._one_band`: the same
@@ -326,6 +331,7 @@ class _Mesher:
         self.necks: list[np.ndarray] = []  # vertices where the background passes through a point
         self.band_fallbacks = 0
         self.pixel_caps = 0  # ends closed by their pixels (see _pixel_cap)
+        self.least_area = 0  # bands of dissimilar rings joined by the least-area rule (_dissimilar_rule)
 
     def _add(self, f):
         f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
@@ -366,6 +372,8 @@ class _Mesher:
 
         lo, hi = self.coords(lo_ids), self.coords(hi_ids)
         f, replaced = _band_faces(lo, hi, self.triangulation, mixed=mixed)
+        if mixed and _dissimilar_rule(len(lo), len(hi), self.triangulation, _MIXED_OPTIMAL_BUDGET) != self.triangulation:
+            self.least_area += 1
         if self.band_guard is not None:
             f = self.band_guard(lo, hi, f)
         self.band_fallbacks += replaced
@@ -534,7 +542,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         fallback_caps += n_c
         log.debug("volume mesher: %d crossing pairs left; %d joins and %d caps fall back to crack rings",
                   len(left), n_j, n_c)
-    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections = counts
+    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections, least_area = counts
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
@@ -542,6 +550,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         "intermediate_sections": n_sections,
         "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
         "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks, "pixel_caps": pixel_caps,
+        "least_area_bands": least_area,
         "crossing_fallbacks": fallback_joins + fallback_caps,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
@@ -710,6 +719,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                     ids[b_.n_ring:] = M.points(b_.V[b_.n_ring:])
                 M.faces(ids[b_.F])
                 M.band_fallbacks += b_.replaced
+                M.least_area += b_.least_area
 
             return ("bridge", b_, tuple(is_crack(kk, c) for (kk, c, _), _o in b_.rings)), make
         ga, gb = data
@@ -758,6 +768,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     V, F, S, N, T = _number_units(units, tags)
     band_fallbacks = sum(u.replaced for u in units)
     pixel_caps = sum(u.pixel_caps for u in units)
+    least_area = sum(u.least_area for u in units)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     S = S.astype(np.int64) + 4 * (T + 1)
@@ -767,7 +778,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
     return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps,
-                              n_sections)
+                              n_sections, least_area)
 
 
 class _Unit:
@@ -776,7 +787,7 @@ class _Unit:
     vertices (in the order it first used them); its other vertices are its own.  ``key`` is all
     that the unit depends on besides the fixed input (see :func:`_assemble`)."""
 
-    __slots__ = ("key", "V", "F", "S", "N", "rings", "replaced", "pixel_caps")
+    __slots__ = ("key", "V", "F", "S", "N", "rings", "replaced", "pixel_caps", "least_area")
 
     @classmethod
     def record(cls, key, make, polygon_of, zs, triangulation, band_guard):
@@ -801,6 +812,7 @@ class _Unit:
         u.rings = spans
         u.replaced = M.band_fallbacks
         u.pixel_caps = M.pixel_caps
+        u.least_area = M.least_area
         return u
 
 
@@ -1146,13 +1158,14 @@ class _Bridged:
     """One bridged join, built in local vertex numbers: ``V[:n_ring]`` are the rings' vertices
     (``rings``: ``((k, comp, hole), offset)``), the rest new vertices (lid collars)."""
 
-    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments", "polyline", "sections")
+    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments", "polyline", "sections", "least_area")
 
     def __init__(self, V, F, rings, n_ring, replaced, bridges, segments, polyline=False):
         self.V, self.F, self.rings, self.n_ring = V, F, rings, n_ring
         self.replaced, self.bridges, self.segments = replaced, bridges, segments
         self.polyline = polyline  # a keyhole of the join is a polyline
         self.sections = 0  # intermediate sections in the gap (contourmesh.sections)
+        self.least_area = 0  # its bands made by the least-area rule in place of a local one
 
 
 #: Band strategies tried, in order, on a bridged join whose band crosses itself.
@@ -1237,13 +1250,14 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             hi = [seq]
     if path_pts:
         V = np.concatenate([V] + path_pts)
-    faces, replaced = [], 0
+    faces, replaced, least_area = [], 0, 0
     for t, (a_ids, b_ids) in enumerate([(lo[0], hi[0])] + tube_ids):
         ids = np.concatenate([a_ids, b_ids])
         # the bridged rings' band by the least-area rule (see _dissimilar_rule); the tubes (pairs
         # of holes) by the selected one
         rule = triangulation if t else _dissimilar_rule(len(a_ids), len(b_ids), triangulation,
                                                         _BRIDGED_OPTIMAL_BUDGET)
+        least_area += rule != triangulation
         f, r = _band_faces(V[a_ids], V[b_ids], rule, _BRIDGED_OPTIMAL_BUDGET)
         # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
         # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
@@ -1311,7 +1325,9 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         return None
     if len(intersecting_pairs(V, F)):
         return None
-    return _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
+    out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
+    out.least_area = least_area
+    return out
 
 
 #: A bridged join is given up (it gets intermediate sections, or becomes exact) where its area
