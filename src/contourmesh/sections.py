@@ -275,6 +275,7 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
         if main:
             n_ring = n
     faces, replaced, nb, segments = [], 0, 0, []
+    least_area = 0  # the pieces' bands made by the least-area rule
     in_section = {}  # id(section) -> its bridges' segments, per piece
     keyholes, capped = set(), set()  # (id(section), c)
     for p in pieces:
@@ -299,6 +300,7 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
             n += len(extra)
             faces.append(ids[b.F])
             replaced += b.replaced
+            least_area += b.least_area
             nb += b.bridges
             for plane, p_, q_ in b.segments:
                 L = pair[plane]
@@ -349,4 +351,5 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
         return None
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments)
     out.sections = len(layers)
+    out.least_area = least_area
     return out

@@ -256,7 +256,34 @@ class _Slice:
 # ------------------------------------------------------------------------------------------------
 # mesh assembly
 # ------------------------------------------------------------------------------------------------
-def _band_faces(lo, hi, triangulation, optimal_budget=3e7, mixed=False):
+#: The local band rules (the paper's and the shortest-diagonal rule): made for two similar contours.
+_LOCAL_RULES = ("wiederhold", "greedy")
+
+
+def _dissimilar_rule(n_lo: int, n_hi: int, triangulation: str, budget: float) -> str:
+    """The band rule for two rings that are not two similar contours: a crack ring against a
+    polygon (next to an exact join), or two bridged rings (each runs along its bridges twice).
+
+    The local rules step along both rings by their own measure (the paper's by length, greedy
+    by the shorter diagonal); on such a pair they fan: a crack ring's steps across the surface
+    each take a long thin triangle to a far vertex of the polygon, and a bridged band can be
+    twice the area of the surface it stands for while passing the twist guard (1.25 times the
+    arc-length band).  There the least-area band (``"optimal"``) is used, where its cubic cost
+    ``n^2 m`` (``n <= m`` the ring sizes) is within ``budget``; otherwise, and for the other
+    rules, ``triangulation`` itself."""
+    if triangulation in _LOCAL_RULES:
+        n, m = sorted((n_lo, n_hi))
+        if n > 2 and n * n * m <= budget:
+            return "optimal"
+    return triangulation
+
+
+#: Largest ``n^2 m`` for which a band is made optimal (least-area): a twisted band's replacement,
+#: and the least-area band of a mixed pair (:func:`_band_faces`).
+_MIXED_OPTIMAL_BUDGET = 3e7
+
+
+def _band_faces(lo, hi, triangulation, optimal_budget=_MIXED_OPTIMAL_BUDGET, mixed=False):
     """The guarded band between two rings (see :meth:`_Mesher.band`) and how many guards fired.
 
     The paper's band is made in compiled code (:func:`contourmesh.fastpath._one_band`: the same
@@ -267,7 +294,10 @@ def _band_faces(lo, hi, triangulation, optimal_budget=3e7, mixed=False):
     pairs differ most, and a band of any rule can cross itself there; its faces are then tested
     whatever the rule, and the first other rule whose band keeps clear is taken.  Without this, the
     whole-mesh test turns the band into an exact join, which makes the next section a crack ring
-    and its next band mixed in turn: a cascade up a tube, one slice per rebuild."""
+    and its next band mixed in turn: a cascade up a tube, one slice per rebuild.  A mixed pair is
+    joined by the least-area band rather than a local rule (:func:`_dissimilar_rule`)."""
+    if mixed:
+        triangulation = _dissimilar_rule(len(lo), len(hi), triangulation, optimal_budget)
     if triangulation == "wiederhold" and min(len(lo), len(hi)) > 2:
         f, status = _one_band(lo, hi)
         if status == 0 and not _band_crosses(np.concatenate([lo, hi]), f):
@@ -301,6 +331,7 @@ class _Mesher:
         self.necks: list[np.ndarray] = []  # vertices where the background passes through a point
         self.band_fallbacks = 0
         self.pixel_caps = 0  # ends closed by their pixels (see _pixel_cap)
+        self.least_area = 0  # bands of dissimilar rings joined by the least-area rule (_dissimilar_rule)
 
     def _add(self, f):
         f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
@@ -341,6 +372,8 @@ class _Mesher:
 
         lo, hi = self.coords(lo_ids), self.coords(hi_ids)
         f, replaced = _band_faces(lo, hi, self.triangulation, mixed=mixed)
+        if mixed and _dissimilar_rule(len(lo), len(hi), self.triangulation, _MIXED_OPTIMAL_BUDGET) != self.triangulation:
+            self.least_area += 1
         if self.band_guard is not None:
             f = self.band_guard(lo, hi, f)
         self.band_fallbacks += replaced
@@ -509,7 +542,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         fallback_caps += n_c
         log.debug("volume mesher: %d crossing pairs left; %d joins and %d caps fall back to crack rings",
                   len(left), n_j, n_c)
-    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections = counts
+    exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections, least_area = counts
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
@@ -517,6 +550,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         "intermediate_sections": n_sections,
         "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
         "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks, "pixel_caps": pixel_caps,
+        "least_area_bands": least_area,
         "crossing_fallbacks": fallback_joins + fallback_caps,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
@@ -685,6 +719,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                     ids[b_.n_ring:] = M.points(b_.V[b_.n_ring:])
                 M.faces(ids[b_.F])
                 M.band_fallbacks += b_.replaced
+                M.least_area += b_.least_area
 
             return ("bridge", b_, tuple(is_crack(kk, c) for (kk, c, _), _o in b_.rings)), make
         ga, gb = data
@@ -733,6 +768,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     V, F, S, N, T = _number_units(units, tags)
     band_fallbacks = sum(u.replaced for u in units)
     pixel_caps = sum(u.pixel_caps for u in units)
+    least_area = sum(u.least_area for u in units)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     S = S.astype(np.int64) + 4 * (T + 1)
@@ -742,7 +778,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
     return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps,
-                              n_sections)
+                              n_sections, least_area)
 
 
 class _Unit:
@@ -751,7 +787,7 @@ class _Unit:
     vertices (in the order it first used them); its other vertices are its own.  ``key`` is all
     that the unit depends on besides the fixed input (see :func:`_assemble`)."""
 
-    __slots__ = ("key", "V", "F", "S", "N", "rings", "replaced", "pixel_caps")
+    __slots__ = ("key", "V", "F", "S", "N", "rings", "replaced", "pixel_caps", "least_area")
 
     @classmethod
     def record(cls, key, make, polygon_of, zs, triangulation, band_guard):
@@ -776,6 +812,7 @@ class _Unit:
         u.rings = spans
         u.replaced = M.band_fallbacks
         u.pixel_caps = M.pixel_caps
+        u.least_area = M.least_area
         return u
 
 
@@ -1121,13 +1158,14 @@ class _Bridged:
     """One bridged join, built in local vertex numbers: ``V[:n_ring]`` are the rings' vertices
     (``rings``: ``((k, comp, hole), offset)``), the rest new vertices (lid collars)."""
 
-    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments", "polyline", "sections")
+    __slots__ = ("V", "F", "rings", "n_ring", "replaced", "bridges", "segments", "polyline", "sections", "least_area")
 
     def __init__(self, V, F, rings, n_ring, replaced, bridges, segments, polyline=False):
         self.V, self.F, self.rings, self.n_ring = V, F, rings, n_ring
         self.replaced, self.bridges, self.segments = replaced, bridges, segments
         self.polyline = polyline  # a keyhole of the join is a polyline
         self.sections = 0  # intermediate sections in the gap (contourmesh.sections)
+        self.least_area = 0  # its bands made by the least-area rule in place of a local one
 
 
 #: Band strategies tried, in order, on a bridged join whose band crosses itself.
@@ -1212,10 +1250,15 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             hi = [seq]
     if path_pts:
         V = np.concatenate([V] + path_pts)
-    faces, replaced = [], 0
-    for a_ids, b_ids in [(lo[0], hi[0])] + tube_ids:
+    faces, replaced, least_area = [], 0, 0
+    for t, (a_ids, b_ids) in enumerate([(lo[0], hi[0])] + tube_ids):
         ids = np.concatenate([a_ids, b_ids])
-        f, r = _band_faces(V[a_ids], V[b_ids], triangulation, _BRIDGED_OPTIMAL_BUDGET)
+        # the bridged rings' band by the least-area rule (see _dissimilar_rule); the tubes (pairs
+        # of holes) by the selected one
+        rule = triangulation if t else _dissimilar_rule(len(a_ids), len(b_ids), triangulation,
+                                                        _BRIDGED_OPTIMAL_BUDGET)
+        least_area += rule != triangulation
+        f, r = _band_faces(V[a_ids], V[b_ids], rule, _BRIDGED_OPTIMAL_BUDGET)
         # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
         # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
         for method in ("optimal", "arclength"):
@@ -1234,7 +1277,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
             n_, m_ = sorted((len(a_ids), len(b_ids)))
             for method in _BRIDGED_ALTERNATIVES:
-                if method == "optimal" and (triangulation == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
+                if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
                     continue  # already tried, or too slow (cubic)
                 g = triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
                 if (not band_is_folded(ids[g]) and float(triangle_areas(P, g).sum()) <= limit
@@ -1282,7 +1325,9 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         return None
     if len(intersecting_pairs(V, F)):
         return None
-    return _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
+    out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
+    out.least_area = least_area
+    return out
 
 
 #: A bridged join is given up (it gets intermediate sections, or becomes exact) where its area
