@@ -546,6 +546,69 @@ def _chord_push(ring_xy: np.ndarray, nz2=None) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------------
+# 5a. Extra vertices where the polygon's edges are long for their curvature (issue 17)
+# ----------------------------------------------------------------------------------------------
+#: Vertices a refined ring may hold after the splits, per seed-polygon vertex (issue 6 bounds the
+#: mesh's vertex count by 1.5 times the MLP stack's).
+SPLIT_BUDGET = 1.4
+#: Relative area deficit ``L^2 kappa^2 / 12`` of an edge below which it is not split.
+SPLIT_FLOOR = 2e-4
+
+
+def _edges_to_split(ring: np.ndarray, most: int, floor: float = SPLIT_FLOOR) -> np.ndarray:
+    """Indices ``i`` of the edges ``ring[i] -> ring[i + 1]`` to split, largest area deficit first.
+
+    A polygon whose perimeter is the curve's (what the chord push of step 5 aims at where the
+    surface is steep) encloses less than the curve by about ``L^2 kappa^2 / 12`` of its area (an
+    edge of length ``L`` on a curve of curvature ``kappa``); that shortfall is the slices' share of
+    the band mode's volume bias.  Halving an edge quarters its share, so the edges holding the
+    largest absolute shortfall ``L^3 |kappa|`` are split, at most ``most`` of them and only those
+    whose relative shortfall exceeds ``floor``.
+    """
+    if most <= 0:
+        return np.zeros(0, dtype=np.int64)
+    a = np.roll(ring, 1, axis=0)
+    c = np.roll(ring, -1, axis=0)
+    u, v, w = ring - a, c - ring, c - a
+    lu, lv, lw = (np.hypot(t[:, 0], t[:, 1]) for t in (u, v, w))
+    den = lu * lv * lw
+    kappa = np.abs(np.where(den > 0, 2.0 * (u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) / np.where(den > 0, den, 1.0), 0.0))
+    ke = 0.5 * (kappa + np.roll(kappa, -1))  # edge i: mean of its two ends
+    le = lv
+    rel = le ** 2 * ke ** 2 / 12.0
+    cand = np.flatnonzero(rel > floor)
+    if not len(cand):
+        return cand
+    order = cand[np.argsort(-(le[cand] ** 3 * ke[cand]), kind="stable")]
+    return np.sort(order[:most])
+
+
+def _split_edges(pts, ring: np.ndarray, most: int, kk: int, sigma: float, dz: float, curvature: bool,
+                 max_move: float, strict: bool, fine_sigma, counts) -> np.ndarray:
+    """``ring`` with a vertex on the estimated surface in the middle of each edge :func:`_edges_to_split`
+    picks (placed by steps 3-4 from the edge's midpoint); ``ring`` itself where none is picked or the
+    result would not be simple with the same orientation."""
+    idx = _edges_to_split(ring, most)
+    if not len(idx):
+        return ring
+    n = len(ring)
+    p0, p1 = ring[idx], ring[(idx + 1) % n]
+    mid = 0.5 * (p0 + p1)
+    kzs = np.full(len(mid), kk, dtype=np.int64)
+    new, _ = _surface_points(pts, np.ascontiguousarray(mid), kzs, sigma, dz, curvature, max_move, strict, fine_sigma,
+                             counts)
+    out = np.empty((n + len(idx), 2))
+    pos = idx + np.arange(1, len(idx) + 1)  # the new vertex follows ring[idx]
+    keep = np.ones(len(out), dtype=bool)
+    keep[pos] = False
+    out[keep] = ring
+    out[pos] = new
+    if not _is_simple(out) or shoelace_area(out) * shoelace_area(ring) <= 0:
+        return ring
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
 # Meridians: vertices of consecutive slices aligned across the slices
 # ----------------------------------------------------------------------------------------------
 @njit(cache=True)
@@ -761,7 +824,8 @@ def _check_density(density) -> None:
 
 def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
                 chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0,
-                strict: bool = False, fine_sigma: float | None = None, counts: list | None = None):
+                strict: bool = False, fine_sigma: float | None = None, counts: list | None = None,
+                split: bool = True):
     """Steps 3-6 of the module docstring for one seed polygon of lattice slice ``kz``.
 
     Parameters
@@ -815,6 +879,9 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
                 if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
+    if split and ring is not seed:
+        ring = _split_edges(pts, ring, int(SPLIT_BUDGET * len(seed)) - len(ring), kk, sigma, dz, curvature, max_move,
+                            strict, fine_sigma, counts)
     if chord:
         loc = np.empty((len(ring), 3))
         loc[:, :2] = ring
