@@ -65,7 +65,7 @@ __all__ = ["stack_to_mesh", "CAPS", "StackSurfaceError"]
 
 log = logging.getLogger("contourmesh")
 
-CAPS = ("flat", "half", "smooth", "fitted")
+CAPS = ("flat", "half", "smooth")
 
 #: Shrunk copies of the end polygon in a smooth cap (the dome's rings above the end polygon).
 DOME_RINGS = 4
@@ -331,58 +331,6 @@ def _dome(b: _Builder, ring, poly: np.ndarray, z: float, gap: float, upward: boo
     return prev
 
 
-def _fitted_height(area_end: float, area_next: float, gap: float) -> float:
-    """How far beyond an end section a smooth solid ends, from the areas of the end section and of
-    the next one inward (``gap`` apart): where the section area, extrapolated linearly, reaches zero.
-
-    Near an end that is an elliptic point of a smooth surface the section area is linear in the
-    distance from it; the digital object ends within a spacing of the end section, so the
-    height is clipped to ``[0, gap]``, and it is ``gap / 2`` where the sections do not shrink
-    toward the end (no trend to extrapolate).
-    """
-    a, b = abs(float(area_end)), abs(float(area_next))
-    if not (b > a > 0):
-        return 0.5 * gap
-    return float(min(gap * a / (b - a), gap))
-
-
-def _fitted_dome(b: _Builder, ring, poly: np.ndarray, z: float, height: float, upward: bool):
-    """``caps="fitted"``: an elliptic paraboloid over the end polygon, ``height`` beyond it.
-
-    Ring ``j`` of :data:`DOME_RINGS` is ``poly`` shrunk toward :func:`_dome_centre` by ``sqrt(1 -
-    t_j)`` at the height ``t_j height`` (``t_j = j / (m + 1)``), then scaled in height so that the
-    stack of frusta holds the paraboloid's volume, ``area * height / 2``.  Near an elliptic point
-    a smooth surface is its osculating paraboloid: over an end section ``d`` below the point the
-    solid holds ``area * d / 2`` more and its surface ``pi d^2`` more (on a sphere) than a flat
-    cap; with ``height`` from :func:`_fitted_height` the dome adds both.  Returns the top ring, or
-    None (nothing added) where the polygon is not star-shaped from a point inside it or touches
-    itself.
-    """
-    ring = np.asarray(ring)
-    if len(np.unique(ring)) != len(ring) or not height > 0:
-        return None
-    centre, ok = _dome_centre(poly)
-    if not ok:
-        return None
-    m = DOME_RINGS
-    t = np.arange(1, m + 1) / (m + 1)
-    lam, h = np.r_[1.0, np.sqrt(1.0 - t)], np.r_[0.0, t]
-    kappa = float(np.sum(np.diff(h) * (lam[:-1] ** 2 + lam[:-1] * lam[1:] + lam[1:] ** 2) / 3))
-    h = h * (0.5 / kappa)  # the frusta and the flat top hold area * height / 2
-    sgn = 1.0 if upward else -1.0
-    ccw = shoelace_area(poly) > 0
-    prev = ring
-    for lm, hh in zip(lam[1:], h[1:]):
-        nxt = b.add_points(centre + lm * (poly - centre), z + sgn * height * hh)
-        a0, a1, b0, b1 = prev, np.roll(prev, -1), nxt, np.roll(nxt, -1)
-        if ccw == upward:
-            b.add_faces(np.concatenate([np.c_[a0, a1, b1], np.c_[a0, b1, b0]]))
-        else:
-            b.add_faces(np.concatenate([np.c_[a0, b1, a1], np.c_[a0, b0, b1]]))
-        prev = nxt
-    return prev
-
-
 def _is_grid_4_curve(c: np.ndarray) -> bool:
     """Whether ``c`` is a closed digital 4-curve: integer points, unit axis steps (closing step included)."""
     if c.ndim != 2 or c.shape[1] != 2 or len(c) < 4 or not np.all(np.isfinite(c)) or not np.all(c == np.round(c)):
@@ -516,8 +464,8 @@ def _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs):
     """
 
     n = len(stack.sections)
-    if caps in ("smooth", "fitted"):
-        raise ContourMeshError(f"caps={caps!r} applies to stacks of one contour per section; this stack's sections "
+    if caps == "smooth":
+        raise ContourMeshError("caps='smooth' applies to stacks of one contour per section; this stack's sections "
                                "hold holes (nested outer and hole chains): use caps='flat' or caps='half'")
 
     def poly(k, c):
@@ -771,13 +719,6 @@ def _run_end(b, stack, run, keep, polys, idx, i, end, upward, caps, zs, triangul
             b.restore(mark)
             b.smooth_fallbacks += 1
             log.debug("section z=%g: no dome (%s); closed by a flat cap in its plane", zs[k], exc)
-    if caps == "fitted":
-        inner = keep[1] if end == 0 else keep[-2]
-        height = _fitted_height(shoelace_area(polys[i]), shoelace_area(polys[inner]), abs(zs[nb] - zs[k]))
-        top = _fitted_dome(b, ring, polys[i], zs[k], height, upward)
-        if top is not None:
-            _cap(b, top, upward=upward)
-            return
     zr = float(b.coords(ring[:1])[0, 2])
     _cap_or_cells(b, ring, stack.sections[k].contours[run[i][1]], zr, abs(zs[nb] - zs[k]), upward,
                   triangulation)
