@@ -10,6 +10,7 @@ radius 12 lost 1.03-1.06 % of its volume, a rotated ellipsoid 1.15 %, a tilted t
 import numpy as np
 
 import contourmesh
+from contourmesh import refine
 from contourmesh.digitize import gauss_volume, outer_jordan_stack
 from contourmesh.refine import _edges_to_split, _split_edges, refine_ring, stack_points
 from contourmesh.shapes import Ellipsoid, Sphere, Torus, rotation_from_euler
@@ -37,7 +38,7 @@ def test_edges_to_split_takes_the_largest_shortfall_within_the_budget():
     assert all(p in ends for p in [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)])  # only at corners
 
 
-def test_split_edges_adds_vertices_on_the_surface_and_more_area():
+def test_split_edges_adds_vertices_on_the_surface_and_more_area(monkeypatch):
     s = Sphere(9.0, center=CENTRES[0])
     st = outer_jordan_stack(s)
     pts, x0, y0, zidx, dz = stack_points(st)
@@ -45,8 +46,9 @@ def test_split_edges_adds_vertices_on_the_surface_and_more_area():
     from contourmesh.polygons import polygonize
 
     seed = np.asarray(polygonize(np.asarray(st.sections[k].contours[0]), "mlp"), float) - [x0, y0]
-    plain, _ = refine_ring(pts, seed, int(zidx[k]), 2.0, dz, chord=False, split=False)
-    more = _split_edges(pts, plain, 6, int(zidx[k]), 2.0, dz, True, 3.0, False, None, None)
+    monkeypatch.setattr(refine, "SPLIT_BUDGET", 0.0)  # no split inside refine_ring
+    plain, _ = refine_ring(pts, seed, int(zidx[k]), 2.0, dz, chord=False)
+    more = _split_edges(plain, 6)
     assert len(more) == len(plain) + 6
     # the old vertices stay, in order, and the ring keeps its orientation
     assert np.array_equal(more[np.isin(more, plain).all(axis=1)], plain)
@@ -61,7 +63,7 @@ def test_split_edges_adds_vertices_on_the_surface_and_more_area():
     new = more[~np.isin(more, plain).all(axis=1)]
     assert np.all(np.abs(dev(new)) < 0.25) and abs(np.mean(dev(new))) < 0.1, dev(new)
     # no edge picked: the ring itself
-    assert _split_edges(pts, plain, 0, int(zidx[k]), 2.0, dz, True, 3.0, False, None, None) is plain
+    assert _split_edges(plain, 0) is plain
 
 
 def test_band_volumes_of_balls_an_ellipsoid_and_a_torus():
