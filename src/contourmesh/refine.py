@@ -56,12 +56,6 @@ meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same
 5. **Chord compensation.**  Vertices on the curve make a polygon that is short of it; each vertex
    is pushed outward by ``kappa L^2 / 24 * (1 + 3 nz^2) / (1 + nz^2)`` (see :func:`_chord_push`),
    then clamped into the band.
-5a. **Split edges** (issue 17).  A polygon whose perimeter is the curve's encloses less than the
-   curve by about ``L^2 kappa^2 / 12`` of its area: the slices' share of the volume bias (balls r = 10-40:
-   -1.8 to -0.2 %).  Before the chord push, the edges holding the largest shortfall ``L^3 |kappa|`` are
-   split at their arc's midpoint (:func:`_split_edges`), up to :data:`SPLIT_BUDGET` times the seed's
-   vertex count; halving an edge quarters its shortfall.  In :func:`refine_stack` only (not in
-   :func:`refine_volume_rings`).
 6. **Meridians** ("triangles that grow over various slices", the paper's sect. 7).  Vertices
    placed independently in consecutive slices make Schwarz-lantern bands: a vertex facing the
    middle of an edge of the next slice stands out by the edge's sagitta ``L^2 / (8 rho)``, and
@@ -70,8 +64,8 @@ meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same
    (the seed polygon moved to the surface), merged where closer than half the seed polygon's
    mean edge and filled where further than 1.5 of it; the bands then join near-planar quads.
 
-The vertex count stays within :data:`SPLIT_BUDGET` times that of the seed polygons (MLP by default):
-``P`` is about 1.4 times the MLP stack's on balls r = 10-40 (1.04-1.10 without the splits).
+The vertex count stays that of the seed polygons (MLP by default): ``P`` is 1.04-1.10 times the
+MLP stack's on balls r = 20-160.
 
 Functions here are pure: arrays (and a ContourStack) in, arrays (and a Mesh) out.
 """
@@ -767,81 +761,6 @@ def _chord_push(ring_xy: np.ndarray, nz2=None) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------------
-# 5a. Extra vertices where the polygon's edges are long for their curvature (issue 17)
-# ----------------------------------------------------------------------------------------------
-#: Vertices a refined ring may hold after the splits, per seed-polygon vertex (issue 6 bounds the
-#: mesh's vertex count by 1.5 times the MLP stack's).
-SPLIT_BUDGET = 1.4
-#: Relative area deficit ``L^2 kappa^2 / 12`` of an edge below which it is not split.
-SPLIT_FLOOR = 2e-4
-
-
-def _edges_to_split(ring: np.ndarray, most: int, floor: float = SPLIT_FLOOR) -> np.ndarray:
-    """Indices ``i`` of the edges ``ring[i] -> ring[i + 1]`` to split, largest area deficit first.
-
-    A polygon whose perimeter is the curve's (what the chord push of step 5 aims at where the
-    surface is steep) encloses less than the curve by about ``L^2 kappa^2 / 12`` of its area (an
-    edge of length ``L`` on a curve of curvature ``kappa``); that shortfall is the slices' share of
-    the band mode's volume bias.  Halving an edge quarters its share, so the edges holding the
-    largest absolute shortfall ``L^3 |kappa|`` are split, at most ``most`` of them and only those
-    whose relative shortfall exceeds ``floor``.
-    """
-    if most <= 0:
-        return np.zeros(0, dtype=np.int64)
-    a = np.roll(ring, 1, axis=0)
-    c = np.roll(ring, -1, axis=0)
-    u, v, w = ring - a, c - ring, c - a
-    lu, lv, lw = (np.hypot(t[:, 0], t[:, 1]) for t in (u, v, w))
-    den = lu * lv * lw
-    kappa = np.abs(np.where(den > 0, 2.0 * (u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) / np.where(den > 0, den, 1.0), 0.0))
-    ke = 0.5 * (kappa + np.roll(kappa, -1))  # edge i: mean of its two ends
-    le = lv
-    rel = le ** 2 * ke ** 2 / 12.0
-    cand = np.flatnonzero(rel > floor)
-    if not len(cand):
-        return cand
-    order = cand[np.argsort(-(le[cand] ** 3 * ke[cand]), kind="stable")]
-    return np.sort(order[:most])
-
-
-def _split_edges(ring: np.ndarray, most: int) -> np.ndarray:
-    """``ring`` with a vertex in the middle of each edge :func:`_edges_to_split` picks, on the arc
-    of the edge's mean curvature (that of the circles through each end and its two neighbours):
-    the edge's midpoint moved outward by the sagitta ``kappa L^2 / 8``.
-
-    Interpolated, not searched: a level-set search (steps 3-4) at the midpoint gave the same
-    areas and volumes on balls and the synthetic cells, at the cost of two more field searches
-    per new vertex.  ``ring`` itself where no edge is picked or the result would not be simple
-    with the same orientation.
-    """
-    idx = _edges_to_split(ring, most)
-    if not len(idx):
-        return ring
-    n = len(ring)
-    a = np.roll(ring, 1, axis=0)
-    c = np.roll(ring, -1, axis=0)
-    u, v, w = ring - a, c - ring, c - a
-    lu, lv, lw = (np.hypot(t[:, 0], t[:, 1]) for t in (u, v, w))
-    den = lu * lv * lw
-    kappa = np.where(den > 0, 2.0 * (u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) / np.where(den > 0, den, 1.0), 0.0)
-    ke = 0.5 * (kappa[idx] + kappa[(idx + 1) % n])
-    p0, p1 = ring[idx], ring[(idx + 1) % n]
-    e = p1 - p0
-    le = np.hypot(e[:, 0], e[:, 1])
-    nrm = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.where(le > 0, le, 1.0)[:, None]  # outward: right of travel
-    new = 0.5 * (p0 + p1) + (ke * le ** 2 / 8.0)[:, None] * nrm
-    out = np.empty((n + len(idx), 2))
-    pos = idx + np.arange(1, len(idx) + 1)  # the new vertex follows ring[idx]
-    keep = np.ones(len(out), dtype=bool)
-    keep[pos] = False
-    out[keep] = ring
-    out[pos] = new
-    if not _is_simple(out) or shoelace_area(out) * shoelace_area(ring) <= 0:
-        return ring
-    return out
-
-
-# ----------------------------------------------------------------------------------------------
 # Meridians: vertices of consecutive slices aligned across the slices
 # ----------------------------------------------------------------------------------------------
 @njit(cache=True)
@@ -1070,7 +989,7 @@ def _check_density(density) -> None:
 def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
                 chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0,
                 strict: bool = False, fine_sigma: float | None = None, counts: list | None = None,
-                images: dict | None = None, split: bool = True):
+                images: dict | None = None):
     """Steps 3-6 of the module docstring for one seed polygon of lattice slice ``kz``.
 
     Parameters
@@ -1095,8 +1014,6 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
     images : dict, optional
         Slice images kept between the searches of slice ``kz`` (pass the same dict for the rings of
         one slice; a new one per slice).  The results do not depend on it.
-    split : bool
-        Step 5a (split edges).  Off in :func:`refine_volume_rings` (see there).
 
     Returns
     -------
@@ -1130,8 +1047,6 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
                 if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
-    if split and ring is not seed:  # step 5a
-        ring = _split_edges(ring, int(SPLIT_BUDGET * len(seed)) - len(ring))
     if chord:
         mom, box = images.get(float(sigma)) or _no_images()
         fld, mom = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), dz, mom, box,
@@ -1381,10 +1296,8 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     fine = _resolve_fine(fine_sigma, sigma)
     counts = [0, 0]
     _check_density(density)
-    # no split edges (step 5a) here: on the real shapes (comparisons/real, rotated @128) they moved the
-    # area median from 0.32 to 0.65 % (signed -0.12 -> -0.36 %; not analysed: P fell on some rows)
     opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move,
-                strict=True, fine_sigma=fine, counts=counts, split=False)
+                strict=True, fine_sigma=fine, counts=counts)
     below = below or {}
     fixed = fixed or {}
     deepest = deepest or {}
