@@ -503,11 +503,7 @@ def _separate_coincident(V, F, nudge):
         return V
     # the j-th copy of a position (in index order) moves (1 + j/2) nudges: copies heading the same
     # way stay apart
-    order = np.argsort(inv[dup], kind="stable")
-    rank = np.empty(len(dup), dtype=np.int64)
-    grp = inv[dup][order]
-    starts = np.r_[0, np.flatnonzero(np.diff(grp)) + 1]
-    rank[order] = np.arange(len(dup)) - np.repeat(starts, np.diff(np.r_[starts, len(dup)]))
+    rank = _copy_rank(inv[dup])
     V = V.copy()
     is_dup = np.zeros(len(V), dtype=bool)
     is_dup[dup] = True
@@ -527,6 +523,17 @@ def _separate_coincident(V, F, nudge):
     return V
 
 
+def _copy_rank(groups):
+    """For each entry of ``groups`` (position ids, entries in index order), how many earlier
+    entries share its id: 0 for the first copy of a position, 1 for the second, ..."""
+    order = np.argsort(groups, kind="stable")
+    rank = np.empty(len(groups), dtype=np.int64)
+    grp = groups[order]
+    starts = np.r_[0, np.flatnonzero(np.diff(grp)) + 1]
+    rank[order] = np.arange(len(groups)) - np.repeat(starts, np.diff(np.r_[starts, len(groups)]))
+    return rank
+
+
 def _separate_coincident_reference(V, F, nudge):
     """:func:`_separate_coincident` over the whole mesh (sorted groups, ``np.add.at`` over every
     corner): the reference it is tested against."""
@@ -534,12 +541,9 @@ def _separate_coincident_reference(V, F, nudge):
     dup = np.flatnonzero(cnt[inv] > 1)
     if len(dup) == 0:
         return V
-    # the j-th copy of a position moves (1 + j/2) nudges: copies heading the same way stay apart
-    order = np.argsort(inv[dup], kind="stable")
-    rank = np.empty(len(dup), dtype=np.int64)
-    grp = inv[dup][order]
-    starts = np.r_[0, np.flatnonzero(np.diff(grp)) + 1]
-    rank[order] = np.arange(len(dup)) - np.repeat(starts, np.diff(np.r_[starts, len(dup)]))
+    # the j-th copy of a position (in index order) moves (1 + j/2) nudges: copies heading the same
+    # way stay apart
+    rank = _copy_rank(inv[dup])
     V = V.copy()
     cen = V[F].mean(axis=1)
     corner_v = F.reshape(-1)

@@ -231,6 +231,8 @@ _STRIP_MIN_STARTS = 4
 def _cyclic_run(starts, n):
     """``a`` if the increasing ``starts`` are ``a, a + 1, ..., a + k - 1`` modulo ``n``, else -1."""
     k = starts.shape[0]
+    if k == n:
+        return 0
     if k > n:
         return -1
     gaps = 0
@@ -243,8 +245,6 @@ def _cyclic_run(starts, n):
         if nxt != cur + 1:
             gaps += 1
             a = starts[(t + 1) % k]
-    if k == n:
-        return 0
     return a if gaps == 1 else -1
 
 
