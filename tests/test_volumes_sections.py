@@ -70,3 +70,54 @@ def test_sections_are_the_last_step_before_the_exact_join(monkeypatch):
     # the sections' vertices lie between the slices, off the pixel corners' mid-planes only where made
     z = with_sections.vertices[:, 2]
     assert (np.abs(z - np.rint(z)) > 1e-6).any()
+
+
+def _two_cs(n=40, r0=8, r1=15, gap=2):
+    """A thick C in one slice and the same C opening the other way in the next: the two overlaps
+    (the upper and lower arcs) form a loop, so a handle opens in the gap (genus 1)."""
+    vol = np.zeros((4, n, n), bool)
+    yy, xx = np.mgrid[:n, :n] - (n - 1) / 2
+    rr = np.hypot(yy, xx)
+    ring = (rr >= r0) & (rr <= r1)
+    vol[1] = ring & ~((np.abs(yy) <= gap / 2) & (xx > 0))
+    vol[2] = ring & ~((np.abs(yy) <= gap / 2) & (xx < 0))
+    return vol
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(refine="band"), dict(polygon="dss", triangulation="optimal")])
+def test_a_loop_of_overlaps_is_sectioned_not_exact(kw):
+    vol = _two_cs()
+    m = volume_to_mesh(vol, **kw)
+    chk, ref = check_embedded(vol, m)
+    assert ref["genus"] == 1
+    # before, a loop of overlaps was always joined voxel-exactly (crack rings, a staircase)
+    assert m.meta["exact_joins"] == 0 and m.meta["crack_rings"] == 0, m.meta
+    assert m.meta["intermediate_sections"] >= 1
+
+
+def test_a_fork_and_a_merge_through_one_section_bridge_apart(monkeypatch):
+    """Where a section splits a loop into a fork below it and a merge above it, the merge's bridges
+    keep clear of the fork's: the same shortest bridge taken twice pinched the section, and the
+    join became exact (this volume: 2 exact joins with sections and without)."""
+    rng = np.random.default_rng(7)
+    vol = ndimage.gaussian_filter(rng.random((5, 20, 20)), 1.2) > 0.5 + 0.03 * rng.standard_normal()
+    with_sections = volume_to_mesh(vol)
+    check_embedded(vol, with_sections)
+    monkeypatch.setattr(sections, "MAX_DEPTH", 0)
+    without = volume_to_mesh(vol)
+    assert with_sections.meta["exact_joins"] < without.meta["exact_joins"]
+    assert with_sections.area < without.area
+
+
+def test_a_bridged_join_with_more_area_than_sections_takes_the_sections(monkeypatch):
+    from contourmesh import volumes
+
+    vol = _blobs()
+    monkeypatch.setattr(volumes, "_SECTION_TRIAL", np.inf)  # never compared
+    plain = volume_to_mesh(vol)
+    monkeypatch.setattr(volumes, "_SECTION_TRIAL", 0.0)  # every bridged join tries sections
+    tried = volume_to_mesh(vol)
+    check_embedded(vol, tried)
+    assert tried.meta["intermediate_sections"] > plain.meta["intermediate_sections"]
+    # each join keeps whichever of the two has less area
+    assert tried.area < plain.area

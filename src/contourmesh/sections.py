@@ -71,12 +71,18 @@ class _Layer:
         self._poly, self._edges = poly, edges
         self.main = main  # the slice index, or None for a section
         self.double = double  # (c, h) of holes lidded from both sides (lids get a collar)
+        self.taken = []  # (p, q): bridges that the join below put in this section
 
     def poly(self, c, h):
         return self._poly(c, h)
 
     def edges(self):
-        return self._edges()
+        a, b = self._edges()
+        if not self.taken:
+            return a, b
+        # the join above must bridge elsewhere: two joins' bridges meeting in a section would pinch it
+        return (np.concatenate([a, np.array([p for p, _ in self.taken], dtype=np.float64)]),
+                np.concatenate([b, np.array([q for _, q in self.taken], dtype=np.float64)]))
 
 
 def _section_layer(ops, S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
@@ -165,6 +171,8 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         below = split(P, M, depth - 1, False)
         if below is None:
             return None
+        M.taken = [(p_, q_) for piece in below[1] if piece[0] == "bridged" and piece[2] is M
+                   for plane, p_, q_ in piece[3].segments if plane == 1]
         above = split(M, Q, depth - 1, False)
         if above is None:
             return None

@@ -497,6 +497,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                 joins.append((k, "band", (next(iter(ga)), next(iter(gb)), matched)))
             elif plan is not None:
                 joins.append((k, "bridge", (sorted(ga), sorted(gb), plan)))
+            elif polygons is None:
+                # neither a band nor a bridged join (a loop of overlaps: a handle forms in the gap):
+                # intermediate sections are tried before the exact join (plan None: sections only)
+                joins.append((k, "bridge", (sorted(ga), sorted(gb), None)))
             else:
                 joins.append((k, "exact", (sorted(ga), sorted(gb))))
                 crack_only.update((k, a) for a in ga)
@@ -1336,6 +1340,9 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 #: rocker arm rotated #2 at 64 across had one at 2.1 (+8 % on the whole mesh), and a slanted torus
 #: of the scale-out synthetic, whose C-shaped section closes into a ring, one at 3 (+28 %).
 _BRIDGED_AREA_LIMIT = 1.5
+#: A bridged join with more area than this share of the exact join's also tries intermediate sections
+#: (:func:`contourmesh.sections.sectioned_join`) and keeps whichever of the two has less area.
+_SECTION_TRIAL = 1.0
 
 
 def _exact_area(slices, zs, k, ga, gb, pixel_area):
@@ -1458,7 +1465,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     lids = defaultdict(int)
     for k, kind, data in joins:
-        if kind == "bridge":
+        if kind == "bridge" and data[2] is not None:
             for a, h in data[2][1]:
                 lids[k, a, h] += 1
             for b, h in data[2][2]:
@@ -1473,23 +1480,33 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             if kind != "bridge":
                 continue
             ga, gb, plan = data
-            dbl = tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
+            dbl = () if plan is None else \
+                tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
             key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl)
             # a keyhole lies in its component's plane, inside the component: a flat cap there (the
             # component ends on the other side) would meet the fold along it
-            if caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
-                                   or any((k + 1, b) not in has_above for b, _ in plan[4])):
+            if plan is not None and caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
+                                                        or any((k + 1, b) not in has_above for b, _ in plan[4])):
                 cache[key] = None
             if key not in cache:
-                cache[key] = _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double,
-                                          waypoints, band_guard)
+                cache[key] = None if plan is None else _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered,
+                                                                    triangulation, caps, double, waypoints, band_guard)
                 got = cache[key]
                 # a band can fan across the slice (from a polyline keyhole, or from the tips of a C
                 # whose mouth closes into a ring): such a join folds over itself, and may not have
                 # much more area than the voxel-exact join it replaces
-                limit = _BRIDGED_AREA_LIMIT * _exact_area(slices, zs, k, ga, gb, dx * dy)
-                if got is not None and float(triangle_areas(got.V, got.F).sum()) > limit:
+                exact = _exact_area(slices, zs, k, ga, gb, dx * dy)
+                limit = _BRIDGED_AREA_LIMIT * exact
+                area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
+                if got is not None and area > limit:
                     cache[key] = None
+                elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None:
+                    # more area than the exact join: a fold is likely; intermediate sections may
+                    # follow the surface with less, and the join takes whichever has less area
+                    alt = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
+                                         triangulation, polygon, grid)
+                    if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
+                        cache[key] = alt
                 if cache[key] is None and band_guard is None:
                     # split the gap by intermediate sections; held to the same area limit
                     got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
