@@ -25,11 +25,13 @@ The routes behind the entry points:
 * **contours route** (:func:`contourmesh.drawn.mesh_drawn`, ``route="contours"``): the default
   for real-valued contour stacks (contour files): the drawn rings themselves are the mesh's
   sections, joined by the volume mesher's joins, which a raster at ``pixel`` decides;
-* **raster route** (``route="raster"``, or ``polygon="mlp"``/``"dss"`` on real-valued rings, and
-  grid contour stacks with several contours per section): the stack is rasterized even-odd at
-  ``pixel`` (:func:`contourmesh.rasterize.rasterize_stack`) and meshed as a volume;
+* **raster route** (``route="raster"``, or ``polygon="mlp"``/``"dss"`` on real-valued rings): the
+  stack is rasterized even-odd at ``pixel`` (:func:`contourmesh.rasterize.rasterize_stack`) and
+  meshed as a volume;
 * **volume route** (:func:`contourmesh.volumes.volume_to_mesh`): any binary volume, several
-  contours per slice, holes and branching; its compiled fast path handles simple slices;
+  contours per slice, holes and branching; its compiled fast path handles simple slices.  Grid
+  contour stacks with several contours per section (not nested chains) take it too, with the
+  grid points their contours bound as the volume (:func:`contourmesh.refine.stack_points`);
 * **refined route** (``refine="band"``): the outer Jordan contour stack of the source is refined
   across slices (:func:`contourmesh.refine.refine_stack`) and meshed by the stack route, when
   every slice holds one contour (or one outer contour with holes that the stack route closes);
@@ -366,8 +368,10 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
                route: str | None = None, bands: str | None = None, progress: bool = False) -> Mesh:
     """Mesh a contour stack, choosing the route by what the stack holds.
 
-    * Grid contours (integer points): one contour per section goes to the stack route; several
-      contours per section are rasterized (raster route).  ``polygon`` defaults to ``"mlp"``.
+    * Grid contours (integer points): one contour per section, or nested outer/hole chains (a torus
+      lying flat), goes to the stack route; other stacks with several contours per section go to
+      the volume mesher, with the grid points the contours bound as the volume (route
+      ``"volume"``).  ``polygon`` defaults to ``"mlp"``.
     * Real-valued rings (contour files), ``polygon`` unset or ``"none"``: the drawn rings are the
       data.  With one ring per section and ``polygon="none"``, the stack route
       triangulates them as drawn; otherwise (the default) the **contours route**
@@ -430,7 +434,15 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
                + " (leave polygon unset, or route='contours')")
         raise InapplicableOption(f"bands='curved' applies on the contours route only: {why}")
     fallback = None
-    if route is None and one_each and (integer or polygon == "none"):
+    nested = integer and not one_each and route is None and _nested_chains(stack) is not None
+    if route is None and integer and not one_each and not nested:
+        # several grid contours per section (islands, forks, merges): the grid points they bound,
+        # meshed by the volume mesher.  Not their raster: a grid contour runs through the centres
+        # of its boundary pixels, so the even-odd raster at those centres would take the boundary
+        # in or out by the rasterizer's edge rule, half a pixel off on every side
+        return _grid_stack_volume(stack, polygon=polygon or "mlp", triangulation=triangulation, caps=caps,
+                                  why=None, progress=progress)
+    if route is None and (one_each or nested) and (integer or polygon == "none"):
         try:
             # crossings left: grid contours go to the volume mesher, drawn rings to the contours
             # route below (smooth ends exist on the stack route only: there they are warned about)
@@ -457,7 +469,7 @@ def mesh_stack(stack: ContourStack, *, pixel: float | None = None, polygon: str 
             # contours route below resolves it through its raster; never silently
             fallback = _stack_route_failed(stack, exc)
     elif not drawn:
-        why = (f"route={route!r}" if route else "its sections hold several grid contours" if not one_each else
+        why = (f"route={route!r}" if route else
                f"its contours are real-valued and polygon={polygon!r} (leave polygon unset to mesh the drawn rings)")
         _volume_caps(caps, f"this stack goes to the raster route: {why}")
         log.debug("raster route: %s", why)
@@ -484,17 +496,21 @@ def _stack_route_failed(stack: ContourStack, exc: Exception) -> str:
     return str(exc)
 
 
-def _grid_stack_volume(stack: ContourStack, *, polygon, triangulation, caps, why: str, progress=False) -> Mesh:
-    """Grid contours whose stack-route mesh keeps crossing faces, or is no closed surface (a
-    contour touching itself): their digital object (the grid points the contours bound,
+def _grid_stack_volume(stack: ContourStack, *, polygon, triangulation, caps, why: str | None, progress=False) -> Mesh:
+    """Grid contours with several contours per section (``why`` None), or whose stack-route mesh
+    keeps crossing faces or is no closed surface (a contour touching itself; ``why`` says so, with a
+    warning): their digital object (the grid points the contours bound,
     :func:`contourmesh.refine.stack_points`, one slice per section at the sections' own heights)
-    meshed by the volume mesher, with a warning."""
+    meshed by the volume mesher."""
     from .refine import stack_points
 
     name = stack.meta.get("roi") or stack.meta.get("name") or "the stack"
-    _volume_caps(caps, "these grid contours are meshed by the volume mesher (the stack route fails on them)")
-    warn_external(f"{name}: the stack route fails ({why}); meshed by the volume mesher from the "
-                  "grid points the contours bound instead", RasterFallbackWarning)
+    if why is None:
+        _volume_caps(caps, "several grid contours per section are meshed by the volume mesher")
+    else:
+        _volume_caps(caps, "these grid contours are meshed by the volume mesher (the stack route fails on them)")
+        warn_external(f"{name}: the stack route fails ({why}); meshed by the volume mesher from the "
+                      "grid points the contours bound instead", RasterFallbackWarning)
     pts, x0, y0, zidx, _ = stack_points(stack, lattice=False)
     zs = np.asarray(stack.z, dtype=np.float64)
     step = float(np.median(np.diff(zs))) if len(zs) > 1 else float(stack.spacing[0])
@@ -509,7 +525,9 @@ def _grid_stack_volume(stack: ContourStack, *, polygon, triangulation, caps, why
                        triangulation=triangulation, caps=caps, progress=progress)
     meta = dict(stack.meta)
     meta.update(m.meta)
-    meta.update(route="volume", stack_route_error=why)
+    meta.update(route="volume")
+    if why is not None:
+        meta.update(stack_route_error=why)
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
