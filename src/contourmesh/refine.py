@@ -67,6 +67,18 @@ meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same
 The vertex count stays that of the seed polygons (MLP by default): ``P`` is 1.04-1.10 times the
 MLP stack's on balls r = 20-160.
 
+**Units and lattices.**  "Voxel" above means ``h``, the longer pixel side: every length (``sigma``,
+the search reach, the moves, the chord and curvature steps) is measured in units of ``h``, and the
+lattice's geometry is one record, ``grid = (ax, ay, dz, zpos, zwt)`` (:func:`_make_grid`): pixel
+``(i, j)`` of slice ``n`` lies at ``(i ax, j ay, zpos[n] dz)`` with ``ax = dx / h``, ``ay = dy / h``,
+so oblong pixels (``dx != dy``) blur and measure as the physical object does, and the band test
+divides by ``ax, ay`` back to pixel indices.  Unevenly spaced slices keep their own heights
+``zpos``; each is weighted by its midpoint slab ``zwt`` (half the gaps on either side), and the
+blur across the slices is normalised at every height (``f = N / D(z)``, the z-derivatives by the
+quotient rule) so that a constant stays constant.  Square pixels and evenly spaced slices give
+``ax = ay = 1``, every weight 1 and a constant normalisation: the same numbers as a pixel-unit
+computation, bit for bit.
+
 Functions here are pure: arrays (and a ContourStack) in, arrays (and a Mesh) out.
 """
 
