@@ -627,8 +627,13 @@ def _no_images():
     return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64)
 
 
-@njit(cache=True)
 def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, margin):
+    """:func:`_fields_kernel`; ``grid`` may be a slice spacing (square pixels, even slices)."""
+    return _fields_kernel(pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, box, margin)
+
+
+@njit(cache=True)
+def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin):
     """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
     (:func:`_images_for`, reused from ``mom, box`` where they cover the points' windows):
     ``(out (n, 10), mom)``."""
@@ -684,8 +689,13 @@ def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0, *, spaci
     return _field_many(pts, p, float(sigma), grid)
 
 
-@njit(cache=True)
 def _field_many(pts, p, sigma, grid):
+    """:func:`_field` at the points ``p (n, 3)``; ``grid`` may be a slice spacing (square pixels, even slices)."""
+    return _field_many_kernel(pts, p, sigma, _as_grid(grid, pts.shape[0]))
+
+
+@njit(cache=True)
+def _field_many_kernel(pts, p, sigma, grid):
     norm = _lattice_norm(sigma, grid)
     out = np.empty((p.shape[0], 10))
     buf = np.empty(10)
@@ -809,7 +819,6 @@ def _mean_curvature_shift(buf, sigma):
     return 0.5 * ksum * sigma * sigma, g
 
 
-@njit(cache=True)
 def _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found):
     """Steps 3-4 for every vertex: returns the number of vertices clamped into their band.
 
@@ -822,7 +831,8 @@ def _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict,
     otherwise one whose slice has no level within reach (a part thinner than the blur) is
     dragged to the end of the search interval.
     """
-    clamped, _ = _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found,
+    clamped, _ = _move_with_images(pts, xy, kz, float(sigma), _as_grid(grid, pts.shape[0]), curvature, max_move, out,
+                                   strict, found,
                                    np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), 0.0)
     return clamped
 
@@ -915,9 +925,15 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
     return clamped, mom
 
 
+def _clamp_to_band(pts, start, target, kz, out, grid=1.0):
+    """Move each point from ``start`` toward ``target`` as far as its band allows (sampled); ``grid``:
+    the lattice (:func:`_make_grid`), or a slice spacing (square pixels)."""
+    return _clamp_kernel(pts, start, target, kz, out, _as_grid(grid, pts.shape[0]))
+
+
 @njit(cache=True)
-def _clamp_to_band(pts, start, target, kz, out, grid):
-    """Move each point from ``start`` toward ``target`` as far as its band allows (sampled)."""
+def _clamp_kernel(pts, start, target, kz, out, grid):
+    """:func:`_clamp_to_band`'s loop."""
     clamped = 0
     for n in range(start.shape[0]):
         x0, y0 = start[n, 0], start[n, 1]
@@ -1100,10 +1116,12 @@ def _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, 
 
 def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False, fine=None, counts=None, images=None):
     """Steps 3-4 at ``sigma``; with ``fine`` (a smaller width), the two-scale selection of step 3b.
+    ``grid``: the lattice (:func:`_make_grid`), or a slice spacing (square pixels, even slices).
 
     ``counts`` (a two-item list) accumulates the vertices that took the fine estimate and the
     vertices seen; ``images`` (a dict, or None) keeps the slice images between searches of one slice."""
     xy = np.ascontiguousarray(xy)
+    grid = _as_grid(grid, pts.shape[0])
     out = np.empty_like(xy)
     found = np.empty(len(xy), dtype=np.bool_)
     clamped = _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found)
