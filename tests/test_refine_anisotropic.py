@@ -233,3 +233,19 @@ def test_band_test_tolerance_is_symmetric():
     # in units of h on oblong pixels the same point is on the edge
     grid, _ = R._make_grid(0.617, 0.667, 1, dz=1.0)
     assert R._in_band(pts, 0, 5 * (0.617 / 0.667) * (1 - 1e-16), 2.5, grid)
+
+
+def test_drawn_rings_on_uneven_sections_are_refined_on_their_raster():
+    """Real-valued rings (a ball's sections) on unevenly spaced heights: refused before, now
+    refined on their raster like evenly spaced ones."""
+    rad = 9.0
+    zs = uneven_heights(rad - 0.3, seed=7)
+    zs = zs[np.abs(zs) < rad - 0.3]
+    t = np.linspace(0, 2 * np.pi, 96, endpoint=False)
+    secs = tuple(Section(z=float(z), contours=(np.c_[np.cos(t), np.sin(t)] * np.sqrt(rad**2 - z**2) + [0.3, -0.2],))
+                 for z in zs)
+    m = contourmesh.mesh(ContourStack(sections=secs), refine="band", pixel=0.5)
+    chk = assert_closed_outward(m, genus=0)
+    assert m.meta["route"] == "raster-refined" and chk["self_intersections"] == 0
+    # the sections end inside the ball (0.3 mm or more short of its poles): a little less area
+    assert -0.015 < m.area / (4 * np.pi * rad**2) - 1 < 0.0  # -0.43 %
