@@ -89,6 +89,7 @@ def stages(pts, seed, kz, sigma, dz, prev, opts):
     from contourmesh import refine as R
 
     kk = int(kz)
+    dz = R._as_grid(dz, pts.shape[0])  # the lattice record (refine._make_grid), also from a plain spacing
     fine = opts.get("fine_sigma")
     mm = opts.get("max_move", 3.0)
     strict = opts.get("strict", False)
@@ -130,7 +131,7 @@ def stages(pts, seed, kz, sigma, dz, prev, opts):
     out["chord-free"] = target
     k3 = np.full(len(ring), kk, dtype=np.int64)
     o = np.empty_like(ring)
-    R._clamp_to_band(pts, np.ascontiguousarray(ring), target, k3, o)
+    R._clamp_to_band(pts, np.ascontiguousarray(ring), target, k3, o, dz)
     out["chord"] = o if R._is_simple(o) else ring
     return out
 

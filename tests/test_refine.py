@@ -232,10 +232,11 @@ def test_band_volume_routes_and_errors():
         volume_to_mesh(vol, refine="smooth")
     two, _, _ = _shapes().two_balls(5)
     zs = np.cumsum(np.r_[0.0, np.where(np.arange(two.shape[0] - 1) % 2, 1.0, 1.5)])
-    with pytest.raises(ValueError, match="evenly spaced"):
-        contourmesh.mesh(two, z=zs, refine="band")
-    with pytest.raises(ValueError, match="square pixels"):
-        contourmesh.mesh(two, spacing=(1.0, 1.0, 2.0), refine="band")
+    # unevenly spaced slices and oblong pixels are refined too (tests/test_refine_anisotropic.py)
+    for kw in (dict(z=zs), dict(spacing=(1.0, 1.0, 2.0))):
+        m = contourmesh.mesh(two, refine="band", **kw)
+        chk = m.checks()
+        assert m.meta["route"] == "volume-refined" and chk["ok"] and chk["components"] == 2, (kw, chk)
     # contour stacks and shapes with several contours in a section take the volume mesher's refinement
     secs = [Section(z=float(n), contours=tuple(cs), parents=tuple(ps))
             for n in range(two.shape[0]) if two[n].any() for cs, ps in [trace_contours(two[n])]]
@@ -381,21 +382,30 @@ def _lumpy_points(shape=(24, 30, 28), seed=3):
     return np.ascontiguousarray(ball ^ (rng.random(shape) < 0.03))
 
 
-@pytest.mark.parametrize("sigma, dz", [(2.0, 1.0), (2.9, 1.0), (1.4, 1.7), (3.5, 0.6)])
-def test_field_in_slice_equals_the_direct_sum(sigma, dz):
+@pytest.mark.parametrize("sigma, dz, pixel, uneven", [(2.0, 1.0, (1.0, 1.0), False), (2.9, 1.0, (1.0, 1.0), False),
+                                                      (1.4, 1.7, (1.0, 1.0), False), (3.5, 0.6, (1.0, 1.0), False),
+                                                      (2.2, 1.3, (0.667, 0.617), False), (2.2, 1.0, (0.617, 0.667), True)])
+def test_field_in_slice_equals_the_direct_sum(sigma, dz, pixel, uneven):
     pts = _lumpy_points()
     nz, ny, nx = pts.shape
-    norm = R._lattice_norm(sigma, dz)
+    if uneven:  # slices 0.5-1.5 apart: slab weights and a height-dependent normalisation
+        heights = np.cumsum(np.random.default_rng(5).uniform(0.5, 1.5, nz))
+        grid, _ = R._make_grid(*pixel, nz, zs=heights[2:-2], pad=2)
+    else:
+        grid, _ = R._make_grid(*pixel, nz, dz=dz)
+    ax, ay = grid[0], grid[1]
+    norm = R._lattice_norm(sigma, grid)
     rng = np.random.default_rng(11)
     direct, fast = np.empty(10), np.empty(10)
     for k in (0, 5, 11, nz - 1):
-        mom = R._slice_moments(pts, k, sigma, dz, 0, nx - 1, 0, ny - 1)
+        mom = R._slice_moments(pts, k, sigma, grid, 0, nx - 1, 0, ny - 1)
+        knorm, za, zb = R._slice_norm(grid, sigma, norm, float(k), nz)
         for x, y in rng.uniform(-4, max(nx, ny) + 4, (60, 2)):
-            R._field(pts, x, y, float(k), sigma, dz, norm, direct)
-            R._field_in_slice(mom, 0, 0, nx, ny, x, y, sigma, norm, fast)
+            R._field(pts, x, y, float(k), sigma, grid, norm, direct)
+            R._field_in_slice(mom, 0, 0, nx, ny, x, y, sigma, ax, ay, knorm, za, zb, fast)
             assert np.allclose(fast, direct, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(direct).max()))
             level = np.full(10, 7.0)
-            R._level_in_slice(mom, 0, 0, nx, ny, x, y, sigma, norm, level)
+            R._level_in_slice(mom, 0, 0, nx, ny, x, y, sigma, ax, ay, knorm, level)
             assert np.array_equal(level[:3], fast[:3]) and np.all(level[3:] == 7.0)  # the search's steps
 
 

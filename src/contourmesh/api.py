@@ -278,11 +278,17 @@ def _refined_volume(stack: ContourStack, *, polygon, triangulation, caps, refine
     _volume_caps(caps, "a stack with several contours in a section is refined and meshed by the volume mesher")
     log.debug("refined route: several contours in a section; the volume mesher refines its polygons")
     pts, x0, y0, zidx, dz = stack_points(stack)
-    h = float(stack.spacing[0])
-    dzp = dz * h
+    dx, dy = (float(v) for v in stack.spacing)
     ox, oy = (float(v) for v in stack.origin)
-    origin = (ox + x0 * h, oy + y0 * h, float(stack.z[0]) - int(zidx[0]) * dzp)
-    m = volume_to_mesh(pts, spacing=(dzp, h, h), origin=origin, polygon=polygon,
+    if dz is not None:  # sections on a regular lattice (gaps filled with empty slices)
+        dzp = dz * max(dx, dy)
+        origin = (ox + x0 * dx, oy + y0 * dy, float(stack.z[0]) - int(zidx[0]) * dzp)
+        z = None
+    else:  # unevenly spaced sections: one slice each at its own height
+        z = _slice_heights(stack.z, int(zidx[0]), pts.shape[0])
+        dzp = float(np.median(np.diff(stack.z)))
+        origin = (ox + x0 * dx, oy + y0 * dy, 0.0)
+    m = volume_to_mesh(pts, spacing=(dzp, dy, dx), z=z, origin=origin, polygon=polygon,
                        triangulation=triangulation or "optimal", caps=caps, refine=refine)
     meta = dict(stack.meta)
     meta.update(m.meta)
@@ -514,14 +520,10 @@ def _grid_stack_volume(stack: ContourStack, *, polygon, triangulation, caps, why
     pts, x0, y0, zidx, _ = stack_points(stack, lattice=False)
     zs = np.asarray(stack.z, dtype=np.float64)
     step = float(np.median(np.diff(zs))) if len(zs) > 1 else float(stack.spacing[0])
-    first = int(zidx[0])
-    z = np.empty(pts.shape[0])
-    z[first:first + len(zs)] = zs  # the margin's empty slices continue the end spacings
-    z[:first] = zs[0] - step * np.arange(first, 0, -1)
-    z[first + len(zs):] = zs[-1] + step * np.arange(1, pts.shape[0] - first - len(zs) + 1)
-    h = float(stack.spacing[0])
+    z = _slice_heights(zs, int(zidx[0]), pts.shape[0], step)
+    dx, dy = (float(v) for v in stack.spacing)
     ox, oy = (float(v) for v in stack.origin)
-    m = volume_to_mesh(pts, z=z, spacing=(step, h, h), origin=(ox + x0 * h, oy + y0 * h, 0.0), polygon=polygon,
+    m = volume_to_mesh(pts, z=z, spacing=(step, dy, dx), origin=(ox + x0 * dx, oy + y0 * dy, 0.0), polygon=polygon,
                        triangulation=triangulation, caps=caps, progress=progress)
     meta = dict(stack.meta)
     meta.update(m.meta)
@@ -531,13 +533,25 @@ def _grid_stack_volume(stack: ContourStack, *, polygon, triangulation, caps, why
     return Mesh(m.vertices, m.faces, P=m.P, meta=meta)
 
 
+def _slice_heights(zs, first: int, n: int, step: float | None = None) -> np.ndarray:
+    """Heights of the ``n`` slices of :func:`contourmesh.refine.stack_points`'s array with
+    ``lattice=False``: section ``k`` at slice ``first + k``; the margin's empty slices continue the
+    sections' median spacing (``step``)."""
+    zs = np.asarray(zs, dtype=np.float64)
+    if step is None:
+        step = float(np.median(np.diff(zs)))
+    z = np.empty(n)
+    z[first:first + len(zs)] = zs
+    z[:first] = zs[0] - step * np.arange(first, 0, -1)
+    z[first + len(zs):] = zs[-1] + step * np.arange(1, n - first - len(zs) + 1)
+    return z
+
+
 def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
     """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement);
     None when some slice has several contours (or a hole), or a contour that bounds no area (a part
     one pixel wide: the stack mesher cannot close it, the volume mesher can), or when the voxels'
     surface is not one sphere (6/26 connectivity: slices overlapping in two places make a handle)."""
-    if dx != dy:
-        raise ValueError(f"refine='band' needs square pixels; got dy={dy}, dx={dx}")
     sections = []
     for k in range(mask.shape[0]):
         if not mask[k].any():

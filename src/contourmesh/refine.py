@@ -67,6 +67,18 @@ meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same
 The vertex count stays that of the seed polygons (MLP by default): ``P`` is 1.04-1.10 times the
 MLP stack's on balls r = 20-160.
 
+**Units and lattices.**  "Voxel" above means ``h``, the longer pixel side: every length (``sigma``,
+the search reach, the moves, the chord and curvature steps) is measured in units of ``h``, and the
+lattice's geometry is one record, ``grid = (ax, ay, dz, zpos, zwt)`` (:func:`_make_grid`): pixel
+``(i, j)`` of slice ``n`` lies at ``(i ax, j ay, zpos[n] dz)`` with ``ax = dx / h``, ``ay = dy / h``,
+so oblong pixels (``dx != dy``) blur and measure as the physical object does, and the band test
+divides by ``ax, ay`` back to pixel indices.  Unevenly spaced slices keep their own heights
+``zpos``; each is weighted by its midpoint slab ``zwt`` (half the gaps on either side), and the
+blur across the slices is normalised at every height (``f = N / D(z)``, the z-derivatives by the
+quotient rule) so that a constant stays constant.  Square pixels and evenly spaced slices give
+``ax = ay = 1``, every weight 1 and a constant normalisation: the same numbers as a pixel-unit
+computation, bit for bit.
+
 Functions here are pure: arrays (and a ContourStack) in, arrays (and a Mesh) out.
 """
 
@@ -106,8 +118,8 @@ IMAGE_MARGIN = 1.0
 def _check_stack(stack) -> np.ndarray:
     zs = check_stack(stack)
     sx, sy = (float(v) for v in stack.spacing)
-    if not (sx > 0 and sy > 0 and abs(sx - sy) <= 1e-9 * max(sx, sy)):
-        raise ValueError(f"band refinement needs square pixels (dx == dy > 0); got spacing {stack.spacing}")
+    if not (sx > 0 and sy > 0 and math.isfinite(sx) and math.isfinite(sy)):
+        raise ValueError(f"band refinement needs a positive pixel size (dx, dy > 0); got spacing {stack.spacing}")
     for k, s in enumerate(stack.sections):
         for c in s.contours:
             c = np.asarray(c)
@@ -119,19 +131,19 @@ def _check_stack(stack) -> np.ndarray:
     return zs
 
 
-def _section_grid_index(zs: np.ndarray, spacing: float) -> np.ndarray:
-    """Integer lattice index of each section along z (in units of the in-slice spacing).
+def _section_grid_index(zs: np.ndarray, h: float):
+    """Integer lattice index of each section along z, and the lattice step in units of ``h``.
 
-    Sections must lie on a regular lattice ``z0 + n * dz`` (gaps allowed, e.g. omitted empty
-    slices); ``dz`` in-slice units is ``dz_phys / dx``.  Returns ``(idx, dz_units)``.
+    Where the sections lie on a regular lattice ``z0 + n * dz`` (gaps allowed, e.g. omitted empty
+    slices) returns ``(idx, dz_phys / h)``; otherwise (unevenly spaced sections) None.
     """
     if len(zs) == 1:
         return np.zeros(1, dtype=np.int64), 1.0
     dz = float(np.min(np.diff(zs)))
     idx = np.rint((zs - zs[0]) / dz)
     if np.max(np.abs(idx * dz - (zs - zs[0]))) > 1e-6 * dz:
-        raise ValueError("band refinement needs sections on a regular lattice of heights z0 + n dz")
-    return idx.astype(np.int64), dz / spacing
+        return None
+    return idx.astype(np.int64), dz / h
 
 
 def stack_points(stack: ContourStack, *, lattice: bool = True):
@@ -153,15 +165,18 @@ def stack_points(stack: ContourStack, *, lattice: bool = True):
         Grid coordinates of ``points[:, 0, 0]``; the array has a margin of empty points all round.
     zidx : (n_sections,) int64
         The lattice slice of every section.
-    dz : float
-        Slice spacing in in-slice grid units.
+    dz : float or None
+        Slice spacing in units of ``h = max(dx, dy)`` (the longer pixel side; the pixel side where
+        pixels are square); None where the sections are not on a regular lattice.
 
-    With ``lattice=False`` the sections may lie at any heights: section ``k`` is slice ``k`` (plus
-    the margin), and ``dz`` is None.
+    With ``lattice=False``, or where the sections do not lie on a regular lattice (unevenly spaced
+    sections), section ``k`` is slice ``k`` (plus the margin) and ``dz`` is None: the slices' heights
+    are the sections' own.
     """
     zs = _check_stack(stack)
-    if lattice:
-        zidx, dz = _section_grid_index(zs, float(stack.spacing[0]))
+    on = _section_grid_index(zs, max(float(v) for v in stack.spacing)) if lattice else None
+    if on is not None:
+        zidx, dz = on
     else:
         zidx, dz = np.arange(len(zs), dtype=np.int64), None
     allpts = [np.asarray(c, dtype=np.int64) for s in stack.sections for c in s.contours]
@@ -194,56 +209,225 @@ def stack_points(stack: ContourStack, *, lattice: bool = True):
     return pts, x0, y0, zidx + pad, dz
 
 
+def _stack_grid(stack: ContourStack):
+    """:func:`stack_points` with the lattice's grid record (:func:`_make_grid`): ``(pts, x0, y0, zidx,
+    grid)``; sections off a regular lattice keep their own heights (the margins continue the end
+    spacings)."""
+    pts, x0, y0, zidx, dz = stack_points(stack)
+    dx, dy = (float(v) for v in stack.spacing)
+    if dz is not None:
+        grid, _ = _make_grid(dx, dy, pts.shape[0], dz=dz)
+    else:
+        grid, _ = _make_grid(dx, dy, pts.shape[0], zs=stack.z, pad=int(zidx[0]))
+    return pts, x0, y0, zidx, grid
+
+
 # ----------------------------------------------------------------------------------------------
 # 2. The blurred indicator, its gradient and Hessian, at any point
 # ----------------------------------------------------------------------------------------------
+def _make_grid(dx: float, dy: float, nz: int, *, dz: float | None = None, zs=None, pad: int = 0):
+    """The lattice's geometry in one record: ``(grid, h)``.
+
+    Lengths are measured in units of ``h``, the longer pixel side.  ``grid = (ax, ay, dz, zpos,
+    zwt)``: ``ax = dx / h`` and ``ay = dy / h`` (at most 1, one of them 1) are a pixel's sides in
+    those units, so the lattice point ``[n, j, i]`` of the array lies at ``(i ax, j ay, zpos[n]
+    dz)``; ``dz`` is the slice spacing in those units (for unevenly spaced slices, their median
+    spacing, a reference length); ``zpos (nz,)`` the slice positions in units of ``dz``; ``zwt``
+    each slice's weight, the slab between the midpoints to its neighbours in units of ``dz``.
+    Evenly spaced slices (``dz`` given) have ``zpos = 0, 1, 2, ...`` and ``zwt`` empty (every
+    weight 1, and the normalisation of the blurred indicator a constant).  ``zs``: the heights of
+    the array's slices ``pad .. nz - pad - 1`` (at least two; the margins continue the end
+    spacings), for slices at any heights.
+    """
+    dx, dy = float(dx), float(dy)
+    if not (dx > 0 and dy > 0 and math.isfinite(dx) and math.isfinite(dy)):
+        raise ValueError(f"band refinement needs a positive pixel size; got dx={dx}, dy={dy}")
+    h = max(dx, dy)
+    ax, ay = dx / h, dy / h
+    if zs is None:
+        return (ax, ay, float(dz), np.arange(nz, dtype=np.float64), np.zeros(0)), h
+    u = np.asarray(zs, dtype=np.float64) / h
+    gaps = np.diff(u)
+    ref = float(np.median(gaps))
+    pos = np.empty(nz)
+    m = len(u)
+    pos[pad:pad + m] = (u - u[0]) / ref
+    pos[:pad] = pos[pad] - (pos[pad + 1] - pos[pad]) * np.arange(pad, 0, -1)
+    pos[pad + m:] = pos[pad + m - 1] + (pos[pad + m - 1] - pos[pad + m - 2]) * np.arange(1, nz - pad - m + 1)
+    wt = np.empty(nz)
+    wt[1:-1] = 0.5 * (pos[2:] - pos[:-2])
+    wt[0], wt[-1] = pos[1] - pos[0], pos[-1] - pos[-2]  # the margins' spacing goes on beyond the array
+    return (ax, ay, ref, pos, wt), h
+
+
+def _grid_of_heights(dx: float, dy: float, zs, nz: int, pad: int):
+    """:func:`_make_grid` for slices at the heights ``zs``: an even grid where they are evenly spaced
+    (to ``1e-6`` of the step), else one with the slices' own positions and weights."""
+    zs = np.asarray(zs, dtype=np.float64)
+    h = max(float(dx), float(dy))
+    if len(zs) < 2:
+        return _make_grid(dx, dy, nz, dz=1.0)
+    steps = np.diff(zs)
+    if np.max(np.abs(steps - steps[0])) <= 1e-6 * abs(steps[0]):
+        return _make_grid(dx, dy, nz, dz=float(steps[0]) / h)
+    return _make_grid(dx, dy, nz, zs=zs, pad=pad)
+
+
+def _as_grid(dz, nz: int):
+    """A grid record from a slice spacing (square pixels, even slices), or the record itself."""
+    if isinstance(dz, tuple):
+        return dz
+    return _make_grid(1.0, 1.0, nz, dz=float(dz))[0]
+
+
 @njit(cache=True)
-def _lattice_norm(sigma, dz):
-    """sum over the lattice Z x Z x dz Z of exp(-|p|^2 / (2 sigma^2)) (the normalisation of f)."""
-    r = int(math.ceil(6.0 * sigma)) + 1
-    s1 = 0.0
-    for i in range(-r, r + 1):
-        s1 += math.exp(-i * i / (2.0 * sigma * sigma))
+def _even(grid):
+    return grid[4].shape[0] == 0
+
+
+@njit(cache=True)
+def _zweight(grid, n):
+    """The weight of slice ``n`` (1 on evenly spaced slices)."""
+    return 1.0 if grid[4].shape[0] == 0 else grid[4][n]
+
+
+@njit(cache=True)
+def _zwindow(grid, z, rad, nz):
+    """``(k0, k1, zc)``: the slices within the Gaussian's reach ``rad`` of the fractional slice index
+    ``z``, and its position ``zc`` (in units of ``dz``)."""
+    dz = grid[2]
+    if grid[4].shape[0] == 0:
+        return max(int(math.floor(z - rad / dz)), 0), min(int(math.ceil(z + rad / dz)), nz - 1), z
+    zpos = grid[3]
+    f = min(max(int(math.floor(z)), 0), nz - 1)
+    if f < nz - 1:
+        zc = zpos[f] + (z - f) * (zpos[f + 1] - zpos[f])
+    else:
+        zc = zpos[f] + (z - f) * (zpos[f] - zpos[f - 1]) if f > 0 else z
+    r = rad / dz
+    k0 = f
+    while k0 > 0 and zpos[k0 - 1] >= zc - r:
+        k0 -= 1
+    k1 = f
+    while k1 < nz - 1 and zpos[k1 + 1] <= zc + r:
+        k1 += 1
+    return k0, k1, zc
+
+
+@njit(cache=True)
+def _lattice_norm(sigma, grid):
+    """The normalisation of f: the sum over the lattice of exp(-|p|^2 / (2 sigma^2)), in-slice pixel
+    sides ``ax, ay``, slice spacing ``dz``.  For unevenly spaced slices only the in-slice factor (the
+    factor across the slices depends on the slice: :func:`_slice_norm`)."""
+    ax, ay, dz = grid[0], grid[1], grid[2]
+    rx = int(math.ceil(6.0 * sigma / ax)) + 1
+    sx = 0.0
+    for i in range(-rx, rx + 1):
+        sx += math.exp(-(i * ax) ** 2 / (2.0 * sigma * sigma))
+    ry = int(math.ceil(6.0 * sigma / ay)) + 1
+    sy = 0.0
+    for j in range(-ry, ry + 1):
+        sy += math.exp(-(j * ay) ** 2 / (2.0 * sigma * sigma))
+    if grid[4].shape[0] != 0:
+        return sx * sy
     rz = int(math.ceil(6.0 * sigma / dz)) + 1
     s3 = 0.0
     for k in range(-rz, rz + 1):
         s3 += math.exp(-(k * dz) ** 2 / (2.0 * sigma * sigma))
-    return s1 * s1 * s3
+    return sx * sy * s3
 
 
 @njit(cache=True)
-def _field(pts, x, y, z, sigma, dz, norm, out):
+def _slice_norm(grid, sigma, norm, z, nz):
+    """``(norm', a, b)`` at the fractional slice index ``z``: on evenly spaced slices ``(norm, 0, 0)``.
+
+    On unevenly spaced slices the blur across the slices is the sum over the slices of their slab
+    weight times the Gaussian, so the normalisation ``D(z) = sum_n zwt_n G(zpos_n - z)`` (which
+    keeps a constant field constant) varies with the height; ``norm' = norm D``, and ``a = D'/D``,
+    ``b = D''/D`` give the field's z-derivatives by the quotient rule (:func:`_z_correct`).  The
+    slices beyond the array continue its end spacings."""
+    if grid[4].shape[0] == 0:
+        return norm, 0.0, 0.0
+    dz, zpos, zwt = grid[2], grid[3], grid[4]
+    rad = 4.0 * sigma
+    k0, k1, zc = _zwindow(grid, z, rad, nz)
+    s2 = sigma * sigma
+    d0 = 0.0
+    d1 = 0.0
+    d2 = 0.0
+    for n in range(k0, k1 + 1):
+        w = (zpos[n] - zc) * dz
+        e = math.exp(-(w * w) / (2.0 * s2)) * zwt[n]
+        d0 += e
+        d1 += e * w
+        d2 += e * (w * w - s2)
+    r = rad / dz
+    g = zpos[nz - 1] - zpos[nz - 2]
+    m = 1
+    while zpos[nz - 1] + m * g <= zc + r:  # beyond the top
+        w = (zpos[nz - 1] + m * g - zc) * dz
+        e = math.exp(-(w * w) / (2.0 * s2)) * g
+        d0 += e
+        d1 += e * w
+        d2 += e * (w * w - s2)
+        m += 1
+    g = zpos[1] - zpos[0]
+    m = 1
+    while zpos[0] - m * g >= zc - r:  # below the bottom
+        w = (zpos[0] - m * g - zc) * dz
+        e = math.exp(-(w * w) / (2.0 * s2)) * g
+        d0 += e
+        d1 += e * w
+        d2 += e * (w * w - s2)
+        m += 1
+    return norm * d0, d1 / (d0 * s2), d2 / (d0 * s2 * s2)
+
+
+@njit(cache=True)
+def _z_correct(out, a, b):
+    """The quotient rule for ``f = N / D(z)``: ``out`` holds ``N``'s values and derivatives divided by
+    ``D`` (and the in-slice norm); ``a = D'/D``, ``b = D''/D`` (:func:`_slice_norm`)."""
+    fz = out[3] - out[0] * a
+    out[6] = out[6] - 2.0 * fz * a - out[0] * b
+    out[8] = out[8] - out[1] * a
+    out[9] = out[9] - out[2] * a
+    out[3] = fz
+
+
+@njit(cache=True)
+def _field(pts, x, y, z, sigma, grid, norm, out):
     """f, grad f (3) and Hessian (xx, yy, zz, xy, xz, yz) of the blurred indicator at (x, y, z).
 
-    ``(x, y)`` are array-local grid coordinates, ``z`` the lattice slice (fractional allowed).
-    ``out`` receives the 10 numbers; f = sum_{p in I} exp(-|p - x|^2 / (2 sigma^2)) / norm over
-    the lattice points within ``4 sigma`` on each axis.  The Gaussian is separable, so the
-    weights are products of three 1D tables.
+    ``(x, y)`` are array-local coordinates in units of ``h`` (the lattice point ``[n, j, i]`` at
+    ``(i ax, j ay)``, see :func:`_make_grid`), ``z`` the slice index (fractional allowed).
+    ``out`` receives the 10 numbers; f = sum_{p in I} w_p exp(-|p - x|^2 / (2 sigma^2)) / norm over
+    the lattice points within ``4 sigma`` on each axis (``w_p``: the slice's weight).  The Gaussian is
+    separable, so the weights are products of three 1D tables.  ``norm``: :func:`_lattice_norm`.
     """
     nz, ny, nx = pts.shape
+    ax, ay, dz, zpos = grid[0], grid[1], grid[2], grid[3]
     rad = 4.0 * sigma
-    i0 = max(int(math.floor(x - rad)), 0)
-    i1 = min(int(math.ceil(x + rad)), nx - 1)
-    j0 = max(int(math.floor(y - rad)), 0)
-    j1 = min(int(math.ceil(y + rad)), ny - 1)
-    k0 = max(int(math.floor(z - rad / dz)), 0)
-    k1 = min(int(math.ceil(z + rad / dz)), nz - 1)
+    i0 = max(int(math.floor((x - rad) / ax)), 0)
+    i1 = min(int(math.ceil((x + rad) / ax)), nx - 1)
+    j0 = max(int(math.floor((y - rad) / ay)), 0)
+    j1 = min(int(math.ceil((y + rad) / ay)), ny - 1)
+    k0, k1, zc = _zwindow(grid, z, rad, nz)
     s2 = sigma * sigma
     ex = np.empty(i1 - i0 + 1)
     ey = np.empty(j1 - j0 + 1)
     ez = np.empty(k1 - k0 + 1)
     for i in range(i0, i1 + 1):
-        ex[i - i0] = math.exp(-((i - x) ** 2) / (2.0 * s2))
+        ex[i - i0] = math.exp(-((i * ax - x) ** 2) / (2.0 * s2))
     for j in range(j0, j1 + 1):
-        ey[j - j0] = math.exp(-((j - y) ** 2) / (2.0 * s2))
+        ey[j - j0] = math.exp(-((j * ay - y) ** 2) / (2.0 * s2))
     for k in range(k0, k1 + 1):
-        ez[k - k0] = math.exp(-(((k - z) * dz) ** 2) / (2.0 * s2))
+        ez[k - k0] = math.exp(-(((zpos[k] - zc) * dz) ** 2) / (2.0 * s2)) * _zweight(grid, k)
     for q in range(10):
         out[q] = 0.0
     for k in range(k0, k1 + 1):
-        wz = (k - z) * dz
+        wz = (zpos[k] - zc) * dz
         for j in range(j0, j1 + 1):
-            wy = j - y
+            wy = j * ay - y
             wyz = ey[j - j0] * ez[k - k0]
             # row sums over i of w, w*wx, w*wx^2
             s0 = 0.0
@@ -252,7 +436,7 @@ def _field(pts, x, y, z, sigma, dz, norm, out):
             for i in range(i0, i1 + 1):
                 if pts[k, j, i]:
                     e = ex[i - i0]
-                    wx = i - x
+                    wx = i * ax - x
                     s0 += e
                     s1 += e * wx
                     s2x += e * wx * wx
@@ -271,33 +455,36 @@ def _field(pts, x, y, z, sigma, dz, norm, out):
             out[7] += s1 * wy
             out[8] += s1 * wz
             out[9] += s0 * wy * wz
+    norm, a, b = _slice_norm(grid, sigma, norm, z, nz)
     out[0] /= norm
     for q in range(1, 4):
         out[q] /= norm * s2
     for q in range(4, 10):
         out[q] /= norm * s2 * s2
+    if not _even(grid):
+        _z_correct(out, a, b)
 
 
 @njit(cache=True)
-def _slice_moments(pts, k, sigma, dz, i0, i1, j0, j1):
+def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
     """The solid blurred across the slices around lattice slice ``k``: three images of the box
-    ``[j0, j1] x [i0, i1]``, ``M_p[j, i] = sum_n pts[n, j, i] G(w_n) w_n^p`` (``p = 0, 1, 2``) with
-    ``w_n = (n - k) dz`` and ``G(w) = exp(-w^2 / (2 sigma^2))`` over the slices within ``4 sigma``.
+    ``[j0, j1] x [i0, i1]``, ``M_p[j, i] = sum_n pts[n, j, i] c_n G(w_n) w_n^p`` (``p = 0, 1, 2``)
+    with ``w_n = (zpos_n - zpos_k) dz``, ``c_n`` the slice's weight (:func:`_make_grid`; 1 on evenly
+    spaced slices) and ``G(w) = exp(-w^2 / (2 sigma^2))`` over the slices within ``4 sigma``.
 
     The Gaussian is separable, so at every point of slice ``k`` the field and its derivatives are
     sums over the in-slice window of these images (:func:`_field_in_slice`): ``(8 sigma)^2``
     terms per evaluation instead of the ``(8 sigma)^3`` of :func:`_field`, which the level-set
     search of :func:`_move_to_surface` evaluates five times per vertex and search on average."""
     nz = pts.shape[0]
+    dz, zpos = grid[2], grid[3]
     rad = 4.0 * sigma
-    z = float(k)
-    k0 = max(int(math.floor(z - rad / dz)), 0)
-    k1 = min(int(math.ceil(z + rad / dz)), nz - 1)
+    k0, k1, zc = _zwindow(grid, float(k), rad, nz)
     s2 = sigma * sigma
     mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
     for n in range(k0, k1 + 1):
-        w = (n - z) * dz
-        e = math.exp(-(w * w) / (2.0 * s2))
+        w = (zpos[n] - zc) * dz
+        e = math.exp(-(w * w) / (2.0 * s2)) * _zweight(grid, n)
         ew = e * w
         eww = ew * w
         for j in range(j0, j1 + 1):
@@ -310,24 +497,25 @@ def _slice_moments(pts, k, sigma, dz, i0, i1, j0, j1):
 
 
 @njit(cache=True)
-def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
+def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out):
     """:func:`_field` at ``(x, y)`` of the slice whose :func:`_slice_moments` are ``mom`` (taken
     over the box from ``(i0, j0)``, which holds the window ``4 sigma`` around the point; ``nx, ny``
-    are the volume's, the window is clipped to them as there).  Equal to :func:`_field` up to the
-    rounding of the sums' order."""
+    are the volume's, the window is clipped to them as there).  ``ax, ay``: the pixel's sides;
+    ``norm, za, zb``: the slice's :func:`_slice_norm` (``za = zb = 0``: evenly spaced slices, no
+    correction).  Equal to :func:`_field` up to the rounding of the sums' order."""
     rad = 4.0 * sigma
-    a0 = max(int(math.floor(x - rad)), 0)
-    a1 = min(int(math.ceil(x + rad)), nx - 1)
-    b0 = max(int(math.floor(y - rad)), 0)
-    b1 = min(int(math.ceil(y + rad)), ny - 1)
+    a0 = max(int(math.floor((x - rad) / ax)), 0)
+    a1 = min(int(math.ceil((x + rad) / ax)), nx - 1)
+    b0 = max(int(math.floor((y - rad) / ay)), 0)
+    b1 = min(int(math.ceil((y + rad) / ay)), ny - 1)
     s2 = sigma * sigma
     ex = np.empty(a1 - a0 + 1)
     for i in range(a0, a1 + 1):
-        ex[i - a0] = math.exp(-((i - x) ** 2) / (2.0 * s2))
+        ex[i - a0] = math.exp(-((i * ax - x) ** 2) / (2.0 * s2))
     for q in range(10):
         out[q] = 0.0
     for j in range(b0, b1 + 1):
-        wy = j - y
+        wy = j * ay - y
         ey = math.exp(-(wy * wy) / (2.0 * s2))
         r0 = 0.0  # sum over the row of G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2
         r1 = 0.0
@@ -342,7 +530,7 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
             if m0 == 0.0:
                 continue
             e = ex[i - a0]
-            wx = i - x
+            wx = i * ax - x
             ew = e * wx
             r0 += e * m0
             r1 += ew * m0
@@ -367,26 +555,28 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
         out[q] /= norm * s2
     for q in range(4, 10):
         out[q] /= norm * s2 * s2
+    if za != 0.0 or zb != 0.0:
+        _z_correct(out, za, zb)
 
 
 @njit(cache=True)
-def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
+def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
     """``f, fx, fy`` of :func:`_field_in_slice` into ``out[:3]`` (the same sums, so the same values;
     ``out[3:]`` is left as it was): what the level-set search needs at its steps."""
     rad = 4.0 * sigma
-    a0 = max(int(math.floor(x - rad)), 0)
-    a1 = min(int(math.ceil(x + rad)), nx - 1)
-    b0 = max(int(math.floor(y - rad)), 0)
-    b1 = min(int(math.ceil(y + rad)), ny - 1)
+    a0 = max(int(math.floor((x - rad) / ax)), 0)
+    a1 = min(int(math.ceil((x + rad) / ax)), nx - 1)
+    b0 = max(int(math.floor((y - rad) / ay)), 0)
+    b1 = min(int(math.ceil((y + rad) / ay)), ny - 1)
     s2 = sigma * sigma
     ex = np.empty(a1 - a0 + 1)
     for i in range(a0, a1 + 1):
-        ex[i - a0] = math.exp(-((i - x) ** 2) / (2.0 * s2))
+        ex[i - a0] = math.exp(-((i * ax - x) ** 2) / (2.0 * s2))
     f = 0.0
     fx = 0.0
     fy = 0.0
     for j in range(b0, b1 + 1):
-        wy = j - y
+        wy = j * ay - y
         ey = math.exp(-(wy * wy) / (2.0 * s2))
         r0 = 0.0
         r1 = 0.0
@@ -396,7 +586,7 @@ def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
             if m0 == 0.0:
                 continue
             e = ex[i - a0]
-            ew = e * (i - x)
+            ew = e * (i * ax - x)
             r0 += e * m0
             r1 += ew * m0
         if r0 == 0.0:
@@ -410,25 +600,26 @@ def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, norm, out):
 
 
 @njit(cache=True)
-def _images_for(pts, k, sigma, dz, xlo, xhi, ylo, yhi, reach, margin, mom, box):
+def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box):
     """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
-    point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach``: ``mom`` itself when its box
-    (``box = (k, i0, i1, j0, j1)``, ``k = -1``: none) holds that already, else new images over
-    that box widened by ``margin`` more (so the next searches of the slice find them), ``box``
-    updated in place.  The images at a lattice point do not depend on the box."""
+    point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach`` (lengths in units of ``h``): ``mom``
+    itself when its box (``box = (k, i0, i1, j0, j1)``, pixel indices, ``k = -1``: none) holds that
+    already, else new images over that box widened by ``margin`` more (so the next searches of the
+    slice find them), ``box`` updated in place.  The images at a lattice point do not depend on the box."""
     nz, ny, nx = pts.shape
-    i0 = min(max(int(math.floor(xlo - reach)), 0), nx - 1)
-    i1 = max(min(int(math.ceil(xhi + reach)), nx - 1), i0)
-    j0 = min(max(int(math.floor(ylo - reach)), 0), ny - 1)
-    j1 = max(min(int(math.ceil(yhi + reach)), ny - 1), j0)
+    ax, ay = grid[0], grid[1]
+    i0 = min(max(int(math.floor((xlo - reach) / ax)), 0), nx - 1)
+    i1 = max(min(int(math.ceil((xhi + reach) / ax)), nx - 1), i0)
+    j0 = min(max(int(math.floor((ylo - reach) / ay)), 0), ny - 1)
+    j1 = max(min(int(math.ceil((yhi + reach) / ay)), ny - 1), j0)
     if box[0] == k and box[1] <= i0 and i1 <= box[2] and box[3] <= j0 and j1 <= box[4]:
         return mom
     box[0] = k
-    box[1] = min(max(int(math.floor(xlo - reach - margin)), 0), nx - 1)
-    box[2] = max(min(int(math.ceil(xhi + reach + margin)), nx - 1), box[1])
-    box[3] = min(max(int(math.floor(ylo - reach - margin)), 0), ny - 1)
-    box[4] = max(min(int(math.ceil(yhi + reach + margin)), ny - 1), box[3])
-    return _slice_moments(pts, k, sigma, dz, box[1], box[2], box[3], box[4])
+    box[1] = min(max(int(math.floor((xlo - reach - margin) / ax)), 0), nx - 1)
+    box[2] = max(min(int(math.ceil((xhi + reach + margin) / ax)), nx - 1), box[1])
+    box[3] = min(max(int(math.floor((ylo - reach - margin) / ay)), 0), ny - 1)
+    box[4] = max(min(int(math.ceil((yhi + reach + margin) / ay)), ny - 1), box[3])
+    return _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
 
 
 def _no_images():
@@ -436,8 +627,13 @@ def _no_images():
     return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64)
 
 
+def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, margin):
+    """:func:`_fields_kernel`; ``grid`` may be a slice spacing (square pixels, even slices)."""
+    return _fields_kernel(pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, box, margin)
+
+
 @njit(cache=True)
-def _fields_in_slice(pts, xy, k, sigma, dz, mom, box, margin):
+def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin):
     """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
     (:func:`_images_for`, reused from ``mom, box`` where they cover the points' windows):
     ``(out (n, 10), mom)``."""
@@ -446,17 +642,18 @@ def _fields_in_slice(pts, xy, k, sigma, dz, mom, box, margin):
     out = np.zeros((n, 10))
     if n == 0:
         return out, mom
-    mom = _images_for(pts, k, sigma, dz, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]), np.max(xy[:, 1]),
+    mom = _images_for(pts, k, sigma, grid, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]), np.max(xy[:, 1]),
                       4.0 * sigma + 1.0, margin, mom, box)
-    norm = _lattice_norm(sigma, dz)
+    norm, za, zb = _slice_norm(grid, sigma, _lattice_norm(sigma, grid), float(k), nz)
     buf = np.empty(10)
     for m in range(n):
-        _field_in_slice(mom, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, norm, buf)
+        _field_in_slice(mom, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za, zb, buf)
         out[m, :] = buf
     return out, mom
 
 
-def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0) -> np.ndarray:
+def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0, *, spacing=(1.0, 1.0),
+                      heights=None) -> np.ndarray:
     """The blurred indicator ``f`` (step 2 of the module docstring) and its derivatives at points.
 
     Parameters
@@ -464,28 +661,46 @@ def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0) -> np.nd
     points : (nz, ny, nx) bool ndarray
         Lattice points of the solid (as from :func:`stack_points`).
     xyz : (n, 3) array_like
-        Array-local coordinates ``(i, j, n)`` (fractional allowed).
+        Array-local coordinates ``(x, y, n)``: ``x, y`` in units of ``h``, the longer pixel side
+        (the point ``points[n, j, i]`` lies at ``(i dx / h, j dy / h)``; with square pixels these
+        are pixel indices), ``n`` the slice index (fractional allowed).
     sigma : float
-        Gaussian width in voxels (in-slice grid units).
+        Gaussian width in units of ``h``.
     dz : float
-        Slice spacing in in-slice grid units.
+        Slice spacing in units of ``h`` (ignored with ``heights``).
+    spacing : (dx, dy)
+        Pixel size (only its shape counts: ``dx / h, dy / h``).
+    heights : (nz,) array_like, optional
+        The slices' heights in the unit of ``spacing``, for unevenly spaced slices: each slice is
+        weighted by the slab between the midpoints to its neighbours and the blur across the
+        slices is normalised at every height (a constant stays constant).
 
     Returns
     -------
     (n, 10) ndarray
-        ``f, fx, fy, fz, fxx, fyy, fzz, fxy, fxz, fyz`` (derivatives per in-slice grid unit).
+        ``f, fx, fy, fz, fxx, fyy, fzz, fxy, fxz, fyz`` (derivatives per unit ``h``).
     """
+    pts = np.ascontiguousarray(points, dtype=np.bool_)
+    if heights is None:
+        grid, _ = _make_grid(spacing[0], spacing[1], pts.shape[0], dz=float(dz))
+    else:
+        grid, _ = _make_grid(spacing[0], spacing[1], pts.shape[0], zs=heights)
     p = np.ascontiguousarray(xyz, dtype=np.float64).reshape(-1, 3)
-    return _field_many(np.ascontiguousarray(points, dtype=np.bool_), p, float(sigma), float(dz))
+    return _field_many(pts, p, float(sigma), grid)
+
+
+def _field_many(pts, p, sigma, grid):
+    """:func:`_field` at the points ``p (n, 3)``; ``grid`` may be a slice spacing (square pixels, even slices)."""
+    return _field_many_kernel(pts, p, sigma, _as_grid(grid, pts.shape[0]))
 
 
 @njit(cache=True)
-def _field_many(pts, p, sigma, dz):
-    norm = _lattice_norm(sigma, dz)
+def _field_many_kernel(pts, p, sigma, grid):
+    norm = _lattice_norm(sigma, grid)
     out = np.empty((p.shape[0], 10))
     buf = np.empty(10)
     for n in range(p.shape[0]):
-        _field(pts, p[n, 0], p[n, 1], p[n, 2], sigma, dz, norm, buf)
+        _field(pts, p[n, 0], p[n, 1], p[n, 2], sigma, grid, norm, buf)
         out[n, :] = buf
     return out
 
@@ -507,20 +722,20 @@ def _cell_corners(pts, k, i, j):
 
 
 @njit(cache=True)
-def _in_band(pts, k, x, y):
-    """Is the point (x, y) (array-local) of slice k in the closed band U_k minus int(V_k)?
+def _in_band_idx(pts, k, x, y):
+    """Is the point (x, y) (array-local pixel indices) of slice k in the closed band U_k minus int(V_k)?
 
     The cells whose closure holds the point are examined (one, two or four of them, with a 1e-9
-    tolerance for points on cell edges): the point is in ``U`` if one of them has a corner in
+    tolerance on either side of a cell edge): the point is in ``U`` if one of them has a corner in
     ``I``; it is interior to ``V`` if all of them have their four corners in ``I``.
     """
     eps = 1e-9
     fx = math.floor(x)
     fy = math.floor(y)
     ilo = int(fx) - 1 if x - fx < eps else int(fx)
-    ihi = int(fx) if fx + 1.0 - x < eps else int(fx)
+    ihi = int(fx) + 1 if fx + 1.0 - x < eps else int(fx)
     jlo = int(fy) - 1 if y - fy < eps else int(fy)
-    jhi = int(fy) if fy + 1.0 - y < eps else int(fy)
+    jhi = int(fy) + 1 if fy + 1.0 - y < eps else int(fy)
     in_u = False
     all_v = True
     for i in range(ilo, ihi + 1):
@@ -534,11 +749,17 @@ def _in_band(pts, k, x, y):
 
 
 @njit(cache=True)
-def _off_band(pts, k, xy):
-    """Whether each point ``xy (n, 2)`` lies outside slice ``k``'s band (:func:`_in_band`)."""
+def _in_band(pts, k, x, y, grid):
+    """:func:`_in_band_idx` at the point ``(x, y)`` in units of ``h`` (pixel ``(i, j)`` at ``(i ax, j ay)``)."""
+    return _in_band_idx(pts, k, x / grid[0], y / grid[1])
+
+
+@njit(cache=True)
+def _off_band(pts, k, xy, grid):
+    """Whether each point ``xy (n, 2)`` (units of ``h``) lies outside slice ``k``'s band (:func:`_in_band`)."""
     out = np.empty(xy.shape[0], dtype=np.bool_)
     for n in range(xy.shape[0]):
-        out[n] = not _in_band(pts, k, xy[n, 0], xy[n, 1])
+        out[n] = not _in_band(pts, k, xy[n, 0], xy[n, 1], grid)
     return out
 
 
@@ -550,34 +771,34 @@ def band_violations(stack: ContourStack, mesh: Mesh) -> int:
     pts, x0, y0, zidx, _ = stack_points(stack)
     zs = stack.z
     v = mesh.vertices
-    h = float(stack.spacing[0])
+    dx, dy = (float(t) for t in stack.spacing)
     ox, oy = (float(t) for t in stack.origin)
     pos = np.clip(np.searchsorted(zs, v[:, 2]), 0, len(zs) - 1)
     on = np.abs(zs[pos] - v[:, 2]) <= 1e-9 * max(1.0, float(np.abs(zs).max()))
     bad = 0
     for n in np.flatnonzero(on):
-        if not _in_band(pts, int(zidx[pos[n]]), (v[n, 0] - ox) / h - x0, (v[n, 1] - oy) / h - y0):
+        if not _in_band_idx(pts, int(zidx[pos[n]]), (v[n, 0] - ox) / dx - x0, (v[n, 1] - oy) / dy - y0):
             bad += 1
     return bad
 
 
 def in_band(points, k, xy) -> np.ndarray:
-    """Whether each point ``xy (n, 2)`` (array-local grid coordinates) lies in the band of slice ``k``."""
+    """Whether each point ``xy (n, 2)`` (array-local pixel indices) lies in the band of slice ``k``."""
     xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-    return np.array([_in_band(points, int(k), float(a), float(b)) for a, b in xy], dtype=bool)
+    return np.array([_in_band_idx(points, int(k), float(a), float(b)) for a, b in xy], dtype=bool)
 
 
 # ----------------------------------------------------------------------------------------------
 # 3 + 4. Moving the vertices
 # ----------------------------------------------------------------------------------------------
 @njit(cache=True)
-def _back_into_band(pts, k, x0, y0, tx, ty, steps, out, n):
+def _back_into_band(pts, k, x0, y0, tx, ty, steps, out, n, grid):
     """Walk from ``(tx, ty)`` back towards ``(x0, y0)`` (in the band) in ``steps`` samples; write the
     first sample inside slice ``k``'s band to ``out[n]`` (``out[n]`` keeps its value if none is)."""
     for q in range(1, steps + 1):
         a = 1.0 - q / steps
         px, py = x0 + a * (tx - x0), y0 + a * (ty - y0)
-        if _in_band(pts, k, px, py):
+        if _in_band(pts, k, px, py, grid):
             out[n, 0], out[n, 1] = px, py
             return
 
@@ -598,28 +819,31 @@ def _mean_curvature_shift(buf, sigma):
     return 0.5 * ksum * sigma * sigma, g
 
 
-@njit(cache=True)
-def _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found):
+def _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found):
     """Steps 3-4 for every vertex: returns the number of vertices clamped into their band.
 
     ``found (n,)`` receives whether the search reached the level (False: the vertex was left where
     it was; a vertex clamped back onto its start did find it).
 
-    ``xy (n, 2)`` array-local positions, ``kz (n,)`` their lattice slice (-1: leave unmoved).
+    ``xy (n, 2)`` array-local positions (units of ``h``), ``kz (n,)`` their lattice slice (-1: leave
+    unmoved), ``grid`` the lattice (:func:`_make_grid`).
     ``strict``: a vertex moves only where the search ends on the level (``|f - 1/2| < 1e-6``);
     otherwise one whose slice has no level within reach (a part thinner than the blur) is
     dragged to the end of the search interval.
     """
-    clamped, _ = _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found,
+    clamped, _ = _move_with_images(pts, xy, kz, float(sigma), _as_grid(grid, pts.shape[0]), curvature, max_move, out,
+                                   strict, found,
                                    np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), 0.0)
     return clamped
 
 
 @njit(cache=True)
-def _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found, mom, box, margin):
+def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, box, margin):
     """:func:`_move_to_surface` with the slice images ``mom, box`` of an earlier search (see
     :func:`_images_for`; ``margin``: how much wider new images are made); ``(clamped, mom)``."""
-    norm = _lattice_norm(sigma, dz)
+    norm0 = _lattice_norm(sigma, grid)
+    norm, za, zb = norm0, 0.0, 0.0
+    ax, ay = grid[0], grid[1]
     buf = np.empty(10)
     clamped = 0
     nz, ny, nx = pts.shape
@@ -639,10 +863,11 @@ def _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, 
                 if kz[m] == k:
                     xlo, xhi = min(xlo, xy[m, 0]), max(xhi, xy[m, 0])
                     ylo, yhi = min(ylo, xy[m, 1]), max(yhi, xy[m, 1])
-            mom = _images_for(pts, k, sigma, dz, xlo, xhi, ylo, yhi, reach, margin, mom, box)
+            mom = _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box)
             i0, j0 = box[1], box[3]
+            norm, za, zb = _slice_norm(grid, sigma, norm0, float(k), nz)
             cur = k
-        _field_in_slice(mom, i0, j0, nx, ny, x0, y0, sigma, norm, buf)
+        _field_in_slice(mom, i0, j0, nx, ny, x0, y0, sigma, ax, ay, norm, za, zb, buf)
         hx, hy = -buf[1], -buf[2]
         hn = math.sqrt(hx * hx + hy * hy)
         gn = math.sqrt(buf[1] ** 2 + buf[2] ** 2 + buf[3] ** 2)
@@ -655,7 +880,7 @@ def _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, 
         ok = False
         for it in range(40):
             if it > 0:  # at t = 0, buf holds the field at the start already
-                _level_in_slice(mom, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, norm, buf)
+                _level_in_slice(mom, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, ax, ay, norm, buf)
             g = buf[0] - 0.5
             if abs(g) < 1e-12:
                 ok = True
@@ -680,7 +905,7 @@ def _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, 
         found[n] = True
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
-            _field_in_slice(mom, i0, j0, nx, ny, tx, ty, sigma, norm, buf)
+            _field_in_slice(mom, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf)
             shift, gnorm = _mean_curvature_shift(buf, sigma)
             hz = math.sqrt(buf[1] ** 2 + buf[2] ** 2)
             if gnorm > 0.0 and hz > 0.0:
@@ -692,17 +917,23 @@ def _move_with_images(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, 
                 tx += s * dx
                 ty += s * dy
         # step 4: stay in the band (the original vertex is in it)
-        if _in_band(pts, k, tx, ty):
+        if _in_band(pts, k, tx, ty, grid):
             out[n, 0], out[n, 1] = tx, ty
             continue
         clamped += 1
-        _back_into_band(pts, k, x0, y0, tx, ty, 256, out, n)
+        _back_into_band(pts, k, x0, y0, tx, ty, 256, out, n, grid)
     return clamped, mom
 
 
+def _clamp_to_band(pts, start, target, kz, out, grid=1.0):
+    """Move each point from ``start`` toward ``target`` as far as its band allows (sampled); ``grid``:
+    the lattice (:func:`_make_grid`), or a slice spacing (square pixels)."""
+    return _clamp_kernel(pts, start, target, kz, out, _as_grid(grid, pts.shape[0]))
+
+
 @njit(cache=True)
-def _clamp_to_band(pts, start, target, kz, out):
-    """Move each point from ``start`` toward ``target`` as far as its band allows (sampled)."""
+def _clamp_kernel(pts, start, target, kz, out, grid):
+    """:func:`_clamp_to_band`'s loop."""
     clamped = 0
     for n in range(start.shape[0]):
         x0, y0 = start[n, 0], start[n, 1]
@@ -711,11 +942,11 @@ def _clamp_to_band(pts, start, target, kz, out):
         k = kz[n]
         if k < 0:
             continue
-        if _in_band(pts, k, tx, ty):
+        if _in_band(pts, k, tx, ty, grid):
             out[n, 0], out[n, 1] = tx, ty
             continue
         clamped += 1
-        _back_into_band(pts, k, x0, y0, tx, ty, 64, out, n)
+        _back_into_band(pts, k, x0, y0, tx, ty, 64, out, n, grid)
     return clamped
 
 
@@ -871,32 +1102,34 @@ def _is_simple(ring):
     return True
 
 
-def _search(images, pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found) -> int:
+def _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found) -> int:
     """:func:`_move_to_surface` keeping the slice images in ``images`` (``width -> (mom, box)``, see
     :func:`_images_for`) for the next searches and field evaluations of the slice."""
     if images is None:
-        return _move_to_surface(pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found)
+        return _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found)
     mom, box = images.get(float(sigma)) or _no_images()
-    clamped, mom = _move_with_images(pts, xy, kz, float(sigma), dz, curvature, max_move, out, strict, found, mom, box,
+    clamped, mom = _move_with_images(pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, box,
                                      IMAGE_MARGIN * max_move + 2.0)
     images[float(sigma)] = (mom, box)
     return clamped
 
 
-def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False, fine=None, counts=None, images=None):
+def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False, fine=None, counts=None, images=None):
     """Steps 3-4 at ``sigma``; with ``fine`` (a smaller width), the two-scale selection of step 3b.
+    ``grid``: the lattice (:func:`_make_grid`), or a slice spacing (square pixels, even slices).
 
     ``counts`` (a two-item list) accumulates the vertices that took the fine estimate and the
     vertices seen; ``images`` (a dict, or None) keeps the slice images between searches of one slice."""
     xy = np.ascontiguousarray(xy)
+    grid = _as_grid(grid, pts.shape[0])
     out = np.empty_like(xy)
     found = np.empty(len(xy), dtype=np.bool_)
-    clamped = _search(images, pts, xy, kz, sigma, dz, curvature, max_move, out, strict, found)
+    clamped = _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found)
     if fine is None or not fine < sigma or len(xy) < 3:
         return out, clamped
     near = np.empty_like(xy)
     found_fine = np.empty(len(xy), dtype=np.bool_)
-    _search(images, pts, xy, kz, float(fine), dz, curvature, max_move, near, strict, found_fine)
+    _search(images, pts, xy, kz, float(fine), grid, curvature, max_move, near, strict, found_fine)
     # a vertex that one of the two searches left where it was (no level within reach) keeps the
     # coarse decision; elsewhere the extrapolated estimate weighs in where the two scales disagree
     # (also where the band clamp put the wide place back on the seed: that search did find the level)
@@ -914,15 +1147,16 @@ def _surface_points(pts, xy, kz, sigma, dz, curvature, max_move, strict=False, f
     ext = near + (r4 / (1.0 - r4)) * (near - out)
     target = np.ascontiguousarray(out + w[:, None] * (ext - out))
     res = np.empty_like(xy)
-    _clamp_to_band(pts, np.ascontiguousarray(out), target, np.ascontiguousarray(kz, dtype=np.int64), res)
+    _clamp_to_band(pts, np.ascontiguousarray(out), target, np.ascontiguousarray(kz, dtype=np.int64), res, grid)
     return res, clamped
 
 
 def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi: float = 3.5) -> float:
-    """The default Gaussian width: ``clip(factor * R^(1/3), lo, hi)`` voxels, ``R = 3 V / A``.
+    """The default Gaussian width: ``clip(factor * R^(1/3), lo, hi)`` in units of ``h`` (the longer
+    pixel side; a voxel's side where the pixels are square), ``R = 3 V / A``.
 
     ``V`` and ``A`` are the volume and lateral area of the stack's contours (sum of the contours'
-    areas and perimeters times the slice spacing, in voxels), so ``R`` is the radius for a ball.
+    areas and perimeters times the slice spacing, in units of ``h``), so ``R`` is the radius for a ball.
     The lattice noise of the blurred indicator adds a roughness whose area excess falls like
     ``sigma^-3.5`` (measured: +0.12 % at sigma = 1.5, +0.03 % at 2, +0.008 % at 2.5 on the ball
     r = 80), while the curvature correction is exact only to order ``(sigma kappa)^2``; letting
@@ -932,15 +1166,17 @@ def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi:
 
     _check_stack(stack)
     zs = stack.z
-    dz = float(np.median(np.diff(zs))) / float(stack.spacing[0]) if len(zs) > 1 else 1.0
+    grid, h = _make_grid(*stack.spacing, 1, dz=1.0)
+    scale = np.array([grid[0], grid[1]])
+    dz = float(np.median(np.diff(zs))) / h if len(zs) > 1 else 1.0
     # grid contours are 4-connected staircases: pi/4 of their length estimates the curve's
-    return _auto_sigma_of([c for s in stack.sections for c in s.contours], dz, math.pi / 4,
+    return _auto_sigma_of([np.asarray(c) * scale for s in stack.sections for c in s.contours], dz, math.pi / 4,
                           factor=factor, lo=lo, hi=hi)
 
 
 def _auto_sigma_of(polygons, dz: float, length_factor: float = 1.0, *, factor: float = 0.8, lo: float = 2.0,
                    hi: float = 3.5) -> float:
-    """:func:`auto_sigma`'s rule for polygons in grid units (``length_factor`` scales their perimeters)."""
+    """:func:`auto_sigma`'s rule for polygons in units of ``h`` (``length_factor`` scales their perimeters)."""
     vol = 0.0
     lat = 0.0
     for c in polygons:
@@ -986,7 +1222,7 @@ def _check_density(density) -> None:
         raise ValueError(f"density must be a positive number; got {density!r}")
 
 
-def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curvature: bool = True,
+def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: bool = True,
                 chord: bool = True, meridians: bool = True, density: float = 1.0, max_move: float = 3.0,
                 strict: bool = False, fine_sigma: float | None = None, counts: list | None = None,
                 images: dict | None = None):
@@ -997,8 +1233,14 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
     pts : (nz, ny, nx) bool ndarray
         The digital object ``I`` (as from :func:`stack_points`).
     seed : (n, 2) float ndarray
-        The seed polygon in array-local grid coordinates, in the band of slice ``kz``; outer
-        polygons counter-clockwise, holes clockwise (the object on the left).
+        The seed polygon in array-local coordinates (units of ``h``, the longer pixel side: pixel
+        ``(i, j)`` at ``(i ax, j ay)``), in the band of slice ``kz``; outer polygons
+        counter-clockwise, holes clockwise (the object on the left).
+    sigma : float
+        Gaussian width in units of ``h``.
+    dz : float or tuple
+        The slice spacing in units of ``h`` (square pixels, evenly spaced slices), or the grid
+        record of :func:`_make_grid` (any pixel shape, slices at any heights).
     prev : (m, 2) float ndarray, optional
         Final vertices of the polygon(s) below that this one continues (step 6, meridians).
     curvature, chord, meridians, density, max_move
@@ -1024,12 +1266,13 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
         Vertices clamped into the band.
     """
     kk = int(kz)
+    grid = _as_grid(dz, pts.shape[0])
     if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
         return seed, 0  # a pole point or a segment: kept as it is
     clamped = 0
     images = {} if images is None else images
     kzs = np.full(len(seed), kk, dtype=np.int64)
-    guide, nc = _surface_points(pts, seed, kzs, sigma, dz, curvature, max_move, strict, fine_sigma, counts, images)
+    guide, nc = _surface_points(pts, seed, kzs, sigma, grid, curvature, max_move, strict, fine_sigma, counts, images)
     clamped += nc
     ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
     if meridians and prev is not None and len(prev):
@@ -1042,14 +1285,14 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
             if len(s) >= 3:
                 start = _ring_point_at(guide, s)
                 kzs = np.full(len(start), kk, dtype=np.int64)
-                cand, nc = _surface_points(pts, start, kzs, sigma, dz, curvature, max_move, strict, fine_sigma,
+                cand, nc = _surface_points(pts, start, kzs, sigma, grid, curvature, max_move, strict, fine_sigma,
                                            counts, images)
                 if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:
         mom, box = images.get(float(sigma)) or _no_images()
-        fld, mom = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), dz, mom, box,
+        fld, mom = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid, mom, box,
                                     IMAGE_MARGIN * max_move + 2.0)
         images[float(sigma)] = (mom, box)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
@@ -1057,7 +1300,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
         target = _chord_push(ring, nz2)
         kzs = np.full(len(ring), kk, dtype=np.int64)
         out = np.empty_like(ring)
-        nc = _clamp_to_band(pts, np.ascontiguousarray(ring), target, kzs, out)
+        nc = _clamp_to_band(pts, np.ascontiguousarray(ring), target, kzs, out, grid)
         if _is_simple(out):
             ring = out
             clamped += nc
@@ -1065,12 +1308,12 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz: float, prev=None, *, curva
     # projection onto a chord of the guide) goes back toward the seed polygon, which lies in the
     # band (the MLP does), as far as the band allows.
     kzs = np.full(len(ring), kk, dtype=np.int64)
-    bad = _off_band(pts, kk, np.ascontiguousarray(ring, dtype=np.float64))
+    bad = _off_band(pts, kk, np.ascontiguousarray(ring, dtype=np.float64), grid)
     if bad.any():
         _, _, px, py = _project_to_ring(np.ascontiguousarray(seed), np.ascontiguousarray(ring[bad]))
         start = np.stack([px, py], axis=1)
         out = np.empty_like(start)
-        clamped += _clamp_to_band(pts, start, np.ascontiguousarray(ring[bad]), kzs[: len(start)], out)
+        clamped += _clamp_to_band(pts, start, np.ascontiguousarray(ring[bad]), kzs[: len(start)], out, grid)
         cand = ring.copy()
         cand[bad] = out
         ring = cand if _is_simple(cand) else seed
@@ -1085,13 +1328,15 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     Parameters
     ----------
     stack : ContourStack
-        Integer grid contours on regularly spaced sections.
+        Integer grid contours; any positive pixel size ``(dx, dy)``, sections at any heights
+        (evenly spaced, with gaps, or not: unevenly spaced sections keep their own heights).
     method : {"band"}
         The refinement (see the module docstring).
     polygon : {"mlp", "dss", "none"}
         The polygonizer whose vertices seed every slice (and set its vertex density).
     sigma : float or "auto"
-        Width of the Gaussian in voxels (>= 0.7); ``"auto"``: :func:`auto_sigma`.
+        Width of the Gaussian in units of ``h``, the longer pixel side (>= 0.7); ``"auto"``:
+        :func:`auto_sigma`.  Lengths below are in the same unit.
     curvature, chord : bool
         Steps 3 (curvature correction) and 5 (chord compensation).
     meridians : bool
@@ -1100,7 +1345,7 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     density : float
         Vertices per seed-polygon vertex (the mean edge length is divided by it).
     max_move : float
-        Largest horizontal move searched, in voxels.
+        Largest horizontal move searched, in units of ``h``.
     fine_sigma : float, "auto" or None
         The fine width of the two-scale selection (step 3b), smaller than ``sigma``; ``"auto"``:
         :data:`FINE_RATIO` times ``sigma``; None: one scale.
@@ -1109,7 +1354,7 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     -------
     ContourStack
         Same sections, heights, parents, spacing and origin; every contour of three or more points
-        is replaced by its refined polygon (float64, grid units); ``meta`` gains ``refine``,
+        is replaced by its refined polygon (float64, pixel units as the input's); ``meta`` gains ``refine``,
         ``refine_sigma``, ``refine_fine_share`` (share of vertices that took the fine estimate) and
         ``refine_clamped``.  Mesh it with ``stack_to_mesh(..., polygon="none")``.
     """
@@ -1120,8 +1365,9 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     fine = _resolve_fine(fine_sigma, sigma)
     counts = [0, 0]
     _check_density(density)
-    pts, x0, y0, zidx, dz = stack_points(stack)
+    pts, x0, y0, zidx, grid = _stack_grid(stack)
     off = np.array([x0, y0], dtype=np.float64)
+    scale = np.array([grid[0], grid[1]])  # pixel indices -> units of the longer pixel side
     opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move,
                 fine_sigma=fine, counts=counts)
     clamped = 0
@@ -1135,11 +1381,12 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
         for c in sec.contours:
             c = np.asarray(c, dtype=np.int64)
             seed = np.asarray(polygonize(c, polygon), dtype=np.float64) if len(c) >= 3 else c.astype(np.float64)
-            ring, nc = refine_ring(pts, seed - off, kk, sigma, float(dz), q if prev else None, images=images, **opts)
+            ring, nc = refine_ring(pts, (seed - off) * scale, kk, sigma, grid, q if prev else None, images=images,
+                                   **opts)
             clamped += nc
             finals.append(ring)
         prev = finals
-        new_sections.append(Section(z=sec.z, contours=tuple(f + off for f in finals), parents=sec.parents))
+        new_sections.append(Section(z=sec.z, contours=tuple(f / scale + off for f in finals), parents=sec.parents))
     meta = dict(stack.meta)
     meta.update(refine=method, refine_sigma=sigma, refine_fine_share=counts[0] / max(counts[1], 1),
                 refine_clamped=int(clamped), refine_seed=polygon)
@@ -1237,9 +1484,9 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
         The volume, indexed ``[k, j, i]``; voxel ``[k, j, i]`` has its centre at
         ``(ox + i dx, oy + j dy, zs[k])``.
     zs : (nz,) array
-        Slice heights, evenly spaced.
+        Slice heights, strictly increasing (evenly spaced or not: see :func:`_make_grid`).
     spacing_xy, origin_xy : (dx, dy), (ox, oy)
-        Pixel size (square pixels only) and the centre of pixel ``(0, 0)``.
+        Pixel size (any positive ``dx, dy``) and the centre of pixel ``(0, 0)``.
     seeds : dict
         ``key -> (k, polygon)``: the polygons to refine, physical ``(x, y)``, outer ones
         counter-clockwise and holes clockwise, each in the band of slice ``k``.
@@ -1271,25 +1518,24 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     if mask.ndim != 3:
         raise ValueError(f"refine_volume_rings needs a 3D mask; got shape {mask.shape}")
     dx, dy = (float(v) for v in spacing_xy)
-    if not (dx > 0 and dy > 0 and abs(dx - dy) <= 1e-9 * max(dx, dy)):
-        raise ValueError(f"band refinement needs square pixels (dx == dy > 0); got dx={dx}, dy={dy}")
+    if not (dx > 0 and dy > 0 and math.isfinite(dx) and math.isfinite(dy)):
+        raise ValueError(f"band refinement needs a positive pixel size (dx, dy > 0); got dx={dx}, dy={dy}")
     zs = np.asarray(zs, dtype=np.float64)
     if len(zs) != mask.shape[0]:
         raise ValueError(f"{len(zs)} slice heights for {mask.shape[0]} slices")
-    if len(zs) > 1:
-        steps = np.diff(zs)
-        if np.max(np.abs(steps - steps[0])) > 1e-6 * abs(steps[0]):
-            raise ValueError("band refinement needs evenly spaced slices; got uneven slice heights")
-        dz = float(steps[0]) / dx
-    else:
-        dz = 1.0
+    if len(zs) > 1 and not np.all(np.diff(zs) > 0):
+        raise ValueError("band refinement needs strictly increasing slice heights")
     ox, oy = (float(v) for v in origin_xy)
     pad = 6
     pts = np.pad(mask, pad)
+    grid, h = _grid_of_heights(dx, dy, zs, pts.shape[0], pad)
+    ax, ay = grid[0], grid[1]
+    # the mean slice spacing (units of h) for the automatic width's volume (it cancels in R = 3 V / A)
+    dz = grid[2] if _even(grid) or len(zs) < 2 else float(zs[-1] - zs[0]) / (len(zs) - 1) / h
 
-    def local(p):
-        return np.c_[(np.asarray(p, dtype=np.float64)[:, 0] - ox) / dx + pad,
-                     (np.asarray(p, dtype=np.float64)[:, 1] - oy) / dx + pad]
+    def local(p):  # physical -> array-local, in units of h
+        return np.c_[(np.asarray(p, dtype=np.float64)[:, 0] - ox) / h + pad * ax,
+                     (np.asarray(p, dtype=np.float64)[:, 1] - oy) / h + pad * ay]
 
     loc = {key: (int(k), local(p)) for key, (k, p) in seeds.items()}
     sigma = _resolve_sigma(sigma, lambda: _auto_sigma_of([p for _, p in loc.values()], dz))
@@ -1305,7 +1551,7 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     if deepest:
         keys = list(deepest)
         at = np.array([[*local(np.reshape(deepest[key], (1, 2)))[0], loc[key][0] + pad] for key in keys])
-        f = _field_many(pts, at, sigma, dz)[:, 0]
+        f = _field_many(pts, at, sigma, grid)[:, 0]
         thin = {key for key, v in zip(keys, f) if v < 0.5}
     by_slice: dict = {}
     for key, (k, _) in loc.items():
@@ -1320,13 +1566,13 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
             seed = loc[key][1]
             guide = finals.get(below.get(key)) if meridians else None
             ring, nc = ((seed, 0) if key in thin
-                        else refine_ring(pts, seed, k + pad, sigma, dz, guide, images=images, **opts))
+                        else refine_ring(pts, seed, k + pad, sigma, grid, guide, images=images, **opts))
             clamped += nc
             rings.append(ring)
             starts.append(seed)
         back += _untangle(rings, starts, [local(p) for p in fixed.get(k, ())])
         finals.update(zip(keys, rings))
-    out = {key: np.c_[ox + (r[:, 0] - pad) * dx, oy + (r[:, 1] - pad) * dx] for key, r in finals.items()}
+    out = {key: np.c_[ox + (r[:, 0] - pad * ax) * h, oy + (r[:, 1] - pad * ay) * h] for key, r in finals.items()}
     return out, {"refine_sigma": sigma, "refine_fine_share": counts[0] / max(counts[1], 1),
                  "refine_clamped": int(clamped), "refine_kept_seeds": int(back),
                  "refine_thin": len(thin)}

@@ -410,7 +410,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 
     ``refine="band"`` replaces every polygon of a component that is not crack-only (its rings
     take part in band joins and caps, not in exact joins) by its band-refined polygon
-    (:func:`contourmesh.refine.refine_volume_rings`: needs square pixels and evenly spaced slices).
+    (:func:`contourmesh.refine.refine_volume_rings`: any pixel size, slices at any heights).
 
     ``polygons`` (internal): a callable ``polygons(slices, zs, crack_only, joins) -> dict`` run once the
     joins are decided and before the bridged joins are built; it may replace the polygons of any
