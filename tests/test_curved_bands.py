@@ -53,6 +53,7 @@ def test_curved_bands_follow_the_area_profile_of_a_small_ball_at_coarse_spacing(
     st = draw(ph, 3.0, 0.5, seed=seed)
     m = contourmesh.mesh(st, caps="smooth", bands="curved")
     assert_sound(m)
+    assert m.meta["area_bands"] == len(st.sections) - 1 and m.meta["plain_pairs"] == 0
     assert abs(m.volume / ph.volume - 1) < 0.01 and abs(m.area / ph.area - 1) < 0.01
     assert np.abs(cross_section_errors(m, st)).max() < 5e-3
 
@@ -195,3 +196,30 @@ def test_smooth_ends_of_a_tilted_tube_follow_its_axis():
     # a sphere's ends are still domes
     s = contourmesh.mesh(draw(sphere(10), 2.0, 1.0, seed=3), caps="smooth")
     assert s.meta["smooth_domes"] == 2 and s.meta["smooth_cut_ends"] == 0
+
+
+@pytest.mark.parametrize("persistent", [False, True])
+def test_crossing_pairs_drop_the_area_profile_before_they_are_left_ruled(monkeypatch, persistent):
+    import contourmesh.intersect as ix
+    from contourmesh.bands.curved import curved_without_crossings
+
+    zs = [-7.5, -4.5, -1.5, 1.5, 4.5, 7.5]
+    m = contourmesh.mesh(sphere_rings(10.0, zs, 96))
+    calls = []
+
+    def crossing(V, F):  # pretend a face of the pair (-1.5, 1.5) crosses another
+        calls.append(1)
+        if len(calls) > 1 and not persistent:
+            return np.array([], dtype=np.int64)
+        zc = V[F, 2].mean(axis=1)
+        return np.flatnonzero((zc > -1.5) & (zc < 1.5))[:1]
+
+    monkeypatch.setattr(ix, "intersecting_faces", crossing)
+    V, F, info = curved_without_crossings(m.vertices, m.faces, zs)
+    if persistent:  # the pair crosses with its plain cubic rungs too: left ruled, the others bent
+        assert info["ruled_pairs"] == 1 and info["plain_pairs"] == 0 and info["levels"][2] == 1 and len(calls) == 3
+        assert info["area_pairs"] == frozenset({0, 1, 3, 4})
+    else:  # the pair keeps its cubic rungs without the area profile
+        assert info["ruled_pairs"] == 0 and info["plain_pairs"] == 1 and info["levels"][2] > 1 and len(calls) == 2
+        assert info["area_pairs"] == frozenset({0, 1, 3, 4})
+    assert_sound(Mesh(V, F))

@@ -616,10 +616,11 @@ def _curved(m: Mesh, zs, end_slopes, band_faces) -> Mesh:
 
     V, F, info = curved_without_crossings(m.vertices, m.faces, zs, end_slopes=end_slopes, band_faces=band_faces)
     bent = info["levels"][info["levels"] > 1]
-    log.debug("contours route: curved bands, %d section pairs bent (up to %d segments), %d left ruled",
-              len(bent), int(bent.max()) if len(bent) else 1, info["ruled_pairs"])
+    log.debug("contours route: curved bands, %d section pairs bent (up to %d segments), %d bands on their "
+              "area profile, %d pairs without it and %d left ruled because faces crossed", len(bent),
+              int(bent.max()) if len(bent) else 1, info["area_bands"], info["plain_pairs"], info["ruled_pairs"])
     meta = dict(m.meta, bands="curved", curved_levels=int(info["levels"].max()) if len(info["levels"]) else 1,
-                ruled_pairs=info["ruled_pairs"])
+                ruled_pairs=info["ruled_pairs"], plain_pairs=info["plain_pairs"], area_bands=info["area_bands"])
     return Mesh(V, F, P=m.P, meta=meta)
 
 
@@ -685,9 +686,11 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     (meshed from the raster's polygons, each named in a RasterFallbackWarning) and the volume
     mesher's join counts.
 
-    ``bands="curved"`` bends the bands between consecutive sections onto cubic rungs
-    (:mod:`contourmesh.bands.curved`; ``meta["curved_levels"]``, the most segments per rung, and
-    ``meta["ruled_pairs"]``, section pairs left ruled because their bent faces crossed); the default
+    ``bands="curved"`` bends the bands between consecutive sections onto cubic rungs, their
+    intermediate rings scaled onto each band's fitted area profile (:mod:`contourmesh.bands.curved`;
+    ``meta["curved_levels"]``, the most segments per rung, ``meta["area_bands"]``, the bands that
+    follow their area profile, ``meta["plain_pairs"]``, section pairs that dropped it and
+    ``meta["ruled_pairs"]``, pairs left ruled, because their bent faces crossed); the default
     ``"ruled"`` keeps every band's volume within the frustum-trapezoid interval of its rings' areas.
     """
     if bands not in ("ruled", "curved"):

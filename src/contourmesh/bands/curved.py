@@ -17,6 +17,24 @@ plane is still the drawn one; faces that are not between two consecutive section
 domes, collars, mid-plane joins) are kept as they are, and a rung is bent only where both of its
 faces are bent, so the mesh stays closed.
 
+A cubic in the rung's parameter cannot follow a profile whose slope grows without bound, as near
+a pole: a 5 mm ball drawn every 3 mm (three or four sections) stays 1.1 to 1.4 % short in volume
+with cubic rungs alone.  The section's *area* is better behaved: on a sphere or an ellipsoid it is
+exactly quadratic in z, and near a smooth pole it is linear.  So each band that runs from one
+closed ring to one closed ring (:func:`_level_links`, which also finds the band continuing it
+through each of its rings) gets a parabola of its area, ``A(z) = A_k + (A_k1 - A_k) s + c h^2 s
+(s - 1)`` through its two drawn areas, with ``c`` the second divided difference over them and the
+section beyond (:func:`_area_curvature`; where there is a section beyond each end, the smaller of
+the two, and none where they differ in sign: an inflection is left to the cubic).  Each of the
+band's intermediate rings is then scaled about its own area centroid so that it encloses ``A`` at
+its height (:func:`_follow_area_profile`).  Guards: the areas of one sign (a hole's band follows
+its own area), the fitted area within 0.5 and 1.5 times the smaller and larger drawn one, no ring
+scaled by more than 1.25 (or less than 0.8), and, in :func:`curved_without_crossings`, a pair whose
+scaled rings make faces cross keeps its plain cubic rungs (and is left ruled if those cross too).
+The 5 mm ball at dz = 3 mm: -1.39 % -> -0.60 % volume, -0.78 % -> -0.32 % area; what is left is
+mostly the drawing (its polygons lie inside the circles: about ``ds^2 / (4 R^2)`` of the volume)
+and the smooth ends' domes.  Straight walls (equal areas, zero second difference) stay straight.
+
 On a solid with smooth sections the volume and area converge to the solid's (a sphere drawn at
 ``R / h = 3.3`` comes within a fraction of a percent, where the ruled band is 2.25 % short); the
 price is that the volume no longer lies within the frustum-trapezoid interval of the drawn areas
