@@ -90,9 +90,12 @@ def _slopes(V: np.ndarray, E: np.ndarray, on_plane: np.ndarray, tol: float):
     return slope, both
 
 
-def _face_key(t) -> tuple:
-    """A face by its corners' coordinates, whatever its vertex order."""
-    return tuple(sorted(map(tuple, t.tolist())))
+def _face_keys(T) -> np.ndarray:
+    """Faces ``T`` (``(n, 3, 3)`` corner coordinates) as keys that compare equal where two faces have
+    the same corners, whatever their vertex order (the corners sorted, each a 72-byte record)."""
+    T = np.ascontiguousarray(np.asarray(T, dtype=np.float64).reshape(-1, 3, 3) + 0.0)  # -0.0 -> 0.0
+    pts = T.view([("x", "f8"), ("y", "f8"), ("z", "f8")]).reshape(len(T), 3)
+    return np.ascontiguousarray(np.sort(pts, axis=1)).view("V72").ravel()
 
 
 def _ring_directions(V: np.ndarray, E: np.ndarray) -> np.ndarray:
@@ -323,6 +326,13 @@ def _follow_area_profile(newV, nV, start, bands, targets, levels):
     return done
 
 
+class _BandFaces:
+    """The keys (:func:`_face_keys`) of the faces that may be bent, computed once for every attempt."""
+
+    def __init__(self, faces):
+        self.keys = np.unique(_face_keys(faces))
+
+
 def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, max_levels: int = 8,
                 flat_pairs=frozenset(), end_slopes=None, band_faces=None, follow_area: bool = True,
                 plain_pairs=frozenset()):
@@ -360,9 +370,9 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
     if flat_pairs:
         cand &= ~np.isin(fk.min(axis=1), np.fromiter(flat_pairs, dtype=np.int64))
     if band_faces is not None:
-        known = {_face_key(t) for t in np.asarray(band_faces, dtype=np.float64).reshape(-1, 3, 3)}
+        known = band_faces if isinstance(band_faces, _BandFaces) else _BandFaces(band_faces)
         idx = np.flatnonzero(cand)
-        cand[idx] = [_face_key(V[F[i]]) in known for i in idx]
+        cand[idx] = np.isin(_face_keys(V[F[idx]]), known.keys)
     # the edges, each with its two faces
     e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1).reshape(-1, 2)
     key = np.sort(e, axis=1)
@@ -545,6 +555,8 @@ def curved_without_crossings(V, F, zs, *, end_slopes=None, band_faces=None):
     flat: set = set()
     plain: set = set()
     zs = np.unique(np.asarray(zs, dtype=np.float64))
+    if band_faces is not None:
+        band_faces = _BandFaces(band_faces)
     for attempt in range(_ATTEMPTS + 1):
         last = attempt == _ATTEMPTS
         if last:
