@@ -17,6 +17,24 @@ plane is still the drawn one; faces that are not between two consecutive section
 domes, collars, mid-plane joins) are kept as they are, and a rung is bent only where both of its
 faces are bent, so the mesh stays closed.
 
+A cubic in the rung's parameter cannot follow a profile whose slope grows without bound, as near
+a pole: a 5 mm ball drawn every 3 mm (three or four sections) stays 1.1 to 1.4 % short in volume
+with cubic rungs alone.  The section's *area* is better behaved: on a sphere or an ellipsoid it is
+exactly quadratic in z, and near a smooth pole it is linear.  So each band that runs from one
+closed ring to one closed ring (:func:`_level_links`, which also finds the band continuing it
+through each of its rings) gets a parabola of its area, ``A(z) = A_k + (A_k1 - A_k) s + c h^2 s
+(s - 1)`` through its two drawn areas, with ``c`` the second divided difference over them and the
+section beyond (:func:`_area_curvature`; where there is a section beyond each end, the smaller of
+the two, and none where they differ in sign: an inflection is left to the cubic).  Each of the
+band's intermediate rings is then scaled about its own area centroid so that it encloses ``A`` at
+its height (:func:`_follow_area_profile`).  Guards: the areas of one sign (a hole's band follows
+its own area), the fitted area within 0.5 and 1.5 times the smaller and larger drawn one, no ring
+scaled by more than 1.25 (or less than 0.8), and, in :func:`curved_without_crossings`, a pair whose
+scaled rings make faces cross keeps its plain cubic rungs (and is left ruled if those cross too).
+The 5 mm ball at dz = 3 mm: -1.39 % -> -0.60 % volume, -0.78 % -> -0.32 % area; what is left is
+mostly the drawing (its polygons lie inside the circles: about ``ds^2 / (4 R^2)`` of the volume)
+and the smooth ends' domes.  Straight walls (equal areas, zero second difference) stay straight.
+
 On a solid with smooth sections the volume and area converge to the solid's (a sphere drawn at
 ``R / h = 3.3`` comes within a fraction of a percent, where the ruled band is 2.25 % short); the
 price is that the volume no longer lies within the frustum-trapezoid interval of the drawn areas
@@ -72,9 +90,12 @@ def _slopes(V: np.ndarray, E: np.ndarray, on_plane: np.ndarray, tol: float):
     return slope, both
 
 
-def _face_key(t) -> tuple:
-    """A face by its corners' coordinates, whatever its vertex order."""
-    return tuple(sorted(map(tuple, t.tolist())))
+def _face_keys(T) -> np.ndarray:
+    """Faces ``T`` (``(n, 3, 3)`` corner coordinates) as keys that compare equal where two faces have
+    the same corners, whatever their vertex order (the corners sorted, each a 72-byte record)."""
+    T = np.ascontiguousarray(np.asarray(T, dtype=np.float64).reshape(-1, 3, 3) + 0.0)  # -0.0 -> 0.0
+    pts = T.view([("x", "f8"), ("y", "f8"), ("z", "f8")]).reshape(len(T), 3)
+    return np.ascontiguousarray(np.sort(pts, axis=1)).view("V72").ravel()
 
 
 def _ring_directions(V: np.ndarray, E: np.ndarray) -> np.ndarray:
@@ -116,8 +137,205 @@ def _hermite(p, q, mp, mq, h, s):
     return h00 * p[:, None] + h10 * hh * mp[:, None] + h01 * q[:, None] + h11 * hh * mq[:, None]
 
 
+#: Area following (:func:`_follow_area_profile`) scales an intermediate ring by at most this factor
+#: (or its inverse); a larger correction means the area fit does not describe the band.
+_MAX_AREA_SCALE = 1.25
+
+#: The fitted area between two sections stays within these multiples of the smaller and larger of
+#: the two drawn areas (else the band keeps its cubic rungs).
+_AREA_BOUNDS = (0.5, 1.5)
+
+
+def _face_rungs(F, pk, inv, rung_of_edge, sel):
+    """For band faces ``F[sel]``: ``(x, y, w, rx, ry, lower)``, each face rotated so that ``x``, ``y``
+    lie on one plane and ``w`` on the other, ``rx``, ``ry`` the indices of its rungs ``w-x`` and
+    ``y-w``, and whether ``x``, ``y`` lie on the lower plane."""
+    f = F[sel]
+    kf = pk[f]
+    rot = np.where(kf[:, 0] == kf[:, 1], 0, np.where(kf[:, 1] == kf[:, 2], 1, 2))
+    rows = np.arange(len(f))
+    x, y, w = f[rows, rot], f[rows, (rot + 1) % 3], f[rows, (rot + 2) % 3]
+    eid = inv.reshape(-1, 3)[sel]  # edges (0,1), (1,2), (2,0) of each face
+    rx = rung_of_edge[eid[rows, (rot + 2) % 3]]
+    ry = rung_of_edge[eid[rows, (rot + 1) % 3]]
+    return x, y, w, rx, ry, pk[x] < pk[w]
+
+
+def _one_loop(a, b):
+    """The vertex set of the edges ``a[i] -> b[i]`` if they form a single closed loop, else None."""
+    if len(a) < 3 or len(np.unique(a)) != len(a) or not np.array_equal(np.sort(a), np.sort(b)):
+        return None
+    nxt = dict(zip(a.tolist(), b.tolist()))
+    v0 = v = int(a[0])
+    for n in range(1, len(a) + 1):
+        v = nxt[v]
+        if v == v0:
+            return frozenset(a.tolist()) if n == len(a) else None
+    return None
+
+
+def _level_links(V, comp, x, y, lower, pair):
+    """Each band (``comp``: per face, its connected band) that runs from one closed ring to one closed
+    ring: its signed areas at its lower and upper section, and the bands that continue it below and
+    above through the same drawn ring (one band on each side of that ring).
+
+    Returns ``(ok, a_lo, a_hi, below, above)`` per band (``below``/``above``: index or -1); the
+    areas are the rings' signed areas in the faces' order (outward faces: positive on an outer ring,
+    negative on a hole's)."""
+    nc = int(comp.max()) + 1 if len(comp) else 0
+    cr = V[x, 0] * V[y, 1] - V[x, 1] * V[y, 0]
+    a_lo = 0.5 * np.bincount(comp[lower], weights=cr[lower], minlength=nc)
+    a_hi = -0.5 * np.bincount(comp[~lower], weights=cr[~lower], minlength=nc)
+    ok = np.zeros(nc, dtype=bool)
+    keys: dict = {}
+    order = np.argsort(comp, kind="stable")
+    bounds = np.searchsorted(comp[order], np.arange(nc + 1))
+    for c in range(nc):
+        f = order[bounds[c]:bounds[c + 1]]
+        lo, hi = f[lower[f]], f[~lower[f]]
+        k_lo, k_hi = _one_loop(x[lo], y[lo]), _one_loop(y[hi], x[hi])
+        if k_lo is None or k_hi is None:
+            continue
+        ok[c] = True
+        k = int(pair[f[0]])
+        keys.setdefault((k, k_lo), []).append((c, "up"))  # c starts upward from the ring on plane k
+        keys.setdefault((k + 1, k_hi), []).append((c, "down"))
+    below = np.full(nc, -1)
+    above = np.full(nc, -1)
+    for users in keys.values():
+        ups = [c for c, d in users if d == "up"]
+        downs = [c for c, d in users if d == "down"]
+        if len(ups) == 1 and len(downs) == 1:
+            below[ups[0]], above[downs[0]] = downs[0], ups[0]
+    return ok, a_lo, a_hi, below, above
+
+
+def _area_curvature(zs, pc, ok, a_lo, a_hi, below, above):
+    """Per band, the second coefficient ``c`` of the parabola of its section area,
+    ``A(z) = A_k + (A_k1 - A_k) (z - z_k) / h + c (z - z_k) (z - z_k1)``: the second divided
+    difference over the band's two sections and the one beyond each of them where a band continues
+    it there; where both exist, the one of smaller magnitude, and 0 where they differ in sign
+    (minmod: a profile with an inflection is left to the cubic rungs).  NaN where the band does
+    not qualify (not ring to ring, areas of mixed sign, no neighbour)."""
+    nc = len(ok)
+    c = np.full(nc, np.nan)
+    for i in np.flatnonzero(ok):
+        k = int(pc[i])
+        a0, a1 = a_lo[i], a_hi[i]
+        sg = np.sign(a0)
+        if sg == 0 or np.sign(a1) != sg:
+            continue
+        a0, a1 = sg * a0, sg * a1  # a hole's band: its (positive) area
+        z0, z1 = zs[k], zs[k + 1]
+        d01 = (a1 - a0) / (z1 - z0)
+        cands = []
+        b = below[i]
+        if b >= 0 and np.sign(a_lo[b]) == sg:
+            zm = zs[k - 1]
+            cands.append((d01 - (a0 - sg * a_lo[b]) / (z0 - zm)) / (z1 - zm))
+        u = above[i]
+        if u >= 0 and np.sign(a_hi[u]) == sg:
+            zp = zs[k + 2]
+            cands.append(((sg * a_hi[u] - a1) / (zp - z1) - d01) / (zp - z0))
+        if not cands:
+            continue
+        if len(cands) == 2:
+            l, r = cands
+            c[i] = 0.0 if l * r <= 0 else (l if abs(l) < abs(r) else r)
+        else:
+            c[i] = cands[0]
+    return c
+
+
+def _band_components(nf, nr, rx, ry):
+    """Per band face and per rung, the connected band (faces joined through their rungs) it belongs to."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rows = np.r_[np.arange(nf), np.arange(nf)]
+    cols = nf + np.r_[rx, ry]
+    g = coo_matrix((np.ones(2 * nf), (rows, cols)), shape=(nf + nr, nf + nr))
+    _, lab = connected_components(g, directed=False)
+    _, lab = np.unique(lab, return_inverse=True)
+    return lab[:nf], lab[nf:]
+
+
+def _area_targets(V, zs, bands, levels):
+    """Per band that follows its area profile, the fitted area at each of its intermediate levels
+    (``{band: (sign, targets)}``), within the guards: a parabola fit (:func:`_area_curvature`),
+    positive, between ``_AREA_BOUNDS`` of the band's two drawn areas."""
+    out = {}
+    for i in np.flatnonzero(np.isfinite(bands["c"]) & (bands["c"] != 0)):
+        k = int(bands["pair"][i])
+        lv = int(levels[k])
+        if lv < 2:
+            continue
+        sg = np.sign(bands["a_lo"][i])
+        a0, a1 = sg * bands["a_lo"][i], sg * bands["a_hi"][i]
+        h = zs[k + 1] - zs[k]
+        s = np.arange(1, lv) / lv
+        tgt = a0 + (a1 - a0) * s + bands["c"][i] * h * h * s * (s - 1)
+        lo, hi = _AREA_BOUNDS[0] * min(a0, a1), _AREA_BOUNDS[1] * max(a0, a1)
+        if (tgt > lo).all() and (tgt < hi).all():
+            out[int(i)] = (sg, tgt)
+    return out
+
+
+def _follow_area_profile(newV, nV, start, bands, targets, levels):
+    """Scale each intermediate ring of the bands in ``targets`` about its own area centroid so that
+    its enclosed area is the fitted one (in place on ``newV``, the intermediate points).  A band
+    whose rings would need more than ``_MAX_AREA_SCALE`` is left as its cubic rungs made it.
+    Returns how many bands were scaled."""
+    fcomp, frx, fry, sig = bands["fcomp"], bands["frx"], bands["fry"], bands["sigma"]
+    rcomp = bands["rcomp"]
+    done = 0
+    for lv in np.unique(levels[bands["pair"][list(targets)]]) if targets else ():
+        comps = np.array([c for c in targets if levels[bands["pair"][c]] == lv])
+        fsel = np.flatnonzero(np.isin(fcomp, comps))
+        rsel = np.flatnonzero(np.isin(rcomp, comps))
+        nc = len(bands["pair"])
+        lam = np.ones((nc, lv - 1))
+        cen = np.zeros((nc, lv - 1, 2))
+        ok = np.zeros(nc, dtype=bool)
+        ok[comps] = True
+        for j in range(1, lv):
+            px = newV[start[frx[fsel]] - nV + j - 1, :2]
+            py = newV[start[fry[fsel]] - nV + j - 1, :2]
+            cr = sig[fsel] * (px[:, 0] * py[:, 1] - px[:, 1] * py[:, 0])
+            fc = fcomp[fsel]
+            a2 = np.bincount(fc, weights=cr, minlength=nc)
+            sx = np.bincount(fc, weights=(px[:, 0] + py[:, 0]) * cr, minlength=nc)
+            sy = np.bincount(fc, weights=(px[:, 1] + py[:, 1]) * cr, minlength=nc)
+            for c in comps:
+                sg, tgt = targets[c]
+                a = sg * a2[c] / 2
+                if not a > 0:
+                    ok[c] = False
+                    continue
+                lam[c, j - 1] = np.sqrt(tgt[j - 1] / a)
+                cen[c, j - 1] = (sx[c], sy[c]) / (3 * a2[c])
+        bad = (lam > _MAX_AREA_SCALE) | (lam < 1 / _MAX_AREA_SCALE)
+        ok &= ~bad.any(axis=1)
+        rsel = rsel[ok[rcomp[rsel]]]
+        rc = rcomp[rsel]
+        for j in range(1, lv):
+            rows = start[rsel] - nV + j - 1
+            c0 = cen[rc, j - 1]
+            newV[rows, :2] = c0 + lam[rc, j - 1][:, None] * (newV[rows, :2] - c0)
+        done += int(ok[comps].sum())
+    return done
+
+
+class _BandFaces:
+    """The keys (:func:`_face_keys`) of the faces that may be bent, computed once for every attempt."""
+
+    def __init__(self, faces):
+        self.keys = np.unique(_face_keys(faces))
+
+
 def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, max_levels: int = 8,
-                flat_pairs=frozenset(), end_slopes=None, band_faces=None):
+                flat_pairs=frozenset(), end_slopes=None, band_faces=None, follow_area: bool = True,
+                plain_pairs=frozenset()):
     """Bend the bands between consecutive section planes ``zs`` onto cubic rungs (module docstring).
 
     ``V``, ``F``: a closed, outward-oriented mesh whose drawn rings lie on the planes ``zs``.
@@ -127,15 +345,20 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
     of end rings whose slope is known (the smooth ends' profile), used where a vertex has no
     neighbour on its far side (instead of a natural end).  ``band_faces``: ``(n, 3, 3)`` corner
     coordinates of the faces that may be bent (the band joins'; default every face between two
-    consecutive planes); the slopes are taken along these faces' rungs only.  Returns ``(V, F, info)``; ``info``: ``levels`` (per plane
-    pair, the segments per rung; 1 where it is left ruled), ``bent_faces``, ``face_pair`` (per
-    output face, the plane pair of the band it comes from, or -1).
+    consecutive planes); the slopes are taken along these faces' rungs only.  ``follow_area``: scale
+    the intermediate rings of each band that runs from one ring to one ring onto the parabola of its
+    section area (:func:`_follow_area_profile`), except in the plane pairs ``plain_pairs``.  Returns
+    ``(V, F, info)``; ``info``: ``levels`` (per plane pair, the segments per rung; 1 where it is
+    left ruled), ``bent_faces``, ``face_pair`` (per output face, the plane pair of the band it
+    comes from, or -1), ``area_bands`` (bands scaled onto their area profile) and ``area_pairs``
+    (the plane pairs holding them).
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     zs = np.unique(np.asarray(zs, dtype=np.float64))
     npairs = max(len(zs) - 1, 0)
-    none = {"levels": np.ones(npairs, dtype=np.int64), "bent_faces": 0, "face_pair": np.full(len(F), -1)}
+    none = {"levels": np.ones(npairs, dtype=np.int64), "bent_faces": 0, "face_pair": np.full(len(F), -1),
+            "area_bands": 0, "area_pairs": frozenset()}
     if npairs == 0 or not len(F):
         return V, F, none
     gaps = np.diff(zs)
@@ -147,9 +370,9 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
     if flat_pairs:
         cand &= ~np.isin(fk.min(axis=1), np.fromiter(flat_pairs, dtype=np.int64))
     if band_faces is not None:
-        known = {_face_key(t) for t in np.asarray(band_faces, dtype=np.float64).reshape(-1, 3, 3)}
+        known = band_faces if isinstance(band_faces, _BandFaces) else _BandFaces(band_faces)
         idx = np.flatnonzero(cand)
-        cand[idx] = [_face_key(V[F[i]]) in known for i in idx]
+        cand[idx] = np.isin(_face_keys(V[F[idx]]), known.keys)
     # the edges, each with its two faces
     e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1).reshape(-1, 2)
     key = np.sort(e, axis=1)
@@ -232,6 +455,31 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
         eps = 0.02 * float(np.median(lens)) if np.median(lens) > 0 else float(gaps.min()) * 1e-2
     worst = np.zeros(npairs)
     np.maximum.at(worst, pair, bulge)
+    rung_of_edge = np.full(len(uniq), -1, dtype=np.int64)
+    rung_of_edge[r] = np.arange(len(r))
+    bands = None
+    if follow_area:
+        # the bands (connected band faces), their section areas and the parabola of each one's area
+        fi = np.flatnonzero(cand)
+        fx, fy, fw, frx, fry, flow = _face_rungs(F, pk, inv, rung_of_edge, fi)
+        fpair = fk[fi].min(axis=1)
+        fcomp, rcomp = _band_components(len(fi), len(r), frx, fry)
+        ok, a_lo, a_hi, below, above = _level_links(V, fcomp, fx, fy, flow, fpair)
+        pc = np.zeros(len(ok), dtype=np.int64)
+        pc[fcomp] = fpair
+        if plain_pairs:
+            ok &= ~np.isin(pc, np.fromiter(plain_pairs, dtype=np.int64))
+        c = _area_curvature(zs, pc, ok, a_lo, a_hi, below, above)
+        bands = {"fcomp": fcomp, "rcomp": rcomp, "frx": frx, "fry": fry, "sigma": np.where(flow, 1.0, -1.0),
+                 "pair": pc, "a_lo": a_lo, "a_hi": a_hi, "c": c}
+        # the area's bulge at mid height, as a normal offset (area over the ring's length), also sets
+        # the segments per rung
+        lo_f = flow
+        perim = np.bincount(fcomp[lo_f], weights=np.hypot(*(V[fy[lo_f], :2] - V[fx[lo_f], :2]).T),
+                            minlength=len(ok))
+        use = np.isfinite(c) & (perim > 0)
+        hh = gaps[pc[use]]
+        np.maximum.at(worst, pc[use], np.abs(c[use]) * hh * hh / 4 / perim[use])
     levels = np.clip(np.ceil(np.sqrt(worst / eps)), 1, max_levels).astype(np.int64)
     L = levels[pair]
     # intermediate points: rung i has L_i - 1 of them, stored from offset start_i
@@ -247,8 +495,11 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
         zz = V[lo_v[sel], 2][:, None] + h[sel][:, None] * s[None, :]
         o = (start[sel] - len(V))[:, None] + np.arange(lv - 1)[None, :]
         newV[o.ravel()] = np.c_[pts.reshape(-1, 2), zz.ravel()]
-    rung_of_edge = np.full(len(uniq), -1, dtype=np.int64)
-    rung_of_edge[r] = np.arange(len(r))
+    area_bands, area_pairs = 0, frozenset()
+    if bands is not None:
+        targets = _area_targets(V, zs, bands, levels)
+        area_bands = _follow_area_profile(newV, len(V), start, bands, targets, levels)
+        area_pairs = frozenset(int(bands["pair"][i]) for i in targets)
     out, pairs_out = [F[~cand]], [np.full(int((~cand).sum()), -1)]
     fi = np.flatnonzero(cand)
     lvf = levels[fk[fi].min(axis=1)]
@@ -283,28 +534,35 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
     V2 = np.concatenate([V, newV])
     F2 = np.concatenate(out)
     levels_used = levels.copy()
-    return V2, F2, {"levels": levels_used, "bent_faces": int(cand.sum()), "face_pair": np.concatenate(pairs_out)}
+    return V2, F2, {"levels": levels_used, "bent_faces": int(cand.sum()), "face_pair": np.concatenate(pairs_out),
+                    "area_bands": area_bands, "area_pairs": area_pairs}
 
 
 #: Attempts of :func:`curved_without_crossings`: after one whose faces cross, the plane pairs of the
-#: crossing faces are left ruled.
-_ATTEMPTS = 3
+#: crossing faces keep their cubic rungs without the area profile, or, if they had none, are left ruled.
+_ATTEMPTS = 4
 
 
 def curved_without_crossings(V, F, zs, *, end_slopes=None, band_faces=None):
-    """:func:`curve_bands`, then the exact crossing test: the plane pairs holding crossing faces are
-    left ruled and the bands bent again (at most 3 times; then every pair is left ruled if faces still
-    cross).  Returns ``(V, F, info)``, ``info`` as :func:`curve_bands`'s plus ``ruled_pairs`` (pairs
-    left ruled because their bent faces crossed)."""
+    """:func:`curve_bands`, then the exact crossing test: in the plane pairs holding crossing faces,
+    bands that followed their area profile keep only their cubic rungs, and the others are left
+    ruled; then the bands are bent again (at most 4 times; then every pair is left ruled if faces
+    still cross).  Returns ``(V, F, info)``, ``info`` as :func:`curve_bands`'s plus ``ruled_pairs``
+    (pairs left ruled because their bent faces crossed) and ``plain_pairs`` (pairs whose area
+    profile was dropped because their faces crossed)."""
     from ..intersect import intersecting_faces
 
     flat: set = set()
+    plain: set = set()
     zs = np.unique(np.asarray(zs, dtype=np.float64))
+    if band_faces is not None:
+        band_faces = _BandFaces(band_faces)
     for attempt in range(_ATTEMPTS + 1):
         last = attempt == _ATTEMPTS
         if last:
             flat = set(range(len(zs)))
-        V2, F2, info = curve_bands(V, F, zs, end_slopes=end_slopes, flat_pairs=frozenset(flat), band_faces=band_faces)
+        V2, F2, info = curve_bands(V, F, zs, end_slopes=end_slopes, flat_pairs=frozenset(flat),
+                                   band_faces=band_faces, plain_pairs=frozenset(plain))
         if last or not info["bent_faces"]:
             break
         bad = intersecting_faces(V2, F2)
@@ -313,6 +571,9 @@ def curved_without_crossings(V, F, zs, *, end_slopes=None, band_faces=None):
         pairs = set(np.unique(info["face_pair"][bad]).tolist()) - {-1}
         if not pairs - flat:  # the crossings are not the bent bands' (the ruled mesh has them too)
             break
-        flat |= pairs
+        scaled = (pairs - flat) & set(info["area_pairs"])
+        plain |= scaled
+        flat |= pairs - scaled
     info["ruled_pairs"] = len(flat & set(range(len(zs) - 1)))
+    info["plain_pairs"] = len(plain & set(range(len(zs) - 1)) - flat)
     return V2, F2, info
