@@ -1,0 +1,98 @@
+"""The compiled topology and grouping kernels against their references (scipy / skimage / numpy).
+
+Each kernel replaced a reference computation on the band route for speed only, so each must give
+the reference's answer exactly: the tests draw random volumes, label images and rings, and add
+the shapes where the answers differ from a plain count (cavities, tunnels, touching corners).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from contourmesh.topology import euler_characteristic, topology
+from contourmesh.tracing import overlap_groups
+from contourmesh.volumes import voxel_topology
+
+
+def _random_volumes(seed, count, top=10):
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        shape = tuple(int(v) for v in rng.integers(1, top, 3))
+        yield rng.random(shape) < rng.uniform(0.05, 0.95)
+
+
+def test_topology_equals_the_reference_on_random_volumes():
+    seen = set()
+    for v in _random_volumes(11, 1500):
+        ref = voxel_topology(v)
+        assert topology(v) == ref, v.shape
+        seen.update(k for k in ("cavities", "genus") if ref[k] > 0)
+        seen.update(["several"] if ref["components"] > 1 else ["sphere"] if ref["surfaces"] == 1 and ref["genus"] == 0 else [])
+    # the draw reaches cavities, handles, several components and single spheres (else it proves little)
+    assert seen == {"cavities", "genus", "several", "sphere"}
+
+
+def test_topology_on_shapes_with_cavities_tunnels_and_corner_contacts():
+    zz, yy, xx = np.mgrid[:16, :16, :16]
+    r2 = (zz - 7.5) ** 2 + (yy - 7.5) ** 2 + (xx - 7.5) ** 2
+    hollow = (r2 < 49) & (r2 > 9)  # a ball with a cavity
+    torus = ((np.hypot(yy - 7.5, xx - 7.5) - 4.5) ** 2 + (zz - 7.5) ** 2) < 4
+    corners = np.zeros((3, 3, 3), dtype=bool)
+    corners[0, 0, 0] = corners[1, 1, 1] = corners[2, 2, 0] = True  # touching at corners only: 3 parts
+    edge_cavity = np.ones((3, 4, 4), dtype=bool)
+    edge_cavity[1, 1:3, 1:3] = False  # a cavity one voxel from the border
+    open_box = edge_cavity.copy()
+    open_box[1, 0, 0] = False  # the cavity still closed: it meets the outside only at a corner
+    for v in (hollow, torus, corners, edge_cavity, open_box, np.zeros((2, 2, 2), bool), np.ones((1, 1, 1), bool)):
+        assert topology(v) == voxel_topology(v)
+    assert topology(hollow)["cavities"] == 1 and topology(torus)["genus"] == 1
+    assert topology(corners)["components"] == 3
+
+
+def test_euler_characteristic_is_skimage_euler_number_with_6_connectivity():
+    from skimage.measure import euler_number
+
+    for v in _random_volumes(5, 300, top=8):
+        assert euler_characteristic(v) == euler_number(np.pad(v, 1), connectivity=1)
+
+
+def test_topology_refuses_a_2d_mask():
+    with pytest.raises(ValueError, match="3D array"):
+        topology(np.ones((3, 3), dtype=bool))
+
+
+def _overlap_groups_reference(la, lb, na, nb):
+    """overlap_groups as it was: the pairs' bipartite graph labelled by scipy."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    both = (la > 0) & (lb > 0)
+    nbk = np.int64(nb + 1)
+    keys = np.unique(la[both].astype(np.int64) * nbk + lb[both])
+    pairs = np.c_[keys // nbk, keys % nbk] - 1
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], na + pairs[:, 1])), shape=(na + nb, na + nb))
+    _, glab = connected_components(g, directed=False)
+    groups: dict = {}
+    for a, b in pairs:
+        ga_, gb_ = groups.setdefault(int(glab[a]), (set(), set()))
+        ga_.add(int(a))
+        gb_.add(int(b))
+    return pairs, list(groups.values())
+
+
+def test_overlap_groups_equal_the_scipy_reference():
+    from scipy import ndimage
+
+    rng = np.random.default_rng(3)
+    several = 0
+    for _ in range(400):
+        shape = tuple(int(v) for v in rng.integers(2, 14, 2))
+        la, na = ndimage.label(rng.random(shape) < rng.uniform(0.2, 0.7))
+        lb, nb = ndimage.label(rng.random(shape) < rng.uniform(0.2, 0.7))
+        pairs, groups = overlap_groups(la, lb, na, nb)
+        ref_pairs, ref_groups = _overlap_groups_reference(la, lb, na, nb)
+        np.testing.assert_array_equal(pairs, ref_pairs)
+        assert groups == ref_groups  # the same sets in the same order
+        several += len(groups) > 1
+    assert several > 100
