@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from contourmesh.geometry import distinct_rows, predecessor, shoelace_area, successor
 from contourmesh.topology import euler_characteristic, topology
 from contourmesh.tracing import overlap_groups
 from contourmesh.volumes import voxel_topology
@@ -96,3 +97,61 @@ def test_overlap_groups_equal_the_scipy_reference():
         assert groups == ref_groups  # the same sets in the same order
         several += len(groups) > 1
     assert several > 100
+
+
+def test_distinct_rows_is_the_length_of_numpy_unique_rows():
+    rng = np.random.default_rng(8)
+    for _ in range(2000):
+        n = int(rng.integers(0, 12))
+        p = rng.integers(-2, 3, (n, 2)) * rng.choice([1.0, 0.5, -0.0])  # repeats, and -0.0 beside 0.0
+        assert distinct_rows(p) == len(np.unique(p, axis=0))
+    assert distinct_rows(np.array([[1, 2], [1, 2], [3, 4]])) == 2  # integer points too
+
+
+def test_shoelace_area_and_ring_neighbours_are_those_of_np_roll():
+    rng = np.random.default_rng(2)
+    for n in (3, 4, 7, 50, 333):
+        p = rng.normal(size=(n, 2)) * 1e3
+        x, y = p[:, 0], p[:, 1]
+        # bit for bit: the same dot products of the same arrays
+        assert shoelace_area(p) == 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+        np.testing.assert_array_equal(successor(p), np.roll(p, -1, axis=0))
+        np.testing.assert_array_equal(predecessor(p), np.roll(p, 1, axis=0))
+
+
+def _meridian_params_reference(par, length, step):
+    """refine._meridian_params as it was: Python loops over numpy arrays."""
+    s = np.sort(np.mod(par, length))
+    keep = [s[0]]
+    for v in s[1:]:
+        if v - keep[-1] >= 0.5 * step:
+            keep.append(v)
+    while len(keep) > 1 and keep[0] + length - keep[-1] < 0.5 * step:
+        keep.pop()
+    out = []
+    k = np.array(keep)
+    gaps = np.diff(np.concatenate([k, [k[0] + length]]))
+    for v, g in zip(k, gaps):
+        out.append(v)
+        if g > 1.5 * step:
+            m = int(round(g / step))
+            out.extend(v + g * np.arange(1, m) / m)
+    return np.mod(np.array(out), length)
+
+
+def test_meridian_params_compiled_equal_the_python_loops_bit_for_bit():
+    from contourmesh.refine import _meridian_params
+
+    rng = np.random.default_rng(4)
+    filled = 0
+    for _ in range(1500):
+        length = float(rng.uniform(5, 400))
+        step = float(rng.uniform(0.3, 4.0))
+        par = rng.uniform(-length, 2 * length, int(rng.integers(3, 60)))
+        if rng.random() < 0.3:  # gaps of exactly k + 1/2 steps: the rounding's ties
+            par = np.sort(rng.integers(0, 40, len(par)) * (step / 2)) % length
+        got, ref = _meridian_params(par, length, step), _meridian_params_reference(par, length, step)
+        np.testing.assert_array_equal(got, ref)
+        filled += len(got) > len(np.unique(np.mod(par, length)))
+    assert filled > 300  # gaps were filled, not only merged
+

@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["points_in_rings", "shoelace_area", "grid_to_xy", "slice_gap"]
+__all__ = ["points_in_rings", "shoelace_area", "grid_to_xy", "slice_gap", "successor", "predecessor",
+           "distinct_rows"]
 
 
 def grid_to_xy(ox, oy, dx, dy):
@@ -109,13 +110,51 @@ def points_in_rings(points, ring) -> np.ndarray:
     return _points_in_ring(p[:, 0].copy(), p[:, 1].copy(), r[:, 0].copy(), r[:, 1].copy())
 
 
+def successor(a) -> np.ndarray:
+    """``np.roll(a, -1, axis=0)``: each row's successor round the ring (a new contiguous array;
+    ``np.roll`` costs ten times more on the small arrays of the meshers)."""
+    return np.concatenate((a[1:], a[:1]))
+
+
+def predecessor(a) -> np.ndarray:
+    """``np.roll(a, 1, axis=0)``: each row's predecessor round the ring (a new contiguous array)."""
+    return np.concatenate((a[-1:], a[:-1]))
+
+
 def shoelace_area(points: np.ndarray) -> float:
     """Signed area of a closed polygon given by ``(k, 2)`` points (positive = our outer orientation)."""
     p = np.asarray(points, dtype=np.float64)
     if len(p) < 3:
         return 0.0
     x, y = p[:, 0], p[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    # the same two dot products of the same arrays as with np.roll (so the same rounding)
+    return 0.5 * float(np.dot(x, successor(y)) - np.dot(successor(x), y))
+
+
+@njit(cache=True, nogil=True)
+def _distinct_rows(p):
+    n = p.shape[0]
+    if n < 2:
+        return n
+    # rows in (x, y) order: a stable sort by y, then a stable sort by x
+    o = np.argsort(p[:, 1], kind="mergesort")
+    xs = np.empty(n)
+    for i in range(n):
+        xs[i] = p[o[i], 0]
+    o = o[np.argsort(xs, kind="mergesort")]
+    count = 1
+    for i in range(1, n):
+        a, b = o[i - 1], o[i]
+        if p[a, 0] != p[b, 0] or p[a, 1] != p[b, 1]:
+            count += 1
+    return count
+
+
+def distinct_rows(points) -> int:
+    """Number of distinct points of a ``(k, 2)`` array (``len(np.unique(points, axis=0))``: points
+    are equal when both coordinates compare equal), compiled."""
+    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    return int(_distinct_rows(p))
 
 
 def slice_gap(zs, k: int, up: bool) -> float:

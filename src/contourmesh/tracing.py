@@ -32,6 +32,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .geometry import predecessor, successor
+
 __all__ = ["trace_contours", "rotate_start", "check_contour4", "overlap_groups"]
 
 # Directions of a unit step, counter-clockwise with y up: 0 = +x, 1 = +y, 2 = -x, 3 = -y.
@@ -257,7 +259,7 @@ def check_contour4(contour, name: str = "contour") -> np.ndarray:
         if not np.issubdtype(c.dtype, np.floating) or not np.all(np.isfinite(c)) or np.any(c != np.round(c)):
             raise ValueError(f"{name} must hold integer grid coordinates; got dtype {c.dtype} with non-integer values")
     c = np.ascontiguousarray(c, dtype=np.int64)
-    steps = np.roll(c, -1, axis=0) - c
+    steps = successor(c) - c
     l1 = np.abs(steps).sum(axis=1)
     if np.any(l1 != 1):
         bad = int(np.flatnonzero(l1 != 1)[0])
@@ -266,7 +268,7 @@ def check_contour4(contour, name: str = "contour") -> np.ndarray:
             f"{name} must be a closed digital 4-curve (unit steps along x or y, closed implicitly); "
             f"found {what} from point {bad} {c[bad].tolist()} to {c[(bad + 1) % len(c)].tolist()}"
         )
-    back = np.all(steps == -np.roll(steps, 1, axis=0), axis=1)
+    back = np.all(steps == -predecessor(steps), axis=1)
     if np.any(back):
         bad = int(np.flatnonzero(back)[0])
         raise ValueError(f"{name} reverses direction at point {bad} {c[bad].tolist()}; not a cell boundary")

@@ -71,7 +71,7 @@ import numpy as np
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
 from .bands.optimal import triangulate_band_optimal
-from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp
+from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp, slice_components
 from .geometry import grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
 from .measure import triangle_areas
@@ -125,7 +125,8 @@ def voxel_topology(mask) -> dict:
     Computed independently of the meshing: the Euler characteristic of the 6-connected voxel
     complex (``skimage.measure.euler_number(connectivity=1)``), object components (6-connected),
     cavities (background components, 26-connected, not touching the padded border).  The boundary
-    has ``components + cavities`` surfaces with total genus ``surfaces - chi``.
+    has ``components + cavities`` surfaces with total genus ``surfaces - chi``.  The reference for
+    :func:`contourmesh.topology.topology`, its compiled twin on the band route.
     """
     from scipy import ndimage
     from skimage.measure import euler_number
@@ -950,13 +951,16 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     ma = A.labels[y0:y1, x0:x1] == a + 1
     mb = B.labels[y0:y1, x0:x1] == b + 1
     o = ma & mb
-    _, no = ndimage.label(o, structure=_CROSS)
+    # components of O and its holes from its runs (compiled; the Euler number counts the holes)
+    _, _, no, holes_o, _ = slice_components(o)
     if no != 1:
         return None
     ha = A.hole_masks[a][1]
     hb = B.hole_masks[b][1]
-    if len(ha) != len(hb):
+    if len(ha) != len(hb) or int(holes_o[0]) != len(ha):
         return None
+    if not ha:
+        return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
     comp_o = np.pad(~o, 1, constant_values=True)
     olab, nol = ndimage.label(comp_o, structure=_SQUARE)
     ext = olab[0, 0]
