@@ -155,3 +155,38 @@ def test_meridian_params_compiled_equal_the_python_loops_bit_for_bit():
         filled += len(got) > len(np.unique(np.mod(par, length)))
     assert filled > 300  # gaps were filled, not only merged
 
+
+def test_slice_labels_equal_ndimage_label_and_find_objects():
+    from scipy import ndimage
+
+    from contourmesh.fastpath import slice_labels
+
+    cross = ndimage.generate_binary_structure(2, 1)
+    rng = np.random.default_rng(6)
+    for _ in range(1500):
+        shape = tuple(int(v) for v in rng.integers(1, 16, 2))
+        m = rng.random(shape) < rng.uniform(0.1, 0.9)
+        if rng.random() < 0.2:
+            m = m[:, ::2]  # not contiguous
+        labels, n, objects = slice_labels(m)
+        ref, ref_n = ndimage.label(m, structure=cross)
+        assert n == ref_n and labels.dtype == ref.dtype
+        np.testing.assert_array_equal(labels, ref)
+        assert objects == ndimage.find_objects(ref)
+
+
+def test_deepest_pixel_is_the_argmax_of_scipy_distance_transform():
+    from scipy import ndimage
+
+    from contourmesh.geometry import deepest_pixel
+
+    rng = np.random.default_rng(9)
+    for _ in range(2000):
+        shape = tuple(int(v) for v in rng.integers(1, 30, 2))
+        m = rng.random(shape) < rng.uniform(0.3, 1.0)
+        if rng.random() < 0.4:  # discs and ellipses: many equal distances (ties go to the first)
+            yy, xx = np.mgrid[: shape[0], : shape[1]]
+            m = ((yy - shape[0] / 2) / rng.uniform(0.5, 2)) ** 2 + (xx - shape[1] / 2) ** 2 < rng.uniform(1, 200)
+        d = ndimage.distance_transform_edt(np.pad(m, 1))
+        assert deepest_pixel(m) == tuple(int(v) for v in np.unravel_index(np.argmax(d), d.shape))
+

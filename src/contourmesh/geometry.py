@@ -165,3 +165,73 @@ def slice_gap(zs, k: int, up: bool) -> float:
     if up:
         return zs[k + 1] - zs[k] if k + 1 < nz else (zs[k] - zs[k - 1] if k > 0 else 1.0)
     return zs[k] - zs[k - 1] if k > 0 else (zs[k + 1] - zs[k] if k + 1 < nz else 1.0)
+
+
+@njit(cache=True, nogil=True)
+def _deepest(m):
+    """Index ``(j, i)`` into ``m`` padded by one background pixel of the largest squared Euclidean
+    distance to the background (the first in raster order among equals): columns by two scans,
+    rows by the lower envelope of parabolas (Felzenszwalb & Huttenlocher), all in integers."""
+    h0, w0 = m.shape
+    h, w = h0 + 2, w0 + 2
+    big = h + w
+    f = np.empty((h, w), np.int64)
+    for x in range(w):  # distance along the column to the nearest background pixel
+        run = big
+        for y in range(h):
+            inside = 0 < y < h - 1 and 0 < x < w - 1 and m[y - 1, x - 1]
+            run = run + 1 if inside else 0
+            f[y, x] = run
+        run = big
+        for y in range(h - 1, -1, -1):
+            inside = 0 < y < h - 1 and 0 < x < w - 1 and m[y - 1, x - 1]
+            run = run + 1 if inside else 0
+            if run < f[y, x]:
+                f[y, x] = run
+    for y in range(h):
+        for x in range(w):
+            f[y, x] = f[y, x] * f[y, x]
+    v = np.empty(w, np.int64)
+    z = np.empty(w + 1)
+    best, bj, bi = -1, 0, 0
+    for y in range(h):
+        k = 0
+        v[0] = 0
+        z[0] = -np.inf
+        z[1] = np.inf
+        for q in range(1, w):
+            while True:
+                p = v[k]
+                s = ((f[y, q] + q * q) - (f[y, p] + p * p)) / (2.0 * (q - p))
+                if s <= z[k] and k > 0:
+                    k -= 1
+                    continue
+                if s <= z[k]:  # k == 0: q's parabola is lower everywhere to the right of -inf
+                    v[0] = q
+                    z[1] = np.inf
+                    break
+                k += 1
+                v[k] = q
+                z[k] = s
+                z[k + 1] = np.inf
+                break
+        k = 0
+        for q in range(w):
+            while z[k + 1] < q:
+                k += 1
+            p = v[k]
+            d2 = (q - p) * (q - p) + f[y, p]
+            if d2 > best:
+                best, bj, bi = d2, y, q
+    return bj, bi
+
+
+def deepest_pixel(mask) -> tuple[int, int]:
+    """``np.unravel_index(np.argmax(scipy.ndimage.distance_transform_edt(np.pad(mask, 1))), ...)``:
+    the pixel of a 2D mask, padded by one background pixel all round, furthest from the background
+    (the first in raster order among equals), in compiled integer arithmetic."""
+    m = np.ascontiguousarray(mask, dtype=bool)
+    if m.ndim != 2:
+        raise ValueError(f"mask must be a 2D array indexed [y, x]; got shape {m.shape}")
+    j, i = _deepest(m)
+    return int(j), int(i)

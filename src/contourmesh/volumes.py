@@ -71,8 +71,8 @@ import numpy as np
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
 from .bands.optimal import triangulate_band_optimal
-from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp, slice_components
-from .geometry import grid_to_xy, shoelace_area, slice_gap
+from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp, slice_components, slice_labels
+from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
 from .measure import triangle_areas
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
@@ -160,8 +160,8 @@ class _Slice:
     def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center):
         from scipy import ndimage
 
-        labels, self.n = ndimage.label(mask2d, structure=_CROSS)
-        self.objects = ndimage.find_objects(labels)
+        # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
+        labels, self.n, self.objects = slice_labels(mask2d)
         # every slice's labels are kept until the joins are made: the smallest dtype that holds them
         small = np.uint8 if self.n < 2**8 else np.uint16 if self.n < 2**16 else None
         self.labels = labels.astype(small) if small is not None else labels
@@ -904,8 +904,6 @@ def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True, resolved=None)
 def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, origin_xy) -> dict:
     """refine="band": the polygons of every component that is not crack-only become refined polygons,
     each guided by its partner below in a band join; crack rings stay (and bound the others)."""
-    from scipy import ndimage
-
     seeds, fixed, below, deepest = {}, {}, {}, {}
     to_xy_center, _ = grid_to_xy(*origin_xy, *spacing_xy)
     for k in occupied:
@@ -915,8 +913,8 @@ def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, 
                 fixed.setdefault(k, []).extend([s.crack_outer[c]] + list(s.crack_holes[c]))
                 continue
             sl = s.objects[c]
-            d = ndimage.distance_transform_edt(np.pad(s.labels[sl] == c + 1, 1))
-            j, i = np.unravel_index(np.argmax(d), d.shape)
+            # the argmax of ndimage.distance_transform_edt of the padded component (compiled)
+            j, i = deepest_pixel(s.labels[sl] == c + 1)
             rings = [(-1, s.outer[c])] + list(enumerate(s.holes[c]))
             seeds.update({(k, c, h): (k, p) for h, p in rings})
             deepest.update({(k, c, h): to_xy_center([[sl[1].start + i - 1, sl[0].start + j - 1]])[0] for h, _ in rings})
