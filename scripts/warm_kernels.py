@@ -55,7 +55,7 @@ def _contour_stack():
 
 
 def _refine_band():
-    """--refine band on a shape and on a volume."""
+    """--refine band on a shape and on volumes (the stack route and the volume mesher)."""
     import contourmesh
     from contourmesh.shapes import Sphere
 
@@ -64,6 +64,10 @@ def _refine_band():
     zz, yy, xx = np.mgrid[:14, :14, :14]
     ball[(zz - 6.6) ** 2 + (yy - 6.3) ** 2 + (xx - 6.8) ** 2 < 25] = True
     contourmesh.mesh(ball, refine="band")
+    tunnel = np.zeros((9, 12, 12), dtype=bool)  # slices with holes: the volume mesher refines its polygons
+    tunnel[1:8, 2:10, 2:10] = True
+    tunnel[1:8, 5:7, 5:7] = False
+    contourmesh.mesh(tunnel, refine="band")
 
 
 def _fast_path():

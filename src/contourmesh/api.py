@@ -70,10 +70,11 @@ from .measure import axis_wall_fraction
 from .rasterize import rasterize_stack
 from .refine import REFINERS, refine_stack, stack_points
 from .surface import _nested_chains, stack_to_mesh
+from .topology import topology
 from .tracing import trace_contours
 from .types import ContourStack, Mesh, Section, shoelace_area
 from .volume_input import check_origin, check_spacing, check_volume_array, prepare_volume
-from .volumes import volume_to_mesh, voxel_topology
+from .volumes import volume_to_mesh
 
 __all__ = ["mesh", "mesh_shape", "mesh_stack", "mesh_volume", "mesh_file", "source_kind", "is_file_source",
            "OPTIONS"]
@@ -551,7 +552,10 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
     """The outer Jordan contour stack of a binary volume with one contour per slice (for refinement);
     None when some slice has several contours (or a hole), or a contour that bounds no area (a part
     one pixel wide: the stack mesher cannot close it, the volume mesher can), or when the voxels'
-    surface is not one sphere (6/26 connectivity: slices overlapping in two places make a handle)."""
+    surface is not one sphere (6/26 connectivity: slices overlapping in two places make a handle).
+    The slices are traced without labelling (:func:`contourmesh.tracing.trace_contours` labels only
+    slices with holes) and the sphere is checked by :func:`contourmesh.topology.topology` (compiled
+    union-finds over the runs and one Euler pass: 4 ms instead of 40-60 ms at 128 voxels)."""
     sections = []
     for k in range(mask.shape[0]):
         if not mask[k].any():
@@ -560,7 +564,7 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
         if len(contours) != 1 or len(contours[0]) < 3 or shoelace_area(contours[0]) == 0:
             return None
         sections.append(Section(float(zs[k]), (contours[0],), (-1,)))
-    topo = voxel_topology(mask)
+    topo = topology(mask)  # compiled; the same numbers as volumes.voxel_topology
     if topo["surfaces"] != 1 or topo["genus"] != 0:
         # one contour per slice, but the slices overlap in several places (a handle), or an empty
         # slice parts them: the stack route would make one sphere, the volume mesher keeps the topology

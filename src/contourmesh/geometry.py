@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["points_in_rings", "shoelace_area", "grid_to_xy", "slice_gap"]
+__all__ = ["points_in_rings", "shoelace_area", "grid_to_xy", "slice_gap", "successor", "predecessor",
+           "distinct_rows"]
 
 
 def grid_to_xy(ox, oy, dx, dy):
@@ -109,13 +110,51 @@ def points_in_rings(points, ring) -> np.ndarray:
     return _points_in_ring(p[:, 0].copy(), p[:, 1].copy(), r[:, 0].copy(), r[:, 1].copy())
 
 
+def successor(a) -> np.ndarray:
+    """``np.roll(a, -1, axis=0)``: each row's successor round the ring (a new contiguous array;
+    ``np.roll`` costs ten times more on the small arrays of the meshers)."""
+    return np.concatenate((a[1:], a[:1]))
+
+
+def predecessor(a) -> np.ndarray:
+    """``np.roll(a, 1, axis=0)``: each row's predecessor round the ring (a new contiguous array)."""
+    return np.concatenate((a[-1:], a[:-1]))
+
+
 def shoelace_area(points: np.ndarray) -> float:
     """Signed area of a closed polygon given by ``(k, 2)`` points (positive = our outer orientation)."""
     p = np.asarray(points, dtype=np.float64)
     if len(p) < 3:
         return 0.0
     x, y = p[:, 0], p[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    # the same two dot products of the same arrays as with np.roll (so the same rounding)
+    return 0.5 * float(np.dot(x, successor(y)) - np.dot(successor(x), y))
+
+
+@njit(cache=True, nogil=True)
+def _distinct_rows(p):
+    n = p.shape[0]
+    if n < 2:
+        return n
+    # rows in (x, y) order: a stable sort by y, then a stable sort by x
+    o = np.argsort(p[:, 1], kind="mergesort")
+    xs = np.empty(n)
+    for i in range(n):
+        xs[i] = p[o[i], 0]
+    o = o[np.argsort(xs, kind="mergesort")]
+    count = 1
+    for i in range(1, n):
+        a, b = o[i - 1], o[i]
+        if p[a, 0] != p[b, 0] or p[a, 1] != p[b, 1]:
+            count += 1
+    return count
+
+
+def distinct_rows(points) -> int:
+    """Number of distinct points of a ``(k, 2)`` array (``len(np.unique(points, axis=0))``: points
+    are equal when both coordinates compare equal), compiled."""
+    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    return int(_distinct_rows(p))
 
 
 def slice_gap(zs, k: int, up: bool) -> float:
@@ -126,3 +165,73 @@ def slice_gap(zs, k: int, up: bool) -> float:
     if up:
         return zs[k + 1] - zs[k] if k + 1 < nz else (zs[k] - zs[k - 1] if k > 0 else 1.0)
     return zs[k] - zs[k - 1] if k > 0 else (zs[k + 1] - zs[k] if k + 1 < nz else 1.0)
+
+
+@njit(cache=True, nogil=True)
+def _deepest(m):
+    """Index ``(j, i)`` into ``m`` padded by one background pixel of the largest squared Euclidean
+    distance to the background (the first in raster order among equals): columns by two scans,
+    rows by the lower envelope of parabolas (Felzenszwalb & Huttenlocher), all in integers."""
+    h0, w0 = m.shape
+    h, w = h0 + 2, w0 + 2
+    big = h + w
+    f = np.empty((h, w), np.int64)
+    for x in range(w):  # distance along the column to the nearest background pixel
+        run = big
+        for y in range(h):
+            inside = 0 < y < h - 1 and 0 < x < w - 1 and m[y - 1, x - 1]
+            run = run + 1 if inside else 0
+            f[y, x] = run
+        run = big
+        for y in range(h - 1, -1, -1):
+            inside = 0 < y < h - 1 and 0 < x < w - 1 and m[y - 1, x - 1]
+            run = run + 1 if inside else 0
+            if run < f[y, x]:
+                f[y, x] = run
+    for y in range(h):
+        for x in range(w):
+            f[y, x] = f[y, x] * f[y, x]
+    v = np.empty(w, np.int64)
+    z = np.empty(w + 1)
+    best, bj, bi = -1, 0, 0
+    for y in range(h):
+        k = 0
+        v[0] = 0
+        z[0] = -np.inf
+        z[1] = np.inf
+        for q in range(1, w):
+            while True:
+                p = v[k]
+                s = ((f[y, q] + q * q) - (f[y, p] + p * p)) / (2.0 * (q - p))
+                if s <= z[k] and k > 0:
+                    k -= 1
+                    continue
+                if s <= z[k]:  # k == 0: q's parabola is lower everywhere to the right of -inf
+                    v[0] = q
+                    z[1] = np.inf
+                    break
+                k += 1
+                v[k] = q
+                z[k] = s
+                z[k + 1] = np.inf
+                break
+        k = 0
+        for q in range(w):
+            while z[k + 1] < q:
+                k += 1
+            p = v[k]
+            d2 = (q - p) * (q - p) + f[y, p]
+            if d2 > best:
+                best, bj, bi = d2, y, q
+    return bj, bi
+
+
+def deepest_pixel(mask) -> tuple[int, int]:
+    """``np.unravel_index(np.argmax(scipy.ndimage.distance_transform_edt(np.pad(mask, 1))), ...)``:
+    the pixel of a 2D mask, padded by one background pixel all round, furthest from the background
+    (the first in raster order among equals), in compiled integer arithmetic."""
+    m = np.ascontiguousarray(mask, dtype=bool)
+    if m.ndim != 2:
+        raise ValueError(f"mask must be a 2D array indexed [y, x]; got shape {m.shape}")
+    j, i = _deepest(m)
+    return int(j), int(i)

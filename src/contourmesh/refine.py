@@ -89,6 +89,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .geometry import distinct_rows, predecessor, successor
 from .polygons import polygonize
 from .stacks import check_stack
 from .types import ContourStack, Mesh, Section, shoelace_area
@@ -971,8 +972,8 @@ def _chord_push(ring_xy: np.ndarray, nz2=None) -> np.ndarray:
     (where what counts is the polygon's enclosed area, short by ``L^2 / (6 rho^2)``).
     """
     p = ring_xy
-    a = np.roll(p, 1, axis=0)
-    c = np.roll(p, -1, axis=0)
+    a = predecessor(p)
+    c = successor(p)
     u = p - a
     v = c - p
     w = c - a
@@ -1046,24 +1047,50 @@ def _meridian_params(par: np.ndarray, length: float, step: float) -> np.ndarray:
     """Arc parameters of a slice's vertices from the projections of the previous slice's.
 
     Projections closer than ``step / 2`` along the arc are merged (the later one is dropped);
-    gaps longer than ``1.5 step`` are filled with evenly spaced new parameters.
+    gaps longer than ``1.5 step`` are filled with evenly spaced new parameters (compiled:
+    :func:`_merge_and_fill`).
     """
     s = np.sort(np.mod(par, length))
-    keep = [s[0]]
-    for v in s[1:]:
-        if v - keep[-1] >= 0.5 * step:
-            keep.append(v)
-    while len(keep) > 1 and keep[0] + length - keep[-1] < 0.5 * step:
-        keep.pop()
-    out = []
-    k = np.array(keep)
-    gaps = np.diff(np.concatenate([k, [k[0] + length]]))
-    for v, g in zip(k, gaps):
-        out.append(v)
-        if g > 1.5 * step:
-            m = int(round(g / step))
-            out.extend(v + g * np.arange(1, m) / m)
-    return np.mod(np.array(out), length)
+    return np.mod(_merge_and_fill(s, float(length), float(step)), length)
+
+
+@njit(cache=True)
+def _merge_and_fill(s, length, step):
+    """:func:`_meridian_params` on the sorted parameters ``s``, before the final ``mod length``: the
+    same arithmetic as a loop over numpy arrays (``v + g * i / m``), so the same values."""
+    n = len(s)
+    keep = np.empty(n)
+    keep[0] = s[0]
+    nk = 1
+    for q in range(1, n):
+        if s[q] - keep[nk - 1] >= 0.5 * step:
+            keep[nk] = s[q]
+            nk += 1
+    while nk > 1 and keep[0] + length - keep[nk - 1] < 0.5 * step:
+        nk -= 1
+    gaps = np.empty(nk)
+    fill = np.zeros(nk, np.int64)
+    total = nk
+    for q in range(nk):
+        gaps[q] = (keep[q + 1] if q + 1 < nk else keep[0] + length) - keep[q]
+        if gaps[q] > 1.5 * step:
+            x = gaps[q] / step
+            m = math.floor(x)  # round half to even, as Python's round()
+            if x - m > 0.5 or (x - m == 0.5 and m % 2 == 1):
+                m += 1
+            fill[q] = max(int(m) - 1, 0)
+            total += fill[q]
+    out = np.empty(total)
+    pos = 0
+    for q in range(nk):
+        v = keep[q]
+        out[pos] = v
+        pos += 1
+        m = fill[q] + 1
+        for i in range(1, m):
+            out[pos] = v + gaps[q] * i / m
+            pos += 1
+    return out
 
 
 @njit(cache=True)
@@ -1267,7 +1294,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
     """
     kk = int(kz)
     grid = _as_grid(dz, pts.shape[0])
-    if len(np.unique(seed, axis=0)) < 3 or shoelace_area(seed) == 0.0:
+    if distinct_rows(seed) < 3 or shoelace_area(seed) == 0.0:
         return seed, 0  # a pole point or a segment: kept as it is
     clamped = 0
     images = {} if images is None else images

@@ -53,7 +53,7 @@ from .errors import (
     StackSurfaceError,
     warn_external,
 )
-from .geometry import points_in_rings, shoelace_area
+from .geometry import distinct_rows, points_in_rings, shoelace_area
 from .intersect import intersecting_pairs
 from .measure import _edge_counts, mesh_volume
 from .polygons import polygonize
@@ -81,12 +81,12 @@ def _polygon(contour: np.ndarray, method: str) -> np.ndarray:
 
 def _repeats_a_point(poly: np.ndarray) -> bool:
     """A polygon of 3 or more distinct points that visits one of them twice."""
-    n = len(np.unique(poly, axis=0))
+    n = distinct_rows(poly)
     return 3 <= n < len(poly)
 
 
 def _is_degenerate(poly: np.ndarray) -> bool:
-    return len(np.unique(poly, axis=0)) < 3 or abs(shoelace_area(poly)) == 0.0
+    return distinct_rows(poly) < 3 or abs(shoelace_area(poly)) == 0.0
 
 
 class _Builder:

@@ -32,6 +32,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .geometry import predecessor, successor
+
 __all__ = ["trace_contours", "rotate_start", "check_contour4", "overlap_groups"]
 
 # Directions of a unit step, counter-clockwise with y up: 0 = +x, 1 = +y, 2 = -x, 3 = -y.
@@ -196,12 +198,14 @@ def trace_contours(mask, x0: int = 0, y0: int = 0) -> tuple[list[np.ndarray], li
     cells = np.zeros((ny + 3, nx + 3), dtype=np.bool_)
     cells[1:-1, 1:-1] = p[:-1, :-1] | p[1:, :-1] | p[:-1, 1:] | p[1:, 1:]
     pts, starts, area2, left_cell = _follow_boundaries(cells)
+    offset = np.array([x0 - 2, y0 - 2], dtype=np.int64)
+    contours = [pts[starts[i] : starts[i + 1]] + offset for i in range(len(area2))]
+    if not (area2 < 0).any():
+        return contours, [-1] * len(contours)  # no hole: no parent to find, no labelling
 
     from scipy import ndimage
 
     labels, _ = ndimage.label(cells)  # default structure: 4-connectivity
-    offset = np.array([x0 - 2, y0 - 2], dtype=np.int64)
-    contours = [pts[starts[i] : starts[i + 1]] + offset for i in range(len(area2))]
     comp = labels[left_cell[:, 0], left_cell[:, 1]]
     outer_of = {int(c): i for i, c in enumerate(comp) if area2[i] > 0}
     parents = [-1 if area2[i] > 0 else outer_of[int(comp[i])] for i in range(len(area2))]
@@ -255,7 +259,7 @@ def check_contour4(contour, name: str = "contour") -> np.ndarray:
         if not np.issubdtype(c.dtype, np.floating) or not np.all(np.isfinite(c)) or np.any(c != np.round(c)):
             raise ValueError(f"{name} must hold integer grid coordinates; got dtype {c.dtype} with non-integer values")
     c = np.ascontiguousarray(c, dtype=np.int64)
-    steps = np.roll(c, -1, axis=0) - c
+    steps = successor(c) - c
     l1 = np.abs(steps).sum(axis=1)
     if np.any(l1 != 1):
         bad = int(np.flatnonzero(l1 != 1)[0])
@@ -264,7 +268,7 @@ def check_contour4(contour, name: str = "contour") -> np.ndarray:
             f"{name} must be a closed digital 4-curve (unit steps along x or y, closed implicitly); "
             f"found {what} from point {bad} {c[bad].tolist()} to {c[(bad + 1) % len(c)].tolist()}"
         )
-    back = np.all(steps == -np.roll(steps, 1, axis=0), axis=1)
+    back = np.all(steps == -predecessor(steps), axis=1)
     if np.any(back):
         bad = int(np.flatnonzero(back)[0])
         raise ValueError(f"{name} reverses direction at point {bad} {c[bad].tolist()}; not a cell boundary")
@@ -284,24 +288,54 @@ def _crack_contours(cells: np.ndarray):
     return [pts[starts[i]: starts[i + 1]] - 1 for i in range(len(area2))], area2
 
 
+@njit(cache=True, nogil=True)
+def _pair_groups(pa, pb, na, nb):
+    """The connected sets of the bipartite graph whose edges are the pairs ``(pa[i], pb[i])``
+    (nodes ``a`` and ``na + b``), by union-find: the group of each pair, groups numbered in the
+    order of their first pair, and the number of groups."""
+    parent = np.empty(na + nb, np.int64)
+    for i in range(na + nb):
+        parent[i] = i
+    for i in range(len(pa)):
+        r = pa[i]
+        while parent[r] != r:
+            parent[r] = parent[parent[r]]
+            r = parent[r]
+        s = na + pb[i]
+        while parent[s] != s:
+            parent[s] = parent[parent[s]]
+            s = parent[s]
+        if r != s:
+            parent[max(r, s)] = min(r, s)
+    number = np.full(na + nb, -1, np.int64)
+    group = np.empty(len(pa), np.int64)
+    ng = 0
+    for i in range(len(pa)):
+        r = pa[i]
+        while parent[r] != r:
+            r = parent[r]
+        if number[r] < 0:
+            number[r] = ng
+            ng += 1
+        group[i] = number[r]
+    return group, ng
+
+
 def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
     """The overlap groups of two slices' components: ``la``, ``lb`` are their label images (0 the
     background, component ``c`` labelled ``c + 1``; ``na``, ``nb`` components).  Two components
     overlap where both labels are set; a group is a connected set of overlaps.  Returns ``(pairs,
     groups)``: the overlapping ``(a, b)`` pairs (0-based, sorted) and the groups as ``(set of a,
-    set of b)`` in the order of their first pair."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
+    set of b)`` in the order of their first pair.  The groups are the connected sets of the pairs'
+    bipartite graph, found by a compiled union-find (:func:`_pair_groups`)."""
     both = (la > 0) & (lb > 0)
     nbk = np.int64(nb + 1)  # (a, b) label pairs as one sortable key: same order as unique rows
     keys = np.unique(la[both].astype(np.int64) * nbk + lb[both])
     pairs = np.c_[keys // nbk, keys % nbk] - 1
-    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], na + pairs[:, 1])), shape=(na + nb, na + nb))
-    _, glab = connected_components(g, directed=False)
-    groups: dict = {}
-    for a, b in pairs:
-        ga_, gb_ = groups.setdefault(int(glab[a]), (set(), set()))
-        ga_.add(int(a))
-        gb_.add(int(b))
-    return pairs, list(groups.values())
+    group, ng = _pair_groups(np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1]),
+                             np.int64(na), np.int64(nb))
+    groups = [(set(), set()) for _ in range(ng)]
+    for (a, b), g in zip(pairs.tolist(), group.tolist()):
+        groups[g][0].add(a)
+        groups[g][1].add(b)
+    return pairs, groups

@@ -71,8 +71,8 @@ import numpy as np
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
 from .bands.optimal import triangulate_band_optimal
-from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp
-from .geometry import grid_to_xy, shoelace_area, slice_gap
+from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp, slice_components, slice_labels
+from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
 from .measure import triangle_areas
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
@@ -125,7 +125,8 @@ def voxel_topology(mask) -> dict:
     Computed independently of the meshing: the Euler characteristic of the 6-connected voxel
     complex (``skimage.measure.euler_number(connectivity=1)``), object components (6-connected),
     cavities (background components, 26-connected, not touching the padded border).  The boundary
-    has ``components + cavities`` surfaces with total genus ``surfaces - chi``.
+    has ``components + cavities`` surfaces with total genus ``surfaces - chi``.  The reference for
+    :func:`contourmesh.topology.topology`, its compiled twin on the band route.
     """
     from scipy import ndimage
     from skimage.measure import euler_number
@@ -159,8 +160,8 @@ class _Slice:
     def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center):
         from scipy import ndimage
 
-        labels, self.n = ndimage.label(mask2d, structure=_CROSS)
-        self.objects = ndimage.find_objects(labels)
+        # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
+        labels, self.n, self.objects = slice_labels(mask2d)
         # every slice's labels are kept until the joins are made: the smallest dtype that holds them
         small = np.uint8 if self.n < 2**8 else np.uint16 if self.n < 2**16 else None
         self.labels = labels.astype(small) if small is not None else labels
@@ -903,8 +904,6 @@ def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True, resolved=None)
 def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, origin_xy) -> dict:
     """refine="band": the polygons of every component that is not crack-only become refined polygons,
     each guided by its partner below in a band join; crack rings stay (and bound the others)."""
-    from scipy import ndimage
-
     seeds, fixed, below, deepest = {}, {}, {}, {}
     to_xy_center, _ = grid_to_xy(*origin_xy, *spacing_xy)
     for k in occupied:
@@ -914,8 +913,8 @@ def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, 
                 fixed.setdefault(k, []).extend([s.crack_outer[c]] + list(s.crack_holes[c]))
                 continue
             sl = s.objects[c]
-            d = ndimage.distance_transform_edt(np.pad(s.labels[sl] == c + 1, 1))
-            j, i = np.unravel_index(np.argmax(d), d.shape)
+            # the argmax of ndimage.distance_transform_edt of the padded component (compiled)
+            j, i = deepest_pixel(s.labels[sl] == c + 1)
             rings = [(-1, s.outer[c])] + list(enumerate(s.holes[c]))
             seeds.update({(k, c, h): (k, p) for h, p in rings})
             deepest.update({(k, c, h): to_xy_center([[sl[1].start + i - 1, sl[0].start + j - 1]])[0] for h, _ in rings})
@@ -950,13 +949,16 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     ma = A.labels[y0:y1, x0:x1] == a + 1
     mb = B.labels[y0:y1, x0:x1] == b + 1
     o = ma & mb
-    _, no = ndimage.label(o, structure=_CROSS)
+    # components of O and its holes from its runs (compiled; the Euler number counts the holes)
+    _, _, no, holes_o, _ = slice_components(o)
     if no != 1:
         return None
     ha = A.hole_masks[a][1]
     hb = B.hole_masks[b][1]
-    if len(ha) != len(hb):
+    if len(ha) != len(hb) or int(holes_o[0]) != len(ha):
         return None
+    if not ha:
+        return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
     comp_o = np.pad(~o, 1, constant_values=True)
     olab, nol = ndimage.label(comp_o, structure=_SQUARE)
     ext = olab[0, 0]

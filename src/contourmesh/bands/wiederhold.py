@@ -46,6 +46,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..geometry import successor
+
 __all__ = [
     "triangulate_band_wiederhold",
     "wiederhold_edges",
@@ -79,7 +81,7 @@ def _as_polygon3(poly, name: str) -> np.ndarray:
             f"{name} must lie in one plane z = const; found z from {z.min()!r} to {z.max()!r}"
         )
     if len(p) >= 2:
-        nxt = np.roll(p[:, :2], -1, axis=0)
+        nxt = successor(p[:, :2])
         same = np.all(p[:, :2] == nxt, axis=1)
         if np.any(same):
             k = int(np.flatnonzero(same)[0])

@@ -1,0 +1,192 @@
+"""The compiled topology and grouping kernels against their references (scipy / skimage / numpy).
+
+Each kernel replaced a reference computation on the band route for speed only, so each must give
+the reference's answer exactly: the tests draw random volumes, label images and rings, and add
+the shapes where the answers differ from a plain count (cavities, tunnels, touching corners).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from contourmesh.geometry import distinct_rows, predecessor, shoelace_area, successor
+from contourmesh.topology import euler_characteristic, topology
+from contourmesh.tracing import overlap_groups
+from contourmesh.volumes import voxel_topology
+
+
+def _random_volumes(seed, count, top=10):
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        shape = tuple(int(v) for v in rng.integers(1, top, 3))
+        yield rng.random(shape) < rng.uniform(0.05, 0.95)
+
+
+def test_topology_equals_the_reference_on_random_volumes():
+    seen = set()
+    for v in _random_volumes(11, 1500):
+        ref = voxel_topology(v)
+        assert topology(v) == ref, v.shape
+        seen.update(k for k in ("cavities", "genus") if ref[k] > 0)
+        seen.update(["several"] if ref["components"] > 1 else ["sphere"] if ref["surfaces"] == 1 and ref["genus"] == 0 else [])
+    # the draw reaches cavities, handles, several components and single spheres (else it proves little)
+    assert seen == {"cavities", "genus", "several", "sphere"}
+
+
+def test_topology_on_shapes_with_cavities_tunnels_and_corner_contacts():
+    zz, yy, xx = np.mgrid[:16, :16, :16]
+    r2 = (zz - 7.5) ** 2 + (yy - 7.5) ** 2 + (xx - 7.5) ** 2
+    hollow = (r2 < 49) & (r2 > 9)  # a ball with a cavity
+    torus = ((np.hypot(yy - 7.5, xx - 7.5) - 4.5) ** 2 + (zz - 7.5) ** 2) < 4
+    corners = np.zeros((3, 3, 3), dtype=bool)
+    corners[0, 0, 0] = corners[1, 1, 1] = corners[2, 2, 0] = True  # touching at corners only: 3 parts
+    edge_cavity = np.ones((3, 4, 4), dtype=bool)
+    edge_cavity[1, 1:3, 1:3] = False  # a cavity one voxel from the border
+    open_box = edge_cavity.copy()
+    open_box[1, 0, 0] = False  # the cavity still closed: it meets the outside only at a corner
+    for v in (hollow, torus, corners, edge_cavity, open_box, np.zeros((2, 2, 2), bool), np.ones((1, 1, 1), bool)):
+        assert topology(v) == voxel_topology(v)
+    assert topology(hollow)["cavities"] == 1 and topology(torus)["genus"] == 1
+    assert topology(corners)["components"] == 3
+
+
+def test_euler_characteristic_is_skimage_euler_number_with_6_connectivity():
+    from skimage.measure import euler_number
+
+    for v in _random_volumes(5, 300, top=8):
+        assert euler_characteristic(v) == euler_number(np.pad(v, 1), connectivity=1)
+
+
+def test_topology_refuses_a_2d_mask():
+    with pytest.raises(ValueError, match="3D array"):
+        topology(np.ones((3, 3), dtype=bool))
+
+
+def _overlap_groups_reference(la, lb, na, nb):
+    """overlap_groups as it was: the pairs' bipartite graph labelled by scipy."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    both = (la > 0) & (lb > 0)
+    nbk = np.int64(nb + 1)
+    keys = np.unique(la[both].astype(np.int64) * nbk + lb[both])
+    pairs = np.c_[keys // nbk, keys % nbk] - 1
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], na + pairs[:, 1])), shape=(na + nb, na + nb))
+    _, glab = connected_components(g, directed=False)
+    groups: dict = {}
+    for a, b in pairs:
+        ga_, gb_ = groups.setdefault(int(glab[a]), (set(), set()))
+        ga_.add(int(a))
+        gb_.add(int(b))
+    return pairs, list(groups.values())
+
+
+def test_overlap_groups_equal_the_scipy_reference():
+    from scipy import ndimage
+
+    rng = np.random.default_rng(3)
+    several = 0
+    for _ in range(400):
+        shape = tuple(int(v) for v in rng.integers(2, 14, 2))
+        la, na = ndimage.label(rng.random(shape) < rng.uniform(0.2, 0.7))
+        lb, nb = ndimage.label(rng.random(shape) < rng.uniform(0.2, 0.7))
+        pairs, groups = overlap_groups(la, lb, na, nb)
+        ref_pairs, ref_groups = _overlap_groups_reference(la, lb, na, nb)
+        np.testing.assert_array_equal(pairs, ref_pairs)
+        assert groups == ref_groups  # the same sets in the same order
+        several += len(groups) > 1
+    assert several > 100
+
+
+def test_distinct_rows_is_the_length_of_numpy_unique_rows():
+    rng = np.random.default_rng(8)
+    for _ in range(2000):
+        n = int(rng.integers(0, 12))
+        p = rng.integers(-2, 3, (n, 2)) * rng.choice([1.0, 0.5, -0.0])  # repeats, and -0.0 beside 0.0
+        assert distinct_rows(p) == len(np.unique(p, axis=0))
+    assert distinct_rows(np.array([[1, 2], [1, 2], [3, 4]])) == 2  # integer points too
+
+
+def test_shoelace_area_and_ring_neighbours_are_those_of_np_roll():
+    rng = np.random.default_rng(2)
+    for n in (3, 4, 7, 50, 333):
+        p = rng.normal(size=(n, 2)) * 1e3
+        x, y = p[:, 0], p[:, 1]
+        # bit for bit: the same dot products of the same arrays
+        assert shoelace_area(p) == 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+        np.testing.assert_array_equal(successor(p), np.roll(p, -1, axis=0))
+        np.testing.assert_array_equal(predecessor(p), np.roll(p, 1, axis=0))
+
+
+def _meridian_params_reference(par, length, step):
+    """refine._meridian_params as it was: Python loops over numpy arrays."""
+    s = np.sort(np.mod(par, length))
+    keep = [s[0]]
+    for v in s[1:]:
+        if v - keep[-1] >= 0.5 * step:
+            keep.append(v)
+    while len(keep) > 1 and keep[0] + length - keep[-1] < 0.5 * step:
+        keep.pop()
+    out = []
+    k = np.array(keep)
+    gaps = np.diff(np.concatenate([k, [k[0] + length]]))
+    for v, g in zip(k, gaps):
+        out.append(v)
+        if g > 1.5 * step:
+            m = int(round(g / step))
+            out.extend(v + g * np.arange(1, m) / m)
+    return np.mod(np.array(out), length)
+
+
+def test_meridian_params_compiled_equal_the_python_loops_bit_for_bit():
+    from contourmesh.refine import _meridian_params
+
+    rng = np.random.default_rng(4)
+    filled = 0
+    for _ in range(1500):
+        length = float(rng.uniform(5, 400))
+        step = float(rng.uniform(0.3, 4.0))
+        par = rng.uniform(-length, 2 * length, int(rng.integers(3, 60)))
+        if rng.random() < 0.3:  # gaps of exactly k + 1/2 steps: the rounding's ties
+            par = np.sort(rng.integers(0, 40, len(par)) * (step / 2)) % length
+        got, ref = _meridian_params(par, length, step), _meridian_params_reference(par, length, step)
+        np.testing.assert_array_equal(got, ref)
+        filled += len(got) > len(np.unique(np.mod(par, length)))
+    assert filled > 300  # gaps were filled, not only merged
+
+
+def test_slice_labels_equal_ndimage_label_and_find_objects():
+    from scipy import ndimage
+
+    from contourmesh.fastpath import slice_labels
+
+    cross = ndimage.generate_binary_structure(2, 1)
+    rng = np.random.default_rng(6)
+    for _ in range(1500):
+        shape = tuple(int(v) for v in rng.integers(1, 16, 2))
+        m = rng.random(shape) < rng.uniform(0.1, 0.9)
+        if rng.random() < 0.2:
+            m = m[:, ::2]  # not contiguous
+        labels, n, objects = slice_labels(m)
+        ref, ref_n = ndimage.label(m, structure=cross)
+        assert n == ref_n and labels.dtype == ref.dtype
+        np.testing.assert_array_equal(labels, ref)
+        assert objects == ndimage.find_objects(ref)
+
+
+def test_deepest_pixel_is_the_argmax_of_scipy_distance_transform():
+    from scipy import ndimage
+
+    from contourmesh.geometry import deepest_pixel
+
+    rng = np.random.default_rng(9)
+    for _ in range(2000):
+        shape = tuple(int(v) for v in rng.integers(1, 30, 2))
+        m = rng.random(shape) < rng.uniform(0.3, 1.0)
+        if rng.random() < 0.4:  # discs and ellipses: many equal distances (ties go to the first)
+            yy, xx = np.mgrid[: shape[0], : shape[1]]
+            m = ((yy - shape[0] / 2) / rng.uniform(0.5, 2)) ** 2 + (xx - shape[1] / 2) ** 2 < rng.uniform(1, 200)
+        d = ndimage.distance_transform_edt(np.pad(m, 1))
+        assert deepest_pixel(m) == tuple(int(v) for v in np.unravel_index(np.argmax(d), d.shape))
+
