@@ -89,7 +89,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .geometry import distinct_rows, predecessor, successor
+from .geometry import distinct_rows
 from .polygons import polygonize
 from .stacks import check_stack
 from .types import ContourStack, Mesh, Section, shoelace_area
@@ -517,7 +517,6 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out)
         out[q] = 0.0
     for j in range(b0, b1 + 1):
         wy = j * ay - y
-        ey = math.exp(-(wy * wy) / (2.0 * s2))
         r0 = 0.0  # sum over the row of G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2
         r1 = 0.0
         r2 = 0.0
@@ -541,6 +540,7 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out)
             p0 += e * mom[2, jj, ii]
         if r0 == 0.0:
             continue
+        ey = math.exp(-(wy * wy) / (2.0 * s2))  # (only for rows that meet the solid)
         out[0] += ey * r0
         out[1] += ey * r1
         out[2] += ey * r0 * wy
@@ -578,7 +578,6 @@ def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
     fy = 0.0
     for j in range(b0, b1 + 1):
         wy = j * ay - y
-        ey = math.exp(-(wy * wy) / (2.0 * s2))
         r0 = 0.0
         r1 = 0.0
         jj = j - j0
@@ -592,6 +591,7 @@ def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
             r1 += ew * m0
         if r0 == 0.0:
             continue
+        ey = math.exp(-(wy * wy) / (2.0 * s2))  # (only for rows that meet the solid)
         f += ey * r0
         fx += ey * r1
         fy += ey * r0 * wy
@@ -971,25 +971,38 @@ def _chord_push(ring_xy: np.ndarray, nz2=None) -> np.ndarray:
     push ``kappa L^2 / 24`` holds where the surface is vertical and doubles where it is flat
     (where what counts is the polygon's enclosed area, short by ``L^2 / (6 rho^2)``).
     """
-    p = ring_xy
-    a = predecessor(p)
-    c = successor(p)
-    u = p - a
-    v = c - p
-    w = c - a
-    lu = np.hypot(u[:, 0], u[:, 1])
-    lv = np.hypot(v[:, 0], v[:, 1])
-    lw = np.hypot(w[:, 0], w[:, 1])
-    cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]  # > 0: left turn = convex for U on the left
-    den = lu * lv * lw
-    kappa = np.where(den > 0, 2.0 * cross / np.where(den > 0, den, 1.0), 0.0)
-    push = kappa * 0.5 * (lu**2 + lv**2) / 24.0
-    if nz2 is not None:
-        push = push * (1.0 + 3.0 * nz2) / (1.0 + nz2)
-    # outward normal (U on the left, so outward is to the right of the travel direction)
-    t = w / np.where(lw > 0, lw, 1.0)[:, None]
-    nrm = np.stack([t[:, 1], -t[:, 0]], axis=1)
-    return p + push[:, None] * nrm
+    p = np.ascontiguousarray(ring_xy, dtype=np.float64)
+    out = np.empty_like(p)
+    _chord_push_kernel(p, np.zeros(0) if nz2 is None else np.ascontiguousarray(nz2, dtype=np.float64),
+                       nz2 is not None, out)
+    return out
+
+
+@njit(cache=True)
+def _chord_push_kernel(p, nz2, with_nz, out):
+    """:func:`_chord_push` vertex by vertex, the same operations in the same order as its former
+    numpy expressions (so the same values)."""
+    n = p.shape[0]
+    for i in range(n):
+        a = i - 1 if i > 0 else n - 1  # the predecessor and successor round the ring
+        c = i + 1 if i + 1 < n else 0
+        ux, uy = p[i, 0] - p[a, 0], p[i, 1] - p[a, 1]
+        vx, vy = p[c, 0] - p[i, 0], p[c, 1] - p[i, 1]
+        wx, wy = p[c, 0] - p[a, 0], p[c, 1] - p[a, 1]
+        lu = math.hypot(ux, uy)
+        lv = math.hypot(vx, vy)
+        lw = math.hypot(wx, wy)
+        cross = ux * vy - uy * vx  # > 0: left turn = convex for U on the left
+        den = lu * lv * lw
+        kappa = 2.0 * cross / den if den > 0 else 0.0
+        push = kappa * 0.5 * (lu * lu + lv * lv) / 24.0
+        if with_nz:
+            push = push * (1.0 + 3.0 * nz2[i]) / (1.0 + nz2[i])
+        # outward normal (U on the left, so outward is to the right of the travel direction)
+        d = lw if lw > 0 else 1.0
+        tx, ty = wx / d, wy / d
+        out[i, 0] = p[i, 0] + push * ty
+        out[i, 1] = p[i, 1] + push * -tx
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1160,22 +1173,41 @@ def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False,
     # a vertex that one of the two searches left where it was (no level within reach) keeps the
     # coarse decision; elsewhere the extrapolated estimate weighs in where the two scales disagree
     # (also where the band clamp put the wide place back on the seed: that search did find the level)
-    moved = found & found_fine
-    gap = np.hypot(*(near - out).T)
-    w = np.clip((gap - FINE_TOLERANCE[0]) / (FINE_TOLERANCE[1] - FINE_TOLERANCE[0]), 0.0, 1.0) * moved
-    if counts is not None:
-        counts[0] += int(np.count_nonzero(w > 0.5))
-        counts[1] += len(w)
-    if not np.any(w > 0):
-        return out, clamped
     # the fine place keeps a residual bias of order fine^4 (the curvature correction removes the
     # sigma^2 term): with both places x(s) = x0 + c s^4, x0 = x_fine + rho (x_fine - x_coarse)
     r4 = (float(fine) / sigma) ** 4
-    ext = near + (r4 / (1.0 - r4)) * (near - out)
-    target = np.ascontiguousarray(out + w[:, None] * (ext - out))
+    target = np.empty_like(xy)
+    n_fine, n_any = _two_scale_targets(out, near, found, found_fine, FINE_TOLERANCE[0],
+                                       FINE_TOLERANCE[1] - FINE_TOLERANCE[0], r4 / (1.0 - r4), target)
+    if counts is not None:
+        counts[0] += int(n_fine)
+        counts[1] += len(xy)
+    if not n_any:
+        return out, clamped
     res = np.empty_like(xy)
-    _clamp_to_band(pts, np.ascontiguousarray(out), target, np.ascontiguousarray(kz, dtype=np.int64), res, grid)
+    _clamp_to_band(pts, out, target, np.ascontiguousarray(kz, dtype=np.int64), res, grid)
     return res, clamped
+
+
+@njit(cache=True)
+def _two_scale_targets(out, near, found, found_fine, lo, span, rho, target):
+    """Step 3b's weights and targets (the numpy expressions of :func:`_surface_points`, term by
+    term): ``w = clip((|near - out| - lo) / span, 0, 1)`` where both searches found the level (0
+    elsewhere), ``target = out + w (ext - out)`` with ``ext = near + rho (near - out)``.  Returns the
+    number of weights above 1/2 and whether any is positive."""
+    n_fine = 0
+    n_any = False
+    for n in range(out.shape[0]):
+        gap = math.hypot(near[n, 0] - out[n, 0], near[n, 1] - out[n, 1])
+        w = min(max((gap - lo) / span, 0.0), 1.0) * (1.0 if (found[n] and found_fine[n]) else 0.0)
+        if w > 0.5:
+            n_fine += 1
+        if w > 0.0:
+            n_any = True
+        for c in range(2):
+            ext = near[n, c] + rho * (near[n, c] - out[n, c])
+            target[n, c] = out[n, c] + w * (ext - out[n, c])
+    return n_fine, n_any
 
 
 def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi: float = 3.5) -> float:
