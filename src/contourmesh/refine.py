@@ -498,6 +498,80 @@ def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
 
 
 @njit(cache=True)
+def _z_runs(pts):
+    """``runs[n, j, i]``: how many slices from ``n`` up hold the value of ``pts[n, j, i]`` at ``(j, i)``
+    (int32; 1 where the next slice differs).  :func:`_slice_moments_runs` reads a whole column's
+    sums from it."""
+    nz, ny, nx = pts.shape
+    runs = np.empty((nz, ny, nx), np.int32)
+    for j in range(ny):
+        for i in range(nx):
+            runs[nz - 1, j, i] = 1
+    for n in range(nz - 2, -1, -1):
+        for j in range(ny):
+            for i in range(nx):
+                runs[n, j, i] = runs[n + 1, j, i] + 1 if pts[n, j, i] == pts[n + 1, j, i] else 1
+    return runs
+
+
+@njit(cache=True)
+def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
+    """:func:`_slice_moments` with the column runs of :func:`_z_runs`: the same images, bit for bit,
+    on any grid (oblong pixels, unevenly spaced slices).
+
+    The weights ``c_n G(w_n) w_n^p`` are computed as there; each image point sums its column's
+    weights in slice order, starting from 0.  A column that is all solid over the slices within
+    ``4 sigma`` gets the sums of all the weights, added in that order once for the slice (the same
+    additions, so the same values), an empty one keeps 0, and only the columns that cross the
+    surface are summed voxel by voxel."""
+    nz = pts.shape[0]
+    dz, zpos = grid[2], grid[3]
+    rad = 4.0 * sigma
+    k0, k1, zc = _zwindow(grid, float(k), rad, nz)
+    s2 = sigma * sigma
+    nk = k1 - k0 + 1
+    e = np.empty(nk)
+    ew = np.empty(nk)
+    eww = np.empty(nk)
+    f0 = 0.0
+    f1 = 0.0
+    f2 = 0.0
+    for n in range(k0, k1 + 1):
+        w = (zpos[n] - zc) * dz
+        e[n - k0] = math.exp(-(w * w) / (2.0 * s2)) * _zweight(grid, n)
+        ew[n - k0] = e[n - k0] * w
+        eww[n - k0] = ew[n - k0] * w
+        f0 += e[n - k0]
+        f1 += ew[n - k0]
+        f2 += eww[n - k0]
+    mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
+    for j in range(j0, j1 + 1):
+        for i in range(i0, i1 + 1):
+            if runs[k0, j, i] >= nk:  # one value over the whole column
+                if pts[k0, j, i]:
+                    mom[0, j - j0, i - i0] = f0
+                    mom[1, j - j0, i - i0] = f1
+                    mom[2, j - j0, i - i0] = f2
+                continue
+            a0 = 0.0
+            a1 = 0.0
+            a2 = 0.0
+            n = k0
+            while n <= k1:
+                r = runs[n, j, i]
+                if pts[n, j, i]:
+                    for q in range(n, min(n + r, k1 + 1)):
+                        a0 += e[q - k0]
+                        a1 += ew[q - k0]
+                        a2 += eww[q - k0]
+                n += r
+            mom[0, j - j0, i - i0] = a0
+            mom[1, j - j0, i - i0] = a1
+            mom[2, j - j0, i - i0] = a2
+    return mom
+
+
+@njit(cache=True)
 def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out):
     """:func:`_field` at ``(x, y)`` of the slice whose :func:`_slice_moments` are ``mom`` (taken
     over the box from ``(i0, j0)``, which holds the window ``4 sigma`` around the point; ``nx, ny``
@@ -601,12 +675,13 @@ def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
 
 
 @njit(cache=True)
-def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box):
+def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box, runs=None):
     """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
     point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach`` (lengths in units of ``h``): ``mom``
     itself when its box (``box = (k, i0, i1, j0, j1)``, pixel indices, ``k = -1``: none) holds that
     already, else new images over that box widened by ``margin`` more (so the next searches of the
-    slice find them), ``box`` updated in place.  The images at a lattice point do not depend on the box."""
+    slice find them), ``box`` updated in place.  The images at a lattice point do not depend on the box.
+    ``runs`` (:func:`_z_runs` of ``pts``, optional) makes them faster, not different."""
     nz, ny, nx = pts.shape
     ax, ay = grid[0], grid[1]
     i0 = min(max(int(math.floor((xlo - reach) / ax)), 0), nx - 1)
@@ -620,7 +695,9 @@ def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box
     box[2] = max(min(int(math.ceil((xhi + reach + margin) / ax)), nx - 1), box[1])
     box[3] = min(max(int(math.floor((ylo - reach - margin) / ay)), 0), ny - 1)
     box[4] = max(min(int(math.ceil((yhi + reach + margin) / ay)), ny - 1), box[3])
-    return _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
+    if runs is None:
+        return _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
+    return _slice_moments_runs(pts, runs, k, sigma, grid, box[1], box[2], box[3], box[4])
 
 
 def _no_images():
@@ -628,13 +705,15 @@ def _no_images():
     return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64)
 
 
-def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, margin):
-    """:func:`_fields_kernel`; ``grid`` may be a slice spacing (square pixels, even slices)."""
-    return _fields_kernel(pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, box, margin)
+def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, margin, runs=None):
+    """:func:`_fields_kernel`; ``grid`` may be a slice spacing (square pixels, even slices); ``runs``:
+    as in :func:`_images_for`."""
+    args = (pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, box, margin)
+    return _fields_kernel(*args) if runs is None else _fields_kernel(*args, runs)
 
 
 @njit(cache=True)
-def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin):
+def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin, runs=None):
     """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
     (:func:`_images_for`, reused from ``mom, box`` where they cover the points' windows):
     ``(out (n, 10), mom)``."""
@@ -644,7 +723,7 @@ def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin):
     if n == 0:
         return out, mom
     mom = _images_for(pts, k, sigma, grid, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]), np.max(xy[:, 1]),
-                      4.0 * sigma + 1.0, margin, mom, box)
+                      4.0 * sigma + 1.0, margin, mom, box, runs)
     norm, za, zb = _slice_norm(grid, sigma, _lattice_norm(sigma, grid), float(k), nz)
     buf = np.empty(10)
     for m in range(n):
@@ -839,9 +918,10 @@ def _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict,
 
 
 @njit(cache=True)
-def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, box, margin):
+def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, box, margin, runs=None):
     """:func:`_move_to_surface` with the slice images ``mom, box`` of an earlier search (see
-    :func:`_images_for`; ``margin``: how much wider new images are made); ``(clamped, mom)``."""
+    :func:`_images_for`; ``margin``: how much wider new images are made; ``runs``: as there);
+    ``(clamped, mom)``."""
     norm0 = _lattice_norm(sigma, grid)
     norm, za, zb = norm0, 0.0, 0.0
     ax, ay = grid[0], grid[1]
@@ -864,7 +944,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
                 if kz[m] == k:
                     xlo, xhi = min(xlo, xy[m, 0]), max(xhi, xy[m, 0])
                     ylo, yhi = min(ylo, xy[m, 1]), max(yhi, xy[m, 1])
-            mom = _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box)
+            mom = _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box, runs)
             i0, j0 = box[1], box[3]
             norm, za, zb = _slice_norm(grid, sigma, norm0, float(k), nz)
             cur = k
@@ -1144,12 +1224,14 @@ def _is_simple(ring):
 
 def _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found) -> int:
     """:func:`_move_to_surface` keeping the slice images in ``images`` (``width -> (mom, box)``, see
-    :func:`_images_for`) for the next searches and field evaluations of the slice."""
+    :func:`_images_for`) for the next searches and field evaluations of the slice; ``images["runs"]``,
+    where set, is :func:`_z_runs` of ``pts`` (faster images, the same values)."""
     if images is None:
         return _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found)
     mom, box = images.get(float(sigma)) or _no_images()
-    clamped, mom = _move_with_images(pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, box,
-                                     IMAGE_MARGIN * max_move + 2.0)
+    args = (pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, box, IMAGE_MARGIN * max_move + 2.0)
+    runs = images.get("runs")
+    clamped, mom = _move_with_images(*args) if runs is None else _move_with_images(*args, runs)
     images[float(sigma)] = (mom, box)
     return clamped
 
@@ -1314,7 +1396,8 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
         ``[fine, seen]``: accumulates the vertices that took the fine estimate.
     images : dict, optional
         Slice images kept between the searches of slice ``kz`` (pass the same dict for the rings of
-        one slice; a new one per slice).  The results do not depend on it.
+        one slice; a new one per slice), and under ``"runs"`` the :func:`_z_runs` of ``pts`` that
+        make new images faster.  The results do not depend on it.
 
     Returns
     -------
@@ -1352,7 +1435,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
     if chord:
         mom, box = images.get(float(sigma)) or _no_images()
         fld, mom = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid, mom, box,
-                                    IMAGE_MARGIN * max_move + 2.0)
+                                    IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
         images[float(sigma)] = (mom, box)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
@@ -1425,6 +1508,7 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     counts = [0, 0]
     _check_density(density)
     pts, x0, y0, zidx, grid = _stack_grid(stack)
+    runs = _z_runs(pts)  # the columns' runs, for the slice images (the same images, faster)
     off = np.array([x0, y0], dtype=np.float64)
     scale = np.array([grid[0], grid[1]])  # pixel indices -> units of the longer pixel side
     opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move,
@@ -1436,7 +1520,7 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
         kk = int(zidx[k])
         finals = []
         q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
-        images = {}  # the section's slice images, shared by its contours
+        images = {"runs": runs}  # the section's slice images, shared by its contours
         for c in sec.contours:
             c = np.asarray(c, dtype=np.int64)
             seed = np.asarray(polygonize(c, polygon), dtype=np.float64) if len(c) >= 3 else c.astype(np.float64)
@@ -1587,6 +1671,7 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     ox, oy = (float(v) for v in origin_xy)
     pad = 6
     pts = np.pad(mask, pad)
+    runs = _z_runs(pts)  # the columns' runs, for the slice images (the same images, faster)
     grid, h = _grid_of_heights(dx, dy, zs, pts.shape[0], pad)
     ax, ay = grid[0], grid[1]
     # the mean slice spacing (units of h) for the automatic width's volume (it cancels in R = 3 V / A)
@@ -1620,7 +1705,7 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     for k in sorted(by_slice):
         keys = by_slice[k]
         rings, starts = [], []
-        images = {}  # the slice's images, shared by its rings
+        images = {"runs": runs}  # the slice's images, shared by its rings
         for key in keys:
             seed = loc[key][1]
             guide = finals.get(below.get(key)) if meridians else None
