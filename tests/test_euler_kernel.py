@@ -190,3 +190,92 @@ def test_deepest_pixel_is_the_argmax_of_scipy_distance_transform():
         d = ndimage.distance_transform_edt(np.pad(m, 1))
         assert deepest_pixel(m) == tuple(int(v) for v in np.unravel_index(np.argmax(d), d.shape))
 
+
+def _chord_push_reference(p, nz2=None):
+    """refine._chord_push as it was: numpy expressions over the whole ring."""
+    a = np.roll(p, 1, axis=0)
+    c = np.roll(p, -1, axis=0)
+    u, v, w = p - a, c - p, c - a
+    lu, lv, lw = np.hypot(u[:, 0], u[:, 1]), np.hypot(v[:, 0], v[:, 1]), np.hypot(w[:, 0], w[:, 1])
+    cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    den = lu * lv * lw
+    kappa = np.where(den > 0, 2.0 * cross / np.where(den > 0, den, 1.0), 0.0)
+    push = kappa * 0.5 * (lu**2 + lv**2) / 24.0
+    if nz2 is not None:
+        push = push * (1.0 + 3.0 * nz2) / (1.0 + nz2)
+    t = w / np.where(lw > 0, lw, 1.0)[:, None]
+    return p + push[:, None] * np.stack([t[:, 1], -t[:, 0]], axis=1)
+
+
+def test_chord_push_compiled_equals_the_numpy_expressions_bit_for_bit():
+    from contourmesh.refine import _chord_push
+
+    rng = np.random.default_rng(12)
+    for _ in range(500):
+        n = int(rng.integers(3, 80))
+        t = np.sort(rng.uniform(0, 2 * np.pi, n))
+        p = np.c_[rng.uniform(5, 60) * np.cos(t), rng.uniform(5, 60) * np.sin(t)] + rng.normal(0, 0.3, (n, 2))
+        if rng.random() < 0.2:
+            p[1] = p[0]  # a repeated point: zero-length edges
+        nz2 = rng.uniform(0, 1, n) if rng.random() < 0.7 else None
+        np.testing.assert_array_equal(_chord_push(p, nz2), _chord_push_reference(p, nz2))
+
+
+def test_two_scale_targets_equal_the_numpy_expressions_bit_for_bit():
+    from contourmesh.refine import FINE_TOLERANCE, _two_scale_targets
+
+    rng = np.random.default_rng(13)
+    for _ in range(300):
+        n = int(rng.integers(1, 60))
+        out = rng.normal(0, 20, (n, 2))
+        near = out + rng.normal(0, 0.2, (n, 2))
+        found, found_fine = rng.random(n) < 0.9, rng.random(n) < 0.9
+        r4 = (0.7 * rng.uniform(0.9, 1.1)) ** 4
+        gap = np.hypot(*(near - out).T)
+        w = np.clip((gap - FINE_TOLERANCE[0]) / (FINE_TOLERANCE[1] - FINE_TOLERANCE[0]), 0.0, 1.0) * (found & found_fine)
+        ext = near + (r4 / (1.0 - r4)) * (near - out)
+        target = np.empty_like(out)
+        n_fine, n_any = _two_scale_targets(out, near, found, found_fine, FINE_TOLERANCE[0],
+                                           FINE_TOLERANCE[1] - FINE_TOLERANCE[0], r4 / (1.0 - r4), target)
+        assert n_fine == np.count_nonzero(w > 0.5) and n_any == bool(np.any(w > 0))
+        np.testing.assert_array_equal(target, out + w[:, None] * (ext - out))
+
+
+
+def _grid_record(rng, nz, kind):
+    """A band-refinement grid record: square pixels on even slices, oblong pixels, or oblong pixels on
+    unevenly spaced slices (slab weights)."""
+    from contourmesh.refine import _make_grid
+
+    if kind == "square":
+        return _make_grid(1.0, 1.0, nz, dz=float(rng.choice([1.0, 0.5, 1.7])))[0]
+    pixel = (0.617, 0.667) if rng.random() < 0.5 else (0.9, 0.35)
+    if kind == "oblong":
+        return _make_grid(*pixel, nz, dz=float(rng.uniform(0.4, 1.8)))[0]
+    pad = min(2, (nz - 2) // 2)
+    heights = np.cumsum(rng.uniform(0.3, 1.6, nz - 2 * pad))
+    return _make_grid(*pixel, nz, zs=heights, pad=pad)[0]
+
+
+@pytest.mark.parametrize("kind", ["square", "oblong", "uneven"])
+def test_slice_moments_from_column_runs_equal_the_voxel_sums_bit_for_bit(kind):
+    from scipy.ndimage import gaussian_filter
+
+    from contourmesh.refine import _slice_moments, _slice_moments_runs, _z_runs
+
+    rng = np.random.default_rng(14)
+    for t in range(60):
+        shape = tuple(int(v) for v in rng.integers(4, 30, 3))
+        pts = gaussian_filter(rng.normal(size=shape), rng.uniform(0.5, 3)) > rng.uniform(-0.3, 0.3)
+        if t % 5 == 0:
+            pts[:] = t % 2 == 0  # all solid or all empty columns
+        runs = _z_runs(pts)
+        nz, ny, nx = shape
+        grid = _grid_record(rng, nz, kind)
+        for _ in range(5):
+            k = int(rng.integers(0, nz))
+            i0, j0 = int(rng.integers(0, nx)), int(rng.integers(0, ny))
+            i1, j1 = int(rng.integers(i0, nx)), int(rng.integers(j0, ny))
+            sigma = float(rng.uniform(0.7, 3.5))
+            np.testing.assert_array_equal(_slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1),
+                                          _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1))

@@ -457,3 +457,40 @@ def test_searches_sharing_slice_images_give_the_same_places():
             kept, n2 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, shared)
             assert np.array_equal(alone, kept) and n1 == n2
         assert set(shared) == {2.6, 1.8} and all(box[0] == k for _, box in shared.values())
+
+
+@pytest.mark.parametrize("pixel, uneven", [((1.0, 1.0), False), ((0.667, 0.617), False), ((0.617, 0.667), True)])
+def test_searches_with_column_runs_give_the_same_places_bit_for_bit(pixel, uneven):
+    """Slice images read from the columns' runs (``images["runs"]``) change no search, no field and no
+    refined ring, on square or oblong pixels and on evenly or unevenly spaced slices."""
+    pts = _lumpy_points()
+    nz = pts.shape[0]
+    if uneven:
+        heights = np.cumsum(np.random.default_rng(5).uniform(0.5, 1.5, nz))
+        grid, _ = R._make_grid(*pixel, nz, zs=heights[2:-2], pad=2)
+    else:
+        grid, _ = R._make_grid(*pixel, nz, dz=1.3)
+    runs = R._z_runs(pts)
+    rng = np.random.default_rng(9)
+    ang = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    rings = [np.c_[13.2 * grid[0] + r * np.cos(ang), 14.6 * grid[1] + 1.1 * r * np.sin(ang)]
+             + rng.normal(0, 0.4, (40, 2)) for r in (6.0, 7.5, 2.5)]
+    plain, fast = {}, {"runs": runs}
+    moved = 0.0
+    for k in (7, 11, 15):
+        kz = np.full(40, k, dtype=np.int64)
+        for ring in rings:
+            a, n1 = R._surface_points(pts, ring, kz, 2.6, grid, True, 3.0, True, 1.8, None, plain)
+            b, n2 = R._surface_points(pts, ring, kz, 2.6, grid, True, 3.0, True, 1.8, None, fast)
+            assert np.array_equal(a, b) and n1 == n2
+            moved = max(moved, float(np.abs(a - ring).max()))
+            fa, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0)
+            fb, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0, runs)
+            assert np.array_equal(fa, fb) and fa[:, 0].min() > 0.0
+            ra, ca = R.refine_ring(pts, ring, k, 2.6, grid, images={})
+            rb, cb = R.refine_ring(pts, ring, k, 2.6, grid, images={"runs": runs})
+            assert np.array_equal(ra, rb) and ca == cb
+        assert plain.keys() == fast.keys() - {"runs"}
+        for key in plain:
+            assert np.array_equal(plain[key][0], fast[key][0]) and np.array_equal(plain[key][1], fast[key][1])
+    assert moved > 1.0  # the searches did move vertices

@@ -89,7 +89,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .geometry import distinct_rows, predecessor, successor
+from .geometry import distinct_rows
 from .polygons import polygonize
 from .stacks import check_stack
 from .types import ContourStack, Mesh, Section, shoelace_area
@@ -498,6 +498,80 @@ def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
 
 
 @njit(cache=True)
+def _z_runs(pts):
+    """``runs[n, j, i]``: how many slices from ``n`` up hold the value of ``pts[n, j, i]`` at ``(j, i)``
+    (int32; 1 where the next slice differs).  :func:`_slice_moments_runs` reads a whole column's
+    sums from it."""
+    nz, ny, nx = pts.shape
+    runs = np.empty((nz, ny, nx), np.int32)
+    for j in range(ny):
+        for i in range(nx):
+            runs[nz - 1, j, i] = 1
+    for n in range(nz - 2, -1, -1):
+        for j in range(ny):
+            for i in range(nx):
+                runs[n, j, i] = runs[n + 1, j, i] + 1 if pts[n, j, i] == pts[n + 1, j, i] else 1
+    return runs
+
+
+@njit(cache=True)
+def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
+    """:func:`_slice_moments` with the column runs of :func:`_z_runs`: the same images, bit for bit,
+    on any grid (oblong pixels, unevenly spaced slices).
+
+    The weights ``c_n G(w_n) w_n^p`` are computed as there; each image point sums its column's
+    weights in slice order, starting from 0.  A column that is all solid over the slices within
+    ``4 sigma`` gets the sums of all the weights, added in that order once for the slice (the same
+    additions, so the same values), an empty one keeps 0, and only the columns that cross the
+    surface are summed voxel by voxel."""
+    nz = pts.shape[0]
+    dz, zpos = grid[2], grid[3]
+    rad = 4.0 * sigma
+    k0, k1, zc = _zwindow(grid, float(k), rad, nz)
+    s2 = sigma * sigma
+    nk = k1 - k0 + 1
+    e = np.empty(nk)
+    ew = np.empty(nk)
+    eww = np.empty(nk)
+    f0 = 0.0
+    f1 = 0.0
+    f2 = 0.0
+    for n in range(k0, k1 + 1):
+        w = (zpos[n] - zc) * dz
+        e[n - k0] = math.exp(-(w * w) / (2.0 * s2)) * _zweight(grid, n)
+        ew[n - k0] = e[n - k0] * w
+        eww[n - k0] = ew[n - k0] * w
+        f0 += e[n - k0]
+        f1 += ew[n - k0]
+        f2 += eww[n - k0]
+    mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
+    for j in range(j0, j1 + 1):
+        for i in range(i0, i1 + 1):
+            if runs[k0, j, i] >= nk:  # one value over the whole column
+                if pts[k0, j, i]:
+                    mom[0, j - j0, i - i0] = f0
+                    mom[1, j - j0, i - i0] = f1
+                    mom[2, j - j0, i - i0] = f2
+                continue
+            a0 = 0.0
+            a1 = 0.0
+            a2 = 0.0
+            n = k0
+            while n <= k1:
+                r = runs[n, j, i]
+                if pts[n, j, i]:
+                    for q in range(n, min(n + r, k1 + 1)):
+                        a0 += e[q - k0]
+                        a1 += ew[q - k0]
+                        a2 += eww[q - k0]
+                n += r
+            mom[0, j - j0, i - i0] = a0
+            mom[1, j - j0, i - i0] = a1
+            mom[2, j - j0, i - i0] = a2
+    return mom
+
+
+@njit(cache=True)
 def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out):
     """:func:`_field` at ``(x, y)`` of the slice whose :func:`_slice_moments` are ``mom`` (taken
     over the box from ``(i0, j0)``, which holds the window ``4 sigma`` around the point; ``nx, ny``
@@ -517,7 +591,6 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out)
         out[q] = 0.0
     for j in range(b0, b1 + 1):
         wy = j * ay - y
-        ey = math.exp(-(wy * wy) / (2.0 * s2))
         r0 = 0.0  # sum over the row of G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2
         r1 = 0.0
         r2 = 0.0
@@ -541,6 +614,7 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out)
             p0 += e * mom[2, jj, ii]
         if r0 == 0.0:
             continue
+        ey = math.exp(-(wy * wy) / (2.0 * s2))  # (only for rows that meet the solid)
         out[0] += ey * r0
         out[1] += ey * r1
         out[2] += ey * r0 * wy
@@ -578,7 +652,6 @@ def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
     fy = 0.0
     for j in range(b0, b1 + 1):
         wy = j * ay - y
-        ey = math.exp(-(wy * wy) / (2.0 * s2))
         r0 = 0.0
         r1 = 0.0
         jj = j - j0
@@ -592,6 +665,7 @@ def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
             r1 += ew * m0
         if r0 == 0.0:
             continue
+        ey = math.exp(-(wy * wy) / (2.0 * s2))  # (only for rows that meet the solid)
         f += ey * r0
         fx += ey * r1
         fy += ey * r0 * wy
@@ -601,12 +675,13 @@ def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
 
 
 @njit(cache=True)
-def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box):
+def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box, runs=None):
     """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
     point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach`` (lengths in units of ``h``): ``mom``
     itself when its box (``box = (k, i0, i1, j0, j1)``, pixel indices, ``k = -1``: none) holds that
     already, else new images over that box widened by ``margin`` more (so the next searches of the
-    slice find them), ``box`` updated in place.  The images at a lattice point do not depend on the box."""
+    slice find them), ``box`` updated in place.  The images at a lattice point do not depend on the box.
+    ``runs`` (:func:`_z_runs` of ``pts``, optional) makes them faster, not different."""
     nz, ny, nx = pts.shape
     ax, ay = grid[0], grid[1]
     i0 = min(max(int(math.floor((xlo - reach) / ax)), 0), nx - 1)
@@ -620,7 +695,9 @@ def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box
     box[2] = max(min(int(math.ceil((xhi + reach + margin) / ax)), nx - 1), box[1])
     box[3] = min(max(int(math.floor((ylo - reach - margin) / ay)), 0), ny - 1)
     box[4] = max(min(int(math.ceil((yhi + reach + margin) / ay)), ny - 1), box[3])
-    return _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
+    if runs is None:
+        return _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
+    return _slice_moments_runs(pts, runs, k, sigma, grid, box[1], box[2], box[3], box[4])
 
 
 def _no_images():
@@ -628,13 +705,15 @@ def _no_images():
     return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64)
 
 
-def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, margin):
-    """:func:`_fields_kernel`; ``grid`` may be a slice spacing (square pixels, even slices)."""
-    return _fields_kernel(pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, box, margin)
+def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, margin, runs=None):
+    """:func:`_fields_kernel`; ``grid`` may be a slice spacing (square pixels, even slices); ``runs``:
+    as in :func:`_images_for`."""
+    args = (pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, box, margin)
+    return _fields_kernel(*args) if runs is None else _fields_kernel(*args, runs)
 
 
 @njit(cache=True)
-def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin):
+def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin, runs=None):
     """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
     (:func:`_images_for`, reused from ``mom, box`` where they cover the points' windows):
     ``(out (n, 10), mom)``."""
@@ -644,7 +723,7 @@ def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin):
     if n == 0:
         return out, mom
     mom = _images_for(pts, k, sigma, grid, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]), np.max(xy[:, 1]),
-                      4.0 * sigma + 1.0, margin, mom, box)
+                      4.0 * sigma + 1.0, margin, mom, box, runs)
     norm, za, zb = _slice_norm(grid, sigma, _lattice_norm(sigma, grid), float(k), nz)
     buf = np.empty(10)
     for m in range(n):
@@ -839,9 +918,10 @@ def _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict,
 
 
 @njit(cache=True)
-def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, box, margin):
+def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, box, margin, runs=None):
     """:func:`_move_to_surface` with the slice images ``mom, box`` of an earlier search (see
-    :func:`_images_for`; ``margin``: how much wider new images are made); ``(clamped, mom)``."""
+    :func:`_images_for`; ``margin``: how much wider new images are made; ``runs``: as there);
+    ``(clamped, mom)``."""
     norm0 = _lattice_norm(sigma, grid)
     norm, za, zb = norm0, 0.0, 0.0
     ax, ay = grid[0], grid[1]
@@ -864,7 +944,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
                 if kz[m] == k:
                     xlo, xhi = min(xlo, xy[m, 0]), max(xhi, xy[m, 0])
                     ylo, yhi = min(ylo, xy[m, 1]), max(yhi, xy[m, 1])
-            mom = _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box)
+            mom = _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box, runs)
             i0, j0 = box[1], box[3]
             norm, za, zb = _slice_norm(grid, sigma, norm0, float(k), nz)
             cur = k
@@ -971,25 +1051,38 @@ def _chord_push(ring_xy: np.ndarray, nz2=None) -> np.ndarray:
     push ``kappa L^2 / 24`` holds where the surface is vertical and doubles where it is flat
     (where what counts is the polygon's enclosed area, short by ``L^2 / (6 rho^2)``).
     """
-    p = ring_xy
-    a = predecessor(p)
-    c = successor(p)
-    u = p - a
-    v = c - p
-    w = c - a
-    lu = np.hypot(u[:, 0], u[:, 1])
-    lv = np.hypot(v[:, 0], v[:, 1])
-    lw = np.hypot(w[:, 0], w[:, 1])
-    cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]  # > 0: left turn = convex for U on the left
-    den = lu * lv * lw
-    kappa = np.where(den > 0, 2.0 * cross / np.where(den > 0, den, 1.0), 0.0)
-    push = kappa * 0.5 * (lu**2 + lv**2) / 24.0
-    if nz2 is not None:
-        push = push * (1.0 + 3.0 * nz2) / (1.0 + nz2)
-    # outward normal (U on the left, so outward is to the right of the travel direction)
-    t = w / np.where(lw > 0, lw, 1.0)[:, None]
-    nrm = np.stack([t[:, 1], -t[:, 0]], axis=1)
-    return p + push[:, None] * nrm
+    p = np.ascontiguousarray(ring_xy, dtype=np.float64)
+    out = np.empty_like(p)
+    _chord_push_kernel(p, np.zeros(0) if nz2 is None else np.ascontiguousarray(nz2, dtype=np.float64),
+                       nz2 is not None, out)
+    return out
+
+
+@njit(cache=True)
+def _chord_push_kernel(p, nz2, with_nz, out):
+    """:func:`_chord_push` vertex by vertex, the same operations in the same order as its former
+    numpy expressions (so the same values)."""
+    n = p.shape[0]
+    for i in range(n):
+        a = i - 1 if i > 0 else n - 1  # the predecessor and successor round the ring
+        c = i + 1 if i + 1 < n else 0
+        ux, uy = p[i, 0] - p[a, 0], p[i, 1] - p[a, 1]
+        vx, vy = p[c, 0] - p[i, 0], p[c, 1] - p[i, 1]
+        wx, wy = p[c, 0] - p[a, 0], p[c, 1] - p[a, 1]
+        lu = math.hypot(ux, uy)
+        lv = math.hypot(vx, vy)
+        lw = math.hypot(wx, wy)
+        cross = ux * vy - uy * vx  # > 0: left turn = convex for U on the left
+        den = lu * lv * lw
+        kappa = 2.0 * cross / den if den > 0 else 0.0
+        push = kappa * 0.5 * (lu * lu + lv * lv) / 24.0
+        if with_nz:
+            push = push * (1.0 + 3.0 * nz2[i]) / (1.0 + nz2[i])
+        # outward normal (U on the left, so outward is to the right of the travel direction)
+        d = lw if lw > 0 else 1.0
+        tx, ty = wx / d, wy / d
+        out[i, 0] = p[i, 0] + push * ty
+        out[i, 1] = p[i, 1] + push * -tx
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1131,12 +1224,14 @@ def _is_simple(ring):
 
 def _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found) -> int:
     """:func:`_move_to_surface` keeping the slice images in ``images`` (``width -> (mom, box)``, see
-    :func:`_images_for`) for the next searches and field evaluations of the slice."""
+    :func:`_images_for`) for the next searches and field evaluations of the slice; ``images["runs"]``,
+    where set, is :func:`_z_runs` of ``pts`` (faster images, the same values)."""
     if images is None:
         return _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found)
     mom, box = images.get(float(sigma)) or _no_images()
-    clamped, mom = _move_with_images(pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, box,
-                                     IMAGE_MARGIN * max_move + 2.0)
+    args = (pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, box, IMAGE_MARGIN * max_move + 2.0)
+    runs = images.get("runs")
+    clamped, mom = _move_with_images(*args) if runs is None else _move_with_images(*args, runs)
     images[float(sigma)] = (mom, box)
     return clamped
 
@@ -1160,22 +1255,41 @@ def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False,
     # a vertex that one of the two searches left where it was (no level within reach) keeps the
     # coarse decision; elsewhere the extrapolated estimate weighs in where the two scales disagree
     # (also where the band clamp put the wide place back on the seed: that search did find the level)
-    moved = found & found_fine
-    gap = np.hypot(*(near - out).T)
-    w = np.clip((gap - FINE_TOLERANCE[0]) / (FINE_TOLERANCE[1] - FINE_TOLERANCE[0]), 0.0, 1.0) * moved
-    if counts is not None:
-        counts[0] += int(np.count_nonzero(w > 0.5))
-        counts[1] += len(w)
-    if not np.any(w > 0):
-        return out, clamped
     # the fine place keeps a residual bias of order fine^4 (the curvature correction removes the
     # sigma^2 term): with both places x(s) = x0 + c s^4, x0 = x_fine + rho (x_fine - x_coarse)
     r4 = (float(fine) / sigma) ** 4
-    ext = near + (r4 / (1.0 - r4)) * (near - out)
-    target = np.ascontiguousarray(out + w[:, None] * (ext - out))
+    target = np.empty_like(xy)
+    n_fine, n_any = _two_scale_targets(out, near, found, found_fine, FINE_TOLERANCE[0],
+                                       FINE_TOLERANCE[1] - FINE_TOLERANCE[0], r4 / (1.0 - r4), target)
+    if counts is not None:
+        counts[0] += int(n_fine)
+        counts[1] += len(xy)
+    if not n_any:
+        return out, clamped
     res = np.empty_like(xy)
-    _clamp_to_band(pts, np.ascontiguousarray(out), target, np.ascontiguousarray(kz, dtype=np.int64), res, grid)
+    _clamp_to_band(pts, out, target, np.ascontiguousarray(kz, dtype=np.int64), res, grid)
     return res, clamped
+
+
+@njit(cache=True)
+def _two_scale_targets(out, near, found, found_fine, lo, span, rho, target):
+    """Step 3b's weights and targets (the numpy expressions of :func:`_surface_points`, term by
+    term): ``w = clip((|near - out| - lo) / span, 0, 1)`` where both searches found the level (0
+    elsewhere), ``target = out + w (ext - out)`` with ``ext = near + rho (near - out)``.  Returns the
+    number of weights above 1/2 and whether any is positive."""
+    n_fine = 0
+    n_any = False
+    for n in range(out.shape[0]):
+        gap = math.hypot(near[n, 0] - out[n, 0], near[n, 1] - out[n, 1])
+        w = min(max((gap - lo) / span, 0.0), 1.0) * (1.0 if (found[n] and found_fine[n]) else 0.0)
+        if w > 0.5:
+            n_fine += 1
+        if w > 0.0:
+            n_any = True
+        for c in range(2):
+            ext = near[n, c] + rho * (near[n, c] - out[n, c])
+            target[n, c] = out[n, c] + w * (ext - out[n, c])
+    return n_fine, n_any
 
 
 def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi: float = 3.5) -> float:
@@ -1282,7 +1396,8 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
         ``[fine, seen]``: accumulates the vertices that took the fine estimate.
     images : dict, optional
         Slice images kept between the searches of slice ``kz`` (pass the same dict for the rings of
-        one slice; a new one per slice).  The results do not depend on it.
+        one slice; a new one per slice), and under ``"runs"`` the :func:`_z_runs` of ``pts`` that
+        make new images faster.  The results do not depend on it.
 
     Returns
     -------
@@ -1320,7 +1435,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
     if chord:
         mom, box = images.get(float(sigma)) or _no_images()
         fld, mom = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid, mom, box,
-                                    IMAGE_MARGIN * max_move + 2.0)
+                                    IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
         images[float(sigma)] = (mom, box)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
@@ -1393,6 +1508,7 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
     counts = [0, 0]
     _check_density(density)
     pts, x0, y0, zidx, grid = _stack_grid(stack)
+    runs = _z_runs(pts)  # the columns' runs, for the slice images (the same images, faster)
     off = np.array([x0, y0], dtype=np.float64)
     scale = np.array([grid[0], grid[1]])  # pixel indices -> units of the longer pixel side
     opts = dict(curvature=curvature, chord=chord, meridians=meridians, density=density, max_move=max_move,
@@ -1404,7 +1520,7 @@ def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "m
         kk = int(zidx[k])
         finals = []
         q = np.concatenate([p for p in prev if len(p) >= 3] or [np.zeros((0, 2))])
-        images = {}  # the section's slice images, shared by its contours
+        images = {"runs": runs}  # the section's slice images, shared by its contours
         for c in sec.contours:
             c = np.asarray(c, dtype=np.int64)
             seed = np.asarray(polygonize(c, polygon), dtype=np.float64) if len(c) >= 3 else c.astype(np.float64)
@@ -1555,6 +1671,7 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     ox, oy = (float(v) for v in origin_xy)
     pad = 6
     pts = np.pad(mask, pad)
+    runs = _z_runs(pts)  # the columns' runs, for the slice images (the same images, faster)
     grid, h = _grid_of_heights(dx, dy, zs, pts.shape[0], pad)
     ax, ay = grid[0], grid[1]
     # the mean slice spacing (units of h) for the automatic width's volume (it cancels in R = 3 V / A)
@@ -1588,7 +1705,7 @@ def refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds: dict, below: dic
     for k in sorted(by_slice):
         keys = by_slice[k]
         rings, starts = [], []
-        images = {}  # the slice's images, shared by its rings
+        images = {"runs": runs}  # the slice's images, shared by its rings
         for key in keys:
             seed = loc[key][1]
             guide = finals.get(below.get(key)) if meridians else None
