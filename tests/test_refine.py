@@ -494,3 +494,29 @@ def test_searches_with_column_runs_give_the_same_places_bit_for_bit(pixel, uneve
         for key in plain:
             assert np.array_equal(plain[key][0], fast[key][0]) and np.array_equal(plain[key][1], fast[key][1])
     assert moved > 1.0  # the searches did move vertices
+
+
+def _ring_point_at_numpy(ring, s):
+    """The numpy form of ``refine._ring_point_at`` before its interpolation was compiled."""
+    closed = np.vstack([ring, ring[:1]])
+    seg = np.hypot(*np.diff(closed, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    s = np.mod(s, cum[-1])
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(ring) - 1)
+    t = np.where(seg[i] > 0, (s - cum[i]) / np.where(seg[i] > 0, seg[i], 1.0), 0.0)
+    return closed[i] + t[:, None] * (closed[i + 1] - closed[i])
+
+
+def test_ring_point_at_kernel_matches_numpy_bit_for_bit():
+    rng = np.random.default_rng(7)
+    for n in (3, 4, 17, 200):
+        ring = rng.normal(size=(n, 2)) * 10
+        ring[1] = ring[0]  # an empty segment
+        closed = np.vstack([ring, ring[:1]])
+        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(closed, axis=0).T))])
+        # parameters on the segment ends, inside, below zero and past the length
+        s = np.concatenate([cum, rng.uniform(-cum[-1], 2 * cum[-1], 300), [-0.0, 0.0]])
+        got, want = R._ring_point_at(ring, s), _ring_point_at_numpy(ring, s)
+        assert got.shape == want.shape
+        assert got.tobytes() == want.tobytes()
+

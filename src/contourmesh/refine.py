@@ -1131,9 +1131,30 @@ def _ring_point_at(ring: np.ndarray, s: np.ndarray) -> np.ndarray:
     seg = np.hypot(*np.diff(closed, axis=0).T)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     s = np.mod(s, cum[-1])
-    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(ring) - 1)
-    t = np.where(seg[i] > 0, (s - cum[i]) / np.where(seg[i] > 0, seg[i], 1.0), 0.0)
-    return closed[i] + t[:, None] * (closed[i + 1] - closed[i])
+    return _points_at(np.ascontiguousarray(closed, dtype=np.float64), seg, cum, np.ascontiguousarray(s, dtype=np.float64))
+
+
+@njit(cache=True)
+def _points_at(closed, seg, cum, s):
+    """The interpolation of :func:`_ring_point_at`, compiled: for each ``s``, the segment ``i`` with
+    ``cum[i] <= s < cum[i + 1]`` (``searchsorted(side="right") - 1``, clipped to the ring) and the
+    point ``closed[i] + t (closed[i + 1] - closed[i])``, ``t = (s - cum[i]) / seg[i]`` (0 on an empty
+    segment): the same arithmetic as the numpy expression, so the same values."""
+    n = closed.shape[0] - 1
+    out = np.empty((len(s), closed.shape[1]))
+    for a in range(len(s)):
+        lo, hi = 0, len(cum)
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if cum[mid] <= s[a]:
+                lo = mid + 1
+            else:
+                hi = mid
+        i = min(max(lo - 1, 0), n - 1)
+        t = (s[a] - cum[i]) / seg[i] if seg[i] > 0 else 0.0
+        for d in range(closed.shape[1]):
+            out[a, d] = closed[i, d] + t * (closed[i + 1, d] - closed[i, d])
+    return out
 
 
 def _meridian_params(par: np.ndarray, length: float, step: float) -> np.ndarray:
@@ -1409,14 +1430,15 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
     """
     kk = int(kz)
     grid = _as_grid(dz, pts.shape[0])
-    if distinct_rows(seed) < 3 or shoelace_area(seed) == 0.0:
+    seed_area = shoelace_area(seed)
+    if distinct_rows(seed) < 3 or seed_area == 0.0:
         return seed, 0  # a pole point or a segment: kept as it is
     clamped = 0
     images = {} if images is None else images
     kzs = np.full(len(seed), kk, dtype=np.int64)
     guide, nc = _surface_points(pts, seed, kzs, sigma, grid, curvature, max_move, strict, fine_sigma, counts, images)
     clamped += nc
-    ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
+    ring = guide if _is_simple(guide) and shoelace_area(guide) * seed_area > 0 else seed
     if meridians and prev is not None and len(prev):
         length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
         step = length / (len(seed) * float(density))
@@ -1429,7 +1451,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
                 kzs = np.full(len(start), kk, dtype=np.int64)
                 cand, nc = _surface_points(pts, start, kzs, sigma, grid, curvature, max_move, strict, fine_sigma,
                                            counts, images)
-                if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
+                if _is_simple(cand) and shoelace_area(cand) * seed_area > 0:
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:
