@@ -520,3 +520,39 @@ def test_ring_point_at_kernel_matches_numpy_bit_for_bit():
         assert got.shape == want.shape
         assert got.tobytes() == want.tobytes()
 
+
+def _stack_points_numpy(stack, pts_shape, x0, y0, zidx):
+    """The grid points of ``stack_points`` by the numpy expressions it used before its kernels."""
+    pts = np.zeros(pts_shape, dtype=np.bool_)
+    ny, nx = pts_shape[1:]
+    for k, s in enumerate(stack.sections):
+        cells = np.zeros((ny, nx), dtype=np.int64)
+        for c in s.contours:
+            c = np.asarray(c, dtype=np.int64)
+            if len(c) < 3:
+                continue
+            d = np.roll(c, -1, axis=0) - c
+            vert = d[:, 0] == 0
+            np.add.at(cells, (np.minimum(c[vert, 1], c[vert, 1] + d[vert, 1]) - y0, c[vert, 0] - x0), 1)
+        inside = (np.cumsum(cells, axis=1) & 1).astype(bool)
+        pts[zidx[k], 1:, 1:] = inside[1:, 1:] & inside[:-1, 1:] & inside[1:, :-1] & inside[:-1, :-1]
+    return pts
+
+
+def test_stack_points_kernels_match_numpy():
+    rng = np.random.default_rng(11)
+    vol = np.zeros((7, 30, 34), dtype=bool)
+    for _ in range(12):  # overlapping boxes: holes, several contours, touching corners
+        z0, y0, x0 = rng.integers(0, 6), rng.integers(0, 25), rng.integers(0, 29)
+        vol[z0:z0 + rng.integers(1, 4), y0:y0 + rng.integers(1, 6), x0:x0 + rng.integers(1, 6)] ^= True
+    sections = []
+    for k in range(vol.shape[0]):
+        if vol[k].any():
+            contours, parents = trace_contours(vol[k])
+            sections.append(Section(float(k), tuple(contours), tuple(parents)))
+    stacks = [ContourStack(tuple(sections), spacing=(1.0, 1.0)),
+              outer_jordan_stack(Ellipsoid(7.3, 5.1, 4.2, rotation=rotation_from_euler(0.3, 0.5, 0.2)))]
+    for stack in stacks:
+        pts, x0, y0, zidx, _ = stack_points(stack)
+        assert pts.any()
+        assert np.array_equal(pts, _stack_points_numpy(stack, pts.shape, x0, y0, zidx))

@@ -195,19 +195,40 @@ def stack_points(stack: ContourStack, *, lattice: bool = True):
             continue
         cells = np.zeros((ny, nx), dtype=np.int64)  # cells[j, i]: cell [x0+i, x0+i+1] x [y0+j, y0+j+1]
         for c in s.contours:
-            c = np.asarray(c, dtype=np.int64)
+            c = np.ascontiguousarray(c, dtype=np.int64)
             if len(c) < 3:
                 continue  # a pole point or a segment bounds no cell
-            d = np.roll(c, -1, axis=0) - c
-            vert = d[:, 0] == 0
-            xs = c[vert, 0] - x0
-            ys = np.minimum(c[vert, 1], c[vert, 1] + d[vert, 1]) - y0
-            np.add.at(cells, (ys, xs), 1)  # a vertical edge toggles the parity of the cells to its right
-        inside = (np.cumsum(cells, axis=1) & 1).astype(bool)
-        n = zidx[k] + pad
-        # point (i, j) has the cells (i-1..i, j-1..j) around it
-        pts[n, 1:, 1:] = inside[1:, 1:] & inside[:-1, 1:] & inside[1:, :-1] & inside[:-1, :-1]
+            _toggle_cells(cells, c.reshape(-1, 2), x0, y0)
+        _points_of_cells(cells, pts[zidx[k] + pad])
     return pts, x0, y0, zidx + pad, dz
+
+
+@njit(cache=True)
+def _toggle_cells(cells, c, x0, y0):
+    """Count each vertical edge of the closed contour ``c`` in the cell to its right (``cells[j, i]``:
+    cell ``[x0+i, x0+i+1] x [y0+j, y0+j+1]``); the parity of the row sums then tells the inside."""
+    n = c.shape[0]
+    for q in range(n):
+        r = (q + 1) % n
+        if c[r, 0] == c[q, 0]:
+            cells[min(c[q, 1], c[r, 1]) - y0, c[q, 0] - x0] += 1
+
+
+@njit(cache=True)
+def _points_of_cells(cells, out):
+    """The grid points of one section: a cell is in ``U`` when the running row sum of ``cells`` up
+    to it is odd (even-odd rule); point ``(i, j)`` (``out[j, i]``, ``i, j >= 1``) is in ``I`` when its
+    four cells ``(i-1..i, j-1..j)`` are in ``U``."""
+    ny, nx = cells.shape
+    inside = np.empty((ny, nx), dtype=np.bool_)
+    for j in range(ny):
+        run = 0
+        for i in range(nx):
+            run += cells[j, i]
+            inside[j, i] = (run & 1) == 1
+    for j in range(1, ny):
+        for i in range(1, nx):
+            out[j, i] = inside[j, i] and inside[j - 1, i] and inside[j, i - 1] and inside[j - 1, i - 1]
 
 
 def _stack_grid(stack: ContourStack):
