@@ -494,3 +494,65 @@ def test_searches_with_column_runs_give_the_same_places_bit_for_bit(pixel, uneve
         for key in plain:
             assert np.array_equal(plain[key][0], fast[key][0]) and np.array_equal(plain[key][1], fast[key][1])
     assert moved > 1.0  # the searches did move vertices
+
+
+def _ring_point_at_numpy(ring, s):
+    """The numpy form of ``refine._ring_point_at`` before its interpolation was compiled."""
+    closed = np.vstack([ring, ring[:1]])
+    seg = np.hypot(*np.diff(closed, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    s = np.mod(s, cum[-1])
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(ring) - 1)
+    t = np.where(seg[i] > 0, (s - cum[i]) / np.where(seg[i] > 0, seg[i], 1.0), 0.0)
+    return closed[i] + t[:, None] * (closed[i + 1] - closed[i])
+
+
+def test_ring_point_at_kernel_matches_numpy_bit_for_bit():
+    rng = np.random.default_rng(7)
+    for n in (3, 4, 17, 200):
+        ring = rng.normal(size=(n, 2)) * 10
+        ring[1] = ring[0]  # an empty segment
+        closed = np.vstack([ring, ring[:1]])
+        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(closed, axis=0).T))])
+        # parameters on the segment ends, inside, below zero and past the length
+        s = np.concatenate([cum, rng.uniform(-cum[-1], 2 * cum[-1], 300), [-0.0, 0.0]])
+        got, want = R._ring_point_at(ring, s), _ring_point_at_numpy(ring, s)
+        assert got.shape == want.shape
+        assert got.tobytes() == want.tobytes()
+
+
+def _stack_points_numpy(stack, pts_shape, x0, y0, zidx):
+    """The grid points of ``stack_points`` by the numpy expressions it used before its kernels."""
+    pts = np.zeros(pts_shape, dtype=np.bool_)
+    ny, nx = pts_shape[1:]
+    for k, s in enumerate(stack.sections):
+        cells = np.zeros((ny, nx), dtype=np.int64)
+        for c in s.contours:
+            c = np.asarray(c, dtype=np.int64)
+            if len(c) < 3:
+                continue
+            d = np.roll(c, -1, axis=0) - c
+            vert = d[:, 0] == 0
+            np.add.at(cells, (np.minimum(c[vert, 1], c[vert, 1] + d[vert, 1]) - y0, c[vert, 0] - x0), 1)
+        inside = (np.cumsum(cells, axis=1) & 1).astype(bool)
+        pts[zidx[k], 1:, 1:] = inside[1:, 1:] & inside[:-1, 1:] & inside[1:, :-1] & inside[:-1, :-1]
+    return pts
+
+
+def test_stack_points_kernels_match_numpy():
+    rng = np.random.default_rng(11)
+    vol = np.zeros((7, 30, 34), dtype=bool)
+    for _ in range(12):  # overlapping boxes: holes, several contours, touching corners
+        z0, y0, x0 = rng.integers(0, 6), rng.integers(0, 25), rng.integers(0, 29)
+        vol[z0:z0 + rng.integers(1, 4), y0:y0 + rng.integers(1, 6), x0:x0 + rng.integers(1, 6)] ^= True
+    sections = []
+    for k in range(vol.shape[0]):
+        if vol[k].any():
+            contours, parents = trace_contours(vol[k])
+            sections.append(Section(float(k), tuple(contours), tuple(parents)))
+    stacks = [ContourStack(tuple(sections), spacing=(1.0, 1.0)),
+              outer_jordan_stack(Ellipsoid(7.3, 5.1, 4.2, rotation=rotation_from_euler(0.3, 0.5, 0.2)))]
+    for stack in stacks:
+        pts, x0, y0, zidx, _ = stack_points(stack)
+        assert pts.any()
+        assert np.array_equal(pts, _stack_points_numpy(stack, pts.shape, x0, y0, zidx))

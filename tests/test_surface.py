@@ -189,3 +189,51 @@ def test_standing_torus_goes_through_the_volume_mesher():
     assert m.meta["exact_joins"] + m.meta["bridged_joins"] >= 1
     with pytest.raises(ValueError, match="cannot join"):
         stack_to_mesh(outer_jordan_stack(shape))
+
+
+def test_builder_unique_rows_match_np_unique():
+    from contourmesh.surface import _Builder
+
+    rng = np.random.default_rng(3)
+    b = _Builder((0.5, 0.7), (1.0, 0.0))
+    for n in (1, 2, 5, 60, 400):
+        p = np.round(rng.normal(size=(n, 2)) * 4) / 2
+        p = np.vstack([p, p[: n // 3], [[0.0, -0.0], [-0.0, 0.0], [0.0, 0.0]]])
+        uniq, inverse = b._unique_rows(p)
+        want_u, want_i = np.unique(p, axis=0, return_inverse=True)
+        assert np.array_equal(uniq, want_u) and np.array_equal(inverse, want_i.reshape(-1))
+        # the vertices the builder makes are the same bytes (a zero's sign disappears in x * s + o)
+        assert (uniq * 0.5 + 1.0).tobytes() == (want_u * 0.5 + 1.0).tobytes()
+        assert (uniq[:, 1] * 0.7 + 0.0).tobytes() == (want_u[:, 1] * 0.7 + 0.0).tobytes()
+    neg = _Builder((1.0, 1.0), (-0.0, 2.0))  # an origin of -0.0 keeps np.unique's own choice
+    p = np.array([[0.0, 1.0], [-0.0, 1.0], [1.0, 1.0]])
+    assert neg._unique_rows(p)[0].tobytes() == np.unique(p, axis=0).tobytes()
+
+
+def _band_is_folded_numpy(faces):
+    """The numpy form of ``bands.band_is_folded`` before it was compiled."""
+    f = np.asarray(faces, dtype=np.int64)
+    if len(f) == 0:
+        return False
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    key = np.sort(e[:, 0] * (int(f.max()) + 1) + e[:, 1])
+    return bool(len(key) > 2 and (key[2:] == key[:-2]).any())
+
+
+def test_band_is_folded_kernel_matches_numpy():
+    from contourmesh.bands import band_is_folded
+
+    rng = np.random.default_rng(5)
+    lo = np.c_[np.cos(np.linspace(0, 6, 9)), np.sin(np.linspace(0, 6, 9)), np.zeros(9)]
+    hi = np.c_[lo[:7, :2] * 0.8, np.ones(7)]
+    seen = set()
+    for name, fn in TRIANGULATORS.items():
+        f = fn(lo, hi)
+        assert band_is_folded(f) is _band_is_folded_numpy(f) is False, name
+    for _ in range(300):
+        f = rng.integers(0, rng.integers(3, 12), size=(rng.integers(1, 9), 3))
+        want = _band_is_folded_numpy(f)
+        seen.add(want)
+        assert band_is_folded(f) is want
+    assert seen == {True, False}
+    assert band_is_folded(np.zeros((0, 3), np.int64)) is False

@@ -219,3 +219,31 @@ def test_check_contour4_rejects_bad_input():
         check_contour4(good + 0.5)
     with pytest.raises(ValueError, match="reverses"):
         check_contour4(np.array([[0, 0], [1, 0], [0, 0], [0, 1], [1, 1], [0, 1]]))
+
+
+def _contour4_steps_ok_numpy(c):
+    """``check_contour4``'s step checks in their numpy form (before the compiled fast path)."""
+    steps = np.roll(c, -1, axis=0) - c
+    if np.any(np.abs(steps).sum(axis=1) != 1):
+        return False
+    return not np.any(np.all(steps == -np.roll(steps, 1, axis=0), axis=1))
+
+
+def test_contour4_kernel_matches_numpy():
+    from contourmesh.tracing import _contour4_ok
+
+    rng = np.random.default_rng(2)
+    seen = set()
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.int64)
+    cases = [square, square[::-1].copy(), np.array([[0, 0], [1, 0], [0, 0], [1, 0]], dtype=np.int64)]
+    for _ in range(400):  # random walks of unit and other steps, closed or not
+        steps = rng.choice([[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [0, 0]], size=rng.integers(4, 12),
+                           p=[0.24, 0.24, 0.24, 0.24, 0.02, 0.02])
+        cases.append(np.cumsum(steps, axis=0).astype(np.int64))
+    for mask in (np.ones((3, 6), bool), np.eye(5, dtype=bool) | np.roll(np.eye(5, dtype=bool), 1, axis=1)):
+        cases.extend(np.ascontiguousarray(c, dtype=np.int64) for c in trace_contours(mask)[0])
+    for c in cases:
+        want = _contour4_steps_ok_numpy(c)
+        seen.add(want)
+        assert _contour4_ok(c) is want
+    assert seen == {True, False}

@@ -195,19 +195,40 @@ def stack_points(stack: ContourStack, *, lattice: bool = True):
             continue
         cells = np.zeros((ny, nx), dtype=np.int64)  # cells[j, i]: cell [x0+i, x0+i+1] x [y0+j, y0+j+1]
         for c in s.contours:
-            c = np.asarray(c, dtype=np.int64)
+            c = np.ascontiguousarray(c, dtype=np.int64)
             if len(c) < 3:
                 continue  # a pole point or a segment bounds no cell
-            d = np.roll(c, -1, axis=0) - c
-            vert = d[:, 0] == 0
-            xs = c[vert, 0] - x0
-            ys = np.minimum(c[vert, 1], c[vert, 1] + d[vert, 1]) - y0
-            np.add.at(cells, (ys, xs), 1)  # a vertical edge toggles the parity of the cells to its right
-        inside = (np.cumsum(cells, axis=1) & 1).astype(bool)
-        n = zidx[k] + pad
-        # point (i, j) has the cells (i-1..i, j-1..j) around it
-        pts[n, 1:, 1:] = inside[1:, 1:] & inside[:-1, 1:] & inside[1:, :-1] & inside[:-1, :-1]
+            _toggle_cells(cells, c.reshape(-1, 2), x0, y0)
+        _points_of_cells(cells, pts[zidx[k] + pad])
     return pts, x0, y0, zidx + pad, dz
+
+
+@njit(cache=True)
+def _toggle_cells(cells, c, x0, y0):
+    """Count each vertical edge of the closed contour ``c`` in the cell to its right (``cells[j, i]``:
+    cell ``[x0+i, x0+i+1] x [y0+j, y0+j+1]``); the parity of the row sums then tells the inside."""
+    n = c.shape[0]
+    for q in range(n):
+        r = (q + 1) % n
+        if c[r, 0] == c[q, 0]:
+            cells[min(c[q, 1], c[r, 1]) - y0, c[q, 0] - x0] += 1
+
+
+@njit(cache=True)
+def _points_of_cells(cells, out):
+    """The grid points of one section: a cell is in ``U`` when the running row sum of ``cells`` up
+    to it is odd (even-odd rule); point ``(i, j)`` (``out[j, i]``, ``i, j >= 1``) is in ``I`` when its
+    four cells ``(i-1..i, j-1..j)`` are in ``U``."""
+    ny, nx = cells.shape
+    inside = np.empty((ny, nx), dtype=np.bool_)
+    for j in range(ny):
+        run = 0
+        for i in range(nx):
+            run += cells[j, i]
+            inside[j, i] = (run & 1) == 1
+    for j in range(1, ny):
+        for i in range(1, nx):
+            out[j, i] = inside[j, i] and inside[j - 1, i] and inside[j, i - 1] and inside[j - 1, i - 1]
 
 
 def _stack_grid(stack: ContourStack):
@@ -1131,9 +1152,30 @@ def _ring_point_at(ring: np.ndarray, s: np.ndarray) -> np.ndarray:
     seg = np.hypot(*np.diff(closed, axis=0).T)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     s = np.mod(s, cum[-1])
-    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(ring) - 1)
-    t = np.where(seg[i] > 0, (s - cum[i]) / np.where(seg[i] > 0, seg[i], 1.0), 0.0)
-    return closed[i] + t[:, None] * (closed[i + 1] - closed[i])
+    return _points_at(np.ascontiguousarray(closed, dtype=np.float64), seg, cum, np.ascontiguousarray(s, dtype=np.float64))
+
+
+@njit(cache=True)
+def _points_at(closed, seg, cum, s):
+    """The interpolation of :func:`_ring_point_at`, compiled: for each ``s``, the segment ``i`` with
+    ``cum[i] <= s < cum[i + 1]`` (``searchsorted(side="right") - 1``, clipped to the ring) and the
+    point ``closed[i] + t (closed[i + 1] - closed[i])``, ``t = (s - cum[i]) / seg[i]`` (0 on an empty
+    segment): the same arithmetic as the numpy expression, so the same values."""
+    n = closed.shape[0] - 1
+    out = np.empty((len(s), closed.shape[1]))
+    for a in range(len(s)):
+        lo, hi = 0, len(cum)
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if cum[mid] <= s[a]:
+                lo = mid + 1
+            else:
+                hi = mid
+        i = min(max(lo - 1, 0), n - 1)
+        t = (s[a] - cum[i]) / seg[i] if seg[i] > 0 else 0.0
+        for d in range(closed.shape[1]):
+            out[a, d] = closed[i, d] + t * (closed[i + 1, d] - closed[i, d])
+    return out
 
 
 def _meridian_params(par: np.ndarray, length: float, step: float) -> np.ndarray:
@@ -1409,14 +1451,15 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
     """
     kk = int(kz)
     grid = _as_grid(dz, pts.shape[0])
-    if distinct_rows(seed) < 3 or shoelace_area(seed) == 0.0:
+    seed_area = shoelace_area(seed)
+    if distinct_rows(seed) < 3 or seed_area == 0.0:
         return seed, 0  # a pole point or a segment: kept as it is
     clamped = 0
     images = {} if images is None else images
     kzs = np.full(len(seed), kk, dtype=np.int64)
     guide, nc = _surface_points(pts, seed, kzs, sigma, grid, curvature, max_move, strict, fine_sigma, counts, images)
     clamped += nc
-    ring = guide if _is_simple(guide) and shoelace_area(guide) * shoelace_area(seed) > 0 else seed
+    ring = guide if _is_simple(guide) and shoelace_area(guide) * seed_area > 0 else seed
     if meridians and prev is not None and len(prev):
         length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
         step = length / (len(seed) * float(density))
@@ -1429,7 +1472,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
                 kzs = np.full(len(start), kk, dtype=np.int64)
                 cand, nc = _surface_points(pts, start, kzs, sigma, grid, curvature, max_move, strict, fine_sigma,
                                            counts, images)
-                if _is_simple(cand) and shoelace_area(cand) * shoelace_area(seed) > 0:
+                if _is_simple(cand) and shoelace_area(cand) * seed_area > 0:
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:

@@ -40,6 +40,7 @@ the contours route and refined stacks by the volume mesher.  No crossing mesh is
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 
@@ -111,7 +112,7 @@ class _Builder:
 
     def add_polygon(self, poly_xy: np.ndarray, z: float) -> np.ndarray:
         """Add a polygon's vertices at height z; returns the vertex index of each polygon point."""
-        uniq, inverse = np.unique(poly_xy, axis=0, return_inverse=True)
+        uniq, inverse = self._unique_rows(poly_xy)
         v = np.empty((len(uniq), 3))
         v[:, 0] = uniq[:, 0] * self.sx + self.ox
         v[:, 1] = uniq[:, 1] * self.sy + self.oy
@@ -120,6 +121,27 @@ class _Builder:
         idx = self.n + inverse.reshape(-1)
         self.n += len(v)
         return idx
+
+    def _unique_rows(self, poly_xy) -> tuple[np.ndarray, np.ndarray]:
+        """``np.unique(poly_xy, axis=0, return_inverse=True)`` by a stable lexicographic sort (several
+        times faster on short polygons).  The rows and the inverse are the same; of equal rows that
+        differ only in the sign of a zero, the one kept may differ, which the vertex coordinates
+        ``x * spacing + origin`` do not show unless an origin is -0.0 (then ``np.unique`` itself)."""
+        p = np.asarray(poly_xy)
+        if (p.ndim != 2 or p.shape[1] != 2 or p.dtype != np.float64 or not np.isfinite(p).all()
+                or (self.ox == 0.0 and math.copysign(1.0, self.ox) < 0)
+                or (self.oy == 0.0 and math.copysign(1.0, self.oy) < 0)):
+            uniq, inverse = np.unique(poly_xy, axis=0, return_inverse=True)
+            return uniq, inverse.reshape(-1)
+        x, y = p[:, 0], p[:, 1]
+        order = np.lexsort((y, x))  # x first, then y, as np.unique's row order
+        xs, ys = x[order], y[order]
+        new = np.empty(len(p), dtype=bool)
+        new[:1] = True
+        new[1:] = (xs[1:] != xs[:-1]) | (ys[1:] != ys[:-1])
+        inverse = np.empty(len(p), dtype=np.intp)
+        inverse[order] = np.cumsum(new) - 1
+        return p[order[new]], inverse
 
     def add_points(self, xy: np.ndarray, z: float) -> np.ndarray:
         """Add one vertex per point (no merging) at height z."""

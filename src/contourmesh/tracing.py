@@ -259,6 +259,8 @@ def check_contour4(contour, name: str = "contour") -> np.ndarray:
         if not np.issubdtype(c.dtype, np.floating) or not np.all(np.isfinite(c)) or np.any(c != np.round(c)):
             raise ValueError(f"{name} must hold integer grid coordinates; got dtype {c.dtype} with non-integer values")
     c = np.ascontiguousarray(c, dtype=np.int64)
+    if _contour4_ok(c):  # the two checks below, compiled, for the contours that pass them
+        return c
     steps = successor(c) - c
     l1 = np.abs(steps).sum(axis=1)
     if np.any(l1 != 1):
@@ -273,6 +275,22 @@ def check_contour4(contour, name: str = "contour") -> np.ndarray:
         bad = int(np.flatnonzero(back)[0])
         raise ValueError(f"{name} reverses direction at point {bad} {c[bad].tolist()}; not a cell boundary")
     return c
+
+
+@njit(cache=True, nogil=True)
+def _contour4_ok(c):
+    """True when every step of the closed curve ``c`` (the closing one too) is a unit step along x
+    or y and no step reverses the one before it (:func:`check_contour4`'s step checks)."""
+    n = c.shape[0]
+    for i in range(n):
+        j = (i + 1) % n
+        if abs(c[j, 0] - c[i, 0]) + abs(c[j, 1] - c[i, 1]) != 1:
+            return False
+    for i in range(n):
+        j, h = (i + 1) % n, (i - 1) % n
+        if c[j, 0] - c[i, 0] == -(c[i, 0] - c[h, 0]) and c[j, 1] - c[i, 1] == -(c[i, 1] - c[h, 1]):
+            return False
+    return True
 
 
 def _crack_contours(cells: np.ndarray):

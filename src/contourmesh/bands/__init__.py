@@ -29,6 +29,7 @@ pair instead, whose search excludes such bands.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..intersect import canonical_vertices, intersecting_pairs
 from ..measure import triangle_areas
@@ -63,10 +64,26 @@ def band_is_folded(faces: np.ndarray) -> bool:
     f = np.asarray(faces, dtype=np.int64)
     if len(f) == 0:
         return False
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    key = np.sort(e[:, 0] * (int(f.max()) + 1) + e[:, 1])  # one integer per undirected edge
-    # some edge in more than two triangles: a key equal to the one two places before it
-    return bool(len(key) > 2 and (key[2:] == key[:-2]).any())
+    return bool(_folded(np.ascontiguousarray(f).reshape(-1, 3)))
+
+
+@njit(cache=True)
+def _folded(f):
+    """:func:`band_is_folded` compiled: one integer ``lo * (max + 1) + hi`` per undirected edge of
+    each face, sorted; some edge is in more than two faces when a key equals the one two places
+    before it."""
+    nf = f.shape[0]
+    base = f.max() + 1
+    key = np.empty(3 * nf, dtype=np.int64)
+    for k in range(3):
+        for t in range(nf):
+            a, b = f[t, k], f[t, (k + 1) % 3]
+            key[k * nf + t] = min(a, b) * base + max(a, b)
+    key.sort()
+    for q in range(2, len(key)):
+        if key[q] == key[q - 2]:
+            return True
+    return False
 
 
 def triangulate_band(lower, upper, method: str = "wiederhold", *, fallback: bool = True) -> np.ndarray:

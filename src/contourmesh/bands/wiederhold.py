@@ -70,9 +70,12 @@ def _as_polygon3(poly, name: str) -> np.ndarray:
         raise ValueError(f"{name} must be an (n, 3) array of (x, y, z) points; got shape {p.shape}")
     if len(p) == 0:
         raise ValueError(f"{name} must contain at least one point; got an empty array")
-    if not np.issubdtype(p.dtype, np.number) or np.issubdtype(p.dtype, np.complexfloating):
+    if p.dtype != np.float64 and (not np.issubdtype(p.dtype, np.number)
+                                  or np.issubdtype(p.dtype, np.complexfloating)):
         raise ValueError(f"{name} must hold real numbers; got dtype {p.dtype}")
     p = np.ascontiguousarray(p, dtype=np.float64)
+    if _polygon3_ok(p):  # the three checks below, compiled, for the polygons that pass them
+        return p
     if not np.all(np.isfinite(p)):
         raise ValueError(f"{name} must contain only finite coordinates; found NaN or inf")
     z = p[:, 2]
@@ -90,6 +93,26 @@ def _as_polygon3(poly, name: str) -> np.ndarray:
                 f"repeated end point); point {k} equals point {(k + 1) % len(p)}: {p[k, :2].tolist()}"
             )
     return p
+
+
+@njit(cache=True)
+def _polygon3_ok(p):
+    """True when :func:`_as_polygon3`'s value checks all pass: finite coordinates, one ``z``, no
+    point equal to the next one round the ring."""
+    n = p.shape[0]
+    for i in range(n):
+        for d in range(3):
+            if not np.isfinite(p[i, d]):
+                return False
+    for i in range(n):
+        if p[i, 2] != p[0, 2]:
+            return False
+    if n >= 2:
+        for i in range(n):
+            j = (i + 1) % n
+            if p[i, 0] == p[j, 0] and p[i, 1] == p[j, 1]:
+                return False
+    return True
 
 
 def validate_band_polygons(lower, upper) -> tuple[np.ndarray, np.ndarray]:

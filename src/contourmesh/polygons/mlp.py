@@ -38,6 +38,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import ThinRegionError
+from ..geometry import successor
 from ..tracing import check_contour4
 
 __all__ = ["mlp_polygon", "mlp_candidates"]
@@ -342,7 +343,8 @@ def mlp_polygon(contour) -> np.ndarray:
     [[0, 0], [3, 0]]
     """
     c = check_contour4(contour)
-    twice_area = int(np.dot(c[:, 0], np.roll(c[:, 1], -1)) - np.dot(np.roll(c[:, 0], -1), c[:, 1]))
+    x, y = c[:, 0], c[:, 1]  # integers: the sum is exact in any order
+    twice_area = int(np.dot(x, successor(y)) - np.dot(successor(x), y))
     _, _, poly = _mlp(c, 1 if twice_area > 0 else -1)
     if len(poly) == 0:
         raise ThinRegionError(
