@@ -509,15 +509,9 @@ def curve_bands(V: np.ndarray, F: np.ndarray, zs, *, eps: float | None = None, m
             out.append(F[sel])
             pairs_out.append(fk[sel].min(axis=1))
             continue
-        f = F[sel]
-        kf = pk[f]
-        # rotate each face to (x, y, w): x, y on one plane, w on the other
-        rot = np.where(kf[:, 0] == kf[:, 1], 0, np.where(kf[:, 1] == kf[:, 2], 1, 2))
-        rows = np.arange(len(f))
-        x, y, w = f[rows, rot], f[rows, (rot + 1) % 3], f[rows, (rot + 2) % 3]
-        eid = inv.reshape(-1, 3)[sel]  # edges (0,1), (1,2), (2,0) of each face
-        rx = rung_of_edge[eid[rows, (rot + 2) % 3]]  # the rung w-x
-        ry = rung_of_edge[eid[rows, (rot + 1) % 3]]  # the rung y-w
+        kf = pk[F[sel]]
+        # each face as (x, y, w): x, y on one plane, w on the other; rungs w-x and y-w
+        x, y, w, rx, ry, _ = _face_rungs(F, pk, inv, rung_of_edge, sel)
         t = np.arange(1, lv)[None, :]
 
         def points(u, ri):
