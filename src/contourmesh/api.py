@@ -251,7 +251,7 @@ def _refined(stack: ContourStack, *, polygon, triangulation, caps, refine) -> Me
     fine = refine_stack(stack, refine, polygon=polygon)
     try:
         m = stack_to_mesh(fine, polygon="none", triangulation=triangulation or "optimal", caps=caps,
-                          crossings="warn" if caps == "smooth" else "raise")
+                          crossings="raise", dome="profile")
     except (CapError, StackSurfaceError) as exc:
         if one_each and not isinstance(exc, CrossingFacesError):
             raise
@@ -276,7 +276,6 @@ def _refined_volume(stack: ContourStack, *, polygon, triangulation, caps, refine
     """A stack with several contours (or holes) in a section: its digital object (the grid points
     its contours bound, :func:`contourmesh.refine.stack_points`) meshed by the volume mesher, which
     refines its own polygons."""
-    _volume_caps(caps, "a stack with several contours in a section is refined and meshed by the volume mesher")
     log.debug("refined route: several contours in a section; the volume mesher refines its polygons")
     pts, x0, y0, zidx, dz = stack_points(stack)
     dx, dy = (float(v) for v in stack.spacing)
@@ -301,7 +300,6 @@ def _refined_raster(stack: ContourStack, pixel, *, polygon, triangulation, caps,
     """Drawn (real-valued) rings with ``refine``: the refinement keeps each polygon vertex in its
     slice's digital band, so it needs a digital object; that is the rings' even-odd raster at
     ``pixel`` (as on the raster route), meshed by the volume mesher with its polygons refined."""
-    _volume_caps(caps, "drawn rings with refine= are refined on their raster by the volume mesher")
     log.debug("refined raster route: the drawn rings rasterized, refined by the volume mesher")
     return _raster_route(stack, pixel, polygon=polygon, triangulation=triangulation or "optimal", caps=caps,
                          refine=refine, progress=progress)
@@ -606,12 +604,9 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
             except (CapError, StackSurfaceError, ThinRegionError) as exc:
                 # a slice whose seed polygon is a point or a segment (a part one pixel wide), or
                 # rings the stack mesher cannot close: the volume mesher below can
-                if caps == "smooth":
-                    raise
                 log.debug("refined stack route failed (%s); the volume mesher refines its polygons", exc)
         # several contours in a slice, holes, branching: the volume mesher refines its own polygons
-        _volume_caps(caps, "this volume has several contours in a slice (or a part one pixel wide), so "
-                     "refine='band' meshes it with the volume mesher")
+        # (caps="smooth" included: its refined components' ends follow their area profile)
         log.debug("refined route: several contours in a slice; the volume mesher refines its polygons")
         m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
                            polygon=polygon, triangulation=triangulation or "optimal", caps=caps, refine=refine,

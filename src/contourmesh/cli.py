@@ -307,9 +307,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "or optimal with --refine band)")
     m.add_argument("--caps", default="flat", choices=["flat", "half", "smooth"],
                    help="end caps in the last section's plane, half a slice spacing beyond it, or a smooth dome "
-                        "holding the half-spacing volume (smooth: contour stacks on the stack route only)")
-    m.add_argument("--refine", default=None, choices=["none", "band"],
-                   help="band: the convergent refinement of the polygons across slices (default: none)")
+                        "holding the half-spacing volume (smooth: contour stacks on the stack route, and any "
+                        "source with --refine, whose domes follow the last sections' areas)")
+    m.add_argument("--refine", default=None, choices=["none", "band", "band2"],
+                   help="band: the convergent refinement of the polygons across slices; band2: the same with "
+                        "twice the ring vertices (closer volumes, twice the vertices) (default: none)")
     m.add_argument("--roi", action="append", default=None,
                    help="contour files: the structure, by name or number; repeat it for several (-o is then a folder)")
     m.add_argument("--all-rois", action="store_true",

@@ -505,8 +505,9 @@ class _SmoothEnds:
     mesher (``caps="half"``: a prism half a spacing out).
     """
 
-    def __init__(self, interior_only: bool = False, dome_rings: int = _DOME_RINGS):
+    def __init__(self, interior_only: bool = False, dome_rings: int = _DOME_RINGS, branch_domes: bool = True):
         self.interior_only = interior_only  # caps="flat": only ends inside the stack (see _InteriorEnds)
+        self.branch_domes = branch_domes  # False: an end without a band join of its own is left to the mesher
         self.dome_rings = dome_rings  # the rings of a dome that closes on the area profile
         self.kinds: dict = {}  # (k, c, upward) -> "dome", "taper", "cut", "branch" or "half" (the last mesh built)
         self.slopes: dict = {}  # (x, y, z) of an end ring's vertex -> d(x, y)/dz of its cap at the ring
@@ -546,6 +547,8 @@ class _SmoothEnds:
             return False
         gap = float(slice_gap(self.zs, k, up))
         centre, _ = _dome_centre(xys[0])  # outer ring and holes shrink together: similar sections
+        if ((k, c) not in inward or self.interior_only) and not self.branch_domes:
+            return False
         if (k, c) not in inward or self.interior_only:
             # an end whose inward join is a fork, a merge or an exact join: no trend of its own to
             # extrapolate; a dome of shrunk copies on a quarter ellipse holding the half prism's

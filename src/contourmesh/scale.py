@@ -340,8 +340,8 @@ def _check_method(method: dict) -> dict:
     """The method keywords, checked once in the driver (a bad option fails before any task runs)."""
     from .api import _refine_method, _volume_caps
 
-    _refine_method(method.get("refine"))
-    _volume_caps(method.get("caps", "flat"), "every label of a volume is meshed by the volume mesher")
+    if _refine_method(method.get("refine")) is None:  # refined labels take caps="smooth" too
+        _volume_caps(method.get("caps", "flat"), "every label of a volume is meshed by the volume mesher")
     return method
 
 

@@ -101,6 +101,7 @@ class _Builder:
         self.n = 0
         self.cell_caps = 0
         self.smooth_fallbacks = 0
+        self.dome = "ellipse"  # caps="smooth": "ellipse" (:func:`_dome`) or "profile" (:func:`_profile_dome`)
         self.keys: list = []  # what made each face block (a band's key, or None), parallel to faces
         self.key = None  # the key of the blocks added now
         self.levels: dict = {}  # band key -> first triangulation to try (index into _band_order)
@@ -353,6 +354,57 @@ def _dome(b: _Builder, ring, poly: np.ndarray, z: float, gap: float, upward: boo
     return prev
 
 
+def _profile_dome(b: _Builder, ring, polys, zs, gap: float, upward: bool):
+    """A smooth cap over the end polygon ``polys[0]`` (its vertices ``ring`` at height ``zs[0]``)
+    that follows the area profile of the last sections (``polys`` and ``zs``: the end polygon and
+    the one or two polygons joined to it, inward); returns the top ring, for the flat cap that
+    closes it.  The band refinement's ends (``refine="band", caps="smooth"``).
+
+    As the contours route's smooth ends (:func:`contourmesh.drawn._end_profile`): the section's
+    area is extrapolated outward from the last sections; where it closes within a spacing, the
+    dome's rings are the end polygon scaled by ``lam`` (evenly spread on a quarter circle) at the
+    distances where the extrapolated area is ``lam^2`` times the end's, so the dome continues the
+    bands' slope and holds the volume the profile puts beyond the end section; otherwise a taper
+    to a flat end half a spacing out.  An end section much less round than the one before (a cut
+    at a slant) moves half a spacing along the axis instead.  The rings drift along the line
+    through the last two sections' area centroids and are joined point to point.  With one
+    section only (the next one inward is a point), :func:`_dome`.
+
+    Raises
+    ------
+    CapError
+        If ``ring`` visits a vertex twice (a polygon that touches itself).
+    """
+    from .drawn import _CUT, _DOME_RINGS, _centroid, _end_profile, _roundness
+
+    if len(polys) < 2:
+        return _dome(b, ring, polys[0], zs[0], gap, upward)
+    ring = np.asarray(ring)
+    if len(np.unique(ring)) != len(ring):
+        raise CapError("the end polygon visits a point twice")
+    poly = polys[0]
+    areas = [abs(shoelace_area(p)) for p in polys]
+    dists = [abs(float(z1) - float(z0)) for z0, z1 in zip(zs[:-1], zs[1:])]
+    if round(_roundness(poly), 12) < _CUT * _roundness(polys[1]):
+        t, lam = np.array([gap / 2]), np.array([1.0])
+    else:
+        t, lam, _ = _end_profile(areas, dists, gap, _DOME_RINGS)
+    drift = (_centroid(poly) - _centroid(polys[1])) / dists[0]
+    centre, _ = _dome_centre(poly)
+    sgn = 1.0 if upward else -1.0
+    ccw = shoelace_area(poly) > 0
+    prev = ring
+    for lam_i, t_i in zip(lam, t):
+        nxt = b.add_points(centre + lam_i * (poly - centre) + drift * t_i, zs[0] + sgn * t_i)
+        a0, a1, b0, b1 = prev, np.roll(prev, -1), nxt, np.roll(nxt, -1)
+        if ccw == upward:
+            b.add_faces(np.concatenate([np.c_[a0, a1, b1], np.c_[a0, b1, b0]]))
+        else:
+            b.add_faces(np.concatenate([np.c_[a0, b1, a1], np.c_[a0, b0, b1]]))
+        prev = nxt
+    return prev
+
+
 def _is_grid_4_curve(c: np.ndarray) -> bool:
     """Whether ``c`` is a closed digital 4-curve: integer points, unit axis steps (closing step included)."""
     if c.ndim != 2 or c.shape[1] != 2 or len(c) < 4 or not np.all(np.isfinite(c)) or not np.all(c == np.round(c)):
@@ -539,9 +591,14 @@ def stack_to_mesh(
     triangulation: str = "wiederhold",
     caps: str = "flat",
     crossings: str = "warn",
+    dome: str = "ellipse",
 ) -> Mesh:
     """Mesh a contour stack: polygons, bands and caps (see the module docstring for the end rules
     and for crossing faces).
+
+    ``dome`` (with ``caps="smooth"``): ``"ellipse"``, the dome of :func:`_dome` (a quarter ellipse
+    holding the half prism's volume), or ``"profile"``, that of :func:`_profile_dome` (the last
+    sections' area profile extrapolated; the band refinement's ends).
 
     ``crossings``: what to do where faces still cross after the local repair: ``"warn"`` (a
     :class:`~contourmesh.errors.SelfIntersectionWarning`; the count is in
@@ -551,6 +608,8 @@ def stack_to_mesh(
         raise ValueError(f"caps must be one of {CAPS}, got {caps!r}")
     if crossings not in ("warn", "raise"):
         raise ValueError(f"crossings must be 'warn' or 'raise', got {crossings!r}")
+    if dome not in ("ellipse", "profile"):
+        raise ValueError(f"dome must be 'ellipse' or 'profile', got {dome!r}")
     zs = check_stack(stack)
     stack = _outward(stack)
     default_h = float(np.median(np.diff(zs))) if len(zs) > 1 else 1.0
@@ -566,6 +625,7 @@ def stack_to_mesh(
     for attempt in range(_MAX_REBUILDS + 1):
         b = _Builder(stack.spacing, stack.origin)
         b.levels, b.contour_sections = levels, contour_sections
+        b.dome = dome
         if chains is not None:
             _mesh_nested(stack, chains, polygon, triangulation, caps, b, zs)
         else:
@@ -734,7 +794,13 @@ def _run_end(b, stack, run, keep, polys, idx, i, end, upward, caps, zs, triangul
     if caps == "smooth":
         mark = b.mark()
         try:
-            top = _dome(b, ring, polys[i], zs[k], abs(zs[nb] - zs[k]), upward)
+            if b.dome == "profile":
+                inward = keep[::-1] if end == -1 else keep
+                chain = [j for n_, j in enumerate(inward[:3]) if n_ == 0 or not _is_degenerate(polys[j])]
+                top = _profile_dome(b, ring, [polys[j] for j in chain], [zs[run[j][0]] for j in chain],
+                                    abs(zs[nb] - zs[k]), upward)
+            else:
+                top = _dome(b, ring, polys[i], zs[k], abs(zs[nb] - zs[k]), upward)
             _cap(b, top, upward=upward)
             return
         except ValueError as exc:  # a polygon that touches itself: closed flat, as caps="flat" does

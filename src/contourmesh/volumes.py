@@ -432,18 +432,23 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         raise ValueError(f"unknown polygon method {polygon!r}; expected one of {sorted(POLYGONIZERS)}")
     if triangulation not in TRIANGULATORS:
         raise ValueError(f"unknown band triangulation method {triangulation!r}; expected one of {sorted(TRIANGULATORS)}")
-    if caps not in ("flat", "half"):
-        raise ValueError(f"caps must be 'flat' or 'half'; got {caps!r}")
-    if refine not in (None, "none", "band"):
-        raise ValueError(f"unknown refine method {refine!r}; expected 'band' or 'none'")
+    if refine not in (None, "none", "band", "band2"):
+        raise ValueError(f"unknown refine method {refine!r}; expected 'band', 'band2' or 'none'")
     refine = None if refine == "none" else refine
+    if caps not in ("flat", "half") and not (caps == "smooth" and refine is not None):
+        raise ValueError(f"caps must be 'flat' or 'half' (or 'smooth' with refine='band'); got {caps!r}")
+    smooth_ends, caps_given = None, caps
+    if caps == "smooth":  # the refined components' ends follow their last sections' area profile
+        from .drawn import _SmoothEnds
+
+        smooth_ends, caps = _SmoothEnds(branch_domes=False), "flat"
     if polygons is not None and refine is not None:
         raise ValueError("polygons= and refine='band' both replace the polygons; give one of them")
     if (label is None and threshold is None and isinstance(volume, np.ndarray) and volume.ndim == 3
             and volume.size and volume.dtype.kind in "iuf"):
         label = binary_label(volume)  # a two-valued volume (0/255) is binary: its non-zero value
     # the common case (no holes, every slice pair a simple band join) in compiled code, the same mesh
-    fast = None if polygons is not None else \
+    fast = None if polygons is not None or smooth_ends is not None else \
         fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
                             origin=origin, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
     if fast is not None:
@@ -509,8 +514,12 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 
     refine_info = {}
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
-        refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy))
+        refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy), refine)
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
+    end_cap = getattr(polygons, "end_cap", None)
+    if smooth_ends is not None:
+        smooth_ends.attach(slices, zs, joins)
+        end_cap = smooth_ends
 
     # pass 2b: branching joins between the polygons themselves (bridges), where they keep clear of
     # everything else in their planes; the others become exact joins (their contours then keep
@@ -522,7 +531,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     bridge_cache: dict = {}  # bridged joins built so far, kept across rebuilds (see _build_bridges)
     # the joins and caps made so far, kept across rebuilds (see _assemble); not with the hooks of
     # the contours route, which count what they do on every build
-    unit_cache = {} if polygons is None else None
+    unit_cache = {} if polygons is None and end_cap is None else None
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
@@ -530,8 +539,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                polygon=polygon)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
-                                       getattr(polygons, "band_guard", None), getattr(polygons, "end_cap", None),
-                                       unit_cache)
+                                       getattr(polygons, "band_guard", None), end_cap, unit_cache)
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         pairs = _crossing_pairs(V, F, previous)
@@ -551,7 +559,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
-        "caps": caps, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
+        "caps": caps_given, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
         "intermediate_sections": n_sections,
         "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
         "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks, "pixel_caps": pixel_caps,
@@ -561,6 +569,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     }
     if refine is not None:
         meta.update(refine_info, refine=refine)
+    if smooth_ends is not None:
+        meta.update(smooth_domes=smooth_ends.count("dome"), smooth_tapers=smooth_ends.count("taper"),
+                    smooth_cut_ends=smooth_ends.count("cut"))
     meta.update(hook_info or {})
     if exact_joins or fallbacks or band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
@@ -901,7 +912,7 @@ def _checked(mesh: Mesh, nudge: float, planes, warn: bool = True, resolved=None)
     return Mesh(V, mesh.faces, P=mesh.P, meta=meta)
 
 
-def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, origin_xy) -> dict:
+def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, origin_xy, method="band") -> dict:
     """refine="band": the polygons of every component that is not crack-only become refined polygons,
     each guided by its partner below in a band join; crack rings stay (and bound the others)."""
     seeds, fixed, below, deepest = {}, {}, {}, {}
@@ -922,7 +933,7 @@ def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, 
         if kind == "band":
             a, b, matched = data
             below.update({(k + 1, b, hb): (k, a, ha) for ha, hb in [(-1, -1)] + list(matched)})
-    rings, info = refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds, below, fixed, deepest)
+    rings, info = refine_volume_rings(mask, zs, spacing_xy, origin_xy, seeds, below, fixed, deepest, method=method)
     for (k, c, h), p in rings.items():
         if h < 0:
             slices[k].outer[c] = p
