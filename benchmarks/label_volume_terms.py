@@ -16,6 +16,7 @@ Exact sections: closed form for ellipsoids, a 0.05-voxel midpoint grid for tori.
 area error.  Prints one row per label and the medians by kind.
 
     PYTHONPATH=src python benchmarks/label_volume_terms.py [--size 324 --cell 60 --labels 40 --refine band]
+    PYTHONPATH=src python benchmarks/label_volume_terms.py --refine band2 [--caps smooth]
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@
    ``cells.csv`` of each object's exact area and volume.
 2. Runs :func:`contourmesh.scale.mesh_labels_chunked` (stats only) on a ``LocalCluster`` of 1 and of
    2 worker processes (one thread each, ``memory_limit`` each), for the paper mode and
-   ``refine="band"``; reports wall time, the scan and mesh phases, and each worker's peak resident
+   ``refine="band"`` (``--modes``; ``band2`` too); reports wall time, the scan and mesh phases, and each worker's peak resident
    memory (``ru_maxrss`` of the worker process).
 3. Per-label area and volume errors against the exact values, for both modes and for marching
    cubes per label (scikit-image on the label's padded box, level 0.5).
@@ -48,7 +48,7 @@ def _warm():
     box = np.zeros((7, 8, 8), np.uint8)
     box[2:5, 2:6, 2:6] = 1
     box[2:5, 2:4, 6:8] = 2
-    for refine in (None, "band"):
+    for refine in (None, "band", "band2"):
         list(contourmesh.mesh_labels(box, refine=refine))
     return _rss_mib()
 
@@ -148,7 +148,7 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="scale_out_results")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--modes", nargs="+", default=["none", "band"], choices=["none", "band"])
+    ap.add_argument("--modes", nargs="+", default=["none", "band"], choices=["none", "band", "band2"])
     ap.add_argument("--memory-limit", default="2GiB")
     args = ap.parse_args(argv)
     out = Path(args.out)

@@ -355,6 +355,11 @@ def test_bad_inputs_get_clear_errors(tmp_path, volume):
         list(mesh_labels_chunked(volume, jobs=1, labels=[77]))
     with pytest.raises(contourmesh.InapplicableOption, match="caps='smooth'"):
         list(mesh_labels_chunked(volume, jobs=1, caps="smooth"))
+    # with the refinement the labels' ends follow their area profile (tests/test_refine.py)
+    from contourmesh.scale import _check_method
+
+    for refine in ("band", "band2"):
+        assert _check_method(dict(caps="smooth", refine=refine))["refine"] == refine
 
 
 # ---------------------------------------------------------------------------------------------- CLI
