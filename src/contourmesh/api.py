@@ -32,7 +32,9 @@ The routes behind the entry points:
   contours per slice, holes and branching; its compiled fast path handles simple slices.  Grid
   contour stacks with several contours per section (not nested chains) take it too, with the
   grid points their contours bound as the volume (:func:`contourmesh.refine.stack_points`);
-* **refined route** (``refine="band"``): the outer Jordan contour stack of the source is refined
+* **refined route** (``refine="band"``, or ``"band2"`` with twice the ring vertices; with
+  ``caps="smooth"`` the ends follow the last sections' area profile on either mesher): the outer
+  Jordan contour stack of the source is refined
   across slices (:func:`contourmesh.refine.refine_stack`) and meshed by the stack route, when
   every slice holds one contour (or one outer contour with holes that the stack route closes);
   otherwise (several contours, holes, branching) the volume mesher refines the polygons of its
@@ -192,8 +194,9 @@ def mesh(source, **options) -> Mesh:
         ``polygon`` ({"mlp", "dss", "none"}; default ``"mlp"``, and the drawn rings themselves for
         real-valued contour stacks), ``triangulation`` ({"wiederhold", "greedy", "optimal",
         "arclength"}; default ``"wiederhold"``, or ``"optimal"`` with ``refine="band"``), ``caps``
-        ({"flat", "half", "smooth"}; ``"smooth"`` on the stack, contours and refined routes only), ``refine``
-        ({None, "none", "band"}), ``progress``, and the keywords of the source's entry point.
+        ({"flat", "half", "smooth"}; ``"smooth"`` on the stack and contours routes, and with ``refine``
+        on any route), ``refine`` ({None, "none", "band", "band2"}; ``"band2"``: twice the ring vertices,
+        closer volumes), ``progress``, and the keywords of the source's entry point.
 
     Returns
     -------

@@ -895,8 +895,8 @@ def fast_volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 
     ----------
     volume, spacing, z, axis, label, threshold, origin, polygon, triangulation, caps
         As for :func:`contourmesh.volumes.volume_to_mesh`.
-    refine : {None, "none", "band"}
-        The fast path has no refinement: with ``"band"`` it declines (returns None).
+    refine : {None, "none", "band", "band2"}
+        The fast path has no refinement: with ``"band"`` or ``"band2"`` it declines (returns None).
     threads : int, optional
         Worker threads for the per-slice and per-pair kernels (default: ``$CONTOURMESH_THREADS`` or
         1, which runs everything in the calling thread).

@@ -43,6 +43,8 @@ Conventions (stated once)
   construction; the area there is voxel-like.  ``meta`` counts each kind.
 * **Ends**: a component with no partner above (below) is closed by a flat earcut cap (holes
   included) in its plane (``caps="flat"``) or half a slice spacing beyond it (``caps="half"``);
+  with the band refinement, ``caps="smooth"`` closes an end that continues a band join on its
+  last sections' area profile (a dome or a taper) and the others flat;
   a component with no partner on either side becomes a prism one spacing thick.
 * **Manifold**: where two contours touch at a corner (diagonal pixels), the touching vertex is
   split per fan of faces and each copy is moved a hair (``1e-3`` of a pixel) into its own fan, so
@@ -411,7 +413,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 
     ``refine="band"`` replaces every polygon of a component that is not crack-only (its rings
     take part in band joins and caps, not in exact joins) by its band-refined polygon
-    (:func:`contourmesh.refine.refine_volume_rings`: any pixel size, slices at any heights).
+    (:func:`contourmesh.refine.refine_volume_rings`: any pixel size, slices at any heights);
+    ``refine="band2"`` with twice the ring vertices.  With the refinement, ``caps="smooth"`` closes
+    the ends of the refined components that continue a band join by shrunk copies on the last
+    sections' area profile (:class:`contourmesh.drawn._SmoothEnds`); other ends are flat.
 
     ``polygons`` (internal): a callable ``polygons(slices, zs, crack_only, joins) -> dict`` run once the
     joins are decided and before the bridged joins are built; it may replace the polygons of any
@@ -436,7 +441,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         raise ValueError(f"unknown refine method {refine!r}; expected 'band', 'band2' or 'none'")
     refine = None if refine == "none" else refine
     if caps not in ("flat", "half") and not (caps == "smooth" and refine is not None):
-        raise ValueError(f"caps must be 'flat' or 'half' (or 'smooth' with refine='band'); got {caps!r}")
+        raise ValueError(f"caps must be 'flat' or 'half' (or 'smooth' with the band refinement); got {caps!r}")
     smooth_ends, caps_given = None, caps
     if caps == "smooth":  # the refined components' ends follow their last sections' area profile
         from .drawn import _SmoothEnds
