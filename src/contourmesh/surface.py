@@ -46,6 +46,7 @@ import numpy as np
 
 from .bands import band_is_folded, triangulate_band
 from .bands.caps import CapError, cap_faces
+from .bands.ends import _CUT, _DOME_RINGS, _centroid, _dome_centre, _end_profile, _roundness
 from .errors import (
     ContourMeshError,
     CrossingFacesError,
@@ -266,47 +267,6 @@ def _cap(builder: _Builder, idx, holes_idx=(), upward=True):
     builder.add_faces(both[local])
 
 
-def _dome_centre(poly: np.ndarray) -> tuple[np.ndarray, bool]:
-    """A centre to shrink ``poly`` toward, and whether ``poly`` is star-shaped about it.
-
-    The area centroid when it sees the whole polygon (it lies in the polygon's kernel, the part
-    on the inner side of every edge line); otherwise the point deepest inside the kernel (a
-    linear program); if the kernel is empty, the centroid (the polygon is not star-shaped).
-    """
-    p = np.asarray(poly, dtype=np.float64)
-    if shoelace_area(p) < 0:
-        p = p[::-1]
-    x, y = p[:, 0], p[:, 1]
-    xn, yn = np.roll(x, -1), np.roll(y, -1)
-    w = x * yn - xn * y
-    a = w.sum() / 2
-    centroid = np.array([((x + xn) * w).sum(), ((y + yn) * w).sum()]) / (6 * a)
-    d = np.c_[xn - x, yn - y]
-    length = np.hypot(d[:, 0], d[:, 1])
-    ok = length > 0
-    d, length, q = d[ok], length[ok], p[ok]
-
-    def depth(c):  # signed distance of c from the edge lines, inner side positive; the least one
-        return float(np.min((d[:, 0] * (c[1] - q[:, 1]) - d[:, 1] * (c[0] - q[:, 0])) / length))
-
-    scale = float(np.sqrt(abs(a)))
-    if depth(centroid) > 1e-9 * scale:
-        return centroid, True
-    from scipy.optimize import linprog
-
-    # maximize r subject to: c lies at least r inside every edge line
-    A = np.c_[d[:, 1], -d[:, 0], length]
-    rhs = d[:, 1] * q[:, 0] - d[:, 0] * q[:, 1]
-    lo, hi = p.min(axis=0), p.max(axis=0)
-    res = linprog([0, 0, -1], A_ub=A, b_ub=rhs, bounds=[(lo[0], hi[0]), (lo[1], hi[1]), (None, scale)],
-                  method="highs")
-    if res.status == 0 and -res.fun > 1e-9 * scale:
-        c = np.asarray(res.x[:2])
-        if depth(c) > 0:
-            return c, True
-    return centroid, False
-
-
 def _dome_profile(m: int = DOME_RINGS):
     """``(scale, height)`` of the dome's rings 1..m: a quarter ellipse sampled at ``theta_k = k pi / (2 (m + 1))``
     (``scale = cos theta``), heights in units of the gap, set so that the dome's volume is the half-gap
@@ -360,7 +320,7 @@ def _profile_dome(b: _Builder, ring, polys, zs, gap: float, upward: bool):
     the one or two polygons joined to it, inward); returns the top ring, for the flat cap that
     closes it.  The band refinement's ends (``refine="band", caps="smooth"``).
 
-    As the contours route's smooth ends (:func:`contourmesh.drawn._end_profile`): the section's
+    As the contours route's smooth ends (:func:`contourmesh.bands.ends._end_profile`): the section's
     area is extrapolated outward from the last sections; where it closes within a spacing, the
     dome's rings are the end polygon scaled by ``lam`` (evenly spread on a quarter circle) at the
     distances where the extrapolated area is ``lam^2`` times the end's, so the dome continues the
@@ -375,8 +335,6 @@ def _profile_dome(b: _Builder, ring, polys, zs, gap: float, upward: bool):
     CapError
         If ``ring`` visits a vertex twice (a polygon that touches itself).
     """
-    from .drawn import _CUT, _DOME_RINGS, _centroid, _end_profile, _roundness
-
     if len(polys) < 2:
         return _dome(b, ring, polys[0], zs[0], gap, upward)
     ring = np.asarray(ring)
@@ -385,7 +343,7 @@ def _profile_dome(b: _Builder, ring, polys, zs, gap: float, upward: bool):
     poly = polys[0]
     areas = [abs(shoelace_area(p)) for p in polys]
     dists = [abs(float(z1) - float(z0)) for z0, z1 in zip(zs[:-1], zs[1:])]
-    if round(_roundness(poly), 12) < _CUT * _roundness(polys[1]):
+    if _roundness(poly) < _CUT * _roundness(polys[1]):
         t, lam = np.array([gap / 2]), np.array([1.0])
     else:
         t, lam, _ = _end_profile(areas, dists, gap, _DOME_RINGS)

@@ -72,6 +72,7 @@ import numpy as np
 
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
+from .bands.ends import _SmoothEnds
 from .bands.optimal import triangulate_band_optimal
 from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp, slice_components, slice_labels
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
@@ -416,7 +417,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     (:func:`contourmesh.refine.refine_volume_rings`: any pixel size, slices at any heights);
     ``refine="band2"`` with twice the ring vertices.  With the refinement, ``caps="smooth"`` closes
     the ends of the refined components that continue a band join by shrunk copies on the last
-    sections' area profile (:class:`contourmesh.drawn._SmoothEnds`); other ends are flat.
+    sections' area profile (:class:`contourmesh.bands.ends._SmoothEnds`); other ends are flat.
 
     ``polygons`` (internal): a callable ``polygons(slices, zs, crack_only, joins) -> dict`` run once the
     joins are decided and before the bridged joins are built; it may replace the polygons of any
@@ -444,8 +445,6 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         raise ValueError(f"caps must be 'flat' or 'half' (or 'smooth' with the band refinement); got {caps!r}")
     smooth_ends, caps_given = None, caps
     if caps == "smooth":  # the refined components' ends follow their last sections' area profile
-        from .drawn import _SmoothEnds
-
         smooth_ends, caps = _SmoothEnds(branch_domes=False), "flat"
     if polygons is not None and refine is not None:
         raise ValueError("polygons= and refine='band' both replace the polygons; give one of them")
