@@ -537,7 +537,8 @@ def _pixels_mlp(img, h, w):
     q = 0
     while img[q] == 0:
         q += 1
-    cc = _trace_outer(img, 0, h, w, 0, 0, q % w - 1, q // w - 1)
+    zero = np.int64(0)  # not a literal 0, which would compile _trace_outer once more (see _kernel)
+    cc = _trace_outer(img, zero, h, w, zero, zero, q % w - 1, q // w - 1)
     _, _, p = _mlp(cc, np.int64(1))
     k = len(p)
     a2 = 0
@@ -960,15 +961,27 @@ def _slicer(vol, axis, label, threshold):
     return nz, h, w, get
 
 
+#: Slabs per thread in :func:`_map`: a few, so that a thread whose slabs hold the object's thick
+#: middle does not leave the others idle at the end.
+SLABS_PER_THREAD = 4
+
+
 def _map(fn, items, threads):
-    """``[fn(i) for i in items]``, on ``threads`` threads (the kernels release the GIL)."""
+    """``[fn(i) for i in items]``, on ``threads`` threads (the kernels release the GIL).
+
+    The items (slices, or slice pairs) go to the threads in slabs of consecutive items, a few
+    slabs per thread (:data:`SLABS_PER_THREAD`), not one by one: a task per slice costs the pool
+    more than a thin slice's kernel takes."""
     if threads <= 1 or len(items) < 4:
         return [fn(i) for i in items]
     from concurrent.futures import ThreadPoolExecutor
 
+    n = len(items)
+    bounds = np.linspace(0, n, min(n, threads * SLABS_PER_THREAD) + 1).astype(int)
+    slabs = [items[a:b] for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
     ex = ThreadPoolExecutor(max_workers=threads)
     try:
-        return list(ex.map(fn, items))
+        return [r for part in ex.map(lambda slab: [fn(i) for i in slab], slabs) for r in part]
     finally:
         ex.shutdown(wait=True, cancel_futures=True)
 

@@ -1,0 +1,119 @@
+"""The blur width of ``refine="band"`` on the rotated real meshes of ``comparisons/real`` (issue 14).
+
+The same inputs as the real-shapes comparison (``comparisons/real/real.toml``: each mesh rotated
+at 3 seeded random rotations, Gauss-voxelized at N across), meshed with ``refine="band"`` under
+several rules for the Gaussian width ``sigma`` and for the two-scale step, in one process.
+Prints each mesh's signed area error per rule, then per rule the median and largest |e|.
+
+Rules (``--rules``, separated by ``;``):
+
+* ``auto``: the default (:func:`contourmesh.refine.auto_sigma`, ``clip(0.8 R^(1/3), 2, 3.5)``);
+* ``sigma=LO-HI``: the same rule clipped to ``[LO, HI]`` (``sigma=2-2`` is a fixed width of 2);
+* ``extrapolate``: the two-scale step's extrapolated place at every vertex, not only where the
+  two widths disagree (``FINE_TOLERANCE`` below zero).
+
+    python benchmarks/band_sigma.py --size 256
+    python benchmarks/band_sigma.py --size 128 --meshes bunny-rot,torus-rot --rules "auto;sigma=2-2"
+
+Voxelized inputs are kept in ``comparisons/real/cache/volumes`` (not committed).
+The data folder is ``$CONTOURMESH_DATA`` (default ``../shared/data`` beside the checkout).
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import os
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+sys.path.insert(0, str(ROOT / "comparisons" / "real"))
+os.environ.setdefault("CONTOURMESH_DATA", str(ROOT.parent / "shared" / "data"))
+
+MESHES = ["armadillo-rot", "lion-rot", "rocker-arm-rot", "fertility-rot", "bunny-rot", "spot-rot", "3holes-rot",
+          "quadknot-rot", "socket-rot", "aneurysm-rot", "elephant-rot", "cheburashka-rot", "fandisk-rot",
+          "torus-rot"]
+
+
+def load(name: str, repeat: int, size: int):
+    """``(volume, spacing, origin, true area)`` of one input of the comparison, cached."""
+    import trimesh
+    import worst  # comparisons/real/worst.py: the comparison's own inputs
+
+    from contourmesh.compare.inputs import _place, data_dir, load_closed_mesh
+
+    cache = ROOT / "comparisons" / "real" / "cache" / "volumes" / f"{name}-{repeat}-{size}.npz"
+    if cache.exists():
+        z = np.load(cache, allow_pickle=False)
+        return z["vol"], tuple(z["sp"]), tuple(z["org"]), float(z["area"])
+    inp, rel = worst._input(name, repeat, size)
+    vol, sp, org = inp.volume()
+    v, f = load_closed_mesh(Path(data_dir()) / rel)
+    v = _place(v, inp.rotation, ())
+    if inp.offset:
+        v = v + np.asarray(inp.offset) * (float((v.max(0) - v.min(0)).max()) / size)
+    area = trimesh.Trimesh(v, f, process=False).area
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    tmp = cache.with_suffix(".tmp.npz")
+    np.savez_compressed(tmp, vol=vol, sp=sp, org=org, area=area)
+    tmp.replace(cache)
+    return vol, sp, org, area
+
+
+def mesh_with(rule: str, vol, sp, org):
+    """``contourmesh.mesh(vol, refine="band")`` under one rule (module settings restored after)."""
+    import contourmesh
+    from contourmesh import refine
+
+    saved = (refine._auto_sigma_of, refine.FINE_TOLERANCE)
+    try:
+        if rule.startswith("sigma="):
+            lo, hi = (float(x) for x in rule[len("sigma="):].split("-"))
+            refine._auto_sigma_of = functools.partial(saved[0], lo=lo, hi=hi)
+        elif rule == "extrapolate":
+            refine.FINE_TOLERANCE = (-1.0, -0.999)
+        elif rule != "auto":
+            raise SystemExit(f"unknown rule {rule!r}")
+        return contourmesh.mesh(vol, spacing=sp, origin=org, refine="band")
+    finally:
+        refine._auto_sigma_of, refine.FINE_TOLERANCE = saved
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=256, help="voxels across (64, 128 or 256)")
+    ap.add_argument("--meshes", default=",".join(MESHES), help="comma-separated input names of real.toml")
+    ap.add_argument("--repeats", default="0,1,2", help="the rotations")
+    ap.add_argument("--rules", default="auto;sigma=2-2;sigma=2-2.5;extrapolate")
+    a = ap.parse_args(argv)
+    rules = [r.strip() for r in a.rules.split(";") if r.strip()]
+    errors = {r: [] for r in rules}
+    from tqdm.auto import tqdm
+
+    cases = [(n, int(r)) for n in a.meshes.split(",") for r in a.repeats.split(",")]
+    print(f"{'input':<20} " + " ".join(f"{r:>14}" for r in rules))
+    for name, rep in tqdm(cases, desc="meshes", leave=False):
+        vol, sp, org, area = load(name, rep, a.size)
+        row = []
+        for r in rules:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                m = mesh_with(r, vol, sp, org)
+            e = 100.0 * (m.area / area - 1.0)
+            errors[r].append(e)
+            row.append(f"{e:+8.3f} s{m.meta['refine_sigma']:.1f}")
+        tqdm.write(f"{name + '#' + str(rep):<20} " + " ".join(f"{x:>14}" for x in row))
+    print(f"\nN = {a.size}, {len(cases)} meshes: median |e| / largest |e| (%)")
+    for r in rules:
+        e = np.abs(errors[r])
+        print(f"  {r:<14} {np.median(e):.3f} / {e.max():.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
