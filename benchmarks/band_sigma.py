@@ -14,6 +14,7 @@ Rules (``--rules``, separated by ``;``):
 
     python benchmarks/band_sigma.py --size 256
     python benchmarks/band_sigma.py --size 128 --meshes bunny-rot,torus-rot --rules "auto;sigma=2-2"
+    python benchmarks/band_sigma.py --size 256 --rules auto --refine band2
 
 Voxelized inputs are kept in ``comparisons/real/cache/volumes`` (not committed).
 The data folder is ``$CONTOURMESH_DATA`` (default ``../shared/data`` beside the checkout).
@@ -65,8 +66,8 @@ def load(name: str, repeat: int, size: int):
     return vol, sp, org, area
 
 
-def mesh_with(rule: str, vol, sp, org):
-    """``contourmesh.mesh(vol, refine="band")`` under one rule (module settings restored after)."""
+def mesh_with(rule: str, vol, sp, org, mode: str = "band"):
+    """``contourmesh.mesh(vol, refine=mode)`` under one rule (module settings restored after)."""
     import contourmesh
     from contourmesh import refine
 
@@ -79,7 +80,7 @@ def mesh_with(rule: str, vol, sp, org):
             refine.FINE_TOLERANCE = (-1.0, -0.999)
         elif rule != "auto":
             raise SystemExit(f"unknown rule {rule!r}")
-        return contourmesh.mesh(vol, spacing=sp, origin=org, refine="band")
+        return contourmesh.mesh(vol, spacing=sp, origin=org, refine=mode)
     finally:
         refine._auto_sigma_of, refine.FINE_TOLERANCE = saved
 
@@ -90,6 +91,7 @@ def main(argv=None) -> int:
     ap.add_argument("--meshes", default=",".join(MESHES), help="comma-separated input names of real.toml")
     ap.add_argument("--repeats", default="0,1,2", help="the rotations")
     ap.add_argument("--rules", default="auto;sigma=2-2;sigma=2-2.5;extrapolate")
+    ap.add_argument("--refine", default="band", choices=["band", "band2"], help="the refinement mode")
     a = ap.parse_args(argv)
     rules = [r.strip() for r in a.rules.split(";") if r.strip()]
     errors = {r: [] for r in rules}
@@ -103,7 +105,7 @@ def main(argv=None) -> int:
         for r in rules:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                m = mesh_with(r, vol, sp, org)
+                m = mesh_with(r, vol, sp, org, a.refine)
             e = 100.0 * (m.area / area - 1.0)
             errors[r].append(e)
             row.append(f"{e:+8.3f} s{m.meta['refine_sigma']:.1f}")
