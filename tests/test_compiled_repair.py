@@ -55,6 +55,30 @@ def test_clear_ends_kernel_equals_the_numpy_reference():
     assert outcomes == {True, False}
 
 
+def test_coverage_kernel_equals_the_numpy_reference():
+    # the keyhole test and the covered share of a segment over some components of a label image:
+    # ends on a grid of halves (samples exactly half way between pixel centres) or anywhere, some
+    # beyond the image, anisotropic pixels and an offset grid
+    rng = np.random.default_rng(11)
+    shares = set()
+    for trial in range(300):
+        lab = rng.integers(0, 5, (9, 11)).astype((np.uint8, np.uint16, np.int32)[trial % 3])
+        comps = sorted(rng.choice(4, int(rng.integers(1, 4)), replace=False).tolist())
+        grid = (0.0, 0.0, 1.0, 1.0) if trial % 2 else (-0.25, 0.5, 0.75, 1.25)
+        cov = bridges.keyhole_uncovered(lab, comps, grid)
+        m = 6
+        P = rng.integers(-4, 26, (m, 2)) / 2.0 if trial % 4 < 2 else rng.uniform(-2, 13, (m, 2))
+        Q = rng.integers(-4, 26, (m, 2)) / 2.0 if trial % 4 < 2 else rng.uniform(-2, 13, (m, 2))
+        got = cov.shares(P, Q)
+        for s in range(m):
+            hits = cov._hits_reference(P[s], Q[s])
+            assert got[s] == float(hits.mean())
+            assert cov.share(P[s], Q[s]) == float(hits.mean())
+            assert cov(P[s], Q[s]) == (not hits.any())
+            shares.add(0.0 if not hits.any() else 1.0 if hits.all() else 0.5)
+    assert shares == {0.0, 0.5, 1.0}
+
+
 def _random_faces(rng, m, nv):
     F = np.stack([rng.choice(nv, 3, replace=False) for _ in range(m)])
     return np.ascontiguousarray(F, dtype=np.int64)

@@ -215,11 +215,15 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
         return keyhole_uncovered(pair[other].S.labels, comps, grid)
 
     dbl = {(0, c, h) for c, h in P.double} | {(1, c, h) for c, h in Q.double}
+    # every group's kind first (cheap), the bridged joins after: a group that is neither a band nor
+    # a bridged join gives None whatever the others build, and each build depends only on its own
+    # group and the two layers, so none is built in vain (the same answer as group by group)
+    kinds = []
     for gp, gq in groups:
         if len(gp) == 1 and len(gq) == 1:
             matched = _simple_join(P.S, Q.S, gp[0], gq[0])
             if matched is not None:
-                out.append(("band", P, Q, gp[0], gq[0], matched))
+                kinds.append(("band", P, Q, gp[0], gq[0], matched))
                 continue
         plan = _bridge_plan(P.S, Q.S, gp, gq)
         if plan is None:
@@ -227,6 +231,12 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
         # a keyhole lies in its component's plane: a cap there would meet the fold along it
         if any(a in capped_p for a, _ in plan[3]) or any(b in capped_q for b, _ in plan[4]):
             return None
+        kinds.append(("plan", gp, gq, plan))
+    for kind in kinds:
+        if kind[0] == "band":
+            out.append(kind)
+            continue
+        _, gp, gq, plan = kind
         b = _bridge_join(0, gp, gq, plan, poly, zs, edges_of, uncovered, triangulation, caps, dbl)
         if b is None:
             return None

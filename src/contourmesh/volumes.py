@@ -1234,7 +1234,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
         cover = uncovered(other, comps)
         br = bridge_tree(rs, oa, ob, owners=owners, allowed=cover, waypoints=points_of, step=step,
-                         prefer=lambda p, q: cover.share(p, q) >= 0.5)
+                         prefer=lambda P, Q: cover.shares(P, Q) >= 0.5)
         if br is None:
             return None
         ids_of = {}

@@ -35,12 +35,23 @@ class _Coverage:
     """How much of a straight segment in one slice's plane lies over components ``comps`` (0-based)
     of the other slice's label image ``lab``.  ``grid = (ox, oy, dx, dy)`` maps pixel ``(i, j)`` to
     its centre ``(ox + i dx, oy + j dy)``; a segment is sampled 8 times per pixel, its ends left
-    out.  Calling it is the keyhole test: ``True`` where none of the segment is covered."""
+    out.  Calling it is the keyhole test: ``True`` where none of the segment is covered.
+    Compiled (:func:`_coverage_kernel`; :meth:`_hits_reference` is the numpy reference)."""
 
     def __init__(self, lab, comps, grid):
         self.lab, self.ids, self.grid = lab, np.asarray(comps) + 1, grid
+        self._ids64 = np.ascontiguousarray(self.ids, dtype=np.int64)
+        self._grid64 = tuple(float(g) for g in grid)
 
-    def _hits(self, p, q):
+    def _counts(self, P, Q):
+        """The covered samples and the samples of each segment ``P[s] Q[s]`` ((m, 2) arrays)."""
+        P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 2)
+        Q = np.ascontiguousarray(Q, dtype=np.float64).reshape(-1, 2)
+        ox, oy, dx, dy = self._grid64
+        return _coverage_kernel(P, Q, self.lab, self._ids64, ox, oy, dx, dy)
+
+    def _hits_reference(self, p, q):
+        """The samples of segment ``p q`` that are covered, in numpy (the kernel's reference)."""
         ox, oy, dx, dy = self.grid
         lab = self.lab
         steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
@@ -56,11 +67,44 @@ class _Coverage:
         return hit
 
     def __call__(self, p, q) -> bool:
-        return not self._hits(p, q).any()
+        return not self._counts(p, q)[0][0]
 
     def share(self, p, q) -> float:
         """The covered share of the segment's samples (0 to 1)."""
-        return float(self._hits(p, q).mean())
+        return float(self.shares(p, q)[0])
+
+    def shares(self, P, Q) -> np.ndarray:
+        """:meth:`share` of every segment ``P[s] Q[s]`` ((m, 2) arrays) at once."""
+        count, n = self._counts(P, Q)
+        return count / n
+
+
+@njit(cache=True, nogil=True)
+def _coverage_kernel(P, Q, lab, ids, ox, oy, dx, dy):
+    """Per segment ``P[s] Q[s]``: how many of its samples (8 per pixel, ends left out) fall on a
+    pixel of ``lab`` whose label is in ``ids``, and how many samples it has.  The arithmetic of
+    :meth:`_Coverage._hits_reference`, sample by sample."""
+    m = P.shape[0]
+    count = np.zeros(m, np.int64)
+    total = np.zeros(m, np.int64)
+    ny, nx = lab.shape
+    for s in range(m):
+        px, py, qx, qy = P[s, 0], P[s, 1], Q[s, 0], Q[s, 1]
+        steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
+        c = 0
+        for u in range(1, steps):
+            t = u / steps
+            i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
+            j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
+            if i >= 0 and i < nx and j >= 0 and j < ny:
+                v = lab[j, i]
+                for w in range(ids.shape[0]):
+                    if v == ids[w]:
+                        c += 1
+                        break
+        count[s] = c
+        total[s] = steps - 1
+    return count, total
 
 
 def keyhole_uncovered(lab, comps, grid):
@@ -203,8 +247,9 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         through them (:func:`keyhole_path`); without it only straight bridges are made.
     step : float
         The spacing of the waypoints (the pixel size): neighbours are at most ``1.5 step`` apart.
-    prefer : callable ``(p, q) -> bool``, optional
-        Bridges between different components for which it holds are tried before the others
+    prefer : callable ``(P, Q) -> bool array``, optional
+        Asked once per pair of rings of all its candidate bridges ``P[s] Q[s]`` (``(m, 2)`` arrays of
+        their ends).  Bridges between different components for which it holds are tried before the others
         (each kind shortest first).  The mesher prefers bridges over the other slice's material:
         the crotch of a fork lies above what the branches grew from.  A shorter bridge across
         empty space (the mouth of a C whose two arms part above it) would make the band fold
@@ -228,9 +273,11 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
             continue
         vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
-        ranked = prefer is not None and ci != cj  # preferred bridges between components first
-        cand.extend((int(ranked and not prefer(rings[i][a], rings[j][b])), round(float(dd), 9), round(float(t), 9),
-                     i, int(a), j, int(b)) for dd, t, a, b in zip(d, tie, vi, vj))
+        # preferred bridges between components first (``prefer`` asked of all the pairs at once)
+        later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) if prefer is not None and ci != cj \
+            else np.zeros(len(vi), dtype=bool)
+        cand.extend((int(lt), round(float(dd), 9), round(float(t), 9), i, int(a), j, int(b))
+                    for lt, dd, t, a, b in zip(later, d, tie, vi, vj))
     cand.sort()  # (not preferred, length, tie-break, ...): each kind shortest first
     parent = list(range(n))
 
