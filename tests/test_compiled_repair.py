@@ -79,6 +79,32 @@ def test_coverage_kernel_equals_the_numpy_reference():
     assert shares == {0.0, 0.5, 1.0}
 
 
+def test_candidate_pairs_equal_the_kd_tree_query():
+    # the nearest vertex pairs between two rings, measured all at once, are the k-d tree's (as a
+    # set: the bridge search sorts them), distances bit for bit; on a grid of halves many distances
+    # are equal, and where the tree's choice among them would decide, the tree is asked
+    rng = np.random.default_rng(17)
+    fell_back = agreed = 0
+    for trial in range(400):
+        grid = trial % 2 == 0
+        ni, nj = int(rng.integers(1, 30)), int(rng.integers(1, 30))
+        if grid:
+            ri = rng.integers(-6, 7, (ni, 2)) / 2.0
+            rj = rng.integers(-6, 7, (nj, 2)) / 2.0 + (rng.integers(0, 8) / 2.0, 0.0)
+        else:
+            ri = rng.normal(size=(ni, 2)) * 7.3
+            rj = rng.normal(size=(nj, 2)) * 7.3 + rng.normal(size=2) * 9
+        k = int(rng.choice([1, 3, 12]))
+        got = bridges._candidates(ri, rj, k)
+        want = bridges._candidates_reference(ri, rj, k)
+        as_set = lambda c: sorted(zip(c[0].tolist(), c[1].tolist(), c[2].tolist(), c[3].tolist()))  # noqa: E731
+        assert as_set(got) == as_set(want)
+        ok = bridges._nearest_kernel(ri, rj, np.int64(k))[3]
+        fell_back += not ok
+        agreed += ok
+    assert fell_back > 0 and agreed > 100, (fell_back, agreed)
+
+
 def _random_faces(rng, m, nv):
     F = np.stack([rng.choice(nv, 3, replace=False) for _ in range(m)])
     return np.ascontiguousarray(F, dtype=np.int64)

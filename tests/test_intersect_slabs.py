@@ -1,14 +1,15 @@
 """Issue 13 (cost of the check): the broad phase by slabs and planes (``method="slabs"``) must give
 exactly the pairs of the general grid (``method="grid"``) on our own meshes, on our meshes with
 crossings put in, and on random meshes with the sectioned structure; ``mesh_checks``' compiled
-counts must equal the plain numpy ones."""
+counts must equal the plain numpy ones.  The search that stops at the first pair
+(``any_intersecting``, issue 14) must answer as the whole list does."""
 
 import numpy as np
 import pytest
 from scipy import ndimage
 
 import contourmesh
-from contourmesh.intersect import intersecting_pairs
+from contourmesh.intersect import _as_mesh_arrays, _pairs, any_intersecting, canonical_vertices, intersecting_pairs
 from contourmesh.measure import _components, _edge_counts, mesh_checks, mesh_volume, triangle_areas
 
 
@@ -25,6 +26,14 @@ def _same(V, F, *, expect_slabs=None):
         slabs = intersecting_pairs(V, F, method="slabs")
         assert np.array_equal(slabs, grid), (len(slabs), len(grid))
     assert np.array_equal(intersecting_pairs(V, F), grid)  # auto
+    # the search that stops at its first pair: a pair of the whole list, and one exactly when the
+    # list has one (by each broad phase)
+    assert any_intersecting(V, F) == (len(grid) > 0)
+    Va, Fa = _as_mesh_arrays(V, F)
+    for method in ("grid", "slabs") if expect_slabs else ("grid",):
+        first = _pairs(Va, Fa, canonical_vertices(Va), 8, method, stop=1)
+        assert len(first) == min(1, len(grid))
+        assert all(tuple(p) in set(map(tuple, grid.tolist())) for p in first.tolist())
     return len(grid)
 
 

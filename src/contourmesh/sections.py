@@ -66,8 +66,9 @@ class _Layer:
     """One plane of a sectioned join: a slice of the mesh (``main``: its rings are the mesh's) or an
     intermediate section (its rings are the join's own vertices)."""
 
-    def __init__(self, S, z, comps, poly, edges, main=None, double=frozenset()):
+    def __init__(self, S, z, comps, poly, edges, main=None, double=frozenset(), box=None):
         self.S, self.z, self.comps = S, float(z), list(comps)
+        self.box = box  # a box (a pair of slices) holding every pixel of its components, or None
         self._poly, self._edges = poly, edges
         self.main = main  # the slice index, or None for a section
         self.double = double  # (c, h) of holes lidded from both sides (lids get a collar)
@@ -108,7 +109,7 @@ def _section_layer(ops, S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
         rs = [np.asarray(poly(c, h), dtype=np.float64) for c in range(S.n) for h in range(-1, len(S.holes[c]))]
         return np.concatenate(rs), np.concatenate([np.roll(r, -1, axis=0) for r in rs])
 
-    return _Layer(S, z, range(S.n), poly, edges), m
+    return _Layer(S, z, range(S.n), poly, edges, box=box), m
 
 
 def _groups(P: _Layer, Q: _Layer):
@@ -116,8 +117,12 @@ def _groups(P: _Layer, Q: _Layer):
     of each layer that overlap nothing on the other."""
     from .tracing import overlap_groups
 
-    la = np.where(np.isin(P.S.labels, np.asarray(P.comps) + 1), P.S.labels, 0)
-    lb = np.where(np.isin(Q.S.labels, np.asarray(Q.comps) + 1), Q.S.labels, 0)
+    # within the box that holds both layers' components (the groups do not depend on where the
+    # pixels lie, only on which labels overlap)
+    box = P.box if P.box is not None and P.box == Q.box else np.s_[:, :]
+    lp, lq = P.S.labels[box], Q.S.labels[box]
+    la = np.where(np.isin(lp, np.asarray(P.comps) + 1), lp, 0)
+    lb = np.where(np.isin(lq, np.asarray(Q.comps) + 1), lq, 0)
     pairs, groups = overlap_groups(la, lb, P.S.n, Q.S.n)
     lone_p = sorted(set(P.comps) - set(int(a) for a in pairs[:, 0]))
     lone_q = sorted(set(Q.comps) - set(int(b) for b in pairs[:, 1]))
@@ -147,7 +152,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     def main_layer(kk, comps):
         dbl = frozenset((c, h) for (k_, c, h) in double if k_ == kk)
         return _Layer(slices[kk], zs[kk], comps, lambda c, h: poly(kk, c, h), lambda: edges_of(kk), main=kk,
-                      double=dbl)
+                      double=dbl, box=box)
 
     lo, hi = main_layer(k, ga), main_layer(k + 1, gb)
     masks = {}  # id(layer) -> its mask in the box (for the topology test)
@@ -250,7 +255,7 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
     not a valid piece of mesh."""
     from .bands.bridges import segments_cross
     from .bands.caps import cap_faces
-    from .intersect import intersecting_pairs
+    from .intersect import any_intersecting
     _band_faces, _Bridged = ops.band_faces, ops.Bridged
 
     used = []  # ring keys (layer, c, h) in order of first use
@@ -365,7 +370,7 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
     once = {tuple(e) for e in und[cnt == 1].tolist()}
     if once != ring_edges:
         return None
-    if len(intersecting_pairs(V, F)):
+    if any_intersecting(V, F):
         return None
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments)
     out.sections = len(layers)

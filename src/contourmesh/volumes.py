@@ -1198,7 +1198,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     replace each band of the join (the bridged rings' band and the tubes'); its band is kept
     only where it neither folds nor crosses itself."""
     from .bands.bridges import bridge_tree, bridged_ring
-    from .intersect import intersecting_pairs
+    from .intersect import any_intersecting
 
     tubes, lids_a, lids_b, open_a, open_b = plan
     zk, zk1 = float(zs[k]), float(zs[k + 1])
@@ -1329,7 +1329,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         return None
     if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
         return None
-    if len(intersecting_pairs(V, F)):
+    if any_intersecting(V, F):
         return None
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
@@ -1358,8 +1358,12 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
 
     collars = sum(perimeter([A.crack_outer[a]] + list(A.crack_holes[a])) for a in ga) + \
         sum(perimeter([B.crack_outer[b]] + list(B.crack_holes[b])) for b in gb)
-    ra = np.isin(A.labels, [a + 1 for a in ga])
-    rb = np.isin(B.labels, [b + 1 for b in gb])
+    # the pixels of either side lie in the box of their components' boxes
+    sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
+    box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
+                min(s[1].start for s in sl):max(s[1].stop for s in sl)]
+    ra = np.isin(A.labels[box], [a + 1 for a in ga])
+    rb = np.isin(B.labels[box], [b + 1 for b in gb])
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
 
 

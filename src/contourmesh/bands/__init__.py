@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..intersect import canonical_vertices, intersecting_pairs
+from ..intersect import any_intersecting, canonical_vertices
 from ..measure import triangle_areas
 from .arclength import triangulate_band_arclength
 from .caps import cap_faces
@@ -163,7 +163,7 @@ def _band_crosses(P, f) -> bool:
         P = _split_pinches(P, f, dup)
         if P is None:
             return False
-    return len(intersecting_pairs(P, f)) > 0
+    return any_intersecting(P, f)
 
 
 def _split_pinches(P, f, dup):

@@ -182,11 +182,94 @@ def _segments_cross_reference(p, q, a, b) -> np.ndarray:
     return proper | touch
 
 
+#: Largest ``len(ri) * len(rj)`` for which :func:`_candidates` measures every pair in compiled code
+#: (:func:`_nearest_kernel`) rather than querying a k-d tree (faster for such small pairs of rings).
+_BRUTE_PAIRS = 40000
+
+
 def _candidates(ri: np.ndarray, rj: np.ndarray, k: int):
     """The ``k`` nearest vertex pairs ``(i, j, distance, tie)`` between two rings, with every pair
     as near as the ``k``-th (so that a rotated or mirrored input sees the same set).  ``tie`` is
     the distance of the pair's midpoint from the centroid of both rings' vertices: it orders
-    equally short pairs the same way whatever the orientation of the input."""
+    equally short pairs the same way whatever the orientation of the input.
+
+    The pairs are those of a k-d tree query (:func:`_candidates_reference`: the ``min(k,
+    len(ri))`` nearest vertices of ``ri`` to each vertex of ``rj``, those as near as the ``k``-th
+    shortest of them all): for small rings measured all at once in compiled code, with the same
+    distances (``sqrt(dx * dx + dy * dy)``, the tree's arithmetic), in another order (the caller
+    sorts them).  Where a vertex of ``rj`` has more vertices of ``ri`` within the cut than the
+    query returns (ties at its last place, which the tree breaks its own way), the tree decides."""
+    ri = np.ascontiguousarray(ri, dtype=np.float64)
+    rj = np.ascontiguousarray(rj, dtype=np.float64)
+    if len(ri) * len(rj) > _BRUTE_PAIRS:
+        return _candidates_reference(ri, rj, k)
+    vi, vj, d, ok = _nearest_kernel(ri, rj, np.int64(k))
+    if not ok:
+        return _candidates_reference(ri, rj, k)
+    centre = np.concatenate([ri, rj]).mean(axis=0)
+    tie = np.hypot(*(0.5 * (ri[vi] + rj[vj]) - centre).T)
+    return vi, vj, d, tie
+
+
+@njit(cache=True, nogil=True)
+def _nearest_kernel(ri, rj, k):
+    """:func:`_candidates`' pairs by measuring every pair: ``(vi, vj, d, ok)``, ``ok`` False where
+    a vertex of ``rj`` has more than ``min(k, len(ri))`` vertices within the cut (then the k-d
+    tree's choice among equal distances would decide, see :func:`_candidates_reference`)."""
+    ni, nj = ri.shape[0], rj.shape[0]
+    kk = min(k, ni)
+    D = np.empty((nj, ni))
+    pool = np.empty(nj * kk)
+    best = np.empty(kk)
+    for j in range(nj):
+        nb = 0
+        for i in range(ni):
+            dx = ri[i, 0] - rj[j, 0]
+            dy = ri[i, 1] - rj[j, 1]
+            v = np.sqrt(dx * dx + dy * dy)
+            D[j, i] = v
+            # the kk smallest so far, ascending (insertion)
+            if nb < kk:
+                t = nb
+                nb += 1
+            elif v < best[kk - 1]:
+                t = kk - 1
+            else:
+                continue
+            while t > 0 and best[t - 1] > v:
+                best[t] = best[t - 1]
+                t -= 1
+            best[t] = v
+        for t in range(kk):
+            pool[j * kk + t] = best[t]
+    pool.sort()
+    cut = pool[min(k, nj * kk) - 1] * (1 + 1e-12)
+    count = 0
+    for j in range(nj):
+        c = 0
+        for i in range(ni):
+            if D[j, i] <= cut:
+                c += 1
+        if c > kk:
+            return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0), False
+        count += c
+    vi = np.empty(count, np.int64)
+    vj = np.empty(count, np.int64)
+    d = np.empty(count)
+    t = 0
+    for j in range(nj):
+        for i in range(ni):
+            if D[j, i] <= cut:
+                vi[t] = i
+                vj[t] = j
+                d[t] = D[j, i]
+                t += 1
+    return vi, vj, d, True
+
+
+def _candidates_reference(ri: np.ndarray, rj: np.ndarray, k: int):
+    """:func:`_candidates` by a k-d tree query (for large rings, and the reference of the
+    compiled search)."""
     from scipy.spatial import cKDTree
 
     kk = min(k, len(ri))
