@@ -105,6 +105,19 @@ def test_candidate_pairs_equal_the_kd_tree_query():
     assert fell_back > 0 and agreed > 100, (fell_back, agreed)
 
 
+def test_dilated_equals_binary_dilation():
+    # the bridge plan's 8-neighbourhood dilation by shifts is scipy's, pixel for pixel (thin and
+    # one-pixel arrays, masks touching the border)
+    from scipy import ndimage
+
+    from contourmesh.volumes import _SQUARE, _dilated
+
+    rng = np.random.default_rng(19)
+    for _ in range(300):
+        m = rng.random(tuple(int(n) for n in rng.integers(1, 12, 2))) < rng.uniform(0.05, 0.9)
+        assert np.array_equal(_dilated(m), ndimage.binary_dilation(m, structure=_SQUARE))
+
+
 def _random_faces(rng, m, nv):
     F = np.stack([rng.choice(nv, 3, replace=False) for _ in range(m)])
     return np.ascontiguousarray(F, dtype=np.int64)

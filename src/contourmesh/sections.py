@@ -38,28 +38,49 @@ def mid_section(ra: np.ndarray, rb: np.ndarray, sampling=(1.0, 1.0)) -> np.ndarr
     where the mean of their signed distances is negative.  Each signed distance is measured from
     pixel centres to the crack boundary (half a pixel from the nearest centre on the other side),
     negative inside.  Pixels inside both regions are always in it, pixels outside both never."""
+    return _sdf(ra, sampling) + _sdf(rb, sampling) < 0
+
+
+def _sdf(m: np.ndarray, sampling) -> np.ndarray:
+    """:func:`mid_section`'s signed distance of a region (a boolean mask)."""
     from scipy import ndimage
 
-    def sdf(m):
-        pad = np.pad(m, 1)
-        inside = ndimage.distance_transform_edt(pad, sampling=sampling)[1:-1, 1:-1]
-        outside = ndimage.distance_transform_edt(~pad, sampling=sampling)[1:-1, 1:-1]
-        h = 0.5 * min(sampling)
-        return np.where(m, h - inside, outside - h)
-
-    return sdf(ra) + sdf(rb) < 0
+    pad = np.pad(m, 1)
+    inside = ndimage.distance_transform_edt(pad, sampling=sampling)[1:-1, 1:-1]
+    outside = ndimage.distance_transform_edt(~pad, sampling=sampling)[1:-1, 1:-1]
+    h = 0.5 * min(sampling)
+    return np.where(m, h - inside, outside - h)
 
 
 def stack_invariants(layers) -> tuple:
     """(object components, background components, Euler characteristic) of a stack of 2D masks as
     a voxel object: 6-connected object, 26-connected background, padded by empty voxels."""
     from scipy import ndimage
-    from skimage.measure import euler_number
 
     v = np.pad(np.stack(layers), 1)
     _, n_obj = ndimage.label(v, structure=ndimage.generate_binary_structure(3, 1))
     _, n_bg = ndimage.label(~v, structure=np.ones((3, 3, 3), dtype=bool))
-    return n_obj, n_bg, int(euler_number(v, connectivity=1))
+    return n_obj, n_bg, euler6(v)
+
+
+def euler6(v) -> int:
+    """The Euler characteristic of a 3D boolean array's object as a 6-connected voxel object
+    (``skimage.measure.euler_number(v, connectivity=1)``, an integer, counted another way): the
+    complex with a vertex per voxel, an edge per pair of face-adjacent voxels, a square per 2 x 2
+    block of voxels in a coordinate plane and a cube per 2 x 2 x 2 block, ``V - E + F - C``."""
+    v = np.asarray(v, dtype=bool)
+    a, b = slice(None, -1), slice(1, None)
+    n_v = int(np.count_nonzero(v))
+    n_e = int(np.count_nonzero(v[a] & v[b]) + np.count_nonzero(v[:, a] & v[:, b])
+              + np.count_nonzero(v[:, :, a] & v[:, :, b]))
+    yz = v[:, a] & v[:, b]  # edges along y, then squares in the (y, z), (x, y) planes and cubes
+    xy = v[:, :, a] & v[:, :, b]
+    sq_zy = yz[a] & yz[b]
+    sq_zx = xy[a] & xy[b]
+    sq_yx = xy[:, a] & xy[:, b]
+    cubes = sq_yx[a] & sq_yx[b]
+    n_f = int(np.count_nonzero(sq_zy) + np.count_nonzero(sq_zx) + np.count_nonzero(sq_yx))
+    return n_v - n_e + n_f - int(np.count_nonzero(cubes))
 
 
 class _Layer:
@@ -86,17 +107,15 @@ class _Layer:
                 np.concatenate([b, np.array([q for _, q in self.taken], dtype=np.float64)]))
 
 
-def _section_layer(ops, S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
-    """The intermediate section between components ``ga`` of ``S_lo`` and ``gb`` of ``S_hi``
-    (inside ``box``, a pair of slices), as a :class:`_Layer` of a new :class:`_Slice`."""
+def _section_layer(ops, shape, box, z, polygon, grid, m):
+    """The intermediate section whose pixels in ``box`` (a pair of slices of an image of
+    ``shape``) are ``m`` (:func:`mid_section` of the two layers' regions there), as a
+    :class:`_Layer` of a new :class:`_Slice`."""
     from .geometry import grid_to_xy
 
-    ra = np.isin(S_lo.labels[box], np.asarray(ga) + 1)
-    rb = np.isin(S_hi.labels[box], np.asarray(gb) + 1)
-    m = mid_section(ra, rb, sampling)
     if not m.any():
         return None, None
-    full = np.zeros(S_lo.labels.shape, dtype=bool)
+    full = np.zeros(shape, dtype=bool)
     full[box] = m
     ox, oy, dx, dy = grid
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
@@ -155,12 +174,18 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
                       double=dbl, box=box)
 
     lo, hi = main_layer(k, ga), main_layer(k + 1, gb)
-    masks = {}  # id(layer) -> its mask in the box (for the topology test)
+    masks = {}  # id(layer) -> (layer, its mask in the box) (the sections' regions, the topology test)
+    sdfs = {}  # id(layer) -> (layer, the signed distance of its mask): a layer next to two sections
 
     def mask_of(L):
         if id(L) not in masks:
-            masks[id(L)] = np.isin(L.S.labels[box], np.asarray(L.comps) + 1)
-        return masks[id(L)]
+            masks[id(L)] = (L, np.isin(L.S.labels[box], np.asarray(L.comps) + 1))
+        return masks[id(L)][1]
+
+    def sdf_of(L):
+        if id(L) not in sdfs:
+            sdfs[id(L)] = (L, _sdf(mask_of(L), sampling))
+        return sdfs[id(L)][1]
 
     def split(P, Q, depth, first):
         """The layers strictly between P and Q and the pieces joining them, or None."""
@@ -169,10 +194,12 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             return [], pieces
         if depth == 0:
             return None
-        M, m = _section_layer(ops, P.S, P.comps, Q.S, Q.comps, box, 0.5 * (P.z + Q.z), polygon, grid, sampling)
+        # mid_section of the two layers' regions (a section's region is its mask)
+        M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid,
+                              sdf_of(P) + sdf_of(Q) < 0)
         if M is None:
             return None
-        masks[id(M)] = m
+        masks[id(M)] = (M, m)
         below = split(P, M, depth - 1, False)
         if below is None:
             return None

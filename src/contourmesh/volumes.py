@@ -1095,6 +1095,19 @@ def _pixel_faces(M, region, x0, y0, corner_ids, up):
 # ------------------------------------------------------------------------------------------------
 # branching joins by bridges
 # ------------------------------------------------------------------------------------------------
+def _dilated(m: np.ndarray) -> np.ndarray:
+    """``ndimage.binary_dilation(m, structure=_SQUARE)``: each pixel or one of its 8 neighbours set
+    (beyond the array nothing is), as the OR of the nine shifts."""
+    p = np.pad(m, 1)
+    ny, nx = m.shape
+    out = p[:ny, :nx].copy()
+    for dy in range(3):
+        for dx in range(3):
+            if dy or dx:
+                out |= p[dy:dy + ny, dx:dx + nx]
+    return out
+
+
 def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     """How a fork or merge group joins between its polygons, or None where it cannot.
 
@@ -1125,12 +1138,12 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     olab, no = ndimage.label(o, structure=_CROSS)
     if no != npairs:  # some pair overlaps in more than one piece: a handle
         return None
-    blab, _ = ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)
+    blab, nbl = ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)
     ext = blab[0, 0]
-    near_ext = ndimage.binary_dilation(blab == ext, structure=_SQUARE)[1:-1, 1:-1]
+    near_ext = _dilated(blab == ext)[1:-1, 1:-1]
     if len(np.unique(olab[near_ext & o])) != no:  # an overlap inside a hole of another
         return None
-    holes_o = set(np.unique(blab)) - {ext, 0}
+    holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
 
     def where(S, comps):
         at = {}
