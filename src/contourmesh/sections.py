@@ -124,9 +124,13 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]
 
+    made = []  # the section's edges, made once (its polygons do not change)
+
     def edges():
-        rs = [np.asarray(poly(c, h), dtype=np.float64) for c in range(S.n) for h in range(-1, len(S.holes[c]))]
-        return np.concatenate(rs), np.concatenate([np.roll(r, -1, axis=0) for r in rs])
+        if not made:
+            rs = [np.asarray(poly(c, h), dtype=np.float64) for c in range(S.n) for h in range(-1, len(S.holes[c]))]
+            made.append((np.concatenate(rs), np.concatenate([np.roll(r, -1, axis=0) for r in rs])))
+        return made[0]
 
     return _Layer(S, z, range(S.n), poly, edges, box=box), m
 

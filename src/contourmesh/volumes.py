@@ -1337,8 +1337,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     if extra:
         V = np.concatenate([V] + extra)
     F = np.concatenate(faces)
-    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    if len(e) and np.unique(e, axis=0, return_counts=True)[1].max() > 2:
+    if band_is_folded(F):  # an edge in more than two faces (compiled: the sorted edge keys)
         return None
     if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
         return None
