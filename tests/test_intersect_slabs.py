@@ -37,6 +37,23 @@ def _same(V, F, *, expect_slabs=None):
     return len(grid)
 
 
+def test_levels_equal_np_unique():
+    # the heights' ranks of the slab phase, compiled: np.unique's inverse and count (equal heights,
+    # -0.0 and 0.0 among them, share a level; a NaN height is left to np.unique)
+    from contourmesh.intersect import _levels
+
+    rng = np.random.default_rng(8)
+    for t in range(300):
+        n = int(rng.integers(0, 40))
+        z = rng.integers(-3, 4, n) * 0.5 if t % 2 else rng.normal(size=n)
+        if n and t % 5 == 0:
+            z[rng.integers(n)] = -0.0
+        levels, inv = np.unique(z, return_inverse=True)
+        lev, nlev = _levels(np.ascontiguousarray(z, dtype=np.float64))
+        assert nlev == len(levels) and np.array_equal(lev, inv.reshape(-1))
+    assert _levels(np.array([1.0, np.nan, 2.0]))[1] == -1
+
+
 def _volumes(rng, n):
     for t in range(n):
         if t % 3 == 0:  # a smoothed noise blob

@@ -1150,8 +1150,8 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
         for c in comps:
             csl, masks = S.hole_masks[c]
             for h, hm in enumerate(masks):
-                ys, xs = np.nonzero(hm)
-                lab = int(blab[ys[0] + csl[0].start - y0 + 1, xs[0] + csl[1].start - x0 + 1])
+                y, x = divmod(int(np.argmax(hm)), hm.shape[1])  # its first pixel (raster order)
+                lab = int(blab[y + csl[0].start - y0 + 1, x + csl[1].start - x0 + 1])
                 at.setdefault(lab, []).append((c, h))
         return at
 
