@@ -359,8 +359,11 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         # preferred bridges between components first (``prefer`` asked of all the pairs at once)
         later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) if prefer is not None and ci != cj \
             else np.zeros(len(vi), dtype=bool)
-        cand.extend((int(lt), round(float(dd), 9), round(float(t), 9), i, int(a), j, int(b))
-                    for lt, dd, t, a, b in zip(later, d, tie, vi, vj))
+        # (as Python numbers first: the same values, without a numpy scalar per field)
+        cand.extend((int(lt), round(dd, 9), round(t, 9), i, a, j, b)
+                    for lt, dd, t, a, b in zip(later.tolist(), np.asarray(d, dtype=np.float64).tolist(),
+                                               np.asarray(tie, dtype=np.float64).tolist(),
+                                               np.asarray(vi).tolist(), np.asarray(vj).tolist()))
     cand.sort()  # (not preferred, length, tie-break, ...): each kind shortest first
     parent = list(range(n))
 
