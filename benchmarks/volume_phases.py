@@ -54,6 +54,7 @@ def instrument():
         setattr(volumes, name, _timed(getattr(volumes, name), name))
     repair.intersecting_pairs = _timed(repair.intersecting_pairs, "intersecting_pairs (crossing repair)")
     intersect.intersecting_pairs = _timed(intersect.intersecting_pairs, "intersecting_pairs (bridged joins)")
+    intersect.any_intersecting = _timed(intersect.any_intersecting, "any_intersecting (bridged, sectioned joins)")
     api.diagnose = _timed(api.diagnose, "diagnose")
     for cls, meth in METHODS:
         setattr(cls, meth, _timed(getattr(cls, meth), f"{cls.__name__}.{meth}"))

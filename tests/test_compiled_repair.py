@@ -55,6 +55,123 @@ def test_clear_ends_kernel_equals_the_numpy_reference():
     assert outcomes == {True, False}
 
 
+def test_coverage_kernel_equals_the_numpy_reference():
+    # the keyhole test and the covered share of a segment over some components of a label image:
+    # ends on a grid of halves (samples exactly half way between pixel centres) or anywhere, some
+    # beyond the image, anisotropic pixels and an offset grid
+    rng = np.random.default_rng(11)
+    shares = set()
+    for trial in range(300):
+        lab = rng.integers(0, 5, (9, 11)).astype((np.uint8, np.uint16, np.int32)[trial % 3])
+        comps = sorted(rng.choice(4, int(rng.integers(1, 4)), replace=False).tolist())
+        grid = (0.0, 0.0, 1.0, 1.0) if trial % 2 else (-0.25, 0.5, 0.75, 1.25)
+        cov = bridges.keyhole_uncovered(lab, comps, grid)
+        m = 6
+        P = rng.integers(-4, 26, (m, 2)) / 2.0 if trial % 4 < 2 else rng.uniform(-2, 13, (m, 2))
+        Q = rng.integers(-4, 26, (m, 2)) / 2.0 if trial % 4 < 2 else rng.uniform(-2, 13, (m, 2))
+        got = cov.shares(P, Q)
+        for s in range(m):
+            hits = cov._hits_reference(P[s], Q[s])
+            assert got[s] == float(hits.mean())
+            assert cov.share(P[s], Q[s]) == float(hits.mean())
+            assert cov(P[s], Q[s]) == (not hits.any())
+            shares.add(0.0 if not hits.any() else 1.0 if hits.all() else 0.5)
+    assert shares == {0.0, 0.5, 1.0}
+
+
+def test_candidate_pairs_equal_the_kd_tree_query():
+    # the nearest vertex pairs between two rings, measured all at once, are the k-d tree's (as a
+    # set: the bridge search sorts them), distances bit for bit; on a grid of halves many distances
+    # are equal, and where the tree's choice among them would decide, the tree is asked
+    rng = np.random.default_rng(17)
+    fell_back = agreed = 0
+    for trial in range(400):
+        grid = trial % 2 == 0
+        ni, nj = int(rng.integers(1, 30)), int(rng.integers(1, 30))
+        if grid:
+            ri = rng.integers(-6, 7, (ni, 2)) / 2.0
+            rj = rng.integers(-6, 7, (nj, 2)) / 2.0 + (rng.integers(0, 8) / 2.0, 0.0)
+        else:
+            ri = rng.normal(size=(ni, 2)) * 7.3
+            rj = rng.normal(size=(nj, 2)) * 7.3 + rng.normal(size=2) * 9
+        k = int(rng.choice([1, 3, 12]))
+        got = bridges._candidates(ri, rj, k)
+        want = bridges._candidates_reference(ri, rj, k)
+        as_set = lambda c: sorted(zip(c[0].tolist(), c[1].tolist(), c[2].tolist(), c[3].tolist()))  # noqa: E731
+        assert as_set(got) == as_set(want)
+        ok = bridges._nearest_kernel(ri, rj, np.int64(k))[3]
+        fell_back += not ok
+        agreed += ok
+    assert fell_back > 0 and agreed > 100, (fell_back, agreed)
+
+
+def test_dilated_equals_binary_dilation():
+    # the bridge plan's 8-neighbourhood dilation by shifts is scipy's, pixel for pixel (thin and
+    # one-pixel arrays, masks touching the border)
+    from scipy import ndimage
+
+    from contourmesh.volumes import _SQUARE, _dilated
+
+    rng = np.random.default_rng(19)
+    for _ in range(300):
+        m = rng.random(tuple(int(n) for n in rng.integers(1, 12, 2))) < rng.uniform(0.05, 0.9)
+        assert np.array_equal(_dilated(m), ndimage.binary_dilation(m, structure=_SQUARE))
+
+
+def _split_pinches_add_at(P, f, dup):
+    """bands._split_pinches as it was, with np.add.at (the reference)."""
+    from contourmesh.intersect import canonical_vertices
+
+    P = np.array(P, dtype=np.float64)
+    ext = float(np.ptp(P[:, :2], axis=0).max()) if len(P) else 0.0
+    if not ext > 0:
+        return None
+    cen = P[f].mean(axis=1)
+    acc = np.zeros_like(P)
+    for k in range(3):
+        np.add.at(acc, f[:, k], cen)
+    deg = np.bincount(f.reshape(-1), minlength=len(P))
+    for i in dup:
+        if deg[i] == 0:
+            return None
+        d = acc[i] / deg[i] - P[i]
+        d[2] = 0.0
+        n = float(np.hypot(d[0], d[1]))
+        if not n > 0:
+            return None
+        P[i] = P[i] + d * (1e-4 * ext / n)
+    canon = canonical_vertices(P)
+    if (canon != np.arange(len(P))).any():
+        return None
+    return P
+
+
+def test_split_pinches_equals_the_add_at_form():
+    # the centroid sums by bincount in the corners' order are np.add.at's, bit for bit: the moved
+    # points of pinched bands (a ring visiting one position twice) are the same
+    from contourmesh.bands import _split_pinches, triangulate_band
+
+    rng = np.random.default_rng(23)
+    moved = 0
+    for trial in range(200):
+        n = int(rng.integers(5, 40))
+        t = (np.arange(n) + rng.uniform(0, 0.5, n)) * (2 * np.pi / n)
+        lo = np.c_[np.cos(t), np.sin(t), np.zeros(n)] * rng.uniform(5, 50)
+        hi = np.c_[np.cos(t + 0.2), np.sin(t + 0.2), np.ones(n)] * rng.uniform(5, 50)
+        if trial % 2:  # a dyadic grid
+            lo[:, :2], hi[:, :2] = np.round(lo[:, :2] * 64) / 64, np.round(hi[:, :2] * 64) / 64
+        lo[n // 2] = lo[0]  # the lower ring visits one position twice
+        f = triangulate_band(lo, hi, "arclength")
+        P = np.concatenate([lo, hi])
+        dup = np.array([0, n // 2])
+        got, want = _split_pinches(P, f, dup), _split_pinches_add_at(P, f, dup)
+        assert (got is None) == (want is None)
+        if want is not None:
+            assert np.array_equal(got, want)
+            moved += 1
+    assert moved > 100
+
+
 def _random_faces(rng, m, nv):
     F = np.stack([rng.choice(nv, 3, replace=False) for _ in range(m)])
     return np.ascontiguousarray(F, dtype=np.int64)

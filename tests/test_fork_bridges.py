@@ -41,8 +41,8 @@ def test_a_preferred_bridge_wins_over_a_shorter_one():
     rings = [left, right]
     oa, ob = _edges(rings)
 
-    def over_the_left_side(p, q):
-        return (p[0] + q[0]) / 2 < 0
+    def over_the_left_side(P, Q):  # asked of all the candidate bridges of a pair of rings at once
+        return (P[:, 0] + Q[:, 0]) / 2 < 0
 
     def bridge_x(br):
         i, vi, j, vj = br[0][:4]

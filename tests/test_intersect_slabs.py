@@ -1,14 +1,15 @@
 """Issue 13 (cost of the check): the broad phase by slabs and planes (``method="slabs"``) must give
 exactly the pairs of the general grid (``method="grid"``) on our own meshes, on our meshes with
 crossings put in, and on random meshes with the sectioned structure; ``mesh_checks``' compiled
-counts must equal the plain numpy ones."""
+counts must equal the plain numpy ones.  The search that stops at the first pair
+(``any_intersecting``, issue 14) must answer as the whole list does."""
 
 import numpy as np
 import pytest
 from scipy import ndimage
 
 import contourmesh
-from contourmesh.intersect import intersecting_pairs
+from contourmesh.intersect import _as_mesh_arrays, _pairs, any_intersecting, canonical_vertices, intersecting_pairs
 from contourmesh.measure import _components, _edge_counts, mesh_checks, mesh_volume, triangle_areas
 
 
@@ -25,7 +26,32 @@ def _same(V, F, *, expect_slabs=None):
         slabs = intersecting_pairs(V, F, method="slabs")
         assert np.array_equal(slabs, grid), (len(slabs), len(grid))
     assert np.array_equal(intersecting_pairs(V, F), grid)  # auto
+    # the search that stops at its first pair: a pair of the whole list, and one exactly when the
+    # list has one (by each broad phase)
+    assert any_intersecting(V, F) == (len(grid) > 0)
+    Va, Fa = _as_mesh_arrays(V, F)
+    for method in ("grid", "slabs") if expect_slabs else ("grid",):
+        first = _pairs(Va, Fa, canonical_vertices(Va), 8, method, stop=1)
+        assert len(first) == min(1, len(grid))
+        assert all(tuple(p) in set(map(tuple, grid.tolist())) for p in first.tolist())
     return len(grid)
+
+
+def test_levels_equal_np_unique():
+    # the heights' ranks of the slab phase, compiled: np.unique's inverse and count (equal heights,
+    # -0.0 and 0.0 among them, share a level; a NaN height is left to np.unique)
+    from contourmesh.intersect import _levels
+
+    rng = np.random.default_rng(8)
+    for t in range(300):
+        n = int(rng.integers(0, 40))
+        z = rng.integers(-3, 4, n) * 0.5 if t % 2 else rng.normal(size=n)
+        if n and t % 5 == 0:
+            z[rng.integers(n)] = -0.0
+        levels, inv = np.unique(z, return_inverse=True)
+        lev, nlev = _levels(np.ascontiguousarray(z, dtype=np.float64))
+        assert nlev == len(levels) and np.array_equal(lev, inv.reshape(-1))
+    assert _levels(np.array([1.0, np.nan, 2.0]))[1] == -1
 
 
 def _volumes(rng, n):

@@ -46,6 +46,24 @@ def test_stack_invariants_see_a_tube_closed_by_a_section():
     assert sections.stack_invariants([ring, ring, ring]) == two
 
 
+def test_euler6_equals_skimage_on_random_stacks():
+    # the Euler characteristic counted as vertices - edges + squares - cubes of the 6-connected
+    # voxel complex is skimage's (connectivity=1): smoothed blobs (tunnels, cavities) and noise
+    from skimage.measure import euler_number
+
+    rng = np.random.default_rng(4)
+    seen = set()
+    for t in range(200):
+        shape = tuple(int(n) for n in rng.integers(1, 10, 3))
+        v = rng.random(shape) < rng.uniform(0.1, 0.9) if t % 2 else \
+            ndimage.gaussian_filter(rng.random(shape), 1.0) > 0.5
+        v = np.pad(v, 1) if t % 3 else v
+        chi = euler_number(v, connectivity=1)
+        assert sections.euler6(v) == chi
+        seen.add(int(np.sign(chi)))
+    assert seen == {-1, 0, 1}
+
+
 @pytest.mark.parametrize("kw", [dict(), dict(refine="band"), dict(caps="half"),
                                 dict(polygon="dss", triangulation="optimal")])
 def test_sections_replace_exact_joins_and_keep_the_voxel_topology(kw):

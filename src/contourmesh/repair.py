@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .intersect import intersecting_pairs
+from .intersect import any_intersecting, intersecting_pairs
 
 __all__ = ["split_nonmanifold_vertices", "resolve_crossings", "crossing_pairs_after_change"]
 
@@ -455,7 +455,7 @@ def _tube_crosses(fans, tube, xyz) -> bool:
     """True when the faces of a neck's tube cross each other or its two fans (exact test)."""
     f = np.array(fans + tube, dtype=np.int64)
     ids, local = np.unique(f, return_inverse=True)
-    return len(intersecting_pairs(xyz(ids.tolist()), local.reshape(-1, 3))) > 0
+    return any_intersecting(xyz(ids.tolist()), local.reshape(-1, 3))
 
 
 def _rolled(a, k):

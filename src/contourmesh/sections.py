@@ -38,36 +38,58 @@ def mid_section(ra: np.ndarray, rb: np.ndarray, sampling=(1.0, 1.0)) -> np.ndarr
     where the mean of their signed distances is negative.  Each signed distance is measured from
     pixel centres to the crack boundary (half a pixel from the nearest centre on the other side),
     negative inside.  Pixels inside both regions are always in it, pixels outside both never."""
+    return _sdf(ra, sampling) + _sdf(rb, sampling) < 0
+
+
+def _sdf(m: np.ndarray, sampling) -> np.ndarray:
+    """:func:`mid_section`'s signed distance of a region (a boolean mask)."""
     from scipy import ndimage
 
-    def sdf(m):
-        pad = np.pad(m, 1)
-        inside = ndimage.distance_transform_edt(pad, sampling=sampling)[1:-1, 1:-1]
-        outside = ndimage.distance_transform_edt(~pad, sampling=sampling)[1:-1, 1:-1]
-        h = 0.5 * min(sampling)
-        return np.where(m, h - inside, outside - h)
-
-    return sdf(ra) + sdf(rb) < 0
+    pad = np.pad(m, 1)
+    inside = ndimage.distance_transform_edt(pad, sampling=sampling)[1:-1, 1:-1]
+    outside = ndimage.distance_transform_edt(~pad, sampling=sampling)[1:-1, 1:-1]
+    h = 0.5 * min(sampling)
+    return np.where(m, h - inside, outside - h)
 
 
 def stack_invariants(layers) -> tuple:
     """(object components, background components, Euler characteristic) of a stack of 2D masks as
     a voxel object: 6-connected object, 26-connected background, padded by empty voxels."""
     from scipy import ndimage
-    from skimage.measure import euler_number
 
     v = np.pad(np.stack(layers), 1)
     _, n_obj = ndimage.label(v, structure=ndimage.generate_binary_structure(3, 1))
     _, n_bg = ndimage.label(~v, structure=np.ones((3, 3, 3), dtype=bool))
-    return n_obj, n_bg, int(euler_number(v, connectivity=1))
+    return n_obj, n_bg, euler6(v)
+
+
+def euler6(v) -> int:
+    """The Euler characteristic of a 3D boolean array's object as a 6-connected voxel object
+    (``skimage.measure.euler_number(v, connectivity=1)``, an integer, counted another way): the
+    complex with a vertex per voxel, an edge per pair of face-adjacent voxels, a square per 2 x 2
+    block of voxels in a coordinate plane and a cube per 2 x 2 x 2 block, ``V - E + F - C``."""
+    v = np.asarray(v, dtype=bool)
+    a, b = slice(None, -1), slice(1, None)
+    n_v = int(np.count_nonzero(v))
+    n_e = int(np.count_nonzero(v[a] & v[b]) + np.count_nonzero(v[:, a] & v[:, b])
+              + np.count_nonzero(v[:, :, a] & v[:, :, b]))
+    yz = v[:, a] & v[:, b]  # edges along y, then squares in the (y, z), (x, y) planes and cubes
+    xy = v[:, :, a] & v[:, :, b]
+    sq_zy = yz[a] & yz[b]
+    sq_zx = xy[a] & xy[b]
+    sq_yx = xy[:, a] & xy[:, b]
+    cubes = sq_yx[a] & sq_yx[b]
+    n_f = int(np.count_nonzero(sq_zy) + np.count_nonzero(sq_zx) + np.count_nonzero(sq_yx))
+    return n_v - n_e + n_f - int(np.count_nonzero(cubes))
 
 
 class _Layer:
     """One plane of a sectioned join: a slice of the mesh (``main``: its rings are the mesh's) or an
     intermediate section (its rings are the join's own vertices)."""
 
-    def __init__(self, S, z, comps, poly, edges, main=None, double=frozenset()):
+    def __init__(self, S, z, comps, poly, edges, main=None, double=frozenset(), box=None):
         self.S, self.z, self.comps = S, float(z), list(comps)
+        self.box = box  # a box (a pair of slices) holding every pixel of its components, or None
         self._poly, self._edges = poly, edges
         self.main = main  # the slice index, or None for a section
         self.double = double  # (c, h) of holes lidded from both sides (lids get a collar)
@@ -85,17 +107,15 @@ class _Layer:
                 np.concatenate([b, np.array([q for _, q in self.taken], dtype=np.float64)]))
 
 
-def _section_layer(ops, S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
-    """The intermediate section between components ``ga`` of ``S_lo`` and ``gb`` of ``S_hi``
-    (inside ``box``, a pair of slices), as a :class:`_Layer` of a new :class:`_Slice`."""
+def _section_layer(ops, shape, box, z, polygon, grid, m):
+    """The intermediate section whose pixels in ``box`` (a pair of slices of an image of
+    ``shape``) are ``m`` (:func:`mid_section` of the two layers' regions there), as a
+    :class:`_Layer` of a new :class:`_Slice`."""
     from .geometry import grid_to_xy
 
-    ra = np.isin(S_lo.labels[box], np.asarray(ga) + 1)
-    rb = np.isin(S_hi.labels[box], np.asarray(gb) + 1)
-    m = mid_section(ra, rb, sampling)
     if not m.any():
         return None, None
-    full = np.zeros(S_lo.labels.shape, dtype=bool)
+    full = np.zeros(shape, dtype=bool)
     full[box] = m
     ox, oy, dx, dy = grid
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
@@ -104,11 +124,15 @@ def _section_layer(ops, S_lo, ga, S_hi, gb, box, z, polygon, grid, sampling):
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]
 
-    def edges():
-        rs = [np.asarray(poly(c, h), dtype=np.float64) for c in range(S.n) for h in range(-1, len(S.holes[c]))]
-        return np.concatenate(rs), np.concatenate([np.roll(r, -1, axis=0) for r in rs])
+    made = []  # the section's edges, made once (its polygons do not change)
 
-    return _Layer(S, z, range(S.n), poly, edges), m
+    def edges():
+        if not made:
+            rs = [np.asarray(poly(c, h), dtype=np.float64) for c in range(S.n) for h in range(-1, len(S.holes[c]))]
+            made.append((np.concatenate(rs), np.concatenate([np.roll(r, -1, axis=0) for r in rs])))
+        return made[0]
+
+    return _Layer(S, z, range(S.n), poly, edges, box=box), m
 
 
 def _groups(P: _Layer, Q: _Layer):
@@ -116,8 +140,12 @@ def _groups(P: _Layer, Q: _Layer):
     of each layer that overlap nothing on the other."""
     from .tracing import overlap_groups
 
-    la = np.where(np.isin(P.S.labels, np.asarray(P.comps) + 1), P.S.labels, 0)
-    lb = np.where(np.isin(Q.S.labels, np.asarray(Q.comps) + 1), Q.S.labels, 0)
+    # within the box that holds both layers' components (the groups do not depend on where the
+    # pixels lie, only on which labels overlap)
+    box = P.box if P.box is not None and P.box == Q.box else np.s_[:, :]
+    lp, lq = P.S.labels[box], Q.S.labels[box]
+    la = np.where(np.isin(lp, np.asarray(P.comps) + 1), lp, 0)
+    lb = np.where(np.isin(lq, np.asarray(Q.comps) + 1), lq, 0)
     pairs, groups = overlap_groups(la, lb, P.S.n, Q.S.n)
     lone_p = sorted(set(P.comps) - set(int(a) for a in pairs[:, 0]))
     lone_q = sorted(set(Q.comps) - set(int(b) for b in pairs[:, 1]))
@@ -147,15 +175,21 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     def main_layer(kk, comps):
         dbl = frozenset((c, h) for (k_, c, h) in double if k_ == kk)
         return _Layer(slices[kk], zs[kk], comps, lambda c, h: poly(kk, c, h), lambda: edges_of(kk), main=kk,
-                      double=dbl)
+                      double=dbl, box=box)
 
     lo, hi = main_layer(k, ga), main_layer(k + 1, gb)
-    masks = {}  # id(layer) -> its mask in the box (for the topology test)
+    masks = {}  # id(layer) -> (layer, its mask in the box) (the sections' regions, the topology test)
+    sdfs = {}  # id(layer) -> (layer, the signed distance of its mask): a layer next to two sections
 
     def mask_of(L):
         if id(L) not in masks:
-            masks[id(L)] = np.isin(L.S.labels[box], np.asarray(L.comps) + 1)
-        return masks[id(L)]
+            masks[id(L)] = (L, np.isin(L.S.labels[box], np.asarray(L.comps) + 1))
+        return masks[id(L)][1]
+
+    def sdf_of(L):
+        if id(L) not in sdfs:
+            sdfs[id(L)] = (L, _sdf(mask_of(L), sampling))
+        return sdfs[id(L)][1]
 
     def split(P, Q, depth, first):
         """The layers strictly between P and Q and the pieces joining them, or None."""
@@ -164,10 +198,12 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             return [], pieces
         if depth == 0:
             return None
-        M, m = _section_layer(ops, P.S, P.comps, Q.S, Q.comps, box, 0.5 * (P.z + Q.z), polygon, grid, sampling)
+        # mid_section of the two layers' regions (a section's region is its mask)
+        M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid,
+                              sdf_of(P) + sdf_of(Q) < 0)
         if M is None:
             return None
-        masks[id(M)] = m
+        masks[id(M)] = (M, m)
         below = split(P, M, depth - 1, False)
         if below is None:
             return None
@@ -215,11 +251,15 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
         return keyhole_uncovered(pair[other].S.labels, comps, grid)
 
     dbl = {(0, c, h) for c, h in P.double} | {(1, c, h) for c, h in Q.double}
+    # every group's kind first (cheap), the bridged joins after: a group that is neither a band nor
+    # a bridged join gives None whatever the others build, and each build depends only on its own
+    # group and the two layers, so none is built in vain (the same answer as group by group)
+    kinds = []
     for gp, gq in groups:
         if len(gp) == 1 and len(gq) == 1:
             matched = _simple_join(P.S, Q.S, gp[0], gq[0])
             if matched is not None:
-                out.append(("band", P, Q, gp[0], gq[0], matched))
+                kinds.append(("band", P, Q, gp[0], gq[0], matched))
                 continue
         plan = _bridge_plan(P.S, Q.S, gp, gq)
         if plan is None:
@@ -227,6 +267,12 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
         # a keyhole lies in its component's plane: a cap there would meet the fold along it
         if any(a in capped_p for a, _ in plan[3]) or any(b in capped_q for b, _ in plan[4]):
             return None
+        kinds.append(("plan", gp, gq, plan))
+    for kind in kinds:
+        if kind[0] == "band":
+            out.append(kind)
+            continue
+        _, gp, gq, plan = kind
         b = _bridge_join(0, gp, gq, plan, poly, zs, edges_of, uncovered, triangulation, caps, dbl)
         if b is None:
             return None
@@ -240,7 +286,7 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
     not a valid piece of mesh."""
     from .bands.bridges import segments_cross
     from .bands.caps import cap_faces
-    from .intersect import intersecting_pairs
+    from .intersect import any_intersecting
     _band_faces, _Bridged = ops.band_faces, ops.Bridged
 
     used = []  # ring keys (layer, c, h) in order of first use
@@ -355,7 +401,7 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
     once = {tuple(e) for e in und[cnt == 1].tolist()}
     if once != ring_edges:
         return None
-    if len(intersecting_pairs(V, F)):
+    if any_intersecting(V, F):
         return None
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments)
     out.sections = len(layers)

@@ -56,7 +56,7 @@ from .errors import (
     warn_external,
 )
 from .geometry import distinct_rows, points_in_rings, shoelace_area
-from .intersect import intersecting_pairs
+from .intersect import any_intersecting, intersecting_pairs
 from .measure import _edge_counts, mesh_volume
 from .polygons import polygonize
 from .repair import _separate_coincident, resolve_crossings, split_nonmanifold_vertices
@@ -241,7 +241,7 @@ def _band(builder: _Builder, lo_idx, hi_idx, method: str, key=None):
             continue
         if first is None:
             first = (i, local)
-        if not len(intersecting_pairs(P, local)):
+        if not any_intersecting(P, local):
             first, clear = (i, local), True
             break
     if first is None:  # every band folds: the requested one, with its own fold fallback

@@ -1110,6 +1110,19 @@ def _pixel_faces(M, region, x0, y0, corner_ids, up):
 # ------------------------------------------------------------------------------------------------
 # branching joins by bridges
 # ------------------------------------------------------------------------------------------------
+def _dilated(m: np.ndarray) -> np.ndarray:
+    """``ndimage.binary_dilation(m, structure=_SQUARE)``: each pixel or one of its 8 neighbours set
+    (beyond the array nothing is), as the OR of the nine shifts."""
+    p = np.pad(m, 1)
+    ny, nx = m.shape
+    out = p[:ny, :nx].copy()
+    for dy in range(3):
+        for dx in range(3):
+            if dy or dx:
+                out |= p[dy:dy + ny, dx:dx + nx]
+    return out
+
+
 def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     """How a fork or merge group joins between its polygons, or None where it cannot.
 
@@ -1140,20 +1153,20 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     olab, no = ndimage.label(o, structure=_CROSS)
     if no != npairs:  # some pair overlaps in more than one piece: a handle
         return None
-    blab, _ = ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)
+    blab, nbl = ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)
     ext = blab[0, 0]
-    near_ext = ndimage.binary_dilation(blab == ext, structure=_SQUARE)[1:-1, 1:-1]
+    near_ext = _dilated(blab == ext)[1:-1, 1:-1]
     if len(np.unique(olab[near_ext & o])) != no:  # an overlap inside a hole of another
         return None
-    holes_o = set(np.unique(blab)) - {ext, 0}
+    holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
 
     def where(S, comps):
         at = {}
         for c in comps:
             csl, masks = S.hole_masks[c]
             for h, hm in enumerate(masks):
-                ys, xs = np.nonzero(hm)
-                lab = int(blab[ys[0] + csl[0].start - y0 + 1, xs[0] + csl[1].start - x0 + 1])
+                y, x = divmod(int(np.argmax(hm)), hm.shape[1])  # its first pixel (raster order)
+                lab = int(blab[y + csl[0].start - y0 + 1, x + csl[1].start - x0 + 1])
                 at.setdefault(lab, []).append((c, h))
         return at
 
@@ -1213,7 +1226,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     replace each band of the join (the bridged rings' band and the tubes'); its band is kept
     only where it neither folds nor crosses itself."""
     from .bands.bridges import bridge_tree, bridged_ring
-    from .intersect import intersecting_pairs
+    from .intersect import any_intersecting
 
     tubes, lids_a, lids_b, open_a, open_b = plan
     zk, zk1 = float(zs[k]), float(zs[k + 1])
@@ -1249,7 +1262,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
         cover = uncovered(other, comps)
         br = bridge_tree(rs, oa, ob, owners=owners, allowed=cover, waypoints=points_of, step=step,
-                         prefer=lambda p, q: cover.share(p, q) >= 0.5)
+                         prefer=lambda P, Q: cover.shares(P, Q) >= 0.5)
         if br is None:
             return None
         ids_of = {}
@@ -1339,12 +1352,11 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     if extra:
         V = np.concatenate([V] + extra)
     F = np.concatenate(faces)
-    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    if len(e) and np.unique(e, axis=0, return_counts=True)[1].max() > 2:
+    if band_is_folded(F):  # an edge in more than two faces (compiled: the sorted edge keys)
         return None
     if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
         return None
-    if len(intersecting_pairs(V, F)):
+    if any_intersecting(V, F):
         return None
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
@@ -1373,8 +1385,12 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
 
     collars = sum(perimeter([A.crack_outer[a]] + list(A.crack_holes[a])) for a in ga) + \
         sum(perimeter([B.crack_outer[b]] + list(B.crack_holes[b])) for b in gb)
-    ra = np.isin(A.labels, [a + 1 for a in ga])
-    rb = np.isin(B.labels, [b + 1 for b in gb])
+    # the pixels of either side lie in the box of their components' boxes
+    sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
+    box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
+                min(s[1].start for s in sl):max(s[1].stop for s in sl)]
+    ra = np.isin(A.labels[box], [a + 1 for a in ga])
+    rb = np.isin(B.labels[box], [b + 1 for b in gb])
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
 
 

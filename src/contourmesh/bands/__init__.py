@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..intersect import canonical_vertices, intersecting_pairs
+from ..intersect import any_intersecting, canonical_vertices
 from ..measure import triangle_areas
 from .arclength import triangulate_band_arclength
 from .caps import cap_faces
@@ -163,7 +163,7 @@ def _band_crosses(P, f) -> bool:
         P = _split_pinches(P, f, dup)
         if P is None:
             return False
-    return len(intersecting_pairs(P, f)) > 0
+    return any_intersecting(P, f)
 
 
 def _split_pinches(P, f, dup):
@@ -175,9 +175,11 @@ def _split_pinches(P, f, dup):
     if not ext > 0:
         return None
     cen = P[f].mean(axis=1)
-    acc = np.zeros_like(P)
-    for k in range(3):
-        np.add.at(acc, f[:, k], cen)
+    # each point's sum of the centroids of its faces, added in the order np.add.at over the three
+    # corners would add them (corner 0 of every face, then 1, then 2): bincount adds its weights
+    # one by one in input order, so the sums are the same bits
+    idx = f.T.reshape(-1)
+    acc = np.stack([np.bincount(idx, weights=np.tile(cen[:, d], 3), minlength=len(P)) for d in range(3)], axis=1)
     deg = np.bincount(f.reshape(-1), minlength=len(P))
     for i in dup:
         if deg[i] == 0:

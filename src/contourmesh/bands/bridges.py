@@ -35,12 +35,23 @@ class _Coverage:
     """How much of a straight segment in one slice's plane lies over components ``comps`` (0-based)
     of the other slice's label image ``lab``.  ``grid = (ox, oy, dx, dy)`` maps pixel ``(i, j)`` to
     its centre ``(ox + i dx, oy + j dy)``; a segment is sampled 8 times per pixel, its ends left
-    out.  Calling it is the keyhole test: ``True`` where none of the segment is covered."""
+    out.  Calling it is the keyhole test: ``True`` where none of the segment is covered.
+    Compiled (:func:`_coverage_kernel`; :meth:`_hits_reference` is the numpy reference)."""
 
     def __init__(self, lab, comps, grid):
         self.lab, self.ids, self.grid = lab, np.asarray(comps) + 1, grid
+        self._ids64 = np.ascontiguousarray(self.ids, dtype=np.int64)
+        self._grid64 = tuple(float(g) for g in grid)
 
-    def _hits(self, p, q):
+    def _counts(self, P, Q):
+        """The covered samples and the samples of each segment ``P[s] Q[s]`` ((m, 2) arrays)."""
+        P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 2)
+        Q = np.ascontiguousarray(Q, dtype=np.float64).reshape(-1, 2)
+        ox, oy, dx, dy = self._grid64
+        return _coverage_kernel(P, Q, self.lab, self._ids64, ox, oy, dx, dy)
+
+    def _hits_reference(self, p, q):
+        """The samples of segment ``p q`` that are covered, in numpy (the kernel's reference)."""
         ox, oy, dx, dy = self.grid
         lab = self.lab
         steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
@@ -56,11 +67,44 @@ class _Coverage:
         return hit
 
     def __call__(self, p, q) -> bool:
-        return not self._hits(p, q).any()
+        return not self._counts(p, q)[0][0]
 
     def share(self, p, q) -> float:
         """The covered share of the segment's samples (0 to 1)."""
-        return float(self._hits(p, q).mean())
+        return float(self.shares(p, q)[0])
+
+    def shares(self, P, Q) -> np.ndarray:
+        """:meth:`share` of every segment ``P[s] Q[s]`` ((m, 2) arrays) at once."""
+        count, n = self._counts(P, Q)
+        return count / n
+
+
+@njit(cache=True, nogil=True)
+def _coverage_kernel(P, Q, lab, ids, ox, oy, dx, dy):
+    """Per segment ``P[s] Q[s]``: how many of its samples (8 per pixel, ends left out) fall on a
+    pixel of ``lab`` whose label is in ``ids``, and how many samples it has.  The arithmetic of
+    :meth:`_Coverage._hits_reference`, sample by sample."""
+    m = P.shape[0]
+    count = np.zeros(m, np.int64)
+    total = np.zeros(m, np.int64)
+    ny, nx = lab.shape
+    for s in range(m):
+        px, py, qx, qy = P[s, 0], P[s, 1], Q[s, 0], Q[s, 1]
+        steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
+        c = 0
+        for u in range(1, steps):
+            t = u / steps
+            i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
+            j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
+            if i >= 0 and i < nx and j >= 0 and j < ny:
+                v = lab[j, i]
+                for w in range(ids.shape[0]):
+                    if v == ids[w]:
+                        c += 1
+                        break
+        count[s] = c
+        total[s] = steps - 1
+    return count, total
 
 
 def keyhole_uncovered(lab, comps, grid):
@@ -138,11 +182,94 @@ def _segments_cross_reference(p, q, a, b) -> np.ndarray:
     return proper | touch
 
 
+#: Largest ``len(ri) * len(rj)`` for which :func:`_candidates` measures every pair in compiled code
+#: (:func:`_nearest_kernel`) rather than querying a k-d tree (faster for such small pairs of rings).
+_BRUTE_PAIRS = 40000
+
+
 def _candidates(ri: np.ndarray, rj: np.ndarray, k: int):
     """The ``k`` nearest vertex pairs ``(i, j, distance, tie)`` between two rings, with every pair
     as near as the ``k``-th (so that a rotated or mirrored input sees the same set).  ``tie`` is
     the distance of the pair's midpoint from the centroid of both rings' vertices: it orders
-    equally short pairs the same way whatever the orientation of the input."""
+    equally short pairs the same way whatever the orientation of the input.
+
+    The pairs are those of a k-d tree query (:func:`_candidates_reference`: the ``min(k,
+    len(ri))`` nearest vertices of ``ri`` to each vertex of ``rj``, those as near as the ``k``-th
+    shortest of them all): for small rings measured all at once in compiled code, with the same
+    distances (``sqrt(dx * dx + dy * dy)``, the tree's arithmetic), in another order (the caller
+    sorts them).  Where a vertex of ``rj`` has more vertices of ``ri`` within the cut than the
+    query returns (ties at its last place, which the tree breaks its own way), the tree decides."""
+    ri = np.ascontiguousarray(ri, dtype=np.float64)
+    rj = np.ascontiguousarray(rj, dtype=np.float64)
+    if len(ri) * len(rj) > _BRUTE_PAIRS:
+        return _candidates_reference(ri, rj, k)
+    vi, vj, d, ok = _nearest_kernel(ri, rj, np.int64(k))
+    if not ok:
+        return _candidates_reference(ri, rj, k)
+    centre = np.concatenate([ri, rj]).mean(axis=0)
+    tie = np.hypot(*(0.5 * (ri[vi] + rj[vj]) - centre).T)
+    return vi, vj, d, tie
+
+
+@njit(cache=True, nogil=True)
+def _nearest_kernel(ri, rj, k):
+    """:func:`_candidates`' pairs by measuring every pair: ``(vi, vj, d, ok)``, ``ok`` False where
+    a vertex of ``rj`` has more than ``min(k, len(ri))`` vertices within the cut (then the k-d
+    tree's choice among equal distances would decide, see :func:`_candidates_reference`)."""
+    ni, nj = ri.shape[0], rj.shape[0]
+    kk = min(k, ni)
+    D = np.empty((nj, ni))
+    pool = np.empty(nj * kk)
+    best = np.empty(kk)
+    for j in range(nj):
+        nb = 0
+        for i in range(ni):
+            dx = ri[i, 0] - rj[j, 0]
+            dy = ri[i, 1] - rj[j, 1]
+            v = np.sqrt(dx * dx + dy * dy)
+            D[j, i] = v
+            # the kk smallest so far, ascending (insertion)
+            if nb < kk:
+                t = nb
+                nb += 1
+            elif v < best[kk - 1]:
+                t = kk - 1
+            else:
+                continue
+            while t > 0 and best[t - 1] > v:
+                best[t] = best[t - 1]
+                t -= 1
+            best[t] = v
+        for t in range(kk):
+            pool[j * kk + t] = best[t]
+    pool.sort()
+    cut = pool[min(k, nj * kk) - 1] * (1 + 1e-12)
+    count = 0
+    for j in range(nj):
+        c = 0
+        for i in range(ni):
+            if D[j, i] <= cut:
+                c += 1
+        if c > kk:
+            return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0), False
+        count += c
+    vi = np.empty(count, np.int64)
+    vj = np.empty(count, np.int64)
+    d = np.empty(count)
+    t = 0
+    for j in range(nj):
+        for i in range(ni):
+            if D[j, i] <= cut:
+                vi[t] = i
+                vj[t] = j
+                d[t] = D[j, i]
+                t += 1
+    return vi, vj, d, True
+
+
+def _candidates_reference(ri: np.ndarray, rj: np.ndarray, k: int):
+    """:func:`_candidates` by a k-d tree query (for large rings, and the reference of the
+    compiled search)."""
     from scipy.spatial import cKDTree
 
     kk = min(k, len(ri))
@@ -203,8 +330,9 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         through them (:func:`keyhole_path`); without it only straight bridges are made.
     step : float
         The spacing of the waypoints (the pixel size): neighbours are at most ``1.5 step`` apart.
-    prefer : callable ``(p, q) -> bool``, optional
-        Bridges between different components for which it holds are tried before the others
+    prefer : callable ``(P, Q) -> bool array``, optional
+        Asked once per pair of rings of all its candidate bridges ``P[s] Q[s]`` (``(m, 2)`` arrays of
+        their ends).  Bridges between different components for which it holds are tried before the others
         (each kind shortest first).  The mesher prefers bridges over the other slice's material:
         the crotch of a fork lies above what the branches grew from.  A shorter bridge across
         empty space (the mouth of a C whose two arms part above it) would make the band fold
@@ -228,9 +356,14 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
             continue
         vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
-        ranked = prefer is not None and ci != cj  # preferred bridges between components first
-        cand.extend((int(ranked and not prefer(rings[i][a], rings[j][b])), round(float(dd), 9), round(float(t), 9),
-                     i, int(a), j, int(b)) for dd, t, a, b in zip(d, tie, vi, vj))
+        # preferred bridges between components first (``prefer`` asked of all the pairs at once)
+        later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) if prefer is not None and ci != cj \
+            else np.zeros(len(vi), dtype=bool)
+        # (as Python numbers first: the same values, without a numpy scalar per field)
+        cand.extend((int(lt), round(dd, 9), round(t, 9), i, a, j, b)
+                    for lt, dd, t, a, b in zip(later.tolist(), np.asarray(d, dtype=np.float64).tolist(),
+                                               np.asarray(tie, dtype=np.float64).tolist(),
+                                               np.asarray(vi).tolist(), np.asarray(vj).tolist()))
     cand.sort()  # (not preferred, length, tie-break, ...): each kind shortest first
     parent = list(range(n))
 
