@@ -8,6 +8,7 @@ the RSS just before the call (the input volume already resident).
     python benchmarks/volume_speed.py                   # 256^3 and 512^3 balls, 1 and all threads
     python benchmarks/volume_speed.py --sweep           # seconds against r = 50 .. 400 (log-log slope)
     python benchmarks/volume_speed.py --cold            # first call in a fresh process, empty numba cache
+    python benchmarks/volume_speed.py --cold --inputs "" --cold-cases fast,general,band   # only that
     python benchmarks/volume_speed.py --real            # lobster (> 60), liver labels x2
     python benchmarks/volume_speed.py --all --out comparisons/speed
 
@@ -237,24 +238,43 @@ def peak_memory(spec, name, threads):
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def cold_start():
-    """First call in a fresh process with an empty numba cache (compilation included), and the
-    import of contourmesh (which must not compile anything)."""
-    code = (
-        "import time, sys; sys.path.insert(0, %r); t = time.perf_counter(); import contourmesh;"
-        "from contourmesh import fastpath; t1 = time.perf_counter(); import numpy as np;"
-        "sys.path.insert(0, %r); import volume_speed as vs; v = vs.ball_volume(64, 25.0);"
-        "t2 = time.perf_counter(); m = fastpath.fast_volume_to_mesh(v, threads=1); t3 = time.perf_counter();"
-        "m = fastpath.fast_volume_to_mesh(v, threads=1); t4 = time.perf_counter();"
-        "print(t1 - t, t3 - t2, t4 - t3)"
-    ) % (str(ROOT / "src"), str(Path(__file__).parent))
+#: First calls timed by ``--cold``: the fast path on a ball, and ``contourmesh.mesh`` on a small
+#: random volume with holes and branching (the general mesher, where most real inputs go, then
+#: the crossing-face check), plain and with ``refine="band"``.
+COLD_CASES = {
+    "fast": "import volume_speed as vs; v = vs.ball_volume(64, 25.0)\n"
+            "f = lambda: fastpath.fast_volume_to_mesh(v, threads=1)",
+    "general": "v = np.pad(np.random.default_rng(1).random((12, 14, 13)) < 0.35, 1)\n"
+               "f = lambda: contourmesh.mesh(v)",
+    "band": "v = np.pad(np.random.default_rng(1).random((12, 14, 13)) < 0.35, 1)\n"
+            "f = lambda: contourmesh.mesh(v, refine='band')",
+}
+
+
+def cold_start(cases=tuple(COLD_CASES)):
+    """First call in a fresh process with an empty numba cache (compilation included), then in a
+    second process on the cache that the first one left, and the import of contourmesh (which
+    must not compile anything); wall and CPU seconds (``time.process_time`` of the process)."""
+    template = (
+        "import time, sys\nsys.path.insert(0, %r); sys.path.insert(0, %r)\n"
+        "t = time.perf_counter(); c = time.process_time()\nimport contourmesh\nfrom contourmesh import fastpath\n"
+        "t1 = time.perf_counter(); c1 = time.process_time()\nimport numpy as np\n%s\n"
+        "t2 = time.perf_counter(); c2 = time.process_time()\nm = f()\n"
+        "t3 = time.perf_counter(); c3 = time.process_time()\nm = f()\nt4 = time.perf_counter()\n"
+        "print(t1 - t, c1 - c, t3 - t2, c3 - c2, t4 - t3)\n"
+    )
     res = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
-        for label in ("empty cache", "warm cache"):
-            out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=1800)
-            imp, first, second = (float(x) for x in out.stdout.split())
-            res[label] = {"import_s": imp, "first_call_s": first, "second_call_s": second}
+    for case in cases:
+        code = template % (str(ROOT / "src"), str(Path(__file__).parent), COLD_CASES[case])
+        with tempfile.TemporaryDirectory() as tmp:
+            env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+            for label in ("empty cache", "warm cache"):
+                out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                                     timeout=1800, check=True)
+                imp, imp_cpu, first, first_cpu, second = (float(x) for x in out.stdout.split())
+                res[f"{case}, {label}"] = {"import_s": imp, "import_cpu_s": imp_cpu, "first_call_s": first,
+                                           "first_call_cpu_s": first_cpu, "second_call_s": second}
+                print("cold start", case, label, res[f"{case}, {label}"], flush=True)
     return res
 
 
@@ -450,6 +470,8 @@ def main(argv=None):
     ap.add_argument("--threads", default="1,all")
     ap.add_argument("--sweep", action="store_true")
     ap.add_argument("--cold", action="store_true")
+    ap.add_argument("--cold-cases", default=",".join(COLD_CASES),
+                    help="first calls timed by --cold (comma-separated: %s)" % ", ".join(COLD_CASES))
     ap.add_argument("--real", action="store_true")
     ap.add_argument("--memory", action="store_true", help="peak RSS per method and input (fresh subprocesses)")
     ap.add_argument("--kernel", action="store_true")
@@ -463,8 +485,9 @@ def main(argv=None):
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     print(f"machine: {ncpu} CPUs; load average {os.getloadavg()}", flush=True)
     summary = {"cpus": ncpu, "loadavg_start": os.getloadavg()}
-    warm_up()
-    specs = a.inputs.split(",") + (REAL if a.real else [])
+    specs = [x for x in a.inputs.split(",") if x] + (REAL if a.real else [])
+    if specs:
+        warm_up()
     rows = []
     for th in threads:
         rows += time_inputs(specs, a.repeat, th)
@@ -478,7 +501,7 @@ def main(argv=None):
         summary["kernel"] = kernel_rate()
         print("kernel", summary["kernel"], flush=True)
     if a.cold:
-        summary["cold_start"] = cold_start()
+        summary["cold_start"] = cold_start(a.cold_cases.split(","))
         print("cold start", summary["cold_start"], flush=True)
     sweep_rows, slope = [], None
     if a.sweep:

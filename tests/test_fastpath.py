@@ -271,20 +271,62 @@ def test_import_compiles_nothing():
     subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
 
 
+def _type_cached_entries_again(dispatchers):
+    """Compile, uncached, a copy of every Python-callable entry point for each signature that it
+    loaded from the on-disk cache.  An entry loaded from the cache brings its callees' code with
+    it, so they are never typed in this process and their signatures cannot be checked; typing
+    the copy resolves every call in its body through the callees' own dispatchers (which compile,
+    or load their own cache entries, for the argument types of each call site)."""
+    from numba import njit
+
+    for d in dispatchers:
+        if d.targetoptions.get("no_cpython_wrapper"):
+            continue
+        opts = {k: v for k, v in d.targetoptions.items() if k not in ("cache", "nopython")}
+        for sig in list(d.signatures):
+            if d._cache_hits.get(sig):
+                njit(**opts)(d.py_func).compile(sig)
+
+
 def test_kernels_are_compiled_without_literal_arguments():
-    # a literal argument (say a constant 0, or a loop variable starting at 0) makes numba compile a
-    # kernel once more; the fast path passes int64 values only (when its entry points come from the
-    # on-disk cache nothing is compiled and there is nothing to check)
+    # a literal argument (a constant 0 or True, or a loop variable that starts at 0) makes numba
+    # compile a kernel once more, and so does a call site that passes another array layout; each
+    # internal kernel of the fast path, the MLP, the band rules, the optimal band and the DSS gets
+    # one signature.  Checked whether this process compiles the entry points or loads them from
+    # the cache (then their bodies are typed again, uncached).
     from numba.core import types
 
     from contourmesh import fastpath
-    from contourmesh.bands import arclength, wiederhold
-    from contourmesh.polygons import mlp
+    from contourmesh.bands import arclength, fidelity, optimal, triangulate_band, wiederhold
+    from contourmesh.polygons import dss, dss_polygon, mlp, mlp_polygon
 
     fast_volume_to_mesh(ball(20, 7.3), caps="half", threads=1)
-    for name, d in _dispatchers(fastpath, mlp, wiederhold, arclength).items():
+    blob = ball(1, 5.2, c=(0, 7, 6), shape=(1, 15, 14))[0]
+    slice_components(blob)
+    contour = outer_jordan_contour(blob)
+    dss_polygon(contour)
+    mlp_polygon(contour)
+    t = np.linspace(0, 2 * np.pi, 36, endpoint=False)
+    lo = np.c_[1.5 * np.cos(t), 6 * np.sin(t), np.zeros(36)]
+    hi = np.c_[1.5 * np.cos(t + 0.37), 9 + 6 * np.sin(t + 0.37), np.full(36, 3.0)]
+    for method in ("wiederhold", "arclength", "optimal"):
+        triangulate_band(lo, hi, method)
+    g, replaced = fidelity.faithful_band(lo, hi, triangulate_band(lo, hi, "wiederhold"))
+    assert replaced  # the sliding pair takes the Lagrangian band (fidelity._best_edges)
+
+    modules = (fastpath, mlp, wiederhold, arclength, optimal, fidelity, dss)
+    ds = _dispatchers(*modules)
+    _type_cached_entries_again(ds.values())
+    for name, d in ds.items():
         for sig in d.signatures:
             assert not any(isinstance(t, types.Literal) for t in sig), (name, sig)
+    # internal kernels (not callable from Python) and the kernels above that only compiled code calls
+    once = {k: d for k, d in ds.items() if d.targetoptions.get("no_cpython_wrapper")}
+    once.update({k: ds[k] for k in ("contourmesh.bands.optimal._annulus_dp", "contourmesh.polygons.dss._longest_dss")})
+    for key in ("contourmesh.polygons.mlp._mlp_kernel", "contourmesh.bands.wiederhold._wiederhold_edges",
+                "contourmesh.bands.arclength._arclength_edges", "contourmesh.fastpath._components"):
+        assert key in once, sorted(once)
+    assert {k: d.signatures for k, d in once.items() if len(d.signatures) != 1} == {}
 
 
 def _python_mlp_of_pixels(pix):

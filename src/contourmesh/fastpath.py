@@ -53,6 +53,7 @@ import threading
 import numpy as np
 from numba import njit
 
+from ._kernels import KERNEL_OPTIONS, internal_kernel
 from .bands import arclength as _arclength
 from .bands import twist_guarded_band
 from .bands import wiederhold as _wiederhold
@@ -76,10 +77,14 @@ __all__ = ["fast_volume_to_mesh", "slice_runs", "slice_components", "slice_label
 # ``_pair_joins`` (5) and ``_pair_bands`` (6).  Everything they call is an internal ``@_kernel``:
 # compiled only as their callee, without the Python and C call wrappers (whose code costs about
 # as much compile time as a small kernel's body) and without a cache file of its own (the entry
-# points' cache holds its code).  The MLP, the paper's edge sequence and the arc-length band of
-# the other modules are compiled again here as such kernels, so that the fast path never compiles
-# their wrapped public versions.  A kernel's code is optimized once more in every entry point
-# that links it, so small helpers are written inline instead.  Compile-time rules for all of them:
+# points' cache holds its code).  The Python-level helpers (``slice_runs``, ``slice_components``,
+# ``outer_jordan_contour``) reach the same kernels through ``_entry`` functions that only call
+# them, so a process that meets both routes compiles each kernel once.  The MLP, the paper's edge
+# sequence and the arc-length band are such kernels of their own modules (:mod:`._kernels`), whose
+# public, cached functions only call them: the fast path and those functions share one compiled
+# copy (the fast path passes the edge sequence contiguous x and y arrays, the layout of the
+# public callers).  A kernel's code is optimized once more in every entry point that links it,
+# so small helpers are written inline instead.  Compile-time rules for all of them:
 # * one signature per kernel: pass int64 values, never literal constants (numba compiles a kernel
 #   once more for a literal argument, even for a loop variable that starts as a literal);
 # * explicit loops instead of slice assignments, and no exceptions (their error formatting pulls
@@ -89,23 +94,21 @@ __all__ = ["fast_volume_to_mesh", "slice_runs", "slice_components", "slice_label
 #   (with the rewrite passes off, ``a.shape[0]`` is one more overload).
 # ``no_rewrites``: numba's IR rewrite passes (array expressions, constant getitems) find nothing
 # to do in these loops and only cost compile time.
-_OPTIONS = dict(nogil=True, no_rewrites=True)
+_OPTIONS = KERNEL_OPTIONS
+_kernel = internal_kernel  # ``fn`` as an internal numba kernel (see above)
 
 
-def _kernel(fn):
-    """``fn`` as an internal numba kernel (see above)."""
-    return njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, **_OPTIONS)(fn)
+def _entry(fn):
+    """A cached, Python-callable entry point (for the Python-level helpers) that only calls an
+    internal kernel: the kernel is compiled once per process whether the fast path or the general
+    mesher (``slice_labels``, ``slice_components``) reaches it first, not once more as a twin."""
+    return njit(cache=True, **_OPTIONS)(fn)
 
 
-def _entry(kernel):
-    """A cached, Python-callable twin of an internal kernel (for the Python-level helpers)."""
-    return njit(cache=True, nogil=True)(kernel.py_func)
-
-
-_mlp = _kernel(_mlp_module._mlp.py_func)
-wiederhold_edges = _kernel(_wiederhold.wiederhold_edges.py_func)
-_edges_to_faces = _kernel(_wiederhold._edges_to_faces.py_func)
-arclength_edges = _kernel(_arclength.arclength_edges.py_func)
+_mlp = _mlp_module._mlp_kernel
+wiederhold_edges = _wiederhold._wiederhold_edges
+_edges_to_faces = _wiederhold._edges_to_faces_kernel
+arclength_edges = _arclength._arclength_edges
 
 _ONES = np.uint64(0x0101010101010101)
 _ZERO = np.uint64(0)
@@ -180,7 +183,9 @@ def _scan_runs(b8, b64, base, h, w, aligned):
     return ry[:n], rx0[:n], rx1[:n], row_start, bad
 
 
-_scan_runs_py = _entry(_scan_runs)
+@_entry
+def _scan_runs_py(b8, b64, base, h, w, aligned):
+    return _scan_runs(b8, b64, base, h, w, aligned)
 
 
 @_kernel
@@ -295,7 +300,9 @@ def _components(ry, rx0, rx1, row_start, h):
     return lab, n, holes, bbox, first
 
 
-_components_py = _entry(_components)
+@_entry
+def _components_py(ry, rx0, rx1, row_start, h):
+    return _components(ry, rx0, rx1, row_start, h)
 
 
 def slice_components(mask2d):
@@ -413,7 +420,9 @@ def _trace_outer(img, base, hh, ww, ox, oy, sx, sy):
                 return pts[:n]
 
 
-_trace_outer_py = _entry(_trace_outer)
+@_entry
+def _trace_outer_py(img, base, hh, ww, ox, oy, sx, sy):
+    return _trace_outer(img, base, hh, ww, ox, oy, sx, sy)
 
 
 def outer_jordan_contour(mask2d) -> np.ndarray:
@@ -732,16 +741,25 @@ def _pair_bands(ringA, startA, ringB, startB, pa, window):
                 if bd < 0 or d2 < bd:
                     bd = d2
                     j0 = j
-        # C(2) from its initial point
+        # C(2) from its initial point; contiguous x and y of both (one signature of the kernel)
         r2 = np.empty((n2, 3), np.float64)
+        x2 = np.empty(n2, np.float64)
+        y2 = np.empty(n2, np.float64)
         for j in range(n2):
             k = j + j0 if j + j0 < n2 else j + j0 - n2
             r2[j, 0] = c2[k, 0]
             r2[j, 1] = c2[k, 1]
             r2[j, 2] = c2[k, 2]
+            x2[j] = c2[k, 0]
+            y2[j] = c2[k, 1]
+        x1 = np.empty(n1, np.float64)
+        y1 = np.empty(n1, np.float64)
+        for i in range(n1):
+            x1[i] = c1[i, 0]
+            y1[i] = c1[i, 1]
 
         # section 3.4: the paper's edge sequence (raw x and y comparisons) and its triangles
-        E = wiederhold_edges(c1[:, 0], c1[:, 1], r2[:, 0], r2[:, 1])
+        E = wiederhold_edges(x1, y1, x2, y2)
         f = _edges_to_faces(E, n1, n2, np.int64(0), j0, n, swapped)
         s = foff[t]
         for i in range(len(f)):

@@ -14,6 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .._kernels import internal_kernel
 from .greedy import band_from_edge_rule
 from .wiederhold import INITIAL_EDGE_WINDOW
 
@@ -22,6 +23,13 @@ __all__ = ["triangulate_band_arclength", "arclength_edges"]
 
 @njit(cache=True, nogil=True)
 def arclength_edges(c1, c2):
+    """Edge sequence ``(i, j)`` of the arc-length band from the initial edge ``(0, 0)``: the
+    cached Python entry of :func:`_arclength_edges`, which the fast path calls directly."""
+    return _arclength_edges(c1, c2)
+
+
+@internal_kernel
+def _arclength_edges(c1, c2):
     """Edge sequence ``(i, j)`` of the arc-length band from the initial edge ``(0, 0)``."""
     n, m = len(c1), len(c2)
     s1 = np.empty(n + 1, np.float64)

@@ -106,7 +106,7 @@ def _best_edges(A1, A2, starts):
         return np.empty((n + m, 2), dtype=np.int64), best_s
     move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    _annulus_dp(A1, A2, best_s, D2, move, parent, True)
+    _annulus_dp(A1, A2, best_s, D2, move, parent, np.bool_(True))
     return _trace_back(move, parent, n, m), best_s
 
 

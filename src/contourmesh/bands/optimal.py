@@ -107,7 +107,8 @@ def _annulus_dp(A1, A2, s, D, move, parent, keep):
     Forward ("push") relaxation over rows ``i = 0..n``; ``D[r, layer, j]`` holds row ``i`` at
     ``r = i % 2`` (two rolling rows); if ``keep``, ``move``/``parent`` (full tables, one byte per
     cell) record every cell's best step for backtracking.  On equal cost the C(1)-advance (pushed
-    first) wins.
+    first) wins.  Callers pass ``keep`` as ``np.bool_``: a literal ``True``/``False`` would compile
+    the programme once for each value.
     """
     n, m = A1.shape
     inf = np.inf
@@ -186,7 +187,7 @@ def optimal_edges_from(c1, c2, starts):
         best_s = starts[0]
     move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    total = _annulus_dp(A1, A2, best_s, D2, move, parent, True)
+    total = _annulus_dp(A1, A2, best_s, D2, move, parent, np.bool_(True))
     return _trace_back(move, parent, n, m), best_s, total
 
 
@@ -216,7 +217,7 @@ def _best_start_each(A1, A2, starts, D2):
     best_s = -1
     best = np.inf
     for s in starts:
-        c = _annulus_dp(A1, A2, s, D2, dummy, dummy, False)
+        c = _annulus_dp(A1, A2, s, D2, dummy, dummy, np.bool_(False))
         if c < best:
             best = c
             best_s = s
@@ -381,7 +382,7 @@ def _best_start_strips(A1, A2, a, k, D2):
     best = np.inf
     for s in range(n):
         if near[s]:
-            c = _annulus_dp(A1, A2, s, D2, dummy, dummy, False)
+            c = _annulus_dp(A1, A2, s, D2, dummy, dummy, np.bool_(False))
             if c < best:
                 best = c
                 best_s = s

@@ -46,6 +46,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .._kernels import internal_kernel
 from ..geometry import successor
 
 __all__ = [
@@ -208,6 +209,13 @@ def initial_edge(c1: np.ndarray, c2: np.ndarray, window: int = INITIAL_EDGE_WIND
 # --------------------------------------------------------------------------------------------
 @njit(cache=True)
 def wiederhold_edges(x1, y1, x2, y2):
+    """Edge sequence of the paper's triangulation algorithm (section 3.4, lines 01-32): the
+    cached Python entry of :func:`_wiederhold_edges`, which the fast path calls directly."""
+    return _wiederhold_edges(x1, y1, x2, y2)
+
+
+@internal_kernel
+def _wiederhold_edges(x1, y1, x2, y2):
     """Edge sequence of the paper's triangulation algorithm (section 3.4, lines 01-32).
 
     Parameters
@@ -338,6 +346,11 @@ def edges_to_faces(edges: np.ndarray, n1: int, n2: int, i0: int, j0: int,
 
 @njit(cache=True)
 def _edges_to_faces(e, n1, n2, i0, j0, n_lower, swapped):
+    return _edges_to_faces_kernel(e, n1, n2, i0, j0, n_lower, swapped)
+
+
+@internal_kernel
+def _edges_to_faces_kernel(e, n1, n2, i0, j0, n_lower, swapped):
     s = len(e)
     off1 = n_lower if swapped else 0
     off2 = 0 if swapped else n_lower

@@ -102,7 +102,7 @@ def _greedy_segmentation(pts):
     n = pts.shape[0]
     out = np.empty(n, dtype=np.int64)
     nv = 0
-    i = 0
+    i = np.int64(0)  # not a literal 0: _longest_dss would be compiled once more for it
     while True:
         out[nv] = i
         nv += 1

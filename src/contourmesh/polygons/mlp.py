@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .._kernels import internal_kernel
 from ..errors import ThinRegionError
 from ..geometry import successor
 from ..tracing import check_contour4
@@ -46,6 +47,12 @@ __all__ = ["mlp_polygon", "mlp_candidates"]
 
 @njit(cache=True, nogil=True)
 def _mlp(pts, colour):
+    """The cached Python entry of :func:`_mlp_kernel` (the fast path calls the kernel directly)."""
+    return _mlp_kernel(pts, colour)
+
+
+@internal_kernel
+def _mlp_kernel(pts, colour):
     """Steps 1 and 2 above for a closed 4-contour with ``U`` on its left, in one kernel.
 
     Returns ``(cand, kind, poly)``.  ``cand (m, 2)`` and ``kind (m,)`` are the candidates of step 1
