@@ -302,11 +302,19 @@ def _dome(b: _Builder, ring, poly: np.ndarray, z: float, gap: float, upward: boo
     centre, _ = _dome_centre(poly)
     sgn = 1.0 if upward else -1.0
     ccw = shoelace_area(poly) > 0
+    return _ring_layers(b, ring, ((centre + lam * (poly - centre), z + sgn * gap * h)
+                                  for lam, h in zip(*_dome_profile())), ccw == upward)
+
+
+def _ring_layers(b: _Builder, ring, layers, forward: bool):
+    """Rings stacked on ``ring``, joined point to point: ``layers`` yields each ring's ``(xy, z)``
+    (as many points as ``ring``); ``forward`` is whether ``ring`` runs counter-clockwise seen from
+    the side the layers rise to.  Returns the last ring's vertices."""
     prev = ring
-    for lam, h in zip(*_dome_profile()):
-        nxt = b.add_points(centre + lam * (poly - centre), z + sgn * gap * h)
+    for xy, zc in layers:
+        nxt = b.add_points(xy, zc)
         a0, a1, b0, b1 = prev, np.roll(prev, -1), nxt, np.roll(nxt, -1)
-        if ccw == upward:
+        if forward:
             b.add_faces(np.concatenate([np.c_[a0, a1, b1], np.c_[a0, b1, b0]]))
         else:
             b.add_faces(np.concatenate([np.c_[a0, b1, a1], np.c_[a0, b0, b1]]))
@@ -351,16 +359,8 @@ def _profile_dome(b: _Builder, ring, polys, zs, gap: float, upward: bool):
     centre, _ = _dome_centre(poly)
     sgn = 1.0 if upward else -1.0
     ccw = shoelace_area(poly) > 0
-    prev = ring
-    for lam_i, t_i in zip(lam, t):
-        nxt = b.add_points(centre + lam_i * (poly - centre) + drift * t_i, zs[0] + sgn * t_i)
-        a0, a1, b0, b1 = prev, np.roll(prev, -1), nxt, np.roll(nxt, -1)
-        if ccw == upward:
-            b.add_faces(np.concatenate([np.c_[a0, a1, b1], np.c_[a0, b1, b0]]))
-        else:
-            b.add_faces(np.concatenate([np.c_[a0, b1, a1], np.c_[a0, b0, b1]]))
-        prev = nxt
-    return prev
+    return _ring_layers(b, ring, ((centre + lam_i * (poly - centre) + drift * t_i, zs[0] + sgn * t_i)
+                                  for lam_i, t_i in zip(lam, t)), ccw == upward)
 
 
 def _is_grid_4_curve(c: np.ndarray) -> bool:

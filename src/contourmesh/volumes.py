@@ -79,7 +79,7 @@ from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
 from .measure import triangle_areas
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
-from .refine import refine_volume_rings
+from .refine import REFINERS, refine_volume_rings
 from .repair import (
     _compact,
     _open_necks,
@@ -438,7 +438,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         raise ValueError(f"unknown polygon method {polygon!r}; expected one of {sorted(POLYGONIZERS)}")
     if triangulation not in TRIANGULATORS:
         raise ValueError(f"unknown band triangulation method {triangulation!r}; expected one of {sorted(TRIANGULATORS)}")
-    if refine not in (None, "none", "band", "band2"):
+    if refine is not None and refine not in REFINERS:
         raise ValueError(f"unknown refine method {refine!r}; expected 'band', 'band2' or 'none'")
     refine = None if refine == "none" else refine
     if caps not in ("flat", "half") and not (caps == "smooth" and refine is not None):
