@@ -520,6 +520,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
         refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy), refine)
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
+    # the rings of branching joins get a vertex at least every pixel (see _densify_branching)
+    dense_rings = _densify_branching(slices, joins, crack_only, _DENSE_STEP * px) if polygons is None else 0
     end_cap = getattr(polygons, "end_cap", None)
     if smooth_ends is not None:
         smooth_ends.attach(slices, zs, joins)
@@ -567,7 +569,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         "intermediate_sections": n_sections,
         "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
         "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks, "pixel_caps": pixel_caps,
-        "least_area_bands": least_area,
+        "least_area_bands": least_area, "dense_rings": dense_rings,
         "crossing_fallbacks": fallback_joins + fallback_caps,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
@@ -944,6 +946,58 @@ def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, 
         else:
             slices[k].holes[c][h] = p
     return info
+
+
+#: The longest polygon edge, in pixels, of a component that takes part in a branching join
+#: (:func:`_densify_branching`).
+_DENSE_STEP = 1.0
+#: ... and its most vertices: a longer ring keeps longer edges (the optimal band's work grows as
+#: ``n^2 m``; 1024-vertex rings keep it near 1e9).
+_DENSE_MAX = 1024
+
+
+def _densify(ring: np.ndarray, step: float, most: int = _DENSE_MAX) -> np.ndarray:
+    """``ring`` with points added on its edges (evenly, the corners kept) so that none is longer
+    than ``step``, or than the ring's length over ``most`` where that is longer."""
+    r = np.asarray(ring, dtype=np.float64)
+    d = np.roll(r, -1, axis=0) - r
+    length = np.hypot(d[:, 0], d[:, 1])
+    step = max(step, float(length.sum()) / most)
+    k = np.maximum(np.ceil(length / step - 1e-9).astype(np.int64), 1)
+    if (k == 1).all():
+        return r
+    i = np.repeat(np.arange(len(r)), k)
+    t = (np.arange(len(i)) - np.repeat(np.cumsum(k) - k, k)) / k[i]
+    return r[i] + t[:, None] * d[i]
+
+
+def _densify_branching(slices, joins, crack_only, step) -> int:
+    """Every polygon (outer and holes) of a component that takes part in a branching join (a
+    ``"bridge"`` join: a fork, a merge, a hole that opens or closes, a loop) gets a vertex at least
+    every ``step`` (one pixel) along its edges; its corners stay where they are, so the polygon is
+    the same curve.  Returns how many rings changed.
+
+    Such a join is one band between two long bridged rings (or sections' bands).  A straight run
+    of a polygon has only its two end vertices, and the least-area band fans the run's ends across
+    the other ring: around a small component bridged to a large one (noise on a near-horizontal
+    face: single pixels above a sloping wall) it makes a double cone, an edge in four faces, and
+    the join fails; a fan from a polygon's straight run to a crack ring's staircase (next to an
+    exact join) lies almost flat and has several times the area of the surface.  With a vertex
+    every pixel the band's rungs stay local.  The component's other joins use the same rings (the
+    added vertices lie on its edges)."""
+    comps = set()
+    for k, kind, data in joins:
+        if kind == "bridge":
+            comps.update((k, a) for a in data[0])
+            comps.update((k + 1, b) for b in data[1])
+    n = 0
+    for k, c in sorted(comps - crack_only):
+        s = slices[k]
+        rings = [s.outer[c]] + list(s.holes[c])
+        dense = [_densify(r, step) for r in rings]
+        n += sum(len(d) != len(r) for d, r in zip(dense, rings))
+        s.outer[c], s.holes[c] = dense[0], dense[1:]
+    return n
 
 
 def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
@@ -1394,6 +1448,40 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
 
 
+def _keyhole_waypoints(s, lab, comps, grid):
+    """Polyline keyholes pass through the pixel centres near their component (its pixels and
+    their 8-neighbours: a polygon may enclose a notch one pixel deep) outside its overlap with
+    the other slice's components ``comps`` (see :func:`_bridge_join`).  A straight keyhole
+    keeps out of every pixel those components cover (``uncovered``); a polyline one only out
+    of the overlap, so it may cut through a notch the other slice covers."""
+    from scipy import ndimage
+
+    ox, oy, dx, dy = grid
+    ids = np.asarray(comps) + 1
+
+    def points_of(c):
+        sl = s.objects[c]
+        y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
+        box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
+        own = s.labels[box] == c + 1
+        over = own & np.isin(lab[box], ids)
+        j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
+        pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
+
+        def ok(p, q):
+            steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
+            t = np.arange(1, steps)[:, None] / steps
+            pt = p + t * (q - p)
+            ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - x0  # halves up, as in uncovered
+            jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - y0
+            inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
+            return not over[jj[inside], ii[inside]].any()
+
+        return pts, ok
+
+    return max(dx, dy), points_of
+
+
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
                    band_guard=None, polygon="mlp"):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
@@ -1455,37 +1543,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         return keyhole_uncovered(slices[other].labels, comps, (ox, oy, dx, dy))
 
     def waypoints(plane, other, comps):
-        """Polyline keyholes pass through the pixel centres near their component (its pixels and
-        their 8-neighbours: a polygon may enclose a notch one pixel deep) outside its overlap with
-        the other slice's components ``comps`` (see :func:`_bridge_join`).  A straight keyhole
-        keeps out of every pixel those components cover (``uncovered``); a polyline one only out
-        of the overlap, so it may cut through a notch the other slice covers."""
-        from scipy import ndimage
-
-        s, lab = slices[plane], slices[other].labels
-        ids = np.asarray(comps) + 1
-
-        def points_of(c):
-            sl = s.objects[c]
-            y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
-            box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
-            own = s.labels[box] == c + 1
-            over = own & np.isin(lab[box], ids)
-            j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
-            pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
-
-            def ok(p, q):
-                steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
-                t = np.arange(1, steps)[:, None] / steps
-                pt = p + t * (q - p)
-                ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - x0  # halves up, as in uncovered
-                jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - y0
-                inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
-                return not over[jj[inside], ii[inside]].any()
-
-            return pts, ok
-
-        return max(dx, dy), points_of
+        """A polyline keyhole's waypoints in slice ``plane`` (:func:`_keyhole_waypoints`)."""
+        return _keyhole_waypoints(slices[plane], slices[other].labels, comps, (ox, oy, dx, dy))
 
     def edges_of(kk):
         key = (kk, sig(kk))
@@ -1576,4 +1635,5 @@ def _section_ops():
     from types import SimpleNamespace
 
     return SimpleNamespace(Slice=_Slice, simple_join=_simple_join, bridge_plan=_bridge_plan,
-                           bridge_join=_bridge_join, band_faces=_band_faces, Bridged=_Bridged)
+                           bridge_join=_bridge_join, band_faces=_band_faces, Bridged=_Bridged,
+                           keyhole_waypoints=_keyhole_waypoints)
