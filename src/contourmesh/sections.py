@@ -250,9 +250,6 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
     def uncovered(other, comps):
         return keyhole_uncovered(pair[other].S.labels, comps, grid)
 
-    def waypoints(plane, other, comps):  # polyline keyholes, as between slices
-        return ops.keyhole_waypoints(pair[plane].S, pair[other].S.labels, comps, grid)
-
     dbl = {(0, c, h) for c, h in P.double} | {(1, c, h) for c, h in Q.double}
     # every group's kind first (cheap), the bridged joins after: a group that is neither a band nor
     # a bridged join gives None whatever the others build, and each build depends only on its own
@@ -276,7 +273,7 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
             out.append(kind)
             continue
         _, gp, gq, plan = kind
-        b = _bridge_join(0, gp, gq, plan, poly, zs, edges_of, uncovered, triangulation, caps, dbl, waypoints)
+        b = _bridge_join(0, gp, gq, plan, poly, zs, edges_of, uncovered, triangulation, caps, dbl)
         if b is None:
             return None
         out.append(("bridged", P, Q, b, plan))

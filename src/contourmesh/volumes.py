@@ -1703,5 +1703,4 @@ def _section_ops():
     from types import SimpleNamespace
 
     return SimpleNamespace(Slice=_Slice, simple_join=_simple_join, bridge_plan=_bridge_plan,
-                           bridge_join=_bridge_join, band_faces=_band_faces, Bridged=_Bridged,
-                           keyhole_waypoints=_keyhole_waypoints)
+                           bridge_join=_bridge_join, band_faces=_band_faces, Bridged=_Bridged)
