@@ -35,7 +35,9 @@ Conventions (stated once)
   slice covers is closed by a lid.  This needs every pair's overlap connected, no overlap inside
   a hole of another, at most one hole from each side in each hole of ``O``, and bridges that touch
   nothing else in their plane; the band and lids are tested for crossing faces before they are
-  used.  Every other group (overlaps that close a loop: a handle forms) is joined
+  used.  The polygons of components in such joins get a vertex every pixel along their edges
+  (where the point lies in the slice's band), so that the least-area band's rungs stay local;
+  their band joins keep the faces made between the polygons' own points.  Every other group (overlaps that close a loop: a handle forms) is joined
   *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
   slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
   mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
