@@ -290,7 +290,7 @@ class _DrawnPolygons:
         # caps="flat": ends inside the stack (a branch that stops) hold the trapezoid rule's share
         # (with curved bands, whose rings follow the section area, the domes get twice the rings)
         rings = _DOME_RINGS_CURVED if curved else _DOME_RINGS
-        self.end_cap = (_SmoothEnds(dome_rings=rings) if smooth else _SmoothEnds(interior_only=True, dome_rings=rings)
+        self.end_cap = (_SmoothEnds(dome_rings=rings, planar=True) if smooth else _SmoothEnds(interior_only=True, dome_rings=rings)
                         if flat else None)
 
     def _box(self, ring, shape):
@@ -569,7 +569,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     if caps == "smooth":
         e = hook.end_cap
         meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
-                    smooth_cut_ends=e.count("cut"), smooth_branch_domes=e.count("branch"),
+                    smooth_cut_ends=e.count("cut"), smooth_planar_ends=e.count("plane"),
+                    smooth_planar_joins=len(e.planar_joins), smooth_branch_domes=e.count("branch"),
                     smooth_half_prisms=e.count("half"))
     elif caps == "flat":
         meta.update(interior_end_domes=hook.end_cap.count("branch"))
