@@ -525,7 +525,7 @@ class _SmoothEnds:
             return False
         drift = (centres[0] - centres[1]) / dists[0]  # the centroids' line, per unit distance outward
         far = self.slices[inward[(k, c)][0]].outer[inward[(k, c)][1]]
-        for plane in self._planes((k, c), up) if self.planar else ():
+        for plane in self._planes((k, c), up) if self._drawn((k, c), inward[(k, c)]) else ():
             cut = _planar_end(xys, far, dists[0], gap, plane)
             if cut is not None and self._build_plane(M, k, c, rings, xys, z, up, *cut):
                 return True
@@ -537,6 +537,12 @@ class _SmoothEnds:
             t, lam, kind = _end_profile(areas, dists, gap, self.dome_rings)
             rate = _end_rate(areas, dists)  # d(lam)/dt at the end ring
         return self._build(M, k, c, rings, xys, z, up, t, lam, drift, centre, rate, kind)
+
+    def _drawn(self, *comps) -> bool:
+        """Whether planar ends apply to these components: on the contours route, each keeping its drawn
+        rings (a component in an exact join keeps its pixels' crack ring, whose straight runs are
+        pixel edges, not an end plane's trace)."""
+        return self.planar and all(c in getattr(self.slices[k], "own", ()) for k, c in comps)
 
     def _planes(self, q, up) -> list:
         """The end planes that may cut component ``q = (k, c)`` toward its ``up`` end: per trace of its
@@ -588,6 +594,8 @@ class _SmoothEnds:
         for up in (True, False):
             q, p = ((k + 1, b), (k, a)) if up else ((k, a), (k + 1, b))
             sp, sq = self.slices[p[0]], self.slices[q[0]]
+            if not self._drawn(p, q):
+                continue
             if matched is None and (len(sq.holes[q[1]]) or not len(sp.holes[p[1]])):
                 continue
             holes = range(len(sp.holes[p[1]])) if matched is None else ()
