@@ -180,18 +180,20 @@ def _chords(xy) -> list:
         return []
     seg = np.hypot(*(b - p).T)
     scale = float(np.ptp(p, axis=0).max())
-    start = int(np.flatnonzero(~straight)[0])
+    half = 0.5 * float(seg.sum())
+    # the runs: from each point that is not straight to the next one (cyclic), with their lengths
+    brk = np.flatnonzero(~straight)
+    cum = np.r_[0.0, np.cumsum(seg)]
+    nxt = np.r_[brk[1:], brk[0] + m]
+    lengths = np.r_[cum[nxt[:-1]] - cum[brk[:-1]], cum[m] - cum[brk[-1]] + cum[brk[0]]]
+    # runs too short to matter (a trace may be split into a few runs by a hole or a corner point,
+    # but each of them is a sizeable part of it) are left out before the runs are grouped by line
+    big = np.flatnonzero(lengths >= 0.2 * _CHORD_MIN * half)
     groups: list = []  # [normal, offset, point indices, length]
-    run = [start]
-    for step in range(1, m + 1):
-        i = (start + step) % m  # point i joins edge i - 1 and edge i
-        if step < m and straight[i]:
-            run.append(i)
-            continue
-        idx = np.r_[run, (run[-1] + 1) % m]
+    for r in big.tolist():
+        idx = np.arange(brk[r], nxt[r] + 1) % m
         u = p[idx[-1]] - p[idx[0]]
-        length = float(seg[run].sum())
-        run = [i]
+        length = float(lengths[r])
         if length <= 1e-12 * scale:
             continue
         nrm = np.array([u[1], -u[0]]) / np.hypot(*u)
@@ -204,7 +206,7 @@ def _chords(xy) -> list:
             groups.append([nrm, float(nrm @ p[idx[0]]), idx.tolist(), length])
     out = []
     for _, _, idx, length in groups:
-        if length < _CHORD_MIN * 0.5 * seg.sum():
+        if length < _CHORD_MIN * half:
             continue
         idx = np.unique(idx)
         ctr = p[idx].mean(0)
