@@ -238,7 +238,10 @@ def _support_fit(end, inner, end_free, inner_free, dirs: int = 360):
     if use.sum() < _SUPPORT_MIN:
         return None
     u, he, hi = u[use], he[ie[use], np.flatnonzero(use)], hi[ii[use], np.flatnonzero(use)]
-    tol = 2e-3 * float(np.ptp(inner, axis=0).max())
+    # the fit's tolerance: a fraction of the section's size, or of its point spacing (a polygon's
+    # support function is off its curve's by up to a sagitta, ds^2 / 8R)
+    edge = float(np.median(np.hypot(*(np.roll(inner, -1, axis=0) - inner).T)))
+    tol = max(2e-3 * float(np.ptp(inner, axis=0).max()), 0.05 * edge)
 
     def fit(A, b):
         # least squares, then again without the directions far off it (a drawn point that cuts a
