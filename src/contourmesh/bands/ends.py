@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import shoelace_area, slice_gap
-from .caps import cap_faces
+from .caps import _rings_that_meet, cap_faces
 
 
 def _dome_centre(poly: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -380,8 +380,6 @@ def _cut_plan(Ps, sweeps, Q, q_on, dist, up):
     ring, its points on the plane; ``[(parts, faces)]`` of the planar polygons, parts ``(ring,
     indices)`` with ring -1 for Q; ``[(ring, P indices, Q indices)]`` of the lateral bands), or
     None where the runs do not pair up so, or a planar polygon is not simple."""
-    from ..drawn import _rings_that_meet
-
     on = [t < dist * (1 - 1e-6) for _, t, _ in sweeps]
     if any(o.all() for o in on) or q_on.all() or not q_on.any():
         return None
@@ -687,8 +685,6 @@ class _SmoothEnds:
             f = cap_faces(tops[0], tops[1:], upward=up)
         except ValueError:
             return False
-        from ..drawn import _rings_that_meet
-
         if len(f) == 0 or _rings_that_meet(list(tops)).any():
             return False
         sgn = 1.0 if up else -1.0
