@@ -650,6 +650,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     fallback makes again only the joins and caps whose rings or kind changed."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
+    band_maker = getattr(end_cap, "make_band", None)
 
     def is_crack(k, c):
         return (k, c) in crack_only and c not in getattr(slices[k], "own", ())
@@ -722,6 +723,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             mixed = is_crack(k, a) != is_crack(k + 1, b)
 
             def make(M, ring):
+                if band_maker is not None and band_maker(M, k, a, b, matched, ring, mixed):
+                    return  # the hook made this band (a plane-cut end's, caps="smooth" on drawn rings)
                 M.band(ring(k, a, -1), ring(k + 1, b, -1), mixed)
                 for ha, hb in matched:
                     M.band(ring(k, a, ha), ring(k + 1, b, hb), mixed)
@@ -731,6 +734,9 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             b_ = built[k, tuple(data[0]), tuple(data[1])]
 
             def make(M, ring):
+                if band_maker is not None and len(data[0]) == 1 and len(data[1]) == 1 and \
+                        band_maker(M, k, data[0][0], data[1][0], None, ring, False):
+                    return  # the hook made this join (a bore opening onto a plane-cut end)
                 ids = np.empty(len(b_.V), dtype=np.int64)
                 for (kk, c, h), off in b_.rings:
                     r = ring(kk, c, h)
