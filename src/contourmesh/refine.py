@@ -89,6 +89,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .bands.caps import _segments_meet  # the closed-segment test, shared with the caps
 from .geometry import distinct_rows
 from .polygons import polygonize
 from .stacks import check_stack
@@ -1252,25 +1253,6 @@ def _merge_and_fill(s, length, step):
             out[pos] = v + gaps[q] * i / m
             pos += 1
     return out
-
-
-@njit(cache=True)
-def _orient(ax, ay, bx, by, cx, cy):
-    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-
-
-@njit(cache=True)
-def _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):
-    """Do the closed segments ab and cd meet (cross or touch)?"""
-    if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
-        return False
-    if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
-        return False
-    d1 = _orient(ax, ay, bx, by, cx, cy)
-    d2 = _orient(ax, ay, bx, by, dx, dy)
-    d3 = _orient(cx, cy, dx, dy, ax, ay)
-    d4 = _orient(cx, cy, dx, dy, bx, by)
-    return d1 * d2 <= 0.0 and d3 * d4 <= 0.0
 
 
 @njit(cache=True)
