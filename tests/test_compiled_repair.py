@@ -298,3 +298,31 @@ def test_single_vector_helpers_equal_numpy():
         x = rng.normal(size=int(rng.integers(1, 9)))
         k = int(rng.integers(len(x)))
         assert np.array_equal(repair._rolled(x, k), np.roll(x, -k))
+
+
+def test_split_four_face_edges_equals_the_reference_on_voxel_meshes(monkeypatch):
+    # the general mesher's four-face edges (voxels of consecutive slices touching along an edge),
+    # among them faces with two such edges (a split face's other edge is split after it), and the
+    # numbering of the new vertices and faces, which follows the iteration order of Python sets
+    import contourmesh
+    from contourmesh import volumes
+
+    seen = {"edges": 0, "chained": 0}
+
+    def both(V, F, side, nudge):
+        got = repair._split_four_face_edges(V, F, side, nudge)
+        want = repair._split_four_face_edges_reference(V, F, side, nudge)
+        assert all(np.array_equal(g, w) and g.dtype == w.dtype for g, w in zip(got, want))
+        assert np.array_equal(got[0].view(np.int64), want[0].view(np.int64))
+        hit = repair._edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V)) == 4
+        seen["edges"] += int(hit.sum()) // 4
+        seen["chained"] += int((hit.sum(axis=1) > 1).sum())
+        return got
+
+    monkeypatch.setattr(volumes, "_split_four_face_edges", both)
+    rng = np.random.default_rng(23)
+    for _ in range(6):
+        vol = np.pad(rng.random((6, 14, 13)) < 0.4, 1)
+        m = contourmesh.mesh(vol)
+        assert m.checks()["ok"]
+    assert seen["edges"] > 50 and seen["chained"] > 0
