@@ -326,3 +326,36 @@ def test_split_four_face_edges_equals_the_reference_on_voxel_meshes(monkeypatch)
         m = contourmesh.mesh(vol)
         assert m.checks()["ok"]
     assert seen["edges"] > 50 and seen["chained"] > 0
+
+
+def test_overlap_holes_equals_ndimage_label():
+    # the bridged join's overlap structure (volumes._bridge_plan): the overlap's 4-components, its
+    # padded background's 8-components with ndimage.label's numbers, and the overlaps that reach
+    # the outside, against scipy on random masks (holes, diagonal contacts, rings around islands)
+    from numba import njit
+    from numba.core import types
+    from scipy import ndimage
+
+    from contourmesh import tracing
+    from contourmesh.volumes import _dilated
+
+    rng = np.random.default_rng(29)
+    inside = set()
+    for _ in range(1500):
+        h, w = (int(v) for v in rng.integers(1, 13, 2))
+        o = rng.random((h, w)) < rng.uniform(0.2, 0.9)
+        n, blab, nb, n_out = tracing.overlap_holes(o)
+        olab, want_n = ndimage.label(o, structure=np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool))
+        want_blab, want_nb = ndimage.label(np.pad(~o, 1, constant_values=True), structure=np.ones((3, 3), bool))
+        near = _dilated(want_blab == want_blab[0, 0])[1:-1, 1:-1]
+        assert (n, nb, n_out) == (want_n, want_nb, len(np.unique(olab[near & o])))
+        assert blab.dtype == np.int64 and np.array_equal(blab, want_blab)
+        inside.add(n_out < n)
+    assert inside == {True, False}
+    # one signature per kernel, no literal argument (typed again uncached: the cached entry brings
+    # its callees' code without typing them in this process)
+    for sig in tracing._overlap_holes.signatures:
+        njit(nogil=True)(tracing._overlap_holes.py_func).compile(sig)
+    for d in (tracing._overlap_holes, tracing._label_raster):
+        assert len(d.signatures) == 1
+        assert not any(isinstance(t, types.Literal) for t in d.signatures[0])

@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._kernels import internal_kernel
 from .geometry import predecessor, successor
 
 __all__ = ["trace_contours", "rotate_start", "check_contour4", "overlap_groups"]
@@ -357,3 +358,93 @@ def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
         groups[g][0].add(a)
         groups[g][1].add(b)
     return pairs, groups
+
+
+@internal_kernel
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@internal_kernel
+def _label_raster(m, conn8, lab):
+    """``scipy.ndimage.label`` of a 2D boolean mask, 4-connected (``conn8 == 0``) or 8-connected:
+    ``lab`` (int64, the mask's shape) gets the labels 1 .. n, numbered in raster order of each
+    component's first pixel, 0 elsewhere; returns n.  Union-find over pixel indices whose roots
+    are the components' first pixels (the lower root wins), so the second pass meets each root
+    before the rest of its component."""
+    h, w = m.shape
+    parent = np.empty(h * w, np.int64)
+    for y in range(h):
+        for x in range(w):
+            if not m[y, x]:
+                continue
+            i = y * w + x
+            parent[i] = i
+            for dy, dx in ((0, -1), (-1, 0), (-1, -1), (-1, 1)):
+                if dx != 0 and dy != 0 and conn8 == 0:
+                    continue
+                yy = y + dy
+                xx = x + dx
+                if yy < 0 or xx < 0 or xx >= w or not m[yy, xx]:
+                    continue
+                r = _root(parent, i)
+                s = _root(parent, yy * w + xx)
+                if r != s:
+                    parent[max(r, s)] = min(r, s)
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if not m[y, x]:
+                lab[y, x] = 0
+                continue
+            r = _root(parent, y * w + x)
+            if r == y * w + x:
+                n += 1
+                lab[y, x] = n
+            else:
+                lab[y, x] = lab[r // w, r % w]
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _overlap_holes(o, one):
+    """:func:`overlap_holes` compiled (``one`` is 1: no literal argument)."""
+    h, w = o.shape
+    olab = np.empty((h, w), np.int64)
+    no = _label_raster(o, one - one, olab)
+    bg = np.ones((h + 2, w + 2), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            bg[y + 1, x + 1] = not o[y, x]
+    blab = np.empty((h + 2, w + 2), np.int64)
+    nbl = _label_raster(bg, one, blab)
+    ext = blab[0, 0]
+    # the overlaps that touch the outside (a pixel of it among their pixels' 8-neighbours)
+    seen = np.zeros(no + 1, np.bool_)
+    n_seen = 0
+    for y in range(h):
+        for x in range(w):
+            if not o[y, x] or seen[olab[y, x]]:
+                continue
+            near = False
+            for dy in range(3):
+                for dx in range(3):
+                    if blab[y + dy, x + dx] == ext:
+                        near = True
+            if near:
+                seen[olab[y, x]] = True
+                n_seen += 1
+    return no, blab, nbl, n_seen
+
+
+def overlap_holes(o: np.ndarray):
+    """The structure of an overlap mask ``o`` (2D boolean) that a bridged join needs: ``(n, blab,
+    nb, n_out)``: ``n`` its 4-components (``ndimage.label(o, structure=_CROSS)``); ``blab``, ``nb``
+    the 8-components of the background of ``o`` padded by one pixel of background
+    (``ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)``, int64, the
+    same labels); ``n_out`` how many of the ``n`` components have a pixel whose 3 x 3
+    neighbourhood meets the padded background's first component (the outside)."""
+    return _overlap_holes(np.ascontiguousarray(o, dtype=np.bool_), np.int64(1))
