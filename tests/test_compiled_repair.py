@@ -359,3 +359,16 @@ def test_overlap_holes_equals_ndimage_label():
     for d in (tracing._overlap_holes, tracing._label_raster):
         assert len(d.signatures) == 1
         assert not any(isinstance(t, types.Literal) for t in d.signatures[0])
+
+
+def test_label_mask_equals_isin():
+    from contourmesh.tracing import label_mask
+
+    rng = np.random.default_rng(31)
+    for dtype in (np.uint8, np.uint16, np.int32):
+        for _ in range(50):
+            n = int(rng.integers(0, 12))
+            lab = rng.integers(0, n + 1, (int(rng.integers(1, 9)), int(rng.integers(1, 9)))).astype(dtype)
+            comps = sorted(set(rng.integers(0, max(n, 1), int(rng.integers(0, 4))).tolist())) if n else []
+            got = label_mask(lab, n, comps)
+            assert got.dtype == bool and np.array_equal(got, np.isin(lab, [c + 1 for c in comps]))

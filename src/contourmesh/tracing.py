@@ -448,3 +448,11 @@ def overlap_holes(o: np.ndarray):
     same labels); ``n_out`` how many of the ``n`` components have a pixel whose 3 x 3
     neighbourhood meets the padded background's first component (the outside)."""
     return _overlap_holes(np.ascontiguousarray(o, dtype=np.bool_), np.int64(1))
+
+
+def label_mask(labels: np.ndarray, n: int, comps) -> np.ndarray:
+    """``np.isin(labels, [c + 1 for c in comps])`` for a label image with labels ``0 .. n``: the
+    pixels of components ``comps`` (0-based), by a lookup table (np.isin sorts; this indexes)."""
+    lut = np.zeros(n + 1, dtype=bool)
+    lut[np.asarray(list(comps), dtype=np.int64) + 1] = True
+    return lut[labels]

@@ -89,7 +89,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, overlap_groups, overlap_holes
+from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -1047,8 +1047,8 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    ra = np.isin(A.labels[y0:y1, x0:x1], [a + 1 for a in ga])
-    rb = np.isin(B.labels[y0:y1, x0:x1], [b + 1 for b in gb])
+    ra = label_mask(A.labels[y0:y1, x0:x1], A.n, ga)
+    rb = label_mask(B.labels[y0:y1, x0:x1], B.n, gb)
     o = ra & rb
     zk, zk1 = zs[k], zs[k + 1]
     zm = 0.5 * (zk + zk1)
@@ -1143,11 +1143,7 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     x1 = max(s[1].stop for s in sl)
     la = A.labels[y0:y1, x0:x1]
     lb = B.labels[y0:y1, x0:x1]
-    in_a = np.zeros(A.n + 1, dtype=bool)  # the group's labels as lookup tables (np.isin, faster)
-    in_a[[a + 1 for a in ga]] = True
-    in_b = np.zeros(B.n + 1, dtype=bool)
-    in_b[[b + 1 for b in gb]] = True
-    o = in_a[la] & in_b[lb]
+    o = label_mask(la, A.n, ga) & label_mask(lb, B.n, gb)
     nbk = np.int64(B.n + 1)
     npairs = len(np.unique(la[o].astype(np.int64) * nbk + lb[o]))
     if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
@@ -1391,8 +1387,8 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
                 min(s[1].start for s in sl):max(s[1].stop for s in sl)]
-    ra = np.isin(A.labels[box], [a + 1 for a in ga])
-    rb = np.isin(B.labels[box], [b + 1 for b in gb])
+    ra = label_mask(A.labels[box], A.n, ga)
+    rb = label_mask(B.labels[box], B.n, gb)
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
 
 
@@ -1464,15 +1460,14 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         of the overlap, so it may cut through a notch the other slice covers."""
         from scipy import ndimage
 
-        s, lab = slices[plane], slices[other].labels
-        ids = np.asarray(comps) + 1
+        s, lab, n_other = slices[plane], slices[other].labels, slices[other].n
 
         def points_of(c):
             sl = s.objects[c]
             y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
             box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
             own = s.labels[box] == c + 1
-            over = own & np.isin(lab[box], ids)
+            over = own & label_mask(lab[box], n_other, comps)
             j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
             pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
 
