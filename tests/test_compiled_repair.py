@@ -372,3 +372,14 @@ def test_label_mask_equals_isin():
             comps = sorted(set(rng.integers(0, max(n, 1), int(rng.integers(0, 4))).tolist())) if n else []
             got = label_mask(lab, n, comps)
             assert got.dtype == bool and np.array_equal(got, np.isin(lab, [c + 1 for c in comps]))
+
+
+def test_vertex_normals_at_some_vertices_equal_the_whole_mesh_normals():
+    rng = np.random.default_rng(37)
+    s = trimesh.creation.icosphere(subdivisions=3)
+    V = np.array(s.vertices) * rng.uniform(0.5, 2.0, (1, 3)) + rng.normal(scale=0.05, size=s.vertices.shape)
+    F = np.ascontiguousarray(s.faces, dtype=np.int64)
+    whole = repair._vertex_normals(V, F)
+    for _ in range(10):
+        ids = rng.choice(len(V), int(rng.integers(1, 60)), replace=False)
+        assert np.array_equal(repair._vertex_normals_at(V, F, ids).view(np.int64), whole[ids].view(np.int64))

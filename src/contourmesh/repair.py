@@ -694,6 +694,25 @@ def _vertex_normals(V, F):
     return out
 
 
+def _vertex_normals_at(V, F, ids):
+    """``_vertex_normals(V, F)[ids]`` (``ids`` distinct), from the faces at those vertices only:
+    each sum takes the same face normals in the same order (corner 0 of every face, then 1, then
+    2, faces in order), so the same bits."""
+    ids = np.asarray(ids, dtype=np.int64)
+    pos = np.full(len(V), len(ids), dtype=np.int64)  # row len(ids): a sink for the other vertices
+    pos[ids] = np.arange(len(ids))
+    Fm = pos[F]
+    sel = np.flatnonzero((Fm < len(ids)).any(axis=1))
+    Fs = F[sel]
+    fn = np.cross(V[Fs[:, 1]] - V[Fs[:, 0]], V[Fs[:, 2]] - V[Fs[:, 0]])
+    vn = _add_at_rows(np.zeros((len(ids) + 1, 3)), np.ascontiguousarray(Fm[sel]), fn)[:-1]
+    nrm = np.linalg.norm(vn, axis=1)
+    out = np.zeros_like(vn)
+    ok = nrm > 0
+    out[ok] = vn[ok] / nrm[ok, None]
+    return out
+
+
 @njit(cache=True, nogil=True)
 def _add_at_rows(acc, F, rows):
     """``np.add.at(acc, F[:, k], rows)`` for k = 0, 1, 2 in turn (the same sums, in the same order)."""
@@ -952,14 +971,27 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
     if n0 == 0 or len(F) == 0:
         return V, info
     V0 = V
-    nrm = _vertex_normals(V, F)
     if planes is not None:
         planes = np.asarray(planes() if callable(planes) else planes, dtype=np.float64)
-        nrm[np.isin(V[:, 2], planes), 2] = 0.0
+    # the vertex normals (within the planes for vertices on them), of the vertices that move only
+    # (_vertex_normals_at: the whole mesh's normals there, bit for bit), made as they are needed
+    nrm = np.zeros_like(V)
+    have = np.zeros(len(V), dtype=bool)
+
+    def normals_for(ids):
+        new = ids[~have[ids]]
+        if len(new):
+            nv = _vertex_normals_at(V0, F, new)
+            if planes is not None:
+                nv[np.isin(V0[new, 2], planes), 2] = 0.0
+            nrm[new] = nv
+            have[new] = True
+
     # the faces that any round can bring near a moved face: found once, for the largest total move
     # of the vertices of every face that takes part (rounds move only vertices of crossing faces,
     # and a face crossing after a move meets a moved face)
     reach = np.unique(F[np.unique(p)])
+    normals_for(reach)
     Wmax = V.copy()
     Wmax[reach] -= nudge * (2.0 ** rounds) * nrm[reach]
     touched = np.zeros(len(V), dtype=bool)
@@ -969,6 +1001,7 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
         if len(p) == 0:
             break
         verts = np.unique(F[np.unique(p)])
+        normals_for(verts)
         if not touched[verts].all():  # a pair outside the region found first: widen it
             touched[verts] = True
             Wmax[verts] = V[verts] - nudge * (2.0 ** rounds) * nrm[verts]
