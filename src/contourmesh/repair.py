@@ -424,8 +424,10 @@ def _open_necks(V, F, S, necks, nudge):
         return V, F, S
     neck_ids = np.unique(necks)
     # faces (old and new, by index into `faces`) around each neck vertex, kept up to date
-    faces = [tuple(f) for f in F[np.isin(F, neck_ids).any(axis=1)].tolist()]
-    old_index = np.flatnonzero(np.isin(F, neck_ids).any(axis=1))  # their rows in F
+    is_neck = np.zeros(len(V), dtype=bool)  # (np.isin(F, neck_ids), by a lookup table)
+    is_neck[neck_ids] = True
+    old_index = np.flatnonzero(is_neck[F].any(axis=1))  # their rows in F
+    faces = [tuple(f) for f in F[old_index].tolist()]
     n_old = len(faces)
     star_of = {int(c): [] for c in neck_ids}
     for t, f in enumerate(faces):
