@@ -369,43 +369,83 @@ def _root(parent, i):
 
 
 @internal_kernel
+def _join(parent, a, b):
+    """Union of the provisional labels a and b (the lower root wins); returns the root."""
+    r = _root(parent, a)
+    s = _root(parent, b)
+    if r < s:
+        parent[s] = r
+        return r
+    parent[r] = s
+    return s
+
+
+@internal_kernel
 def _label_raster(m, conn8, lab):
     """``scipy.ndimage.label`` of a 2D boolean mask, 4-connected (``conn8 == 0``) or 8-connected:
     ``lab`` (int64, the mask's shape) gets the labels 1 .. n, numbered in raster order of each
-    component's first pixel, 0 elsewhere; returns n.  Union-find over pixel indices whose roots
-    are the components' first pixels (the lower root wins), so the second pass meets each root
-    before the rest of its component."""
+    component's first pixel, 0 elsewhere; returns n.
+
+    One raster pass gives each pixel a provisional label (a neighbour's, or a new one) and joins
+    the labels of neighbours that meet there (union-find, the lower label the root); provisional
+    labels are made in raster order, so each component's root is the label of its first pixel,
+    and numbering the roots in order gives ``ndimage.label``'s numbers.  Of the neighbours above
+    and to the left only those that may still be apart are joined: 8-connected, a pixel above
+    touches the left and upper-left ones already."""
     h, w = m.shape
-    parent = np.empty(h * w, np.int64)
-    for y in range(h):
-        for x in range(w):
-            if not m[y, x]:
-                continue
-            i = y * w + x
-            parent[i] = i
-            for dy, dx in ((0, -1), (-1, 0), (-1, -1), (-1, 1)):
-                if dx != 0 and dy != 0 and conn8 == 0:
-                    continue
-                yy = y + dy
-                xx = x + dx
-                if yy < 0 or xx < 0 or xx >= w or not m[yy, xx]:
-                    continue
-                r = _root(parent, i)
-                s = _root(parent, yy * w + xx)
-                if r != s:
-                    parent[max(r, s)] = min(r, s)
-    n = 0
+    parent = np.empty(h * w // 2 + 2, np.int64)
+    nprov = 0
     for y in range(h):
         for x in range(w):
             if not m[y, x]:
                 lab[y, x] = 0
                 continue
-            r = _root(parent, y * w + x)
-            if r == y * w + x:
-                n += 1
-                lab[y, x] = n
+            up = lab[y - 1, x] if y > 0 else 0
+            left = lab[y, x - 1] if x > 0 else 0
+            if conn8 == 0:
+                if up and left:
+                    cur = _join(parent, up, left) if up != left else up
+                elif up:
+                    cur = up
+                elif left:
+                    cur = left
+                else:
+                    nprov += 1
+                    parent[nprov] = nprov
+                    cur = nprov
             else:
-                lab[y, x] = lab[r // w, r % w]
+                ul = lab[y - 1, x - 1] if y > 0 and x > 0 else 0
+                ur = lab[y - 1, x + 1] if y > 0 and x < w - 1 else 0
+                if up:
+                    cur = up
+                elif ur:
+                    cur = ur
+                    if ul and ul != ur:
+                        cur = _join(parent, ur, ul)
+                    elif left and left != ur:
+                        cur = _join(parent, ur, left)
+                elif ul:
+                    cur = ul
+                elif left:
+                    cur = left
+                else:
+                    nprov += 1
+                    parent[nprov] = nprov
+                    cur = nprov
+            lab[y, x] = cur
+    final = np.zeros(nprov + 1, np.int64)
+    n = 0
+    for q in range(1, nprov + 1):
+        r = _root(parent, q)
+        if r == q:
+            n += 1
+            final[q] = n
+        else:
+            final[q] = final[r]
+    for y in range(h):
+        for x in range(w):
+            if lab[y, x]:
+                lab[y, x] = final[lab[y, x]]
     return n
 
 
