@@ -105,19 +105,6 @@ def test_candidate_pairs_equal_the_kd_tree_query():
     assert fell_back > 0 and agreed > 100, (fell_back, agreed)
 
 
-def test_dilated_equals_binary_dilation():
-    # the bridge plan's 8-neighbourhood dilation by shifts is scipy's, pixel for pixel (thin and
-    # one-pixel arrays, masks touching the border)
-    from scipy import ndimage
-
-    from contourmesh.volumes import _SQUARE, _dilated
-
-    rng = np.random.default_rng(19)
-    for _ in range(300):
-        m = rng.random(tuple(int(n) for n in rng.integers(1, 12, 2))) < rng.uniform(0.05, 0.9)
-        assert np.array_equal(_dilated(m), ndimage.binary_dilation(m, structure=_SQUARE))
-
-
 def _split_pinches_add_at(P, f, dup):
     """bands._split_pinches as it was, with np.add.at (the reference)."""
     from contourmesh.intersect import canonical_vertices
@@ -337,7 +324,6 @@ def test_overlap_holes_equals_ndimage_label():
     from scipy import ndimage
 
     from contourmesh import tracing
-    from contourmesh.volumes import _dilated
 
     rng = np.random.default_rng(29)
     inside = set()
@@ -347,7 +333,7 @@ def test_overlap_holes_equals_ndimage_label():
         n, blab, nb, n_out = tracing.overlap_holes(o)
         olab, want_n = ndimage.label(o, structure=np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool))
         want_blab, want_nb = ndimage.label(np.pad(~o, 1, constant_values=True), structure=np.ones((3, 3), bool))
-        near = _dilated(want_blab == want_blab[0, 0])[1:-1, 1:-1]
+        near = ndimage.binary_dilation(want_blab == want_blab[0, 0], structure=np.ones((3, 3), bool))[1:-1, 1:-1]
         assert (n, nb, n_out) == (want_n, want_nb, len(np.unique(olab[near & o])))
         assert blab.dtype == np.int64 and np.array_equal(blab, want_blab)
         inside.add(n_out < n)

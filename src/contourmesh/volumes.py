@@ -1110,19 +1110,6 @@ def _pixel_faces(M, region, x0, y0, corner_ids, up):
 # ------------------------------------------------------------------------------------------------
 # branching joins by bridges
 # ------------------------------------------------------------------------------------------------
-def _dilated(m: np.ndarray) -> np.ndarray:
-    """``ndimage.binary_dilation(m, structure=_SQUARE)``: each pixel or one of its 8 neighbours set
-    (beyond the array nothing is), as the OR of the nine shifts."""
-    p = np.pad(m, 1)
-    ny, nx = m.shape
-    out = p[:ny, :nx].copy()
-    for dy in range(3):
-        for dx in range(3):
-            if dy or dx:
-                out |= p[dy:dy + ny, dx:dx + nx]
-    return out
-
-
 def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     """How a fork or merge group joins between its polygons, or None where it cannot.
 
