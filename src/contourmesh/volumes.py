@@ -89,7 +89,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, overlap_groups
+from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -1053,8 +1053,8 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    ra = np.isin(A.labels[y0:y1, x0:x1], [a + 1 for a in ga])
-    rb = np.isin(B.labels[y0:y1, x0:x1], [b + 1 for b in gb])
+    ra = label_mask(A.labels[y0:y1, x0:x1], A.n, ga)
+    rb = label_mask(B.labels[y0:y1, x0:x1], B.n, gb)
     o = ra & rb
     zk, zk1 = zs[k], zs[k + 1]
     zm = 0.5 * (zk + zk1)
@@ -1116,19 +1116,6 @@ def _pixel_faces(M, region, x0, y0, corner_ids, up):
 # ------------------------------------------------------------------------------------------------
 # branching joins by bridges
 # ------------------------------------------------------------------------------------------------
-def _dilated(m: np.ndarray) -> np.ndarray:
-    """``ndimage.binary_dilation(m, structure=_SQUARE)``: each pixel or one of its 8 neighbours set
-    (beyond the array nothing is), as the OR of the nine shifts."""
-    p = np.pad(m, 1)
-    ny, nx = m.shape
-    out = p[:ny, :nx].copy()
-    for dy in range(3):
-        for dx in range(3):
-            if dy or dx:
-                out |= p[dy:dy + ny, dx:dx + nx]
-    return out
-
-
 def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     """How a fork or merge group joins between its polygons, or None where it cannot.
 
@@ -1142,8 +1129,6 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     them; and holes that open to the outside of the overlap (a handle that ends), which join
     their component's ring through a keyhole.
     """
-    from scipy import ndimage
-
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     y0 = min(s[0].start for s in sl)
     y1 = max(s[0].stop for s in sl)
@@ -1151,18 +1136,18 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     x1 = max(s[1].stop for s in sl)
     la = A.labels[y0:y1, x0:x1]
     lb = B.labels[y0:y1, x0:x1]
-    o = np.isin(la, [a + 1 for a in ga]) & np.isin(lb, [b + 1 for b in gb])
+    o = label_mask(la, A.n, ga) & label_mask(lb, B.n, gb)
     nbk = np.int64(B.n + 1)
     npairs = len(np.unique(la[o].astype(np.int64) * nbk + lb[o]))
     if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
         return None
-    olab, no = ndimage.label(o, structure=_CROSS)
+    # the overlap's 4-components, its padded background's 8-components (ndimage.label's numbers)
+    # and the overlaps that reach the outside, in one compiled pass
+    no, blab, nbl, n_out = overlap_holes(o)
     if no != npairs:  # some pair overlaps in more than one piece: a handle
         return None
-    blab, nbl = ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)
     ext = blab[0, 0]
-    near_ext = _dilated(blab == ext)[1:-1, 1:-1]
-    if len(np.unique(olab[near_ext & o])) != no:  # an overlap inside a hole of another
+    if n_out != no:  # an overlap inside a hole of another
         return None
     holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
 
@@ -1395,8 +1380,8 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
                 min(s[1].start for s in sl):max(s[1].stop for s in sl)]
-    ra = np.isin(A.labels[box], [a + 1 for a in ga])
-    rb = np.isin(B.labels[box], [b + 1 for b in gb])
+    ra = label_mask(A.labels[box], A.n, ga)
+    rb = label_mask(B.labels[box], B.n, gb)
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
 
 
@@ -1468,15 +1453,14 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         of the overlap, so it may cut through a notch the other slice covers."""
         from scipy import ndimage
 
-        s, lab = slices[plane], slices[other].labels
-        ids = np.asarray(comps) + 1
+        s, lab, n_other = slices[plane], slices[other].labels, slices[other].n
 
         def points_of(c):
             sl = s.objects[c]
             y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
             box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
             own = s.labels[box] == c + 1
-            over = own & np.isin(lab[box], ids)
+            over = own & label_mask(lab[box], n_other, comps)
             j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
             pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
 
