@@ -26,40 +26,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from contourmesh.digitize import mask_stack, sample_volume, uneven_heights  # noqa: E402
+
 LIVER = (0.9, 0.617, 0.667)  # (dz, dy, dx), mm
 CENTRES = [(0.31, 0.17, 0.43), (0.05, 0.23, 0.11), (0.4, 0.02, 0.27)]
-
-
-def digitize(shape, spacing, zs=None):
-    """Grid points ``(x0 + i dx, y0 + j dy, zs[k])`` inside ``shape``: ``(mask [k, j, i], zs, origin)``."""
-    dz, dy, dx = spacing
-    lo, hi = shape.bounds
-    xs = np.arange(np.floor(lo[0] / dx) - 2, np.ceil(hi[0] / dx) + 3) * dx
-    ys = np.arange(np.floor(lo[1] / dy) - 2, np.ceil(hi[1] / dy) + 3) * dy
-    if zs is None:
-        zs = np.arange(np.floor(lo[2] / dz) - 2, np.ceil(hi[2] / dz) + 3) * dz
-    zz, yy, xx = np.meshgrid(zs, ys, xs, indexing="ij")
-    return shape.contains(xx, yy, zz), np.asarray(zs, dtype=np.float64), (xs[0], ys[0], zs[0])
-
-
-def uneven_heights(extent, seed, lo=0.5, hi=1.3):
-    gaps = np.random.default_rng(seed).uniform(lo, hi, size=int(2 * extent / lo) + 8)
-    z = np.cumsum(gaps)
-    z = z - z[np.searchsorted(z, z[-1] / 2)]
-    return z[(z > -extent - 2 * hi) & (z < extent + 2 * hi)]
-
-
-def grid_stack(mask, zs, spacing, origin):
-    from contourmesh.tracing import trace_contours
-    from contourmesh.types import ContourStack, Section
-
-    secs = []
-    for k in range(mask.shape[0]):
-        if mask[k].any():
-            cs, ps = trace_contours(mask[k])
-            secs.append(Section(z=float(zs[k]), contours=tuple(np.asarray(c, dtype=np.int64) for c in cs),
-                                parents=tuple(int(p) for p in ps)))
-    return ContourStack(sections=tuple(secs), spacing=(spacing[2], spacing[1]), origin=(origin[0], origin[1]))
 
 
 def ball_table(sizes) -> None:
@@ -74,7 +44,7 @@ def ball_table(sizes) -> None:
         band, paper, P, secs = [], [], [], []
         for c in CENTRES:
             s = Sphere(r * LIVER[2], center=c)
-            mask, zs, org = digitize(s, LIVER)
+            mask, zs, org = sample_volume(s, LIVER)
             t = time.perf_counter()
             m = contourmesh.mesh(mask, spacing=LIVER, origin=org, refine="band")
             secs.append(time.perf_counter() - t)
@@ -105,11 +75,11 @@ def uneven_table(scales) -> None:
         for seed in (3, 4, 5, 6, 7):
             c = tuple(np.random.default_rng(seed).uniform(-0.5, 0.5, 3))
             e = Ellipsoid(6.7 * k, 5.0 * k, 6.0 * k, center=c)
-            mask, zs, org = digitize(e, LIVER)
+            mask, zs, org = sample_volume(e, LIVER)
             even.append(contourmesh.mesh(mask, spacing=LIVER, origin=org, refine="band").area / e.area - 1)
-            mask, zs, org = digitize(e, LIVER, uneven_heights(6.0 * k, seed))
+            mask, zs, org = sample_volume(e, LIVER, uneven_heights(6.0 * k, seed))
             vol.append(contourmesh.mesh(mask, spacing=LIVER, z=zs, origin=org, refine="band").area / e.area - 1)
-            st = grid_stack(mask, zs, LIVER, org)
+            st = mask_stack(mask, zs, LIVER, org)
             stk.append(contourmesh.mesh(st, refine="band").area / e.area - 1)
             pap.append(contourmesh.mesh(st).area / e.area - 1)
         print(f"| {k} | {100 * np.median(vol):+.3f} % | {100 * np.median(stk):+.3f} % | {100 * np.median(pap):+.2f} % | "

@@ -10,11 +10,22 @@ Rules (``--rules``, separated by ``;``):
 * ``auto``: the default (:func:`contourmesh.refine.auto_sigma`, ``clip(0.8 R^(1/3), 2, 3.5)``);
 * ``sigma=LO-HI``: the same rule clipped to ``[LO, HI]`` (``sigma=2-2`` is a fixed width of 2);
 * ``extrapolate``: the two-scale step's extrapolated place at every vertex, not only where the
-  two widths disagree (``FINE_TOLERANCE`` below zero).
+  two widths disagree (``FINE_TOLERANCE`` below zero);
+* ``tol=LO/HI``: the two-scale step's disagreement bounds (``FINE_TOLERANCE``, voxels);
+* ``ratio=R``: the fine width's share of the wide one (``FINE_RATIO``);
+* ``rho=X``: the extrapolation gain where the widths disagree (``FINE_RHO``; default the
+  Richardson gain ``r^4 / (1 - r^4)``, 0.32);
+* ``cubic=C``: a third-order term ``C (k1 + k2)^3 sigma^4`` in the curvature shift
+  (``SHIFT_CUBIC``; ``-0.0416667`` = -1/24, the exact term for balls and cylinders).
+
+Settings combine with ``+`` (``sigma=2-2.5+rho=1``).  ``--balls 20,40,80`` meshes balls (outer
+Jordan stacks at the convergence comparison's centres) under the same rules instead, and prints
+the median signed and absolute errors per radius and the fitted order.
 
     python benchmarks/band_sigma.py --size 256
     python benchmarks/band_sigma.py --size 128 --meshes bunny-rot,torus-rot --rules "auto;sigma=2-2"
     python benchmarks/band_sigma.py --size 256 --rules auto --refine band2
+    python benchmarks/band_sigma.py --balls 20,40,80,160 --rules "auto;sigma=2-2"
 
 Voxelized inputs are kept in ``comparisons/real/cache/volumes`` (not committed).
 The data folder is ``$CONTOURMESH_DATA`` (default ``../shared/data`` beside the checkout).
@@ -23,7 +34,6 @@ The data folder is ``$CONTOURMESH_DATA`` (default ``../shared/data`` beside the 
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import sys
 import warnings
@@ -66,23 +76,72 @@ def load(name: str, repeat: int, size: int):
     return vol, sp, org, area
 
 
-def mesh_with(rule: str, vol, sp, org, mode: str = "band"):
-    """``contourmesh.mesh(vol, refine=mode)`` under one rule (module settings restored after)."""
+def _clipped(rule, lo: float, hi: float):
+    """``rule`` (:func:`contourmesh.refine._auto_sigma_of`) clipped to ``[lo, hi]`` whatever bounds
+    its caller passes (the stack route's :func:`~contourmesh.refine.auto_sigma` passes its own)."""
+    def clipped(*args, **kw):
+        kw.update(lo=lo, hi=hi)
+        return rule(*args, **kw)
+    return clipped
+
+
+def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
+    """``contourmesh.mesh(vol, refine=mode)`` under one rule (module settings restored after).
+
+    A rule is one or more settings joined by ``+`` (``auto`` alone: the defaults)."""
     import contourmesh
     from contourmesh import refine
 
-    saved = (refine._auto_sigma_of, refine.FINE_TOLERANCE)
+    names = ("_auto_sigma_of", "FINE_TOLERANCE", "FINE_RATIO", "FINE_RHO", "SHIFT_CUBIC", "FINE_ADAPTIVE")
+    saved = {n: getattr(refine, n) for n in names}
     try:
-        if rule.startswith("sigma="):
-            lo, hi = (float(x) for x in rule[len("sigma="):].split("-"))
-            refine._auto_sigma_of = functools.partial(saved[0], lo=lo, hi=hi)
-        elif rule == "extrapolate":
-            refine.FINE_TOLERANCE = (-1.0, -0.999)
-        elif rule != "auto":
-            raise SystemExit(f"unknown rule {rule!r}")
+        for part in rule.split("+"):
+            key, _, val = part.partition("=")
+            if part == "auto":
+                continue
+            if key == "sigma":
+                lo, hi = (float(x) for x in val.split("-"))
+                refine._auto_sigma_of = _clipped(saved["_auto_sigma_of"], lo, hi)
+            elif part == "extrapolate":
+                refine.FINE_TOLERANCE = (-1.0, -0.999)
+            elif key == "tol":
+                refine.FINE_TOLERANCE = tuple(float(x) for x in val.split("/"))
+            elif key == "ratio":
+                refine.FINE_RATIO = float(val)
+            elif key == "rho":
+                refine.FINE_RHO = float(val)
+            elif part == "adaptive":
+                refine.FINE_ADAPTIVE = True
+            elif key == "adaptive":
+                refine.FINE_ADAPTIVE = float(val)
+            elif key == "cubic":
+                refine.SHIFT_CUBIC = float(val)
+            else:
+                raise SystemExit(f"unknown rule {rule!r}")
+        if sp is None:  # a contour stack
+            return contourmesh.mesh(vol, refine=mode)
         return contourmesh.mesh(vol, spacing=sp, origin=org, refine=mode)
     finally:
-        refine._auto_sigma_of, refine.FINE_TOLERANCE = saved
+        for n, v in saved.items():
+            setattr(refine, n, v)
+
+
+def balls(rules, radii, n_centres: int = 5, mode: str = "band"):
+    """Signed area errors (%) of balls (outer Jordan stacks) at the convergence comparison's centres
+    (``comparisons/convergence/run.py``'s first ``sphere-oj`` centres), per rule and radius."""
+    from contourmesh.digitize import outer_jordan_stack
+    from contourmesh.shapes import Sphere
+
+    centres = np.random.default_rng(2024).uniform(-0.5, 0.5, (5, 3))[:n_centres]
+    out = {r: {} for r in rules}
+    for rad in radii:
+        for c in centres:
+            s = Sphere(rad, center=tuple(c))
+            st = outer_jordan_stack(s)
+            for r in rules:
+                m = mesh_with(r, st, mode=mode)
+                out[r].setdefault(rad, []).append(100.0 * (m.area / s.area - 1.0))
+    return out
 
 
 def main(argv=None) -> int:
@@ -92,8 +151,20 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", default="0,1,2", help="the rotations")
     ap.add_argument("--rules", default="auto;sigma=2-2;sigma=2-2.5;extrapolate")
     ap.add_argument("--refine", default="band", choices=["band", "band2"], help="the refinement mode")
+    ap.add_argument("--balls", default="", help="ball radii (e.g. 20,40,80,160): balls instead of meshes")
+    ap.add_argument("--centres", type=int, default=5, help="ball centres per radius (at most 5)")
     a = ap.parse_args(argv)
     rules = [r.strip() for r in a.rules.split(";") if r.strip()]
+    if a.balls:
+        radii = [float(x) for x in a.balls.split(",")]
+        res = balls(rules, radii, a.centres, a.refine)
+        print(f"balls, {a.centres} centres: median signed e (%) / median |e| (%) per radius; fitted order of median |e|")
+        for r in rules:
+            med = [float(np.median(np.abs(res[r][rad]))) for rad in radii]
+            cells = " ".join(f"r={rad:g}: {np.median(res[r][rad]):+.4f} / {m:.4f}" for rad, m in zip(radii, med))
+            order = -np.polyfit(np.log(radii), np.log(med), 1)[0] if len(radii) > 1 else float("nan")
+            print(f"  {r:<24} {cells}  order {order:.2f}")
+        return 0
     errors = {r: [] for r in rules}
     from tqdm.auto import tqdm
 

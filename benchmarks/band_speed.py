@@ -28,7 +28,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-import tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
@@ -41,28 +40,21 @@ DEFAULT_ROWS = ("armadillo:0:64", "armadillo:0:128", "fandisk:0:64", "fandisk:0:
 
 def build(row: str):
     """``(volume, spacing, origin, true area)`` of ``NAME:REPEAT:SIZE`` as real.toml builds it."""
-    from contourmesh.compare.inputs import data_dir, load_closed_mesh, mesh_inputs
+    sys.path.insert(0, str(SPEC.parent))
+    import worst  # comparisons/real/worst.py: the comparison's own inputs
+
+    from contourmesh.compare.inputs import data_dir, load_closed_mesh
 
     try:
         name, repeat, size = row.split(":")
         repeat, size = int(repeat), int(size)
     except ValueError:
         raise SystemExit(f"a row is NAME:REPEAT:SIZE, e.g. fandisk:0:64; got {row!r}") from None
-    spec = tomllib.loads(SPEC.read_text())
-    for item in spec["inputs"]:
-        if item["name"] == name:
-            ins = mesh_inputs(item["mesh"], [size], name=name, repeats=int(item.get("repeats", 1)),
-                              seed=int(spec["seed"]), offset=bool(item.get("offset", False)),
-                              rotate=bool(item.get("rotate", False)), root=data_dir(),
-                              placement=item.get("placement", "per-resolution"))
-            for inp in ins:
-                if inp.repeat == repeat:
-                    v, f = load_closed_mesh(Path(data_dir()) / item["mesh"])
-                    tri = v[f]
-                    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
-                    return (*inp.volume(), float(area))
-            raise SystemExit(f"{name} has no repeat {repeat}")
-    raise SystemExit(f"no input named {name!r} in {SPEC}")
+    inp, rel = worst._input(name, repeat, size)
+    v, f = load_closed_mesh(Path(data_dir()) / rel)
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    return (*inp.volume(), float(area))
 
 
 def signatures() -> int:

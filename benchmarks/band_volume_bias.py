@@ -21,7 +21,6 @@ cross-section areas ``A(z)`` (the rotated ellipsoid's section at each slice heig
 from __future__ import annotations
 
 import argparse
-import math
 
 import numpy as np
 
@@ -53,15 +52,6 @@ def section_area(V, F, z0):
     return total
 
 
-def exact_section(s, z):
-    R = s.rotation if s.rotation is not None else np.eye(3)
-    M = R @ np.diag([1 / s.a ** 2, 1 / s.b ** 2, 1 / s.c ** 2]) @ R.T
-    A, b = M[:2, :2], M[:2, 2]
-    q = M[2, 2] - b @ np.linalg.solve(A, b)
-    w = z - s.center[2]
-    return max(0.0, math.pi * (1 - w * w * q) / math.sqrt(np.linalg.det(A)))
-
-
 def decompose(m, zk, exact_areas, V):
     am = np.array([section_area(m.vertices, m.faces, z + (1e-7 if i < len(zk) - 1 else -1e-7))
                    for i, z in enumerate(zk)])
@@ -81,7 +71,7 @@ def main():
     for lab, m, bb in contourmesh.mesh_labels(vol, refine="band", labels=sorted(by)):
         c = by[lab]
         zk = np.arange(bb[0], bb[1] + 1, dtype=float)
-        ex = [exact_section(c.shape, z) for z in zk]
+        ex = [c.shape.section_area(z) for z in zk]
         row = {"label": lab, "semi-axes": tuple(round(t, 1) for t in (c.shape.a, c.shape.b, c.shape.c)),
                "generator %": (np.sum(ex) - c.volume) / c.volume * 100,
                "voxels %": (np.count_nonzero(vol == lab) - c.volume) / c.volume * 100}
@@ -93,7 +83,7 @@ def main():
         m = contourmesh.mesh_shape(s, refine="band")
         zk = np.unique(m.vertices[:, 2])
         zk = zk[np.isclose(zk, np.round(zk))]
-        ex = [exact_section(s, z) for z in zk]
+        ex = [s.section_area(z) for z in zk]
         row = {"ball r": r, "area %": (m.area - s.area) / s.area * 100}
         row.update(decompose(m, zk, ex, s.volume))
         print({k: round(float(v), 2) for k, v in row.items()}, flush=True)

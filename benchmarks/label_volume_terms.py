@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 from pathlib import Path
 
@@ -61,15 +60,6 @@ def section_areas(V, F, zs):
         p0, p1 = np.where(flip[:, None], p1, p0), np.where(flip[:, None], p0, p1)
         out.append(0.5 * float(np.sum(p0[:, 0] * p1[:, 1] - p1[:, 0] * p0[:, 1])))
     return np.array(out)
-
-
-def ellipsoid_section(s, z):
-    R = s.rotation if s.rotation is not None else np.eye(3)
-    M = R @ np.diag([1 / s.a ** 2, 1 / s.b ** 2, 1 / s.c ** 2]) @ R.T
-    A, b = M[:2, :2], M[:2, 2]
-    q = M[2, 2] - b @ np.linalg.solve(A, b)
-    w = z - s.center[2]
-    return max(0.0, math.pi * (1 - w * w * q) / math.sqrt(np.linalg.det(A)))
 
 
 def torus_section(s, z, step=0.05):
@@ -120,7 +110,7 @@ def main():
                                                 caps=a.caps):
         c = by[lab]
         zk = np.arange(bb[0], bb[1] + 1, dtype=float)
-        sec = ellipsoid_section if c.kind == "ellipsoid" else torus_section
+        sec = type(c.shape).section_area if c.kind == "ellipsoid" else torus_section
         ex = [sec(c.shape, z) for z in zk]
         r = terms(m, zk, ex, c.volume)
         row = {"label": lab, "kind": c.kind, "route": m.meta.get("route"), "area": (m.area - c.area) / c.area * 100,

@@ -105,19 +105,6 @@ def test_candidate_pairs_equal_the_kd_tree_query():
     assert fell_back > 0 and agreed > 100, (fell_back, agreed)
 
 
-def test_dilated_equals_binary_dilation():
-    # the bridge plan's 8-neighbourhood dilation by shifts is scipy's, pixel for pixel (thin and
-    # one-pixel arrays, masks touching the border)
-    from scipy import ndimage
-
-    from contourmesh.volumes import _SQUARE, _dilated
-
-    rng = np.random.default_rng(19)
-    for _ in range(300):
-        m = rng.random(tuple(int(n) for n in rng.integers(1, 12, 2))) < rng.uniform(0.05, 0.9)
-        assert np.array_equal(_dilated(m), ndimage.binary_dilation(m, structure=_SQUARE))
-
-
 def _split_pinches_add_at(P, f, dup):
     """bands._split_pinches as it was, with np.add.at (the reference)."""
     from contourmesh.intersect import canonical_vertices
@@ -298,3 +285,87 @@ def test_single_vector_helpers_equal_numpy():
         x = rng.normal(size=int(rng.integers(1, 9)))
         k = int(rng.integers(len(x)))
         assert np.array_equal(repair._rolled(x, k), np.roll(x, -k))
+
+
+def test_split_four_face_edges_equals_the_reference_on_voxel_meshes(monkeypatch):
+    # the general mesher's four-face edges (voxels of consecutive slices touching along an edge),
+    # among them faces with two such edges (a split face's other edge is split after it), and the
+    # numbering of the new vertices and faces, which follows the iteration order of Python sets
+    import contourmesh
+    from contourmesh import volumes
+
+    seen = {"edges": 0, "chained": 0}
+
+    def both(V, F, side, nudge):
+        got = repair._split_four_face_edges(V, F, side, nudge)
+        want = repair._split_four_face_edges_reference(V, F, side, nudge)
+        assert all(np.array_equal(g, w) and g.dtype == w.dtype for g, w in zip(got, want))
+        assert np.array_equal(got[0].view(np.int64), want[0].view(np.int64))
+        hit = repair._edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V)) == 4
+        seen["edges"] += int(hit.sum()) // 4
+        seen["chained"] += int((hit.sum(axis=1) > 1).sum())
+        return got
+
+    monkeypatch.setattr(volumes, "_split_four_face_edges", both)
+    rng = np.random.default_rng(23)
+    for _ in range(6):
+        vol = np.pad(rng.random((6, 14, 13)) < 0.4, 1)
+        m = contourmesh.mesh(vol)
+        assert m.checks()["ok"]
+    assert seen["edges"] > 50 and seen["chained"] > 0
+
+
+def test_overlap_holes_equals_ndimage_label():
+    # the bridged join's overlap structure (volumes._bridge_plan): the overlap's 4-components, its
+    # padded background's 8-components with ndimage.label's numbers, and the overlaps that reach
+    # the outside, against scipy on random masks (holes, diagonal contacts, rings around islands)
+    from numba import njit
+    from numba.core import types
+    from scipy import ndimage
+
+    from contourmesh import tracing
+
+    rng = np.random.default_rng(29)
+    inside = set()
+    for _ in range(1500):
+        h, w = (int(v) for v in rng.integers(1, 13, 2))
+        o = rng.random((h, w)) < rng.uniform(0.2, 0.9)
+        n, blab, nb, n_out = tracing.overlap_holes(o)
+        olab, want_n = ndimage.label(o, structure=np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool))
+        want_blab, want_nb = ndimage.label(np.pad(~o, 1, constant_values=True), structure=np.ones((3, 3), bool))
+        near = ndimage.binary_dilation(want_blab == want_blab[0, 0], structure=np.ones((3, 3), bool))[1:-1, 1:-1]
+        assert (n, nb, n_out) == (want_n, want_nb, len(np.unique(olab[near & o])))
+        assert blab.dtype == np.int64 and np.array_equal(blab, want_blab)
+        inside.add(n_out < n)
+    assert inside == {True, False}
+    # one signature per kernel, no literal argument (typed again uncached: the cached entry brings
+    # its callees' code without typing them in this process)
+    for sig in tracing._overlap_holes.signatures:
+        njit(nogil=True)(tracing._overlap_holes.py_func).compile(sig)
+    for d in (tracing._overlap_holes, tracing._label_raster):
+        assert len(d.signatures) == 1
+        assert not any(isinstance(t, types.Literal) for t in d.signatures[0])
+
+
+def test_label_mask_equals_isin():
+    from contourmesh.tracing import label_mask
+
+    rng = np.random.default_rng(31)
+    for dtype in (np.uint8, np.uint16, np.int32):
+        for _ in range(50):
+            n = int(rng.integers(0, 12))
+            lab = rng.integers(0, n + 1, (int(rng.integers(1, 9)), int(rng.integers(1, 9)))).astype(dtype)
+            comps = sorted(set(rng.integers(0, max(n, 1), int(rng.integers(0, 4))).tolist())) if n else []
+            got = label_mask(lab, n, comps)
+            assert got.dtype == bool and np.array_equal(got, np.isin(lab, [c + 1 for c in comps]))
+
+
+def test_vertex_normals_at_some_vertices_equal_the_whole_mesh_normals():
+    rng = np.random.default_rng(37)
+    s = trimesh.creation.icosphere(subdivisions=3)
+    V = np.array(s.vertices) * rng.uniform(0.5, 2.0, (1, 3)) + rng.normal(scale=0.05, size=s.vertices.shape)
+    F = np.ascontiguousarray(s.faces, dtype=np.int64)
+    whole = repair._vertex_normals(V, F)
+    for _ in range(10):
+        ids = rng.choice(len(V), int(rng.integers(1, 60)), replace=False)
+        assert np.array_equal(repair._vertex_normals_at(V, F, ids).view(np.int64), whole[ids].view(np.int64))

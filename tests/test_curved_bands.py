@@ -3,6 +3,8 @@ volume and area; the ruled default keeps the rules' interval), and smooth ends o
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -189,13 +191,103 @@ def test_smooth_ends_of_a_tilted_tube_follow_its_axis():
     ph = cylinder(5, 20, tilt=30, azimuth=20)
     st = draw(ph, 3.0, 0.5, seed=3)
     m = contourmesh.mesh(st, caps="smooth")
-    assert m.meta["smooth_cut_ends"] == 2 and m.meta["smooth_domes"] == 0
+    # its end sections are bounded by straight traces of the end planes: both ends are closed on
+    # their planes (not domes, not copies moved half a spacing along the axis)
+    assert m.meta["smooth_planar_ends"] == 2 and m.meta["smooth_domes"] == 0 and m.meta["smooth_cut_ends"] == 0
     assert_sound(m)
-    # slanted ends closed by shrinking domes lost 5.8 % of this tube's area; moved along the axis, < 1.5 %
-    assert abs(m.area / ph.area - 1) < 0.015
+    # slanted ends closed by shrinking domes lost 5.8 % of this tube's area; on their planes, < 0.5 %
+    assert abs(m.area / ph.area - 1) < 0.005
     # a sphere's ends are still domes
     s = contourmesh.mesh(draw(sphere(10), 2.0, 1.0, seed=3), caps="smooth")
-    assert s.meta["smooth_domes"] == 2 and s.meta["smooth_cut_ends"] == 0
+    assert s.meta["smooth_domes"] == 2 and s.meta["smooth_cut_ends"] == 0 and s.meta["smooth_planar_ends"] == 0
+
+
+@pytest.mark.parametrize("offset", [0.05, 0.25, 0.45, 0.65, 0.85])
+def test_tilted_tube_at_3mm_meets_the_targets_with_the_smooth_cap(offset):
+    # the verification set's miss (cyl-r5-L20-t30 at dz = 3: volume -2.68 % ruled, -2.30 % curved):
+    # its end sections are slivers of the slanted ends.  The straight traces of the end plane in the
+    # last sections place the plane; beyond the last section the lateral surface goes on up to it,
+    # and the joins next to it follow the lateral surface up to the plane instead of cutting the
+    # corner.  Over shifts of the drawing (one or two sections cut by each end)
+    ph = cylinder(5, 20, tilt=30, azimuth=20)
+    st = draw(ph, 3.0, 0.5, seed=7, offset=offset)
+    for bands in ("ruled", "curved"):
+        m = contourmesh.mesh(st, caps="smooth", bands=bands)
+        assert m.meta["smooth_planar_ends"] == 2 and m.meta["smooth_planar_joins"] >= 2
+        assert_sound(m)
+        assert abs(m.volume / ph.volume - 1) < 0.01
+        assert abs(m.area / ph.area - 1) < 0.015
+    # the drawn sections stay the mesh's sections
+    assert max(abs(e) for e in cross_section_errors(m, st)) < 0.005
+
+
+@pytest.mark.parametrize("offset", [0.3, 0.5, 0.7, 0.9])
+def test_planar_ends_of_a_coarse_drawing(offset):
+    # points 1 mm apart on a 5 mm tube: a polygon's support function is off its circle's by up to a
+    # sagitta (1/40 mm), which the lateral surface's fit must allow for (it refused such ends: areas
+    # +1.8 to +2.9 % and -2.4 % with domes and moved copies, -0.35 to -0.24 % on the planes)
+    ph = cylinder(5, 20, tilt=15, azimuth=40)
+    m = contourmesh.mesh(draw(ph, 2.0, 1.0, seed=2, offset=offset), caps="smooth")
+    assert m.meta["smooth_planar_ends"] == 2
+    assert_sound(m)
+    assert abs(m.area / ph.area - 1) < 0.005 and abs(m.volume / ph.volume - 1) < 0.01
+
+
+def test_tilted_cone_ends_on_their_planes():
+    # a frustum's lateral surface goes on as a scaling as well as a shift (a cone)
+    from contourmesh.compare.phantoms import frustum
+
+    ph = frustum(15, 5, 30, tilt=25, azimuth=-35)
+    m = contourmesh.mesh(draw(ph, 3.0, 0.5, seed=7, offset=0.45), caps="smooth")
+    assert m.meta["smooth_planar_ends"] == 2
+    assert_sound(m)
+    assert abs(m.volume / ph.volume - 1) < 0.005 and abs(m.area / ph.area - 1) < 0.005
+
+
+def test_tilted_keyhole_tube_bore_opens_onto_its_end_plane():
+    # keyhole-R12-r6-L30-t20 at dz = 3: the smooth cap added 3 % of area (+4.75 % against surface
+    # nets of the solid): domes and a copy half a spacing out at the slanted ends, and between the
+    # section where the bore is a hole and the next, where it opens onto the end plane (a C), a
+    # bridged join whose faces fanned across the bore under a cover (a double layer).  Now the
+    # ends and those joins follow the lateral surfaces (bore included) up to the plane.
+    from contourmesh.compare.phantoms import keyhole_tube
+
+    ph = keyhole_tube(12, 6, 30, tilt=20)
+    st = draw(ph, 3.0, 0.5, seed=20150920)
+    m = contourmesh.mesh(st, caps="smooth")
+    assert m.meta["smooth_planar_ends"] == 2 and m.meta["bridged_joins"] == 2
+    assert m.meta["smooth_planar_joins"] == 5  # the two bridged joins among them
+    assert_sound(m)
+    assert abs(m.area / ph.area - 1) < 0.005 and abs(m.volume / ph.volume - 1) < 0.005
+
+
+def test_planar_ends_need_a_closing_plane():
+    # an upright box: its end sections have straight sides, parallel to those of the sections
+    # before, but they do not move: no plane closes the ends there (the caps stay as they were)
+    sq = np.array([[0.0, 0.0], [8.0, 0.0], [8.0, 5.0], [0.0, 5.0]])
+    run = np.concatenate([sq[i] + np.linspace(0, 1, 9, endpoint=False)[:, None] * (sq[(i + 1) % 4] - sq[i])
+                          for i in range(4)])
+    st = stack_from_rings([(z, [run]) for z in np.arange(0.0, 12.0, 2.0)])
+    m = contourmesh.mesh(st, caps="smooth")
+    assert m.meta["smooth_planar_ends"] == 0 and m.meta["smooth_planar_joins"] == 0
+    assert_sound(m)
+    # and the default (flat caps) never looks for planes
+    f = contourmesh.mesh(draw(cylinder(5, 20, tilt=30, azimuth=20), 3.0, 0.5, seed=3))
+    assert "smooth_planar_ends" not in f.meta
+
+
+def test_chords_find_straight_traces_only():
+    from contourmesh.bands.ends import _chords
+
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    assert _chords(np.c_[5 * np.cos(t), 5 * np.sin(t)]) == []  # a circle has none
+    # a circle cut by the line y = 2: one trace, its normal pointing away from the ring
+    a0 = math.asin(0.4)
+    arc = np.linspace(np.pi - a0, 2 * np.pi + a0, 50)  # counter-clockwise, from (-xs, 2) to (xs, 2)
+    xs = math.sqrt(25 - 4)
+    cut = np.r_[np.c_[5 * np.cos(arc), 5 * np.sin(arc)], np.c_[np.linspace(xs, -xs, 13)[1:-1], np.full(11, 2.0)]]
+    (n, c, tol, length), = _chords(cut)
+    assert np.allclose(n, [0, 1], atol=1e-9) and abs(c - 2.0) < 1e-9 and abs(length - 2 * xs) < 1e-6
 
 
 @pytest.mark.parametrize("persistent", [False, True])

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from contourmesh.digitize import gauss_volume, grid_box, outer_jordan_stack
+from contourmesh.digitize import gauss_volume, grid_box, mask_stack, outer_jordan_stack, sample_volume, uneven_heights
 from contourmesh.shapes import Cone, Ellipsoid, Paraboloid, Sphere, Torus, rotation_from_euler
 from contourmesh.types import ContourStack, shoelace_area
 
@@ -208,3 +208,39 @@ def test_input_validation():
         outer_jordan_stack("sphere:r=3")
     with pytest.raises(ValueError, match="pad"):
         gauss_volume(Sphere(3), pad=-1)
+
+
+def test_sample_volume_on_a_cubic_grid_is_the_gauss_digitization():
+    e = Ellipsoid(4.3, 3.1, 2.7, center=(0.21, -0.37, 0.13))
+    vol, org = gauss_volume(e, 0.5, pad=1)
+    mask, z, org2 = sample_volume(e, (0.5, 0.5, 0.5), pad=1)
+    assert mask.shape == vol.shape and np.array_equal(mask, vol)
+    assert np.allclose(org2, org) and np.allclose(z, org[2] + 0.5 * np.arange(len(z)))
+
+
+def test_sample_volume_on_oblong_pixels_and_uneven_heights_meshes_within_a_few_percent():
+    import contourmesh
+
+    s = Sphere(6.0, center=(0.31, 0.17, 0.05))
+    sp = (0.9, 0.617, 0.667)
+    zs = uneven_heights(6.0, seed=5)
+    mask, z, org = sample_volume(s, sp, zs)
+    assert np.array_equal(z, zs) and mask.shape[0] == len(zs)
+    assert not mask[0].any() and not mask[-1].any()  # the heights cover the ball with room to spare
+    m = contourmesh.mesh(mask, spacing=sp, z=z, origin=org, refine="band")
+    assert abs(m.area / s.area - 1) < 0.02
+    st = mask_stack(mask, z, sp, org)
+    assert len(st.sections) == int(mask.any(axis=(1, 2)).sum())
+    assert st.spacing == (0.667, 0.617) and st.sections[0].z == z[mask.any(axis=(1, 2))][0]
+
+
+@pytest.mark.parametrize("kw, msg", [
+    ({"spacing": (1.0, 0.0, 1.0)}, "spacing"),
+    ({"spacing": (1.0, 1.0)}, "spacing"),
+    ({"spacing": (1.0, 1.0, 1.0), "z": [0.0, 0.0, 1.0]}, "increasing"),
+    ({"spacing": (1.0, 1.0, 1.0), "z": [0.0, np.nan]}, "increasing"),
+    ({"spacing": (1.0, 1.0, 1.0), "pad": -1}, "pad"),
+])
+def test_sample_volume_rejects_bad_grids(kw, msg):
+    with pytest.raises(ValueError, match=msg):
+        sample_volume(Sphere(2.0), **kw)

@@ -15,43 +15,18 @@ import contourmesh
 from conftest import assert_closed_outward
 from contourmesh import refine as R
 from contourmesh.api import _stack_of_mask
+from contourmesh.digitize import mask_stack, sample_volume, uneven_heights
 from contourmesh.refine import band_violations, blurred_indicator, in_band, stack_points
 from contourmesh.shapes import Ellipsoid, Sphere
-from contourmesh.tracing import trace_contours
 from contourmesh.types import ContourStack, Section
 
 LIVER = (0.9, 0.617, 0.667)  # (dz, dy, dx), mm
 
 
-def digitize(shape, spacing, zs=None):
-    """The grid points ``(x0 + i dx, y0 + j dy, zs[k])`` inside ``shape``: ``(mask [k, j, i], zs, origin)``."""
-    dz, dy, dx = spacing
-    lo, hi = shape.bounds
-    xs = np.arange(np.floor(lo[0] / dx) - 2, np.ceil(hi[0] / dx) + 3) * dx
-    ys = np.arange(np.floor(lo[1] / dy) - 2, np.ceil(hi[1] / dy) + 3) * dy
-    if zs is None:
-        zs = np.arange(np.floor(lo[2] / dz) - 2, np.ceil(hi[2] / dz) + 3) * dz
-    zz, yy, xx = np.meshgrid(zs, ys, xs, indexing="ij")
-    return shape.contains(xx, yy, zz), np.asarray(zs, dtype=np.float64), (xs[0], ys[0], zs[0])
 
 
-def uneven_heights(extent, seed=3, lo=0.5, hi=1.3):
-    """Slice heights with gaps drawn from ``[lo, hi]`` mm, covering ``[-extent, extent]``."""
-    gaps = np.random.default_rng(seed).uniform(lo, hi, size=int(2 * extent / lo) + 8)
-    z = np.cumsum(gaps)
-    z = z - z[np.searchsorted(z, z[-1] / 2)]
-    return z[(z > -extent - 2 * hi) & (z < extent + 2 * hi)]
 
 
-def grid_stack(mask, zs, spacing, origin):
-    """Each slice's 4-contours through its grid points, as a ContourStack at physical heights."""
-    secs = []
-    for k in range(mask.shape[0]):
-        if mask[k].any():
-            cs, ps = trace_contours(mask[k])
-            secs.append(Section(z=float(zs[k]), contours=tuple(np.asarray(c, dtype=np.int64) for c in cs),
-                                parents=tuple(int(p) for p in ps)))
-    return ContourStack(sections=tuple(secs), spacing=(spacing[2], spacing[1]), origin=(origin[0], origin[1]))
 
 
 def rel(m, shape):
@@ -59,7 +34,7 @@ def rel(m, shape):
 
 
 def refined_volume(shape, spacing, zs=None, **kw):
-    mask, zs, org = digitize(shape, spacing, zs)
+    mask, zs, org = sample_volume(shape, spacing, zs)
     m = contourmesh.mesh(mask, spacing=spacing, z=zs, origin=org, refine="band", **kw)
     chk = assert_closed_outward(m, genus=0)
     assert chk["self_intersections"] == 0, chk
@@ -124,8 +99,8 @@ def test_several_contours_per_slice_take_the_volume_mesher_refinement():
 def test_contour_stack_route_oblong_pixels_and_uneven_heights():
     e = Ellipsoid(12.0, 10.0, 11.0, center=(0.2, 0.1, 0.05))
     for zs in (None, uneven_heights(11.0)):
-        mask, z, org = digitize(e, LIVER, zs)
-        stack = grid_stack(mask, z, LIVER, org)
+        mask, z, org = sample_volume(e, LIVER, zs)
+        stack = mask_stack(mask, z, LIVER, org)
         m = contourmesh.mesh(stack, refine="band")
         chk = assert_closed_outward(m, genus=0)
         assert m.meta["route"] == "refined" and chk["self_intersections"] == 0
@@ -149,7 +124,7 @@ def test_grid_stack_with_two_contours_uses_both_pixel_sides():
     z = np.arange(np.floor(lo[2] / dz) - 2, np.ceil(hi[2] / dz) + 3) * dz
     zz, yy, xx = np.meshgrid(z, ys, xs, indexing="ij")
     mask = a.contains(xx, yy, zz) | b.contains(xx, yy, zz)
-    stack = grid_stack(mask, z, LIVER, (xs[0], ys[0], z[0]))
+    stack = mask_stack(mask, z, LIVER, (xs[0], ys[0], z[0]))
     assert max(len(s.contours) for s in stack.sections) == 2
     m = contourmesh.mesh(stack)
     chk = assert_closed_outward(m)

@@ -319,3 +319,17 @@ def test_describe_and_import_is_light():
     d = s.describe()
     assert d["name"] == "sphere" and d["params"] == {"r": 3.0} and len(d["rotation"]) == 3
     assert "rotation" in repr(s)
+
+
+@pytest.mark.parametrize("rotation", [None, (30.0, -50.0, 20.0)])
+def test_ellipsoid_section_area_integrates_to_the_volume_and_matches_the_upright_formula(rotation):
+    from scipy.integrate import quad
+
+    R = None if rotation is None else rotation_from_euler(*rotation)
+    e = Ellipsoid(5.0, 3.0, 2.0, center=(0.3, -0.2, 0.7), rotation=R)
+    lo, hi = e.bounds[:, 2]
+    assert e.section_area(lo - 0.1) == 0.0 and e.section_area(hi + 0.1) == 0.0
+    vol, _ = quad(e.section_area, lo, hi, epsabs=1e-10)
+    assert vol == pytest.approx(e.volume, rel=1e-9)
+    if R is None:
+        assert e.section_area(0.7 + 1.0) == pytest.approx(math.pi * 5.0 * 3.0 * (1 - 0.25), rel=1e-12)

@@ -395,10 +395,11 @@ def test_polyline_keyhole_where_no_straight_keyhole_keeps_clear(monkeypatch, kw)
     # polygons' own vertices
     from contourmesh import volumes
 
+    monkeypatch.setattr(volumes, "_DENSE_STEP", 1.0)
     m0 = volume_to_mesh(v, **kw)
     check_topology(v, m0)
     assert m0.meta["exact_joins"] == 0 and m0.meta["bridged_joins"] == 1 and m0.meta["dense_rings"] >= 2
-    monkeypatch.setattr(volumes, "_DENSE_STEP", 1e9)
+    monkeypatch.setattr(volumes, "_DENSE_STEP", None)
     monkeypatch.setattr(bridges, "keyhole_path", keyhole_path)
     m = volume_to_mesh(v, **kw)
     chk, _ = check_topology(v, m)

@@ -17,11 +17,19 @@ def _blobs(seed=8, shape=(5, 14, 14)):
 
 
 def _sparse_rings(monkeypatch):
-    """The branching joins' polygons as they are, not densified (``volumes._DENSE_STEP``): on
-    :func:`_blobs` some bridged joins then fail and take sections (densified, all are bridged)."""
+    """The branching joins' polygons as they are, not densified (``volumes._DENSE_STEP``, the
+    default): on :func:`_blobs` some bridged joins then fail and take sections (densified, all are
+    bridged)."""
     from contourmesh import volumes
 
-    monkeypatch.setattr(volumes, "_DENSE_STEP", 1e9)
+    monkeypatch.setattr(volumes, "_DENSE_STEP", None)
+
+
+def _dense_rings(monkeypatch):
+    """The branching joins' polygons with a vertex every pixel (opt-in: ``volumes._DENSE_STEP``)."""
+    from contourmesh import volumes
+
+    monkeypatch.setattr(volumes, "_DENSE_STEP", 1.0)
 
 
 @pytest.mark.parametrize("kw", [dict(), dict(refine="band"), dict(caps="half")])
@@ -30,6 +38,7 @@ def test_densified_rings_bridge_every_join_of_the_blobs(monkeypatch, kw):
     join of this volume is bridged whole (not densified: 2 exact joins and a sectioned one), with
     less area."""
     vol = _blobs()
+    _dense_rings(monkeypatch)
     m = volume_to_mesh(vol, **kw)
     check_embedded(vol, m)
     assert m.meta["exact_joins"] == 0 and m.meta["crack_rings"] == 0 and m.meta["dense_rings"] > 0

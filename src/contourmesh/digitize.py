@@ -40,7 +40,7 @@ from .shapes import Shape
 from .tracing import rotate_start, trace_contours
 from .types import ContourStack, Section
 
-__all__ = ["outer_jordan_stack", "gauss_volume", "grid_box"]
+__all__ = ["outer_jordan_stack", "gauss_volume", "grid_box", "sample_volume", "mask_stack", "uneven_heights"]
 
 
 def _check_inputs(shape, h):
@@ -202,3 +202,64 @@ def gauss_volume(shape: Shape, h: float = 1.0, *, strict: bool = True, pad: int 
     for n, k in enumerate(range(int(k0), int(k1) + 1)):
         vol[n] = shape.slice_mask(k, (i0, i1 + 1), (j0, j1 + 1), h, strict=strict)
     return vol, (float(i0 * h), float(j0 * h), float(k0 * h))
+
+
+def sample_volume(shape: Shape, spacing, z=None, *, pad: int = 2):
+    """The grid points inside ``shape`` on a grid of any spacing, with optional uneven slice heights.
+
+    Where :func:`gauss_volume` samples the points ``h * (i, j, k)`` of a cubic grid,
+    this samples ``(x0 + i dx, y0 + j dy, z[k])``: oblong pixels and slice gaps of a scanner
+    (``spacing = (dz, dy, dx)``), or slices at the heights ``z`` (increasing; ``dz`` then only
+    sets the padding when ``z`` is None).  ``x0 = dx * floor(xmin / dx) - pad dx`` (and so for
+    ``y``), so the grid is aligned with the origin.  The inside test is :meth:`Shape.contains`
+    (strict).
+
+    Returns ``(mask, z, origin)``: ``mask[k, j, i]`` (bool), the slice heights (float64) and the
+    physical ``(x0, y0, z0)`` of ``mask[0, 0, 0]`` (pass ``spacing``, ``z`` and ``origin`` on to
+    :func:`contourmesh.mesh`).
+    """
+    if not isinstance(shape, Shape):
+        raise ValueError(f"expected a contourmesh.shapes.Shape; got {type(shape).__name__}")
+    try:
+        dz, dy, dx = (float(v) for v in spacing)
+    except (TypeError, ValueError):
+        raise ValueError(f"spacing must be three numbers (dz, dy, dx); got {spacing!r}") from None
+    if not all(math.isfinite(v) and v > 0 for v in (dz, dy, dx)):
+        raise ValueError(f"spacing must be three finite positive numbers (dz, dy, dx); got {spacing!r}")
+    if int(pad) != pad or pad < 0:
+        raise ValueError(f"pad must be a non-negative integer; got {pad!r}")
+    lo, hi = shape.bounds
+    xs = np.arange(np.floor(lo[0] / dx) - pad, np.ceil(hi[0] / dx) + pad + 1) * dx
+    ys = np.arange(np.floor(lo[1] / dy) - pad, np.ceil(hi[1] / dy) + pad + 1) * dy
+    if z is None:
+        zs = np.arange(np.floor(lo[2] / dz) - pad, np.ceil(hi[2] / dz) + pad + 1) * dz
+    else:
+        zs = np.asarray(z, dtype=np.float64).reshape(-1)
+        if len(zs) == 0 or not np.all(np.isfinite(zs)) or np.any(np.diff(zs) <= 0):
+            raise ValueError("z must be finite, strictly increasing slice heights")
+    zz, yy, xx = np.meshgrid(zs, ys, xs, indexing="ij")
+    return shape.contains(xx, yy, zz), np.asarray(zs, dtype=np.float64), (float(xs[0]), float(ys[0]), float(zs[0]))
+
+
+def mask_stack(mask, z, spacing, origin) -> ContourStack:
+    """The contour stack of a binary volume: each non-empty slice's 4-contours (with their nesting),
+    at the physical heights ``z``, with pixels of ``spacing = (dz, dy, dx)`` from ``origin``
+    (as :func:`sample_volume` returns them)."""
+    mask = np.asarray(mask, dtype=bool)
+    secs = []
+    for k in range(mask.shape[0]):
+        if mask[k].any():
+            cs, ps = trace_contours(mask[k])
+            secs.append(Section(z=float(z[k]), contours=tuple(np.asarray(c, dtype=np.int64) for c in cs),
+                                parents=tuple(int(p) for p in ps)))
+    return ContourStack(sections=tuple(secs), spacing=(float(spacing[2]), float(spacing[1])),
+                        origin=(float(origin[0]), float(origin[1])))
+
+
+def uneven_heights(extent: float, seed: int = 3, lo: float = 0.5, hi: float = 1.3) -> np.ndarray:
+    """Slice heights covering ``[-extent, extent]`` with gaps drawn uniformly from ``[lo, hi]``
+    (seeded), one height at 0: a test grid for uneven slice spacing."""
+    gaps = np.random.default_rng(seed).uniform(lo, hi, size=int(2 * extent / lo) + 8)
+    zs = np.cumsum(gaps)
+    zs = zs - zs[np.searchsorted(zs, zs[-1] / 2)]
+    return zs[(zs > -extent - 2 * hi) & (zs < extent + 2 * hi)]

@@ -31,15 +31,14 @@ import logging
 import warnings
 
 import numpy as np
-from numba import njit
 
+from .bands.caps import _rings_that_meet
 from .bands.ends import _DOME_RINGS, _end_profile, _SmoothEnds  # noqa: F401 (the contours route's ends)
 from .bands.fidelity import FaithfulBands
 from .errors import RasterFallbackWarning, warn_external
 from .geometry import _fill_evenodd, grid_to_xy, shoelace_area
 from .intersect import intersecting_faces
 from .rasterize import _physical_rings, rasterize_stack
-from .refine import _segments_meet
 from .stacks import _nest_section
 from .types import ContourStack, Mesh
 from .volumes import volume_to_mesh
@@ -57,51 +56,6 @@ class _Quiet(logging.Filter):
 
     def filter(self, record):
         return record.levelno < logging.WARNING
-
-
-@njit(cache=True)
-def _edges_meet(xs, ys, starts) -> np.ndarray:
-    """Per ring (``starts`` delimits the rings in ``xs, ys``): whether any of its edges meets an edge
-    of itself (other than its neighbours) or of another ring.  Touching counts.  A sweep over
-    the edges sorted by their smallest x."""
-    n = len(xs)
-    nr = len(starts) - 1
-    ring = np.empty(n, np.int64)
-    nxt = np.empty(n, np.int64)
-    for r in range(nr):
-        for i in range(starts[r], starts[r + 1]):
-            ring[i] = r
-            nxt[i] = i + 1 if i + 1 < starts[r + 1] else starts[r]
-    lo = np.empty(n)
-    for i in range(n):
-        lo[i] = min(xs[i], xs[nxt[i]])
-    order = np.argsort(lo)
-    bad = np.zeros(nr, np.bool_)
-    for oi in range(n):
-        i = order[oi]
-        ax, ay, bx, by = xs[i], ys[i], xs[nxt[i]], ys[nxt[i]]
-        hi_x = max(ax, bx)
-        ylo, yhi = min(ay, by), max(ay, by)
-        for oj in range(oi + 1, n):
-            j = order[oj]
-            if lo[j] > hi_x:
-                break
-            cx, cy, dx, dy = xs[j], ys[j], xs[nxt[j]], ys[nxt[j]]
-            if max(cy, dy) < ylo or min(cy, dy) > yhi:
-                continue
-            same = ring[i] == ring[j]
-            if same and (nxt[i] == j or nxt[j] == i):
-                # neighbours share a vertex: they meet elsewhere only when collinear and folding back
-                u1, u2 = bx - ax, by - ay
-                v1, v2 = dx - cx, dy - cy
-                if u1 * v2 - u2 * v1 == 0 and u1 * v1 + u2 * v2 < 0:
-                    bad[ring[i]] = True
-                continue
-            meet = _segments_meet(ax, ay, bx, by, cx, cy, dx, dy)
-            if meet:
-                bad[ring[i]] = True
-                bad[ring[j]] = True
-    return bad
 
 
 def _split_at_repeats(ring: np.ndarray) -> list:
@@ -136,15 +90,6 @@ def _split_at_repeats(ring: np.ndarray) -> list:
         j = i + 1 + int(np.flatnonzero(inv[i + 1:] == inv[i])[0])
         todo += [r[i:j], np.concatenate([r[j:], r[:i]])]
     return out
-
-
-def _rings_that_meet(rings) -> np.ndarray:
-    if not rings:
-        return np.zeros(0, dtype=bool)
-    xy = np.concatenate(rings)
-    starts = np.zeros(len(rings) + 1, dtype=np.int64)
-    starts[1:] = np.cumsum([len(r) for r in rings])
-    return _edges_meet(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), starts)
 
 
 def _fill(rings, x0, y0, pixel, shape_yx, box):
@@ -290,7 +235,7 @@ class _DrawnPolygons:
         # caps="flat": ends inside the stack (a branch that stops) hold the trapezoid rule's share
         # (with curved bands, whose rings follow the section area, the domes get twice the rings)
         rings = _DOME_RINGS_CURVED if curved else _DOME_RINGS
-        self.end_cap = (_SmoothEnds(dome_rings=rings) if smooth else _SmoothEnds(interior_only=True, dome_rings=rings)
+        self.end_cap = (_SmoothEnds(dome_rings=rings, planar=True) if smooth else _SmoothEnds(interior_only=True, dome_rings=rings)
                         if flat else None)
 
     def _box(self, ring, shape):
@@ -569,7 +514,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     if caps == "smooth":
         e = hook.end_cap
         meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
-                    smooth_cut_ends=e.count("cut"), smooth_branch_domes=e.count("branch"),
+                    smooth_cut_ends=e.count("cut"), smooth_planar_ends=e.count("plane"),
+                    smooth_planar_joins=len(e.planar_joins), smooth_branch_domes=e.count("branch"),
                     smooth_half_prisms=e.count("half"))
     elif caps == "flat":
         meta.update(interior_end_domes=hook.end_cap.count("branch"))

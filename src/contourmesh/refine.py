@@ -89,6 +89,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .bands.caps import _segments_meet  # the closed-segment test, shared with the caps
 from .geometry import distinct_rows
 from .polygons import polygonize
 from .stacks import check_stack
@@ -113,6 +114,22 @@ FINE_RATIO = 0.7
 #: Disagreement between the two scales (voxels) below which the coarse estimate stands alone and
 #: above which the fine one replaces it (linear in between).
 FINE_TOLERANCE = (0.1, 0.3)
+#: The extrapolation gain of step 3b where the two scales disagree; None: the Richardson gain
+#: ``r^4 / (1 - r^4)`` of a bias growing like ``sigma^4``.  A setting for measurements
+#: (``benchmarks/band_sigma.py --rules rho=...``): a crease's area loss grows like ``sigma`` itself,
+#: whose gain would be ``r / (1 - r)`` (docs/DESIGN.md, "Blur bias beyond second order").
+FINE_RHO = None
+#: Coefficient ``c`` of a third-order term ``c (k1 + k2)^3 sigma^4`` added to step 3's normal shift
+#: (0: none).  For a ball and a cylinder the 1/2-level sits inside by ``(k1 + k2) sigma^2 / 2 -
+#: (k1 + k2)^3 sigma^4 / 24 + ...`` (continuous blur, ``k1, k2`` the level set's curvatures), so
+#: ``c = -1/24`` is the exact next term; it only lowers the area (measured on the real shapes: worse),
+#: so the default leaves it out.  A setting for measurements (``band_sigma.py --rules cubic=...``).
+SHIFT_CUBIC = 0.0
+#: Step 3b with a gain per vertex (:func:`_three_scale_targets`): False (the default) for the one
+#: gain :data:`FINE_RHO`; True, or the smallest difference (voxels) between the wide and a wider
+#: place that is trusted, for a third search at ``sigma / r`` where the scales disagree.  A setting
+#: for measurements (``band_sigma.py --rules adaptive``; not a default: docs/DESIGN.md).
+FINE_ADAPTIVE = False
 #: New slice images (:func:`_slice_moments`) of a ring's first search reach this many ``max_move``
 #: (plus 2 voxels) beyond what it needs, so that the ring's later searches (its meridian points lie
 #: within ``max_move + 1`` of its seed) and its chord step reuse them.
@@ -940,12 +957,13 @@ def _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict,
     """
     clamped, _ = _move_with_images(pts, xy, kz, float(sigma), _as_grid(grid, pts.shape[0]), curvature, max_move, out,
                                    strict, found,
-                                   np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), 0.0)
+                                   np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), 0.0, float(SHIFT_CUBIC))
     return clamped
 
 
 @njit(cache=True)
-def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, box, margin, runs=None):
+def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, box, margin, cubic=0.0,
+                      runs=None):
     """:func:`_move_to_surface` with the slice images ``mom, box`` of an earlier search (see
     :func:`_images_for`; ``margin``: how much wider new images are made; ``runs``: as there);
     ``(clamped, mom)``."""
@@ -1015,6 +1033,9 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         if curvature:
             _field_in_slice(mom, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf)
             shift, gnorm = _mean_curvature_shift(buf, sigma)
+            if cubic != 0.0:
+                ks = 2.0 * shift / (sigma * sigma)
+                shift += cubic * ks * ks * ks * sigma ** 4
             hz = math.sqrt(buf[1] ** 2 + buf[2] ** 2)
             if gnorm > 0.0 and hz > 0.0:
                 s = shift * gnorm / hz  # normal shift -> horizontal shift
@@ -1235,25 +1256,6 @@ def _merge_and_fill(s, length, step):
 
 
 @njit(cache=True)
-def _orient(ax, ay, bx, by, cx, cy):
-    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-
-
-@njit(cache=True)
-def _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):
-    """Do the closed segments ab and cd meet (cross or touch)?"""
-    if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
-        return False
-    if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
-        return False
-    d1 = _orient(ax, ay, bx, by, cx, cy)
-    d2 = _orient(ax, ay, bx, by, dx, dy)
-    d3 = _orient(cx, cy, dx, dy, ax, ay)
-    d4 = _orient(cx, cy, dx, dy, bx, by)
-    return d1 * d2 <= 0.0 and d3 * d4 <= 0.0
-
-
-@njit(cache=True)
 def _is_simple(ring):
     """True when no two non-adjacent edges of the closed polygon meet (an O(n^2) check)."""
     n = ring.shape[0]
@@ -1277,7 +1279,8 @@ def _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, 
     if images is None:
         return _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found)
     mom, box = images.get(float(sigma)) or _no_images()
-    args = (pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, box, IMAGE_MARGIN * max_move + 2.0)
+    args = (pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, box, IMAGE_MARGIN * max_move + 2.0,
+            float(SHIFT_CUBIC))
     runs = images.get("runs")
     clamped, mom = _move_with_images(*args) if runs is None else _move_with_images(*args, runs)
     images[float(sigma)] = (mom, box)
@@ -1306,9 +1309,13 @@ def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False,
     # the fine place keeps a residual bias of order fine^4 (the curvature correction removes the
     # sigma^2 term): with both places x(s) = x0 + c s^4, x0 = x_fine + rho (x_fine - x_coarse)
     r4 = (float(fine) / sigma) ** 4
+    rho = r4 / (1.0 - r4) if FINE_RHO is None else float(FINE_RHO)
     target = np.empty_like(xy)
     n_fine, n_any = _two_scale_targets(out, near, found, found_fine, FINE_TOLERANCE[0],
-                                       FINE_TOLERANCE[1] - FINE_TOLERANCE[0], r4 / (1.0 - r4), target)
+                                       FINE_TOLERANCE[1] - FINE_TOLERANCE[0], rho, target)
+    if FINE_ADAPTIVE and n_any:
+        target = _three_scale_targets(pts, xy, kz, sigma, fine, grid, curvature, max_move, strict, images, out, near,
+                                      found, found_fine, rho)
     if counts is not None:
         counts[0] += int(n_fine)
         counts[1] += len(xy)
@@ -1317,6 +1324,33 @@ def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False,
     res = np.empty_like(xy)
     _clamp_to_band(pts, out, target, np.ascontiguousarray(kz, dtype=np.int64), res, grid)
     return res, clamped
+
+
+def _three_scale_targets(pts, xy, kz, sigma, fine, grid, curvature, max_move, strict, images, out, near, found,
+                         found_fine, rho0):
+    """Step 3b's targets with a gain per vertex (experiment, :data:`FINE_ADAPTIVE`): where the two
+    scales disagree, a third place at the wider width ``sigma / r`` gives the ratio ``q`` of the
+    successive differences, which is ``r^p`` for a bias growing like ``sigma^p``; the gain is
+    ``q / (1 - q)`` with ``q`` clipped to ``[r^4, r]`` (``p`` from 4, smooth detail, to 1, a crease)."""
+    r = float(fine) / sigma
+    d = near - out
+    gap = np.hypot(d[:, 0], d[:, 1])
+    lo, hi = FINE_TOLERANCE
+    w = np.clip((gap - lo) / (hi - lo), 0.0, 1.0) * (found & found_fine)
+    sel = np.flatnonzero(w > 0)
+    rho = np.full(len(xy), rho0)
+    wide = np.empty((len(sel), 2))
+    found_w = np.empty(len(sel), dtype=np.bool_)
+    _search(images, pts, np.ascontiguousarray(xy[sel]), np.ascontiguousarray(kz[sel]), sigma / r, grid, curvature,
+            max_move, wide, strict, found_w)
+    u = d[sel] / np.maximum(gap[sel], 1e-12)[:, None]
+    a = gap[sel]  # (near - out) . u
+    b = ((out[sel] - wide) * u).sum(axis=1)
+    trust = 0.0 if FINE_ADAPTIVE is True else float(FINE_ADAPTIVE)  # the smallest wide step trusted
+    q = np.where(b > trust, a / np.where(b > 0, b, 1.0), r ** 4)
+    q = np.clip(q, r ** 4, r)
+    rho[sel] = np.where(found_w, q / (1.0 - q), rho0)
+    return out + w[:, None] * (near + rho[:, None] * d - out)
 
 
 @njit(cache=True)

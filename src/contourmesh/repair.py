@@ -23,6 +23,104 @@ def _split_four_face_edges(V, F, side, nudge):
     Such an edge joins a voxel of one slice and a voxel of the next that touch only along it;
     the two faces of each side are split at a midpoint of their own, which is then moved
     ``nudge`` into its side, so the two sheets no longer share the edge.
+
+    The new vertices and faces are numbered in the order the edges and their faces are visited:
+    the faces of an edge in the iteration order of a Python set of face numbers kept per edge
+    (:func:`_split_four_face_edges_reference`, where every edge of the faces involved has one).
+    Only the four-face edges' sets are ever read, and a face's split replaces its four-face edge
+    and keeps its two other edges, so here only the four-face edges have sets, each receiving the
+    same additions and removals in the same order: the same iteration orders, the same mesh.
+    """
+    m = len(F)
+    mult = _edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V))
+    if np.any(mult % 2):
+        bad = np.argwhere(mult % 2 == 1)[0]
+        raise RuntimeError(f"internal error: an edge is shared by {int(mult[tuple(bad)])} faces")
+    if np.any(mult > 4):
+        raise RuntimeError(f"internal error: an edge is shared by {int(mult.max())} faces")
+    hit = mult == 4
+    if not hit.any():
+        return V, F, side
+    work = np.flatnonzero(hit.any(axis=1))
+    Fw = F[work]
+    faces = dict(zip(work.tolist(), zip(Fw.tolist(), side[work].tolist())))
+    # the four-face edges' sets, filled as the reference fills them: faces in order, edges in order
+    fw_hit = hit[work]
+    lo_w = np.minimum(Fw, np.roll(Fw, -1, axis=1))
+    hi_w = np.maximum(Fw, np.roll(Fw, -1, axis=1))
+    rows, ts = np.nonzero(fw_hit)
+    by_edge: dict = {}
+    for i, u, v in zip(work[rows].tolist(), lo_w[rows, ts].tolist(), hi_w[rows, ts].tolist()):
+        by_edge.setdefault((u, v), set()).add(i)
+    todo = sorted(by_edge)
+    newV = []
+    nxt_v = len(V)
+    nxt_f = m
+    Vl = V
+    n_old = len(Vl)
+
+    def coord(i):
+        return Vl[i] if i < n_old else newV[i - n_old]
+
+    for u, v in todo:
+        fs = list(by_edge.get((u, v), ()))
+        if len(fs) != 4:
+            raise RuntimeError(f"internal error: edge ({u}, {v}) is shared by {len(fs)} faces while splitting")
+        groups: dict = {}
+        for i in fs:
+            groups.setdefault(faces[i][1], []).append(i)
+        for sd, group in groups.items():
+            if len(group) != 2:
+                raise RuntimeError("internal error: a four-face edge does not pair by side")
+            mid = 0.5 * (coord(u) + coord(v))
+            opp = []
+            for i in group:
+                f = faces[i][0]
+                opp.append([w for w in f if w != u and w != v][0])
+            # the mean of the two opposite corners (np.mean of two rows: their sum over 2)
+            toward = (coord(opp[0]) + coord(opp[1])) / 2.0 - mid
+            nrm = np.linalg.norm(toward)
+            if nrm > 0:
+                mid = mid + toward * (nudge / nrm)
+            newV.append(mid)
+            mv = nxt_v
+            nxt_v += 1
+            for i in group:
+                f, _ = faces.pop(i)
+                for t in range(3):
+                    x, y = f[t], f[(t + 1) % 3]
+                    key = (x, y) if x < y else (y, x)
+                    if key in by_edge:
+                        by_edge[key].discard(i)
+                t = 0 if {f[0], f[1]} == {u, v} else 1 if {f[1], f[2]} == {u, v} else 2
+                a, b, c = f[t], f[(t + 1) % 3], f[(t + 2) % 3]
+                # the new faces' edges through mv are new; (c, a) and (b, c) may be four-face edges
+                faces[nxt_f] = ([a, mv, c], sd)
+                key = (c, a) if c < a else (a, c)
+                if key in by_edge:
+                    by_edge[key].add(nxt_f)
+                nxt_f += 1
+                faces[nxt_f] = ([mv, b, c], sd)
+                key = (b, c) if b < c else (c, b)
+                if key in by_edge:
+                    by_edge[key].add(nxt_f)
+                nxt_f += 1
+    keep = np.ones(m, dtype=bool)
+    keep[work] = False
+    items = list(faces.values())
+    F2 = np.concatenate([F[keep], np.array([f for f, _ in items], dtype=np.int64).reshape(-1, 3)])
+    S2 = np.concatenate([side[keep], np.array([sd for _, sd in items], dtype=side.dtype)])
+    V2 = np.concatenate([V, np.array(newV).reshape(-1, 3)])
+    return V2, F2, S2
+
+
+def _split_four_face_edges_reference(V, F, side, nudge):
+    """:func:`_split_four_face_edges` as first written (the differential tests compare the two):
+    replace every edge shared by four faces by two edges through side-specific midpoints.
+
+    Such an edge joins a voxel of one slice and a voxel of the next that touch only along it;
+    the two faces of each side are split at a midpoint of their own, which is then moved
+    ``nudge`` into its side, so the two sheets no longer share the edge.
     """
     m = len(F)
     mult = _edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V))
@@ -326,8 +424,10 @@ def _open_necks(V, F, S, necks, nudge):
         return V, F, S
     neck_ids = np.unique(necks)
     # faces (old and new, by index into `faces`) around each neck vertex, kept up to date
-    faces = [tuple(f) for f in F[np.isin(F, neck_ids).any(axis=1)].tolist()]
-    old_index = np.flatnonzero(np.isin(F, neck_ids).any(axis=1))  # their rows in F
+    is_neck = np.zeros(len(V), dtype=bool)  # (np.isin(F, neck_ids), by a lookup table)
+    is_neck[neck_ids] = True
+    old_index = np.flatnonzero(is_neck[F].any(axis=1))  # their rows in F
+    faces = [tuple(f) for f in F[old_index].tolist()]
     n_old = len(faces)
     star_of = {int(c): [] for c in neck_ids}
     for t, f in enumerate(faces):
@@ -596,6 +696,25 @@ def _vertex_normals(V, F):
     return out
 
 
+def _vertex_normals_at(V, F, ids):
+    """``_vertex_normals(V, F)[ids]`` (``ids`` distinct), from the faces at those vertices only:
+    each sum takes the same face normals in the same order (corner 0 of every face, then 1, then
+    2, faces in order), so the same bits."""
+    ids = np.asarray(ids, dtype=np.int64)
+    pos = np.full(len(V), len(ids), dtype=np.int64)  # row len(ids): a sink for the other vertices
+    pos[ids] = np.arange(len(ids))
+    Fm = pos[F]
+    sel = np.flatnonzero((Fm < len(ids)).any(axis=1))
+    Fs = F[sel]
+    fn = np.cross(V[Fs[:, 1]] - V[Fs[:, 0]], V[Fs[:, 2]] - V[Fs[:, 0]])
+    vn = _add_at_rows(np.zeros((len(ids) + 1, 3)), np.ascontiguousarray(Fm[sel]), fn)[:-1]
+    nrm = np.linalg.norm(vn, axis=1)
+    out = np.zeros_like(vn)
+    ok = nrm > 0
+    out[ok] = vn[ok] / nrm[ok, None]
+    return out
+
+
 @njit(cache=True, nogil=True)
 def _add_at_rows(acc, F, rows):
     """``np.add.at(acc, F[:, k], rows)`` for k = 0, 1, 2 in turn (the same sums, in the same order)."""
@@ -854,14 +973,27 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
     if n0 == 0 or len(F) == 0:
         return V, info
     V0 = V
-    nrm = _vertex_normals(V, F)
     if planes is not None:
         planes = np.asarray(planes() if callable(planes) else planes, dtype=np.float64)
-        nrm[np.isin(V[:, 2], planes), 2] = 0.0
+    # the vertex normals (within the planes for vertices on them), of the vertices that move only
+    # (_vertex_normals_at: the whole mesh's normals there, bit for bit), made as they are needed
+    nrm = np.zeros_like(V)
+    have = np.zeros(len(V), dtype=bool)
+
+    def normals_for(ids):
+        new = ids[~have[ids]]
+        if len(new):
+            nv = _vertex_normals_at(V0, F, new)
+            if planes is not None:
+                nv[np.isin(V0[new, 2], planes), 2] = 0.0
+            nrm[new] = nv
+            have[new] = True
+
     # the faces that any round can bring near a moved face: found once, for the largest total move
     # of the vertices of every face that takes part (rounds move only vertices of crossing faces,
     # and a face crossing after a move meets a moved face)
     reach = np.unique(F[np.unique(p)])
+    normals_for(reach)
     Wmax = V.copy()
     Wmax[reach] -= nudge * (2.0 ** rounds) * nrm[reach]
     touched = np.zeros(len(V), dtype=bool)
@@ -871,6 +1003,7 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
         if len(p) == 0:
             break
         verts = np.unique(F[np.unique(p)])
+        normals_for(verts)
         if not touched[verts].all():  # a pair outside the region found first: widen it
             touched[verts] = True
             Wmax[verts] = V[verts] - nudge * (2.0 ** rounds) * nrm[verts]

@@ -138,14 +138,14 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
 def _groups(P: _Layer, Q: _Layer):
     """The overlap groups of two layers' components (as the mesher's pass 2), and the components
     of each layer that overlap nothing on the other."""
-    from .tracing import overlap_groups
+    from .tracing import label_mask, overlap_groups
 
     # within the box that holds both layers' components (the groups do not depend on where the
     # pixels lie, only on which labels overlap)
     box = P.box if P.box is not None and P.box == Q.box else np.s_[:, :]
     lp, lq = P.S.labels[box], Q.S.labels[box]
-    la = np.where(np.isin(lp, np.asarray(P.comps) + 1), lp, 0)
-    lb = np.where(np.isin(lq, np.asarray(Q.comps) + 1), lq, 0)
+    la = np.where(label_mask(lp, P.S.n, P.comps), lp, 0)
+    lb = np.where(label_mask(lq, Q.S.n, Q.comps), lq, 0)
     pairs, groups = overlap_groups(la, lb, P.S.n, Q.S.n)
     lone_p = sorted(set(P.comps) - set(int(a) for a in pairs[:, 0]))
     lone_q = sorted(set(Q.comps) - set(int(b) for b in pairs[:, 1]))
@@ -164,6 +164,8 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     and every edge of a slice (as for :func:`contourmesh.volumes._bridge_join`); ``double`` the
     ``(k, c, h)`` of holes lidded from both sides; ``grid = (ox, oy, dx, dy)``; ``polygon`` the
     polygon method for the sections."""
+    from .tracing import label_mask
+
     A, B = slices[k], slices[k + 1]
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     ny, nx = A.labels.shape
@@ -183,7 +185,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
 
     def mask_of(L):
         if id(L) not in masks:
-            masks[id(L)] = (L, np.isin(L.S.labels[box], np.asarray(L.comps) + 1))
+            masks[id(L)] = (L, label_mask(L.S.labels[box], L.S.n, L.comps))
         return masks[id(L)][1]
 
     def sdf_of(L):

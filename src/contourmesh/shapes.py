@@ -579,6 +579,21 @@ class Ellipsoid(Shape):
     def area_quad(self) -> float:
         return ellipsoid_area_quad(*self._semi_axes())
 
+    def section_area(self, z: float) -> float:
+        """Exact area of the cross-section by the plane at world height ``z`` (0 outside).
+
+        The section of an ellipsoid ``x^T M x < 1`` by a horizontal plane is an ellipse: with the
+        plane's 2x2 block ``A`` of ``M`` and the off-plane column ``b``, its area is
+        ``pi (1 - w^2 q) / sqrt(det A)``, ``w`` the height above the centre and
+        ``q = M_zz - b^T A^-1 b``.
+        """
+        R = self.rotation if self.rotation is not None else np.eye(3)
+        M = R @ np.diag([self.a ** -2, self.b ** -2, self.c ** -2]) @ R.T
+        A, b = M[:2, :2], M[:2, 2]
+        q = M[2, 2] - b @ np.linalg.solve(A, b)
+        w = float(z) - float(self.center[2])
+        return max(0.0, math.pi * (1.0 - w * w * q) / math.sqrt(np.linalg.det(A)))
+
     def volume_quad(self) -> float:
         a, b, c = self._semi_axes()
         return _quad(lambda z: math.pi * a * b * (1.0 - (z / c) ** 2), -c, c)

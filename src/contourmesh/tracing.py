@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._kernels import internal_kernel
 from .geometry import predecessor, successor
 
 __all__ = ["trace_contours", "rotate_start", "check_contour4", "overlap_groups"]
@@ -357,3 +358,141 @@ def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
         groups[g][0].add(a)
         groups[g][1].add(b)
     return pairs, groups
+
+
+@internal_kernel
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@internal_kernel
+def _join(parent, a, b):
+    """Union of the provisional labels a and b (the lower root wins); returns the root."""
+    r = _root(parent, a)
+    s = _root(parent, b)
+    if r < s:
+        parent[s] = r
+        return r
+    parent[r] = s
+    return s
+
+
+@internal_kernel
+def _label_raster(m, conn8, lab):
+    """``scipy.ndimage.label`` of a 2D boolean mask, 4-connected (``conn8 == 0``) or 8-connected:
+    ``lab`` (int64, the mask's shape) gets the labels 1 .. n, numbered in raster order of each
+    component's first pixel, 0 elsewhere; returns n.
+
+    One raster pass gives each pixel a provisional label (a neighbour's, or a new one) and joins
+    the labels of neighbours that meet there (union-find, the lower label the root); provisional
+    labels are made in raster order, so each component's root is the label of its first pixel,
+    and numbering the roots in order gives ``ndimage.label``'s numbers.  Of the neighbours above
+    and to the left only those that may still be apart are joined: 8-connected, a pixel above
+    touches the left and upper-left ones already."""
+    h, w = m.shape
+    parent = np.empty(h * w // 2 + 2, np.int64)
+    nprov = 0
+    for y in range(h):
+        for x in range(w):
+            if not m[y, x]:
+                lab[y, x] = 0
+                continue
+            up = lab[y - 1, x] if y > 0 else 0
+            left = lab[y, x - 1] if x > 0 else 0
+            if conn8 == 0:
+                if up and left:
+                    cur = _join(parent, up, left) if up != left else up
+                elif up:
+                    cur = up
+                elif left:
+                    cur = left
+                else:
+                    nprov += 1
+                    parent[nprov] = nprov
+                    cur = nprov
+            else:
+                ul = lab[y - 1, x - 1] if y > 0 and x > 0 else 0
+                ur = lab[y - 1, x + 1] if y > 0 and x < w - 1 else 0
+                if up:
+                    cur = up
+                elif ur:
+                    cur = ur
+                    if ul and ul != ur:
+                        cur = _join(parent, ur, ul)
+                    elif left and left != ur:
+                        cur = _join(parent, ur, left)
+                elif ul:
+                    cur = ul
+                elif left:
+                    cur = left
+                else:
+                    nprov += 1
+                    parent[nprov] = nprov
+                    cur = nprov
+            lab[y, x] = cur
+    final = np.zeros(nprov + 1, np.int64)
+    n = 0
+    for q in range(1, nprov + 1):
+        r = _root(parent, q)
+        if r == q:
+            n += 1
+            final[q] = n
+        else:
+            final[q] = final[r]
+    for y in range(h):
+        for x in range(w):
+            if lab[y, x]:
+                lab[y, x] = final[lab[y, x]]
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _overlap_holes(o, one):
+    """:func:`overlap_holes` compiled (``one`` is 1: no literal argument)."""
+    h, w = o.shape
+    olab = np.empty((h, w), np.int64)
+    no = _label_raster(o, one - one, olab)
+    bg = np.ones((h + 2, w + 2), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            bg[y + 1, x + 1] = not o[y, x]
+    blab = np.empty((h + 2, w + 2), np.int64)
+    nbl = _label_raster(bg, one, blab)
+    ext = blab[0, 0]
+    # the overlaps that touch the outside (a pixel of it among their pixels' 8-neighbours)
+    seen = np.zeros(no + 1, np.bool_)
+    n_seen = 0
+    for y in range(h):
+        for x in range(w):
+            if not o[y, x] or seen[olab[y, x]]:
+                continue
+            near = False
+            for dy in range(3):
+                for dx in range(3):
+                    if blab[y + dy, x + dx] == ext:
+                        near = True
+            if near:
+                seen[olab[y, x]] = True
+                n_seen += 1
+    return no, blab, nbl, n_seen
+
+
+def overlap_holes(o: np.ndarray):
+    """The structure of an overlap mask ``o`` (2D boolean) that a bridged join needs: ``(n, blab,
+    nb, n_out)``: ``n`` its 4-components (``ndimage.label(o, structure=_CROSS)``); ``blab``, ``nb``
+    the 8-components of the background of ``o`` padded by one pixel of background
+    (``ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)``, int64, the
+    same labels); ``n_out`` how many of the ``n`` components have a pixel whose 3 x 3
+    neighbourhood meets the padded background's first component (the outside)."""
+    return _overlap_holes(np.ascontiguousarray(o, dtype=np.bool_), np.int64(1))
+
+
+def label_mask(labels: np.ndarray, n: int, comps) -> np.ndarray:
+    """``np.isin(labels, [c + 1 for c in comps])`` for a label image with labels ``0 .. n``: the
+    pixels of components ``comps`` (0-based), by a lookup table (np.isin sorts; this indexes)."""
+    lut = np.zeros(n + 1, dtype=bool)
+    lut[np.asarray(list(comps), dtype=np.int64) + 1] = True
+    return lut[labels]

@@ -35,9 +35,10 @@ Conventions (stated once)
   slice covers is closed by a lid.  This needs every pair's overlap connected, no overlap inside
   a hole of another, at most one hole from each side in each hole of ``O``, and bridges that touch
   nothing else in their plane; the band and lids are tested for crossing faces before they are
-  used.  The polygons of components in such joins get a vertex every pixel along their edges
-  (where the point lies in the slice's band), so that the least-area band's rungs stay local;
-  their band joins keep the faces made between the polygons' own points.  Every other group (overlaps that close a loop: a handle forms) is joined
+  used.  Opt-in (``_DENSE_STEP``), the polygons of components in such joins get a vertex every
+  pixel along their edges (where the point lies in the slice's band), so that the least-area
+  band's rungs stay local; their band joins keep the faces made between the polygons' own
+  points.  Every other group (overlaps that close a loop: a handle forms) is joined
   *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
   slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
   mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
@@ -91,7 +92,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, overlap_groups
+from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -572,9 +573,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
         refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy), refine)
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
-    # the rings of branching joins get a vertex at least every pixel (see _densify_branching)
+    # with _DENSE_STEP set, the rings of branching joins get a vertex at least every pixel (see _densify_branching)
     # (band2: a vertex every half pixel, as its refined polygons have twice the vertices)
-    dense_rings = 0 if polygons is not None else \
+    dense_rings = 0 if polygons is not None or _DENSE_STEP is None else \
         _densify_branching(mask, slices, joins, crack_only, (ox, oy, dx, dy),
                            _DENSE_STEP * px / (2.0 if refine == "band2" else 1.0))
     end_cap = getattr(polygons, "end_cap", None)
@@ -707,6 +708,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     fallback makes again only the joins and caps whose rings or kind changed."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
+    band_maker = getattr(end_cap, "make_band", None)
 
     def is_crack(k, c):
         return (k, c) in crack_only and c not in getattr(slices[k], "own", ())
@@ -782,6 +784,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                 return None if mixed or is_crack(kk, c) else slices[kk].dense.get((c, h))
 
             def make(M, ring):
+                if band_maker is not None and band_maker(M, k, a, b, matched, ring, mixed):
+                    return  # the hook made this band (a plane-cut end's, caps="smooth" on drawn rings)
                 for ha, hb in [(-1, -1)] + list(matched):
                     M.band(ring(k, a, ha), ring(k + 1, b, hb), mixed, added(k, a, ha), added(k + 1, b, hb))
 
@@ -790,6 +794,9 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             b_ = built[k, tuple(data[0]), tuple(data[1])]
 
             def make(M, ring):
+                if band_maker is not None and len(data[0]) == 1 and len(data[1]) == 1 and \
+                        band_maker(M, k, data[0][0], data[1][0], None, ring, False):
+                    return  # the hook made this join (a bore opening onto a plane-cut end)
                 ids = np.empty(len(b_.V), dtype=np.int64)
                 for (kk, c, h), off in b_.rings:
                     r = ring(kk, c, h)
@@ -1006,8 +1013,11 @@ def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, 
 
 
 #: The longest polygon edge, in pixels, of a component that takes part in a branching join
-#: (:func:`_densify_branching`).
-_DENSE_STEP = 1.0
+#: (:func:`_densify_branching`); None (the default) leaves the polygons as they are.  Off by
+#: default: on the rotated real meshes it removes the exact-join chains that set the largest
+#: errors at 256 voxels across, but the band mode's median error rises at 128 and 256 (the
+#: staircases it removes hid the band's own negative error); see the DESIGN note "Densified rings".
+_DENSE_STEP = None
 #: ... and its most vertices: a longer ring keeps longer edges (the optimal band's work grows as
 #: ``n^2 m``; 1024-vertex rings keep it near 1e9).
 _DENSE_MAX = 1024
@@ -1171,8 +1181,8 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    ra = np.isin(A.labels[y0:y1, x0:x1], [a + 1 for a in ga])
-    rb = np.isin(B.labels[y0:y1, x0:x1], [b + 1 for b in gb])
+    ra = label_mask(A.labels[y0:y1, x0:x1], A.n, ga)
+    rb = label_mask(B.labels[y0:y1, x0:x1], B.n, gb)
     o = ra & rb
     zk, zk1 = zs[k], zs[k + 1]
     zm = 0.5 * (zk + zk1)
@@ -1234,19 +1244,6 @@ def _pixel_faces(M, region, x0, y0, corner_ids, up):
 # ------------------------------------------------------------------------------------------------
 # branching joins by bridges
 # ------------------------------------------------------------------------------------------------
-def _dilated(m: np.ndarray) -> np.ndarray:
-    """``ndimage.binary_dilation(m, structure=_SQUARE)``: each pixel or one of its 8 neighbours set
-    (beyond the array nothing is), as the OR of the nine shifts."""
-    p = np.pad(m, 1)
-    ny, nx = m.shape
-    out = p[:ny, :nx].copy()
-    for dy in range(3):
-        for dx in range(3):
-            if dy or dx:
-                out |= p[dy:dy + ny, dx:dx + nx]
-    return out
-
-
 def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     """How a fork or merge group joins between its polygons, or None where it cannot.
 
@@ -1260,8 +1257,6 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     them; and holes that open to the outside of the overlap (a handle that ends), which join
     their component's ring through a keyhole.
     """
-    from scipy import ndimage
-
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     y0 = min(s[0].start for s in sl)
     y1 = max(s[0].stop for s in sl)
@@ -1269,18 +1264,18 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     x1 = max(s[1].stop for s in sl)
     la = A.labels[y0:y1, x0:x1]
     lb = B.labels[y0:y1, x0:x1]
-    o = np.isin(la, [a + 1 for a in ga]) & np.isin(lb, [b + 1 for b in gb])
+    o = label_mask(la, A.n, ga) & label_mask(lb, B.n, gb)
     nbk = np.int64(B.n + 1)
     npairs = len(np.unique(la[o].astype(np.int64) * nbk + lb[o]))
     if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
         return None
-    olab, no = ndimage.label(o, structure=_CROSS)
+    # the overlap's 4-components, its padded background's 8-components (ndimage.label's numbers)
+    # and the overlaps that reach the outside, in one compiled pass
+    no, blab, nbl, n_out = overlap_holes(o)
     if no != npairs:  # some pair overlaps in more than one piece: a handle
         return None
-    blab, nbl = ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)
     ext = blab[0, 0]
-    near_ext = _dilated(blab == ext)[1:-1, 1:-1]
-    if len(np.unique(olab[near_ext & o])) != no:  # an overlap inside a hole of another
+    if n_out != no:  # an overlap inside a hole of another
         return None
     holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
 
@@ -1513,43 +1508,9 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
                 min(s[1].start for s in sl):max(s[1].stop for s in sl)]
-    ra = np.isin(A.labels[box], [a + 1 for a in ga])
-    rb = np.isin(B.labels[box], [b + 1 for b in gb])
+    ra = label_mask(A.labels[box], A.n, ga)
+    rb = label_mask(B.labels[box], B.n, gb)
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
-
-
-def _keyhole_waypoints(s, lab, comps, grid):
-    """Polyline keyholes pass through the pixel centres near their component (its pixels and
-    their 8-neighbours: a polygon may enclose a notch one pixel deep) outside its overlap with
-    the other slice's components ``comps`` (see :func:`_bridge_join`).  A straight keyhole
-    keeps out of every pixel those components cover (``uncovered``); a polyline one only out
-    of the overlap, so it may cut through a notch the other slice covers."""
-    from scipy import ndimage
-
-    ox, oy, dx, dy = grid
-    ids = np.asarray(comps) + 1
-
-    def points_of(c):
-        sl = s.objects[c]
-        y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
-        box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
-        own = s.labels[box] == c + 1
-        over = own & np.isin(lab[box], ids)
-        j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
-        pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
-
-        def ok(p, q):
-            steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
-            t = np.arange(1, steps)[:, None] / steps
-            pt = p + t * (q - p)
-            ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - x0  # halves up, as in uncovered
-            jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - y0
-            inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
-            return not over[jj[inside], ii[inside]].any()
-
-        return pts, ok
-
-    return max(dx, dy), points_of
 
 
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
@@ -1613,8 +1574,36 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         return keyhole_uncovered(slices[other].labels, comps, (ox, oy, dx, dy))
 
     def waypoints(plane, other, comps):
-        """A polyline keyhole's waypoints in slice ``plane`` (:func:`_keyhole_waypoints`)."""
-        return _keyhole_waypoints(slices[plane], slices[other].labels, comps, (ox, oy, dx, dy))
+        """Polyline keyholes pass through the pixel centres near their component (its pixels and
+        their 8-neighbours: a polygon may enclose a notch one pixel deep) outside its overlap with
+        the other slice's components ``comps`` (see :func:`_bridge_join`).  A straight keyhole
+        keeps out of every pixel those components cover (``uncovered``); a polyline one only out
+        of the overlap, so it may cut through a notch the other slice covers."""
+        from scipy import ndimage
+
+        s, lab, n_other = slices[plane], slices[other].labels, slices[other].n
+
+        def points_of(c):
+            sl = s.objects[c]
+            y0, x0 = max(sl[0].start - 1, 0), max(sl[1].start - 1, 0)
+            box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
+            own = s.labels[box] == c + 1
+            over = own & label_mask(lab[box], n_other, comps)
+            j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
+            pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
+
+            def ok(p, q):
+                steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
+                t = np.arange(1, steps)[:, None] / steps
+                pt = p + t * (q - p)
+                ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - x0  # halves up, as in uncovered
+                jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - y0
+                inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
+                return not over[jj[inside], ii[inside]].any()
+
+            return pts, ok
+
+        return max(dx, dy), points_of
 
     def edges_of(kk):
         key = (kk, sig(kk))

@@ -320,3 +320,76 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     if (total < 0) if upward else (total > 0):
         tri = tri[:, [0, 2, 1]]
     return np.ascontiguousarray(glob[tri])
+
+
+@njit(cache=True)
+def _orient(ax, ay, bx, by, cx, cy):  # pragma: no cover (compiled)
+    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+
+
+@njit(cache=True)
+def _segments_meet(ax, ay, bx, by, cx, cy, dx, dy):  # pragma: no cover (compiled)
+    """Do the closed segments ab and cd meet (cross or touch)?"""
+    if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
+        return False
+    if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
+        return False
+    d1 = _orient(ax, ay, bx, by, cx, cy)
+    d2 = _orient(ax, ay, bx, by, dx, dy)
+    d3 = _orient(cx, cy, dx, dy, ax, ay)
+    d4 = _orient(cx, cy, dx, dy, bx, by)
+    return d1 * d2 <= 0.0 and d3 * d4 <= 0.0
+
+
+@njit(cache=True)
+def _edges_meet(xs, ys, starts) -> np.ndarray:
+    """Per ring (``starts`` delimits the rings in ``xs, ys``): whether any of its edges meets an edge
+    of itself (other than its neighbours) or of another ring.  Touching counts.  A sweep over
+    the edges sorted by their smallest x."""
+    n = len(xs)
+    nr = len(starts) - 1
+    ring = np.empty(n, np.int64)
+    nxt = np.empty(n, np.int64)
+    for r in range(nr):
+        for i in range(starts[r], starts[r + 1]):
+            ring[i] = r
+            nxt[i] = i + 1 if i + 1 < starts[r + 1] else starts[r]
+    lo = np.empty(n)
+    for i in range(n):
+        lo[i] = min(xs[i], xs[nxt[i]])
+    order = np.argsort(lo)
+    bad = np.zeros(nr, np.bool_)
+    for oi in range(n):
+        i = order[oi]
+        ax, ay, bx, by = xs[i], ys[i], xs[nxt[i]], ys[nxt[i]]
+        hi_x = max(ax, bx)
+        ylo, yhi = min(ay, by), max(ay, by)
+        for oj in range(oi + 1, n):
+            j = order[oj]
+            if lo[j] > hi_x:
+                break
+            cx, cy, dx, dy = xs[j], ys[j], xs[nxt[j]], ys[nxt[j]]
+            if max(cy, dy) < ylo or min(cy, dy) > yhi:
+                continue
+            same = ring[i] == ring[j]
+            if same and (nxt[i] == j or nxt[j] == i):
+                # neighbours share a vertex: they meet elsewhere only when collinear and folding back
+                u1, u2 = bx - ax, by - ay
+                v1, v2 = dx - cx, dy - cy
+                if u1 * v2 - u2 * v1 == 0 and u1 * v1 + u2 * v2 < 0:
+                    bad[ring[i]] = True
+                continue
+            meet = _segments_meet(ax, ay, bx, by, cx, cy, dx, dy)
+            if meet:
+                bad[ring[i]] = True
+                bad[ring[j]] = True
+    return bad
+
+
+def _rings_that_meet(rings) -> np.ndarray:
+    if not rings:
+        return np.zeros(0, dtype=bool)
+    xy = np.concatenate(rings)
+    starts = np.zeros(len(rings) + 1, dtype=np.int64)
+    starts[1:] = np.cumsum([len(r) for r in rings])
+    return _edges_meet(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), starts)
