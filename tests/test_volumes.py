@@ -390,10 +390,20 @@ def test_polyline_keyhole_where_no_straight_keyhole_keeps_clear(monkeypatch, kw)
         found.append(got)
         return got
 
+    # with the branching join's polygons densified (a vertex every pixel) a straight keyhole from a
+    # vertex inside the channel's mouth keeps clear: the polyline keyholes are tested on the
+    # polygons' own vertices
+    from contourmesh import volumes
+
+    monkeypatch.setattr(volumes, "_DENSE_STEP", 1.0)
+    m0 = volume_to_mesh(v, **kw)
+    check_topology(v, m0)
+    assert m0.meta["exact_joins"] == 0 and m0.meta["bridged_joins"] == 1 and m0.meta["dense_rings"] >= 2
+    monkeypatch.setattr(volumes, "_DENSE_STEP", None)
     monkeypatch.setattr(bridges, "keyhole_path", keyhole_path)
     m = volume_to_mesh(v, **kw)
     chk, _ = check_topology(v, m)
-    assert m.meta["exact_joins"] == 0 and m.meta["bridged_joins"] == 1
+    assert m.meta["exact_joins"] == 0 and m.meta["bridged_joins"] == 1 and m.meta["dense_rings"] == 0
     assert chk["self_intersections"] == 0 and m.meta["self_intersections"] == 0
     got = [g for g in found if g is not None]
     assert len(got) == 1 and len(got[0][2]) >= 1  # a bent keyhole, with interior points

@@ -16,6 +16,38 @@ def _blobs(seed=8, shape=(5, 14, 14)):
     return ndimage.gaussian_filter(rng.random(shape), 1.0) > 0.5 + 0.04 * rng.standard_normal()
 
 
+def _sparse_rings(monkeypatch):
+    """The branching joins' polygons as they are, not densified (``volumes._DENSE_STEP``, the
+    default): on :func:`_blobs` some bridged joins then fail and take sections (densified, all are
+    bridged)."""
+    from contourmesh import volumes
+
+    monkeypatch.setattr(volumes, "_DENSE_STEP", None)
+
+
+def _dense_rings(monkeypatch):
+    """The branching joins' polygons with a vertex every pixel (opt-in: ``volumes._DENSE_STEP``)."""
+    from contourmesh import volumes
+
+    monkeypatch.setattr(volumes, "_DENSE_STEP", 1.0)
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(refine="band"), dict(caps="half")])
+def test_densified_rings_bridge_every_join_of_the_blobs(monkeypatch, kw):
+    """A vertex every pixel on the branching joins' polygons keeps their bands' rungs local: every
+    join of this volume is bridged whole (not densified: 2 exact joins and a sectioned one), with
+    less area."""
+    vol = _blobs()
+    _dense_rings(monkeypatch)
+    m = volume_to_mesh(vol, **kw)
+    check_embedded(vol, m)
+    assert m.meta["exact_joins"] == 0 and m.meta["crack_rings"] == 0 and m.meta["dense_rings"] > 0
+    _sparse_rings(monkeypatch)
+    sparse = volume_to_mesh(vol, **kw)
+    assert sparse.meta["exact_joins"] > 0 and sparse.meta["dense_rings"] == 0
+    assert m.area < sparse.area
+
+
 def test_mid_section_lies_between_the_two_regions():
     yy, xx = np.mgrid[:41, :41]
     r2 = (yy - 20) ** 2 + (xx - 20) ** 2
@@ -66,8 +98,9 @@ def test_euler6_equals_skimage_on_random_stacks():
 
 @pytest.mark.parametrize("kw", [dict(), dict(refine="band"), dict(caps="half"),
                                 dict(polygon="dss", triangulation="optimal")])
-def test_sections_replace_exact_joins_and_keep_the_voxel_topology(kw):
+def test_sections_replace_exact_joins_and_keep_the_voxel_topology(monkeypatch, kw):
     vol = _blobs()
+    _sparse_rings(monkeypatch)
     m = volume_to_mesh(vol, **kw)
     check_embedded(vol, m)
     # (with DSS polygons every join of this volume is bridged whole)
@@ -76,6 +109,7 @@ def test_sections_replace_exact_joins_and_keep_the_voxel_topology(kw):
 
 def test_sections_are_the_last_step_before_the_exact_join(monkeypatch):
     vol = _blobs()
+    _sparse_rings(monkeypatch)
     with_sections = volume_to_mesh(vol)
     monkeypatch.setattr(sections, "MAX_DEPTH", 0)  # no section: those joins become exact
     without = volume_to_mesh(vol)

@@ -1202,7 +1202,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
         "caps": caps, "band_joins": band_joins, "bridged_joins": 0, "bridges": 0, "intermediate_sections": 0,
         "exact_joins": 0,
         "polygon_fallbacks": fallbacks,
-        "crack_rings": 0, "band_fallbacks": band_fallbacks, "pixel_caps": 0, "least_area_bands": 0,
+        "crack_rings": 0, "band_fallbacks": band_fallbacks, "pixel_caps": 0, "least_area_bands": 0, "dense_rings": 0,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)", "fast_path": True,
     }
     return Mesh(V, F, P=len(V), meta=meta)

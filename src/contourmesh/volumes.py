@@ -35,7 +35,10 @@ Conventions (stated once)
   slice covers is closed by a lid.  This needs every pair's overlap connected, no overlap inside
   a hole of another, at most one hole from each side in each hole of ``O``, and bridges that touch
   nothing else in their plane; the band and lids are tested for crossing faces before they are
-  used.  Every other group (overlaps that close a loop: a handle forms) is joined
+  used.  Opt-in (``_DENSE_STEP``), the polygons of components in such joins get a vertex every
+  pixel along their edges (where the point lies in the slice's band), so that the least-area
+  band's rungs stay local; their band joins keep the faces made between the polygons' own
+  points.  Every other group (overlaps that close a loop: a handle forms) is joined
   *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
   slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
   mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
@@ -170,6 +173,7 @@ class _Slice:
         self.labels = labels.astype(small) if small is not None else labels
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
+        self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
         self.hole_masks = []  # per component: list of (slices, mask) for each hole (local bbox)
         self.crack_outer = []  # raw crack contours (physical xy), used by exact joins
         self.crack_holes = []
@@ -323,6 +327,41 @@ def _band_faces(lo, hi, triangulation, optimal_budget=_MIXED_OPTIMAL_BUDGET, mix
     return f, int(replaced)
 
 
+def _fan_added(f, rings) -> np.ndarray:
+    """Band faces ``f`` made between the kept points of ``rings`` (``(ids, keep)`` each: a ring's
+    vertex ids and which of them the band used), with each face on an edge between two kept points
+    that skips others made a fan over them (same orientation, same area)."""
+    where = {}
+    for r, (ids, keep) in enumerate(rings):
+        kept = np.flatnonzero(keep)
+        nxt = np.roll(kept, -1)
+        for p, q in zip(kept.tolist(), nxt.tolist()):
+            if (q - p) % len(ids) != 1:
+                where[int(ids[p])] = (r, p, q)  # the kept point after p is q, with points between
+    if not where:
+        return f
+    out = []
+    for a, b, c in np.asarray(f, dtype=np.int64).tolist():
+        for x, y, w in ((a, b, c), (b, c, a), (c, a, b)):
+            hit = None
+            if x in where and int(rings[where[x][0]][0][where[x][2]]) == y:
+                hit = (where[x], False)  # the edge x -> y runs along the ring
+            elif y in where and int(rings[where[y][0]][0][where[y][2]]) == x:
+                hit = (where[y], True)  # the edge x -> y runs against it
+            if hit is not None:
+                (r, p, q), back = hit
+                ids = rings[r][0]
+                path = ids[(p + np.arange((q - p) % len(ids) + 1)) % len(ids)]
+                if back:
+                    out += [(int(path[t + 1]), int(path[t]), w) for t in range(len(path) - 1)]
+                else:
+                    out += [(int(path[t]), int(path[t + 1]), w) for t in range(len(path) - 1)]
+                break
+        else:
+            out.append((a, b, c))
+    return np.array(out, dtype=np.int64).reshape(-1, 3)
+
+
 class _Mesher:
     def __init__(self, triangulation: str, band_guard=None, size: int = 1024):
         self.triangulation = triangulation
@@ -363,9 +402,14 @@ class _Mesher:
     def coords(self, ids):
         return self._V[: self.n][ids]
 
-    def band(self, lo_ids, hi_ids, mixed=False):
+    def band(self, lo_ids, hi_ids, mixed=False, lo_added=None, hi_added=None):
         """The selected band triangulation, with a guard against twisted bands (``mixed``: see
         :func:`_band_faces`).
+
+        ``lo_added``, ``hi_added``: which points of a densified ring were added on its polygon's
+        edges (:func:`_densify_branching`).  The band is made between the polygons' own points,
+        and each face on a densified edge becomes a fan over its added points: the same faces
+        and area as without them, and the ring's edges shared with its branching join.
 
         The paper's rule and the shortest-diagonal rule assume similar contours.  Real slices
         can differ a lot (and a contour next to an exact join keeps its crack contour while its
@@ -374,6 +418,15 @@ class _Mesher:
         (least-area) band, or by the arc-length band where the optimal one would be too slow.
         """
 
+        if lo_added is not None or hi_added is not None:
+            keep = [np.ones(len(ids), dtype=bool) if a is None else ~a for ids, a in
+                    ((lo_ids, lo_added), (hi_ids, hi_added))]
+            n0 = len(self.F)
+            self.band(lo_ids[keep[0]], hi_ids[keep[1]], mixed)
+            f = np.concatenate(self.F[n0:])
+            del self.F[n0:], self.S[n0:]
+            self._add(_fan_added(f, [(lo_ids, keep[0]), (hi_ids, keep[1])]))
+            return
         lo, hi = self.coords(lo_ids), self.coords(hi_ids)
         f, replaced = _band_faces(lo, hi, self.triangulation, mixed=mixed)
         if mixed and _dissimilar_rule(len(lo), len(hi), self.triangulation, _MIXED_OPTIMAL_BUDGET) != self.triangulation:
@@ -520,6 +573,11 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
         refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy), refine)
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
+    # with _DENSE_STEP set, the rings of branching joins get a vertex at least every pixel (see _densify_branching)
+    # (band2: a vertex every half pixel, as its refined polygons have twice the vertices)
+    dense_rings = 0 if polygons is not None or _DENSE_STEP is None else \
+        _densify_branching(mask, slices, joins, crack_only, (ox, oy, dx, dy),
+                           _DENSE_STEP * px / (2.0 if refine == "band2" else 1.0))
     end_cap = getattr(polygons, "end_cap", None)
     if smooth_ends is not None:
         smooth_ends.attach(slices, zs, joins)
@@ -567,7 +625,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         "intermediate_sections": n_sections,
         "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
         "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks, "pixel_caps": pixel_caps,
-        "least_area_bands": least_area,
+        "least_area_bands": least_area, "dense_rings": dense_rings,
         "crossing_fallbacks": fallback_joins + fallback_caps,
         "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
     }
@@ -722,12 +780,14 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
 
             mixed = is_crack(k, a) != is_crack(k + 1, b)
 
+            def added(kk, c, h):  # a densified polygon's added points (see _densify_branching)
+                return None if mixed or is_crack(kk, c) else slices[kk].dense.get((c, h))
+
             def make(M, ring):
                 if band_maker is not None and band_maker(M, k, a, b, matched, ring, mixed):
                     return  # the hook made this band (a plane-cut end's, caps="smooth" on drawn rings)
-                M.band(ring(k, a, -1), ring(k + 1, b, -1), mixed)
-                for ha, hb in matched:
-                    M.band(ring(k, a, ha), ring(k + 1, b, hb), mixed)
+                for ha, hb in [(-1, -1)] + list(matched):
+                    M.band(ring(k, a, ha), ring(k + 1, b, hb), mixed, added(k, a, ha), added(k + 1, b, hb))
 
             return ("band", is_crack(k, a), is_crack(k + 1, b)), make
         if kind == "bridge":
@@ -950,6 +1010,74 @@ def _refine_polygons(mask, zs, slices, occupied, crack_only, joins, spacing_xy, 
         else:
             slices[k].holes[c][h] = p
     return info
+
+
+#: The longest polygon edge, in pixels, of a component that takes part in a branching join
+#: (:func:`_densify_branching`); None (the default) leaves the polygons as they are.  Off by
+#: default: on the rotated real meshes it removes the exact-join chains that set the largest
+#: errors at 256 voxels across, but the band mode's median error rises at 128 and 256 (the
+#: staircases it removes hid the band's own negative error); see the DESIGN note "Densified rings".
+_DENSE_STEP = None
+#: ... and its most vertices: a longer ring keeps longer edges (the optimal band's work grows as
+#: ``n^2 m``; 1024-vertex rings keep it near 1e9).
+_DENSE_MAX = 1024
+
+
+def _densify(ring: np.ndarray, step: float, most: int = _DENSE_MAX) -> tuple[np.ndarray, np.ndarray]:
+    """``ring`` with points added on its edges (evenly, the corners kept) so that none is longer
+    than ``step``, or than the ring's length over ``most`` where that is longer; and which of its
+    points are added ones."""
+    r = np.asarray(ring, dtype=np.float64)
+    d = np.roll(r, -1, axis=0) - r
+    length = np.hypot(d[:, 0], d[:, 1])
+    step = max(step, float(length.sum()) / most)
+    k = np.maximum(np.ceil(length / step - 1e-9).astype(np.int64), 1)
+    i = np.repeat(np.arange(len(r)), k)
+    q = np.arange(len(i)) - np.repeat(np.cumsum(k) - k, k)
+    return r[i] + (q / k[i])[:, None] * d[i], q > 0
+
+
+def _densify_branching(mask, slices, joins, crack_only, grid, step) -> int:
+    """Every polygon (outer and holes) of a component that takes part in a branching join (a
+    ``"bridge"`` join: a fork, a merge, a hole that opens or closes, a loop) gets a vertex at least
+    every ``step`` along its edges, where the point lies in its slice's band ``U \\ int(V)`` (as the
+    band refinement's vertices do: :func:`contourmesh.refine.in_band`); its corners stay where they
+    are, so the polygon is the same curve.  Returns how many rings changed.
+
+    Such a join is one band between two long bridged rings (or sections' bands).  A straight run
+    of a polygon has only its two end vertices, and the least-area band fans the run's ends across
+    the other ring: around a small component bridged to a large one (noise on a near-horizontal
+    face: single pixels above a sloping wall) it makes a double cone, an edge in four faces, and
+    the join fails; a fan from a polygon's straight run to a crack ring's staircase (next to the
+    exact join that follows) lies almost flat and has several times the area of the surface.  With
+    a vertex every pixel the band's rungs stay local.  The component's other joins use the same
+    rings (the added vertices lie on its edges)."""
+    from .refine import _off_band
+
+    ox, oy, dx, dy = grid
+    comps = set()
+    for k, kind, data in joins:
+        if kind == "bridge":
+            comps.update((k, a) for a in data[0])
+            comps.update((k + 1, b) for b in data[1])
+    n = 0
+    for k, c in sorted(comps - crack_only):
+        s = slices[k]
+        rings = [s.outer[c]] + list(s.holes[c])
+        dense = []
+        for r in rings:
+            d, added = _densify(r, step)
+            if added.any():
+                idx = np.c_[(d[added, 0] - ox) / dx, (d[added, 1] - oy) / dy]
+                keep = ~added
+                keep[added] = ~_off_band(mask, k, idx, (1.0, 1.0))
+                d = d[keep]
+            if len(d) != len(r):
+                n += 1
+                s.dense[c, len(dense) - 1] = added[keep]
+            dense.append(d)
+        s.outer[c], s.holes[c] = dense[0], dense[1:]
+    return n
 
 
 def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
