@@ -62,7 +62,7 @@ from .bands.wiederhold import INITIAL_EDGE_WINDOW
 from .geometry import grid_to_xy, slice_gap
 from .polygons import mlp as _mlp_module
 from .polygons import thin_part_polygon
-from .tracing import _crack_contours
+from .tracing import _crack_contours, _root
 from .types import Mesh
 from .volume_input import check_origin, check_spacing
 
@@ -220,14 +220,6 @@ def _words(b8):
 # 2. components (4-connected) of the runs
 # ------------------------------------------------------------------------------------------------
 @_kernel
-def _find(parent, i):
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@_kernel
 def _components(ry, rx0, rx1, row_start, h):
     """4-components of the runs: ``(label per run, n, holes per component, bbox (n, 4) =
     (xmin, ymin, xmax, ymax) inclusive, first run per component)``.
@@ -245,7 +237,7 @@ def _components(ry, rx0, rx1, row_start, h):
         j, j1 = row_start[y], row_start[y + 1]
         while i < i1 and j < j1:
             if rx0[i] < rx1[j] and rx0[j] < rx1[i]:
-                a, b = _find(parent, i), _find(parent, j)
+                a, b = _root(parent, i), _root(parent, j)
                 if a != b:
                     if a < b:
                         parent[b] = a
@@ -261,7 +253,7 @@ def _components(ry, rx0, rx1, row_start, h):
         root_lab[r] = -1
     n = 0
     for r in range(nr):
-        t = _find(parent, r)
+        t = _root(parent, r)
         if root_lab[t] < 0:
             root_lab[t] = n
             n += 1
