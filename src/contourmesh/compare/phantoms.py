@@ -33,7 +33,8 @@ from ..types import ContourStack
 
 __all__ = ["Phantom", "sphere", "cylinder", "frustum", "torus", "two_lobes", "y_branch", "keyhole_tube",
            "rod_in_tube", "hollow_sphere", "draw", "section_areas", "trapezoid_volume", "frustum_volume",
-           "rotation", "implicit_volume", "verification_set", "rtstruct_bytes"]
+           "rotation", "implicit_volume", "verification_set", "rtstruct_bytes", "first_plane",
+           "consistent_truths", "with_ends"]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -94,7 +95,7 @@ def _placed(name, kind, f_local, lo_local, hi_local, area, volume, tilt, azimuth
     c = np.asarray(center, dtype=np.float64)
     corners = _box_corners(lo_local, hi_local) @ R.T + c
     f = (lambda p, _f=f_local, _R=R, _c=c: _f(_local(p, _R, _c)))
-    params = dict(params, tilt=float(tilt), azimuth=float(azimuth))
+    params = dict(params, tilt=float(tilt), azimuth=float(azimuth), center=tuple(float(v) for v in c))
     return Phantom(name, kind, f, corners.min(0), corners.max(0), area, volume, style, params)
 
 
@@ -342,12 +343,7 @@ def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None
     rng = np.random.default_rng(seed)
     g = float(grid) if grid is not None else min(0.25, ds)
     lo, hi = ph.lo, ph.hi
-    u = rng.uniform(0.0, dz)
-    if offset is not None:
-        if not 0.0 <= offset < 1.0:
-            raise ValueError(f"offset is a fraction of dz in [0, 1); got {offset}")
-        u = offset * dz
-    z0 = lo[2] + u
+    z0 = _first_plane(ph, dz, rng, offset)
     zs = np.arange(z0, hi[2], dz)
     slices = []
     for z in zs:
@@ -364,6 +360,25 @@ def draw(ph: Phantom, dz: float, ds: float, *, seed: int = 0, grid: float | None
     meta = {"name": ph.name, "kind": ph.kind, "dz": float(dz), "ds": float(ds), "seed": int(seed),
             "area_true": ph.area, "volume_true": ph.volume, "units": "mm"}
     return stack_from_rings(slices, source=ph.name, meta=meta)
+
+
+def _first_plane(ph: Phantom, dz: float, rng, offset: float | None) -> float:
+    """The first plane's height (draws one number from ``rng`` even when ``offset`` is given, so the
+    rings' start points do not depend on ``offset``)."""
+    u = rng.uniform(0.0, dz)
+    if offset is not None:
+        if not 0.0 <= offset < 1.0:
+            raise ValueError(f"offset is a fraction of dz in [0, 1); got {offset}")
+        u = offset * dz
+    return float(ph.lo[2] + u)
+
+
+def first_plane(ph: Phantom, dz: float, *, seed: int = 0, offset: float | None = None) -> float:
+    """The height ``z0`` of the first plane :func:`draw` uses with these arguments: its planes are
+    ``z0 + k dz`` (the sections drawn are those of the planes that cut the solid)."""
+    if not dz > 0:
+        raise ValueError(f"dz must be positive; got {dz}")
+    return _first_plane(ph, dz, np.random.default_rng(seed), offset)
 
 
 def _crossings(r: np.ndarray) -> int:
@@ -480,6 +495,109 @@ def implicit_volume(ph: Phantom, h: float, *, margin: int = 2):
         pts[:, 2] = z
         out[k] = (ph.f(pts) <= 0).reshape(X.shape)
     return out, (float(axes[0][0]), float(axes[1][0]), float(axes[2][0]))
+
+
+# ------------------------------------------------------------------------------------------------
+# what a drawing cannot tell: the truths of every solid of the phantom's kind that gives the same drawing
+# ------------------------------------------------------------------------------------------------
+def _frustum_truths(rb: float, rt: float, H: float) -> tuple[float, float]:
+    """Volume and area of a frustum of radii ``rb``, ``rt`` and height ``H`` (a cylinder if equal)."""
+    vol = math.pi * H * (rb * rb + rb * rt + rt * rt) / 3
+    area = math.pi * (rb + rt) * math.hypot(rb - rt, H) + math.pi * (rb * rb + rt * rt)
+    return vol, area
+
+
+def _end_range(t_e, out, cz, az, s, r_at, k, z0, dz):
+    """The axial positions an end of a cylinder or frustum can take without changing the drawing.
+
+    The end at axial position ``t_e`` (``out`` = -1 at the bottom, +1 at the top) is a disc of radius
+    ``r_at(t)`` in the plane square to the axis; its heights span ``cz + t az -+ r(t) s``.  Planes
+    that do not cut the disc see either the whole section or none of it, so while the disc stays in
+    the open gap between two neighbouring planes ``z0 + k dz`` every plane's section is unchanged.
+    A plane that cuts the disc (a slanted end whose trace shows in a section) fixes the end.
+    Returns ``(t_inner, t_outer)`` (equal when fixed).
+    """
+    lo_e, hi_e = cz + t_e * az - r_at(t_e) * s, cz + t_e * az + r_at(t_e) * s
+    z_below = z0 + math.floor((lo_e - z0) / dz) * dz
+    z_above = z_below + dz
+    if z_above < hi_e:
+        return t_e, t_e
+    # linear constraints a + b t > z_below (low edge), a + b t < z_above (high edge), r(t) >= 0
+    r0 = r_at(0.0)
+    cons = [(cz - s * r0, az - s * k, z_below, +1), (cz + s * r0, az + s * k, z_above, -1), (r0, k, 0.0, +1)]
+    t_min, t_max = -math.inf, math.inf
+    for a, b, bound, sign in cons:  # sign * (a + b t - bound) > 0
+        if abs(b) < 1e-15:
+            continue
+        t = (bound - a) / b
+        if sign * b > 0:
+            t_min = max(t_min, t)
+        else:
+            t_max = min(t_max, t)
+    if not t_min <= t_e <= t_max:
+        raise AssertionError(f"end at {t_e} outside its own range [{t_min}, {t_max}]")
+    return (t_max, t_min) if out < 0 else (t_min, t_max)
+
+
+def with_ends(ph: Phantom, t_bottom: float, t_top: float) -> Phantom:
+    """The cylinder or frustum ``ph`` with its ends moved to the axial positions ``t_bottom < t_top``
+    (measured along its axis from its centre, as in :func:`consistent_truths`): the same radius and
+    axis, or the same cone."""
+    kind = ph.name.split("-")[0]
+    if kind not in ("cyl", "frustum"):
+        raise ValueError(f"with_ends: {ph.name} is not a cylinder or frustum")
+    if not t_bottom < t_top:
+        raise ValueError(f"with_ends needs t_bottom < t_top; got {t_bottom}, {t_top}")
+    tilt, azimuth = ph.params.get("tilt", 0.0), ph.params.get("azimuth", 0.0)
+    center = np.asarray(ph.params["center"]) + rotation(tilt, azimuth)[:, 2] * (t_bottom + t_top) / 2
+    if kind == "cyl":
+        return cylinder(ph.params["r"], t_top - t_bottom, tilt=tilt, azimuth=azimuth, center=center)
+    r1, r2, h = ph.params["r1"], ph.params["r2"], ph.params["h"]
+    r_at = lambda t: max(0.0, r1 + (r2 - r1) / h * (t + h / 2))  # noqa: E731
+    return frustum(r_at(t_bottom), r_at(t_top), t_top - t_bottom, tilt=tilt, azimuth=azimuth, center=center)
+
+
+def consistent_truths(ph: Phantom, dz: float, z0: float) -> dict:
+    """The truths a drawing cannot tell apart.
+
+    The drawing of ``ph`` on the planes ``z0 + k dz`` (:func:`draw`, :func:`first_plane`) is also the
+    drawing of other solids of the same kind: a sphere's sections fix the sphere, but a flat end
+    parallel to the planes lies anywhere in the gap between its last section and the next (empty)
+    plane, and a cone's apex may as well be a small flat top in that gap.  Over the solids of the
+    phantom's kind (spheres; cylinders of the same radius and axis; frusta on the same cone) whose
+    drawing is the same, this returns the range of their volumes and areas:
+    ``{"volume": (lo, hi), "area": (lo, hi), "ends": [(t_inner, t_outer) per end], "fixed": bool}``
+    (``t`` along the solid's axis from its centre; the ranges are open at the gap's planes).
+    Volume and area grow as either end moves outward, so the extremes are the ends' extreme places.
+
+    Slanted ends (tilted cylinders and frusta) are fixed when a plane cuts the end disc, which it
+    does whenever the disc spans more than one spacing in height (``2 r sin(tilt) > dz``).
+    Supports the spheres, cylinders and frusta of :func:`verification_set` (analytic kind);
+    other phantoms raise ``ValueError``.
+    """
+    if not dz > 0:
+        raise ValueError(f"dz must be positive; got {dz}")
+    kind = ph.name.split("-")[0]
+    if kind == "sphere":
+        return {"volume": (ph.volume, ph.volume), "area": (ph.area, ph.area), "ends": [], "fixed": True}
+    if kind == "cyl":
+        r1 = r2 = ph.params["r"]
+        H = ph.params["L"]
+    elif kind == "frustum":
+        r1, r2, H = ph.params["r1"], ph.params["r2"], ph.params["h"]
+    else:
+        raise ValueError(f"consistent_truths: {ph.name} is not a sphere, cylinder or frustum")
+    axis = rotation(ph.params.get("tilt", 0.0), ph.params.get("azimuth", 0.0))[:, 2]
+    cz = ph.params["center"][2]
+    az = float(axis[2])
+    s = math.sqrt(max(0.0, 1.0 - az * az))
+    k = (r2 - r1) / H
+    r_at = lambda t: r1 + k * (t + H / 2)  # noqa: E731
+    ends = [_end_range(-H / 2, -1, cz, az, s, r_at, k, z0, dz), _end_range(H / 2, +1, cz, az, s, r_at, k, z0, dz)]
+    (b_in, b_out), (t_in, t_out) = ends
+    v_lo, a_lo = _frustum_truths(r_at(b_in), r_at(t_in), t_in - b_in)
+    v_hi, a_hi = _frustum_truths(r_at(b_out), r_at(t_out), t_out - b_out)
+    return {"volume": (v_lo, v_hi), "area": (a_lo, a_hi), "ends": ends, "fixed": b_in == b_out and t_in == t_out}
 
 
 # ------------------------------------------------------------------------------------------------
