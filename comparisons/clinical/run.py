@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from contourmesh.compare.clinical import COLUMNS, MODES, PEERS, RULE_COLUMNS, RULE_SETTINGS, measure, rules_rows
-from contourmesh.compare.phantoms import verification_set
+from contourmesh.compare.phantoms import consistent_truths, first_plane, verification_set
 from contourmesh.meshes import atomic_write
 
 HERE = Path(__file__).resolve().parent
@@ -207,6 +207,7 @@ def summary_md(rows, full: bool, fine: float, seconds: float | None) -> str:
                      f"{within('area_err', TARGET_AREA)} | {mo} / {xo} | {within('vol_outside_rules', TARGET_RULES)} | "
                      f"{within('vol_outside_padded_rules', TARGET_RULES)} | "
                      + (f"{100 * max(xs):.2f} | {sum(x <= TARGET_XSEC for x in xs)}/{len(xs)} |" if xs else " | |"))
+    lines += limits_md(rows).rstrip("\n").split("\n")
     other = [r for r in ok if r["kind"] != "analytic"]
     lines += ["", "## Branching, keyhole and nested phantoms", "",
               f"`surface nets (solid)`: VTK surface nets of the solid itself sampled on an isotropic {fine:g} mm grid "
@@ -264,6 +265,145 @@ def summary_md(rows, full: bool, fine: float, seconds: float | None) -> str:
                      f"{'' if r['closed_ok'] is None else ('yes' if r['closed_ok'] else 'NO')} | "
                      f"{(r['seconds'] or 0):.2f} |")
     return "\n".join(lines) + "\n"
+
+
+LIMITS_HEAD = "## What the drawing cannot tell"
+#: Settings of the limits section: (label, caps, polygon of the rows).
+LIMIT_SETTINGS = (("flat (default)", "flat", "default"), ("smooth (ruled)", "smooth", "contours"),
+                  ("smooth + curved", "smooth", "curved"))
+
+
+def limits(rows) -> list[dict]:
+    """Per analytic drawing of ``rows``: the range of truths consistent with the drawing
+    (:func:`contourmesh.compare.phantoms.consistent_truths`, on the drawing's own planes, from its
+    seed) and our figures of ``LIMIT_SETTINGS`` against the analytic value and the band's centre."""
+    phantoms = {t[0].name: t[0] for t in verification_set(full=True)}
+    out = []
+    for key in dict.fromkeys((r["phantom"], r["dz"], r["ds"], int(r["seed"])) for r in rows
+                             if r["kind"] == "analytic" and r["status"] == "ok"):
+        name, dz, ds, seed = key
+        ph = phantoms.get(name)
+        if ph is None:
+            continue
+        band = consistent_truths(ph, dz, first_plane(ph, dz, seed=seed))
+        rec = {"phantom": name, "dz": dz, "ds": ds, "band": band, "volume": ph.volume, "area": ph.area}
+        for label, caps, polygon in LIMIT_SETTINGS:
+            r = next((r for r in rows if (r["phantom"], r["dz"], r["ds"]) == key[:3] and r["method"] == "ours"
+                      and r["caps"] == caps and r["polygon"] == polygon and r["status"] == "ok"), None)
+            if r is not None:
+                rec[label] = (r["volume"], r["area"], int(r["sections"]))
+        out.append(rec)
+    return out
+
+
+def _vs_band(value, lo, hi):
+    """(error against the band's centre, distance outside the band relative to its nearer end; 0 inside)."""
+    centre = (lo + hi) / 2
+    outside = 0.0 if lo <= value <= hi else (value / lo - 1 if value < lo else value / hi - 1)
+    return value / centre - 1, outside
+
+
+def limits_md(rows) -> str:
+    recs = limits(rows)
+    if not recs:
+        return ""
+    lines = ["", LIMITS_HEAD, "",
+             "A contouring tool draws a section on every plane `z0 + k dz` that cuts the object (the verification "
+             "set's `z0` is drawn from each row's seed, uniform within one spacing above the solid's lowest point). "
+             "So a flat end parallel to the planes lies anywhere between its last section and the next, empty "
+             "plane, and every solid with its ends in those gaps gives the *same* drawing: one mesh, several "
+             "truths (`tests/test_clinical_limits.py` draws two such cylinders, r = 5 mm of lengths 20 and 18 mm at "
+             "dz = 3 mm, and finds the same six circles; their volumes are 11 % apart, so no mesher is within 1 % "
+             "of both). `consistent truths` below is the range of volumes and areas over the solids of the "
+             "phantom's kind that share the drawing (`contourmesh.compare.phantoms.consistent_truths`: spheres "
+             "are fixed by their sections; a cylinder keeps its radius and axis, a frustum its cone, each flat "
+             "end anywhere in its gap, a cone's apex possibly a small flat top in its gap; a slanted end is cut "
+             "by a plane, its trace fixes it), in % of the analytic value. Its half-width is the least "
+             "worst-case error any estimator can promise on that drawing (the band's centre achieves it); "
+             "`vs centre` is our error against the centre, which is where an estimator unbiased over the ends' "
+             "unknown places should sit (for cylinders, the ends half a spacing beyond the last sections).", ""]
+    n = len(recs)
+    wide_v = [r for r in recs if (r["band"]["volume"][1] - r["band"]["volume"][0])
+              / (r["band"]["volume"][1] + r["band"]["volume"][0]) > TARGET_VOL]
+    wide_a = [r for r in recs if (r["band"]["area"][1] - r["band"]["area"][0])
+              / (r["band"]["area"][1] + r["band"]["area"][0]) > TARGET_AREA]
+    wide_names = ", ".join(dict.fromkeys(f"{r['phantom']} dz={r['dz']:g}" for r in wide_v))
+    lines += [f"Drawings whose consistent truths span more than the target window (half-width above 1 % in volume, "
+              f"1.5 % in area): {len(wide_v)}/{n} in volume, {len(wide_a)}/{n} in area "
+              f"({wide_names}). On those no estimator meets "
+              "the target for every placement of the ends; on the others the band is narrower than the window "
+              "(fixed ends: a point).", "",
+              "| setting | volume within 1 % of analytic | within 1 % of the band's centre | inside the band (+-1 %) | "
+              "area within 1.5 % of analytic | within 1.5 % of the band's centre | inside the band (+-1.5 %) |",
+              "|---|---|---|---|---|---|---|"]
+    for label, _, _ in LIMIT_SETTINGS:
+        have = [r for r in recs if label in r]
+        if not have:
+            continue
+        cnt = {k: 0 for k in ("va", "vc", "vb", "aa", "ac", "ab")}
+        for r in have:
+            v, a, _ = r[label]
+            (vlo, vhi), (alo, ahi) = r["band"]["volume"], r["band"]["area"]
+            vc, vo = _vs_band(v, vlo, vhi)
+            ac, ao = _vs_band(a, alo, ahi)
+            cnt["va"] += abs(v / r["volume"] - 1) <= TARGET_VOL
+            cnt["vc"] += abs(vc) <= TARGET_VOL
+            cnt["vb"] += abs(vo) <= TARGET_VOL
+            cnt["aa"] += abs(a / r["area"] - 1) <= TARGET_AREA
+            cnt["ac"] += abs(ac) <= TARGET_AREA
+            cnt["ab"] += abs(ao) <= TARGET_AREA
+        m = len(have)
+        lines.append(f"| {label} | {cnt['va']}/{m} | {cnt['vc']}/{m} | {cnt['vb']}/{m} | {cnt['aa']}/{m} | "
+                     f"{cnt['ac']}/{m} | {cnt['ab']}/{m} |")
+    ruled_miss = []
+    for r in recs:
+        if "smooth (ruled)" in r:
+            v = r["smooth (ruled)"][0]
+            c = _vs_band(v, *r["band"]["volume"])[0]
+            if abs(c) > TARGET_VOL:
+                ruled_miss.append(f"{r['phantom']} dz={r['dz']:g} {_pct(c)} %")
+    if ruled_miss:
+        lines += ["", "Where `smooth (ruled)` misses the band's centre by more than 1 % in volume ("
+                  + "; ".join(ruled_miss) + "), the ends are not the cause: ruled bands hold the frustum rule's "
+                  "volume between each pair of sections (a straight-ruled band between two similar rings is a "
+                  "frustum), which on a convex profile falls short of the solid (by about dz^2 / (4 R^2) on a "
+                  "sphere with the trapezoid rule, more with the frustum rule near the poles). That is the volume "
+                  "planning systems report; `bands=\"curved\"` follows the area profile instead. Breakdown into bands "
+                  "and caps: `ruled_study.md`."]
+    lines += ["", "Per drawing (errors in %; each cell: against the analytic value / against the band's centre):", "",
+              "| drawing | sections | consistent volumes | consistent areas | least worst case (vol / area) | "
+              + " | ".join(f"{label}: volume | {label}: area" for label, _, _ in LIMIT_SETTINGS) + " |",
+              "|---|---|---|---|---|" + "---|---|" * len(LIMIT_SETTINGS)]
+    for r in recs:
+        (vlo, vhi), (alo, ahi) = r["band"]["volume"], r["band"]["area"]
+        secs = next((r[label][2] for label, _, _ in LIMIT_SETTINGS if label in r), "")
+        cells = []
+        for label, _, _ in LIMIT_SETTINGS:
+            if label not in r:
+                cells.append(" | ")
+                continue
+            v, a, _ = r[label]
+            cells.append(f"{_pct(v / r['volume'] - 1)} / {_pct(_vs_band(v, vlo, vhi)[0])} | "
+                         f"{_pct(a / r['area'] - 1)} / {_pct(_vs_band(a, alo, ahi)[0])}")
+        band, aband = (("fixed", "fixed") if r["band"]["fixed"] else
+                       (f"{_pct(vlo / r['volume'] - 1)} .. {_pct(vhi / r['volume'] - 1)}",
+                        f"{_pct(alo / r['area'] - 1)} .. {_pct(ahi / r['area'] - 1)}"))
+        lines.append(f"| {r['phantom']} dz={r['dz']:g} ds={r['ds']:g} | {secs} | {band} | {aband} | "
+                     f"{100 * (vhi - vlo) / (vhi + vlo):.2f} / {100 * (ahi - alo) / (ahi + alo):.2f} | "
+                     + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def splice_limits(md: str, section: str) -> str:
+    """``md`` with its limits section replaced by ``section`` (inserted before the branching section if absent)."""
+    start = md.find("\n" + LIMITS_HEAD)
+    nxt = md.find("\n## Branching")
+    if start >= 0:
+        end = md.find("\n## ", start + 1)
+        return md[:start] + section.rstrip("\n") + "\n" + md[end:]
+    if nxt < 0:
+        return md.rstrip("\n") + "\n" + section
+    return md[:nxt] + section.rstrip("\n") + "\n" + md[nxt:]
 
 
 def plot_png(rows) -> bytes | None:
@@ -329,7 +469,8 @@ def main(argv=None) -> int:
     ap.add_argument("--full", action="store_true", help="the whole grid of settings (long)")
     ap.add_argument("--fine", type=float, default=0.25, help="pixel (mm) of the peers' rasterization (default 0.25)")
     ap.add_argument("--out", type=Path, default=HERE, help="output folder (default: next to this file)")
-    ap.add_argument("--from-csv", action="store_true", help="only rebuild errors.png from results.csv")
+    ap.add_argument("--from-csv", action="store_true", help="only rebuild errors.png and results.md's section on what the drawing cannot tell "
+                    "from results.csv (no meshing)")
     ap.add_argument("--no-rt", action="store_true", help="skip the shared RT structure set")
     ap.add_argument("--contours-only", action="store_true",
                     help="only the contours route's modes (flat, half, smooth, smooth + curved bands) and the peers")
@@ -337,6 +478,9 @@ def main(argv=None) -> int:
     if args.from_csv:
         rows = read_csv(args.out / "results.csv")
         write(rows, args.out, args.full, args.fine, table=False)
+        md = args.out / "results.md"
+        if md.exists():
+            atomic_write(md, splice_limits(md.read_text(), limits_md(rows)).encode())
         return 0
     t0 = time.perf_counter()
     rt_rows = []
