@@ -160,3 +160,23 @@ def test_options_that_do_not_apply_to_the_contours_route_are_refused():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert contourmesh.mesh(one, route="raster").meta["route"] == "raster"
+
+
+def test_missing_sections_inside_a_structure_are_bridged_by_one_band():
+    """Issue 15 item 4, missing slices: sections left out inside a structure (here three of a cone's)
+    are not filled in; the rings on either side of the gap are joined by one band across it, as
+    between any two consecutive sections, so the mesh's section inside the gap is the band's
+    (radius interpolated linearly) and its volume stays within the rules over the drawn sections."""
+    zs = [float(z) for z in range(11) if z not in (4, 5, 6)]
+    stack = stack_from_rings([(z, [circle(0.0, 0.0, 10.0 - 0.6 * z)]) for z in zs])
+    m = contourmesh.mesh(stack)
+    chk = m.checks()
+    assert m.meta["route"] == "contours" and chk["ok"] and chk["components"] == 1
+    lo, hi = frustum_volume(stack), trapezoid_volume(stack)
+    assert lo * (1 - 1e-3) <= m.volume <= hi * (1 + 1e-3)
+    tri = np.asarray(m.vertices)[np.asarray(m.faces)]
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    ring = circle(0.0, 0.0, 10.0 - 0.6 * 5.0)
+    drawn_mid = abs(float(np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1]))) / 2
+    assert _section_area(tri, nrm, 5.0) == pytest.approx(drawn_mid, rel=0.01)
+    assert all(abs(e) <= 0.005 for sides in plane_errors(m, stack) for e in sides)
