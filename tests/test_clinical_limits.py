@@ -154,3 +154,37 @@ def test_first_plane_is_the_drawings():
     zs = [s.z for s in P.draw(ph, dz, ds, seed=seed).sections]
     k = np.round((np.array(zs) - z0) / dz)
     assert np.allclose(z0 + k * dz, zs, atol=1e-9) and z0 <= zs[0] < z0 + dz
+
+
+def _run_module():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "comparisons" / "clinical" / "run.py"
+    spec = importlib.util.spec_from_file_location("clinical_run_limits", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_comparisons_limits_section():
+    """run.py's section: a figure at the band's centre is within the window against it though 10 %
+    off the analytic value; a figure at the band's lower edge is inside the band, not near its centre."""
+    mod = _run_module()
+    ph, dz, ds, seed = _row("cyl-r5-L20", 3.0)
+    band = P.consistent_truths(ph, dz, P.first_plane(ph, dz, seed=seed))
+    (vlo, vhi), (alo, ahi) = band["volume"], band["area"]
+    base = {"phantom": ph.name, "kind": "analytic", "dz": dz, "ds": ds, "seed": seed, "status": "ok",
+            "method": "ours", "sections": 6}
+    rows = [dict(base, caps="smooth", polygon="curved", volume=(vlo + vhi) / 2, area=(alo + ahi) / 2),
+            dict(base, caps="flat", polygon="default", volume=vlo, area=alo)]
+    md = mod.limits_md(rows)
+    assert md.startswith("\n" + mod.LIMITS_HEAD)
+    assert "| smooth + curved | 0/1 | 1/1 | 1/1 | 0/1 | 1/1 | 1/1 |" in md
+    assert "| flat (default) | 0/1 | 0/1 | 1/1 | 0/1 | 0/1 | 1/1 |" in md
+    assert "| cyl-r5-L20 dz=3 ds=0.5 | 6 | -25.00 .. +5.00 | -20.00 .. +4.00 | 16.67 / 13.04 |" in md
+    # splicing replaces the section in place, or inserts it before the branching section
+    doc = "# t\n\n## Analytic\n\nx\n\n## Branching, keyhole\n\ny\n"
+    once = mod.splice_limits(doc, md)
+    assert once.index(mod.LIMITS_HEAD) < once.index("## Branching") and once.count(mod.LIMITS_HEAD) == 1
+    assert mod.splice_limits(once, md) == once
