@@ -503,6 +503,49 @@ def test_paths_that_are_not_files(tmp_path):
         read_volume(tmp_path / "fake.npy")
 
 
+def test_rtstruct_point_contours_duplicate_closing_points_and_specks(tmp_path):
+    """Issue 15 item 4: POINT contours are skipped with a warning that counts them (a ROI of POINTs
+    only is refused), a duplicate closing point changes nothing, and a 1- or 2-point contour is
+    dropped with a warning naming its slice."""
+    pydicom = pytest.importorskip("pydicom")
+    from pydicom.dataset import Dataset
+
+    from contourmesh.compare.phantoms import cylinder, draw, rtstruct_bytes
+
+    stack = draw(cylinder(8, 12), 2.0, 0.5, seed=4)
+    ds = pydicom.dcmread(__import__("io").BytesIO(rtstruct_bytes({"cyl": stack, "quirky": stack, "marks": stack})))
+
+    def item(pts, kind="CLOSED_PLANAR"):
+        c = Dataset()
+        c.ContourGeometricType = kind
+        c.NumberOfContourPoints = len(pts)
+        c.ContourData = [f"{v:.10g}" for v in np.ravel(pts)]
+        return c
+
+    quirky, marks = ds.ROIContourSequence[1].ContourSequence, ds.ROIContourSequence[2]
+    rings = [np.array([float(v) for v in c.ContourData]).reshape(-1, 3) for c in quirky]
+    for c, r in zip(quirky, rings):  # each ring with its first point repeated at the end
+        c.ContourData, c.NumberOfContourPoints = [f"{v:.10g}" for v in np.vstack([r, r[:1]]).ravel()], len(r) + 1
+    quirky.append(item(rings[0][:1], "POINT"))
+    quirky.append(item(rings[2][:2]))  # a 2-point contour on a plane that has a ring
+    marks.ContourSequence = [item(rings[0][:1], "POINT"), item(rings[1][:1], "POINT")]
+    path = tmp_path / "quirks.dcm"
+    ds.save_as(path)
+    ref = read_contours(path, roi="cyl")
+    with pytest.warns(UserWarning) as rec:
+        got = read_contours(path, roi="quirky")
+    msgs = [str(w.message) for w in rec]
+    assert any("skipped contours that are not CLOSED_PLANAR: {'POINT': 1}" in m for m in msgs), msgs
+    assert any(f"z={got.z[2]:g}: dropped 1 contour(s) with fewer than 3 distinct points" in m for m in msgs), msgs
+    assert len(got) == len(ref)
+    for a, b in zip(ref.sections, got.sections):
+        assert a.z == pytest.approx(b.z, abs=1e-12) and len(a.contours) == len(b.contours) == 1
+        np.testing.assert_array_equal(a.contours[0], b.contours[0])
+    assert contourmesh.mesh(got).volume == pytest.approx(contourmesh.mesh(ref).volume, rel=1e-9)
+    with pytest.warns(UserWarning, match="'POINT': 2"), pytest.raises(ValueError, match="no contour found"):
+        read_contours(path, roi="marks")
+
+
 def test_rtstruct_not_planar_and_not_rtstruct(tmp_path):
     pydicom = pytest.importorskip("pydicom")
     ds = pydicom.dcmread(need(RTSS))
