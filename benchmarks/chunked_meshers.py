@@ -15,7 +15,10 @@ Each label's pieces (moved by their chunk's offset) are kept until a z-slab of c
 them, then welded by exact vertex equality (``numpy.unique``, no tolerance) and measured: area, volume
 (divergence theorem), and whether the weld is closed (every edge in exactly two faces), with no
 duplicate and no degenerate faces. A label that is not closed, or has no faces, is a failed row that
-says why; its error is not counted, and the number of such rows is reported (never dropped).
+says why; its error is not counted, and the number of such rows is reported (never dropped). A
+closed weld with edges in four faces is measured and counted apart (``non_manifold``): where two
+parts of a label meet along one voxel edge, serra-mesh gives each part its own vertex in that cell,
+at the same point, and a weld by coordinates (serra-mesh's own ``stitch`` too) makes them one.
 
 Serra-mesh runs in four settings: plain surface nets; ``fairing=20`` with Taubin steps (one position
 per cell, shared by the labels that meet there; its documentation recommends it); ``taubin=10`` (per
@@ -83,11 +86,19 @@ def _unique_rows(keys):
 
 
 def weld(pieces):
-    """Join ``(vertices, faces)`` pieces by exact vertex equality; return a row of measures."""
+    """Join ``(vertices, faces)`` pieces by exact vertex equality; return a row of measures.
+
+    ``status`` is "ok" when every edge lies in exactly two faces; "closed, non-manifold: ..." when
+    every edge lies in an even number of faces, some in four (a closed surface whose area and volume
+    are measured; the weld merges two vertices that one piece keeps apart where two parts of a label
+    meet along a voxel edge: surface nets give each part its own vertex in the cell, at the same
+    point); "not closed: ..." otherwise (not measured)."""
     verts = np.concatenate([v for v, _ in pieces]).astype(np.float32) + np.float32(0.0)  # -0.0 -> 0.0
     base = np.cumsum([0] + [len(v) for v, _ in pieces[:-1]])
     faces = np.concatenate([f.astype(np.int64) + b for (_, f), b in zip(pieces, base)])
     first, inv = _unique_rows(verts.view(np.uint32).astype(np.int64))  # equal floats <=> equal bits
+    piece = np.repeat(np.arange(len(pieces)), [len(v) for v, _ in pieces])
+    merged_within = len(inv) - len(np.unique(inv * len(pieces) + piece))  # one piece's vertices made one
     uniq = verts[first]
     faces = inv[faces]
     tri = uniq.astype(np.float64)[faces]
@@ -99,17 +110,27 @@ def weld(pieces):
     duplicate = len(faces) - len(_unique_rows(np.sort(faces, axis=1))[0])
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
     _, counts = np.unique(edges[:, 0] * n + edges[:, 1], return_counts=True)
-    bad_edges = int((counts != 2).sum())
+    odd, more = int((counts % 2 == 1).sum()), int((counts > 2).sum())
     problems = []
-    if bad_edges:
-        problems.append(f"{bad_edges} edges not in exactly two faces")
+    if odd:
+        problems.append(f"{odd} edges in an odd number of faces")
     if duplicate:
         problems.append(f"{duplicate} duplicate faces")
     if degenerate:
         problems.append(f"{degenerate} degenerate faces")
-    status = "ok" if not problems else "not closed: " + ", ".join(problems)
+    if problems:
+        status = "not closed: " + ", ".join(problems)
+    elif more:
+        status = f"closed, non-manifold: {more} edges in four or more faces" + (
+            f" ({merged_within} vertices that one piece keeps apart merged by the weld)" if merged_within else "")
+    else:
+        status = "ok"
     return {"area": area, "volume": abs(signed), "faces": len(faces), "vertices": len(uniq),
-            "pieces": len(pieces), "status": status}
+            "pieces": len(pieces), "merged_within": merged_within, "status": status}
+
+
+def _measured(row):
+    return row["status"] == "ok" or row["status"].startswith("closed")
 
 
 def _read_padded(vol, lo, hi):
@@ -212,12 +233,14 @@ def _whole_array(store):
 
 
 def summarize(rows, exact, kinds):
-    """Median, p90 and max of |e| for area and volume over the closed rows, overall and by kind."""
+    """Median, p90 and max of |e| for area and volume over the closed rows (manifold or not), overall and
+    by kind; ``not_ok`` counts the others (not closed, failed, or no faces)."""
     out = {}
     for kind in (None, *sorted(set(kinds.values()))):
         labs = [lab for lab in exact if kind is None or kinds[lab] == kind]
-        ok = [lab for lab in labs if lab in rows and rows[lab]["status"] == "ok"]
-        entry = {"n": len(labs), "not_ok": len(labs) - len(ok)}
+        ok = [lab for lab in labs if lab in rows and _measured(rows[lab])]
+        entry = {"n": len(labs), "not_ok": len(labs) - len(ok),
+                 "non_manifold": sum(rows[lab]["status"].startswith("closed") for lab in ok)}
         for key in ("area", "volume"):
             e = np.array([abs(rows[lab][key] / exact[lab][key] - 1.0) for lab in ok])
             entry[key] = ({"median": float(np.median(e)), "p90": float(np.percentile(e, 90)), "max": float(e.max()),

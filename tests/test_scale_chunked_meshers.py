@@ -87,8 +87,15 @@ def test_open_welds_and_late_pieces_are_failed_rows(bench):
     assert closed["status"] == "ok" and closed["area"] == pytest.approx(6.0) and closed["volume"] == pytest.approx(1.0)
     # the same cube cut into two pieces that share vertices by value: welded
     assert bench.weld([(v, f[:5]), (v.copy(), f[5:])])["status"] == "ok"
-    assert bench.weld([(v, f[:-1])])["status"] == "not closed: 3 edges not in exactly two faces"
+    assert bench.weld([(v, f[:-1])])["status"] == "not closed: 3 edges in an odd number of faces"
     assert bench.weld([(v, np.vstack([f, f[:1]]))])["status"].startswith("not closed:")
+    # two cubes of one piece meeting along an edge, each with its own copy of the edge's vertices: the
+    # weld by coordinates merges the copies, a closed surface with one edge in four faces, still measured
+    two = bench.weld([(np.vstack([v, v + np.float32([1, 1, 0])]), np.vstack([f, f + 8]))])
+    assert two["status"] == ("closed, non-manifold: 1 edges in four or more faces (2 vertices that one piece "
+                             "keeps apart merged by the weld)")
+    assert two["area"] == pytest.approx(12.0) and two["volume"] == pytest.approx(2.0)
+    assert bench._measured(two) and not bench._measured(bench.weld([(v, f[:-1])]))
     # a label in two parts further apart in z than a slab of chunks: its second part comes after its weld
     vol = np.zeros((30, 8, 8), np.uint8)
     vol[1:4, 2:5, 2:5] = 7
