@@ -185,8 +185,8 @@ def main(argv=None):
         print(f"zmesh not run: {exc}", flush=True)
         zm = None
     with open(out / "per_label.csv", "w", newline="") as fh:  # every label's exact and estimated values
-        fields = ["label", "kind", "area_true", "volume_true"] + [f"{k}_{m}" for m in [*rows_by_mode, "mc", "zmesh"]
-                                                                  for k in ("area", "volume")] + ["status_band"]
+        estimates = [f"{k}_{m}" for m in [*rows_by_mode, "mc", "zmesh"] for k in ("area", "volume")]
+        fields = ["label", "kind", "area_true", "volume_true", *estimates, *(f"status_{m}" for m in rows_by_mode)]
         w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
         kinds = {c.label: c.kind for c in cells}

@@ -436,3 +436,35 @@ def test_exact_area_volume_does_not_depend_on_order_or_cut(memory):
     assert math.fsum(x for h in halves for x in _volume_parts(V, h)) / 6.0 == v0
     x = rng.normal(size=1000) * 10.0 ** rng.integers(-8, 8, 1000)
     assert math.fsum(exact_parts(x)) == math.fsum(x)
+
+
+def test_cli_halo_reaches_the_slabs_and_is_refused_where_it_does_not_apply(tmp_path, store, volume, memory):
+    """--halo on the command line: with the slab budget of the tests a halo of one slice makes the seam
+    check fail for some labels (failed rows, exit status 1), the default halo of 3 gives the in-memory
+    rows; with the refinement, or without --all-labels, it is an error naming the option."""
+    import csv
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in [str(contourmesh.__path__[0].rsplit("/", 1)[0]),
+                                                                   os.environ.get("PYTHONPATH", "")] if p))
+
+    def cm(*args):
+        return subprocess.run([sys.executable, "-m", "contourmesh", "mesh", *args, "--quiet"], capture_output=True,
+                              text=True, env=env, timeout=300)
+
+    budget = ("--max-box-voxels", str(SLAB_BUDGET), "--jobs", "1", "--stats-only")
+    r = cm(str(store), "--all-labels", "-o", str(tmp_path / "h1"), *budget, "--halo", "1")
+    assert r.returncode == 1, r.stderr
+    rows = list(csv.DictReader(open(tmp_path / "h1" / "labels.csv")))
+    failed = [row for row in rows if row["status"] != "ok"]
+    assert failed and all(row["status"].startswith("failed: SeamMismatch") for row in failed)
+    r = cm(str(store), "--all-labels", "-o", str(tmp_path / "h3"), *budget, "--halo", "3")
+    assert r.returncode == 0, r.stderr
+    rows = list(csv.DictReader(open(tmp_path / "h3" / "labels.csv")))
+    assert len(rows) == len(memory) and all(row["status"] == "ok" for row in rows)
+    assert all(float(row["area"]) == memory[int(row["label"])][1]["area"] for row in rows)
+    r = cm(str(store), "--all-labels", "-o", str(tmp_path / "band"), "--refine", "band", "--halo", "2", "--jobs", "1")
+    assert r.returncode == 2 and "--halo does not apply with --refine 'band'" in r.stderr
+    r = cm(str(store), "-o", str(tmp_path / "one.ply"), "--label", "3", "--halo", "2")
+    assert r.returncode == 2 and "--halo applies with --all-labels only" in r.stderr
+    with pytest.raises(contourmesh.InapplicableOption, match="never cut into slabs"):
+        list(mesh_labels_chunked(volume, jobs=1, refine="band2", halo=3))

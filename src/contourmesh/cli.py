@@ -40,7 +40,8 @@ Areas are in the square of the file's (or --spacing's) unit.
 """
 
 #: Python keywords that the command line spells as flags.
-_FLAGS = ("roi", "label", "threshold", "pixel", "route", "spacing", "axis", "refine", "polygon", "triangulation", "caps", "h")
+_FLAGS = ("roi", "label", "threshold", "pixel", "route", "spacing", "axis", "refine", "polygon", "triangulation", "caps", "h",
+          "halo")
 _KEYWORD = re.compile(r"\b(" + "|".join(_FLAGS) + r")=(?=[\s,;.)'\"]|$)")
 
 
@@ -217,7 +218,7 @@ def _cmd_mesh(args) -> int:
         return _cmd_mesh_many(args)
     if args.stats_only:
         raise ValueError("--stats-only applies with --all-labels, --all-rois or several --roi")
-    for flag in ("jobs", "scheduler", "cache", "max_box_voxels"):
+    for flag in ("jobs", "scheduler", "cache", "max_box_voxels", "halo"):
         if getattr(args, flag, None) is not None:
             raise ValueError(f"--{flag.replace('_', '-')} applies with --all-labels only")
     out = Path(args.output)
@@ -333,6 +334,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="--all-labels, piece by piece: per-task budget, the largest box read by one task; a "
                         "larger label is meshed in slabs of slices joined at their seams (the in-memory mesh; "
                         "refused by name with --refine band) (default: 2**26)")
+    m.add_argument("--halo", type=int, default=None, metavar="N",
+                   help="--all-labels, piece by piece: slices each slab of a label above --max-box-voxels reads "
+                        "beyond each of its seams (default: 3; every seam is checked, a disagreement is a "
+                        "failed row); not with --refine band/band2, whose labels are never cut into slabs")
     m.add_argument("--format", default="ply", choices=["ply", "obj", "stl", "off"],
                    help="mesh file format with --all-labels/--all-rois")
     m.add_argument("--pixel", type=float, default=None,

@@ -381,7 +381,8 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
         one slice gap and the halo fit, it raises :class:`LabelTooLarge` before any meshing.
     halo : int, optional
         Slices a slab reads beyond each of its ends (default
-        :data:`contourmesh.seams.DEFAULT_HALO` = 3).
+        :data:`contourmesh.seams.DEFAULT_HALO` = 3; ``--halo`` on the command line).  With
+        ``refine`` it raises :class:`~contourmesh.errors.InapplicableOption` (no label is cut into slabs).
     batch : int, optional
         At most this many labels per task (default: about eight tasks per worker, at most 16
         labels each).
@@ -408,6 +409,17 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
         raise ValueError(f"max_box_voxels must be at least 27 (a one-voxel label's padded box); got {max_box_voxels}")
     if batch is not None and int(batch) < 1:
         raise ValueError(f"batch must be at least 1; got {batch}")
+    from .errors import InapplicableOption
+    from .seams import DEFAULT_HALO
+
+    if halo is not None and _refine_method_of(method) is not None:
+        raise InapplicableOption(f"halo= does not apply with refine= {_refine_method_of(method)!r}: its "
+                                 "labels are never cut into slabs (one above max_box_voxels is refused), so there "
+                                 "is no seam to read a halo across")
+    halo = DEFAULT_HALO if halo is None else halo
+    if int(halo) != halo or halo < 1:
+        raise ValueError(f"halo must be a positive number of slices; got {halo!r}")
+    halo = int(halo)
     stats = {} if stats is None else stats
     cache_dir = None
     if cache is not None:
@@ -429,12 +441,8 @@ def mesh_labels_chunked(source, *, labels=None, spacing=None, origin=None, polyg
             if missing:
                 raise ValueError(f"no voxel has label {missing[0]}" + (f" (nor {missing[1:]})" if len(missing) > 1 else ""))
             idx = sorted({index[v] for v in wanted})
-        from .seams import DEFAULT_HALO, slab_cuts
+        from .seams import slab_cuts
 
-        halo = DEFAULT_HALO if halo is None else halo
-        if int(halo) != halo or halo < 1:
-            raise ValueError(f"halo must be a positive number of slices; got {halo!r}")
-        halo = int(halo)
         big, small, slabbed = [], [], {}
         for i in idx:
             lo, hi = scan.padded(i)
@@ -681,12 +689,12 @@ def write_label_outputs(results, out, *, fmt: str = "ply", write_meshes: bool = 
 # ------------------------------------------------------------------------------------------------
 # the command line's --all-labels route for chunked inputs
 # ------------------------------------------------------------------------------------------------
-_CHUNK_FLAGS = ("jobs", "scheduler", "cache", "max_box_voxels")
+_CHUNK_FLAGS = ("jobs", "scheduler", "cache", "max_box_voxels", "halo")
 
 
 def cli_wants_chunked(args) -> bool:
     """Whether ``contourmesh mesh --all-labels`` takes the piece-by-piece route: a Zarr store or
-    HDF5 file, or any of ``--jobs --scheduler --cache --max-box-voxels``."""
+    HDF5 file, or any of ``--jobs --scheduler --cache --max-box-voxels --halo``."""
     from .io.chunked import _HDF5, _is_zarr_dir
 
     given = [f for f in _CHUNK_FLAGS if getattr(args, f, None) is not None]
@@ -712,7 +720,8 @@ def run_cli_chunked(args, out: Path) -> int:
     results = mesh_labels_chunked(
         vol, spacing=args.spacing, polygon=args.polygon, triangulation=args.triangulation, caps=args.caps,
         refine=args.refine, meshes=not args.stats_only, jobs=args.jobs, scheduler=args.scheduler, cache=cache,
-        max_box_voxels=args.max_box_voxels or DEFAULT_MAX_BOX_VOXELS, progress=not args.quiet, stats=stats)
+        max_box_voxels=args.max_box_voxels or DEFAULT_MAX_BOX_VOXELS, halo=args.halo, progress=not args.quiet,
+        stats=stats)
     rows, failed = write_label_outputs(results, out, fmt=args.format.lstrip("."), write_meshes=not args.stats_only,
                                        force=args.force)
     if not rows:
