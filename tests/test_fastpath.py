@@ -86,6 +86,45 @@ def test_runs_of_unaligned_rows_and_words():
         assert [(int(y), int(a), int(b)) for y, a, b in zip(ry, rx0, rx1)] == [(1, w // 3, w), (2, 0, 1)]
 
 
+def _runs_reference(img):
+    """Runs of the non-zero bytes of a 2D uint8 image, row by row, in numpy."""
+    out = []
+    for y, row in enumerate(img):
+        d = np.diff(np.r_[0, (row != 0).astype(np.int8), 0])
+        out += [(y, int(a), int(b)) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))]
+    return out
+
+
+def test_runs_of_words_with_boundaries_and_other_values():
+    # _scan_runs reads 0/1 words a cache line and a word at a time and takes a boundary word's
+    # transitions from its bits; bytes other than 0 and 1 go byte by byte and are counted.  Rows
+    # of every width and offset into the buffer, dense stretches, isolated pixels, other values.
+    from contourmesh.fastpath import _scan_runs_py, _words
+
+    rng = np.random.default_rng(5)
+    for trial in range(60):
+        h, w = int(rng.integers(1, 12)), int(rng.integers(1, 200))
+        kind = trial % 3
+        if kind == 0:  # long stretches: whole words and cache lines of 0 and of 1
+            img = (ndimage.uniform_filter1d(rng.random((h, w)), 25, axis=1) > 0.5).astype(np.uint8)
+        elif kind == 1:  # a boundary in nearly every word
+            img = (rng.random((h, w)) < 0.5).astype(np.uint8)
+        else:  # some bytes neither 0 nor 1
+            img = (rng.random((h, w)) < 0.6).astype(np.uint8)
+            img[rng.random((h, w)) < 0.03] = rng.integers(2, 256)
+        for lead in (0, 3, 8):  # the slice starts `lead` bytes into the (aligned) buffer
+            buf = np.zeros(lead + h * w + 16, np.uint8)
+            buf[lead: lead + h * w] = img.reshape(-1)
+            b64, aligned = _words(buf)
+            assert aligned
+            ry, rx0, rx1, rs, bad = _scan_runs_py(buf, b64, lead, h, w, aligned)
+            got = [(int(y), int(a), int(b)) for y, a, b in zip(ry, rx0, rx1)]
+            assert got == _runs_reference(img), (trial, lead)
+            assert bad == int(np.count_nonzero(img > 1))
+            assert rs[0] == 0 and rs[-1] == len(ry)
+            assert [int(np.count_nonzero(ry == y)) for y in range(h)] == np.diff(rs).tolist()
+
+
 def test_outer_contour_and_mlp_match_trace_contours():
     rng = np.random.default_rng(2)
     done = 0

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import threading
 
 import numpy as np
@@ -106,12 +107,18 @@ def _entry(fn):
 
 
 _mlp = _mlp_module._mlp_kernel
+_mlp_grid = _mlp_module._mlp_grid
 wiederhold_edges = _wiederhold._wiederhold_edges
 _edges_to_faces = _wiederhold._edges_to_faces_kernel
 arclength_edges = _arclength._arclength_edges
 
 _ONES = np.uint64(0x0101010101010101)
 _ZERO = np.uint64(0)
+_ONE = np.uint64(1)
+_HIGH = np.uint64(0xFEFEFEFEFEFEFEFE)  # the bits a 0/1 byte never sets
+_EIGHT = np.uint64(8)
+_FIFTYSIX = np.uint64(56)
+_BYTE_INDEX = np.uint64(0x0001020304050607)  # (1 << 8 j) * this >> 56 == j  (mod 2^64)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -149,17 +156,45 @@ def _scan_runs(b8, b64, base, h, w, aligned):
         while i < end:
             if aligned and (i & 7) == 0:
                 # skip whole words that continue the current stretch (all 0 or all 1 bytes)
+                # (eight words, one cache line, at a time first: the test compiles to vector code)
                 wi = i >> 3
                 we = end >> 3
                 if inside:
+                    while wi + 8 <= we and ((b64[wi] ^ _ONES) | (b64[wi + 1] ^ _ONES) | (b64[wi + 2] ^ _ONES)
+                                            | (b64[wi + 3] ^ _ONES) | (b64[wi + 4] ^ _ONES) | (b64[wi + 5] ^ _ONES)
+                                            | (b64[wi + 6] ^ _ONES) | (b64[wi + 7] ^ _ONES)) == _ZERO:
+                        wi += 8
                     while wi < we and b64[wi] == _ONES:
                         wi += 1
                 else:
+                    while wi + 8 <= we and (b64[wi] | b64[wi + 1] | b64[wi + 2] | b64[wi + 3] | b64[wi + 4]
+                                            | b64[wi + 5] | b64[wi + 6] | b64[wi + 7]) == _ZERO:
+                        wi += 8
                     while wi < we and b64[wi] == _ZERO:
                         wi += 1
                 i = wi << 3
                 if i >= end:
                     break
+                if wi < we:
+                    x = b64[wi]
+                    if (x & _HIGH) == _ZERO:
+                        # a word of 0/1 bytes that holds a boundary: its transitions at once, as
+                        # the set bytes of x ^ (x shifted one byte up, the stretch's value below)
+                        t = x ^ ((x << _EIGHT) | (_ONE if inside else _ZERO))
+                        while t != _ZERO:
+                            low = t & (~t + _ONE)
+                            j = np.int64((low * _BYTE_INDEX) >> _FIFTYSIX)  # index of low's byte
+                            if inside:
+                                ry[n] = y
+                                rx0[n] = x0
+                                rx1[n] = i + j - start
+                                n += 1
+                            else:
+                                x0 = i + j - start
+                            inside = not inside
+                            t ^= low
+                        i += 8
+                        continue
             v = b8[i]
             if v > 1:
                 bad += 1
@@ -211,7 +246,7 @@ def slice_runs(mask2d) -> tuple:
 
 def _words(b8):
     n8 = (b8.shape[0] // 8) * 8
-    if n8 == 0 or b8.ctypes.data % 8 != 0:
+    if n8 == 0 or b8.ctypes.data % 8 != 0 or sys.byteorder != "little":  # _scan_runs reads bytes in words
         return np.zeros(1, np.uint64), False
     return b8[:n8].view(np.uint64), True
 
@@ -436,14 +471,15 @@ def outer_jordan_contour(mask2d) -> np.ndarray:
 # 4. the MLP of each contour (Klette & Yip: the kernel of contourmesh.polygons.mlp), per slice
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
-def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
+def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id, on, bg):
     """Steps 1-4 for one slice.
 
     Returns ``(ry, rx0, rx1, row_start, lab, n, status, bbox, poly, poly_start, degenerate, bad)``:
     ``status`` is 0 in scope, 1 when a component has a hole, 2 when two MLP vertices of the
     slice share a position.  ``poly[poly_start[c]:poly_start[c + 1]]`` is component ``c``'s MLP
     (pixel-centre coordinates); ``degenerate[c]`` marks MLPs without area (crack contour instead).
-    ``stamp`` (``(h + 3, w + 3)`` int64, reused across slices) detects shared positions.
+    ``stamp`` (``(h + 3, w + 3)`` int64, reused across slices) detects shared positions; ``on``
+    and ``bg`` (``(h + 6) * (w + 6)`` uint8, zero, reused across slices) are the MLP's grids.
     """
     ry, rx0, rx1, row_start, bad = _scan_runs(b8, b64, base, h, w, aligned)
     lab, n, holes, bbox, first = _components(ry, rx0, rx1, row_start, h)
@@ -479,6 +515,7 @@ def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
     poly = np.empty((cap, 2), np.int64)
     total = 0
     outer = np.int64(1)  # the MLP of an outer contour (an int64, not a literal: see _kernel)
+    mthree = np.int64(-3)  # the MLP grids' origin: contour vertices lie in [-1, w] x [-1, h]
     for c in range(n):
         if n == 1:
             # the slice itself is the component's image
@@ -499,7 +536,7 @@ def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
                     img[row + x] = 1
         r = first[c]
         cc = _trace_outer(img, ibase, ih, iw, ox, oy, rx0[r] - 1, ry[r] - 1)
-        _, _, p = _mlp(cc, outer)
+        _, _, p = _mlp_grid(cc, outer, on, bg, mthree, mthree, w + 6)
         k = len(p)
         a2 = 0
         for i in range(k):
@@ -573,7 +610,9 @@ def slice_polygons(mask2d):
     b64, aligned = _words(b8)
     h, w = m.shape
     stamp = np.zeros((h + 3, w + 3), np.int64)
-    out = _slice_polygons(b8, b64, 0, h, w, aligned, stamp, 1)
+    grids = np.zeros(2 * (h + 6) * (w + 6), np.uint8)
+    out = _slice_polygons(b8, b64, 0, h, w, aligned, stamp, 1, grids[: (h + 6) * (w + 6)],
+                          grids[(h + 6) * (w + 6):])
     n, status, poly, ps, deg = out[5], out[6], out[8], out[9], out[10]
     if status == 1:
         raise ValueError("a component of the mask has a hole; slice_polygons handles hole-free components only")
@@ -860,13 +899,16 @@ _TLS = threading.local()
 
 
 def _stamp(h, w):
+    """This thread's scratch arrays for :func:`_slice_polygons`: ``(stamp, stamp_id, on, bg)``."""
     s = getattr(_TLS, "stamp", None)
     if s is None or s.shape != (h + 3, w + 3):
         s = np.zeros((h + 3, w + 3), np.int64)
         _TLS.stamp = s
         _TLS.next_id = 1
+        g = np.zeros(2 * (h + 6) * (w + 6), np.uint8)
+        _TLS.grids = g[: (h + 6) * (w + 6)], g[(h + 6) * (w + 6):]
     _TLS.next_id += 1
-    return s, _TLS.next_id
+    return s, _TLS.next_id, _TLS.grids[0], _TLS.grids[1]
 
 
 class _OutOfScope(Exception):
@@ -1021,8 +1063,8 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     # steps 1-4, per slice
     def per_slice(k):
         b8, b64, base, aligned = get(k)
-        stamp, sid = _stamp(h, w)
-        out = _slice_polygons(b8, b64, base, h, w, aligned, stamp, sid)
+        stamp, sid, on, bg = _stamp(h, w)
+        out = _slice_polygons(b8, b64, base, h, w, aligned, stamp, sid, on, bg)
         if out[11] != 0 or out[6] != 0:  # values other than 0/1, a hole, shared positions
             raise _OutOfScope
         return out
