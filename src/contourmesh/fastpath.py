@@ -78,8 +78,11 @@ __all__ = ["fast_volume_to_mesh", "slice_runs", "slice_components", "slice_label
 # ------------------------------------------------------------------------------------------------
 # compile time: the first call in a fresh process compiles everything below (issue 5)
 # ------------------------------------------------------------------------------------------------
-# Three entry points are called from Python and cached on disk: ``_slice_polygons`` (steps 1-4),
-# ``_pair_joins`` (5) and ``_pair_bands`` (6).  Everything they call is an internal ``@_kernel``:
+# The fast path calls three entry points from Python, cached on disk: ``_slab_polygons`` (steps
+# 1-4 over a slab of slices), ``_slab_pairs`` (5-6 over a slab of slice pairs) and ``_assemble``;
+# ``_slice_polygons`` (one slice: volumes that are not read from their own bytes, and the public
+# ``slice_polygons``) and ``_pair_bands`` (one band: caps, ``band_faces``) are entry points over
+# the same internal kernels.  Everything they call is an internal ``@_kernel``:
 # compiled only as their callee, without the Python and C call wrappers (whose code costs about
 # as much compile time as a small kernel's body) and without a cache file of its own (the entry
 # points' cache holds its code).  The Python-level helpers (``slice_runs``, ``slice_components``,
@@ -725,7 +728,7 @@ def slice_polygons(mask2d):
 # ------------------------------------------------------------------------------------------------
 # 5. joins between consecutive slices
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
+@_kernel
 def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
     """Partners of the components of slices k (A) and k + 1 (B).
 
@@ -804,6 +807,12 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
 def _pair_bands(ringA, startA, ringB, startB, pa, window):
+    """:func:`_pair_bands_k`, callable from Python (:func:`_one_band`)."""
+    return _pair_bands_k(ringA, startA, ringB, startB, pa, window)
+
+
+@_kernel
+def _pair_bands_k(ringA, startA, ringB, startB, pa, window):
     """Bands of every pair ``(a, pa[a])`` (in order of ``a``): concatenated local faces, the face
     offset of each band and a status per band.
 
@@ -970,12 +979,11 @@ def _slab_pairs(k0, k1, h, ry, rx0, rx1, lab, meta, rs, xyz, soff, rst, window, 
     the slices k0 .. k1 - 1 and ``pb_all`` (the partner below) for k0 + 1 .. k1; returns ``(ok,
     bands, faces)``: ``ok`` False when a pair is not a simple band join (the caller declines),
     ``bands (nb, 5)`` = ``(k, a, b, first face, status)`` in the order of k then a, and the bands'
-    faces (local indices as :func:`_pair_bands` gives them) concatenated.
+    faces (local indices as :func:`_pair_bands_k` gives them) concatenated.
     """
-    cap = 64
-    bands = np.empty((cap, 5), np.int64)
-    fcap = 256
-    faces = np.empty((fcap, 3), np.int64)
+    # at most one band per component of the lower slices, of n + m faces: room for all of them
+    bands = np.empty((meta[k1, 4] - meta[k0, 4], 5), np.int64)
+    faces = np.empty((2 * (soff[k1 + 1] - soff[k0]), 3), np.int64)
     nb = 0
     nf = 0
     for k in range(k0, k1):
@@ -1000,22 +1008,8 @@ def _slab_pairs(k0, k1, h, ry, rx0, rx1, lab, meta, rs, xyz, soff, rst, window, 
             pb_all[cb + b] = pb[b]
         if not any_pair:
             continue
-        f, foff, status = _pair_bands(xyz[soff[k]:soff[k + 1]], rst[ca + k: ca + na + k + 1],
+        f, foff, status = _pair_bands_k(xyz[soff[k]:soff[k + 1]], rst[ca + k: ca + na + k + 1],
                                       xyz[soff[k + 1]:soff[k + 2]], rst[cb + k + 1: cb + nbk + k + 2], pa, window)
-        if nb + na > cap:
-            cap = 2 * cap + na
-            q = np.empty((cap, 5), np.int64)
-            for i in range(nb):
-                for j in range(5):
-                    q[i, j] = bands[i, j]
-            bands = q
-        if nf + len(f) > fcap:
-            fcap = 2 * fcap + len(f)
-            q = np.empty((fcap, 3), np.int64)
-            for i in range(nf):
-                for j in range(3):
-                    q[i, j] = faces[i, j]
-            faces = q
         t = 0
         for a in range(na):
             if pa[a] < 0:
