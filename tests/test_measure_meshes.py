@@ -101,3 +101,26 @@ def test_adapters_open3d_pymeshlab():
     pytest.importorskip("pymeshlab", reason="pymeshlab not installed")
     ms = m.to_pymeshlab()
     assert ms.current_mesh().face_number() == len(m.faces)
+
+
+def test_triangle_areas_of_large_meshes_equal_numpys_bit_for_bit():
+    # from _COMPILED_AREAS_FROM faces on the cross products come from a compiled loop; the areas
+    # must be numpy's (gather, np.cross, einsum) exactly, and bad indices keep numpy's behaviour
+    from contourmesh import measure
+
+    def numpy_areas(v, f):
+        tri = v[f]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        return 0.5 * np.sqrt(np.einsum("ij,ij->i", cross, cross))
+
+    rng = np.random.default_rng(3)
+    n = measure._COMPILED_AREAS_FROM
+    for scale in (1e-3, 1.0, 1e4):
+        v = rng.normal(size=(500, 3)) * scale
+        f = rng.integers(0, 500, size=(n + 17, 3))
+        assert np.array_equal(measure.triangle_areas(v, f), numpy_areas(v, f))
+    f[5, 1] = -3  # numpy's negative index: counted from the end, as before
+    assert np.array_equal(measure.triangle_areas(v, f), numpy_areas(v, f))
+    f[7, 2] = 500
+    with pytest.raises(IndexError):
+        measure.triangle_areas(v, f)

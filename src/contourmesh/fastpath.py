@@ -38,8 +38,12 @@ same order) and the same faces, because every step is the full mesher's step don
    guard) are handed to the full mesher's Python code.
 7. *Caps* by earcut (:func:`~contourmesh.bands.caps.cap_faces`), as in the full mesher.
 
-Steps 1-4 run per slice and 5-6 per slice pair in ``nogil`` numba kernels, so ``threads > 1``
-spreads them over a thread pool.  The full mesher's manifold repair steps are provably no-ops on
+Steps 1-4 run over a slab of consecutive slices and 5-6 over a slab of slice pairs in one
+``nogil`` numba call each (:func:`_slab_polygons`, :func:`_slab_pairs`; their outputs packed into
+flat arrays, no Python per slice, pair or component), so ``threads > 1`` spreads the slabs over a
+thread pool; the vertex ids and faces of the bands are then assembled by one more kernel
+(:func:`_assemble`), and Python only redoes the bands the twist guard hands back, the rings of
+degenerate MLPs and the caps.  The full mesher's manifold repair steps are provably no-ops on
 this scope (every edge has two faces, every vertex one fan; positions are checked distinct per
 plane), so they are skipped.
 """
@@ -48,6 +52,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import threading
 
 import numpy as np
@@ -73,8 +78,11 @@ __all__ = ["fast_volume_to_mesh", "slice_runs", "slice_components", "slice_label
 # ------------------------------------------------------------------------------------------------
 # compile time: the first call in a fresh process compiles everything below (issue 5)
 # ------------------------------------------------------------------------------------------------
-# Three entry points are called from Python and cached on disk: ``_slice_polygons`` (steps 1-4),
-# ``_pair_joins`` (5) and ``_pair_bands`` (6).  Everything they call is an internal ``@_kernel``:
+# The fast path calls three entry points from Python, cached on disk: ``_slab_polygons`` (steps
+# 1-4 over a slab of slices), ``_slab_pairs`` (5-6 over a slab of slice pairs) and ``_assemble``;
+# ``_slice_polygons`` (one slice: volumes that are not read from their own bytes, and the public
+# ``slice_polygons``) and ``_pair_bands`` (one band: caps, ``band_faces``) are entry points over
+# the same internal kernels.  Everything they call is an internal ``@_kernel``:
 # compiled only as their callee, without the Python and C call wrappers (whose code costs about
 # as much compile time as a small kernel's body) and without a cache file of its own (the entry
 # points' cache holds its code).  The Python-level helpers (``slice_runs``, ``slice_components``,
@@ -106,12 +114,18 @@ def _entry(fn):
 
 
 _mlp = _mlp_module._mlp_kernel
+_mlp_grid = _mlp_module._mlp_grid
 wiederhold_edges = _wiederhold._wiederhold_edges
 _edges_to_faces = _wiederhold._edges_to_faces_kernel
 arclength_edges = _arclength._arclength_edges
 
 _ONES = np.uint64(0x0101010101010101)
 _ZERO = np.uint64(0)
+_ONE = np.uint64(1)
+_HIGH = np.uint64(0xFEFEFEFEFEFEFEFE)  # the bits a 0/1 byte never sets
+_EIGHT = np.uint64(8)
+_FIFTYSIX = np.uint64(56)
+_BYTE_INDEX = np.uint64(0x0001020304050607)  # (1 << 8 j) * this >> 56 == j  (mod 2^64)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -149,17 +163,45 @@ def _scan_runs(b8, b64, base, h, w, aligned):
         while i < end:
             if aligned and (i & 7) == 0:
                 # skip whole words that continue the current stretch (all 0 or all 1 bytes)
+                # (eight words, one cache line, at a time first: the test compiles to vector code)
                 wi = i >> 3
                 we = end >> 3
                 if inside:
+                    while wi + 8 <= we and ((b64[wi] ^ _ONES) | (b64[wi + 1] ^ _ONES) | (b64[wi + 2] ^ _ONES)
+                                            | (b64[wi + 3] ^ _ONES) | (b64[wi + 4] ^ _ONES) | (b64[wi + 5] ^ _ONES)
+                                            | (b64[wi + 6] ^ _ONES) | (b64[wi + 7] ^ _ONES)) == _ZERO:
+                        wi += 8
                     while wi < we and b64[wi] == _ONES:
                         wi += 1
                 else:
+                    while wi + 8 <= we and (b64[wi] | b64[wi + 1] | b64[wi + 2] | b64[wi + 3] | b64[wi + 4]
+                                            | b64[wi + 5] | b64[wi + 6] | b64[wi + 7]) == _ZERO:
+                        wi += 8
                     while wi < we and b64[wi] == _ZERO:
                         wi += 1
                 i = wi << 3
                 if i >= end:
                     break
+                if wi < we:
+                    x = b64[wi]
+                    if (x & _HIGH) == _ZERO:
+                        # a word of 0/1 bytes that holds a boundary: its transitions at once, as
+                        # the set bytes of x ^ (x shifted one byte up, the stretch's value below)
+                        t = x ^ ((x << _EIGHT) | (_ONE if inside else _ZERO))
+                        while t != _ZERO:
+                            low = t & (~t + _ONE)
+                            j = np.int64((low * _BYTE_INDEX) >> _FIFTYSIX)  # index of low's byte
+                            if inside:
+                                ry[n] = y
+                                rx0[n] = x0
+                                rx1[n] = i + j - start
+                                n += 1
+                            else:
+                                x0 = i + j - start
+                            inside = not inside
+                            t ^= low
+                        i += 8
+                        continue
             v = b8[i]
             if v > 1:
                 bad += 1
@@ -211,7 +253,7 @@ def slice_runs(mask2d) -> tuple:
 
 def _words(b8):
     n8 = (b8.shape[0] // 8) * 8
-    if n8 == 0 or b8.ctypes.data % 8 != 0:
+    if n8 == 0 or b8.ctypes.data % 8 != 0 or sys.byteorder != "little":  # _scan_runs reads bytes in words
         return np.zeros(1, np.uint64), False
     return b8[:n8].view(np.uint64), True
 
@@ -436,14 +478,114 @@ def outer_jordan_contour(mask2d) -> np.ndarray:
 # 4. the MLP of each contour (Klette & Yip: the kernel of contourmesh.polygons.mlp), per slice
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
-def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
+def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id, on, bg):
+    """Steps 1-4 for one slice (:func:`_slice_polygons_k`), callable from Python."""
+    return _slice_polygons_k(b8, b64, base, h, w, aligned, stamp, stamp_id, on, bg)
+
+
+@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
+def _slab_polygons(b8, b64, base, nk, h, w, aligned, stamp, stamp_id, on, bg, ox, oy, dx, dy, zs):
+    """Steps 1-4 for the ``nk`` slices starting at byte ``base`` (stamp ids ``stamp_id + k``) in
+    one call, their outputs packed (no Python, no call and no boxed arrays per slice).
+
+    Returns ``(meta, ry, rx0, rx1, lab, row_start, bbox, poly, poly_start, degenerate, xyz)``:
+    ``meta[k] = (n, status, bad, first run, first component, first polygon vertex)`` of slice k
+    (with a last row holding the totals), the per-slice arrays of :func:`_slice_polygons_k`
+    concatenated (``row_start`` as ``(nk, h + 1)``, ``poly_start`` with ``n + 1`` entries per
+    slice), and ``xyz`` the polygon vertices in physical coordinates ``(ox + x dx, oy + y dy,
+    zs[k])``: the rings of the slices without degenerate MLPs.
+    """
+    meta = np.empty((nk + 1, 6), np.int64)
+    row_start = np.empty((nk, h + 1), np.int64)
+    rcap = 64
+    ccap = 8
+    pcap = 64
+    ry = np.empty(rcap, np.int64)
+    rx0 = np.empty(rcap, np.int64)
+    rx1 = np.empty(rcap, np.int64)
+    lab = np.empty(rcap, np.int64)
+    bbox = np.empty(4 * ccap, np.int64)
+    deg = np.empty(ccap, np.int64)
+    pst = np.empty(ccap + nk, np.int64)
+    px = np.empty(pcap, np.int64)
+    py = np.empty(pcap, np.int64)
+    nr = 0
+    nc = 0
+    npv = 0
+    for k in range(nk):
+        out = _slice_polygons_k(b8, b64, base + k * h * w, h, w, aligned, stamp, stamp_id + k, on, bg)
+        sry, srx0, srx1, srs, slab_, n, status, sbbox, spoly, sps, sdeg, bad = out
+        meta[k, 0] = n
+        meta[k, 1] = status
+        meta[k, 2] = bad
+        meta[k, 3] = nr
+        meta[k, 4] = nc
+        meta[k, 5] = npv
+        for y in range(h + 1):
+            row_start[k, y] = srs[y]
+        m = len(sry)
+        if nr + m > rcap:
+            rcap = 2 * rcap + m
+            ry = _grow(ry, rcap)
+            rx0 = _grow(rx0, rcap)
+            rx1 = _grow(rx1, rcap)
+            lab = _grow(lab, rcap)
+        for r in range(m):
+            ry[nr + r] = sry[r]
+            rx0[nr + r] = srx0[r]
+            rx1[nr + r] = srx1[r]
+            lab[nr + r] = slab_[r]
+        nr += m
+        if nc + n > ccap:
+            ccap = 2 * ccap + n
+            bbox = _grow(bbox, 4 * ccap)
+            deg = _grow(deg, ccap)
+            pst = _grow(pst, ccap + nk)
+        for c in range(n):
+            for j in range(4):
+                bbox[4 * (nc + c) + j] = sbbox[c, j]
+            deg[nc + c] = sdeg[c]
+        for c in range(n + 1):
+            pst[nc + k + c] = sps[c]
+        nc += n
+        q = len(spoly)
+        if npv + q > pcap:
+            pcap = 2 * pcap + q
+            px = _grow(px, pcap)
+            py = _grow(py, pcap)
+        for i in range(q):
+            px[npv + i] = spoly[i, 0]
+            py[npv + i] = spoly[i, 1]
+        npv += q
+    meta[nk, 0] = 0
+    meta[nk, 1] = 0
+    meta[nk, 2] = 0
+    meta[nk, 3] = nr
+    meta[nk, 4] = nc
+    meta[nk, 5] = npv
+    poly = np.empty((npv, 2), np.int64)
+    xyz = np.empty((npv, 3), np.float64)
+    for k in range(nk):
+        for i in range(meta[k, 5], meta[k + 1, 5]):
+            poly[i, 0] = px[i]
+            poly[i, 1] = py[i]
+            xyz[i, 0] = ox + np.float64(px[i]) * dx
+            xyz[i, 1] = oy + np.float64(py[i]) * dy
+            xyz[i, 2] = zs[k]
+    return (meta, ry[:nr], rx0[:nr], rx1[:nr], lab[:nr], row_start, bbox[: 4 * nc], poly, pst[: nc + nk], deg[:nc],
+            xyz)
+
+
+@_kernel
+def _slice_polygons_k(b8, b64, base, h, w, aligned, stamp, stamp_id, on, bg):
     """Steps 1-4 for one slice.
 
     Returns ``(ry, rx0, rx1, row_start, lab, n, status, bbox, poly, poly_start, degenerate, bad)``:
     ``status`` is 0 in scope, 1 when a component has a hole, 2 when two MLP vertices of the
     slice share a position.  ``poly[poly_start[c]:poly_start[c + 1]]`` is component ``c``'s MLP
     (pixel-centre coordinates); ``degenerate[c]`` marks MLPs without area (crack contour instead).
-    ``stamp`` (``(h + 3, w + 3)`` int64, reused across slices) detects shared positions.
+    ``stamp`` (``(h + 3, w + 3)`` int64, reused across slices) detects shared positions; ``on``
+    and ``bg`` (``(h + 6) * (w + 6)`` uint8, zero, reused across slices) are the MLP's grids.
     """
     ry, rx0, rx1, row_start, bad = _scan_runs(b8, b64, base, h, w, aligned)
     lab, n, holes, bbox, first = _components(ry, rx0, rx1, row_start, h)
@@ -479,6 +621,7 @@ def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
     poly = np.empty((cap, 2), np.int64)
     total = 0
     outer = np.int64(1)  # the MLP of an outer contour (an int64, not a literal: see _kernel)
+    mthree = np.int64(-3)  # the MLP grids' origin: contour vertices lie in [-1, w] x [-1, h]
     for c in range(n):
         if n == 1:
             # the slice itself is the component's image
@@ -499,7 +642,7 @@ def _slice_polygons(b8, b64, base, h, w, aligned, stamp, stamp_id):
                     img[row + x] = 1
         r = first[c]
         cc = _trace_outer(img, ibase, ih, iw, ox, oy, rx0[r] - 1, ry[r] - 1)
-        _, _, p = _mlp(cc, outer)
+        _, _, p = _mlp_grid(cc, outer, on, bg, mthree, mthree, w + 6)
         k = len(p)
         a2 = 0
         for i in range(k):
@@ -573,7 +716,9 @@ def slice_polygons(mask2d):
     b64, aligned = _words(b8)
     h, w = m.shape
     stamp = np.zeros((h + 3, w + 3), np.int64)
-    out = _slice_polygons(b8, b64, 0, h, w, aligned, stamp, 1)
+    grids = np.zeros(2 * (h + 6) * (w + 6), np.uint8)
+    out = _slice_polygons(b8, b64, 0, h, w, aligned, stamp, 1, grids[: (h + 6) * (w + 6)],
+                          grids[(h + 6) * (w + 6):])
     n, status, poly, ps, deg = out[5], out[6], out[8], out[9], out[10]
     if status == 1:
         raise ValueError("a component of the mask has a hole; slice_polygons handles hole-free components only")
@@ -583,7 +728,7 @@ def slice_polygons(mask2d):
 # ------------------------------------------------------------------------------------------------
 # 5. joins between consecutive slices
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
+@_kernel
 def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
     """Partners of the components of slices k (A) and k + 1 (B).
 
@@ -662,6 +807,12 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
 def _pair_bands(ringA, startA, ringB, startB, pa, window):
+    """:func:`_pair_bands_k`, callable from Python (:func:`_one_band`)."""
+    return _pair_bands_k(ringA, startA, ringB, startB, pa, window)
+
+
+@_kernel
+def _pair_bands_k(ringA, startA, ringB, startB, pa, window):
     """Bands of every pair ``(a, pa[a])`` (in order of ``a``): concatenated local faces, the face
     offset of each band and a status per band.
 
@@ -817,6 +968,110 @@ def _pair_bands(ringA, startA, ringB, startB, pa, window):
     return faces, foff, status
 
 
+@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
+def _slab_pairs(k0, k1, h, ry, rx0, rx1, lab, meta, rs, xyz, soff, rst, window, pa_all, pb_all):
+    """Steps 5-6 for the slice pairs ``(k, k + 1)``, ``k0 <= k < k1``, in one call, on the packed
+    slices (``meta``, runs and ``row_start`` as :func:`_slab_polygons` packs them, for the whole
+    volume) and rings (``xyz[soff[k]:soff[k + 1]]`` holds slice k's rings, ring c starting at
+    ``rst[meta[k, 4] + k + c]`` within it).
+
+    Fills ``pa_all[meta[k, 4] + a]`` (the partner of component a of slice k above it, or -1) for
+    the slices k0 .. k1 - 1 and ``pb_all`` (the partner below) for k0 + 1 .. k1; returns ``(ok,
+    bands, faces)``: ``ok`` False when a pair is not a simple band join (the caller declines),
+    ``bands (nb, 5)`` = ``(k, a, b, first face, status)`` in the order of k then a, and the bands'
+    faces (local indices as :func:`_pair_bands_k` gives them) concatenated.
+    """
+    # at most one band per component of the lower slices, of n + m faces: room for all of them
+    bands = np.empty((meta[k1, 4] - meta[k0, 4], 5), np.int64)
+    faces = np.empty((2 * (soff[k1 + 1] - soff[k0]), 3), np.int64)
+    nb = 0
+    nf = 0
+    for k in range(k0, k1):
+        na = meta[k, 0]
+        nbk = meta[k + 1, 0]
+        if na == 0 or nbk == 0:
+            continue
+        a0, a1 = meta[k, 3], meta[k + 1, 3]
+        b1 = meta[k + 2, 3]
+        ok, pa, pb = _pair_joins(ry[a0:a1], rx0[a0:a1], rx1[a0:a1], rs[k], lab[a0:a1], na,
+                                 ry[a1:b1], rx0[a1:b1], rx1[a1:b1], rs[k + 1], lab[a1:b1], nbk, h)
+        if not ok:
+            return False, bands[:0], faces[:0]
+        ca = meta[k, 4]
+        cb = meta[k + 1, 4]
+        any_pair = False
+        for a in range(na):
+            pa_all[ca + a] = pa[a]
+            if pa[a] >= 0:
+                any_pair = True
+        for b in range(nbk):
+            pb_all[cb + b] = pb[b]
+        if not any_pair:
+            continue
+        f, foff, status = _pair_bands_k(xyz[soff[k]:soff[k + 1]], rst[ca + k: ca + na + k + 1],
+                                      xyz[soff[k + 1]:soff[k + 2]], rst[cb + k + 1: cb + nbk + k + 2], pa, window)
+        t = 0
+        for a in range(na):
+            if pa[a] < 0:
+                continue
+            bands[nb, 0] = k
+            bands[nb, 1] = a
+            bands[nb, 2] = pa[a]
+            bands[nb, 3] = nf + foff[t]
+            bands[nb, 4] = status[t]
+            nb += 1
+            t += 1
+        for i in range(len(f)):
+            faces[nf + i, 0] = f[i, 0]
+            faces[nf + i, 1] = f[i, 1]
+            faces[nf + i, 2] = f[i, 2]
+        nf += len(f)
+    return True, bands[:nb], faces[:nf]
+
+
+@njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
+def _assemble(bands, bfaces, nf_total, meta, comp_k, xyz, soff, rst, rid):
+    """The vertices and faces of the bands, in the full mesher's order: ring (k, c) gets its
+    vertex ids when a band first needs it (bands in order of k then a, the lower ring first),
+    ``rid[meta[k, 4] + c]`` (-1 on entry) records its first id.  Band i's faces are
+    ``bfaces[bands[i, 3]:bands[i + 1, 3]]`` (the last ones end at ``nf_total``), local to
+    ``vstack([lower ring, upper ring])``; they come back at the same rows of ``F`` in vertex ids.
+    ``comp_k[g]`` is the slice of component g."""
+    nb = len(bands)
+    nv = 0
+    for i in range(nb):
+        for side in range(2):
+            k = bands[i, 0] + side
+            c = bands[i, 1 + side]
+            g = meta[k, 4] + c
+            if rid[g] < 0:
+                rid[g] = nv
+                nv += rst[g + k + 1] - rst[g + k]
+    V = np.empty((nv, 3), np.float64)
+    for g in range(len(rid)):
+        if rid[g] >= 0:
+            k = comp_k[g]
+            s0 = soff[k] + rst[g + k]
+            for i in range(rst[g + k + 1] - rst[g + k]):
+                V[rid[g] + i, 0] = xyz[s0 + i, 0]
+                V[rid[g] + i, 1] = xyz[s0 + i, 1]
+                V[rid[g] + i, 2] = xyz[s0 + i, 2]
+    F = np.empty((nf_total, 3), np.int64)
+    for i in range(nb):
+        k = bands[i, 0]
+        ga = meta[k, 4] + bands[i, 1]
+        gb = meta[k + 1, 4] + bands[i, 2]
+        nlo = rst[ga + k + 1] - rst[ga + k]
+        lo0 = rid[ga]
+        hi0 = rid[gb]
+        f1 = bands[i + 1, 3] if i + 1 < nb else nf_total
+        for t in range(bands[i, 3], f1):
+            for j in range(3):
+                v = bfaces[t, j]
+                F[t, j] = v + lo0 if v < nlo else v - nlo + hi0
+    return V, F
+
+
 def _one_band(lo, hi, window=INITIAL_EDGE_WINDOW):
     """The guarded band of one pair of rings: ``(faces, status)`` of :func:`_pair_bands`."""
     lo = np.ascontiguousarray(lo, dtype=np.float64)
@@ -859,14 +1114,19 @@ def _band_py(lo, hi, triangulation="wiederhold"):
 _TLS = threading.local()
 
 
-def _stamp(h, w):
+def _stamp(h, w, ids=1):
+    """This thread's scratch arrays for :func:`_slice_polygons`: ``(stamp, stamp_id, on, bg)``,
+    the stamp ids ``stamp_id .. stamp_id + ids - 1`` unused so far."""
     s = getattr(_TLS, "stamp", None)
     if s is None or s.shape != (h + 3, w + 3):
         s = np.zeros((h + 3, w + 3), np.int64)
         _TLS.stamp = s
         _TLS.next_id = 1
-    _TLS.next_id += 1
-    return s, _TLS.next_id
+        g = np.zeros(2 * (h + 6) * (w + 6), np.uint8)
+        _TLS.grids = g[: (h + 6) * (w + 6)], g[(h + 6) * (w + 6):]
+    sid = _TLS.next_id + 1
+    _TLS.next_id += ids
+    return s, sid, _TLS.grids[0], _TLS.grids[1]
 
 
 class _OutOfScope(Exception):
@@ -932,7 +1192,9 @@ def fast_volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 
 
 
 def _slicer(vol, axis, label, threshold):
-    """``(nz, h, w, get)``: ``get(k)`` -> ``(b8, b64, base, aligned, check)`` for slice k."""
+    """``(nz, h, w, get, direct)``: ``get(k)`` -> ``(b8, b64, base, aligned)`` for slice k;
+    ``direct`` is ``(b8, b64, aligned)`` when the volume's own bytes are the slices (a C-contiguous
+    bool or one-byte volume without label or threshold), else None."""
     kind = vol.dtype.kind
     if axis != 0:
         order = [axis] + [a for a in (0, 1, 2) if a != axis]
@@ -947,7 +1209,7 @@ def _slicer(vol, axis, label, threshold):
         def get(k):
             return b8, b64, k * h * w, aligned
 
-        return nz, h, w, get
+        return nz, h, w, get, (b8, b64, aligned)
 
     def get(k):
         s = vol[k]
@@ -968,7 +1230,7 @@ def _slicer(vol, axis, label, threshold):
         b64, aligned = _words(b)
         return b, b64, 0, aligned
 
-    return nz, h, w, get
+    return nz, h, w, get, None
 
 
 #: Slabs per thread in :func:`_map`: a few, so that a thread whose slabs hold the object's thick
@@ -996,6 +1258,64 @@ def _map(fn, items, threads):
         ex.shutdown(wait=True, cancel_futures=True)
 
 
+def _pack_slices(outs, h, ox, oy, dx, dy, zs):
+    """The outputs of :func:`_slice_polygons`, one per slice, packed as :func:`_slab_polygons`
+    packs them (for the volumes that are not read from their own bytes)."""
+    nk = len(outs)
+    meta = np.zeros((nk + 1, 6), np.int64)
+    meta[:-1, 0] = [o[5] for o in outs]
+    meta[:-1, 1] = [o[6] for o in outs]
+    meta[:-1, 2] = [o[11] for o in outs]
+    meta[1:, 3] = np.cumsum([len(o[0]) for o in outs])
+    meta[1:, 4] = np.cumsum(meta[:-1, 0])
+    npoly = [len(o[8]) for o in outs]
+    meta[1:, 5] = np.cumsum(npoly)
+    cat = [np.concatenate([o[i] for o in outs]).astype(np.int64) for i in (0, 1, 2, 4)]
+    rs = np.stack([o[3] for o in outs]).astype(np.int64) if nk else np.zeros((0, h + 1), np.int64)
+    bbox = np.concatenate([o[7] for o in outs]).astype(np.int64).reshape(-1)
+    poly = np.concatenate([o[8] for o in outs]).astype(np.int64).reshape(-1, 2)
+    pst = np.concatenate([o[9] for o in outs]).astype(np.int64)
+    deg = np.concatenate([o[10] for o in outs]).astype(np.int64)
+    xyz = np.empty((len(poly), 3))
+    xyz[:, 0] = ox + poly[:, 0].astype(np.float64) * dx
+    xyz[:, 1] = oy + poly[:, 1].astype(np.float64) * dy
+    xyz[:, 2] = np.repeat(zs, npoly)
+    return (meta, cat[0], cat[1], cat[2], cat[3], rs, bbox, poly, pst, deg, xyz)
+
+
+def _join_packs(packs):
+    """Packs of consecutive slabs (:func:`_slab_polygons`) as one pack of the whole volume."""
+    if len(packs) == 1:
+        meta, ry, rx0, rx1, lab, rs, bbox, poly, pst, deg, xyz = packs[0]
+        return meta, ry, rx0, rx1, lab, rs, bbox.reshape(-1, 4), poly, pst, deg, xyz
+    metas, base = [], np.zeros(6, np.int64)
+    for p in packs:
+        m = p[0].copy()
+        m[:, 3:] += base[3:]
+        metas.append(m[:-1])
+        base = m[-1]
+    meta = np.concatenate(metas + [base[None]])
+    cat = [np.concatenate([p[i] for p in packs]) for i in range(1, 11)]
+    cat[5] = cat[5].reshape(-1, 4)
+    return (meta, *cat)
+
+
+def _map_slabs(fn, n, threads):
+    """``fn(k0, k1)`` (a list of ``k1 - k0`` results) over slabs covering ``0 .. n - 1``, joined:
+    one slab on one thread, a few per thread (:data:`SLABS_PER_THREAD`) on a thread pool."""
+    if threads <= 1 or n < 4:
+        return fn(0, n)
+    from concurrent.futures import ThreadPoolExecutor
+
+    bounds = np.linspace(0, n, min(n, threads * SLABS_PER_THREAD) + 1).astype(int).tolist()
+    slabs = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    ex = ThreadPoolExecutor(max_workers=threads)
+    try:
+        return [r for part in ex.map(lambda ab: fn(*ab), slabs) for r in part]
+    finally:
+        ex.shutdown(wait=True, cancel_futures=True)
+
+
 def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
 
     if threads is None:
@@ -1010,126 +1330,145 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
         sp = sp[order]
     dy, dx = float(sp[1]), float(sp[2])
     ox, oy = float(org[0]), float(org[1])
-    nz, h, w, get = _slicer(volume, axis, label, threshold)
+    nz, h, w, get, direct = _slicer(volume, axis, label, threshold)
     if z is None:
         zs = org[2] + sp[0] * np.arange(nz, dtype=np.float64)
     else:
-        zs = np.asarray(z, dtype=np.float64).reshape(-1)
+        zs = np.ascontiguousarray(z, dtype=np.float64).reshape(-1)
         if zs.shape != (nz,) or not np.all(np.isfinite(zs)) or (nz > 1 and not np.all(np.diff(zs) > 0)):
             raise _OutOfScope
 
-    # steps 1-4, per slice
+    # steps 1-4: the slices of each slab packed by one kernel call, then joined into arrays over
+    # the whole volume (no Python per slice)
+    def per_slab(k0, k1):
+        b8, b64, aligned = direct
+        stamp, sid, on, bg = _stamp(h, w, k1 - k0)
+        pack = _slab_polygons(b8, b64, k0 * h * w, k1 - k0, h, w, aligned, stamp, sid, on, bg, ox, oy, dx, dy,
+                              zs[k0:k1])
+        if pack[0][:-1, 1:3].any():  # values other than 0/1, a hole, shared positions
+            raise _OutOfScope
+        return [pack]
+
     def per_slice(k):
         b8, b64, base, aligned = get(k)
-        stamp, sid = _stamp(h, w)
-        out = _slice_polygons(b8, b64, base, h, w, aligned, stamp, sid)
+        stamp, sid, on, bg = _stamp(h, w)
+        out = _slice_polygons(b8, b64, base, h, w, aligned, stamp, sid, on, bg)
         if out[11] != 0 or out[6] != 0:  # values other than 0/1, a hole, shared positions
             raise _OutOfScope
         return out
 
-    S = _map(per_slice, list(range(nz)), threads)
-    occupied = [k for k in range(nz) if S[k][5] > 0]
-    if not occupied:
+    if direct is not None:
+        packs = _map_slabs(per_slab, nz, threads)
+    else:
+        packs = [_pack_slices(_map(per_slice, list(range(nz)), threads), h, ox, oy, dx, dy, zs)]
+    meta, RY, RX0, RX1, LAB, RS, BBOX, POLY, PST, DEG, XYZ = _join_packs(packs)
+    ncomp = meta[:-1, 0]
+    if not ncomp.any():
         raise _OutOfScope  # no foreground: the full mesher raises the error
-
+    comp_off = meta[:, 4]
+    comp_k = np.repeat(np.arange(nz), ncomp)
 
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
 
-    # rings (physical xyz) of every slice, concatenated per slice; degenerate MLPs -> crack contours
-    fallbacks = 0
-    ring_xyz = [None] * nz
-    ring_start = [None] * nz
-    for k in occupied:
-        ry, rx0, rx1, rs, lab, n, _, bbox, poly, ps, deg, _ = S[k]
-        if not deg.any():
-            xyz = np.empty((len(poly), 3))
-            xyz[:, 0] = ox + poly[:, 0].astype(np.float64) * dx
-            xyz[:, 1] = oy + poly[:, 1].astype(np.float64) * dy
-            xyz[:, 2] = zs[k]
-            ring_xyz[k] = xyz
-            ring_start[k] = ps
-            continue
+    # rings (physical xyz) of every slice, concatenated: slice k's at RXYZ[soff[k]:soff[k + 1]],
+    # component c's from RST[comp_off[k] + k + c] on within it; degenerate MLPs -> crack contours
+    degenerate = np.flatnonzero(DEG)
+    fallbacks = len(degenerate)
+    if fallbacks == 0:
+        RXYZ, RST, soff = XYZ, PST, meta[:, 5].copy()
+    else:
+        remade = set(comp_k[degenerate].tolist())
+        parts, starts_all, soff = [], [], [0]
+        for k in range(nz):
+            c0, c1 = int(comp_off[k]), int(comp_off[k + 1])
+            if k not in remade:
+                parts.append(XYZ[meta[k, 5]: meta[k + 1, 5]])
+                starts_all.append(PST[c0 + k: c1 + k + 1])
+                soff.append(soff[-1] + len(parts[-1]))
+                continue
+            r0, r1 = meta[k, 3], meta[k + 1, 3]
+            ry, rx0, rx1, lab = RY[r0:r1], RX0[r0:r1], RX1[r0:r1], LAB[r0:r1]
+            poly, ps = POLY[meta[k, 5]: meta[k + 1, 5]], PST[c0 + k: c1 + k + 1]
+            xys, starts = [], [0]
+            for c in range(c1 - c0):
+                if DEG[c0 + c]:
+                    x0, y0, x1, y1 = (int(v) for v in BBOX[c0 + c])
+                    comp = np.zeros((y1 - y0 + 1, x1 - x0 + 1), dtype=bool)
+                    sel = np.flatnonzero(lab == c)
+                    for r in sel:
+                        comp[ry[r] - y0, rx0[r] - x0: rx1[r] - x0] = True
+                    cont, area2 = _crack_contours(comp)
+                    outer = [cont[i] for i in range(len(cont)) if area2[i] > 0]
+                    xy = to_corner(thin_part_polygon(outer[0]) + np.array([x0, y0]))
+                else:
+                    xy = to_center(poly[ps[c]: ps[c + 1]])
+                xys.append(xy)
+                starts.append(starts[-1] + len(xy))
+            xy = np.concatenate(xys)
+            if len(np.unique(xy, axis=0)) != len(xy):
+                raise _OutOfScope  # coincident vertices: the full mesher nudges them apart
+            parts.append(np.c_[xy, np.full(len(xy), zs[k])])
+            starts_all.append(np.asarray(starts, dtype=np.int64))
+            soff.append(soff[-1] + len(xy))
+        RXYZ = np.ascontiguousarray(np.concatenate(parts), dtype=np.float64)
+        RST = np.concatenate(starts_all).astype(np.int64)
+        soff = np.asarray(soff, dtype=np.int64)
 
-        parts, starts = [], [0]
-        for c in range(n):
-            if deg[c]:
-                fallbacks += 1
-                x0, y0, x1, y1 = (int(v) for v in bbox[c])
-                comp = np.zeros((y1 - y0 + 1, x1 - x0 + 1), dtype=bool)
-                sel = np.flatnonzero(lab == c)
-                for r in sel:
-                    comp[ry[r] - y0, rx0[r] - x0: rx1[r] - x0] = True
-                cont, area2 = _crack_contours(comp)
-                outer = [cont[i] for i in range(len(cont)) if area2[i] > 0]
-                xy = to_corner(thin_part_polygon(outer[0]) + np.array([x0, y0]))
-            else:
-                xy = to_center(poly[ps[c]: ps[c + 1]])
-            parts.append(xy)
-            starts.append(starts[-1] + len(xy))
-        xy = np.concatenate(parts)
-        if len(np.unique(xy, axis=0)) != len(xy):
-            raise _OutOfScope  # coincident vertices: the full mesher nudges them apart
-        ring_xyz[k] = np.c_[xy, np.full(len(xy), zs[k])]
-        ring_start[k] = np.asarray(starts, dtype=np.int64)
+    def ring_xyz(k, c):
+        g = comp_off[k] + c
+        return RXYZ[soff[k] + RST[g + k]: soff[k] + RST[g + k + 1]]
 
-    # step 5-6, per slice pair
-    def per_pair(k):
-        if S[k][5] == 0 or S[k + 1][5] == 0:
-            return None
-        A, B = S[k], S[k + 1]
-        ok, pa, pb = _pair_joins(A[0], A[1], A[2], A[3], A[4], A[5], B[0], B[1], B[2], B[3], B[4], B[5], h)
+    # steps 5-6: the slice pairs of each slab by one kernel call
+    PA = np.full(len(DEG), -1, np.int64)  # partner above / below of every component, or -1
+    PB = np.full(len(DEG), -1, np.int64)
+
+    def pair_slab(k0, k1):
+        ok, bands, bfaces = _slab_pairs(k0, k1, h, RY, RX0, RX1, LAB, meta, RS, RXYZ, soff, RST, INITIAL_EDGE_WINDOW,
+                                        PA, PB)
         if not ok:
             raise _OutOfScope
-        if not (pa >= 0).any():
-            return None
-        faces, foff, status = _pair_bands(ring_xyz[k], ring_start[k], ring_xyz[k + 1], ring_start[k + 1], pa,
-                                          INITIAL_EDGE_WINDOW)
-        return pa, pb, faces, foff, status
+        return [(bands, bfaces)]
 
-    J = _map(per_pair, list(range(nz - 1)), threads)
+    parts = _map_slabs(pair_slab, nz - 1, threads)
+    shift = np.cumsum([0] + [len(f) for _, f in parts])
+    for (bands, _), sh in zip(parts, shift):
+        bands[:, 3] += sh
+    BANDS = np.concatenate([b for b, _ in parts]) if parts else np.zeros((0, 5), np.int64)
+    BF = np.concatenate([f for _, f in parts]) if parts else np.zeros((0, 3), np.int64)
 
     # vertex ids in the full mesher's order: rings are created when a join (k ascending, groups by
     # their component below) or a cap first needs them
-    ring_id = {}
-    blocks = []
-    nverts = 0
+    rid = np.full(len(DEG), -1, np.int64)
+    V, F = _assemble(BANDS, BF, len(BF), meta, comp_k, RXYZ, soff, RST, rid)
+    band_joins = len(BANDS)
+    band_fallbacks = 0
+    face_blocks = [F]
+    redo = np.flatnonzero(BANDS[:, 4])
+    if len(redo):
+        # folded, twisted or too close to call: the full mesher's band replaces the paper's
+        ends = np.r_[BANDS[:, 3], len(BF)]
+        face_blocks, done = [], 0
+        for i in redo.tolist():
+            k, a, b = (int(v) for v in BANDS[i, :3])
+            lo, hi = ring_xyz(k, a), ring_xyz(k + 1, b)
+            f, replaced = _band_py(lo, hi)
+            band_fallbacks += bool(replaced)
+            lo0, hi0 = int(rid[comp_off[k] + a]), int(rid[comp_off[k + 1] + b])
+            face_blocks += [F[done: ends[i]], np.where(f < len(lo), f + lo0, f - len(lo) + hi0)]
+            done = ends[i + 1]
+        face_blocks.append(F[done:])
+    blocks = [V]
+    nverts = len(V)
 
     def ring(k, c):
         nonlocal nverts
-        key = (k, c)
-        if key not in ring_id:
-            s = ring_start[k]
-            blk = ring_xyz[k][s[c]: s[c + 1]]
-            ring_id[key] = (nverts, len(blk))
+        g = comp_off[k] + c
+        if rid[g] < 0:
+            blk = ring_xyz(k, c)
+            rid[g] = nverts
             blocks.append(blk)
             nverts += len(blk)
-        return ring_id[key]
-
-    has_above, has_below = set(), set()
-    face_blocks = []
-    band_joins = 0
-    band_fallbacks = 0
-    for k in range(nz - 1):
-        if J[k] is None:
-            continue
-        pa, pb, faces, foff, status = J[k]
-        t = 0
-        for a in np.flatnonzero(pa >= 0):
-            b = int(pa[a])
-            a = int(a)
-            has_above.add((k, a))
-            has_below.add((k + 1, b))
-            lo0, nlo = ring(k, a)
-            hi0, nhi = ring(k + 1, b)
-            f = faces[foff[t]: foff[t + 1]]
-            if status[t]:
-                lo = ring_xyz[k][ring_start[k][a]: ring_start[k][a + 1]]
-                hi = ring_xyz[k + 1][ring_start[k + 1][b]: ring_start[k + 1][b + 1]]
-                f, replaced = _band_py(lo, hi)
-                band_fallbacks += bool(replaced)
-            face_blocks.append(np.where(f < nlo, f + lo0, f - nlo + hi0))
-            band_joins += 1
-            t += 1
+        return int(rid[g]), int(RST[g + k + 1] - RST[g + k])
 
     # ends: caps (and prisms for components without a partner on either side)
 
@@ -1150,8 +1489,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
 
     def close(k, c, up, zc):
         r0, nr = ring(k, c)
-        s = ring_start[k]
-        xyz = ring_xyz[k][s[c]: s[c + 1]]
+        xyz = ring_xyz(k, c)
         if zc is not None:
             t0, txyz = new_ring(xyz[:, :2], zc)
             if up:
@@ -1169,26 +1507,24 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             raise _OutOfScope from None  # the full mesher closes it with pixels
         face_blocks.append(f + r0)
 
-    for k in occupied:
-        n = S[k][5]
-        for c in range(n):
-            above, below = (k, c) in has_above, (k, c) in has_below
-            if above and below:
-                continue
-            if not above and not below:
-                close(k, c, False, zs[k] - gap(k, False) / 2)
-                close(k, c, True, zs[k] + gap(k, True) / 2)
-                continue
-            up = not above
-            zc = zs[k] + (gap(k, up) / 2 if up else -gap(k, up) / 2) if caps == "half" else None
-            close(k, c, up, zc)
+    for g in np.flatnonzero((PA < 0) | (PB < 0)).tolist():  # (k, c) in order
+        k = int(comp_k[g])
+        c = g - int(comp_off[k])
+        above, below = PA[g] >= 0, PB[g] >= 0
+        if not above and not below:
+            close(k, c, False, zs[k] - gap(k, False) / 2)
+            close(k, c, True, zs[k] + gap(k, True) / 2)
+            continue
+        up = not above
+        zc = zs[k] + (gap(k, up) / 2 if up else -gap(k, up) / 2) if caps == "half" else None
+        close(k, c, up, zc)
     for xys in shifted_planes.values():
         if len(xys) > 1:
             xy = np.concatenate(xys)
             if len(np.unique(xy, axis=0)) != len(xy):
                 raise _OutOfScope
-    V = np.concatenate(blocks) if blocks else np.zeros((0, 3))
-    F = np.concatenate(face_blocks) if face_blocks else np.zeros((0, 3), np.int64)
+    V = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
+    F = np.concatenate(face_blocks) if len(face_blocks) > 1 else face_blocks[0]
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": "mlp", "triangulation": "wiederhold",
         "caps": caps, "band_joins": band_joins, "bridged_joins": 0, "bridges": 0, "intermediate_sections": 0,

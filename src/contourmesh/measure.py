@@ -25,12 +25,46 @@ __all__ = [
 ]
 
 
+@njit(cache=True, nogil=True)
+def _face_cross(v, f):
+    """``np.cross(b - a, c - a)`` of every face ``(a, b, c)`` without gathering the corners first
+    (the same products and differences, so the same values); ``ok`` is False when a face indexes
+    outside ``v`` (the caller then takes numpy's route and its error)."""
+    m = f.shape[0]
+    n = v.shape[0]
+    out = np.empty((m, 3), np.float64)
+    for t in range(m):
+        a, b, c = f[t, 0], f[t, 1], f[t, 2]
+        if a < 0 or a >= n or b < 0 or b >= n or c < 0 or c >= n:
+            return out, False
+        ax, ay, az = v[a, 0], v[a, 1], v[a, 2]
+        ux, uy, uz = v[b, 0] - ax, v[b, 1] - ay, v[b, 2] - az
+        wx, wy, wz = v[c, 0] - ax, v[c, 1] - ay, v[c, 2] - az
+        out[t, 0] = uy * wz - uz * wy
+        out[t, 1] = uz * wx - ux * wz
+        out[t, 2] = ux * wy - uy * wx
+    return out, True
+
+
+#: From this many faces on, :func:`triangle_areas` takes the cross products from a compiled loop.
+_COMPILED_AREAS_FROM = 2048
+
+
 def triangle_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Area of every triangle, ``|(b - a) x (c - a)| / 2``."""
     if len(faces) == 0:
         return np.zeros(0)
-    tri = vertices[faces]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    cross = None
+    if (len(faces) >= _COMPILED_AREAS_FROM and isinstance(vertices, np.ndarray) and vertices.dtype == np.float64
+            and vertices.ndim == 2 and vertices.shape[1] == 3 and isinstance(faces, np.ndarray)
+            and faces.dtype == np.int64 and faces.ndim == 2 and faces.shape[1] == 3):
+        # the large meshes (the volume mesher's) skip the (m, 3, 3) gather and numpy's cross
+        cross, ok = _face_cross(vertices, faces)
+        if not ok:
+            cross = None
+    if cross is None:
+        tri = vertices[faces]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     return 0.5 * np.sqrt(np.einsum("ij,ij->i", cross, cross))
 
 

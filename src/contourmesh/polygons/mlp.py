@@ -53,6 +53,31 @@ def _mlp(pts, colour):
 
 @internal_kernel
 def _mlp_kernel(pts, colour):
+    """:func:`_mlp_grid` on grids of the contour's bounding box (plus a margin of two)."""
+    n = len(pts)
+    xmin, ymin = pts[0, 0], pts[0, 1]
+    xmax, ymax = xmin, ymin
+    for k in range(n):
+        x, y = pts[k, 0], pts[k, 1]
+        if x < xmin:
+            xmin = x
+        if x > xmax:
+            xmax = x
+        if y < ymin:
+            ymin = y
+        if y > ymax:
+            ymax = y
+    w, h = xmax - xmin + 5, ymax - ymin + 5
+    on = np.empty(h * w, np.uint8)
+    bg = np.empty(h * w, np.uint8)
+    for q in range(h * w):
+        on[q] = 0
+        bg[q] = 0
+    return _mlp_grid(pts, colour, on, bg, xmin - 2, ymin - 2, w)
+
+
+@internal_kernel
+def _mlp_grid(pts, colour, on, bg, ox, oy, w):
     """Steps 1 and 2 above for a closed 4-contour with ``U`` on its left, in one kernel.
 
     Returns ``(cand, kind, poly)``.  ``cand (m, 2)`` and ``kind (m,)`` are the candidates of step 1
@@ -70,31 +95,19 @@ def _mlp_kernel(pts, colour):
     W or B is the whole MLP.  ``poly`` is empty when ``colour`` is 0 (candidates only) or when
     there is no candidate of kind ``colour``.
 
-    (One kernel with explicit loops, flat ``uint8`` grids and no helper kernels: the fast path
-    compiles it at its first call, and each separately compiled kernel costs compile time.)
+    ``on`` and ``bg`` are flat ``uint8`` grids of width ``w`` whose cell ``(y - oy) * w + (x - ox)``
+    stands for the grid point ``(x, y)``; they must cover the contour's bounding box with a margin
+    of two, be zero on entry, and are zero again on return (only the cells the contour touches
+    are written), so that a caller meshing many slices reuses one pair of slice-sized grids
+    instead of allocating and clearing a pair per contour.
+
+    (One kernel with explicit loops and no helper kernels: the fast path compiles it at its first
+    call, and each separately compiled kernel costs compile time.)
     """
     # ---- step 1: the candidates
     n = len(pts)
-    xmin, ymin = pts[0, 0], pts[0, 1]
-    xmax, ymax = xmin, ymin
-    for k in range(n):
-        x, y = pts[k, 0], pts[k, 1]
-        if x < xmin:
-            xmin = x
-        if x > xmax:
-            xmax = x
-        if y < ymin:
-            ymin = y
-        if y > ymax:
-            ymax = y
-    ox, oy = xmin - 2, ymin - 2
-    w, h = xmax - xmin + 5, ymax - ymin + 5
-    # flat grids indexed (y - oy) * w + (x - ox)
-    on = np.empty(h * w, np.uint8)  # grid points of the contour
-    bg = np.empty(h * w, np.uint8)  # cells (by lower-left corner) right of a contour step
-    for q in range(h * w):
-        on[q] = 0
-        bg[q] = 0
+    # flat grids indexed (y - oy) * w + (x - ox), all zero on entry and again on return:
+    # on = grid points of the contour, bg = cells (by lower-left corner) right of a contour step
     for k in range(n):
         x, y = pts[k, 0], pts[k, 1]
         kn = k + 1 if k + 1 < n else 0
@@ -144,6 +157,15 @@ def _mlp_kernel(pts, colour):
             kind[m] = 1
             m += 1
             lastw_x, lastw_y, has_w = qx, qy, True
+    # the grids are not needed any more: back to zero, touching only what step 1 set
+    for k in range(n):
+        x, y = pts[k, 0], pts[k, 1]
+        q = (y - oy) * w + x - ox
+        on[q] = 0
+        bg[q] = 0
+        bg[q - 1] = 0
+        bg[q - w] = 0
+        bg[q - w - 1] = 0
     # the last W may repeat the first W (cyclically consecutive): drop the later copy, the first
     # one, as above - the B/C candidates between the two copies (a convex corner is listed after
     # its diagonal W) must stay after the kept one, or a C is tested before its W is reached
@@ -197,16 +219,23 @@ def _mlp_kernel(pts, colour):
         wc = s
         bc = s
         k = s + 1
+        # (positions lie in [s, s + m] with s < m: position p is candidate p or p - m, taken
+        # with a comparison rather than an integer division)
         while k <= s + m:
-            lx, ly = cand[vl % m, 0], cand[vl % m, 1]
-            vx, vy = cand[k % m, 0] - lx, cand[k % m, 1] - ly
-            wx, wy = cand[wc % m, 0] - lx, cand[wc % m, 1] - ly
-            bx, by = cand[bc % m, 0] - lx, cand[bc % m, 1] - ly
+            il = vl if vl < m else vl - m
+            ik = k if k < m else k - m
+            iw = wc if wc < m else wc - m
+            ib = bc if bc < m else bc - m
+            lx, ly = cand[il, 0], cand[il, 1]
+            vx, vy = cand[ik, 0] - lx, cand[ik, 1] - ly
+            wx, wy = cand[iw, 0] - lx, cand[iw, 1] - ly
+            bx, by = cand[ib, 0] - lx, cand[ib, 1] - ly
             new_vertex = -1
             w_set = wx != 0 or wy != 0
             b_set = bx != 0 or by != 0
-            is_w = kind[k % m] > 0
-            if kind[k % m] == 0:
+            kk = kind[ik]
+            is_w = kk > 0
+            if kk == 0:
                 # a convex corner of the contour (the outer wall) must stay on the right of the path:
                 # if it lies left of WC the path cannot go on straight and turns left at WC
                 if w_set and wx * vy - wy * vx > 0:
@@ -252,7 +281,7 @@ def _mlp_kernel(pts, colour):
                 else:
                     bc = k
             if new_vertex >= 0:
-                out[nv] = new_vertex % m
+                out[nv] = new_vertex if new_vertex < m else new_vertex - m
                 nv += 1
                 vl = new_vertex
                 wc = vl
