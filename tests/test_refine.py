@@ -477,6 +477,8 @@ def test_fields_in_slice_equal_the_direct_sums():
         loc = np.c_[xy, np.full(len(xy), float(k))]
         got, _ = R._fields_in_slice(pts, xy, k, 2.4, 1.0, *R._no_images(), 0.0)
         assert np.allclose(got, R._field_many(pts, loc, 2.4, 1.0), rtol=1e-12, atol=1e-14)
+        grad, _ = R._fields_in_slice(pts, xy, k, 2.4, 1.0, *R._no_images(), 0.0, full=False)  # the chord step's
+        assert np.array_equal(grad[:, :4], got[:, :4]) and not grad[:, 4:].any()
     assert R._fields_in_slice(pts, np.zeros((0, 2)), 3, 2.4, 1.0, *R._no_images(), 0.0)[0].shape == (0, 10)
 
 
@@ -525,6 +527,8 @@ def test_searches_with_column_runs_give_the_same_places_bit_for_bit(pixel, uneve
             fa, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0)
             fb, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0, runs)
             assert np.array_equal(fa, fb) and fa[:, 0].min() > 0.0
+            fg, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0, runs, full=False)
+            assert np.array_equal(fg[:, :4], fa[:, :4])  # uneven slices: the same quotient rule for fz
             ra, ca = R.refine_ring(pts, ring, k, 2.6, grid, images={})
             rb, cb = R.refine_ring(pts, ring, k, 2.6, grid, images={"runs": runs})
             assert np.array_equal(ra, rb) and ca == cb
@@ -682,3 +686,21 @@ def test_blur_bias_measurement_settings(monkeypatch):
     chk = m2.checks()
     assert chk["watertight"] and chk["winding_consistent"] and chk["volume"] > 0
     assert band_violations(st, m2) == 0
+
+
+def test_stack_of_mask_traces_each_slice_in_its_box_as_the_whole_slice():
+    """The stack route traces every slice within the object's bounding box in that slice: the
+    same contours (coordinates, start points, order) as tracing the whole slice, also where the
+    object touches the array's edge."""
+    from contourmesh.api import _stack_of_mask
+
+    zz, yy, xx = np.mgrid[:18, :26, :31]
+    mask = (zz - 8.6) ** 2 / 1.9 + (yy - 11.2) ** 2 / 1.3 + (xx - 21.4) ** 2 < 95  # cut by the x = 30 side
+    assert mask[:, :, -1].any() and not mask[:, :, 0].any()
+    zs = np.arange(18) * 1.5
+    stack = _stack_of_mask(mask, zs, 1.0, 1.0, 0.0, 0.0)
+    whole = [trace_contours(mask[k])[0] for k in range(18) if mask[k].any()]
+    assert stack is not None and len(stack.sections) == len(whole) >= 10
+    for sec, contours in zip(stack.sections, whole):
+        assert len(contours) == 1 and np.array_equal(sec.contours[0], contours[0])
+        assert sec.contours[0].dtype == contours[0].dtype

@@ -917,19 +917,20 @@ def _no_images():
     return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), np.zeros((1, 2), dtype=np.int64)
 
 
-def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, span, margin, runs=None):
+def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, span, margin, runs=None, *, full=True):
     """:func:`_fields_kernel`: ``(out (n, 10), (mom, span))``; ``grid`` may be a slice spacing (square
-    pixels, even slices); ``runs``: as in :func:`_images_for`."""
-    args = (pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, span, box, margin)
+    pixels, even slices); ``runs``: as in :func:`_images_for`; ``full=False``: only ``f`` and
+    ``grad f`` (``out[:, :4]``, by :func:`_gradient_in_slice`: the same values), the rest 0."""
+    args = (pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, span, box, margin, np.bool_(full))
     out, mom, span = _fields_kernel(*args) if runs is None else _fields_kernel(*args, runs)
     return out, (mom, span)
 
 
 @njit(cache=True)
-def _fields_kernel(pts, xy, k, sigma, grid, mom, span, box, margin, runs=None):
+def _fields_kernel(pts, xy, k, sigma, grid, mom, span, box, margin, full, runs=None):
     """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
     (:func:`_images_for`, reused from ``mom, span, box`` where they cover the points' windows):
-    ``(out (n, 10), mom, span)``."""
+    ``(out (n, 10), mom, span)``; where not ``full``, ``out[:, :4]`` only (:func:`_gradient_in_slice`)."""
     nz, ny, nx = pts.shape
     n = xy.shape[0]
     out = np.zeros((n, 10))
@@ -938,10 +939,14 @@ def _fields_kernel(pts, xy, k, sigma, grid, mom, span, box, margin, runs=None):
     mom, span = _images_for(pts, k, sigma, grid, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]),
                             np.max(xy[:, 1]), 4.0 * sigma + 1.0, margin, mom, span, box, runs)
     norm, za, zb = _slice_norm(grid, sigma, _lattice_norm(sigma, grid), float(k), nz)
-    buf = np.empty(10)
+    buf = np.zeros(10)
     for m in range(n):
-        _field_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za, zb,
-                        buf)
+        if full:
+            _field_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za,
+                            zb, buf)
+        else:
+            _gradient_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm,
+                               za, zb, buf)
         out[m, :] = buf
     return out, mom, span
 
@@ -1723,7 +1728,8 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
     if chord:
         mom, box, span = images.get(float(sigma)) or _no_images()
         fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid,
-                                            mom, box, span, IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
+                                            mom, box, span, IMAGE_MARGIN * max_move + 2.0, images.get("runs"),
+                                            full=False)  # the gradient only
         images[float(sigma)] = (mom, box, span)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
