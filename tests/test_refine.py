@@ -399,14 +399,52 @@ def test_field_in_slice_equals_the_direct_sum(sigma, dz, pixel, uneven):
     direct, fast = np.empty(10), np.empty(10)
     for k in (0, 5, 11, nz - 1):
         mom = R._slice_moments(pts, k, sigma, grid, 0, nx - 1, 0, ny - 1)
+        span = R._row_spans(mom)
         knorm, za, zb = R._slice_norm(grid, sigma, norm, float(k), nz)
         for x, y in rng.uniform(-4, max(nx, ny) + 4, (60, 2)):
             R._field(pts, x, y, float(k), sigma, grid, norm, direct)
-            R._field_in_slice(mom, 0, 0, nx, ny, x, y, sigma, ax, ay, knorm, za, zb, fast)
+            R._field_in_slice(mom, span, 0, 0, nx, ny, x, y, sigma, ax, ay, knorm, za, zb, fast)
             assert np.allclose(fast, direct, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(direct).max()))
             level = np.full(10, 7.0)
-            R._level_in_slice(mom, 0, 0, nx, ny, x, y, sigma, ax, ay, knorm, level)
+            R._level_in_slice(mom, span, 0, 0, nx, ny, x, y, sigma, ax, ay, knorm, level)
             assert np.array_equal(level[:3], fast[:3]) and np.all(level[3:] == 7.0)  # the search's steps
+            grad = np.full(10, 7.0)
+            R._gradient_in_slice(mom, span, 0, 0, nx, ny, x, y, sigma, ax, ay, knorm, za, zb, grad)
+            assert np.array_equal(grad[:4], fast[:4]) and np.all(grad[4:] == 7.0)  # the search's start
+
+
+@pytest.mark.parametrize("pixel", [(1.0, 1.0), (0.667, 0.617)])
+def test_walk_back_into_the_band_finds_the_first_band_sample(pixel):
+    """The walk that skips the samples inside a cell off the band stops on the same sample as
+    testing every sample in turn (segments from band points to points inside, outside and across
+    the object, some along the grid lines, where every sample is near a cell's side)."""
+    pts = _lumpy_points()
+    grid, _ = R._make_grid(*pixel, pts.shape[0], dz=1.0)
+    ax, ay = grid[0], grid[1]
+    rng = np.random.default_rng(4)
+    k = 11
+    band = np.argwhere(np.array([[R._in_band(pts, k, i * ax, j * ay, grid) for i in range(28)] for j in range(30)]))
+    walked = 0
+    for n in range(400):
+        j, i = band[rng.integers(len(band))]
+        x0, y0 = i * ax, j * ay
+        if n % 4 == 0:  # along a grid line
+            tx, ty = x0 + rng.uniform(-6, 6) * ax, y0
+        else:
+            tx, ty = x0 + rng.uniform(-6, 6), y0 + rng.uniform(-6, 6)
+        for steps in (64, 256):
+            out = np.full((1, 2), np.nan)
+            R._back_into_band(pts, k, x0, y0, tx, ty, steps, out, 0, grid)
+            want = np.full(2, np.nan)
+            for q in range(1, steps + 1):  # every sample in turn
+                a = 1.0 - q / steps
+                px, py = x0 + a * (tx - x0), y0 + a * (ty - y0)
+                if R._in_band(pts, k, px, py, grid):
+                    want = np.array([px, py])
+                    walked += q > 8
+                    break
+            assert np.array_equal(out[0], want, equal_nan=True)
+    assert walked > 100  # many walks passed through cells off the band
 
 
 def test_move_to_surface_is_the_same_for_one_vertex_or_many_slices_at_once():
@@ -439,6 +477,8 @@ def test_fields_in_slice_equal_the_direct_sums():
         loc = np.c_[xy, np.full(len(xy), float(k))]
         got, _ = R._fields_in_slice(pts, xy, k, 2.4, 1.0, *R._no_images(), 0.0)
         assert np.allclose(got, R._field_many(pts, loc, 2.4, 1.0), rtol=1e-12, atol=1e-14)
+        grad, _ = R._fields_in_slice(pts, xy, k, 2.4, 1.0, *R._no_images(), 0.0, full=False)  # the chord step's
+        assert np.array_equal(grad[:, :4], got[:, :4]) and not grad[:, 4:].any()
     assert R._fields_in_slice(pts, np.zeros((0, 2)), 3, 2.4, 1.0, *R._no_images(), 0.0)[0].shape == (0, 10)
 
 
@@ -456,7 +496,7 @@ def test_searches_sharing_slice_images_give_the_same_places():
             alone, n1 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, None)
             kept, n2 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, shared)
             assert np.array_equal(alone, kept) and n1 == n2
-        assert set(shared) == {2.6, 1.8} and all(box[0] == k for _, box in shared.values())
+        assert set(shared) == {2.6, 1.8} and all(box[0] == k for _, box, _ in shared.values())
 
 
 @pytest.mark.parametrize("pixel, uneven", [((1.0, 1.0), False), ((0.667, 0.617), False), ((0.617, 0.667), True)])
@@ -487,12 +527,14 @@ def test_searches_with_column_runs_give_the_same_places_bit_for_bit(pixel, uneve
             fa, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0)
             fb, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0, runs)
             assert np.array_equal(fa, fb) and fa[:, 0].min() > 0.0
+            fg, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0, runs, full=False)
+            assert np.array_equal(fg[:, :4], fa[:, :4])  # uneven slices: the same quotient rule for fz
             ra, ca = R.refine_ring(pts, ring, k, 2.6, grid, images={})
             rb, cb = R.refine_ring(pts, ring, k, 2.6, grid, images={"runs": runs})
             assert np.array_equal(ra, rb) and ca == cb
         assert plain.keys() == fast.keys() - {"runs"}
         for key in plain:
-            assert np.array_equal(plain[key][0], fast[key][0]) and np.array_equal(plain[key][1], fast[key][1])
+            assert all(np.array_equal(a, b) for a, b in zip(plain[key], fast[key]))
     assert moved > 1.0  # the searches did move vertices
 
 
@@ -644,3 +686,21 @@ def test_blur_bias_measurement_settings(monkeypatch):
     chk = m2.checks()
     assert chk["watertight"] and chk["winding_consistent"] and chk["volume"] > 0
     assert band_violations(st, m2) == 0
+
+
+def test_stack_of_mask_traces_each_slice_in_its_box_as_the_whole_slice():
+    """The stack route traces every slice within the object's bounding box in that slice: the
+    same contours (coordinates, start points, order) as tracing the whole slice, also where the
+    object touches the array's edge."""
+    from contourmesh.api import _stack_of_mask
+
+    zz, yy, xx = np.mgrid[:18, :26, :31]
+    mask = (zz - 8.6) ** 2 / 1.9 + (yy - 11.2) ** 2 / 1.3 + (xx - 21.4) ** 2 < 95  # cut by the x = 30 side
+    assert mask[:, :, -1].any() and not mask[:, :, 0].any()
+    zs = np.arange(18) * 1.5
+    stack = _stack_of_mask(mask, zs, 1.0, 1.0, 0.0, 0.0)
+    whole = [trace_contours(mask[k])[0] for k in range(18) if mask[k].any()]
+    assert stack is not None and len(stack.sections) == len(whole) >= 10
+    for sec, contours in zip(stack.sections, whole):
+        assert len(contours) == 1 and np.array_equal(sec.contours[0], contours[0])
+        assert sec.contours[0].dtype == contours[0].dtype

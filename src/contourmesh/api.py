@@ -558,10 +558,14 @@ def _stack_of_mask(mask, zs, dy, dx, ox, oy) -> ContourStack | None:
     slices with holes) and the sphere is checked by :func:`contourmesh.topology.topology` (compiled
     union-finds over the runs and one Euler pass: 4 ms instead of 40-60 ms at 128 voxels)."""
     sections = []
+    rows = mask.any(axis=2)  # each slice's rows and columns that hold the object: slices are traced
+    cols = mask.any(axis=1)  # within their bounding boxes (points outside count as empty: the same contours)
     for k in range(mask.shape[0]):
-        if not mask[k].any():
+        if not rows[k].any():
             continue
-        contours, _ = trace_contours(mask[k])
+        j0, j1 = int(np.argmax(rows[k])), len(rows[k]) - int(np.argmax(rows[k][::-1]))
+        i0, i1 = int(np.argmax(cols[k])), len(cols[k]) - int(np.argmax(cols[k][::-1]))
+        contours, _ = trace_contours(mask[k, j0:j1, i0:i1], x0=i0, y0=j0)
         if len(contours) != 1 or len(contours[0]) < 3 or shoelace_area(contours[0]) == 0:
             return None
         sections.append(Section(float(zs[k]), (contours[0],), (-1,)))

@@ -564,10 +564,12 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
     on any grid (oblong pixels, unevenly spaced slices).
 
     The weights ``c_n G(w_n) w_n^p`` are computed as there; each image point sums its column's
-    weights in slice order, starting from 0.  A column that is all solid over the slices within
-    ``4 sigma`` gets the sums of all the weights, added in that order once for the slice (the same
-    additions, so the same values), an empty one keeps 0, and only the columns that cross the
-    surface are summed voxel by voxel."""
+    weights in slice order, starting from 0.  The sums of every stretch of consecutive slices,
+    added in that order from 0, are tabulated once for the slice (``(8 sigma)^2 / 2`` entries): a
+    column's first solid run takes its sum from the table (the same additions, so the same value;
+    a column that is all solid over the slices within ``4 sigma`` is the one run that spans them
+    all), an empty one keeps 0, and only the runs after the first of a column that crosses the
+    surface more than once are summed voxel by voxel."""
     nz = pts.shape[0]
     dz, zpos = grid[2], grid[3]
     rad = 4.0 * sigma
@@ -577,37 +579,52 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
     e = np.empty(nk)
     ew = np.empty(nk)
     eww = np.empty(nk)
-    f0 = 0.0
-    f1 = 0.0
-    f2 = 0.0
     for n in range(k0, k1 + 1):
         w = (zpos[n] - zc) * dz
         e[n - k0] = math.exp(-(w * w) / (2.0 * s2)) * _zweight(grid, n)
         ew[n - k0] = e[n - k0] * w
         eww[n - k0] = ew[n - k0] * w
-        f0 += e[n - k0]
-        f1 += ew[n - k0]
-        f2 += eww[n - k0]
+    # run[p, a, b] (a <= b): the weights e, ew, eww of slices k0 + a .. k0 + b summed in order from 0
+    run = np.zeros((3, nk, nk))
+    for a in range(nk):
+        t0 = 0.0
+        t1 = 0.0
+        t2 = 0.0
+        for b in range(a, nk):
+            t0 += e[b]
+            t1 += ew[b]
+            t2 += eww[b]
+            run[0, a, b] = t0
+            run[1, a, b] = t1
+            run[2, a, b] = t2
     mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
     for j in range(j0, j1 + 1):
         for i in range(i0, i1 + 1):
             if runs[k0, j, i] >= nk:  # one value over the whole column
                 if pts[k0, j, i]:
-                    mom[0, j - j0, i - i0] = f0
-                    mom[1, j - j0, i - i0] = f1
-                    mom[2, j - j0, i - i0] = f2
+                    mom[0, j - j0, i - i0] = run[0, 0, nk - 1]
+                    mom[1, j - j0, i - i0] = run[1, 0, nk - 1]
+                    mom[2, j - j0, i - i0] = run[2, 0, nk - 1]
                 continue
             a0 = 0.0
             a1 = 0.0
             a2 = 0.0
+            first = True  # no run summed yet: the sums are still 0
             n = k0
             while n <= k1:
                 r = runs[n, j, i]
                 if pts[n, j, i]:
-                    for q in range(n, min(n + r, k1 + 1)):
-                        a0 += e[q - k0]
-                        a1 += ew[q - k0]
-                        a2 += eww[q - k0]
+                    last = min(n + r, k1 + 1) - 1
+                    if first:
+                        a0 = run[0, n - k0, last - k0]
+                        a1 = run[1, n - k0, last - k0]
+                        a2 = run[2, n - k0, last - k0]
+                        first = False
+                    else:
+                        for q in range(n, last + 1):
+                            a0 += e[q - k0]
+                            a1 += ew[q - k0]
+                            a2 += eww[q - k0]
                 n += r
             mom[0, j - j0, i - i0] = a0
             mom[1, j - j0, i - i0] = a1
@@ -616,48 +633,86 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
 
 
 @njit(cache=True)
-def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out):
+def _row_spans(mom):
+    """``span (ny, 2)``: the first and last column (box-local) of each row of the images ``mom`` where
+    ``M_0`` is not 0 (``(nx, -1)`` for an empty row).  ``M_0`` is 0 only where the column holds no
+    point of ``I`` within the blur's reach, and then ``M_1 = M_2 = 0`` too: the sums of
+    :func:`_field_in_slice` skip those columns, and the zeros between a row's ends add exact zeros."""
+    nyb, nxb = mom.shape[1], mom.shape[2]
+    span = np.empty((nyb, 2), np.int64)
+    for jj in range(nyb):
+        lo = nxb
+        hi = -1
+        for ii in range(nxb):
+            if mom[0, jj, ii] != 0.0:
+                if lo == nxb:
+                    lo = ii
+                hi = ii
+        span[jj, 0] = lo
+        span[jj, 1] = hi
+    return span
+
+
+@njit(cache=True)
+def _x_weights(a0, a1, x, sigma, ax, powers):
+    """The in-slice Gaussian weights of the columns ``a0 .. a1`` at ``x``: rows ``G``, ``G wx`` and
+    (``powers = 3``) ``G wx^2`` of a ``(powers, a1 - a0 + 1)`` array, ``wx = i ax - x``, each the
+    product that the sums of :func:`_field_in_slice` once formed term by term (so the same values)."""
+    s2 = sigma * sigma
+    w = np.empty((powers, a1 - a0 + 1))
+    for i in range(a0, a1 + 1):
+        wx = i * ax - x
+        e = math.exp(-(wx ** 2) / (2.0 * s2))
+        w[0, i - a0] = e
+        w[1, i - a0] = e * wx
+        if powers > 2:
+            w[2, i - a0] = e * wx * wx
+    return w
+
+
+@njit(cache=True)
+def _field_in_slice(mom, span, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out):
     """:func:`_field` at ``(x, y)`` of the slice whose :func:`_slice_moments` are ``mom`` (taken
     over the box from ``(i0, j0)``, which holds the window ``4 sigma`` around the point; ``nx, ny``
-    are the volume's, the window is clipped to them as there).  ``ax, ay``: the pixel's sides;
-    ``norm, za, zb``: the slice's :func:`_slice_norm` (``za = zb = 0``: evenly spaced slices, no
-    correction).  Equal to :func:`_field` up to the rounding of the sums' order."""
+    are the volume's, the window is clipped to them as there; ``span``: :func:`_row_spans` of
+    ``mom``).  ``ax, ay``: the pixel's sides; ``norm, za, zb``: the slice's :func:`_slice_norm`
+    (``za = zb = 0``: evenly spaced slices, no correction).  Equal to :func:`_field` up to the
+    rounding of the sums' order."""
     rad = 4.0 * sigma
     a0 = max(int(math.floor((x - rad) / ax)), 0)
     a1 = min(int(math.ceil((x + rad) / ax)), nx - 1)
     b0 = max(int(math.floor((y - rad) / ay)), 0)
     b1 = min(int(math.ceil((y + rad) / ay)), ny - 1)
     s2 = sigma * sigma
-    ex = np.empty(a1 - a0 + 1)
-    for i in range(a0, a1 + 1):
-        ex[i - a0] = math.exp(-((i * ax - x) ** 2) / (2.0 * s2))
+    w = _x_weights(a0, a1, x, sigma, ax, 3)
     for q in range(10):
         out[q] = 0.0
     for j in range(b0, b1 + 1):
-        wy = j * ay - y
+        jj = j - j0
+        lo = max(a0, span[jj, 0] + i0)  # the row's columns that meet the solid (zeros between add 0)
+        hi = min(a1, span[jj, 1] + i0)
+        if lo > hi:
+            continue
         r0 = 0.0  # sum over the row of G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2
         r1 = 0.0
         r2 = 0.0
         q0 = 0.0
         q1 = 0.0
         p0 = 0.0
-        jj = j - j0
-        for i in range(a0, a1 + 1):
+        for i in range(lo, hi + 1):
             ii = i - i0
+            c = i - a0
             m0 = mom[0, jj, ii]
-            if m0 == 0.0:
-                continue
-            e = ex[i - a0]
-            wx = i * ax - x
-            ew = e * wx
-            r0 += e * m0
-            r1 += ew * m0
-            r2 += ew * wx * m0
-            q0 += e * mom[1, jj, ii]
-            q1 += ew * mom[1, jj, ii]
-            p0 += e * mom[2, jj, ii]
+            m1 = mom[1, jj, ii]
+            r0 += w[0, c] * m0
+            r1 += w[1, c] * m0
+            r2 += w[2, c] * m0
+            q0 += w[0, c] * m1
+            q1 += w[1, c] * m1
+            p0 += w[0, c] * mom[2, jj, ii]
         if r0 == 0.0:
             continue
+        wy = j * ay - y
         ey = math.exp(-(wy * wy) / (2.0 * s2))  # (only for rows that meet the solid)
         out[0] += ey * r0
         out[1] += ey * r1
@@ -679,53 +734,164 @@ def _field_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out)
 
 
 @njit(cache=True)
-def _level_in_slice(mom, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
-    """``f, fx, fy`` of :func:`_field_in_slice` into ``out[:3]`` (the same sums, so the same values;
-    ``out[3:]`` is left as it was): what the level-set search needs at its steps."""
+def _row_pair(span, i0, jj, a0, a1, two):
+    """The columns ``lo .. hi`` that rows ``jj`` and (``two``) ``jj + 1`` of the images sum over in
+    :func:`_gradient_in_slice` and :func:`_level_in_slice`, and which of the two rows meet the solid
+    there: ``(lo, hi, first, second)``.  Where both do, the range covers both rows' spans (the
+    zeros of one row beyond its span add exact zeros to its sums)."""
+    loa = max(a0, span[jj, 0] + i0)
+    hia = min(a1, span[jj, 1] + i0)
+    lob, hib = a1 + 1, a0 - 1
+    if two:
+        lob = max(a0, span[jj + 1, 0] + i0)
+        hib = min(a1, span[jj + 1, 1] + i0)
+    first = loa <= hia
+    second = lob <= hib
+    if first and second:
+        return min(loa, lob), max(hia, hib), True, True
+    if first:
+        return loa, hia, True, False
+    return lob, hib, False, second
+
+
+@njit(cache=True)
+def _gradient_in_slice(mom, span, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out):
+    """``f`` and ``grad f`` of :func:`_field_in_slice` into ``out[:4]`` (the same sums, so the same
+    values; ``out[4:]`` is left as it was): what the level-set search needs at its start.  Two rows
+    are summed in one pass (independent sums, each in its own order), then added in row order."""
     rad = 4.0 * sigma
     a0 = max(int(math.floor((x - rad) / ax)), 0)
     a1 = min(int(math.ceil((x + rad) / ax)), nx - 1)
     b0 = max(int(math.floor((y - rad) / ay)), 0)
     b1 = min(int(math.ceil((y + rad) / ay)), ny - 1)
     s2 = sigma * sigma
-    ex = np.empty(a1 - a0 + 1)
-    for i in range(a0, a1 + 1):
-        ex[i - a0] = math.exp(-((i * ax - x) ** 2) / (2.0 * s2))
+    w = _x_weights(a0, a1, x, sigma, ax, 2)
     f = 0.0
     fx = 0.0
     fy = 0.0
-    for j in range(b0, b1 + 1):
-        wy = j * ay - y
+    fz = 0.0
+    for j in range(b0, b1 + 1, 2):
+        jj = j - j0
+        lo, hi, first, second = _row_pair(span, i0, jj, a0, a1, j + 1 <= b1)
+        r0 = 0.0  # row j: G M0, G wx M0, G M1
+        r1 = 0.0
+        q0 = 0.0
+        t0 = 0.0  # row j + 1: the same
+        t1 = 0.0
+        u0 = 0.0
+        if first and second:
+            for i in range(lo, hi + 1):
+                ii = i - i0
+                c = i - a0
+                m0 = mom[0, jj, ii]
+                n0 = mom[0, jj + 1, ii]
+                r0 += w[0, c] * m0
+                r1 += w[1, c] * m0
+                q0 += w[0, c] * mom[1, jj, ii]
+                t0 += w[0, c] * n0
+                t1 += w[1, c] * n0
+                u0 += w[0, c] * mom[1, jj + 1, ii]
+        elif first:
+            for i in range(lo, hi + 1):
+                m0 = mom[0, jj, i - i0]
+                r0 += w[0, i - a0] * m0
+                r1 += w[1, i - a0] * m0
+                q0 += w[0, i - a0] * mom[1, jj, i - i0]
+        elif second:
+            for i in range(lo, hi + 1):
+                n0 = mom[0, jj + 1, i - i0]
+                t0 += w[0, i - a0] * n0
+                t1 += w[1, i - a0] * n0
+                u0 += w[0, i - a0] * mom[1, jj + 1, i - i0]
+        if r0 != 0.0:
+            wy = j * ay - y
+            ey = math.exp(-(wy * wy) / (2.0 * s2))
+            f += ey * r0
+            fx += ey * r1
+            fy += ey * r0 * wy
+            fz += ey * q0
+        if t0 != 0.0:
+            wy = (j + 1) * ay - y
+            ey = math.exp(-(wy * wy) / (2.0 * s2))
+            f += ey * t0
+            fx += ey * t1
+            fy += ey * t0 * wy
+            fz += ey * u0
+    out[0] = f / norm
+    out[1] = fx / (norm * s2)
+    out[2] = fy / (norm * s2)
+    out[3] = fz / (norm * s2)
+    if za != 0.0 or zb != 0.0:
+        out[3] = out[3] - out[0] * za  # the quotient rule's fz (:func:`_z_correct`)
+
+
+@njit(cache=True)
+def _level_in_slice(mom, span, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
+    """``f, fx, fy`` of :func:`_field_in_slice` into ``out[:3]`` (the same sums, so the same values;
+    ``out[3:]`` is left as it was): what the level-set search needs at its steps.  Two rows at a
+    time, as in :func:`_gradient_in_slice`."""
+    rad = 4.0 * sigma
+    a0 = max(int(math.floor((x - rad) / ax)), 0)
+    a1 = min(int(math.ceil((x + rad) / ax)), nx - 1)
+    b0 = max(int(math.floor((y - rad) / ay)), 0)
+    b1 = min(int(math.ceil((y + rad) / ay)), ny - 1)
+    s2 = sigma * sigma
+    w = _x_weights(a0, a1, x, sigma, ax, 2)
+    f = 0.0
+    fx = 0.0
+    fy = 0.0
+    for j in range(b0, b1 + 1, 2):
+        jj = j - j0
+        lo, hi, first, second = _row_pair(span, i0, jj, a0, a1, j + 1 <= b1)
         r0 = 0.0
         r1 = 0.0
-        jj = j - j0
-        for i in range(a0, a1 + 1):
-            m0 = mom[0, jj, i - i0]
-            if m0 == 0.0:
-                continue
-            e = ex[i - a0]
-            ew = e * (i * ax - x)
-            r0 += e * m0
-            r1 += ew * m0
-        if r0 == 0.0:
-            continue
-        ey = math.exp(-(wy * wy) / (2.0 * s2))  # (only for rows that meet the solid)
-        f += ey * r0
-        fx += ey * r1
-        fy += ey * r0 * wy
+        t0 = 0.0
+        t1 = 0.0
+        if first and second:
+            for i in range(lo, hi + 1):
+                c = i - a0
+                m0 = mom[0, jj, i - i0]
+                n0 = mom[0, jj + 1, i - i0]
+                r0 += w[0, c] * m0
+                r1 += w[1, c] * m0
+                t0 += w[0, c] * n0
+                t1 += w[1, c] * n0
+        elif first:
+            for i in range(lo, hi + 1):
+                m0 = mom[0, jj, i - i0]
+                r0 += w[0, i - a0] * m0
+                r1 += w[1, i - a0] * m0
+        elif second:
+            for i in range(lo, hi + 1):
+                n0 = mom[0, jj + 1, i - i0]
+                t0 += w[0, i - a0] * n0
+                t1 += w[1, i - a0] * n0
+        if r0 != 0.0:
+            wy = j * ay - y
+            ey = math.exp(-(wy * wy) / (2.0 * s2))  # (only for rows that meet the solid)
+            f += ey * r0
+            fx += ey * r1
+            fy += ey * r0 * wy
+        if t0 != 0.0:
+            wy = (j + 1) * ay - y
+            ey = math.exp(-(wy * wy) / (2.0 * s2))
+            f += ey * t0
+            fx += ey * t1
+            fy += ey * t0 * wy
     out[0] = f / norm
     out[1] = fx / (norm * s2)
     out[2] = fy / (norm * s2)
 
 
 @njit(cache=True)
-def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box, runs=None):
+def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, span, box, runs=None):
     """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
-    point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach`` (lengths in units of ``h``): ``mom``
-    itself when its box (``box = (k, i0, i1, j0, j1)``, pixel indices, ``k = -1``: none) holds that
-    already, else new images over that box widened by ``margin`` more (so the next searches of the
-    slice find them), ``box`` updated in place.  The images at a lattice point do not depend on the box.
-    ``runs`` (:func:`_z_runs` of ``pts``, optional) makes them faster, not different."""
+    point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach`` (lengths in units of ``h``), with their
+    :func:`_row_spans`: ``(mom, span)`` themselves when their box (``box = (k, i0, i1, j0, j1)``,
+    pixel indices, ``k = -1``: none) holds that already, else new images over that box widened by
+    ``margin`` more (so the next searches of the slice find them), ``box`` updated in place.  The
+    images at a lattice point do not depend on the box.  ``runs`` (:func:`_z_runs` of ``pts``,
+    optional) makes them faster, not different."""
     nz, ny, nx = pts.shape
     ax, ay = grid[0], grid[1]
     i0 = min(max(int(math.floor((xlo - reach) / ax)), 0), nx - 1)
@@ -733,47 +899,56 @@ def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box
     j0 = min(max(int(math.floor((ylo - reach) / ay)), 0), ny - 1)
     j1 = max(min(int(math.ceil((yhi + reach) / ay)), ny - 1), j0)
     if box[0] == k and box[1] <= i0 and i1 <= box[2] and box[3] <= j0 and j1 <= box[4]:
-        return mom
+        return mom, span
     box[0] = k
     box[1] = min(max(int(math.floor((xlo - reach - margin) / ax)), 0), nx - 1)
     box[2] = max(min(int(math.ceil((xhi + reach + margin) / ax)), nx - 1), box[1])
     box[3] = min(max(int(math.floor((ylo - reach - margin) / ay)), 0), ny - 1)
     box[4] = max(min(int(math.ceil((yhi + reach + margin) / ay)), ny - 1), box[3])
     if runs is None:
-        return _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
-    return _slice_moments_runs(pts, runs, k, sigma, grid, box[1], box[2], box[3], box[4])
+        mom = _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
+    else:
+        mom = _slice_moments_runs(pts, runs, k, sigma, grid, box[1], box[2], box[3], box[4])
+    return mom, _row_spans(mom)
 
 
 def _no_images():
-    """An empty slot for :func:`_images_for`: ``(mom, box)``."""
-    return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64)
+    """An empty slot for :func:`_images_for`: ``(mom, box, span)``."""
+    return np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), np.zeros((1, 2), dtype=np.int64)
 
 
-def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, margin, runs=None):
-    """:func:`_fields_kernel`; ``grid`` may be a slice spacing (square pixels, even slices); ``runs``:
-    as in :func:`_images_for`."""
-    args = (pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, box, margin)
-    return _fields_kernel(*args) if runs is None else _fields_kernel(*args, runs)
+def _fields_in_slice(pts, xy, k, sigma, grid, mom, box, span, margin, runs=None, *, full=True):
+    """:func:`_fields_kernel`: ``(out (n, 10), (mom, span))``; ``grid`` may be a slice spacing (square
+    pixels, even slices); ``runs``: as in :func:`_images_for`; ``full=False``: only ``f`` and
+    ``grad f`` (``out[:, :4]``, by :func:`_gradient_in_slice`: the same values), the rest 0."""
+    args = (pts, xy, k, sigma, _as_grid(grid, pts.shape[0]), mom, span, box, margin, np.bool_(full))
+    out, mom, span = _fields_kernel(*args) if runs is None else _fields_kernel(*args, runs)
+    return out, (mom, span)
 
 
 @njit(cache=True)
-def _fields_kernel(pts, xy, k, sigma, grid, mom, box, margin, runs=None):
+def _fields_kernel(pts, xy, k, sigma, grid, mom, span, box, margin, full, runs=None):
     """:func:`_field` at the points ``xy (n, 2)`` of lattice slice ``k``, through the slice's images
-    (:func:`_images_for`, reused from ``mom, box`` where they cover the points' windows):
-    ``(out (n, 10), mom)``."""
+    (:func:`_images_for`, reused from ``mom, span, box`` where they cover the points' windows):
+    ``(out (n, 10), mom, span)``; where not ``full``, ``out[:, :4]`` only (:func:`_gradient_in_slice`)."""
     nz, ny, nx = pts.shape
     n = xy.shape[0]
     out = np.zeros((n, 10))
     if n == 0:
-        return out, mom
-    mom = _images_for(pts, k, sigma, grid, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]), np.max(xy[:, 1]),
-                      4.0 * sigma + 1.0, margin, mom, box, runs)
+        return out, mom, span
+    mom, span = _images_for(pts, k, sigma, grid, np.min(xy[:, 0]), np.max(xy[:, 0]), np.min(xy[:, 1]),
+                            np.max(xy[:, 1]), 4.0 * sigma + 1.0, margin, mom, span, box, runs)
     norm, za, zb = _slice_norm(grid, sigma, _lattice_norm(sigma, grid), float(k), nz)
-    buf = np.empty(10)
+    buf = np.zeros(10)
     for m in range(n):
-        _field_in_slice(mom, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za, zb, buf)
+        if full:
+            _field_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za,
+                            zb, buf)
+        else:
+            _gradient_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm,
+                               za, zb, buf)
         out[m, :] = buf
-    return out, mom
+    return out, mom, span
 
 
 def blurred_indicator(points, xyz, sigma: float = 1.0, dz: float = 1.0, *, spacing=(1.0, 1.0),
@@ -918,13 +1093,41 @@ def in_band(points, k, xy) -> np.ndarray:
 @njit(cache=True)
 def _back_into_band(pts, k, x0, y0, tx, ty, steps, out, n, grid):
     """Walk from ``(tx, ty)`` back towards ``(x0, y0)`` (in the band) in ``steps`` samples; write the
-    first sample inside slice ``k``'s band to ``out[n]`` (``out[n]`` keeps its value if none is)."""
-    for q in range(1, steps + 1):
+    first sample inside slice ``k``'s band to ``out[n]`` (``out[n]`` keeps its value if none is).
+
+    A sample off the band that lies well inside one cell (further than ``1e-6`` pixel from its
+    sides, far beyond :func:`_in_band_idx`'s tolerance) is in a cell that is not a band cell (its
+    corners all in ``I`` or none), and so is every later sample on the segment's stretch through
+    that cell's inner part: the walk skips those without testing them (the same first sample as
+    testing every one)."""
+    ax, ay = grid[0], grid[1]
+    du = (tx - x0) / ax  # the walk's direction in pixel indices, per unit of a
+    dv = (ty - y0) / ay
+    m = 1e-6
+    q = 1
+    while q <= steps:
         a = 1.0 - q / steps
         px, py = x0 + a * (tx - x0), y0 + a * (ty - y0)
         if _in_band(pts, k, px, py, grid):
             out[n, 0], out[n, 1] = px, py
             return
+        u, v = px / ax, py / ay
+        fx, fy = math.floor(u), math.floor(v)
+        if u - fx > m and fx + 1.0 - u > m and v - fy > m and fy + 1.0 - v > m:
+            # the smallest a down to which the segment stays within m of the cell's inside (a decreases)
+            alo = 0.0
+            if du > 0.0:
+                alo = max(alo, a - (u - fx - m) / du)
+            elif du < 0.0:
+                alo = max(alo, a - (fx + 1.0 - m - u) / -du)
+            if dv > 0.0:
+                alo = max(alo, a - (v - fy - m) / dv)
+            elif dv < 0.0:
+                alo = max(alo, a - (fy + 1.0 - m - v) / -dv)
+            # samples q' <= (1 - alo) steps - 1 have a' > alo: inside the same cell, off the band
+            q = max(q + 1, int(math.floor((1.0 - alo) * steps)))
+        else:
+            q += 1
 
 
 @njit(cache=True)
@@ -955,18 +1158,18 @@ def _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict,
     otherwise one whose slice has no level within reach (a part thinner than the blur) is
     dragged to the end of the search interval.
     """
-    clamped, _ = _move_with_images(pts, xy, kz, float(sigma), _as_grid(grid, pts.shape[0]), curvature, max_move, out,
-                                   strict, found,
-                                   np.zeros((3, 1, 1)), np.full(5, -1, dtype=np.int64), 0.0, float(SHIFT_CUBIC))
+    mom, box, span = _no_images()
+    clamped, _, _ = _move_with_images(pts, xy, kz, float(sigma), _as_grid(grid, pts.shape[0]), curvature, max_move, out,
+                                      strict, found, mom, span, box, 0.0, float(SHIFT_CUBIC))
     return clamped
 
 
 @njit(cache=True)
-def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, box, margin, cubic=0.0,
-                      runs=None):
-    """:func:`_move_to_surface` with the slice images ``mom, box`` of an earlier search (see
+def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom, span, box, margin,
+                      cubic=0.0, runs=None):
+    """:func:`_move_to_surface` with the slice images ``mom, span, box`` of an earlier search (see
     :func:`_images_for`; ``margin``: how much wider new images are made; ``runs``: as there);
-    ``(clamped, mom)``."""
+    ``(clamped, mom, span)``."""
     norm0 = _lattice_norm(sigma, grid)
     norm, za, zb = norm0, 0.0, 0.0
     ax, ay = grid[0], grid[1]
@@ -989,11 +1192,11 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
                 if kz[m] == k:
                     xlo, xhi = min(xlo, xy[m, 0]), max(xhi, xy[m, 0])
                     ylo, yhi = min(ylo, xy[m, 1]), max(yhi, xy[m, 1])
-            mom = _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, box, runs)
+            mom, span = _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, span, box, runs)
             i0, j0 = box[1], box[3]
             norm, za, zb = _slice_norm(grid, sigma, norm0, float(k), nz)
             cur = k
-        _field_in_slice(mom, i0, j0, nx, ny, x0, y0, sigma, ax, ay, norm, za, zb, buf)
+        _gradient_in_slice(mom, span, i0, j0, nx, ny, x0, y0, sigma, ax, ay, norm, za, zb, buf)  # f, grad f
         hx, hy = -buf[1], -buf[2]
         hn = math.sqrt(hx * hx + hy * hy)
         gn = math.sqrt(buf[1] ** 2 + buf[2] ** 2 + buf[3] ** 2)
@@ -1006,7 +1209,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         ok = False
         for it in range(40):
             if it > 0:  # at t = 0, buf holds the field at the start already
-                _level_in_slice(mom, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, ax, ay, norm, buf)
+                _level_in_slice(mom, span, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, ax, ay, norm, buf)
             g = buf[0] - 0.5
             if abs(g) < 1e-12:
                 ok = True
@@ -1031,7 +1234,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         found[n] = True
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
-            _field_in_slice(mom, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf)
+            _field_in_slice(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf)
             shift, gnorm = _mean_curvature_shift(buf, sigma)
             if cubic != 0.0:
                 ks = 2.0 * shift / (sigma * sigma)
@@ -1051,7 +1254,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
             continue
         clamped += 1
         _back_into_band(pts, k, x0, y0, tx, ty, 256, out, n, grid)
-    return clamped, mom
+    return clamped, mom, span
 
 
 def _clamp_to_band(pts, start, target, kz, out, grid=1.0):
@@ -1273,17 +1476,17 @@ def _is_simple(ring):
 
 
 def _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found) -> int:
-    """:func:`_move_to_surface` keeping the slice images in ``images`` (``width -> (mom, box)``, see
+    """:func:`_move_to_surface` keeping the slice images in ``images`` (``width -> (mom, box, span)``, see
     :func:`_images_for`) for the next searches and field evaluations of the slice; ``images["runs"]``,
     where set, is :func:`_z_runs` of ``pts`` (faster images, the same values)."""
     if images is None:
         return _move_to_surface(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found)
-    mom, box = images.get(float(sigma)) or _no_images()
-    args = (pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, box, IMAGE_MARGIN * max_move + 2.0,
-            float(SHIFT_CUBIC))
+    mom, box, span = images.get(float(sigma)) or _no_images()
+    args = (pts, xy, kz, float(sigma), grid, curvature, max_move, out, strict, found, mom, span, box,
+            IMAGE_MARGIN * max_move + 2.0, float(SHIFT_CUBIC))
     runs = images.get("runs")
-    clamped, mom = _move_with_images(*args) if runs is None else _move_with_images(*args, runs)
-    images[float(sigma)] = (mom, box)
+    clamped, mom, span = _move_with_images(*args) if runs is None else _move_with_images(*args, runs)
+    images[float(sigma)] = (mom, box, span)
     return clamped
 
 
@@ -1523,10 +1726,11 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:
-        mom, box = images.get(float(sigma)) or _no_images()
-        fld, mom = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid, mom, box,
-                                    IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
-        images[float(sigma)] = (mom, box)
+        mom, box, span = images.get(float(sigma)) or _no_images()
+        fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid,
+                                            mom, box, span, IMAGE_MARGIN * max_move + 2.0, images.get("runs"),
+                                            full=False)  # the gradient only
+        images[float(sigma)] = (mom, box, span)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
         target = _chord_push(ring, nz2)
