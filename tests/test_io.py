@@ -495,8 +495,8 @@ def test_paths_that_are_not_files(tmp_path):
         read_volume(tmp_path / "v.xyz")
     with pytest.raises(ValueError, match=r"v.xyz.*expected a suffix among"):
         read_contours(tmp_path / "v.xyz")
-    (tmp_path / "ct.dcm").write_bytes(b"\0" * 10)
-    with pytest.raises(ValueError, match="read_contours"):
+    (tmp_path / "ct.dcm").write_bytes(b"\0" * 10)  # .dcm is a volume format too (DICOM-SEG, images)
+    with pytest.raises(ValueError, match=r"ct.dcm'.*'DICM' marker.*10 bytes"):
         read_volume(tmp_path / "ct.dcm")
     (tmp_path / "fake.npy").write_bytes(b"hello world")
     with pytest.raises(ValueError, match=r"fake.npy.*expected a NumPy .npy file"):

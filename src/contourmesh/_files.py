@@ -9,7 +9,7 @@ from ._optional import require
 __all__ = ["check_file", "MAX_VOXELS", "VOLUME_SUFFIXES"]
 
 #: File suffixes the volume reader understands.
-VOLUME_SUFFIXES = (".npy", ".npz", ".tif", ".tiff", ".nii", ".nii.gz", ".vol", ".inr", ".inr.gz", ".nrrd", ".nhdr")
+VOLUME_SUFFIXES = (".npy", ".npz", ".tif", ".tiff", ".nii", ".nii.gz", ".vol", ".inr", ".inr.gz", ".nrrd", ".nhdr", ".dcm")
 
 #: Largest volume (voxels) a file header may declare; larger headers are refused before allocating.
 MAX_VOXELS = 2**32

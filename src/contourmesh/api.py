@@ -637,14 +637,20 @@ def mesh_file(path, *, roi=None, pixel=None, route=None, spacing=None, z=None, a
     they carry their own spacing and origin, which ``spacing=`` and ``origin=`` replace when
     given (``meta["spacing"]`` records the spacing used).  ``meta["source"]`` is the path.
 
-    Files with a direction matrix (NIfTI's affine, NRRD's space directions) are meshed in their
-    world coordinates, flips and oblique axes included, so the mesh overlays the image in a
-    viewer of that frame (``meta["space"]`` names it: NIfTI ``"RAS"``, NRRD its ``space``).
-    A segment of a 3D Slicer ``.seg.nrrd`` can be picked by name: ``label="Liver"``.
+    Files with a direction matrix (NIfTI's affine, NRRD's space directions, DICOM's orientation
+    and positions) are meshed in their world coordinates, flips and oblique axes included, so the
+    mesh overlays the image in a viewer of that frame (``meta["space"]`` names it: NIfTI
+    ``"RAS"``, NRRD its ``space``, DICOM ``"LPS"``).  A segment of a 3D Slicer ``.seg.nrrd`` or of
+    a DICOM-SEG can be picked by name: ``label="Liver"``.  A DICOM file is routed by its Modality
+    (RTSTRUCT: contours; SEG and images: volumes); a folder is read as a DICOM image series, whose
+    slices, when unevenly spaced, are meshed at their own positions.
     """
 
-    p = check_file(path, "input")
-    kind = "contour file" if is_contour_file(p) else "volume file"
+    if isinstance(path, (str, Path)) and Path(path).expanduser().is_dir():
+        p, kind = Path(path).expanduser(), "volume file"
+    else:
+        p = check_file(path, "input")
+        kind = "contour file" if is_contour_file(p) else "volume file"
     _refuse_inapplicable(kind, {k: v for k, v in dict(roi=roi, pixel=pixel, route=route, spacing=spacing, z=z, axis=axis,
                                                       label=label, threshold=threshold, origin=origin,
                                                       bands=bands).items()
@@ -659,6 +665,11 @@ def mesh_file(path, *, roi=None, pixel=None, route=None, spacing=None, z=None, a
         log.debug("%s: spacing=%s replaces the file's %s", p, used, img.spacing)
     world_origin = img.origin if origin is None else tuple(float(o) for o in origin)
     oriented = _oriented(img)
+    if z is None and img.z is not None:  # unevenly spaced slices: mesh them at their positions
+        if axis not in (None, 0):
+            raise ValueError(f"{str(p)!r}: its slices are unevenly spaced, so they must be the slicing axis "
+                             f"(axis=0); got axis={axis}")
+        z = img.z if oriented else world_origin[2] + img.z
     m = mesh_volume(img.volume, spacing=used, z=z, axis=axis, origin=(0.0, 0.0, 0.0) if oriented else world_origin,
                     polygon=polygon, triangulation=triangulation, caps=caps, refine=refine, progress=progress)
     if oriented:
@@ -758,6 +769,9 @@ def mesh_file_labels(path, *, labels=None, spacing=None, origin=None, polygon: s
                      progress: bool = False):
     """:func:`mesh_labels` of a label-volume file, in the file's world coordinates (as :func:`mesh_file`)."""
     img = read_image(path)
+    if img.z is not None:
+        raise ValueError(f"{str(path)!r}: its slices are unevenly spaced; meshing every label at once needs even "
+                         "spacing: mesh the labels one at a time (label=)")
     used = img.spacing if spacing is None else tuple(float(s) for s in spacing)
     world_origin = img.origin if origin is None else tuple(float(o) for o in origin)
     oriented = _oriented(img)

@@ -21,6 +21,7 @@ from ..errors import warn_external
 from ..meshes import atomic_write
 from ..stacks import Z_TOLERANCE, stack_from_rings
 from ..types import ContourStack
+from .dicom import dicom_modality
 
 __all__ = ["read_contours", "list_rois", "write_contours_json", "contours_json_bytes", "is_contour_file", "CONTOUR_SUFFIXES",
            "CONTOURS_FORMAT", "CONTOURS_VERSION"]
@@ -342,11 +343,22 @@ def write_contours_json(stack: ContourStack, path, *, name: str | None = None, u
 
 
 def is_contour_file(path) -> bool:
-    """Whether a file holds a contour stack (``.json``, ``.dcm``, or an npz of ``<ROI>__points_mm``)."""
+    """Whether a file holds a contour stack (``.json``, a DICOM RTSTRUCT, or an npz of ``<ROI>__points_mm``).
+
+    A DICOM file (``.dcm``, or any file with the DICOM marker) is routed by its header's Modality:
+    RTSTRUCT holds contours; SEG and images are volumes.  A ``.dcm`` whose header cannot be read
+    (or without pydicom) goes to the contour reader when pydicom is missing, so that the install
+    hint is shown, and to the volume reader otherwise, which says what is wrong with it."""
     p = Path(path)
     suffix = _suffix(p)
-    if suffix in (".json", ".dcm"):
+    if suffix == ".json":
         return True
+    if suffix == ".dcm" or (suffix not in VOLUME_SUFFIXES and p.is_file() and _has_dicom_marker(p)):
+        try:
+            import pydicom  # noqa: F401
+        except ImportError:
+            return suffix == ".dcm"
+        return dicom_modality(p) == "RTSTRUCT"
     if suffix == ".npz" and p.is_file():
         import zipfile
 
@@ -355,7 +367,9 @@ def is_contour_file(path) -> bool:
                 return any(n.endswith("__points_mm.npy") for n in z.namelist())
         except (zipfile.BadZipFile, OSError):
             return False
-    if suffix not in VOLUME_SUFFIXES and p.is_file():
-        with open(p, "rb") as fh:
-            return fh.read(132)[128:132] == b"DICM"
     return False
+
+
+def _has_dicom_marker(p: Path) -> bool:
+    with open(p, "rb") as fh:
+        return fh.read(132)[128:132] == b"DICM"

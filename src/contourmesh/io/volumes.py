@@ -20,6 +20,8 @@ Axis conventions (stated once)
 * TIFF stacks: pages are z, then ``[y, x]``; ``dx``, ``dy`` from the X/Y resolution tags and
   ``dz`` from ImageJ's ``spacing`` when present.
 * NIfTI: the data array is ``[x, y, z]`` and is transposed; spacing from the header zooms.
+* DICOM (``.dcm``, or a folder of slices): DICOM-SEG segmentations, image series and multi-frame
+  images, in the patient frame LPS with their orientation (see :mod:`contourmesh.io.dicom`).
 * DGtal ``.vol`` and INRIMAGE ``.inr``/``.inr.gz``: voxels stored x fastest, read as ``[z, y, x]``.
 * Contour stacks (:func:`read_contours`) hold float64 rings in physical millimetres with
   ``spacing = (1, 1)`` and ``origin = (0, 0)``; outer rings have positive shoelace area, holes
@@ -53,6 +55,7 @@ from .._files import (
 )
 from ..meshes import atomic_write
 from ..volume_input import check_volume_array, select_voxels
+from .dicom import read_dicom
 
 __all__ = ["read_volume", "read_image", "Image", "write_volume", "VOLUME_SUFFIXES", "MAX_VOXELS"]
 
@@ -69,7 +72,9 @@ class Image(NamedTuple):
     columns are the world directions of the x, y and z voxel axes (the identity for formats
     without one).  World position of voxel ``[k, j, i]``:
     ``origin + direction @ (i dx, j dy, k dz)``.  ``space`` names the world frame when the file
-    does (NIfTI: ``"RAS"``; NRRD: its ``space`` field, e.g. ``"left-posterior-superior"``).
+    does (NIfTI: ``"RAS"``; NRRD: its ``space`` field, e.g. ``"left-posterior-superior"``; DICOM:
+    ``"LPS"``).  ``z``: for slices that are not evenly spaced (a DICOM series), their offsets along
+    the z voxel axis from the first (``spacing[0]`` is then their mean step); None otherwise.
     """
 
     volume: np.ndarray
@@ -77,25 +82,31 @@ class Image(NamedTuple):
     origin: tuple
     direction: np.ndarray
     space: str | None = None
+    z: np.ndarray | None = None
 
 
 _READERS = {}  # suffix -> reader, filled below the readers
 
 
-def read_volume(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXELS):
+def read_volume(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXELS, series=None):
     """Read a volume file (or pass an array through) as ``(array [z, y, x], spacing, origin)``.
 
     Parameters
     ----------
     source : str, Path or numpy.ndarray
-        A ``.npy``, ``.npz``, TIFF stack (``.tif``/``.tiff``), NIfTI (``.nii``/``.nii.gz``), DGtal
-        ``.vol`` or INRIMAGE (``.inr``/``.inr.gz``) file; or an array indexed ``[z, y, x]``.
+        A ``.npy``, ``.npz``, TIFF stack (``.tif``/``.tiff``), NIfTI (``.nii``/``.nii.gz``), NRRD,
+        DGtal ``.vol``, INRIMAGE (``.inr``/``.inr.gz``) or DICOM file (a DICOM-SEG, or an image:
+        with the other files of its series in its folder), or a folder of DICOM slices; or an
+        array indexed ``[z, y, x]``.
     label : number, optional
-        Return the boolean mask ``volume == label``.
+        Return the boolean mask ``volume == label``.  A segment's name in a ``.seg.nrrd`` or
+        DICOM-SEG file names its label.
     threshold : number, optional
         Return the boolean mask ``volume > threshold``.
     max_voxels : int
         Refuse files whose header declares more voxels (checked before allocating).
+    series : str or int, optional
+        For a folder holding several DICOM series: the SeriesInstanceUID or SeriesNumber to read.
 
     Returns
     -------
@@ -114,33 +125,56 @@ def read_volume(source, *, label=None, threshold=None, max_voxels: int = MAX_VOX
         The path does not name a file.
     ValueError
         Unknown suffix; truncated, corrupt or pickled data; a header declaring an impossible or
-        over-large size; a volume that is not 3D; a bad ``label``/``threshold``.
+        over-large size; a volume that is not 3D; a bad ``label``/``threshold``; a DICOM series
+        whose slices are not evenly spaced (:func:`read_image` gives their positions).
     """
-    img = read_image(source, label=label, threshold=threshold, max_voxels=max_voxels)
+    img = read_image(source, label=label, threshold=threshold, max_voxels=max_voxels, series=series)
+    if img.z is not None:
+        steps = np.diff(img.z)
+        raise ValueError(f"{str(source)!r}: the slices are not evenly spaced (steps {steps.min():.6g} to "
+                         f"{steps.max():.6g}); read_image returns their positions (Image.z), which "
+                         "contourmesh.mesh uses")
     return img.volume, img.spacing, img.origin
 
 
-def read_image(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXELS) -> Image:
+def read_image(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXELS, series=None) -> Image:
     """Like :func:`read_volume`, with the image's direction matrix and world frame (an :class:`Image`).
 
-    ``label`` may also be a segment's name in a 3D Slicer ``.seg.nrrd`` file.
+    ``label`` may also be a segment's name in a 3D Slicer ``.seg.nrrd`` file or a DICOM-SEG.
+    ``source`` may be a folder of DICOM slices (``series=`` picks one of several series).
     """
     if label is not None and threshold is not None:
         raise ValueError("give label= or threshold=, not both")
-    direction, space = np.eye(3), None
+    direction, space, z = np.eye(3), None, None
     if isinstance(source, np.ndarray):
+        if series is not None:
+            raise ValueError("series= picks a series of DICOM files; an array has none")
         vol, spacing, origin = source, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)
         where = "the array"
     else:
-        path = check_file(source, "volume")
+        if isinstance(source, (str, Path)) and Path(source).expanduser().is_dir():
+            path = Path(source).expanduser()
+            suffix = "dicom folder"
+            if not any(f.is_file() and _is_dicom(f) for f in path.iterdir()):
+                raise IsADirectoryError(f"{str(path)!r} is a directory; expected a volume file, or a folder of DICOM "
+                                        "image slices (it holds no DICOM file)")
+        else:
+            path = check_file(source, "volume")
+            suffix = _suffix(path)
+            if suffix not in _READERS and _is_dicom(path):
+                suffix = ".dcm"
         where = repr(str(path))
-        suffix = _suffix(path)
-        if suffix not in _READERS:
-            hint = " (DICOM RTSTRUCT contours are read by read_contours)" if suffix == ".dcm" else ""
+        if series is not None and suffix not in (".dcm", "dicom folder"):
+            raise ValueError(f"{where}: series= picks a series of DICOM files; this is not DICOM")
+        if suffix not in _READERS and suffix != "dicom folder":
             raise ValueError(f"{str(path)!r}: cannot tell the volume format; expected a suffix among "
-                             f"{', '.join(VOLUME_SUFFIXES)}, found {path.suffix or 'none'!r}{hint}")
+                             f"{', '.join(VOLUME_SUFFIXES)} (or a folder of DICOM files), found "
+                             f"{path.suffix or 'none'!r}")
         prefer = "volume" if (label is not None or threshold is not None) else "mask"
-        if suffix in (".nrrd", ".nhdr"):
+        if suffix in (".dcm", "dicom folder"):
+            vol, spacing, origin, direction, space, label, z = read_dicom(path, max_voxels=max_voxels, label=label,
+                                                                          series=series)
+        elif suffix in (".nrrd", ".nhdr"):
             vol, spacing, origin, direction, space, label = _read_nrrd(path, max_voxels=max_voxels, label=label)
         else:
             got = _READERS[suffix](path, max_voxels=max_voxels, prefer=prefer)
@@ -148,7 +182,7 @@ def read_image(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXE
             if len(got) > 3:
                 direction, space = got[3], got[4]
     if isinstance(label, str):
-        raise TypeError(f"label must be a number (or a segment name of a .seg.nrrd file); got {label!r}")
+        raise TypeError(f"label must be a number (or a segment name of a .seg.nrrd or DICOM-SEG file); got {label!r}")
     vol = check_volume_array(vol, where)
     spacing = tuple(float(s) for s in spacing)
     if len(spacing) != 3 or not all(math.isfinite(s) and s > 0 for s in spacing):
@@ -161,7 +195,17 @@ def read_image(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXE
         raise ValueError(f"{where}: expected an invertible 3x3 direction matrix; found {direction.tolist()}")
     if label is not None or threshold is not None:
         vol = select_voxels(vol, label=label, threshold=threshold, where=where)
-    return Image(vol, spacing, origin, direction, space)
+    if z is not None:
+        z = np.asarray(z, dtype=np.float64)
+    return Image(vol, spacing, origin, direction, space, z)
+
+
+def _is_dicom(path: Path) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(132)[128:132] == b"DICM"
+    except OSError:
+        return False
 
 
 def _read_npy(path: Path, *, max_voxels: int, prefer: str):
@@ -596,4 +640,4 @@ def write_volume(path, volume, *, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0
 
 _READERS.update({".npy": _read_npy, ".npz": _read_npz, ".tif": _read_tiff, ".tiff": _read_tiff, ".nii": _read_nifti,
                  ".nii.gz": _read_nifti, ".vol": _read_dgtal_vol, ".inr": _read_inr, ".inr.gz": _read_inr,
-                 ".nrrd": _read_nrrd, ".nhdr": _read_nrrd})
+                 ".nrrd": _read_nrrd, ".nhdr": _read_nrrd, ".dcm": read_dicom})
