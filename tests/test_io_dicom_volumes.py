@@ -473,3 +473,64 @@ def test_dicom_tests_can_fail(tmp_path):
     assert np.allclose(mb.vertices - ma.vertices, [SPACING[2], 0, 0])
     assert not np.allclose(centroid(mb), world(AXIAL, ORIGIN, CENTRE_IJK), atol=0.25 * SPACING[2])
 
+
+
+def test_multiframe_image_equals_the_series(tmp_path):
+    """An enhanced (multi-frame) CT of the ball, frames in shuffled order with their positions in
+    the per-frame functional groups, gives the series' mesh."""
+    mask = ball_mask()
+    write_series(tmp_path / "s", ct_of(mask), OBLIQUE, ORIGIN)
+    sop = generate_uid()
+    ds = Dataset()
+    ds.file_meta = _file_meta("1.2.840.10008.5.1.4.1.1.2.1", sop)
+    ds.SOPClassUID, ds.SOPInstanceUID = "1.2.840.10008.5.1.4.1.1.2.1", sop
+    ds.Modality = "CT"
+    ds.StudyInstanceUID, ds.SeriesInstanceUID = generate_uid(), generate_uid()
+    shared = Dataset()
+    po, pm, pv = Dataset(), Dataset(), Dataset()
+    po.ImageOrientationPatient = [f"{v:.10f}" for v in np.r_[OBLIQUE[:, 0], OBLIQUE[:, 1]]]
+    pm.PixelSpacing = [f"{SPACING[1]:g}", f"{SPACING[2]:g}"]
+    pv.RescaleSlope, pv.RescaleIntercept, pv.RescaleType = "1", "-1024", "HU"
+    shared.PlaneOrientationSequence, shared.PixelMeasuresSequence = Sequence([po]), Sequence([pm])
+    shared.PixelValueTransformationSequence = Sequence([pv])
+    ds.SharedFunctionalGroupsSequence = Sequence([shared])
+    order = np.random.default_rng(8).permutation(SHAPE[0])
+    per = []
+    for k in order:
+        fg, pp = Dataset(), Dataset()
+        pp.ImagePositionPatient = [f"{v:.10f}" for v in ORIGIN + k * SPACING[0] * OBLIQUE[:, 2]]
+        fg.PlanePositionSequence = Sequence([pp])
+        per.append(fg)
+    ds.PerFrameFunctionalGroupsSequence = Sequence(per)
+    ds.NumberOfFrames = SHAPE[0]
+    _image_pixels(ds, ct_of(mask)[order])
+    p = tmp_path / "enhanced.dcm"
+    ds.save_as(p, enforce_file_format=True)
+    img = read_image(p)
+    np.testing.assert_array_equal(img.volume, ct_of(mask).astype(np.int32) - 1024)
+    ms = contourmesh.mesh(str(tmp_path / "s"), threshold=0)
+    mm = contourmesh.mesh(str(p), threshold=0)
+    assert_good(mm)
+    np.testing.assert_allclose(mm.vertices, ms.vertices, atol=1e-9)
+    assert mm.meta["space"] == "LPS"
+
+
+def test_one_lone_slice_and_the_cli_on_a_folder(tmp_path):
+    mask = ball_mask()
+    paths = write_series(tmp_path / "s", ct_of(mask), FLIPPED, ORIGIN)
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    one = paths[0].rename(lone / "only.dcm")  # a slice without its series: a volume of one slice
+    img = read_image(one)
+    assert img.volume.shape == (1, 24, 24) and img.spacing[0] == pytest.approx(SPACING[0])
+    k = int(np.flatnonzero([np.array_equal(ct_of(mask)[i], img.volume[0] + 1024) for i in range(SHAPE[0])])[0])
+    np.testing.assert_allclose(img.origin, world(FLIPPED, ORIGIN, (0, 0, k)), atol=1e-6)
+    # the rest of the series, by the command line, on the folder (one slice missing: uneven steps)
+    out = tmp_path / "ball.ply"
+    r = subprocess.run([sys.executable, "-m", "contourmesh", "mesh", str(tmp_path / "s") + "/", "--threshold", "0",
+                        "-o", str(out), "--json", "--quiet"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert '"space": "LPS"' in r.stdout and out.stat().st_size > 0
+    r = subprocess.run([sys.executable, "-m", "contourmesh", "mesh", str(tmp_path / "s"), "--label", "Liver",
+                        "-o", str(out), "--force"], capture_output=True, text=True)
+    assert r.returncode == 2 and "the label 'Liver' names a segment" in r.stderr and "give a number" in r.stderr

@@ -188,7 +188,8 @@ def mesh(source, **options) -> Mesh:
     source : Shape, str, Path, ContourStack or numpy.ndarray
         An analytic shape (``contourmesh.shapes.Sphere(40, center=(0.3, 0.1, 0.2))``), a shape spec
         string (``"sphere:r=40"``, ``"torus:R=30,r=9"``), a file (volumes: ``.npy .npz .tif .nii[.gz]
-        .vol .inr[.gz]``; contours: ``.json``, DICOM RTSTRUCT ``.dcm``), a ContourStack, or a 3D array
+        .nrrd .vol .inr[.gz]``, DICOM-SEG and DICOM image ``.dcm``, a folder of DICOM slices; contours:
+        ``.json``, DICOM RTSTRUCT ``.dcm``), a ContourStack, or a 3D array
         indexed ``[z, y, x]`` (binary, or labels with ``label=`` / ``threshold=``).
     **options
         ``polygon`` ({"mlp", "dss", "none"}; default ``"mlp"``, and the drawn rings themselves for

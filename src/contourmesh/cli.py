@@ -32,10 +32,13 @@ center=x;y;z and rotation=ax;ay;az, three angles in degrees applied about the x 
 then y, then z (R = Rz Ry Rx), or nine numbers giving the rotation matrix row by row.
 Example: "torus:R=30,r=9,center=0.3;0.1;0.2,rotation=30;0;0".
 
-volume files: .npy .npz .tif .nii[.gz] .nrrd .seg.nrrd .vol .inr[.gz], indexed [z, y, x] once read;
-meshes of NIfTI and NRRD files are in the image's world coordinates (its affine applied); a volume
-with exactly two values (0/255) is binary, others need --label or --threshold.
+volume files: .npy .npz .tif .nii[.gz] .nrrd .seg.nrrd .vol .inr[.gz], DICOM-SEG and DICOM images
+(.dcm; a folder of DICOM slices is read as one series), indexed [z, y, x] once read;
+meshes of NIfTI, NRRD and DICOM files are in the image's world coordinates (its affine applied;
+DICOM: patient LPS); a volume with exactly two values (0/255) is binary, others need --label or
+--threshold.
 contour files: DICOM RTSTRUCT (.dcm, pick a structure with --roi), .json contour stacks.
+A .dcm file goes by its Modality: RTSTRUCT is contours, SEG and images are volumes.
 Areas are in the square of the file's (or --spacing's) unit.
 """
 
@@ -71,7 +74,7 @@ def _number(text: str):
 
 
 def _label(text: str):
-    """A label: a number, or a segment's name in a .seg.nrrd file."""
+    """A label: a number, or a segment's name in a .seg.nrrd or DICOM-SEG file."""
     try:
         return _number(text)
     except argparse.ArgumentTypeError:
@@ -352,7 +355,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "within the frustum-trapezoid interval) or curved bands through the neighbouring sections "
                         "(smooth shapes converge to their true volume and area)")
     m.add_argument("--label", type=_label, default=None,
-                   help="volumes: use the voxels equal to this label (.seg.nrrd: a segment name)")
+                   help="volumes: use the voxels equal to this label (.seg.nrrd, DICOM-SEG: a segment name)")
     m.add_argument("--threshold", type=_number, default=None, help="volumes: use the voxels above this value")
     m.add_argument("--axis", type=int, default=None, choices=[0, 1, 2], help="volumes: slicing axis (default 0)")
     m.add_argument("--spacing", type=_spacing, default=None, metavar="DZ,DY,DX",

@@ -1,7 +1,8 @@
 """Readers and writers.
 
-* :mod:`contourmesh.io.volumes`: volume files (``.npy .npz .tif .nii[.gz] .vol .inr[.gz]``) and
-  the ``.npz`` writer;
+* :mod:`contourmesh.io.volumes`: volume files (``.npy .npz .tif .nii[.gz] .nrrd .vol .inr[.gz]``,
+  DICOM through :mod:`contourmesh.io.dicom`: DICOM-SEG, image series, multi-frame images) and
+  the volume writer;
 * :mod:`contourmesh.io.contours`: contour stacks (DICOM RTSTRUCT, the JSON contour format,
   contour ``.npz``) and the JSON writer;
 * meshes: :func:`load_mesh` here, and :func:`contourmesh.meshes.save_mesh` (``Mesh.save``).

@@ -205,7 +205,7 @@ def read_dicom(path, *, max_voxels: int, label=None, series=None):
     if modality == "SEG":
         return _read_seg(pydicom, p, ds, max_voxels=max_voxels, label=label)
     if isinstance(label, str):
-        raise ValueError(f"{str(p)!r}: label={label!r} names a segment, but this is a {modality or 'DICOM'} image, "
+        raise ValueError(f"{str(p)!r}: the label {label!r} names a segment, but this is a {modality or 'DICOM'} image, "
                          "not a DICOM-SEG; give a number")
     if "Rows" not in ds or "Columns" not in ds:
         raise _bad(p, "a DICOM image or segmentation (Rows and Columns)", f"Modality {modality!r} without an image")
@@ -265,7 +265,7 @@ def _describe(uid, items) -> str:
 
 def _read_series(pydicom, folder: Path, files: list, *, max_voxels: int, series, label):
     if isinstance(label, str):
-        raise ValueError(f"{str(folder)!r}: label={label!r} names a segment, but this is an image series, not a "
+        raise ValueError(f"{str(folder)!r}: the label {label!r} names a segment, but this is an image series, not a "
                          "DICOM-SEG; give a number")
     groups: dict = {}
     for f, ds in files:
