@@ -174,6 +174,10 @@ def test_series_rescale_label_and_one_file_reads_its_series(tmp_path):
     labels = np.where(mask, 7, 0).astype(np.uint16)
     labels[1:3, 2:6, 2:6] = 4
     paths = write_series(tmp_path / "s", labels, AXIAL, ORIGIN, slope=2.0, intercept=-5.0)
+    from contourmesh.compare.phantoms import cylinder, draw, rtstruct_bytes
+
+    # a structure set beside the slices (as planning systems export them) is not a slice: skipped
+    (tmp_path / "s" / "rtss.dcm").write_bytes(rtstruct_bytes({"cyl": draw(cylinder(8, 12), 2.0, 0.5, seed=4)}))
     img = read_image(tmp_path / "s")
     assert img.volume.dtype == np.float64
     np.testing.assert_array_equal(img.volume, labels * 2.0 - 5.0)  # RescaleSlope/Intercept applied
@@ -219,7 +223,7 @@ def test_uneven_series_is_meshed_at_its_positions(tmp_path):
 # ------------------------------------------------------------------------------------------------
 # DICOM-SEG
 # ------------------------------------------------------------------------------------------------
-def write_seg(path, segments: dict, direction, origin, *, spacing=SPACING, fractional=False, drop=()):
+def write_seg(path, segments: dict, direction, origin, *, spacing=SPACING, fractional=False, drop=(), positions=None):
     """A DICOM-SEG with one frame per (segment, slice) where the segment is non-empty, except the
     ``(segment, slice)`` pairs in ``drop``.  ``segments``: ``{number: (label, mask [z, y, x])}``."""
     sop = generate_uid()
@@ -255,7 +259,8 @@ def write_seg(path, segments: dict, direction, origin, *, spacing=SPACING, fract
                 continue
             fg = Dataset()
             pp = Dataset()
-            pp.ImagePositionPatient = [f"{v:.10f}" for v in origin + k * spacing[0] * normal]
+            at = k * spacing[0] if positions is None else positions[k]
+            pp.ImagePositionPatient = [f"{v:.10f}" for v in origin + at * normal]
             fg.PlanePositionSequence = Sequence([pp])
             si = Dataset()
             si.ReferencedSegmentNumber = num
@@ -337,6 +342,24 @@ def test_seg_missing_positions_are_empty_slices(tmp_path):
     # the box's corners in world coordinates, half a voxel out
     ijk = np.linalg.solve(FLIPPED, (m.vertices - ORIGIN).T).T / [SPACING[2], SPACING[1], SPACING[0]]
     assert ijk.min(0) == pytest.approx([3.5, 4.5, 6.5], abs=1e-9) and ijk.max(0) == pytest.approx([9.5, 11.5, 10.5], abs=1e-9)
+
+
+def test_seg_uneven_positions_are_kept(tmp_path):
+    """Steps that are not whole multiples of one step: the slices stay at their positions (Image.z)
+    and the mesh's sections lie in those planes."""
+    shape = (6, 16, 16)
+    a = np.zeros(shape, bool)
+    a[:, 4:11, 3:12] = True
+    positions = np.array([0.0, 2.0, 3.5, 6.0, 7.0, 10.0])
+    p = write_seg(tmp_path / "uneven.dcm", {1: ("A", a)}, OBLIQUE, ORIGIN, positions=positions)
+    img = read_image(p)
+    np.testing.assert_allclose(img.z, positions, atol=1e-6)
+    m = contourmesh.mesh(str(p), polygon="none")
+    assert_good(m)
+    along = (m.vertices - ORIGIN) @ OBLIQUE[:, 2]
+    np.testing.assert_allclose(np.unique(np.round(along, 6)), positions, atol=1e-6)
+    # flat caps, straight walls: the volume is the section area times the span
+    assert m.volume == pytest.approx(7 * SPACING[1] * 9 * SPACING[2] * 10.0, rel=1e-9)  # 7 x 9 pixels
 
 
 def test_all_labels_of_a_seg_by_the_cli(tmp_path):

@@ -122,8 +122,10 @@ def _grid(path: Path, positions: np.ndarray, row, col, normal, pixel: float, *, 
     Returns ``(order, slots, dz, z)``: ``order`` sorts the given positions, ``slots[i]`` is the
     grid slice of sorted position ``i`` (positions within a hundredth of a pixel share a slot),
     ``dz`` the slice step, and ``z`` the slots' offsets along the normal when they are not evenly
-    spaced (None when they are).  ``fill`` allows gaps that are whole multiples of the step (they
-    become empty slices); otherwise every slot holds one position.
+    spaced (None when they are).  ``fill`` allows gaps that are whole multiples of the smallest
+    step (they become empty slices); otherwise every slot holds one position.  ``step_hint`` is
+    the step of a single slice (its SpacingBetweenSlices or SliceThickness), used only then: a
+    thickness is not a spacing, and a hint smaller than the steps would interleave empty slices.
     """
     names = names or [f"slice {i}" for i in range(len(positions))]
     d = positions @ normal
@@ -148,7 +150,7 @@ def _grid(path: Path, positions: np.ndarray, row, col, normal, pixel: float, *, 
     steps = np.diff(planes)
     span = planes[-1] - planes[0]
     if fill:
-        base = step_hint if step_hint and step_hint > tol else float(steps.min())
+        base = float(steps.min())
         k = np.rint((planes - planes[0]) / base).astype(np.int64)
         dz = span / k[-1] if k[-1] > 0 else base
         if np.all(np.diff(k) > 0) and np.abs(planes - planes[0] - k * dz).max() <= 1e-2 * dz:
