@@ -432,6 +432,23 @@ def test_bad_dicom_inputs(tmp_path):
     with pytest.raises(ValueError, match=rf"{f.name}'.*one series, one orientation"):
         read_image(tilt)
 
+    sheared = tmp_path / "sheared"  # gantry tilt: each slice shifted within its plane
+    write_series(sheared, ct_of(mask), AXIAL, ORIGIN)
+    for f in sheared.iterdir():
+        ds = pydicom.dcmread(f)
+        x, y, z = (float(v) for v in ds.ImagePositionPatient)
+        ds.ImagePositionPatient = [f"{x:.4f}", f"{y + 0.3 * (z - ORIGIN[2]):.4f}", f"{z:.4f}"]
+        ds.save_as(f, enforce_file_format=True)
+    with pytest.raises(ValueError, match=r"sheared'.*stacked along their normal \(no gantry tilt.*offset"):
+        read_image(sheared)
+    dup = tmp_path / "dup"
+    paths = write_series(dup, ct_of(mask), OBLIQUE, ORIGIN)
+    a, b = pydicom.dcmread(paths[0]), pydicom.dcmread(paths[1])
+    b.ImagePositionPatient = a.ImagePositionPatient
+    b.save_as(paths[1], enforce_file_format=True)
+    with pytest.raises(ValueError, match=r"one image per slice position.*img00[01].dcm and img00[01].dcm both at"):
+        read_image(dup)
+
     fake = tmp_path / "fake.dcm"
     fake.write_bytes(b"hello, this is not DICOM" * 10)
     with pytest.raises(ValueError, match=r"fake.dcm'.*'DICM' marker"):

@@ -120,7 +120,7 @@ def _grid(path: Path, positions: np.ndarray, row, col, normal, pixel: float, *, 
     """Sort slice positions along the normal and lay them on a grid.
 
     Returns ``(order, slots, dz, z)``: ``order`` sorts the given positions, ``slots[i]`` is the
-    grid slice of sorted position ``i`` (positions within a hundredth of a pixel share a slot),
+    grid slice of sorted position ``i`` (positions within a twentieth of a pixel share a slot),
     ``dz`` the slice step, and ``z`` the slots' offsets along the normal when they are not evenly
     spaced (None when they are).  ``fill`` allows gaps that are whole multiples of the smallest
     step (they become empty slices); otherwise every slot holds one position.  ``step_hint`` is
@@ -133,7 +133,7 @@ def _grid(path: Path, positions: np.ndarray, row, col, normal, pixel: float, *, 
     d = d[order]
     rel = positions[order] - positions[order[0]]
     off = np.abs(np.c_[rel @ row, rel @ col]).max(axis=1)
-    tol = 1e-2 * pixel
+    tol = 5e-2 * pixel  # positions are written in decimal text: allow their rounding
     if np.any(off > tol):
         i = int(np.argmax(off))
         raise _bad(path, "slices stacked along their normal (no gantry tilt or shear)",
@@ -153,13 +153,13 @@ def _grid(path: Path, positions: np.ndarray, row, col, normal, pixel: float, *, 
         base = float(steps.min())
         k = np.rint((planes - planes[0]) / base).astype(np.int64)
         dz = span / k[-1] if k[-1] > 0 else base
-        if np.all(np.diff(k) > 0) and np.abs(planes - planes[0] - k * dz).max() <= 1e-2 * dz:
+        if np.all(np.diff(k) > 0) and np.abs(planes - planes[0] - k * dz).max() <= 2e-2 * dz:
             if k[-1] + 1 > len(planes):
                 log.debug("%s: %d slice positions on a grid of %d (missing ones are empty)", path, len(planes), k[-1] + 1)
             return order, k[slots], dz, None
         return order, slots, span / (len(planes) - 1), planes - planes[0]
     dz = span / (len(planes) - 1)
-    if np.abs(planes - planes[0] - dz * np.arange(len(planes))).max() <= 1e-2 * dz:
+    if np.abs(planes - planes[0] - dz * np.arange(len(planes))).max() <= 2e-2 * dz:
         return order, slots, dz, None
     log.debug("%s: slices unevenly spaced (steps %.4g..%.4g mm); kept at their positions", path, steps.min(), steps.max())
     return order, slots, dz, planes - planes[0]
@@ -310,8 +310,9 @@ def _read_series(pydicom, folder: Path, files: list, *, max_voxels: int, series,
             if ds0.get(key) not in (None, "") and float(ds0.get(key)) > 0:
                 hint = float(ds0.get(key))
                 break
-    order, slots, dz, z = _grid(first, positions, row, col, normal, float(ps0.min()), names=names, step_hint=hint)
-    _check_size(first, (len(files), rows, cols), 1, max_voxels)
+    where = folder if len(files) > 1 else first  # errors about the whole series name its folder
+    order, slots, dz, z = _grid(where, positions, row, col, normal, float(ps0.min()), names=names, step_hint=hint)
+    _check_size(where, (len(files), rows, cols), 1, max_voxels)
     slices, rescale = [], []
     for i in order:
         f = files[i][0]
