@@ -171,9 +171,10 @@ def _rescale(ds):
 
 
 def _values(slices: list, rescale: list) -> np.ndarray:
-    """Stack decoded slices with their rescale applied: integers when every slope is 1 and every
-    intercept whole, float64 otherwise."""
-    whole = all(s == 1.0 and float(i).is_integer() for s, i in rescale)
+    """Stack decoded slices with their rescale applied: integers when the pixels are integers of at
+    most 16 bits, every slope is 1 and every intercept whole; float64 otherwise."""
+    whole = (all(a.dtype.kind in "biu" and a.dtype.itemsize <= 2 for a in slices)
+             and all(s == 1.0 and float(i).is_integer() and abs(i) < 2**30 for s, i in rescale))
     dtype = np.int32 if whole else np.float64
     vol = np.empty((len(slices),) + slices[0].shape, dtype=dtype)
     for t, (arr, (s, i)) in enumerate(zip(slices, rescale)):
