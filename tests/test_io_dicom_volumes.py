@@ -553,6 +553,17 @@ def test_multiframe_image_equals_the_series(tmp_path):
     assert_good(mm)
     np.testing.assert_allclose(mm.vertices, ms.vertices, atol=1e-9)
     assert mm.meta["space"] == "LPS"
+    # uneven frame positions are kept (Image.z) and meshed there
+    positions = np.r_[0.0, np.cumsum([2.0, 2.0, 1.5, 2.5, 2.0, 3.0, 2.0, 2.0, 1.0, 2.0, 2.0])]
+    for fg, k in zip(ds.PerFrameFunctionalGroupsSequence, order):
+        fg.PlanePositionSequence[0].ImagePositionPatient = [f"{v:.10f}" for v in ORIGIN + positions[k] * OBLIQUE[:, 2]]
+    ds.save_as(p, enforce_file_format=True)
+    img = read_image(p, threshold=0)
+    np.testing.assert_allclose(img.z, positions, atol=1e-6)
+    mu = contourmesh.mesh(str(p), threshold=0, polygon="none")
+    assert_good(mu)
+    along = (mu.vertices - ORIGIN) @ OBLIQUE[:, 2]
+    np.testing.assert_allclose(np.unique(np.round(along, 6)), positions[np.any(mask, axis=(1, 2))], atol=1e-6)
 
 
 def test_one_lone_slice_and_the_cli_on_a_folder(tmp_path):

@@ -214,7 +214,8 @@ def read_dicom(path, *, max_voxels: int, label=None, series=None):
         raise _bad(p, "a DICOM image or segmentation (Rows and Columns)", f"Modality {modality!r} without an image")
     frames = int(ds.get("NumberOfFrames", 1) or 1)
     if frames > 1 or "PerFrameFunctionalGroupsSequence" in ds:
-        return _read_multiframe_image(pydicom, p, ds, max_voxels=max_voxels) + (label,) + (None,)
+        vol, spacing, origin, direction, z = _read_multiframe_image(pydicom, p, ds, max_voxels=max_voxels)
+        return vol, spacing, origin, direction, DICOM_SPACE, label, z
     uid = ds.get("SeriesInstanceUID")
     if uid is not None:
         mates = [f for f in _series_files(pydicom, p.parent, quiet=True) if f[1].get("SeriesInstanceUID") == uid]
@@ -430,7 +431,7 @@ def _read_multiframe_image(pydicom, path: Path, ds, *, max_voxels: int):
         t = _group(full, per, int(i), "PixelValueTransformationSequence")
         rescale.append(_rescale(t) if t is not None else _rescale(full))
     vol = _values([arr[i] for i in order], rescale)
-    return vol, (dz, float(ps[0]), float(ps[1])), tuple(positions[order[0]]), np.column_stack([row, col, normal]), DICOM_SPACE
+    return vol, (dz, float(ps[0]), float(ps[1])), tuple(positions[order[0]]), np.column_stack([row, col, normal]), z
 
 
 # ------------------------------------------------------------------------------------------------
