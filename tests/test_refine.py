@@ -516,17 +516,13 @@ def test_searches_with_column_runs_give_the_same_places_bit_for_bit(pixel, uneve
     rings = [np.c_[13.2 * grid[0] + r * np.cos(ang), 14.6 * grid[1] + 1.1 * r * np.sin(ang)]
              + rng.normal(0, 0.4, (40, 2)) for r in (6.0, 7.5, 2.5)]
     plain, fast = {}, {"runs": runs}
-    counts = [[0, 0], [0, 0], [0, 0]]
     moved = 0.0
     for k in (7, 11, 15):
         kz = np.full(40, k, dtype=np.int64)
         for ring in rings:
-            a, n1 = R._surface_points(pts, ring, kz, 2.6, grid, True, 3.0, True, 1.8, counts[0], plain)
-            b, n2 = R._surface_points(pts, ring, kz, 2.6, grid, True, 3.0, True, 1.8, counts[1], fast)
+            a, n1 = R._surface_points(pts, ring, kz, 2.6, grid, True, 3.0, True, 1.8, None, plain)
+            b, n2 = R._surface_points(pts, ring, kz, 2.6, grid, True, 3.0, True, 1.8, None, fast)
             assert np.array_equal(a, b) and n1 == n2
-            # without slice images: step by step in Python, not in one compiled call; the same places
-            c, n3 = R._surface_points(pts, ring, kz, 2.6, grid, True, 3.0, True, 1.8, counts[2], None)
-            assert np.array_equal(a, c) and n1 == n3
             moved = max(moved, float(np.abs(a - ring).max()))
             fa, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0)
             fb, _ = R._fields_in_slice(pts, a, k, 2.6, grid, *R._no_images(), 0.0, runs)
@@ -540,7 +536,6 @@ def test_searches_with_column_runs_give_the_same_places_bit_for_bit(pixel, uneve
         for key in plain:
             assert all(np.array_equal(a, b) for a, b in zip(plain[key], fast[key]))
     assert moved > 1.0  # the searches did move vertices
-    assert counts[0] == counts[1] == counts[2] and counts[0][1] == 9 * 40
 
 
 def _ring_point_at_numpy(ring, s):

@@ -1498,10 +1498,6 @@ def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False,
     vertices seen; ``images`` (a dict, or None) keeps the slice images between searches of one slice."""
     xy = np.ascontiguousarray(xy)
     grid = _as_grid(grid, pts.shape[0])
-    if (images is not None and fine is not None and fine < sigma and len(xy) >= 3 and not FINE_ADAPTIVE
-            and isinstance(kz, np.ndarray) and kz.dtype == np.int64 and kz.flags.c_contiguous):
-        return _two_scale_points(pts, xy, kz, float(sigma), float(fine), grid, curvature, max_move, strict, counts,
-                                 images)
     out = np.empty_like(xy)
     found = np.empty(len(xy), dtype=np.bool_)
     clamped = _search(images, pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found)
@@ -1531,54 +1527,6 @@ def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False,
     res = np.empty_like(xy)
     _clamp_to_band(pts, out, target, np.ascontiguousarray(kz, dtype=np.int64), res, grid)
     return res, clamped
-
-
-def _two_scale_points(pts, xy, kz, sigma, fine, grid, curvature, max_move, strict, counts, images):
-    """:func:`_surface_points` with two scales and slice images (its usual case) in one compiled call
-    (:func:`_two_scale_kernel`): the same searches, targets and clamp in the same order, so the same
-    places; the slice images of both widths go back into ``images``."""
-    mom, box, span = images.get(sigma) or _no_images()
-    fmom, fbox, fspan = images.get(fine) or _no_images()
-    r4 = (fine / sigma) ** 4
-    rho = r4 / (1.0 - r4) if FINE_RHO is None else float(FINE_RHO)
-    margin = IMAGE_MARGIN * max_move + 2.0
-    args = (pts, xy, kz, sigma, fine, grid, curvature, max_move, strict, mom, span, box, fmom, fspan, fbox, margin,
-            float(SHIFT_CUBIC), FINE_TOLERANCE[0], FINE_TOLERANCE[1] - FINE_TOLERANCE[0], rho)
-    runs = images.get("runs")
-    res, clamped, n_fine, mom, span, fmom, fspan = (_two_scale_kernel(*args) if runs is None
-                                                    else _two_scale_kernel(*args, runs))
-    images[sigma] = (mom, box, span)
-    images[fine] = (fmom, fbox, fspan)
-    if counts is not None:
-        counts[0] += int(n_fine)
-        counts[1] += len(xy)
-    return res, clamped
-
-
-@njit(cache=True)
-def _two_scale_kernel(pts, xy, kz, sigma, fine, grid, curvature, max_move, strict, mom, span, box, fmom, fspan, fbox,
-                      margin, cubic, lo, width, rho, runs=None):
-    """The steps of :func:`_surface_points` with ``fine``: the search at ``sigma`` and at ``fine``
-    (:func:`_move_with_images`, each with its slice images ``mom, span, box`` and ``fmom, fspan,
-    fbox``), :func:`_two_scale_targets` (``lo``, ``width``: the tolerance's lower bound and its
-    width) and the clamp of :func:`_clamp_kernel`.  Returns ``(places, clamped, n_fine, mom, span,
-    fmom, fspan)``."""
-    n = xy.shape[0]
-    out = np.empty_like(xy)
-    found = np.empty(n, np.bool_)
-    clamped, mom, span = _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict, found, mom,
-                                           span, box, margin, cubic, runs)
-    near = np.empty_like(xy)
-    found_fine = np.empty(n, np.bool_)
-    _, fmom, fspan = _move_with_images(pts, xy, kz, fine, grid, curvature, max_move, near, strict, found_fine, fmom,
-                                       fspan, fbox, margin, cubic, runs)
-    target = np.empty_like(xy)
-    n_fine, n_any = _two_scale_targets(out, near, found, found_fine, lo, width, rho, target)
-    if not n_any:
-        return out, clamped, n_fine, mom, span, fmom, fspan
-    res = np.empty_like(xy)
-    _clamp_kernel(pts, out, target, kz, res, grid)
-    return res, clamped, n_fine, mom, span, fmom, fspan
 
 
 def _three_scale_targets(pts, xy, kz, sigma, fine, grid, curvature, max_move, strict, images, out, near, found,
