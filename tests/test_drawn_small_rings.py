@@ -1,0 +1,221 @@
+"""Issue 15: drawn rings that hold no pixel centre of the contours route's raster (slivers, specks,
+vessel holes of a square millimetre) are meshed as drawn, not dropped; the few that still cannot be
+kept (an island in a hole, a speck against another ring) are named in a LostContourWarning."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+import contourmesh
+from contourmesh.compare.clinical import _section_area
+from contourmesh.errors import LostContourWarning, RasterFallbackWarning
+from contourmesh.geometry import shoelace_area
+from contourmesh.stacks import stack_from_rings
+
+DZ = 2.0
+
+
+def circle(cx, cy, r, n=48):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return np.c_[cx + r * np.cos(t), cy + r * np.sin(t)]
+
+
+def box(x0, y0, x1, y1):
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float)
+
+
+# at pixel=1 the pixel centres are the integer points: none of these holds one
+SLIVER = box(12.05, -3.0, 12.35, 3.0)  # 0.3 x 6, beside the large ring
+SPECK = np.array([[25.1, 0.1], [25.6, 0.15], [25.3, 0.6]])  # a triangle of 0.12
+
+
+def mesh(st, **kw):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        m = contourmesh.mesh(st, pixel=1.0, **kw)
+    return m, caught
+
+
+def assert_sound(m):
+    chk = m.checks()
+    assert chk["watertight"] and chk["winding_consistent"] and chk["degenerate_faces"] == 0, chk
+    assert chk["self_intersections"] == 0, chk
+    assert chk["volume"] > 0
+    return chk
+
+
+def parts(m):
+    """The mesh's connected pieces: ``(faces' triangles, signed volume)`` each."""
+    V, F = np.asarray(m.vertices), np.asarray(m.faces)
+    e = np.r_[F[:, [0, 1]], F[:, [1, 2]]]
+    n, lab = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(V),) * 2), directed=False)
+    out = []
+    for c in range(n):
+        tri = V[F[lab[F[:, 0]] == c]]
+        if len(tri):
+            out.append((tri, float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6)))
+    return out
+
+
+def xsec(tri, z):
+    return _section_area(tri, np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), z)
+
+
+def near(tri, ring):
+    """Whether the triangles lie over the ring's box (a pixel of margin)."""
+    c = tri[:, :, :2].reshape(-1, 2).mean(0)
+    return bool(np.all(c >= ring.min(0) - 1) and np.all(c <= ring.max(0) + 1))
+
+
+def plane_gaps(m, st, eps=1e-6):
+    """Per contour plane: the mesh's section just below and just above it minus the drawn even-odd area."""
+    from contourmesh.compare.phantoms import section_areas
+
+    tri = np.asarray(m.vertices)[np.asarray(m.faces)]
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    zs, ref = st.z, section_areas(st)
+    out = []
+    for k, z in enumerate(zs):
+        sides = ([z - eps] if k > 0 else []) + ([z + eps] if k < len(zs) - 1 else [])
+        out.append([_section_area(tri, nrm, h) - ref[k] for h in sides])
+    return out
+
+
+def small_ring_stack(small=True):
+    """A large ring on sections 0-4 ending in a speck on section 5 (a section of its own speck only); a
+    sliver beside it on section 2; a column at x=25 whose two end sections are specks."""
+    secs = []
+    for k in range(6):
+        rs = [circle(0, 0, 8)] if k < 5 else []
+        if k == 5 and small:
+            rs.append(SPECK - (25, 0))  # the large column's end: a speck over its middle
+        if k == 2 and small:
+            rs.append(SLIVER)
+        if k in (2, 3):
+            rs.append(circle(25, 0, 3, 32))
+        if k in (1, 4) and small:
+            rs.append(SPECK)
+        secs.append((DZ * k, rs))
+    return stack_from_rings(secs, meta={"roi": "specks"})
+
+
+@pytest.mark.parametrize("opts", [{}, {"caps": "smooth"}, {"caps": "smooth", "bands": "curved"}])
+def test_rings_below_a_pixel_are_meshed_as_drawn(opts):
+    st = small_ring_stack()
+    m, caught = mesh(st, **opts)
+    assert not [w for w in caught if issubclass(w.category, (LostContourWarning, RasterFallbackWarning))], \
+        [str(w.message) for w in caught]
+    assert m.meta["route"] == "contours" and m.meta["kept_small_rings"] == 4 and m.meta["lost_rings"] == 0
+    assert m.meta["unmatched_components"] == 0
+    chk = assert_sound(m)
+    assert chk["components"] == 3 and chk["genus"] == 0
+    # every contour plane's mesh section is the drawn section, specks and sliver included
+    for k, gaps in enumerate(plane_gaps(m, st)):
+        assert np.allclose(gaps, 0, atol=2e-3), (k, gaps)
+    # the sliver is its own piece, a slab of its drawn ring (not of the seven pixels it was given)
+    (tri, vol), = [(t, v) for t, v in parts(m) if near(t, SLIVER)]
+    a = shoelace_area(SLIVER)
+    for h in (2 * DZ - 1e-6, 2 * DZ + 1e-6):
+        assert xsec(tri, h) == pytest.approx(a, rel=1e-9)
+    np.testing.assert_allclose(tri[:, :, :2].reshape(-1, 2).min(0), SLIVER.min(0), atol=1e-12)
+    np.testing.assert_allclose(tri[:, :, :2].reshape(-1, 2).max(0), SLIVER.max(0), atol=1e-12)
+    assert vol == pytest.approx(a * DZ, rel=1e-9)  # a single-section ring is a slab one spacing thick
+    # the speck-ended column: its specks are in the mesh at their planes
+    (tri, vol), = [(t, v) for t, v in parts(m) if near(t, circle(25, 0, 3))]
+    for k in (1, 4):
+        assert xsec(tri, DZ * k + (1e-6 if k == 1 else -1e-6)) == pytest.approx(abs(shoelace_area(SPECK)), abs=1e-4)
+
+
+def rules(areas, dz):
+    """The frustum and trapezoid rules' volumes over a run of section areas ``dz`` apart."""
+    a = np.asarray(areas, dtype=float)
+    return (float(np.sum(dz / 3 * (a[1:] + a[:-1] + np.sqrt(a[1:] * a[:-1])))),
+            float(np.sum(dz / 2 * (a[1:] + a[:-1]))))
+
+
+def test_each_piece_holds_the_volume_its_drawn_rings_imply():
+    m, _ = mesh(small_ring_stack())
+    big, col, speck = (abs(shoelace_area(r)) for r in (circle(0, 0, 8), circle(25, 0, 3, 32), SPECK))
+    pieces = parts(m)
+    assert len(pieces) == 3
+    for tri, vol in pieces:
+        if near(tri, SLIVER):
+            lo = hi = shoelace_area(SLIVER) * DZ
+        elif near(tri, circle(25, 0, 3)):  # speck, circle, circle, speck: bands between them
+            lo, hi = rules([speck, col, col, speck], DZ)
+        else:  # the large ring on five sections, then the speck that ends it: a cone on the last band
+            lo, hi = rules([big] * 5 + [speck], DZ)
+        assert lo * (1 - 1e-9) <= vol <= hi * (1 + 1e-9), (vol, lo, hi)
+
+
+def test_a_vessel_hole_below_a_pixel_keeps_its_tunnel():
+    """A hole through every section (a vessel), a speck on the middle one: the tunnel goes through
+    (genus 1); dropping the speck would make two blind pits (genus 0)."""
+    hole = lambda s: box(-s, -s, s, s)[::-1] + 0.5  # noqa: E731 - centred between pixel centres
+    secs = [(DZ * k, [circle(0, 0, 8), hole(0.3 if k == 2 else 1.2)]) for k in range(5)]
+    st = stack_from_rings(secs, meta={"roi": "vessel"})
+    m, caught = mesh(st)
+    assert not [w for w in caught if issubclass(w.category, (LostContourWarning, RasterFallbackWarning))]
+    assert m.meta["kept_small_rings"] == 1 and m.meta["lost_rings"] == 0
+    chk = assert_sound(m)
+    assert chk["components"] == 1 and chk["genus"] == 1
+    for k, gaps in enumerate(plane_gaps(m, st)):
+        assert np.allclose(gaps, 0, atol=2e-3), (k, gaps)
+
+
+def test_a_cavity_below_a_pixel_is_cut_out():
+    secs = [(DZ * k, [circle(0, 0, 8)] + ([box(0.1, 0.1, 0.4, 0.4)[::-1]] if k == 2 else [])) for k in range(5)]
+    m, caught = mesh(stack_from_rings(secs, meta={"roi": "cavity"}))
+    full, _ = mesh(stack_from_rings([(DZ * k, [circle(0, 0, 8)]) for k in range(5)]))
+    assert not [w for w in caught if issubclass(w.category, LostContourWarning)]
+    assert m.meta["kept_small_rings"] == 1
+    chk = assert_sound(m)
+    assert chk["components"] == 2  # the void is a surface of its own, wound inwards
+    assert full.volume - m.volume == pytest.approx(0.09 * DZ, rel=1e-9)
+
+
+def test_rings_that_still_cannot_be_kept_are_named():
+    big = circle(0, 0, 8)
+    island = box(0.1, 0.1, 0.4, 0.4)  # inside a hole of radius 4
+    against = box(8.1, 3.1, 8.4, 3.4)  # outside the circle, but its pixel (8, 3) touches the circle's (7, 3)
+    secs = [(DZ * k, [big] if k != 2 else [big, circle(0, 0, 4)[::-1], island, against, SLIVER]) for k in range(5)]
+    m, caught = mesh(stack_from_rings(secs, meta={"roi": "Specks"}))
+    lost = [str(w.message) for w in caught if issubclass(w.category, LostContourWarning)]
+    assert len(lost) == 1 and lost[0].startswith("Specks: 2 drawn ring(s)"), lost
+    assert "section 2 (z=4) ring 2 (it lies inside another drawn ring)" in lost[0]
+    assert "section 2 (z=4) ring 3 (its pixels would touch another ring's)" in lost[0]
+    assert m.meta["lost_rings"] == 2 and m.meta["kept_small_rings"] == 1  # the sliver
+    assert_sound(m)
+
+
+@pytest.mark.parametrize("what", ["speck", "hole"])
+def test_small_rings_that_would_make_a_handle_stay_out(what):
+    """A speck beside a column that narrows on its section, inside the column's pixels above and below,
+    or a hole a pixel from the outside above and below: given pixels, either would join what is
+    already joined (a handle the drawing does not show), so it is named and left out."""
+    if what == "speck":
+        mid = [circle(0, 0, 6), box(7.6, 0.1, 7.9, 0.4)]
+        wide = circle(0, 0, 8)
+    else:
+        mid = [circle(0, 0, 9.5, 64), box(7.1, 0.1, 7.4, 0.4)[::-1]]
+        wide = circle(0, 0, 8)
+    st = stack_from_rings([(DZ * k, mid if k == 2 else [wide]) for k in range(5)], meta={"roi": what})
+    m, caught = mesh(st)
+    lost = [str(w.message) for w in caught if issubclass(w.category, LostContourWarning)]
+    assert len(lost) == 1 and "section 2 (z=4) ring 1" in lost[0] and "(a handle)" in lost[0], lost
+    assert m.meta["lost_rings"] == 1 and m.meta["kept_small_rings"] == 0
+    chk = assert_sound(m)
+    assert chk["genus"] == 0 and chk["components"] == 1
+    # kept where it makes no handle: the speck on the last section (nothing above it), the hole where
+    # the column is as wide above and below
+    secs = [(DZ * k, mid if k == 2 else [wide]) for k in range(3)] if what == "speck" else \
+        [(DZ * k, mid if k == 2 else [mid[0]]) for k in range(5)]
+    st = stack_from_rings(secs, meta={"roi": what})
+    m, caught = mesh(st)
+    assert m.meta["kept_small_rings"] == 1 and m.meta["lost_rings"] == 0
+    assert assert_sound(m)["genus"] == 0
