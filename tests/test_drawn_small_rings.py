@@ -219,3 +219,25 @@ def test_small_rings_that_would_make_a_handle_stay_out(what):
     m, caught = mesh(st)
     assert m.meta["kept_small_rings"] == 1 and m.meta["lost_rings"] == 0
     assert assert_sound(m)["genus"] == 0
+
+
+@pytest.mark.parametrize("what", ["speck", "hole"])
+def test_small_rings_that_would_branch_off_another_column_stay_out(what):
+    """A speck whose pixel lies in the wider ring above, beside the ring that ring continues into, or
+    a hole whose pixel lies in a larger hole above that also continues into another hole: kept, it
+    would be a branch of a fork, whose bridged join moves the larger ring's volume by far more than
+    the small ring holds; it is named and left out."""
+    if what == "speck":
+        narrow, wide = [circle(0, 0, 6), box(7.6, 0.1, 7.9, 0.4)], [circle(0, 0, 9)]
+        secs = [(DZ * k, narrow if k == 2 else wide if k > 2 else narrow[:1]) for k in range(5)]
+    else:
+        big = circle(0, 0, 9.5, 64)
+        mid = [big, box(-3.2, -0.7, -0.8, 1.7)[::-1], box(1.1, 0.1, 1.4, 0.4)[::-1]]
+        above = [big, box(-3.5, -1.5, 2.5, 2.5)[::-1]]
+        secs = [(DZ * k, mid if k == 2 else above if k > 2 else [big]) for k in range(5)]
+    m, caught = mesh(stack_from_rings(secs, meta={"roi": what}))
+    lost = [str(w.message) for w in caught if issubclass(w.category, LostContourWarning)]
+    ring = 1 if what == "speck" else 2
+    assert len(lost) == 1 and f"section 2 (z=4) ring {ring}" in lost[0] and "(a fork)" in lost[0], lost
+    assert m.meta["lost_rings"] == 1 and m.meta["kept_small_rings"] == 0
+    assert_sound(m)

@@ -259,43 +259,62 @@ def _inside_another(rs, i) -> bool:
                and points_in_rings(rs[i], q).mean() > 0.5 for j, q in enumerate(rs))
 
 
-def _makes_a_loop(volume, k, box, new, solid) -> bool:
-    """Whether giving section ``k`` the pixels ``new`` (in ``box``) as a component of their own
-    (``solid``) or as a hole of their own (not ``solid``) would close a loop through sections
-    ``k - 1``, ``k``, ``k + 1``: the regions next to ``new`` (its pixels and their 8 neighbours) in the
-    sections above and below, components if ``solid`` or background regions (the outside, holes)
-    if not, are already joined through those three sections (overlapping regions of consecutive
-    sections joined; beyond an end section lies the outside).  Such a ring would make a handle the drawing does not show (a speck between a
-    structure's sections, a hole a pixel from the outside on both sides)."""
+def _would_join(volume, k, box, new, solid) -> str | None:
+    """Why giving section ``k`` the pixels ``new`` (in ``box``) as a component of their own (``solid``)
+    or as a hole of their own (not ``solid``) would join it to more than its own column, or None.
+
+    The regions of the sections above and below (components if ``solid``, background regions, the
+    outside and the holes, if not; beyond an end section lies the outside) that the new pixels
+    overlap would join it; a small ring is kept where it stands alone, ends a column or links two
+    sections of one (a vessel that thins on one section), so each such region must overlap no other
+    region of section ``k`` (else the ring would be a branch of a fork or a merge, whose bridged join
+    moves the larger ring's volume by far more than the small ring holds), and the regions next to
+    the new pixels (with their 8 neighbours) above and below must not already be joined through the
+    three sections (else it would close a loop: a handle the drawing does not show)."""
     from scipy import ndimage
 
     cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
     square = np.ones((3, 3), dtype=bool)
+    j0, j1, i0, i1 = box
+    at = np.zeros(volume.shape[1:], dtype=bool)
+    at[j0:j1, i0:i1] = new
     near = np.zeros(volume.shape[1:], dtype=bool)
-    near[box[0]:box[1], box[2]:box[3]] = ndimage.binary_dilation(new, structure=square)
+    near[j0:j1, i0:i1] = ndimage.binary_dilation(new, structure=square)
     labs, off = [], 0
-    empty = np.zeros(volume.shape[1:], dtype=bool)  # beyond an end section: all outside
+    empty = np.zeros(volume.shape[1:], dtype=bool)
     for q in (k - 1, k, k + 1):  # regions numbered through the three sections (0: none)
         m = volume[q] if 0 <= q < len(volume) else empty
         m = m if solid else ~m
         lab, n = ndimage.label(m, structure=cross if solid else square)
         labs.append(np.where(lab > 0, lab + off, 0))
         off += n
-    parent = np.arange(off + 1)
-
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
+    # the overlaps of consecutive sections' regions, as pairs (u < v)
+    pairs = []
     for a, b in ((labs[0], labs[1]), (labs[1], labs[2])):
         both = (a > 0) & (b > 0)
-        for u, v in np.unique(np.c_[a[both], b[both]], axis=0):
-            parent[find(u)] = find(v)
+        code = np.unique(a[both].astype(np.int64) * (off + 1) + b[both])
+        pairs.append(np.c_[code // (off + 1), code % (off + 1)])
+    pairs = np.concatenate(pairs)
+    joined = np.unique(np.r_[labs[0][at], labs[2][at]])
+    joined = joined[joined > 0]
+    if np.isin(joined, pairs.ravel()).any():
+        return ("it would branch off a larger ring's column (a fork)" if solid
+                else "it would open onto the outside or branch off a larger hole (a fork)")
+    parent = np.arange(off + 1)
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for u, v in pairs:
+        parent[find(u)] = find(v)
     touched = np.unique(np.r_[labs[0][near], labs[2][near]])
     roots = [find(t) for t in touched[touched > 0]]
-    return len(set(roots)) < len(roots)
+    if len(set(roots)) < len(roots):
+        return "it would join sections that are already joined (a handle)"
+    return None
 
 
 def _keep_small_rings(raster, rings, fills, taken=()) -> tuple[dict, dict, int, list]:
@@ -307,15 +326,14 @@ def _keep_small_rings(raster, rings, fills, taken=()) -> tuple[dict, dict, int, 
       holes), or else the pixel of its centroid, where these make one 4-connected piece that touches
       no other pixel of the section (4-neighbours) and, if the ring has holes that hold pixel
       centres, leave exactly those as the piece's holes; and where the ring lies inside no other
-      ring (an island in a hole stays out) and its pixels close no loop through the sections above
-      and below (:func:`_makes_a_loop`: a speck beside a structure whose pixels overlap it on both
-      sides would make a handle).
+      ring (an island in a hole stays out) and it would stand alone, end a column or link two
+      sections of one, not branch off another ring's column or close a loop (:func:`_would_join`).
     * A hole gets pixels cut out of its outer ring's component: the pixels around it, or else the
       pixel of its centroid, where these and their 8 neighbours all belong to that outer ring's
       pixels as the raster holds them (so the cut is a hole of its own and the component stays one
-      piece) and the cut closes no loop of background (a hole a pixel from the outside both above
-      and below would be a tunnel through the wall); not in an outer ring whose pixels were joined
-      or grown here (``taken``, the kept rings).
+      piece), and where the cut would be a cavity, end or link a column of holes, not open onto the
+      outside or branch off another hole, nor close a loop (:func:`_would_join`); not in an outer
+      ring whose pixels were joined or grown here (``taken``, the kept rings).
 
     Returns ``(outer, holes, kept, lost)``: ``{(section, ring): (box, pixels)}`` of the outer rings whose
     pixels changed (the kept rings and the outer rings holes were cut from), the same for the holes
@@ -357,8 +375,8 @@ def _keep_small_rings(raster, rings, fills, taken=()) -> tuple[dict, dict, int, 
                     gaps = ndimage.binary_fill_holes(new) & ~new
                     if not np.array_equal(gaps, inner) or ndimage.label(gaps, structure=square)[1] != len(own):
                         continue
-                if _makes_a_loop(raster.volume, k, box, new, solid=True):
-                    why = "it would join sections that are already joined (a handle)"
+                why = _would_join(raster.volume, k, box, new, solid=True)
+                if why:
                     break
                 sl |= new
                 outer[(k, i)] = (box, new)
@@ -389,8 +407,9 @@ def _keep_small_rings(raster, rings, fills, taken=()) -> tuple[dict, dict, int, 
                 cut[at] &= ~new
                 if ndimage.label(cut, structure=cross)[1] != ndimage.label(ppix, structure=cross)[1]:
                     continue
-                if _makes_a_loop(raster.volume, k, hbox, new, solid=False):
-                    why = "a hole that holds no pixel centre, next to the outside or one hole both above and below (a handle)"
+                why = _would_join(raster.volume, k, hbox, new, solid=False)
+                if why:
+                    why = f"a hole that holds no pixel centre; {why}"
                     break
                 sl &= ~new
                 outer[(k, par)] = (pbox, cut)
