@@ -241,3 +241,59 @@ def test_small_rings_that_would_branch_off_another_column_stay_out(what):
     assert len(lost) == 1 and f"section 2 (z=4) ring {ring}" in lost[0] and "(a fork)" in lost[0], lost
     assert m.meta["lost_rings"] == 1 and m.meta["kept_small_rings"] == 0
     assert_sound(m)
+
+
+def random_specks_stack(seed):
+    """Random columns of circles (some sections missing), with specks, slivers and small holes strewn
+    over random sections at pixel=1 (none of them need hold a pixel centre)."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(4, 8))
+    secs = [[] for _ in range(n)]
+    for _ in range(int(rng.integers(1, 4))):
+        c = rng.uniform(-12, 12, 2)
+        k0 = int(rng.integers(0, n - 1))
+        k1 = int(rng.integers(k0 + 1, n + 1))
+        for k in range(k0, k1):
+            r = rng.uniform(2.5, 7.0)
+            secs[k].append(circle(*(c + rng.uniform(-1, 1, 2)), r, 40))
+            if rng.random() < 0.4:  # a small hole well inside
+                h = c + rng.uniform(-0.5 * r, 0.5 * r, 2)
+                s = rng.uniform(0.1, 0.6)
+                secs[k].append(box(h[0], h[1], h[0] + s, h[1] + s * rng.uniform(0.3, 1))[::-1])
+    for _ in range(int(rng.integers(1, 6))):
+        k = int(rng.integers(0, n))
+        p = rng.uniform(-22, 22, 2)
+        if rng.random() < 0.5:  # a speck
+            secs[k].append(p + rng.uniform(0, 0.7, (3, 2)))
+        else:  # a sliver, along x or y
+            w, L = rng.uniform(0.1, 0.4), rng.uniform(1.0, 6.0)
+            secs[k].append(box(p[0], p[1], p[0] + w, p[1] + L) if rng.random() < 0.5 else box(p[0], p[1], p[0] + L, p[1] + w))
+    dz = float(rng.uniform(1.0, 3.0))
+    secs = [(dz * k, rs) for k, rs in enumerate(secs) if rs]
+    return stack_from_rings(secs, meta={"roi": f"random{seed}"})
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_random_specks_make_sound_meshes_with_the_decision_rasters_topology(seed):
+    from contourmesh.drawn import decision_raster
+    from contourmesh.volumes import voxel_topology
+
+    st = random_specks_stack(seed)
+    m, caught = mesh(st)
+    assert not [w for w in caught if not issubclass(w.category, (LostContourWarning, RasterFallbackWarning))]
+    assert m.meta["route"] == "contours"
+    chk = assert_sound(m)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = voxel_topology(decision_raster(st, m.meta["pixel"]).volume)
+    assert (chk["components"], chk["genus"]) == (ref["surfaces"], ref["genus"])
+    lost = [str(w.message) for w in caught if issubclass(w.category, LostContourWarning)]
+    assert bool(lost) == (m.meta["lost_rings"] > 0)
+    if not m.meta["unmatched_components"]:  # every ring that is kept is in the mesh as drawn: its points
+        V = np.asarray(m.vertices)                # are the mesh's vertices in its plane (up to the crossing
+        tol = m.meta.get("crossing_repair_max_move", 0.0) + 1e-12  # repair's nudges)
+        for s in st.sections:
+            have = V[np.abs(V[:, 2] - s.z) <= tol, :2]
+            drawn = [c for c in s.contours
+                     if np.linalg.norm(c[:, None] - have[None], axis=2).min(1).max() <= tol]
+            assert len(s.contours) - len(drawn) <= m.meta["lost_rings"], (s.z, len(s.contours), len(drawn))
