@@ -8,7 +8,12 @@ but it works on pixels.  This route uses a raster only for the **topology**:
 
 1. the stack is rasterized even-odd (:func:`contourmesh.rasterize.rasterize_stack`, pixel as on
    the raster route); the raster's components, holes and overlaps between consecutive sections
-   decide which component joins which, and how;
+   decide which component joins which, and how.  A drawn ring that holds no pixel centre (a sliver,
+   a speck, a vessel hole of a square millimetre) is first given pixels of its own (an outer ring
+   the pixels around it, a hole pixels cut out of its ring's), so that it takes part in the joins
+   like any other ring (:func:`_keep_small_rings`, ``meta["kept_small_rings"]``); the few that
+   cannot be given pixels without touching another ring's, or that lie in a hole, stay out of the
+   mesh, counted in ``meta["lost_rings"]`` and named in a :class:`~contourmesh.errors.LostContourWarning`;
 2. before any join is built, every raster component whose pixels are exactly those of one drawn
    outer ring minus its drawn holes gets that ring as its outer polygon, and each of its raster
    holes the drawn hole ring whose pixels it holds (rings oriented as the mesher wants: outer
@@ -17,8 +22,8 @@ but it works on pixels.  This route uses a raster only for the **topology**:
    section at a contour plane is the drawn section.
 
 A component that cannot be matched one to one (two drawn rings that the raster merges, a ring
-that touches or crosses itself or another ring, a ring thinner than a pixel, an even-odd fill that
-disagrees with the nesting of the rings) keeps its raster polygon (the MLP of its pixels); each
+that touches or crosses itself or another ring, an even-odd fill that disagrees with the nesting of
+the rings) keeps its raster polygon (the MLP of its pixels); each
 such component is counted in ``meta["unmatched_components"]`` and named in a
 :class:`~contourmesh.errors.RasterFallbackWarning`.  Components in exact joins (where a handle
 forms between two sections) keep their crack contours, as on the raster route
@@ -35,7 +40,7 @@ import numpy as np
 from .bands.caps import _rings_that_meet
 from .bands.ends import _DOME_RINGS, _end_profile, _SmoothEnds  # noqa: F401 (the contours route's ends)
 from .bands.fidelity import FaithfulBands
-from .errors import RasterFallbackWarning, warn_external
+from .errors import LostContourWarning, RasterFallbackWarning, warn_external
 from .geometry import _fill_evenodd, grid_to_xy, shoelace_area
 from .intersect import intersecting_faces
 from .rasterize import _physical_rings, rasterize_stack
@@ -162,22 +167,30 @@ class _RingFills:
         return self._pieces[key]
 
 
-def _edge_pixels(ring, raster, box) -> np.ndarray:
-    """The pixels of ``box`` that the ring's edges pass through (the edges sampled every eighth pixel)."""
+def _edge_samples(ring, raster, box):
+    """The pixel indices ``(i, j)`` in ``box`` of points along the ring's edges, an eighth pixel apart
+    (consecutive samples are in the same or in neighbouring pixels)."""
     x0, y0, _ = raster.origin
     p = raster.spacing[0]
-    j0, j1, i0, i1 = box
-    out = np.zeros((j1 - j0, i1 - i0), dtype=bool)
     a, b = ring, np.roll(ring, -1, axis=0)
     n = np.maximum(np.ceil(np.hypot(*(b - a).T) / (p / 8)).astype(np.int64), 1)
     t = np.concatenate([np.arange(k) / k for k in n])
     seg = np.repeat(np.arange(len(a)), n)
     pts = a[seg] + (b[seg] - a[seg]) * t[:, None]
-    ii = np.rint((pts[:, 0] - x0) / p).astype(np.int64) - i0
-    jj = np.rint((pts[:, 1] - y0) / p).astype(np.int64) - j0
+    return np.rint((pts[:, 0] - x0) / p).astype(np.int64) - box[2], np.rint((pts[:, 1] - y0) / p).astype(np.int64) - box[0]
+
+
+def _mark(ii, jj, box) -> np.ndarray:
+    j0, j1, i0, i1 = box
+    out = np.zeros((j1 - j0, i1 - i0), dtype=bool)
     ok = (ii >= 0) & (ii < out.shape[1]) & (jj >= 0) & (jj < out.shape[0])
     out[jj[ok], ii[ok]] = True
     return out
+
+
+def _edge_pixels(ring, raster, box) -> np.ndarray:
+    """The pixels of ``box`` that the ring's edges pass through (the edges sampled every eighth pixel)."""
+    return _mark(*_edge_samples(ring, raster, box), box)
 
 
 def _connect_split_rings(raster, rings, fills=None) -> dict:
@@ -215,12 +228,207 @@ def _connect_split_rings(raster, rings, fills=None) -> dict:
     return grown
 
 
+def _loop_pixels(ring, raster, box) -> np.ndarray:
+    """The pixels of ``box`` that the ring's edges pass through, made one 4-connected loop (at each
+    diagonal step between samples the corner pixel is added), with the pixels that loop encloses:
+    for a ring that holds no pixel centre, a set of pixels around it."""
+    from scipy import ndimage
+
+    ii, jj = _edge_samples(ring, raster, box)
+    return ndimage.binary_fill_holes(_mark(np.r_[ii, ii], np.r_[jj, np.roll(jj, -1)], box))
+
+
+def _centroid_pixel(ring, raster, box) -> np.ndarray:
+    """The pixel of ``box`` that holds the ring's area centroid (its mean point if it has no area)."""
+    x, y = ring[:, 0], ring[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cr = x * yn - xn * y
+    a = cr.sum() / 2
+    c = ring.mean(0) if a == 0 else np.array([((x + xn) * cr).sum(), ((y + yn) * cr).sum()]) / (6 * a)
+    x0, y0, _ = raster.origin
+    p = raster.spacing[0]
+    return _mark(np.array([int(np.rint((c[0] - x0) / p)) - box[2]]), np.array([int(np.rint((c[1] - y0) / p)) - box[0]]), box)
+
+
+def _inside_another(rs, i) -> bool:
+    """Whether ring ``i`` of a section lies inside another of its rings (the test of ``_nest_section``)."""
+    from .geometry import points_in_rings
+
+    lo, hi, area = rs[i].min(0), rs[i].max(0), abs(shoelace_area(rs[i]))
+    return any(j != i and abs(shoelace_area(q)) > area and (q.min(0) <= lo + 1e-9).all() and (q.max(0) >= hi - 1e-9).all()
+               and points_in_rings(rs[i], q).mean() > 0.5 for j, q in enumerate(rs))
+
+
+def _would_join(volume, k, box, new, solid) -> str | None:
+    """Why giving section ``k`` the pixels ``new`` (in ``box``) as a component of their own (``solid``)
+    or as a hole of their own (not ``solid``) would join it to more than its own column, or None.
+
+    The regions of the sections above and below (components if ``solid``, background regions, the
+    outside and the holes, if not; beyond an end section lies the outside) that the new pixels
+    overlap would join it; a small ring is kept where it stands alone, ends a column or links two
+    sections of one (a vessel that thins on one section), so each such region must overlap no other
+    region of section ``k`` (else the ring would be a branch of a fork or a merge, whose bridged join
+    moves the larger ring's volume by far more than the small ring holds), and the regions next to
+    the new pixels (with their 8 neighbours) above and below must not already be joined through the
+    three sections (else it would close a loop: a handle the drawing does not show)."""
+    from scipy import ndimage
+
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+    square = np.ones((3, 3), dtype=bool)
+    j0, j1, i0, i1 = box
+    at = np.zeros(volume.shape[1:], dtype=bool)
+    at[j0:j1, i0:i1] = new
+    near = np.zeros(volume.shape[1:], dtype=bool)
+    near[j0:j1, i0:i1] = ndimage.binary_dilation(new, structure=square)
+    labs, off = [], 0
+    empty = np.zeros(volume.shape[1:], dtype=bool)
+    for q in (k - 1, k, k + 1):  # regions numbered through the three sections (0: none)
+        m = volume[q] if 0 <= q < len(volume) else empty
+        m = m if solid else ~m
+        lab, n = ndimage.label(m, structure=cross if solid else square)
+        labs.append(np.where(lab > 0, lab + off, 0))
+        off += n
+    # the overlaps of consecutive sections' regions, as pairs (u < v)
+    pairs = []
+    for a, b in ((labs[0], labs[1]), (labs[1], labs[2])):
+        both = (a > 0) & (b > 0)
+        code = np.unique(a[both].astype(np.int64) * (off + 1) + b[both])
+        pairs.append(np.c_[code // (off + 1), code % (off + 1)])
+    pairs = np.concatenate(pairs)
+    joined = np.unique(np.r_[labs[0][at], labs[2][at]])
+    joined = joined[joined > 0]
+    if np.isin(joined, pairs.ravel()).any():
+        return ("it would branch off a larger ring's column (a fork)" if solid
+                else "it would open onto the outside or branch off a larger hole (a fork)")
+    parent = np.arange(off + 1)
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for u, v in pairs:
+        parent[find(u)] = find(v)
+    touched = np.unique(np.r_[labs[0][near], labs[2][near]])
+    roots = [find(t) for t in touched[touched > 0]]
+    if len(set(roots)) < len(roots):
+        return "it would join sections that are already joined (a handle)"
+    return None
+
+
+def _keep_small_rings(raster, rings, fills, taken=()) -> tuple[dict, dict, int, list]:
+    """Pixels for the drawn rings that hold no pixel centre, so that the raster keeps them and decides
+    their joins like any other ring's (the drawn ring then takes the component's or hole's place,
+    :class:`_DrawnPolygons`).  Edits ``raster.volume`` in place.
+
+    * An outer ring gets the pixels around it (:func:`_loop_pixels`, less the pixels of its drawn
+      holes), or else the pixel of its centroid, where these make one 4-connected piece that touches
+      no other pixel of the section (4-neighbours) and, if the ring has holes that hold pixel
+      centres, leave exactly those as the piece's holes; and where the ring lies inside no other
+      ring (an island in a hole stays out) and it would stand alone, end a column or link two
+      sections of one, not branch off another ring's column or close a loop (:func:`_would_join`).
+    * A hole gets pixels cut out of its outer ring's component: the pixels around it, or else the
+      pixel of its centroid, where these and their 8 neighbours all belong to that outer ring's
+      pixels as the raster holds them (so the cut is a hole of its own and the component stays one
+      piece), and where the cut would be a cavity, end or link a column of holes, not open onto the
+      outside or branch off another hole, nor close a loop (:func:`_would_join`); not in an outer
+      ring whose pixels were joined or grown here (``taken``, the kept rings).
+
+    Returns ``(outer, holes, kept, lost)``: ``{(section, ring): (box, pixels)}`` of the outer rings whose
+    pixels changed (the kept rings and the outer rings holes were cut from), the same for the holes
+    cut, how many rings were kept, and ``[(section, ring, area, why)]`` for the rings that stay out.
+    """
+    from scipy import ndimage
+
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+    square = np.ones((3, 3), dtype=bool)
+    outer, holes, kept, lost = {}, {}, 0, []
+    kept_rings = set()
+    for k, (rs, parents) in enumerate(rings):
+        tiny_holes = []
+        for i, par in enumerate(parents):
+            if par != -1:
+                if not fills.ring(k, i)[1].any():
+                    tiny_holes.append(i)
+                continue
+            box, pix = fills.outer(k, i)
+            if pix.any():
+                continue
+            area = abs(shoelace_area(rs[i]))
+            if _inside_another(rs, i):
+                lost.append((k, i, area, "it lies inside another drawn ring"))
+                continue
+            own = [j for j in fills.holes_of(k, i) if fills.ring(k, j)[1].any()]
+            inner = _fill([rs[j] for j in own], fills.x0, fills.y0, fills.p, fills.shape, box) if own else None
+            sl = raster.volume[k, box[0]:box[1], box[2]:box[3]]
+            cands = [_loop_pixels(rs[i], raster, box)]
+            if inner is None:
+                cands.append(_centroid_pixel(rs[i], raster, box))
+            else:
+                cands[0] &= ~inner
+            for new in cands:
+                if not new.any() or ndimage.label(new, structure=cross)[1] != 1 \
+                        or (ndimage.binary_dilation(new, structure=cross) & sl).any():
+                    continue
+                if inner is not None:  # the drawn holes must be the piece's holes, one raster hole each
+                    gaps = ndimage.binary_fill_holes(new) & ~new
+                    if not np.array_equal(gaps, inner) or ndimage.label(gaps, structure=square)[1] != len(own):
+                        continue
+                why = _would_join(raster.volume, k, box, new, solid=True)
+                if why:
+                    break
+                sl |= new
+                outer[(k, i)] = (box, new)
+                kept_rings.add((k, i))
+                kept += 1
+                break
+            else:
+                why = "its pixels would touch another ring's" if inner is None else "its holes do not fit the pixels around it"
+            if (k, i) not in outer:
+                lost.append((k, i, area, why))
+        for j in tiny_holes:
+            area, par = abs(shoelace_area(rs[j])), parents[j]
+            if (k, par) in taken or (k, par) in kept_rings:
+                lost.append((k, j, area, "a hole that holds no pixel centre, in a ring that was given pixels"))
+                continue
+            pbox, ppix = outer.get((k, par)) or fills.outer(k, par)
+            hbox = _ring_box(rs[j], raster, fills.shape)
+            if not (pbox[0] <= hbox[0] and hbox[1] <= pbox[1] and pbox[2] <= hbox[2] and hbox[3] <= pbox[3]):
+                lost.append((k, j, area, "a hole that holds no pixel centre and reaches out of its ring's box"))
+                continue
+            at = (slice(hbox[0] - pbox[0], hbox[1] - pbox[0]), slice(hbox[2] - pbox[2], hbox[3] - pbox[2]))
+            sl = raster.volume[k, hbox[0]:hbox[1], hbox[2]:hbox[3]]
+            room = ppix[at] & sl  # the outer ring's pixels, as the raster holds them
+            for new in (_loop_pixels(rs[j], raster, hbox), _centroid_pixel(rs[j], raster, hbox)):
+                if not new.any() or (ndimage.binary_dilation(new, structure=square) & ~room).any():
+                    continue
+                cut = ppix.copy()
+                cut[at] &= ~new
+                if ndimage.label(cut, structure=cross)[1] != ndimage.label(ppix, structure=cross)[1]:
+                    continue
+                why = _would_join(raster.volume, k, hbox, new, solid=False)
+                if why:
+                    why = f"a hole that holds no pixel centre; {why}"
+                    break
+                sl &= ~new
+                outer[(k, par)] = (pbox, cut)
+                holes[(k, j)] = (hbox, new)
+                kept += 1
+                break
+            else:
+                why = "a hole that holds no pixel centre, too near its ring's edge or another hole"
+            if (k, j) not in holes:
+                lost.append((k, j, area, why))
+    return outer, holes, kept, lost
+
+
 class _DrawnPolygons:
     """The hook of :func:`~contourmesh.volumes.volume_to_mesh` that puts the drawn rings in place of the
     raster's polygons (see the module docstring).  Called once, after the joins are decided."""
 
     def __init__(self, rings, raster, name, avoid=frozenset(), avoid_why="", smooth=False, flat=False, grown=None,
-                 curved=False, fills=None):
+                 curved=False, fills=None, cut=None):
         self.rings = rings  # per section: (oriented rings, parents)
         self.raster = raster
         self.fills = fills or _RingFills(rings, raster)
@@ -228,7 +436,8 @@ class _DrawnPolygons:
         self.avoid = avoid  # sections whose drawn rings made crossing faces: the raster's polygons
         self.avoid_why = avoid_why
         self.unmatched: list[tuple] = []  # (section, z, why)
-        self.grown = grown or {}  # (section, ring) -> (box, pixels) of rings the raster was joined for
+        self.grown = grown or {}  # (section, ring) -> (box, pixels) of outer rings whose pixels were joined or grown
+        self.cut = cut or {}  # (section, ring) -> (box, pixels) of holes cut into the raster (holes thinner than a pixel)
         # every band between drawn rings keeps a volume within the frustum and trapezoid rules
         self.band_guard = FaithfulBands(record=curved)
         # caps="smooth": the ends of band-joined rings close on the profile of their last sections;
@@ -260,14 +469,14 @@ class _DrawnPolygons:
                 if par != -1:
                     continue
                 holes = [j for j, q in enumerate(parents) if q == i]
-                if (k, i) in self.grown:  # a sliver whose pieces the raster was joined for (its edge pixels)
+                if (k, i) in self.grown:  # a sliver joined or a small ring kept (_keep_small_rings)
                     box, pix = self.grown[(k, i)]
                 else:
                     box, pix = self.fills.outer(k, i)
                 assert pix.shape == (box[1] - box[0], box[3] - box[2]) and s.labels.shape == self.fills.shape
                 lab = s.labels[box[0]:box[1], box[2]:box[3]][pix]
                 if lab.size == 0:
-                    continue  # a ring thinner than a pixel: the raster lost it (LostContourWarning)
+                    continue  # a ring that holds no pixel centre and could not be kept (LostContourWarning)
                 comps = np.unique(lab)
                 c = int(comps[-1]) - 1
                 if comps[0] == 0 or len(comps) != 1:
@@ -293,8 +502,8 @@ class _DrawnPolygons:
                 hsl, hmasks = s.hole_masks[c]
                 fills = {}
                 for j in holes:
-                    fills[j] = self.fills.ring(k, j)
-                # a hole that holds no pixel centre is lost by the raster (LostContourWarning): dropped
+                    fills[j] = self.cut.get((k, j)) or self.fills.ring(k, j)
+                # a hole that holds no pixel centre and was not cut is lost (LostContourWarning): dropped
                 holes = [j for j in holes if fills[j][1].any()]
                 if len(hmasks) != len(holes):
                     refused.add(c)
@@ -413,11 +622,28 @@ def _drawn_rings(stack: ContourStack):
     return rings, keyholes
 
 
+def _warn_dropped(name, dropped, r) -> None:
+    """The LostContourWarning of the contours route: the drawn rings that stay out of the mesh, and why."""
+    p = r.spacing[0]
+    zs = r.z
+    where = ", ".join(f"section {k} (z={zs[k]:g}) ring {i} ({why})" for k, i, _, why in dropped[:5])
+    more = f" and {len(dropped) - 5} more" if len(dropped) > 5 else ""
+    largest = max(a for _, _, a, _ in dropped)
+    empty = sorted({k for k, _, _, _ in dropped if not r.volume[k].any()})
+    whole = f"; sections {empty} rasterize to no pixel at all and are left out of the mesh" if empty else ""
+    warn_external(f"{name}: {len(dropped)} drawn ring(s) enclose no pixel centre at pixel={p:g} and cannot be kept "
+                  f"(the largest has area {largest:.3g}, about {largest / p**2:.2g} pixels of {p:g} x {p:g}): "
+                  f"{where}{more}{whole}; pass a smaller pixel= to keep them", LostContourWarning)
+
+
 def decision_raster(stack: ContourStack, pixel: float):
     """The raster that decides the joins on the contours route at ``pixel`` (as ``meta["pixel"]`` records):
     the even-odd rasterization with the pixels that keep split slivers whole."""
     r = rasterize_stack(stack, pixel)
-    _connect_split_rings(r, _drawn_rings(stack)[0])
+    rings = _drawn_rings(stack)[0]
+    fills = _RingFills(rings, r)
+    grown = _connect_split_rings(r, rings, fills)
+    _keep_small_rings(r, rings, fills, grown)
     return r
 
 
@@ -431,7 +657,8 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     ring falls apart into several pieces in the raster).  ``meta``: ``route="contours"``, ``pixel``,
     ``drawn_components`` (components meshed from their drawn rings), ``unmatched_components``
     (meshed from the raster's polygons, each named in a RasterFallbackWarning) and the volume
-    mesher's join counts.
+    mesher's join counts; ``kept_small_rings`` (drawn rings that hold no pixel centre, meshed as drawn)
+    and ``lost_rings`` (such rings that could not be kept, named in a LostContourWarning).
 
     ``bands="curved"`` bends the bands between consecutive sections onto cubic rungs, their
     intermediate rings scaled onto each band's fitted area profile (:mod:`contourmesh.bands.curved`;
@@ -458,9 +685,14 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
             r = rasterize_stack(stack, r.spacing[0] / 2)
             fills = _RingFills(rings, r)
     grown = _connect_split_rings(r, rings, fills)
-    for w in lost:  # the rasterization's warnings (lost rings), naming the structure
+    small, cut, kept, dropped = _keep_small_rings(r, rings, fills, grown)
+    for w in lost:  # the rasterization's other warnings, naming the structure (lost rings: below)
+        if issubclass(w.category, LostContourWarning):
+            continue
         text = str(w.message)
         warn_external(text if text.startswith(f"{name}:") else f"{name}: {text}", w.category)
+    if dropped:
+        _warn_dropped(name, dropped, r)
     avoid: set = set()
     everything = set(range(len(r.z)))
     why = "faces between its drawn rings and the next section's crossed"
@@ -468,7 +700,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     attempt = 0
     while True:
         hook = _DrawnPolygons(rings, r, name, frozenset(avoid), why, smooth=caps == "smooth", flat=caps == "flat",
-                              grown=grown, curved=bands == "curved", fills=fills)
+                              grown={**grown, **small}, curved=bands == "curved", fills=fills, cut=cut)
         last = attempt >= _ATTEMPTS - 1 or avoid == everything
         if not last:
             log.addFilter(quiet)
@@ -510,7 +742,7 @@ def mesh_drawn(stack: ContourStack, *, pixel: float | None = None, triangulation
     meta.update(stack.meta)
     meta.update(route="contours", pixel=r.spacing[0], polygon="drawn", raster_sections=len(avoid),
                 faithful_bands=hook.band_guard.replaced, split_rings=keyholes,
-                joined_slivers=len(grown))
+                joined_slivers=len(grown), kept_small_rings=kept, lost_rings=len(dropped))
     if caps == "smooth":
         e = hook.end_cap
         meta.update(caps="smooth", smooth_domes=e.count("dome"), smooth_tapers=e.count("taper"),
