@@ -92,7 +92,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes
+from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes, unique_keys
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -1145,7 +1145,7 @@ class _CornerGrid:
         if need.any():
             # the new corners in (x, y) order, as one integer key each (x major)
             hh = np.int64(self.ids.shape[0])
-            key = np.unique(lx[need].astype(np.int64) * hh + ly[need])
+            key = unique_keys(lx[need].astype(np.int64) * hh + ly[need], self.ids.shape[1] * hh)
             ux, uy = key // hh, key % hh
             xy = self.to_xy(np.stack([ux + self.x0, uy + self.y0], axis=1))
             self.ids[uy, ux] = self.M.points(_with_z(xy, self.z))
@@ -1266,7 +1266,7 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     lb = B.labels[y0:y1, x0:x1]
     o = label_mask(la, A.n, ga) & label_mask(lb, B.n, gb)
     nbk = np.int64(B.n + 1)
-    npairs = len(np.unique(la[o].astype(np.int64) * nbk + lb[o]))
+    npairs = len(unique_keys(la[o].astype(np.int64) * nbk + lb[o], (A.n + 1) * (B.n + 1)))
     if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
         return None
     # the overlap's 4-components, its padded background's 8-components (ndimage.label's numbers)
