@@ -216,3 +216,48 @@ def test_a_bridged_join_with_more_area_than_sections_takes_the_sections(monkeypa
     assert tried.meta["intermediate_sections"] > plain.meta["intermediate_sections"]
     # each join keeps whichever of the two has less area
     assert tried.area < plain.area
+
+
+def _edges_close_reference(F, spans):
+    """sections._edges_close as it was: unique rows and Python sets of edge tuples."""
+    d = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    und, cnt = np.unique(np.sort(d, axis=1), axis=0, return_counts=True)
+    if len(np.unique(d, axis=0)) != len(d) or cnt.max() > 2:
+        return False
+    ring_edges = set()
+    for off, m in spans:
+        e = np.sort(np.c_[off + np.arange(m), off + (np.arange(m) + 1) % m], axis=1)
+        ring_edges.update(map(tuple, e.tolist()))
+    return {tuple(e) for e in und[cnt == 1].tolist()} == ring_edges
+
+
+def test_piece_edge_check_equals_the_set_reference():
+    # bands between two rings (valid pieces: every ring edge once, every rung twice, each way once),
+    # the same with a face flipped, dropped or doubled, rings of 1 and 2 points, and random faces
+    from contourmesh.bands import triangulate_band
+
+    rng = np.random.default_rng(61)
+    verdicts = set()
+    for t in range(300):
+        n, m = int(rng.integers(1, 9)), int(rng.integers(3, 9))
+        ta, tb = np.sort(rng.random(n)) * 2 * np.pi, np.sort(rng.random(m)) * 2 * np.pi
+        lo = np.c_[np.cos(ta), np.sin(ta), np.zeros(n)]
+        hi = np.c_[np.cos(tb), np.sin(tb), np.ones(m)]
+        F = triangulate_band(lo, hi, "arclength") if n > 1 else np.c_[np.zeros(m, int), 1 + np.arange(m),
+                                                                          1 + (np.arange(m) + 1) % m]
+        spans = [(0, n), (n, m)]
+        kind = t % 5
+        if kind == 1:
+            F = F.copy()
+            F[0] = F[0, ::-1]
+        elif kind == 2:
+            F = F[1:]
+        elif kind == 3:
+            F = np.concatenate([F, F[:1]])
+        elif kind == 4:
+            F = rng.integers(0, n + m, (int(rng.integers(1, 12)), 3))
+            spans = spans[: int(rng.integers(0, 3))]
+        got = sections._edges_close(np.asarray(F, dtype=np.int64), n + m, spans)
+        assert got == _edges_close_reference(np.asarray(F, dtype=np.int64), spans), (t, F)
+        verdicts.add(got)
+    assert verdicts == {True, False}

@@ -510,17 +510,9 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
     if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
         return None
     # each new edge used twice (once each way), each edge of a slice's ring once
-    d = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    und, cnt = np.unique(np.sort(d, axis=1), axis=0, return_counts=True)
-    if len(np.unique(d, axis=0)) != len(d) or cnt.max() > 2:
-        return None
-    ring_edges = set()
-    for (_key, off), (L, c, h) in zip(rings, [u for u in used if u[0].main is not None]):
-        m = len(ids_of[id(L), c, h])
-        e = np.sort(np.c_[off + np.arange(m), off + (np.arange(m) + 1) % m], axis=1)
-        ring_edges.update(map(tuple, e.tolist()))
-    once = {tuple(e) for e in und[cnt == 1].tolist()}
-    if once != ring_edges:
+    spans = [(off, len(ids_of[id(L), c, h]))
+             for (_key, off), (L, c, h) in zip(rings, [u for u in used if u[0].main is not None])]
+    if not _edges_close(F, len(V), spans):
         return None
     if any_intersecting(V, F):
         return None
@@ -528,3 +520,21 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
     out.sections = len(layers)
     out.least_area = least_area
     return out
+
+
+def _edges_close(F, nv, spans) -> bool:
+    """The faces ``F`` (of ``nv`` vertices) use every edge at most twice and never twice the same
+    way, and the edges they use once are exactly those of the rings ``spans`` (``(offset, size)``:
+    vertices ``offset .. offset + size - 1`` in order round the ring).  Each edge is one integer
+    (``u * nv + v``; undirected ``min * nv + max``), so the rows are compared as numbers."""
+    nv = np.int64(nv)
+    d = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]).astype(np.int64, copy=False)
+    directed = np.sort(d[:, 0] * nv + d[:, 1])
+    und, cnt = np.unique(np.minimum(d[:, 0], d[:, 1]) * nv + np.maximum(d[:, 0], d[:, 1]), return_counts=True)
+    if (directed[1:] == directed[:-1]).any() or cnt.max() > 2:
+        return False
+    ring_keys = [np.zeros(0, dtype=np.int64)]
+    for off, m in spans:
+        a, b = off + np.arange(m, dtype=np.int64), off + (np.arange(m, dtype=np.int64) + 1) % m
+        ring_keys.append(np.minimum(a, b) * nv + np.maximum(a, b))
+    return bool(np.array_equal(und[cnt == 1], np.unique(np.concatenate(ring_keys))))
