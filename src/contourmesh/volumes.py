@@ -1550,10 +1550,21 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     boxes = {}  # slice -> (lo, hi): per component a box holding all its rings, as polygons and as crack rings
     near = {}  # (slice, components) -> the components of that slice whose boxes meet theirs
 
+    near_seen = {}  # (slice, components) -> (size of by_slice[slice], near_sig): by_slice only grows
+
     def near_sig(kk, comps):
         """The crack-only components of slice kk whose rings may meet the box of ``comps``' rings:
         the only ones whose edges a bridge between ``comps``' rings can meet."""
         key = (kk, tuple(comps))
+        seen = near_seen.get(key)
+        if seen is not None and seen[0] == len(by_slice[kk]):
+            return seen[1]
+        got = _near_sig(kk, key)
+        near_seen[key] = (len(by_slice[kk]), got)
+        return got
+
+    def _near_sig(kk, key):
+        comps = key[1]
         if key not in near:
             if kk not in boxes:
                 s = slices[kk]
@@ -1623,49 +1634,63 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 lids[k + 1, b, h] += 1
     double = {key for key, n in lids.items() if n > 1}
     cache = {} if cache is None else cache
+    # a pass that restarts after a join fell back repeats the previous one up to where something
+    # changed: while it does (the same joins passed with the same keys, in order), each join meets
+    # the same bridges in its planes as before and passes their test again, so the test is skipped,
+    # and a join away from the slices of the join that fell back keeps its key (see near_sig)
+    passed_before = []
+    changed = set()  # the slices whose crack rings changed since the previous pass
     while True:
         taken = defaultdict(list)
         out = {}
         restart = False
+        passed, replay = [], True
         for idx, (k, kind, data) in enumerate(joins):
             if kind != "bridge":
                 continue
             ga, gb, plan = data
-            dbl = () if plan is None else \
-                tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
-            key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl)
-            # a keyhole lies in its component's plane, inside the component: a flat cap there (the
-            # component ends on the other side) would meet the fold along it
-            if plan is not None and caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
-                                                        or any((k + 1, b) not in has_above for b, _ in plan[4])):
-                cache[key] = None
-            if key not in cache:
-                cache[key] = None if plan is None else _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered,
-                                                                    triangulation, caps, double, waypoints, band_guard)
-                got = cache[key]
-                # a band can fan across the slice (from a polyline keyhole, or from the tips of a C
-                # whose mouth closes into a ring): such a join folds over itself, and may not have
-                # much more area than the voxel-exact join it replaces
-                exact = _exact_area(slices, zs, k, ga, gb, dx * dy)
-                limit = _BRIDGED_AREA_LIMIT * exact
-                area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
-                if got is not None and area > limit:
+            # while the pass repeats the previous one, a join whose two slices kept their crack rings
+            # has the same key as then (near_sig reads only those slices' crack rings)
+            prev = passed_before[len(passed)] if replay and len(passed) < len(passed_before) else None
+            if prev is not None and prev[0] == idx and k not in changed and k + 1 not in changed:
+                key = prev[1]
+            else:
+                dbl = () if plan is None else \
+                    tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
+                key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl)
+                # a keyhole lies in its component's plane, inside the component: a flat cap there (the
+                # component ends on the other side) would meet the fold along it
+                if plan is not None and caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
+                                                            or any((k + 1, b) not in has_above for b, _ in plan[4])):
                     cache[key] = None
-                elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None:
-                    # more area than the exact join: a fold is likely; intermediate sections may
-                    # follow the surface with less, and the join takes whichever has less area
-                    alt = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
-                                         triangulation, polygon, grid)
-                    if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
-                        cache[key] = alt
-                if cache[key] is None and band_guard is None:
-                    # split the gap by intermediate sections; held to the same area limit
-                    got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
-                                         polygon, grid)
-                    if got is not None and float(triangle_areas(got.V, got.F).sum()) <= limit:
-                        cache[key] = got
+                if key not in cache:
+                    cache[key] = None if plan is None else _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered,
+                                                                        triangulation, caps, double, waypoints, band_guard)
+                    got = cache[key]
+                    # a band can fan across the slice (from a polyline keyhole, or from the tips of a C
+                    # whose mouth closes into a ring): such a join folds over itself, and may not have
+                    # much more area than the voxel-exact join it replaces
+                    exact = _exact_area(slices, zs, k, ga, gb, dx * dy)
+                    limit = _BRIDGED_AREA_LIMIT * exact
+                    area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
+                    if got is not None and area > limit:
+                        cache[key] = None
+                    elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None:
+                        # more area than the exact join: a fold is likely; intermediate sections may
+                        # follow the surface with less, and the join takes whichever has less area
+                        alt = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
+                                             triangulation, polygon, grid)
+                        if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
+                            cache[key] = alt
+                    if cache[key] is None and band_guard is None:
+                        # split the gap by intermediate sections; held to the same area limit
+                        got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
+                                             polygon, grid)
+                        if got is not None and float(triangle_areas(got.V, got.F).sum()) <= limit:
+                            cache[key] = got
             b = cache[key]
-            if b is not None:
+            replay = prev is not None and prev[0] == idx and prev[1] == key
+            if b is not None and not replay:
                 for plane, p, q in b.segments:
                     if taken[plane]:
                         sa = np.array([s[0] for s in taken[plane]])
@@ -1679,13 +1704,16 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 crack_only.update((k + 1, c) for c in gb)
                 by_slice[k].update(ga)
                 by_slice[k + 1].update(gb)
+                changed = {k, k + 1}
                 restart = True
                 break
             for plane, p, q in b.segments:
                 taken[plane].append((p, q))
             out[k, tuple(ga), tuple(gb)] = b
+            passed.append((idx, key))
         if not restart:
             return out
+        passed_before = passed
 
 
 def _section_ops():
