@@ -1344,7 +1344,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     ``band_guard`` (the contours route's volume guard, see :meth:`_Mesher.band`), where given, may
     replace each band of the join (the bridged rings' band and the tubes'); its band is kept
     only where it neither folds nor crosses itself."""
-    from .bands.bridges import bridge_tree, bridged_ring
+    from .bands.bridges import bridge_tree, bridged_ring_arrays
     from .intersect import any_intersecting
 
     tubes, lids_a, lids_b, open_a, open_b = plan
@@ -1390,8 +1390,12 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
                 base = n_ring + sum(len(p) for p in path_pts)
                 path_pts.append(_with_z(bridge[4], zs[plane]))
                 ids_of[len(rs) + b] = base + np.arange(len(bridge[4]))
-        seq = np.array([multi[r][v] if r < len(rs) else ids_of[r][v]
-                        for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
+        # the tour's (ring, vertex) pairs as vertex ids: ring r's ids, then each polyline bridge's
+        tables = [np.asarray(multi[r], dtype=np.int64) for r in range(len(rs))] + \
+            [ids_of.get(len(rs) + b, np.zeros(0, dtype=np.int64)).astype(np.int64) for b in range(len(br))]
+        start = np.cumsum([0] + [len(t) for t in tables[:-1]])
+        tour_r, tour_v = bridged_ring_arrays([len(r) for r in rs], br)
+        seq = np.concatenate(tables)[start[tour_r] + tour_v]
         for bridge in br:
             i, vi, j, vj = bridge[:4]
             line = [rs[i][vi]] + (list(bridge[4]) if len(bridge) > 4 else []) + [rs[j][vj]]
