@@ -366,13 +366,14 @@ def _half_edge_twins(F, nv):
             cnt[F[g // 3, (g % 3 + 1) % 3]] = 0
     return twin, np.int64(0)
 
-def _open_necks(V, F, S, necks, nudge):
+def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     """Replace each neck vertex by a small tube joining its two fans.
 
     At a mid-plane corner where the two empty voxels of the 2 x 2 x 2 block around it touch only
     at that corner (the six others are object), the surface meets itself in two cones there.  The
     background is 26-connected, so it passes through the point: the cones are joined by a tube
     (the star of the vertex is removed and its two link cycles are joined by a band).
+    ``tube_seen``: ``seen`` of :func:`_tube_crosses` (a dict the caller keeps across rebuilds of one mesh).
     """
     if len(necks) == 0:
         return V, F, S
@@ -478,12 +479,12 @@ def _open_necks(V, F, S, necks, nudge):
             simple, tube_faces = walk(b, first_of)
             if simple:
                 break
-        if _tube_crosses(new_faces, tube_faces, xyz):
+        if _tube_crosses(new_faces, tube_faces, xyz, tube_seen):
             # very flat cones (slices far apart against the pixel size) can defeat both rules: the
             # proportional walk from every start on the second ring, the first whose faces keep clear
             for r in range(m):
                 simple, faces_r = walk(b[r:] + b[:r], lambda i, j: (i + 1) * m <= (j + 1) * n)
-                if simple and not _tube_crosses(new_faces, faces_r, xyz):
+                if simple and not _tube_crosses(new_faces, faces_r, xyz, tube_seen):
                     tube_faces = faces_r
                     break
         new_faces += tube_faces
@@ -505,11 +506,22 @@ def _open_necks(V, F, S, necks, nudge):
     return V, F, S
 
 
-def _tube_crosses(fans, tube, xyz) -> bool:
-    """True when the faces of a neck's tube cross each other or its two fans (exact test)."""
+def _tube_crosses(fans, tube, xyz, seen=None) -> bool:
+    """True when the faces of a neck's tube cross each other or its two fans (exact test).
+
+    ``seen`` (a dict, optional) keeps the answers by the faces' local numbering and corners'
+    coordinates (the test depends on nothing else): a rebuild of the same mesh meets most of its
+    necks again."""
     f = np.array(fans + tube, dtype=np.int64)
     ids, local = np.unique(f, return_inverse=True)
-    return any_intersecting(xyz(ids.tolist()), local.reshape(-1, 3))
+    P, Fl = xyz(ids.tolist()), local.reshape(-1, 3).astype(np.int64, copy=False)
+    if seen is None:
+        return any_intersecting(P, Fl)
+    key = (P.shape, P.tobytes(), Fl.tobytes())
+    got = seen.get(key)
+    if got is None:
+        got = seen[key] = bool(any_intersecting(P, Fl))
+    return got
 
 
 def _rolled(a, k):

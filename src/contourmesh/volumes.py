@@ -594,6 +594,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # the joins and caps made so far, kept across rebuilds (see _assemble); not with the hooks of
     # the contours route, which count what they do on every build
     unit_cache = {} if polygons is None and end_cap is None else None
+    tube_cache: dict = {}  # the necks' tube tests, kept across rebuilds (see repair._tube_crosses)
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
@@ -601,7 +602,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                polygon=polygon)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
-                                       getattr(polygons, "band_guard", None), end_cap, unit_cache)
+                                       getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         pairs = _crossing_pairs(V, F, previous)
@@ -693,7 +694,7 @@ def _cap_key(slices, i):
 
 
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
-              to_xy_corner, band_guard=None, end_cap=None, cache=None):
+              to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
@@ -705,7 +706,9 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     same order, as making them one after the other into one mesh.  ``cache`` (a dict kept by the
     caller across rebuilds of one mesh) keeps the units made so far, each with all that it depends
     on (its join or cap, and which of its rings are crack rings): a rebuild after a crossing
-    fallback makes again only the joins and caps whose rings or kind changed."""
+    fallback makes again only the joins and caps whose rings or kind changed.  ``tube_cache``
+    (a dict kept the same way) holds the answers of the necks' tube tests
+    (:func:`contourmesh.repair._open_necks`): a rebuild meets most necks again."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
     band_maker = getattr(end_cap, "make_band", None)
@@ -859,7 +862,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     # the repair adds get side 0 and tag -1)
     S = S.astype(np.int64) + 4 * (T + 1)
     V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px)
-    V, F, S = _open_necks(V, F, S, N, 1e-2 * px)
+    V, F, S = _open_necks(V, F, S, N, 1e-2 * px, tube_seen=tube_cache)
     V, F = _compact(V, F)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
