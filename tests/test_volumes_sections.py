@@ -66,7 +66,7 @@ def test_mid_section_lies_between_the_two_regions():
     assert abs(np.sqrt(me.sum() / 2 / np.pi) - 10) < 0.75
 
 
-@pytest.mark.parametrize("sampling", [(1.0, 1.0), (0.5, 0.5), (2.0, 2.0), (0.617, 0.667), (0.8, 0.8)])
+@pytest.mark.parametrize("sampling", [(1.0, 1.0), (0.5, 0.5), (2.0, 2.0), (0.617, 0.667), (0.8, 0.8), (2.0 ** -300, 2.0 ** -300)])
 def test_compiled_signed_distance_is_the_reference_bit_for_bit(sampling):
     # square power-of-two pixels take the compiled transform (exact integers): the same bytes as
     # scipy's; other pixels take scipy itself.  Noise, blobs, one pixel, full boxes, thin boxes

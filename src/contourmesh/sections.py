@@ -47,14 +47,14 @@ def mid_section(ra: np.ndarray, rb: np.ndarray, sampling=(1.0, 1.0)) -> np.ndarr
 def _sdf(m: np.ndarray, sampling) -> np.ndarray:
     """:func:`mid_section`'s signed distance of a region (a boolean mask).
 
-    On square pixels whose side is a power of two (1 mm, 0.5 mm, ...) and a region with a pixel,
-    compiled (:func:`_sdf_square`): every squared distance is then an exact integer times the
-    pixel area, so it is the same number whichever nearest pixel is found, and the same bits as
-    the reference (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the
-    reference."""
+    On square pixels whose side is a power of two (1 mm, 0.5 mm, ...; between 2^-200 and 2^200, so
+    that no square underflows or overflows) and a region with a pixel, compiled
+    (:func:`_sdf_square`): every squared distance is then an exact integer times the pixel area, so
+    it is the same number whichever nearest pixel is found, and the same bits as the reference
+    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the reference."""
     m = np.asarray(m, dtype=bool)
     s0, s1 = (float(x) for x in sampling)
-    if s0 == s1 and s0 > 0 and math.isfinite(s0) and math.frexp(s0)[0] == 0.5 and m.ndim == 2 and m.any():
+    if s0 == s1 and 2.0 ** -200 <= s0 <= 2.0 ** 200 and math.frexp(s0)[0] == 0.5 and m.ndim == 2 and m.any():
         return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1))
     return _sdf_reference(m, sampling)
 
