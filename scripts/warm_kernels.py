@@ -78,7 +78,7 @@ def _fast_path():
 
 
 def _general_mesher():
-    """A volume with a hole, branching and a cavity: the general volume mesher and its exact joins."""
+    """A volume with a hole, branching and a cavity: the general volume mesher, its exact and sectioned joins."""
     import contourmesh
 
     v = np.zeros((9, 12, 12), dtype=bool)
@@ -91,6 +91,9 @@ def _general_mesher():
     labels[1:5, 1:7, 1:4] = 3
     labels[1:5, 1:7, 5:7] = 7
     contourmesh.mesh(labels, label=7, spacing=(2.0, 1.0, 1.0))
+    # a small random volume: forks and merges whose bridged joins take intermediate sections (their
+    # signed distances and topology counts are compiled too)
+    contourmesh.mesh(np.pad(np.random.default_rng(1).random((8, 9, 9)) < 0.4, 1))
 
 
 def _checks():

@@ -279,3 +279,22 @@ def test_slice_moments_from_column_runs_equal_the_voxel_sums_bit_for_bit(kind):
             sigma = float(rng.uniform(0.7, 3.5))
             np.testing.assert_array_equal(_slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1),
                                           _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1))
+
+
+def test_unique_keys_is_numpy_unique():
+    # the histogram route (small key ranges) and np.unique (large ranges, negative keys) give the
+    # same sorted int64 values, empty input included
+    from contourmesh.tracing import unique_keys
+
+    rng = np.random.default_rng(16)
+    routes = set()
+    for t in range(600):
+        n = int(rng.integers(0, 2000))
+        bound = int(rng.integers(1, 10 ** int(rng.integers(1, 7))))
+        keys = rng.integers(0, bound, n)
+        if t % 7 == 0 and n:
+            keys[0] = -1 - int(rng.integers(0, 5))  # outside the range: np.unique decides
+        got, ref = unique_keys(keys, bound), np.unique(keys.astype(np.int64))
+        assert got.dtype == np.int64 and np.array_equal(got, ref)
+        routes.add(bound <= 8 * n + 4096)
+    assert routes == {True, False}

@@ -436,6 +436,36 @@ def test_bridged_ring_walks_a_polyline_bridge_out_and_back():
                    (0, 2), (0, 3)]
 
 
+def test_bridged_ring_arrays_are_the_tour_of_bridged_ring():
+    # random bridge trees over 1-6 rings of 1-8 points (straight and polyline bridges, either end
+    # first): the ranges give the vertex-by-vertex tour, pair for pair
+    from contourmesh.bands.bridges import bridged_ring, bridged_ring_arrays
+
+    rng = np.random.default_rng(72)
+    trees = 0
+    for _ in range(1500):
+        lengths = [int(v) for v in rng.integers(1, 9, int(rng.integers(1, 7)))]
+        bridges, used = [], set()
+        for j in range(1, len(lengths)):
+            i = int(rng.integers(0, j))
+            free_i = [v for v in range(lengths[i]) if (i, v) not in used]
+            free_j = [v for v in range(lengths[j]) if (j, v) not in used]
+            if not free_i or not free_j:
+                break
+            vi, vj = int(rng.choice(free_i)), int(rng.choice(free_j))
+            used |= {(i, vi), (j, vj)}
+            br = (i, vi, j, vj) if rng.random() < 0.5 else (j, vj, i, vi)
+            if rng.random() < 0.3:
+                br = br + (rng.random((int(rng.integers(1, 4)), 2)),)
+            bridges.append(br)
+        else:
+            ring, vertex = bridged_ring_arrays(lengths, bridges)
+            assert ring.dtype == vertex.dtype == np.int64
+            assert list(zip(ring.tolist(), vertex.tolist())) == bridged_ring(lengths, bridges)
+            trees += len(bridges) > 1
+    assert trees > 500
+
+
 def test_bridged_joins_of_drawn_rings_keep_the_volume_within_the_rules(monkeypatch):
     """Issue 15 (through issue 14's bridged joins): on the contours route a fork or merge is a
     bridged join, and its band goes through the same volume guard as every other band: the two

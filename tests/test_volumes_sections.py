@@ -66,6 +66,31 @@ def test_mid_section_lies_between_the_two_regions():
     assert abs(np.sqrt(me.sum() / 2 / np.pi) - 10) < 0.75
 
 
+@pytest.mark.parametrize("sampling", [(1.0, 1.0), (0.5, 0.5), (2.0, 2.0), (0.617, 0.667), (0.8, 0.8), (2.0 ** -300, 2.0 ** -300)])
+def test_compiled_signed_distance_is_the_reference_bit_for_bit(sampling):
+    # square power-of-two pixels take the compiled transform (exact integers): the same bytes as
+    # scipy's; other pixels take scipy itself.  Noise, blobs, one pixel, full boxes, thin boxes
+    rng = np.random.default_rng(72)
+    for t in range(150):
+        h, w = int(rng.integers(1, 30)), int(rng.integers(1, 30))
+        m = rng.random((h, w)) < rng.uniform(0.02, 0.98) if t % 2 else \
+            ndimage.gaussian_filter(rng.random((h, w)), 1.5) > 0.5
+        if t % 25 == 0:
+            m = np.ones((h, w), bool)
+        if t % 25 == 1:
+            m = np.zeros((h, w), bool)
+            m[h // 2, w // 2] = True
+        if not m.any():
+            continue
+        got, ref = sections._sdf(m, sampling), sections._sdf_reference(m, sampling)
+        assert got.dtype == ref.dtype and got.shape == ref.shape
+        assert got.tobytes() == ref.tobytes()
+    # an empty region (no pixel to measure from) takes the reference
+    empty = np.zeros((4, 5), bool)
+    with np.errstate(all="ignore"):
+        assert np.array_equal(sections._sdf(empty, sampling), sections._sdf_reference(empty, sampling), equal_nan=True)
+
+
 def test_stack_invariants_see_a_tube_closed_by_a_section():
     ring = np.zeros((9, 9), bool)
     ring[1:8, 1:8] = True
@@ -76,6 +101,24 @@ def test_stack_invariants_see_a_tube_closed_by_a_section():
     assert two == (1, 1, 0)  # one solid torus: chi 0
     assert sections.stack_invariants([ring, disc, ring]) != two  # the section closes the tube
     assert sections.stack_invariants([ring, ring, ring]) == two
+
+
+def test_stack_invariants_compiled_equal_the_labelled_reference():
+    # the run-based counts equal scipy's labels of the padded stack and euler6, on random stacks of
+    # noise and of smoothed blobs (tunnels, cavities), empty and full ones included
+    rng = np.random.default_rng(16)
+    kinds = set()
+    for t in range(300):
+        shape = (int(rng.integers(1, 6)), int(rng.integers(1, 12)), int(rng.integers(1, 12)))
+        layers = rng.random(shape) < rng.uniform(0.1, 0.9) if t % 2 else \
+            ndimage.gaussian_filter(rng.random(shape), 1.0) > 0.5
+        if t % 50 == 0:
+            layers = np.zeros(shape, bool) if t % 100 == 0 else np.ones(shape, bool)
+        got = sections.stack_invariants(list(layers))
+        assert got == sections._stack_invariants_reference(list(layers))
+        assert all(type(x) is int for x in got)
+        kinds.add((got[0] > 1, got[1] > 1))
+    assert any(a for a, _ in kinds) and any(b for _, b in kinds)  # several components; cavities
 
 
 def test_euler6_equals_skimage_on_random_stacks():
@@ -173,3 +216,48 @@ def test_a_bridged_join_with_more_area_than_sections_takes_the_sections(monkeypa
     assert tried.meta["intermediate_sections"] > plain.meta["intermediate_sections"]
     # each join keeps whichever of the two has less area
     assert tried.area < plain.area
+
+
+def _edges_close_reference(F, spans):
+    """sections._edges_close as it was: unique rows and Python sets of edge tuples."""
+    d = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    und, cnt = np.unique(np.sort(d, axis=1), axis=0, return_counts=True)
+    if len(np.unique(d, axis=0)) != len(d) or cnt.max() > 2:
+        return False
+    ring_edges = set()
+    for off, m in spans:
+        e = np.sort(np.c_[off + np.arange(m), off + (np.arange(m) + 1) % m], axis=1)
+        ring_edges.update(map(tuple, e.tolist()))
+    return {tuple(e) for e in und[cnt == 1].tolist()} == ring_edges
+
+
+def test_piece_edge_check_equals_the_set_reference():
+    # bands between two rings (valid pieces: every ring edge once, every rung twice, each way once),
+    # the same with a face flipped, dropped or doubled, rings of 1 and 2 points, and random faces
+    from contourmesh.bands import triangulate_band
+
+    rng = np.random.default_rng(61)
+    verdicts = set()
+    for t in range(300):
+        n, m = int(rng.integers(1, 9)), int(rng.integers(3, 9))
+        ta, tb = np.sort(rng.random(n)) * 2 * np.pi, np.sort(rng.random(m)) * 2 * np.pi
+        lo = np.c_[np.cos(ta), np.sin(ta), np.zeros(n)]
+        hi = np.c_[np.cos(tb), np.sin(tb), np.ones(m)]
+        F = triangulate_band(lo, hi, "arclength") if n > 1 else np.c_[np.zeros(m, int), 1 + np.arange(m),
+                                                                          1 + (np.arange(m) + 1) % m]
+        spans = [(0, n), (n, m)]
+        kind = t % 5
+        if kind == 1:
+            F = F.copy()
+            F[0] = F[0, ::-1]
+        elif kind == 2:
+            F = F[1:]
+        elif kind == 3:
+            F = np.concatenate([F, F[:1]])
+        elif kind == 4:
+            F = rng.integers(0, n + m, (int(rng.integers(1, 12)), 3))
+            spans = spans[: int(rng.integers(0, 3))]
+        got = sections._edges_close(np.asarray(F, dtype=np.int64), n + m, spans)
+        assert got == _edges_close_reference(np.asarray(F, dtype=np.int64), spans), (t, F)
+        verdicts.add(got)
+    assert verdicts == {True, False}

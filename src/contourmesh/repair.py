@@ -195,6 +195,49 @@ def _corner_components(n, a1, b1, a2, b2):
     return count, lab, first[:count]
 
 
+@njit(cache=True, nogil=True)
+def _fan_components(twin):
+    """:func:`_corner_components` of the corners of a closed mesh linked across its edges, from the
+    half-edge twins (half-edge ``h = 3 i + k`` of face ``i`` runs from corner ``h`` to corner ``3 i +
+    (k + 1) % 3``): half-edge ``h`` and its twin ``t`` link corner ``h`` with the corner after ``t``
+    in its face, and the corner after ``h`` with corner ``t``; the same links, in the same order,
+    without the four arrays of corner ids."""
+    n = twin.shape[0]
+    parent = np.arange(n)
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for h in range(n):
+        t = twin[h]
+        a1 = h
+        b1 = 3 * (t // 3) + (t % 3 + 1) % 3
+        a2 = 3 * (h // 3) + (h % 3 + 1) % 3
+        b2 = t
+        for x, y in ((a1, b1), (a2, b2)):
+            rx, ry = find(x), find(y)
+            if rx != ry:
+                if rx < ry:
+                    parent[ry] = rx
+                else:
+                    parent[rx] = ry
+    lab = np.empty(n, np.int64)
+    first = np.empty(n, np.int64)
+    count = 0
+    for x in range(n):
+        r = find(x)
+        if r == x:
+            lab[x] = count
+            first[count] = x
+            count += 1
+        else:
+            lab[x] = lab[r]
+    return count, lab, first[:count]
+
+
 def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
     """Make a closed mesh a manifold: pair faces at 4-face edges by side, split vertex fans.
 
@@ -215,25 +258,14 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
         V, F, side = _split_four_face_edges(V, F, side, nudge)
     m = len(F)
     nv = len(V) + 1
-    fi = np.repeat(np.arange(m), 3)
-    li = np.tile(np.arange(3), m)
     # every directed edge once and every one with its opposite <=> every edge in exactly two faces
     twin, status = _half_edge_twins(np.ascontiguousarray(F), len(V))
     if status != 0:  # the sorted search names the edge at fault
         twin = _half_edge_twins_reference(F, nv)
-    t = twin
-    # corner ids
-    c_fu = fi * 3 + li
-    c_fv = fi * 3 + (li + 1) % 3
-    g = fi[t]
-    lg = li[t]  # in face g, the edge starts at v (local lg) and ends at u (local lg+1)
-    c_gv = g * 3 + lg
-    c_gu = g * 3 + (lg + 1) % 3
     # fans = connected components of the corners linked across every edge (union-find; labels
     # numbered in order of each component's lowest corner, as scipy's connected_components does)
-    del fi, li, g, lg, t, twin
-    ncomp, lab, first = _corner_components(3 * m, c_fu, c_gu, c_fv, c_gv)
-    del c_fu, c_fv, c_gu, c_gv
+    ncomp, lab, first = _fan_components(np.ascontiguousarray(twin, dtype=np.int64))
+    del twin
     vert_of_corner = F.reshape(-1)
     # a vertex keeps its first fan; other fans get new vertices
     fan_vertex = vert_of_corner[first]  # vertex of each fan
@@ -334,13 +366,14 @@ def _half_edge_twins(F, nv):
             cnt[F[g // 3, (g % 3 + 1) % 3]] = 0
     return twin, np.int64(0)
 
-def _open_necks(V, F, S, necks, nudge):
+def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     """Replace each neck vertex by a small tube joining its two fans.
 
     At a mid-plane corner where the two empty voxels of the 2 x 2 x 2 block around it touch only
     at that corner (the six others are object), the surface meets itself in two cones there.  The
     background is 26-connected, so it passes through the point: the cones are joined by a tube
     (the star of the vertex is removed and its two link cycles are joined by a band).
+    ``tube_seen``: ``seen`` of :func:`_tube_crosses` (a dict the caller keeps across rebuilds of one mesh).
     """
     if len(necks) == 0:
         return V, F, S
@@ -446,12 +479,12 @@ def _open_necks(V, F, S, necks, nudge):
             simple, tube_faces = walk(b, first_of)
             if simple:
                 break
-        if _tube_crosses(new_faces, tube_faces, xyz):
+        if _tube_crosses(new_faces, tube_faces, xyz, tube_seen):
             # very flat cones (slices far apart against the pixel size) can defeat both rules: the
             # proportional walk from every start on the second ring, the first whose faces keep clear
             for r in range(m):
                 simple, faces_r = walk(b[r:] + b[:r], lambda i, j: (i + 1) * m <= (j + 1) * n)
-                if simple and not _tube_crosses(new_faces, faces_r, xyz):
+                if simple and not _tube_crosses(new_faces, faces_r, xyz, tube_seen):
                     tube_faces = faces_r
                     break
         new_faces += tube_faces
@@ -473,11 +506,22 @@ def _open_necks(V, F, S, necks, nudge):
     return V, F, S
 
 
-def _tube_crosses(fans, tube, xyz) -> bool:
-    """True when the faces of a neck's tube cross each other or its two fans (exact test)."""
+def _tube_crosses(fans, tube, xyz, seen=None) -> bool:
+    """True when the faces of a neck's tube cross each other or its two fans (exact test).
+
+    ``seen`` (a dict, optional) keeps the answers by the faces' local numbering and corners'
+    coordinates (the test depends on nothing else): a rebuild of the same mesh meets most of its
+    necks again."""
     f = np.array(fans + tube, dtype=np.int64)
     ids, local = np.unique(f, return_inverse=True)
-    return any_intersecting(xyz(ids.tolist()), local.reshape(-1, 3))
+    P, Fl = xyz(ids.tolist()), local.reshape(-1, 3).astype(np.int64, copy=False)
+    if seen is None:
+        return any_intersecting(P, Fl)
+    key = (P.shape, P.tobytes(), Fl.tobytes())
+    got = seen.get(key)
+    if got is None:
+        got = seen[key] = bool(any_intersecting(P, Fl))
+    return got
 
 
 def _rolled(a, k):

@@ -25,7 +25,10 @@ bridged join.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 #: How many times a join is split (1: one section at mid-gap; 2: also at quarters where needed).
 MAX_DEPTH = 2
@@ -42,7 +45,110 @@ def mid_section(ra: np.ndarray, rb: np.ndarray, sampling=(1.0, 1.0)) -> np.ndarr
 
 
 def _sdf(m: np.ndarray, sampling) -> np.ndarray:
-    """:func:`mid_section`'s signed distance of a region (a boolean mask)."""
+    """:func:`mid_section`'s signed distance of a region (a boolean mask).
+
+    On square pixels whose side is a power of two (1 mm, 0.5 mm, ...; between 2^-200 and 2^200, so
+    that no square underflows or overflows) and a region with a pixel, compiled
+    (:func:`_sdf_square`): every squared distance is then an exact integer times the pixel area, so
+    it is the same number whichever nearest pixel is found, and the same bits as the reference
+    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the reference."""
+    m = np.asarray(m, dtype=bool)
+    s0, s1 = (float(x) for x in sampling)
+    if s0 == s1 and 2.0 ** -200 <= s0 <= 2.0 ** 200 and math.frexp(s0)[0] == 0.5 and m.ndim == 2 and m.any():
+        return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1))
+    return _sdf_reference(m, sampling)
+
+
+@njit(cache=True, nogil=True)
+def _column_distances(m, inside):
+    """Squared distances along each column of the image ``m`` padded by one empty pixel, to the
+    nearest feature pixel of that column (-1 where it has none): the padded image's empty pixels
+    (``inside``) or its object pixels (not ``inside``)."""
+    H, W = m.shape
+    Hp, Wp = H + 2, W + 2
+    g = np.empty((Hp, Wp), np.int64)
+    for x in range(Wp):
+        last = -1  # the row of the last feature seen from above
+        for y in range(Hp):
+            if y == 0 or y == Hp - 1 or x == 0 or x == Wp - 1:
+                feat = inside
+            else:
+                feat = (m[y - 1, x - 1] == 0) == inside
+            if feat:
+                last = y
+                g[y, x] = 0
+            else:
+                g[y, x] = -1 if last < 0 else (y - last) * (y - last)
+        last = -1
+        for y in range(Hp - 1, -1, -1):
+            if g[y, x] == 0:
+                last = y
+            elif last >= 0:
+                d = (last - y) * (last - y)
+                if g[y, x] < 0 or d < g[y, x]:
+                    g[y, x] = d
+    return g
+
+
+@njit(cache=True, nogil=True)
+def _envelope_rows(g):
+    """Per row of ``g`` (squared column distances, -1 where a column has no feature), the squared
+    distance to the nearest feature pixel: the lower envelope of the parabolas ``(x - q)^2 +
+    g[q]`` (Felzenszwalb & Huttenlocher), their crossings compared exactly (integers)."""
+    H, W = g.shape
+    D = np.empty((H, W), np.int64)
+    v = np.empty(W, np.int64)
+    zn = np.empty(W, np.int64)  # the crossing of parabola t with t - 1: zn[t] / zd[t]
+    zd = np.empty(W, np.int64)
+    for y in range(H):
+        k = -1
+        for q in range(W):
+            fq = g[y, q]
+            if fq < 0:
+                continue
+            while k > 0:
+                p = v[k]
+                num = (fq + q * q) - (g[y, p] + p * p)
+                if num * zd[k] <= zn[k] * (2 * (q - p)):
+                    k -= 1
+                else:
+                    break
+            k += 1
+            v[k] = q
+            if k > 0:
+                p = v[k - 1]
+                zn[k] = (fq + q * q) - (g[y, p] + p * p)
+                zd[k] = 2 * (q - p)
+        t = 0
+        for x in range(W):
+            while t < k and zn[t + 1] < x * zd[t + 1]:
+                t += 1
+            p = v[t]
+            D[y, x] = (x - p) * (x - p) + g[y, p]
+    return D
+
+
+@njit(cache=True, nogil=True)
+def _sdf_square(m, area, h):
+    """:func:`_sdf` of a non-empty mask (uint8) on square pixels of area ``area`` (a power of two
+    squared), ``h`` half the pixel side: ``h - inside`` on the region, ``outside - h`` off it, each
+    distance the square root of its squared number of pixel steps times ``area`` (exact)."""
+    H, W = m.shape
+    din = _envelope_rows(_column_distances(m, True))
+    dout = _envelope_rows(_column_distances(m, False))
+    out = np.empty((H, W), np.float64)
+    for y in range(H):
+        for x in range(W):
+            if m[y, x] != 0:
+                out[y, x] = h - math.sqrt(float(din[y + 1, x + 1]) * area)
+            else:
+                out[y, x] = math.sqrt(float(dout[y + 1, x + 1]) * area) - h
+    return out
+
+
+def _sdf_reference(m: np.ndarray, sampling) -> np.ndarray:
+    """:func:`_sdf` by scipy's exact Euclidean distance transform of the padded mask and of its
+    complement (any pixel shape): the reference."""
     from scipy import ndimage
 
     pad = np.pad(m, 1)
@@ -54,7 +160,20 @@ def _sdf(m: np.ndarray, sampling) -> np.ndarray:
 
 def stack_invariants(layers) -> tuple:
     """(object components, background components, Euler characteristic) of a stack of 2D masks as
-    a voxel object: 6-connected object, 26-connected background, padded by empty voxels."""
+    a voxel object: 6-connected object, 26-connected background, padded by empty voxels.
+
+    Counted from the runs of the rows (:mod:`contourmesh.topology`, compiled): the padded stack's
+    background is its cavities and the outside, and padding changes neither the object nor its
+    Euler characteristic; the same numbers as :func:`_stack_invariants_reference`."""
+    from .topology import _count_cavities, _count_object, _euler
+
+    m = np.ascontiguousarray(np.stack(layers), dtype=bool).view(np.uint8)
+    return int(_count_object(m)), int(_count_cavities(m)) + 1, int(_euler(m))
+
+
+def _stack_invariants_reference(layers) -> tuple:
+    """:func:`stack_invariants` by labelling the padded stack (``scipy.ndimage.label``) and
+    :func:`euler6`: the reference it is tested against."""
     from scipy import ndimage
 
     v = np.pad(np.stack(layers), 1)
@@ -391,17 +510,9 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
     if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
         return None
     # each new edge used twice (once each way), each edge of a slice's ring once
-    d = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    und, cnt = np.unique(np.sort(d, axis=1), axis=0, return_counts=True)
-    if len(np.unique(d, axis=0)) != len(d) or cnt.max() > 2:
-        return None
-    ring_edges = set()
-    for (_key, off), (L, c, h) in zip(rings, [u for u in used if u[0].main is not None]):
-        m = len(ids_of[id(L), c, h])
-        e = np.sort(np.c_[off + np.arange(m), off + (np.arange(m) + 1) % m], axis=1)
-        ring_edges.update(map(tuple, e.tolist()))
-    once = {tuple(e) for e in und[cnt == 1].tolist()}
-    if once != ring_edges:
+    spans = [(off, len(ids_of[id(L), c, h]))
+             for (_key, off), (L, c, h) in zip(rings, [u for u in used if u[0].main is not None])]
+    if not _edges_close(F, len(V), spans):
         return None
     if any_intersecting(V, F):
         return None
@@ -409,3 +520,21 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
     out.sections = len(layers)
     out.least_area = least_area
     return out
+
+
+def _edges_close(F, nv, spans) -> bool:
+    """The faces ``F`` (of ``nv`` vertices) use every edge at most twice and never twice the same
+    way, and the edges they use once are exactly those of the rings ``spans`` (``(offset, size)``:
+    vertices ``offset .. offset + size - 1`` in order round the ring).  Each edge is one integer
+    (``u * nv + v``; undirected ``min * nv + max``), so the rows are compared as numbers."""
+    nv = np.int64(nv)
+    d = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]).astype(np.int64, copy=False)
+    directed = np.sort(d[:, 0] * nv + d[:, 1])
+    und, cnt = np.unique(np.minimum(d[:, 0], d[:, 1]) * nv + np.maximum(d[:, 0], d[:, 1]), return_counts=True)
+    if (directed[1:] == directed[:-1]).any() or cnt.max() > 2:
+        return False
+    ring_keys = [np.zeros(0, dtype=np.int64)]
+    for off, m in spans:
+        a, b = off + np.arange(m, dtype=np.int64), off + (np.arange(m, dtype=np.int64) + 1) % m
+        ring_keys.append(np.minimum(a, b) * nv + np.maximum(a, b))
+    return bool(np.array_equal(und[cnt == 1], np.unique(np.concatenate(ring_keys))))

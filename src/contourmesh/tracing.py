@@ -340,6 +340,16 @@ def _pair_groups(pa, pb, na, nb):
     return group, ng
 
 
+def unique_keys(keys: np.ndarray, bound: int) -> np.ndarray:
+    """``np.unique(keys)`` for int64 keys in ``0 .. bound - 1``: where the range is small next to
+    the number of keys, the nonzero places of their histogram (``np.bincount``, one pass and no
+    sort or hash: the same sorted int64 values); otherwise ``np.unique`` itself."""
+    keys = np.asarray(keys, dtype=np.int64)
+    if bound <= 8 * len(keys) + 4096 and (len(keys) == 0 or keys.min() >= 0):
+        return np.flatnonzero(np.bincount(keys)).astype(np.int64, copy=False)
+    return np.unique(keys)
+
+
 def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
     """The overlap groups of two slices' components: ``la``, ``lb`` are their label images (0 the
     background, component ``c`` labelled ``c + 1``; ``na``, ``nb`` components).  Two components
@@ -349,7 +359,7 @@ def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
     bipartite graph, found by a compiled union-find (:func:`_pair_groups`)."""
     both = (la > 0) & (lb > 0)
     nbk = np.int64(nb + 1)  # (a, b) label pairs as one sortable key: same order as unique rows
-    keys = np.unique(la[both].astype(np.int64) * nbk + lb[both])
+    keys = unique_keys(la[both].astype(np.int64) * nbk + lb[both], (na + 1) * (nb + 1))
     pairs = np.c_[keys // nbk, keys % nbk] - 1
     group, ng = _pair_groups(np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1]),
                              np.int64(na), np.int64(nb))

@@ -92,7 +92,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes
+from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes, unique_keys
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -594,6 +594,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # the joins and caps made so far, kept across rebuilds (see _assemble); not with the hooks of
     # the contours route, which count what they do on every build
     unit_cache = {} if polygons is None and end_cap is None else None
+    tube_cache: dict = {}  # the necks' tube tests, kept across rebuilds (see repair._tube_crosses)
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
@@ -601,7 +602,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                polygon=polygon)
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
-                                       getattr(polygons, "band_guard", None), end_cap, unit_cache)
+                                       getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         pairs = _crossing_pairs(V, F, previous)
@@ -693,7 +694,7 @@ def _cap_key(slices, i):
 
 
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
-              to_xy_corner, band_guard=None, end_cap=None, cache=None):
+              to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
@@ -705,7 +706,9 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     same order, as making them one after the other into one mesh.  ``cache`` (a dict kept by the
     caller across rebuilds of one mesh) keeps the units made so far, each with all that it depends
     on (its join or cap, and which of its rings are crack rings): a rebuild after a crossing
-    fallback makes again only the joins and caps whose rings or kind changed."""
+    fallback makes again only the joins and caps whose rings or kind changed.  ``tube_cache``
+    (a dict kept the same way) holds the answers of the necks' tube tests
+    (:func:`contourmesh.repair._open_necks`): a rebuild meets most necks again."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
     band_maker = getattr(end_cap, "make_band", None)
@@ -859,7 +862,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     # the repair adds get side 0 and tag -1)
     S = S.astype(np.int64) + 4 * (T + 1)
     V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px)
-    V, F, S = _open_necks(V, F, S, N, 1e-2 * px)
+    V, F, S = _open_necks(V, F, S, N, 1e-2 * px, tube_seen=tube_cache)
     V, F = _compact(V, F)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
@@ -1145,7 +1148,7 @@ class _CornerGrid:
         if need.any():
             # the new corners in (x, y) order, as one integer key each (x major)
             hh = np.int64(self.ids.shape[0])
-            key = np.unique(lx[need].astype(np.int64) * hh + ly[need])
+            key = unique_keys(lx[need].astype(np.int64) * hh + ly[need], self.ids.shape[1] * hh)
             ux, uy = key // hh, key % hh
             xy = self.to_xy(np.stack([ux + self.x0, uy + self.y0], axis=1))
             self.ids[uy, ux] = self.M.points(_with_z(xy, self.z))
@@ -1266,7 +1269,7 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     lb = B.labels[y0:y1, x0:x1]
     o = label_mask(la, A.n, ga) & label_mask(lb, B.n, gb)
     nbk = np.int64(B.n + 1)
-    npairs = len(np.unique(la[o].astype(np.int64) * nbk + lb[o]))
+    npairs = len(unique_keys(la[o].astype(np.int64) * nbk + lb[o], (A.n + 1) * (B.n + 1)))
     if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
         return None
     # the overlap's 4-components, its padded background's 8-components (ndimage.label's numbers)
@@ -1344,7 +1347,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     ``band_guard`` (the contours route's volume guard, see :meth:`_Mesher.band`), where given, may
     replace each band of the join (the bridged rings' band and the tubes'); its band is kept
     only where it neither folds nor crosses itself."""
-    from .bands.bridges import bridge_tree, bridged_ring
+    from .bands.bridges import bridge_tree, bridged_ring_arrays
     from .intersect import any_intersecting
 
     tubes, lids_a, lids_b, open_a, open_b = plan
@@ -1390,8 +1393,12 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
                 base = n_ring + sum(len(p) for p in path_pts)
                 path_pts.append(_with_z(bridge[4], zs[plane]))
                 ids_of[len(rs) + b] = base + np.arange(len(bridge[4]))
-        seq = np.array([multi[r][v] if r < len(rs) else ids_of[r][v]
-                        for r, v in bridged_ring([len(r) for r in rs], br)], dtype=np.int64)
+        # the tour's (ring, vertex) pairs as vertex ids: ring r's ids, then each polyline bridge's
+        tables = [np.asarray(multi[r], dtype=np.int64) for r in range(len(rs))] + \
+            [ids_of.get(len(rs) + b, np.zeros(0, dtype=np.int64)).astype(np.int64) for b in range(len(br))]
+        start = np.cumsum([0] + [len(t) for t in tables[:-1]])
+        tour_r, tour_v = bridged_ring_arrays([len(r) for r in rs], br)
+        seq = np.concatenate(tables)[start[tour_r] + tour_v]
         for bridge in br:
             i, vi, j, vj = bridge[:4]
             line = [rs[i][vi]] + (list(bridge[4]) if len(bridge) > 4 else []) + [rs[j][vj]]
@@ -1550,10 +1557,21 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     boxes = {}  # slice -> (lo, hi): per component a box holding all its rings, as polygons and as crack rings
     near = {}  # (slice, components) -> the components of that slice whose boxes meet theirs
 
+    near_seen = {}  # (slice, components) -> (size of by_slice[slice], near_sig): by_slice only grows
+
     def near_sig(kk, comps):
         """The crack-only components of slice kk whose rings may meet the box of ``comps``' rings:
         the only ones whose edges a bridge between ``comps``' rings can meet."""
         key = (kk, tuple(comps))
+        seen = near_seen.get(key)
+        if seen is not None and seen[0] == len(by_slice[kk]):
+            return seen[1]
+        got = _near_sig(kk, key)
+        near_seen[key] = (len(by_slice[kk]), got)
+        return got
+
+    def _near_sig(kk, key):
+        comps = key[1]
         if key not in near:
             if kk not in boxes:
                 s = slices[kk]
@@ -1623,49 +1641,63 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 lids[k + 1, b, h] += 1
     double = {key for key, n in lids.items() if n > 1}
     cache = {} if cache is None else cache
+    # a pass that restarts after a join fell back repeats the previous one up to where something
+    # changed: while it does (the same joins passed with the same keys, in order), each join meets
+    # the same bridges in its planes as before and passes their test again, so the test is skipped,
+    # and a join away from the slices of the join that fell back keeps its key (see near_sig)
+    passed_before = []
+    changed = set()  # the slices whose crack rings changed since the previous pass
     while True:
         taken = defaultdict(list)
         out = {}
         restart = False
+        passed, replay = [], True
         for idx, (k, kind, data) in enumerate(joins):
             if kind != "bridge":
                 continue
             ga, gb, plan = data
-            dbl = () if plan is None else \
-                tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
-            key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl)
-            # a keyhole lies in its component's plane, inside the component: a flat cap there (the
-            # component ends on the other side) would meet the fold along it
-            if plan is not None and caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
-                                                        or any((k + 1, b) not in has_above for b, _ in plan[4])):
-                cache[key] = None
-            if key not in cache:
-                cache[key] = None if plan is None else _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered,
-                                                                    triangulation, caps, double, waypoints, band_guard)
-                got = cache[key]
-                # a band can fan across the slice (from a polyline keyhole, or from the tips of a C
-                # whose mouth closes into a ring): such a join folds over itself, and may not have
-                # much more area than the voxel-exact join it replaces
-                exact = _exact_area(slices, zs, k, ga, gb, dx * dy)
-                limit = _BRIDGED_AREA_LIMIT * exact
-                area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
-                if got is not None and area > limit:
+            # while the pass repeats the previous one, a join whose two slices kept their crack rings
+            # has the same key as then (near_sig reads only those slices' crack rings)
+            prev = passed_before[len(passed)] if replay and len(passed) < len(passed_before) else None
+            if prev is not None and prev[0] == idx and k not in changed and k + 1 not in changed:
+                key = prev[1]
+            else:
+                dbl = () if plan is None else \
+                    tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
+                key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl)
+                # a keyhole lies in its component's plane, inside the component: a flat cap there (the
+                # component ends on the other side) would meet the fold along it
+                if plan is not None and caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
+                                                            or any((k + 1, b) not in has_above for b, _ in plan[4])):
                     cache[key] = None
-                elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None:
-                    # more area than the exact join: a fold is likely; intermediate sections may
-                    # follow the surface with less, and the join takes whichever has less area
-                    alt = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
-                                         triangulation, polygon, grid)
-                    if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
-                        cache[key] = alt
-                if cache[key] is None and band_guard is None:
-                    # split the gap by intermediate sections; held to the same area limit
-                    got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
-                                         polygon, grid)
-                    if got is not None and float(triangle_areas(got.V, got.F).sum()) <= limit:
-                        cache[key] = got
+                if key not in cache:
+                    cache[key] = None if plan is None else _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered,
+                                                                        triangulation, caps, double, waypoints, band_guard)
+                    got = cache[key]
+                    # a band can fan across the slice (from a polyline keyhole, or from the tips of a C
+                    # whose mouth closes into a ring): such a join folds over itself, and may not have
+                    # much more area than the voxel-exact join it replaces
+                    exact = _exact_area(slices, zs, k, ga, gb, dx * dy)
+                    limit = _BRIDGED_AREA_LIMIT * exact
+                    area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
+                    if got is not None and area > limit:
+                        cache[key] = None
+                    elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None:
+                        # more area than the exact join: a fold is likely; intermediate sections may
+                        # follow the surface with less, and the join takes whichever has less area
+                        alt = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
+                                             triangulation, polygon, grid)
+                        if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
+                            cache[key] = alt
+                    if cache[key] is None and band_guard is None:
+                        # split the gap by intermediate sections; held to the same area limit
+                        got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
+                                             polygon, grid)
+                        if got is not None and float(triangle_areas(got.V, got.F).sum()) <= limit:
+                            cache[key] = got
             b = cache[key]
-            if b is not None:
+            replay = prev is not None and prev[0] == idx and prev[1] == key
+            if b is not None and not replay:
                 for plane, p, q in b.segments:
                     if taken[plane]:
                         sa = np.array([s[0] for s in taken[plane]])
@@ -1679,13 +1711,16 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 crack_only.update((k + 1, c) for c in gb)
                 by_slice[k].update(ga)
                 by_slice[k + 1].update(gb)
+                changed = {k, k + 1}
                 restart = True
                 break
             for plane, p, q in b.segments:
                 taken[plane].append((p, q))
             out[k, tuple(ga), tuple(gb)] = b
+            passed.append((idx, key))
         if not restart:
             return out
+        passed_before = passed
 
 
 def _section_ops():

@@ -28,6 +28,8 @@ pair instead, whose search excludes such bands.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from numba import njit
 
@@ -150,13 +152,39 @@ def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str,
     return f, False
 
 
+#: The last few answers of :func:`_band_crosses`, keyed by the bytes of its two arrays: the volume
+#: mesher's bridged joins test the band that :func:`contourmesh.volumes._band_faces` has just tested
+#: (the same rings and faces: about a quarter of the liver's crossing tests were such repeats).
+_CROSSES_SEEN: dict = {}
+_CROSSES_KEEP = 16
+_CROSSES_LOCK = threading.Lock()
+
+
 def _band_crosses(P, f) -> bool:
     """True when two faces of one band cross or touch other than as neighbours (exact test).
 
     A ring that touches itself (a pinch: one position visited twice) is split later by the
     mesher, each copy moved a hair into its own fan; here each copy of a repeated position is
     moved the same way (a hair towards the middle of its two ring neighbours, in its plane), so
-    the test sees the band as it will be, not the shared point."""
+    the test sees the band as it will be, not the shared point.
+
+    The answer depends on the two arrays only: a repeated call (equal bytes, shapes and dtypes)
+    takes the remembered answer of one of the last :data:`_CROSSES_KEEP` calls."""
+    P = np.asarray(P)
+    f = np.asarray(f)
+    key = (P.shape, P.dtype.str, P.tobytes(), f.shape, f.dtype.str, f.tobytes())
+    got = _CROSSES_SEEN.get(key)
+    if got is None:
+        got = _band_crosses_uncached(P, f)
+        with _CROSSES_LOCK:  # (meshers may run in threads of one process)
+            while len(_CROSSES_SEEN) >= _CROSSES_KEEP:
+                del _CROSSES_SEEN[next(iter(_CROSSES_SEEN))]  # the oldest (dicts keep insertion order)
+            _CROSSES_SEEN[key] = got
+    return got
+
+
+def _band_crosses_uncached(P, f) -> bool:
+    """:func:`_band_crosses` without the memory of recent calls."""
     canon = canonical_vertices(P)  # (as np.unique(P, axis=0), hashed: the same groups)
     dup = np.flatnonzero(np.bincount(canon, minlength=len(P))[canon] > 1)
     if len(dup):

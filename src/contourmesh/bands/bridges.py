@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["bridge_tree", "bridged_ring", "keyhole_path", "keyhole_uncovered", "segments_cross"]
+__all__ = ["bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
 #: Candidate vertex pairs tried per pair of contours (nearest first).
 CANDIDATES = 12
@@ -731,6 +731,45 @@ def _outside_corner(a, c, b, d) -> bool:
     else:
         inside = s_w >= 0  # straight corner: interior is the left half-plane
     return not inside
+
+
+def bridged_ring_arrays(lengths, bridges, root: int = 0):
+    """:func:`bridged_ring` as two int64 arrays ``(ring, vertex)``: the same sequence, each run of
+    a contour between two bridge ends emitted as one range instead of vertex by vertex."""
+    n = len(lengths)
+    at = {}
+    hooks = [[] for _ in range(n)]  # per ring, the vertices where bridges leave it
+    for b, br in enumerate(bridges):
+        i, vi, j, vj = br[:4]
+        m = len(br[4]) if len(br) > 4 else 0
+        at[(i, vi)] = (j, vj, n + b, np.arange(m, dtype=np.int64))
+        at[(j, vj)] = (i, vi, n + b, np.arange(m - 1, -1, -1, dtype=np.int64))
+        hooks[i].append(vi)
+        hooks[j].append(vj)
+    rr, vv = [], []
+
+    def emit(r, verts):
+        rr.append(np.full(len(verts), r, dtype=np.int64))
+        vv.append(verts)
+
+    def tour(r, e, parent, closing):
+        m = lengths[r]
+        # the bridges to other rings than the parent, in the order the walk from e meets them
+        here = sorted(((v - e) % m, v) for v in hooks[r] if at[(r, v)][0] != parent)
+        t0 = 0
+        for t, v in here:
+            emit(r, (e + np.arange(t0, t + 1, dtype=np.int64)) % m)
+            other = at[(r, v)]
+            emit(other[2], other[3])
+            tour(other[0], other[1], r, True)
+            emit(other[2], other[3][::-1])
+            emit(r, np.array([v], dtype=np.int64))
+            t0 = t + 1
+        emit(r, (e + np.arange(t0, m + (1 if closing else 0), dtype=np.int64)) % m)
+
+    seen_start = next((v for v in range(lengths[root]) if (root, v) not in at), 0)
+    tour(root, seen_start, -1, False)
+    return np.concatenate(rr), np.concatenate(vv)
 
 
 def bridged_ring(lengths, bridges, root: int = 0):
