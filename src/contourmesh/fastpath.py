@@ -271,6 +271,33 @@ def _components(ry, rx0, rx1, row_start, h):
     #(overlapping run pairs in adjacent rows)``.
     """
     nr = len(ry)
+    # one run per row, each overlapping the one below (a slice of a ball): one component without
+    # holes, no union-find
+    stack = nr > 0
+    xmin = rx0[0] if nr > 0 else 0
+    xmax = rx1[0] if nr > 0 else 0
+    for r in range(1, nr):
+        if ry[r] != ry[r - 1] + 1 or rx0[r] >= rx1[r - 1] or rx0[r - 1] >= rx1[r]:
+            stack = False
+            break
+        if rx0[r] < xmin:
+            xmin = rx0[r]
+        if rx1[r] > xmax:
+            xmax = rx1[r]
+    if stack:
+        lab = np.empty(nr, np.int64)
+        for r in range(nr):
+            lab[r] = 0
+        holes = np.empty(1, np.int64)
+        holes[0] = 0
+        bbox = np.empty((1, 4), np.int64)
+        bbox[0, 0] = xmin
+        bbox[0, 1] = ry[0]
+        bbox[0, 2] = xmax - 1
+        bbox[0, 3] = ry[nr - 1]
+        first = np.empty(1, np.int64)
+        first[0] = 0
+        return lab, np.int64(1), holes, bbox, first
     parent = np.empty(nr, np.int64)
     for r in range(nr):
         parent[r] = r
@@ -474,6 +501,8 @@ def _trace_runs(ry, rx0, rx1, order, t0, t1):
     every lattice point on the way listed once, as the walk lists them.
     """
     m = t1 - t0
+    if m <= 0:
+        return np.empty((0, 2), np.int64)
     for t in range(t0 + 1, t1):
         if ry[order[t]] != ry[order[t - 1]] + 1:
             return np.empty((0, 2), np.int64)
