@@ -113,11 +113,15 @@ def _mlp_grid(pts, colour, on, bg, ox, oy, w):
         kn = k + 1 if k + 1 < n else 0
         dx, dy = pts[kn, 0] - x, pts[kn, 1] - y
         on[(y - oy) * w + x - ox] = 1
-        # the cell right of the step (x, y) -> (x + dx, y + dy) has lower-left corner (x, y - 1)
-        # for +x, (x - 1, y) for -x, (x, y) for +y, (x - 1, y - 1) for -y (without branches: the
-        # step's direction changes along a contour too often to be predicted)
-        cx = x - np.int64(dx < 0) - np.int64(dy < 0)
-        cy = y - np.int64(dx > 0) - np.int64(dy < 0)
+        # the cell right of the step (x, y) -> (x + dx, y + dy) has lower-left corner:
+        if dx > 0:
+            cx, cy = x, y - 1
+        elif dx < 0:
+            cx, cy = x - 1, y
+        elif dy > 0:
+            cx, cy = x, y
+        else:
+            cx, cy = x - 1, y - 1
         bg[(cy - oy) * w + cx - ox] = 1
     cand = np.empty((3 * n, 2), np.int64)
     kind = np.empty(3 * n, np.int64)
@@ -132,26 +136,27 @@ def _mlp_grid(pts, colour, on, bg, ox, oy, w):
         ix, iy = cx - px, cy - py  # incoming step
         sx, sy = nx - cx, ny - cy  # outgoing step
         turn = ix * sy - iy * sx
-        # a corner (written always, kept when the contour turns: no branch on the turn)
-        cand[m, 0] = cx
-        cand[m, 1] = cy
-        kind[m] = np.int64(turn < 0) * -1
-        m += np.int64(turn != 0)
+        if turn != 0:
+            cand[m, 0] = cx
+            cand[m, 1] = cy
+            kind[m] = 0 if turn > 0 else -1
+            m += 1
         # the inner corners of the cell left of the outgoing step: c + left, c + step + left
         lx, ly = -sy, sx
         for j in range(2):
             qx, qy = cx + lx + j * sx, cy + ly + j * sy
             q = (qy - oy) * w + qx - ox
-            # kept unless on the contour, next to a cell not in U (so not interior to U), or
-            # the W just kept
-            skip = on[q] | bg[q] | bg[q - w] | bg[q - 1] | bg[q - w - 1]
-            keep = skip == 0 and not (has_w and qx == lastw_x and qy == lastw_y)
-            if keep:
-                cand[m, 0] = qx
-                cand[m, 1] = qy
-                kind[m] = 1
-                m += 1
-                lastw_x, lastw_y, has_w = qx, qy, True
+            if on[q]:
+                continue
+            if bg[q] or bg[q - w] or bg[q - 1] or bg[q - w - 1]:
+                continue  # a cell around q is not in U: q is not interior to U
+            if has_w and qx == lastw_x and qy == lastw_y:
+                continue
+            cand[m, 0] = qx
+            cand[m, 1] = qy
+            kind[m] = 1
+            m += 1
+            lastw_x, lastw_y, has_w = qx, qy, True
     # the grids are not needed any more: back to zero, touching only what step 1 set
     for k in range(n):
         x, y = pts[k, 0], pts[k, 1]
