@@ -52,11 +52,29 @@ def assert_same(fast, slow):
 # ------------------------------------------------------------------------------------------------
 # the pieces against the full mesher's pieces
 # ------------------------------------------------------------------------------------------------
+def _stacked_runs(rng, h, w):
+    # one run per row over consecutive rows, each overlapping the one below (a ball's slice), or
+    # touching it only at a corner, or leaving a row out (then it is not one stack)
+    m = np.zeros((h, w), bool)
+    y0 = int(rng.integers(0, h))
+    a = int(rng.integers(0, w))
+    for y in range(y0, int(rng.integers(y0, h)) + 1):
+        b = int(rng.integers(a + 1, w + 1))
+        m[y, a:b] = True
+        a = int(rng.integers(max(0, a - 3), b + (rng.random() < 0.2)))
+        if a >= w or rng.random() < 0.05:
+            break
+    return m
+
+
 def test_runs_and_components_match_ndimage():
     rng = np.random.default_rng(1)
-    for _ in range(30):
+    for i in range(90):
         h, w = rng.integers(1, 40, size=2)
-        m = ndimage.gaussian_filter(rng.random((h, w)), 1.2) > 0.5
+        if i % 3:  # the one-stack shortcut of _components, and its near misses
+            m = _stacked_runs(rng, h, w)
+        else:
+            m = ndimage.gaussian_filter(rng.random((h, w)), 1.2) > 0.5
         ry, rx0, rx1, rs = slice_runs(m)
         back = np.zeros_like(m)
         for y, a, b in zip(ry, rx0, rx1):
