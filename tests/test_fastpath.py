@@ -52,11 +52,29 @@ def assert_same(fast, slow):
 # ------------------------------------------------------------------------------------------------
 # the pieces against the full mesher's pieces
 # ------------------------------------------------------------------------------------------------
+def _stacked_runs(rng, h, w):
+    # one run per row over consecutive rows, each overlapping the one below (a ball's slice), or
+    # touching it only at a corner, or leaving a row out (then it is not one stack)
+    m = np.zeros((h, w), bool)
+    y0 = int(rng.integers(0, h))
+    a = int(rng.integers(0, w))
+    for y in range(y0, int(rng.integers(y0, h)) + 1):
+        b = int(rng.integers(a + 1, w + 1))
+        m[y, a:b] = True
+        a = int(rng.integers(max(0, a - 3), b + (rng.random() < 0.2)))
+        if a >= w or rng.random() < 0.05:
+            break
+    return m
+
+
 def test_runs_and_components_match_ndimage():
     rng = np.random.default_rng(1)
-    for _ in range(30):
+    for i in range(90):
         h, w = rng.integers(1, 40, size=2)
-        m = ndimage.gaussian_filter(rng.random((h, w)), 1.2) > 0.5
+        if i % 3:  # the one-stack shortcut of _components, and its near misses
+            m = _stacked_runs(rng, h, w)
+        else:
+            m = ndimage.gaussian_filter(rng.random((h, w)), 1.2) > 0.5
         ry, rx0, rx1, rs = slice_runs(m)
         back = np.zeros_like(m)
         for y, a, b in zip(ry, rx0, rx1):
@@ -156,6 +174,42 @@ def test_outer_contour_and_mlp_match_trace_contours():
             else:
                 assert not degenerate[c]
                 assert np.array_equal(polys[c], ref + [sl[1].start, sl[0].start])
+
+
+def test_contour_from_runs_is_the_walk():
+    # a component with one run per row: the contour written from its runs (no pixel read) is the
+    # walk's, point for point; with two runs in a row it declines (empty) and the walk is taken
+    from contourmesh.fastpath import _trace_outer_py, _trace_runs_py
+
+    rng = np.random.default_rng(5)
+    written = declined = 0
+    for it in range(600):
+        h, w = (int(v) for v in rng.integers(1, 16, size=2))
+        m = rng.random((h, w)) < rng.uniform(0.2, 0.9)
+        if it % 2 == 0:  # stacked runs, each overlapping the one below
+            m[:] = False
+            y0 = int(rng.integers(0, h))
+            a = int(rng.integers(0, w))
+            for y in range(y0, int(rng.integers(y0, h)) + 1):
+                b = int(rng.integers(a + 1, w + 1))
+                m[y, a:b] = True
+                a = int(rng.integers(max(0, a - 3), b))
+        lab, n = ndimage.label(m, structure=_CROSS)
+        for c in range(1, n + 1):
+            comp = lab == c
+            ry, rx0, rx1, _ = (np.asarray(v, np.int64) for v in slice_runs(comp)[:4])
+            order = np.arange(len(ry), dtype=np.int64)
+            got = _trace_runs_py(ry, rx0, rx1, order, np.int64(0), np.int64(len(ry)))
+            if len(np.unique(ry)) < len(ry):
+                assert len(got) == 0
+                declined += 1
+                continue
+            b8 = np.ascontiguousarray(comp).reshape(-1).view(np.uint8)
+            walk = _trace_outer_py(b8, np.int64(0), np.int64(h), np.int64(w), np.int64(0), np.int64(0),
+                                   rx0[0] - 1, ry[0] - 1)
+            assert np.array_equal(got, walk)
+            written += 1
+    assert written > 500 and declined > 20
 
 
 def test_band_faces_match_the_mesher_band():

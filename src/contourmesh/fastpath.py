@@ -271,6 +271,33 @@ def _components(ry, rx0, rx1, row_start, h):
     #(overlapping run pairs in adjacent rows)``.
     """
     nr = len(ry)
+    # one run per row, each overlapping the one below (a slice of a ball): one component without
+    # holes, no union-find
+    stack = nr > 0
+    xmin = rx0[0] if nr > 0 else 0
+    xmax = rx1[0] if nr > 0 else 0
+    for r in range(1, nr):
+        if ry[r] != ry[r - 1] + 1 or rx0[r] >= rx1[r - 1] or rx0[r - 1] >= rx1[r]:
+            stack = False
+            break
+        if rx0[r] < xmin:
+            xmin = rx0[r]
+        if rx1[r] > xmax:
+            xmax = rx1[r]
+    if stack:
+        lab = np.empty(nr, np.int64)
+        for r in range(nr):
+            lab[r] = 0
+        holes = np.empty(1, np.int64)
+        holes[0] = 0
+        bbox = np.empty((1, 4), np.int64)
+        bbox[0, 0] = xmin
+        bbox[0, 1] = ry[0]
+        bbox[0, 2] = xmax - 1
+        bbox[0, 3] = ry[nr - 1]
+        first = np.empty(1, np.int64)
+        first[0] = 0
+        return lab, np.int64(1), holes, bbox, first
     parent = np.empty(nr, np.int64)
     for r in range(nr):
         parent[r] = r
@@ -459,6 +486,99 @@ def _trace_outer_py(img, base, hh, ww, ox, oy, sx, sy):
     return _trace_outer(img, base, hh, ww, ox, oy, sx, sy)
 
 
+@_kernel
+def _trace_runs(ry, rx0, rx1, order, t0, t1):
+    """The contour :func:`_trace_outer` walks, written from the runs when the component has one
+    run in each of its rows (``order[t0:t1]``, rows ascending), without reading a pixel; else an
+    empty array (the walk is needed).
+
+    Run ``r`` puts the rectangle ``[rx0 - 1, rx1] x [ry - 1, ry + 1]`` into ``U``, so the cells
+    between heights ``y`` and ``y + 1`` span one interval ``[L, R]`` (the union of the rectangles
+    of rows ``y`` and ``y + 1``, which overlap in a 4-connected component): ``U`` is a stack of
+    intervals, without the pinches where the walk's turning rule decides.  Its boundary, from the
+    lowest-then-leftmost vertex counterclockwise, is the bottom edge, the right side (one unit up
+    per interval, then along to the next interval's end), the top edge and the left side down,
+    every lattice point on the way listed once, as the walk lists them.
+    """
+    m = t1 - t0
+    if m <= 0:
+        return np.empty((0, 2), np.int64)
+    for t in range(t0 + 1, t1):
+        if ry[order[t]] != ry[order[t - 1]] + 1:
+            return np.empty((0, 2), np.int64)
+    y0 = ry[order[t0]] - 1  # height of the bottom edge: interval i lies between y0 + i and y0 + i + 1
+    lo = np.empty(m + 1, np.int64)
+    hi = np.empty(m + 1, np.int64)
+    for i in range(m + 1):
+        if i == 0:
+            r = order[t0]
+            a = rx0[r] - 1
+            b = rx1[r]
+        else:
+            r = order[t0 + i - 1]
+            a = rx0[r] - 1
+            b = rx1[r]
+            if i < m:
+                r = order[t0 + i]
+                if rx0[r] - 1 < a:
+                    a = rx0[r] - 1
+                if rx1[r] > b:
+                    b = rx1[r]
+        lo[i] = a
+        hi[i] = b
+    n = (hi[0] - lo[0]) + (hi[m] - lo[m]) + 2 * (m + 1)
+    for i in range(m):
+        n += abs(hi[i + 1] - hi[i]) + abs(lo[i + 1] - lo[i])
+    pts = np.empty((n, 2), np.int64)
+    q = 0
+    for x in range(lo[0], hi[0]):  # bottom, +x
+        pts[q, 0] = x
+        pts[q, 1] = y0
+        q += 1
+    for i in range(m + 1):  # right side, up
+        pts[q, 0] = hi[i]
+        pts[q, 1] = y0 + i
+        q += 1
+        y = y0 + i + 1
+        if i < m:
+            if hi[i + 1] > hi[i]:
+                for x in range(hi[i], hi[i + 1]):
+                    pts[q, 0] = x
+                    pts[q, 1] = y
+                    q += 1
+            else:
+                for x in range(hi[i], hi[i + 1], -1):
+                    pts[q, 0] = x
+                    pts[q, 1] = y
+                    q += 1
+    for x in range(hi[m], lo[m], -1):  # top, -x
+        pts[q, 0] = x
+        pts[q, 1] = y0 + m + 1
+        q += 1
+    for i in range(m, -1, -1):  # left side, down
+        pts[q, 0] = lo[i]
+        pts[q, 1] = y0 + i + 1
+        q += 1
+        y = y0 + i
+        if i > 0:
+            if lo[i - 1] < lo[i]:
+                for x in range(lo[i], lo[i - 1], -1):
+                    pts[q, 0] = x
+                    pts[q, 1] = y
+                    q += 1
+            else:
+                for x in range(lo[i], lo[i - 1]):
+                    pts[q, 0] = x
+                    pts[q, 1] = y
+                    q += 1
+    return pts
+
+
+@_entry
+def _trace_runs_py(ry, rx0, rx1, order, t0, t1):
+    return _trace_runs(ry, rx0, rx1, order, t0, t1)
+
+
 def outer_jordan_contour(mask2d) -> np.ndarray:
     """The outer contour of the outer Jordan digitization of a 2D mask (one 4-component).
 
@@ -623,25 +743,28 @@ def _slice_polygons_k(b8, b64, base, h, w, aligned, stamp, stamp_id, on, bg):
     outer = np.int64(1)  # the MLP of an outer contour (an int64, not a literal: see _kernel)
     mthree = np.int64(-3)  # the MLP grids' origin: contour vertices lie in [-1, w] x [-1, h]
     for c in range(n):
-        if n == 1:
-            # the slice itself is the component's image
-            img, ibase, ih, iw, ox, oy = b8, base, h, w, 0, 0
-        else:
-            # the component's runs painted into a local image around its bbox
-            ox, oy = bbox[c, 0], bbox[c, 1]
-            iw = bbox[c, 2] - ox + 1
-            ih = bbox[c, 3] - oy + 1
-            img = np.empty(ih * iw, np.uint8)
-            for q in range(ih * iw):
-                img[q] = 0
-            ibase = 0
-            for t in range(cnt[c], cnt[c + 1]):
-                r = order[t]
-                row = (ry[r] - oy) * iw - ox
-                for x in range(rx0[r], rx1[r]):
-                    img[row + x] = 1
-        r = first[c]
-        cc = _trace_outer(img, ibase, ih, iw, ox, oy, rx0[r] - 1, ry[r] - 1)
+        # one run per row: the contour from the runs; else the walk over the pixels
+        cc = _trace_runs(ry, rx0, rx1, order, cnt[c], cnt[c + 1])
+        if len(cc) == 0:
+            if n == 1:
+                # the slice itself is the component's image
+                img, ibase, ih, iw, ox, oy = b8, base, h, w, 0, 0
+            else:
+                # the component's runs painted into a local image around its bbox
+                ox, oy = bbox[c, 0], bbox[c, 1]
+                iw = bbox[c, 2] - ox + 1
+                ih = bbox[c, 3] - oy + 1
+                img = np.empty(ih * iw, np.uint8)
+                for q in range(ih * iw):
+                    img[q] = 0
+                ibase = 0
+                for t in range(cnt[c], cnt[c + 1]):
+                    r = order[t]
+                    row = (ry[r] - oy) * iw - ox
+                    for x in range(rx0[r], rx1[r]):
+                        img[row + x] = 1
+            r = first[c]
+            cc = _trace_outer(img, ibase, ih, iw, ox, oy, rx0[r] - 1, ry[r] - 1)
         _, _, p = _mlp_grid(cc, outer, on, bg, mthree, mthree, w + 6)
         k = len(p)
         a2 = 0
