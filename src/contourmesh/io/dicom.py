@@ -56,15 +56,20 @@ def _has_marker(path: Path) -> bool:
         return False
 
 
-def _header(pydicom, path: Path):
-    """The file's attributes up to its pixel data; ValueError naming the file when it is not DICOM
-    or cannot be read."""
+def _check_marker(path: Path) -> None:
+    """ValueError naming the file when it lacks the DICOM preamble's marker (checked without pydicom)."""
     with open(path, "rb") as fh:
         head = fh.read(132)
     if head[128:132] != b"DICM":
         raise _bad(path, "a DICOM file (the 'DICM' marker at byte 128)",
                    f"a file of {path.stat().st_size} bytes without it" if len(head) >= 132 else
                    f"a file of {len(head)} bytes (too short for a DICOM preamble)")
+
+
+def _header(pydicom, path: Path):
+    """The file's attributes up to its pixel data; ValueError naming the file when it is not DICOM
+    or cannot be read."""
+    _check_marker(path)
     try:
         ds = pydicom.dcmread(str(path), stop_before_pixels=True)
         ds.walk(lambda _ds, _elem: None)  # values are parsed lazily: parse them all, so a corrupt header fails here
@@ -194,8 +199,10 @@ def read_dicom(path, *, max_voxels: int, label=None, series=None):
     the normal when they are uneven (else None).  A single-frame image file whose folder holds
     other files of its series is read with them (the whole series).
     """
-    pydicom = _require("pydicom")
     p = Path(path)
+    if not p.is_dir():
+        _check_marker(p)  # a file that is not DICOM at all is named as such, with or without pydicom
+    pydicom = _require("pydicom")
     if p.is_dir():
         return _read_series(pydicom, p, _series_files(pydicom, p), max_voxels=max_voxels, series=series, label=label)
     if series is not None:
