@@ -1546,11 +1546,26 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     PA = np.full(len(DEG), -1, np.int64)  # partner above / below of every component, or -1
     PB = np.full(len(DEG), -1, np.int64)
 
+    flat_caps = {}  # component -> its flat cap's faces (local), made in the slab tasks
+
     def pair_slab(k0, k1):
         ok, bands, bfaces = _slab_pairs(k0, k1, h, RY, RX0, RX1, LAB, meta, RS, RXYZ, soff, RST, INITIAL_EDGE_WINDOW,
                                         PA, PB)
         if not ok:
             raise _OutOfScope
+        if caps == "flat":
+            # the slab's slices whose partners above and below are both known by now (the first
+            # and last slice of the volume have none on their outer side): the flat caps of their
+            # components with one partner are triangulated here, in the thread, not after the joins
+            ka = k0 if k0 == 0 else k0 + 1
+            kb = k1 + 1 if k1 == nz - 1 else k1
+            g0, g1 = int(comp_off[ka]), int(comp_off[kb])
+            for g in (np.flatnonzero((PA[g0:g1] < 0) != (PB[g0:g1] < 0)) + g0).tolist():
+                k = int(comp_k[g])
+                try:
+                    flat_caps[g] = cap_faces(ring_xyz(k, g - int(comp_off[k]))[:, :2], [], upward=bool(PA[g] < 0))
+                except ValueError:
+                    raise _OutOfScope from None  # the full mesher closes it with pixels
         return [(bands, bfaces)]
 
     parts = _map_slabs(pair_slab, nz - 1, threads)
@@ -1654,10 +1669,12 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             nonlocal band_fallbacks
             band_fallbacks += bool(replaced)
             r0, xyz = t0, txyz
-        try:
-            f = cap_faces(xyz[:, :2], [], upward=up)
-        except ValueError:
-            raise _OutOfScope from None  # the full mesher closes it with pixels
+        f = flat_caps.get(int(comp_off[k]) + c) if zc is None else None
+        if f is None:
+            try:
+                f = cap_faces(xyz[:, :2], [], upward=up)
+            except ValueError:
+                raise _OutOfScope from None  # the full mesher closes it with pixels
         put_faces(f + r0)
 
     for g in capped.tolist():  # (k, c) in order
