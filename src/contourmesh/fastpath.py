@@ -1407,9 +1407,8 @@ def _pack_slices(outs, h, ox, oy, dx, dy, zs):
     return (meta, cat[0], cat[1], cat[2], cat[3], rs, bbox, poly, pst, deg, xyz)
 
 
-def _join_packs(packs, threads=1):
-    """Packs of consecutive slabs (:func:`_slab_polygons`) as one pack of the whole volume (the
-    slabs' arrays copied to their offsets on ``threads`` threads: numpy copies release the GIL)."""
+def _join_packs(packs):
+    """Packs of consecutive slabs (:func:`_slab_polygons`) as one pack of the whole volume."""
     if len(packs) == 1:
         meta, ry, rx0, rx1, lab, rs, bbox, poly, pst, deg, xyz = packs[0]
         return meta, ry, rx0, rx1, lab, rs, bbox.reshape(-1, 4), poly, pst, deg, xyz
@@ -1420,16 +1419,7 @@ def _join_packs(packs, threads=1):
         metas.append(m[:-1])
         base = m[-1]
     meta = np.concatenate(metas + [base[None]])
-    offs = [np.cumsum([0] + [len(p[i]) for p in packs]).tolist() for i in range(1, 11)]
-    cat = [np.empty((offs[i][-1],) + packs[0][i + 1].shape[1:], packs[0][i + 1].dtype) for i in range(10)]
-
-    def copy(j0, j1):
-        for j in range(j0, j1):
-            for i in range(10):
-                cat[i][offs[i][j]: offs[i][j + 1]] = packs[j][i + 1]
-        return []
-
-    _map_slabs(copy, len(packs), threads)
+    cat = [np.concatenate([p[i] for p in packs]) for i in range(1, 11)]
     cat[5] = cat[5].reshape(-1, 4)
     return (meta, *cat)
 
@@ -1495,7 +1485,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
         packs = _map_slabs(per_slab, nz, threads)
     else:
         packs = [_pack_slices(_map(per_slice, list(range(nz)), threads), h, ox, oy, dx, dy, zs)]
-    meta, RY, RX0, RX1, LAB, RS, BBOX, POLY, PST, DEG, XYZ = _join_packs(packs, threads)
+    meta, RY, RX0, RX1, LAB, RS, BBOX, POLY, PST, DEG, XYZ = _join_packs(packs)
     ncomp = meta[:-1, 0]
     if not ncomp.any():
         raise _OutOfScope  # no foreground: the full mesher raises the error
