@@ -1153,13 +1153,15 @@ def _slab_pairs(k0, k1, h, ry, rx0, rx1, lab, meta, rs, xyz, soff, rst, window, 
 
 
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
-def _assemble(bands, bfaces, nf_total, meta, comp_k, xyz, soff, rst, rid):
+def _assemble(bands, bfaces, F, nf_total, vroom, meta, comp_k, xyz, soff, rst, rid):
     """The vertices and faces of the bands, in the full mesher's order: ring (k, c) gets its
     vertex ids when a band first needs it (bands in order of k then a, the lower ring first),
     ``rid[meta[k, 4] + c]`` (-1 on entry) records its first id.  Band i's faces are
     ``bfaces[bands[i, 3]:bands[i + 1, 3]]`` (the last ones end at ``nf_total``), local to
-    ``vstack([lower ring, upper ring])``; they come back at the same rows of ``F`` in vertex ids.
-    ``comp_k[g]`` is the slice of component g."""
+    ``vstack([lower ring, upper ring])``; they are written at the same rows of ``F`` in vertex
+    ids (``F`` may be ``bfaces`` itself: mapped in place; its rows from ``nf_total`` on are left
+    for the caps).  ``comp_k[g]`` is the slice of component g.  Returns ``(V, nv)``: the bands'
+    ``nv`` vertices in the first rows of ``V``, which has ``vroom`` rows more for the caps."""
     nb = len(bands)
     nv = 0
     for i in range(nb):
@@ -1170,7 +1172,7 @@ def _assemble(bands, bfaces, nf_total, meta, comp_k, xyz, soff, rst, rid):
             if rid[g] < 0:
                 rid[g] = nv
                 nv += rst[g + k + 1] - rst[g + k]
-    V = np.empty((nv, 3), np.float64)
+    V = np.empty((nv + vroom, 3), np.float64)
     for g in range(len(rid)):
         if rid[g] >= 0:
             k = comp_k[g]
@@ -1179,7 +1181,6 @@ def _assemble(bands, bfaces, nf_total, meta, comp_k, xyz, soff, rst, rid):
                 V[rid[g] + i, 0] = xyz[s0 + i, 0]
                 V[rid[g] + i, 1] = xyz[s0 + i, 1]
                 V[rid[g] + i, 2] = xyz[s0 + i, 2]
-    F = np.empty((nf_total, 3), np.int64)
     for i in range(nb):
         k = bands[i, 0]
         ga = meta[k, 4] + bands[i, 1]
@@ -1192,7 +1193,7 @@ def _assemble(bands, bfaces, nf_total, meta, comp_k, xyz, soff, rst, rid):
             for j in range(3):
                 v = bfaces[t, j]
                 F[t, j] = v + lo0 if v < nlo else v - nlo + hi0
-    return V, F
+    return V, nv
 
 
 def _one_band(lo, hi, window=INITIAL_EDGE_WINDOW):
@@ -1545,31 +1546,66 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     PA = np.full(len(DEG), -1, np.int64)  # partner above / below of every component, or -1
     PB = np.full(len(DEG), -1, np.int64)
 
+    flat_caps = {}  # component -> its flat cap's faces (local), made in the slab tasks
+
     def pair_slab(k0, k1):
         ok, bands, bfaces = _slab_pairs(k0, k1, h, RY, RX0, RX1, LAB, meta, RS, RXYZ, soff, RST, INITIAL_EDGE_WINDOW,
                                         PA, PB)
         if not ok:
             raise _OutOfScope
+        if caps == "flat":
+            # the slab's slices whose partners above and below are both known by now (the first
+            # and last slice of the volume have none on their outer side): the flat caps of their
+            # components with one partner are triangulated here, in the thread, not after the joins
+            ka = k0 if k0 == 0 else k0 + 1
+            kb = k1 + 1 if k1 == nz - 1 else k1
+            g0, g1 = int(comp_off[ka]), int(comp_off[kb])
+            for g in (np.flatnonzero((PA[g0:g1] < 0) != (PB[g0:g1] < 0)) + g0).tolist():
+                k = int(comp_k[g])
+                try:
+                    flat_caps[g] = cap_faces(ring_xyz(k, g - int(comp_off[k]))[:, :2], [], upward=bool(PA[g] < 0))
+                except ValueError:
+                    raise _OutOfScope from None  # the full mesher closes it with pixels
         return [(bands, bfaces)]
 
     parts = _map_slabs(pair_slab, nz - 1, threads)
     shift = np.cumsum([0] + [len(f) for _, f in parts])
+    nf = int(shift[-1])
     for (bands, _), sh in zip(parts, shift):
         bands[:, 3] += sh
-    BANDS = np.concatenate([b for b, _ in parts]) if parts else np.zeros((0, 5), np.int64)
-    BF = np.concatenate([f for _, f in parts]) if parts else np.zeros((0, 3), np.int64)
+    if len(parts) == 1:
+        BANDS, BF = parts[0]
+    else:
+        BANDS = np.concatenate([b for b, _ in parts]) if parts else np.zeros((0, 5), np.int64)
+
+    # room for the caps in the final arrays (the mesh's vertices and faces are written once, at
+    # their rows, not joined at the end): a component without a partner above or below gets a cap
+    # (n - 2 faces), with half caps or as a prism also a band (2 n faces) and a shifted ring (n
+    # vertices), and as a prism its own ring (n vertices)
+    capped = np.flatnonzero((PA < 0) | (PB < 0))
+    ck = comp_k[capped]
+    nring = RST[capped + ck + 1] - RST[capped + ck]
+    ncaps = 1 + ((PA[capped] < 0) & (PB[capped] < 0))
+    vroom = int((nring * (1 + ncaps)).sum())
+    froom = int((3 * nring * ncaps).sum())
+    F = np.empty((nf + froom, 3), np.int64)
+    if len(parts) != 1:
+        if parts:
+            np.concatenate([f for _, f in parts], out=F[:nf])
+        BF = F  # mapped in place
 
     # vertex ids in the full mesher's order: rings are created when a join (k ascending, groups by
     # their component below) or a cap first needs them
     rid = np.full(len(DEG), -1, np.int64)
-    V, F = _assemble(BANDS, BF, len(BF), meta, comp_k, RXYZ, soff, RST, rid)
+    V, nverts = _assemble(BANDS, BF, F, nf, vroom, meta, comp_k, RXYZ, soff, RST, rid)
+    nverts = int(nverts)
     band_joins = len(BANDS)
     band_fallbacks = 0
-    face_blocks = [F]
+    nfaces = nf
     redo = np.flatnonzero(BANDS[:, 4])
     if len(redo):
         # folded, twisted or too close to call: the full mesher's band replaces the paper's
-        ends = np.r_[BANDS[:, 3], len(BF)]
+        ends = np.r_[BANDS[:, 3], nf]
         face_blocks, done = [], 0
         for i in redo.tolist():
             k, a, b = (int(v) for v in BANDS[i, :3])
@@ -1579,18 +1615,29 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             lo0, hi0 = int(rid[comp_off[k] + a]), int(rid[comp_off[k + 1] + b])
             face_blocks += [F[done: ends[i]], np.where(f < len(lo), f + lo0, f - len(lo) + hi0)]
             done = ends[i + 1]
-        face_blocks.append(F[done:])
-    blocks = [V]
-    nverts = len(V)
+        face_blocks.append(F[done:nf])
+        nfaces = sum(len(f) for f in face_blocks)
+        F = np.concatenate(face_blocks + [np.empty((froom, 3), np.int64)])
+
+    def put_vertices(blk):
+        nonlocal V, nverts
+        if nverts + len(blk) > len(V):  # not expected (the room is an upper bound): grow
+            V = np.concatenate([V[:nverts], np.empty((len(blk) + len(V), 3))])
+        V[nverts: nverts + len(blk)] = blk
+        nverts += len(blk)
+
+    def put_faces(f):
+        nonlocal F, nfaces
+        if nfaces + len(f) > len(F):
+            F = np.concatenate([F[:nfaces], np.empty((len(f) + len(F), 3), np.int64)])
+        F[nfaces: nfaces + len(f)] = f
+        nfaces += len(f)
 
     def ring(k, c):
-        nonlocal nverts
         g = comp_off[k] + c
         if rid[g] < 0:
-            blk = ring_xyz(k, c)
             rid[g] = nverts
-            blocks.append(blk)
-            nverts += len(blk)
+            put_vertices(ring_xyz(k, c))
         return int(rid[g]), int(RST[g + k + 1] - RST[g + k])
 
     # ends: caps (and prisms for components without a partner on either side)
@@ -1601,11 +1648,9 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     shifted_planes = {}
 
     def new_ring(xy, zc):
-        nonlocal nverts
         blk = np.c_[xy, np.full(len(xy), zc)]
         start = nverts
-        blocks.append(blk)
-        nverts += len(blk)
+        put_vertices(blk)
         key = float(zc)
         shifted_planes.setdefault(key, []).append(xy)
         return start, blk
@@ -1617,20 +1662,22 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             t0, txyz = new_ring(xyz[:, :2], zc)
             if up:
                 f, replaced = _band_or_py(xyz, txyz)
-                face_blocks.append(np.where(f < nr, f + r0, f - nr + t0))
+                put_faces(np.where(f < nr, f + r0, f - nr + t0))
             else:
                 f, replaced = _band_or_py(txyz, xyz)
-                face_blocks.append(np.where(f < nr, f + t0, f - nr + r0))
+                put_faces(np.where(f < nr, f + t0, f - nr + r0))
             nonlocal band_fallbacks
             band_fallbacks += bool(replaced)
             r0, xyz = t0, txyz
-        try:
-            f = cap_faces(xyz[:, :2], [], upward=up)
-        except ValueError:
-            raise _OutOfScope from None  # the full mesher closes it with pixels
-        face_blocks.append(f + r0)
+        f = flat_caps.get(int(comp_off[k]) + c) if zc is None else None
+        if f is None:
+            try:
+                f = cap_faces(xyz[:, :2], [], upward=up)
+            except ValueError:
+                raise _OutOfScope from None  # the full mesher closes it with pixels
+        put_faces(f + r0)
 
-    for g in np.flatnonzero((PA < 0) | (PB < 0)).tolist():  # (k, c) in order
+    for g in capped.tolist():  # (k, c) in order
         k = int(comp_k[g])
         c = g - int(comp_off[k])
         above, below = PA[g] >= 0, PB[g] >= 0
@@ -1646,8 +1693,8 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             xy = np.concatenate(xys)
             if len(np.unique(xy, axis=0)) != len(xy):
                 raise _OutOfScope
-    V = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
-    F = np.concatenate(face_blocks) if len(face_blocks) > 1 else face_blocks[0]
+    V = V[:nverts]  # leading rows: still C-contiguous, so Mesh keeps them without a copy
+    F = F[:nfaces]
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": "mlp", "triangulation": "wiederhold",
         "caps": caps, "band_joins": band_joins, "bridged_joins": 0, "bridges": 0, "intermediate_sections": 0,
