@@ -6,6 +6,7 @@ each comparison sees both answers (crossing and not, clear and not, split and no
 import numpy as np
 import pytest
 import trimesh
+from numba import njit
 
 from contourmesh import repair
 from contourmesh.bands import bridges
@@ -196,10 +197,43 @@ def test_half_edge_twins_equal_the_sorted_search_and_errors_are_named():
         repair.split_nonmanifold_vertices(s.vertices, G, four_face=False)
 
 
+@njit
+def _corner_components(n, a1, b1, a2, b2):
+    """Connected components of ``n`` nodes under the links ``a1[i] - b1[i]`` and ``a2[i] - b2[i]``:
+    ``(count, label per node, lowest node of each label)``, labels numbered in order of each
+    component's lowest node."""
+    parent = np.arange(n)
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for i in range(len(a1)):
+        for x, y in ((a1[i], b1[i]), (a2[i], b2[i])):
+            rx, ry = find(x), find(y)
+            if rx != ry:
+                if rx < ry:
+                    parent[ry] = rx
+                else:
+                    parent[rx] = ry
+    lab = np.empty(n, np.int64)
+    first = np.empty(n, np.int64)
+    count = 0
+    for x in range(n):
+        r = find(x)
+        if r == x:
+            lab[x] = count
+            first[count] = x
+            count += 1
+        else:
+            lab[x] = lab[r]
+    return count, lab, first[:count]
+
+
 def _split_reference(V, F, nudge):
     """split_nonmanifold_vertices as it was: sorted twins, fan centroids summed over every corner."""
-    from contourmesh.repair import _corner_components
-
     m = len(F)
     fi = np.repeat(np.arange(m), 3)
     li = np.tile(np.arange(3), m)

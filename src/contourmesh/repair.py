@@ -161,47 +161,12 @@ def _edge_multiplicity(F, nv):
 
 
 @njit(cache=True, nogil=True)
-def _corner_components(n, a1, b1, a2, b2):
-    """Connected components of ``n`` nodes under the links ``a1[i] - b1[i]`` and ``a2[i] - b2[i]``:
-    ``(count, label per node, lowest node of each label)``, labels numbered in order of each
-    component's lowest node."""
-    parent = np.arange(n)
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for i in range(len(a1)):
-        for x, y in ((a1[i], b1[i]), (a2[i], b2[i])):
-            rx, ry = find(x), find(y)
-            if rx != ry:
-                if rx < ry:
-                    parent[ry] = rx
-                else:
-                    parent[rx] = ry
-    lab = np.empty(n, np.int64)
-    first = np.empty(n, np.int64)
-    count = 0
-    for x in range(n):
-        r = find(x)
-        if r == x:
-            lab[x] = count
-            first[count] = x
-            count += 1
-        else:
-            lab[x] = lab[r]
-    return count, lab, first[:count]
-
-
-@njit(cache=True, nogil=True)
 def _fan_components(twin):
-    """:func:`_corner_components` of the corners of a closed mesh linked across its edges, from the
+    """Connected components of the corners of a closed mesh linked across its edges, from the
     half-edge twins (half-edge ``h = 3 i + k`` of face ``i`` runs from corner ``h`` to corner ``3 i +
     (k + 1) % 3``): half-edge ``h`` and its twin ``t`` link corner ``h`` with the corner after ``t``
-    in its face, and the corner after ``h`` with corner ``t``; the same links, in the same order,
-    without the four arrays of corner ids."""
+    in its face, and the corner after ``h`` with corner ``t``.  Returns ``(count, label per corner,
+    lowest corner of each label)``, labels numbered in order of each component's lowest corner."""
     n = twin.shape[0]
     parent = np.arange(n)
 
