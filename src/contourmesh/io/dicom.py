@@ -324,21 +324,8 @@ def _read_series(pydicom, folder: Path, files: list, *, max_voxels: int, series,
     _check_size(where, (len(files), rows, cols), 1, max_voxels)
     slices, rescale = [], []
     for i in order:
-        f = files[i][0]
-        try:
-            ds = pydicom.dcmread(str(f))
-            if "PixelData" not in ds and "FloatPixelData" not in ds and "DoubleFloatPixelData" not in ds:
-                raise _bad(f, "pixel data", "none (truncated file?)")
-            arr = np.asarray(ds.pixel_array)
-        except ValueError as exc:
-            if str(f) in str(exc):
-                raise
-            raise _wrap(f, "DICOM image", exc) from None
-        except Exception as exc:
-            raise _wrap(f, "DICOM image", exc) from None
-        if arr.shape != (rows, cols):
-            raise _bad(f, f"one {rows} x {cols} frame of pixel data", f"an array of shape {arr.shape}")
-        slices.append(arr)
+        ds, arr = _pixels(pydicom, files[i][0], 1, rows, cols)
+        slices.append(arr[0])
         rescale.append(_rescale(ds))
     vol = _values(slices, rescale)
     direction = np.column_stack([row, col, normal])
@@ -397,9 +384,11 @@ def _frame_geometry(path: Path, ds, frames: int):
 
 
 def _pixels(pydicom, path: Path, frames: int, rows: int, cols: int):
+    """``(dataset, pixels [frames, rows, cols])`` of one file (integer, float or double-float pixel
+    data); ValueError naming the file when they are missing, unreadable or of another shape."""
     try:
         ds = pydicom.dcmread(str(path))
-        if "PixelData" not in ds:
+        if "PixelData" not in ds and "FloatPixelData" not in ds and "DoubleFloatPixelData" not in ds:
             raise _bad(path, "pixel data", "none (truncated file?)")
         arr = np.asarray(ds.pixel_array)
     except ValueError as exc:
@@ -411,7 +400,8 @@ def _pixels(pydicom, path: Path, frames: int, rows: int, cols: int):
     if frames == 1 and arr.shape == (rows, cols):
         arr = arr[None]
     if arr.shape != (frames, rows, cols):
-        raise _bad(path, f"{frames} frames of {rows} x {cols} pixels", f"pixel data of shape {arr.shape}")
+        what = f"one {rows} x {cols} frame of pixel data" if frames == 1 else f"{frames} frames of {rows} x {cols} pixels"
+        raise _bad(path, what, f"pixel data of shape {arr.shape}")
     return ds, arr
 
 
