@@ -55,6 +55,7 @@ from .._files import (
 )
 from ..meshes import atomic_write
 from ..volume_input import check_volume_array, select_voxels
+from .dicom import _has_marker as _is_dicom
 from .dicom import read_dicom
 
 __all__ = ["read_volume", "read_image", "Image", "write_volume", "VOLUME_SUFFIXES", "MAX_VOXELS"]
@@ -198,14 +199,6 @@ def read_image(source, *, label=None, threshold=None, max_voxels: int = MAX_VOXE
     if z is not None:
         z = np.asarray(z, dtype=np.float64)
     return Image(vol, spacing, origin, direction, space, z)
-
-
-def _is_dicom(path: Path) -> bool:
-    try:
-        with open(path, "rb") as fh:
-            return fh.read(132)[128:132] == b"DICM"
-    except OSError:
-        return False
 
 
 def _read_npy(path: Path, *, max_voxels: int, prefer: str):
