@@ -69,18 +69,24 @@ def measure(path, options, repeat: int, profile: int = 0) -> dict:
     return {"total": total, "per_roi": per, "all": [r[0] for r in runs]}
 
 
-def _before(rev: str, args) -> dict:
+def at_revision(rev: str, script: Path, args: list) -> dict:
+    """The JSON that ``script --json ARGS`` prints when run against revision ``rev``'s sources (``git
+    archive`` of ``src`` into a temporary folder, put first on ``PYTHONPATH``)."""
     with tempfile.TemporaryDirectory() as tmp:
         tar = Path(tmp) / "src.tar"
         with open(tar, "wb") as fh:
             subprocess.run(["git", "archive", rev, "src"], cwd=ROOT, stdout=fh, check=True)
         with tarfile.open(tar) as tf:
             tf.extractall(tmp, filter="data")
-        # this script, run against that revision's sources
-        cmd = [sys.executable, str(Path(__file__).resolve()), "--json", "--repeat", str(args.repeat)] + _option_args(args)
+        cmd = [sys.executable, str(Path(script).resolve()), "--json", *args]
         env = dict(os.environ, PYTHONPATH=str(Path(tmp) / "src"))
         out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
         return json.loads(out)
+
+
+def _before(rev: str, args) -> dict:
+    # this script, run against that revision's sources
+    return at_revision(rev, Path(__file__), ["--repeat", str(args.repeat)] + _option_args(args))
 
 
 def _option_args(args) -> list:

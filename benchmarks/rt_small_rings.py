@@ -17,23 +17,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import statistics
-import subprocess
 import sys
-import tarfile
-import tempfile
 import time
 import warnings
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def rt_path() -> Path:
-    data = Path(os.environ.get("CONTOURMESH_DATA", ROOT.parent / "shared" / "data"))
-    return data / "contours" / "dicompyler-core" / "rtss.dcm"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from rt_set import at_revision, rt_path  # noqa: E402 (the RT set's path and the revision runner)
 
 
 def measure(path, repeat: int) -> dict:
@@ -74,15 +67,7 @@ def measure(path, repeat: int) -> dict:
 
 
 def _before(rev: str, repeat: int) -> dict:
-    with tempfile.TemporaryDirectory() as tmp:
-        tar = Path(tmp) / "src.tar"
-        with open(tar, "wb") as fh:
-            subprocess.run(["git", "archive", rev, "src"], cwd=ROOT, stdout=fh, check=True)
-        with tarfile.open(tar) as tf:
-            tf.extractall(tmp, filter="data")
-        cmd = [sys.executable, str(Path(__file__).resolve()), "--json", "--repeat", str(repeat)]
-        env = dict(os.environ, PYTHONPATH=str(Path(tmp) / "src"))
-        return json.loads(subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout)
+    return at_revision(rev, Path(__file__), ["--repeat", str(repeat)])
 
 
 def main(argv=None) -> int:
