@@ -1473,7 +1473,7 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
 
     Returns a ``(k, 2)`` int64 array of face indices ``i < j``, sorted; see the module docstring
     for the exact rule, the predicates and the tolerance.  ``budget`` (the average number of grid
-    cells a face may occupy) only trades memory for speed; the result does not depend on it.
+    cells a face may occupy, at least 2) only trades memory for speed; the result does not depend on it.
     ``method``: ``"grid"`` the general broad phase (a 3D grid), ``"slabs"`` the broad phase by
     slabs between consecutive vertex heights (for meshes made from sections; an error for a mesh
     without that structure; where a sweep would test too many boxes, the grid takes over),
@@ -1486,8 +1486,11 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
     if len(F) < 2:
         return np.zeros((0, 2), dtype=np.int64)
     budget = int(budget)
-    if budget < 1:
-        raise ValueError(f"budget must be a positive integer; got {budget}")
+    if budget < 2:
+        # a face whose box crosses a cell boundary occupies two cells or more, so an average of one
+        # cell per face is reached only by a single cell holding every face: quadratic time
+        raise ValueError(f"budget must be an integer >= 2 (grid cells per face on average; 1 would put "
+                         f"every face in one cell); got {budget}")
     if 3 * len(F) < len(V):  # a few faces of a large mesh: only the vertices they use
         used = np.unique(F)
         V, F = V[used], np.searchsorted(used, F)
