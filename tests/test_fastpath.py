@@ -533,9 +533,54 @@ def test_slabs_with_handed_back_bands_and_degenerate_rings(monkeypatch):
     assert fast_volume_to_mesh(vols[3], threads=1) is None
 
 
-@pytest.mark.xfail(strict=True, reason="known: the fast path's mesh differs from the general mesher's on these "
-                                       "twisting bars (found in issue 16's speed work, present before it)")
-@pytest.mark.parametrize("i", [2, 5])
-def test_twisting_bars_the_fast_path_gets_wrong(i):
+def _general_mesh(vol, monkeypatch):
+    """The general mesher's mesh of ``vol`` (the fast path switched off)."""
+    from contourmesh import volumes
+
+    with monkeypatch.context() as m:
+        m.setattr(volumes, "_fast_volume_to_mesh", lambda *a, **k: None)
+        return volume_to_mesh(vol)
+
+
+@pytest.mark.parametrize("i", range(6))
+def test_twisting_bars_public_mesh_is_the_general_meshers(i, monkeypatch):
+    # on these bars some kept bands of the fast path cross themselves (the fast path alone skips the
+    # general mesher's band-by-band test): volume_to_mesh redoes the bands with a face in a crossing
+    # pair as the general mesher does, and falls back to it where faces still cross
+    from contourmesh import fastpath, volumes
+
     vol = list(_twisting_bars(np.random.default_rng(7), 6))[i]
-    assert_same(fast_volume_to_mesh(vol, threads=1), volume_to_mesh(vol))
+    calls = []
+    redo = fastpath.redo_self_crossing_bands
+    monkeypatch.setattr(volumes, "redo_self_crossing_bands",
+                        lambda *a: calls.append(r := redo(*a)) or r)
+    got = volume_to_mesh(vol)
+    want = _general_mesh(vol, monkeypatch)
+    assert np.array_equal(got.vertices, want.vertices) and np.array_equal(got.faces, want.faces)
+    for key in ("band_joins", "exact_joins", "polygon_fallbacks", "band_fallbacks", "self_intersections"):
+        assert got.meta[key] == want.meta[key], key
+    if i == 5:  # a self-crossing band redone: the fast path's mesh is kept, and equals the general one
+        assert got.meta.get("fast_path") is True and calls and calls[0] is not None
+    if i == 2:  # a crossing that a band redo cannot fix: the general mesher's crossing fallback
+        assert got.meta.get("fast_path") is None and want.meta["crossing_fallbacks"] == 1
+
+
+def test_fast_path_alone_keeps_a_self_crossing_band():
+    # fast_volume_to_mesh on its own keeps the kernel's band on bar 5 (whose faces cross); the
+    # band table it gives volume_to_mesh finds and redoes exactly that band
+    from contourmesh.fastpath import _fast_volume_to_mesh, redo_self_crossing_bands
+    from contourmesh.intersect import intersecting_pairs
+
+    vol = list(_twisting_bars(np.random.default_rng(7), 6))[5]
+    bands = []
+    fast = _fast_volume_to_mesh(vol, threads=1, bands_out=bands)
+    pairs = intersecting_pairs(fast.vertices, fast.faces)
+    assert len(pairs) > 0
+    (table,) = bands
+    assert table[:, 1].sum() <= len(fast.faces) and np.all(np.diff(table[:, 0]) > 0)
+    F2, fired = redo_self_crossing_bands(fast.vertices, fast.faces, table, pairs)
+    assert fired >= 1 and F2.shape == fast.faces.shape
+    changed = np.flatnonzero((F2 != fast.faces).any(axis=1))
+    i = np.searchsorted(table[:, 0], changed[0], side="right") - 1
+    assert table[i, 6] == 1 and np.all(changed < table[i, 0] + table[i, 1]) and np.all(changed >= table[i, 0])
+    assert len(intersecting_pairs(fast.vertices, F2)) == 0

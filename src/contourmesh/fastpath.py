@@ -35,7 +35,10 @@ same order) and the same faces, because every step is the full mesher's step don
 6. *Bands.*  The paper's triangulation (section 3.4, :func:`~contourmesh.bands.wiederhold.wiederhold_edges`)
    with the initial edge of section 3.2, and the full mesher's twist guard (arc-length band of
    Ganapathy & Dennehy as the reference); the rare folded or twisted bands (and near-ties of the
-   guard) are handed to the full mesher's Python code.
+   guard) are handed to the full mesher's Python code.  The full mesher also tests each kept band
+   for faces crossing each other; here :func:`contourmesh.volumes.volume_to_mesh` tests only the
+   bands with a face in one of the whole mesh's crossing pairs (:func:`redo_self_crossing_bands`),
+   which finds the same bands, so the public mesh is the full mesher's.
 7. *Caps* by earcut (:func:`~contourmesh.bands.caps.cap_faces`), as in the full mesher.
 
 Steps 1-4 run over a slab of consecutive slices and 5-6 over a slab of slice pairs in one
@@ -60,7 +63,7 @@ from numba import njit
 
 from ._kernels import KERNEL_OPTIONS, internal_kernel
 from .bands import arclength as _arclength
-from .bands import twist_guarded_band
+from .bands import _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands import wiederhold as _wiederhold
 from .bands.caps import cap_faces
 from .bands.wiederhold import INITIAL_EDGE_WINDOW
@@ -1222,14 +1225,22 @@ def band_faces(lower, upper) -> np.ndarray:
     f, status = _one_band(lo, hi)
     if status == 0:
         return f, False
-    return _band_py(lo, hi)
+    f, replaced = _band_py(lo, hi)
+    return f, bool(replaced)
 
 
 def _band_py(lo, hi, triangulation="wiederhold"):
-    """The full mesher's band with its twist guard (:func:`contourmesh.volumes.twist_guarded_band`),
-    for the folded or twisted bands the kernel hands back."""
+    """The full mesher's band with its twist guard (:func:`contourmesh.bands.twist_guarded_band`),
+    for the folded, twisted or self-crossing bands the kernel's band is not kept for; as in
+    :func:`contourmesh.volumes._band_faces`, a band that is still folded becomes the arc-length
+    band (which never folds).  Returns the faces and how many guards fired."""
 
-    return twist_guarded_band(lo, hi, triangulation)
+    f, replaced = twist_guarded_band(lo, hi, triangulation)
+    replaced = int(replaced)
+    if band_is_folded(f):
+        f = triangulate_band(lo, hi, "arclength")
+        replaced += 1
+    return f, replaced
 
 
 # ------------------------------------------------------------------------------------------------
@@ -1303,6 +1314,16 @@ def fast_volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 
         when the volume or the options are outside the scope described in the module docstring
         (the caller then runs the full mesher, which also raises the input errors).
     """
+    return _fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
+                                origin=origin, polygon=polygon, triangulation=triangulation, caps=caps,
+                                refine=refine, threads=threads)
+
+
+def _fast_volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
+                         origin=(0.0, 0.0, 0.0), polygon: str = "mlp", triangulation: str = "wiederhold",
+                         caps: str = "flat", refine: str | None = None, threads: int | None = None, bands_out=None):
+    """:func:`fast_volume_to_mesh`; with a list ``bands_out``, the mesh's band table (see
+    :func:`_fast`) is appended to it (for :func:`redo_self_crossing_bands`)."""
     if polygon != "mlp" or triangulation != "wiederhold" or caps not in ("flat", "half"):
         return None
     if refine not in (None, "none"):
@@ -1310,7 +1331,7 @@ def fast_volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 
     if not _params_ok(volume, spacing, z, axis, label, threshold, origin):
         return None
     try:
-        return _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads)
+        return _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, bands_out)
     except _OutOfScope:
         return None
 
@@ -1440,7 +1461,7 @@ def _map_slabs(fn, n, threads):
         ex.shutdown(wait=True, cancel_futures=True)
 
 
-def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
+def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, bands_out=None):
 
     if threads is None:
         # one thread unless asked: per-slice threads cost more than they gain on two cores, and a
@@ -1603,6 +1624,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
     band_fallbacks = 0
     nfaces = nf
     redo = np.flatnonzero(BANDS[:, 4])
+    band_faces_n = np.diff(np.r_[BANDS[:, 3], nf])  # each band's faces, in order, from row 0
     if len(redo):
         # folded, twisted or too close to call: the full mesher's band replaces the paper's
         ends = np.r_[BANDS[:, 3], nf]
@@ -1611,7 +1633,8 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
             k, a, b = (int(v) for v in BANDS[i, :3])
             lo, hi = ring_xyz(k, a), ring_xyz(k + 1, b)
             f, replaced = _band_py(lo, hi)
-            band_fallbacks += bool(replaced)
+            band_faces_n[i] = len(f)
+            band_fallbacks += replaced
             lo0, hi0 = int(rid[comp_off[k] + a]), int(rid[comp_off[k + 1] + b])
             face_blocks += [F[done: ends[i]], np.where(f < len(lo), f + lo0, f - len(lo) + hi0)]
             done = ends[i + 1]
@@ -1655,19 +1678,19 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
         shifted_planes.setdefault(key, []).append(xy)
         return start, blk
 
+    cap_bands = []  # the half caps' bands: (first face, faces, lower ring, its size, upper ring, its size, kept)
+
     def close(k, c, up, zc):
         r0, nr = ring(k, c)
         xyz = ring_xyz(k, c)
         if zc is not None:
             t0, txyz = new_ring(xyz[:, :2], zc)
-            if up:
-                f, replaced = _band_or_py(xyz, txyz)
-                put_faces(np.where(f < nr, f + r0, f - nr + t0))
-            else:
-                f, replaced = _band_or_py(txyz, xyz)
-                put_faces(np.where(f < nr, f + t0, f - nr + r0))
+            lo0, hi0 = (r0, t0) if up else (t0, r0)
+            f, replaced, kept = _band_or_py(*((xyz, txyz) if up else (txyz, xyz)))
+            cap_bands.append((nfaces, len(f), lo0, nr, hi0, nr, int(kept)))
+            put_faces(np.where(f < nr, f + lo0, f - nr + hi0))
             nonlocal band_fallbacks
-            band_fallbacks += bool(replaced)
+            band_fallbacks += replaced
             r0, xyz = t0, txyz
         f = flat_caps.get(int(comp_off[k]) + c) if zc is None else None
         if f is None:
@@ -1695,6 +1718,22 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
                 raise _OutOfScope
     V = V[:nverts]  # leading rows: still C-contiguous, so Mesh keeps them without a copy
     F = F[:nfaces]
+    if bands_out is not None:
+        # the band table: per band, its first face row and face count, the first vertex and size of
+        # its lower and upper ring, and 1 where the kernel's band was kept (it passed the twist guard
+        # but was not tested for faces crossing each other, see redo_self_crossing_bands)
+        kb = BANDS[:, 0]
+        g_lo = comp_off[kb] + BANDS[:, 1]
+        g_hi = comp_off[kb + 1] + BANDS[:, 2]
+        table = np.empty((len(BANDS), 7), np.int64)
+        table[:, 0] = np.r_[0, np.cumsum(band_faces_n)[:-1]] if len(BANDS) else 0
+        table[:, 1] = band_faces_n
+        table[:, 2] = rid[g_lo]
+        table[:, 3] = RST[g_lo + kb + 1] - RST[g_lo + kb]
+        table[:, 4] = rid[g_hi]
+        table[:, 5] = RST[g_hi + kb + 2] - RST[g_hi + kb + 1]
+        table[:, 6] = BANDS[:, 4] == 0
+        bands_out.append(np.concatenate([table, np.array(cap_bands, np.int64).reshape(-1, 7)]))
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": "mlp", "triangulation": "wiederhold",
         "caps": caps, "band_joins": band_joins, "bridged_joins": 0, "bridges": 0, "intermediate_sections": 0,
@@ -1707,7 +1746,50 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads):
 
 
 def _band_or_py(lo, hi):
+    """``(faces, guards fired, kept)``: the kernel's band where it passes the twist guard (kept),
+    else the full mesher's (:func:`_band_py`)."""
     f, status = _one_band(lo, hi)
     if status == 0:
-        return f, False
-    return _band_py(lo, hi)
+        return f, 0, True
+    return (*_band_py(lo, hi), False)
+
+
+def redo_self_crossing_bands(V, F, bands, pairs):
+    """The faces ``F`` of a fast-path mesh with its kept bands that cross themselves redone, as
+    the general mesher does them, or None when none does.
+
+    The general mesher keeps the paper's band only where no two of its faces cross
+    (:func:`contourmesh.volumes._band_faces`); the fast path skips that test band by band.  A band
+    whose faces cross has them among the whole mesh's crossing ``pairs``, so only the kept bands
+    (``bands`` from :func:`_fast_volume_to_mesh`) with a face in a pair are tested, with the same
+    test, and a band that crosses itself gets the general mesher's band (:func:`_band_py`).
+    Returns ``(faces, guards fired)``; a band whose replacement has another face count (not
+    expected: a band between closed rings of n and m points has n + m faces) gives None."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1)
+    if not len(pairs) or not len(bands):
+        return None
+    order = np.argsort(bands[:, 0], kind="stable")
+    starts = bands[order, 0]
+    faces = np.unique(pairs)
+    at = np.searchsorted(starts, faces, side="right") - 1
+    ok = at >= 0
+    faces, at = faces[ok], order[at[ok]]
+    hit = np.unique(at[faces < bands[at, 0] + bands[at, 1]])
+    F2, fired = None, 0
+    for i in hit.tolist():
+        f0, nf, lo0, nlo, hi0, nhi, kept = (int(v) for v in bands[i])
+        if not kept:
+            continue
+        lo, hi = V[lo0: lo0 + nlo], V[hi0: hi0 + nhi]
+        block = F[f0: f0 + nf]
+        local = np.where((block >= lo0) & (block < lo0 + nlo), block - lo0, block - hi0 + nlo)
+        if not _band_crosses(np.concatenate([lo, hi]), local):
+            continue
+        f, replaced = _band_py(lo, hi)
+        if len(f) != nf:
+            return None
+        if F2 is None:
+            F2 = np.array(F, dtype=np.int64)
+        F2[f0: f0 + nf] = np.where(f < nlo, f + lo0, f - nlo + hi0)
+        fired += replaced
+    return None if F2 is None else (F2, fired)

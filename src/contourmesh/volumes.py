@@ -77,7 +77,8 @@ from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_ban
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
 from .bands.optimal import triangulate_band_optimal
-from .fastpath import _one_band, fast_volume_to_mesh, pixels_mlp, slice_components, slice_labels
+from .fastpath import (_fast_volume_to_mesh, _one_band, pixels_mlp, redo_self_crossing_bands, slice_components,
+                       slice_labels)
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
 from .measure import triangle_areas
@@ -505,9 +506,11 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             and volume.size and volume.dtype.kind in "iuf"):
         label = binary_label(volume)  # a two-valued volume (0/255) is binary: its non-zero value
     # the common case (no holes, every slice pair a simple band join) in compiled code, the same mesh
+    bands = []
     fast = None if polygons is not None or smooth_ends is not None else \
-        fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
-                            origin=origin, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine)
+        _fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
+                             origin=origin, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine,
+                             bands_out=bands)
     if fast is not None:
         log.debug("volume mesher: the compiled fast path took the volume")
         sp = [float(s) for i, s in enumerate(np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))) if i != axis]
@@ -515,7 +518,18 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             return prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
                                   origin=origin)[1]
 
-        fast = _checked(fast, 1e-3 * min(sp), planes, warn=False)
+        V, F = fast.vertices, fast.faces
+        pairs = intersecting_pairs(V, F)
+        # the general mesher tests every kept band for faces crossing each other; the fast path
+        # tests those with a face in a crossing pair (the others cannot cross themselves)
+        redone = redo_self_crossing_bands(V, F, bands[0], pairs) if len(pairs) else None
+        if redone is not None:
+            F2, fired = redone
+            pairs = crossing_pairs_after_change(V, F, pairs, V, F2)
+            fast = Mesh(V, F2, P=fast.P, meta=dict(fast.meta, band_fallbacks=fast.meta["band_fallbacks"] + fired))
+        nudge = 1e-3 * min(sp)
+        fast = _checked(fast, nudge, planes, warn=False,
+                        resolved=resolve_crossings(fast.vertices, fast.faces, nudge, planes=planes, pairs=pairs))
         if not fast.meta["self_intersections"]:
             return fast
         # the compiled bands are not checked one by one: the general mesher's are (twisted bands)
