@@ -30,7 +30,7 @@ _ACTIVE: list = []
 
 PHASES = ["_build_bridges", "_bridge_join", "_bridge_plan", "_simple_join", "_exact_join", "_pixel_cap",
           "_refine_polygons", "_split_four_face_edges", "_open_necks", "_compact", "split_nonmanifold_vertices",
-          "_separate_coincident", "_checked", "prepare_volume", "fast_volume_to_mesh", "_crossing_pairs"]
+          "_separate_coincident", "_checked", "prepare_volume", "_fast_volume_to_mesh", "_crossing_pairs"]
 METHODS = [(volumes._Slice, "__init__"), (volumes._Mesher, "band"), (volumes._Mesher, "cap"),
            (volumes._Mesher, "quads"), (volumes._Mesher, "ring"), (volumes._Mesher, "points")]
 
