@@ -15,6 +15,10 @@ Rules (``--rules``, separated by ``;``):
 * ``ratio=R``: the fine width's share of the wide one (``FINE_RATIO``);
 * ``rho=X``: the extrapolation gain where the widths disagree (``FINE_RHO``; default the
   Richardson gain ``r^4 / (1 - r^4)``, 0.32);
+* ``nocrease`` / ``crease``: step 3b's one gain everywhere / a gain per vertex from the two places'
+  curvatures (``FINE_CREASE``, off by default), with ``cwin=W`` (``CREASE_WINDOW``), ``kmin=B``
+  (``CREASE_MIN_BEND``), ``bend=B`` (``CREASE_MAX_BEND``) and ``ctol=T`` (``CREASE_TOLERANCE``);
+* ``density=D``: ring vertices per seed vertex of the mode (``RING_DENSITY``);
 * ``cubic=C``: a third-order term ``C (k1 + k2)^3 sigma^4`` in the curvature shift
   (``SHIFT_CUBIC``; ``-0.0416667`` = -1/24, the exact term for balls and cylinders).
 
@@ -92,8 +96,10 @@ def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
     import contourmesh
     from contourmesh import refine
 
-    names = ("_auto_sigma_of", "FINE_TOLERANCE", "FINE_RATIO", "FINE_RHO", "SHIFT_CUBIC", "FINE_ADAPTIVE")
+    names = ("_auto_sigma_of", "FINE_TOLERANCE", "FINE_RATIO", "FINE_RHO", "SHIFT_CUBIC", "FINE_ADAPTIVE",
+             "FINE_CREASE", "CREASE_WINDOW", "CREASE_MIN_BEND", "CREASE_MAX_BEND", "CREASE_TOLERANCE")
     saved = {n: getattr(refine, n) for n in names}
+    saved_density = dict(refine.RING_DENSITY)
     try:
         for part in rule.split("+"):
             key, _, val = part.partition("=")
@@ -116,6 +122,20 @@ def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
                 refine.FINE_ADAPTIVE = float(val)
             elif key == "cubic":
                 refine.SHIFT_CUBIC = float(val)
+            elif part == "crease":
+                refine.FINE_CREASE = True
+            elif part == "nocrease":
+                refine.FINE_CREASE = False
+            elif key == "density":
+                refine.RING_DENSITY[mode] = float(val)
+            elif key == "ctol":
+                refine.CREASE_TOLERANCE = float(val)
+            elif key == "bend":
+                refine.CREASE_MAX_BEND = float(val)
+            elif key == "kmin":
+                refine.CREASE_MIN_BEND = float(val)
+            elif key == "cwin":
+                refine.CREASE_WINDOW = float(val)
             else:
                 raise SystemExit(f"unknown rule {rule!r}")
         if sp is None:  # a contour stack
@@ -124,6 +144,7 @@ def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
     finally:
         for n, v in saved.items():
             setattr(refine, n, v)
+        refine.RING_DENSITY.update(saved_density)
 
 
 def balls(rules, radii, n_centres: int = 5, mode: str = "band"):

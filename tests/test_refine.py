@@ -688,6 +688,44 @@ def test_blur_bias_measurement_settings(monkeypatch):
     assert band_violations(st, m2) == 0
 
 
+def test_crease_gains_tell_a_prism_edge_from_a_round_wall(monkeypatch):
+    """``FINE_CREASE`` (issue 14, a measurement setting): the two places' mean curvatures are in the
+    ratio ``1 / r`` at a crease's rounded apex and equal on a smooth wall, so a 12-sided prism's
+    edges (30 degrees) get gains up to the crease's ``r / (1 - r)`` and a round prism about the smooth
+    gain (stronger bends, such as a hexagon's 60 degrees, fade back to it: CREASE_MAX_BEND); a ball
+    meshed with the setting is closed, outward and in its band."""
+    from contourmesh.refine import FINE_RATIO, _crease_gains, _move_to_surface
+
+    monkeypatch.setattr(R, "FINE_CREASE", True)
+    r = FINE_RATIO
+    smooth_gain, crease_gain = r ** 4 / (1 - r ** 4), r / (1 - r)
+    t = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
+    dodecagon = np.c_[np.cos(t), np.sin(t)] * (18.0 * np.cos(np.pi / 12) / np.cos((t % (np.pi / 6)) - np.pi / 12))[:, None]
+    gains = {}
+    for name, curve in (("circle", 18.0 * np.c_[np.cos(t), np.sin(t)]), ("dodecagon", dodecagon)):
+        pts, seed, kz, sigma, truth = _prism_ring(curve + [0.31, -0.17])
+        kzs = np.full(len(seed), kz, dtype=np.int64)
+        wide, near = np.empty_like(seed), np.empty_like(seed)
+        found = np.empty(len(seed), bool)
+        _move_to_surface(pts, seed, kzs, sigma, 1.0, True, 3.0, wide, False, found)
+        _move_to_surface(pts, seed, kzs, r * sigma, 1.0, True, 3.0, near, False, found)
+        rho, tol = _crease_gains(pts, seed, kzs, sigma, r * sigma, R._as_grid(1.0, pts.shape[0]), None, wide, near, 3.0)
+        corner = np.hypot(*(wide - (truth.mean(0))).T) > 17.6 if name == "dodecagon" else np.ones(len(seed), bool)
+        gains[name] = (rho, corner)
+        assert np.all((tol > 0.49) & (tol <= 1.0))
+    round_wall = np.median(gains["circle"][0])
+    rho, corner = gains["dodecagon"]
+    assert smooth_gain <= round_wall < 1.5 * smooth_gain, round_wall  # a circle of 18 voxels: q about 1.09
+    # edges of 9 voxels, about 4 blur widths: the corners' gains spread from the smooth to the crease gain
+    assert corner.any() and np.median(rho[corner]) > 1.25 * round_wall, (np.median(rho[corner]), round_wall)
+    assert rho.max() == pytest.approx(crease_gain) and round_wall < 0.25 * crease_gain
+    st = outer_jordan_stack(Sphere(12, center=(0.31, -0.17, 0.23)))
+    m = band_mesh(st)
+    chk = m.checks()
+    assert chk["watertight"] and chk["winding_consistent"] and chk["volume"] > 0
+    assert band_violations(st, m) == 0
+
+
 def test_stack_of_mask_traces_each_slice_in_its_box_as_the_whole_slice():
     """The stack route traces every slice within the object's bounding box in that slice: the
     same contours (coordinates, start points, order) as tracing the whole slice, also where the

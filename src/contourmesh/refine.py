@@ -45,7 +45,12 @@ meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same
    grows like ``sigma^4`` (a wave of wavenumber ``k`` keeps ``e^-s (1 + s) = 1 - s^2/2 + ...``
    of its amplitude, ``s = k^2 sigma^2 / 2``), so the two places give ``x0 = x_fine + rho
    (x_fine - x_wide)``, ``rho = r^4 / (1 - r^4)``, ``r`` = :data:`FINE_RATIO` (0.32 at 0.7): a
-   Richardson step with no new constant, clamped into the band like every move.  Where the two
+   Richardson step with no new constant, clamped into the band like every move.  That gain is
+   for smooth detail; a crease of a faceted surface (the shared test meshes are polyhedra whose
+   faces are several voxels wide) puts the place off by ``O(sigma)``, whose gain is ``r / (1 - r)``.
+   The two places' mean curvatures tell them apart (:data:`FINE_CREASE`, off by default): equal on
+   a smooth bend, in the ratio ``1 / r`` on a crease's rounded apex, but also near ``1 / r`` on a
+   smooth wave a few blur widths long, whose order is nearly 4.  Where the two
    scales agree, the wide place stands alone: extrapolating there adds the fine scale's lattice
    noise (+0.015 % on balls r = 80).  Only a search that found no level keeps the wide place: a
    vertex whose wide place the band clamp put back on its seed (a crest or a finger tip that the
@@ -130,6 +135,28 @@ SHIFT_CUBIC = 0.0
 #: place that is trusted, for a third search at ``sigma / r`` where the scales disagree.  A setting
 #: for measurements (``band_sigma.py --rules adaptive``; not a default: docs/DESIGN.md).
 FINE_ADAPTIVE = False
+#: Step 3b's gain per vertex (issue 14; False, the default: the one gain of :data:`FINE_RHO`
+#: everywhere; a setting for measurements, ``band_sigma.py --rules crease``, not a default:
+#: docs/DESIGN.md, "Crease gains").  The
+#: mean curvature ``S`` of the blurred level at the two places tells a crease from a smooth bend: a
+#: smooth surface has the same ``S`` at both widths, the rounded apex of a crease (a faceted
+#: surface's edge) has ``S ~ 1 / sigma``.  With ``q = S_fine / S_wide`` (each averaged along the ring
+#: over :data:`CREASE_WINDOW` sigma), ``m = clip(log q / log(1 / r), 0, 1)`` is 0 on a smooth bend
+#: and 1 on a crease, the bias order ``p = 4 - 3 m`` (a crease's place errs like ``sigma`` itself)
+#: and the Richardson gain ``r^p / (1 - r^p)``: 0.32 on smooth parts, up to 2.33 on a crease; its
+#: tolerance shrinks by ``1 - CREASE_TOLERANCE m`` (a crease's two places differ by about
+#: ``0.18 theta sigma``, under the smooth tolerance for the few-degree creases of fine meshes).
+FINE_CREASE = False
+#: The Gaussian (in arc length, times ``sigma``) over which ``S`` is averaged along the ring.
+CREASE_WINDOW = 1.0
+#: Where the wide place's averaged ``|S| sigma`` is below this, the smooth gain stands (a nearly flat
+#: part, whose ``q`` is noise: balls r >= 80).
+CREASE_MIN_BEND = 0.1
+#: The crease gain fades out as ``|S| sigma`` grows from half this to this: detail narrower than the
+#: blur (a finger, an ear's rim) also has ``S ~ 1 / sigma`` and is not a crease.  None: no limit.
+CREASE_MAX_BEND = 0.5
+#: A crease's tolerance is FINE_TOLERANCE times ``1 - CREASE_TOLERANCE m``.
+CREASE_TOLERANCE = 0.5
 #: New slice images (:func:`_slice_moments`) of a ring's first search reach this many ``max_move``
 #: (plus 2 voxels) beyond what it needs, so that the ring's later searches (its meridian points lie
 #: within ``max_move + 1`` of its seed) and its chord step reuse them.
@@ -1515,7 +1542,8 @@ def _surface_points(pts, xy, kz, sigma, grid, curvature, max_move, strict=False,
     rho = r4 / (1.0 - r4) if FINE_RHO is None else float(FINE_RHO)
     target = np.empty_like(xy)
     n_fine, n_any = _two_scale_targets(out, near, found, found_fine, FINE_TOLERANCE[0],
-                                       FINE_TOLERANCE[1] - FINE_TOLERANCE[0], rho, target)
+                                       FINE_TOLERANCE[1] - FINE_TOLERANCE[0], rho, target,
+                                       *_crease_gains(pts, xy, kz, sigma, float(fine), grid, images, out, near, max_move))
     if FINE_ADAPTIVE and n_any:
         target = _three_scale_targets(pts, xy, kz, sigma, fine, grid, curvature, max_move, strict, images, out, near,
                                       found, found_fine, rho)
@@ -1557,24 +1585,92 @@ def _three_scale_targets(pts, xy, kz, sigma, fine, grid, curvature, max_move, st
 
 
 @njit(cache=True)
-def _two_scale_targets(out, near, found, found_fine, lo, span, rho, target):
+def _two_scale_targets(out, near, found, found_fine, lo, span, rho, target, rho_v=None, tol_v=None):
     """Step 3b's weights and targets (the numpy expressions of :func:`_surface_points`, term by
     term): ``w = clip((|near - out| - lo) / span, 0, 1)`` where both searches found the level (0
     elsewhere), ``target = out + w (ext - out)`` with ``ext = near + rho (near - out)``.  Returns the
-    number of weights above 1/2 and whether any is positive."""
+    number of weights above 1/2 and whether any is positive.  ``rho_v``, ``tol_v`` (arrays, from
+    :func:`_crease_gains`): a gain per vertex, and ``|near - out|`` divided by ``tol_v`` first."""
     n_fine = 0
     n_any = False
     for n in range(out.shape[0]):
         gap = math.hypot(near[n, 0] - out[n, 0], near[n, 1] - out[n, 1])
+        if tol_v is not None:
+            gap = gap / tol_v[n]  # a crease's tolerance is narrower
         w = min(max((gap - lo) / span, 0.0), 1.0) * (1.0 if (found[n] and found_fine[n]) else 0.0)
         if w > 0.5:
             n_fine += 1
         if w > 0.0:
             n_any = True
+        rr = rho if rho_v is None else rho_v[n]
         for c in range(2):
-            ext = near[n, c] + rho * (near[n, c] - out[n, c])
+            ext = near[n, c] + rr * (near[n, c] - out[n, c])
             target[n, c] = out[n, c] + w * (ext - out[n, c])
     return n_fine, n_any
+
+
+def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
+    """Step 3b's gains and tolerance factors per vertex (:data:`FINE_CREASE`), or ``(None, None)``
+    (the one gain and tolerance).  ``xy`` is one ring of one slice, in order; ``out``, ``near`` its
+    places at ``sigma`` and ``fine``."""
+    if not FINE_CREASE or len(xy) < 3 or not (kz == kz[0]).all():
+        return None, None
+    images = {} if images is None else images
+    k = int(kz[0])
+    r = fine / sigma
+    curv = []
+    for width, p in ((sigma, out), (fine, near)):
+        mom, box, span = images.get(float(width)) or _no_images()
+        fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(p), k, float(width), grid, mom, box, span,
+                                            IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
+        images[float(width)] = (mom, box, span)
+        curv.append(_ring_curvature_mean(fld, float(width), np.ascontiguousarray(out), float(CREASE_WINDOW) * sigma))
+    sw, sf = curv
+    q = np.where(np.abs(sw) * sigma > CREASE_MIN_BEND, sf / np.where(sw != 0, sw, 1.0), 1.0)
+    m = np.clip(np.log(np.where(q > 0, q, 1.0)) / math.log(1.0 / r), 0.0, 1.0)
+    if CREASE_MAX_BEND is not None:  # detail narrower than the blur also has S ~ 1 / sigma: a strong bend is not a crease
+        b = np.abs(sw) * sigma
+        m = m * np.clip((CREASE_MAX_BEND - b) / (0.5 * CREASE_MAX_BEND), 0.0, 1.0)
+    p = 4.0 - 3.0 * m
+    return np.ascontiguousarray(r ** p / (1.0 - r ** p)), np.ascontiguousarray(1.0 - CREASE_TOLERANCE * m)
+
+
+@njit(cache=True)
+def _ring_curvature_mean(fld, sigma, ring, width):
+    """The mean curvature ``k1 + k2`` of the blurred level at each ring vertex (``fld``: the fields
+    there, :func:`_field`), averaged along the ring with a Gaussian of ``width`` in arc length."""
+    n = ring.shape[0]
+    s = np.empty(n)
+    for i in range(n):
+        shift, g = _mean_curvature_shift(fld[i], sigma)
+        s[i] = 2.0 * shift / (sigma * sigma)
+    cum = np.empty(n + 1)
+    cum[0] = 0.0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        cum[i + 1] = cum[i] + math.hypot(ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1])
+    length = cum[n]
+    out = s.copy()
+    if length <= 0.0 or width <= 0.0:
+        return out
+    reach = min(3.0 * width, 0.5 * length)
+    for i in range(n):
+        num = 0.0
+        den = 0.0
+        for side in (1, -1):
+            k = 0 if side == 1 else 1
+            while k < n:
+                j = (i + side * k) % n
+                d = abs(cum[j] - cum[i])
+                d = min(d, length - d)
+                if d > reach:
+                    break
+                g = math.exp(-0.5 * (d / width) ** 2)
+                num += g * s[j]
+                den += g
+                k += 1
+        out[i] = num / den if den > 0 else s[i]
+    return out
 
 
 def auto_sigma(stack: ContourStack, *, factor: float = 0.8, lo: float = 2.0, hi: float = 3.5) -> float:
