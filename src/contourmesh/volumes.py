@@ -160,17 +160,43 @@ def _mlp_of_pixels(pix: np.ndarray) -> np.ndarray | None:
     return None if poly is None else poly.astype(np.float64)
 
 
-class _Slice:
-    """The components of one slice with their contours and polygons (physical xy)."""
+class _RecentLabels:
+    """The label images of the last few slices used (:attr:`_Slice.labels`); the others are
+    dropped and made again from their masks when next asked for.  The joins go up the stack, each
+    using two neighbouring slices (a bridged join's sections and waypoints the same two), so a few
+    images are enough; every slice's image kept to the end was a second copy of the volume (a
+    byte a voxel)."""
 
-    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center):
+    def __init__(self, size: int = 4):
+        self.size = size
+        self.held: list = []  # most recent last
+        self.remade = 0  # label images made again (for the tests and benchmarks)
+
+    def hold(self, s) -> None:
+        held = self.held
+        if held and held[-1] is s:
+            return
+        if s in held:
+            held.remove(s)
+        held.append(s)
+        if len(held) > self.size:
+            held.pop(0)._labels = None
+
+
+class _Slice:
+    """The components of one slice with their contours and polygons (physical xy).
+
+    ``recent``: a :class:`_RecentLabels` that decides how long the slice keeps its label image
+    (``None``: for the slice's lifetime)."""
+
+    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None):
         from scipy import ndimage
 
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
         labels, self.n, self.objects = slice_labels(mask2d)
-        # every slice's labels are kept until the joins are made: the smallest dtype that holds them
-        small = np.uint8 if self.n < 2**8 else np.uint16 if self.n < 2**16 else None
-        self.labels = labels.astype(small) if small is not None else labels
+        # the labels in the smallest dtype that holds them
+        self._mask, self._recent = mask2d, recent
+        self._labels = self._small(labels)
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
@@ -183,7 +209,7 @@ class _Slice:
         for c in range(self.n):
             sl = self.objects[c]
             y0, x0 = sl[0].start, sl[1].start
-            comp = self.labels[sl] == c + 1
+            comp = self._labels[sl] == c + 1
             cont, area2 = _crack_contours(comp)
             outer_i = [i for i in range(len(cont)) if area2[i] > 0]
             if len(outer_i) != 1:  # pragma: no cover - a 4-component has one outer boundary
@@ -215,6 +241,24 @@ class _Slice:
                 self._polygon(h, hm, polygon, to_xy_corner, to_xy_center, off, hole=True)
                 for h, hm in zip(crack_h, hmasks)
             ])
+        if recent is not None:
+            recent.hold(self)
+
+    def _small(self, labels):
+        small = np.uint8 if self.n < 2**8 else np.uint16 if self.n < 2**16 else None
+        return labels.astype(small) if small is not None else labels
+
+    @property
+    def labels(self) -> np.ndarray:
+        """The slice's component labels (0 background, ``c + 1`` component ``c``), as
+        ``slice_labels`` makes them from the mask: made again where :class:`_RecentLabels`
+        dropped them."""
+        if self._labels is None:
+            self._labels = self._small(slice_labels(self._mask)[0])
+            self._recent.remade += 1
+        if self._recent is not None:
+            self._recent.hold(self)
+        return self._labels
 
     @staticmethod
     def _match_holes(crack_h, hmasks, off):
@@ -531,17 +575,26 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 
     to_xy_center, to_xy_corner = grid_to_xy(ox, oy, dx, dy)
 
-    # pass 1: contours and polygons of every slice
+    # pass 1: contours and polygons of every slice, made as pass 2 reaches the slice; only the
+    # label images of the last few slices used are kept (_RecentLabels)
     slices = [None] * nz
     occupied = [k for k in range(nz) if mask[k].any()]
-    for k in tqdm(occupied, desc="slices", disable=not progress, leave=False):
-        slices[k] = _Slice(mask[k], polygon, to_xy_corner, to_xy_center)
+    recent = _RecentLabels()
+    bar = tqdm(total=len(occupied), desc="slices", disable=not progress, leave=False)
+
+    def load(k):
+        if slices[k] is None and k in occupied_set:
+            slices[k] = _Slice(mask[k], polygon, to_xy_corner, to_xy_center, recent)
+            bar.update()
+
+    occupied_set = set(occupied)
 
     # pass 2: which components join, and how
     has_above, has_below = set(), set()
     crack_only = set()  # components whose rings are their crack contours (they take part in exact joins)
     joins = []  # (k, kind, data)
     for k in range(nz - 1):
+        load(k), load(k + 1)
         A, B = slices[k], slices[k + 1]
         if A is None or B is None:
             continue
@@ -568,6 +621,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                 joins.append((k, "exact", (sorted(ga), sorted(gb))))
                 crack_only.update((k, a) for a in ga)
                 crack_only.update((k + 1, b) for b in gb)
+    for k in occupied:  # (a single slice)
+        load(k)
+    bar.close()
 
     refine_info = {}
     if refine is not None:  # the polygons of band joins and caps become their refined polygons

@@ -1,0 +1,127 @@
+"""Peak memory of ``contourmesh.mesh(volume)`` on the real inputs of ``volume_speed.py``.
+
+Each (input, repeat) runs in a fresh process: the input is made (``volume_speed.make_input``),
+the kernels are compiled on a small volume with holes and branching, the RSS high-water mark is
+reset (``/proc/self/clear_refs``), then one call of ``contourmesh.mesh``.  Printed per run: the
+RSS before the call, the peak (``VmHWM``), the peak above the RSS before, the input and output
+mesh bytes (vertices + faces as returned), the ratio of the peak to (input + output), the
+process CPU seconds of the call and a hash of the mesh (vertices and faces, as
+``scripts/mesh_digest.py``).
+
+    python benchmarks/volume_memory.py --inputs lobster,liver,liver-x2 --repeat 3
+    python benchmarks/volume_memory.py --inputs liver --phases   # + RSS and traced MiB per phase
+
+``--phases`` also samples the RSS every 5 ms in a thread and prints, for each phase of the
+general mesher (slices, joins, bridges, assembly, crossing test, repair, checks), the highest RSS
+seen while it ran (the phases are found by wrapping the module's functions).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+
+CHILD = r"""
+import sys, json, time, hashlib, threading
+sys.path.insert(0, %(src)r); sys.path.insert(0, %(bench)r)
+import numpy as np
+import volume_speed as vs
+import contourmesh
+vol, sp = vs.make_input(%(spec)r)
+warm = np.pad(np.random.default_rng(1).random((12, 14, 13)) < 0.35, 1)
+contourmesh.mesh(warm)
+
+def st(key):
+    return [int(l.split()[1]) / 1024 for l in open('/proc/self/status') if l.startswith(key)][0]
+
+phases = {}
+if %(phases)r:
+    from contourmesh import volumes, repair
+    current = ['before']
+    stop = False
+    def sample():
+        while not stop:
+            r = st('VmRSS:')
+            if r > phases.get(current[0], 0):
+                phases[current[0]] = r
+            time.sleep(0.005)
+    def wrap(mod, name, label):
+        f = getattr(mod, name)
+        def g(*a, **k):
+            prev = current[0]
+            current[0] = label
+            try:
+                return f(*a, **k)
+            finally:
+                current[0] = prev
+        setattr(mod, name, g)
+    for name, label in [('fast_volume_to_mesh', 'fast path'), ('prepare_volume', 'prepare'),
+                        ('_Slice', 'slices'), ('overlap_groups', 'joins'),
+                        ('_build_bridges', 'bridges'), ('_number_units', 'assemble: units'),
+                        ('_split_four_face_edges', 'repair: four-face'), ('_open_necks', 'repair: necks'),
+                        ('split_nonmanifold_vertices', 'repair: fans'), ('_separate_coincident', 'repair: coincident'),
+                        ('_crossing_pairs', 'crossing test'), ('resolve_crossings', 'resolve crossings'),
+                        ('_checked', 'checked')]:
+        wrap(volumes, name, label)
+    th = threading.Thread(target=sample, daemon=True)
+    th.start()
+rss0 = st('VmRSS:')
+open('/proc/self/clear_refs', 'w').write('5')
+t = time.process_time()
+m = contourmesh.mesh(vol, spacing=sp)
+cpu = time.process_time() - t
+peak = st('VmHWM:')
+if %(phases)r:
+    stop = True
+h = hashlib.sha1()
+h.update(np.ascontiguousarray(m.vertices, dtype=np.float64).tobytes())
+h.update(np.ascontiguousarray(m.faces, dtype=np.int64).tobytes())
+print(json.dumps({'rss_before': rss0, 'peak': peak, 'vol_mib': vol.nbytes / 2**20,
+                  'out_mib': (m.vertices.nbytes + m.faces.nbytes) / 2**20, 'faces': len(m.faces),
+                  'cpu': cpu, 'hash': h.hexdigest()[:16], 'fast': bool(m.meta.get('fast_path', False)),
+                  'phases': phases}))
+"""
+
+
+def run(spec: str, phases: bool = False) -> dict:
+    code = CHILD % {"src": str(ROOT / "src"), "bench": str(HERE), "spec": spec, "phases": phases}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=3600)
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr.strip()[-2000:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--inputs", default="lobster,liver,liver-x2")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--phases", action="store_true", help="highest RSS per phase of the general mesher")
+    ap.add_argument("--json", help="write the runs here")
+    a = ap.parse_args(argv)
+    runs = []
+    print("| input | run | RSS before MiB | peak MiB | peak - before | input MiB | output MiB | "
+          "peak / (in + out) | CPU s | faces | hash |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for rep in range(a.repeat):
+        for spec in a.inputs.split(","):
+            r = run(spec, a.phases)
+            r.update(input=spec, run=rep)
+            runs.append(r)
+            print(f"| {spec} | {rep} | {r['rss_before']:.0f} | {r['peak']:.0f} | {r['peak'] - r['rss_before']:.0f} | "
+                  f"{r['vol_mib']:.0f} | {r['out_mib']:.0f} | {r['peak'] / (r['vol_mib'] + r['out_mib']):.2f} | "
+                  f"{r['cpu']:.2f} | {r['faces']} | {r['hash']} |", flush=True)
+            if a.phases:
+                for name, mib in r["phases"].items():
+                    print(f"    {name:24s} {mib:8.0f} MiB")
+    if a.json:
+        Path(a.json).write_text(json.dumps(runs, indent=1))
+
+
+if __name__ == "__main__":
+    main()
