@@ -70,6 +70,7 @@ Conventions (stated once)
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -183,6 +184,34 @@ class _RecentLabels:
             held.pop(0)._labels = None
 
 
+class _HoleMasks(Sequence):
+    """The holes of one component as pixel sets: a sequence of bool masks over the component's
+    box (``hole_masks[c][1]`` of a :class:`_Slice`).  Each is kept cropped to the hole's own box
+    and made whole when read: on large slices with many small holes a whole box per hole came to
+    more than all the slice's contours."""
+
+    __slots__ = ("shape", "parts")
+
+    def __init__(self, shape, masks):
+        self.shape = tuple(shape)
+        self.parts = []
+        for m in masks:
+            ys, xs = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+            y0, x0 = int(ys[0]), int(xs[0])
+            self.parts.append((y0, x0, m[y0: ys[-1] + 1, x0: xs[-1] + 1].copy()))
+
+    def __len__(self) -> int:
+        return len(self.parts)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(len(self))[i]]
+        y0, x0, part = self.parts[i]
+        m = np.zeros(self.shape, dtype=bool)
+        m[y0: y0 + part.shape[0], x0: x0 + part.shape[1]] = part
+        return m
+
+
 class _Slice:
     """The components of one slice with their contours and polygons (physical xy).
 
@@ -231,7 +260,7 @@ class _Slice:
                     hmasks.append(hm)
             # order hole masks like the crack holes: match by a pixel left of each hole contour
             hmasks = self._match_holes(crack_h, hmasks, off)
-            self.hole_masks.append((sl, hmasks))
+            self.hole_masks.append((sl, _HoleMasks(comp.shape, hmasks)))
             self.crack_outer.append(to_xy_corner(crack_o))
             self.crack_holes.append([to_xy_corner(h) for h in crack_h])
             self.crack_outer_c.append(crack_o)
