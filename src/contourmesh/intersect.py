@@ -764,10 +764,11 @@ def _intersecting_pairs(V, ws, F, budget, stop):
     start[nb] = acc
     ent_face = np.empty(acc, np.int64)
     ent_key = np.empty(acc, np.int64)
-    fill = np.empty(nb, np.int64)
-    for q in range(nb):
-        fill[q] = start[q]
-    _visit_cells(box, live, glo, h, mask, ny, nx, start, fill, ent_face, ent_key, np.int64(1))
+    # start itself is the fill pointer (each bucket's ends at the next one's start), then shifted back
+    _visit_cells(box, live, glo, h, mask, ny, nx, start, start, ent_face, ent_key, np.int64(1))
+    for q in range(nb, 0, -1):
+        start[q] = start[q - 1]
+    start[0] = 0
     for q in range(nb):
         s0 = start[q]
         s1 = start[q + 1]
@@ -1196,16 +1197,12 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
         for k in range(lo[i], hi[i] + 1):
             plane_faces[fp[k]] = i
             fp[k] += 1
-    xlo = np.empty(m, np.float64)
-    xhi = np.empty(m, np.float64)
-    ylo = np.empty(m, np.float64)
-    yhi = np.empty(m, np.float64)
+    # the slab sweeps read the faces' xy boxes in place (columns of box, not copies)
+    xlo = box[:, 0]
+    xhi = box[:, 3]
+    ylo = box[:, 1]
+    yhi = box[:, 4]
     grp = np.full(m, 2, np.int64)  # every pair of one slab's faces is a candidate
-    for i in range(m):
-        xlo[i] = box[i, 0]
-        xhi[i] = box[i, 3]
-        ylo[i] = box[i, 1]
-        yhi[i] = box[i, 4]
     limit = budget * m + 1000000
     work = np.int64(0)
     n_out = np.int64(0)
@@ -1522,7 +1519,10 @@ def _pairs(V, F, canon, budget, method, stop=0):
     ``stop > 0``: only until that many pairs are found (see :func:`any_intersecting`)."""
     if not V.flags.writeable:  # one compiled signature: writable C arrays
         V = V.copy()
-    Fc = canon[F]
+    if F.flags.writeable and F.flags.c_contiguous and bool((canon == np.arange(len(canon))).all()):
+        Fc = F  # no two vertices share coordinates (as after the volume mesher's repair): no copy
+    else:
+        Fc = canon[F]
     ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
     ok = 0

@@ -189,18 +189,26 @@ def _fan_components(twin):
                     parent[ry] = rx
                 else:
                     parent[rx] = ry
-    lab = np.empty(n, np.int64)
-    first = np.empty(n, np.int64)
+    # every link points at the lower of two roots, and path halving at an ancestor: parent[x] <= x,
+    # and a fan's root is its lowest corner.  One pass up the corners gives each its root (its
+    # parent's is final by then); a second numbers the roots and turns parent into the labels in
+    # place (a corner's root, below it, is numbered by then): no arrays per corner besides parent
     count = 0
     for x in range(n):
-        r = find(x)
-        if r == x:
-            lab[x] = count
-            first[count] = x
+        parent[x] = parent[parent[x]]
+        if parent[x] == x:
             count += 1
+    first = np.empty(count, np.int64)
+    c = 0
+    for x in range(n):
+        r = parent[x]
+        if r == x:
+            parent[x] = c
+            first[c] = x
+            c += 1
         else:
-            lab[x] = lab[r]
-    return count, lab, first[:count]
+            parent[x] = parent[r]
+    return count, parent, first
 
 
 def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
