@@ -1149,8 +1149,9 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
     box = np.empty((m, 6), np.float64)
-    lo = np.full(m, -1, np.int64)  # -1: not live (skipped, as in the grid path)
-    hi = np.full(m, -1, np.int64)
+    # (levels and face numbers in int32: a mesh of 2^31 faces would not fit in memory here anyway)
+    lo = np.full(m, -1, np.int32)  # -1: not live (skipped, as in the grid path)
+    hi = np.full(m, -1, np.int32)
     ax0 = np.int64(0)
     ax1 = np.int64(1)
     ax2 = np.int64(2)
@@ -1184,8 +1185,8 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
         cnt_s[k + 1] += cnt_s[k]
     for k in range(nlev):
         cnt_p[k + 1] += cnt_p[k]
-    slab_faces = np.empty(cnt_s[nslab], np.int64)
-    plane_faces = np.empty(cnt_p[nlev], np.int64)
+    slab_faces = np.empty(cnt_s[nslab], np.int32)
+    plane_faces = np.empty(cnt_p[nlev], np.int32)
     fs = cnt_s[:nslab].copy()
     fp = cnt_p[:nlev].copy()
     for i in range(m):

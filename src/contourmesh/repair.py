@@ -120,22 +120,25 @@ def _half_edges_by_vertex(F, nv, which):
     vertex: ``which`` 0 their start, 1 their end, 2 their lower vertex.  Returns ``(start, items)``,
     bucket ``v`` being ``items[start[v]:start[v + 1]]`` in increasing order (a counting sort)."""
     n = 3 * F.shape[0]
-    key = np.empty(n, np.int64)
-    for h in range(n):
-        a = F[h // 3, h % 3]
-        b = F[h // 3, (h % 3 + 1) % 3]
-        key[h] = a if which == 0 else b if which == 1 else min(a, b)
     start = np.zeros(nv + 1, np.int64)
     for h in range(n):
-        start[key[h] + 1] += 1
+        start[_bucket_key(F, h, which) + 1] += 1
     for v in range(nv):
         start[v + 1] += start[v]
     fill = start[:nv].copy()
     items = np.empty(n, np.int64)
-    for h in range(n):
-        items[fill[key[h]]] = h
-        fill[key[h]] += 1
+    for h in range(n):  # (the keys made again: no array of them per half-edge)
+        key = _bucket_key(F, h, which)
+        items[fill[key]] = h
+        fill[key] += 1
     return start, items
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bucket_key(F, h, which):
+    a = F[h // 3, h % 3]
+    b = F[h // 3, (h % 3 + 1) % 3]
+    return a if which == 0 else b if which == 1 else min(a, b)
 
 
 @njit(cache=True, nogil=True)
@@ -225,9 +228,9 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     m = len(F)
     if m == 0:
         return V, F
-    side = np.zeros(m, dtype=np.int64) if side is None else np.asarray(side, dtype=np.int64)
     V = np.asarray(V, dtype=np.float64)
     if four_face:
+        side = np.zeros(m, dtype=np.int64) if side is None else np.asarray(side, dtype=np.int64)
         V, F, side = _split_four_face_edges(V, F, side, nudge)
     m = len(F)
     nv = len(V) + 1

@@ -982,7 +982,8 @@ class _Unit:
         make(M, ring)
         u = cls()
         u.key = key
-        u.V, u.F, u.S, u.N = M.result()
+        u.V, F, u.S, u.N = M.result()
+        u.F = F.astype(np.int32) if len(u.V) < 2**31 else F  # (local numbers: kept across rebuilds)
         u.rings = spans
         u.replaced = M.band_fallbacks
         u.pixel_caps = M.pixel_caps
