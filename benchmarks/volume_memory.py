@@ -43,7 +43,7 @@ def st(key):
 phases = {}
 if %(phases)r:
     from contourmesh import volumes, repair
-    current = ['before']
+    current = ['other']
     stop = False
     def sample():
         while not stop:
@@ -62,8 +62,10 @@ if %(phases)r:
                 current[0] = prev
         setattr(mod, name, g)
     for name, label in [('fast_volume_to_mesh', 'fast path'), ('prepare_volume', 'prepare'),
-                        ('_Slice', 'slices'), ('overlap_groups', 'joins'),
-                        ('_build_bridges', 'bridges'), ('_number_units', 'assemble: units'),
+                        ('_Slice', 'slices'), ('overlap_groups', 'joins'), ('_simple_join', 'joins'),
+                        ('_bridge_plan', 'joins'), ('_densify_branching', 'densify'),
+                        ('_build_bridges', 'bridges'), ('_assemble', 'assemble: joins and caps'),
+                        ('_number_units', 'assemble: numbering'),
                         ('_split_four_face_edges', 'repair: four-face'), ('_open_necks', 'repair: necks'),
                         ('split_nonmanifold_vertices', 'repair: fans'), ('_separate_coincident', 'repair: coincident'),
                         ('_crossing_pairs', 'crossing test'), ('resolve_crossings', 'resolve crossings'),

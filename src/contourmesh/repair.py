@@ -126,7 +126,7 @@ def _half_edges_by_vertex(F, nv, which):
     for v in range(nv):
         start[v + 1] += start[v]
     fill = start[:nv].copy()
-    items = np.empty(n, np.int64)
+    items = np.empty(n, np.int32)  # (half-edge numbers: a mesh of 700 M faces would not fit in memory anyway)
     for h in range(n):  # (the keys made again: no array of them per half-edge)
         key = _bucket_key(F, h, which)
         items[fill[key]] = h
@@ -267,9 +267,13 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     in_moved[moved] = True
     corners = np.flatnonzero(in_moved[lab])
     centroids = V[F[corners // 3]].mean(axis=1)
-    counts = np.bincount(lab[corners], minlength=ncomp).astype(np.float64)
-    target = np.stack([np.bincount(lab[corners], weights=centroids[:, d], minlength=ncomp) for d in range(3)], axis=1)
-    target = target[moved] / counts[moved][:, None]
+    # sums per moved fan only (numbered in the order of moved, which is sorted): the same sums, in
+    # the same order, as over all fans, without arrays over all of them
+    at = np.searchsorted(moved, lab[corners])
+    del lab, in_moved
+    counts = np.bincount(at, minlength=len(moved)).astype(np.float64)
+    target = np.stack([np.bincount(at, weights=centroids[:, d], minlength=len(moved)) for d in range(3)], axis=1)
+    target = target / counts[:, None]
     vid = fan_to_new[moved]
     d = target - V2[vid]
     nrm = np.linalg.norm(d, axis=1)
