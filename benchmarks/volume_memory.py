@@ -9,7 +9,9 @@ process CPU seconds of the call and a hash of the mesh (vertices and faces, as
 ``scripts/mesh_digest.py``).
 
     python benchmarks/volume_memory.py --inputs lobster,liver,liver-x2 --repeat 3
-    python benchmarks/volume_memory.py --inputs liver --phases   # + RSS and traced MiB per phase
+    python benchmarks/volume_memory.py --inputs liver --phases   # + the highest RSS per phase
+    git archive e0b556d src | tar -x -C /tmp/base      # an older revision's code, then:
+    python benchmarks/volume_memory.py --repeat 3 --against /tmp/base/src   # alternating runs, medians
 
 ``--phases`` also samples the RSS every 5 ms in a thread and prints, for each phase of the
 general mesher (slices, joins, bridges, assembly, crossing test, repair, checks), the highest RSS
@@ -24,6 +26,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 
@@ -32,7 +36,9 @@ import sys, json, time, hashlib, threading
 sys.path.insert(0, %(src)r); sys.path.insert(0, %(bench)r)
 import numpy as np
 import volume_speed as vs
+sys.path.insert(0, %(src)r)  # (volume_speed puts its own tree's src first)
 import contourmesh
+assert contourmesh.__file__.startswith(%(src)r), contourmesh.__file__
 vol, sp = vs.make_input(%(spec)r)
 warm = np.pad(np.random.default_rng(1).random((12, 14, 13)) < 0.35, 1)
 contourmesh.mesh(warm)
@@ -91,8 +97,8 @@ print(json.dumps({'rss_before': rss0, 'peak': peak, 'vol_mib': vol.nbytes / 2**2
 """
 
 
-def run(spec: str, phases: bool = False) -> dict:
-    code = CHILD % {"src": str(ROOT / "src"), "bench": str(HERE), "spec": spec, "phases": phases}
+def run(spec: str, phases: bool = False, src: Path = ROOT / "src") -> dict:
+    code = CHILD % {"src": str(src), "bench": str(HERE), "spec": spec, "phases": phases}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=3600)
     if out.returncode != 0:
         raise RuntimeError(out.stderr.strip()[-2000:])
@@ -105,22 +111,38 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--phases", action="store_true", help="highest RSS per phase of the general mesher")
     ap.add_argument("--json", help="write the runs here")
+    ap.add_argument("--against", metavar="SRC",
+                    help="another tree's src folder (say, an older revision's, from git archive): its runs "
+                         "alternate with this tree's, and the medians of both are printed")
     a = ap.parse_args(argv)
+    trees = [("this", ROOT / "src")] + ([("other", Path(a.against).resolve())] if a.against else [])
     runs = []
-    print("| input | run | RSS before MiB | peak MiB | peak - before | input MiB | output MiB | "
-          "peak / (in + out) | CPU s | faces | hash |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| tree | input | run | RSS before MiB | peak MiB | peak - before | input MiB | output MiB | "
+          "peak / (in + out) | (peak - before + in) / (in + out) | CPU s | faces | hash |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for rep in range(a.repeat):
         for spec in a.inputs.split(","):
-            r = run(spec, a.phases)
-            r.update(input=spec, run=rep)
-            runs.append(r)
-            print(f"| {spec} | {rep} | {r['rss_before']:.0f} | {r['peak']:.0f} | {r['peak'] - r['rss_before']:.0f} | "
-                  f"{r['vol_mib']:.0f} | {r['out_mib']:.0f} | {r['peak'] / (r['vol_mib'] + r['out_mib']):.2f} | "
-                  f"{r['cpu']:.2f} | {r['faces']} | {r['hash']} |", flush=True)
-            if a.phases:
-                for name, mib in r["phases"].items():
-                    print(f"    {name:24s} {mib:8.0f} MiB")
+            for tree, src in (trees if rep % 2 == 0 else trees[::-1]):
+                r = run(spec, a.phases, src)
+                r.update(input=spec, run=rep, tree=tree)
+                runs.append(r)
+                io = r["vol_mib"] + r["out_mib"]
+                print(f"| {tree} | {spec} | {rep} | {r['rss_before']:.0f} | {r['peak']:.0f} | "
+                      f"{r['peak'] - r['rss_before']:.0f} | {r['vol_mib']:.0f} | {r['out_mib']:.0f} | "
+                      f"{r['peak'] / io:.2f} | {(r['peak'] - r['rss_before'] + r['vol_mib']) / io:.2f} | "
+                      f"{r['cpu']:.2f} | {r['faces']} | {r['hash']} |", flush=True)
+                if a.phases:
+                    for name, mib in r["phases"].items():
+                        print(f"    {name:24s} {mib:8.0f} MiB")
+    if a.repeat > 1 or a.against:
+        print("\nmedians: | tree | input | peak - before MiB | (peak - before + in) / (in + out) | CPU s |")
+        for spec in a.inputs.split(","):
+            for tree, _ in trees:
+                rs = [r for r in runs if r["input"] == spec and r["tree"] == tree]
+                med = lambda f: float(np.median([f(r) for r in rs]))  # noqa: E731
+                print(f"| {tree} | {spec} | {med(lambda r: r['peak'] - r['rss_before']):.0f} | "
+                      f"{med(lambda r: (r['peak'] - r['rss_before'] + r['vol_mib']) / (r['vol_mib'] + r['out_mib'])):.2f} | "
+                      f"{med(lambda r: r['cpu']):.2f} |")
     if a.json:
         Path(a.json).write_text(json.dumps(runs, indent=1))
 
