@@ -1205,7 +1205,7 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
     xhi = box[:, 3]
     ylo = box[:, 1]
     yhi = box[:, 4]
-    grp = np.full(m, 2, np.int64)  # every pair of one slab's faces is a candidate
+    grp = np.full(m, 2, np.int8)  # every pair of one slab's faces is a candidate (groups in int8)
     limit = budget * m + 1000000
     work = np.int64(0)
     n_out = np.int64(0)
@@ -1228,20 +1228,21 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
     pxhi = pbox[:, 1]
     pylo = pbox[:, 2]
     pyhi = pbox[:, 3]
-    pgrp = np.zeros(mp, np.int64)
+    pgrp = np.zeros(mp, np.int8)
     pface = np.empty(mp, np.int64)
     ids = np.arange(mp).astype(np.int32)
     pu = np.empty(mp, np.int64)
     pw = np.empty(mp, np.int64)
     cert = np.empty(mp, np.int32)
-    all2 = np.full(mp, 2, np.int64)
-    stamp = np.full(len(V), -1, np.int64)
-    d1 = np.empty(len(V), np.int64)
-    d2 = np.empty(len(V), np.int64)
+    all2 = np.full(mp, 2, np.int8)
+    # per vertex: levels, vertex and face numbers in int32
+    stamp = np.full(len(V), -1, np.int32)
+    d1 = np.empty(len(V), np.int32)
+    d2 = np.empty(len(V), np.int32)
     pemb = np.zeros(nlev, np.int64)
     keys = np.empty(2 * ms + 2, np.int64)
-    head = np.empty(len(V), np.int64)
-    hstamp = np.full(len(V), -1, np.int64)
+    head = np.empty(len(V), np.int32)
+    hstamp = np.full(len(V), -1, np.int32)
     nxt = np.empty(ms + 1, np.int64)
     for k in range(nlev):
         # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group

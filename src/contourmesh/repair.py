@@ -148,8 +148,8 @@ def _edge_multiplicity(F, nv):
     counted per bucket in a scratch array indexed by the upper one)."""
     m = F.shape[0]
     start, items = _half_edges_by_vertex(F, nv, np.int64(2))
-    out = np.empty((m, 3), np.int64)
-    cnt = np.zeros(nv, np.int64)
+    out = np.empty((m, 3), np.int32)  # (counts of faces: int32 holds them)
+    cnt = np.zeros(nv, np.int32)
     for v in range(nv):
         for t in range(start[v], start[v + 1]):
             h = items[t]

@@ -996,7 +996,13 @@ def _number_units(units, tags):
     where it is first used, a unit's own vertices where the unit makes them.  Returns ``(V, F, S,
     N, T)``: vertices, faces, side per face, neck vertices, and per face the tag of its unit."""
     ring_ids = {}
-    Vb, Fb, Sb, Nb, Tb = [], [], [], [], []
+    Vb, Nb = [], []  # (the vertices as views of the units' arrays: one copy, at the end)
+    # the faces, sides and tags written into arrays of their final size (no list of per-unit copies)
+    nf = sum(len(u.F) for u in units)
+    F = np.empty((nf, 3), dtype=np.int64)
+    S = np.empty(nf, dtype=np.int8)
+    T = np.empty(nf, dtype=np.int64)
+    at = 0
     n = 0
     for u, t in zip(units, tags):
         nl = len(u.V)
@@ -1025,16 +1031,15 @@ def _number_units(units, tags):
                 Vb.append(u.V[pos:])
                 n += nl - pos
         if len(u.F):
-            Fb.append(g[u.F])
-            Sb.append(u.S)
-            Tb.append(np.full(len(u.F), t, dtype=np.int64))
+            end = at + len(u.F)
+            F[at:end] = g[u.F]
+            S[at:end] = u.S
+            T[at:end] = t
+            at = end
         if len(u.N):
             Nb.append(g[u.N])
     V = np.concatenate(Vb) if Vb else np.zeros((0, 3))
-    F = np.concatenate(Fb) if Fb else np.zeros((0, 3), dtype=np.int64)
-    S = np.concatenate(Sb) if Sb else np.zeros(0, dtype=np.int8)
     N = np.concatenate(Nb) if Nb else np.zeros(0, dtype=np.int64)
-    T = np.concatenate(Tb) if Tb else np.zeros(0, dtype=np.int64)
     return V, F, S, N, T
 
 
