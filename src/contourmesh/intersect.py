@@ -744,9 +744,11 @@ def _intersecting_pairs(V, ws, F, budget, stop):
         for k in range(3):
             h[k] *= 1.5
         total = _count_cells(box, live, glo, h)
-    # hash table of cells: counting sort of (face, cell) entries by bucket
+    # hash table of cells: counting sort of (face, cell) entries by bucket (about one entry per
+    # bucket: the entries of one cell share a bucket anyway; twice as many buckets took a fifth
+    # more memory on the lobster's mesh for no speed)
     nb = 1
-    while nb < 2 * total:
+    while nb < total:
         nb *= 2
     mask = nb - 1
     start = np.empty(nb + 1, np.int64)
@@ -764,10 +766,11 @@ def _intersecting_pairs(V, ws, F, budget, stop):
     start[nb] = acc
     ent_face = np.empty(acc, np.int64)
     ent_key = np.empty(acc, np.int64)
-    fill = np.empty(nb, np.int64)
-    for q in range(nb):
-        fill[q] = start[q]
-    _visit_cells(box, live, glo, h, mask, ny, nx, start, fill, ent_face, ent_key, np.int64(1))
+    # start itself is the fill pointer (each bucket's ends at the next one's start), then shifted back
+    _visit_cells(box, live, glo, h, mask, ny, nx, start, start, ent_face, ent_key, np.int64(1))
+    for q in range(nb, 0, -1):
+        start[q] = start[q - 1]
+    start[0] = 0
     for q in range(nb):
         s0 = start[q]
         s1 = start[q + 1]
@@ -1148,8 +1151,9 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
     box = np.empty((m, 6), np.float64)
-    lo = np.full(m, -1, np.int64)  # -1: not live (skipped, as in the grid path)
-    hi = np.full(m, -1, np.int64)
+    # (levels and face numbers in int32: a mesh of 2^31 faces would not fit in memory here anyway)
+    lo = np.full(m, -1, np.int32)  # -1: not live (skipped, as in the grid path)
+    hi = np.full(m, -1, np.int32)
     ax0 = np.int64(0)
     ax1 = np.int64(1)
     ax2 = np.int64(2)
@@ -1183,8 +1187,8 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
         cnt_s[k + 1] += cnt_s[k]
     for k in range(nlev):
         cnt_p[k + 1] += cnt_p[k]
-    slab_faces = np.empty(cnt_s[nslab], np.int64)
-    plane_faces = np.empty(cnt_p[nlev], np.int64)
+    slab_faces = np.empty(cnt_s[nslab], np.int32)
+    plane_faces = np.empty(cnt_p[nlev], np.int32)
     fs = cnt_s[:nslab].copy()
     fp = cnt_p[:nlev].copy()
     for i in range(m):
@@ -1196,42 +1200,50 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
         for k in range(lo[i], hi[i] + 1):
             plane_faces[fp[k]] = i
             fp[k] += 1
-    xlo = np.empty(m, np.float64)
-    xhi = np.empty(m, np.float64)
-    ylo = np.empty(m, np.float64)
-    yhi = np.empty(m, np.float64)
-    grp = np.full(m, 2, np.int64)  # every pair of one slab's faces is a candidate
-    for i in range(m):
-        xlo[i] = box[i, 0]
-        xhi[i] = box[i, 3]
-        ylo[i] = box[i, 1]
-        yhi[i] = box[i, 4]
+    # the slab sweeps read the faces' xy boxes in place (columns of box, not copies)
+    xlo = box[:, 0]
+    xhi = box[:, 3]
+    ylo = box[:, 1]
+    yhi = box[:, 4]
+    grp = np.full(m, 2, np.int8)  # every pair of one slab's faces is a candidate (groups in int8)
     limit = budget * m + 1000000
     work = np.int64(0)
     n_out = np.int64(0)
     ci = np.empty(64, np.int64)
     cj = np.empty(64, np.int64)
     npairs = np.int64(0)
-    # plane entries (reused per plane: a face at most once)
-    pxlo = np.empty(m, np.float64)
-    pxhi = np.empty(m, np.float64)
-    pylo = np.empty(m, np.float64)
-    pyhi = np.empty(m, np.float64)
-    pgrp = np.zeros(m, np.int64)
-    pface = np.empty(m, np.int64)
-    ids = np.arange(m)
-    pu = np.empty(m, np.int64)
-    pw = np.empty(m, np.int64)
-    cert = np.empty(m, np.int64)
-    all2 = np.full(m, 2, np.int64)
-    stamp = np.full(len(V), -1, np.int64)
-    d1 = np.empty(len(V), np.int64)
-    d2 = np.empty(len(V), np.int64)
+    # the workspaces per plane and per slab hold one entry per face of the fullest plane or slab
+    # (a face at most once in each), not one per face of the mesh
+    mp = np.int64(1)
+    for k in range(nlev):
+        mp = max(mp, cnt_p[k + 1] - cnt_p[k])
+    ms = np.int64(1)
+    for k in range(nslab):
+        ms = max(ms, cnt_s[k + 1] - cnt_s[k])
+    # plane entries (reused per plane).  Their xy boxes are columns of one array, as the slabs'
+    # are columns of box, and entries are numbered in int32 as the slabs' faces are: the sweeps
+    # get one signature
+    pbox = np.empty((mp, 4), np.float64)
+    pxlo = pbox[:, 0]
+    pxhi = pbox[:, 1]
+    pylo = pbox[:, 2]
+    pyhi = pbox[:, 3]
+    pgrp = np.zeros(mp, np.int8)
+    pface = np.empty(mp, np.int64)
+    ids = np.arange(mp).astype(np.int32)
+    pu = np.empty(mp, np.int64)
+    pw = np.empty(mp, np.int64)
+    cert = np.empty(mp, np.int32)
+    all2 = np.full(mp, 2, np.int8)
+    # per vertex: levels, vertex and face numbers in int32
+    stamp = np.full(len(V), -1, np.int32)
+    d1 = np.empty(len(V), np.int32)
+    d2 = np.empty(len(V), np.int32)
     pemb = np.zeros(nlev, np.int64)
-    keys = np.empty(2 * m + 2, np.int64)
-    head = np.empty(len(V), np.int64)
-    hstamp = np.full(len(V), -1, np.int64)
-    nxt = np.empty(m + 1, np.int64)
+    keys = np.empty(2 * ms + 2, np.int64)
+    head = np.empty(len(V), np.int32)
+    hstamp = np.full(len(V), -1, np.int32)
+    nxt = np.empty(ms + 1, np.int64)
     for k in range(nlev):
         # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
         # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
@@ -1517,7 +1529,10 @@ def _pairs(V, F, canon, budget, method, stop=0):
     ``stop > 0``: only until that many pairs are found (see :func:`any_intersecting`)."""
     if not V.flags.writeable:  # one compiled signature: writable C arrays
         V = V.copy()
-    Fc = canon[F]
+    if F.flags.writeable and F.flags.c_contiguous and bool((canon == np.arange(len(canon))).all()):
+        Fc = F  # no two vertices share coordinates (as after the volume mesher's repair): no copy
+    else:
+        Fc = canon[F]
     ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
     ok = 0

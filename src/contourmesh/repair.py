@@ -120,22 +120,25 @@ def _half_edges_by_vertex(F, nv, which):
     vertex: ``which`` 0 their start, 1 their end, 2 their lower vertex.  Returns ``(start, items)``,
     bucket ``v`` being ``items[start[v]:start[v + 1]]`` in increasing order (a counting sort)."""
     n = 3 * F.shape[0]
-    key = np.empty(n, np.int64)
-    for h in range(n):
-        a = F[h // 3, h % 3]
-        b = F[h // 3, (h % 3 + 1) % 3]
-        key[h] = a if which == 0 else b if which == 1 else min(a, b)
     start = np.zeros(nv + 1, np.int64)
     for h in range(n):
-        start[key[h] + 1] += 1
+        start[_bucket_key(F, h, which) + 1] += 1
     for v in range(nv):
         start[v + 1] += start[v]
     fill = start[:nv].copy()
-    items = np.empty(n, np.int64)
-    for h in range(n):
-        items[fill[key[h]]] = h
-        fill[key[h]] += 1
+    items = np.empty(n, np.int32)  # (half-edge numbers: a mesh of 700 M faces would not fit in memory anyway)
+    for h in range(n):  # (the keys made again: no array of them per half-edge)
+        key = _bucket_key(F, h, which)
+        items[fill[key]] = h
+        fill[key] += 1
     return start, items
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bucket_key(F, h, which):
+    a = F[h // 3, h % 3]
+    b = F[h // 3, (h % 3 + 1) % 3]
+    return a if which == 0 else b if which == 1 else min(a, b)
 
 
 @njit(cache=True, nogil=True)
@@ -145,8 +148,8 @@ def _edge_multiplicity(F, nv):
     counted per bucket in a scratch array indexed by the upper one)."""
     m = F.shape[0]
     start, items = _half_edges_by_vertex(F, nv, np.int64(2))
-    out = np.empty((m, 3), np.int64)
-    cnt = np.zeros(nv, np.int64)
+    out = np.empty((m, 3), np.int32)  # (counts of faces: int32 holds them)
+    cnt = np.zeros(nv, np.int32)
     for v in range(nv):
         for t in range(start[v], start[v + 1]):
             h = items[t]
@@ -189,18 +192,26 @@ def _fan_components(twin):
                     parent[ry] = rx
                 else:
                     parent[rx] = ry
-    lab = np.empty(n, np.int64)
-    first = np.empty(n, np.int64)
+    # every link points at the lower of two roots, and path halving at an ancestor: parent[x] <= x,
+    # and a fan's root is its lowest corner.  One pass up the corners gives each its root (its
+    # parent's is final by then); a second numbers the roots and turns parent into the labels in
+    # place (a corner's root, below it, is numbered by then): no arrays per corner besides parent
     count = 0
     for x in range(n):
-        r = find(x)
-        if r == x:
-            lab[x] = count
-            first[count] = x
+        parent[x] = parent[parent[x]]
+        if parent[x] == x:
             count += 1
+    first = np.empty(count, np.int64)
+    c = 0
+    for x in range(n):
+        r = parent[x]
+        if r == x:
+            parent[x] = c
+            first[c] = x
+            c += 1
         else:
-            lab[x] = lab[r]
-    return count, lab, first[:count]
+            parent[x] = parent[r]
+    return count, parent, first
 
 
 def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
@@ -217,9 +228,9 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     m = len(F)
     if m == 0:
         return V, F
-    side = np.zeros(m, dtype=np.int64) if side is None else np.asarray(side, dtype=np.int64)
     V = np.asarray(V, dtype=np.float64)
     if four_face:
+        side = np.zeros(m, dtype=np.int64) if side is None else np.asarray(side, dtype=np.int64)
         V, F, side = _split_four_face_edges(V, F, side, nudge)
     m = len(F)
     nv = len(V) + 1
@@ -256,9 +267,13 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     in_moved[moved] = True
     corners = np.flatnonzero(in_moved[lab])
     centroids = V[F[corners // 3]].mean(axis=1)
-    counts = np.bincount(lab[corners], minlength=ncomp).astype(np.float64)
-    target = np.stack([np.bincount(lab[corners], weights=centroids[:, d], minlength=ncomp) for d in range(3)], axis=1)
-    target = target[moved] / counts[moved][:, None]
+    # sums per moved fan only (numbered in the order of moved, which is sorted): the same sums, in
+    # the same order, as over all fans, without arrays over all of them
+    at = np.searchsorted(moved, lab[corners])
+    del lab, in_moved
+    counts = np.bincount(at, minlength=len(moved)).astype(np.float64)
+    target = np.stack([np.bincount(at, weights=centroids[:, d], minlength=len(moved)) for d in range(3)], axis=1)
+    target = target / counts[:, None]
     vid = fan_to_new[moved]
     d = target - V2[vid]
     nrm = np.linalg.norm(d, axis=1)

@@ -70,6 +70,7 @@ Conventions (stated once)
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -161,17 +162,71 @@ def _mlp_of_pixels(pix: np.ndarray) -> np.ndarray | None:
     return None if poly is None else poly.astype(np.float64)
 
 
-class _Slice:
-    """The components of one slice with their contours and polygons (physical xy)."""
+class _RecentLabels:
+    """The label images of the last few slices used (:attr:`_Slice.labels`); the others are
+    dropped and made again from their masks when next asked for.  The joins go up the stack, each
+    using two neighbouring slices (a bridged join's sections and waypoints the same two), so a few
+    images are enough; every slice's image kept to the end was a second copy of the volume (a
+    byte a voxel)."""
 
-    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center):
+    def __init__(self, size: int = 4):
+        self.size = size
+        self.held: list = []  # most recent last
+        self.remade = 0  # label images made again (for the tests and benchmarks)
+
+    def hold(self, s) -> None:
+        held = self.held
+        if held and held[-1] is s:
+            return
+        if s in held:
+            held.remove(s)
+        held.append(s)
+        if len(held) > self.size:
+            held.pop(0)._labels = None
+
+
+class _HoleMasks(Sequence):
+    """The holes of one component as pixel sets: a sequence of bool masks over the component's
+    box (``hole_masks[c][1]`` of a :class:`_Slice`).  Each is kept cropped to the hole's own box
+    and made whole when read: on large slices with many small holes a whole box per hole came to
+    more than all the slice's contours."""
+
+    __slots__ = ("shape", "parts")
+
+    def __init__(self, shape, masks):
+        self.shape = tuple(shape)
+        self.parts = []
+        for m in masks:
+            ys, xs = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+            y0, x0 = int(ys[0]), int(xs[0])
+            self.parts.append((y0, x0, m[y0: ys[-1] + 1, x0: xs[-1] + 1].copy()))
+
+    def __len__(self) -> int:
+        return len(self.parts)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(len(self))[i]]
+        y0, x0, part = self.parts[i]
+        m = np.zeros(self.shape, dtype=bool)
+        m[y0: y0 + part.shape[0], x0: x0 + part.shape[1]] = part
+        return m
+
+
+class _Slice:
+    """The components of one slice with their contours and polygons (physical xy).
+
+    ``recent``: a :class:`_RecentLabels` that decides how long the slice keeps its label image
+    (``None``: for the slice's lifetime)."""
+
+    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None):
         from scipy import ndimage
 
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
         labels, self.n, self.objects = slice_labels(mask2d)
-        # every slice's labels are kept until the joins are made: the smallest dtype that holds them
-        small = np.uint8 if self.n < 2**8 else np.uint16 if self.n < 2**16 else None
-        self.labels = labels.astype(small) if small is not None else labels
+        # the labels in the smallest dtype that holds them
+        self._mask, self._recent = mask2d, recent
+        self._labels = self._small(labels)
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
@@ -184,7 +239,7 @@ class _Slice:
         for c in range(self.n):
             sl = self.objects[c]
             y0, x0 = sl[0].start, sl[1].start
-            comp = self.labels[sl] == c + 1
+            comp = self._labels[sl] == c + 1
             cont, area2 = _crack_contours(comp)
             outer_i = [i for i in range(len(cont)) if area2[i] > 0]
             if len(outer_i) != 1:  # pragma: no cover - a 4-component has one outer boundary
@@ -206,7 +261,7 @@ class _Slice:
                     hmasks.append(hm)
             # order hole masks like the crack holes: match by a pixel left of each hole contour
             hmasks = self._match_holes(crack_h, hmasks, off)
-            self.hole_masks.append((sl, hmasks))
+            self.hole_masks.append((sl, _HoleMasks(comp.shape, hmasks)))
             self.crack_outer.append(to_xy_corner(crack_o))
             self.crack_holes.append([to_xy_corner(h) for h in crack_h])
             self.crack_outer_c.append(crack_o)
@@ -216,6 +271,24 @@ class _Slice:
                 self._polygon(h, hm, polygon, to_xy_corner, to_xy_center, off, hole=True)
                 for h, hm in zip(crack_h, hmasks)
             ])
+        if recent is not None:
+            recent.hold(self)
+
+    def _small(self, labels):
+        small = np.uint8 if self.n < 2**8 else np.uint16 if self.n < 2**16 else None
+        return labels.astype(small) if small is not None else labels
+
+    @property
+    def labels(self) -> np.ndarray:
+        """The slice's component labels (0 background, ``c + 1`` component ``c``), as
+        ``slice_labels`` makes them from the mask: made again where :class:`_RecentLabels`
+        dropped them."""
+        if self._labels is None:
+            self._labels = self._small(slice_labels(self._mask)[0])
+            self._recent.remade += 1
+        if self._recent is not None:
+            self._recent.hold(self)
+        return self._labels
 
     @staticmethod
     def _match_holes(crack_h, hmasks, off):
@@ -545,17 +618,26 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 
     to_xy_center, to_xy_corner = grid_to_xy(ox, oy, dx, dy)
 
-    # pass 1: contours and polygons of every slice
+    # pass 1: contours and polygons of every slice, made as pass 2 reaches the slice; only the
+    # label images of the last few slices used are kept (_RecentLabels)
     slices = [None] * nz
     occupied = [k for k in range(nz) if mask[k].any()]
-    for k in tqdm(occupied, desc="slices", disable=not progress, leave=False):
-        slices[k] = _Slice(mask[k], polygon, to_xy_corner, to_xy_center)
+    recent = _RecentLabels()
+    bar = tqdm(total=len(occupied), desc="slices", disable=not progress, leave=False)
+
+    def load(k):
+        if slices[k] is None and k in occupied_set:
+            slices[k] = _Slice(mask[k], polygon, to_xy_corner, to_xy_center, recent)
+            bar.update()
+
+    occupied_set = set(occupied)
 
     # pass 2: which components join, and how
     has_above, has_below = set(), set()
     crack_only = set()  # components whose rings are their crack contours (they take part in exact joins)
     joins = []  # (k, kind, data)
     for k in range(nz - 1):
+        load(k), load(k + 1)
         A, B = slices[k], slices[k + 1]
         if A is None or B is None:
             continue
@@ -582,6 +664,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                 joins.append((k, "exact", (sorted(ga), sorted(gb))))
                 crack_only.update((k, a) for a in ga)
                 crack_only.update((k + 1, b) for b in gb)
+    for k in occupied:  # (a single slice)
+        load(k)
+    bar.close()
 
     refine_info = {}
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
@@ -911,7 +996,8 @@ class _Unit:
         make(M, ring)
         u = cls()
         u.key = key
-        u.V, u.F, u.S, u.N = M.result()
+        u.V, F, u.S, u.N = M.result()
+        u.F = F.astype(np.int32) if len(u.V) < 2**31 else F  # (local numbers: kept across rebuilds)
         u.rings = spans
         u.replaced = M.band_fallbacks
         u.pixel_caps = M.pixel_caps
@@ -924,7 +1010,13 @@ def _number_units(units, tags):
     where it is first used, a unit's own vertices where the unit makes them.  Returns ``(V, F, S,
     N, T)``: vertices, faces, side per face, neck vertices, and per face the tag of its unit."""
     ring_ids = {}
-    Vb, Fb, Sb, Nb, Tb = [], [], [], [], []
+    Vb, Nb = [], []  # (the vertices as views of the units' arrays: one copy, at the end)
+    # the faces, sides and tags written into arrays of their final size (no list of per-unit copies)
+    nf = sum(len(u.F) for u in units)
+    F = np.empty((nf, 3), dtype=np.int64)
+    S = np.empty(nf, dtype=np.int8)
+    T = np.empty(nf, dtype=np.int64)
+    at = 0
     n = 0
     for u, t in zip(units, tags):
         nl = len(u.V)
@@ -953,16 +1045,15 @@ def _number_units(units, tags):
                 Vb.append(u.V[pos:])
                 n += nl - pos
         if len(u.F):
-            Fb.append(g[u.F])
-            Sb.append(u.S)
-            Tb.append(np.full(len(u.F), t, dtype=np.int64))
+            end = at + len(u.F)
+            F[at:end] = g[u.F]
+            S[at:end] = u.S
+            T[at:end] = t
+            at = end
         if len(u.N):
             Nb.append(g[u.N])
     V = np.concatenate(Vb) if Vb else np.zeros((0, 3))
-    F = np.concatenate(Fb) if Fb else np.zeros((0, 3), dtype=np.int64)
-    S = np.concatenate(Sb) if Sb else np.zeros(0, dtype=np.int8)
     N = np.concatenate(Nb) if Nb else np.zeros(0, dtype=np.int64)
-    T = np.concatenate(Tb) if Tb else np.zeros(0, dtype=np.int64)
     return V, F, S, N, T
 
 
