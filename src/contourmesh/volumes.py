@@ -38,7 +38,9 @@ Conventions (stated once)
   used.  Opt-in (``_DENSE_STEP``), the polygons of components in such joins get a vertex every
   pixel along their edges (where the point lies in the slice's band), so that the least-area
   band's rungs stay local; their band joins keep the faces made between the polygons' own
-  points.  Every other group (overlaps that close a loop: a handle forms) is joined
+  points.  With ``_DENSE_RETRY_STEP`` set, only the components of the joins that fail are
+  densified so (a vertex every pixel, then every half pixel), and those joins tried again before
+  they become exact.  Every other group (overlaps that close a loop: a handle forms) is joined
   *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
   slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
   mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
@@ -575,9 +577,12 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
     # with _DENSE_STEP set, the rings of branching joins get a vertex at least every pixel (see _densify_branching)
     # (band2: a vertex every half pixel, as its refined polygons have twice the vertices)
+    dense_step = px / (2.0 if refine == "band2" else 1.0)
     dense_rings = 0 if polygons is not None or _DENSE_STEP is None else \
-        _densify_branching(mask, slices, joins, crack_only, (ox, oy, dx, dy),
-                           _DENSE_STEP * px / (2.0 if refine == "band2" else 1.0))
+        _densify_branching(mask, slices, joins, crack_only, (ox, oy, dx, dy), _DENSE_STEP * dense_step)
+    # without it, the components of the branching joins that fail (would become exact) are densified
+    # and the bridged joins built again (see _retry_dense); not on the contours route
+    retry_dense = polygons is None and _DENSE_STEP is None and _DENSE_RETRY_STEP is not None
     end_cap = getattr(polygons, "end_cap", None)
     if smooth_ends is not None:
         smooth_ends.attach(slices, zs, joins)
@@ -597,9 +602,19 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     tube_cache: dict = {}  # the necks' tube tests, kept across rebuilds (see repair._tube_crosses)
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
+        joins0, crack0 = list(joins), set(crack_only)  # before this build's bridged joins
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
                                has_above, has_below, bridge_cache, band_guard=getattr(polygons, "band_guard", None),
                                polygon=polygon)
+        if retry_dense:  # (also after a crossing fallback: its crack rings can make neighbours fail)
+            built, bridge_cache, n_dense = _retry_dense(
+                built, bridge_cache, joins, joins0, crack_only, crack0, mask, slices,
+                (ox, oy, dx, dy), _DENSE_RETRY_STEP * dense_step,
+                lambda cache: _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
+                                             has_above, has_below, cache, polygon=polygon))
+            if n_dense and unit_cache:
+                unit_cache.clear()  # (a unit's key does not hold its rings' points)
+            dense_rings += n_dense
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
@@ -1040,6 +1055,68 @@ def _densify(ring: np.ndarray, step: float, most: int = _DENSE_MAX) -> tuple[np.
     return r[i] + (q / k[i])[:, None] * d[i], q > 0
 
 
+#: Where the joins are left as they are (``_DENSE_STEP`` None), the components of the branching
+#: joins that fail (they would become exact) get a vertex every this many pixels along their
+#: polygons' edges and those joins are tried again (:func:`_retry_dense`), then every half of it
+#: for the joins that still fail; None: no retry.
+_DENSE_RETRY_STEP = None
+#: The retry's steps, as fractions of ``_DENSE_RETRY_STEP``: each for the joins the previous left failed.
+_DENSE_RETRY_STAGES = (1.0, 0.5)
+
+
+def _retry_dense(built, cache, joins, joins0, crack_only, crack0, mask, slices, grid, step, build):
+    """Where bridged joins failed in a build (``joins`` now has exact joins where ``joins0``, the
+    joins before that build, has branching ones), densify the polygons of their components
+    (:func:`_densify_components`, every ``step`` times each of ``_DENSE_RETRY_STAGES``) and build
+    the bridged joins again from ``joins0`` (``build(cache)``).  A stage is kept where it leaves
+    fewer exact joins than the one before, and the next stage densifies the components of the
+    joins that still fail; a stage that does not help is undone (polygons, joins and crack rings)
+    and ends the retry.  Returns ``(built, cache, rings densified)``.
+
+    A join fails mostly where a polygon's long straight edges meet small components (single
+    pixels left by noise on a nearly horizontal face): the least-area band fans the edges' ends
+    across them and folds, and the exact join that replaces it turns its components into crack
+    rings, against which the neighbouring joins fan and fail in turn.  Densifying every
+    branching join's polygons removes those chains too, but changes every branching join of
+    every mesh (``_DENSE_STEP``); this touches only the failed ones."""
+    n = 0
+    for stage in _DENSE_RETRY_STAGES:
+        failed = set()
+        for (k, kind0, data0), (_, kind, _d) in zip(joins0, joins):
+            if kind0 == "bridge" and kind == "exact":
+                failed.update((k, a) for a in data0[0])
+                failed.update((k + 1, b) for b in data0[1])
+        failed -= crack0
+        if not failed:
+            break
+        exact1 = sum(kind == "exact" for _, kind, _d in joins)
+        before = (list(joins), set(crack_only))
+        saved = {(k, c): (slices[k].outer[c], list(slices[k].holes[c]),
+                          {key: v for key, v in slices[k].dense.items() if key[0] == c}) for k, c in failed}
+        got = _densify_components(mask, slices, failed, grid, stage * step)
+        if got == 0:
+            break
+        joins[:] = joins0
+        crack_only.clear()
+        crack_only.update(crack0)
+        cache2 = {}
+        built2 = build(cache2)
+        if sum(kind == "exact" for _, kind, _d in joins) < exact1:
+            built, cache, n = built2, cache2, n + got
+            continue
+        for (k, c), (outer, holes, dense) in saved.items():  # no better: back to the previous build
+            sl = slices[k]
+            sl.outer[c], sl.holes[c] = outer, holes
+            for key in [key for key in sl.dense if key[0] == c]:
+                del sl.dense[key]
+            sl.dense.update(dense)
+        joins[:] = before[0]
+        crack_only.clear()
+        crack_only.update(before[1])
+        break
+    return built, cache, n
+
+
 def _densify_branching(mask, slices, joins, crack_only, grid, step) -> int:
     """Every polygon (outer and holes) of a component that takes part in a branching join (a
     ``"bridge"`` join: a fork, a merge, a hole that opens or closes, a loop) gets a vertex at least
@@ -1055,16 +1132,23 @@ def _densify_branching(mask, slices, joins, crack_only, grid, step) -> int:
     exact join that follows) lies almost flat and has several times the area of the surface.  With
     a vertex every pixel the band's rungs stay local.  The component's other joins use the same
     rings (the added vertices lie on its edges)."""
-    from .refine import _off_band
-
-    ox, oy, dx, dy = grid
     comps = set()
     for k, kind, data in joins:
         if kind == "bridge":
             comps.update((k, a) for a in data[0])
             comps.update((k + 1, b) for b in data[1])
+    return _densify_components(mask, slices, comps - crack_only, grid, step)
+
+
+def _densify_components(mask, slices, comps, grid, step) -> int:
+    """The polygons of the components ``comps`` (``(slice, component)`` pairs) with a vertex at
+    least every ``step`` where the point lies in the slice's band (see :func:`_densify_branching`);
+    returns how many rings changed."""
+    from .refine import _off_band
+
+    ox, oy, dx, dy = grid
     n = 0
-    for k, c in sorted(comps - crack_only):
+    for k, c in sorted(comps):
         s = slices[k]
         rings = [s.outer[c]] + list(s.holes[c])
         dense = []
@@ -1077,7 +1161,11 @@ def _densify_branching(mask, slices, joins, crack_only, grid, step) -> int:
                 d = d[keep]
             if len(d) != len(r):
                 n += 1
-                s.dense[c, len(dense) - 1] = added[keep]
+                mark = added[keep]
+                prev = s.dense.get((c, len(dense) - 1))
+                if prev is not None:  # densified before: its added points stay added ones
+                    mark[~mark] = prev
+                s.dense[c, len(dense) - 1] = mark
             dense.append(d)
         s.outer[c], s.holes[c] = dense[0], dense[1:]
     return n
