@@ -67,6 +67,7 @@ def test_rebuilds_check_the_same_pairs_and_reuse_bridged_joins(monkeypatch):
     # (on undensified rings: with a vertex every pixel on the branching joins' polygons this
     # volume's faces no longer cross, and there is no rebuild to test)
     monkeypatch.setattr(volumes, "_DENSE_STEP", None)
+    monkeypatch.setattr(volumes, "_DENSE_RETRY_STEP", None)
     v = _blob(BLOB_WITH_FALLBACK)
     checks = []
     whole = volumes._crossing_pairs
@@ -109,6 +110,7 @@ def test_rebuilds_reuse_unchanged_joins_and_caps_and_make_the_same_mesh(monkeypa
     # (on undensified rings: with a vertex every pixel on the branching joins' polygons this
     # volume's faces no longer cross, and there is no rebuild to test)
     monkeypatch.setattr(volumes, "_DENSE_STEP", None)
+    monkeypatch.setattr(volumes, "_DENSE_RETRY_STEP", None)
     v = _blob(BLOB_WITH_FALLBACK)
     made = []
     record = volumes._Unit.record.__func__

@@ -17,12 +17,13 @@ def _blobs(seed=8, shape=(5, 14, 14)):
 
 
 def _sparse_rings(monkeypatch):
-    """The branching joins' polygons as they are, not densified (``volumes._DENSE_STEP``, the
-    default): on :func:`_blobs` some bridged joins then fail and take sections (densified, all are
-    bridged)."""
+    """The branching joins' polygons as they are, not densified (``volumes._DENSE_STEP``) and not
+    densified where a join fails either (``volumes._DENSE_RETRY_STEP``): on :func:`_blobs` some
+    bridged joins then fail and take sections (densified, all are bridged)."""
     from contourmesh import volumes
 
     monkeypatch.setattr(volumes, "_DENSE_STEP", None)
+    monkeypatch.setattr(volumes, "_DENSE_RETRY_STEP", None)
 
 
 def _dense_rings(monkeypatch):
@@ -46,6 +47,96 @@ def test_densified_rings_bridge_every_join_of_the_blobs(monkeypatch, kw):
     sparse = volume_to_mesh(vol, **kw)
     assert sparse.meta["exact_joins"] > 0 and sparse.meta["dense_rings"] == 0
     assert m.area < sparse.area
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(refine="band")])
+def test_failed_joins_are_tried_again_on_densified_rings(monkeypatch, kw):
+    """By default (``_DENSE_STEP`` None) only the components of the branching joins that fail are
+    densified, and the bridged joins are built again: the blobs' exact joins are bridged, with
+    fewer rings changed than densifying every branching join; a retry that leaves as many exact
+    joins is dropped (the first build's mesh, bit for bit)."""
+    from contourmesh import volumes
+
+    vol = _blobs()
+    _sparse_rings(monkeypatch)
+    sparse = volume_to_mesh(vol, **kw)
+    _dense_rings(monkeypatch)
+    dense = volume_to_mesh(vol, **kw)
+    monkeypatch.setattr(volumes, "_DENSE_STEP", None)
+    monkeypatch.setattr(volumes, "_DENSE_RETRY_STEP", 1.0)
+    monkeypatch.setattr(volumes, "_DENSE_RETRY_REFINED", True)
+    densified = []
+    densify = volumes._densify_components
+
+    def record(mask, slices, comps, grid, step, total=False):
+        densified.append(set(comps))
+        return densify(mask, slices, comps, grid, step, total)
+
+    monkeypatch.setattr(volumes, "_densify_components", record)
+    m = volume_to_mesh(vol, **kw)
+    check_embedded(vol, m)
+    assert sparse.meta["exact_joins"] > 0 and sparse.meta["dense_rings"] == 0
+    assert m.meta["exact_joins"] < sparse.meta["exact_joins"] and m.meta["crack_rings"] < sparse.meta["crack_rings"]
+    assert 0 < m.meta["dense_rings"] < dense.meta["dense_rings"]
+    assert 1 <= len(densified) <= len(volumes._DENSE_RETRY_STAGES) and m.area < sparse.area
+    # the retry keeps the bridged joins whose rings and neighbourhood did not change: the same mesh
+    # as building every bridged join again
+    build = volumes._build_bridges
+    monkeypatch.setattr(volumes, "_build_bridges", lambda *a, **k: build(*a[:9], {}, **k))
+    again = volume_to_mesh(vol, **kw)
+    np.testing.assert_array_equal(again.vertices, m.vertices)
+    np.testing.assert_array_equal(again.faces, m.faces)
+    monkeypatch.setattr(volumes, "_build_bridges", build)
+    # a retry that gains nothing (here: the rings are left as they are) is dropped
+    monkeypatch.setattr(volumes, "_densify_components", lambda *a, **k: 1)
+    same = volume_to_mesh(vol, **kw)
+    assert same.meta["dense_rings"] == 0 and same.meta["exact_joins"] == sparse.meta["exact_joins"]
+    np.testing.assert_array_equal(same.vertices, sparse.vertices)
+    np.testing.assert_array_equal(same.faces, sparse.faces)
+
+
+def test_the_retry_on_densified_rings_is_the_default_without_the_band_refinement():
+    """By default a failed join is tried again on densified rings in the paper mode, not with the
+    band refinement (``_DENSE_RETRY_REFINED``: there it uncovers the refined polygons' bias)."""
+    from contourmesh import volumes
+
+    assert volumes._DENSE_STEP is None and volumes._DENSE_RETRY_STEP is not None
+    vol = _blobs()
+    paper = volume_to_mesh(vol)
+    assert paper.meta["dense_rings"] > 0
+    band = volume_to_mesh(vol, refine="band")
+    assert band.meta["dense_rings"] == 0 and band.meta["exact_joins"] > 0
+
+
+def test_a_ring_densified_twice_keeps_its_own_points_and_marks_the_rest_added():
+    """The retry's second stage densifies rings densified by the first: the points the polygon had
+    before either stays the only ones not marked as added (its band joins are made between them)."""
+    from contourmesh import volumes
+    from contourmesh.volumes import _densify_components, _Slice, grid_to_xy
+
+    m2 = np.zeros((20, 24), bool)
+    m2[3:15, 2:21] = True
+    m2[3:6, 2:9] = False
+    mask = np.stack([m2, m2])
+    to_center, to_corner = grid_to_xy(0.0, 0.0, 1.0, 1.0)
+    s = _Slice(m2, "mlp", to_corner, to_center)
+    own = s.outer[0].copy()
+    grid = (0.0, 0.0, 1.0, 1.0)
+    for step in (1.0, 0.5):
+        assert _densify_components(mask, [s, None], {(0, 0)}, grid, step, total=True) == 1
+        ring, added = s.outer[0], s.dense[0, -1]
+        assert len(added) == len(ring) > len(own)
+        np.testing.assert_array_equal(ring[~added], own)
+    assert (~added).sum() == len(own) and len(s.outer[0]) > 1.5 * len(own)
+    # the retry's rings keep to about _DENSE_MAX points over its stages
+    from contourmesh.volumes import _densify
+
+    r, a = _densify(own, 0.05, most=len(own) + 8, total=True)
+    assert len(own) < len(r) <= len(own) + 8 and a.sum() == len(r) - len(own)
+    np.testing.assert_array_equal(r[~a], own)
+    r, a = _densify(own, 0.05, most=len(own), total=True)
+    assert len(r) == len(own) and not a.any()
+    assert volumes._DENSE_RETRY_STAGES[0] > volumes._DENSE_RETRY_STAGES[-1]
 
 
 def test_mid_section_lies_between_the_two_regions():

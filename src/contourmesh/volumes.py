@@ -38,7 +38,10 @@ Conventions (stated once)
   used.  Opt-in (``_DENSE_STEP``), the polygons of components in such joins get a vertex every
   pixel along their edges (where the point lies in the slice's band), so that the least-area
   band's rungs stay local; their band joins keep the faces made between the polygons' own
-  points.  Every other group (overlaps that close a loop: a handle forms) is joined
+  points.  Without it (the default), only the components of the joins that fail are densified
+  so (a vertex every pixel, then every half pixel) and those joins tried again before they
+  become exact (``_DENSE_RETRY_STEP``; not with the band refinement unless
+  ``_DENSE_RETRY_REFINED``).  Every other group (overlaps that close a loop: a handle forms) is joined
   *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
   slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
   mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
@@ -230,6 +233,7 @@ class _Slice:
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
+        self.dense_gen = {}  # component -> how many times its polygons were densified (see _retry_dense)
         self.hole_masks = []  # per component: list of (slices, mask) for each hole (local bbox)
         self.crack_outer = []  # raw crack contours (physical xy), used by exact joins
         self.crack_holes = []
@@ -674,9 +678,13 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
     # with _DENSE_STEP set, the rings of branching joins get a vertex at least every pixel (see _densify_branching)
     # (band2: a vertex every half pixel, as its refined polygons have twice the vertices)
+    dense_step = px / (2.0 if refine == "band2" else 1.0)
     dense_rings = 0 if polygons is not None or _DENSE_STEP is None else \
-        _densify_branching(mask, slices, joins, crack_only, (ox, oy, dx, dy),
-                           _DENSE_STEP * px / (2.0 if refine == "band2" else 1.0))
+        _densify_branching(mask, slices, joins, crack_only, (ox, oy, dx, dy), _DENSE_STEP * dense_step)
+    # without it, the components of the branching joins that fail (would become exact) are densified
+    # and the bridged joins built again (see _retry_dense); not on the contours route
+    retry_dense = polygons is None and _DENSE_STEP is None and _DENSE_RETRY_STEP is not None and \
+        (refine is None or _DENSE_RETRY_REFINED)
     end_cap = getattr(polygons, "end_cap", None)
     if smooth_ends is not None:
         smooth_ends.attach(slices, zs, joins)
@@ -696,9 +704,20 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     tube_cache: dict = {}  # the necks' tube tests, kept across rebuilds (see repair._tube_crosses)
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
     for attempt in range(_MAX_REBUILDS + 1):
+        joins0, crack0 = list(joins), set(crack_only)  # before this build's bridged joins
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
                                has_above, has_below, bridge_cache, band_guard=getattr(polygons, "band_guard", None),
                                polygon=polygon)
+        if retry_dense:  # (also after a crossing fallback: its crack rings can make neighbours fail)
+            built, bridge_cache, n_dense = _retry_dense(
+                built, bridge_cache, joins, joins0, crack_only, crack0, mask, slices,
+                (ox, oy, dx, dy), _DENSE_RETRY_STEP * dense_step,
+                lambda cache, sections: _build_bridges(joins, slices, zs, crack_only, triangulation, caps,
+                                                       (ox, oy, dx, dy), has_above, has_below, cache,
+                                                       polygon=polygon, sections=sections))
+            if n_dense and unit_cache:
+                unit_cache.clear()  # (a unit's key does not hold its rings' points)
+            dense_rings += n_dense
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
@@ -1131,18 +1150,98 @@ _DENSE_STEP = None
 _DENSE_MAX = 1024
 
 
-def _densify(ring: np.ndarray, step: float, most: int = _DENSE_MAX) -> tuple[np.ndarray, np.ndarray]:
+def _densify(ring: np.ndarray, step: float, most: int = _DENSE_MAX, total: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """``ring`` with points added on its edges (evenly, the corners kept) so that none is longer
-    than ``step``, or than the ring's length over ``most`` where that is longer; and which of its
-    points are added ones."""
+    than ``step``, or than the ring's length over ``most`` where that is longer (``total``: over
+    ``most`` less the points it has, so that it ends with about ``most`` points at most); and which
+    of its points are added ones."""
     r = np.asarray(ring, dtype=np.float64)
     d = np.roll(r, -1, axis=0) - r
     length = np.hypot(d[:, 0], d[:, 1])
-    step = max(step, float(length.sum()) / most)
+    if total and len(r) >= most - 1:
+        return r, np.zeros(len(r), dtype=bool)
+    step = max(step, float(length.sum()) / (most - len(r) if total else most))
     k = np.maximum(np.ceil(length / step - 1e-9).astype(np.int64), 1)
     i = np.repeat(np.arange(len(r)), k)
     q = np.arange(len(i)) - np.repeat(np.cumsum(k) - k, k)
     return r[i] + (q / k[i])[:, None] * d[i], q > 0
+
+
+#: Where the joins are left as they are (``_DENSE_STEP`` None), the components of the branching
+#: joins that fail (they would become exact) get a vertex every this many pixels along their
+#: polygons' edges and those joins are tried again (:func:`_retry_dense`), then every half of it
+#: for the joins that still fail; None: no retry.
+_DENSE_RETRY_STEP = 1.0
+#: ... also with the band refinement (``refine="band"``, ``"band2"``).  Off: there the staircases
+#: it removes hid the refined polygons' negative bias (band mode over the 42 rotated real
+#: placements at 128 across: largest |e| 2.98 % -> 3.45 %, armadillo rotated #2; see docs/DESIGN.md).
+_DENSE_RETRY_REFINED = False
+#: The retry's steps, as fractions of ``_DENSE_RETRY_STEP``: each for the joins the previous left
+#: failed.  Only the first tries intermediate sections again (the second, on lobster, cost about
+#: 4 CPU-s more for 3 joins).
+_DENSE_RETRY_STAGES = (1.0, 0.5)
+
+
+def _retry_dense(built, cache, joins, joins0, crack_only, crack0, mask, slices, grid, step, build):
+    """Where bridged joins failed in a build (``joins`` now has exact joins where ``joins0``, the
+    joins before that build, has branching ones), densify the polygons of their components
+    (:func:`_densify_components`, every ``step`` times each of ``_DENSE_RETRY_STAGES``) and build
+    the bridged joins again from ``joins0`` (``build(cache, sections)``: intermediate sections
+    tried in the first stage only).  A stage is kept where it leaves
+    fewer exact joins than the one before, and the next stage densifies the components of the
+    joins that still fail; a stage that does not help is undone (polygons, joins and crack rings)
+    and ends the retry.  Returns ``(built, cache, rings densified)``.
+
+    A join fails mostly where a polygon's long straight edges meet small components (single
+    pixels left by noise on a nearly horizontal face): the least-area band fans the edges' ends
+    across them and folds, and the exact join that replaces it turns its components into crack
+    rings, against which the neighbouring joins fan and fail in turn.  Densifying every
+    branching join's polygons removes those chains too, but changes every branching join of
+    every mesh (``_DENSE_STEP``); this touches only the failed ones."""
+    n = 0
+    for i, stage in enumerate(_DENSE_RETRY_STAGES):
+        failed = set()
+        for (k, kind0, data0), (_, kind, _d) in zip(joins0, joins):
+            if kind0 == "bridge" and kind == "exact":
+                failed.update((k, a) for a in data0[0])
+                failed.update((k + 1, b) for b in data0[1])
+        failed -= crack0
+        if not failed:
+            break
+        exact1 = sum(kind == "exact" for _, kind, _d in joins)
+        before = (list(joins), set(crack_only))
+        saved = {(k, c): (slices[k].outer[c], list(slices[k].holes[c]),
+                          {key: v for key, v in slices[k].dense.items() if key[0] == c},
+                          slices[k].dense_gen.get(c)) for k, c in failed}
+        # (at most about _DENSE_MAX points per ring over the stages: a band of such a ring against a
+        # long crack ring stays within the optimal band's limits)
+        got = _densify_components(mask, slices, failed, grid, stage * step, total=True)
+        if got == 0:
+            break
+        joins[:] = joins0
+        crack_only.clear()
+        crack_only.update(crack0)
+        # the joins whose rings and neighbourhood kept their points keep what they built (the
+        # densified components near a join are part of its key in the cache)
+        built2 = build(cache, i == 0)
+        if sum(kind == "exact" for _, kind, _d in joins) < exact1:
+            built, n = built2, n + got
+            continue
+        for (k, c), (outer, holes, dense, gen) in saved.items():  # no better: back to the previous build
+            sl = slices[k]
+            sl.outer[c], sl.holes[c] = outer, holes
+            for key in [key for key in sl.dense if key[0] == c]:
+                del sl.dense[key]
+            sl.dense.update(dense)
+            if gen is None:
+                sl.dense_gen.pop(c, None)
+            else:
+                sl.dense_gen[c] = gen
+        joins[:] = before[0]
+        crack_only.clear()
+        crack_only.update(before[1])
+        break
+    return built, cache, n
 
 
 def _densify_branching(mask, slices, joins, crack_only, grid, step) -> int:
@@ -1160,21 +1259,29 @@ def _densify_branching(mask, slices, joins, crack_only, grid, step) -> int:
     exact join that follows) lies almost flat and has several times the area of the surface.  With
     a vertex every pixel the band's rungs stay local.  The component's other joins use the same
     rings (the added vertices lie on its edges)."""
-    from .refine import _off_band
-
-    ox, oy, dx, dy = grid
     comps = set()
     for k, kind, data in joins:
         if kind == "bridge":
             comps.update((k, a) for a in data[0])
             comps.update((k + 1, b) for b in data[1])
+    return _densify_components(mask, slices, comps - crack_only, grid, step)
+
+
+def _densify_components(mask, slices, comps, grid, step, total=False) -> int:
+    """The polygons of the components ``comps`` (``(slice, component)`` pairs) with a vertex at
+    least every ``step`` where the point lies in the slice's band (see :func:`_densify_branching`;
+    ``total``: at most about ``_DENSE_MAX`` points per ring, see :func:`_densify`); returns how
+    many rings changed."""
+    from .refine import _off_band
+
+    ox, oy, dx, dy = grid
     n = 0
-    for k, c in sorted(comps - crack_only):
+    for k, c in sorted(comps):
         s = slices[k]
         rings = [s.outer[c]] + list(s.holes[c])
         dense = []
         for r in rings:
-            d, added = _densify(r, step)
+            d, added = _densify(r, step, total=total)
             if added.any():
                 idx = np.c_[(d[added, 0] - ox) / dx, (d[added, 1] - oy) / dy]
                 keep = ~added
@@ -1182,9 +1289,14 @@ def _densify_branching(mask, slices, joins, crack_only, grid, step) -> int:
                 d = d[keep]
             if len(d) != len(r):
                 n += 1
-                s.dense[c, len(dense) - 1] = added[keep]
+                mark = added[keep]
+                prev = s.dense.get((c, len(dense) - 1))
+                if prev is not None:  # densified before: its added points stay added ones
+                    mark[~mark] = prev
+                s.dense[c, len(dense) - 1] = mark
             dense.append(d)
         s.outer[c], s.holes[c] = dense[0], dense[1:]
+        s.dense_gen[c] = s.dense_gen.get(c, 0) + 1
     return n
 
 
@@ -1626,7 +1738,7 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
 
 
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
-                   band_guard=None, polygon="mlp"):
+                   band_guard=None, polygon="mlp", sections=True):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
     (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``.
 
@@ -1640,7 +1752,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     A join that cannot be bridged whole gets intermediate sections in its gap
     (:func:`contourmesh.sections.sectioned_join`, with ``polygon`` the sections' polygon method)
-    before it becomes exact; not on the contours route (``band_guard`` given)."""
+    before it becomes exact; not on the contours route (``band_guard`` given), nor with
+    ``sections=False``."""
     from collections import defaultdict
 
     from .bands.bridges import keyhole_uncovered, segments_cross
@@ -1674,6 +1787,16 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         got = _near_sig(kk, key)
         near_seen[key] = (len(by_slice[kk]), got)
         return got
+
+    def near_dense(kk, comps):
+        """The densified components of slice kk near ``comps`` (as :func:`near_sig`), each with how
+        many times it was densified: a join's bridges and band read only those rings."""
+        gen = slices[kk].dense_gen
+        if not gen:
+            return ()
+        key = (kk, tuple(comps))
+        _near_sig(kk, key)
+        return tuple(sorted((c, gen[c]) for c in near[key] if c in gen))
 
     def _near_sig(kk, key):
         comps = key[1]
@@ -1769,7 +1892,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             else:
                 dbl = () if plan is None else \
                     tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
-                key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl)
+                key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl, near_dense(k, ga), near_dense(k + 1, gb))
                 # a keyhole lies in its component's plane, inside the component: a flat cap there (the
                 # component ends on the other side) would meet the fold along it
                 if plan is not None and caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
@@ -1787,14 +1910,14 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
                     if got is not None and area > limit:
                         cache[key] = None
-                    elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None:
+                    elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None and sections:
                         # more area than the exact join: a fold is likely; intermediate sections may
                         # follow the surface with less, and the join takes whichever has less area
                         alt = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
                                              triangulation, polygon, grid)
                         if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
                             cache[key] = alt
-                    if cache[key] is None and band_guard is None:
+                    if cache[key] is None and band_guard is None and sections:
                         # split the gap by intermediate sections; held to the same area limit
                         got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
                                              polygon, grid)
