@@ -95,13 +95,17 @@ def test_failed_joins_are_tried_again_on_densified_rings(monkeypatch, kw):
     np.testing.assert_array_equal(same.faces, sparse.faces)
 
 
-def test_the_retry_on_densified_rings_is_the_default_without_the_band_refinement():
-    """By default a failed join is tried again on densified rings in the paper mode, not with the
-    band refinement (``_DENSE_RETRY_REFINED``: there it uncovers the refined polygons' bias)."""
+def test_the_retry_on_densified_rings_is_a_setting_and_skips_the_band_refinement(monkeypatch):
+    """By default nothing is densified (the retry costs the paper mode time on noisy volumes); with
+    ``_DENSE_RETRY_STEP`` set a failed join is tried again on densified rings in the paper mode, and
+    still not with the band refinement (``_DENSE_RETRY_REFINED``: there it uncovers the refined
+    polygons' bias)."""
     from contourmesh import volumes
 
-    assert volumes._DENSE_STEP is None and volumes._DENSE_RETRY_STEP is not None
+    assert volumes._DENSE_STEP is None and volumes._DENSE_RETRY_STEP is None
     vol = _blobs()
+    assert volume_to_mesh(vol).meta["dense_rings"] == 0
+    monkeypatch.setattr(volumes, "_DENSE_RETRY_STEP", 1.0)
     paper = volume_to_mesh(vol)
     assert paper.meta["dense_rings"] > 0
     band = volume_to_mesh(vol, refine="band")
