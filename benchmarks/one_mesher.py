@@ -50,10 +50,10 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=11)
     ap.add_argument("--n", type=int, default=150, help="volumes of each kind")
     args = ap.parse_args(argv)
-    from test_fastpath import _twisting_bars
     from tqdm.auto import tqdm
 
     from contourmesh import volumes
+    from test_fastpath import _twisting_bars
 
     rng = np.random.default_rng(args.seed)
     n = fast = diff = 0

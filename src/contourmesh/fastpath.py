@@ -62,8 +62,8 @@ import numpy as np
 from numba import njit
 
 from ._kernels import KERNEL_OPTIONS, internal_kernel
-from .bands import arclength as _arclength
 from .bands import _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
+from .bands import arclength as _arclength
 from .bands import wiederhold as _wiederhold
 from .bands.caps import cap_faces
 from .bands.wiederhold import INITIAL_EDGE_WINDOW

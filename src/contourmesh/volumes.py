@@ -80,8 +80,7 @@ from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_ban
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
 from .bands.optimal import triangulate_band_optimal
-from .fastpath import (_fast_volume_to_mesh, _one_band, pixels_mlp, redo_self_crossing_bands, slice_components,
-                       slice_labels)
+from .fastpath import _fast_volume_to_mesh, _one_band, pixels_mlp, redo_self_crossing_bands, slice_components, slice_labels
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
 from .measure import triangle_areas
