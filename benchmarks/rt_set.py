@@ -34,6 +34,15 @@ def rt_path() -> Path:
     return data / "contours" / "dicompyler-core" / "rtss.dcm"
 
 
+def existing_rt_path() -> Path | None:
+    """:func:`rt_path` where the file is there, else None after saying so on stderr."""
+    path = rt_path()
+    if not path.exists():
+        print(f"the shared RT structure set is not here: {path} (set CONTOURMESH_DATA)", file=sys.stderr)
+        return None
+    return path
+
+
 def one_pass(path, options) -> tuple[float, dict]:
     import contourmesh
     from contourmesh.io.contours import list_rois, read_contours
@@ -106,9 +115,8 @@ def main(argv=None) -> int:
     ap.add_argument("--profile", type=int, default=0, metavar="N", help="one profiled pass: the top N functions")
     ap.add_argument("--json", action="store_true", help="print the figures as JSON only")
     args = ap.parse_args(argv)
-    path = rt_path()
-    if not path.exists():
-        print(f"the shared RT structure set is not here: {path} (set CONTOURMESH_DATA)", file=sys.stderr)
+    path = existing_rt_path()
+    if path is None:
         return 2
     options = {k: getattr(args, k) for k in ("caps", "bands") if getattr(args, k) is not None}
     res = measure(path, options, args.repeat, args.profile)

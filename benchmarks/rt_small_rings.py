@@ -26,7 +26,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from rt_set import at_revision, rt_path  # noqa: E402 (the RT set's path and the revision runner)
+from rt_set import at_revision, existing_rt_path  # noqa: E402 (the RT set's path and the revision runner)
 
 
 def measure(path, repeat: int) -> dict:
@@ -76,9 +76,8 @@ def main(argv=None) -> int:
     ap.add_argument("--before", default=None, metavar="REV", help="also measure this git revision's code")
     ap.add_argument("--json", action="store_true", help="print the figures as JSON only")
     args = ap.parse_args(argv)
-    path = rt_path()
-    if not path.exists():
-        print(f"the shared RT structure set is not here: {path} (set CONTOURMESH_DATA)", file=sys.stderr)
+    path = existing_rt_path()
+    if path is None:
         return 2
     before = _before(args.before, args.repeat) if args.before else None
     res = measure(path, args.repeat)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 from ._optional import require
@@ -67,3 +68,17 @@ _DEFLATE_MAX_RATIO = 1032
 def _wrap(path: Path, kind: str, exc: BaseException) -> ValueError:
     msg = str(exc) or type(exc).__name__
     return ValueError(f"{str(path)!r}: expected a readable {kind} file; the file is truncated or corrupt ({msg})")
+
+
+@contextlib.contextmanager
+def _reading(path: Path, kind: str, errors=(Exception,)):
+    """Within it, an error of ``errors`` raised while reading ``path`` as a ``kind`` file becomes the
+    ValueError of :func:`_wrap`; a ValueError that already names the file passes unchanged."""
+    try:
+        yield
+    except ValueError as exc:
+        if str(path) in str(exc):
+            raise
+        raise _wrap(path, kind, exc) from None
+    except errors as exc:
+        raise _wrap(path, kind, exc) from None

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import VOLUME_SUFFIXES, _bad, _require, _suffix, _wrap, check_file
+from .._files import VOLUME_SUFFIXES, _bad, _reading, _require, _suffix, _wrap, check_file
 from ..errors import warn_external
 from ..meshes import atomic_write
 from ..stacks import Z_TOLERANCE, stack_from_rings
@@ -228,7 +228,7 @@ def _read_rtstruct(path: Path, roi) -> ContourStack:
 def _read_contours_npz(path: Path, roi) -> ContourStack:
     import zipfile
 
-    try:
+    with _reading(path, "contour .npz", (zipfile.BadZipFile, EOFError, OSError, KeyError, zlib.error)):
         with np.load(path, allow_pickle=False) as npz:
             files = set(npz.files)
             keys = sorted(k[: -len("__points_mm")] for k in files if k.endswith("__points_mm"))
@@ -241,12 +241,6 @@ def _read_contours_npz(path: Path, roi) -> ContourStack:
             num, key, _ = _select_roi(path, rois, roi)
             pts = np.asarray(npz[key + "__points_mm"], dtype=np.float64)
             off = np.asarray(npz[key + "__offsets"], dtype=np.int64)
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise _wrap(path, "contour .npz", exc) from None
-    except (zipfile.BadZipFile, EOFError, OSError, KeyError, zlib.error) as exc:
-        raise _wrap(path, "contour .npz", exc) from None
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise _bad(path, f"{key}__points_mm of shape (N, 3)", f"shape {pts.shape}")
     if off.ndim != 1 or len(off) < 1 or off[0] != 0 or off[-1] != len(pts) or np.any(np.diff(off) < 0):

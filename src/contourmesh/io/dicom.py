@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import _bad, _check_size, _require, _wrap
+from .._files import _bad, _check_size, _reading, _require, _wrap
 from ..errors import warn_external
 
 __all__ = ["dicom_modality", "read_dicom", "DICOM_SPACE"]
@@ -386,17 +386,11 @@ def _frame_geometry(path: Path, ds, frames: int):
 def _pixels(pydicom, path: Path, frames: int, rows: int, cols: int):
     """``(dataset, pixels [frames, rows, cols])`` of one file (integer, float or double-float pixel
     data); ValueError naming the file when they are missing, unreadable or of another shape."""
-    try:
+    with _reading(path, "DICOM"):
         ds = pydicom.dcmread(str(path))
         if "PixelData" not in ds and "FloatPixelData" not in ds and "DoubleFloatPixelData" not in ds:
             raise _bad(path, "pixel data", "none (truncated file?)")
         arr = np.asarray(ds.pixel_array)
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise _wrap(path, "DICOM", exc) from None
-    except Exception as exc:
-        raise _wrap(path, "DICOM", exc) from None
     if frames == 1 and arr.shape == (rows, cols):
         arr = arr[None]
     if arr.shape != (frames, rows, cols):
@@ -412,14 +406,8 @@ def _read_multiframe_image(pydicom, path: Path, ds, *, max_voxels: int):
     if int(ds.get("SamplesPerPixel", 1) or 1) != 1:
         raise _bad(path, "a greyscale image (SamplesPerPixel 1)", f"SamplesPerPixel {ds.SamplesPerPixel}")
     _check_size(path, (frames, rows, cols), 1, max_voxels)
-    try:
+    with _reading(path, "DICOM"):
         per, positions, row, col, normal, ps, hint = _frame_geometry(path, ds, frames)
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise _wrap(path, "DICOM", exc) from None
-    except Exception as exc:
-        raise _wrap(path, "DICOM", exc) from None
     names = [f"frame {i + 1}" for i in range(frames)]
     order, slots, dz, z = _grid(path, positions, row, col, normal, float(ps.min()), names=names, step_hint=hint)
     full, arr = _pixels(pydicom, path, frames, rows, cols)
@@ -470,7 +458,7 @@ def _pick_segment(path: Path, segments: dict, label) -> int:
 def _read_seg(pydicom, path: Path, ds, *, max_voxels: int, label):
     """A DICOM-SEG as a label volume: each segment's voxels hold its SegmentNumber.  With ``label``
     (a number or a SegmentLabel), only that segment is read."""
-    try:
+    with _reading(path, "DICOM-SEG"):  # a value pydicom cannot parse: struct.error, OSError, ...
         segments = _segments(path, ds)
         frames = int(ds.get("NumberOfFrames", 1) or 1)
         rows, cols = int(ds.Rows), int(ds.Columns)
@@ -488,12 +476,6 @@ def _read_seg(pydicom, path: Path, ds, *, max_voxels: int, label):
             seg_of[i] = int(ident[0].ReferencedSegmentNumber)
             if seg_of[i] not in segments:
                 raise _bad(path, f"frames of the segments {sorted(segments)}", f"frame {i + 1} of segment {seg_of[i]}")
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise _wrap(path, "DICOM-SEG", exc) from None
-    except Exception as exc:  # a value pydicom cannot parse: struct.error, OSError, ...
-        raise _wrap(path, "DICOM-SEG", exc) from None
     wanted = None if label is None else _pick_segment(path, segments, label)
     names = [f"frame {i + 1} (segment {seg_of[i]})" for i in range(frames)]
     order, slots, dz, z = _grid(path, positions, row, col, normal, float(ps.min()), names=names, fill=True, step_hint=hint)

@@ -48,6 +48,7 @@ from .._files import (
     VOLUME_SUFFIXES,
     _bad,
     _check_size,
+    _reading,
     _require,
     _suffix,
     _wrap,
@@ -269,7 +270,7 @@ def _read_npz(path: Path, *, max_voxels: int, prefer: str):
         magic = fh.read(4)
     if magic[:2] != b"PK":
         raise _bad(path, "a NumPy .npz (zip) archive", f"the bytes {magic!r}")
-    try:
+    with _reading(path, ".npz", (zipfile.BadZipFile, EOFError, OSError, KeyError, zlib.error)):
         with np.load(path, allow_pickle=False) as npz:
             names = list(npz.files)
             order = ("mask", "volume") if prefer == "mask" else ("volume", "mask")
@@ -295,12 +296,6 @@ def _read_npz(path: Path, *, max_voxels: int, prefer: str):
             if "origin" in names:
                 origin = tuple(np.asarray(npz["origin"], dtype=np.float64).reshape(-1))
             order_zyx = _axes_order(path, npz["axes"]) if "axes" in names else None
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise _wrap(path, ".npz", exc) from None
-    except (zipfile.BadZipFile, EOFError, OSError, KeyError, zlib.error) as exc:
-        raise _wrap(path, ".npz", exc) from None
     if order_zyx is not None:
         if vol.ndim != 3:
             raise _bad(path, "a 3D array to go with the 'axes' note", f"shape {vol.shape}")
@@ -312,7 +307,7 @@ def _read_npz(path: Path, *, max_voxels: int, prefer: str):
 
 def _read_tiff(path: Path, *, max_voxels: int, prefer: str):
     tifffile = _require("tifffile")
-    try:
+    with _reading(path, "TIFF"):  # tifffile raises its own TiffFileError, struct.error, ...
         with tifffile.TiffFile(path) as tif:
             size = path.stat().st_size
             pages = list(tif.pages)
@@ -336,12 +331,6 @@ def _read_tiff(path: Path, *, max_voxels: int, prefer: str):
                     dx, dy = xr[1] / xr[0], yr[1] / yr[0]
             if "spacing" in ij:
                 dz = float(ij["spacing"])
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise _wrap(path, "TIFF", exc) from None
-    except Exception as exc:  # tifffile raises its own TiffFileError, struct.error, ...
-        raise _wrap(path, "TIFF", exc) from None
     if vol.ndim == 4 or (vol.ndim == 3 and vol.shape[-1] in (3, 4) and series.axes.endswith("S")):
         raise _bad(path, "a greyscale or label image stack", f"colour samples (axes {series.axes!r})")
     return vol, (dz, dy, dx), (0.0, 0.0, 0.0)
@@ -349,7 +338,7 @@ def _read_tiff(path: Path, *, max_voxels: int, prefer: str):
 
 def _read_nifti(path: Path, *, max_voxels: int, prefer: str):
     nib = _require("nibabel")
-    try:
+    with _reading(path, "NIfTI"):  # nibabel's ImageFileError, EOFError, zlib errors, ...
         img = nib.load(str(path))
         shape = img.shape
         if len(shape) == 4 and shape[3] == 1:
@@ -360,12 +349,6 @@ def _read_nifti(path: Path, *, max_voxels: int, prefer: str):
         data = np.asanyarray(img.dataobj).reshape(shape)
         zooms = [float(z) for z in img.header.get_zooms()[:3]]
         affine = np.asarray(img.affine, dtype=np.float64)
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise _wrap(path, "NIfTI", exc) from None
-    except Exception as exc:  # nibabel's ImageFileError, EOFError, zlib errors, ...
-        raise _wrap(path, "NIfTI", exc) from None
     # the affine maps voxel indices (i, j, k) to RAS world coordinates: its columns are the axes'
     # directions times the voxel sizes
     direction = affine[:3, :3] / np.where(np.array(zooms) > 0, zooms, 1.0)[None, :]
@@ -517,7 +500,7 @@ _INR_TYPES = {("unsigned fixed", 8): "u1", ("unsigned fixed", 16): "u2", ("unsig
 def _read_inr(path: Path, *, max_voxels: int, prefer: str):
     """INRIMAGE-4: a text header in blocks of 256 bytes ending with ``##}``, then raw voxels, x fastest."""
     opener = gzip.open if path.name.lower().endswith(".gz") else open
-    try:
+    with _reading(path, "INRIMAGE", (EOFError, OSError, zlib.error)):
         with opener(path, "rb") as fh:
             head = fh.read(256)
             if not head.startswith(b"#INRIMAGE-4#{"):
@@ -549,12 +532,6 @@ def _read_inr(path: Path, *, max_voxels: int, prefer: str):
                 raise _bad(path, f"{nbytes} bytes of voxels ({nx} x {ny} x {nz} x {dtype.itemsize})",
                            f"{path.stat().st_size - len(head)} bytes (truncated file)")
             data = fh.read(nbytes)
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise _wrap(path, "INRIMAGE", exc) from None
-    except (EOFError, OSError, zlib.error) as exc:
-        raise _wrap(path, "INRIMAGE", exc) from None
     if len(data) < nbytes:
         raise _bad(path, f"{nbytes} bytes of voxels ({nx} x {ny} x {nz})", f"{len(data)} bytes (truncated file)")
     vol = np.frombuffer(data, dtype=dtype, count=n).reshape(nz, ny, nx).copy()
