@@ -124,3 +124,31 @@ def test_triangle_areas_of_large_meshes_equal_numpys_bit_for_bit():
     f[7, 2] = 500
     with pytest.raises(IndexError):
         measure.triangle_areas(v, f)
+
+
+def test_axis_wall_fraction_matches_the_normals_rule():
+    """The compiled wall share against the rule written with numpy (normals along +-x or +-y within
+    1e-12 of their length), on a noisy volume's mesh (walls, slopes and caps) and on random
+    triangles with exact walls mixed in; bad face arrays are refused by name."""
+    import contourmesh
+    from contourmesh.measure import axis_wall_fraction
+
+    def rule(v, f):
+        n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        size = np.linalg.norm(n, axis=1)
+        tol = 1e-12 * size
+        wall = (np.abs(n[:, 2]) <= tol) & ((np.abs(n[:, 0]) <= tol) | (np.abs(n[:, 1]) <= tol)) & (size > 0)
+        return size[wall].sum() / size.sum()
+
+    rng = np.random.default_rng(5)
+    m = contourmesh.mesh(np.pad(rng.random((12, 16, 15)) < 0.4, 1))
+    got = axis_wall_fraction(m.vertices, m.faces)
+    assert 0.05 < got < 0.95 and got == pytest.approx(rule(m.vertices, m.faces), rel=1e-12)
+    v = rng.integers(0, 3, (300, 3)).astype(float)  # many faces in x = c or y = c planes, some degenerate
+    f = rng.integers(0, 300, (400, 3))
+    assert axis_wall_fraction(v, f) == pytest.approx(rule(v, f), rel=1e-12)
+    assert 0 < rule(v, f) < 1
+    with pytest.raises(ValueError, match="outside"):
+        axis_wall_fraction(v, f + 300)
+    with pytest.raises(ValueError, match=r"\(m, 3\) faces"):
+        axis_wall_fraction(v, f[:, :2])
