@@ -241,3 +241,37 @@ def test_twisted_tubes(shifts, crossing):
     n = _same(V, F, expect_slabs=True)
     assert (n > 0) == crossing, n
     _same(V * 0.3 + 0.1, F, expect_slabs=True)  # off the dyadic grid: no certificate, pair by pair
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_two_thread_split_gives_the_one_call_pairs(seed, monkeypatch):
+    """With ``CONTOURMESH_THREADS=2`` a large sectioned mesh is tested in two halves of height
+    levels on two threads (issue 16): the pairs must be those of one call, in the same order,
+    including pairs of faces through the middle level (found by both halves) and faces lying
+    flat in it; a mesh that does not split in two keeps the one call."""
+    import contourmesh.intersect as I
+
+    rng = np.random.default_rng(seed)
+    nl, per = 14, 300
+    V = np.c_[rng.random((nl * per, 2)) * 40, np.repeat(np.arange(nl), per).astype(float)]
+    F = []
+    for k in range(nl - 1):  # thin faces between consecutive levels, some spanning two gaps
+        a = rng.integers(0, per, 250) + k * per
+        b = a + rng.integers(1, 4, 250)
+        b = np.where(b < (k + 1) * per, b, a - 1)
+        up = min(k + 1 + int(rng.integers(1, 3)), nl - 1) if k % 3 == 0 else k + 1
+        c = rng.integers(0, per, 250) + up * per
+        F.append(np.c_[a, b, c])
+    flat = rng.integers(0, per, (40, 3)) + (nl // 2) * per  # flat faces in the middle level
+    F = np.concatenate(F + [flat[(flat[:, 0] != flat[:, 1]) & (flat[:, 1] != flat[:, 2]) & (flat[:, 0] != flat[:, 2])]])
+    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
+    one = intersecting_pairs(V, F)
+    assert len(one) > 50
+    calls = []
+    real = I._split_slab_pairs
+    monkeypatch.setattr(I, "_split_slab_pairs", lambda *a: calls.append(real(*a)) or calls[-1])
+    monkeypatch.setattr(I, "_SPLIT_FACES", 100)
+    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
+    two = intersecting_pairs(V, F)
+    assert len(calls) == 1 and calls[0] is not None and np.array_equal(two, one)
+    assert np.array_equal(intersecting_pairs(V, F, method="grid"), one)
