@@ -160,6 +160,95 @@ def test_split_pinches_equals_the_add_at_form():
     assert moved > 100
 
 
+
+def test_split_pinches_moves_many_points_as_the_loop_did():
+    # several pinched positions at once (bridge ends: a ring visits each of them twice), points
+    # used by no face, and points that cannot move (their faces' centroid on them): the moves of
+    # all the points at once equal the loop's, and so does giving up
+    from contourmesh.bands import _split_pinches, triangulate_band
+
+    rng = np.random.default_rng(31)
+    seen = {"moved": 0, "none": 0}
+    for trial in range(300):
+        n = int(rng.integers(8, 60))
+        t = (np.arange(n) + rng.uniform(0, 0.5, n)) * (2 * np.pi / n)
+        lo = np.c_[np.cos(t), np.sin(t), np.zeros(n)] * rng.uniform(5, 50)
+        hi = np.c_[np.cos(t + 0.3), np.sin(t + 0.3), np.ones(n)] * rng.uniform(5, 50)
+        if trial % 2:
+            lo[:, :2], hi[:, :2] = np.round(lo[:, :2] * 16) / 16, np.round(hi[:, :2] * 16) / 16
+        k = int(rng.integers(1, 4))
+        for _ in range(k):  # the lower ring visits a few positions twice (never at neighbours)
+            a, b = rng.choice(n, 2, replace=False)
+            if (a - b) % n not in (1, n - 1) and not (lo[[(b - 1) % n, (b + 1) % n], :2] == lo[a, :2]).all(axis=1).any():
+                lo[b] = lo[a]
+        if (lo[:, :2] == np.roll(lo[:, :2], -1, axis=0)).all(axis=1).any():
+            continue
+        f = triangulate_band(lo, hi, "arclength")
+        P = np.concatenate([lo, hi])
+        if trial % 7 == 0:  # a point no face uses
+            P = np.concatenate([P, P[:1]])
+        if trial % 11 == 0:  # a flat band: a point on its faces' centroid cannot move
+            P[:, 2] = 0.0
+        canon = np.unique(P, axis=0, return_inverse=True)[1].reshape(-1)
+        dup = np.flatnonzero(np.bincount(canon)[canon] > 1)
+        got, want = _split_pinches(P, f, dup), _split_pinches_add_at(P, f, dup)
+        assert (got is None) == (want is None)
+        if want is None:
+            seen["none"] += 1
+        else:
+            assert np.array_equal(got, want)
+            seen["moved"] += 1
+    assert seen["moved"] > 100 and seen["none"] > 10, seen
+
+
+def test_round9_is_pythons_round():
+    # Python's round(v, 9) (the decimal rounding of the exact binary value, halves to even) on
+    # lengths, exact halves (v * 1e9 = k + 1/2 exactly: v = odd / 1024), values a rounding error
+    # away from a half, huge and tiny values, negative zero, infinities and NaN
+    rng = np.random.default_rng(41)
+    vals = [rng.uniform(0, 10, 3000), 10.0 ** rng.uniform(-12, 8, 3000), rng.integers(0, 2 ** 20, 2000) / 1024.0,
+            (rng.integers(0, 10 ** 9, 2000) + 0.5) / 1e9, rng.integers(0, 10 ** 6, 1000) / 1e3,
+            np.array([0.0, -0.0, 5e-10, -5e-10, 1.5e-9, 2.5e-9, 1e15, 2.0 ** 60, -3.7, np.inf, -np.inf, np.nan])]
+    x = np.concatenate(vals)
+    x = np.concatenate([x, np.nextafter(x, np.inf), np.nextafter(x, -np.inf)])
+    got = bridges._round9(x)
+    want = np.array([round(float(v), 9) for v in x])
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    ok = ~np.isnan(want)
+    assert np.array_equal(got[ok].view(np.uint64), want[ok].view(np.uint64))  # the same bits (signs of zero too)
+    # the shortcut decides most values and Python the rest (both paths are exercised)
+    with np.errstate(over="ignore", invalid="ignore"):
+        y = x[ok & np.isfinite(x)] * 1e9
+        near_half = np.abs(y - np.floor(y) - 0.5) <= np.abs(y) * 2.0 ** -50
+    assert near_half.sum() > 100 and (~near_half).sum() > 5000
+
+
+def test_sorted_candidates_equal_the_sorted_tuples():
+    # candidate bridges from several pairs of rings, with many equal lengths and tie-breaks (a grid)
+    # and lengths that differ below the rounding: the same list as sorting the tuples
+    rng = np.random.default_rng(43)
+    differ = 0
+    for trial in range(200):
+        parts = []
+        for _ in range(int(rng.integers(0, 6))):
+            m = int(rng.integers(1, 30))
+            i, j = sorted(rng.choice(8, 2, replace=False).tolist())
+            d = rng.integers(1, 6, m) / 2.0 if trial % 2 else rng.uniform(0, 5, m)
+            d = d + rng.choice([0.0, 1e-12, 3e-10], m)  # below, and about, the rounding
+            tie = rng.integers(0, 4, m) / 4.0 + rng.choice([0.0, 2e-10], m)
+            later = rng.random(m) < 0.3
+            parts.append((later, d, tie, np.full(m, i), rng.integers(0, 50, m), np.full(m, j), rng.integers(0, 50, m)))
+        got = bridges._sorted_candidates(parts)
+        want = bridges._sorted_candidates_reference(parts)
+        assert got == want
+        assert all(type(v) is type(w) for g, h in zip(got, want) for v, w in zip(g, h))
+        # the rounding decides: the unrounded lengths order some of the lists otherwise
+        raw = sorted((int(lt), dd, t, int(a_), int(a), int(b_), int(b)) for p in parts for lt, dd, t, a_, a, b_, b in zip(*p))
+        differ += [c[3:] for c in raw] != [c[3:] for c in want]
+    assert differ > 20, differ
+    assert bridges._sorted_candidates([]) == []
+
+
 def _random_faces(rng, m, nv):
     F = np.stack([rng.choice(nv, 3, replace=False) for _ in range(m)])
     return np.ascontiguousarray(F, dtype=np.int64)

@@ -209,15 +209,17 @@ def _split_pinches(P, f, dup):
     idx = f.T.reshape(-1)
     acc = np.stack([np.bincount(idx, weights=np.tile(cen[:, d], 3), minlength=len(P)) for d in range(3)], axis=1)
     deg = np.bincount(f.reshape(-1), minlength=len(P))
-    for i in dup:
-        if deg[i] == 0:
-            return None
-        d = acc[i] / deg[i] - P[i]
-        d[2] = 0.0  # within the ring's plane
-        n = float(np.hypot(d[0], d[1]))
-        if not n > 0:
-            return None
-        P[i] = P[i] + d * (1e-4 * ext / n)
+    # every point of dup at once (distinct points: each move reads only its own row), with the
+    # arithmetic the loop over them had, element by element (tests/test_compiled_repair.py)
+    dup = np.asarray(dup, dtype=np.int64)
+    if (deg[dup] == 0).any():
+        return None
+    d = acc[dup] / deg[dup][:, None] - P[dup]
+    d[:, 2] = 0.0  # within the ring's plane
+    n = np.hypot(d[:, 0], d[:, 1])
+    if not (n > 0).all():
+        return None
+    P[dup] = P[dup] + d * ((1e-4 * ext) / n)[:, None]
     canon = canonical_vertices(P)
     if (canon != np.arange(len(P))).any():  # two points still at one position
         return None

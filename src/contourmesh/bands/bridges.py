@@ -301,6 +301,52 @@ def _near_pairs(rings, k: int = 6):
     return sorted({(min(i, int(j)), max(i, int(j))) for i in range(n) for j in near[i]})
 
 
+def _round9(x) -> np.ndarray:
+    """``round(v, 9)`` (Python's: the decimal rounding of the exact value, half to even) of every
+    float ``v`` of ``x``, as an array.  ``rint(v * 1e9) / 1e9`` is that number wherever ``v * 1e9``
+    lies clearly off a half (its rounding error, at most ``|v| 1e9 2^-53``, cannot move it across
+    one) and below ``2^52``; the other values (halves, near-halves, huge or not finite) are
+    rounded by Python."""
+    x = np.asarray(x, dtype=np.float64).reshape(-1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        y = x * 1e9
+        safe = (np.abs(y - np.floor(y) - 0.5) > np.abs(y) * 2.0 ** -50) & (np.abs(y) < 2.0 ** 52)
+    out = np.rint(y) / 1e9
+    for t in np.flatnonzero(~safe).tolist():
+        out[t] = round(float(x[t]), 9)
+    return out
+
+
+def _sorted_candidates(parts) -> list:
+    """The candidate bridges of :func:`bridge_tree`, ``(not preferred, round(length, 9),
+    round(tie, 9), i, vi, j, vj)`` tuples of Python numbers, sorted: ``parts`` holds those fields
+    as arrays, per pair of rings.  The same list as making each tuple and sorting them
+    (:func:`_sorted_candidates_reference`): the lexicographic order of the same keys."""
+    if not parts:
+        return []
+    lt, d, tie, i, vi, j, vj = (np.concatenate([np.asarray(p[f]).reshape(-1) for p in parts]) for f in range(7))
+    lt = lt.astype(np.int64)
+    if np.isnan(d).any() or np.isnan(tie).any():  # (a NaN has no place in an order: as the tuples sort it)
+        return _sorted_candidates_reference(parts)
+    d, tie = _round9(d), _round9(tie)
+    i, vi, j, vj = (np.asarray(a, dtype=np.int64) for a in (i, vi, j, vj))
+    order = np.lexsort((vj, j, vi, i, tie, d, lt))
+    return list(zip(*(a[order].tolist() for a in (lt, d, tie, i, vi, j, vj))))
+
+
+def _sorted_candidates_reference(parts) -> list:
+    """:func:`_sorted_candidates` tuple by tuple (the reference of the tests)."""
+    cand = []
+    for later, d, tie, i, vi, j, vj in parts:
+        cand.extend((int(lt), round(dd, 9), round(t, 9), int(a_), int(a), int(b_), int(b))
+                    for lt, dd, t, a_, a, b_, b in zip(np.asarray(later).tolist(), np.asarray(d, dtype=np.float64).tolist(),
+                                                      np.asarray(tie, dtype=np.float64).tolist(), np.asarray(i).tolist(),
+                                                      np.asarray(vi).tolist(), np.asarray(j).tolist(),
+                                                      np.asarray(vj).tolist()))
+    cand.sort()
+    return cand
+
+
 def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None, waypoints=None,
                 step=1.0, prefer=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
@@ -350,7 +396,7 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         return []
     owners = owners or [(i, False) for i in range(n)]
     pairs = _near_pairs(rings)
-    cand = []
+    parts = []  # per pair of rings: (not preferred, length, tie-break, i, vi, j, vj) as arrays
     for i, j in pairs:
         (ci, hi), (cj, hj) = owners[i], owners[j]
         if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
@@ -359,12 +405,8 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         # preferred bridges between components first (``prefer`` asked of all the pairs at once)
         later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) if prefer is not None and ci != cj \
             else np.zeros(len(vi), dtype=bool)
-        # (as Python numbers first: the same values, without a numpy scalar per field)
-        cand.extend((int(lt), round(dd, 9), round(t, 9), i, a, j, b)
-                    for lt, dd, t, a, b in zip(later.tolist(), np.asarray(d, dtype=np.float64).tolist(),
-                                               np.asarray(tie, dtype=np.float64).tolist(),
-                                               np.asarray(vi).tolist(), np.asarray(vj).tolist()))
-    cand.sort()  # (not preferred, length, tie-break, ...): each kind shortest first
+        parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
+    cand = _sorted_candidates(parts)  # (not preferred, length, tie-break, ...): each kind shortest first
     parent = list(range(n))
 
     def find(x):
