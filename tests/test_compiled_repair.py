@@ -106,6 +106,25 @@ def test_candidate_pairs_equal_the_kd_tree_query():
     assert fell_back > 0 and agreed > 100, (fell_back, agreed)
 
 
+
+def test_tie_kernel_equals_numpy_on_long_rings():
+    # the tie-break of the candidate pairs (distance of a pair's midpoint from the centroid of both
+    # rings) on rings up to the size the compiled search takes, far from the origin and near it:
+    # the same bits as numpy's mean along the rows and hypot
+    rng = np.random.default_rng(19)
+    for trial in range(60):
+        ni = int(rng.integers(1, 20000 if trial % 10 == 0 else 400))
+        nj = int(rng.integers(1, 400))
+        scale, shift = 10.0 ** rng.uniform(-3, 3), rng.normal(size=2) * 10.0 ** rng.uniform(0, 4)
+        ri = rng.normal(size=(ni, 2)) * scale + shift
+        rj = rng.normal(size=(nj, 2)) * scale + shift
+        vi, vj = rng.integers(0, ni, 50), rng.integers(0, nj, 50)
+        centre = np.concatenate([ri, rj]).mean(axis=0)
+        want = np.hypot(*(0.5 * (ri[vi] + rj[vj]) - centre).T)
+        got = bridges._tie_kernel(ri, rj, vi, vj)
+        assert np.array_equal(got.view(np.uint64), want.view(np.uint64))
+
+
 def _split_pinches_add_at(P, f, dup):
     """bands._split_pinches as it was, with np.add.at (the reference)."""
     from contourmesh.intersect import canonical_vertices
@@ -247,6 +266,58 @@ def test_sorted_candidates_equal_the_sorted_tuples():
         differ += [c[3:] for c in raw] != [c[3:] for c in want]
     assert differ > 20, differ
     assert bridges._sorted_candidates([]) == []
+
+
+
+def _star(rng, c, r, k, grid):
+    t = np.sort(rng.uniform(0, 2 * np.pi, k))
+    pts = c + (r * rng.uniform(0.5, 1.0, k))[:, None] * np.c_[np.cos(t), np.sin(t)]
+    return np.round(pts * 2) / 2 if grid else pts
+
+
+def test_straight_bridges_kernel_equals_the_python_loop():
+    # rings of a few components (outer rings, and holes bridged through the material), candidates
+    # sorted as bridge_tree sorts them, the rings' edges and stray edges as obstacles, segments to
+    # avoid, and a keyhole test over a label image: the compiled loop takes the same bridges
+    from contourmesh.bands import bridges as B
+
+    rng = np.random.default_rng(47)
+    seen = {"whole": 0, "part": 0, "refused": 0}
+    for trial in range(300):
+        grid = trial % 2 == 0
+        nr = int(rng.integers(2, 7))
+        rings, owners = [], []
+        for r in range(nr):
+            hole = r > 0 and rng.random() < 0.4
+            comp = owners[int(rng.integers(0, r))][0] if hole else r
+            ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), int(rng.integers(3, 12)), grid)
+            if len(np.unique(ring, axis=0)) < 3:
+                ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)
+            rings.append(ring[::-1] if hole else ring)
+            owners.append((comp, hole))
+        parts = []
+        for i, j in B._near_pairs(rings):
+            (ci, hi), (cj, hj) = owners[i], owners[j]
+            if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
+                continue
+            vi, vj, d, tie = B._candidates(rings[i], rings[j], B.CANDIDATES)
+            parts.append((rng.random(len(vi)) < 0.3, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
+        cols = B._candidate_arrays(parts)
+        stray = rng.uniform(-8, 8, (int(rng.integers(0, 6)), 2))  # edges of other contours
+        oa = np.concatenate(rings + [stray])
+        ob = np.concatenate([np.roll(r, -1, axis=0) for r in rings] + [stray + rng.normal(0, 2, stray.shape)])
+        avoid = [(rng.uniform(-8, 8, 2), rng.uniform(-8, 8, 2)) for _ in range(int(rng.integers(0, 3)))]
+        allowed = None
+        if trial % 3:
+            lab = rng.integers(0, 3, (24, 24)).astype(np.uint8 if trial % 3 == 1 else np.int32)
+            allowed = B.keyhole_uncovered(lab, [int(rng.integers(0, 2))], (-8.0, -8.0, 0.7, 0.7))
+        got = B._straight_bridges(rings, np.stack(cols[3:], axis=1), owners, oa, ob, avoid, allowed)
+        want = B._straight_bridges_reference(rings, B._candidate_list(cols), owners, oa, ob, avoid, allowed)
+        assert got == want
+        assert all(type(v) is int for t in got for v in t)
+        seen["whole" if len(want) == nr - 1 else "part"] += 1
+        seen["refused"] += allowed is not None and len(want) < nr - 1
+    assert min(seen.values()) > 20, seen
 
 
 def _random_faces(rng, m, nv):
