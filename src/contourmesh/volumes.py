@@ -1721,17 +1721,23 @@ _BRIDGED_AREA_LIMIT = 1.5
 _SECTION_TRIAL = 1.0
 
 
-def _exact_area(slices, zs, k, ga, gb, pixel_area):
+def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     """The area of the voxel-exact join of a group (:func:`_exact_join`): crack contours' collars
-    half a gap high on each side, and the pixels each slice does not share with the other."""
+    half a gap high on each side, and the pixels each slice does not share with the other.
+    ``perimeters``: a dict that keeps each component's crack perimeter, ``(slice, component) ->
+    float``, across calls (crack rings do not change)."""
     A, B = slices[k], slices[k + 1]
     h = 0.5 * float(zs[k + 1] - zs[k])
+    perimeters = {} if perimeters is None else perimeters
 
-    def perimeter(rings):
-        return sum(float(np.hypot(*(np.roll(r, -1, axis=0) - r).T).sum()) for r in rings)
+    def perimeter(kk, c):
+        if (kk, c) not in perimeters:
+            S = slices[kk]
+            perimeters[kk, c] = sum(float(np.hypot(*(_next(r) - r).T).sum())
+                                    for r in [S.crack_outer[c]] + list(S.crack_holes[c]))
+        return perimeters[kk, c]
 
-    collars = sum(perimeter([A.crack_outer[a]] + list(A.crack_holes[a])) for a in ga) + \
-        sum(perimeter([B.crack_outer[b]] + list(B.crack_holes[b])) for b in gb)
+    collars = sum(perimeter(k, a) for a in ga) + sum(perimeter(k + 1, b) for b in gb)
     # the pixels of either side lie in the box of their components' boxes
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
@@ -1912,7 +1918,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     # (the same for every pass and build: crack rings and labels do not change)
                     exact_key = ("exact area", k, tuple(ga), tuple(gb))
                     if exact_key not in cache:
-                        cache[exact_key] = _exact_area(slices, zs, k, ga, gb, dx * dy)
+                        cache[exact_key] = _exact_area(slices, zs, k, ga, gb, dx * dy,
+                                                       cache.setdefault(("crack perimeters",), {}))
                     exact = cache[exact_key]
                     limit = _BRIDGED_AREA_LIMIT * exact
                     area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
