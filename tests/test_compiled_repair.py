@@ -106,6 +106,25 @@ def test_candidate_pairs_equal_the_kd_tree_query():
     assert fell_back > 0 and agreed > 100, (fell_back, agreed)
 
 
+
+def test_tie_kernel_equals_numpy_on_long_rings():
+    # the tie-break of the candidate pairs (distance of a pair's midpoint from the centroid of both
+    # rings) on rings up to the size the compiled search takes, far from the origin and near it:
+    # the same bits as numpy's mean along the rows and hypot
+    rng = np.random.default_rng(19)
+    for trial in range(60):
+        ni = int(rng.integers(1, 20000 if trial % 10 == 0 else 400))
+        nj = int(rng.integers(1, 400))
+        scale, shift = 10.0 ** rng.uniform(-3, 3), rng.normal(size=2) * 10.0 ** rng.uniform(0, 4)
+        ri = rng.normal(size=(ni, 2)) * scale + shift
+        rj = rng.normal(size=(nj, 2)) * scale + shift
+        vi, vj = rng.integers(0, ni, 50), rng.integers(0, nj, 50)
+        centre = np.concatenate([ri, rj]).mean(axis=0)
+        want = np.hypot(*(0.5 * (ri[vi] + rj[vj]) - centre).T)
+        got = bridges._tie_kernel(ri, rj, vi, vj)
+        assert np.array_equal(got.view(np.uint64), want.view(np.uint64))
+
+
 def _split_pinches_add_at(P, f, dup):
     """bands._split_pinches as it was, with np.add.at (the reference)."""
     from contourmesh.intersect import canonical_vertices
@@ -158,6 +177,149 @@ def test_split_pinches_equals_the_add_at_form():
             assert np.array_equal(got, want)
             moved += 1
     assert moved > 100
+
+
+
+def test_split_pinches_moves_many_points_as_the_loop_did():
+    # several pinched positions at once (bridge ends: a ring visits each of them twice), points
+    # used by no face, and points that cannot move (their faces' centroid on them): the moves of
+    # all the points at once equal the loop's, and so does giving up
+    from contourmesh.bands import _split_pinches, triangulate_band
+
+    rng = np.random.default_rng(31)
+    seen = {"moved": 0, "none": 0}
+    for trial in range(300):
+        n = int(rng.integers(8, 60))
+        t = (np.arange(n) + rng.uniform(0, 0.5, n)) * (2 * np.pi / n)
+        lo = np.c_[np.cos(t), np.sin(t), np.zeros(n)] * rng.uniform(5, 50)
+        hi = np.c_[np.cos(t + 0.3), np.sin(t + 0.3), np.ones(n)] * rng.uniform(5, 50)
+        if trial % 2:
+            lo[:, :2], hi[:, :2] = np.round(lo[:, :2] * 16) / 16, np.round(hi[:, :2] * 16) / 16
+        k = int(rng.integers(1, 4))
+        for _ in range(k):  # the lower ring visits a few positions twice (never at neighbours)
+            a, b = rng.choice(n, 2, replace=False)
+            if (a - b) % n not in (1, n - 1) and not (lo[[(b - 1) % n, (b + 1) % n], :2] == lo[a, :2]).all(axis=1).any():
+                lo[b] = lo[a]
+        if (lo[:, :2] == np.roll(lo[:, :2], -1, axis=0)).all(axis=1).any():
+            continue
+        f = triangulate_band(lo, hi, "arclength")
+        P = np.concatenate([lo, hi])
+        if trial % 7 == 0:  # a point no face uses
+            P = np.concatenate([P, P[:1]])
+        if trial % 11 == 0:  # a flat band: a point on its faces' centroid cannot move
+            P[:, 2] = 0.0
+        if trial % 5 == 0:  # the lower ring at z = -0.0 (a move keeps no sign of zero)
+            P[:, 2] = -P[:, 2]
+        canon = np.unique(P, axis=0, return_inverse=True)[1].reshape(-1)
+        dup = np.flatnonzero(np.bincount(canon)[canon] > 1)
+        got, want = _split_pinches(P, f, dup), _split_pinches_add_at(P, f, dup)
+        assert (got is None) == (want is None)
+        if want is None:
+            seen["none"] += 1
+        else:
+            assert np.array_equal(got.view(np.uint64), want.view(np.uint64))  # bit for bit (signs of zero too)
+            seen["moved"] += 1
+    assert seen["moved"] > 100 and seen["none"] > 10, seen
+
+
+def test_round9_is_pythons_round():
+    # Python's round(v, 9) (the decimal rounding of the exact binary value, halves to even) on
+    # lengths, exact halves (v * 1e9 = k + 1/2 exactly: v = odd / 1024), values a rounding error
+    # away from a half, huge and tiny values, negative zero, infinities and NaN
+    rng = np.random.default_rng(41)
+    vals = [rng.uniform(0, 10, 3000), 10.0 ** rng.uniform(-12, 8, 3000), rng.integers(0, 2 ** 20, 2000) / 1024.0,
+            (rng.integers(0, 10 ** 9, 2000) + 0.5) / 1e9, rng.integers(0, 10 ** 6, 1000) / 1e3,
+            np.array([0.0, -0.0, 5e-10, -5e-10, 1.5e-9, 2.5e-9, 1e15, 2.0 ** 60, -3.7, np.inf, -np.inf, np.nan])]
+    x = np.concatenate(vals)
+    x = np.concatenate([x, np.nextafter(x, np.inf), np.nextafter(x, -np.inf)])
+    got = bridges._round9(x)
+    want = np.array([round(float(v), 9) for v in x])
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    ok = ~np.isnan(want)
+    assert np.array_equal(got[ok].view(np.uint64), want[ok].view(np.uint64))  # the same bits (signs of zero too)
+    # the shortcut decides most values and Python the rest (both paths are exercised)
+    with np.errstate(over="ignore", invalid="ignore"):
+        y = x[ok & np.isfinite(x)] * 1e9
+        near_half = np.abs(y - np.floor(y) - 0.5) <= np.abs(y) * 2.0 ** -50
+    assert near_half.sum() > 100 and (~near_half).sum() > 5000
+
+
+def test_sorted_candidates_equal_the_sorted_tuples():
+    # candidate bridges from several pairs of rings, with many equal lengths and tie-breaks (a grid)
+    # and lengths that differ below the rounding: the same list as sorting the tuples
+    rng = np.random.default_rng(43)
+    differ = 0
+    for trial in range(200):
+        parts = []
+        for _ in range(int(rng.integers(0, 6))):
+            m = int(rng.integers(1, 30))
+            i, j = sorted(rng.choice(8, 2, replace=False).tolist())
+            d = rng.integers(1, 6, m) / 2.0 if trial % 2 else rng.uniform(0, 5, m)
+            d = d + rng.choice([0.0, 1e-12, 3e-10], m)  # below, and about, the rounding
+            tie = rng.integers(0, 4, m) / 4.0 + rng.choice([0.0, 2e-10], m)
+            later = rng.random(m) < 0.3
+            parts.append((later, d, tie, np.full(m, i), rng.integers(0, 50, m), np.full(m, j), rng.integers(0, 50, m)))
+        got = bridges._sorted_candidates(parts)
+        want = bridges._sorted_candidates_reference(parts)
+        assert got == want
+        assert all(type(v) is type(w) for g, h in zip(got, want) for v, w in zip(g, h))
+        # the rounding decides: the unrounded lengths order some of the lists otherwise
+        raw = sorted((int(lt), dd, t, int(a_), int(a), int(b_), int(b)) for p in parts for lt, dd, t, a_, a, b_, b in zip(*p))
+        differ += [c[3:] for c in raw] != [c[3:] for c in want]
+    assert differ > 20, differ
+    assert bridges._sorted_candidates([]) == []
+
+
+
+def _star(rng, c, r, k, grid):
+    t = np.sort(rng.uniform(0, 2 * np.pi, k))
+    pts = c + (r * rng.uniform(0.5, 1.0, k))[:, None] * np.c_[np.cos(t), np.sin(t)]
+    return np.round(pts * 2) / 2 if grid else pts
+
+
+def test_straight_bridges_kernel_equals_the_python_loop():
+    # rings of a few components (outer rings, and holes bridged through the material), candidates
+    # sorted as bridge_tree sorts them, the rings' edges and stray edges as obstacles, segments to
+    # avoid, and a keyhole test over a label image: the compiled loop takes the same bridges
+    from contourmesh.bands import bridges as B
+
+    rng = np.random.default_rng(47)
+    seen = {"whole": 0, "part": 0, "refused": 0}
+    for trial in range(300):
+        grid = trial % 2 == 0
+        nr = int(rng.integers(2, 7))
+        rings, owners = [], []
+        for r in range(nr):
+            hole = r > 0 and rng.random() < 0.4
+            comp = owners[int(rng.integers(0, r))][0] if hole else r
+            ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), int(rng.integers(3, 12)), grid)
+            if len(np.unique(ring, axis=0)) < 3:
+                ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)
+            rings.append(ring[::-1] if hole else ring)
+            owners.append((comp, hole))
+        parts = []
+        for i, j in B._near_pairs(rings):
+            (ci, hi), (cj, hj) = owners[i], owners[j]
+            if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
+                continue
+            vi, vj, d, tie = B._candidates(rings[i], rings[j], B.CANDIDATES)
+            parts.append((rng.random(len(vi)) < 0.3, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
+        cols = B._candidate_arrays(parts)
+        stray = rng.uniform(-8, 8, (int(rng.integers(0, 6)), 2))  # edges of other contours
+        oa = np.concatenate(rings + [stray])
+        ob = np.concatenate([np.roll(r, -1, axis=0) for r in rings] + [stray + rng.normal(0, 2, stray.shape)])
+        avoid = [(rng.uniform(-8, 8, 2), rng.uniform(-8, 8, 2)) for _ in range(int(rng.integers(0, 3)))]
+        allowed = None
+        if trial % 3:
+            lab = rng.integers(0, 3, (24, 24)).astype(np.uint8 if trial % 3 == 1 else np.int32)
+            allowed = B.keyhole_uncovered(lab, [int(rng.integers(0, 2))], (-8.0, -8.0, 0.7, 0.7))
+        got = B._straight_bridges(rings, np.stack(cols[3:], axis=1), owners, oa, ob, avoid, allowed)
+        want = B._straight_bridges_reference(rings, B._candidate_list(cols), owners, oa, ob, avoid, allowed)
+        assert got == want
+        assert all(type(v) is int for t in got for v in t)
+        seen["whole" if len(want) == nr - 1 else "part"] += 1
+        seen["refused"] += allowed is not None and len(want) < nr - 1
+    assert min(seen.values()) > 20, seen
 
 
 def _random_faces(rng, m, nv):

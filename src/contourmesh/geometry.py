@@ -19,13 +19,20 @@ def grid_to_xy(ox, oy, dx, dy):
     Pixel ``(i, j)`` has its centre at ``(ox + i dx, oy + j dy)``; corner ``(i, j)`` is its
     lower-left corner, half a pixel below and left of the centre.
     """
+    # (columns written into one array: np.c_ and np.stack are slow on small arrays)
     def to_center(p):
         p = np.asarray(p, dtype=np.float64)
-        return np.stack([ox + p[:, 0] * dx, oy + p[:, 1] * dy], axis=1)  # (np.c_ is slow on small arrays)
+        out = np.empty((len(p), 2))
+        out[:, 0] = ox + p[:, 0] * dx
+        out[:, 1] = oy + p[:, 1] * dy
+        return out
 
     def to_corner(p):
         p = np.asarray(p, dtype=np.float64)
-        return np.stack([ox + (p[:, 0] - 0.5) * dx, oy + (p[:, 1] - 0.5) * dy], axis=1)
+        out = np.empty((len(p), 2))
+        out[:, 0] = ox + (p[:, 0] - 0.5) * dx
+        out[:, 1] = oy + (p[:, 1] - 0.5) * dy
+        return out
 
     return to_center, to_corner
 

@@ -1639,11 +1639,15 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         f, r = _band_faces(V[a_ids], V[b_ids], rule, _BRIDGED_OPTIMAL_BUDGET)
         # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
         # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
+        n_, m_ = sorted((len(a_ids), len(b_ids)))
         for method in ("optimal", "arclength"):
             if not band_is_folded(ids[f]):
                 break
-            f = triangulate_band_optimal(V[a_ids], V[b_ids], max_work=_BRIDGED_OPTIMAL_BUDGET) \
-                if method == "optimal" else triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
+            # (where _band_faces kept the least-area band of a pair within the budget, the bounded
+            # one is that band: it is not made again)
+            if method != "optimal" or rule != "optimal" or r != 0 or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET:
+                f = triangulate_band_optimal(V[a_ids], V[b_ids], max_work=_BRIDGED_OPTIMAL_BUDGET) \
+                    if method == "optimal" else triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
             r += 1
         if band_is_folded(ids[f]):
             return None
@@ -1653,7 +1657,6 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         P = np.concatenate([V[a_ids], V[b_ids]])
         if _band_crosses(P, f):
             limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
-            n_, m_ = sorted((len(a_ids), len(b_ids)))
             for method in _BRIDGED_ALTERNATIVES:
                 if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
                     continue  # already tried, or too slow (cubic)
@@ -1718,17 +1721,23 @@ _BRIDGED_AREA_LIMIT = 1.5
 _SECTION_TRIAL = 1.0
 
 
-def _exact_area(slices, zs, k, ga, gb, pixel_area):
+def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     """The area of the voxel-exact join of a group (:func:`_exact_join`): crack contours' collars
-    half a gap high on each side, and the pixels each slice does not share with the other."""
+    half a gap high on each side, and the pixels each slice does not share with the other.
+    ``perimeters``: a dict that keeps each component's crack perimeter, ``(slice, component) ->
+    float``, across calls (crack rings do not change)."""
     A, B = slices[k], slices[k + 1]
     h = 0.5 * float(zs[k + 1] - zs[k])
+    perimeters = {} if perimeters is None else perimeters
 
-    def perimeter(rings):
-        return sum(float(np.hypot(*(np.roll(r, -1, axis=0) - r).T).sum()) for r in rings)
+    def perimeter(kk, c):
+        if (kk, c) not in perimeters:
+            S = slices[kk]
+            perimeters[kk, c] = sum(float(np.hypot(*(_next(r) - r).T).sum())
+                                    for r in [S.crack_outer[c]] + list(S.crack_holes[c]))
+        return perimeters[kk, c]
 
-    collars = sum(perimeter([A.crack_outer[a]] + list(A.crack_holes[a])) for a in ga) + \
-        sum(perimeter([B.crack_outer[b]] + list(B.crack_holes[b])) for b in gb)
+    collars = sum(perimeter(k, a) for a in ga) + sum(perimeter(k + 1, b) for b in gb)
     # the pixels of either side lie in the box of their components' boxes
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
@@ -1906,7 +1915,12 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     # a band can fan across the slice (from a polyline keyhole, or from the tips of a C
                     # whose mouth closes into a ring): such a join folds over itself, and may not have
                     # much more area than the voxel-exact join it replaces
-                    exact = _exact_area(slices, zs, k, ga, gb, dx * dy)
+                    # (the same for every pass and build: crack rings and labels do not change)
+                    exact_key = ("exact area", k, tuple(ga), tuple(gb))
+                    if exact_key not in cache:
+                        cache[exact_key] = _exact_area(slices, zs, k, ga, gb, dx * dy,
+                                                       cache.setdefault(("crack perimeters",), {}))
+                    exact = cache[exact_key]
                     limit = _BRIDGED_AREA_LIMIT * exact
                     area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
                     if got is not None and area > limit:

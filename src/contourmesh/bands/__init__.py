@@ -197,28 +197,56 @@ def _band_crosses_uncached(P, f) -> bool:
 def _split_pinches(P, f, dup):
     """``P`` with every point in ``dup`` moved a hair towards the centroid of its faces in ``f``
     (as :func:`contourmesh.repair.split_nonmanifold_vertices` does), or None where that does not
-    separate the copies."""
+    separate the copies.
+
+    Compiled (:func:`_pinch_moves`): each face's centroid is numpy's mean of its corners (added in
+    order, divided by three), each point's sum of its faces' centroids is added in the order
+    ``np.add.at`` over the three corners would add them (corner 0 of every face, then 1, then 2),
+    and each move is the loop's arithmetic (tests/test_compiled_repair.py holds that loop)."""
     P = np.array(P, dtype=np.float64)
     ext = float(np.ptp(P[:, :2], axis=0).max()) if len(P) else 0.0
     if not ext > 0:
         return None
-    cen = P[f].mean(axis=1)
-    # each point's sum of the centroids of its faces, added in the order np.add.at over the three
-    # corners would add them (corner 0 of every face, then 1, then 2): bincount adds its weights
-    # one by one in input order, so the sums are the same bits
-    idx = f.T.reshape(-1)
-    acc = np.stack([np.bincount(idx, weights=np.tile(cen[:, d], 3), minlength=len(P)) for d in range(3)], axis=1)
-    deg = np.bincount(f.reshape(-1), minlength=len(P))
-    for i in dup:
-        if deg[i] == 0:
-            return None
-        d = acc[i] / deg[i] - P[i]
-        d[2] = 0.0  # within the ring's plane
-        n = float(np.hypot(d[0], d[1]))
-        if not n > 0:
-            return None
-        P[i] = P[i] + d * (1e-4 * ext / n)
+    f = np.ascontiguousarray(f, dtype=np.int64).reshape(-1, 3)
+    if not _pinch_moves(P, f, np.ascontiguousarray(dup, dtype=np.int64).reshape(-1), ext):
+        return None
     canon = canonical_vertices(P)
     if (canon != np.arange(len(P))).any():  # two points still at one position
         return None
     return P
+
+
+@njit(cache=True, nogil=True)
+def _pinch_moves(P, f, dup, ext):
+    """:func:`_split_pinches`' moves of the points ``dup`` of ``P`` (in place); False where one
+    cannot move (no face, or its faces' centroid on it)."""
+    nf = f.shape[0]
+    cen = np.empty((nf, 3))
+    for t in range(nf):
+        for d in range(3):
+            cen[t, d] = (P[f[t, 0], d] + P[f[t, 1], d] + P[f[t, 2], d]) / 3.0
+    acc = np.zeros((P.shape[0], 3))
+    deg = np.zeros(P.shape[0], np.int64)
+    for d in range(3):
+        for c in range(3):
+            for t in range(nf):
+                acc[f[t, c], d] += cen[t, d]
+    for c in range(3):
+        for t in range(nf):
+            deg[f[t, c]] += 1
+    for u in range(dup.shape[0]):
+        if deg[dup[u]] == 0:
+            return False
+    step = 1e-4 * ext
+    for u in range(dup.shape[0]):
+        i = dup[u]
+        dx = acc[i, 0] / deg[i] - P[i, 0]
+        dy = acc[i, 1] / deg[i] - P[i, 1]
+        n = np.hypot(dx, dy)
+        if not n > 0:
+            return False
+        s = step / n
+        P[i, 0] = P[i, 0] + dx * s
+        P[i, 1] = P[i, 1] + dy * s
+        P[i, 2] = P[i, 2] + 0.0 * s  # (the move has no z part: -0.0 becomes 0.0, as in numpy)
+    return True

@@ -206,9 +206,28 @@ def _candidates(ri: np.ndarray, rj: np.ndarray, k: int):
     vi, vj, d, ok = _nearest_kernel(ri, rj, np.int64(k))
     if not ok:
         return _candidates_reference(ri, rj, k)
-    centre = np.concatenate([ri, rj]).mean(axis=0)
-    tie = np.hypot(*(0.5 * (ri[vi] + rj[vj]) - centre).T)
-    return vi, vj, d, tie
+    return vi, vj, d, _tie_kernel(ri, rj, vi, vj)
+
+
+@njit(cache=True, nogil=True)
+def _tie_kernel(ri, rj, vi, vj):
+    """The tie-break of :func:`_candidates`: ``np.hypot(*(0.5 * (ri[vi] + rj[vj]) - centre).T)`` with
+    ``centre = np.concatenate([ri, rj]).mean(axis=0)`` (numpy adds the rows in order along that
+    axis, then divides by their number), the same operations one by one."""
+    c0 = 0.0
+    c1 = 0.0
+    for a in range(ri.shape[0]):
+        c0 += ri[a, 0]
+        c1 += ri[a, 1]
+    for a in range(rj.shape[0]):
+        c0 += rj[a, 0]
+        c1 += rj[a, 1]
+    c0 /= ri.shape[0] + rj.shape[0]
+    c1 /= ri.shape[0] + rj.shape[0]
+    tie = np.empty(vi.shape[0])
+    for t in range(vi.shape[0]):
+        tie[t] = np.hypot(0.5 * (ri[vi[t], 0] + rj[vj[t], 0]) - c0, 0.5 * (ri[vi[t], 1] + rj[vj[t], 1]) - c1)
+    return tie
 
 
 @njit(cache=True, nogil=True)
@@ -301,6 +320,63 @@ def _near_pairs(rings, k: int = 6):
     return sorted({(min(i, int(j)), max(i, int(j))) for i in range(n) for j in near[i]})
 
 
+def _round9(x) -> np.ndarray:
+    """``round(v, 9)`` (Python's: the decimal rounding of the exact value, half to even) of every
+    float ``v`` of ``x``, as an array.  ``rint(v * 1e9) / 1e9`` is that number wherever ``v * 1e9``
+    lies clearly off a half (its rounding error, at most ``|v| 1e9 2^-53``, cannot move it across
+    one) and below ``2^52``; the other values (halves, near-halves, huge or not finite) are
+    rounded by Python."""
+    x = np.asarray(x, dtype=np.float64).reshape(-1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        y = x * 1e9
+        safe = (np.abs(y - np.floor(y) - 0.5) > np.abs(y) * 2.0 ** -50) & (np.abs(y) < 2.0 ** 52)
+    out = np.rint(y) / 1e9
+    for t in np.flatnonzero(~safe).tolist():
+        out[t] = round(float(x[t]), 9)
+    return out
+
+
+def _sorted_candidates(parts) -> list:
+    """The candidate bridges of :func:`bridge_tree`, ``(not preferred, round(length, 9),
+    round(tie, 9), i, vi, j, vj)`` tuples of Python numbers, sorted: ``parts`` holds those fields
+    as arrays, per pair of rings.  The same list as making each tuple and sorting them
+    (:func:`_sorted_candidates_reference`): the lexicographic order of the same keys."""
+    return _candidate_list(_candidate_arrays(parts))
+
+
+def _candidate_list(cols) -> list:
+    """The tuples of the columns of :func:`_candidate_arrays`."""
+    return list(zip(*(a.tolist() for a in cols)))
+
+
+def _candidate_arrays(parts):
+    """:func:`_sorted_candidates` as seven sorted columns (int64, float64, float64 and four int64)."""
+    if not parts:
+        return tuple(np.zeros(0, dtype=np.float64 if f in (1, 2) else np.int64) for f in range(7))
+    lt, d, tie, i, vi, j, vj = (np.concatenate([np.asarray(p[f]).reshape(-1) for p in parts]) for f in range(7))
+    if np.isnan(d).any() or np.isnan(tie).any():  # (a NaN has no place in an order: as the tuples sort it)
+        cand = _sorted_candidates_reference(parts)
+        return tuple(np.array([c[f] for c in cand], dtype=np.float64 if f in (1, 2) else np.int64) for f in range(7))
+    lt = lt.astype(np.int64)
+    d, tie = _round9(d), _round9(tie)
+    i, vi, j, vj = (np.asarray(a, dtype=np.int64) for a in (i, vi, j, vj))
+    order = np.lexsort((vj, j, vi, i, tie, d, lt))
+    return tuple(a[order] for a in (lt, d, tie, i, vi, j, vj))
+
+
+def _sorted_candidates_reference(parts) -> list:
+    """:func:`_sorted_candidates` tuple by tuple (the reference of the tests)."""
+    cand = []
+    for later, d, tie, i, vi, j, vj in parts:
+        cand.extend((int(lt), round(dd, 9), round(t, 9), int(a_), int(a), int(b_), int(b))
+                    for lt, dd, t, a_, a, b_, b in zip(np.asarray(later).tolist(), np.asarray(d, dtype=np.float64).tolist(),
+                                                      np.asarray(tie, dtype=np.float64).tolist(), np.asarray(i).tolist(),
+                                                      np.asarray(vi).tolist(), np.asarray(j).tolist(),
+                                                      np.asarray(vj).tolist()))
+    cand.sort()
+    return cand
+
+
 def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None, waypoints=None,
                 step=1.0, prefer=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
@@ -350,7 +426,7 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         return []
     owners = owners or [(i, False) for i in range(n)]
     pairs = _near_pairs(rings)
-    cand = []
+    parts = []  # per pair of rings: (not preferred, length, tie-break, i, vi, j, vj) as arrays
     for i, j in pairs:
         (ci, hi), (cj, hj) = owners[i], owners[j]
         if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
@@ -359,12 +435,67 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         # preferred bridges between components first (``prefer`` asked of all the pairs at once)
         later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) if prefer is not None and ci != cj \
             else np.zeros(len(vi), dtype=bool)
-        # (as Python numbers first: the same values, without a numpy scalar per field)
-        cand.extend((int(lt), round(dd, 9), round(t, 9), i, a, j, b)
-                    for lt, dd, t, a, b in zip(later.tolist(), np.asarray(d, dtype=np.float64).tolist(),
-                                               np.asarray(tie, dtype=np.float64).tolist(),
-                                               np.asarray(vi).tolist(), np.asarray(vj).tolist()))
-    cand.sort()  # (not preferred, length, tie-break, ...): each kind shortest first
+        parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
+    cols = _candidate_arrays(parts)  # (not preferred, length, tie-break, ...): each kind shortest first
+    if allowed is None or isinstance(allowed, _Coverage):  # (compiled)
+        chosen = _straight_bridges(rings, np.stack(cols[3:], axis=1), owners, obstacles_a, obstacles_b, avoid, allowed)
+    else:
+        chosen = _straight_bridges_reference(rings, _candidate_list(cols), owners, obstacles_a, obstacles_b, avoid,
+                                             allowed)
+    if len(chosen) == n - 1:
+        return chosen
+    parent = list(range(n))
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    used = set()
+    segs = [tuple(map(np.asarray, s)) for s in (avoid or [])]
+    for i, vi, j, vj in chosen:
+        parent[find(i)] = find(j)
+        used.update([(i, vi), (j, vj)])
+        segs.append((rings[i][vi], rings[j][vj]))
+    if waypoints is None:
+        return None
+    # no spanning tree of straight bridges: join what is left by polyline keyholes through the
+    # material (nearest pairs of rings first)
+    pairs_left = []
+    for i, j in zip(cols[3].tolist(), cols[5].tolist()):
+        if owners[i][0] == owners[j][0] and (i, j) not in pairs_left:
+            pairs_left.append((i, j))
+    progress = True
+    while progress and len(chosen) < n - 1:
+        progress = False
+        for i, j in pairs_left:
+            if find(i) == find(j):
+                continue
+            pts_c, allowed_c = waypoints(owners[i][0])
+            got = keyhole_path(rings[i], rings[j], pts_c, step, obstacles_a, obstacles_b,
+                               segs, allowed=allowed if allowed_c is None else allowed_c, used_i={v for r, v in used if r == i},
+                               used_j={v for r, v in used if r == j})
+            if got is None:
+                continue
+            vi, vj, pts = got
+            parent[find(i)] = find(j)
+            used.update([(i, vi), (j, vj)])
+            chosen.append((i, vi, j, vj, pts))
+            path = np.concatenate([rings[i][vi][None], pts, rings[j][vj][None]])
+            segs.extend((path[t], path[t + 1]) for t in range(len(path) - 1))
+            progress = True
+            if len(chosen) == n - 1:
+                return chosen
+    return None
+
+
+def _straight_bridges_reference(rings, cand, owners, obstacles_a, obstacles_b, avoid, allowed) -> list:
+    """The straight bridges of :func:`bridge_tree`: the candidates ``cand`` (sorted tuples ``(.., ..,
+    .., i, vi, j, vj)``) taken in order where they join two trees of the forest, leave both rings
+    at vertices no other bridge ends at, keep clear (:func:`_clear`) and, through the material,
+    pass ``allowed``; up to ``len(rings) - 1`` of them.  The reference of :func:`_straight_bridges`."""
+    n = len(rings)
     parent = list(range(n))
 
     def find(x):
@@ -396,37 +527,91 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         segs.append((p, q))
         seg_arrays = None
         if len(chosen) == n - 1:
-            return chosen
-    if waypoints is None:
-        return None
-    # no spanning tree of straight bridges: join what is left by polyline keyholes through the
-    # material (nearest pairs of rings first)
-    pairs_left = []
-    for _, _, _, i, _, j, _ in cand:
-        if owners[i][0] == owners[j][0] and (i, j) not in pairs_left:
-            pairs_left.append((i, j))
-    progress = True
-    while progress and len(chosen) < n - 1:
-        progress = False
-        for i, j in pairs_left:
-            if find(i) == find(j):
+            break
+    return chosen
+
+
+def _straight_bridges(rings, c, owners, obstacles_a, obstacles_b, avoid, allowed) -> list:
+    """:func:`_straight_bridges_reference` in compiled code (:func:`_straight_kernel`), for
+    ``allowed`` None or a keyhole test of :func:`keyhole_uncovered`: the same bridges.  ``c``: the
+    sorted candidates' ``(i, vi, j, vj)`` as rows of an int64 array."""
+    n = len(rings)
+    if not len(c):
+        return []
+    rs = [np.ascontiguousarray(r, dtype=np.float64).reshape(-1, 2) for r in rings]
+    lens = np.array([len(r) for r in rs], dtype=np.int64)
+    off = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64)
+    pts = np.concatenate(rs)
+    ids = {}
+    comp = np.array([ids.setdefault(o[0], len(ids)) for o in owners], dtype=np.int64)
+    sa, sb = _segment_arrays([tuple(map(np.asarray, s_)) for s_ in (avoid or [])])
+    if allowed is None:
+        lab, cids, grid = np.zeros((1, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64), (0.0, 0.0, 1.0, 1.0)
+    else:
+        lab, cids, grid = allowed.lab, allowed._ids64, allowed._grid64
+    got = _straight_kernel(np.ascontiguousarray(c, dtype=np.int64).reshape(-1, 4), pts, off, lens, comp, np.ascontiguousarray(obstacles_a, dtype=np.float64),
+                           np.ascontiguousarray(obstacles_b, dtype=np.float64),
+                           np.ascontiguousarray(sa, dtype=np.float64), np.ascontiguousarray(sb, dtype=np.float64),
+                           lab, cids, *grid, allowed is not None, np.int64(n))
+    return [tuple(row) for row in got.tolist()]
+
+
+@njit(cache=True, nogil=True)
+def _root(parent, x):
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    return x
+
+
+@njit(cache=True, nogil=True)
+def _straight_kernel(c, pts, off, lens, comp, oa, ob, sa0, sb0, lab, cids, ox, oy, dx, dy, use_allowed, n):
+    """:func:`_straight_bridges_reference`'s loop: candidates ``c`` (rows ``i, vi, j, vj``) over the
+    rings ``pts[off[r]: off[r] + lens[r]]`` of components ``comp``; the keyhole test is
+    :func:`_coverage_kernel` (no sample covered) where ``use_allowed``.  Returns the bridges."""
+    parent = np.arange(n)
+    used = np.zeros(pts.shape[0], np.bool_)
+    out = np.empty((max(n - 1, 0), 4), np.int64)
+    k = 0
+    ns = sa0.shape[0]
+    sa = np.empty((ns + n, 2))
+    sb = np.empty((ns + n, 2))
+    sa[:ns] = sa0
+    sb[:ns] = sb0
+    corners = np.empty((2, 3, 2))
+    P1 = np.empty((1, 2))
+    Q1 = np.empty((1, 2))
+    for t in range(c.shape[0]):
+        if k == n - 1:
+            break
+        i, vi, j, vj = c[t, 0], c[t, 1], c[t, 2], c[t, 3]
+        if _root(parent, i) == _root(parent, j) or used[off[i] + vi] or used[off[j] + vj]:
+            continue
+        for e in range(2):
+            r, v = (i, vi) if e == 0 else (j, vj)
+            m = lens[r]
+            for u in range(3):
+                w = off[r] + (v - 1 + u) % m
+                corners[e, u, 0] = pts[w, 0]
+                corners[e, u, 1] = pts[w, 1]
+        px, py = pts[off[i] + vi, 0], pts[off[i] + vi, 1]
+        qx, qy = pts[off[j] + vj, 0], pts[off[j] + vj, 1]
+        through = comp[i] == comp[j]
+        if not _clear_kernel(px, py, qx, qy, corners, 1, 1, oa, ob, sa[:ns], sb[:ns], through):
+            continue
+        if through and use_allowed:
+            P1[0, 0], P1[0, 1], Q1[0, 0], Q1[0, 1] = px, py, qx, qy
+            count, _ = _coverage_kernel(P1, Q1, lab, cids, ox, oy, dx, dy)
+            if count[0] != 0:
                 continue
-            pts_c, allowed_c = waypoints(owners[i][0])
-            got = keyhole_path(rings[i], rings[j], pts_c, step, obstacles_a, obstacles_b,
-                               segs, allowed=allowed if allowed_c is None else allowed_c, used_i={v for r, v in used if r == i},
-                               used_j={v for r, v in used if r == j})
-            if got is None:
-                continue
-            vi, vj, pts = got
-            parent[find(i)] = find(j)
-            used.update([(i, vi), (j, vj)])
-            chosen.append((i, vi, j, vj, pts))
-            path = np.concatenate([rings[i][vi][None], pts, rings[j][vj][None]])
-            segs.extend((path[t], path[t + 1]) for t in range(len(path) - 1))
-            progress = True
-            if len(chosen) == n - 1:
-                return chosen
-    return None
+        parent[_root(parent, i)] = _root(parent, j)
+        used[off[i] + vi] = True
+        used[off[j] + vj] = True
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = i, vi, j, vj
+        k += 1
+        sa[ns, 0], sa[ns, 1], sb[ns, 0], sb[ns, 1] = px, py, qx, qy
+        ns += 1
+    return out[:k]
 
 
 #: Largest number of waypoints a polyline keyhole search settles before it gives up.
