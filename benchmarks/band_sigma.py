@@ -17,7 +17,10 @@ Rules (``--rules``, separated by ``;``):
   Richardson gain ``r^4 / (1 - r^4)``, 0.32);
 * ``nocrease`` / ``crease``: step 3b's one gain everywhere / a gain per vertex from the two places'
   curvatures (``FINE_CREASE``, off by default), with ``cwin=W`` (``CREASE_WINDOW``), ``kmin=B``
-  (``CREASE_MIN_BEND``), ``bend=B`` (``CREASE_MAX_BEND``) and ``ctol=T`` (``CREASE_TOLERANCE``);
+  (``CREASE_MIN_BEND``), ``bend=B`` (``CREASE_MAX_BEND``), ``ctol=T`` (``CREASE_TOLERANCE``),
+  ``wider`` / ``wider=LO/HI`` / ``nowider`` (``CREASE_WIDER``: a third width ``sigma / r`` tells
+  a crease from a smooth wave), ``planar`` / ``noplanar`` (``CREASE_PLANAR``: the ratio from the sections'
+  curvatures) and ``qmin=Q`` (``CREASE_MIN_RATIO``);
 * ``density=D``: ring vertices per seed vertex of the mode (``RING_DENSITY``);
 * ``cubic=C``: a third-order term ``C (k1 + k2)^3 sigma^4`` in the curvature shift
   (``SHIFT_CUBIC``; ``-0.0416667`` = -1/24, the exact term for balls and cylinders).
@@ -97,7 +100,8 @@ def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
     from contourmesh import refine
 
     names = ("_auto_sigma_of", "FINE_TOLERANCE", "FINE_RATIO", "FINE_RHO", "SHIFT_CUBIC", "FINE_ADAPTIVE",
-             "FINE_CREASE", "CREASE_WINDOW", "CREASE_MIN_BEND", "CREASE_MAX_BEND", "CREASE_TOLERANCE")
+             "FINE_CREASE", "CREASE_WINDOW", "CREASE_MIN_BEND", "CREASE_MAX_BEND", "CREASE_TOLERANCE",
+             "CREASE_WIDER", "CREASE_PLANAR", "CREASE_MIN_RATIO")
     saved = {n: getattr(refine, n) for n in names}
     saved_density = dict(refine.RING_DENSITY)
     try:
@@ -136,6 +140,20 @@ def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
                 refine.CREASE_MIN_BEND = float(val)
             elif key == "cwin":
                 refine.CREASE_WINDOW = float(val)
+            elif part == "wider":
+                refine.CREASE_WIDER = True
+            elif key == "wider":
+                refine.CREASE_WIDER = tuple(float(x) for x in val.split("/"))
+            elif part == "nowider":
+                refine.CREASE_WIDER = None
+            elif part == "planar":
+                refine.CREASE_PLANAR = True
+            elif key == "planar":
+                refine.CREASE_PLANAR = float(val)
+            elif part == "noplanar":
+                refine.CREASE_PLANAR = False
+            elif key == "qmin":
+                refine.CREASE_MIN_RATIO = float(val)
             else:
                 raise SystemExit(f"unknown rule {rule!r}")
         if sp is None:  # a contour stack

@@ -726,6 +726,59 @@ def test_crease_gains_tell_a_prism_edge_from_a_round_wall(monkeypatch):
     assert band_violations(st, m) == 0
 
 
+def test_wider_width_tells_a_crease_from_a_smooth_wave(monkeypatch):
+    """``CREASE_WIDER`` (issue 14, a measurement setting): a wave a few blur widths long (r = 16 +
+    1.2 cos 9t) has a curvature ratio near ``1 / r`` like a crease, and the crease gain overshoots it;
+    at a third width ``sigma / r`` the wave's troughs are gone (the level bends the other way) while a
+    crease bends as before, so the wave keeps the smooth gain and its extrapolated places beat the
+    plain blend again; the dodecagon's edges keep their gains."""
+    from contourmesh.refine import FINE_RATIO, FINE_TOLERANCE, _crease_gains, _move_to_surface, _surface_points
+
+    monkeypatch.setattr(R, "FINE_CREASE", True)
+    r = FINE_RATIO
+    t = np.linspace(0, 2 * np.pi, 8000, endpoint=False)
+    rad = 16.0 + 1.2 * np.cos(9 * t)
+    dodecagon = np.c_[np.cos(t), np.sin(t)] * (18.0 * np.cos(np.pi / 12) / np.cos((t % (np.pi / 6)) - np.pi / 12))[:, None]
+    for name, curve in (("wave", np.c_[rad * np.cos(t), rad * np.sin(t)]), ("dodecagon", dodecagon)):
+        pts, seed, kz, sigma, truth = _prism_ring(curve + [0.31, -0.17])
+        kzs = np.full(len(seed), kz, dtype=np.int64)
+        wide, near = np.empty_like(seed), np.empty_like(seed)
+        fw, fn = np.empty(len(seed), bool), np.empty(len(seed), bool)
+        _move_to_surface(pts, seed, kzs, sigma, 1.0, True, 3.0, wide, True, fw)
+        _move_to_surface(pts, seed, kzs, r * sigma, 1.0, True, 3.0, near, True, fn)
+        gap = np.hypot(*(near - wide).T)
+        w = np.clip((gap - FINE_TOLERANCE[0]) / (FINE_TOLERANCE[1] - FINE_TOLERANCE[0]), 0, 1) * (fw & fn)
+        act = w > 0
+        blend = wide + w[:, None] * (near - wide)
+        res = {}
+        for wider in (None, True):
+            monkeypatch.setattr(R, "CREASE_WIDER", wider)
+            got, _ = _surface_points(pts, seed, kzs, sigma, 1.0, True, 3.0, True, r * sigma)
+            assert in_band(pts, kz, got).all()
+            rho, _ = _crease_gains(pts, seed, kzs, sigma, r * sigma, R._as_grid(1.0, pts.shape[0]), None, wide, near, 3.0)
+            res[wider] = (_dist(got[act], truth).mean(), rho)
+        if name == "wave":
+            assert act.sum() >= 5
+            assert res[None][0] > _dist(blend[act], truth).mean()  # the crease gain alone overshoots
+            assert res[True][0] < _dist(blend[act], truth).mean() - 0.004
+        else:  # the wider width leaves the edges' gains
+            assert np.array_equal(res[None][1], res[True][1])
+
+
+def test_planar_ratio_where_slices_are_thicker_than_pixels(monkeypatch):
+    """``CREASE_PLANAR`` as a number: the sections' curvature ratio only in slices whose slab is
+    thicker than that many ``h`` (even or uneven heights); True / False: everywhere / nowhere."""
+    monkeypatch.setattr(R, "CREASE_PLANAR", 1.0)
+    assert not R._planar_ratio(1.0, 3) and R._planar_ratio(1.5, 3)
+    grid, _ = R._make_grid(0.5, 0.5, 8, zs=[0.0, 0.5, 1.5, 2.0, 2.5], pad=1)  # gaps 1, 2, 1, 1 h; median 1
+    got = [R._planar_ratio(grid, k) for k in range(1, 6)]
+    assert got == [False, True, True, False, False]  # slabs 1, 1.5, 1.5, 1, 1 h
+    monkeypatch.setattr(R, "CREASE_PLANAR", True)
+    assert R._planar_ratio(1.0, 3)
+    monkeypatch.setattr(R, "CREASE_PLANAR", False)
+    assert not R._planar_ratio(2.0, 3)
+
+
 def test_stack_of_mask_traces_each_slice_in_its_box_as_the_whole_slice():
     """The stack route traces every slice within the object's bounding box in that slice: the
     same contours (coordinates, start points, order) as tracing the whole slice, also where the

@@ -50,7 +50,10 @@ meshes (``stack_to_mesh(..., polygon="none")``, any band triangulation, the same
    faces are several voxels wide) puts the place off by ``O(sigma)``, whose gain is ``r / (1 - r)``.
    The two places' mean curvatures tell them apart (:data:`FINE_CREASE`, off by default): equal on
    a smooth bend, in the ratio ``1 / r`` on a crease's rounded apex, but also near ``1 / r`` on a
-   smooth wave a few blur widths long, whose order is nearly 4.  Where the two
+   smooth wave a few blur widths long, whose order is nearly 4 (:data:`CREASE_WIDER`: a third,
+   wider level that bends the other way marks a wave; :data:`CREASE_PLANAR`: where the slices are
+   thicker than the pixels their terraces are creases of the data, and the sections' curvatures,
+   which do not see them, give the ratio; settings, docs/DESIGN.md).  Where the two
    scales agree, the wide place stands alone: extrapolating there adds the fine scale's lattice
    noise (+0.015 % on balls r = 80).  Only a search that found no level keeps the wide place: a
    vertex whose wide place the band clamp put back on its seed (a crest or a finger tip that the
@@ -155,8 +158,25 @@ CREASE_MIN_BEND = 0.1
 #: The crease gain fades out as ``|S| sigma`` grows from half this to this: detail narrower than the
 #: blur (a finger, an ear's rim) also has ``S ~ 1 / sigma`` and is not a crease.  None: no limit.
 CREASE_MAX_BEND = 0.5
+#: The curvature ratio ``q`` up to which a vertex counts as smooth (1: any ``q > 1`` is a partial
+#: crease).  On balls the ring-averaged ``q`` scatters by about 0.1 around 1 (lattice noise).
+CREASE_MIN_RATIO = 1.0
+#: The ratio ``q`` from the curvatures of the level's sections by the slice plane rather than the
+#: level's mean curvature: a crease crossing the slices bends the section at both widths, the
+#: terraces of thick slices (creases along the slices) do not.  True / False: always / never; a
+#: number: in the slices whose slab (the spacing, in units of ``h``) is thicker than it.
+CREASE_PLANAR = False
 #: A crease's tolerance is FINE_TOLERANCE times ``1 - CREASE_TOLERANCE m``.
 CREASE_TOLERANCE = 0.5
+#: A third, wider width ``sigma / r`` that tells a crease from a smooth wave (None: not used).  A
+#: crease's curvature ratio is scale-free (``S(sigma) / S(sigma / r)`` is about ``S(r sigma) /
+#: S(sigma)``, both ``1 / r``); a wave of wavenumber ``k`` keeps ``exp(-k^2 s^2 / 2)`` of its
+#: amplitude, so it fades fast with the width: where the level at ``sigma / r`` bends the other way
+#: the crease share ``m`` is dropped (True: only that).  ``(t_lo, t_hi)``: also where ``t``, the
+#: ratio of the two log-ratios (about ``1 / r^2`` = 2.04 for a wave, 1 for a crease), exceeds
+#: ``t_hi``, linearly from ``t_lo``.  Only the rings where some vertex has ``m > 0`` and the two
+#: places differ are evaluated at ``sigma / r``.
+CREASE_WIDER = None
 #: New slice images (:func:`_slice_moments`) of a ring's first search reach this many ``max_move``
 #: (plus 2 voxels) beyond what it needs, so that the ring's later searches (its meridian points lie
 #: within ``max_move + 1`` of its seed) and its chord step reuse them.
@@ -1618,32 +1638,86 @@ def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
     images = {} if images is None else images
     k = int(kz[0])
     r = fine / sigma
-    curv = []
+    curv, plane = [], []
+    planar = _planar_ratio(grid, k)
     for width, p in ((sigma, out), (fine, near)):
         mom, box, span = images.get(float(width)) or _no_images()
         fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(p), k, float(width), grid, mom, box, span,
                                             IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
         images[float(width)] = (mom, box, span)
         curv.append(_ring_curvature_mean(fld, float(width), np.ascontiguousarray(out), float(CREASE_WINDOW) * sigma))
+        if planar:
+            plane.append(_ring_curvature_mean(fld, float(width), np.ascontiguousarray(out),
+                                              float(CREASE_WINDOW) * sigma, True))
     sw, sf = curv
-    q = np.where(np.abs(sw) * sigma > CREASE_MIN_BEND, sf / np.where(sw != 0, sw, 1.0), 1.0)
-    m = np.clip(np.log(np.where(q > 0, q, 1.0)) / math.log(1.0 / r), 0.0, 1.0)
+    if planar:  # the ratio from the sections' curvatures (the bend tests keep the surface's)
+        pw, pf = plane
+        q = np.where((np.abs(sw) * sigma > CREASE_MIN_BEND) & (pw * pf > 0), pf / np.where(pw != 0, pw, 1.0), 1.0)
+    else:
+        q = np.where(np.abs(sw) * sigma > CREASE_MIN_BEND, sf / np.where(sw != 0, sw, 1.0), 1.0)
+    q0 = float(CREASE_MIN_RATIO)  # a ratio up to q0 is noise: m rises from 0 at q0 to 1 at 1 / r
+    m = np.clip(np.log(np.where(q > 0, q, 1.0) / q0) / math.log(1.0 / (r * q0)), 0.0, 1.0)
     if CREASE_MAX_BEND is not None:  # detail narrower than the blur also has S ~ 1 / sigma: a strong bend is not a crease
         b = np.abs(sw) * sigma
         m = m * np.clip((CREASE_MAX_BEND - b) / (0.5 * CREASE_MAX_BEND), 0.0, 1.0)
+    if CREASE_WIDER is not None:
+        m = m * _wider_check(pts, k, sigma, r, grid, images, out, near, max_move, pw if planar else sw, q, m, planar)
     p = 4.0 - 3.0 * m
     return np.ascontiguousarray(r ** p / (1.0 - r ** p)), np.ascontiguousarray(1.0 - CREASE_TOLERANCE * m)
 
 
+def _planar_ratio(grid, k) -> bool:
+    """Whether :func:`_crease_gains` takes the ratio from the sections' curvatures in slice ``k``
+    (:data:`CREASE_PLANAR`: always, never, or where the slice's slab is thicker than that many ``h``)."""
+    if CREASE_PLANAR is True or CREASE_PLANAR is False:
+        return bool(CREASE_PLANAR)
+    g = _as_grid(grid, k + 1)
+    slab = g[2] * (g[4][k] if len(g[4]) else 1.0)
+    return bool(slab > float(CREASE_PLANAR) * (1.0 + 1e-6))
+
+
+def _wider_check(pts, k, sigma, r, grid, images, out, near, max_move, sw, q, m, planar=False):
+    """The factor (0 to 1) by which :data:`CREASE_WIDER` keeps each vertex's crease share ``m``:
+    ``t = log(S(sigma) / S(sigma / r)) / log(S(r sigma) / S(sigma))`` (ring-averaged mean curvatures,
+    the wider one at the wide places ``out``), 1 at ``t <= t_lo``, 0 at ``t >= t_hi``."""
+    keep = np.ones(len(out))
+    gap = np.hypot(*(near - out).T)
+    if not ((m > 0) & (gap > FINE_TOLERANCE[0] * (1.0 - CREASE_TOLERANCE))).any():
+        return keep
+    wider = sigma / r
+    mom, box, span = images.get(float(wider)) or _no_images()
+    fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(out), k, float(wider), grid, mom, box, span,
+                                        IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
+    images[float(wider)] = (mom, box, span)
+    sx = _ring_curvature_mean(fld, float(wider), np.ascontiguousarray(out), float(CREASE_WINDOW) * sigma,
+                              planar)
+    ratio = sw / np.where(sx != 0, sx, 1.0)
+    keep = (ratio > 0).astype(np.float64)  # a wider level that bends the other way has lost the detail: a wave
+    if CREASE_WIDER is not True:
+        l1 = np.log(np.where(q > 1.0, q, 1.0))  # m > 0 only where q > 1
+        l2 = np.log(np.where(ratio > 0, ratio, 1.0))
+        t = np.where(l1 > 0, l2 / np.where(l1 > 0, l1, 1.0), 0.0)
+        t_lo, t_hi = CREASE_WIDER
+        keep *= np.clip((t_hi - t) / (t_hi - t_lo), 0.0, 1.0)
+    return keep
+
+
 @njit(cache=True)
-def _ring_curvature_mean(fld, sigma, ring, width):
+def _ring_curvature_mean(fld, sigma, ring, width, planar=False):
     """The mean curvature ``k1 + k2`` of the blurred level at each ring vertex (``fld``: the fields
-    there, :func:`_field`), averaged along the ring with a Gaussian of ``width`` in arc length."""
+    there, :func:`_field`), averaged along the ring with a Gaussian of ``width`` in arc length;
+    ``planar``: the curvature of the level's section by the slice plane instead."""
     n = ring.shape[0]
     s = np.empty(n)
     for i in range(n):
-        shift, g = _mean_curvature_shift(fld[i], sigma)
-        s[i] = 2.0 * shift / (sigma * sigma)
+        if planar:
+            gx, gy = fld[i, 1], fld[i, 2]
+            g2 = gx * gx + gy * gy
+            s[i] = 0.0 if g2 == 0.0 else -(fld[i, 4] * gy * gy - 2.0 * fld[i, 7] * gx * gy
+                                           + fld[i, 5] * gx * gx) / (g2 * math.sqrt(g2))
+        else:
+            shift, g = _mean_curvature_shift(fld[i], sigma)
+            s[i] = 2.0 * shift / (sigma * sigma)
     cum = np.empty(n + 1)
     cum[0] = 0.0
     for i in range(n):
