@@ -83,6 +83,10 @@ def mesh_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0)
 
 
+#: Faces per block of :func:`axis_wall_fraction`'s normals.
+_WALL_BLOCK = 1 << 16
+
+
 def axis_wall_fraction(vertices: np.ndarray, faces: np.ndarray) -> float:
     """The fraction of the area on faces whose normal is exactly along +-x or +-y.
 
@@ -99,11 +103,18 @@ def axis_wall_fraction(vertices: np.ndarray, faces: np.ndarray) -> float:
     f = np.asarray(faces, dtype=np.int64)
     if len(f) == 0:
         return 0.0
-    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    size = np.linalg.norm(n, axis=1)
-    tol = 1e-12 * size
-    ax, ay, az = np.abs(n[:, 0]), np.abs(n[:, 1]), np.abs(n[:, 2])
-    wall = (az <= tol) & ((ax <= tol) | (ay <= tol)) & (size > 0)
+    # the normals a block of faces at a time (their corners and cross products are several
+    # arrays the size of the mesh); the sizes and the walls kept whole, so the sums are the same
+    size = np.empty(len(f))
+    wall = np.empty(len(f), dtype=bool)
+    for a in range(0, len(f), _WALL_BLOCK):
+        b = min(a + _WALL_BLOCK, len(f))
+        fb = f[a:b]
+        n = np.cross(v[fb[:, 1]] - v[fb[:, 0]], v[fb[:, 2]] - v[fb[:, 0]])
+        sb = size[a:b] = np.linalg.norm(n, axis=1)
+        tol = 1e-12 * sb
+        ax, ay, az = np.abs(n[:, 0]), np.abs(n[:, 1]), np.abs(n[:, 2])
+        wall[a:b] = (az <= tol) & ((ax <= tol) | (ay <= tol)) & (sb > 0)
     total = size.sum()
     return float(size[wall].sum() / total) if total > 0 else 0.0
 
