@@ -976,10 +976,12 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     least_area = sum(u.least_area for u in units)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
-    S = S.astype(np.int64) + 4 * (T + 1)
+    # (in int32, as the tags: there are far fewer joins and caps than 2^29)
+    S = S.astype(np.int32) + 4 * (T + 1)
+    del T
     V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px)
     V, F, S = _open_necks(V, F, S, N, 1e-2 * px, tube_seen=tube_cache)
-    V, F = _compact(V, F)
+    V, F = _compact(V, F, overwrite=True)  # (F is this function's own)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
     return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps,
@@ -1032,7 +1034,7 @@ def _number_units(units, tags):
     nf = sum(len(u.F) for u in units)
     F = np.empty((nf, 3), dtype=np.int64)
     S = np.empty(nf, dtype=np.int8)
-    T = np.empty(nf, dtype=np.int64)
+    T = np.empty(nf, dtype=np.int32)
     at = 0
     n = 0
     for u, t in zip(units, tags):
