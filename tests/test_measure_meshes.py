@@ -124,3 +124,19 @@ def test_triangle_areas_of_large_meshes_equal_numpys_bit_for_bit():
     f[7, 2] = 500
     with pytest.raises(IndexError):
         measure.triangle_areas(v, f)
+
+
+def test_axis_wall_fraction_is_the_same_whatever_the_block_of_faces(monkeypatch):
+    # issue 16 (memory): the normals are made a block of faces at a time; the sums run over the
+    # whole arrays, so the fraction is the same number for any block size
+    from contourmesh import measure
+
+    box = trimesh.creation.box(extents=(2.0, 3.0, 1.0)).subdivide().subdivide()
+    s = trimesh.creation.icosphere(subdivisions=3)
+    V = np.concatenate([box.vertices, s.vertices + 5.0])
+    F = np.concatenate([box.faces, s.faces + len(box.vertices)]).astype(np.int64)
+    want = measure.axis_wall_fraction(V, F)
+    assert 0.0 < want < 1.0
+    for block in (7, 100, len(F), 1 << 16):
+        monkeypatch.setattr(measure, "_WALL_BLOCK", block)
+        assert measure.axis_wall_fraction(V, F) == want
