@@ -517,3 +517,44 @@ def test_kept_and_added_equals_the_concatenation_over_several_blocks(monkeypatch
         got_F, got_S = repair._kept_and_added(F, side, keep, added, [7, 8])
         assert got_F.dtype == np.int64 and got_S.dtype == side.dtype
         assert np.array_equal(got_F, want_F) and np.array_equal(got_S, want_S)
+
+
+def test_fan_numbers_equal_the_stable_sort_by_vertex():
+    # issue 16 (memory): the fans' new vertex numbers by counting, as the stable argsort gave them
+    rng = np.random.default_rng(31)
+    split = False
+    for _ in range(200):
+        nv = int(rng.integers(1, 30))
+        fv = rng.integers(0, nv, int(rng.integers(1, 80))).astype(np.int64)
+        by = np.argsort(fv, kind="stable")
+        sv = fv[by]
+        head = np.r_[True, sv[1:] != sv[:-1]]
+        want = np.empty(len(fv), dtype=np.int64)
+        want[by[head]] = sv[head]
+        others = by[~head]
+        want[others] = nv + np.arange(len(others))
+        got, got_others = repair._fan_numbers(fv, nv)
+        assert np.array_equal(got, want) and np.array_equal(got_others, others)
+        split |= len(others) > 0
+    assert split
+
+
+def test_release_free_heap_only_for_large_meshes(monkeypatch):
+    # issue 16 (memory): the general mesher gives freed heap back between its steps on large
+    # meshes only; where the C library has no malloc_trim nothing happens; the mesh is the same
+    import contourmesh
+    from contourmesh import _heap
+
+    calls = []
+    monkeypatch.setattr(_heap, "_trim", lambda pad: calls.append(pad) or 1)
+    assert not _heap.release_free_heap(_heap.RELEASE_FROM_FACES - 1) and calls == []
+    assert _heap.release_free_heap(_heap.RELEASE_FROM_FACES) and calls == [0]
+    vol = np.pad(np.random.default_rng(5).random((10, 12, 11)) < 0.4, 1)
+    want = contourmesh.mesh(vol)
+    monkeypatch.setattr(_heap, "RELEASE_FROM_FACES", 0)  # every step of the small mesh trims
+    calls.clear()
+    got = contourmesh.mesh(vol)
+    assert len(calls) >= 5
+    assert np.array_equal(got.vertices, want.vertices) and np.array_equal(got.faces, want.faces)
+    monkeypatch.setattr(_heap, "_trim", False)  # no malloc_trim here
+    assert not _heap.release_free_heap(10**9)

@@ -270,24 +270,16 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     # a vertex keeps its first fan; other fans get new vertices
     fan_vertex = vert_of_corner[first]  # vertex of each fan
     del first
-    fans_per_vertex = np.bincount(fan_vertex, minlength=len(V))
-    if not np.any(fans_per_vertex > 1):
+    split = np.bincount(fan_vertex, minlength=len(V)) > 1  # the vertices with several fans
+    if not split.any():
         return V, F
     # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
     # in the order of (vertex, fan)
-    by_vertex = np.argsort(fan_vertex, kind="stable")
-    sv = fan_vertex[by_vertex]
-    head = np.r_[True, sv[1:] != sv[:-1]]
-    fan_to_new = np.empty(ncomp, dtype=np.int64)
-    fan_to_new[by_vertex[head]] = sv[head]
-    others = by_vertex[~head]
-    del by_vertex, sv, head
-    fan_to_new[others] = len(V) + np.arange(len(others))
-    new_V = [V, V[fan_vertex[others]]]
-    V2 = np.concatenate(new_V)
+    fan_to_new, others = _fan_numbers(fan_vertex, len(V))
     # nudge every copy of a split vertex towards the centroid of its fan (the mean of its faces'
     # centroids, summed over its corners in order: only the corners of those fans are visited)
-    moved = np.flatnonzero(fans_per_vertex[fan_vertex] > 1)
+    moved = np.flatnonzero(split[fan_vertex])
+    del split
     in_moved = np.zeros(ncomp, dtype=bool)
     in_moved[moved] = True
     corners = np.flatnonzero(in_moved[lab])
@@ -296,6 +288,9 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     # the same order, as over all fans, without arrays over all of them
     at = np.searchsorted(moved, lab[corners])
     del in_moved
+    start = fan_vertex[moved]  # where each moved fan's vertex (or its copy) is before the nudge
+    copies = fan_vertex[others]  # the new vertices are copies of these
+    del fan_vertex
     # the new faces: fan_to_new[lab], written over the labels (int64, one per corner)
     _renumber(lab, fan_to_new)
     F2 = lab.reshape(-1, 3)
@@ -304,11 +299,47 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     target = np.stack([np.bincount(at, weights=centroids[:, d], minlength=len(moved)) for d in range(3)], axis=1)
     target = target / counts[:, None]
     vid = fan_to_new[moved]
-    d = target - V2[vid]
+    del fan_to_new
+    d = target - V[start]  # (V2[vid]: a fan's vertex or the copy of it)
+    V2 = np.concatenate([V, V[copies]])
     nrm = np.linalg.norm(d, axis=1)
     good = nrm > 0
     V2[vid[good]] += d[good] * (nudge / nrm[good])[:, None]
     return V2, F2
+
+
+@njit(cache=True, nogil=True)
+def _fan_numbers(fan_vertex, nv):
+    """Per fan its vertex number: the fan's own vertex for the first fan of each vertex (in fan
+    order), else ``nv + j`` for the ``j``-th of the other fans in the order of (vertex, fan);
+    and those other fans in that order.  (A stable argsort of ``fan_vertex`` and its heads, by
+    counting: no sorted copies.)"""
+    nf = fan_vertex.shape[0]
+    off = np.zeros(nv + 1, np.int64)  # other fans per vertex, then where each vertex's begin
+    first = np.zeros(nv, np.bool_)
+    fan_to_new = np.empty(nf, np.int64)
+    for f in range(nf):
+        v = fan_vertex[f]
+        if not first[v]:
+            first[v] = True
+            fan_to_new[f] = v
+        else:
+            off[v + 1] += 1
+    for v in range(nv):
+        off[v + 1] += off[v]
+    others = np.empty(off[nv], np.int64)
+    for v in range(nv):
+        first[v] = False
+    for f in range(nf):
+        v = fan_vertex[f]
+        if not first[v]:
+            first[v] = True
+        else:
+            j = off[v]
+            others[j] = f
+            fan_to_new[f] = nv + j
+            off[v] = j + 1
+    return fan_to_new, others
 
 
 def _half_edge_twins_reference(F, nv):

@@ -76,6 +76,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ._heap import release_free_heap
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
@@ -742,6 +743,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                        getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
+        release_free_heap(len(F))
         pairs = _crossing_pairs(V, F, previous)
         previous = (V, F, pairs)
         V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
@@ -991,6 +993,9 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             units.append(unit(("cap", k, c), key, make))
             tags.append(first + c)
         first += s.n
+    # (the freed heap given back between the large steps: see contourmesh._heap)
+    nf = sum(len(u.F) for u in units)
+    release_free_heap(nf)
     V, F, S, N, T = _number_units(units, tags, lambda rk: _with_z(polygon_of(*rk), zs[rk[0]]))
     band_fallbacks = sum(u.replaced for u in units)
     pixel_caps = sum(u.pixel_caps for u in units)
@@ -1000,9 +1005,12 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     # (in int32, as the tags: there are far fewer joins and caps than 2^29)
     S = S.astype(np.int32) + 4 * (T + 1)
     del T
+    release_free_heap(nf)
     V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px)
+    release_free_heap(nf)
     V, F, S = _open_necks(V, F, S, N, 1e-2 * px, tube_seen=tube_cache)
     V, F = _compact(V, F, overwrite=True)  # (F is this function's own)
+    release_free_heap(nf)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
     return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps,
