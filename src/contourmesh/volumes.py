@@ -217,24 +217,32 @@ class _HoleMasks(Sequence):
 
 class _CrackXY(Sequence):
     """The crack contours of a slice's components in physical xy (``crack_outer``, or with
-    ``holes`` the lists of ``crack_holes``), made from their corner coordinates when read: kept
-    twice, as corners and as floats, they came to a sixth of the general mesher's live memory on
-    large volumes."""
+    ``holes`` the lists of ``crack_holes``), made from their corner coordinates when first read
+    and kept from then on (the components read are those with crack rings, a few): every one
+    kept, as corners and as floats, came to a sixth of the general mesher's live memory on large
+    volumes.  :meth:`made` gives one without keeping it."""
 
-    __slots__ = ("corners", "to_xy", "holes")
+    __slots__ = ("corners", "to_xy", "holes", "kept")
 
     def __init__(self, corners, to_xy, holes: bool):
         self.corners, self.to_xy, self.holes = corners, to_xy, holes
+        self.kept: dict = {}
 
     def __len__(self) -> int:
         return len(self.corners)
 
-    def __getitem__(self, c):
-        if isinstance(c, slice):
-            return [self[i] for i in range(len(self))[c]]
+    def made(self, c):
         if self.holes:
             return [self.to_xy(h) for h in self.corners[c]]
         return self.to_xy(self.corners[c])
+
+    def __getitem__(self, c):
+        if isinstance(c, slice):
+            return [self[i] for i in range(len(self))[c]]
+        got = self.kept.get(c)
+        if got is None:
+            got = self.kept[c] = self.made(c)
+        return got
 
 
 class _Slice:
@@ -1782,8 +1790,8 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area):
     def perimeter(rings):
         return sum(float(np.hypot(*(np.roll(r, -1, axis=0) - r).T).sum()) for r in rings)
 
-    collars = sum(perimeter([A.crack_outer[a]] + list(A.crack_holes[a])) for a in ga) + \
-        sum(perimeter([B.crack_outer[b]] + list(B.crack_holes[b])) for b in gb)
+    collars = sum(perimeter([A.crack_outer.made(a)] + A.crack_holes.made(a)) for a in ga) + \
+        sum(perimeter([B.crack_outer.made(b)] + B.crack_holes.made(b)) for b in gb)  # (not kept)
     # the pixels of either side lie in the box of their components' boxes
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
@@ -1859,7 +1867,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         if key not in near:
             if kk not in boxes:
                 s = slices[kk]
-                rs = [np.concatenate([s.crack_outer[c], s.outer[c]] + list(s.crack_holes[c]) + list(s.holes[c]))
+                # (every component's crack rings, once: made, not kept)
+                rs = [np.concatenate([s.crack_outer.made(c), s.outer[c]] + s.crack_holes.made(c) + list(s.holes[c]))
                       for c in range(s.n)]
                 boxes[kk] = (np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs]))
             blo, bhi = boxes[kk]
