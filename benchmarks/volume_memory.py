@@ -67,7 +67,7 @@ if %(phases)r:
             finally:
                 current[0] = prev
         setattr(mod, name, g)
-    for name, label in [('fast_volume_to_mesh', 'fast path'), ('prepare_volume', 'prepare'),
+    for name, label in [('_fast_volume_to_mesh', 'fast path'), ('prepare_volume', 'prepare'),
                         ('_Slice', 'slices'), ('overlap_groups', 'joins'), ('_simple_join', 'joins'),
                         ('_bridge_plan', 'joins'), ('_densify_branching', 'densify'),
                         ('_build_bridges', 'bridges'), ('_assemble', 'assemble: joins and caps'),

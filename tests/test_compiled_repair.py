@@ -643,3 +643,80 @@ def test_vertex_normals_at_some_vertices_equal_the_whole_mesh_normals():
     for _ in range(10):
         ids = rng.choice(len(V), int(rng.integers(1, 60)), replace=False)
         assert np.array_equal(repair._vertex_normals_at(V, F, ids).view(np.int64), whole[ids].view(np.int64))
+
+
+def test_compact_renumbers_in_place_and_leaves_a_mesh_using_every_vertex_alone():
+    # issue 16 (memory): _compact(overwrite=True) writes the renumbered faces into F itself; a mesh
+    # that uses every vertex comes back as it is (no copies)
+    rng = np.random.default_rng(23)
+    V = rng.normal(size=(50, 3))
+    F = _random_faces(rng, 60, 50)
+    unused = np.setdiff1d(np.arange(50), F)
+    assert len(unused)  # (the case with vertices to drop)
+    used = np.flatnonzero(np.bincount(F.reshape(-1), minlength=50))
+    remap = np.full(50, -1)
+    remap[used] = np.arange(len(used))
+    want_V, want_F = V[used], remap[F]
+    got_V, got_F = repair._compact(V, F.copy())
+    assert np.array_equal(got_V, want_V) and np.array_equal(got_F, want_F)
+    G = F.copy()
+    got_V, got_F = repair._compact(V, G, overwrite=True)
+    assert got_F is G and np.array_equal(G, want_F) and np.array_equal(got_V, want_V)
+    W, H = repair._compact(want_V, want_F)  # every vertex used
+    assert W is want_V and H is want_F
+
+
+def test_kept_and_added_equals_the_concatenation_over_several_blocks(monkeypatch):
+    rng = np.random.default_rng(29)
+    F = _random_faces(rng, 1000, 300)
+    side = rng.integers(0, 40, 1000).astype(np.int32)
+    keep = rng.random(1000) < 0.9
+    added = [[1, 2, 3], [4, 5, 6]]
+    want_F = np.concatenate([F[keep], np.array(added, dtype=np.int64)])
+    want_S = np.concatenate([side[keep], np.array([7, 8], dtype=np.int32)])
+    for block in (64, 1000, 1 << 16):  # a block boundary inside the faces, at their end, beyond
+        monkeypatch.setattr(repair, "_ROW_BLOCK", block)
+        got_F, got_S = repair._kept_and_added(F, side, keep, added, [7, 8])
+        assert got_F.dtype == np.int64 and got_S.dtype == side.dtype
+        assert np.array_equal(got_F, want_F) and np.array_equal(got_S, want_S)
+
+
+def test_fan_numbers_equal_the_stable_sort_by_vertex():
+    # issue 16 (memory): the fans' new vertex numbers by counting, as the stable argsort gave them
+    rng = np.random.default_rng(31)
+    split = False
+    for _ in range(200):
+        nv = int(rng.integers(1, 30))
+        fv = rng.integers(0, nv, int(rng.integers(1, 80))).astype(np.int64)
+        by = np.argsort(fv, kind="stable")
+        sv = fv[by]
+        head = np.r_[True, sv[1:] != sv[:-1]]
+        want = np.empty(len(fv), dtype=np.int64)
+        want[by[head]] = sv[head]
+        others = by[~head]
+        want[others] = nv + np.arange(len(others))
+        got, got_others = repair._fan_numbers(fv, nv)
+        assert np.array_equal(got, want) and np.array_equal(got_others, others)
+        split |= len(others) > 0
+    assert split
+
+
+def test_release_free_heap_only_for_large_meshes(monkeypatch):
+    # issue 16 (memory): the general mesher gives freed heap back between its steps on large
+    # meshes only; where the C library has no malloc_trim nothing happens; the mesh is the same
+    import contourmesh
+    from contourmesh import _heap
+
+    calls = []
+    monkeypatch.setattr(_heap, "_trim", lambda pad: calls.append(pad) or 1)
+    assert not _heap.release_free_heap(_heap.RELEASE_FROM_FACES - 1) and calls == []
+    assert _heap.release_free_heap(_heap.RELEASE_FROM_FACES) and calls == [0]
+    vol = np.pad(np.random.default_rng(5).random((10, 12, 11)) < 0.4, 1)
+    want = contourmesh.mesh(vol)
+    monkeypatch.setattr(_heap, "RELEASE_FROM_FACES", 0)  # every step of the small mesh trims
+    calls.clear()
+    got = contourmesh.mesh(vol)
+    assert len(calls) >= 5
+    assert np.array_equal(got.vertices, want.vertices) and np.array_equal(got.faces, want.faces)
+    monkeypatch.setattr(_heap, "_trim", False)  # no malloc_trim here
+    assert not _heap.release_free_heap(10**9)

@@ -576,7 +576,16 @@ def _plane_part(F, V, i, c):
 
 
 @_pure
-def _across_plane(V, ws, F, box, i, j):
+def _z_range(V, F, i):
+    """The lowest and highest corner heights of face i (its box's z-range)."""
+    a = V[F[i, 0], 2]
+    b = V[F[i, 1], 2]
+    c = V[F[i, 2], 2]
+    return min(a, min(b, c)), max(a, max(b, c))
+
+
+@_pure
+def _across_plane(V, ws, F, i, j):
     """Faces i and j whose boxes meet only in a plane ``z = c``, one face below it and the other
     above it, neither flat: 1 if they intersect (module docstring), 0 if not, -1 if the boxes do
     not meet that way (then the general test decides).
@@ -585,10 +594,12 @@ def _across_plane(V, ws, F, box, i, j):
     edge), and so does every common vertex: the test is two segments in the plane.  With no common
     vertex they intersect if the segments meet; with one, ``p``, if both are segments from ``p``
     along one ray; with two (a common edge) they meet along it only, from opposite sides."""
-    if box[i, 5] == box[j, 2] and box[i, 2] < box[i, 5] and box[j, 2] < box[j, 5]:
-        c = box[i, 5]
-    elif box[j, 5] == box[i, 2] and box[j, 2] < box[j, 5] and box[i, 2] < box[i, 5]:
-        c = box[j, 5]
+    zi0, zi1 = _z_range(V, F, i)
+    zj0, zj1 = _z_range(V, F, j)
+    if zi1 == zj0 and zi0 < zi1 and zj0 < zj1:
+        c = zi1
+    elif zj1 == zi0 and zj0 < zj1 and zi0 < zi1:
+        c = zj1
     else:
         return -1
     na, a1, a2 = _plane_part(F, V, i, c)
@@ -792,7 +803,7 @@ def _intersecting_pairs(V, ws, F, budget, stop):
                 cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h[2])
                 if (cz * ny + cy) * nx + cx != key:
                     continue
-                hit = _across_plane(V, ws, F, box, i, j)
+                hit = _across_plane(V, ws, F, i, j)
                 if hit < 0:
                     hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
                 if hit == 1:
@@ -1103,12 +1114,14 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
 
 
 @_kernel
-def _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
+def _slab_step(V, ws, F, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
                npairs, pi, pj, work, limit, stop):
     """Slab k of :func:`_slab_pairs`: its pairs, each tested in the lowest slab the two faces
     share; none when the planes on both sides hold embedded planar graphs and the slab's faces
     (all within it) have the certificate of :func:`_slab_embedded`.  ``npairs`` is -1 when the
-    sweep went over ``limit``."""
+    sweep went over ``limit``.  ``sbox`` (the slab's faces' xy boxes, by their place in ``faces``),
+    ``sgrp`` (all 2) and ``sids`` (``0, 1, ...``) are workspaces of one entry per face of the
+    fullest slab."""
     if len(faces) < 2:
         return ci, cj, npairs, pi, pj, work
     if ws[0] == 1.0 and pemb[k] == 1 and pemb[k + 1] == 1:
@@ -1119,12 +1132,25 @@ def _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp, faces, k, pemb, k
                 break
         if single and _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
             return ci, cj, npairs, pi, pj, work
-    ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, grp, faces, ci, cj, np.int64(0), work, limit, np.int64(0))
+    # the sweep over the faces' places in the slab list (the same order, so the same candidates
+    # in the same order as over their face numbers), then back to face numbers
+    ns = len(faces)
+    for t in range(ns):
+        i = faces[t]
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        sbox[t, 0] = min(V[a, 0], min(V[b, 0], V[c, 0]))
+        sbox[t, 1] = max(V[a, 0], max(V[b, 0], V[c, 0]))
+        sbox[t, 2] = min(V[a, 1], min(V[b, 1], V[c, 1]))
+        sbox[t, 3] = max(V[a, 1], max(V[b, 1], V[c, 1]))
+    ci, cj, n_out, work = _sweep(sbox[:, 0], sbox[:, 1], sbox[:, 2], sbox[:, 3], sgrp, sids[:ns], ci, cj,
+                                 np.int64(0), work, limit, np.int64(0))
     if n_out < 0:
         return ci, cj, np.int64(-1), pi, pj, work
     for t in range(n_out):
-        i = min(ci[t], cj[t])
-        j = max(ci[t], cj[t])
+        i = min(faces[ci[t]], faces[cj[t]])
+        j = max(faces[ci[t]], faces[cj[t]])
         if max(lo[i], lo[j]) != k:
             continue
         if _pair_intersects(V, ws, F, i, j):
@@ -1150,7 +1176,7 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
     m = len(F)
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
-    box = np.empty((m, 6), np.float64)
+    # (no boxes of the whole mesh: each slab's and plane's faces get theirs in a workspace)
     # (levels and face numbers in int32: a mesh of 2^31 faces would not fit in memory here anyway)
     lo = np.full(m, -1, np.int32)  # -1: not live (skipped, as in the grid path)
     hi = np.full(m, -1, np.int32)
@@ -1165,9 +1191,6 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
         a = F[i, 0]
         b = F[i, 1]
         c = F[i, 2]
-        for k in range(3):
-            box[i, k] = min(V[a, k], min(V[b, k], V[c, k]))
-            box[i, 3 + k] = max(V[a, k], max(V[b, k], V[c, k]))
         if a == b or b == c or a == c:
             continue
         if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
@@ -1200,12 +1223,6 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
         for k in range(lo[i], hi[i] + 1):
             plane_faces[fp[k]] = i
             fp[k] += 1
-    # the slab sweeps read the faces' xy boxes in place (columns of box, not copies)
-    xlo = box[:, 0]
-    xhi = box[:, 3]
-    ylo = box[:, 1]
-    yhi = box[:, 4]
-    grp = np.full(m, 2, np.int8)  # every pair of one slab's faces is a candidate (groups in int8)
     limit = budget * m + 1000000
     work = np.int64(0)
     n_out = np.int64(0)
@@ -1224,6 +1241,9 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
     # are columns of box, and entries are numbered in int32 as the slabs' faces are: the sweeps
     # get one signature
     pbox = np.empty((mp, 4), np.float64)
+    sbox = np.empty((ms, 4), np.float64)  # (a slab's: every pair of its faces is a candidate, group 2)
+    sgrp = np.full(ms, 2, np.int8)
+    sids = np.arange(ms).astype(np.int32)
     pxlo = pbox[:, 0]
     pxhi = pbox[:, 1]
     pylo = pbox[:, 2]
@@ -1294,10 +1314,13 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
                 pgrp[ne] = 3
             else:
                 continue
-            pxlo[ne] = box[i, 0]
-            pxhi[ne] = box[i, 3]
-            pylo[ne] = box[i, 1]
-            pyhi[ne] = box[i, 4]
+            a = F[i, 0]
+            b = F[i, 1]
+            c = F[i, 2]
+            pxlo[ne] = min(V[a, 0], min(V[b, 0], V[c, 0]))
+            pxhi[ne] = max(V[a, 0], max(V[b, 0], V[c, 0]))
+            pylo[ne] = min(V[a, 1], min(V[b, 1], V[c, 1]))
+            pyhi[ne] = max(V[a, 1], max(V[b, 1], V[c, 1]))
             pface[ne] = i
             ne += 1
         # the pairs of a face ending here and a face starting here are all decided at once (none
@@ -1308,7 +1331,7 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
                                                 stamp, d1, d2, cert, all2, ci, cj, work, limit)
         pemb[k] = 1 if emb else 0
         if k > 0:
-            ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, lev, lo, hi, xlo, xhi, ylo, yhi, grp,
+            ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, lev, lo, hi, sbox, sgrp, sids,
                                                       slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, keys,
                                                       head, hstamp, nxt,
                                                       ci, cj, npairs, pi, pj, work, limit, stop)
@@ -1330,7 +1353,7 @@ def _slab_pairs(V, ws, F, lev, nlev, budget, stop):
             j = max(a, b)
             hit = np.int64(-1)
             if pgrp[ci[t]] < 2 and pgrp[cj[t]] < 2:
-                hit = _across_plane(V, ws, F, box, i, j)
+                hit = _across_plane(V, ws, F, i, j)
             if hit < 0:
                 hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
             if hit == 1:

@@ -39,6 +39,7 @@ def _split_four_face_edges(V, F, side, nudge):
     if np.any(mult > 4):
         raise RuntimeError(f"internal error: an edge is shared by {int(mult.max())} faces")
     hit = mult == 4
+    del mult
     if not hit.any():
         return V, F, side
     work = np.flatnonzero(hit.any(axis=1))
@@ -46,6 +47,7 @@ def _split_four_face_edges(V, F, side, nudge):
     faces = dict(zip(work.tolist(), zip(Fw.tolist(), side[work].tolist())))
     # the four-face edges' sets, filled as the reference fills them: faces in order, edges in order
     fw_hit = hit[work]
+    del hit
     lo_w = np.minimum(Fw, np.roll(Fw, -1, axis=1))
     hi_w = np.maximum(Fw, np.roll(Fw, -1, axis=1))
     rows, ts = np.nonzero(fw_hit)
@@ -108,10 +110,32 @@ def _split_four_face_edges(V, F, side, nudge):
     keep = np.ones(m, dtype=bool)
     keep[work] = False
     items = list(faces.values())
-    F2 = np.concatenate([F[keep], np.array([f for f, _ in items], dtype=np.int64).reshape(-1, 3)])
-    S2 = np.concatenate([side[keep], np.array([sd for _, sd in items], dtype=side.dtype)])
+    F2, S2 = _kept_and_added(F, side, keep, [f for f, _ in items], [sd for _, sd in items])
     V2 = np.concatenate([V, np.array(newV).reshape(-1, 3)])
     return V2, F2, S2
+
+
+def _kept_and_added(F, side, keep, added_faces, added_sides):
+    """``np.concatenate([F[keep], added_faces])`` and the same of the sides, the kept rows
+    written straight into the results (no whole-mesh temporaries besides them)."""
+    nk = int(np.count_nonzero(keep))
+    F2 = np.empty((nk + len(added_faces), 3), dtype=np.int64)
+    S2 = np.empty(nk + len(added_sides), dtype=side.dtype)
+    at = 0
+    for a in range(0, len(F), _ROW_BLOCK):  # (np.compress with out= copies the whole result once more)
+        b = min(a + _ROW_BLOCK, len(F))
+        kb = keep[a:b]
+        n = int(np.count_nonzero(kb))
+        F2[at: at + n] = F[a:b][kb]
+        S2[at: at + n] = side[a:b][kb]
+        at += n
+    F2[nk:] = np.array(added_faces, dtype=np.int64).reshape(-1, 3)
+    S2[nk:] = np.array(added_sides, dtype=side.dtype)
+    return F2, S2
+
+
+#: Rows per block of the copies of :func:`_kept_and_added`.
+_ROW_BLOCK = 1 << 16
 
 
 @njit(cache=True, nogil=True)
@@ -180,7 +204,7 @@ def _fan_components(twin):
         return x
 
     for h in range(n):
-        t = twin[h]
+        t = np.int64(twin[h])  # (int32 or int64 twins)
         a1 = h
         b1 = 3 * (t // 3) + (t % 3 + 1) % 3
         a2 = 3 * (h // 3) + (h % 3 + 1) % 3
@@ -240,29 +264,22 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
         twin = _half_edge_twins_reference(F, nv)
     # fans = connected components of the corners linked across every edge (union-find; labels
     # numbered in order of each component's lowest corner, as scipy's connected_components does)
-    ncomp, lab, first = _fan_components(np.ascontiguousarray(twin, dtype=np.int64))
+    ncomp, lab, first = _fan_components(twin)
     del twin
     vert_of_corner = F.reshape(-1)
     # a vertex keeps its first fan; other fans get new vertices
     fan_vertex = vert_of_corner[first]  # vertex of each fan
-    fans_per_vertex = np.bincount(fan_vertex, minlength=len(V))
-    if not np.any(fans_per_vertex > 1):
+    del first
+    split = np.bincount(fan_vertex, minlength=len(V)) > 1  # the vertices with several fans
+    if not split.any():
         return V, F
     # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
     # in the order of (vertex, fan)
-    by_vertex = np.argsort(fan_vertex, kind="stable")
-    sv = fan_vertex[by_vertex]
-    head = np.r_[True, sv[1:] != sv[:-1]]
-    fan_to_new = np.empty(ncomp, dtype=np.int64)
-    fan_to_new[by_vertex[head]] = sv[head]
-    others = by_vertex[~head]
-    fan_to_new[others] = len(V) + np.arange(len(others))
-    F2 = fan_to_new[lab].reshape(-1, 3)
-    new_V = [V, V[fan_vertex[others]]]
-    V2 = np.concatenate(new_V)
+    fan_to_new, others = _fan_numbers(fan_vertex, len(V))
     # nudge every copy of a split vertex towards the centroid of its fan (the mean of its faces'
     # centroids, summed over its corners in order: only the corners of those fans are visited)
-    moved = np.flatnonzero(fans_per_vertex[fan_vertex] > 1)
+    moved = np.flatnonzero(split[fan_vertex])
+    del split
     in_moved = np.zeros(ncomp, dtype=bool)
     in_moved[moved] = True
     corners = np.flatnonzero(in_moved[lab])
@@ -270,16 +287,59 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     # sums per moved fan only (numbered in the order of moved, which is sorted): the same sums, in
     # the same order, as over all fans, without arrays over all of them
     at = np.searchsorted(moved, lab[corners])
-    del lab, in_moved
+    del in_moved
+    start = fan_vertex[moved]  # where each moved fan's vertex (or its copy) is before the nudge
+    copies = fan_vertex[others]  # the new vertices are copies of these
+    del fan_vertex
+    # the new faces: fan_to_new[lab], written over the labels (int64, one per corner)
+    _renumber(lab, fan_to_new)
+    F2 = lab.reshape(-1, 3)
+    del lab
     counts = np.bincount(at, minlength=len(moved)).astype(np.float64)
     target = np.stack([np.bincount(at, weights=centroids[:, d], minlength=len(moved)) for d in range(3)], axis=1)
     target = target / counts[:, None]
     vid = fan_to_new[moved]
-    d = target - V2[vid]
+    del fan_to_new
+    d = target - V[start]  # (V2[vid]: a fan's vertex or the copy of it)
+    V2 = np.concatenate([V, V[copies]])
     nrm = np.linalg.norm(d, axis=1)
     good = nrm > 0
     V2[vid[good]] += d[good] * (nudge / nrm[good])[:, None]
     return V2, F2
+
+
+@njit(cache=True, nogil=True)
+def _fan_numbers(fan_vertex, nv):
+    """Per fan its vertex number: the fan's own vertex for the first fan of each vertex (in fan
+    order), else ``nv + j`` for the ``j``-th of the other fans in the order of (vertex, fan);
+    and those other fans in that order.  (A stable argsort of ``fan_vertex`` and its heads, by
+    counting: no sorted copies.)"""
+    nf = fan_vertex.shape[0]
+    off = np.zeros(nv + 1, np.int64)  # other fans per vertex, then where each vertex's begin
+    first = np.zeros(nv, np.bool_)
+    fan_to_new = np.empty(nf, np.int64)
+    for f in range(nf):
+        v = fan_vertex[f]
+        if not first[v]:
+            first[v] = True
+            fan_to_new[f] = v
+        else:
+            off[v + 1] += 1
+    for v in range(nv):
+        off[v + 1] += off[v]
+    others = np.empty(off[nv], np.int64)
+    for v in range(nv):
+        first[v] = False
+    for f in range(nf):
+        v = fan_vertex[f]
+        if not first[v]:
+            first[v] = True
+        else:
+            j = off[v]
+            others[j] = f
+            fan_to_new[f] = nv + j
+            off[v] = j + 1
+    return fan_to_new, others
 
 
 def _half_edge_twins_reference(F, nv):
@@ -318,33 +378,51 @@ def _half_edge_twins_reference(F, nv):
 
 @njit(cache=True, nogil=True)
 def _half_edge_twins(F, nv):
-    """:func:`_half_edge_twins_reference` with the half-edges bucketed by their start and by their
-    end vertex: ``(twin, status)``, status 0, or 1 where an edge is used twice in one direction, 2
-    where a half-edge has no opposite (then the twins are not all set)."""
+    """:func:`_half_edge_twins_reference` with the half-edges bucketed by their lower vertex (one
+    counting sort, int32 half-edge numbers): ``(twin, status)``, status 0, or 1 where an edge is
+    used twice in one direction, 2 where a half-edge has no opposite (then the twins are not all
+    set).  In the bucket of ``x``, ``up[w]`` is the half-edge ``x -> w`` and ``down[w]`` the
+    half-edge ``w -> x`` (``w > x``; an edge from ``x`` to itself is its own opposite, as in the
+    sorted search)."""
     n = 3 * F.shape[0]
-    s_out, out_items = _half_edges_by_vertex(F, nv, np.int64(0))
-    s_in, in_items = _half_edges_by_vertex(F, nv, np.int64(1))
-    twin = np.empty(n, np.int64)
-    cnt = np.zeros(nv, np.int64)
-    pos = np.empty(nv, np.int64)
+    start, items = _half_edges_by_vertex(F, nv, np.int64(2))
+    twin = np.empty(n, np.int32)
+    up = np.full(nv, -1, np.int32)
+    down = np.full(nv, -1, np.int32)
     for x in range(nv):
-        for t in range(s_out[x], s_out[x + 1]):  # the half-edges x -> w, by w
-            g = out_items[t]
-            w = F[g // 3, (g % 3 + 1) % 3]
-            cnt[w] += 1
-            pos[w] = g
-            if cnt[w] > 1:
-                return twin, np.int64(1)
-        for t in range(s_in[x], s_in[x + 1]):  # each half-edge u -> x: its twin is x -> u
-            h = in_items[t]
-            u = F[h // 3, h % 3]
-            if cnt[u] == 0:
+        for t in range(start[x], start[x + 1]):
+            h = items[t]
+            a = F[h // 3, h % 3]
+            b = F[h // 3, (h % 3 + 1) % 3]
+            if a <= b:  # x -> b (a == b == x: a loop)
+                if up[b] >= 0:
+                    return twin, np.int64(1)
+                up[b] = h
+            else:  # a -> x
+                if down[a] >= 0:
+                    return twin, np.int64(1)
+                down[a] = h
+        for t in range(start[x], start[x + 1]):
+            h = items[t]
+            a = F[h // 3, h % 3]
+            b = F[h // 3, (h % 3 + 1) % 3]
+            g = up[a] if a == b else down[b] if a < b else up[a]
+            if g < 0:
                 return twin, np.int64(2)
-            twin[h] = pos[u]
-        for t in range(s_out[x], s_out[x + 1]):
-            g = out_items[t]
-            cnt[F[g // 3, (g % 3 + 1) % 3]] = 0
+            twin[h] = g
+        for t in range(start[x], start[x + 1]):
+            h = items[t]
+            w = max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])
+            up[w] = -1
+            down[w] = -1
     return twin, np.int64(0)
+
+
+@njit(cache=True, nogil=True)
+def _renumber(a, table):
+    """``a[:] = table[a]`` in place (``a`` 1-D)."""
+    for i in range(a.shape[0]):
+        a[i] = table[a[i]]
 
 def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     """Replace each neck vertex by a small tube joining its two fans.
@@ -480,8 +558,7 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     keep = np.ones(len(F), dtype=bool)
     keep[old_index[~np.array(alive[:n_old], dtype=bool)]] = False
     added = [f for f, ok in zip(faces[n_old:], alive[n_old:]) if ok]
-    F = np.concatenate([F[keep], np.array(added, dtype=np.int64).reshape(-1, 3)])
-    S = np.concatenate([S[keep], np.zeros(len(added), dtype=S.dtype)])
+    F, S = _kept_and_added(F, S, keep, added, [0] * len(added))
     V = np.concatenate(Vs)
     return V, F, S
 
@@ -555,12 +632,15 @@ def _separate_coincident(V, F, nudge):
     is_dup[dup] = True
     corner_v = F.reshape(-1)
     corners = np.flatnonzero(is_dup[corner_v])  # the corners at a shared position, in face order
+    del is_dup
     faces = corners // 3
     cen = V[F[faces]].mean(axis=1)
-    acc = np.zeros((len(V), 3))
-    np.add.at(acc, corner_v[corners], cen)
-    deg = np.bincount(corner_v[corners], minlength=len(V)).astype(np.float64)
-    target = acc[dup] / np.maximum(deg[dup], 1)[:, None]
+    # the sums per shared vertex only (dup is sorted: its place by a search), in the same order
+    at = np.searchsorted(dup, corner_v[corners])
+    acc = np.zeros((len(dup), 3))
+    np.add.at(acc, at, cen)
+    deg = np.bincount(at, minlength=len(dup)).astype(np.float64)
+    target = acc / np.maximum(deg, 1)[:, None]
     d = target - V[dup]
     nrm = np.linalg.norm(d, axis=1)
     ok = nrm > 0
@@ -621,10 +701,17 @@ def _group_rows(V):
     return inv, np.bincount(gid)
 
 
-def _compact(V, F):
+def _compact(V, F, overwrite: bool = False):
+    """The vertices the faces use, and the faces renumbered to them (``overwrite``: in ``F``
+    itself, an int64 C array the caller does not need any more); every vertex used: ``V, F``."""
     used = np.flatnonzero(np.bincount(F.reshape(-1), minlength=len(V)))
+    if len(used) == len(V):
+        return V, F
     remap = np.full(len(V), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
+    if overwrite and F.dtype == np.int64 and F.flags.c_contiguous and F.flags.writeable:
+        _renumber(F.reshape(-1), remap)
+        return V[used], F
     return V[used], remap[F]
 
 
@@ -777,8 +864,9 @@ def _row_ids(R, sort_rows):
     size = 1
     while size < 2 * n + 2:
         size *= 2
-    table = np.full(size, -1, np.int64)  # the first row of each group in this slot
-    gid_of = np.empty(n, np.int64)
+    # the first row of each group in this slot (int32: 2^31 rows would not fit in memory here
+    # anyway); that row's id is its group's
+    table = np.full(size, -1, np.int32)
     ids = np.empty(n, np.int64)
     count = 0
     for i in range(n):
@@ -792,7 +880,6 @@ def _row_ids(R, sort_rows):
             j = table[slot]
             if j < 0:
                 table[slot] = i
-                gid_of[i] = count
                 ids[i] = count
                 count += 1
                 break
@@ -802,7 +889,7 @@ def _row_ids(R, sort_rows):
                     same = False
                     break
             if same:
-                ids[i] = gid_of[j]
+                ids[i] = ids[j]
                 break
             slot = (slot + 1) & (size - 1)
     return ids

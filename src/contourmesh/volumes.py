@@ -76,6 +76,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ._heap import release_free_heap
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
@@ -214,6 +215,36 @@ class _HoleMasks(Sequence):
         return m
 
 
+class _CrackXY(Sequence):
+    """The crack contours of a slice's components in physical xy (``crack_outer``, or with
+    ``holes`` the lists of ``crack_holes``), made from their corner coordinates when first read
+    and kept from then on (the components read are those with crack rings, a few): every one
+    kept, as corners and as floats, came to a sixth of the general mesher's live memory on large
+    volumes.  :meth:`made` gives one without keeping it."""
+
+    __slots__ = ("corners", "to_xy", "holes", "kept")
+
+    def __init__(self, corners, to_xy, holes: bool):
+        self.corners, self.to_xy, self.holes = corners, to_xy, holes
+        self.kept: dict = {}
+
+    def __len__(self) -> int:
+        return len(self.corners)
+
+    def made(self, c):
+        if self.holes:
+            return [self.to_xy(h) for h in self.corners[c]]
+        return self.to_xy(self.corners[c])
+
+    def __getitem__(self, c):
+        if isinstance(c, slice):
+            return [self[i] for i in range(len(self))[c]]
+        got = self.kept.get(c)
+        if got is None:
+            got = self.kept[c] = self.made(c)
+        return got
+
+
 class _Slice:
     """The components of one slice with their contours and polygons (physical xy).
 
@@ -233,10 +264,11 @@ class _Slice:
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
         self.dense_gen = {}  # component -> how many times its polygons were densified (see _retry_dense)
         self.hole_masks = []  # per component: list of (slices, mask) for each hole (local bbox)
-        self.crack_outer = []  # raw crack contours (physical xy), used by exact joins
-        self.crack_holes = []
-        self.crack_outer_c = []  # the same in corner coordinates (integers)
+        self.crack_outer_c = []  # raw crack contours in corner coordinates (integers)
         self.crack_holes_c = []
+        # the same in physical xy (used by exact joins), made when read
+        self.crack_outer = _CrackXY(self.crack_outer_c, to_xy_corner, False)
+        self.crack_holes = _CrackXY(self.crack_holes_c, to_xy_corner, True)
         self.fallbacks = 0
         for c in range(self.n):
             sl = self.objects[c]
@@ -264,8 +296,6 @@ class _Slice:
             # order hole masks like the crack holes: match by a pixel left of each hole contour
             hmasks = self._match_holes(crack_h, hmasks, off)
             self.hole_masks.append((sl, _HoleMasks(comp.shape, hmasks)))
-            self.crack_outer.append(to_xy_corner(crack_o))
-            self.crack_holes.append([to_xy_corner(h) for h in crack_h])
             self.crack_outer_c.append(crack_o)
             self.crack_holes_c.append(crack_h)
             self.outer.append(self._polygon(crack_o, comp, polygon, to_xy_corner, to_xy_center, off, hole=False))
@@ -721,6 +751,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                        getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
+        release_free_heap(len(F))
         pairs = _crossing_pairs(V, F, previous)
         previous = (V, F, pairs)
         V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
@@ -970,16 +1001,24 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             units.append(unit(("cap", k, c), key, make))
             tags.append(first + c)
         first += s.n
-    V, F, S, N, T = _number_units(units, tags)
+    # (the freed heap given back between the large steps: see contourmesh._heap)
+    nf = sum(len(u.F) for u in units)
+    release_free_heap(nf)
+    V, F, S, N, T = _number_units(units, tags, lambda rk: _with_z(polygon_of(*rk), zs[rk[0]]))
     band_fallbacks = sum(u.replaced for u in units)
     pixel_caps = sum(u.pixel_caps for u in units)
     least_area = sum(u.least_area for u in units)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
-    S = S.astype(np.int64) + 4 * (T + 1)
+    # (in int32, as the tags: there are far fewer joins and caps than 2^29)
+    S = S.astype(np.int32) + 4 * (T + 1)
+    del T
+    release_free_heap(nf)
     V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px)
+    release_free_heap(nf)
     V, F, S = _open_necks(V, F, S, N, 1e-2 * px, tube_seen=tube_cache)
-    V, F = _compact(V, F)
+    V, F = _compact(V, F, overwrite=True)  # (F is this function's own)
+    release_free_heap(nf)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
     return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps,
@@ -989,10 +1028,13 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
 class _Unit:
     """The vertices and faces one join or one cap adds to the mesh, in local vertex numbers:
     ``rings`` lists the rings it uses as ``((k, comp, hole), start, stop)`` ranges of its local
-    vertices (in the order it first used them); its other vertices are its own.  ``key`` is all
-    that the unit depends on besides the fixed input (see :func:`_assemble`)."""
+    vertices (in the order it first used them); its other vertices are its own, and only those
+    are kept (``V``, in local order; ``nv`` counts all): the rings' points are made again from
+    their polygons when the units are numbered (each ring is in two units or more, and the same
+    polygon makes the same points while the unit's key holds).  ``key`` is all that the unit
+    depends on besides the fixed input (see :func:`_assemble`)."""
 
-    __slots__ = ("key", "V", "F", "S", "N", "rings", "replaced", "pixel_caps", "least_area")
+    __slots__ = ("key", "V", "nv", "F", "S", "N", "rings", "replaced", "pixel_caps", "least_area")
 
     @classmethod
     def record(cls, key, make, polygon_of, zs, triangulation, band_guard):
@@ -1013,8 +1055,15 @@ class _Unit:
         make(M, ring)
         u = cls()
         u.key = key
-        u.V, F, u.S, u.N = M.result()
-        u.F = F.astype(np.int32) if len(u.V) < 2**31 else F  # (local numbers: kept across rebuilds)
+        V, F, u.S, u.N = M.result()
+        u.nv = len(V)
+        if spans:
+            own = np.ones(len(V), dtype=bool)
+            for _, a, b in spans:
+                own[a:b] = False
+            V = V[own]
+        u.V = V
+        u.F = F.astype(np.int32) if u.nv < 2**31 else F  # (local numbers: kept across rebuilds)
         u.rings = spans
         u.replaced = M.band_fallbacks
         u.pixel_caps = M.pixel_caps
@@ -1022,44 +1071,59 @@ class _Unit:
         return u
 
 
-def _number_units(units, tags):
+def _number_units(units, tags, ring_points):
     """The units' vertices and faces numbered into one mesh, in order: a ring gets its vertices
-    where it is first used, a unit's own vertices where the unit makes them.  Returns ``(V, F, S,
-    N, T)``: vertices, faces, side per face, neck vertices, and per face the tag of its unit."""
-    ring_ids = {}
-    Vb, Nb = [], []  # (the vertices as views of the units' arrays: one copy, at the end)
-    # the faces, sides and tags written into arrays of their final size (no list of per-unit copies)
+    where it is first used (``ring_points((k, comp, hole))``: its points, as the unit made them),
+    a unit's own vertices where the unit makes them.  Returns ``(V, F, S, N, T)``: vertices,
+    faces, side per face, neck vertices, and per face the tag of its unit (int32)."""
+    # the vertex count first, then every array written at its final size (no per-unit copies
+    # and no concatenation)
+    seen = set()
+    nv = 0
+    for u in units:
+        nv += u.nv
+        for rk, a, b in u.rings:
+            if rk in seen:
+                nv -= b - a
+            seen.add(rk)
+    del seen
+    V = np.empty((nv, 3))
     nf = sum(len(u.F) for u in units)
     F = np.empty((nf, 3), dtype=np.int64)
     S = np.empty(nf, dtype=np.int8)
-    T = np.empty(nf, dtype=np.int64)
+    T = np.empty(nf, dtype=np.int32)
+    ring_ids = {}
+    Nb = []
     at = 0
     n = 0
     for u, t in zip(units, tags):
-        nl = len(u.V)
+        nl = u.nv
         if not u.rings:  # (all its vertices its own: one block)
             g = np.arange(n, n + nl)
-            if nl:
-                Vb.append(u.V)
+            V[n: n + nl] = u.V
             n += nl
         else:
             g = np.empty(nl, dtype=np.int64)
-            pos = 0
+            pos = own = 0  # (local vertex; row of u.V)
             for rk, a, b in u.rings:
                 if a > pos:
                     g[pos:a] = np.arange(n, n + a - pos)
-                    Vb.append(u.V[pos:a])
+                    V[n: n + a - pos] = u.V[own: own + a - pos]
+                    own += a - pos
                     n += a - pos
                 r = ring_ids.get(rk)
                 if r is None:
                     r = ring_ids[rk] = np.arange(n, n + b - a)
-                    Vb.append(u.V[a:b])
+                    xyz = ring_points(rk)
+                    if len(xyz) != b - a:  # pragma: no cover - the key holds the ring's polygon
+                        raise RuntimeError(f"internal error: ring {rk} changed under a kept unit")
+                    V[n: n + b - a] = xyz
                     n += b - a
                 g[a:b] = r
                 pos = b
             if nl > pos:
                 g[pos:] = np.arange(n, n + nl - pos)
-                Vb.append(u.V[pos:])
+                V[n: n + nl - pos] = u.V[own:]
                 n += nl - pos
         if len(u.F):
             end = at + len(u.F)
@@ -1069,7 +1133,6 @@ def _number_units(units, tags):
             at = end
         if len(u.N):
             Nb.append(g[u.N])
-    V = np.concatenate(Vb) if Vb else np.zeros((0, 3))
     N = np.concatenate(Nb) if Nb else np.zeros(0, dtype=np.int64)
     return V, F, S, N, T
 
@@ -1733,8 +1796,9 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     def perimeter(kk, c):
         if (kk, c) not in perimeters:
             S = slices[kk]
+            # (made for the sum, not kept: see _CrackXY)
             perimeters[kk, c] = sum(float(np.hypot(*(_next(r) - r).T).sum())
-                                    for r in [S.crack_outer[c]] + list(S.crack_holes[c]))
+                                    for r in [S.crack_outer.made(c)] + list(S.crack_holes.made(c)))
         return perimeters[kk, c]
 
     collars = sum(perimeter(k, a) for a in ga) + sum(perimeter(k + 1, b) for b in gb)
@@ -1813,7 +1877,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         if key not in near:
             if kk not in boxes:
                 s = slices[kk]
-                rs = [np.concatenate([s.crack_outer[c], s.outer[c]] + list(s.crack_holes[c]) + list(s.holes[c]))
+                # (every component's crack rings, once: made, not kept)
+                rs = [np.concatenate([s.crack_outer.made(c), s.outer[c]] + s.crack_holes.made(c) + list(s.holes[c]))
                       for c in range(s.n)]
                 boxes[kk] = (np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs]))
             blo, bhi = boxes[kk]
