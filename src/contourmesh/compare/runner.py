@@ -317,13 +317,14 @@ def _warm_volumes() -> list:
 
 
 def _warm_rare() -> None:
-    """Kernels of paths that small volumes rarely take: the crossing repair (two overlapping cubes
+    """Kernels of paths that small volumes rarely take: the vertex-fan split of the manifold repair
+    (two tetrahedra sharing a vertex), the crossing repair (two overlapping cubes
     pulled apart, and the crossing pairs recounted after one cube moved) and the optimal band
     with its work bounded (large polygons)."""
     import numpy as np
 
     from ..bands.optimal import triangulate_band_optimal
-    from ..repair import crossing_pairs_after_change, resolve_crossings
+    from ..repair import crossing_pairs_after_change, resolve_crossings, split_nonmanifold_vertices
     from ..volumes import volume_to_mesh
 
     t = np.linspace(0, 2 * np.pi, 9, endpoint=False)
@@ -331,6 +332,11 @@ def _warm_rare() -> None:
     triangulate_band_optimal(ring[:-1], ring + [0.1, 0.0, 1.0], max_work=10.0)
 
     cube = volume_to_mesh(np.pad(np.ones((2, 2, 2), dtype=bool), 1))
+    # two tetrahedra sharing a vertex: the vertex-fan split and its renumbering
+    tet = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    split_nonmanifold_vertices(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0],
+                                         [0, 0, -1.0]]), np.vstack([tet, np.where(tet > 0, tet + 3, 0)]),
+                               1e-3, four_face=False)
     V = np.vstack([cube.vertices, cube.vertices + 0.3])
     F = np.vstack([cube.faces, cube.faces + len(cube.vertices)])
     V1, info = resolve_crossings(V, F, 1e-3)
