@@ -432,7 +432,7 @@ def plot(rows, sweep_rows, slope, out: Path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2 if sweep_rows else 1, figsize=(12 if sweep_rows else 6, 4.5), squeeze=False)
+    fig, axes = plt.subplots(1, 2 if sweep_rows else 1, figsize=(12 if sweep_rows else 7, 5.2), squeeze=False)
     ax = axes[0, 0]
     inputs = sorted({(r["input"], r["threads"]) for r in rows if r["method"] in METHODS})
     width = 0.8 / len(METHODS)
@@ -444,13 +444,14 @@ def plot(rows, sweep_rows, slope, out: Path):
     ax.set_xticklabels([f"{a}\n{t} thr" for a, t in inputs], fontsize=8)
     ax.set_yscale("log")
     ax.set_ylabel("seconds (array -> mesh + area)")
-    ax.legend(fontsize=7)
+    # below the axes, so that it hides no bar
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=4, frameon=False)
     ax.set_title("volume -> closed mesh + area, median")
     if sweep_rows:
         ax = axes[0, 1]
         r = np.array([s["r"] for s in sweep_rows])
         t = np.array([s["median_s"] for s in sweep_rows])
-        ax.loglog(r, t, "o-", label=f"contourmesh fast path (slope {slope:.2f})")
+        ax.loglog(r, t, "o-", label=f"contourmesh.mesh (slope {slope:.2f})")
         ax.loglog(r, [s["count_nonzero_s"] for s in sweep_rows], "s--", label="np.count_nonzero (one read pass)")
         ax.loglog(r, t[0] * (r / r[0]) ** 2, ":", color="grey", label="slope 2 (boundary voxels)")
         ax.set_xlabel("ball radius r (voxels), volume (2r + 12)^3")
