@@ -92,6 +92,18 @@ def _clipped(rule, lo: float, hi: float):
     return clipped
 
 
+#: Rule parts that set a refine setting to a fixed value (``extrapolate``: always the fine place).
+_FLAGS = {"extrapolate": ("FINE_TOLERANCE", (-1.0, -0.999)), "adaptive": ("FINE_ADAPTIVE", True),
+          "crease": ("FINE_CREASE", True), "nocrease": ("FINE_CREASE", False), "wider": ("CREASE_WIDER", True),
+          "nowider": ("CREASE_WIDER", None), "planar": ("CREASE_PLANAR", True), "noplanar": ("CREASE_PLANAR", False)}
+#: ``KEY=x`` rule parts: the refine setting that takes the number x.
+_NUMBERS = {"ratio": "FINE_RATIO", "rho": "FINE_RHO", "adaptive": "FINE_ADAPTIVE", "cubic": "SHIFT_CUBIC",
+            "ctol": "CREASE_TOLERANCE", "bend": "CREASE_MAX_BEND", "kmin": "CREASE_MIN_BEND",
+            "cwin": "CREASE_WINDOW", "planar": "CREASE_PLANAR", "qmin": "CREASE_MIN_RATIO"}
+#: ``KEY=a/b`` rule parts: the refine setting that takes the pair (a, b).
+_PAIRS = {"tol": "FINE_TOLERANCE", "wider": "CREASE_WIDER"}
+
+
 def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
     """``contourmesh.mesh(vol, refine=mode)`` under one rule (module settings restored after).
 
@@ -109,51 +121,17 @@ def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
             key, _, val = part.partition("=")
             if part == "auto":
                 continue
-            if key == "sigma":
+            if part in _FLAGS:  # a setting named alone
+                setattr(refine, *_FLAGS[part])
+            elif key in _NUMBERS:  # NAME=x: one number
+                setattr(refine, _NUMBERS[key], float(val))
+            elif key in _PAIRS:  # NAME=a/b: two numbers
+                setattr(refine, _PAIRS[key], tuple(float(x) for x in val.split("/")))
+            elif key == "sigma":
                 lo, hi = (float(x) for x in val.split("-"))
                 refine._auto_sigma_of = _clipped(saved["_auto_sigma_of"], lo, hi)
-            elif part == "extrapolate":
-                refine.FINE_TOLERANCE = (-1.0, -0.999)
-            elif key == "tol":
-                refine.FINE_TOLERANCE = tuple(float(x) for x in val.split("/"))
-            elif key == "ratio":
-                refine.FINE_RATIO = float(val)
-            elif key == "rho":
-                refine.FINE_RHO = float(val)
-            elif part == "adaptive":
-                refine.FINE_ADAPTIVE = True
-            elif key == "adaptive":
-                refine.FINE_ADAPTIVE = float(val)
-            elif key == "cubic":
-                refine.SHIFT_CUBIC = float(val)
-            elif part == "crease":
-                refine.FINE_CREASE = True
-            elif part == "nocrease":
-                refine.FINE_CREASE = False
             elif key == "density":
                 refine.RING_DENSITY[mode] = float(val)
-            elif key == "ctol":
-                refine.CREASE_TOLERANCE = float(val)
-            elif key == "bend":
-                refine.CREASE_MAX_BEND = float(val)
-            elif key == "kmin":
-                refine.CREASE_MIN_BEND = float(val)
-            elif key == "cwin":
-                refine.CREASE_WINDOW = float(val)
-            elif part == "wider":
-                refine.CREASE_WIDER = True
-            elif key == "wider":
-                refine.CREASE_WIDER = tuple(float(x) for x in val.split("/"))
-            elif part == "nowider":
-                refine.CREASE_WIDER = None
-            elif part == "planar":
-                refine.CREASE_PLANAR = True
-            elif key == "planar":
-                refine.CREASE_PLANAR = float(val)
-            elif part == "noplanar":
-                refine.CREASE_PLANAR = False
-            elif key == "qmin":
-                refine.CREASE_MIN_RATIO = float(val)
             else:
                 raise SystemExit(f"unknown rule {rule!r}")
         if sp is None:  # a contour stack

@@ -22,8 +22,12 @@ Functions here are pure: arrays in, arrays out.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 from numba import njit
+
+from ..topology import _root  # the compiled union-find root (path halving), shared
 
 __all__ = ["bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
@@ -445,13 +449,7 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     if len(chosen) == n - 1:
         return chosen
     parent = list(range(n))
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
+    find = partial(_find, parent)
     used = set()
     segs = [tuple(map(np.asarray, s)) for s in (avoid or [])]
     for i, vi, j, vj in chosen:
@@ -490,6 +488,14 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     return None
 
 
+def _find(parent, x):
+    """The root of ``x`` in the union-find forest ``parent`` (a list), halving the path."""
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    return x
+
+
 def _straight_bridges_reference(rings, cand, owners, obstacles_a, obstacles_b, avoid, allowed) -> list:
     """The straight bridges of :func:`bridge_tree`: the candidates ``cand`` (sorted tuples ``(.., ..,
     .., i, vi, j, vj)``) taken in order where they join two trees of the forest, leave both rings
@@ -497,13 +503,7 @@ def _straight_bridges_reference(rings, cand, owners, obstacles_a, obstacles_b, a
     pass ``allowed``; up to ``len(rings) - 1`` of them.  The reference of :func:`_straight_bridges`."""
     n = len(rings)
     parent = list(range(n))
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
+    find = partial(_find, parent)
     used = set()
     chosen = []
     segs = [tuple(map(np.asarray, s)) for s in (avoid or [])]
@@ -554,14 +554,6 @@ def _straight_bridges(rings, c, owners, obstacles_a, obstacles_b, avoid, allowed
                            np.ascontiguousarray(sa, dtype=np.float64), np.ascontiguousarray(sb, dtype=np.float64),
                            lab, cids, *grid, allowed is not None, np.int64(n))
     return [tuple(row) for row in got.tolist()]
-
-
-@njit(cache=True, nogil=True)
-def _root(parent, x):
-    while parent[x] != x:
-        parent[x] = parent[parent[x]]
-        x = parent[x]
-    return x
 
 
 @njit(cache=True, nogil=True)
