@@ -10,6 +10,8 @@ the RSS just before the call (the input volume already resident).
     python benchmarks/volume_speed.py --cold            # first call in a fresh process, empty numba cache
     python benchmarks/volume_speed.py --cold --inputs "" --cold-cases fast,general,band   # only that
     python benchmarks/volume_speed.py --real            # lobster (> 60), liver labels x2
+    python benchmarks/volume_speed.py --inputs rot-bunny-256,rot-armadillo-512   # rotated real meshes
+    python benchmarks/volume_speed.py --sweep-rotated bunny,armadillo   # 128, 256, 512 across (slope)
     python benchmarks/volume_speed.py --all --out comparisons/speed
 
 Thread counts are set explicitly: ``threads=1`` (everyone single-threaded) and ``threads=all``
@@ -76,11 +78,46 @@ def real_volume(name: str):
     raise ValueError(name)
 
 
+#: Closed meshes of the shared data (``meshes/``) that ``rot-NAME-N`` inputs voxelize.
+ROTATED_MESHES = {
+    "bunny": "libigl-tutorial-data/bunny.off", "armadillo": "libigl-tutorial-data/armadillo.obj",
+    "fertility": "libigl-tutorial-data/fertility.off", "elephant": "libigl-tutorial-data/elephant.obj",
+    "socket": "cgogn/socket.off", "lion": "dgtal/lion-tri.obj",
+}
+#: The seed of every rotated input's rotation (one rotation per mesh, the same at every N).
+ROTATION_SEED = 20261204
+
+
+def rotated_volume(name: str, n: int):
+    """A closed mesh of the shared data, rotated by a fixed random rotation (seeded by
+    :data:`ROTATION_SEED` and the name, so the same at every ``n``) and voxelized (Gauss, by ray
+    parity: :func:`contourmesh.voxelize_mesh`) at ``n`` voxels across its largest extent."""
+    import zlib
+
+    from scipy.spatial.transform import Rotation
+
+    from contourmesh.compare.inputs import load_closed_mesh
+    from contourmesh.voxelize import voxelize_mesh
+
+    if name not in ROTATED_MESHES:
+        raise ValueError(f"unknown rotated mesh {name!r}; expected one of {sorted(ROTATED_MESHES)}")
+    data = Path(os.environ.get("CONTOURMESH_DATA", ROOT.parent / "shared" / "data"))
+    v, f = load_closed_mesh(data / "meshes" / ROTATED_MESHES[name])
+    rng = np.random.default_rng([ROTATION_SEED, zlib.crc32(name.encode())])
+    rot = Rotation.random(random_state=rng).as_matrix()
+    vol, sp, _ = voxelize_mesh(v @ rot.T, f, int(n))
+    return vol, tuple(float(x) for x in sp)
+
+
 def make_input(spec: str):
-    """``ball-N-R`` or a real-data name -> (bool volume [z, y, x], spacing)."""
+    """``ball-N-R``, ``rot-NAME-N`` (:func:`rotated_volume`) or a real-data name -> (bool volume
+    [z, y, x], spacing)."""
     if spec.startswith("ball-"):
         _, n, r = spec.split("-")
         return ball_volume(int(n), float(r)), (1.0, 1.0, 1.0)
+    if spec.startswith("rot-"):
+        name, n = spec[4:].rsplit("-", 1)
+        return rotated_volume(name, int(n))
     return real_volume(spec)
 
 
@@ -387,6 +424,39 @@ def sweep(radii, repeat, threads):
     return rows, slope
 
 
+def loglog_slope(rows, x="boundary_voxels", y="median_s") -> float:
+    """The least-squares slope of log ``y`` against log ``x`` over ``rows``."""
+    return float(np.polyfit(np.log([r[x] for r in rows]), np.log([r[y] for r in rows]), 1)[0])
+
+
+def sweep_rotated(names, sizes, repeat, threads):
+    """``contourmesh.mesh`` on each rotated mesh (:func:`rotated_volume`) at each size: rows with
+    the median seconds, ``np.count_nonzero``'s seconds and the boundary voxels, and per mesh the
+    log-log slope of seconds against boundary voxels (1 = linear in the surface)."""
+    rows, slopes = [], {}
+    for name in names:
+        mine = []
+        for n in sizes:
+            vol, sp = rotated_volume(name, n)
+            ts = []
+            for _ in range(repeat):
+                t = time.perf_counter()
+                m = ours(vol, sp, threads)
+                ts.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            np.count_nonzero(vol)
+            cnz = time.perf_counter() - t
+            mine.append({"mesh": name, "n": n, "shape": "x".join(map(str, vol.shape)), "median_s": float(np.median(ts)),
+                         "min_s": min(ts), "max_s": max(ts), "count_nonzero_s": cnz, "triangles": len(m.faces),
+                         "boundary_voxels": boundary_voxels(vol), "fast_path": bool(m.meta.get("fast_path", False))})
+            print(mine[-1], flush=True)
+            del vol
+        slopes[name] = loglog_slope(mine)
+        print(f"{name}: log-log slope of seconds against boundary voxels {slopes[name]:.2f}", flush=True)
+        rows += mine
+    return rows, slopes
+
+
 # ------------------------------------------------------------------------------------------------
 # output
 # ------------------------------------------------------------------------------------------------
@@ -426,13 +496,15 @@ def write_table(rows, mem, out: Path):
     atomic_write(out / "volume_speed.md", ("\n".join(lines) + "\n").encode())
 
 
-def plot(rows, sweep_rows, slope, out: Path):
+def plot(rows, sweep_rows, slope, out: Path, rot_rows=()):
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2 if sweep_rows else 1, figsize=(12 if sweep_rows else 7, 5.2), squeeze=False)
+    two = bool(sweep_rows or rot_rows)
+    fig, axes = plt.subplots(1, 2 if two else 1, figsize=(12 if two else 7, 5.2), squeeze=False)
     ax = axes[0, 0]
     inputs = sorted({(r["input"], r["threads"]) for r in rows if r["method"] in METHODS})
     width = 0.8 / len(METHODS)
@@ -447,17 +519,25 @@ def plot(rows, sweep_rows, slope, out: Path):
     # below the axes, so that it hides no bar
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=4, frameon=False)
     ax.set_title("volume -> closed mesh + area, median")
-    if sweep_rows:
+    if sweep_rows or rot_rows:
         ax = axes[0, 1]
-        r = np.array([s["r"] for s in sweep_rows])
-        t = np.array([s["median_s"] for s in sweep_rows])
-        ax.loglog(r, t, "o-", label=f"contourmesh.mesh (slope {slope:.2f})")
-        ax.loglog(r, [s["count_nonzero_s"] for s in sweep_rows], "s--", label="np.count_nonzero (one read pass)")
-        ax.loglog(r, t[0] * (r / r[0]) ** 2, ":", color="grey", label="slope 2 (boundary voxels)")
-        ax.set_xlabel("ball radius r (voxels), volume (2r + 12)^3")
-        ax.set_ylabel("seconds")
+        groups = ([("ball r = 50-400", sweep_rows)] if sweep_rows else []) + \
+            [(f"rotated {name}, {', '.join(str(r['n']) for r in rot_rows if r['mesh'] == name)} across",
+              [r for r in rot_rows if r["mesh"] == name]) for name in dict.fromkeys(r["mesh"] for r in rot_rows)]
+        for label, grp in groups:
+            b = np.array([g["boundary_voxels"] for g in grp], dtype=float)
+            t = np.array([g["median_s"] for g in grp])
+            ax.loglog(b, t, "o-", label=f"{label} (slope {loglog_slope(grp):.2f})")
+        allb = np.array([g["boundary_voxels"] for _, grp in groups for g in grp], dtype=float)
+        allt = np.array([g["median_s"] for _, grp in groups for g in grp])
+        lo = allb.min()
+        ax.loglog([lo, allb.max()], [allt.min(), allt.min() * allb.max() / lo], ":", color="grey",
+                  label="slope 1 (linear in the surface)")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_xlabel("boundary voxels (object voxels with a background 6-neighbour)")
+        ax.set_ylabel("seconds, contourmesh.mesh")
         ax.legend(fontsize=7)
-        ax.set_title("time against r")
+        ax.set_title("time against surface size")
     fig.tight_layout()
     import io
 
@@ -474,6 +554,9 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--threads", default="1,all")
     ap.add_argument("--sweep", action="store_true")
+    ap.add_argument("--sweep-rotated", default="", metavar="NAMES",
+                    help="rotated real meshes timed at --sweep-sizes (comma-separated: %s)" % ", ".join(ROTATED_MESHES))
+    ap.add_argument("--sweep-sizes", default="128,256,512", help="voxels across for --sweep-rotated")
     ap.add_argument("--cold", action="store_true")
     ap.add_argument("--cold-cases", default=",".join(COLD_CASES),
                     help="first calls timed by --cold (comma-separated: %s)" % ", ".join(COLD_CASES))
@@ -491,7 +574,7 @@ def main(argv=None):
     print(f"machine: {ncpu} CPUs; load average {os.getloadavg()}", flush=True)
     summary = {"cpus": ncpu, "loadavg_start": os.getloadavg()}
     specs = [x for x in a.inputs.split(",") if x] + (REAL if a.real else [])
-    if specs:
+    if specs or a.sweep_rotated:
         warm_up()
     rows = []
     for th in threads:
@@ -513,12 +596,23 @@ def main(argv=None):
         sweep_rows, slope = sweep([50, 71, 100, 141, 200, 283, 400], a.repeat, threads[0])
         summary["sweep"] = sweep_rows
         summary["sweep_loglog_slope"] = slope
-        print("log-log slope of seconds against r:", slope, flush=True)
+        summary["sweep_loglog_slope_boundary"] = loglog_slope(sweep_rows)
+        print("log-log slope of seconds against r:", slope, "; against boundary voxels:",
+              summary["sweep_loglog_slope_boundary"], flush=True)
+    rot_rows = []
+    if a.sweep_rotated:
+        names = [x for x in a.sweep_rotated.split(",") if x]
+        unknown = sorted(set(names) - set(ROTATED_MESHES))
+        if unknown:
+            ap.error(f"--sweep-rotated: unknown mesh(es) {unknown}; expected some of {sorted(ROTATED_MESHES)}")
+        rot_rows, slopes = sweep_rotated(names, [int(x) for x in a.sweep_sizes.split(",")], a.repeat, threads[0])
+        summary["sweep_rotated"] = rot_rows
+        summary["sweep_rotated_loglog_slope_boundary"] = slopes
     summary["loadavg_end"] = os.getloadavg()
     if a.out:
         out = Path(a.out)
         write_table(rows, mem, out)
-        plot(rows, sweep_rows, slope, out)
+        plot(rows, sweep_rows, slope, out, rot_rows)
         from contourmesh.meshes import atomic_write
 
         atomic_write(out / "volume_speed.json", (json.dumps(summary, indent=1, default=float) + "\n").encode())
