@@ -107,53 +107,121 @@ def _annulus_dp(A1, A2, s, D, move, parent, keep):
     Forward ("push") relaxation over rows ``i = 0..n``; ``D[r, layer, j]`` holds row ``i`` at
     ``r = i % 2`` (two rolling rows); if ``keep``, ``move``/``parent`` (full tables, one byte per
     cell) record every cell's best step for backtracking.  On equal cost the C(1)-advance (pushed
-    first) wins.  Callers pass ``keep`` as ``np.bool_``: a literal ``True``/``False`` would compile
-    the programme once for each value.
+    first) wins, and among the offers of one kind the one from the lower layer.  Callers pass
+    ``keep`` as ``np.bool_``: a literal ``True``/``False`` would compile the programme once for
+    each value.
+
+    The layers' transitions (:func:`_after_c2`, :func:`_after_c1`) are written out per row kind
+    (rows 0 and ``n``, where a C(2)-advance is at row 0, and the others), each layer a row of
+    ``D``, and infinite cells offer infinity instead of being skipped: the same offers in the
+    same order as relaxing every layer of every cell through those functions, so the same costs
+    and moves (``tests/test_optimal.py`` compares it with that loop written plainly).
     """
     n, m = A1.shape
     inf = np.inf
-    r0 = 0
     for L in range(N_LAYERS):
         for j in range(m + 1):
-            D[r0, L, j] = inf
-    D[r0, NONE, 0] = 0.0
+            D[0, L, j] = inf
+    D[0, NONE, 0] = 0.0
     for i in range(n + 1):
         r = i % 2
         ib = (s + i) % n                      # the C(1) point of row i
-        # C(2)-advances within row i: (i, j) -> (i, j + 1)
+        d0 = D[r, NONE]
+        d1 = D[r, ROW0]
+        d2 = D[r, ROW_HERE]
+        d3 = D[r, ROW_PAST]
+        d4 = D[r, TWO_ROWS]
+        a2row = A2[ib]
+        # C(2)-advances within row i, (i, j) -> (i, j + 1), in increasing j: a cell is final
+        # before it offers; the offers to a cell come from the layers in increasing order
+        row0 = i == 0 or i == n
         for j in range(m):
-            a2 = A2[ib, j % m]
-            for L in range(N_LAYERS):
-                d = D[r, L, j]
-                if d == inf:
-                    continue
-                L2 = _after_c2(L, i, n)
-                c = d + a2
-                if c < D[r, L2, j + 1]:
-                    D[r, L2, j + 1] = c
+            a2 = a2row[j]
+            t = j + 1
+            if row0:
+                c = d0[j] + a2  # NONE -> ROW0
+                if c < d1[t]:
+                    d1[t] = c
                     if keep:
-                        move[i, L2, j + 1] = 1
-                        parent[i, L2, j + 1] = L
+                        move[i, ROW0, t] = 1
+                        parent[i, ROW0, t] = NONE
+                c = d1[j] + a2  # ROW0 -> ROW0
+                if c < d1[t]:
+                    d1[t] = c
+                    if keep:
+                        move[i, ROW0, t] = 1
+                        parent[i, ROW0, t] = ROW0
+            else:
+                c = d0[j] + a2  # NONE -> ROW_HERE
+                if c < d2[t]:
+                    d2[t] = c
+                    if keep:
+                        move[i, ROW_HERE, t] = 1
+                        parent[i, ROW_HERE, t] = NONE
+                c = d1[j] + a2  # ROW0 -> TWO_ROWS
+                if c < d4[t]:
+                    d4[t] = c
+                    if keep:
+                        move[i, TWO_ROWS, t] = 1
+                        parent[i, TWO_ROWS, t] = ROW0
+            c = d2[j] + a2  # ROW_HERE -> ROW_HERE
+            if c < d2[t]:
+                d2[t] = c
+                if keep:
+                    move[i, ROW_HERE, t] = 1
+                    parent[i, ROW_HERE, t] = ROW_HERE
+            c = d3[j] + a2  # ROW_PAST -> TWO_ROWS
+            if c < d4[t]:
+                d4[t] = c
+                if keep:
+                    move[i, TWO_ROWS, t] = 1
+                    parent[i, TWO_ROWS, t] = ROW_PAST
+            c = d4[j] + a2  # TWO_ROWS -> TWO_ROWS
+            if c < d4[t]:
+                d4[t] = c
+                if keep:
+                    move[i, TWO_ROWS, t] = 1
+                    parent[i, TWO_ROWS, t] = TWO_ROWS
         if i == n:
             break
-        # C(1)-advances to row i + 1: (i, j) -> (i + 1, j)
+        # C(1)-advances to row i + 1, (i, j) -> (i + 1, j): every layer keeps its own, except
+        # ROW_HERE, which becomes ROW_PAST (offered before ROW_PAST's own)
         rn = (i + 1) % 2
-        for L in range(N_LAYERS):
-            for j in range(m + 1):
-                D[rn, L, j] = inf
+        e0 = D[rn, NONE]
+        e1 = D[rn, ROW0]
+        e2 = D[rn, ROW_HERE]
+        e3 = D[rn, ROW_PAST]
+        e4 = D[rn, TWO_ROWS]
+        a1row = A1[ib]
+        i1 = i + 1
         for j in range(m + 1):
-            a1 = A1[ib, j % m]
-            for L in range(N_LAYERS):
-                d = D[r, L, j]
-                if d == inf:
-                    continue
-                L1 = _after_c1(L)
-                c = d + a1
-                if c < D[rn, L1, j]:
-                    D[rn, L1, j] = c
-                    if keep:
-                        move[i + 1, L1, j] = 0
-                        parent[i + 1, L1, j] = L
+            a1 = a1row[0] if j == m else a1row[j]
+            c0 = d0[j] + a1
+            c1 = d1[j] + a1
+            ch = d2[j] + a1
+            cp = d3[j] + a1
+            c4 = d4[j] + a1
+            e0[j] = c0
+            e1[j] = c1
+            e2[j] = inf
+            e3[j] = cp if cp < ch else ch
+            e4[j] = c4
+            if keep:
+                if c0 < inf:
+                    move[i1, NONE, j] = 0
+                    parent[i1, NONE, j] = NONE
+                if c1 < inf:
+                    move[i1, ROW0, j] = 0
+                    parent[i1, ROW0, j] = ROW0
+                if cp < ch:
+                    move[i1, ROW_PAST, j] = 0
+                    parent[i1, ROW_PAST, j] = ROW_PAST
+                elif ch < inf:
+                    move[i1, ROW_PAST, j] = 0
+                    parent[i1, ROW_PAST, j] = ROW_HERE
+                if c4 < inf:
+                    move[i1, TWO_ROWS, j] = 0
+                    parent[i1, TWO_ROWS, j] = TWO_ROWS
     return D[n % 2, TWO_ROWS, m]
 
 

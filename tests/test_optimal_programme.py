@@ -1,0 +1,101 @@
+"""The least-area band's dynamic programme (``bands.optimal._annulus_dp``) against the same
+programme written plainly: every layer of every cell relaxed through the layer rules
+``_after_c2`` / ``_after_c1``, skipping infinite cells.  The compiled kernel writes the layers'
+transitions out per row kind; it must give the same cost (bit for bit) and the same recorded
+moves, hence the same band, also where bands tie (points on a coarse grid) and on the signed
+costs of the drawn-fidelity band.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from contourmesh.bands.fidelity import _costs
+from contourmesh.bands.optimal import (
+    N_LAYERS,
+    NONE,
+    TWO_ROWS,
+    _after_c1,
+    _after_c2,
+    _annulus_dp,
+    _step_areas,
+    _trace_back,
+)
+
+
+def _plain_dp(A1, A2, s):
+    """The programme as one loop over rows, cells and layers (the reference)."""
+    after_c1, after_c2 = _after_c1.py_func, _after_c2.py_func
+    n, m = A1.shape
+    D = np.full((n + 1, N_LAYERS, m + 1), np.inf)
+    move = np.zeros((n + 1, N_LAYERS, m + 1), np.int8)
+    parent = np.zeros((n + 1, N_LAYERS, m + 1), np.int8)
+    D[0, NONE, 0] = 0.0
+    for i in range(n + 1):
+        ib = (s + i) % n
+        for j in range(m):
+            for L in range(N_LAYERS):
+                d = D[i, L, j]
+                if d == np.inf:
+                    continue
+                L2 = after_c2(L, i, n)
+                c = d + A2[ib, j]
+                if c < D[i, L2, j + 1]:
+                    D[i, L2, j + 1] = c
+                    move[i, L2, j + 1], parent[i, L2, j + 1] = 1, L
+        if i == n:
+            break
+        for j in range(m + 1):
+            for L in range(N_LAYERS):
+                d = D[i, L, j]
+                if d == np.inf:
+                    continue
+                L1 = after_c1(L)
+                c = d + A1[ib, j % m]
+                if c < D[i + 1, L1, j]:
+                    D[i + 1, L1, j] = c
+                    move[i + 1, L1, j], parent[i + 1, L1, j] = 0, L
+    return D[n, TWO_ROWS, m], D, move, parent
+
+
+def _ring(rs, n, z, grid):
+    t = np.sort(rs.uniform(0, 2 * np.pi, n))
+    r = rs.uniform(0.3, 2) * (1 + 0.2 * rs.standard_normal(n))
+    P = np.c_[r * np.cos(t), r * np.sin(t) * rs.uniform(0.5, 1.5), np.full(n, z)]
+    if grid:
+        P[:, :2] = np.round(P[:, :2] * grid) / grid
+    return P
+
+
+@pytest.mark.parametrize("kind", ["areas", "grid", "signed"])
+def test_the_kernel_is_the_plain_programme(kind):
+    rs = np.random.default_rng({"areas": 1, "grid": 2, "signed": 3}[kind])
+    compared = finite = 0
+    for _ in range(40):
+        n = int(rs.integers(2, 12))
+        m = int(rs.integers(n, 18))
+        grid = 2 if kind != "areas" else None
+        c1, c2 = _ring(rs, n, 0.0, grid), _ring(rs, m, 1.0, grid)
+        if kind == "signed":
+            A1, A2 = _costs(c1, c2, rs.uniform(0, 3), 1.0 if rs.random() < 0.5 else -1.0)
+        else:
+            A1, A2 = _step_areas(c1, c2)
+        for s in range(n):
+            want, Dref, mref, pref = _plain_dp(A1, A2, s)
+            D = np.empty((2, N_LAYERS, m + 1))
+            move = np.zeros((n + 1, N_LAYERS, m + 1), np.int8)
+            parent = np.zeros((n + 1, N_LAYERS, m + 1), np.int8)
+            got = _annulus_dp(A1, A2, s, D, move, parent, np.bool_(True))
+            dummy = np.empty((1, 1, 1), np.int8)
+            cost = _annulus_dp(A1, A2, s, D, dummy, dummy, np.bool_(False))
+            assert got == want or (np.isinf(got) and np.isinf(want)), (n, m, s)
+            assert cost == got or (np.isinf(cost) and np.isinf(got))
+            # the moves of every reachable cell, and so the band read back from them
+            live = np.isfinite(Dref)
+            assert np.array_equal(move[live], mref[live]) and np.array_equal(parent[live], pref[live])
+            if np.isfinite(want):
+                finite += 1
+                assert np.array_equal(_trace_back(move, parent, n, m), _trace_back(mref, pref, n, m))
+            compared += 1
+    assert finite > compared // 2  # most programmes reach the goal (else the comparison proves little)
