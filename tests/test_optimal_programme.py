@@ -99,3 +99,22 @@ def test_the_kernel_is_the_plain_programme(kind):
                 assert np.array_equal(_trace_back(move, parent, n, m), _trace_back(mref, pref, n, m))
             compared += 1
     assert finite > compared // 2  # most programmes reach the goal (else the comparison proves little)
+
+
+def test_step_areas_are_the_triangle_areas():
+    """``_step_areas`` (coordinates read as scalars) gives ``_tri_area`` of every step's triangle,
+    bit for bit."""
+    from contourmesh.bands.optimal import _tri_area
+
+    rs = np.random.default_rng(7)
+    for _ in range(20):
+        n, m = int(rs.integers(1, 9)), int(rs.integers(1, 12))
+        c1 = rs.normal(size=(n, 3)) * rs.uniform(0.1, 100)
+        c2 = rs.normal(size=(m, 3)) * rs.uniform(0.1, 100)
+        if rs.random() < 0.5:  # lattice points: zero-area (collinear) triangles too
+            c1, c2 = np.round(c1), np.round(c2)
+        A1, A2 = _step_areas(c1, c2)
+        for i in range(n):
+            for j in range(m):
+                assert A1[i, j] == _tri_area(c1[i], c1[(i + 1) % n], c2[j])
+                assert A2[i, j] == _tri_area(c1[i], c2[(j + 1) % m], c2[j])

@@ -61,15 +61,34 @@ def _tri_area(p, q, r):
 
 @njit(cache=True)
 def _step_areas(c1, c2):
-    """``A1[i, j]`` = area of ``(a_i, a_{i+1}, b_j)``; ``A2[i, j]`` = area of ``(a_i, b_{j+1}, b_j)``."""
+    """``A1[i, j]`` = area of ``(a_i, a_{i+1}, b_j)``; ``A2[i, j]`` = area of ``(a_i, b_{j+1}, b_j)``.
+
+    The arithmetic of :func:`_tri_area` (the same operations in the same order, so the same
+    numbers) on coordinates read as scalars: no array view per triangle."""
     n = c1.shape[0]
     m = c2.shape[0]
     A1 = np.empty((n, m))
     A2 = np.empty((n, m))
     for i in range(n):
+        i1 = (i + 1) % n
+        px, py, pz = c1[i, 0], c1[i, 1], c1[i, 2]
+        ux, uy, uz = c1[i1, 0] - px, c1[i1, 1] - py, c1[i1, 2] - pz  # a_i -> a_{i+1}
         for j in range(m):
-            A1[i, j] = _tri_area(c1[i], c1[(i + 1) % n], c2[j])
-            A2[i, j] = _tri_area(c1[i], c2[(j + 1) % m], c2[j])
+            j1 = (j + 1) % m
+            vx = c2[j, 0] - px  # a_i -> b_j
+            vy = c2[j, 1] - py
+            vz = c2[j, 2] - pz
+            cx = uy * vz - uz * vy
+            cy = uz * vx - ux * vz
+            cz = ux * vy - uy * vx
+            A1[i, j] = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+            wx = c2[j1, 0] - px  # a_i -> b_{j+1}
+            wy = c2[j1, 1] - py
+            wz = c2[j1, 2] - pz
+            cx = wy * vz - wz * vy
+            cy = wz * vx - wx * vz
+            cz = wx * vy - wy * vx
+            A2[i, j] = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
     return A1, A2
 
 
