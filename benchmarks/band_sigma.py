@@ -15,9 +15,10 @@ Rules (``--rules``, separated by ``;``):
 * ``ratio=R``: the fine width's share of the wide one (``FINE_RATIO``);
 * ``rho=X``: the extrapolation gain where the widths disagree (``FINE_RHO``; default the
   Richardson gain ``r^4 / (1 - r^4)``, 0.32);
-* ``nocrease`` / ``crease``: step 3b's one gain everywhere / a gain per vertex from the two places'
-  curvatures (``FINE_CREASE``, off by default), with ``cwin=W`` (``CREASE_WINDOW``), ``kmin=B``
-  (``CREASE_MIN_BEND``), ``bend=B`` (``CREASE_MAX_BEND``), ``ctol=T`` (``CREASE_TOLERANCE``),
+* ``nocrease`` / ``crease``: step 3b's one gain everywhere (the default before session 19) / a gain
+  per vertex from the two places' curvatures (``FINE_CREASE``, the default), with ``cwin=W``
+  (``CREASE_WINDOW``), ``kmin=B`` / ``kfade=LO/HI`` (``CREASE_MIN_BEND``: a floor / a fade-in of the
+  bend), ``qmax=E`` (``CREASE_MAX_ORDER``), ``bend=B`` (``CREASE_MAX_BEND``), ``ctol=T`` (``CREASE_TOLERANCE``),
   ``wider`` / ``wider=LO/HI`` / ``nowider`` (``CREASE_WIDER``: a third width ``sigma / r`` tells
   a crease from a smooth wave), ``planar`` / ``noplanar`` (``CREASE_PLANAR``: the ratio from the sections'
   curvatures) and ``qmin=Q`` (``CREASE_MIN_RATIO``);
@@ -99,9 +100,10 @@ _FLAGS = {"extrapolate": ("FINE_TOLERANCE", (-1.0, -0.999)), "adaptive": ("FINE_
 #: ``KEY=x`` rule parts: the refine setting that takes the number x.
 _NUMBERS = {"ratio": "FINE_RATIO", "rho": "FINE_RHO", "adaptive": "FINE_ADAPTIVE", "cubic": "SHIFT_CUBIC",
             "ctol": "CREASE_TOLERANCE", "bend": "CREASE_MAX_BEND", "kmin": "CREASE_MIN_BEND",
-            "cwin": "CREASE_WINDOW", "planar": "CREASE_PLANAR", "qmin": "CREASE_MIN_RATIO"}
+            "cwin": "CREASE_WINDOW", "planar": "CREASE_PLANAR", "qmin": "CREASE_MIN_RATIO",
+            "qmax": "CREASE_MAX_ORDER"}
 #: ``KEY=a/b`` rule parts: the refine setting that takes the pair (a, b).
-_PAIRS = {"tol": "FINE_TOLERANCE", "wider": "CREASE_WIDER"}
+_PAIRS = {"tol": "FINE_TOLERANCE", "wider": "CREASE_WIDER", "kfade": "CREASE_MIN_BEND"}
 
 
 def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
@@ -113,7 +115,7 @@ def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
 
     names = ("_auto_sigma_of", "FINE_TOLERANCE", "FINE_RATIO", "FINE_RHO", "SHIFT_CUBIC", "FINE_ADAPTIVE",
              "FINE_CREASE", "CREASE_WINDOW", "CREASE_MIN_BEND", "CREASE_MAX_BEND", "CREASE_TOLERANCE",
-             "CREASE_WIDER", "CREASE_PLANAR", "CREASE_MIN_RATIO")
+             "CREASE_WIDER", "CREASE_PLANAR", "CREASE_MIN_RATIO", "CREASE_MAX_ORDER")
     saved = {n: getattr(refine, n) for n in names}
     saved_density = dict(refine.RING_DENSITY)
     try:

@@ -496,7 +496,9 @@ def test_searches_sharing_slice_images_give_the_same_places():
             alone, n1 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, None)
             kept, n2 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, shared)
             assert np.array_equal(alone, kept) and n1 == n2
-        assert set(shared) == {2.6, 1.8} and all(box[0] == k for _, box, _ in shared.values())
+        # the two widths' images, and the crease step's wider width (R.CREASE_WIDER) where it looked
+        assert {2.6, 1.8} <= set(shared) <= {2.6, 1.8, 2.6 * 2.6 / 1.8}
+        assert all(shared[w][1][0] == k for w in (2.6, 1.8))
 
 
 @pytest.mark.parametrize("pixel, uneven", [((1.0, 1.0), False), ((0.667, 0.617), False), ((0.617, 0.667), True)])
@@ -688,6 +690,14 @@ def test_blur_bias_measurement_settings(monkeypatch):
     assert band_violations(st, m2) == 0
 
 
+def _plain_crease(monkeypatch):
+    """The crease gains as first measured (issue 14): the surface's curvature ratio, a hard floor on
+    the bend, no cap on the ratio, a crease's tolerance down to half, no wider width."""
+    for name, value in (("FINE_CREASE", True), ("CREASE_MIN_BEND", 0.1), ("CREASE_MAX_ORDER", None),
+                        ("CREASE_TOLERANCE", 0.5), ("CREASE_PLANAR", False), ("CREASE_WIDER", None)):
+        monkeypatch.setattr(R, name, value)
+
+
 def test_crease_gains_tell_a_prism_edge_from_a_round_wall(monkeypatch):
     """``FINE_CREASE`` (issue 14, a measurement setting): the two places' mean curvatures are in the
     ratio ``1 / r`` at a crease's rounded apex and equal on a smooth wall, so a 12-sided prism's
@@ -696,7 +706,7 @@ def test_crease_gains_tell_a_prism_edge_from_a_round_wall(monkeypatch):
     meshed with the setting is closed, outward and in its band."""
     from contourmesh.refine import FINE_RATIO, _crease_gains, _move_to_surface
 
-    monkeypatch.setattr(R, "FINE_CREASE", True)
+    _plain_crease(monkeypatch)
     r = FINE_RATIO
     smooth_gain, crease_gain = r ** 4 / (1 - r ** 4), r / (1 - r)
     t = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
@@ -711,6 +721,9 @@ def test_crease_gains_tell_a_prism_edge_from_a_round_wall(monkeypatch):
         _move_to_surface(pts, seed, kzs, r * sigma, 1.0, True, 3.0, near, False, found)
         rho, tol = _crease_gains(pts, seed, kzs, sigma, r * sigma, R._as_grid(1.0, pts.shape[0]), None, wide, near, 3.0)
         corner = np.hypot(*(wide - (truth.mean(0))).T) > 17.6 if name == "dodecagon" else np.ones(len(seed), bool)
+        # the corners' gains that matter: where the two places differ by more than the narrowest
+        # tolerance (elsewhere no gain acts, and the smooth one is returned)
+        corner &= np.hypot(*(near - wide).T) > R.FINE_TOLERANCE[0] * (1.0 - R.CREASE_TOLERANCE)
         gains[name] = (rho, corner)
         assert np.all((tol > 0.49) & (tol <= 1.0))
     round_wall = np.median(gains["circle"][0])
@@ -734,7 +747,7 @@ def test_wider_width_tells_a_crease_from_a_smooth_wave(monkeypatch):
     plain blend again; the dodecagon's edges keep their gains."""
     from contourmesh.refine import FINE_RATIO, FINE_TOLERANCE, _crease_gains, _move_to_surface, _surface_points
 
-    monkeypatch.setattr(R, "FINE_CREASE", True)
+    _plain_crease(monkeypatch)
     r = FINE_RATIO
     t = np.linspace(0, 2 * np.pi, 8000, endpoint=False)
     rad = 16.0 + 1.2 * np.cos(9 * t)
@@ -763,6 +776,25 @@ def test_wider_width_tells_a_crease_from_a_smooth_wave(monkeypatch):
             assert res[True][0] < _dist(blend[act], truth).mean() - 0.004
         else:  # the wider width leaves the edges' gains
             assert np.array_equal(res[None][1], res[True][1])
+
+
+def test_ring_reach_is_the_window_the_crease_averages_need():
+    """The crease gains evaluate the curvatures only where a vertex can act and within the averaging
+    window around it (``_ring_reach``): the averages at the selected vertices are the same bit for
+    bit when every other vertex's fields are zero, also across the ring's seam."""
+    t = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+    ring = np.ascontiguousarray(20.0 * np.c_[np.cos(t), np.sin(t)])
+    sel = np.zeros(200, bool)
+    sel[[0, 5, 120]] = True
+    mark = R._ring_reach(ring, sel, 1.5)
+    step = np.hypot(*(ring[1] - ring[0]))  # 0.63: reach 4.5 is 7 steps either side
+    assert mark.sum() == 15 + 15 + 15 - 10 and mark[[193, 12, 113, 127]].all() and not mark[[192, 13, 112, 128]].any()
+    assert 7 * step <= 4.5 < 8 * step
+    fld = np.random.default_rng(3).normal(size=(200, 10))
+    for planar in (False, True):
+        full = R._ring_curvature_mean(fld, 2.0, ring, 1.5, planar)
+        part = R._ring_curvature_mean(fld * mark[:, None], 2.0, ring, 1.5, planar)
+        assert np.array_equal(full[sel], part[sel]) and not np.array_equal(full, part)
 
 
 def test_planar_ratio_where_slices_are_thicker_than_pixels(monkeypatch):

@@ -138,9 +138,9 @@ SHIFT_CUBIC = 0.0
 #: place that is trusted, for a third search at ``sigma / r`` where the scales disagree.  A setting
 #: for measurements (``band_sigma.py --rules adaptive``; not a default: docs/DESIGN.md).
 FINE_ADAPTIVE = False
-#: Step 3b's gain per vertex (issue 14; False, the default: the one gain of :data:`FINE_RHO`
-#: everywhere; a setting for measurements, ``band_sigma.py --rules crease``, not a default:
-#: docs/DESIGN.md, "Crease gains").  The
+#: Step 3b's gain per vertex (issue 14; True, the default since session 19, docs/DESIGN.md, "Crease
+#: gains as the default"; False: the one gain of :data:`FINE_RHO` everywhere, ``band_sigma.py
+#: --rules nocrease``).  The
 #: mean curvature ``S`` of the blurred level at the two places tells a crease from a smooth bend: a
 #: smooth surface has the same ``S`` at both widths, the rounded apex of a crease (a faceted
 #: surface's edge) has ``S ~ 1 / sigma``.  With ``q = S_fine / S_wide`` (each averaged along the ring
@@ -149,12 +149,13 @@ FINE_ADAPTIVE = False
 #: and the Richardson gain ``r^p / (1 - r^p)``: 0.32 on smooth parts, up to 2.33 on a crease; its
 #: tolerance shrinks by ``1 - CREASE_TOLERANCE m`` (a crease's two places differ by about
 #: ``0.18 theta sigma``, under the smooth tolerance for the few-degree creases of fine meshes).
-FINE_CREASE = False
+FINE_CREASE = True
 #: The Gaussian (in arc length, times ``sigma``) over which ``S`` is averaged along the ring.
 CREASE_WINDOW = 1.0
 #: Where the wide place's averaged ``|S| sigma`` is below this, the smooth gain stands (a nearly flat
-#: part, whose ``q`` is noise: balls r >= 80).
-CREASE_MIN_BEND = 0.1
+#: part, whose ``q`` is noise: balls r >= 80); a pair ``(lo, hi)``: below ``lo``, and the crease share
+#: fades in from ``lo`` to ``hi`` (a ball's lattice facets bend its level by 0.10-0.13 at r = 160).
+CREASE_MIN_BEND = (0.1, 0.13)
 #: The crease gain fades out as ``|S| sigma`` grows from half this to this: detail narrower than the
 #: blur (a finger, an ear's rim) also has ``S ~ 1 / sigma`` and is not a crease.  None: no limit.
 CREASE_MAX_BEND = 0.5
@@ -165,18 +166,25 @@ CREASE_MIN_RATIO = 1.0
 #: level's mean curvature: a crease crossing the slices bends the section at both widths, the
 #: terraces of thick slices (creases along the slices) do not.  True / False: always / never; a
 #: number: in the slices whose slab (the spacing, in units of ``h``) is thicker than it.
-CREASE_PLANAR = False
-#: A crease's tolerance is FINE_TOLERANCE times ``1 - CREASE_TOLERANCE m``.
-CREASE_TOLERANCE = 0.5
+CREASE_PLANAR = 1.0
+#: A crease's tolerance is FINE_TOLERANCE times ``1 - CREASE_TOLERANCE m`` (on the shared meshes at
+#: 256 a quarter of the crease vertices part the two places by less than 0.09 voxel).
+CREASE_TOLERANCE = 0.9
 #: A third, wider width ``sigma / r`` that tells a crease from a smooth wave (None: not used).  A
 #: crease's curvature ratio is scale-free (``S(sigma) / S(sigma / r)`` is about ``S(r sigma) /
 #: S(sigma)``, both ``1 / r``); a wave of wavenumber ``k`` keeps ``exp(-k^2 s^2 / 2)`` of its
 #: amplitude, so it fades fast with the width: where the level at ``sigma / r`` bends the other way
 #: the crease share ``m`` is dropped (True: only that).  ``(t_lo, t_hi)``: also where ``t``, the
 #: ratio of the two log-ratios (about ``1 / r^2`` = 2.04 for a wave, 1 for a crease), exceeds
-#: ``t_hi``, linearly from ``t_lo``.  Only the rings where some vertex has ``m > 0`` and the two
-#: places differ are evaluated at ``sigma / r``.
+#: ``t_hi``, linearly from ``t_lo``.  Only the vertices that can act (``m > 0``, past their
+#: tolerance) and their averaging window are evaluated at ``sigma / r``.  Not the default: with
+#: :data:`CREASE_MAX_ORDER` the wave of ``tests/test_refine.py`` no longer needs it.
 CREASE_WIDER = None
+#: The crease share fades out as the ratio's order ``log q / log(1 / r)`` grows from 1 (a crease,
+#: scale-free) to this (None: no fade): a curvature that grows faster with the narrowing width
+#: than a crease's is a step narrower than the blur (the lattice facets of large balls: ``q``
+#: 1.4-1.9 at ``|S| sigma`` 0.10-0.15), whose place a crease gain overshoots.
+CREASE_MAX_ORDER = 1.5
 #: New slice images (:func:`_slice_moments`) of a ring's first search reach this many ``max_move``
 #: (plus 2 voxels) beyond what it needs, so that the ring's later searches (its meridian points lie
 #: within ``max_move + 1`` of its seed) and its chord step reuse them.
@@ -1635,28 +1643,42 @@ def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
     places at ``sigma`` and ``fine``."""
     if not FINE_CREASE or len(xy) < 3 or not (kz == kz[0]).all():
         return None, None
+    # only a vertex whose places differ by more than the narrowest tolerance can take a gain: the
+    # curvatures are needed there and within the averaging window's reach of it (the same gains)
+    cand = np.hypot(*(near - out).T) > 0.999 * FINE_TOLERANCE[0] * max(1.0 - CREASE_TOLERANCE, 0.0)
+    if not cand.any():
+        return None, None
+    ring = np.ascontiguousarray(out)
+    win = float(CREASE_WINDOW) * sigma
     images = {} if images is None else images
     k = int(kz[0])
     r = fine / sigma
-    curv, plane = [], []
     planar = _planar_ratio(grid, k)
-    for width, p in ((sigma, out), (fine, near)):
-        mom, box, span = images.get(float(width)) or _no_images()
-        fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(p), k, float(width), grid, mom, box, span,
-                                            IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
-        images[float(width)] = (mom, box, span)
-        curv.append(_ring_curvature_mean(fld, float(width), np.ascontiguousarray(out), float(CREASE_WINDOW) * sigma))
-        if planar:
-            plane.append(_ring_curvature_mean(fld, float(width), np.ascontiguousarray(out),
-                                              float(CREASE_WINDOW) * sigma, True))
-    sw, sf = curv
+    fld_w = _fields_at(pts, out, np.flatnonzero(_ring_reach(ring, cand, win)), k, sigma, grid, images, max_move)
+    sw = _ring_curvature_mean(fld_w, float(sigma), ring, win)
+    kmin = CREASE_MIN_BEND if np.isscalar(CREASE_MIN_BEND) else CREASE_MIN_BEND[0]
+    # where the wide level hardly bends (q = 1) or bends strongly (the fade below) the share is 0:
+    # the fine width's curvatures are needed only for the other candidates
+    live = cand & (np.abs(sw) * sigma > kmin) if float(CREASE_MIN_RATIO) >= 1.0 else cand
+    if CREASE_MAX_BEND is not None:
+        live &= np.abs(sw) * sigma < CREASE_MAX_BEND
+    fld_f = _fields_at(pts, near, np.flatnonzero(_ring_reach(ring, live, win)), k, fine, grid, images, max_move)
+    sf = _ring_curvature_mean(fld_f, float(fine), ring, win)
     if planar:  # the ratio from the sections' curvatures (the bend tests keep the surface's)
-        pw, pf = plane
-        q = np.where((np.abs(sw) * sigma > CREASE_MIN_BEND) & (pw * pf > 0), pf / np.where(pw != 0, pw, 1.0), 1.0)
+        pw = _ring_curvature_mean(fld_w, float(sigma), ring, win, True)
+        pf = _ring_curvature_mean(fld_f, float(fine), ring, win, True)
+        q = np.where((np.abs(sw) * sigma > kmin) & (pw * pf > 0), pf / np.where(pw != 0, pw, 1.0), 1.0)
     else:
-        q = np.where(np.abs(sw) * sigma > CREASE_MIN_BEND, sf / np.where(sw != 0, sw, 1.0), 1.0)
+        q = np.where(np.abs(sw) * sigma > kmin, sf / np.where(sw != 0, sw, 1.0), 1.0)
+    q = np.where(live, q, 1.0)
     q0 = float(CREASE_MIN_RATIO)  # a ratio up to q0 is noise: m rises from 0 at q0 to 1 at 1 / r
     m = np.clip(np.log(np.where(q > 0, q, 1.0) / q0) / math.log(1.0 / (r * q0)), 0.0, 1.0)
+    if CREASE_MAX_ORDER is not None:  # q beyond 1 / r: the curvature grows faster than a crease's, a step narrower than the blur
+        u = np.log(np.where(q > 0, q, 1.0)) / math.log(1.0 / r)
+        m = m * np.clip((float(CREASE_MAX_ORDER) - u) / (float(CREASE_MAX_ORDER) - 1.0), 0.0, 1.0)
+    if not np.isscalar(CREASE_MIN_BEND):  # (lo, hi): the crease share fades in as |S| sigma grows from lo to hi
+        lo_b, hi_b = CREASE_MIN_BEND
+        m = m * np.clip((np.abs(sw) * sigma - lo_b) / (hi_b - lo_b), 0.0, 1.0)
     if CREASE_MAX_BEND is not None:  # detail narrower than the blur also has S ~ 1 / sigma: a strong bend is not a crease
         b = np.abs(sw) * sigma
         m = m * np.clip((CREASE_MAX_BEND - b) / (0.5 * CREASE_MAX_BEND), 0.0, 1.0)
@@ -1682,13 +1704,14 @@ def _wider_check(pts, k, sigma, r, grid, images, out, near, max_move, sw, q, m, 
     the wider one at the wide places ``out``), 1 at ``t <= t_lo``, 0 at ``t >= t_hi``."""
     keep = np.ones(len(out))
     gap = np.hypot(*(near - out).T)
-    if not ((m > 0) & (gap > FINE_TOLERANCE[0] * (1.0 - CREASE_TOLERANCE))).any():
+    # only a vertex past its own tolerance acts (a smaller share only widens the tolerance)
+    acts = (m > 0) & (gap > 0.999 * FINE_TOLERANCE[0] * (1.0 - CREASE_TOLERANCE * m))
+    if not acts.any():
         return keep
     wider = sigma / r
-    mom, box, span = images.get(float(wider)) or _no_images()
-    fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(out), k, float(wider), grid, mom, box, span,
-                                        IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
-    images[float(wider)] = (mom, box, span)
+    ring = np.ascontiguousarray(out)
+    need = np.flatnonzero(_ring_reach(ring, acts, float(CREASE_WINDOW) * sigma))
+    fld = _fields_at(pts, out, need, k, wider, grid, images, max_move)
     sx = _ring_curvature_mean(fld, float(wider), np.ascontiguousarray(out), float(CREASE_WINDOW) * sigma,
                               planar)
     ratio = sw / np.where(sx != 0, sx, 1.0)
@@ -1700,6 +1723,53 @@ def _wider_check(pts, k, sigma, r, grid, images, out, near, max_move, sw, q, m, 
         t_lo, t_hi = CREASE_WIDER
         keep *= np.clip((t_hi - t) / (t_hi - t_lo), 0.0, 1.0)
     return keep
+
+
+def _fields_at(pts, p, idx, k, width, grid, images, max_move):
+    """The fields (:func:`_fields_in_slice`) at the points ``p[idx]`` of slice ``k``, in an array of
+    ``len(p)`` rows (zero elsewhere); the slice images are kept in ``images``."""
+    mom, box, span = images.get(float(width)) or _no_images()
+    fld = np.zeros((len(p), 10))
+    if len(idx) == 0:
+        return fld
+    sub, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(p[idx]), k, float(width), grid, mom, box, span,
+                                        IMAGE_MARGIN * max_move + 2.0, images.get("runs"))
+    images[float(width)] = (mom, box, span)
+    fld[idx] = sub
+    return fld
+
+
+@njit(cache=True)
+def _ring_reach(ring, sel, width):
+    """The ring vertices whose value :func:`_ring_curvature_mean` (window ``width``) averages into
+    some selected vertex's: the same arc lengths and walk, marking instead of summing."""
+    n = ring.shape[0]
+    mark = np.zeros(n, dtype=np.bool_)
+    cum = np.empty(n + 1)
+    cum[0] = 0.0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        cum[i + 1] = cum[i] + math.hypot(ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1])
+    length = cum[n]
+    if length <= 0.0 or width <= 0.0:
+        for i in range(n):
+            mark[i] = sel[i]
+        return mark
+    reach = min(3.0 * width, 0.5 * length)
+    for i in range(n):
+        if not sel[i]:
+            continue
+        for side in (1, -1):
+            k = 0 if side == 1 else 1
+            while k < n:
+                j = (i + side * k) % n
+                d = abs(cum[j] - cum[i])
+                d = min(d, length - d)
+                if d > reach:
+                    break
+                mark[j] = True
+                k += 1
+    return mark
 
 
 @njit(cache=True)
