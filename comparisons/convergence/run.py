@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import sys
 import time
 from pathlib import Path
@@ -20,6 +21,7 @@ import numpy as np
 
 import contourmesh
 from contourmesh.digitize import gauss_volume, outer_jordan_stack
+from contourmesh.meshes import atomic_write
 from contourmesh.refine import band_violations
 
 
@@ -78,7 +80,17 @@ def instances(quick: bool):
         yield "torus", s, 0, Torus(s * 0.75, s * 0.25, center=(0.3, 0.1, 0.2))
 
 
-def run(quick: bool, family=None):
+#: Our methods: the paper's (MLP stack) and the band refinement, each with two band rules.
+OURS = {"mlp-wiederhold": dict(refine="none", triangulation="wiederhold"),
+        "mlp-optimal": dict(refine="none", triangulation="optimal"),
+        "band-optimal": dict(refine="band", triangulation="optimal"),
+        "band-wiederhold": dict(refine="band", triangulation="wiederhold")}
+
+
+def run(quick: bool, family=None, methods=None, p_mlp=None):
+    """The rows of every experiment (of ``family`` only, if given); ``methods``: only these of
+    ours and no peers, with the MLP stack's vertex count for ``P_over_mlp`` from ``p_mlp``
+    (``(family, size, instance) -> P`` of the ``mlp-wiederhold`` rows kept)."""
     from contourmesh.compare.methods import run_method
 
     rows = []
@@ -91,12 +103,10 @@ def run(quick: bool, family=None):
             stack = volume_stack(vol, org)
         else:
             stack = outer_jordan_stack(shape)
-        P_mlp = None
-        ours = [("mlp-wiederhold", dict(refine="none", triangulation="wiederhold")),
-                ("mlp-optimal", dict(refine="none", triangulation="optimal")),
-                ("band-optimal", dict(refine="band", triangulation="optimal")),
-                ("band-wiederhold", dict(refine="band", triangulation="wiederhold"))]
-        for name, kw in ours:
+        P_mlp = (p_mlp or {}).get((fam, size, inst))
+        for name, kw in OURS.items():
+            if methods is not None and name not in methods:
+                continue
             t0 = time.perf_counter()
             try:
                 m = band_mesh(stack, **kw)
@@ -111,7 +121,9 @@ def run(quick: bool, family=None):
             row.update(family=fam, size=size, instance=inst, method=name, area_true=true,
                        seconds=time.perf_counter() - t0)
             rows.append(row)
-        if fam.startswith("sphere") and inst < 2 or (fam != "sphere-oj" and fam != "sphere-gauss" and inst == 0):
+        if methods is not None:
+            pass  # (only the methods asked for)
+        elif fam.startswith("sphere") and inst < 2 or (fam != "sphere-oj" and fam != "sphere-gauss" and inst == 0):
             vol, org = gauss_volume(shape)
             for peer, smax in PEERS.items():
                 if size > smax or (quick and size > 80):
@@ -163,11 +175,15 @@ def summarize(rows):
 
 
 def write_csv(rows):
-    with open(HERE / "results.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=COLS, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{r[k]:.10g}" if isinstance(r.get(k), float) else r.get(k)) for k in COLS})
+    import io
+
+
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=COLS, extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: (f"{r[k]:.10g}" if isinstance(r.get(k), float) else r.get(k)) for k in COLS})
+    atomic_write(HERE / "results.csv", buf.getvalue().encode())
 
 
 def read_csv():
@@ -204,7 +220,8 @@ def write(rows, quick):
         if fails:
             lines += ["", "Failures: " + "; ".join(fails)]
         lines.append("")
-    (HERE / "table.md").write_text("\n".join(lines))
+
+    atomic_write(HERE / "table.md", "\n".join(lines).encode())
     try:
         import matplotlib
 
@@ -231,7 +248,9 @@ def write(rows, quick):
         ax.legend(fontsize=6)
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(HERE / "loglog.png", dpi=110)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
+    atomic_write(HERE / "loglog.png", buf.getvalue())
 
 
 def main(argv=None):
@@ -239,9 +258,25 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="sizes 20-80, fewer instances")
     ap.add_argument("--from-csv", action="store_true", help="only rebuild table.md and loglog.png from results.csv")
     ap.add_argument("--family", default=None, help="re-run one family only (e.g. torus), replacing its rows")
+    ap.add_argument("--methods", default=None,
+                    help="re-run only these of ours (comma-separated, e.g. band-optimal,band-wiederhold), "
+                         "replacing their rows and keeping every other row")
     args = ap.parse_args(argv)
     if args.from_csv:
         rows = read_csv()
+    elif args.methods:
+        methods = {m for m in args.methods.split(",") if m}
+        unknown = methods - set(OURS)
+        if unknown:
+            ap.error(f"--methods: unknown {sorted(unknown)}; ours are {list(OURS)}")
+        old = read_csv()
+        p_mlp = {(r["family"], r["size"], r["instance"]): r["P"] for r in old
+                 if r["method"] == "mlp-wiederhold" and r.get("P")}
+        new = {(r["family"], r["size"], r["instance"], r["method"]): r
+               for r in run(args.quick, args.family, methods, p_mlp)}
+        rows = [new.pop((r["family"], r["size"], r["instance"], r["method"]), r) for r in old]
+        rows += list(new.values())
+        write_csv(rows)
     elif args.family:
         rows = [r for r in read_csv() if r["family"] != args.family] + run(args.quick, args.family)
         write_csv(rows)
