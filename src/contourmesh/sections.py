@@ -32,6 +32,10 @@ from numba import njit
 
 #: How many times a join is split (1: one section at mid-gap; 2: also at quarters where needed).
 MAX_DEPTH = 2
+#: Give a sectioned join up as soon as no stack of sections it can still get keeps the topology
+#: (see :func:`sectioned_join`); False builds its pieces until they fail or the final test does
+#: (the same joins, more work: the reference of the tests).
+GIVE_UP_EARLY = True
 
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
 
@@ -271,6 +275,10 @@ def _groups(P: _Layer, Q: _Layer):
     return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
 
 
+class _NoTopology(Exception):
+    """No stack of sections that a sectioned join can still get keeps the topology."""
+
+
 def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid):
     """Join components ``ga`` of slice ``k`` and ``gb`` of slice ``k + 1`` through intermediate
     sections (see the module docstring).  Returns a :class:`contourmesh.volumes._Bridged` (its
@@ -312,36 +320,105 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             sdfs[id(L)] = (L, _sdf(mask_of(L), sampling))
         return sdfs[id(L)][1]
 
-    def split(P, Q, depth, first):
-        """The layers strictly between P and Q and the pieces joining them, or None."""
+    # The sections a join may get form a tree: pair () is (lo, hi), its section splits it into the
+    # pairs path + (0,) (below) and path + (1,) (above).  The pieces decide which pairs are split
+    # (a pair whose pieces do not all build is split, where depth is left), and the result must
+    # keep the topology (the test below the split); so once no stack of sections that the splits
+    # decided so far still allow keeps it, the join is given up without building more pieces.
+    # (A section is the mid_section of its pair's two ends, the same mask whether or not its layer
+    # is made yet; a stack with an empty section cannot be built and counts as keeping it, so the
+    # test gives up only where the join would come to nothing anyway.)
+    split_at = {(): True}  # pair path -> whether it is split, where decided
+    node_sdf = {}  # node ("lo", "hi" or a pair path: that pair's section) -> its signed distance
+    layer_at = {"lo": lo, "hi": hi}  # node -> its layer, where made
+    stack_kept = {}  # sections (pair paths, bottom up) -> whether lo / them / hi keeps the topology
+
+    def ends(path):
+        if not path:
+            return "lo", "hi"
+        a, b = ends(path[:-1])
+        return (a, path[:-1]) if path[-1] == 0 else (path[:-1], b)
+
+    def sdf_at(node):
+        if node in layer_at:
+            return sdf_of(layer_at[node])
+        if node not in node_sdf:
+            node_sdf[node] = _sdf(section_mask(node), sampling)
+        return node_sdf[node]
+
+    def section_mask(path):
+        a, b = ends(path)
+        return sdf_at(a) + sdf_at(b) < 0
+
+    def stacks(path, depth):
+        """The section stacks (tuples of pair paths, bottom up) strictly inside pair ``path``."""
+        out = []
+        if split_at.get(path) is not True:
+            out.append(())
+        if split_at.get(path) is not False and depth > 0:
+            out.extend(a + (path,) + b for a in stacks(path + (0,), depth - 1) for b in stacks(path + (1,), depth - 1))
+        return out
+
+    ref = []  # the invariants of lo / hi, once made
+
+    def may_keep_topology():
+        if not ref:
+            ref.append(stack_invariants([mask_of(lo), mask_of(hi)]))
+        for st in sorted(stacks((), MAX_DEPTH), key=len):  # (the fewest sections first: the least to make)
+            if st not in stack_kept:
+                ms = [mask_of(layer_at[p]) if p in layer_at else section_mask(p) for p in st]
+                stack_kept[st] = any(not m.any() for m in ms) or \
+                    stack_invariants([mask_of(lo)] + ms + [mask_of(hi)]) == ref[0]
+            if stack_kept[st]:
+                return True
+        return False
+
+    def decide(path, split):
+        split_at[path] = split
+        if GIVE_UP_EARLY and not may_keep_topology():
+            raise _NoTopology
+
+    def split(P, Q, depth, first, path):
+        """The layers strictly between P and Q (pair ``path``) and the pieces joining them, or None."""
         pieces = None if first else _pieces(ops, P, Q, caps, triangulation, grid)
         if pieces is not None:
+            decide(path, False)
             return [], pieces
         if depth == 0:
             return None
+        if not first:
+            decide(path, True)
         # mid_section of the two layers' regions (a section's region is its mask)
-        M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid,
-                              sdf_of(P) + sdf_of(Q) < 0)
+        M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid, section_mask(path))
         if M is None:
             return None
         masks[id(M)] = (M, m)
-        below = split(P, M, depth - 1, False)
+        layer_at[path] = M
+        if path in node_sdf:
+            sdfs[id(M)] = (M, node_sdf.pop(path))
+        below = split(P, M, depth - 1, False, path + (0,))
         if below is None:
             return None
         M.taken = [(p_, q_) for piece in below[1] if piece[0] == "bridged" and piece[2] is M
                    for plane, p_, q_ in piece[3].segments if plane == 1]
-        above = split(M, Q, depth - 1, False)
+        above = split(M, Q, depth - 1, False, path + (1,))
         if above is None:
             return None
         return below[0] + [M] + above[0], below[1] + above[1]
 
-    got = split(lo, hi, MAX_DEPTH, True)
+    try:
+        if GIVE_UP_EARLY and not may_keep_topology():
+            return None
+        got = split(lo, hi, MAX_DEPTH, True, ())
+    except _NoTopology:
+        return None
     if got is None:
         return None
     layers, pieces = got
     # the sections keep the topology of the join's voxel object
-    if stack_invariants([mask_of(lo), mask_of(hi)]) != \
-            stack_invariants([mask_of(L) for L in [lo] + layers + [hi]]):
+    if not ref:
+        ref.append(stack_invariants([mask_of(lo), mask_of(hi)]))
+    if ref[0] != stack_invariants([mask_of(L) for L in [lo] + layers + [hi]]):
         return None
     return _assemble_pieces(ops, pieces, layers, triangulation)
 
