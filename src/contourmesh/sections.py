@@ -279,7 +279,8 @@ class _NoTopology(Exception):
     """No stack of sections that a sectioned join can still get keeps the topology."""
 
 
-def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid):
+def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
+                   topology_first=False):
     """Join components ``ga`` of slice ``k`` and ``gb`` of slice ``k + 1`` through intermediate
     sections (see the module docstring).  Returns a :class:`contourmesh.volumes._Bridged` (its
     ``sections`` counts the sections made) or None where no sectioning keeps every rule.
@@ -290,7 +291,13 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     the mesher that imports it.  ``poly(kk, c, h)`` and ``edges_of(kk)`` are the mesher's polygons
     and every edge of a slice (as for :func:`contourmesh.volumes._bridge_join`); ``double`` the
     ``(k, c, h)`` of holes lidded from both sides; ``grid = (ox, oy, dx, dy)``; ``polygon`` the
-    polygon method for the sections."""
+    polygon method for the sections.
+
+    ``topology_first``: test the topology as the pieces are decided, and give the join up as soon
+    as no stack of sections they still allow keeps it (with :data:`GIVE_UP_EARLY`; the same answer,
+    less work where the test fails early).  The mesher asks it for a loop of overlaps (a handle
+    forms in the gap), whose sections often cannot keep the topology; a fork or a merge rarely
+    fails that test, and there it would only add work."""
     from .tracing import label_mask
 
     A, B = slices[k], slices[k + 1]
@@ -326,8 +333,9 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     # keep the topology (the test below the split); so once no stack of sections that the splits
     # decided so far still allow keeps it, the join is given up without building more pieces.
     # (A section is the mid_section of its pair's two ends, the same mask whether or not its layer
-    # is made yet; a stack with an empty section cannot be built and counts as keeping it, so the
-    # test gives up only where the join would come to nothing anyway.)
+    # is made yet; a stack with an empty section cannot be built either: the test gives up only
+    # where the join would come to nothing anyway.)
+    early = GIVE_UP_EARLY and topology_first
     split_at = {(): True}  # pair path -> whether it is split, where decided
     node_sdf = {}  # node ("lo", "hi" or a pair path: that pair's section) -> its signed distance
     layer_at = {"lo": lo, "hi": hi}  # node -> its layer, where made
@@ -366,16 +374,20 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             ref.append(stack_invariants([mask_of(lo), mask_of(hi)]))
         for st in sorted(stacks((), MAX_DEPTH), key=len):  # (the fewest sections first: the least to make)
             if st not in stack_kept:
-                ms = [mask_of(layer_at[p]) if p in layer_at else section_mask(p) for p in st]
-                stack_kept[st] = any(not m.any() for m in ms) or \
-                    stack_invariants([mask_of(lo)] + ms + [mask_of(hi)]) == ref[0]
+                ms = {}
+                for p in sorted(st, key=len):  # (a section before those made from it)
+                    ms[p] = mask_of(layer_at[p]) if p in layer_at else section_mask(p)
+                    if not ms[p].any():
+                        break
+                stack_kept[st] = all(p in ms and ms[p].any() for p in st) and \
+                    stack_invariants([mask_of(lo)] + [ms[p] for p in st] + [mask_of(hi)]) == ref[0]
             if stack_kept[st]:
                 return True
         return False
 
     def decide(path, split):
         split_at[path] = split
-        if GIVE_UP_EARLY and not may_keep_topology():
+        if early and not may_keep_topology():
             raise _NoTopology
 
     def split(P, Q, depth, first, path):
@@ -407,7 +419,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         return below[0] + [M] + above[0], below[1] + above[1]
 
     try:
-        if GIVE_UP_EARLY and not may_keep_topology():
+        if early and not may_keep_topology():
             return None
         got = split(lo, hi, MAX_DEPTH, True, ())
     except _NoTopology:
@@ -415,10 +427,14 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     if got is None:
         return None
     layers, pieces = got
-    # the sections keep the topology of the join's voxel object
-    if not ref:
-        ref.append(stack_invariants([mask_of(lo), mask_of(hi)]))
-    if ref[0] != stack_invariants([mask_of(L) for L in [lo] + layers + [hi]]):
+    # the sections keep the topology of the join's voxel object (known already where tested early)
+    path_of = {id(L): p for p, L in layer_at.items()}
+    final = tuple(path_of[id(L)] for L in layers)
+    if final not in stack_kept:
+        if not ref:
+            ref.append(stack_invariants([mask_of(lo), mask_of(hi)]))
+        stack_kept[final] = ref[0] == stack_invariants([mask_of(L) for L in [lo] + layers + [hi]])
+    if not stack_kept[final]:
         return None
     return _assemble_pieces(ops, pieces, layers, triangulation)
 
