@@ -376,8 +376,10 @@ def test_a_sectioned_join_gives_up_early_only_where_it_would_come_to_nothing(mon
     for early in (False, True):
         monkeypatch.setattr(sections, "GIVE_UP_EARLY", early)
         built[0] = 0
-        vols = [_blobs()]  # (its sectioned joins include one of a single section kept whole)
-        for seed in (16, 18, 21, 38):  # (each with a sectioned join given up early)
+        vols = []
+        # (seed 2: a loop of overlaps joined through a single section; the others: each has a
+        # sectioned join given up early)
+        for seed in (2, 16, 18, 21, 38):
             rng = np.random.default_rng(seed)
             vols.append(ndimage.gaussian_filter(rng.random((6, 24, 24)), 1.2) > 0.5 + 0.03 * rng.standard_normal())
         meshes = [volume_to_mesh(vol) for vol in vols]
@@ -388,3 +390,19 @@ def test_a_sectioned_join_gives_up_early_only_where_it_would_come_to_nothing(mon
         assert np.array_equal(m.vertices, ref.vertices) and np.array_equal(m.faces, ref.faces)
         assert m.meta == ref.meta
     assert n_built[True] < n_built[False]
+
+
+def test_stack_euler_from_layers_and_overlaps_equals_euler6():
+    """A stack's Euler characteristic is its layers' (sections._euler2) less their consecutive
+    overlaps': the sum the early topology test of a sectioned join compares (euler6 counts the
+    whole stack)."""
+    rng = np.random.default_rng(5)
+    seen = set()
+    for t in range(200):
+        n = int(rng.integers(1, 5))
+        layers = [rng.random((6, 7)) < rng.uniform(0.2, 0.8) for _ in range(n)]
+        got = sum(sections._euler2(L) for L in layers) - sum(sections._euler2(a & b) for a, b in zip(layers, layers[1:]))
+        chi = sections.euler6(np.stack(layers))
+        assert got == chi == sections.stack_invariants(layers)[2]
+        seen.add(int(np.sign(chi)))
+    assert seen == {-1, 0, 1}

@@ -186,6 +186,17 @@ def _stack_invariants_reference(layers) -> tuple:
     return n_obj, n_bg, euler6(v)
 
 
+def _euler2(m) -> int:
+    """The Euler characteristic of a 2D boolean mask as a 4-connected pixel complex: a vertex per
+    pixel, an edge per pair of side-adjacent pixels, a square per 2 x 2 block.  A stack of masks
+    has ``sum(_euler2(L_i)) - sum(_euler2(L_i & L_i+1))`` as :func:`euler6` (its vertical edges,
+    squares and cubes are the pixels, edges and squares of the overlaps of consecutive layers)."""
+    m = np.asarray(m, dtype=bool)
+    a, b = slice(None, -1), slice(1, None)
+    return (int(np.count_nonzero(m)) - int(np.count_nonzero(m[a] & m[b])) - int(np.count_nonzero(m[:, a] & m[:, b]))
+            + int(np.count_nonzero(m[a, a] & m[a, b] & m[b, a] & m[b, b])))
+
+
 def euler6(v) -> int:
     """The Euler characteristic of a 3D boolean array's object as a 6-connected voxel object
     (``skimage.measure.euler_number(v, connectivity=1)``, an integer, counted another way): the
@@ -330,16 +341,17 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     # The sections a join may get form a tree: pair () is (lo, hi), its section splits it into the
     # pairs path + (0,) (below) and path + (1,) (above).  The pieces decide which pairs are split
     # (a pair whose pieces do not all build is split, where depth is left), and the result must
-    # keep the topology (the test below the split); so once no stack of sections that the splits
-    # decided so far still allow keeps it, the join is given up without building more pieces.
-    # (A section is the mid_section of its pair's two ends, the same mask whether or not its layer
-    # is made yet; a stack with an empty section cannot be built either: the test gives up only
-    # where the join would come to nothing anyway.)
+    # keep the topology (the test below the split), its Euler characteristic first; so once no
+    # stack of sections that the splits decided so far still allow keeps that number, the join is
+    # given up without building more pieces.  (A section is the mid_section of its pair's two ends,
+    # the same mask whether or not its layer is made yet; a stack with an empty section cannot be
+    # built either: the join is given up only where it would come to nothing anyway.)
     early = GIVE_UP_EARLY and topology_first
     split_at = {(): True}  # pair path -> whether it is split, where decided
     node_sdf = {}  # node ("lo", "hi" or a pair path: that pair's section) -> its signed distance
     layer_at = {"lo": lo, "hi": hi}  # node -> its layer, where made
-    stack_kept = {}  # sections (pair paths, bottom up) -> whether lo / them / hi keeps the topology
+    euler_kept = {}  # sections (pair paths, bottom up) -> whether lo / them / hi keeps the Euler number
+    euler_of = {}  # node, or pair of nodes (their overlap) -> _euler2 of its mask
 
     def ends(path):
         if not path:
@@ -367,21 +379,29 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             out.extend(a + (path,) + b for a in stacks(path + (0,), depth - 1) for b in stacks(path + (1,), depth - 1))
         return out
 
-    ref = []  # the invariants of lo / hi, once made
+    def stack_euler(nodes, ms):
+        """The Euler characteristic of the stack of ``nodes`` (masks ``ms``), from its layers'
+        and their overlaps' (see :func:`_euler2`): most stacks that do not keep the topology
+        change it, and it costs a few array passes where stack_invariants labels the stack."""
+        for t, u in enumerate(nodes):
+            if u not in euler_of:
+                euler_of[u] = _euler2(ms[t])
+            if t and (nodes[t - 1], u) not in euler_of:
+                euler_of[nodes[t - 1], u] = _euler2(ms[t - 1] & ms[t])
+        return sum(euler_of[u] for u in nodes) - sum(euler_of[u, v] for u, v in zip(nodes[:-1], nodes[1:]))
 
     def may_keep_topology():
-        if not ref:
-            ref.append(stack_invariants([mask_of(lo), mask_of(hi)]))
         for st in sorted(stacks((), MAX_DEPTH), key=len):  # (the fewest sections first: the least to make)
-            if st not in stack_kept:
+            if st not in euler_kept:
                 ms = {}
                 for p in sorted(st, key=len):  # (a section before those made from it)
                     ms[p] = mask_of(layer_at[p]) if p in layer_at else section_mask(p)
                     if not ms[p].any():
                         break
-                stack_kept[st] = all(p in ms and ms[p].any() for p in st) and \
-                    stack_invariants([mask_of(lo)] + [ms[p] for p in st] + [mask_of(hi)]) == ref[0]
-            if stack_kept[st]:
+                euler_kept[st] = all(p in ms and ms[p].any() for p in st) and \
+                    stack_euler(("lo",) + st + ("hi",), [mask_of(lo)] + [ms[p] for p in st] + [mask_of(hi)]) == \
+                    stack_euler(("lo", "hi"), [mask_of(lo), mask_of(hi)])
+            if euler_kept[st]:
                 return True
         return False
 
@@ -427,14 +447,9 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     if got is None:
         return None
     layers, pieces = got
-    # the sections keep the topology of the join's voxel object (known already where tested early)
-    path_of = {id(L): p for p, L in layer_at.items()}
-    final = tuple(path_of[id(L)] for L in layers)
-    if final not in stack_kept:
-        if not ref:
-            ref.append(stack_invariants([mask_of(lo), mask_of(hi)]))
-        stack_kept[final] = ref[0] == stack_invariants([mask_of(L) for L in [lo] + layers + [hi]])
-    if not stack_kept[final]:
+    # the sections keep the topology of the join's voxel object
+    if stack_invariants([mask_of(lo), mask_of(hi)]) != \
+            stack_invariants([mask_of(L) for L in [lo] + layers + [hi]]):
         return None
     return _assemble_pieces(ops, pieces, layers, triangulation)
 
