@@ -32,9 +32,9 @@ from numba import njit
 
 #: How many times a join is split (1: one section at mid-gap; 2: also at quarters where needed).
 MAX_DEPTH = 2
-#: Give a sectioned join up as soon as no stack of sections it can still get keeps the topology
-#: (see :func:`sectioned_join`); False builds its pieces until they fail or the final test does
-#: (the same joins, more work: the reference of the tests).
+#: Give a sectioned join of a loop of overlaps up as soon as no stack of sections it can still get
+#: keeps the Euler characteristic (see :func:`sectioned_join`'s ``topology_first``); False builds its
+#: pieces until they fail or the final test does (the same joins, more work: the tests' reference).
 GIVE_UP_EARLY = True
 
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
@@ -304,11 +304,11 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     ``(k, c, h)`` of holes lidded from both sides; ``grid = (ox, oy, dx, dy)``; ``polygon`` the
     polygon method for the sections.
 
-    ``topology_first``: test the topology as the pieces are decided, and give the join up as soon
-    as no stack of sections they still allow keeps it (with :data:`GIVE_UP_EARLY`; the same answer,
-    less work where the test fails early).  The mesher asks it for a loop of overlaps (a handle
-    forms in the gap), whose sections often cannot keep the topology; a fork or a merge rarely
-    fails that test, and there it would only add work."""
+    ``topology_first``: compare the Euler characteristic of the stacks of sections as the pieces
+    are decided, and give the join up as soon as no stack they still allow keeps it (with
+    :data:`GIVE_UP_EARLY`; the same answer, less work where the test fails early).  The mesher asks
+    it for a loop of overlaps (a handle forms in the gap), whose sections often cannot keep the
+    topology; a fork or a merge rarely fails that test, and there it would only add work."""
     from .tracing import label_mask
 
     A, B = slices[k], slices[k + 1]
