@@ -356,3 +356,53 @@ def test_piece_edge_check_equals_the_set_reference():
         assert got == _edges_close_reference(np.asarray(F, dtype=np.int64), spans), (t, F)
         verdicts.add(got)
     assert verdicts == {True, False}
+
+
+def test_a_sectioned_join_gives_up_early_only_where_it_would_come_to_nothing(monkeypatch):
+    """A sectioned join stops building pieces once no stack of sections it can still get keeps the
+    topology (``sections.GIVE_UP_EARLY``): the same meshes, bit for bit, as building every piece
+    until one fails or the final topology test does, with fewer pieces built.  (On these noise
+    volumes, as on the lobster, most sectioned joins are loops of overlaps.)"""
+    _sparse_rings(monkeypatch)
+    built = [0]
+    pieces = sections._pieces
+
+    def counted(*a):
+        built[0] += 1
+        return pieces(*a)
+
+    monkeypatch.setattr(sections, "_pieces", counted)
+    n_built = {}
+    for early in (False, True):
+        monkeypatch.setattr(sections, "GIVE_UP_EARLY", early)
+        built[0] = 0
+        vols = []
+        # (seed 2: a loop of overlaps joined through a single section; the others: each has a
+        # sectioned join given up early)
+        for seed in (2, 16, 18, 21, 38):
+            rng = np.random.default_rng(seed)
+            vols.append(ndimage.gaussian_filter(rng.random((6, 24, 24)), 1.2) > 0.5 + 0.03 * rng.standard_normal())
+        meshes = [volume_to_mesh(vol) for vol in vols]
+        n_built[early] = built[0]
+        if not early:
+            reference = meshes
+    for m, ref in zip(meshes, reference):
+        assert np.array_equal(m.vertices, ref.vertices) and np.array_equal(m.faces, ref.faces)
+        assert m.meta == ref.meta
+    assert n_built[True] < n_built[False]
+
+
+def test_stack_euler_from_layers_and_overlaps_equals_euler6():
+    """A stack's Euler characteristic is its layers' (sections._euler2) less their consecutive
+    overlaps': the sum the early topology test of a sectioned join compares (euler6 counts the
+    whole stack)."""
+    rng = np.random.default_rng(5)
+    seen = set()
+    for t in range(200):
+        n = int(rng.integers(1, 5))
+        layers = [rng.random((6, 7)) < rng.uniform(0.2, 0.8) for _ in range(n)]
+        got = sum(sections._euler2(L) for L in layers) - sum(sections._euler2(a & b) for a, b in zip(layers, layers[1:]))
+        chi = sections.euler6(np.stack(layers))
+        assert got == chi == sections.stack_invariants(layers)[2]
+        seen.add(int(np.sign(chi)))
+    assert seen == {-1, 0, 1}

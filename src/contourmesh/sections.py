@@ -32,6 +32,10 @@ from numba import njit
 
 #: How many times a join is split (1: one section at mid-gap; 2: also at quarters where needed).
 MAX_DEPTH = 2
+#: Give a sectioned join of a loop of overlaps up as soon as no stack of sections it can still get
+#: keeps the Euler characteristic (see :func:`sectioned_join`'s ``topology_first``); False builds its
+#: pieces until they fail or the final test does (the same joins, more work: the tests' reference).
+GIVE_UP_EARLY = True
 
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
 
@@ -182,6 +186,17 @@ def _stack_invariants_reference(layers) -> tuple:
     return n_obj, n_bg, euler6(v)
 
 
+def _euler2(m) -> int:
+    """The Euler characteristic of a 2D boolean mask as a 4-connected pixel complex: a vertex per
+    pixel, an edge per pair of side-adjacent pixels, a square per 2 x 2 block.  A stack of masks
+    has ``sum(_euler2(L_i)) - sum(_euler2(L_i & L_i+1))`` as :func:`euler6` (its vertical edges,
+    squares and cubes are the pixels, edges and squares of the overlaps of consecutive layers)."""
+    m = np.asarray(m, dtype=bool)
+    a, b = slice(None, -1), slice(1, None)
+    return (int(np.count_nonzero(m)) - int(np.count_nonzero(m[a] & m[b])) - int(np.count_nonzero(m[:, a] & m[:, b]))
+            + int(np.count_nonzero(m[a, a] & m[a, b] & m[b, a] & m[b, b])))
+
+
 def euler6(v) -> int:
     """The Euler characteristic of a 3D boolean array's object as a 6-connected voxel object
     (``skimage.measure.euler_number(v, connectivity=1)``, an integer, counted another way): the
@@ -271,7 +286,12 @@ def _groups(P: _Layer, Q: _Layer):
     return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
 
 
-def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid):
+class _NoTopology(Exception):
+    """No stack of sections that a sectioned join can still get keeps the topology."""
+
+
+def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
+                   topology_first=False):
     """Join components ``ga`` of slice ``k`` and ``gb`` of slice ``k + 1`` through intermediate
     sections (see the module docstring).  Returns a :class:`contourmesh.volumes._Bridged` (its
     ``sections`` counts the sections made) or None where no sectioning keeps every rule.
@@ -282,7 +302,13 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     the mesher that imports it.  ``poly(kk, c, h)`` and ``edges_of(kk)`` are the mesher's polygons
     and every edge of a slice (as for :func:`contourmesh.volumes._bridge_join`); ``double`` the
     ``(k, c, h)`` of holes lidded from both sides; ``grid = (ox, oy, dx, dy)``; ``polygon`` the
-    polygon method for the sections."""
+    polygon method for the sections.
+
+    ``topology_first``: compare the Euler characteristic of the stacks of sections as the pieces
+    are decided, and give the join up as soon as no stack they still allow keeps it (with
+    :data:`GIVE_UP_EARLY`; the same answer, less work where the test fails early).  The mesher asks
+    it for a loop of overlaps (a handle forms in the gap), whose sections often cannot keep the
+    topology; a fork or a merge rarely fails that test, and there it would only add work."""
     from .tracing import label_mask
 
     A, B = slices[k], slices[k + 1]
@@ -312,30 +338,112 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             sdfs[id(L)] = (L, _sdf(mask_of(L), sampling))
         return sdfs[id(L)][1]
 
-    def split(P, Q, depth, first):
-        """The layers strictly between P and Q and the pieces joining them, or None."""
+    # The sections a join may get form a tree: pair () is (lo, hi), its section splits it into the
+    # pairs path + (0,) (below) and path + (1,) (above).  The pieces decide which pairs are split
+    # (a pair whose pieces do not all build is split, where depth is left), and the result must
+    # keep the topology (the test below the split), its Euler characteristic first; so once no
+    # stack of sections that the splits decided so far still allow keeps that number, the join is
+    # given up without building more pieces.  (A section is the mid_section of its pair's two ends,
+    # the same mask whether or not its layer is made yet; a stack with an empty section cannot be
+    # built either: the join is given up only where it would come to nothing anyway.)
+    early = GIVE_UP_EARLY and topology_first
+    split_at = {(): True}  # pair path -> whether it is split, where decided
+    node_sdf = {}  # node ("lo", "hi" or a pair path: that pair's section) -> its signed distance
+    layer_at = {"lo": lo, "hi": hi}  # node -> its layer, where made
+    euler_kept = {}  # sections (pair paths, bottom up) -> whether lo / them / hi keeps the Euler number
+    euler_of = {}  # node, or pair of nodes (their overlap) -> _euler2 of its mask
+
+    def ends(path):
+        if not path:
+            return "lo", "hi"
+        a, b = ends(path[:-1])
+        return (a, path[:-1]) if path[-1] == 0 else (path[:-1], b)
+
+    def sdf_at(node):
+        if node in layer_at:
+            return sdf_of(layer_at[node])
+        if node not in node_sdf:
+            node_sdf[node] = _sdf(section_mask(node), sampling)
+        return node_sdf[node]
+
+    def section_mask(path):
+        a, b = ends(path)
+        return sdf_at(a) + sdf_at(b) < 0
+
+    def stacks(path, depth):
+        """The section stacks (tuples of pair paths, bottom up) strictly inside pair ``path``."""
+        out = []
+        if split_at.get(path) is not True:
+            out.append(())
+        if split_at.get(path) is not False and depth > 0:
+            out.extend(a + (path,) + b for a in stacks(path + (0,), depth - 1) for b in stacks(path + (1,), depth - 1))
+        return out
+
+    def stack_euler(nodes, ms):
+        """The Euler characteristic of the stack of ``nodes`` (masks ``ms``), from its layers'
+        and their overlaps' (see :func:`_euler2`): most stacks that do not keep the topology
+        change it, and it costs a few array passes where stack_invariants labels the stack."""
+        for t, u in enumerate(nodes):
+            if u not in euler_of:
+                euler_of[u] = _euler2(ms[t])
+            if t and (nodes[t - 1], u) not in euler_of:
+                euler_of[nodes[t - 1], u] = _euler2(ms[t - 1] & ms[t])
+        return sum(euler_of[u] for u in nodes) - sum(euler_of[u, v] for u, v in zip(nodes[:-1], nodes[1:]))
+
+    def may_keep_topology():
+        for st in sorted(stacks((), MAX_DEPTH), key=len):  # (the fewest sections first: the least to make)
+            if st not in euler_kept:
+                ms = {}
+                for p in sorted(st, key=len):  # (a section before those made from it)
+                    ms[p] = mask_of(layer_at[p]) if p in layer_at else section_mask(p)
+                    if not ms[p].any():
+                        break
+                euler_kept[st] = all(p in ms and ms[p].any() for p in st) and \
+                    stack_euler(("lo",) + st + ("hi",), [mask_of(lo)] + [ms[p] for p in st] + [mask_of(hi)]) == \
+                    stack_euler(("lo", "hi"), [mask_of(lo), mask_of(hi)])
+            if euler_kept[st]:
+                return True
+        return False
+
+    def decide(path, split):
+        split_at[path] = split
+        if early and not may_keep_topology():
+            raise _NoTopology
+
+    def split(P, Q, depth, first, path):
+        """The layers strictly between P and Q (pair ``path``) and the pieces joining them, or None."""
         pieces = None if first else _pieces(ops, P, Q, caps, triangulation, grid)
         if pieces is not None:
+            decide(path, False)
             return [], pieces
         if depth == 0:
             return None
+        if not first:
+            decide(path, True)
         # mid_section of the two layers' regions (a section's region is its mask)
-        M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid,
-                              sdf_of(P) + sdf_of(Q) < 0)
+        M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid, section_mask(path))
         if M is None:
             return None
         masks[id(M)] = (M, m)
-        below = split(P, M, depth - 1, False)
+        layer_at[path] = M
+        if path in node_sdf:
+            sdfs[id(M)] = (M, node_sdf.pop(path))
+        below = split(P, M, depth - 1, False, path + (0,))
         if below is None:
             return None
         M.taken = [(p_, q_) for piece in below[1] if piece[0] == "bridged" and piece[2] is M
                    for plane, p_, q_ in piece[3].segments if plane == 1]
-        above = split(M, Q, depth - 1, False)
+        above = split(M, Q, depth - 1, False, path + (1,))
         if above is None:
             return None
         return below[0] + [M] + above[0], below[1] + above[1]
 
-    got = split(lo, hi, MAX_DEPTH, True)
+    try:
+        if early and not may_keep_topology():
+            return None
+        got = split(lo, hi, MAX_DEPTH, True, ())
+    except _NoTopology:
+        return None
     if got is None:
         return None
     layers, pieces = got

@@ -2000,7 +2000,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     if cache[key] is None and band_guard is None and sections:
                         # split the gap by intermediate sections; held to the same area limit
                         got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
-                                             polygon, grid)
+                                             polygon, grid, topology_first=plan is None)
                         if got is not None and float(triangle_areas(got.V, got.F).sum()) <= limit:
                             cache[key] = got
             b = cache[key]
