@@ -11,10 +11,18 @@ import trimesh
 from scipy import ndimage
 
 import contourmesh
+from contourmesh import intersect
 from contourmesh.intersect import _as_mesh_arrays, _pairs, _star_certified, canonical_vertices, intersecting_pairs
 
 from test_intersect import reference_pairs
 from test_intersect_slabs import _random_sectioned, _sectioned
+
+
+@pytest.fixture(autouse=True)
+def stars_at_once(monkeypatch):
+    """The stars certified at the first pair that reaches the tests (not after a mesh's worth of
+    them, see ``_STAR_DELAY``), so that the small meshes here use them."""
+    monkeypatch.setattr(intersect, "_STAR_DELAY", -10 ** 9)
 
 
 def _both(V, F, methods=("grid", "slabs", "auto")):
@@ -37,7 +45,7 @@ def _both(V, F, methods=("grid", "slabs", "auto")):
 def _certified(V, F):
     Va, Fa = _as_mesh_arrays(V, F)
     canon = canonical_vertices(Va)
-    return _star_certified(Va, np.zeros(1 + 3 * 256), canon[Fa])
+    return _star_certified(Va, canon[Fa])
 
 
 def _volume(rng, t):
@@ -64,7 +72,10 @@ def _nudged(rng, V, share=0.2, size=1e-3):
     return W
 
 
-def test_our_meshes_same_pairs_with_and_without_the_shortcuts():
+@pytest.mark.parametrize("delay", [None, 100])
+def test_our_meshes_same_pairs_with_and_without_the_shortcuts(delay, monkeypatch):
+    if delay is not None:  # the stars only after some pairs were tested (the default's way)
+        monkeypatch.setattr(intersect, "_STAR_DELAY", delay)
     rng = np.random.default_rng(3)
     certified = used = crossing = 0
     for t in range(15):

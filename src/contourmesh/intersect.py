@@ -714,6 +714,17 @@ def _unit_step(x, big):
 
 
 @_pure
+def _direction(c):
+    """The c-th (0 .. 12) direction of components -1, 0, 1 whose first nonzero one is +1."""
+    if c == 0:
+        return 0.0, 0.0, 1.0
+    if c < 4:  # (0, 1, -1..1)
+        return 0.0, 1.0, float(c - 2)
+    c -= 4  # (1, -1..1, -1..1)
+    return 1.0, float(c // 3 - 1), float(c % 3 - 1)
+
+
+@_pure
 def _dir_sign(V, grid, p, a, b, d0, d1, d2):
     """The sign of det[a - p, b - p, d] for a direction d of components -1, 0, 1 (the
     orientation of p, a, b seen along d; for d an axis, that of ``_o2`` on the coordinate plane
@@ -817,12 +828,19 @@ def _fan_winds_once(V, grid, F, inc, s0, s1, p, d0, d1, d2):
 
 
 @njit(cache=True, **_OPTIONS)
-def _star_certified(V, ws, F):
+def _star_certified(V, F):
     """Per vertex (canonical indices in F): 1 where the faces around it are certified as above,
     0 where not (or where no face uses it)."""
+    star = np.zeros(len(V), np.int8)
+    _star_fill(V, F, star)
+    return star
+
+
+@_kernel
+def _star_fill(V, F, star):
+    """:func:`_star_certified` into ``star`` (zeros on entry)."""
     nv = len(V)
     m = len(F)
-    star = np.zeros(nv, np.int8)
     start = np.zeros(nv + 1, np.int64)
     for i in range(m):
         for t in range(3):
@@ -846,6 +864,10 @@ def _star_certified(V, ws, F):
         grid[v] = g
     nxt = np.empty(nv, np.int64)  # link edge a -> b of the face (p, a, b), stamped by p
     stamp = np.full(nv, -1, np.int64)
+    most = 0
+    for p in range(nv):
+        most = max(most, start[p + 1] - start[p])
+    nrm = np.empty((most, 3), np.float64)  # the fan's face normals (float: to choose directions)
     for p in range(nv):
         s0 = start[p]
         s1 = start[p + 1]
@@ -875,6 +897,9 @@ def _star_certified(V, ws, F):
             wx = uy * vz - uz * vy
             wy = uz * vx - ux * vz
             wz = ux * vy - uy * vx
+            nrm[r - s0, 0] = wx
+            nrm[r - s0, 1] = wy
+            nrm[r - s0, 2] = wz
             ln = math.sqrt(wx * wx + wy * wy + wz * wz)
             if ln > 0.0:
                 nx_ += wx / ln
@@ -897,27 +922,60 @@ def _star_certified(V, ws, F):
             continue
         # the directions to project along: the summed unit normals rounded to a vector of -1, 0
         # and 1 (creases and corners of voxel surfaces: no coordinate plane sees their faces
-        # one-to-one), then the axis of its largest component
+        # one-to-one), then the axis of its largest component, then any of the 13 directions
+        # (up to sign) that sees every face's float normal strictly on one side
         big = max(abs(nx_), max(abs(ny_), abs(nz_)))
         if not big > 0.0:
             continue
-        for q in range(2):
+        t0 = _unit_step(nx_, big)
+        t1 = _unit_step(ny_, big)
+        t2 = _unit_step(nz_, big)
+        a0 = _unit_step(nx_, 2.0 * big)  # the largest component only
+        a1 = _unit_step(ny_, 2.0 * big)
+        a2 = _unit_step(nz_, 2.0 * big)
+        for q in range(15):
             if q == 0:
-                d0 = _unit_step(nx_, big)
-                d1 = _unit_step(ny_, big)
-                d2 = _unit_step(nz_, big)
+                d0, d1, d2 = t0, t1, t2
+            elif q == 1:
+                d0, d1, d2 = a0, a1, a2
+                if abs(d0) + abs(d1) + abs(d2) != 1.0 or (d0 == t0 and d1 == t1 and d2 == t2):
+                    continue
             else:
-                if abs(d0) + abs(d1) + abs(d2) == 1.0:
-                    break  # already an axis
-                d0 = _unit_step(nx_, 2.0 * big)  # the largest component only
-                d1 = _unit_step(ny_, 2.0 * big)
-                d2 = _unit_step(nz_, 2.0 * big)
-                if abs(d0) + abs(d1) + abs(d2) != 1.0:
-                    break
+                # the 13 directions with a first nonzero component of +1
+                d0, d1, d2 = _direction(q - 2)
+                if (d0 == t0 and d1 == t1 and d2 == t2) or (d0 == -t0 and d1 == -t1 and d2 == -t2):
+                    continue
+                if (d0 == a0 and d1 == a1 and d2 == a2) or (d0 == -a0 and d1 == -a1 and d2 == -a2):
+                    continue
+                pos = 0
+                neg = 0
+                for r in range(n):
+                    w = nrm[r, 0] * d0 + nrm[r, 1] * d1 + nrm[r, 2] * d2
+                    if w > 0.0:
+                        pos += 1
+                    elif w < 0.0:
+                        neg += 1
+                if pos != n and neg != n:
+                    continue
             if _fan_winds_once(V, grid, F, inc, s0, s1, p, d0, d1, d2):
                 star[p] = 1
                 break
-    return star
+
+
+@_pure
+def _star_due(sst):
+    """The stars are computed when first needed: ``sst[0]`` counts the pairs that reach the tests
+    until it passes ``sst[1]`` (a mesh whose pairs are mostly decided otherwise, as by the slab
+    certificates of a mesh on a small dyadic grid, does not pay for them); then True, once (the
+    caller fills ``star``, :func:`_star_fill`), and ``sst[0]`` is -1 from then on.  Until then
+    ``star`` is all 0: every pair is tested, with the same answers."""
+    if sst[0] < 0:
+        return False
+    sst[0] += 1
+    if sst[0] <= sst[1]:
+        return False
+    sst[0] = -1
+    return True
 
 
 @_pure
@@ -987,10 +1045,11 @@ def _visit_cells(box, live, glo, h, mask, ny, nx, start, fill, ent_face, ent_key
 
 
 @njit(cache=True, **_OPTIONS)
-def _intersecting_pairs(V, ws, F, star, quick, budget, stop):
+def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
     """Pairs ``(i, j)``, ``i < j``, of faces that intersect (see the module docstring);
     ``F`` holds canonical vertex indices, ``star`` marks the vertices whose pairs are decided
-    (:func:`_star_certified`; all 0 for none); ``quick == 1``: pairs of faces whose boxes only touch
+    (:func:`_star_certified`; all 0 for none), filled when first needed (``sst``, see
+    :func:`_shares_certified`); ``quick == 1``: pairs of faces whose boxes only touch
     are decided in the plane where they touch (:func:`_touching_boxes`).  ``budget`` bounds the grid cells per face on average.
     ``stop > 0``: return as soon as ``stop`` pairs are found (some of the pairs, for a caller that
     asks only whether there are any)."""
@@ -1098,6 +1157,8 @@ def _intersecting_pairs(V, ws, F, star, quick, budget, stop):
                 cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h[2])
                 if (cz * ny + cy) * nx + cx != key:
                     continue
+                if _star_due(sst):
+                    _star_fill(V, F, star)
                 if _shares_certified(F, star, i, j):
                     continue
                 hit = _across_plane(V, ws, F, i, j)
@@ -1413,7 +1474,7 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
 
 
 @_kernel
-def _slab_step(V, ws, F, star, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
+def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
                npairs, pi, pj, work, limit, stop):
     """Slab k of :func:`_slab_pairs`: its pairs, each tested in the lowest slab the two faces
     share; none when the planes on both sides hold embedded planar graphs and the slab's faces
@@ -1452,6 +1513,8 @@ def _slab_step(V, ws, F, star, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, p
         j = np.int64(max(faces[ci[t]], faces[cj[t]]))
         if max(lo[i], lo[j]) != k:
             continue
+        if _star_due(sst):
+            _star_fill(V, F, star)
         if _shares_certified(F, star, i, j):
             continue
         hit = _touching_boxes(V, ws, F, i, j) if quick == 1 else np.int64(-1)
@@ -1470,7 +1533,7 @@ def _slab_step(V, ws, F, star, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, p
 
 
 @njit(cache=True, **_OPTIONS)
-def _slab_pairs(V, ws, F, star, quick, lev, nlev, budget, stop):
+def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop):
     """The pairs of :func:`_intersecting_pairs` for a mesh whose vertex heights have level indices
     ``lev`` (``0 .. nlev-1``, in the order of the heights), by slabs and planes (see above).
     Returns ``(pi, pj, ok)``: ``ok == 1`` done; ``0`` the mesh is not sectioned (its faces span
@@ -1635,7 +1698,7 @@ def _slab_pairs(V, ws, F, star, quick, lev, nlev, budget, stop):
                                                 stamp, d1, d2, cert, all2, ci, cj, work, limit)
         pemb[k] = 1 if emb else 0
         if k > 0:
-            ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, star, quick, lev, lo, hi, sbox, sgrp, sids,
+            ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids,
                                                       slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, keys,
                                                       head, hstamp, nxt,
                                                       ci, cj, npairs, pi, pj, work, limit, stop)
@@ -1655,6 +1718,8 @@ def _slab_pairs(V, ws, F, star, quick, lev, nlev, budget, stop):
             b = pface[cj[t]]
             i = min(a, b)
             j = max(a, b)
+            if _star_due(sst):
+                _star_fill(V, F, star)
             if _shares_certified(F, star, i, j):
                 continue
             hit = np.int64(-1)
@@ -1869,7 +1934,9 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
         Fc = canon[F]
     ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
-    star = _star_certified(V, ws, Fc) if quick else np.zeros(len(V), np.int8)
+    # the vertices' stars (filled in the kernels once they test enough pairs)
+    star = np.zeros(len(V), np.int8)
+    sst = np.array([0 if quick else -1, len(Fc) // 8 + _STAR_DELAY], np.int64)
     qk = np.int64(1 if quick else 0)
     ok = 0
     if method != "grid":
@@ -1879,23 +1946,28 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
             lev, nlev = lev.astype(np.int64).reshape(-1), len(levels)
         threads = _threads() if stop == 0 and len(Fc) >= _SPLIT_FACES and nlev > 8 else 1
         if threads > 1:
-            got = _split_slab_pairs(V, ws, Fc, star, qk, lev, nlev, budget)
+            got = _split_slab_pairs(V, ws, Fc, sst, qk, lev, nlev, budget)
             if got is not None:
                 return got
         # a box test is cheap next to the grid's cost per face: on the liver's whole mesh a budget
         # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
-        pi, pj, ok = _slab_pairs(V, ws, Fc, star, qk, lev, np.int64(nlev),
+        pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
                                  np.int64(_SLAB_BUDGET), np.int64(stop))
         if ok == 0 and method == "slabs":
             raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
                              "than four slabs between consecutive vertex heights per face on average")
     if ok != 1:  # not sectioned, or a sweep over its budget: the grid (the same pairs)
-        pi, pj = _intersecting_pairs(V, ws, Fc, star, qk, np.int64(budget), np.int64(stop))
+        pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, qk, np.int64(budget), np.int64(stop))
     out = np.stack([pi, pj], axis=1).astype(np.int64, copy=False)
     if len(out):
         out = out[np.lexsort((out[:, 1], out[:, 0]))]
     return out
 
+
+#: The vertices' stars are certified (:func:`_star_due`) once this many pairs plus one per eight
+#: faces have reached the tests (the 512^3 ball's slab phase decides its pairs without them: its
+#: 117k faces take 14 ms, the stars 17 ms more; the lobster's and the liver's meshes need them).
+_STAR_DELAY = 100
 
 #: Meshes of at least this many faces are tested in two halves on two threads (where
 #: ``CONTOURMESH_THREADS`` asks for more than one): below it the split's copies cost what the
@@ -1914,7 +1986,7 @@ def _threads() -> int:
         return 1
 
 
-def _split_slab_pairs(V, ws, Fc, star, qk, lev, nlev, budget):
+def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev, budget):
     """The slab broad phase on two threads: the faces reaching at or below a middle height level
     ``mid`` and those reaching at or above it are tested apart (the kernels release the GIL).  Two
     faces that meet do so at some height ``z``; at ``z <= z_mid`` both reach down to ``mid`` or
@@ -1935,10 +2007,12 @@ def _split_slab_pairs(V, ws, Fc, star, qk, lev, nlev, budget):
 
     def half(idx):
         w = ws.copy()  # the exact predicates' workspace is written to
-        pi, pj, ok = _slab_pairs(V, w, np.ascontiguousarray(Fc[idx]), star, qk, lev, np.int64(nlev),
+        star = np.zeros(len(V), np.int8)  # (each half's stars: those of its faces)
+        sst = sst0.copy()
+        pi, pj, ok = _slab_pairs(V, w, np.ascontiguousarray(Fc[idx]), star, sst, qk, lev, np.int64(nlev),
                                  np.int64(_SLAB_BUDGET), np.int64(0))
         if ok != 1:
-            pi, pj = _intersecting_pairs(V, w, np.ascontiguousarray(Fc[idx]), star, qk, np.int64(budget), np.int64(0))
+            pi, pj = _intersecting_pairs(V, w, np.ascontiguousarray(Fc[idx]), star, sst, qk, np.int64(budget), np.int64(0))
         return idx[pi], idx[pj]
 
     with ThreadPoolExecutor(max_workers=2) as ex:
