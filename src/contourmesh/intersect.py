@@ -46,9 +46,12 @@ by a counting sort; each pair of faces whose boxes overlap is tested once, in th
 corner of the overlap of their boxes.  Meshes made from sections have most vertices in the
 section planes: two faces whose boxes meet only in a plane ``z = c`` (one below, one above) can
 meet only there, in the hull of their corners at that height, so such a pair is decided by one
-segment test in that plane (the same rules, the same exact ``orient2d``).  Everything runs in one
-numba kernel on one core; it is near-linear in the number of faces for meshes whose faces are of
-comparable size.
+segment test in that plane (the same rules, the same exact ``orient2d``); so is any pair of faces
+without a common vertex whose boxes only touch across some axis.  Most candidate pairs of a closed
+mesh share a vertex: where the faces around that vertex project one-to-one along a direction of
+components -1, 0, 1 (a certificate per vertex, exact), none of its pairs needs a test ("neighbours
+decided at once" below).  Everything runs in one numba kernel on one core; it is near-linear in
+the number of faces for meshes whose faces are of comparable size.
 
 Meshes made from sections take a cheaper broad phase that gives the same pairs (``method``):
 per slab between consecutive vertex heights a 2D sweep, per height a sweep over the faces' parts
