@@ -13,7 +13,6 @@ from scipy import ndimage
 import contourmesh
 from contourmesh import intersect
 from contourmesh.intersect import _as_mesh_arrays, _pairs, _star_certified, canonical_vertices, intersecting_pairs
-
 from test_intersect import reference_pairs
 from test_intersect_slabs import _random_sectioned, _sectioned
 
