@@ -513,7 +513,7 @@ def plot(rows, sweep_rows, slope, out: Path, rot_rows=()):
                 for key in inputs]
         ax.bar(np.arange(len(inputs)) + i * width, vals, width, label=m)
     ax.set_xticks(np.arange(len(inputs)) + 0.4 - width / 2)
-    ax.set_xticklabels([f"{a}\n{t} thr" for a, t in inputs], fontsize=8)
+    ax.set_xticklabels([f"{a}\n{t} thr" for a, t in inputs], fontsize=7, rotation=20, ha="right")
     ax.set_yscale("log")
     ax.set_ylabel("seconds (array -> mesh + area)")
     # below the axes, so that it hides no bar
