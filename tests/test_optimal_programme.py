@@ -1,6 +1,6 @@
 """The least-area band's dynamic programme (``bands.optimal._annulus_dp``) against the same
 programme written plainly: every layer of every cell relaxed through the layer rules
-``_after_c2`` / ``_after_c1``, skipping infinite cells.  The compiled kernel writes the layers'
+``_after_c2`` / ``_after_c1`` below, skipping infinite cells.  The compiled kernel writes the layers'
 transitions out per row kind; it must give the same cost (bit for bit) and the same recorded
 moves, hence the same band, also where bands tie (points on a coarse grid) and on the signed
 costs of the drawn-fidelity band.
@@ -15,18 +15,36 @@ from contourmesh.bands.fidelity import _costs
 from contourmesh.bands.optimal import (
     N_LAYERS,
     NONE,
+    ROW0,
+    ROW_HERE,
+    ROW_PAST,
     TWO_ROWS,
-    _after_c1,
-    _after_c2,
     _annulus_dp,
     _step_areas,
     _trace_back,
 )
 
 
+def _after_c1(layer):
+    """The layer after a C(1)-advance (a step along the smaller ring)."""
+    return ROW_PAST if layer == ROW_HERE else layer
+
+
+def _after_c2(layer, i, n):
+    """The layer after a C(2)-advance at row ``i`` of ``0 .. n`` (rows 0 and ``n`` are one torus row)."""
+    at_row0 = i == 0 or i == n
+    if layer == NONE:
+        return ROW0 if at_row0 else ROW_HERE
+    if layer == ROW0:
+        return ROW0 if at_row0 else TWO_ROWS
+    if layer == ROW_HERE:
+        return ROW_HERE
+    return TWO_ROWS  # ROW_PAST or TWO_ROWS
+
+
 def _plain_dp(A1, A2, s):
     """The programme as one loop over rows, cells and layers (the reference)."""
-    after_c1, after_c2 = _after_c1.py_func, _after_c2.py_func
+    after_c1, after_c2 = _after_c1, _after_c2
     n, m = A1.shape
     D = np.full((n + 1, N_LAYERS, m + 1), np.inf)
     move = np.zeros((n + 1, N_LAYERS, m + 1), np.int8)

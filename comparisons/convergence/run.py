@@ -121,9 +121,8 @@ def run(quick: bool, family=None, methods=None, p_mlp=None):
             row.update(family=fam, size=size, instance=inst, method=name, area_true=true,
                        seconds=time.perf_counter() - t0)
             rows.append(row)
-        if methods is not None:
-            pass  # (only the methods asked for)
-        elif fam.startswith("sphere") and inst < 2 or (fam != "sphere-oj" and fam != "sphere-gauss" and inst == 0):
+        peers_here = fam.startswith("sphere") and inst < 2 or (fam != "sphere-oj" and fam != "sphere-gauss" and inst == 0)
+        if methods is None and peers_here:  # (with methods: only those of ours)
             vol, org = gauss_volume(shape)
             for peer, smax in PEERS.items():
                 if size > smax or (quick and size > 80):

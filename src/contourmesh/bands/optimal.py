@@ -103,23 +103,6 @@ N_LAYERS = 5
 
 
 @njit(cache=True)
-def _after_c1(layer):
-    return ROW_PAST if layer == ROW_HERE else layer
-
-
-@njit(cache=True)
-def _after_c2(layer, i, n):
-    at_row0 = i == 0 or i == n
-    if layer == NONE:
-        return ROW0 if at_row0 else ROW_HERE
-    if layer == ROW0:
-        return ROW0 if at_row0 else TWO_ROWS
-    if layer == ROW_HERE:
-        return ROW_HERE
-    return TWO_ROWS          # ROW_PAST or TWO_ROWS
-
-
-@njit(cache=True)
 def _annulus_dp(A1, A2, s, D, move, parent, keep):
     """Least total area of an annular path from edge ``(s, 0)`` to ``(s + n, m)``.
 
@@ -130,11 +113,14 @@ def _annulus_dp(A1, A2, s, D, move, parent, keep):
     ``keep`` as ``np.bool_``: a literal ``True``/``False`` would compile the programme once for
     each value.
 
-    The layers' transitions (:func:`_after_c2`, :func:`_after_c1`) are written out per row kind
-    (rows 0 and ``n``, where a C(2)-advance is at row 0, and the others), each layer a row of
-    ``D``, and infinite cells offer infinity instead of being skipped: the same offers in the
-    same order as relaxing every layer of every cell through those functions, so the same costs
-    and moves (``tests/test_optimal.py`` compares it with that loop written plainly).
+    The layers' transitions are written out per row kind (rows 0 and ``n``, where a
+    C(2)-advance is at row 0, and the others), each layer a row of ``D``: a C(2)-advance takes
+    NONE to ROW0 at row 0 or ``n`` and to ROW_HERE elsewhere, ROW0 to itself at row 0 or ``n``
+    and to TWO_ROWS elsewhere, ROW_HERE to itself, ROW_PAST and TWO_ROWS to TWO_ROWS; a
+    C(1)-advance takes ROW_HERE to ROW_PAST and keeps every other layer.  Infinite cells offer
+    infinity instead of being skipped: the same offers in the same order as relaxing every layer
+    of every cell by these rules, so the same costs and moves (``tests/test_optimal_programme.py``
+    compares it with that loop written plainly).
     """
     n, m = A1.shape
     inf = np.inf
