@@ -21,7 +21,9 @@ Rules (``--rules``, separated by ``;``):
   bend), ``qmax=E`` (``CREASE_MAX_ORDER``), ``bend=B`` (``CREASE_MAX_BEND``), ``ctol=T`` (``CREASE_TOLERANCE``),
   ``wider`` / ``wider=LO/HI`` / ``nowider`` (``CREASE_WIDER``: a third width ``sigma / r`` tells
   a crease from a smooth wave), ``planar`` / ``noplanar`` (``CREASE_PLANAR``: the ratio from the sections'
-  curvatures) and ``qmin=Q`` (``CREASE_MIN_RATIO``);
+  curvatures), ``qmin=Q`` (``CREASE_MIN_RATIO``), ``noise=Z`` (``CREASE_NOISE``: only the curvature
+  excess beyond Z times the fine level's lattice noise counts) and ``ffade=LO/HI``
+  (``CREASE_MIN_FINE``: no crease shares where the fine width is below LO voxels, all from HI);
 * ``density=D``: ring vertices per seed vertex of the mode (``RING_DENSITY``);
 * ``cubic=C``: a third-order term ``C (k1 + k2)^3 sigma^4`` in the curvature shift
   (``SHIFT_CUBIC``; ``-0.0416667`` = -1/24, the exact term for balls and cylinders).
@@ -101,9 +103,9 @@ _FLAGS = {"extrapolate": ("FINE_TOLERANCE", (-1.0, -0.999)), "adaptive": ("FINE_
 _NUMBERS = {"ratio": "FINE_RATIO", "rho": "FINE_RHO", "adaptive": "FINE_ADAPTIVE", "cubic": "SHIFT_CUBIC",
             "ctol": "CREASE_TOLERANCE", "bend": "CREASE_MAX_BEND", "kmin": "CREASE_MIN_BEND",
             "cwin": "CREASE_WINDOW", "planar": "CREASE_PLANAR", "qmin": "CREASE_MIN_RATIO",
-            "qmax": "CREASE_MAX_ORDER"}
+            "qmax": "CREASE_MAX_ORDER", "noise": "CREASE_NOISE"}
 #: ``KEY=a/b`` rule parts: the refine setting that takes the pair (a, b).
-_PAIRS = {"tol": "FINE_TOLERANCE", "wider": "CREASE_WIDER", "kfade": "CREASE_MIN_BEND"}
+_PAIRS = {"tol": "FINE_TOLERANCE", "wider": "CREASE_WIDER", "kfade": "CREASE_MIN_BEND", "ffade": "CREASE_MIN_FINE"}
 
 
 def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
@@ -115,7 +117,7 @@ def mesh_with(rule: str, vol, sp=None, org=None, mode: str = "band"):
 
     names = ("_auto_sigma_of", "FINE_TOLERANCE", "FINE_RATIO", "FINE_RHO", "SHIFT_CUBIC", "FINE_ADAPTIVE",
              "FINE_CREASE", "CREASE_WINDOW", "CREASE_MIN_BEND", "CREASE_MAX_BEND", "CREASE_TOLERANCE",
-             "CREASE_WIDER", "CREASE_PLANAR", "CREASE_MIN_RATIO", "CREASE_MAX_ORDER")
+             "CREASE_WIDER", "CREASE_PLANAR", "CREASE_MIN_RATIO", "CREASE_MAX_ORDER", "CREASE_NOISE", "CREASE_MIN_FINE")
     saved = {n: getattr(refine, n) for n in names}
     saved_density = dict(refine.RING_DENSITY)
     try:

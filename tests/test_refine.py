@@ -827,3 +827,69 @@ def test_stack_of_mask_traces_each_slice_in_its_box_as_the_whole_slice():
     for sec, contours in zip(stack.sections, whole):
         assert len(contours) == 1 and np.array_equal(sec.contours[0], contours[0])
         assert sec.contours[0].dtype == contours[0].dtype
+
+
+def _prism_gains(curve, **settings):
+    """``(rho, tol, gap, sigma, fine)`` of :func:`_crease_gains` on the middle ring of a prism over
+    ``curve`` under the default crease settings changed by ``settings``."""
+    from contourmesh.refine import FINE_RATIO, _crease_gains, _move_to_surface
+
+    saved = {k: getattr(R, k) for k in settings}
+    try:
+        for k, v in settings.items():
+            setattr(R, k, v)
+        pts, seed, kz, sigma, _ = _prism_ring(curve + [0.31, -0.17])
+        fine = FINE_RATIO * sigma
+        kzs = np.full(len(seed), kz, dtype=np.int64)
+        wide, near = np.empty_like(seed), np.empty_like(seed)
+        found = np.empty(len(seed), bool)
+        _move_to_surface(pts, seed, kzs, sigma, 1.0, True, 3.0, wide, False, found)
+        _move_to_surface(pts, seed, kzs, fine, 1.0, True, 3.0, near, False, found)
+        rho, tol = _crease_gains(pts, seed, kzs, sigma, fine, R._as_grid(1.0, pts.shape[0]), None, wide, near, 3.0)
+        return rho, tol, np.hypot(*(near - wide).T), sigma, fine
+    finally:
+        for k, v in saved.items():
+            setattr(R, k, v)
+
+
+def test_crease_noise_floor_drops_a_round_walls_shares_and_keeps_an_edges():
+    """``CREASE_NOISE`` (issue 14, a measurement setting): only the fine level's curvature excess
+    beyond ``z N(f)`` (its lattice noise) counts as a crease.  A round prism's ring reads ``q > 1``
+    at many vertices (lattice noise) and the floor takes most of those shares back; a 12-sided
+    prism's edges (30 degrees) keep gains well above the smooth one."""
+    r = R.FINE_RATIO
+    smooth = r ** 4 / (1 - r ** 4)
+    t = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
+    circle = 18.0 * np.c_[np.cos(t), np.sin(t)]
+    dodecagon = np.c_[np.cos(t), np.sin(t)] * (18.0 * np.cos(np.pi / 12) / np.cos((t % (np.pi / 6)) - np.pi / 12))[:, None]
+    rho0, _, gap, _, _ = _prism_gains(circle, CREASE_NOISE=0.0)
+    rho1, _, _, _, _ = _prism_gains(circle, CREASE_NOISE=1.0)
+    act = gap > R.FINE_TOLERANCE[0] * (1 - R.CREASE_TOLERANCE)  # the vertices whose gain can act
+    assert np.all(rho1 <= rho0 + 1e-12)
+    over0, over1 = (rho0[act] - smooth).sum(), (rho1[act] - smooth).sum()
+    assert over0 > 0 and over1 < 0.5 * over0, (over0, over1)
+    rho_e, _, gap_e, _, _ = _prism_gains(dodecagon, CREASE_NOISE=1.0)
+    rho_c, _, _, _, _ = _prism_gains(dodecagon, CREASE_NOISE=0.0)
+    pts, seed, _, _, truth = _prism_ring(dodecagon + [0.31, -0.17])
+    edge = (np.hypot(*(seed - truth.mean(0)).T) > 17.6) & (gap_e > R.FINE_TOLERANCE[0] * (1 - R.CREASE_TOLERANCE))
+    assert edge.sum() >= 6  # the seed's vertices near the edges (circumradius 18, inradius 17.4)
+    assert np.median(rho_e[edge]) > 2.0 * smooth and np.median(rho_e[edge]) > 0.6 * np.median(rho_c[edge])
+
+
+def test_crease_min_fine_fades_the_shares_by_the_fine_width():
+    """``CREASE_MIN_FINE = (lo, hi)``: no crease shares where the fine width is at most ``lo`` (the
+    one gain and tolerance, as without crease gains), all of them from ``hi`` on, in proportion
+    between."""
+    t = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
+    dodecagon = np.c_[np.cos(t), np.sin(t)] * (18.0 * np.cos(np.pi / 12) / np.cos((t % (np.pi / 6)) - np.pi / 12))[:, None]
+    rho, tol, _, _, fine = _prism_gains(dodecagon)
+    r = R.FINE_RATIO
+    smooth = r ** 4 / (1 - r ** 4)
+    assert rho.max() > 2 * smooth and tol.min() < 0.5
+    assert _prism_gains(dodecagon, CREASE_MIN_FINE=(fine + 0.1, fine + 0.3))[:2] == (None, None)
+    same = _prism_gains(dodecagon, CREASE_MIN_FINE=(fine - 0.3, fine - 0.1))
+    assert np.array_equal(same[0], rho) and np.array_equal(same[1], tol)
+    half_rho, half_tol, *_ = _prism_gains(dodecagon, CREASE_MIN_FINE=(fine - 0.2, fine + 0.2))
+    m, m_half = (1 - tol) / R.CREASE_TOLERANCE, (1 - half_tol) / R.CREASE_TOLERANCE
+    assert np.allclose(m_half, 0.5 * m)
+    assert np.all(half_rho <= rho + 1e-12) and np.all(half_rho >= smooth - 1e-12)

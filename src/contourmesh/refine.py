@@ -149,6 +149,13 @@ FINE_ADAPTIVE = False
 #: and the Richardson gain ``r^p / (1 - r^p)``: 0.32 on smooth parts, up to 2.33 on a crease; its
 #: tolerance shrinks by ``1 - CREASE_TOLERANCE m`` (a crease's two places differ by about
 #: ``0.18 theta sigma``, under the smooth tolerance for the few-degree creases of fine meshes).
+#: On smooth shapes the test also reads the fine level's lattice roughness: its convex bumps take
+#: crease gains (the concave ones, ``q < 1``, do not), which moves some vertices out by up to 0.4
+#: voxel and raises the area.  That is all the gains do on balls and ellipsoids (where the wide place
+#: is the better one, the truth lies nearer it than the extrapolation): balls at r = 20-40 were
+#: 0.02-0.07 % short and gain, two of three rotated ellipsoids of size 20-40 were near 0 and end
+#: 0.04-0.13 % over.  :data:`CREASE_NOISE` and :data:`CREASE_MIN_FINE` trade that back against the
+#: real shapes (docs/DESIGN.md, "Crease gains on smooth shapes").
 FINE_CREASE = True
 #: The Gaussian (in arc length, times ``sigma``) over which ``S`` is averaged along the ring.
 CREASE_WINDOW = 1.0
@@ -185,6 +192,25 @@ CREASE_WIDER = None
 #: than a crease's is a step narrower than the blur (the lattice facets of large balls: ``q``
 #: 1.4-1.9 at ``|S| sigma`` 0.10-0.15), whose place a crease gain overshoots.
 CREASE_MAX_ORDER = 1.5
+#: Lattice noise floor of step 3b's crease test (0, the default: none).  The fine width's level
+#: carries the lattice's roughness: on smooth shapes (balls, ellipsoids) its ring-averaged curvature
+#: exceeds the wide one's by a scatter of ``N(f) = CREASE_NOISE_LEVEL / f^CREASE_NOISE_POWER``
+#: (``(S_fine - S_wide) sigma``, the interquartile spread over 1.35, ``f`` the fine width in ``h``;
+#: measured 0.027 at ``f`` = 1.54, 0.013 at 2.09) and by a median offset of about ``0.4 N(f)``; its
+#: convex bumps read as creases (``q`` 1.3-1.7 on 1-3 % of a small ellipsoid's ring length, 0.3 % of
+#: a ball's).  With ``z > 0`` only the excess beyond ``z N(f)`` counts: ``q = 1 + max((S_f - S_w)
+#: sigma - z N(f), 0) / (|S_w| sigma)`` (signed by the wide curvature; the order fade of
+#: :data:`CREASE_MAX_ORDER` then sees this ``q``).  A setting for measurements (``band_sigma.py
+#: --rules noise=Z``; not a default: docs/DESIGN.md, "Crease gains on smooth shapes").
+CREASE_NOISE = 0.0
+CREASE_NOISE_LEVEL = 0.0775
+CREASE_NOISE_POWER = 2.4
+#: The fine width (units of ``h``) below which the crease test is not trusted: ``(lo, hi)``, the
+#: crease share fading in as ``fine`` grows from ``lo`` to ``hi`` (None, the default: at every
+#: width).  Small objects get small widths (:func:`auto_sigma`): the ellipsoids of size 20 have
+#: ``f`` = 1.54, balls r = 20 1.67, the real shapes at 256 across 1.75-2.45.  A setting for
+#: measurements (``band_sigma.py --rules ffade=LO/HI``).
+CREASE_MIN_FINE = None
 #: New slice images (:func:`_slice_moments`) of a ring's first search reach this many ``max_move``
 #: (plus 2 voxels) beyond what it needs, so that the ring's later searches (its meridian points lie
 #: within ``max_move + 1`` of its seed) and its chord step reuse them.
@@ -1643,6 +1669,8 @@ def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
     places at ``sigma`` and ``fine``."""
     if not FINE_CREASE or len(xy) < 3 or not (kz == kz[0]).all():
         return None, None
+    if CREASE_MIN_FINE is not None and fine <= CREASE_MIN_FINE[0]:
+        return None, None  # every share would be 0: the one gain and tolerance
     # only a vertex whose places differ by more than the narrowest tolerance can take a gain: the
     # curvatures are needed there and within the averaging window's reach of it (the same gains)
     cand = np.hypot(*(near - out).T) > 0.999 * FINE_TOLERANCE[0] * max(1.0 - CREASE_TOLERANCE, 0.0)
@@ -1667,9 +1695,15 @@ def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
     if planar:  # the ratio from the sections' curvatures (the bend tests keep the surface's)
         pw = _ring_curvature_mean(fld_w, float(sigma), ring, win, True)
         pf = _ring_curvature_mean(fld_f, float(fine), ring, win, True)
-        q = np.where((np.abs(sw) * sigma > kmin) & (pw * pf > 0), pf / np.where(pw != 0, pw, 1.0), 1.0)
+        a_w, a_f, ok = pw, pf, (np.abs(sw) * sigma > kmin) & (pw * pf > 0)
     else:
-        q = np.where(np.abs(sw) * sigma > kmin, sf / np.where(sw != 0, sw, 1.0), 1.0)
+        a_w, a_f, ok = sw, sf, np.abs(sw) * sigma > kmin
+    if CREASE_NOISE:  # only the curvature excess beyond the fine level's lattice noise counts
+        floor = float(CREASE_NOISE) * float(CREASE_NOISE_LEVEL) / fine ** float(CREASE_NOISE_POWER)
+        excess = np.maximum((a_f - a_w) * np.sign(a_w) * sigma - floor, 0.0)
+        q = np.where(ok, 1.0 + excess / np.maximum(np.abs(a_w) * sigma, 1e-12), 1.0)
+    else:
+        q = np.where(ok, a_f / np.where(a_w != 0, a_w, 1.0), 1.0)
     q = np.where(live, q, 1.0)
     q0 = float(CREASE_MIN_RATIO)  # a ratio up to q0 is noise: m rises from 0 at q0 to 1 at 1 / r
     m = np.clip(np.log(np.where(q > 0, q, 1.0) / q0) / math.log(1.0 / (r * q0)), 0.0, 1.0)
@@ -1682,6 +1716,9 @@ def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
     if CREASE_MAX_BEND is not None:  # detail narrower than the blur also has S ~ 1 / sigma: a strong bend is not a crease
         b = np.abs(sw) * sigma
         m = m * np.clip((CREASE_MAX_BEND - b) / (0.5 * CREASE_MAX_BEND), 0.0, 1.0)
+    if CREASE_MIN_FINE is not None:  # a fine level too rough for the test: its lattice noise reads as creases
+        f_lo, f_hi = CREASE_MIN_FINE
+        m = m * min(max((fine - f_lo) / (f_hi - f_lo), 0.0), 1.0)
     if CREASE_WIDER is not None:
         m = m * _wider_check(pts, k, sigma, r, grid, images, out, near, max_move, pw if planar else sw, q, m, planar)
     p = 4.0 - 3.0 * m
