@@ -253,7 +253,7 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
     full[box] = m
     ox, oy, dx, dy = grid
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
-    S = ops.Slice(full, polygon, to_corner, to_center)
+    S = ops.Slice(full, polygon, to_corner, to_center, box=box)
 
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]

@@ -249,13 +249,22 @@ class _Slice:
     """The components of one slice with their contours and polygons (physical xy).
 
     ``recent``: a :class:`_RecentLabels` that decides how long the slice keeps its label image
-    (``None``: for the slice's lifetime)."""
+    (``None``: for the slice's lifetime).  ``box``: a pair of slices of ``mask2d`` outside which it
+    has no pixel (an intermediate section): only the box is labelled (the same labels, numbered
+    in raster order within it, and the same boxes, moved back to the whole image)."""
 
-    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None):
+    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None, box=None):
         from scipy import ndimage
 
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
-        labels, self.n, self.objects = slice_labels(mask2d)
+        if box is None:
+            labels, self.n, self.objects = slice_labels(mask2d)
+        else:
+            part, self.n, objects = slice_labels(mask2d[box])
+            labels = np.zeros(mask2d.shape, dtype=part.dtype)
+            labels[box] = part
+            y0, x0 = box[0].start or 0, box[1].start or 0
+            self.objects = [(slice(a.start + y0, a.stop + y0), slice(b.start + x0, b.stop + x0)) for a, b in objects]
         # the labels in the smallest dtype that holds them
         self._mask, self._recent = mask2d, recent
         self._labels = self._small(labels)
@@ -1811,6 +1820,37 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
 
 
+def _ring_boxes(s):
+    """Per component of slice ``s``, the box ``(lo, hi)`` (two ``(n, 2)`` arrays) of all its rings:
+    its polygons and its crack rings in physical xy.  The crack rings' corners are integers and
+    ``to_xy`` is increasing in each coordinate, so their box is that of their integer corners' box,
+    converted (no crack ring is made): the same numbers as :func:`_ring_boxes_reference`."""
+    def per_component(rings_of):
+        rs = [r for c in range(s.n) for r in rings_of(c)]
+        sizes = [len(r) for c in range(s.n) for r in rings_of(c)]
+        owner = np.repeat(np.arange(s.n), [len(rings_of(c)) for c in range(s.n)])
+        cat = np.concatenate(rs)
+        at = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        lo, hi = np.minimum.reduceat(cat, at, axis=0), np.maximum.reduceat(cat, at, axis=0)
+        # (rings in component order: each component's first ring starts its run of rows)
+        first = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=s.n))[:-1]]).astype(np.int64)
+        return np.minimum.reduceat(lo, first, axis=0), np.maximum.reduceat(hi, first, axis=0)
+
+    if s.n == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    clo, chi = per_component(lambda c: [s.crack_outer_c[c]] + list(s.crack_holes_c[c]))
+    plo, phi = per_component(lambda c: [np.asarray(s.outer[c], dtype=np.float64)] + list(s.holes[c]))
+    to_xy = s.crack_outer.to_xy
+    return np.minimum(to_xy(clo), plo), np.maximum(to_xy(chi), phi)
+
+
+def _ring_boxes_reference(s):
+    """:func:`_ring_boxes` from every ring made in physical xy (the tests' reference)."""
+    rs = [np.concatenate([s.crack_outer.made(c), s.outer[c]] + s.crack_holes.made(c) + list(s.holes[c]))
+          for c in range(s.n)]
+    return np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs])
+
+
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
                    band_guard=None, polygon="mlp", sections=True):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
@@ -1876,11 +1916,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         comps = key[1]
         if key not in near:
             if kk not in boxes:
-                s = slices[kk]
-                # (every component's crack rings, once: made, not kept)
-                rs = [np.concatenate([s.crack_outer.made(c), s.outer[c]] + s.crack_holes.made(c) + list(s.holes[c]))
-                      for c in range(s.n)]
-                boxes[kk] = (np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs]))
+                boxes[kk] = _ring_boxes(slices[kk])
             blo, bhi = boxes[kk]
             lo, hi = blo[list(comps)].min(axis=0), bhi[list(comps)].max(axis=0)
             near[key] = frozenset(np.flatnonzero((blo <= hi).all(axis=1) & (bhi >= lo).all(axis=1)).tolist())
