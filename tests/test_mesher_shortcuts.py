@@ -54,3 +54,78 @@ def test_a_slice_labelled_in_its_box_is_the_slice_labelled_whole(polygon):
                 assert np.array_equal(a.crack_outer_c[c], b.crack_outer_c[c])
                 assert all(np.array_equal(p, q) for p, q in zip(a.crack_holes_c[c], b.crack_holes_c[c]))
                 assert all(np.array_equal(p, q) for p, q in zip(a.hole_masks[c][1], b.hole_masks[c][1]))
+
+
+def _rings_of_slices(seed):
+    """Outer and hole polygons (MLP and crack rings: long straight runs) of random slices."""
+    to_center, to_corner = grid_to_xy(0.0, 0.0, 1.0, 1.0)
+    out = []
+    for mask in _masks(seed):
+        for polygon in ("mlp", "none"):
+            s = volumes._Slice(mask, polygon, to_corner, to_center)
+            out += [(s.outer[c], list(s.holes[c])) for c in range(s.n)]
+    return out
+
+
+def test_collinear_runs_compiled_equal_the_reference():
+    from contourmesh.bands import caps
+
+    rng = np.random.default_rng(5)
+    rings = [r for seed in (1, 2) for o, hs in _rings_of_slices(seed) for r in [o] + hs]
+    # rings with runs nearly straight (round-off off the line), spikes and repeated points
+    for n in (3, 4, 5, 9, 40):
+        t = np.sort(rng.random(n)) * 2 * np.pi
+        r = np.c_[np.cos(t), np.sin(t)]
+        rings += [r, np.repeat(r, 2, axis=0), r + rng.normal(scale=1e-12, size=r.shape)]
+    sq = np.array([[0, 0], [1, 0], [2, 0], [3, 0], [3, 1], [3, 2], [2, 2], [1, 2], [0, 2], [0, 1]], float)
+    rings += [sq, sq + 1e-10 * rng.normal(size=sq.shape), np.r_[sq[:4], [[2, 0]], sq[4:]]]
+    dropped = 0
+    for r in rings:
+        for tol in (caps.COLLINEAR_TOL, 1e-3):
+            got, ref = caps.collinear_runs(r, tol), caps._collinear_runs_reference(r, tol)
+            assert got.dtype == ref.dtype and np.array_equal(got, ref)
+            dropped += int((~got).sum())
+    assert dropped > 0
+
+
+def test_caps_with_the_compiled_steps_equal_the_reference_steps(monkeypatch):
+    """cap_faces with the compiled collinear runs, flat-triangle test and T-junction fast path
+    against the same function with the references (every edge sent to the exact T-junction
+    test): the same faces, or the same error."""
+    from contourmesh.bands import caps
+
+    def run(outer, holes, up):
+        try:
+            return caps.cap_faces(outer, holes, upward=up)
+        except ValueError as e:
+            return type(e).__name__
+
+    cases = [(o, hs, up) for seed in (1, 2, 6) for o, hs in _rings_of_slices(seed) for up in (True, False)]
+    # rings that touch or cross each other (no valid cap), and a hole outside its ring
+    sq = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], float)
+    cases += [(sq, [sq[::-1] * 0.5 + 1], True), (sq, [sq[::-1] * 0.5 + 3], True), (sq, [sq[::-1]], False),
+              (np.r_[sq, [[2, 2]]], [], True)]
+    got = [run(*c) for c in cases]
+    monkeypatch.setattr(caps, "collinear_runs", caps._collinear_runs_reference)
+    monkeypatch.setattr(caps, "_drop_flat_triangles", caps._drop_flat_triangles_reference)
+    monkeypatch.setattr(caps, "_busy_edges", lambda v, e, cand: np.ones(len(e), dtype=bool))
+    ref = [run(*c) for c in cases]
+    assert sum(isinstance(r, np.ndarray) and len(r) > 0 for r in ref) > 50
+    for g, r in zip(got, ref):
+        assert type(g) is type(r)
+        if isinstance(r, np.ndarray):
+            assert g.dtype == r.dtype and np.array_equal(g, r)
+        else:
+            assert g == r
+
+
+def test_t_junction_fast_path_refuses_what_the_loop_refuses():
+    from contourmesh.bands import caps
+
+    v = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    b = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
+    loops = np.concatenate([b, b[:, ::-1]])
+    good = np.array([[0, 1, 2], [0, 2, 3]])
+    assert np.array_equal(caps.split_t_junctions(v, good, loops), good)
+    assert caps.split_t_junctions(v, np.array([[0, 1, 2], [0, 1, 2]]), loops) is None  # an edge twice one way
+    assert caps.split_t_junctions(v, np.array([[0, 1, 2], [0, 1, 3]]), b) is None  # 1 -> 2 ... no opposite
