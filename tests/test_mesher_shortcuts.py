@@ -129,3 +129,31 @@ def test_t_junction_fast_path_refuses_what_the_loop_refuses():
     assert np.array_equal(caps.split_t_junctions(v, good, loops), good)
     assert caps.split_t_junctions(v, np.array([[0, 1, 2], [0, 1, 2]]), loops) is None  # an edge twice one way
     assert caps.split_t_junctions(v, np.array([[0, 1, 2], [0, 1, 3]]), b) is None  # 1 -> 2 ... no opposite
+
+
+@pytest.mark.parametrize("grid", [(0.0, 0.0, 1.0, 1.0), (-3.7, 12.25, 0.3, 0.7), (1e5, -2.5e4, 2.5, 0.125),
+                                  (123.456, -0.001, 1e-3, 7.77)])
+def test_exact_joins_take_the_crack_corners_that_the_round_trip_gives_back(grid):
+    """_exact_join reads a crack ring's integer corners where the corners -> xy -> corners trip
+    (its former route) returns them exactly: here every corner of a large image on several grids."""
+    ox, oy, dx, dy = grid
+    _, to_corner = grid_to_xy(ox, oy, dx, dy)
+    p = np.stack(np.meshgrid(np.arange(-1, 2049), np.arange(-1, 2049)), axis=-1).reshape(-1, 2)
+    p = np.concatenate([p, [[2 ** 20, 2 ** 20], [2 ** 20 - 1, 7]]])
+    xy = to_corner(p)
+    back = np.stack([np.rint((xy[:, 0] - ox) / dx + 0.5), np.rint((xy[:, 1] - oy) / dy + 0.5)], axis=1).astype(np.int64)
+    assert np.array_equal(back, p)
+
+
+def test_exact_joins_are_the_same_with_the_corner_round_trip(monkeypatch):
+    """The general mesher with the exact joins' corners from the xy round trip (the guard made
+    false) gives the same mesh bytes on a volume with many exact joins."""
+    import contourmesh
+
+    rng = np.random.default_rng(11)
+    vol = ndimage.gaussian_filter(rng.random((8, 30, 30)), 1.0) > 0.5
+    a = contourmesh.mesh(vol, spacing=(1.3, 0.7, 0.9))
+    assert a.meta.get("exact_joins", 0) > 0
+    monkeypatch.setattr(volumes, "_EXACT_TRIP_LIMIT", 0.0)
+    b = contourmesh.mesh(vol, spacing=(1.3, 0.7, 0.9))
+    assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
