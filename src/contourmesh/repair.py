@@ -452,8 +452,20 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     nv = len(V)
     pos = {}
 
+    n_v = len(V)
+
     def xyz(ids):
-        return np.array([V[i] if i < len(V) else pos[i] for i in ids])
+        """The points of vertices ``ids`` (old ones from V, new ones from ``pos``), as
+        ``np.array([V[i] if i < len(V) else pos[i] for i in ids])`` gives them."""
+        ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+        if len(ids) == 0 or V.dtype != np.float64:
+            return np.array([V[i] if i < n_v else pos[i] for i in ids.tolist()])
+        out = np.empty((len(ids), 3))
+        old = ids < n_v
+        out[old] = V[ids[old]]
+        if not old.all():
+            out[~old] = np.array([pos[i] for i in ids[~old].tolist()])
+        return out
 
     for c in neck_ids.tolist():  # one at a time: a neck's link may hold another neck
         star = [t for t in star_of.pop(c) if alive[t]]
@@ -484,6 +496,7 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
         # a hair from the apex towards it), then join the two rings by a tube
         new_faces = []
         tube = []
+        rings_xyz = []
         pc = xyz([c])[0]
         for n_c, cyc in enumerate(cycles):
             eps = nudge * (1.0 + 0.5 * n_c)
@@ -492,21 +505,23 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
             ids = nv + np.arange(len(cyc))
             ring = pc + eps * dirs
             Vs.append(ring)
-            for q, r in zip(ids.tolist(), ring):
-                pos[q] = r
+            ids_l = ids.tolist()
+            pos.update(zip(ids_l, ring))
             nv += len(cyc)
             k = len(cyc)
             for t in range(k):
                 x, y = cyc[t], cyc[(t + 1) % k]
-                rx, ry = int(ids[t]), int(ids[(t + 1) % k])
+                rx, ry = ids_l[t], ids_l[(t + 1) % k]
                 new_faces += [(rx, x, y), (rx, y, ry)]
             tube.append(ids)
+            rings_xyz.append(ring)
         a = tube[0]
         b = tube[1][::-1]
         n, m = len(a), len(b)
         # the tube is short and thin: join the rings by their angle around its axis, so that no
-        # two of its triangles overlap (both rings are star-shaped seen along the axis)
-        ta, tb = _ring_angles(xyz(a.tolist()) - pc, xyz(b.tolist()) - pc)
+        # two of its triangles overlap (both rings are star-shaped seen along the axis; their
+        # points are the rings just made, as xyz gives them)
+        ta, tb = _ring_angles(rings_xyz[0] - pc, rings_xyz[1][::-1] - pc)
         i0 = 0
         j0 = int(np.argmin(np.abs(np.angle(np.exp(1j * (tb - ta[0]))))))
         a = _rolled(a, i0).tolist()
