@@ -157,3 +157,31 @@ def test_exact_joins_are_the_same_with_the_corner_round_trip(monkeypatch):
     monkeypatch.setattr(volumes, "_EXACT_TRIP_LIMIT", 0.0)
     b = contourmesh.mesh(vol, spacing=(1.3, 0.7, 0.9))
     assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+
+
+def test_round9_compiled_equals_the_numpy_form():
+    from contourmesh.bands import bridges
+
+    rng = np.random.default_rng(9)
+    x = np.concatenate([rng.uniform(0, 50, 5000), rng.integers(0, 2 ** 20, 2000) / 1024.0,
+                        np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 2.0 ** 60, -2.5e-9])])
+    x = np.concatenate([x, np.nextafter(x, np.inf), np.nextafter(x, -np.inf)])
+    got, ref = bridges._round9(x), bridges._round9_reference(x)
+    assert np.array_equal(got.view(np.uint64), ref.view(np.uint64))  # (NaN's bits included)
+
+
+def test_missing_corners_equal_the_unique_keys_form():
+    from contourmesh.tracing import missing_corners, unique_keys
+
+    rng = np.random.default_rng(12)
+    for h, w, n in [(1, 1, 0), (1, 1, 3), (5, 9, 40), (30, 20, 2000), (200, 3, 50)]:
+        ids = np.where(rng.random((h, w)) < 0.5, -1, rng.integers(0, 100, (h, w))).astype(np.int64)
+        lx, ly = rng.integers(0, w, n).astype(np.int64), rng.integers(0, h, n).astype(np.int64)
+        ux, uy, ok = missing_corners(ids, lx, ly)
+        need = ids[ly, lx] < 0
+        key = unique_keys(lx[need] * h + ly[need], w * h)
+        assert ok and np.array_equal(ux, key // h) and np.array_equal(uy, key % h)
+        assert ux.dtype == uy.dtype == np.int64
+    # a place off the grid: not decided here
+    assert not missing_corners(ids, np.array([0, w], dtype=np.int64), np.array([0, 0], dtype=np.int64))[2]
+    assert not missing_corners(ids, np.array([-1], dtype=np.int64), np.array([0], dtype=np.int64))[2]

@@ -96,7 +96,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes, unique_keys
+from .tracing import _crack_contours, label_mask, missing_corners, overlap_groups, overlap_holes, unique_keys
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -1442,6 +1442,15 @@ class _CornerGrid:
 
     def __call__(self, cx, cy):
         lx, ly = np.asarray(cx) - self.x0, np.asarray(cy) - self.y0
+        ok = False
+        if lx.dtype == np.int64 and ly.dtype == np.int64 and lx.ndim == ly.ndim == 1 and len(lx) == len(ly):
+            # the new corners in (x, y) order (compiled: tracing.missing_corners)
+            ux, uy, ok = missing_corners(self.ids, np.ascontiguousarray(lx), np.ascontiguousarray(ly))
+        if ok:
+            if len(ux):
+                xy = self.to_xy(np.stack([ux + self.x0, uy + self.y0], axis=1))
+                self.ids[uy, ux] = self.M.points(_with_z(xy, self.z))
+            return self.ids[ly, lx]
         need = self.ids[ly, lx] < 0
         if need.any():
             # the new corners in (x, y) order, as one integer key each (x major)
