@@ -41,7 +41,8 @@ def _signed_area(p: np.ndarray) -> float:
     if len(p) < 3:
         return 0.0
     x, y = p[:, 0], p[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    # (np.roll(a, -1) as one concatenation: the same contiguous copy, at a fraction of the cost)
+    return 0.5 * float(np.dot(x, np.concatenate([y[1:], y[:1]])) - np.dot(np.concatenate([x[1:], x[:1]]), y))
 
 
 #: A point is on the straight line between its neighbours when its distance from their chord is at
