@@ -185,3 +185,45 @@ def test_missing_corners_equal_the_unique_keys_form():
     # a place off the grid: not decided here
     assert not missing_corners(ids, np.array([0, w], dtype=np.int64), np.array([0, 0], dtype=np.int64))[2]
     assert not missing_corners(ids, np.array([-1], dtype=np.int64), np.array([0], dtype=np.int64))[2]
+
+
+def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
+    """repair._open_necks with a kept dict: a second call on the same mesh takes every neck's rings
+    and faces from it, and gives the same arrays as a call without the dict."""
+    import contourmesh
+    from contourmesh import repair
+
+    seen_inputs = []
+    real = volumes._open_necks
+
+    def keep(V, F, S, N, nudge, tube_seen=None):
+        seen_inputs.append((V.copy(), F.copy(), S.copy(), np.array(N).copy(), nudge))
+        return real(V, F, S, N, nudge, tube_seen=tube_seen)
+
+    monkeypatch.setattr(volumes, "_open_necks", keep)
+    rng = np.random.default_rng(4)
+    contourmesh.mesh(ndimage.gaussian_filter(rng.random((10, 40, 40)), 0.7) > 0.5)
+    V, F, S, N, nudge = max(seen_inputs, key=lambda x: len(x[3]))
+    assert len(np.unique(N)) > 10  # (necks to open)
+    plain = repair._open_necks(V, F, S, N, nudge)
+    kept: dict = {}
+    first = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    n_kept = sum(1 for k in kept if isinstance(k, tuple) and k and k[0] == "neck")
+    again = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    assert n_kept == len(np.unique(N))
+    for out in (first, again):
+        assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(plain, out))
+
+
+def test_a_holes_first_pixel_is_the_first_of_its_whole_mask():
+    to_center, to_corner = grid_to_xy(0.0, 0.0, 1.0, 1.0)
+    n = 0
+    for seed in (1, 2, 3):
+        for mask in _masks(seed):
+            s = volumes._Slice(mask, "mlp", to_corner, to_center)
+            for _, hm in s.hole_masks:
+                for h in range(len(hm)):
+                    whole = hm[h]
+                    assert hm.first_pixel(h) == divmod(int(np.argmax(whole)), whole.shape[1])
+                    n += 1
+    assert n > 10

@@ -214,6 +214,12 @@ class _HoleMasks(Sequence):
     def __len__(self) -> int:
         return len(self.parts)
 
+    def first_pixel(self, i):
+        """``divmod(int(np.argmax(self[i])), width)``: hole ``i``'s first pixel in raster order, read
+        from its cropped mask (whose first row holds a pixel) without making the whole one."""
+        y0, x0, part = self.parts[i]
+        return y0, x0 + int(np.argmax(part[0]))
+
     def __getitem__(self, i):
         if isinstance(i, slice):
             return [self[j] for j in range(len(self))[i]]
@@ -1610,8 +1616,8 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
         at = {}
         for c in comps:
             csl, masks = S.hole_masks[c]
-            for h, hm in enumerate(masks):
-                y, x = divmod(int(np.argmax(hm)), hm.shape[1])  # its first pixel (raster order)
+            for h in range(len(masks)):
+                y, x = masks.first_pixel(h)  # its first pixel (raster order)
                 lab = int(blab[y + csl[0].start - y0 + 1, x + csl[1].start - x0 + 1])
                 at.setdefault(lab, []).append((c, h))
         return at
