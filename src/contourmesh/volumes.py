@@ -271,17 +271,19 @@ class _Slice:
         from scipy import ndimage
 
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
+        self._mask, self._recent = mask2d, recent
         if box is None:
             labels, self.n, self.objects = slice_labels(mask2d)
+            # the labels in the smallest dtype that holds them
+            self._labels = self._small(labels)
         else:
             part, self.n, objects = slice_labels(mask2d[box])
+            part = self._small(part)  # (the whole image's labels made in that dtype at once)
             labels = np.zeros(mask2d.shape, dtype=part.dtype)
             labels[box] = part
+            self._labels = labels
             y0, x0 = box[0].start or 0, box[1].start or 0
             self.objects = [(slice(a.start + y0, a.stop + y0), slice(b.start + x0, b.stop + x0)) for a, b in objects]
-        # the labels in the smallest dtype that holds them
-        self._mask, self._recent = mask2d, recent
-        self._labels = self._small(labels)
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
