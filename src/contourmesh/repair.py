@@ -431,7 +431,9 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     at that corner (the six others are object), the surface meets itself in two cones there.  The
     background is 26-connected, so it passes through the point: the cones are joined by a tube
     (the star of the vertex is removed and its two link cycles are joined by a band).
-    ``tube_seen``: ``seen`` of :func:`_tube_crosses` (a dict the caller keeps across rebuilds of one mesh).
+    ``tube_seen``: ``seen`` of :func:`_tube_crosses` (a dict the caller keeps across rebuilds of one mesh);
+    it also keeps each neck's rings and faces in local numbers, for a rebuild that meets the same
+    neck (the same apex, link points and order of their vertex numbers) again.
     """
     if len(necks) == 0:
         return V, F, S
@@ -452,8 +454,20 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     nv = len(V)
     pos = {}
 
+    n_v = len(V)
+
     def xyz(ids):
-        return np.array([V[i] if i < len(V) else pos[i] for i in ids])
+        """The points of vertices ``ids`` (old ones from V, new ones from ``pos``), as
+        ``np.array([V[i] if i < len(V) else pos[i] for i in ids])`` gives them."""
+        ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+        if len(ids) == 0 or V.dtype != np.float64:
+            return np.array([V[i] if i < n_v else pos[i] for i in ids.tolist()])
+        out = np.empty((len(ids), 3))
+        old = ids < n_v
+        out[old] = V[ids[old]]
+        if not old.all():
+            out[~old] = np.array([pos[i] for i in ids[~old].tolist()])
+        return out
 
     for c in neck_ids.tolist():  # one at a time: a neck's link may hold another neck
         star = [t for t in star_of.pop(c) if alive[t]]
@@ -484,29 +498,62 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
         # a hair from the apex towards it), then join the two rings by a tube
         new_faces = []
         tube = []
+        rings_xyz = []
         pc = xyz([c])[0]
+        cyc_xyz = [xyz(cyc) for cyc in cycles]
+        # a neck met before (a rebuild of the same mesh meets most of them again): its rings and
+        # faces are a function of the apex, the two link cycles' points and the order of their
+        # vertex numbers (the tube's crossing test numbers its points so), kept in local numbers
+        # (the cycles' vertices, then the new ones) in ``tube_seen``
+        memo = got = None
+        if tube_seen is not None:
+            gids = np.array(cycles[0] + cycles[1], dtype=np.int64)
+            memo = ("neck", float(nudge), pc.tobytes(), len(cycles[0]), len(cycles[1]),
+                    np.concatenate(cyc_xyz).tobytes(), np.argsort(gids, kind="stable").tobytes())
+            got = tube_seen.get(memo)
+        if got is not None:
+            rings_got, local = got
+            glob = np.concatenate([gids, nv + np.arange(len(gids), dtype=np.int64)])
+            for ring in rings_got:
+                Vs.append(ring)
+                pos.update(zip(range(nv, nv + len(ring)), ring))
+                nv += len(ring)
+            new_faces = [tuple(f) for f in glob[local].tolist()]
+            for t in star:
+                alive[t] = False
+            for f in new_faces:
+                t = len(faces)
+                faces.append(f)
+                alive.append(True)
+                for v in f:
+                    if v in star_of:
+                        star_of[v].append(t)
+            continue
+        nv0 = nv
         for n_c, cyc in enumerate(cycles):
             eps = nudge * (1.0 + 0.5 * n_c)
-            dirs = xyz(cyc) - pc
+            dirs = cyc_xyz[n_c] - pc
             dirs /= np.maximum(np.linalg.norm(dirs, axis=1), 1e-300)[:, None]
             ids = nv + np.arange(len(cyc))
             ring = pc + eps * dirs
             Vs.append(ring)
-            for q, r in zip(ids.tolist(), ring):
-                pos[q] = r
+            ids_l = ids.tolist()
+            pos.update(zip(ids_l, ring))
             nv += len(cyc)
             k = len(cyc)
             for t in range(k):
                 x, y = cyc[t], cyc[(t + 1) % k]
-                rx, ry = int(ids[t]), int(ids[(t + 1) % k])
+                rx, ry = ids_l[t], ids_l[(t + 1) % k]
                 new_faces += [(rx, x, y), (rx, y, ry)]
             tube.append(ids)
+            rings_xyz.append(ring)
         a = tube[0]
         b = tube[1][::-1]
         n, m = len(a), len(b)
         # the tube is short and thin: join the rings by their angle around its axis, so that no
-        # two of its triangles overlap (both rings are star-shaped seen along the axis)
-        ta, tb = _ring_angles(xyz(a.tolist()) - pc, xyz(b.tolist()) - pc)
+        # two of its triangles overlap (both rings are star-shaped seen along the axis; their
+        # points are the rings just made, as xyz gives them)
+        ta, tb = _ring_angles(rings_xyz[0] - pc, rings_xyz[1][::-1] - pc)
         i0 = 0
         j0 = int(np.argmin(np.abs(np.angle(np.exp(1j * (tb - ta[0]))))))
         a = _rolled(a, i0).tolist()
@@ -546,6 +593,10 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
                     tube_faces = faces_r
                     break
         new_faces += tube_faces
+        if memo is not None:
+            lut = {g: i for i, g in enumerate(cycles[0] + cycles[1])}
+            lut.update((nv0 + i, len(gids) + i) for i in range(nv - nv0))
+            tube_seen[memo] = (rings_xyz, np.array([[lut[v] for v in f] for f in new_faces], dtype=np.int64).reshape(-1, 3))
         for t in star:
             alive[t] = False
         for f in new_faces:

@@ -253,7 +253,7 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
     full[box] = m
     ox, oy, dx, dy = grid
     to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
-    S = ops.Slice(full, polygon, to_corner, to_center)
+    S = ops.Slice(full, polygon, to_corner, to_center, box=box)
 
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]
@@ -263,7 +263,7 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
     def edges():
         if not made:
             rs = [np.asarray(poly(c, h), dtype=np.float64) for c in range(S.n) for h in range(-1, len(S.holes[c]))]
-            made.append((np.concatenate(rs), np.concatenate([np.roll(r, -1, axis=0) for r in rs])))
+            made.append((np.concatenate(rs), np.concatenate([np.concatenate([r[1:], r[:1]]) for r in rs])))
         return made[0]
 
     return _Layer(S, z, range(S.n), poly, edges, box=box), m

@@ -350,6 +350,37 @@ def unique_keys(keys: np.ndarray, bound: int) -> np.ndarray:
     return np.unique(keys)
 
 
+@njit(cache=True, nogil=True)
+def missing_corners(ids, lx, ly):
+    """The distinct places ``(lx[t], ly[t])`` where ``ids`` (a 2D int64 grid, indexed ``[ly, lx]``)
+    holds a negative number, ordered by ``lx`` then ``ly``: ``(ux, uy)``, int64.  The same as
+    ``unique_keys(lx[need] * h + ly[need], ...)`` split back into ``key // h`` and ``key % h``
+    (``h = ids.shape[0]``, ``need = ids[ly, lx] < 0``).  Returns ``(ux, uy, ok)``; ``ok`` False (and
+    nothing found) where a place lies outside the grid (numpy's indexing then decides)."""
+    h = np.int64(ids.shape[0])
+    w = np.int64(ids.shape[1])
+    keys = np.empty(lx.shape[0], np.int64)
+    nk = 0
+    for t in range(lx.shape[0]):
+        if lx[t] < 0 or ly[t] < 0 or lx[t] >= w or ly[t] >= h:
+            return keys[:0], keys[:0], False
+        if ids[ly[t], lx[t]] < 0:
+            keys[nk] = np.int64(lx[t]) * h + np.int64(ly[t])
+            nk += 1
+    keys = np.sort(keys[:nk])
+    nu = 0
+    for t in range(nk):
+        if t == 0 or keys[t] != keys[t - 1]:
+            keys[nu] = keys[t]
+            nu += 1
+    ux = np.empty(nu, np.int64)
+    uy = np.empty(nu, np.int64)
+    for t in range(nu):
+        ux[t] = keys[t] // h
+        uy[t] = keys[t] % h
+    return ux, uy, True
+
+
 def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
     """The overlap groups of two slices' components: ``la``, ``lb`` are their label images (0 the
     background, component ``c`` labelled ``c + 1``; ``na``, ``nb`` components).  Two components
@@ -360,7 +391,9 @@ def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
     both = (la > 0) & (lb > 0)
     nbk = np.int64(nb + 1)  # (a, b) label pairs as one sortable key: same order as unique rows
     keys = unique_keys(la[both].astype(np.int64) * nbk + lb[both], (na + 1) * (nb + 1))
-    pairs = np.c_[keys // nbk, keys % nbk] - 1
+    pairs = np.empty((len(keys), 2), dtype=np.int64)  # (np.c_[keys // nbk, keys % nbk] - 1, without np.c_'s cost)
+    pairs[:, 0] = keys // nbk - 1
+    pairs[:, 1] = keys % nbk - 1
     group, ng = _pair_groups(np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1]),
                              np.int64(na), np.int64(nb))
     groups = [(set(), set()) for _ in range(ng)]

@@ -96,7 +96,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, label_mask, overlap_groups, overlap_holes, unique_keys
+from .tracing import _crack_contours, label_mask, missing_corners, overlap_groups, overlap_holes, unique_keys
 from .types import Mesh
 from .volume_input import binary_label, prepare_volume
 
@@ -115,6 +115,14 @@ def _with_z(xy, z) -> np.ndarray:
     out = np.empty((len(xy), 3))
     out[:, :2] = xy
     out[:, 2] = z
+    return out
+
+
+def _pad1(m, value=False) -> np.ndarray:
+    """``np.pad(m, 1, constant_values=value)`` of a 2D boolean mask (np.pad costs some 15 us a
+    call on the mesher's small masks)."""
+    out = np.full((m.shape[0] + 2, m.shape[1] + 2), value, dtype=m.dtype)
+    out[1:-1, 1:-1] = m
     return out
 
 
@@ -206,6 +214,12 @@ class _HoleMasks(Sequence):
     def __len__(self) -> int:
         return len(self.parts)
 
+    def first_pixel(self, i):
+        """``divmod(int(np.argmax(self[i])), width)``: hole ``i``'s first pixel in raster order, read
+        from its cropped mask (whose first row holds a pixel) without making the whole one."""
+        y0, x0, part = self.parts[i]
+        return y0, x0 + int(np.argmax(part[0]))
+
     def __getitem__(self, i):
         if isinstance(i, slice):
             return [self[j] for j in range(len(self))[i]]
@@ -249,16 +263,27 @@ class _Slice:
     """The components of one slice with their contours and polygons (physical xy).
 
     ``recent``: a :class:`_RecentLabels` that decides how long the slice keeps its label image
-    (``None``: for the slice's lifetime)."""
+    (``None``: for the slice's lifetime).  ``box``: a pair of slices of ``mask2d`` outside which it
+    has no pixel (an intermediate section): only the box is labelled (the same labels, numbered
+    in raster order within it, and the same boxes, moved back to the whole image)."""
 
-    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None):
+    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None, box=None):
         from scipy import ndimage
 
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
-        labels, self.n, self.objects = slice_labels(mask2d)
-        # the labels in the smallest dtype that holds them
         self._mask, self._recent = mask2d, recent
-        self._labels = self._small(labels)
+        if box is None:
+            labels, self.n, self.objects = slice_labels(mask2d)
+            # the labels in the smallest dtype that holds them
+            self._labels = self._small(labels)
+        else:
+            part, self.n, objects = slice_labels(mask2d[box])
+            part = self._small(part)  # (the whole image's labels made in that dtype at once)
+            labels = np.zeros(mask2d.shape, dtype=part.dtype)
+            labels[box] = part
+            self._labels = labels
+            y0, x0 = box[0].start or 0, box[1].start or 0
+            self.objects = [(slice(a.start + y0, a.stop + y0), slice(b.start + x0, b.stop + x0)) for a, b in objects]
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
@@ -285,7 +310,7 @@ class _Slice:
             # connected to the bbox border
             hmasks = []
             if crack_h:  # (a component without hole contours has no holes: skip the labelling)
-                padded = np.pad(~comp, 1, constant_values=True)
+                padded = _pad1(~comp, True)
                 blab, nb = ndimage.label(padded, structure=_SQUARE)
                 ext = blab[0, 0]
                 for b in range(1, nb + 1):
@@ -1392,7 +1417,7 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
         return None
     if not ha:
         return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
-    comp_o = np.pad(~o, 1, constant_values=True)
+    comp_o = _pad1(~o, True)
     olab, nol = ndimage.label(comp_o, structure=_SQUARE)
     ext = olab[0, 0]
     if nol - 1 != len(ha):
@@ -1425,6 +1450,15 @@ class _CornerGrid:
 
     def __call__(self, cx, cy):
         lx, ly = np.asarray(cx) - self.x0, np.asarray(cy) - self.y0
+        ok = False
+        if lx.dtype == np.int64 and ly.dtype == np.int64 and lx.ndim == ly.ndim == 1 and len(lx) == len(ly):
+            # the new corners in (x, y) order (compiled: tracing.missing_corners)
+            ux, uy, ok = missing_corners(self.ids, np.ascontiguousarray(lx), np.ascontiguousarray(ly))
+        if ok:
+            if len(ux):
+                xy = self.to_xy(np.stack([ux + self.x0, uy + self.y0], axis=1))
+                self.ids[uy, ux] = self.M.points(_with_z(xy, self.z))
+            return self.ids[ly, lx]
         need = self.ids[ly, lx] < 0
         if need.any():
             # the new corners in (x, y) order, as one integer key each (x major)
@@ -1457,6 +1491,11 @@ def _pixel_cap(M, s, k, c, rings, z, up, to_xy_corner):
     _pixel_faces(M, comp, x0, y0, grid, up=up)
 
 
+#: :func:`_exact_join` reads crack rings' integer corners (not their xy taken back to corners) where
+#: ``max(|ox| / dx, |oy| / dy)`` plus the largest pixel coordinate plus one is below this.
+_EXACT_TRIP_LIMIT = 2.0 ** 40
+
+
 def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner):
     """The voxel-exact join of a group of components between slices k and k+1."""
 
@@ -1476,10 +1515,24 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     def back_to_corners(xy):
         return np.stack([np.rint((xy[:, 0] - ox) / dx + 0.5), np.rint((xy[:, 1] - oy) / dy + 0.5)], axis=1).astype(np.int64)
 
+    # the crack rings' own integer corners where the round trip above gives them back exactly: both
+    # slices' rings made by to_xy_corner (ox + (p - 0.5) dx), whose rounding errors, some units of
+    # 2^-53 times |ox| / dx + |p| + 1 pixels, stay far below the half pixel that rint forgives
+    exact_trip = (A.crack_outer.to_xy is to_xy_corner and B.crack_outer.to_xy is to_xy_corner
+                  and A.crack_holes.to_xy is to_xy_corner and B.crack_holes.to_xy is to_xy_corner
+                  and max(abs(ox) / dx, abs(oy) / dy) + max(y1, x1) + 1 < _EXACT_TRIP_LIMIT)
+
+    def crack_rings(S, c):
+        """``(h, corners)`` of component c's crack rings (-1 the outer one)."""
+        if exact_trip:
+            return [(-1, np.asarray(S.crack_outer_c[c], dtype=np.int64))] + \
+                [(h, np.asarray(r, dtype=np.int64)) for h, r in enumerate(S.crack_holes_c[c])]
+        return [(h, back_to_corners(xy)) for h, xy in [(-1, S.crack_outer[c])] + list(enumerate(S.crack_holes[c]))]
+
     # corners where the empty voxels of the 2 x 2 x 2 block touch only at the corner: three of
     # the four pixels below, three above, the two missing ones diagonally opposite
-    pa = np.pad(ra, 1)
-    pb = np.pad(rb, 1)
+    pa = _pad1(ra)
+    pb = _pad1(rb)
     q = lambda m, dy_, dx_: m[dy_: dy_ + hgt + 1, dx_: dx_ + wid + 1]  # pixel (cx-1+dx_, cy-1+dy_)
     lla, lra, ula, ura = q(pa, 0, 0), q(pa, 0, 1), q(pa, 1, 0), q(pa, 1, 1)
     llb, lrb, ulb, urb = q(pb, 0, 0), q(pb, 0, 1), q(pb, 1, 0), q(pb, 1, 1)
@@ -1492,15 +1545,13 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     M.side = 1
     for a in ga:
         collar = M.band if a in getattr(A, "own", ()) else M.quads  # a caller's polygon: a band to the crack
-        for h, crack_xy in [(-1, A.crack_outer[a])] + list(enumerate(A.crack_holes[a])):
-            c = back_to_corners(crack_xy)
+        for h, c in crack_rings(A, a):
             collar(ring(k, a, h), corner_ids(c[:, 0], c[:, 1]))
     _pixel_faces(M, ra & ~o, x0, y0, corner_ids, up=True)
     M.side = 2
     for b in gb:
         collar = M.band if b in getattr(B, "own", ()) else M.quads
-        for h, crack_xy in [(-1, B.crack_outer[b])] + list(enumerate(B.crack_holes[b])):
-            c = back_to_corners(crack_xy)
+        for h, c in crack_rings(B, b):
             collar(corner_ids(c[:, 0], c[:, 1]), ring(k + 1, b, h))
     _pixel_faces(M, rb & ~o, x0, y0, corner_ids, up=False)
     M.side = 0
@@ -1567,8 +1618,8 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
         at = {}
         for c in comps:
             csl, masks = S.hole_masks[c]
-            for h, hm in enumerate(masks):
-                y, x = divmod(int(np.argmax(hm)), hm.shape[1])  # its first pixel (raster order)
+            for h in range(len(masks)):
+                y, x = masks.first_pixel(h)  # its first pixel (raster order)
                 lab = int(blab[y + csl[0].start - y0 + 1, x + csl[1].start - x0 + 1])
                 at.setdefault(lab, []).append((c, h))
         return at
@@ -1811,6 +1862,37 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
 
 
+def _ring_boxes(s):
+    """Per component of slice ``s``, the box ``(lo, hi)`` (two ``(n, 2)`` arrays) of all its rings:
+    its polygons and its crack rings in physical xy.  The crack rings' corners are integers and
+    ``to_xy`` is increasing in each coordinate, so their box is that of their integer corners' box,
+    converted (no crack ring is made): the same numbers as :func:`_ring_boxes_reference`."""
+    def per_component(rings_of):
+        rs = [r for c in range(s.n) for r in rings_of(c)]
+        sizes = [len(r) for c in range(s.n) for r in rings_of(c)]
+        owner = np.repeat(np.arange(s.n), [len(rings_of(c)) for c in range(s.n)])
+        cat = np.concatenate(rs)
+        at = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        lo, hi = np.minimum.reduceat(cat, at, axis=0), np.maximum.reduceat(cat, at, axis=0)
+        # (rings in component order: each component's first ring starts its run of rows)
+        first = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=s.n))[:-1]]).astype(np.int64)
+        return np.minimum.reduceat(lo, first, axis=0), np.maximum.reduceat(hi, first, axis=0)
+
+    if s.n == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    clo, chi = per_component(lambda c: [s.crack_outer_c[c]] + list(s.crack_holes_c[c]))
+    plo, phi = per_component(lambda c: [np.asarray(s.outer[c], dtype=np.float64)] + list(s.holes[c]))
+    to_xy = s.crack_outer.to_xy
+    return np.minimum(to_xy(clo), plo), np.maximum(to_xy(chi), phi)
+
+
+def _ring_boxes_reference(s):
+    """:func:`_ring_boxes` from every ring made in physical xy (the tests' reference)."""
+    rs = [np.concatenate([s.crack_outer.made(c), s.outer[c]] + s.crack_holes.made(c) + list(s.holes[c]))
+          for c in range(s.n)]
+    return np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs])
+
+
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
                    band_guard=None, polygon="mlp", sections=True):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
@@ -1876,11 +1958,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         comps = key[1]
         if key not in near:
             if kk not in boxes:
-                s = slices[kk]
-                # (every component's crack rings, once: made, not kept)
-                rs = [np.concatenate([s.crack_outer.made(c), s.outer[c]] + s.crack_holes.made(c) + list(s.holes[c]))
-                      for c in range(s.n)]
-                boxes[kk] = (np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs]))
+                boxes[kk] = _ring_boxes(slices[kk])
             blo, bhi = boxes[kk]
             lo, hi = blo[list(comps)].min(axis=0), bhi[list(comps)].max(axis=0)
             near[key] = frozenset(np.flatnonzero((blo <= hi).all(axis=1) & (bhi >= lo).all(axis=1)).tolist())

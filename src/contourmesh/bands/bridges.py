@@ -329,7 +329,33 @@ def _round9(x) -> np.ndarray:
     float ``v`` of ``x``, as an array.  ``rint(v * 1e9) / 1e9`` is that number wherever ``v * 1e9``
     lies clearly off a half (its rounding error, at most ``|v| 1e9 2^-53``, cannot move it across
     one) and below ``2^52``; the other values (halves, near-halves, huge or not finite) are
-    rounded by Python."""
+    rounded by Python.  The safe values are rounded in compiled code (:func:`_round9_kernel`, the
+    same operations); :func:`_round9_reference` is the numpy form."""
+    x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+    out, unsafe = _round9_kernel(x)
+    for t in unsafe.tolist():
+        out[t] = round(float(x[t]), 9)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _round9_kernel(x):
+    """:func:`_round9`'s ``rint(v * 1e9) / 1e9`` of every value, and the places of the values that
+    are not safe to round so (left to Python)."""
+    out = np.empty(x.shape[0])
+    unsafe = np.empty(x.shape[0], np.int64)
+    nu = 0
+    for t in range(x.shape[0]):
+        y = x[t] * 1e9
+        out[t] = np.rint(y) / 1e9
+        if not (abs(y - np.floor(y) - 0.5) > abs(y) * 2.0 ** -50 and abs(y) < 2.0 ** 52):
+            unsafe[nu] = t
+            nu += 1
+    return out, unsafe[:nu]
+
+
+def _round9_reference(x) -> np.ndarray:
+    """:func:`_round9` in numpy (the reference of the compiled kernel)."""
     x = np.asarray(x, dtype=np.float64).reshape(-1)
     with np.errstate(over="ignore", invalid="ignore"):
         y = x * 1e9

@@ -41,7 +41,8 @@ def _signed_area(p: np.ndarray) -> float:
     if len(p) < 3:
         return 0.0
     x, y = p[:, 0], p[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    # (np.roll(a, -1) as one concatenation: the same contiguous copy, at a fraction of the cost)
+    return 0.5 * float(np.dot(x, np.concatenate([y[1:], y[:1]])) - np.dot(np.concatenate([x[1:], x[:1]]), y))
 
 
 #: A point is on the straight line between its neighbours when its distance from their chord is at
@@ -65,7 +66,68 @@ def collinear_runs(ring: np.ndarray, tol: float = COLLINEAR_TOL) -> np.ndarray:
 
     A point that doubles back (a zero-width spike) is not straight and is kept: that ring really
     touches itself.
+
+    Compiled (:func:`_collinear_kernel`, the same arithmetic step by step) for an ``(n, 2)`` ring;
+    :func:`_collinear_runs_reference` is the numpy form it is tested against.
     """
+    p = np.asarray(ring, dtype=np.float64)
+    if p.ndim == 2 and p.shape[1] == 2:
+        return _collinear_kernel(np.ascontiguousarray(p), float(tol))
+    return _collinear_runs_reference(p, tol)
+
+
+@njit(cache=True, nogil=True)
+def _collinear_kernel(p, tol):  # pragma: no cover (compiled)
+    """:func:`collinear_runs` of an ``(n, 2)`` float64 ring: each point's test against its two
+    neighbours (``local``), then the walk from the first corner, as the reference does them."""
+    n = p.shape[0]
+    keep = np.ones(n, np.bool_)
+    if n < 4:
+        return keep
+    local = np.zeros(n, np.bool_)
+    s0 = -1
+    any_local = False
+    for i in range(n):
+        a = (i - 1) % n
+        b = (i + 1) % n
+        d0, d1 = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1]
+        L2 = d0 * d0 + d1 * d1
+        e0, e1 = p[i, 0] - p[a, 0], p[i, 1] - p[a, 1]
+        if L2 > 0:
+            t = (e0 * d0 + e1 * d1) / L2
+            local[i] = t > 0 and t < 1 and abs(e0 * d1 - e1 * d0) <= tol * L2
+        if local[i]:
+            any_local = True
+        elif s0 < 0:
+            s0 = i
+    if not any_local or s0 < 0:
+        return keep
+    prev = s0
+    for step in range(1, n):
+        j = (s0 + step) % n
+        nxt = (j + 1) % n
+        straight = False
+        if local[j]:
+            dx, dy = p[nxt, 0] - p[prev, 0], p[nxt, 1] - p[prev, 1]
+            L2 = dx * dx + dy * dy
+            if L2 != 0.0:
+                ex, ey = p[j, 0] - p[prev, 0], p[j, 1] - p[prev, 1]
+                t = (ex * dx + ey * dy) / L2
+                straight = 0.0 < t < 1.0 and abs(ex * dy - ey * dx) <= tol * L2
+        if straight:
+            keep[j] = False
+        else:
+            prev = j
+    kept = 0
+    for i in range(n):
+        kept += keep[i]
+    if kept < 3:
+        return np.ones(n, np.bool_)
+    return keep
+
+
+def _collinear_runs_reference(ring: np.ndarray, tol: float = COLLINEAR_TOL) -> np.ndarray:
+    """:func:`collinear_runs` in numpy and Python (the reference of the compiled kernel)."""
     p = np.asarray(ring, dtype=np.float64)
     n = len(p)
     keep = np.ones(n, dtype=bool)
@@ -118,7 +180,38 @@ def _reinsert_runs(tris: np.ndarray, runs: dict) -> np.ndarray:
 
 
 def _drop_flat_triangles(verts: np.ndarray, tri: np.ndarray, tol: float = COLLINEAR_TOL) -> np.ndarray:
-    """The triangles whose corners are not on one straight line (to ``tol`` of their longest edge)."""
+    """The triangles whose corners are not on one straight line (to ``tol`` of their longest edge).
+    Compiled for float64 ``(n, 2)`` points and int64 triangles (:func:`_flat_kernel`, the arithmetic
+    of :func:`_drop_flat_triangles_reference`)."""
+    if (verts.dtype == np.float64 and verts.ndim == 2 and verts.shape[1] == 2 and tri.dtype == np.int64
+            and tri.ndim == 2 and tri.shape[1] == 3 and len(tri) and tri.min() >= 0 and tri.max() < len(verts)):
+        return tri[_flat_kernel(np.ascontiguousarray(verts), np.ascontiguousarray(tri), float(tol))]
+    return _drop_flat_triangles_reference(verts, tri, tol)
+
+
+@njit(cache=True, nogil=True)
+def _flat_kernel(v, tri, tol):  # pragma: no cover (compiled)
+    """Per triangle: whether :func:`_drop_flat_triangles_reference` keeps it (its arithmetic)."""
+    out = np.empty(tri.shape[0], np.bool_)
+    for t in range(tri.shape[0]):
+        p0, p1 = v[tri[t, 0], 0], v[tri[t, 0], 1]
+        q0, q1 = v[tri[t, 1], 0], v[tri[t, 1], 1]
+        r0, r1 = v[tri[t, 2], 0], v[tri[t, 2], 1]
+        s = abs((q0 - p0) * (r1 - p1) - (q1 - p1) * (r0 - p0))
+        a0, a1 = q0 - p0, q1 - p1
+        b0, b1 = r0 - q0, r1 - q1
+        c0, c1 = p0 - r0, p1 - r1
+        la = a0 * a0 + a1 * a1
+        lb = b0 * b0 + b1 * b1
+        lc = c0 * c0 + c1 * c1
+        m = la if la >= lb else lb
+        m = m if m >= lc else lc
+        out[t] = s > tol * m
+    return out
+
+
+def _drop_flat_triangles_reference(verts: np.ndarray, tri: np.ndarray, tol: float = COLLINEAR_TOL) -> np.ndarray:
+    """:func:`_drop_flat_triangles` in numpy (the reference of the compiled kernel)."""
     p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
     s = np.abs((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
     longest = np.maximum.reduce([((q - p) ** 2).sum(1), ((r - q) ** 2).sum(1), ((p - r) ** 2).sum(1)])
@@ -180,6 +273,43 @@ def _edges_without_points(vertices, tris, cand) -> set:
     return set(map(tuple, e[~busy].tolist()))
 
 
+@njit(cache=True, nogil=True)
+def _closes_up(tri, boundary):  # pragma: no cover (compiled)
+    """:func:`split_t_junctions`' two tests of its result for triangles none of whose edges is split:
+    no directed edge twice, and each edge's opposite among the edges or the edge a loop edge
+    (``boundary``'s rows).  Edges as integers ``p * n + q``, sorted, looked up by bisection."""
+    n = 1
+    for t in range(tri.shape[0]):
+        for k in range(3):
+            n = max(n, tri[t, k] + 1)
+    for t in range(boundary.shape[0]):
+        n = max(n, boundary[t, 0] + 1, boundary[t, 1] + 1)
+    m = tri.shape[0]
+    key = np.empty(3 * m, np.int64)
+    for t in range(m):
+        for k in range(3):
+            key[3 * t + k] = tri[t, k] * n + tri[t, (k + 1) % 3]
+    key.sort()
+    for i in range(1, key.shape[0]):
+        if key[i] == key[i - 1]:
+            return False
+    loop = np.empty(boundary.shape[0], np.int64)
+    for i in range(boundary.shape[0]):
+        loop[i] = boundary[i, 0] * n + boundary[i, 1]
+    loop.sort()
+    for i in range(key.shape[0]):
+        p, q = key[i] // n, key[i] % n
+        rev = q * n + p
+        j = np.searchsorted(key, rev)
+        if j < key.shape[0] and key[j] == rev:
+            continue
+        j = np.searchsorted(loop, key[i])
+        if j < loop.shape[0] and loop[j] == key[i]:
+            continue
+        return False
+    return True
+
+
 def split_t_junctions(vertices, tris, boundary):
     """Split triangles whose edges pass through other boundary vertices (T-junctions).
 
@@ -192,8 +322,18 @@ def split_t_junctions(vertices, tris, boundary):
     vertices = np.asarray(vertices, dtype=np.float64)
     boundary = np.asarray(boundary, dtype=np.int64).reshape(-1, 2)
     cand = np.unique(boundary)
+    tri_arr = np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+    if len(tri_arr) and tri_arr.min() >= 0 and (not len(boundary) or boundary.min() >= 0):
+        e = np.ascontiguousarray(np.concatenate([tri_arr[:, [0, 1]], tri_arr[:, [1, 2]], tri_arr[:, [2, 0]]]))
+        busy = _busy_edges(np.ascontiguousarray(vertices, dtype=np.float64), e, np.ascontiguousarray(cand))
+        if not busy.any():
+            # no edge to split (the usual cap): the triangles as they are, if they close up (the
+            # loop below would keep each one and then run these two tests on their edge sets)
+            return tri_arr.copy() if _closes_up(tri_arr, np.ascontiguousarray(boundary)) else None
+        clean = set(map(tuple, e[~busy].tolist()))
+    else:
+        clean = _edges_without_points(vertices, tri_arr, cand)
     loop_edges = set(map(tuple, boundary.tolist()))
-    clean = _edges_without_points(vertices, np.asarray(tris, dtype=np.int64).reshape(-1, 3), cand)
     out = []
     # every split strictly shortens an edge, so a valid triangulation needs few; degenerate
     # triangles along a collinear run can re-split each other for ever: give up (None) instead
@@ -305,9 +445,10 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     # earcut drops ring vertices lying on a straight line between their neighbours; put them
     # back so that every ring edge is an edge of the cap (the bands share those edges)
     starts = np.concatenate([[0], ends[:-1]]).astype(np.int64)
-    boundary = np.concatenate([
-        np.c_[np.arange(a, b), np.r_[np.arange(a + 1, b), a]] for a, b in zip(starts, ends.astype(np.int64))
-    ])
+    # each ring's edges (a, a + 1), ..., (b - 1, a), all rings at once
+    nxt = np.arange(1, len(verts) + 1, dtype=np.int64)
+    nxt[ends.astype(np.int64) - 1] = starts
+    boundary = np.stack([np.arange(len(verts), dtype=np.int64), nxt], axis=1)
     fixed = split_t_junctions(verts, tri, np.concatenate([boundary, boundary[:, ::-1]]))
     if fixed is None:
         raise CapError("cannot triangulate the cap: its rings cross or touch each other")

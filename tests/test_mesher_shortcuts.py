@@ -1,0 +1,229 @@
+"""Shortcuts of the general mesher (issue 16) against the plain code they replace: each must give the
+same numbers, so that the meshes stay the same bytes."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from contourmesh import volumes
+from contourmesh.geometry import grid_to_xy
+
+
+def _masks(seed, shape=(6, 40, 44)):
+    """Slices with forks, holes, specks and one-pixel parts (smoothed noise, two thresholds)."""
+    rng = np.random.default_rng(seed)
+    v = ndimage.gaussian_filter(rng.random(shape), 1.2)
+    m = v > np.quantile(v, 0.55)
+    m[:, ::7, ::9] ^= True  # specks and pin holes
+    return m
+
+
+@pytest.mark.parametrize("grid", [(0.0, 0.0, 1.0, 1.0), (-3.7, 12.25, 0.3, 0.7), (1e3, -1e3, 2.5, 0.125)])
+@pytest.mark.parametrize("polygon", ["mlp", "dss", "none"])
+def test_ring_boxes_equal_the_boxes_of_the_made_rings(grid, polygon):
+    ox, oy, dx, dy = grid
+    to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
+    seen_holes = 0
+    for seed in (1, 2):
+        for mask in _masks(seed):
+            s = volumes._Slice(mask, polygon, to_corner, to_center)
+            seen_holes += sum(len(h) for h in s.holes)
+            lo, hi = volumes._ring_boxes(s)
+            rlo, rhi = volumes._ring_boxes_reference(s)
+            assert lo.dtype == rlo.dtype == np.float64 and lo.shape == rlo.shape == (s.n, 2)
+            assert np.array_equal(lo, rlo) and np.array_equal(hi, rhi)
+    assert seen_holes > 0  # (the samples have holes)
+
+
+@pytest.mark.parametrize("polygon", ["mlp", "dss"])
+def test_a_slice_labelled_in_its_box_is_the_slice_labelled_whole(polygon):
+    to_center, to_corner = grid_to_xy(0.5, -2.0, 0.75, 1.25)
+    for seed in (3, 4):
+        for mask in _masks(seed):
+            full = np.zeros((60, 70), dtype=bool)
+            full[9:49, 13:57] = mask
+            box = np.s_[8:50, 12:58]  # (a margin round the pixels, as the sections' boxes have)
+            a = volumes._Slice(full, polygon, to_corner, to_center)
+            b = volumes._Slice(full, polygon, to_corner, to_center, box=box)
+            assert a.n == b.n and a.objects == b.objects
+            assert a.labels.dtype == b.labels.dtype and np.array_equal(a.labels, b.labels)
+            for c in range(a.n):
+                assert np.array_equal(a.outer[c], b.outer[c])
+                assert len(a.holes[c]) == len(b.holes[c])
+                assert all(np.array_equal(p, q) for p, q in zip(a.holes[c], b.holes[c]))
+                assert np.array_equal(a.crack_outer_c[c], b.crack_outer_c[c])
+                assert all(np.array_equal(p, q) for p, q in zip(a.crack_holes_c[c], b.crack_holes_c[c]))
+                assert all(np.array_equal(p, q) for p, q in zip(a.hole_masks[c][1], b.hole_masks[c][1]))
+
+
+def _rings_of_slices(seed):
+    """Outer and hole polygons (MLP and crack rings: long straight runs) of random slices."""
+    to_center, to_corner = grid_to_xy(0.0, 0.0, 1.0, 1.0)
+    out = []
+    for mask in _masks(seed):
+        for polygon in ("mlp", "none"):
+            s = volumes._Slice(mask, polygon, to_corner, to_center)
+            out += [(s.outer[c], list(s.holes[c])) for c in range(s.n)]
+    return out
+
+
+def test_collinear_runs_compiled_equal_the_reference():
+    from contourmesh.bands import caps
+
+    rng = np.random.default_rng(5)
+    rings = [r for seed in (1, 2) for o, hs in _rings_of_slices(seed) for r in [o] + hs]
+    # rings with runs nearly straight (round-off off the line), spikes and repeated points
+    for n in (3, 4, 5, 9, 40):
+        t = np.sort(rng.random(n)) * 2 * np.pi
+        r = np.c_[np.cos(t), np.sin(t)]
+        rings += [r, np.repeat(r, 2, axis=0), r + rng.normal(scale=1e-12, size=r.shape)]
+    sq = np.array([[0, 0], [1, 0], [2, 0], [3, 0], [3, 1], [3, 2], [2, 2], [1, 2], [0, 2], [0, 1]], float)
+    rings += [sq, sq + 1e-10 * rng.normal(size=sq.shape), np.r_[sq[:4], [[2, 0]], sq[4:]]]
+    dropped = 0
+    for r in rings:
+        for tol in (caps.COLLINEAR_TOL, 1e-3):
+            got, ref = caps.collinear_runs(r, tol), caps._collinear_runs_reference(r, tol)
+            assert got.dtype == ref.dtype and np.array_equal(got, ref)
+            dropped += int((~got).sum())
+    assert dropped > 0
+
+
+def test_caps_with_the_compiled_steps_equal_the_reference_steps(monkeypatch):
+    """cap_faces with the compiled collinear runs, flat-triangle test and T-junction fast path
+    against the same function with the references (every edge sent to the exact T-junction
+    test): the same faces, or the same error."""
+    from contourmesh.bands import caps
+
+    def run(outer, holes, up):
+        try:
+            return caps.cap_faces(outer, holes, upward=up)
+        except ValueError as e:
+            return type(e).__name__
+
+    cases = [(o, hs, up) for seed in (1, 2, 6) for o, hs in _rings_of_slices(seed) for up in (True, False)]
+    # rings that touch or cross each other (no valid cap), and a hole outside its ring
+    sq = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], float)
+    cases += [(sq, [sq[::-1] * 0.5 + 1], True), (sq, [sq[::-1] * 0.5 + 3], True), (sq, [sq[::-1]], False),
+              (np.r_[sq, [[2, 2]]], [], True)]
+    got = [run(*c) for c in cases]
+    monkeypatch.setattr(caps, "collinear_runs", caps._collinear_runs_reference)
+    monkeypatch.setattr(caps, "_drop_flat_triangles", caps._drop_flat_triangles_reference)
+    monkeypatch.setattr(caps, "_busy_edges", lambda v, e, cand: np.ones(len(e), dtype=bool))
+    ref = [run(*c) for c in cases]
+    assert sum(isinstance(r, np.ndarray) and len(r) > 0 for r in ref) > 50
+    for g, r in zip(got, ref):
+        assert type(g) is type(r)
+        if isinstance(r, np.ndarray):
+            assert g.dtype == r.dtype and np.array_equal(g, r)
+        else:
+            assert g == r
+
+
+def test_t_junction_fast_path_refuses_what_the_loop_refuses():
+    from contourmesh.bands import caps
+
+    v = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    b = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
+    loops = np.concatenate([b, b[:, ::-1]])
+    good = np.array([[0, 1, 2], [0, 2, 3]])
+    assert np.array_equal(caps.split_t_junctions(v, good, loops), good)
+    assert caps.split_t_junctions(v, np.array([[0, 1, 2], [0, 1, 2]]), loops) is None  # an edge twice one way
+    assert caps.split_t_junctions(v, np.array([[0, 1, 2], [0, 1, 3]]), b) is None  # 1 -> 2 ... no opposite
+
+
+@pytest.mark.parametrize("grid", [(0.0, 0.0, 1.0, 1.0), (-3.7, 12.25, 0.3, 0.7), (1e5, -2.5e4, 2.5, 0.125),
+                                  (123.456, -0.001, 1e-3, 7.77)])
+def test_exact_joins_take_the_crack_corners_that_the_round_trip_gives_back(grid):
+    """_exact_join reads a crack ring's integer corners where the corners -> xy -> corners trip
+    (its former route) returns them exactly: here every corner of a large image on several grids."""
+    ox, oy, dx, dy = grid
+    _, to_corner = grid_to_xy(ox, oy, dx, dy)
+    p = np.stack(np.meshgrid(np.arange(-1, 2049), np.arange(-1, 2049)), axis=-1).reshape(-1, 2)
+    p = np.concatenate([p, [[2 ** 20, 2 ** 20], [2 ** 20 - 1, 7]]])
+    xy = to_corner(p)
+    back = np.stack([np.rint((xy[:, 0] - ox) / dx + 0.5), np.rint((xy[:, 1] - oy) / dy + 0.5)], axis=1).astype(np.int64)
+    assert np.array_equal(back, p)
+
+
+def test_exact_joins_are_the_same_with_the_corner_round_trip(monkeypatch):
+    """The general mesher with the exact joins' corners from the xy round trip (the guard made
+    false) gives the same mesh bytes on a volume with many exact joins."""
+    import contourmesh
+
+    rng = np.random.default_rng(11)
+    vol = ndimage.gaussian_filter(rng.random((8, 30, 30)), 1.0) > 0.5
+    a = contourmesh.mesh(vol, spacing=(1.3, 0.7, 0.9))
+    assert a.meta.get("exact_joins", 0) > 0
+    monkeypatch.setattr(volumes, "_EXACT_TRIP_LIMIT", 0.0)
+    b = contourmesh.mesh(vol, spacing=(1.3, 0.7, 0.9))
+    assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+
+
+def test_round9_compiled_equals_the_numpy_form():
+    from contourmesh.bands import bridges
+
+    rng = np.random.default_rng(9)
+    x = np.concatenate([rng.uniform(0, 50, 5000), rng.integers(0, 2 ** 20, 2000) / 1024.0,
+                        np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 2.0 ** 60, -2.5e-9])])
+    x = np.concatenate([x, np.nextafter(x, np.inf), np.nextafter(x, -np.inf)])
+    got, ref = bridges._round9(x), bridges._round9_reference(x)
+    assert np.array_equal(got.view(np.uint64), ref.view(np.uint64))  # (NaN's bits included)
+
+
+def test_missing_corners_equal_the_unique_keys_form():
+    from contourmesh.tracing import missing_corners, unique_keys
+
+    rng = np.random.default_rng(12)
+    for h, w, n in [(1, 1, 0), (1, 1, 3), (5, 9, 40), (30, 20, 2000), (200, 3, 50)]:
+        ids = np.where(rng.random((h, w)) < 0.5, -1, rng.integers(0, 100, (h, w))).astype(np.int64)
+        lx, ly = rng.integers(0, w, n).astype(np.int64), rng.integers(0, h, n).astype(np.int64)
+        ux, uy, ok = missing_corners(ids, lx, ly)
+        need = ids[ly, lx] < 0
+        key = unique_keys(lx[need] * h + ly[need], w * h)
+        assert ok and np.array_equal(ux, key // h) and np.array_equal(uy, key % h)
+        assert ux.dtype == uy.dtype == np.int64
+    # a place off the grid: not decided here
+    assert not missing_corners(ids, np.array([0, w], dtype=np.int64), np.array([0, 0], dtype=np.int64))[2]
+    assert not missing_corners(ids, np.array([-1], dtype=np.int64), np.array([0], dtype=np.int64))[2]
+
+
+def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
+    """repair._open_necks with a kept dict: a second call on the same mesh takes every neck's rings
+    and faces from it, and gives the same arrays as a call without the dict."""
+    import contourmesh
+    from contourmesh import repair
+
+    seen_inputs = []
+    real = volumes._open_necks
+
+    def keep(V, F, S, N, nudge, tube_seen=None):
+        seen_inputs.append((V.copy(), F.copy(), S.copy(), np.array(N).copy(), nudge))
+        return real(V, F, S, N, nudge, tube_seen=tube_seen)
+
+    monkeypatch.setattr(volumes, "_open_necks", keep)
+    rng = np.random.default_rng(4)
+    contourmesh.mesh(ndimage.gaussian_filter(rng.random((10, 40, 40)), 0.7) > 0.5)
+    V, F, S, N, nudge = max(seen_inputs, key=lambda x: len(x[3]))
+    assert len(np.unique(N)) > 10  # (necks to open)
+    plain = repair._open_necks(V, F, S, N, nudge)
+    kept: dict = {}
+    first = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    n_kept = sum(1 for k in kept if isinstance(k, tuple) and k and k[0] == "neck")
+    again = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    assert n_kept == len(np.unique(N))
+    for out in (first, again):
+        assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(plain, out))
+
+
+def test_a_holes_first_pixel_is_the_first_of_its_whole_mask():
+    to_center, to_corner = grid_to_xy(0.0, 0.0, 1.0, 1.0)
+    n = 0
+    for seed in (1, 2, 3):
+        for mask in _masks(seed):
+            s = volumes._Slice(mask, "mlp", to_corner, to_center)
+            for _, hm in s.hole_masks:
+                for h in range(len(hm)):
+                    whole = hm[h]
+                    assert hm.first_pixel(h) == divmod(int(np.argmax(whole)), whole.shape[1])
+                    n += 1
+    assert n > 10
