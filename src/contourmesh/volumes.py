@@ -1914,7 +1914,7 @@ def _merged_band_retry(V, faces, bands, thorough=False):
         P = V[ids]
         if not thorough and _band_crosses(P, f):
             return None  # (it crosses with the ends apart too: the other rules were tried)
-        if not any_intersecting(V, out[t]):
+        if len(faces) > 1 and not any_intersecting(V, out[t]):  # (one band alone: it is the one that crosses)
             continue
         n_, m_ = sorted((len(a_ids), len(b_ids)))
         limit = _BRIDGED_AREA_SLACK * float(triangle_areas(V, out[t]).sum())
