@@ -40,7 +40,12 @@ Conventions (stated once)
   band's rungs stay local; their band joins keep the faces made between the polygons' own
   points.  Also opt-in (``_DENSE_RETRY_STEP``), only the components of the joins that fail are
   densified so (a vertex every pixel, then every half pixel) and those joins tried again before
-  they become exact (not with the band refinement unless ``_DENSE_RETRY_REFINED``).  Every other group (overlaps that close a loop: a handle forms) is joined
+  they become exact (not with the band refinement unless ``_DENSE_RETRY_REFINED``).  By default
+  (``_DENSE_FAILED_STEP``) a failed fork or merge with a speck (a component of a few pixels) is
+  tried once more on densified polygons, and kept densified where that builds; a bridged band that
+  crosses itself only once its bridge ends are one vertex tries the other band rules; and the
+  polygons banded to crack rings (beside exact joins) get a vertex every pixel
+  (``_DENSE_MIXED_STEP``).  Every other group (overlaps that close a loop: a handle forms) is joined
   *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
   slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
   mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
@@ -1375,7 +1380,7 @@ _DENSE_FAILED_SECTIONS = False
 #: ... only where the group has a component of at most this many pixels (a speck: single pixels
 #: that noise leaves on a terrace's edge; a retry of every failed fork or merge cost the liver
 #: about 1.6 times the CPU time for one join more).
-_DENSE_FAILED_SPECK = 4
+_DENSE_FAILED_SPECK = 2
 #: The polygons of a component whose band join meets a crack ring (a mixed band, next to an exact
 #: join) get a vertex at least every this many pixels (:func:`_densify_mixed`); None: left as they are.
 _DENSE_MIXED_STEP = 1.0
@@ -1716,7 +1721,7 @@ _BRIDGED_AREA_SLACK = 1.25
 
 
 def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double, waypoints=None,
-                 band_guard=None, thorough=False):
+                 band_guard=None):
     """Build one bridged join (a :class:`_Bridged`), or None where a bridge, a lid or the faces
     would not keep clear of each other.
 
@@ -1731,8 +1736,8 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     replace each band of the join (the bridged rings' band and the tubes'); its band is kept
     only where it neither folds nor crosses itself.
 
-    Where the join's faces cross, its bands get other rules (:func:`_merged_band_retry`, with
-    ``thorough``: every crossing band, not only those that cross at a bridge end)."""
+    Where the join's faces cross at a bridge end, its band gets other rules
+    (:func:`_merged_band_retry`)."""
     from .bands.bridges import bridge_tree, bridged_ring_arrays
     from .intersect import any_intersecting
 
@@ -1876,7 +1881,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     if any_intersecting(V, F):
         # the bands were tested with the two visits of each bridge end a hair apart (as pinches); as
         # one vertex a band can cross itself where they meet: try the other rules on the band as built
-        F = _merged_band_retry(V, faces, bands, thorough)
+        F = _merged_band_retry(V, faces, bands)
         if F is not None:
             replaced += 1
     if F is None or any_intersecting(V, F):
@@ -1892,7 +1897,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 _MERGED_EXTRA = ("bounded",)
 
 
-def _merged_band_retry(V, faces, bands, thorough=False):
+def _merged_band_retry(V, faces, bands):
     """The faces of a bridged join whose faces cross (``faces``: its bands' faces, as ``bands``
     lists them as ``(lower ids, upper ids, rule, local faces)``, then the lids'), with each band
     that crosses itself (its bridge ends one vertex, as in the mesh) replaced by the first other
@@ -1903,16 +1908,17 @@ def _merged_band_retry(V, faces, bands, thorough=False):
     The band's own test (:func:`contourmesh.bands._band_crosses`) moves the two visits of each
     bridge end a hair apart, as the mesher does with a ring that touches itself; a bridge end is
     one vertex in the join, and there the band can fold onto itself across the bridge (on the
-    lobster, in about half of the sectioned joins' pieces that failed).  Without ``thorough``
-    only such bands are tried (a band that crosses with its ends apart too has had the other
-    rules already); with it (a join tried again on densified polygons) every crossing band."""
+    lobster, in about half of the sectioned joins' pieces that failed).  Only such bands are tried:
+    a band that crosses with its ends apart too has had the other rules already (trying it again
+    on the densified try of a join with a speck changed none of fandisk's, lion's or socket's
+    rotations at 256 and cost the lobster time)."""
     from .intersect import any_intersecting
 
     out = list(faces)
     for t, (a_ids, b_ids, rule, f) in enumerate(bands):
         ids = np.concatenate([a_ids, b_ids])
         P = V[ids]
-        if not thorough and _band_crosses(P, f):
+        if _band_crosses(P, f):
             return None  # (it crosses with the ends apart too: the other rules were tried)
         if len(faces) > 1 and not any_intersecting(V, out[t]):  # (one band alone: it is the one that crosses)
             continue
@@ -2150,7 +2156,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             return np.concatenate(rs), np.concatenate([_next(r) for r in rs])
 
         got = _bridge_join(k, ga, gb, plan, poly2, zs, edges2, uncovered, triangulation, caps, double, waypoints,
-                           band_guard, thorough=True)
+                           band_guard)
         exact = cache.get(("exact area", k, tuple(ga), tuple(gb)))
         if exact is None:
             exact = _exact_area(slices, zs, k, ga, gb, dx * dy, cache.setdefault(("crack perimeters",), {}))
