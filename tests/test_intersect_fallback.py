@@ -120,6 +120,8 @@ def test_bridged_join_whose_band_crosses_takes_another_strategy(monkeypatch):
     monkeypatch.setattr(sections, "MAX_DEPTH", 0)  # (intermediate sections would rescue the join too)
     monkeypatch.setattr(volumes, "_DENSE_STEP", None)  # (so would densified rings)
     monkeypatch.setattr(volumes, "_DENSE_RETRY_STEP", None)
+    monkeypatch.setattr(volumes, "_DENSE_FAILED_STEP", None)
+    monkeypatch.setattr(volumes, "_MERGED_EXTRA", ())  # (the merged-ends retry tries the alternatives too)
     for key, alts in (("with", volumes._BRIDGED_ALTERNATIVES), ("without", ())):
         monkeypatch.setattr(volumes, "_BRIDGED_ALTERNATIVES", alts)
         m = contourmesh.mesh(vol, spacing=sp, origin=org, refine="band")

@@ -18,12 +18,15 @@ def _blobs(seed=8, shape=(5, 14, 14)):
 
 def _sparse_rings(monkeypatch):
     """The branching joins' polygons as they are, not densified (``volumes._DENSE_STEP``) and not
-    densified where a join fails either (``volumes._DENSE_RETRY_STEP``): on :func:`_blobs` some
-    bridged joins then fail and take sections (densified, all are bridged)."""
+    densified where a join fails either (``volumes._DENSE_RETRY_STEP``, ``_DENSE_FAILED_STEP``) or
+    meets a crack ring (``_DENSE_MIXED_STEP``): on :func:`_blobs` some bridged joins then fail and
+    take sections (densified, all are bridged)."""
     from contourmesh import volumes
 
     monkeypatch.setattr(volumes, "_DENSE_STEP", None)
     monkeypatch.setattr(volumes, "_DENSE_RETRY_STEP", None)
+    monkeypatch.setattr(volumes, "_DENSE_FAILED_STEP", None)
+    monkeypatch.setattr(volumes, "_DENSE_MIXED_STEP", None)
 
 
 def _dense_rings(monkeypatch):
@@ -96,13 +99,16 @@ def test_failed_joins_are_tried_again_on_densified_rings(monkeypatch, kw):
 
 
 def test_the_retry_on_densified_rings_is_a_setting_and_skips_the_band_refinement(monkeypatch):
-    """By default nothing is densified (the retry costs the paper mode time on noisy volumes); with
-    ``_DENSE_RETRY_STEP`` set a failed join is tried again on densified rings in the paper mode, and
-    still not with the band refinement (``_DENSE_RETRY_REFINED``: there it uncovers the refined
-    polygons' bias)."""
+    """By default only the joins with a speck that fail and the polygons banded to crack rings are
+    densified (``_DENSE_FAILED_STEP``, ``_DENSE_MIXED_STEP``; the retry of every failed join costs
+    the paper mode time on noisy volumes); with ``_DENSE_RETRY_STEP`` set a failed join is tried
+    again on densified rings in the paper mode, and still not with the band refinement
+    (``_DENSE_RETRY_REFINED``: there it uncovers the refined polygons' bias)."""
     from contourmesh import volumes
 
     assert volumes._DENSE_STEP is None and volumes._DENSE_RETRY_STEP is None
+    monkeypatch.setattr(volumes, "_DENSE_FAILED_STEP", None)
+    monkeypatch.setattr(volumes, "_DENSE_MIXED_STEP", None)
     vol = _blobs()
     assert volume_to_mesh(vol).meta["dense_rings"] == 0
     monkeypatch.setattr(volumes, "_DENSE_RETRY_STEP", 1.0)

@@ -40,7 +40,12 @@ Conventions (stated once)
   band's rungs stay local; their band joins keep the faces made between the polygons' own
   points.  Also opt-in (``_DENSE_RETRY_STEP``), only the components of the joins that fail are
   densified so (a vertex every pixel, then every half pixel) and those joins tried again before
-  they become exact (not with the band refinement unless ``_DENSE_RETRY_REFINED``).  Every other group (overlaps that close a loop: a handle forms) is joined
+  they become exact (not with the band refinement unless ``_DENSE_RETRY_REFINED``).  By default
+  (``_DENSE_FAILED_STEP``) a failed fork or merge with a speck (a component of a few pixels) is
+  tried once more on densified polygons, and kept densified where that builds; a bridged band that
+  crosses itself only once its bridge ends are one vertex tries the other band rules; and the
+  polygons banded to crack rings (beside exact joins) get a vertex every pixel
+  (``_DENSE_MIXED_STEP``).  Every other group (overlaps that close a loop: a handle forms) is joined
   *exactly*: each contour rises as a collar to its crack contour in the mid-plane, the lower
   slice's pixels not covered from above are closed there by up-facing faces, and the upper slice
   mirrors this; the overlap stays open.  That is the surface of the 6-connected voxel object
@@ -449,10 +454,14 @@ def _band_faces(lo, hi, triangulation, optimal_budget=_MIXED_OPTIMAL_BUDGET, mix
         P = np.concatenate([lo, hi])
         if _band_crosses(P, f):
             n, m = sorted((len(lo), len(hi)))
-            for method in ("optimal", "arclength", "wiederhold", "greedy"):
-                if method == triangulation or (method == "optimal" and n * n * m > optimal_budget):
+            for method in ("optimal", "arclength", "wiederhold", "greedy", "bounded"):
+                if method == triangulation or (method == "optimal" and n * n * m > optimal_budget) or \
+                        (method == "bounded" and n * n * m <= optimal_budget):
                     continue
-                g = triangulate_band(lo, hi, method)
+                # (over the budget, last: the least-area band among those that start near the
+                # shortest rung, in about optimal_budget steps; see triangulate_band_optimal)
+                g = triangulate_band_optimal(lo, hi, max_work=optimal_budget) if method == "bounded" else \
+                    triangulate_band(lo, hi, method)
                 if not band_is_folded(g) and not _band_crosses(P, g):
                     return g, int(replaced) + 1
     return f, int(replaced)
@@ -756,11 +765,29 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     unit_cache = {} if polygons is None and end_cap is None else None
     tube_cache: dict = {}  # the necks' tube tests, kept across rebuilds (see repair._tube_crosses)
     previous = None  # the last build's vertices, faces and crossing pairs (before any repair)
+    densified = [0]  # rings densified by the bridged joins' retry (see _build_bridges' densify)
+    touched = set()  # the components densified since the last build (their units are made again)
+
+    def densify(comps, trial=False):
+        """The components' densified rings (``trial``: ``{(k, c): rings}``, nothing changed), or
+        densify them (the number of rings changed)."""
+        step = _DENSE_FAILED_STEP * dense_step
+        if trial:
+            return {(k, c): [d for d, _a in _dense_rings(mask, slices, k, c, (ox, oy, dx, dy), step, True)]
+                    for k, c in comps}
+        got = _densify_components(mask, slices, set(comps), (ox, oy, dx, dy), step, total=True)
+        densified[0] += got
+        touched.update(comps)
+        return got
+
+    dense_failed = densify if (polygons is None and _DENSE_FAILED_STEP is not None and not retry_dense
+                               and (refine is None or _DENSE_FAILED_REFINED)) else None
     for attempt in range(_MAX_REBUILDS + 1):
         joins0, crack0 = list(joins), set(crack_only)  # before this build's bridged joins
+        n_before = densified[0]
         built = _build_bridges(joins, slices, zs, crack_only, triangulation, caps, (ox, oy, dx, dy),
                                has_above, has_below, bridge_cache, band_guard=getattr(polygons, "band_guard", None),
-                               polygon=polygon)
+                               polygon=polygon, densify=dense_failed)
         if retry_dense:  # (also after a crossing fallback: its crack rings can make neighbours fail)
             built, bridge_cache, n_dense = _retry_dense(
                 built, bridge_cache, joins, joins0, crack_only, crack0, mask, slices,
@@ -771,6 +798,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             if n_dense and unit_cache:
                 unit_cache.clear()  # (a unit's key does not hold its rings' points)
             dense_rings += n_dense
+        if _DENSE_MIXED_STEP is not None and polygons is None:
+            # the polygons banded to crack rings (next to exact joins) get a vertex every pixel
+            dense_rings += _densify_mixed(mask, slices, joins, crack_only, (ox, oy, dx, dy),
+                                          _DENSE_MIXED_STEP * dense_step, touched)
+        dense_rings += densified[0] - n_before
+        if touched and unit_cache:  # (a unit's key does not hold its rings' points)
+            _forget_units(unit_cache, joins, touched)
+        touched.clear()
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
@@ -1269,6 +1304,8 @@ _DENSE_RETRY_REFINED = False
 #: failed.  Only the first tries intermediate sections again (the second, on lobster, cost about
 #: 4 CPU-s more for 3 joins).
 _DENSE_RETRY_STAGES = (1.0, 0.5)
+#: ... also for loops of overlaps (joins without a bridge plan, which only sections can join).
+_DENSE_RETRY_LOOPS = True
 
 
 def _retry_dense(built, cache, joins, joins0, crack_only, crack0, mask, slices, grid, step, build):
@@ -1291,7 +1328,7 @@ def _retry_dense(built, cache, joins, joins0, crack_only, crack0, mask, slices, 
     for i, stage in enumerate(_DENSE_RETRY_STAGES):
         failed = set()
         for (k, kind0, data0), (_, kind, _d) in zip(joins0, joins):
-            if kind0 == "bridge" and kind == "exact":
+            if kind0 == "bridge" and kind == "exact" and (_DENSE_RETRY_LOOPS or data0[2] is not None):
                 failed.update((k, a) for a in data0[0])
                 failed.update((k + 1, b) for b in data0[1])
         failed -= crack0
@@ -1356,37 +1393,107 @@ def _densify_branching(mask, slices, joins, crack_only, grid, step) -> int:
     return _densify_components(mask, slices, comps - crack_only, grid, step)
 
 
+#: A fork or merge with a speck whose bridged join fails (it would become exact) is tried once more
+#: with a vertex at least every this many pixels on its components' polygons, and keeps them where
+#: that builds (see :func:`_build_bridges`'s ``densify``); None: not tried again.  Not with
+#: ``_DENSE_RETRY_STEP`` set (that retry densifies every failed join).
+_DENSE_FAILED_STEP = 1.0
+#: ... also with the band refinement.
+_DENSE_FAILED_REFINED = True
+#: ... and with intermediate sections on its second try too (off: their cost on the lobster).
+_DENSE_FAILED_SECTIONS = False
+#: ... only where the group has a component of at most this many pixels (a speck: single pixels
+#: that noise leaves on a terrace's edge; a retry of every failed fork or merge cost the liver
+#: about 1.6 times the CPU time for one join more).
+_DENSE_FAILED_SPECK = 2
+#: The polygons of a component whose band join meets a crack ring (a mixed band, next to an exact
+#: join) get a vertex at least every this many pixels (:func:`_densify_mixed`); None: left as they are.
+_DENSE_MIXED_STEP = 1.0
+
+
+def _forget_units(cache, joins, comps):
+    """Drop from :func:`_assemble`'s unit cache the joins and caps that use a ring of the
+    components ``comps`` (``(slice, component)`` pairs, densified since they were made)."""
+    for idx, (k, kind, data) in enumerate(joins):
+        ga, gb = ([data[0]], [data[1]]) if kind == "band" else (data[0], data[1])
+        if any((k, a) in comps for a in ga) or any((k + 1, b) in comps for b in gb):
+            cache.pop(("join", idx), None)
+    for k, c in comps:
+        cache.pop(("cap", k, c), None)
+
+
+def _densify_mixed(mask, slices, joins, crack_only, grid, step, touched=None) -> int:
+    """The polygons of every component that a band join pairs with a crack ring (a mixed band: one
+    side of the join is next to an exact join) get a vertex at least every ``step`` along their
+    edges (:func:`_densify_components`); not those densified before, nor those of components in a
+    bridged join (built from the rings as they were: densifying them as well and building their
+    bridged joins again changed nothing on fandisk rotated #1 at 256 and cost the lobster time).
+    Returns how many rings changed; ``touched`` (a set, where given) gets the components.
+
+    A polygon's straight run has only its two end vertices, and the least-area band fans each of
+    them over the crack ring's staircase: long thin faces that lie almost flat, several times the
+    area of the surface (fandisk rotated #1 at 256: the two mixed bands beside a chain of exact
+    joins held +4.7 % of the mesh's area).  With a vertex every pixel the band's rungs stay local.
+    The component's other band joins keep their faces (fanned over the added points), its caps
+    use the denser ring."""
+    in_bridge = set()
+    comps = set()
+    for k, kind, data in joins:
+        if kind == "bridge":
+            in_bridge.update((k, a) for a in data[0])
+            in_bridge.update((k + 1, b) for b in data[1])
+        elif kind == "band":
+            a, b = data[0], data[1]
+            ca, cb = (k, a) in crack_only, (k + 1, b) in crack_only
+            if ca != cb:
+                comps.add((k + 1, b) if ca else (k, a))
+    comps = {(k, c) for k, c in comps - in_bridge if c not in slices[k].dense_gen}
+    if touched is not None:
+        touched.update(comps)
+    return _densify_components(mask, slices, comps, grid, step) if comps else 0
+
+
 def _densify_components(mask, slices, comps, grid, step, total=False) -> int:
     """The polygons of the components ``comps`` (``(slice, component)`` pairs) with a vertex at
     least every ``step`` where the point lies in the slice's band (see :func:`_densify_branching`;
     ``total``: at most about ``_DENSE_MAX`` points per ring, see :func:`_densify`); returns how
     many rings changed."""
-    from .refine import _off_band
-
-    ox, oy, dx, dy = grid
     n = 0
     for k, c in sorted(comps):
         s = slices[k]
-        rings = [s.outer[c]] + list(s.holes[c])
         dense = []
-        for r in rings:
-            d, added = _densify(r, step, total=total)
-            if added.any():
-                idx = np.c_[(d[added, 0] - ox) / dx, (d[added, 1] - oy) / dy]
-                keep = ~added
-                keep[added] = ~_off_band(mask, k, idx, (1.0, 1.0))
-                d = d[keep]
-            if len(d) != len(r):
+        for h, (d, added) in enumerate(_dense_rings(mask, slices, k, c, grid, step, total)):
+            if added is not None:
                 n += 1
-                mark = added[keep]
-                prev = s.dense.get((c, len(dense) - 1))
+                mark = added
+                prev = s.dense.get((c, h - 1))
                 if prev is not None:  # densified before: its added points stay added ones
                     mark[~mark] = prev
-                s.dense[c, len(dense) - 1] = mark
+                s.dense[c, h - 1] = mark
             dense.append(d)
         s.outer[c], s.holes[c] = dense[0], dense[1:]
         s.dense_gen[c] = s.dense_gen.get(c, 0) + 1
     return n
+
+
+def _dense_rings(mask, slices, k, c, grid, step, total=False) -> list:
+    """Component ``c`` of slice ``k``'s polygons (outer first, then holes) densified as
+    :func:`_densify_components` does, without changing them: ``(ring, added)`` each, ``added``
+    marking the added points among its points, or None where the ring is unchanged."""
+    from .refine import _off_band
+
+    ox, oy, dx, dy = grid
+    s = slices[k]
+    out = []
+    for r in [s.outer[c]] + list(s.holes[c]):
+        d, added = _densify(r, step, total=total)
+        if added.any():
+            idx = np.c_[(d[added, 0] - ox) / dx, (d[added, 1] - oy) / dy]
+            keep = ~added
+            keep[added] = ~_off_band(mask, k, idx, (1.0, 1.0))
+            d, added = d[keep], added[keep]
+        out.append((d, added) if len(d) != len(r) else (r, None))
+    return out
 
 
 def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
@@ -1678,7 +1785,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 
     ``band_guard`` (the contours route's volume guard, see :meth:`_Mesher.band`), where given, may
     replace each band of the join (the bridged rings' band and the tubes'); its band is kept
-    only where it neither folds nor crosses itself."""
+    only where it neither folds nor crosses itself.
+
+    Where the join's faces cross at a bridge end, its band gets other rules
+    (:func:`_merged_band_retry`)."""
     from .bands.bridges import bridge_tree, bridged_ring_arrays
     from .intersect import any_intersecting
 
@@ -1743,6 +1853,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     if path_pts:
         V = np.concatenate([V] + path_pts)
     faces, replaced, least_area = [], 0, 0
+    bands = []  # (lower ids, upper ids, rule) of each band, in the order of faces
     for t, (a_ids, b_ids) in enumerate([(lo[0], hi[0])] + tube_ids):
         ids = np.concatenate([a_ids, b_ids])
         # the bridged rings' band by the least-area rule (see _dissimilar_rule); the tubes (pairs
@@ -1784,6 +1895,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             if not np.array_equal(g, f) and not band_is_folded(ids[g]) and not _band_crosses(P, g):
                 f = g
         faces.append(ids[f])
+        bands.append((a_ids, b_ids, rule, f))
         replaced += r
     extra = []
     for ids, below, collar in lid_ids:
@@ -1818,10 +1930,64 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
         return None
     if any_intersecting(V, F):
+        # the bands were tested with the two visits of each bridge end a hair apart (as pinches); as
+        # one vertex a band can cross itself where they meet: try the other rules on the band as built
+        F = _merged_band_retry(V, faces, bands)
+        if F is not None:
+            replaced += 1
+    if F is None or any_intersecting(V, F):
         return None
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
     return out
+
+
+#: The rules :func:`_merged_band_retry` tries after ``_BRIDGED_ALTERNATIVES``: ``"bounded"`` is the
+#: least-area band within ``_BRIDGED_OPTIMAL_BUDGET`` steps (see triangulate_band_optimal's
+#: ``max_work``), for rings too long for the whole optimal band.
+_MERGED_EXTRA = ("bounded",)
+
+
+def _merged_band_retry(V, faces, bands):
+    """The faces of a bridged join whose faces cross (``faces``: its bands' faces, as ``bands``
+    lists them as ``(lower ids, upper ids, rule, local faces)``, then the lids'), with each band
+    that crosses itself (its bridge ends one vertex, as in the mesh) replaced by the first other
+    rule's band that neither folds nor crosses itself nor has more than ``_BRIDGED_AREA_SLACK``
+    times its area; None where a crossing band has none.  Lids are left as they are (the caller
+    tests the whole join again).
+
+    The band's own test (:func:`contourmesh.bands._band_crosses`) moves the two visits of each
+    bridge end a hair apart, as the mesher does with a ring that touches itself; a bridge end is
+    one vertex in the join, and there the band can fold onto itself across the bridge (on the
+    lobster, in about half of the sectioned joins' pieces that failed).  Only such bands are tried:
+    a band that crosses with its ends apart too has had the other rules already (trying it again
+    on the densified try of a join with a speck changed none of fandisk's, lion's or socket's
+    rotations at 256 and cost the lobster time)."""
+    from .intersect import any_intersecting
+
+    out = list(faces)
+    for t, (a_ids, b_ids, rule, f) in enumerate(bands):
+        ids = np.concatenate([a_ids, b_ids])
+        P = V[ids]
+        if _band_crosses(P, f):
+            return None  # (it crosses with the ends apart too: the other rules were tried)
+        if len(faces) > 1 and not any_intersecting(V, out[t]):  # (one band alone: it is the one that crosses)
+            continue
+        n_, m_ = sorted((len(a_ids), len(b_ids)))
+        limit = _BRIDGED_AREA_SLACK * float(triangle_areas(V, out[t]).sum())
+        for method in _BRIDGED_ALTERNATIVES + _MERGED_EXTRA:
+            if method == rule or (method == "optimal" and n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET) or \
+                    (method == "bounded" and n_ * n_ * m_ <= _BRIDGED_OPTIMAL_BUDGET):
+                continue
+            g = triangulate_band_optimal(V[a_ids], V[b_ids], max_work=_BRIDGED_OPTIMAL_BUDGET) \
+                if method == "bounded" else triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
+            if band_is_folded(ids[g]) or float(triangle_areas(P, g).sum()) > limit or any_intersecting(V, ids[g]):
+                continue
+            out[t] = ids[g]
+            break
+        else:
+            return None
+    return np.concatenate(out)
 
 
 #: A bridged join is given up (it gets intermediate sections, or becomes exact) where its area
@@ -1893,8 +2059,21 @@ def _ring_boxes_reference(s):
     return np.array([r.min(axis=0) for r in rs]), np.array([r.max(axis=0) for r in rs])
 
 
+def _has_speck(slices, k, ga, gb) -> bool:
+    """Whether a group has a component of at most ``_DENSE_FAILED_SPECK`` pixels (noise on a nearly
+    horizontal face), the joins that :func:`_build_bridges` densifies and tries again."""
+    for kk, comps in ((k, ga), (k + 1, gb)):
+        s = slices[kk]
+        for c in comps:
+            sl = s.objects[c]
+            if (sl[0].stop - sl[0].start) * (sl[1].stop - sl[1].start) <= _DENSE_FAILED_SPECK or \
+                    np.count_nonzero(s.labels[sl] == c + 1) <= _DENSE_FAILED_SPECK:
+                return True
+    return False
+
+
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
-                   band_guard=None, polygon="mlp", sections=True):
+                   band_guard=None, polygon="mlp", sections=True, densify=None):
     """Decide and build every bridged join; the ones that cannot be built become exact joins
     (``joins`` and ``crack_only`` are updated in place).  Returns ``{(k, ga, gb): _Bridged}``.
 
@@ -1909,7 +2088,16 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     A join that cannot be bridged whole gets intermediate sections in its gap
     (:func:`contourmesh.sections.sectioned_join`, with ``polygon`` the sections' polygon method)
     before it becomes exact; not on the contours route (``band_guard`` given), nor with
-    ``sections=False``."""
+    ``sections=False``.
+
+    ``densify(comps, trial=False)`` (the mesher's, where given): a fork or merge with a speck
+    (:func:`_has_speck`) that fails is built once more with its components' polygons densified
+    (``densify(comps, trial=True)``: the rings, nothing changed; without sections, which it had);
+    where that builds within the area limit the polygons are densified (``densify(comps)``) and
+    the pass restarts, so that the other joins of those slices are built from the same rings.
+    Around single pixels left on a terrace's edge the least-area band fans a polygon's long
+    straight edges across them and folds; with a vertex every pixel its rungs stay local
+    (fandisk rotated #1 at 256: 9 exact joins -> 3)."""
     from collections import defaultdict
 
     from .bands.bridges import keyhole_uncovered, segments_cross
@@ -2028,6 +2216,29 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     # and a join away from the slices of the join that fell back keeps its key (see near_sig)
     passed_before = []
     changed = set()  # the slices whose crack rings changed since the previous pass
+    dense_tried = set()  # the joins whose components were densified (tried once more)
+
+    def dense_trial(idx, k, ga, gb, plan, rings):
+        """Whether the join builds (within its area limit) with the components' polygons ``rings``
+        (``{(slice, component): [outer, holes...]}``): then the mesher densifies them."""
+        def poly2(kk, c, h):
+            got = rings.get((kk, c))
+            return got[h + 1] if got is not None else poly(kk, c, h)
+
+        def edges2(kk):
+            if not any(kk == k_ for k_, _c in rings):
+                return edges_of(kk)
+            s = slices[kk]
+            rs = [np.asarray(poly2(kk, c, h), dtype=np.float64) for c in range(s.n)
+                  for h in range(-1, len(s.holes[c]))]
+            return np.concatenate(rs), np.concatenate([_next(r) for r in rs])
+
+        got = _bridge_join(k, ga, gb, plan, poly2, zs, edges2, uncovered, triangulation, caps, double, waypoints,
+                           band_guard)
+        exact = cache.get(("exact area", k, tuple(ga), tuple(gb)))
+        if exact is None:
+            exact = _exact_area(slices, zs, k, ga, gb, dx * dy, cache.setdefault(("crack perimeters",), {}))
+        return got is not None and float(triangle_areas(got.V, got.F).sum()) <= _BRIDGED_AREA_LIMIT * exact
     while True:
         taken = defaultdict(list)
         out = {}
@@ -2066,16 +2277,18 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     exact = cache[exact_key]
                     limit = _BRIDGED_AREA_LIMIT * exact
                     area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
+                    # (a join tried again with densified polygons does not try sections again)
+                    sectioned = sections and (_DENSE_FAILED_SECTIONS or idx not in dense_tried)
                     if got is not None and area > limit:
                         cache[key] = None
-                    elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None and sections:
+                    elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None and sectioned:
                         # more area than the exact join: a fold is likely; intermediate sections may
                         # follow the surface with less, and the join takes whichever has less area
                         alt = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
                                              triangulation, polygon, grid)
                         if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
                             cache[key] = alt
-                    if cache[key] is None and band_guard is None and sections:
+                    if cache[key] is None and band_guard is None and sectioned:
                         # split the gap by intermediate sections; held to the same area limit
                         got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
                                              polygon, grid, topology_first=plan is None)
@@ -2091,6 +2304,20 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                         if segments_cross(p, q, sa, sb).any():
                             b = None
                             break
+            if b is None and densify is not None and plan is not None and cache[key] is None and \
+                    idx not in dense_tried and _has_speck(slices, k, ga, gb):
+                # a fork or merge that failed gets a vertex every pixel on its components' polygons
+                # and one more try (see _densify_failed); the joins of its slices are built again
+                dense_tried.add(idx)
+                comps = [(k, a) for a in ga if a not in by_slice[k] and a not in slices[k].dense_gen] + \
+                    [(k + 1, c) for c in gb if c not in by_slice[k + 1] and c not in slices[k + 1].dense_gen]
+                if comps and dense_trial(idx, k, ga, gb, plan, densify(comps, trial=True)) and densify(comps):
+                    for kk in (k, k + 1):
+                        for ek in [ek for ek in edge_cache if ek[0] == kk]:
+                            del edge_cache[ek]
+                    changed = {k, k + 1}
+                    restart = True
+                    break
             if b is None:
                 joins[idx] = (k, "exact", (ga, gb))
                 crack_only.update((k, a) for a in ga)
