@@ -7,7 +7,10 @@ The input is rebuilt exactly as ``real.toml`` builds it (same seed, rotation and
 figure has two panels: the mesh seen from above and the slab between two consecutive slice
 planes whose area exceeds the true mesh's area there by the most, both with faces coloured by
 their centroid's signed distance to the true surface in voxels (red: outside, blue: inside).  It
-prints the error, the mesher's ``meta`` and the five slabs with the largest excess.
+prints the error, the mesher's ``meta`` and the five slabs with the largest excess (``--short``:
+the largest shortfall, for a mesh whose error is negative; written to ``...-short.png``).
+
+    python comparisons/real/worst.py armadillo-rot 2 --refine band --short
 The meshes come from the shared data folder (env ``CONTOURMESH_DATA``, default ``../shared/data``).
 """
 
@@ -58,6 +61,9 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, default=128, help="voxels across (default 128)")
     ap.add_argument("--refine", default=None, help="'band' or none (the paper mode)")
     ap.add_argument("--triangulation", default=None)
+    ap.add_argument("--short", action="store_true",
+                    help="list and draw the slabs where ours has the least area against the true mesh's "
+                         "(default: the most)")
     ap.add_argument("-o", "--out", default=None, help="the PNG (default: worst-NAME-REPEAT-MODE.png here)")
     a = ap.parse_args(argv)
 
@@ -88,7 +94,7 @@ def main(argv=None) -> int:
     at = 0.5 * np.linalg.norm(np.cross(tt[:, 1] - tt[:, 0], tt[:, 2] - tt[:, 0]), axis=1)
     ours = np.histogram(tri[:, :, 2].mean(1), edges, weights=area)[0]
     ref = np.histogram(tt[:, :, 2].mean(1), edges, weights=at)[0]
-    order = np.argsort(ref - ours)[:5]
+    order = np.argsort(ours - ref if a.short else ref - ours)[:5]
     for i in order:
         print(f"  slab {edges[i]:.4g}..{edges[i + 1]:.4g}: ours {ours[i]:.4g}, true {ref[i]:.4g} "
               f"({100 * (ours[i] - ref[i]) / true.area:+.2f} % of the area)")
@@ -110,7 +116,7 @@ def main(argv=None) -> int:
         ax.set_title(title, fontsize=9)
     fig.colorbar(pc, ax=axs, label="signed distance to the true surface (voxels)")
     mode = a.refine or "paper"
-    out = Path(a.out) if a.out else HERE / f"worst-{a.name}-{a.repeat}-{mode}.png"
+    out = Path(a.out) if a.out else HERE / f"worst-{a.name}-{a.repeat}-{mode}{'-short' if a.short else ''}.png"
     tmp = out.with_suffix(".tmp.png")
     fig.savefig(tmp, dpi=90)
     tmp.replace(out)
