@@ -456,6 +456,18 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
 
     n_v = len(V)
 
+    def replace_star(star, new_faces):
+        """Retire the faces ``star`` and add ``new_faces``, keeping each neck's face list."""
+        for t in star:
+            alive[t] = False
+        for f in new_faces:
+            t = len(faces)
+            faces.append(f)
+            alive.append(True)
+            for v in f:
+                if v in star_of:
+                    star_of[v].append(t)
+
     def xyz(ids):
         """The points of vertices ``ids`` (old ones from V, new ones from ``pos``), as
         ``np.array([V[i] if i < len(V) else pos[i] for i in ids])`` gives them."""
@@ -518,16 +530,7 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
                 Vs.append(ring)
                 pos.update(zip(range(nv, nv + len(ring)), ring))
                 nv += len(ring)
-            new_faces = [tuple(f) for f in glob[local].tolist()]
-            for t in star:
-                alive[t] = False
-            for f in new_faces:
-                t = len(faces)
-                faces.append(f)
-                alive.append(True)
-                for v in f:
-                    if v in star_of:
-                        star_of[v].append(t)
+            replace_star(star, [tuple(f) for f in glob[local].tolist()])
             continue
         nv0 = nv
         for n_c, cyc in enumerate(cycles):
@@ -597,15 +600,7 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
             lut = {g: i for i, g in enumerate(cycles[0] + cycles[1])}
             lut.update((nv0 + i, len(gids) + i) for i in range(nv - nv0))
             tube_seen[memo] = (rings_xyz, np.array([[lut[v] for v in f] for f in new_faces], dtype=np.int64).reshape(-1, 3))
-        for t in star:
-            alive[t] = False
-        for f in new_faces:
-            t = len(faces)
-            faces.append(f)
-            alive.append(True)
-            for v in f:
-                if v in star_of:
-                    star_of[v].append(t)
+        replace_star(star, new_faces)
     keep = np.ones(len(F), dtype=bool)
     keep[old_index[~np.array(alive[:n_old], dtype=bool)]] = False
     added = [f for f, ok in zip(faces[n_old:], alive[n_old:]) if ok]
