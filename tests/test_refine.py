@@ -413,6 +413,56 @@ def test_field_in_slice_equals_the_direct_sum(sigma, dz, pixel, uneven):
             assert np.array_equal(grad[:4], fast[:4]) and np.all(grad[4:] == 7.0)  # the search's start
 
 
+@pytest.mark.parametrize("kind", ["square", "oblong", "uneven"])
+def test_column_images_and_their_sums_equal_the_row_forms_bit_for_bit(kind):
+    """The searches' column-by-column images (``cols=True``) are the row images transposed, and the
+    level, gradient and field sums over them (four columns a pass, exact zeros beyond a column's
+    span) equal the row-by-row sums bit for bit: at any width (windows of every column count mod
+    4), on boxes that start inside the volume, at windows clipped by its sides, for points outside
+    the solid's reach, on oblong pixels and unevenly spaced slices (the quotient rule's ``fz``)."""
+    rng = np.random.default_rng(31)
+    pts = _lumpy_points()
+    nz, ny, nx = pts.shape
+    runs = R._z_runs(pts)
+    if kind == "square":
+        grid, _ = R._make_grid(1.0, 1.0, nz, dz=1.3)
+    elif kind == "oblong":
+        grid, _ = R._make_grid(0.667, 0.617, nz, dz=0.8)
+    else:
+        heights = np.cumsum(rng.uniform(0.5, 1.5, nz))
+        grid, _ = R._make_grid(0.617, 0.667, nz, zs=heights[2:-2], pad=2)
+    ax, ay = grid[0], grid[1]
+    widths = {}
+    for t in range(24):
+        sigma = float(rng.uniform(0.6, 3.6))
+        k = int(rng.integers(0, nz))
+        # a box inside the volume and the points whose windows it holds (or that the volume clips)
+        i0, j0 = int(rng.integers(0, 6)), int(rng.integers(0, 6))
+        i1, j1 = int(rng.integers(nx - 6, nx)), int(rng.integers(ny - 6, ny))
+        rows = R._slice_moments(pts, k, sigma, grid, i0, i1, j0, j1)
+        cols = R._slice_moments(pts, k, sigma, grid, i0, i1, j0, j1, True)
+        np.testing.assert_array_equal(cols, rows.transpose(0, 2, 1))
+        np.testing.assert_array_equal(R._slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1, True), cols)
+        rspan, cspan = R._row_spans(rows), R._row_spans(cols)
+        norm, za, zb = R._slice_norm(grid, sigma, R._lattice_norm(sigma, grid), float(k), nz)
+        ws = np.full((6, R._sums_rows(sigma, ay)), np.nan)  # stale values must not leak into the sums
+        for _ in range(40):
+            x = rng.uniform(0, (nx - 1) * ax)
+            y = rng.uniform(0, (ny - 1) * ay)
+            a0, a1, b0, b1 = R._window(x, y, sigma, ax, ay, nx, ny)
+            if a0 < i0 or a1 > i1 or b0 < j0 or b1 > j1:
+                continue  # the box does not hold the window (the searches never ask)
+            widths[(a1 - a0 + 1) % 4] = widths.get((a1 - a0 + 1) % 4, 0) + 1
+            for ref, new, n in ((R._level_in_slice, R._level_cols, 3), (R._gradient_in_slice, R._gradient_cols, 4),
+                                (R._field_in_slice, R._field_cols, 10)):
+                want, got = np.full(10, 7.0), np.full(10, 7.0)
+                extra = () if n == 3 else (za, zb)
+                ref(rows, rspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, *extra, want)
+                new(cols, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, *extra, got, ws)
+                assert np.array_equal(want, got), (ref.__name__, x, y, sigma, want - got)
+    assert len(widths) == 4 and min(widths.values()) > 10  # every column count mod 4 was met
+
+
 @pytest.mark.parametrize("pixel", [(1.0, 1.0), (0.667, 0.617)])
 def test_walk_back_into_the_band_finds_the_first_band_sample(pixel):
     """The walk that skips the samples inside a cell off the band stops on the same sample as

@@ -592,7 +592,7 @@ def _field(pts, x, y, z, sigma, grid, norm, out):
 
 
 @njit(cache=True)
-def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
+def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1, cols=False):
     """The solid blurred across the slices around lattice slice ``k``: three images of the box
     ``[j0, j1] x [i0, i1]``, ``M_p[j, i] = sum_n pts[n, j, i] c_n G(w_n) w_n^p`` (``p = 0, 1, 2``)
     with ``w_n = (zpos_n - zpos_k) dz``, ``c_n`` the slice's weight (:func:`_make_grid`; 1 on evenly
@@ -601,13 +601,16 @@ def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
     The Gaussian is separable, so at every point of slice ``k`` the field and its derivatives are
     sums over the in-slice window of these images (:func:`_field_in_slice`): ``(8 sigma)^2``
     terms per evaluation instead of the ``(8 sigma)^3`` of :func:`_field`, which the level-set
-    search of :func:`_move_to_surface` evaluates five times per vertex and search on average."""
+    search of :func:`_move_to_surface` evaluates five times per vertex and search on average.
+
+    ``cols``: the images column by column, ``M_p[i, j]`` (shape ``(3, i1 - i0 + 1, j1 - j0 + 1)``,
+    the same numbers), as the searches read them (:func:`_level_cols`)."""
     nz = pts.shape[0]
     dz, zpos = grid[2], grid[3]
     rad = 4.0 * sigma
     k0, k1, zc = _zwindow(grid, float(k), rad, nz)
     s2 = sigma * sigma
-    mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
+    mom = np.zeros((3, i1 - i0 + 1, j1 - j0 + 1)) if cols else np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
     for n in range(k0, k1 + 1):
         w = (zpos[n] - zc) * dz
         e = math.exp(-(w * w) / (2.0 * s2)) * _zweight(grid, n)
@@ -616,9 +619,10 @@ def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
         for j in range(j0, j1 + 1):
             for i in range(i0, i1 + 1):
                 if pts[n, j, i]:
-                    mom[0, j - j0, i - i0] += e
-                    mom[1, j - j0, i - i0] += ew
-                    mom[2, j - j0, i - i0] += eww
+                    a, b = (i - i0, j - j0) if cols else (j - j0, i - i0)
+                    mom[0, a, b] += e
+                    mom[1, a, b] += ew
+                    mom[2, a, b] += eww
     return mom
 
 
@@ -640,7 +644,7 @@ def _z_runs(pts):
 
 
 @njit(cache=True)
-def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
+def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1, cols=False):
     """:func:`_slice_moments` with the column runs of :func:`_z_runs`: the same images, bit for bit,
     on any grid (oblong pixels, unevenly spaced slices).
 
@@ -650,7 +654,7 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
     column's first solid run takes its sum from the table (the same additions, so the same value;
     a column that is all solid over the slices within ``4 sigma`` is the one run that spans them
     all), an empty one keeps 0, and only the runs after the first of a column that crosses the
-    surface more than once are summed voxel by voxel."""
+    surface more than once are summed voxel by voxel.  ``cols``: as there."""
     nz = pts.shape[0]
     dz, zpos = grid[2], grid[3]
     rad = 4.0 * sigma
@@ -678,14 +682,15 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
             run[0, a, b] = t0
             run[1, a, b] = t1
             run[2, a, b] = t2
-    mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
+    mom = np.zeros((3, i1 - i0 + 1, j1 - j0 + 1)) if cols else np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
     for j in range(j0, j1 + 1):
         for i in range(i0, i1 + 1):
+            a, b = (i - i0, j - j0) if cols else (j - j0, i - i0)
             if runs[k0, j, i] >= nk:  # one value over the whole column
                 if pts[k0, j, i]:
-                    mom[0, j - j0, i - i0] = run[0, 0, nk - 1]
-                    mom[1, j - j0, i - i0] = run[1, 0, nk - 1]
-                    mom[2, j - j0, i - i0] = run[2, 0, nk - 1]
+                    mom[0, a, b] = run[0, 0, nk - 1]
+                    mom[1, a, b] = run[1, 0, nk - 1]
+                    mom[2, a, b] = run[2, 0, nk - 1]
                 continue
             a0 = 0.0
             a1 = 0.0
@@ -707,9 +712,9 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
                             a1 += ew[q - k0]
                             a2 += eww[q - k0]
                 n += r
-            mom[0, j - j0, i - i0] = a0
-            mom[1, j - j0, i - i0] = a1
-            mom[2, j - j0, i - i0] = a2
+            mom[0, a, b] = a0
+            mom[1, a, b] = a1
+            mom[2, a, b] = a2
     return mom
 
 
@@ -964,6 +969,213 @@ def _level_in_slice(mom, span, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
     out[2] = fy / (norm * s2)
 
 
+# The searches' evaluations read the images column by column (``cols=True`` of the builders):
+# every row's sums take the columns' terms in column order from 0, as the row-by-row forms above,
+# so each sum gets the same additions, but the rows are independent sums that the compiler
+# updates four at a time, and four columns are added to each row in one pass (``((r + a) + b) +
+# ...``, the same order).  A column's terms count only between its first and last row where
+# ``M_0`` is not 0 (:func:`_row_spans` of the column images); a pass runs over the rows of its
+# columns' spans together, and the terms it adds beyond a column's span (or for a column the window
+# holds none of) are exact zeros, which leave a sum that starts at +0 unchanged, as the zeros that
+# the row-by-row forms add between a row's ends.  So the values are the same bit for bit.
+
+@njit(cache=True)
+def _window(x, y, sigma, ax, ay, nx, ny):
+    """The lattice window ``(a0, a1, b0, b1)`` of the sums at ``(x, y)`` (clipped to the volume)."""
+    rad = 4.0 * sigma
+    a0 = max(int(math.floor((x - rad) / ax)), 0)
+    a1 = min(int(math.ceil((x + rad) / ax)), nx - 1)
+    b0 = max(int(math.floor((y - rad) / ay)), 0)
+    b1 = min(int(math.ceil((y + rad) / ay)), ny - 1)
+    return a0, a1, b0, b1
+
+
+def _sums_rows(sigma, ay):
+    """Rows of the workspace of :func:`_level_cols` and its siblings: more than any window has."""
+    return int(math.ceil(8.0 * sigma / ay)) + 4
+
+
+@njit(cache=True)
+def _col_weights(cspan, i, i0, j0, b0, b1, x, ax, s2):
+    """Column ``i``'s in-slice weights ``G, G wx, G wx^2`` (:func:`_x_weights`' products) and the rows
+    ``lo .. hi`` of the window ``b0 .. b1`` where its ``M_0`` may be non-zero; weights 0 where none is."""
+    ii = i - i0
+    lo = max(b0, cspan[ii, 0] + j0)
+    hi = min(b1, cspan[ii, 1] + j0)
+    if lo > hi:
+        return 0.0, 0.0, 0.0, lo, hi
+    wx = i * ax - x
+    e = math.exp(-(wx ** 2) / (2.0 * s2))
+    return e, e * wx, e * wx * wx, lo, hi
+
+
+@njit(cache=True)
+def _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, nsum):
+    """The per-row sums of the window's columns into ``ws[:nsum, :b1 - b0 + 1]``: ``nsum = 2``: ``G M0,
+    G wx M0``; 3: and ``G M1``; 6: ``G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2`` (the sums of
+    :func:`_level_in_slice`, :func:`_gradient_in_slice` and :func:`_field_in_slice`)."""
+    nr = b1 - b0 + 1
+    for q in range(nsum):
+        for t in range(nr):
+            ws[q, t] = 0.0
+    m0 = momt[0]
+    m1 = momt[1]
+    m2 = momt[2]
+    r0 = ws[0]
+    r1 = ws[1]
+    r2 = ws[2]
+    r3 = ws[3]
+    r4 = ws[4]
+    r5 = ws[5]
+    i = a0
+    while i <= a1:
+        g = 4 if i + 3 <= a1 else 1  # columns in this pass
+        ea, fa, ga, lo, hi = _col_weights(cspan, i, i0, j0, b0, b1, x, ax, s2)
+        eb = fb = gb = ec = fc = gc = ed = fd = gd = 0.0
+        if g == 4:
+            eb, fb, gb, lb, hb = _col_weights(cspan, i + 1, i0, j0, b0, b1, x, ax, s2)
+            ec, fc, gc, lc, hc = _col_weights(cspan, i + 2, i0, j0, b0, b1, x, ax, s2)
+            ed, fd, gd, ld, hd = _col_weights(cspan, i + 3, i0, j0, b0, b1, x, ax, s2)
+            lo = min(min(lo, lb), min(lc, ld))
+            hi = max(max(hi, hb), max(hc, hd))
+        if lo > hi:
+            i += g
+            continue
+        ia = np.uintp(i - i0)
+        oc = lo - j0  # >= 0: the box holds the window
+        orow = lo - b0
+        if g == 4:
+            ib, ic, id_ = ia + np.uintp(1), ia + np.uintp(2), ia + np.uintp(3)
+            if nsum == 2:
+                for t in range(hi - lo + 1):
+                    u = np.uintp(oc + t)
+                    v = np.uintp(orow + t)
+                    pa, pb, pc, pd = m0[ia, u], m0[ib, u], m0[ic, u], m0[id_, u]
+                    r0[v] = r0[v] + ea * pa + eb * pb + ec * pc + ed * pd
+                    r1[v] = r1[v] + fa * pa + fb * pb + fc * pc + fd * pd
+            elif nsum == 3:
+                for t in range(hi - lo + 1):
+                    u = np.uintp(oc + t)
+                    v = np.uintp(orow + t)
+                    pa, pb, pc, pd = m0[ia, u], m0[ib, u], m0[ic, u], m0[id_, u]
+                    r0[v] = r0[v] + ea * pa + eb * pb + ec * pc + ed * pd
+                    r1[v] = r1[v] + fa * pa + fb * pb + fc * pc + fd * pd
+                    r2[v] = r2[v] + ea * m1[ia, u] + eb * m1[ib, u] + ec * m1[ic, u] + ed * m1[id_, u]
+            else:
+                for t in range(hi - lo + 1):
+                    u = np.uintp(oc + t)
+                    v = np.uintp(orow + t)
+                    pa, pb, pc, pd = m0[ia, u], m0[ib, u], m0[ic, u], m0[id_, u]
+                    qa, qb, qc, qd = m1[ia, u], m1[ib, u], m1[ic, u], m1[id_, u]
+                    r0[v] = r0[v] + ea * pa + eb * pb + ec * pc + ed * pd
+                    r1[v] = r1[v] + fa * pa + fb * pb + fc * pc + fd * pd
+                    r2[v] = r2[v] + ga * pa + gb * pb + gc * pc + gd * pd
+                    r3[v] = r3[v] + ea * qa + eb * qb + ec * qc + ed * qd
+                    r4[v] = r4[v] + fa * qa + fb * qb + fc * qc + fd * qd
+                    r5[v] = r5[v] + ea * m2[ia, u] + eb * m2[ib, u] + ec * m2[ic, u] + ed * m2[id_, u]
+        else:
+            for t in range(hi - lo + 1):
+                u = np.uintp(oc + t)
+                v = np.uintp(orow + t)
+                pa = m0[ia, u]
+                r0[v] = r0[v] + ea * pa
+                r1[v] = r1[v] + fa * pa
+                if nsum == 3:
+                    r2[v] = r2[v] + ea * m1[ia, u]
+                elif nsum == 6:
+                    qa = m1[ia, u]
+                    r2[v] = r2[v] + ga * pa
+                    r3[v] = r3[v] + ea * qa
+                    r4[v] = r4[v] + fa * qa
+                    r5[v] = r5[v] + ea * m2[ia, u]
+        i += g
+
+
+@njit(cache=True)
+def _level_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out, ws):
+    """:func:`_level_in_slice` from the column images ``momt`` (``cspan``: their column spans): the
+    same ``f, fx, fy`` into ``out[:3]``.  ``ws``: a workspace of 6 rows by :func:`_sums_rows`."""
+    a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
+    s2 = sigma * sigma
+    _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, 2)
+    f = 0.0
+    fx = 0.0
+    fy = 0.0
+    for j in range(b0, b1 + 1):
+        t0 = ws[0, j - b0]
+        if t0 != 0.0:
+            wy = j * ay - y
+            ey = math.exp(-(wy * wy) / (2.0 * s2))
+            f += ey * t0
+            fx += ey * ws[1, j - b0]
+            fy += ey * t0 * wy
+    out[0] = f / norm
+    out[1] = fx / (norm * s2)
+    out[2] = fy / (norm * s2)
+
+
+@njit(cache=True)
+def _gradient_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out, ws):
+    """:func:`_gradient_in_slice` from the column images: the same ``f, grad f`` into ``out[:4]``."""
+    a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
+    s2 = sigma * sigma
+    _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, 3)
+    f = 0.0
+    fx = 0.0
+    fy = 0.0
+    fz = 0.0
+    for j in range(b0, b1 + 1):
+        t0 = ws[0, j - b0]
+        if t0 != 0.0:
+            wy = j * ay - y
+            ey = math.exp(-(wy * wy) / (2.0 * s2))
+            f += ey * t0
+            fx += ey * ws[1, j - b0]
+            fy += ey * t0 * wy
+            fz += ey * ws[2, j - b0]
+    out[0] = f / norm
+    out[1] = fx / (norm * s2)
+    out[2] = fy / (norm * s2)
+    out[3] = fz / (norm * s2)
+    if za != 0.0 or zb != 0.0:
+        out[3] = out[3] - out[0] * za  # the quotient rule's fz (:func:`_z_correct`)
+
+
+@njit(cache=True)
+def _field_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out, ws):
+    """:func:`_field_in_slice` from the column images: the same 10 numbers."""
+    a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
+    s2 = sigma * sigma
+    _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, 6)
+    for q in range(10):
+        out[q] = 0.0
+    for j in range(b0, b1 + 1):
+        r0 = ws[0, j - b0]
+        if r0 == 0.0:
+            continue
+        wy = j * ay - y
+        ey = math.exp(-(wy * wy) / (2.0 * s2))
+        r1 = ws[1, j - b0]
+        q0 = ws[3, j - b0]
+        out[0] += ey * r0
+        out[1] += ey * r1
+        out[2] += ey * r0 * wy
+        out[3] += ey * q0
+        out[4] += ey * (ws[2, j - b0] - r0 * s2)
+        out[5] += ey * r0 * (wy * wy - s2)
+        out[6] += ey * (ws[5, j - b0] - r0 * s2)
+        out[7] += ey * r1 * wy
+        out[8] += ey * ws[4, j - b0]
+        out[9] += ey * q0 * wy
+    out[0] /= norm
+    for q in range(1, 4):
+        out[q] /= norm * s2
+    for q in range(4, 10):
+        out[q] /= norm * s2 * s2
+    if za != 0.0 or zb != 0.0:
+        _z_correct(out, za, zb)
+
+
 @njit(cache=True)
 def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, span, box, runs=None):
     """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
@@ -972,7 +1184,9 @@ def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, spa
     pixel indices, ``k = -1``: none) holds that already, else new images over that box widened by
     ``margin`` more (so the next searches of the slice find them), ``box`` updated in place.  The
     images at a lattice point do not depend on the box.  ``runs`` (:func:`_z_runs` of ``pts``,
-    optional) makes them faster, not different."""
+    optional) makes them faster, not different.  The images are kept column by column (``cols``
+    of the builders; ``span`` holds the columns' first and last rows), as :func:`_level_cols` and
+    its siblings read them."""
     nz, ny, nx = pts.shape
     ax, ay = grid[0], grid[1]
     i0 = min(max(int(math.floor((xlo - reach) / ax)), 0), nx - 1)
@@ -987,9 +1201,9 @@ def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, spa
     box[3] = min(max(int(math.floor((ylo - reach - margin) / ay)), 0), ny - 1)
     box[4] = max(min(int(math.ceil((yhi + reach + margin) / ay)), ny - 1), box[3])
     if runs is None:
-        mom = _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
+        mom = _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4], True)
     else:
-        mom = _slice_moments_runs(pts, runs, k, sigma, grid, box[1], box[2], box[3], box[4])
+        mom = _slice_moments_runs(pts, runs, k, sigma, grid, box[1], box[2], box[3], box[4], True)
     return mom, _row_spans(mom)
 
 
@@ -1021,13 +1235,14 @@ def _fields_kernel(pts, xy, k, sigma, grid, mom, span, box, margin, full, runs=N
                             np.max(xy[:, 1]), 4.0 * sigma + 1.0, margin, mom, span, box, runs)
     norm, za, zb = _slice_norm(grid, sigma, _lattice_norm(sigma, grid), float(k), nz)
     buf = np.zeros(10)
+    ws = np.empty((6, int(math.ceil(8.0 * sigma / grid[1])) + 4))  # :func:`_sums_rows`
     for m in range(n):
         if full:
-            _field_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za,
-                            zb, buf)
+            _field_cols(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za,
+                        zb, buf, ws)
         else:
-            _gradient_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm,
-                               za, zb, buf)
+            _gradient_cols(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm,
+                           za, zb, buf, ws)
         out[m, :] = buf
     return out, mom, span
 
@@ -1255,6 +1470,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
     norm, za, zb = norm0, 0.0, 0.0
     ax, ay = grid[0], grid[1]
     buf = np.empty(10)
+    ws = np.empty((6, int(math.ceil(8.0 * sigma / ay)) + 4))  # :func:`_sums_rows`
     clamped = 0
     nz, ny, nx = pts.shape
     reach = max_move + 4.0 * sigma + 1.0  # the search's points and their windows: within this of the start
@@ -1277,7 +1493,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
             i0, j0 = box[1], box[3]
             norm, za, zb = _slice_norm(grid, sigma, norm0, float(k), nz)
             cur = k
-        _gradient_in_slice(mom, span, i0, j0, nx, ny, x0, y0, sigma, ax, ay, norm, za, zb, buf)  # f, grad f
+        _gradient_cols(mom, span, i0, j0, nx, ny, x0, y0, sigma, ax, ay, norm, za, zb, buf, ws)  # f, grad f
         hx, hy = -buf[1], -buf[2]
         hn = math.sqrt(hx * hx + hy * hy)
         gn = math.sqrt(buf[1] ** 2 + buf[2] ** 2 + buf[3] ** 2)
@@ -1290,7 +1506,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         ok = False
         for it in range(40):
             if it > 0:  # at t = 0, buf holds the field at the start already
-                _level_in_slice(mom, span, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, ax, ay, norm, buf)
+                _level_cols(mom, span, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, ax, ay, norm, buf, ws)
             g = buf[0] - 0.5
             if abs(g) < 1e-12:
                 ok = True
@@ -1315,7 +1531,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         found[n] = True
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
-            _field_in_slice(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf)
+            _field_cols(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf, ws)
             shift, gnorm = _mean_curvature_shift(buf, sigma)
             if cubic != 0.0:
                 ks = 2.0 * shift / (sigma * sigma)
