@@ -2372,8 +2372,19 @@ def _untangle(rings: list, seeds: list, fixed: list) -> int:
     that.  Repeats until nothing changes (a ring put back can disturb a neighbour's refined ring).
     Returns the number of rings put back.
     """
+    boxes: dict = {}  # id -> (xmin, ymin, xmax, ymax, ring): each ring's box once (the ring kept alive)
+
+    def meet(a, b):  # :func:`_boxes_meet` from the kept boxes
+        for r in (a, b):
+            if id(r) not in boxes:
+                lo, hi = r.min(axis=0).tolist(), r.max(axis=0).tolist()
+                boxes[id(r)] = (*lo, *hi, r)
+        a0, a1, a2, a3, _ = boxes[id(a)]
+        b0, b1, b2, b3, _ = boxes[id(b)]
+        return a0 <= b2 and a1 <= b3 and b0 <= a2 and b1 <= a3
+
     def nested(a, b):  # is a inside b (most of its vertices: touching seeds share a few)
-        return _boxes_meet(a, b) and _inside_share(a, b) > 0.5
+        return meet(a, b) and _inside_share(a, b) > 0.5
 
     n = len(rings)
     others_seed = list(seeds) + list(fixed)
@@ -2389,7 +2400,7 @@ def _untangle(rings: list, seeds: list, fixed: list) -> int:
                 if j == i or len(o) < 3:
                     continue
                 so = others_seed[j]
-                if ((_boxes_meet(rings[i], o) and _rings_meet(rings[i], o))
+                if ((meet(rings[i], o) and _rings_meet(rings[i], o))
                         or nested(rings[i], o) != nested(seeds[i], so) or nested(o, rings[i]) != nested(so, seeds[i])):
                     rings[i] = seeds[i]
                     back += 1
