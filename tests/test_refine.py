@@ -445,7 +445,8 @@ def test_column_images_and_their_sums_equal_the_row_forms_bit_for_bit(kind):
         np.testing.assert_array_equal(R._slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1, True), cols)
         rspan, cspan = R._row_spans(rows), R._row_spans(cols)
         norm, za, zb = R._slice_norm(grid, sigma, R._lattice_norm(sigma, grid), float(k), nz)
-        ws = np.full((6, R._sums_rows(sigma, ay)), np.nan)  # stale values must not leak into the sums
+        ws = R._workspace(sigma, ax, ay)
+        ws[:] = np.nan  # stale values must not leak into the sums
         for _ in range(40):
             x = rng.uniform(0, (nx - 1) * ax)
             y = rng.uniform(0, (ny - 1) * ay)
@@ -460,6 +461,11 @@ def test_column_images_and_their_sums_equal_the_row_forms_bit_for_bit(kind):
                 ref(rows, rspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, *extra, want)
                 new(cols, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, *extra, got, ws)
                 assert np.array_equal(want, got), (ref.__name__, x, y, sigma, want - got)
+            # the field right after a search step at the same point reuses that step's sums and weights
+            R._level_cols(cols, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, np.zeros(10), ws)
+            got = np.full(10, 7.0)
+            R._field_after_level(cols, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, got, ws)
+            assert np.array_equal(want, got), (x, y, sigma, want - got)
     assert len(widths) == 4 and min(widths.values()) > 10  # every column count mod 4 was met
 
 

@@ -990,9 +990,12 @@ def _window(x, y, sigma, ax, ay, nx, ny):
     return a0, a1, b0, b1
 
 
-def _sums_rows(sigma, ay):
-    """Rows of the workspace of :func:`_level_cols` and its siblings: more than any window has."""
-    return int(math.ceil(8.0 * sigma / ay)) + 4
+@njit(cache=True)
+def _workspace(sigma, ax, ay):
+    """The workspace of :func:`_level_cols` and its siblings: 9 rows (the per-row sums, the
+    columns' weights ``G, G wx`` and the rows' weights that :func:`_level_cols` keeps for
+    :func:`_field_after_level`), each longer than any window's rows or columns."""
+    return np.empty((9, int(math.ceil(8.0 * sigma / min(ax, ay))) + 4))
 
 
 @njit(cache=True)
@@ -1013,7 +1016,8 @@ def _col_weights(cspan, i, i0, j0, b0, b1, x, ax, s2):
 def _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, nsum):
     """The per-row sums of the window's columns into ``ws[:nsum, :b1 - b0 + 1]``: ``nsum = 2``: ``G M0,
     G wx M0``; 3: and ``G M1``; 6: ``G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2`` (the sums of
-    :func:`_level_in_slice`, :func:`_gradient_in_slice` and :func:`_field_in_slice`)."""
+    :func:`_level_in_slice`, :func:`_gradient_in_slice` and :func:`_field_in_slice`).  With
+    ``nsum = 2`` the columns' weights ``G, G wx`` are kept in ``ws[6:8, :a1 - a0 + 1]``."""
     nr = b1 - b0 + 1
     for q in range(nsum):
         for t in range(nr):
@@ -1038,6 +1042,16 @@ def _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, nsum):
             ed, fd, gd, ld, hd = _col_weights(cspan, i + 3, i0, j0, b0, b1, x, ax, s2)
             lo = min(min(lo, lb), min(lc, ld))
             hi = max(max(hi, hb), max(hc, hd))
+        if nsum == 2:
+            ws[6, i - a0] = ea
+            ws[7, i - a0] = fa
+            if g == 4:
+                ws[6, i - a0 + 1] = eb
+                ws[7, i - a0 + 1] = fb
+                ws[6, i - a0 + 2] = ec
+                ws[7, i - a0 + 2] = fc
+                ws[6, i - a0 + 3] = ed
+                ws[7, i - a0 + 3] = fd
         if lo > hi:
             i += g
             continue
@@ -1094,7 +1108,8 @@ def _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, nsum):
 @njit(cache=True)
 def _level_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out, ws):
     """:func:`_level_in_slice` from the column images ``momt`` (``cspan``: their column spans): the
-    same ``f, fx, fy`` into ``out[:3]``.  ``ws``: a workspace of 6 rows by :func:`_sums_rows`."""
+    same ``f, fx, fy`` into ``out[:3]``.  ``ws``: :func:`_workspace`; its sums and weights stay
+    there for :func:`_field_after_level` at the same point."""
     a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
     s2 = sigma * sigma
     _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, 2)
@@ -1106,6 +1121,7 @@ def _level_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out, ws)
         if t0 != 0.0:
             wy = j * ay - y
             ey = math.exp(-(wy * wy) / (2.0 * s2))
+            ws[8, j - b0] = ey  # kept for :func:`_field_after_level`
             f += ey * t0
             fx += ey * ws[1, j - b0]
             fy += ey * t0 * wy
@@ -1177,6 +1193,95 @@ def _field_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, 
 
 
 @njit(cache=True)
+def _field_after_level(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out, ws):
+    """:func:`_field_cols` at the point of the last :func:`_level_cols` call with this ``ws``: its
+    sums ``G M0, G wx M0`` and its columns' and rows' weights are taken from ``ws`` (the same
+    numbers), only the other four sums are made (in the same passes and order as there)."""
+    a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
+    s2 = sigma * sigma
+    nr = b1 - b0 + 1
+    for q in range(2, 6):
+        for t in range(nr):
+            ws[q, t] = 0.0
+    m0 = momt[0]
+    m1 = momt[1]
+    m2 = momt[2]
+    r2 = ws[2]
+    r3 = ws[3]
+    r4 = ws[4]
+    r5 = ws[5]
+    i = a0
+    while i <= a1:
+        g = 4 if i + 3 <= a1 else 1
+        lo, hi = b1 + 1, b0 - 1
+        for c in range(i, i + g):  # the pass's rows, as :func:`_cols_sums` takes them
+            ii = c - i0
+            lo = min(lo, max(b0, cspan[ii, 0] + j0))
+            hi = max(hi, min(b1, cspan[ii, 1] + j0))
+        if lo > hi:
+            i += g
+            continue
+        ea, fa = ws[6, i - a0], ws[7, i - a0]
+        ga = fa * (i * ax - x)  # e wx wx, as :func:`_col_weights` forms it
+        ia = np.uintp(i - i0)
+        oc = lo - j0
+        orow = lo - b0
+        if g == 4:
+            eb, fb = ws[6, i - a0 + 1], ws[7, i - a0 + 1]
+            ec, fc = ws[6, i - a0 + 2], ws[7, i - a0 + 2]
+            ed, fd = ws[6, i - a0 + 3], ws[7, i - a0 + 3]
+            gb = fb * ((i + 1) * ax - x)
+            gc = fc * ((i + 2) * ax - x)
+            gd = fd * ((i + 3) * ax - x)
+            ib, ic, id_ = ia + np.uintp(1), ia + np.uintp(2), ia + np.uintp(3)
+            for t in range(hi - lo + 1):
+                u = np.uintp(oc + t)
+                v = np.uintp(orow + t)
+                pa, pb, pc, pd = m0[ia, u], m0[ib, u], m0[ic, u], m0[id_, u]
+                qa, qb, qc, qd = m1[ia, u], m1[ib, u], m1[ic, u], m1[id_, u]
+                r2[v] = r2[v] + ga * pa + gb * pb + gc * pc + gd * pd
+                r3[v] = r3[v] + ea * qa + eb * qb + ec * qc + ed * qd
+                r4[v] = r4[v] + fa * qa + fb * qb + fc * qc + fd * qd
+                r5[v] = r5[v] + ea * m2[ia, u] + eb * m2[ib, u] + ec * m2[ic, u] + ed * m2[id_, u]
+        else:
+            for t in range(hi - lo + 1):
+                u = np.uintp(oc + t)
+                v = np.uintp(orow + t)
+                qa = m1[ia, u]
+                r2[v] = r2[v] + ga * m0[ia, u]
+                r3[v] = r3[v] + ea * qa
+                r4[v] = r4[v] + fa * qa
+                r5[v] = r5[v] + ea * m2[ia, u]
+        i += g
+    for q in range(10):
+        out[q] = 0.0
+    for j in range(b0, b1 + 1):
+        r0 = ws[0, j - b0]
+        if r0 == 0.0:
+            continue
+        wy = j * ay - y
+        ey = ws[8, j - b0]
+        r1 = ws[1, j - b0]
+        q0 = ws[3, j - b0]
+        out[0] += ey * r0
+        out[1] += ey * r1
+        out[2] += ey * r0 * wy
+        out[3] += ey * q0
+        out[4] += ey * (ws[2, j - b0] - r0 * s2)
+        out[5] += ey * r0 * (wy * wy - s2)
+        out[6] += ey * (ws[5, j - b0] - r0 * s2)
+        out[7] += ey * r1 * wy
+        out[8] += ey * ws[4, j - b0]
+        out[9] += ey * q0 * wy
+    out[0] /= norm
+    for q in range(1, 4):
+        out[q] /= norm * s2
+    for q in range(4, 10):
+        out[q] /= norm * s2 * s2
+    if za != 0.0 or zb != 0.0:
+        _z_correct(out, za, zb)
+
+@njit(cache=True)
 def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, span, box, runs=None):
     """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
     point of ``[xlo, xhi] x [ylo, yhi]`` widened by ``reach`` (lengths in units of ``h``), with their
@@ -1235,7 +1340,7 @@ def _fields_kernel(pts, xy, k, sigma, grid, mom, span, box, margin, full, runs=N
                             np.max(xy[:, 1]), 4.0 * sigma + 1.0, margin, mom, span, box, runs)
     norm, za, zb = _slice_norm(grid, sigma, _lattice_norm(sigma, grid), float(k), nz)
     buf = np.zeros(10)
-    ws = np.empty((6, int(math.ceil(8.0 * sigma / grid[1])) + 4))  # :func:`_sums_rows`
+    ws = _workspace(sigma, grid[0], grid[1])
     for m in range(n):
         if full:
             _field_cols(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za,
@@ -1470,7 +1575,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
     norm, za, zb = norm0, 0.0, 0.0
     ax, ay = grid[0], grid[1]
     buf = np.empty(10)
-    ws = np.empty((6, int(math.ceil(8.0 * sigma / ay)) + 4))  # :func:`_sums_rows`
+    ws = _workspace(sigma, ax, ay)
     clamped = 0
     nz, ny, nx = pts.shape
     reach = max_move + 4.0 * sigma + 1.0  # the search's points and their windows: within this of the start
@@ -1504,12 +1609,14 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         lo, hi = -max_move, max_move
         t = 0.0
         ok = False
+        at_level = False  # the last evaluation (a step's) was at x0 + t dx: ws holds its sums
         for it in range(40):
             if it > 0:  # at t = 0, buf holds the field at the start already
                 _level_cols(mom, span, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, ax, ay, norm, buf, ws)
             g = buf[0] - 0.5
             if abs(g) < 1e-12:
                 ok = True
+                at_level = it > 0
                 break
             if g > 0.0:
                 lo = t  # still inside: the level is further out
@@ -1531,7 +1638,10 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         found[n] = True
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
-            _field_cols(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf, ws)
+            if at_level:  # the same point: the step's sums and weights stand
+                _field_after_level(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf, ws)
+            else:
+                _field_cols(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf, ws)
             shift, gnorm = _mean_curvature_shift(buf, sigma)
             if cubic != 0.0:
                 ks = 2.0 * shift / (sigma * sigma)
