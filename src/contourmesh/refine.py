@@ -697,9 +697,10 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1, cols=False):
             a2 = 0.0
             first = True  # no run summed yet: the sums are still 0
             n = k0
+            solid = pts[k0, j, i]  # the runs alternate between solid and empty
             while n <= k1:
                 r = runs[n, j, i]
-                if pts[n, j, i]:
+                if solid:
                     last = min(n + r, k1 + 1) - 1
                     if first:
                         a0 = run[0, n - k0, last - k0]
@@ -712,6 +713,7 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1, cols=False):
                             a1 += ew[q - k0]
                             a2 += eww[q - k0]
                 n += r
+                solid = not solid
             mom[0, a, b] = a0
             mom[1, a, b] = a1
             mom[2, a, b] = a2
