@@ -4,8 +4,11 @@ Spheres r = 20, 40, 80 at random sub-voxel centres: error bounds of the issue, a
 convergence <= -1, closed outward meshes, every vertex in its slice's band, P <= 1.5 x MLP's.
 """
 
+import math
+
 import numpy as np
 import pytest
+from numba import njit
 
 import contourmesh
 from contourmesh import refine as R
@@ -1001,3 +1004,56 @@ def test_untangle_with_kept_boxes_equals_its_first_form():
         assert back == back_ref and all(x is y for x, y in zip(a, b))
         total += back
     assert total > 20  # seeds were put back
+
+
+def _project_to_ring_reference(ring, q):
+    """refine._project_to_ring as first written (a hypot for every edge), compiled as it was (numba's
+    hypot is the C library's; Python's rounds differently)."""
+    return _project_to_ring_first(ring, q)
+
+
+@njit(cache=False)
+def _project_to_ring_first(ring, q):
+    n = ring.shape[0]
+    cum = np.zeros(n + 1)
+    for i in range(n):
+        j = (i + 1) % n
+        cum[i + 1] = cum[i] + math.hypot(ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1])
+    out = np.empty((4, q.shape[0]))
+    for a in range(q.shape[0]):
+        best = 1e300
+        for i in range(n):
+            j = (i + 1) % n
+            ex, ey = ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1]
+            l2 = ex * ex + ey * ey
+            t = 0.0
+            if l2 > 0.0:
+                t = ((q[a, 0] - ring[i, 0]) * ex + (q[a, 1] - ring[i, 1]) * ey) / l2
+                t = min(1.0, max(0.0, t))
+            cx, cy = ring[i, 0] + t * ex, ring[i, 1] + t * ey
+            d = math.hypot(q[a, 0] - cx, q[a, 1] - cy)
+            if d < best:
+                best = d
+                out[0, a] = cum[i] + t * (cum[i + 1] - cum[i])
+                out[2, a], out[3, a] = cx, cy
+        out[1, a] = best
+    return out
+
+
+def test_projection_onto_a_ring_equals_its_first_form_bit_for_bit():
+    """The projection that skips the edges whose squared distance already exceeds the best gives the
+    same parameters, distances and points: rings with repeated points (zero-length edges), query
+    points on vertices, on edges and at equal distance from several edges (grid rings), far away."""
+    rng = np.random.default_rng(17)
+    for t in range(60):
+        n = int(rng.integers(3, 60))
+        ang = np.sort(rng.uniform(0, 2 * np.pi, n))
+        ring = np.c_[10 * np.cos(ang), 7 * np.sin(ang)] * rng.uniform(0.5, 2)
+        if t % 3 == 0:
+            ring = np.round(ring)  # grid points: ties between edges
+        if t % 4 == 0:
+            ring[rng.integers(0, n)] = ring[0]  # a repeated point
+        q = np.r_[rng.uniform(-25, 25, (40, 2)), ring[rng.integers(0, n, 5)],
+                  np.round(rng.uniform(-12, 12, (20, 2))), [[0.0, 0.0], [1e4, -3e3]]]
+        got = np.array(R._project_to_ring(np.ascontiguousarray(ring), np.ascontiguousarray(q)))
+        assert np.array_equal(got, _project_to_ring_reference(ring, q))

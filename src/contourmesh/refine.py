@@ -1765,20 +1765,29 @@ def _project_to_ring(ring, q):
     dist = np.empty(m)
     px = np.empty(m)
     py = np.empty(m)
+    ex = np.empty(n)  # the edges and their squared lengths, once
+    ey = np.empty(n)
+    l2 = np.empty(n)
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        ex[i], ey[i] = ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1]
+        l2[i] = ex[i] * ex[i] + ey[i] * ey[i]
     for a in range(m):
         best = 1e300
+        cut = math.inf  # a squared distance above this cannot give a hypot below best
         for i in range(n):
-            j = (i + 1) % n
-            ex, ey = ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1]
-            l2 = ex * ex + ey * ey
             t = 0.0
-            if l2 > 0.0:
-                t = ((q[a, 0] - ring[i, 0]) * ex + (q[a, 1] - ring[i, 1]) * ey) / l2
+            if l2[i] > 0.0:
+                t = ((q[a, 0] - ring[i, 0]) * ex[i] + (q[a, 1] - ring[i, 1]) * ey[i]) / l2[i]
                 t = min(1.0, max(0.0, t))
-            cx, cy = ring[i, 0] + t * ex, ring[i, 1] + t * ey
-            d = math.hypot(q[a, 0] - cx, q[a, 1] - cy)
+            cx, cy = ring[i, 0] + t * ex[i], ring[i, 1] + t * ey[i]
+            dx, dy = q[a, 0] - cx, q[a, 1] - cy
+            if dx * dx + dy * dy > cut:
+                continue
+            d = math.hypot(dx, dy)
             if d < best:
                 best = d
+                cut = best * best * (1.0 + 1e-9)
                 par[a] = cum[i] + t * (cum[i + 1] - cum[i])
                 px[a], py[a] = cx, cy
         dist[a] = best
