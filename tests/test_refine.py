@@ -556,7 +556,7 @@ def test_searches_sharing_slice_images_give_the_same_places():
             kept, n2 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, shared)
             assert np.array_equal(alone, kept) and n1 == n2
         # the two widths' images, and the crease step's wider width (R.CREASE_WIDER) where it looked
-        assert {2.6, 1.8} <= set(shared) <= {2.6, 1.8, 2.6 * 2.6 / 1.8}
+        assert {2.6, 1.8} <= set(shared) - {"fields"} <= {2.6, 1.8, 2.6 * 2.6 / 1.8}
         assert all(shared[w][1][0] == k for w in (2.6, 1.8))
 
 
@@ -1057,3 +1057,39 @@ def test_projection_onto_a_ring_equals_its_first_form_bit_for_bit():
                   np.round(rng.uniform(-12, 12, (20, 2))), [[0.0, 0.0], [1e4, -3e3]]]
         got = np.array(R._project_to_ring(np.ascontiguousarray(ring), np.ascontiguousarray(q)))
         assert np.array_equal(got, _project_to_ring_reference(ring, q))
+
+
+def test_chord_step_reusing_the_two_scale_fields_gives_the_same_ring(monkeypatch):
+    """The chord step takes ``f, grad f`` from the two-scale step's fields where the points are the
+    same bit for bit (``images["fields"]``): the refined rings equal those of a chord step that
+    evaluates every point, a record of other points or of another width is not taken, and the
+    record is used."""
+    pts = _lumpy_points()
+    rng = np.random.default_rng(4)
+    ang = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    seeds = [(k, np.c_[13.2 + r * np.cos(ang), 14.6 + 1.1 * r * np.sin(ang)] + rng.normal(0, 0.3, (48, 2)))
+             for k in (8, 11, 14) for r in (6.0, 8.5)]
+    with_record = [R.refine_ring(pts, seed, k, 2.6, 1.0, fine_sigma=1.8, images={}) for k, seed in seeds]
+    taken = []
+    first = R._chord_gradients
+
+    def evaluate_all(pts_, ring, k, sigma, grid, images, max_move):
+        rec = images.pop("fields", None)
+        if rec is not None and len(rec[1]) == len(ring):
+            taken.append(int((rec[1][rec[3]] == ring[rec[3]]).all(axis=1).sum()))
+        return first(pts_, ring, k, sigma, grid, images, max_move)
+
+    monkeypatch.setattr(R, "_chord_gradients", evaluate_all)
+    for (k, seed), (ring_a, ca) in zip(seeds, with_record):
+        ring_b, cb = R.refine_ring(pts, seed, k, 2.6, 1.0, fine_sigma=1.8, images={})
+        assert np.array_equal(ring_a, ring_b) and ca == cb
+    assert sum(taken) > 20  # points the record would have given
+    monkeypatch.undo()
+    k, ring = seeds[0][0], with_record[0][0]
+    ref, _ = R._fields_in_slice(pts, ring, k, 2.6, 1.0, *R._no_images(), 0.0, full=False)
+    full, _ = R._fields_in_slice(pts, ring, k, 2.6, 1.0, *R._no_images(), 0.0)
+    idx = np.arange(0, len(ring) - 3)
+    moved = ring.copy()
+    moved[1::4] += 1e-9  # recorded points that differ: evaluated there
+    for rec in ((2.6, moved, full, idx), (1.8, ring, full, idx), (2.6, ring[:-1], full[:-1], idx[:-1])):
+        assert np.array_equal(R._chord_gradients(pts, ring, k, 2.6, 1.0, {"fields": rec}, 3.0), ref)

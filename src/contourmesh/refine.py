@@ -2019,7 +2019,9 @@ def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
     k = int(kz[0])
     r = fine / sigma
     planar = _planar_ratio(grid, k)
-    fld_w = _fields_at(pts, out, np.flatnonzero(_ring_reach(ring, cand, win)), k, sigma, grid, images, max_move)
+    need = np.flatnonzero(_ring_reach(ring, cand, win))
+    fld_w = _fields_at(pts, out, need, k, sigma, grid, images, max_move)
+    images["fields"] = (float(sigma), ring.copy(), fld_w, need)  # for the chord step at the same points
     sw = _ring_curvature_mean(fld_w, float(sigma), ring, win)
     kmin = CREASE_MIN_BEND if np.isscalar(CREASE_MIN_BEND) else CREASE_MIN_BEND[0]
     # where the wide level hardly bends (q = 1) or bends strongly (the fade below) the share is 0:
@@ -2340,11 +2342,8 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:
-        mom, box, span = images.get(float(sigma)) or _no_images()
-        fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid,
-                                            mom, box, span, IMAGE_MARGIN * max_move + 2.0, images.get("runs"),
-                                            full=False)  # the gradient only
-        images[float(sigma)] = (mom, box, span)
+        fld = _chord_gradients(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid, images,
+                               max_move)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
         target = _chord_push(ring, nz2)
@@ -2369,6 +2368,30 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
         ring = cand if _is_simple(cand) else seed
     return ring, clamped
 
+
+def _chord_gradients(pts, ring, k, sigma, grid, images, max_move):
+    """``f`` and ``grad f`` at width ``sigma`` at the ring's points (``(n, 10)``, the rest 0) for the
+    chord step: where a point is one at which the two-scale step took the fields already
+    (``images["fields"]``, :func:`_crease_gains`; the same point bit for bit, the same slice and
+    width) its numbers are taken from there (:func:`_gradient_in_slice` gives ``f`` and ``grad f``
+    the same values as :func:`_field_in_slice`), the others are evaluated."""
+    n = len(ring)
+    fld = np.zeros((n, 10))
+    todo = np.arange(n)
+    kept = images.get("fields")
+    if kept is not None and kept[0] == sigma and len(kept[1]) == n:
+        _, at, kf, idx = kept
+        same = np.zeros(n, dtype=np.bool_)
+        same[idx] = (at[idx] == ring[idx]).all(axis=1)
+        fld[same, :4] = kf[same, :4]
+        todo = np.flatnonzero(~same)
+    if len(todo):
+        mom, box, span = images.get(sigma) or _no_images()
+        sub, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(ring[todo]), k, sigma, grid, mom, box, span,
+                                            IMAGE_MARGIN * max_move + 2.0, images.get("runs"), full=False)
+        images[sigma] = (mom, box, span)
+        fld[todo] = sub
+    return fld
 
 def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "mlp", sigma="auto",
                  curvature: bool = True, chord: bool = True, meridians: bool = True,
