@@ -189,6 +189,21 @@ def test_deepest_pixel_is_the_argmax_of_scipy_distance_transform():
             m = ((yy - shape[0] / 2) / rng.uniform(0.5, 2)) ** 2 + (xx - shape[1] / 2) ** 2 < rng.uniform(1, 200)
         d = ndimage.distance_transform_edt(np.pad(m, 1))
         assert deepest_pixel(m) == tuple(int(v) for v in np.unravel_index(np.argmax(d), d.shape))
+    # larger rings, bars and blobs, many rows of equal depth: the rows taken by their bounds (the
+    # rows whose bound falls below the best are left out) give the raster scan's first deepest pixel
+    for _ in range(300):
+        shape = tuple(int(v) for v in rng.integers(20, 90, 2))
+        yy, xx = np.mgrid[: shape[0], : shape[1]]
+        cy, cx = rng.uniform(0.3, 0.7, 2) * shape
+        r = np.hypot((yy - cy) / rng.uniform(0.6, 1.6), xx - cx)
+        r_out = rng.uniform(5, min(shape) / 2)
+        m = (r < r_out) & (r >= rng.uniform(0, r_out - 1))  # discs and annuli
+        if rng.random() < 0.3:
+            m |= (np.abs(yy - xx * rng.uniform(-1, 1) - rng.uniform(0, shape[0])) < rng.uniform(1, 6))  # a bar
+        if rng.random() < 0.3:
+            m ^= rng.random(shape) < 0.02
+        d = ndimage.distance_transform_edt(np.pad(m, 1))
+        assert deepest_pixel(m) == tuple(int(v) for v in np.unravel_index(np.argmax(d), d.shape))
 
 
 def _chord_push_reference(p, nz2=None):

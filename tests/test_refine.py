@@ -4,8 +4,11 @@ Spheres r = 20, 40, 80 at random sub-voxel centres: error bounds of the issue, a
 convergence <= -1, closed outward meshes, every vertex in its slice's band, P <= 1.5 x MLP's.
 """
 
+import math
+
 import numpy as np
 import pytest
+from numba import njit
 
 import contourmesh
 from contourmesh import refine as R
@@ -413,6 +416,62 @@ def test_field_in_slice_equals_the_direct_sum(sigma, dz, pixel, uneven):
             assert np.array_equal(grad[:4], fast[:4]) and np.all(grad[4:] == 7.0)  # the search's start
 
 
+@pytest.mark.parametrize("kind", ["square", "oblong", "uneven"])
+def test_column_images_and_their_sums_equal_the_row_forms_bit_for_bit(kind):
+    """The searches' column-by-column images (``cols=True``) are the row images transposed, and the
+    level, gradient and field sums over them (four columns a pass, exact zeros beyond a column's
+    span) equal the row-by-row sums bit for bit: at any width (windows of every column count mod
+    4), on boxes that start inside the volume, at windows clipped by its sides, for points outside
+    the solid's reach, on oblong pixels and unevenly spaced slices (the quotient rule's ``fz``)."""
+    rng = np.random.default_rng(31)
+    pts = _lumpy_points()
+    nz, ny, nx = pts.shape
+    runs = R._z_runs(pts)
+    if kind == "square":
+        grid, _ = R._make_grid(1.0, 1.0, nz, dz=1.3)
+    elif kind == "oblong":
+        grid, _ = R._make_grid(0.667, 0.617, nz, dz=0.8)
+    else:
+        heights = np.cumsum(rng.uniform(0.5, 1.5, nz))
+        grid, _ = R._make_grid(0.617, 0.667, nz, zs=heights[2:-2], pad=2)
+    ax, ay = grid[0], grid[1]
+    widths = {}
+    for t in range(24):
+        sigma = float(rng.uniform(0.6, 3.6))
+        k = int(rng.integers(0, nz))
+        # a box inside the volume and the points whose windows it holds (or that the volume clips)
+        i0, j0 = int(rng.integers(0, 6)), int(rng.integers(0, 6))
+        i1, j1 = int(rng.integers(nx - 6, nx)), int(rng.integers(ny - 6, ny))
+        rows = R._slice_moments(pts, k, sigma, grid, i0, i1, j0, j1)
+        cols = R._slice_moments(pts, k, sigma, grid, i0, i1, j0, j1, True)
+        np.testing.assert_array_equal(cols, rows.transpose(0, 2, 1))
+        np.testing.assert_array_equal(R._slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1, True), cols)
+        rspan, cspan = R._row_spans(rows), R._row_spans(cols)
+        norm, za, zb = R._slice_norm(grid, sigma, R._lattice_norm(sigma, grid), float(k), nz)
+        ws = R._workspace(sigma, ax, ay)
+        ws[:] = np.nan  # stale values must not leak into the sums
+        for _ in range(40):
+            x = rng.uniform(0, (nx - 1) * ax)
+            y = rng.uniform(0, (ny - 1) * ay)
+            a0, a1, b0, b1 = R._window(x, y, sigma, ax, ay, nx, ny)
+            if a0 < i0 or a1 > i1 or b0 < j0 or b1 > j1:
+                continue  # the box does not hold the window (the searches never ask)
+            widths[(a1 - a0 + 1) % 4] = widths.get((a1 - a0 + 1) % 4, 0) + 1
+            for ref, new, n in ((R._level_in_slice, R._level_cols, 3), (R._gradient_in_slice, R._gradient_cols, 4),
+                                (R._field_in_slice, R._field_cols, 10)):
+                want, got = np.full(10, 7.0), np.full(10, 7.0)
+                extra = () if n == 3 else (za, zb)
+                ref(rows, rspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, *extra, want)
+                new(cols, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, *extra, got, ws)
+                assert np.array_equal(want, got), (ref.__name__, x, y, sigma, want - got)
+            # the field right after a search step at the same point reuses that step's sums and weights
+            R._level_cols(cols, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, np.zeros(10), ws)
+            got = np.full(10, 7.0)
+            R._field_after_level(cols, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, got, ws)
+            assert np.array_equal(want, got), (x, y, sigma, want - got)
+    assert len(widths) == 4 and min(widths.values()) > 10  # every column count mod 4 was met
+
+
 @pytest.mark.parametrize("pixel", [(1.0, 1.0), (0.667, 0.617)])
 def test_walk_back_into_the_band_finds_the_first_band_sample(pixel):
     """The walk that skips the samples inside a cell off the band stops on the same sample as
@@ -497,7 +556,7 @@ def test_searches_sharing_slice_images_give_the_same_places():
             kept, n2 = R._surface_points(pts, ring, kz, 2.6, 1.0, True, 3.0, True, 1.8, None, shared)
             assert np.array_equal(alone, kept) and n1 == n2
         # the two widths' images, and the crease step's wider width (R.CREASE_WIDER) where it looked
-        assert {2.6, 1.8} <= set(shared) <= {2.6, 1.8, 2.6 * 2.6 / 1.8}
+        assert {2.6, 1.8} <= set(shared) - {"fields"} <= {2.6, 1.8, 2.6 * 2.6 / 1.8}
         assert all(shared[w][1][0] == k for w in (2.6, 1.8))
 
 
@@ -893,3 +952,144 @@ def test_crease_min_fine_fades_the_shares_by_the_fine_width():
     m, m_half = (1 - tol) / R.CREASE_TOLERANCE, (1 - half_tol) / R.CREASE_TOLERANCE
     assert np.allclose(m_half, 0.5 * m)
     assert np.all(half_rho <= rho + 1e-12) and np.all(half_rho >= smooth - 1e-12)
+
+
+def _untangle_reference(rings, seeds, fixed):
+    """refine._untangle as first written (each pair's boxes from numpy reductions)."""
+    def nested(a, b):
+        return R._boxes_meet(a, b) and R._inside_share(a, b) > 0.5
+
+    n = len(rings)
+    others_seed = list(seeds) + list(fixed)
+    back = 0
+    changed = True
+    while changed:
+        changed = False
+        for i in range(n):
+            if rings[i] is seeds[i]:
+                continue
+            others = list(rings) + list(fixed)
+            for j, o in enumerate(others):
+                if j == i or len(o) < 3:
+                    continue
+                so = others_seed[j]
+                if ((R._boxes_meet(rings[i], o) and R._rings_meet(rings[i], o))
+                        or nested(rings[i], o) != nested(seeds[i], so) or nested(o, rings[i]) != nested(so, seeds[i])):
+                    rings[i] = seeds[i]
+                    back += 1
+                    changed = True
+                    break
+    return back
+
+
+def test_untangle_with_kept_boxes_equals_its_first_form():
+    """The seeds put back (which and how many) are those of the pairwise form, on slices of
+    nested, crossing, touching and distant rings, refined ones moved by up to a few pixels."""
+    rng = np.random.default_rng(21)
+    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    total = 0
+    for _ in range(120):
+        seeds, rings, fixed = [], [], []
+        for _ in range(int(rng.integers(1, 6))):
+            c, r = rng.uniform(0, 30, 2), rng.uniform(1, 12)
+            seed = np.c_[c[0] + r * np.cos(ang), c[1] + r * np.sin(ang)]
+            seeds.append(seed)
+            rings.append(seed if rng.random() < 0.2 else seed + rng.normal(0, rng.uniform(0.1, 2.5), seed.shape))
+        if rng.random() < 0.4:
+            c = rng.uniform(0, 30, 2)
+            fixed.append(np.c_[c[0] + 3 * np.cos(ang), c[1] + 3 * np.sin(ang)])
+        a, b = list(rings), list(rings)
+        back_ref = _untangle_reference(a, seeds, fixed)
+        back = R._untangle(b, seeds, fixed)
+        assert back == back_ref and all(x is y for x, y in zip(a, b))
+        total += back
+    assert total > 20  # seeds were put back
+
+
+def _project_to_ring_reference(ring, q):
+    """refine._project_to_ring as first written (a hypot for every edge), compiled as it was (numba's
+    hypot is the C library's; Python's rounds differently)."""
+    return _project_to_ring_first(ring, q)
+
+
+@njit(cache=False)
+def _project_to_ring_first(ring, q):
+    n = ring.shape[0]
+    cum = np.zeros(n + 1)
+    for i in range(n):
+        j = (i + 1) % n
+        cum[i + 1] = cum[i] + math.hypot(ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1])
+    out = np.empty((4, q.shape[0]))
+    for a in range(q.shape[0]):
+        best = 1e300
+        for i in range(n):
+            j = (i + 1) % n
+            ex, ey = ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1]
+            l2 = ex * ex + ey * ey
+            t = 0.0
+            if l2 > 0.0:
+                t = ((q[a, 0] - ring[i, 0]) * ex + (q[a, 1] - ring[i, 1]) * ey) / l2
+                t = min(1.0, max(0.0, t))
+            cx, cy = ring[i, 0] + t * ex, ring[i, 1] + t * ey
+            d = math.hypot(q[a, 0] - cx, q[a, 1] - cy)
+            if d < best:
+                best = d
+                out[0, a] = cum[i] + t * (cum[i + 1] - cum[i])
+                out[2, a], out[3, a] = cx, cy
+        out[1, a] = best
+    return out
+
+
+def test_projection_onto_a_ring_equals_its_first_form_bit_for_bit():
+    """The projection that skips the edges whose squared distance already exceeds the best gives the
+    same parameters, distances and points: rings with repeated points (zero-length edges), query
+    points on vertices, on edges and at equal distance from several edges (grid rings), far away."""
+    rng = np.random.default_rng(17)
+    for t in range(60):
+        n = int(rng.integers(3, 60))
+        ang = np.sort(rng.uniform(0, 2 * np.pi, n))
+        ring = np.c_[10 * np.cos(ang), 7 * np.sin(ang)] * rng.uniform(0.5, 2)
+        if t % 3 == 0:
+            ring = np.round(ring)  # grid points: ties between edges
+        if t % 4 == 0:
+            ring[rng.integers(0, n)] = ring[0]  # a repeated point
+        q = np.r_[rng.uniform(-25, 25, (40, 2)), ring[rng.integers(0, n, 5)],
+                  np.round(rng.uniform(-12, 12, (20, 2))), [[0.0, 0.0], [1e4, -3e3]]]
+        got = np.array(R._project_to_ring(np.ascontiguousarray(ring), np.ascontiguousarray(q)))
+        assert np.array_equal(got, _project_to_ring_reference(ring, q))
+
+
+def test_chord_step_reusing_the_two_scale_fields_gives_the_same_ring(monkeypatch):
+    """The chord step takes ``f, grad f`` from the two-scale step's fields where the points are the
+    same bit for bit (``images["fields"]``): the refined rings equal those of a chord step that
+    evaluates every point, a record of other points or of another width is not taken, and the
+    record is used."""
+    pts = _lumpy_points()
+    rng = np.random.default_rng(4)
+    ang = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    seeds = [(k, np.c_[13.2 + r * np.cos(ang), 14.6 + 1.1 * r * np.sin(ang)] + rng.normal(0, 0.3, (48, 2)))
+             for k in (8, 11, 14) for r in (6.0, 8.5)]
+    with_record = [R.refine_ring(pts, seed, k, 2.6, 1.0, fine_sigma=1.8, images={}) for k, seed in seeds]
+    taken = []
+    first = R._chord_gradients
+
+    def evaluate_all(pts_, ring, k, sigma, grid, images, max_move):
+        rec = images.pop("fields", None)
+        if rec is not None and len(rec[1]) == len(ring):
+            taken.append(int((rec[1][rec[3]] == ring[rec[3]]).all(axis=1).sum()))
+        return first(pts_, ring, k, sigma, grid, images, max_move)
+
+    monkeypatch.setattr(R, "_chord_gradients", evaluate_all)
+    for (k, seed), (ring_a, ca) in zip(seeds, with_record):
+        ring_b, cb = R.refine_ring(pts, seed, k, 2.6, 1.0, fine_sigma=1.8, images={})
+        assert np.array_equal(ring_a, ring_b) and ca == cb
+    assert sum(taken) > 20  # points the record would have given
+    monkeypatch.undo()
+    k, ring = seeds[0][0], with_record[0][0]
+    ref, _ = R._fields_in_slice(pts, ring, k, 2.6, 1.0, *R._no_images(), 0.0, full=False)
+    full, _ = R._fields_in_slice(pts, ring, k, 2.6, 1.0, *R._no_images(), 0.0)
+    idx = np.arange(0, len(ring) - 3)
+    moved = ring.copy()
+    moved[1::4] += 1e-9  # recorded points that differ: evaluated there
+    for rec in ((2.6, moved, full, idx), (1.8, ring, full, idx), (2.6, ring[:-1], full[:-1], idx[:-1])):
+        assert np.array_equal(R._chord_gradients(pts, ring, k, 2.6, 1.0, {"fields": rec}, 3.0), ref)

@@ -175,61 +175,91 @@ def slice_gap(zs, k: int, up: bool) -> float:
 
 
 @njit(cache=True, nogil=True)
+def _row_deepest(f, y, w, v, z):
+    """``(d2, y, x)``: the largest squared Euclidean distance to the background in row ``y`` and its
+    first pixel, from the column distances ``f`` (not squared) by the lower envelope of parabolas
+    (Felzenszwalb & Huttenlocher); ``v, z``: work arrays of ``w`` and ``w + 1``."""
+    k = 0
+    v[0] = 0
+    z[0] = -np.inf
+    z[1] = np.inf
+    for q in range(1, w):
+        fq = f[y, q] * f[y, q]
+        while True:
+            p = v[k]
+            s = ((fq + q * q) - (f[y, p] * f[y, p] + p * p)) / (2.0 * (q - p))
+            if s <= z[k] and k > 0:
+                k -= 1
+                continue
+            if s <= z[k]:  # k == 0: q's parabola is lower everywhere to the right of -inf
+                v[0] = q
+                z[1] = np.inf
+                break
+            k += 1
+            v[k] = q
+            z[k] = s
+            z[k + 1] = np.inf
+            break
+    best, bi = -1, 0
+    k = 0
+    for q in range(w):
+        while z[k + 1] < q:
+            k += 1
+        p = v[k]
+        d2 = (q - p) * (q - p) + f[y, p] * f[y, p]
+        if d2 > best:
+            best, bi = d2, q
+    return best, y, bi
+
+
+@njit(cache=True, nogil=True)
 def _deepest(m):
     """Index ``(j, i)`` into ``m`` padded by one background pixel of the largest squared Euclidean
     distance to the background (the first in raster order among equals): columns by two scans,
-    rows by the lower envelope of parabolas (Felzenszwalb & Huttenlocher), all in integers."""
+    rows by the lower envelope of parabolas (:func:`_row_deepest`), all in integers.
+
+    A pixel's distance is at most its distance to the background along its column or along its
+    row, so each row's largest squared distance is at most the largest ``min(column, row)^2`` of its
+    pixels; the rows are taken in decreasing order of that bound until it falls below the best
+    distance found (those rows hold no pixel as deep), and among the rows that reach the best the
+    first wins: the pixel of the full raster scan."""
     h0, w0 = m.shape
     h, w = h0 + 2, w0 + 2
-    big = h + w
-    f = np.empty((h, w), np.int64)
-    for x in range(w):  # distance along the column to the nearest background pixel
-        run = big
-        for y in range(h):
-            inside = 0 < y < h - 1 and 0 < x < w - 1 and m[y - 1, x - 1]
-            run = run + 1 if inside else 0
-            f[y, x] = run
-        run = big
-        for y in range(h - 1, -1, -1):
-            inside = 0 < y < h - 1 and 0 < x < w - 1 and m[y - 1, x - 1]
-            run = run + 1 if inside else 0
-            if run < f[y, x]:
-                f[y, x] = run
-    for y in range(h):
-        for x in range(w):
-            f[y, x] = f[y, x] * f[y, x]
+    f = np.zeros((h, w), np.int64)  # distance along the column to the nearest background pixel
+    run = np.zeros(w0, np.int64)
+    for y in range(h0):
+        for x in range(w0):
+            run[x] = run[x] + 1 if m[y, x] else 0
+            f[y + 1, x + 1] = run[x]
+    run[:] = 0
+    for y in range(h0 - 1, -1, -1):
+        for x in range(w0):
+            run[x] = run[x] + 1 if m[y, x] else 0
+            if run[x] < f[y + 1, x + 1]:
+                f[y + 1, x + 1] = run[x]
+    bound = np.zeros(h, np.int64)  # per row: the largest min(column, row distance)^2 of its pixels
+    left = np.empty(w, np.int64)
+    for y in range(1, h - 1):
+        r = 0
+        for q in range(w):
+            r = r + 1 if f[y, q] > 0 else 0
+            left[q] = r
+        r = 0
+        top = 0
+        for q in range(w - 1, -1, -1):
+            r = r + 1 if f[y, q] > 0 else 0
+            top = max(top, min(min(left[q], r), f[y, q]))
+        bound[y] = top * top
     v = np.empty(w, np.int64)
     z = np.empty(w + 1)
+    order = np.argsort(-bound, kind="mergesort")
     best, bj, bi = -1, 0, 0
-    for y in range(h):
-        k = 0
-        v[0] = 0
-        z[0] = -np.inf
-        z[1] = np.inf
-        for q in range(1, w):
-            while True:
-                p = v[k]
-                s = ((f[y, q] + q * q) - (f[y, p] + p * p)) / (2.0 * (q - p))
-                if s <= z[k] and k > 0:
-                    k -= 1
-                    continue
-                if s <= z[k]:  # k == 0: q's parabola is lower everywhere to the right of -inf
-                    v[0] = q
-                    z[1] = np.inf
-                    break
-                k += 1
-                v[k] = q
-                z[k] = s
-                z[k + 1] = np.inf
-                break
-        k = 0
-        for q in range(w):
-            while z[k + 1] < q:
-                k += 1
-            p = v[k]
-            d2 = (q - p) * (q - p) + f[y, p]
-            if d2 > best:
-                best, bj, bi = d2, y, q
+    for t in range(h):
+        if bound[order[t]] < best:
+            break
+        d2, j, i = _row_deepest(f, order[t], w, v, z)
+        if d2 > best or (d2 == best and j < bj):
+            best, bj, bi = d2, j, i
     return bj, bi
 
 

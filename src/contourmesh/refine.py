@@ -592,7 +592,7 @@ def _field(pts, x, y, z, sigma, grid, norm, out):
 
 
 @njit(cache=True)
-def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
+def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1, cols=False):
     """The solid blurred across the slices around lattice slice ``k``: three images of the box
     ``[j0, j1] x [i0, i1]``, ``M_p[j, i] = sum_n pts[n, j, i] c_n G(w_n) w_n^p`` (``p = 0, 1, 2``)
     with ``w_n = (zpos_n - zpos_k) dz``, ``c_n`` the slice's weight (:func:`_make_grid`; 1 on evenly
@@ -601,13 +601,16 @@ def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
     The Gaussian is separable, so at every point of slice ``k`` the field and its derivatives are
     sums over the in-slice window of these images (:func:`_field_in_slice`): ``(8 sigma)^2``
     terms per evaluation instead of the ``(8 sigma)^3`` of :func:`_field`, which the level-set
-    search of :func:`_move_to_surface` evaluates five times per vertex and search on average."""
+    search of :func:`_move_to_surface` evaluates five times per vertex and search on average.
+
+    ``cols``: the images column by column, ``M_p[i, j]`` (shape ``(3, i1 - i0 + 1, j1 - j0 + 1)``,
+    the same numbers), as the searches read them (:func:`_level_cols`)."""
     nz = pts.shape[0]
     dz, zpos = grid[2], grid[3]
     rad = 4.0 * sigma
     k0, k1, zc = _zwindow(grid, float(k), rad, nz)
     s2 = sigma * sigma
-    mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
+    mom = np.zeros((3, i1 - i0 + 1, j1 - j0 + 1)) if cols else np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
     for n in range(k0, k1 + 1):
         w = (zpos[n] - zc) * dz
         e = math.exp(-(w * w) / (2.0 * s2)) * _zweight(grid, n)
@@ -616,9 +619,10 @@ def _slice_moments(pts, k, sigma, grid, i0, i1, j0, j1):
         for j in range(j0, j1 + 1):
             for i in range(i0, i1 + 1):
                 if pts[n, j, i]:
-                    mom[0, j - j0, i - i0] += e
-                    mom[1, j - j0, i - i0] += ew
-                    mom[2, j - j0, i - i0] += eww
+                    a, b = (i - i0, j - j0) if cols else (j - j0, i - i0)
+                    mom[0, a, b] += e
+                    mom[1, a, b] += ew
+                    mom[2, a, b] += eww
     return mom
 
 
@@ -640,7 +644,7 @@ def _z_runs(pts):
 
 
 @njit(cache=True)
-def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
+def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1, cols=False):
     """:func:`_slice_moments` with the column runs of :func:`_z_runs`: the same images, bit for bit,
     on any grid (oblong pixels, unevenly spaced slices).
 
@@ -650,7 +654,7 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
     column's first solid run takes its sum from the table (the same additions, so the same value;
     a column that is all solid over the slices within ``4 sigma`` is the one run that spans them
     all), an empty one keeps 0, and only the runs after the first of a column that crosses the
-    surface more than once are summed voxel by voxel."""
+    surface more than once are summed voxel by voxel.  ``cols``: as there."""
     nz = pts.shape[0]
     dz, zpos = grid[2], grid[3]
     rad = 4.0 * sigma
@@ -678,23 +682,25 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
             run[0, a, b] = t0
             run[1, a, b] = t1
             run[2, a, b] = t2
-    mom = np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
+    mom = np.zeros((3, i1 - i0 + 1, j1 - j0 + 1)) if cols else np.zeros((3, j1 - j0 + 1, i1 - i0 + 1))
     for j in range(j0, j1 + 1):
         for i in range(i0, i1 + 1):
+            a, b = (i - i0, j - j0) if cols else (j - j0, i - i0)
             if runs[k0, j, i] >= nk:  # one value over the whole column
                 if pts[k0, j, i]:
-                    mom[0, j - j0, i - i0] = run[0, 0, nk - 1]
-                    mom[1, j - j0, i - i0] = run[1, 0, nk - 1]
-                    mom[2, j - j0, i - i0] = run[2, 0, nk - 1]
+                    mom[0, a, b] = run[0, 0, nk - 1]
+                    mom[1, a, b] = run[1, 0, nk - 1]
+                    mom[2, a, b] = run[2, 0, nk - 1]
                 continue
             a0 = 0.0
             a1 = 0.0
             a2 = 0.0
             first = True  # no run summed yet: the sums are still 0
             n = k0
+            solid = pts[k0, j, i]  # the runs alternate between solid and empty
             while n <= k1:
                 r = runs[n, j, i]
-                if pts[n, j, i]:
+                if solid:
                     last = min(n + r, k1 + 1) - 1
                     if first:
                         a0 = run[0, n - k0, last - k0]
@@ -707,9 +713,10 @@ def _slice_moments_runs(pts, runs, k, sigma, grid, i0, i1, j0, j1):
                             a1 += ew[q - k0]
                             a2 += eww[q - k0]
                 n += r
-            mom[0, j - j0, i - i0] = a0
-            mom[1, j - j0, i - i0] = a1
-            mom[2, j - j0, i - i0] = a2
+                solid = not solid
+            mom[0, a, b] = a0
+            mom[1, a, b] = a1
+            mom[2, a, b] = a2
     return mom
 
 
@@ -964,6 +971,318 @@ def _level_in_slice(mom, span, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out):
     out[2] = fy / (norm * s2)
 
 
+# The searches' evaluations read the images column by column (``cols=True`` of the builders):
+# every row's sums take the columns' terms in column order from 0, as the row-by-row forms above,
+# so each sum gets the same additions, but the rows are independent sums that the compiler
+# updates four at a time, and four columns are added to each row in one pass (``((r + a) + b) +
+# ...``, the same order).  A column's terms count only between its first and last row where
+# ``M_0`` is not 0 (:func:`_row_spans` of the column images); a pass runs over the rows of its
+# columns' spans together, and the terms it adds beyond a column's span (or for a column the window
+# holds none of) are exact zeros, which leave a sum that starts at +0 unchanged, as the zeros that
+# the row-by-row forms add between a row's ends.  So the values are the same bit for bit.
+
+@njit(cache=True)
+def _window(x, y, sigma, ax, ay, nx, ny):
+    """The lattice window ``(a0, a1, b0, b1)`` of the sums at ``(x, y)`` (clipped to the volume)."""
+    rad = 4.0 * sigma
+    a0 = max(int(math.floor((x - rad) / ax)), 0)
+    a1 = min(int(math.ceil((x + rad) / ax)), nx - 1)
+    b0 = max(int(math.floor((y - rad) / ay)), 0)
+    b1 = min(int(math.ceil((y + rad) / ay)), ny - 1)
+    return a0, a1, b0, b1
+
+
+@njit(cache=True)
+def _workspace(sigma, ax, ay):
+    """The workspace of :func:`_level_cols` and its siblings: 9 rows (the per-row sums, the
+    columns' weights ``G, G wx`` and the rows' weights that :func:`_level_cols` keeps for
+    :func:`_field_after_level`), each longer than any window's rows or columns."""
+    return np.empty((9, int(math.ceil(8.0 * sigma / min(ax, ay))) + 4))
+
+
+@njit(cache=True)
+def _col_weights(cspan, i, i0, j0, b0, b1, x, ax, s2):
+    """Column ``i``'s in-slice weights ``G, G wx, G wx^2`` (:func:`_x_weights`' products) and the rows
+    ``lo .. hi`` of the window ``b0 .. b1`` where its ``M_0`` may be non-zero; weights 0 where none is."""
+    ii = i - i0
+    lo = max(b0, cspan[ii, 0] + j0)
+    hi = min(b1, cspan[ii, 1] + j0)
+    if lo > hi:
+        return 0.0, 0.0, 0.0, lo, hi
+    wx = i * ax - x
+    e = math.exp(-(wx ** 2) / (2.0 * s2))
+    return e, e * wx, e * wx * wx, lo, hi
+
+
+@njit(cache=True)
+def _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, nsum):
+    """The per-row sums of the window's columns into ``ws[:nsum, :b1 - b0 + 1]``: ``nsum = 2``: ``G M0,
+    G wx M0``; 3: and ``G M1``; 6: ``G M0, G wx M0, G wx^2 M0, G M1, G wx M1, G M2`` (the sums of
+    :func:`_level_in_slice`, :func:`_gradient_in_slice` and :func:`_field_in_slice`).  With
+    ``nsum = 2`` the columns' weights ``G, G wx`` are kept in ``ws[6:8, :a1 - a0 + 1]``."""
+    nr = b1 - b0 + 1
+    for q in range(nsum):
+        for t in range(nr):
+            ws[q, t] = 0.0
+    m0 = momt[0]
+    m1 = momt[1]
+    m2 = momt[2]
+    r0 = ws[0]
+    r1 = ws[1]
+    r2 = ws[2]
+    r3 = ws[3]
+    r4 = ws[4]
+    r5 = ws[5]
+    i = a0
+    while i <= a1:
+        g = 4 if i + 3 <= a1 else 1  # columns in this pass
+        ea, fa, ga, lo, hi = _col_weights(cspan, i, i0, j0, b0, b1, x, ax, s2)
+        eb = fb = gb = ec = fc = gc = ed = fd = gd = 0.0
+        if g == 4:
+            eb, fb, gb, lb, hb = _col_weights(cspan, i + 1, i0, j0, b0, b1, x, ax, s2)
+            ec, fc, gc, lc, hc = _col_weights(cspan, i + 2, i0, j0, b0, b1, x, ax, s2)
+            ed, fd, gd, ld, hd = _col_weights(cspan, i + 3, i0, j0, b0, b1, x, ax, s2)
+            lo = min(min(lo, lb), min(lc, ld))
+            hi = max(max(hi, hb), max(hc, hd))
+        if nsum == 2:
+            ws[6, i - a0] = ea
+            ws[7, i - a0] = fa
+            if g == 4:
+                ws[6, i - a0 + 1] = eb
+                ws[7, i - a0 + 1] = fb
+                ws[6, i - a0 + 2] = ec
+                ws[7, i - a0 + 2] = fc
+                ws[6, i - a0 + 3] = ed
+                ws[7, i - a0 + 3] = fd
+        if lo > hi:
+            i += g
+            continue
+        ia = np.uintp(i - i0)
+        oc = lo - j0  # >= 0: the box holds the window
+        orow = lo - b0
+        if g == 4:
+            ib, ic, id_ = ia + np.uintp(1), ia + np.uintp(2), ia + np.uintp(3)
+            if nsum == 2:
+                for t in range(hi - lo + 1):
+                    u = np.uintp(oc + t)
+                    v = np.uintp(orow + t)
+                    pa, pb, pc, pd = m0[ia, u], m0[ib, u], m0[ic, u], m0[id_, u]
+                    r0[v] = r0[v] + ea * pa + eb * pb + ec * pc + ed * pd
+                    r1[v] = r1[v] + fa * pa + fb * pb + fc * pc + fd * pd
+            elif nsum == 3:
+                for t in range(hi - lo + 1):
+                    u = np.uintp(oc + t)
+                    v = np.uintp(orow + t)
+                    pa, pb, pc, pd = m0[ia, u], m0[ib, u], m0[ic, u], m0[id_, u]
+                    r0[v] = r0[v] + ea * pa + eb * pb + ec * pc + ed * pd
+                    r1[v] = r1[v] + fa * pa + fb * pb + fc * pc + fd * pd
+                    r2[v] = r2[v] + ea * m1[ia, u] + eb * m1[ib, u] + ec * m1[ic, u] + ed * m1[id_, u]
+            else:
+                for t in range(hi - lo + 1):
+                    u = np.uintp(oc + t)
+                    v = np.uintp(orow + t)
+                    pa, pb, pc, pd = m0[ia, u], m0[ib, u], m0[ic, u], m0[id_, u]
+                    qa, qb, qc, qd = m1[ia, u], m1[ib, u], m1[ic, u], m1[id_, u]
+                    r0[v] = r0[v] + ea * pa + eb * pb + ec * pc + ed * pd
+                    r1[v] = r1[v] + fa * pa + fb * pb + fc * pc + fd * pd
+                    r2[v] = r2[v] + ga * pa + gb * pb + gc * pc + gd * pd
+                    r3[v] = r3[v] + ea * qa + eb * qb + ec * qc + ed * qd
+                    r4[v] = r4[v] + fa * qa + fb * qb + fc * qc + fd * qd
+                    r5[v] = r5[v] + ea * m2[ia, u] + eb * m2[ib, u] + ec * m2[ic, u] + ed * m2[id_, u]
+        else:
+            for t in range(hi - lo + 1):
+                u = np.uintp(oc + t)
+                v = np.uintp(orow + t)
+                pa = m0[ia, u]
+                r0[v] = r0[v] + ea * pa
+                r1[v] = r1[v] + fa * pa
+                if nsum == 3:
+                    r2[v] = r2[v] + ea * m1[ia, u]
+                elif nsum == 6:
+                    qa = m1[ia, u]
+                    r2[v] = r2[v] + ga * pa
+                    r3[v] = r3[v] + ea * qa
+                    r4[v] = r4[v] + fa * qa
+                    r5[v] = r5[v] + ea * m2[ia, u]
+        i += g
+
+
+@njit(cache=True)
+def _level_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, out, ws):
+    """:func:`_level_in_slice` from the column images ``momt`` (``cspan``: their column spans): the
+    same ``f, fx, fy`` into ``out[:3]``.  ``ws``: :func:`_workspace`; its sums and weights stay
+    there for :func:`_field_after_level` at the same point."""
+    a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
+    s2 = sigma * sigma
+    _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, 2)
+    f = 0.0
+    fx = 0.0
+    fy = 0.0
+    for j in range(b0, b1 + 1):
+        t0 = ws[0, j - b0]
+        if t0 != 0.0:
+            wy = j * ay - y
+            ey = math.exp(-(wy * wy) / (2.0 * s2))
+            ws[8, j - b0] = ey  # kept for :func:`_field_after_level`
+            f += ey * t0
+            fx += ey * ws[1, j - b0]
+            fy += ey * t0 * wy
+    out[0] = f / norm
+    out[1] = fx / (norm * s2)
+    out[2] = fy / (norm * s2)
+
+
+@njit(cache=True)
+def _gradient_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out, ws):
+    """:func:`_gradient_in_slice` from the column images: the same ``f, grad f`` into ``out[:4]``."""
+    a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
+    s2 = sigma * sigma
+    _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, 3)
+    f = 0.0
+    fx = 0.0
+    fy = 0.0
+    fz = 0.0
+    for j in range(b0, b1 + 1):
+        t0 = ws[0, j - b0]
+        if t0 != 0.0:
+            wy = j * ay - y
+            ey = math.exp(-(wy * wy) / (2.0 * s2))
+            f += ey * t0
+            fx += ey * ws[1, j - b0]
+            fy += ey * t0 * wy
+            fz += ey * ws[2, j - b0]
+    out[0] = f / norm
+    out[1] = fx / (norm * s2)
+    out[2] = fy / (norm * s2)
+    out[3] = fz / (norm * s2)
+    if za != 0.0 or zb != 0.0:
+        out[3] = out[3] - out[0] * za  # the quotient rule's fz (:func:`_z_correct`)
+
+
+@njit(cache=True)
+def _field_cols(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out, ws):
+    """:func:`_field_in_slice` from the column images: the same 10 numbers."""
+    a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
+    s2 = sigma * sigma
+    _cols_sums(momt, cspan, i0, j0, a0, a1, b0, b1, x, ax, s2, ws, 6)
+    for q in range(10):
+        out[q] = 0.0
+    for j in range(b0, b1 + 1):
+        r0 = ws[0, j - b0]
+        if r0 == 0.0:
+            continue
+        wy = j * ay - y
+        ey = math.exp(-(wy * wy) / (2.0 * s2))
+        r1 = ws[1, j - b0]
+        q0 = ws[3, j - b0]
+        out[0] += ey * r0
+        out[1] += ey * r1
+        out[2] += ey * r0 * wy
+        out[3] += ey * q0
+        out[4] += ey * (ws[2, j - b0] - r0 * s2)
+        out[5] += ey * r0 * (wy * wy - s2)
+        out[6] += ey * (ws[5, j - b0] - r0 * s2)
+        out[7] += ey * r1 * wy
+        out[8] += ey * ws[4, j - b0]
+        out[9] += ey * q0 * wy
+    out[0] /= norm
+    for q in range(1, 4):
+        out[q] /= norm * s2
+    for q in range(4, 10):
+        out[q] /= norm * s2 * s2
+    if za != 0.0 or zb != 0.0:
+        _z_correct(out, za, zb)
+
+
+@njit(cache=True)
+def _field_after_level(momt, cspan, i0, j0, nx, ny, x, y, sigma, ax, ay, norm, za, zb, out, ws):
+    """:func:`_field_cols` at the point of the last :func:`_level_cols` call with this ``ws``: its
+    sums ``G M0, G wx M0`` and its columns' and rows' weights are taken from ``ws`` (the same
+    numbers), only the other four sums are made (in the same passes and order as there)."""
+    a0, a1, b0, b1 = _window(x, y, sigma, ax, ay, nx, ny)
+    s2 = sigma * sigma
+    nr = b1 - b0 + 1
+    for q in range(2, 6):
+        for t in range(nr):
+            ws[q, t] = 0.0
+    m0 = momt[0]
+    m1 = momt[1]
+    m2 = momt[2]
+    r2 = ws[2]
+    r3 = ws[3]
+    r4 = ws[4]
+    r5 = ws[5]
+    i = a0
+    while i <= a1:
+        g = 4 if i + 3 <= a1 else 1
+        lo, hi = b1 + 1, b0 - 1
+        for c in range(i, i + g):  # the pass's rows, as :func:`_cols_sums` takes them
+            ii = c - i0
+            lo = min(lo, max(b0, cspan[ii, 0] + j0))
+            hi = max(hi, min(b1, cspan[ii, 1] + j0))
+        if lo > hi:
+            i += g
+            continue
+        ea, fa = ws[6, i - a0], ws[7, i - a0]
+        ga = fa * (i * ax - x)  # e wx wx, as :func:`_col_weights` forms it
+        ia = np.uintp(i - i0)
+        oc = lo - j0
+        orow = lo - b0
+        if g == 4:
+            eb, fb = ws[6, i - a0 + 1], ws[7, i - a0 + 1]
+            ec, fc = ws[6, i - a0 + 2], ws[7, i - a0 + 2]
+            ed, fd = ws[6, i - a0 + 3], ws[7, i - a0 + 3]
+            gb = fb * ((i + 1) * ax - x)
+            gc = fc * ((i + 2) * ax - x)
+            gd = fd * ((i + 3) * ax - x)
+            ib, ic, id_ = ia + np.uintp(1), ia + np.uintp(2), ia + np.uintp(3)
+            for t in range(hi - lo + 1):
+                u = np.uintp(oc + t)
+                v = np.uintp(orow + t)
+                pa, pb, pc, pd = m0[ia, u], m0[ib, u], m0[ic, u], m0[id_, u]
+                qa, qb, qc, qd = m1[ia, u], m1[ib, u], m1[ic, u], m1[id_, u]
+                r2[v] = r2[v] + ga * pa + gb * pb + gc * pc + gd * pd
+                r3[v] = r3[v] + ea * qa + eb * qb + ec * qc + ed * qd
+                r4[v] = r4[v] + fa * qa + fb * qb + fc * qc + fd * qd
+                r5[v] = r5[v] + ea * m2[ia, u] + eb * m2[ib, u] + ec * m2[ic, u] + ed * m2[id_, u]
+        else:
+            for t in range(hi - lo + 1):
+                u = np.uintp(oc + t)
+                v = np.uintp(orow + t)
+                qa = m1[ia, u]
+                r2[v] = r2[v] + ga * m0[ia, u]
+                r3[v] = r3[v] + ea * qa
+                r4[v] = r4[v] + fa * qa
+                r5[v] = r5[v] + ea * m2[ia, u]
+        i += g
+    for q in range(10):
+        out[q] = 0.0
+    for j in range(b0, b1 + 1):
+        r0 = ws[0, j - b0]
+        if r0 == 0.0:
+            continue
+        wy = j * ay - y
+        ey = ws[8, j - b0]
+        r1 = ws[1, j - b0]
+        q0 = ws[3, j - b0]
+        out[0] += ey * r0
+        out[1] += ey * r1
+        out[2] += ey * r0 * wy
+        out[3] += ey * q0
+        out[4] += ey * (ws[2, j - b0] - r0 * s2)
+        out[5] += ey * r0 * (wy * wy - s2)
+        out[6] += ey * (ws[5, j - b0] - r0 * s2)
+        out[7] += ey * r1 * wy
+        out[8] += ey * ws[4, j - b0]
+        out[9] += ey * q0 * wy
+    out[0] /= norm
+    for q in range(1, 4):
+        out[q] /= norm * s2
+    for q in range(4, 10):
+        out[q] /= norm * s2 * s2
+    if za != 0.0 or zb != 0.0:
+        _z_correct(out, za, zb)
+
 @njit(cache=True)
 def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, span, box, runs=None):
     """The images of slice ``k`` (:func:`_slice_moments`) over a box holding the windows of every
@@ -972,7 +1291,9 @@ def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, spa
     pixel indices, ``k = -1``: none) holds that already, else new images over that box widened by
     ``margin`` more (so the next searches of the slice find them), ``box`` updated in place.  The
     images at a lattice point do not depend on the box.  ``runs`` (:func:`_z_runs` of ``pts``,
-    optional) makes them faster, not different."""
+    optional) makes them faster, not different.  The images are kept column by column (``cols``
+    of the builders; ``span`` holds the columns' first and last rows), as :func:`_level_cols` and
+    its siblings read them."""
     nz, ny, nx = pts.shape
     ax, ay = grid[0], grid[1]
     i0 = min(max(int(math.floor((xlo - reach) / ax)), 0), nx - 1)
@@ -987,9 +1308,9 @@ def _images_for(pts, k, sigma, grid, xlo, xhi, ylo, yhi, reach, margin, mom, spa
     box[3] = min(max(int(math.floor((ylo - reach - margin) / ay)), 0), ny - 1)
     box[4] = max(min(int(math.ceil((yhi + reach + margin) / ay)), ny - 1), box[3])
     if runs is None:
-        mom = _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4])
+        mom = _slice_moments(pts, k, sigma, grid, box[1], box[2], box[3], box[4], True)
     else:
-        mom = _slice_moments_runs(pts, runs, k, sigma, grid, box[1], box[2], box[3], box[4])
+        mom = _slice_moments_runs(pts, runs, k, sigma, grid, box[1], box[2], box[3], box[4], True)
     return mom, _row_spans(mom)
 
 
@@ -1021,13 +1342,14 @@ def _fields_kernel(pts, xy, k, sigma, grid, mom, span, box, margin, full, runs=N
                             np.max(xy[:, 1]), 4.0 * sigma + 1.0, margin, mom, span, box, runs)
     norm, za, zb = _slice_norm(grid, sigma, _lattice_norm(sigma, grid), float(k), nz)
     buf = np.zeros(10)
+    ws = _workspace(sigma, grid[0], grid[1])
     for m in range(n):
         if full:
-            _field_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za,
-                            zb, buf)
+            _field_cols(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm, za,
+                        zb, buf, ws)
         else:
-            _gradient_in_slice(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm,
-                               za, zb, buf)
+            _gradient_cols(mom, span, box[1], box[3], nx, ny, xy[m, 0], xy[m, 1], sigma, grid[0], grid[1], norm,
+                           za, zb, buf, ws)
         out[m, :] = buf
     return out, mom, span
 
@@ -1255,6 +1577,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
     norm, za, zb = norm0, 0.0, 0.0
     ax, ay = grid[0], grid[1]
     buf = np.empty(10)
+    ws = _workspace(sigma, ax, ay)
     clamped = 0
     nz, ny, nx = pts.shape
     reach = max_move + 4.0 * sigma + 1.0  # the search's points and their windows: within this of the start
@@ -1277,7 +1600,7 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
             i0, j0 = box[1], box[3]
             norm, za, zb = _slice_norm(grid, sigma, norm0, float(k), nz)
             cur = k
-        _gradient_in_slice(mom, span, i0, j0, nx, ny, x0, y0, sigma, ax, ay, norm, za, zb, buf)  # f, grad f
+        _gradient_cols(mom, span, i0, j0, nx, ny, x0, y0, sigma, ax, ay, norm, za, zb, buf, ws)  # f, grad f
         hx, hy = -buf[1], -buf[2]
         hn = math.sqrt(hx * hx + hy * hy)
         gn = math.sqrt(buf[1] ** 2 + buf[2] ** 2 + buf[3] ** 2)
@@ -1288,12 +1611,14 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         lo, hi = -max_move, max_move
         t = 0.0
         ok = False
+        at_level = False  # the last evaluation (a step's) was at x0 + t dx: ws holds its sums
         for it in range(40):
             if it > 0:  # at t = 0, buf holds the field at the start already
-                _level_in_slice(mom, span, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, ax, ay, norm, buf)
+                _level_cols(mom, span, i0, j0, nx, ny, x0 + t * dx, y0 + t * dy, sigma, ax, ay, norm, buf, ws)
             g = buf[0] - 0.5
             if abs(g) < 1e-12:
                 ok = True
+                at_level = it > 0
                 break
             if g > 0.0:
                 lo = t  # still inside: the level is further out
@@ -1315,7 +1640,10 @@ def _move_with_images(pts, xy, kz, sigma, grid, curvature, max_move, out, strict
         found[n] = True
         tx, ty = x0 + t * dx, y0 + t * dy
         if curvature:
-            _field_in_slice(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf)
+            if at_level:  # the same point: the step's sums and weights stand
+                _field_after_level(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf, ws)
+            else:
+                _field_cols(mom, span, i0, j0, nx, ny, tx, ty, sigma, ax, ay, norm, za, zb, buf, ws)
             shift, gnorm = _mean_curvature_shift(buf, sigma)
             if cubic != 0.0:
                 ks = 2.0 * shift / (sigma * sigma)
@@ -1437,20 +1765,29 @@ def _project_to_ring(ring, q):
     dist = np.empty(m)
     px = np.empty(m)
     py = np.empty(m)
+    ex = np.empty(n)  # the edges and their squared lengths, once
+    ey = np.empty(n)
+    l2 = np.empty(n)
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        ex[i], ey[i] = ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1]
+        l2[i] = ex[i] * ex[i] + ey[i] * ey[i]
     for a in range(m):
         best = 1e300
+        cut = math.inf  # a squared distance above this cannot give a hypot below best
         for i in range(n):
-            j = (i + 1) % n
-            ex, ey = ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1]
-            l2 = ex * ex + ey * ey
             t = 0.0
-            if l2 > 0.0:
-                t = ((q[a, 0] - ring[i, 0]) * ex + (q[a, 1] - ring[i, 1]) * ey) / l2
+            if l2[i] > 0.0:
+                t = ((q[a, 0] - ring[i, 0]) * ex[i] + (q[a, 1] - ring[i, 1]) * ey[i]) / l2[i]
                 t = min(1.0, max(0.0, t))
-            cx, cy = ring[i, 0] + t * ex, ring[i, 1] + t * ey
-            d = math.hypot(q[a, 0] - cx, q[a, 1] - cy)
+            cx, cy = ring[i, 0] + t * ex[i], ring[i, 1] + t * ey[i]
+            dx, dy = q[a, 0] - cx, q[a, 1] - cy
+            if dx * dx + dy * dy > cut:
+                continue
+            d = math.hypot(dx, dy)
             if d < best:
                 best = d
+                cut = best * best * (1.0 + 1e-9)
                 par[a] = cum[i] + t * (cum[i + 1] - cum[i])
                 px[a], py[a] = cx, cy
         dist[a] = best
@@ -1682,7 +2019,9 @@ def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
     k = int(kz[0])
     r = fine / sigma
     planar = _planar_ratio(grid, k)
-    fld_w = _fields_at(pts, out, np.flatnonzero(_ring_reach(ring, cand, win)), k, sigma, grid, images, max_move)
+    need = np.flatnonzero(_ring_reach(ring, cand, win))
+    fld_w = _fields_at(pts, out, need, k, sigma, grid, images, max_move)
+    images["fields"] = (float(sigma), ring.copy(), fld_w, need)  # for the chord step at the same points
     sw = _ring_curvature_mean(fld_w, float(sigma), ring, win)
     kmin = CREASE_MIN_BEND if np.isscalar(CREASE_MIN_BEND) else CREASE_MIN_BEND[0]
     # where the wide level hardly bends (q = 1) or bends strongly (the fade below) the share is 0:
@@ -2003,11 +2342,8 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
                     ring = cand  # otherwise (a fold at a thin end) keep the slice's own vertices
                     clamped += nc
     if chord:
-        mom, box, span = images.get(float(sigma)) or _no_images()
-        fld, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid,
-                                            mom, box, span, IMAGE_MARGIN * max_move + 2.0, images.get("runs"),
-                                            full=False)  # the gradient only
-        images[float(sigma)] = (mom, box, span)
+        fld = _chord_gradients(pts, np.ascontiguousarray(ring, dtype=np.float64), kk, float(sigma), grid, images,
+                               max_move)
         g2 = (fld[:, 1:4] ** 2).sum(axis=1)
         nz2 = np.where(g2 > 0, fld[:, 3] ** 2 / np.where(g2 > 0, g2, 1.0), 0.0)
         target = _chord_push(ring, nz2)
@@ -2032,6 +2368,30 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
         ring = cand if _is_simple(cand) else seed
     return ring, clamped
 
+
+def _chord_gradients(pts, ring, k, sigma, grid, images, max_move):
+    """``f`` and ``grad f`` at width ``sigma`` at the ring's points (``(n, 10)``, the rest 0) for the
+    chord step: where a point is one at which the two-scale step took the fields already
+    (``images["fields"]``, :func:`_crease_gains`; the same point bit for bit, the same slice and
+    width) its numbers are taken from there (:func:`_gradient_in_slice` gives ``f`` and ``grad f``
+    the same values as :func:`_field_in_slice`), the others are evaluated."""
+    n = len(ring)
+    fld = np.zeros((n, 10))
+    todo = np.arange(n)
+    kept = images.get("fields")
+    if kept is not None and kept[0] == sigma and len(kept[1]) == n:
+        _, at, kf, idx = kept
+        same = np.zeros(n, dtype=np.bool_)
+        same[idx] = (at[idx] == ring[idx]).all(axis=1)
+        fld[same, :4] = kf[same, :4]
+        todo = np.flatnonzero(~same)
+    if len(todo):
+        mom, box, span = images.get(sigma) or _no_images()
+        sub, (mom, span) = _fields_in_slice(pts, np.ascontiguousarray(ring[todo]), k, sigma, grid, mom, box, span,
+                                            IMAGE_MARGIN * max_move + 2.0, images.get("runs"), full=False)
+        images[sigma] = (mom, box, span)
+        fld[todo] = sub
+    return fld
 
 def refine_stack(stack: ContourStack, method: str = "band", *, polygon: str = "mlp", sigma="auto",
                  curvature: bool = True, chord: bool = True, meridians: bool = True,
@@ -2156,8 +2516,19 @@ def _untangle(rings: list, seeds: list, fixed: list) -> int:
     that.  Repeats until nothing changes (a ring put back can disturb a neighbour's refined ring).
     Returns the number of rings put back.
     """
+    boxes: dict = {}  # id -> (xmin, ymin, xmax, ymax, ring): each ring's box once (the ring kept alive)
+
+    def meet(a, b):  # :func:`_boxes_meet` from the kept boxes
+        for r in (a, b):
+            if id(r) not in boxes:
+                lo, hi = r.min(axis=0).tolist(), r.max(axis=0).tolist()
+                boxes[id(r)] = (*lo, *hi, r)
+        a0, a1, a2, a3, _ = boxes[id(a)]
+        b0, b1, b2, b3, _ = boxes[id(b)]
+        return a0 <= b2 and a1 <= b3 and b0 <= a2 and b1 <= a3
+
     def nested(a, b):  # is a inside b (most of its vertices: touching seeds share a few)
-        return _boxes_meet(a, b) and _inside_share(a, b) > 0.5
+        return meet(a, b) and _inside_share(a, b) > 0.5
 
     n = len(rings)
     others_seed = list(seeds) + list(fixed)
@@ -2173,7 +2544,7 @@ def _untangle(rings: list, seeds: list, fixed: list) -> int:
                 if j == i or len(o) < 3:
                     continue
                 so = others_seed[j]
-                if ((_boxes_meet(rings[i], o) and _rings_meet(rings[i], o))
+                if ((meet(rings[i], o) and _rings_meet(rings[i], o))
                         or nested(rings[i], o) != nested(seeds[i], so) or nested(o, rings[i]) != nested(so, seeds[i])):
                     rings[i] = seeds[i]
                     back += 1

@@ -335,22 +335,28 @@ def _strip_dp(A1, A2, s, lo, hi, D, move):
     for i in range(n + 1):
         r = i % 2
         ib = (s + i) % n
-        for j in range(lo[i], hi[i]):
-            d = D[r, j]
-            if d != inf:
-                c = d + A2[ib, j % m]
-                if c < D[r, j + 1]:
-                    D[r, j + 1] = c
-                    move[i, j + 1] = 1
+        a2row = A2[ib]
+        if lo[i] < hi[i]:
+            d = D[r, lo[i]]  # the cell's final cost, carried to the next cell in a register
+            for j in range(lo[i], hi[i]):  # j < hi[i] <= m: the column itself (no modulo)
+                nxt = D[r, j + 1]
+                if d != inf:
+                    c = d + a2row[j]
+                    if c < nxt:
+                        nxt = c
+                        D[r, j + 1] = c
+                        move[i, j + 1] = 1
+                d = nxt
         if i == n:
             break
         rn = (i + 1) % 2
         for j in range(lo[i + 1], hi[i + 1] + 1):
             D[rn, j] = inf
+        a1row = A1[ib]
         for j in range(max(lo[i], lo[i + 1]), min(hi[i], hi[i + 1]) + 1):
             d = D[r, j]
             if d != inf:
-                c = d + A1[ib, j % m]
+                c = d + (a1row[0] if j == m else a1row[j])  # A1[ib, j % m], 0 <= j <= m
                 if c < D[rn, j]:
                     D[rn, j] = c
                     move[i + 1, j] = 0
