@@ -1476,6 +1476,66 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     return True
 
 
+@_pure
+def _ends_apart(V, F, lev, k, i, j):
+    """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, are apart:
+    along x or along y, one face's corners on plane k all lie strictly before the other's there,
+    and the same on plane k + 1 (the same face first).  Then they have no common point.
+
+    At a height ``t`` of the way up (``0 <= t <= 1``) a face's section is the hull of points that
+    move linearly with t from its corners on plane k to those on plane k + 1 (its edges between
+    the planes; at t = 0 and t = 1 its corners there): the largest x of face i's section is a
+    maximum of linear functions of t, convex, so at most the interpolation of its values at t = 0
+    and t = 1; the smallest x of face j's is concave, at least the interpolation of its own.  Both
+    ends strictly apart put the interpolations, and so the sections, strictly apart at every t.
+    Only comparisons of coordinates: exact."""
+    bxi0 = np.inf
+    bxi1 = -np.inf
+    byi0 = np.inf
+    byi1 = -np.inf
+    txi0 = np.inf
+    txi1 = -np.inf
+    tyi0 = np.inf
+    tyi1 = -np.inf
+    bxj0 = np.inf
+    bxj1 = -np.inf
+    byj0 = np.inf
+    byj1 = -np.inf
+    txj0 = np.inf
+    txj1 = -np.inf
+    tyj0 = np.inf
+    tyj1 = -np.inf
+    for q in range(3):
+        v = F[i, q]
+        x = V[v, 0]
+        y = V[v, 1]
+        if lev[v] == k:
+            bxi0 = min(bxi0, x)
+            bxi1 = max(bxi1, x)
+            byi0 = min(byi0, y)
+            byi1 = max(byi1, y)
+        else:
+            txi0 = min(txi0, x)
+            txi1 = max(txi1, x)
+            tyi0 = min(tyi0, y)
+            tyi1 = max(tyi1, y)
+        w = F[j, q]
+        x = V[w, 0]
+        y = V[w, 1]
+        if lev[w] == k:
+            bxj0 = min(bxj0, x)
+            bxj1 = max(bxj1, x)
+            byj0 = min(byj0, y)
+            byj1 = max(byj1, y)
+        else:
+            txj0 = min(txj0, x)
+            txj1 = max(txj1, x)
+            tyj0 = min(tyj0, y)
+            tyj1 = max(tyj1, y)
+    return ((bxi1 < bxj0 and txi1 < txj0) or (bxj1 < bxi0 and txj1 < txi0)
+            or (byi1 < byj0 and tyi1 < tyj0) or (byj1 < byi0 and tyj1 < tyi0))
+
+
 @_kernel
 def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
                npairs, pi, pj, work, limit, stop):
@@ -1515,6 +1575,10 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces,
         i = np.int64(min(faces[ci[t]], faces[cj[t]]))  # (int64: one signature for the tests below)
         j = np.int64(max(faces[ci[t]], faces[cj[t]]))
         if max(lo[i], lo[j]) != k:
+            continue
+        # (most candidates of a band between two rings that share no corner: decided here)
+        if quick == 1 and lo[i] == k and hi[i] == k + 1 and lo[j] == k and hi[j] == k + 1 and \
+                _ends_apart(V, F, lev, k, i, j):
             continue
         if _star_due(sst):
             _star_fill(V, F, star)
