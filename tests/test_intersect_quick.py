@@ -201,8 +201,8 @@ def test_faces_whose_ends_are_apart_do_not_meet():
     from numba import njit
 
     @njit
-    def apart(V, F, lev, i, j):
-        return intersect._ends_apart(V, F, lev, 0, i, j)
+    def apart(V, F, lev, i, j):  # (the signature the slab sweep compiles: no literal level)
+        return intersect._ends_apart(V, F, lev, lev[0] * 0, i, j)
 
     rng = np.random.default_rng(41)
     decided = 0
@@ -221,8 +221,45 @@ def test_faces_whose_ends_are_apart_do_not_meet():
         ref = reference_pairs(V, F)
         for i in range(len(F)):
             for j in range(i + 1, len(F)):
-                if apart(V, F, lev, i, j):
+                got = apart(V, F, lev, np.int64(i), np.int64(j))
+                if got:
                     assert (i, j) not in ref
                     decided += 1
-                assert apart(V, F, lev, i, j) == apart(V, F, lev, j, i)
+                assert got == apart(V, F, lev, np.int64(j), np.int64(i))
     assert decided > 200  # (of 2640 pairs; random faces of one slab overlap much more than a band's)
+
+
+def test_faces_with_one_common_corner_apart_meet_only_there():
+    """``_apart_but_corner`` (two faces of one slab with one common corner p, apart along x or y
+    on the other plane, and on p's plane each face's other corners strictly on its own side of p)
+    decides only pairs that meet only at p by the exact rational rule (a common point elsewhere,
+    or along a ray from p, is a crossing), on a coarse grid and off it; and it decides many."""
+    from numba import njit
+
+    @njit
+    def apart(V, F, lev, i, j, p):
+        return intersect._apart_but_corner(V, F, lev, i, j, p)
+
+    rng = np.random.default_rng(43)
+    decided = crossing = 0
+    for it in range(60):
+        n = 12
+        V = np.c_[rng.integers(0, 5, (n, 2)) * 0.5, np.repeat([0.0, 1.0], n // 2)]
+        if it % 2:
+            V[:, :2] += rng.normal(0, 0.1, (n, 2))
+        lev = (V[:, 2] > 0).astype(np.int64)
+        for _ in range(30):
+            p = int(rng.integers(n))
+            rest = [v for v in range(n) if v != p]
+            a, b, c, d = rng.choice(rest, 4, replace=False)
+            F = np.array([[p, a, b], [p, c, d]], dtype=np.int64)
+            if len(set(lev[F[0]])) != 2 or len(set(lev[F[1]])) != 2:
+                continue
+            hit = len(reference_pairs(V, F)) > 0
+            crossing += hit
+            got = apart(V, F, lev, np.int64(0), np.int64(1), np.int64(p))
+            assert got == apart(V, F, lev, np.int64(1), np.int64(0), np.int64(p))
+            if got:
+                assert not hit
+                decided += 1
+    assert decided > 100 and crossing > 50

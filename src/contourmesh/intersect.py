@@ -1536,6 +1536,56 @@ def _ends_apart(V, F, lev, k, i, j):
             or (byi1 < byj0 and tyi1 < tyj0) or (byj1 < byi0 and tyj1 < tyi0))
 
 
+@_pure
+def _apart_but_corner(V, F, lev, i, j, p):
+    """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, with one
+    common corner p, meet only at p: along x or along y, one face's corners on the other plane
+    than p's all lie strictly before the other face's there, and on p's plane the first face's
+    other corners lie strictly before p and the second's strictly after it.
+
+    As for :func:`_ends_apart`, from p's plane (``t = 0``) to the other (``t = 1``): the first
+    face's largest coordinate at height t is at most ``(1 - t) p + t`` its largest on the other
+    plane, the second's smallest at least ``(1 - t) p + t`` its smallest there, so the sections
+    are strictly apart at every ``t > 0``; at ``t = 0`` the first face's part lies at or before p
+    and the second's at or after it, with p the only point of either on p's line.  Only
+    comparisons of coordinates: exact."""
+    lp = lev[p]
+    for c in range(2):
+        pc = V[p, c]
+        i0lo = np.inf
+        i0hi = -np.inf
+        i1lo = np.inf
+        i1hi = -np.inf
+        j0lo = np.inf
+        j0hi = -np.inf
+        j1lo = np.inf
+        j1hi = -np.inf
+        for q in range(3):
+            v = F[i, q]
+            if v != p:
+                x = V[v, c]
+                if lev[v] == lp:
+                    i0lo = min(i0lo, x)
+                    i0hi = max(i0hi, x)
+                else:
+                    i1lo = min(i1lo, x)
+                    i1hi = max(i1hi, x)
+            w = F[j, q]
+            if w != p:
+                x = V[w, c]
+                if lev[w] == lp:
+                    j0lo = min(j0lo, x)
+                    j0hi = max(j0hi, x)
+                else:
+                    j1lo = min(j1lo, x)
+                    j1hi = max(j1hi, x)
+        if i1hi < j1lo and i0hi < pc and pc < j0lo:
+            return True
+        if j1hi < i1lo and j0hi < pc and pc < i0lo:
+            return True
+    return False
+
+
 @_kernel
 def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
                npairs, pi, pj, work, limit, stop):
@@ -1576,10 +1626,19 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces,
         j = np.int64(max(faces[ci[t]], faces[cj[t]]))
         if max(lo[i], lo[j]) != k:
             continue
-        # (most candidates of a band between two rings that share no corner: decided here)
-        if quick == 1 and lo[i] == k and hi[i] == k + 1 and lo[j] == k and hi[j] == k + 1 and \
-                _ends_apart(V, F, lev, k, i, j):
-            continue
+        # (most candidates of a band between two rings that share at most one corner: decided here)
+        if quick == 1 and lo[i] == k and hi[i] == k + 1 and lo[j] == k and hi[j] == k + 1:
+            ns = 0
+            p = np.int64(-1)
+            for q in range(3):
+                v = F[i, q]
+                if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
+                    ns += 1
+                    p = v
+            if ns == 0 and _ends_apart(V, F, lev, k, i, j):
+                continue
+            if ns == 1 and _apart_but_corner(V, F, lev, i, j, p):
+                continue
         if _star_due(sst):
             _star_fill(V, F, star)
         if _shares_certified(F, star, i, j):
