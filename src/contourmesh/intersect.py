@@ -1201,7 +1201,10 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
 # face ending and one starting at c, the general test otherwise).  Since those tests are exact
 # and every pair that can meet is a candidate, the pairs are exactly those of the grid path.  The
 # pairs of a face ending and a face starting at c are all decided without a test when their parts
-# at c form an embedded planar graph (_plane_embedded), which is checked once per plane.
+# at c form an embedded planar graph (_plane_embedded), which is checked once per plane.  Two faces
+# within one slab whose corners lie apart along x or y on both its planes, or that share one corner
+# and lie apart beside it (_ends_apart, _apart_but_corner: comparisons of coordinates), do not meet
+# (the bands between two rings: most of their candidates).
 @_kernel
 def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
     """Candidate pairs among the entries ``ids``: closed xy boxes overlapping, not two entries of
