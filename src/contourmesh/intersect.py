@@ -2046,7 +2046,36 @@ def any_intersecting(vertices, faces) -> bool:
     if 3 * len(F) < len(V):
         used = np.unique(F)
         V, F = V[used], np.searchsorted(used, F)
-    return len(_pairs(V, F, canonical_vertices(V), 8, "auto", stop=1)) > 0
+    if not V.flags.writeable:  # one compiled signature: writable C arrays
+        V = V.copy()
+    if not F.flags.writeable:
+        F = F.copy()
+    # (the mesher asks this of thousands of small bands and joins: the steps of _pairs(..., "auto",
+    # stop=1) in one compiled call; the vertices are finite here, as canonical_vertices' kernel needs)
+    return bool(_any_kernel(V, F, np.int64(_STAR_DELAY)))
+
+
+@njit(cache=True, **_OPTIONS)
+def _any_kernel(V, F, delay):
+    """:func:`any_intersecting` on checked arrays (finite vertices): the steps of :func:`_pairs`
+    with ``method="auto"``, ``stop=1`` and the shortcuts, one thread; 1 where a pair is found."""
+    canon = _canonical_kernel((V + 0.0).view(np.uint64))  # (-0.0 + 0.0 == +0.0)
+    m = F.shape[0]
+    Fc = np.empty((m, 3), np.int64)
+    for i in range(m):
+        for t in range(3):
+            Fc[i, t] = canon[F[i, t]]
+    ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
+    ws[0] = 1.0 if _dyadic_kernel(V) == 1 else 0.0
+    star = np.zeros(len(V), np.int8)
+    sst = np.zeros(2, np.int64)
+    sst[1] = m // 8 + delay
+    one = m - m + 1  # (int64 values, not literals: the signatures of the Python calls)
+    lev, nlev = _levels(V[:, 2].copy())
+    pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one)
+    if ok != 1:
+        pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one)
+    return len(pi) > 0
 
 
 def _pairs(V, F, canon, budget, method, stop=0, quick=True):
