@@ -275,3 +275,31 @@ def test_two_thread_split_gives_the_one_call_pairs(seed, monkeypatch):
     two = intersecting_pairs(V, F)
     assert len(calls) == 1 and calls[0] is not None and np.array_equal(two, one)
     assert np.array_equal(intersecting_pairs(V, F, method="grid"), one)
+
+
+def test_any_intersecting_in_one_call_on_any_arrays():
+    """``any_intersecting`` runs _pairs' steps in one compiled call: the same answer as the whole
+    list, for read-only, Fortran-ordered and float32/int32 inputs too (converted first, so one
+    compiled signature serves them all)."""
+    import trimesh
+
+    rng = np.random.default_rng(29)
+    seen = set()
+    s = trimesh.creation.icosphere(1)
+    meshes = [(np.asarray(s.vertices, float), np.asarray(s.faces))]  # none cross
+    meshes += [_random_sectioned(rng, int(rng.integers(2, 5)), 20, int(rng.integers(2, 25)), 0.2) for _ in range(30)]
+    for V, F in meshes:
+        want = len(intersecting_pairs(V, F)) > 0
+        seen.add(want)
+        Vr, Fr = V.copy(), F.copy()
+        Vr.flags.writeable = False
+        Fr.flags.writeable = False
+        for Vx, Fx in ((V, F), (Vr, Fr), (np.asfortranarray(V), np.asfortranarray(F)),
+                       (V.astype(np.float32).astype(np.float64), F.astype(np.int32))):
+            assert any_intersecting(Vx, Fx) == want
+    assert seen == {True, False}
+    from numba.core.registry import CPUDispatcher
+
+    from contourmesh import intersect
+    assert len(intersect._any_kernel.signatures) == 1
+    assert isinstance(intersect._any_kernel, CPUDispatcher)

@@ -1201,7 +1201,10 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
 # face ending and one starting at c, the general test otherwise).  Since those tests are exact
 # and every pair that can meet is a candidate, the pairs are exactly those of the grid path.  The
 # pairs of a face ending and a face starting at c are all decided without a test when their parts
-# at c form an embedded planar graph (_plane_embedded), which is checked once per plane.
+# at c form an embedded planar graph (_plane_embedded), which is checked once per plane.  Two faces
+# within one slab whose corners lie apart along x or y on both its planes, or that share one corner
+# and lie apart beside it (_ends_apart, _apart_but_corner: comparisons of coordinates), do not meet
+# (the bands between two rings: most of their candidates).
 @_kernel
 def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
     """Candidate pairs among the entries ``ids``: closed xy boxes overlapping, not two entries of
@@ -1476,6 +1479,116 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     return True
 
 
+@_pure
+def _ends_apart(V, F, lev, k, i, j):
+    """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, are apart:
+    along x or along y, one face's corners on plane k all lie strictly before the other's there,
+    and the same on plane k + 1 (the same face first).  Then they have no common point.
+
+    At a height ``t`` of the way up (``0 <= t <= 1``) a face's section is the hull of points that
+    move linearly with t from its corners on plane k to those on plane k + 1 (its edges between
+    the planes; at t = 0 and t = 1 its corners there): the largest x of face i's section is a
+    maximum of linear functions of t, convex, so at most the interpolation of its values at t = 0
+    and t = 1; the smallest x of face j's is concave, at least the interpolation of its own.  Both
+    ends strictly apart put the interpolations, and so the sections, strictly apart at every t.
+    Only comparisons of coordinates: exact."""
+    bxi0 = np.inf
+    bxi1 = -np.inf
+    byi0 = np.inf
+    byi1 = -np.inf
+    txi0 = np.inf
+    txi1 = -np.inf
+    tyi0 = np.inf
+    tyi1 = -np.inf
+    bxj0 = np.inf
+    bxj1 = -np.inf
+    byj0 = np.inf
+    byj1 = -np.inf
+    txj0 = np.inf
+    txj1 = -np.inf
+    tyj0 = np.inf
+    tyj1 = -np.inf
+    for q in range(3):
+        v = F[i, q]
+        x = V[v, 0]
+        y = V[v, 1]
+        if lev[v] == k:
+            bxi0 = min(bxi0, x)
+            bxi1 = max(bxi1, x)
+            byi0 = min(byi0, y)
+            byi1 = max(byi1, y)
+        else:
+            txi0 = min(txi0, x)
+            txi1 = max(txi1, x)
+            tyi0 = min(tyi0, y)
+            tyi1 = max(tyi1, y)
+        w = F[j, q]
+        x = V[w, 0]
+        y = V[w, 1]
+        if lev[w] == k:
+            bxj0 = min(bxj0, x)
+            bxj1 = max(bxj1, x)
+            byj0 = min(byj0, y)
+            byj1 = max(byj1, y)
+        else:
+            txj0 = min(txj0, x)
+            txj1 = max(txj1, x)
+            tyj0 = min(tyj0, y)
+            tyj1 = max(tyj1, y)
+    return ((bxi1 < bxj0 and txi1 < txj0) or (bxj1 < bxi0 and txj1 < txi0)
+            or (byi1 < byj0 and tyi1 < tyj0) or (byj1 < byi0 and tyj1 < tyi0))
+
+
+@_pure
+def _apart_but_corner(V, F, lev, i, j, p):
+    """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, with one
+    common corner p, meet only at p: along x or along y, one face's corners on the other plane
+    than p's all lie strictly before the other face's there, and on p's plane the first face's
+    other corners lie strictly before p and the second's strictly after it.
+
+    As for :func:`_ends_apart`, from p's plane (``t = 0``) to the other (``t = 1``): the first
+    face's largest coordinate at height t is at most ``(1 - t) p + t`` its largest on the other
+    plane, the second's smallest at least ``(1 - t) p + t`` its smallest there, so the sections
+    are strictly apart at every ``t > 0``; at ``t = 0`` the first face's part lies at or before p
+    and the second's at or after it, with p the only point of either on p's line.  Only
+    comparisons of coordinates: exact."""
+    lp = lev[p]
+    for c in range(2):
+        pc = V[p, c]
+        i0lo = np.inf
+        i0hi = -np.inf
+        i1lo = np.inf
+        i1hi = -np.inf
+        j0lo = np.inf
+        j0hi = -np.inf
+        j1lo = np.inf
+        j1hi = -np.inf
+        for q in range(3):
+            v = F[i, q]
+            if v != p:
+                x = V[v, c]
+                if lev[v] == lp:
+                    i0lo = min(i0lo, x)
+                    i0hi = max(i0hi, x)
+                else:
+                    i1lo = min(i1lo, x)
+                    i1hi = max(i1hi, x)
+            w = F[j, q]
+            if w != p:
+                x = V[w, c]
+                if lev[w] == lp:
+                    j0lo = min(j0lo, x)
+                    j0hi = max(j0hi, x)
+                else:
+                    j1lo = min(j1lo, x)
+                    j1hi = max(j1hi, x)
+        if i1hi < j1lo and i0hi < pc and pc < j0lo:
+            return True
+        if j1hi < i1lo and j0hi < pc and pc < i0lo:
+            return True
+    return False
+
+
 @_kernel
 def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
                npairs, pi, pj, work, limit, stop):
@@ -1516,6 +1629,19 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces,
         j = np.int64(max(faces[ci[t]], faces[cj[t]]))
         if max(lo[i], lo[j]) != k:
             continue
+        # (most candidates of a band between two rings that share at most one corner: decided here)
+        if quick == 1 and lo[i] == k and hi[i] == k + 1 and lo[j] == k and hi[j] == k + 1:
+            ns = 0
+            p = np.int64(-1)
+            for q in range(3):
+                v = F[i, q]
+                if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
+                    ns += 1
+                    p = v
+            if ns == 0 and _ends_apart(V, F, lev, k, i, j):
+                continue
+            if ns == 1 and _apart_but_corner(V, F, lev, i, j, p):
+                continue
         if _star_due(sst):
             _star_fill(V, F, star)
         if _shares_certified(F, star, i, j):
@@ -1920,7 +2046,36 @@ def any_intersecting(vertices, faces) -> bool:
     if 3 * len(F) < len(V):
         used = np.unique(F)
         V, F = V[used], np.searchsorted(used, F)
-    return len(_pairs(V, F, canonical_vertices(V), 8, "auto", stop=1)) > 0
+    if not V.flags.writeable:  # one compiled signature: writable C arrays
+        V = V.copy()
+    if not F.flags.writeable:
+        F = F.copy()
+    # (the mesher asks this of thousands of small bands and joins: the steps of _pairs(..., "auto",
+    # stop=1) in one compiled call; the vertices are finite here, as canonical_vertices' kernel needs)
+    return bool(_any_kernel(V, F, np.int64(_STAR_DELAY)))
+
+
+@njit(cache=True, **_OPTIONS)
+def _any_kernel(V, F, delay):
+    """:func:`any_intersecting` on checked arrays (finite vertices): the steps of :func:`_pairs`
+    with ``method="auto"``, ``stop=1`` and the shortcuts, one thread; 1 where a pair is found."""
+    canon = _canonical_kernel((V + 0.0).view(np.uint64))  # (-0.0 + 0.0 == +0.0)
+    m = F.shape[0]
+    Fc = np.empty((m, 3), np.int64)
+    for i in range(m):
+        for t in range(3):
+            Fc[i, t] = canon[F[i, t]]
+    ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
+    ws[0] = 1.0 if _dyadic_kernel(V) == 1 else 0.0
+    star = np.zeros(len(V), np.int8)
+    sst = np.zeros(2, np.int64)
+    sst[1] = m // 8 + delay
+    one = m - m + 1  # (int64 values, not literals: the signatures of the Python calls)
+    lev, nlev = _levels(V[:, 2].copy())
+    pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one)
+    if ok != 1:
+        pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one)
+    return len(pi) > 0
 
 
 def _pairs(V, F, canon, budget, method, stop=0, quick=True):

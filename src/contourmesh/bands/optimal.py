@@ -415,7 +415,21 @@ def _strip_costs(A1, A2, a, k):
             lo[i] = first[t1, v] if v >= 0 else 0
         c = _strip_dp(A1, A2, a + t, lo, hi, D, move)
         if c == np.inf:
-            return cost, False
+            # no path fits: the two paths cross (least paths that tie, as on the liver's bridged
+            # rings, whose repeated bridge ends give triangles of no area).  Exchanging their
+            # pieces where they cross gives two least paths of the same two start points that do
+            # not: the rightmost and the leftmost of the two in each row, between which a least
+            # path of this start point lies
+            for i in range(n + 1):
+                v = t + i - t1
+                if v >= 0:
+                    hi[i] = max(hi[i], m if v >= n else first[t1, v + 1])  # (t1's, rightmost)
+                u = t + i - t0
+                if u <= n:
+                    lo[i] = min(lo[i], first[t0, u])  # (t0's, leftmost)
+            c = _strip_dp(A1, A2, a + t, lo, hi, D, move)
+            if c == np.inf:
+                return cost, False
         cost[t] = c
         _strip_path(move, n, m, first[t])
         stack[top, 0] = t0
