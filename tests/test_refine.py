@@ -1152,3 +1152,21 @@ def test_np_clip01_is_numpys_clip():
     got = np.array([R._np_clip01(v) for v in x])
     want = np.clip(x, 0.0, 1.0)
     assert got.tobytes() == want.tobytes()
+
+
+def test_ring_edges_and_ring_point_at_match_numpy_bit_for_bit():
+    """:func:`_ring_edges` gives ``np.hypot`` of the closed ring's differences and their ``cumsum``
+    from 0, and :func:`_ring_point_at` the reference's points, bit for bit (random rings with
+    repeated points, and a staircase)."""
+    rng = np.random.default_rng(93)
+    rings = [rng.normal(size=(n, 2)) * 10 ** rng.uniform(-3, 3) for n in (3, 4, 7, 50, 301)]
+    rings.append(np.repeat(rng.normal(size=(20, 2)), 2, axis=0))
+    rings.append(np.cumsum(np.array([[1.0, 0.0], [0.0, 1.0]] * 10 + [[-10.0, 0.0], [0.0, -10.0]]), axis=0))
+    for ring in rings:
+        seg, cum = R._ring_edges(np.ascontiguousarray(ring))
+        ref_seg = np.hypot(*np.diff(np.vstack([ring, ring[:1]]), axis=0).T)
+        assert seg.tobytes() == ref_seg.tobytes()
+        assert cum.tobytes() == np.concatenate([[0.0], np.cumsum(ref_seg)]).tobytes()
+        assert float(seg.sum()) == float(ref_seg.sum())
+        s = np.r_[rng.uniform(-2, 3, 40) * cum[-1], 0.0, cum[1:]]
+        assert R._ring_point_at(ring, s).tobytes() == R._ring_point_at_reference(ring, s).tobytes()

@@ -1796,11 +1796,35 @@ def _project_to_ring(ring, q):
 
 def _ring_point_at(ring: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Points of the closed polygon ``ring`` at arc-length parameters ``s`` (from ring[0])."""
+    closed = np.ascontiguousarray(np.vstack([ring, ring[:1]]), dtype=np.float64)
+    seg, cum = _ring_edges(closed[:-1])
+    s = np.mod(s, cum[-1])
+    return _points_at(closed, seg, cum, np.ascontiguousarray(s, dtype=np.float64))
+
+
+def _ring_point_at_reference(ring: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """:func:`_ring_point_at` with its edge lengths and their running sums by numpy (the reference)."""
     closed = np.vstack([ring, ring[:1]])
     seg = np.hypot(*np.diff(closed, axis=0).T)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     s = np.mod(s, cum[-1])
     return _points_at(np.ascontiguousarray(closed, dtype=np.float64), seg, cum, np.ascontiguousarray(s, dtype=np.float64))
+
+
+@njit(cache=True)
+def _ring_edges(ring):
+    """The edge lengths of the closed polygon ``ring (n, 2)`` (``np.hypot(*np.diff(np.vstack([ring,
+    ring[:1]]), axis=0).T)``: the same differences and ``hypot``) and their running sums from 0
+    (``n + 1`` values, ``np.cumsum``'s order)."""
+    n = ring.shape[0]
+    seg = np.empty(n)
+    cum = np.empty(n + 1)
+    cum[0] = 0.0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        seg[i] = math.hypot(ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1])
+        cum[i + 1] = cum[i] + seg[i] if i > 0 else seg[i]
+    return seg, cum
 
 
 @njit(cache=True)
@@ -2358,7 +2382,7 @@ def _auto_sigma_of(polygons, dz: float, length_factor: float = 1.0, *, factor: f
         if len(c) < 3:
             continue
         vol += shoelace_area(c) * dz
-        lat += float(np.hypot(*np.diff(np.vstack([c, c[:1]]), axis=0).T).sum()) * dz * length_factor
+        lat += float(_ring_edges(np.ascontiguousarray(c))[0].sum()) * dz * length_factor
     if vol <= 0 or lat <= 0:
         return float(lo)
     r = 3.0 * vol / lat
@@ -2459,7 +2483,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
     clamped += nc
     ring = guide if _is_simple(guide) and shoelace_area(guide) * seed_area > 0 else seed
     if meridians and prev is not None and len(prev):
-        length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
+        length = float(_ring_edges(np.ascontiguousarray(guide))[0].sum())
         step = length / (len(seed) * float(density))
         par, dist, _, _ = _project_to_ring(guide, np.ascontiguousarray(prev))
         par = par[dist < 3.0]
