@@ -220,7 +220,7 @@ def trace_contours(mask, x0: int = 0, y0: int = 0) -> tuple[list[np.ndarray], li
         return [], []
     # cells[r, c] = cell whose lower-left corner is the local grid point (c - 2, r - 2), i.e. cells
     # has one background cell all around U (:func:`_cells_of`, compiled; :func:`_cells_of_reference`)
-    cells = _cells_of(m)
+    cells = _cells_of(np.ascontiguousarray(m))  # one compiled signature for every slice
     pts, starts, area2, left_cell = _follow_boundaries(cells)
     offset = np.array([x0 - 2, y0 - 2], dtype=np.int64)
     contours = [pts[starts[i] : starts[i + 1]] + offset for i in range(len(area2))]
