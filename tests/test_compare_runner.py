@@ -414,3 +414,14 @@ def test_run_spec_warms_our_methods_before_the_rows(fakes, tmp_path, monkeypatch
     order.clear()
     runner.run_spec(p, tmp_path / "out2", progress=False, warm=False)
     assert order == [("row", "t-count")]
+
+
+def test_warm_rare_compiles_both_two_scale_target_forms():
+    """The band refinement's ``_two_scale_targets`` is called with a gain per vertex (rings with
+    creases) or without (``None``): the warm-up compiles both, so no real row compiles one."""
+    from contourmesh.compare.runner import _warm_rare
+    from contourmesh.refine import _two_scale_targets
+
+    _warm_rare()
+    last = [str(sig[-1]) for sig in _two_scale_targets.signatures]
+    assert "none" in last and any(s.startswith("array(float64") for s in last), last

@@ -1093,3 +1093,80 @@ def test_chord_step_reusing_the_two_scale_fields_gives_the_same_ring(monkeypatch
     moved[1::4] += 1e-9  # recorded points that differ: evaluated there
     for rec in ((2.6, moved, full, idx), (1.8, ring, full, idx), (2.6, ring[:-1], full[:-1], idx[:-1])):
         assert np.array_equal(R._chord_gradients(pts, ring, k, 2.6, 1.0, {"fields": rec}, 3.0), ref)
+
+
+def _crease_inputs(curve, fine_ratio=None):
+    """``(pts, seed, kzs, sigma, fine, grid, wide, near)`` of a prism's middle ring (see :func:`_prism_gains`)."""
+    pts, seed, kz, sigma, _ = _prism_ring(curve + [0.31, -0.17])
+    fine = (R.FINE_RATIO if fine_ratio is None else fine_ratio) * sigma
+    kzs = np.full(len(seed), kz, dtype=np.int64)
+    wide, near = np.empty_like(seed), np.empty_like(seed)
+    found = np.empty(len(seed), bool)
+    R._move_to_surface(pts, seed, kzs, sigma, 1.0, True, 3.0, wide, False, found)
+    R._move_to_surface(pts, seed, kzs, fine, 1.0, True, 3.0, near, False, found)
+    return pts, seed, kzs, sigma, fine, R._as_grid(1.0, pts.shape[0]), wide, near
+
+
+@pytest.mark.parametrize("planar", [True, False])
+def test_crease_gains_compiled_steps_match_the_reference_bit_for_bit(planar, monkeypatch):
+    """:func:`_crease_gains` (compiled per-vertex steps under the default settings) returns the
+    same gains, tolerances and kept fields as :func:`_crease_gains_reference` (numpy), bit for bit,
+    on rings with creases, round walls and waves; and some vertices do take a crease share."""
+    monkeypatch.setattr(R, "CREASE_PLANAR", planar)
+    assert R._crease_fast_settings() is not None
+    t = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
+    u = np.c_[np.cos(t), np.sin(t)]
+    curves = [18.0 * u, u * (18.0 * np.cos(np.pi / 12) / np.cos((t % (np.pi / 6)) - np.pi / 12))[:, None],
+              u * (15.0 + 3.0 * np.cos(5 * t))[:, None], u * (16.0 * np.cos(np.pi / 4) / np.cos((t % (np.pi / 2)) - np.pi / 4))[:, None]]
+    smooth = R.FINE_RATIO ** 4 / (1 - R.FINE_RATIO ** 4)
+    shared = 0
+    for curve in curves:
+        pts, seed, kzs, sigma, fine, grid, wide, near = _crease_inputs(curve)
+        im_a, im_b = {}, {}
+        a = R._crease_gains(pts, seed, kzs, sigma, fine, grid, im_a, wide, near, 3.0)
+        b = R._crease_gains_reference(pts, seed, kzs, sigma, fine, grid, im_b, wide, near, 3.0)
+        assert a[0] is not None and b[0] is not None
+        for x, y in zip(a, b):
+            assert x.dtype == y.dtype and x.flags.c_contiguous and x.tobytes() == y.tobytes()
+        fa, fb = im_a["fields"], im_b["fields"]
+        assert fa[0] == fb[0] and all(np.array_equal(x, y) for x, y in zip(fa[1:], fb[1:]))
+        shared += int((np.abs(a[0] - smooth) > 1e-9).sum())
+    assert shared > 0
+
+
+def test_crease_gains_take_the_reference_under_other_settings_and_agree_on_no_candidates(monkeypatch):
+    t = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
+    pts, seed, kzs, sigma, fine, grid, wide, near = _crease_inputs(18.0 * np.c_[np.cos(t), np.sin(t)])
+    # no vertex past the narrowest tolerance: the one gain (None, None) either way
+    assert R._crease_gains(pts, seed, kzs, sigma, fine, grid, {}, wide, wide.copy(), 3.0) == (None, None)
+    assert R._crease_gains_reference(pts, seed, kzs, sigma, fine, grid, {}, wide, wide.copy(), 3.0) == (None, None)
+    monkeypatch.setattr(R, "CREASE_NOISE", 1.0)
+    assert R._crease_fast_settings() is None
+    a = R._crease_gains(pts, seed, kzs, sigma, fine, grid, {}, wide, near, 3.0)
+    b = R._crease_gains_reference(pts, seed, kzs, sigma, fine, grid, {}, wide, near, 3.0)
+    assert all(x.tobytes() == y.tobytes() for x, y in zip(a, b))
+
+
+def test_np_clip01_is_numpys_clip():
+    x = np.array([-np.inf, -1.0, -0.0, 0.0, 1e-300, 0.5, 1.0, 1.5, np.inf, np.nan])
+    got = np.array([R._np_clip01(v) for v in x])
+    want = np.clip(x, 0.0, 1.0)
+    assert got.tobytes() == want.tobytes()
+
+
+def test_ring_edges_and_ring_point_at_match_numpy_bit_for_bit():
+    """:func:`_ring_edges` gives ``np.hypot`` of the closed ring's differences and their ``cumsum``
+    from 0, and :func:`_ring_point_at` the reference's points, bit for bit (random rings with
+    repeated points, and a staircase)."""
+    rng = np.random.default_rng(93)
+    rings = [rng.normal(size=(n, 2)) * 10 ** rng.uniform(-3, 3) for n in (3, 4, 7, 50, 301)]
+    rings.append(np.repeat(rng.normal(size=(20, 2)), 2, axis=0))
+    rings.append(np.cumsum(np.array([[1.0, 0.0], [0.0, 1.0]] * 10 + [[-10.0, 0.0], [0.0, -10.0]]), axis=0))
+    for ring in rings:
+        seg, cum = R._ring_edges(np.ascontiguousarray(ring))
+        ref_seg = np.hypot(*np.diff(np.vstack([ring, ring[:1]]), axis=0).T)
+        assert seg.tobytes() == ref_seg.tobytes()
+        assert cum.tobytes() == np.concatenate([[0.0], np.cumsum(ref_seg)]).tobytes()
+        assert float(seg.sum()) == float(ref_seg.sum())
+        s = np.r_[rng.uniform(-2, 3, 40) * cum[-1], 0.0, cum[1:]]
+        assert R._ring_point_at(ring, s).tobytes() == R._ring_point_at_reference(ring, s).tobytes()

@@ -247,3 +247,20 @@ def test_contour4_kernel_matches_numpy():
         seen.add(want)
         assert _contour4_ok(c) is want
     assert seen == {True, False}
+
+
+def test_cells_of_matches_the_numpy_reference():
+    """The compiled cell complex of a mask (:func:`_cells_of`) is :func:`_cells_of_reference`'s,
+    on random masks of several shapes and densities, contiguous or sliced."""
+    from contourmesh.tracing import _cells_of, _cells_of_reference
+
+    rng = np.random.default_rng(93)
+    for shape in [(1, 1), (1, 7), (6, 1), (5, 9), (40, 33)]:
+        for density in (0.0, 0.2, 0.7, 1.0):
+            m = rng.random(shape) < density
+            assert np.array_equal(_cells_of(m), _cells_of_reference(m))
+    big = rng.random((30, 40)) < 0.5
+    view = big[3:25:1, 5:37]
+    assert not view.flags.c_contiguous
+    got = _cells_of(view)
+    assert got.dtype == np.bool_ and np.array_equal(got, _cells_of_reference(view))

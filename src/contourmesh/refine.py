@@ -1796,11 +1796,35 @@ def _project_to_ring(ring, q):
 
 def _ring_point_at(ring: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Points of the closed polygon ``ring`` at arc-length parameters ``s`` (from ring[0])."""
+    closed = np.ascontiguousarray(np.vstack([ring, ring[:1]]), dtype=np.float64)
+    seg, cum = _ring_edges(closed[:-1])
+    s = np.mod(s, cum[-1])
+    return _points_at(closed, seg, cum, np.ascontiguousarray(s, dtype=np.float64))
+
+
+def _ring_point_at_reference(ring: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """:func:`_ring_point_at` with its edge lengths and their running sums by numpy (the reference)."""
     closed = np.vstack([ring, ring[:1]])
     seg = np.hypot(*np.diff(closed, axis=0).T)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     s = np.mod(s, cum[-1])
     return _points_at(np.ascontiguousarray(closed, dtype=np.float64), seg, cum, np.ascontiguousarray(s, dtype=np.float64))
+
+
+@njit(cache=True)
+def _ring_edges(ring):
+    """The edge lengths of the closed polygon ``ring (n, 2)`` (``np.hypot(*np.diff(np.vstack([ring,
+    ring[:1]]), axis=0).T)``: the same differences and ``hypot``) and their running sums from 0
+    (``n + 1`` values, ``np.cumsum``'s order)."""
+    n = ring.shape[0]
+    seg = np.empty(n)
+    cum = np.empty(n + 1)
+    cum[0] = 0.0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        seg[i] = math.hypot(ring[j, 0] - ring[i, 0], ring[j, 1] - ring[i, 1])
+        cum[i + 1] = cum[i] + seg[i] if i > 0 else seg[i]
+    return seg, cum
 
 
 @njit(cache=True)
@@ -2003,7 +2027,139 @@ def _two_scale_targets(out, near, found, found_fine, lo, span, rho, target, rho_
 def _crease_gains(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
     """Step 3b's gains and tolerance factors per vertex (:data:`FINE_CREASE`), or ``(None, None)``
     (the one gain and tolerance).  ``xy`` is one ring of one slice, in order; ``out``, ``near`` its
-    places at ``sigma`` and ``fine``."""
+    places at ``sigma`` and ``fine``.
+
+    With the module's default crease settings (:func:`_crease_fast_settings`) the per-vertex
+    arithmetic runs in compiled kernels (:func:`_crease_live`, :func:`_crease_ratio`,
+    :func:`_crease_power`) with the same operations in the same order, the logarithms and powers
+    still by numpy, so the results are those of :func:`_crease_gains_reference` bit for bit; any
+    other setting takes the reference."""
+    fast = _crease_fast_settings()
+    if fast is None:
+        return _crease_gains_reference(pts, xy, kz, sigma, fine, grid, images, out, near, max_move)
+    if not FINE_CREASE or len(xy) < 3 or not (kz == kz[0]).all():
+        return None, None
+    kmin, lo_b, hi_b, max_bend, max_order = fast
+    ring = np.ascontiguousarray(out)
+    nearc = np.ascontiguousarray(near)
+    cand = _crease_candidates(ring, nearc, 0.999 * FINE_TOLERANCE[0] * max(1.0 - CREASE_TOLERANCE, 0.0))
+    if cand is None:
+        return None, None
+    win = float(CREASE_WINDOW) * sigma
+    images = {} if images is None else images
+    k = int(kz[0])
+    r = fine / sigma
+    planar = _planar_ratio(grid, k)
+    need = np.flatnonzero(_ring_reach(ring, cand, win))
+    fld_w = _fields_at(pts, out, need, k, sigma, grid, images, max_move)
+    images["fields"] = (float(sigma), ring.copy(), fld_w, need)  # for the chord step at the same points
+    sw = _ring_curvature_mean(fld_w, float(sigma), ring, win)
+    live = _crease_live(sw, cand, float(sigma), kmin, max_bend)
+    fld_f = _fields_at(pts, near, np.flatnonzero(_ring_reach(ring, live, win)), k, fine, grid, images, max_move)
+    sf = _ring_curvature_mean(fld_f, float(fine), ring, win)
+    if planar:
+        pw = _ring_curvature_mean(fld_w, float(sigma), ring, win, True)
+        pf = _ring_curvature_mean(fld_f, float(fine), ring, win, True)
+    else:
+        pw, pf = sw, sf
+    q0 = float(CREASE_MIN_RATIO)
+    qq = _crease_ratio(sw, pw, pf, live, float(sigma), kmin, planar)  # where(q > 0, q, 1)
+    lq = np.log(qq / q0)
+    lu = lq if q0 == 1.0 else np.log(qq)  # x / 1.0 is x
+    p, tol = _crease_power(lq, lu, sw, float(sigma), math.log(1.0 / (r * q0)), math.log(1.0 / r), float(max_order),
+                           lo_b, hi_b, float(max_bend), float(CREASE_TOLERANCE))
+    rp = r ** p
+    return np.ascontiguousarray(rp / (1.0 - rp)), tol
+
+
+def _crease_fast_settings():
+    """``(kmin, lo, hi, max_bend, max_order)`` when the crease settings are the ones the compiled
+    steps of :func:`_crease_gains` take (a bend fade ``(lo, hi)``, a largest bend and order, a
+    smallest ratio of at least 1, no noise floor, no fine-width fade, no wider check), else None."""
+    if (CREASE_NOISE or CREASE_MIN_FINE is not None or CREASE_WIDER is not None or np.isscalar(CREASE_MIN_BEND)
+            or CREASE_MAX_BEND is None or CREASE_MAX_ORDER is None or not float(CREASE_MIN_RATIO) >= 1.0):
+        return None
+    lo_b, hi_b = CREASE_MIN_BEND
+    return float(lo_b), float(lo_b), float(hi_b), float(CREASE_MAX_BEND), float(CREASE_MAX_ORDER)
+
+
+@njit(cache=True)
+def _crease_candidates(out, near, thr):
+    """``hypot(near - out) > thr`` per vertex (:func:`_crease_gains_reference`'s candidates), or None
+    when no vertex is one."""
+    n = out.shape[0]
+    cand = np.empty(n, dtype=np.bool_)
+    anyc = False
+    for i in range(n):
+        c = math.hypot(near[i, 0] - out[i, 0], near[i, 1] - out[i, 1]) > thr
+        cand[i] = c
+        anyc = anyc or c
+    return cand if anyc else None
+
+
+@njit(cache=True)
+def _crease_live(sw, cand, sigma, kmin, max_bend):
+    """``cand & (|sw| sigma > kmin) & (|sw| sigma < max_bend)``."""
+    n = sw.shape[0]
+    live = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        b = abs(sw[i]) * sigma
+        live[i] = cand[i] and b > kmin and b < max_bend
+    return live
+
+
+@njit(cache=True)
+def _crease_ratio(sw, a_w, a_f, live, sigma, kmin, planar):
+    """The curvature ratio ``q`` of :func:`_crease_gains_reference` (no noise floor) as
+    ``where(q > 0, q, 1)``: ``a_f / a_w`` where the wide level bends (and, ``planar``, both section
+    curvatures agree in sign), 1 elsewhere and off ``live``."""
+    n = sw.shape[0]
+    qq = np.empty(n)
+    for i in range(n):
+        ok = abs(sw[i]) * sigma > kmin
+        if planar:
+            ok = ok and a_w[i] * a_f[i] > 0
+        q = 1.0
+        if live[i] and ok:
+            q = a_f[i] / (a_w[i] if a_w[i] != 0 else 1.0)
+        qq[i] = q if q > 0 else 1.0
+    return qq
+
+
+@njit(cache=True)
+def _np_clip01(x):
+    """``np.clip(x, 0.0, 1.0)`` of one float64 (numpy's order of comparisons; NaN stays NaN)."""
+    t = x if (x != x or x >= 0.0) else 0.0  # -0.0 stays -0.0, as in numpy
+    return t if (t != t or t <= 1.0) else 1.0
+
+
+@njit(cache=True)
+def _crease_power(lq, lu, sw, sigma, l_m, l_r, max_order, lo_b, hi_b, max_bend, tol_k):
+    """The exponents ``p = 4 - 3 m`` and tolerance factors ``1 - tol_k m`` of
+    :func:`_crease_gains_reference` from the logarithms ``lq`` of ``q / q0`` and ``lu`` of ``q``: the
+    crease share ``m`` rising with ``lq / l_m``, faded by the order ``lu / l_r`` past 1 toward
+    ``max_order``, by the bend ``|sw| sigma`` from ``lo_b`` to ``hi_b`` and toward ``max_bend``."""
+    n = lq.shape[0]
+    p = np.empty(n)
+    tol = np.empty(n)
+    o1 = max_order - 1.0
+    db = hi_b - lo_b
+    hb = 0.5 * max_bend
+    for i in range(n):
+        m = _np_clip01(lq[i] / l_m)
+        u = lu[i] / l_r
+        m = m * _np_clip01((max_order - u) / o1)
+        m = m * _np_clip01((abs(sw[i]) * sigma - lo_b) / db)
+        b = abs(sw[i]) * sigma
+        m = m * _np_clip01((max_bend - b) / hb)
+        p[i] = 4.0 - 3.0 * m
+        tol[i] = 1.0 - tol_k * m
+    return p, tol
+
+
+def _crease_gains_reference(pts, xy, kz, sigma, fine, grid, images, out, near, max_move):
+    """:func:`_crease_gains` in numpy expressions, for every setting of the crease constants (the
+    reference of its compiled steps)."""
     if not FINE_CREASE or len(xy) < 3 or not (kz == kz[0]).all():
         return None, None
     if CREASE_MIN_FINE is not None and fine <= CREASE_MIN_FINE[0]:
@@ -2226,7 +2382,7 @@ def _auto_sigma_of(polygons, dz: float, length_factor: float = 1.0, *, factor: f
         if len(c) < 3:
             continue
         vol += shoelace_area(c) * dz
-        lat += float(np.hypot(*np.diff(np.vstack([c, c[:1]]), axis=0).T).sum()) * dz * length_factor
+        lat += float(_ring_edges(np.ascontiguousarray(c))[0].sum()) * dz * length_factor
     if vol <= 0 or lat <= 0:
         return float(lo)
     r = 3.0 * vol / lat
@@ -2327,7 +2483,7 @@ def refine_ring(pts, seed, kz: int, sigma: float, dz, prev=None, *, curvature: b
     clamped += nc
     ring = guide if _is_simple(guide) and shoelace_area(guide) * seed_area > 0 else seed
     if meridians and prev is not None and len(prev):
-        length = float(np.hypot(*np.diff(np.vstack([guide, guide[:1]]), axis=0).T).sum())
+        length = float(_ring_edges(np.ascontiguousarray(guide))[0].sum())
         step = length / (len(seed) * float(density))
         par, dist, _, _ = _project_to_ring(guide, np.ascontiguousarray(prev))
         par = par[dist < 3.0]

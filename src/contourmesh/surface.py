@@ -43,6 +43,7 @@ import logging
 import math
 
 import numpy as np
+from numba import njit
 
 from .bands import band_is_folded, triangulate_band
 from .bands.caps import CapError, cap_faces
@@ -91,6 +92,32 @@ def _is_degenerate(poly: np.ndarray) -> bool:
     return distinct_rows(poly) < 3 or abs(shoelace_area(poly)) == 0.0
 
 
+@njit(cache=True)
+def _unique_rows_kernel(p):
+    """The distinct rows of the finite ``(k, 2)`` array ``p`` in ``(x, y)`` order and each row's
+    index among them: ``np.lexsort((y, x))`` as two stable sorts (by ``y``, then by ``x``), the
+    first row of each run of equal rows kept (``-0.0 == 0.0``, as in the reference)."""
+    n = p.shape[0]
+    o = np.argsort(p[:, 1], kind="mergesort")
+    xs = np.empty(n)
+    for i in range(n):
+        xs[i] = p[o[i], 0]
+    o = o[np.argsort(xs, kind="mergesort")]
+    inverse = np.empty(n, dtype=np.intp)
+    keep = np.empty(n, dtype=np.intp)
+    count = 0
+    for i in range(n):
+        if i == 0 or p[o[i], 0] != p[o[i - 1], 0] or p[o[i], 1] != p[o[i - 1], 1]:
+            keep[count] = o[i]
+            count += 1
+        inverse[o[i]] = count - 1
+    uniq = np.empty((count, 2))
+    for i in range(count):
+        uniq[i, 0] = p[keep[i], 0]
+        uniq[i, 1] = p[keep[i], 1]
+    return uniq, inverse
+
+
 class _Builder:
     """Collects vertices and faces; vertices of one polygon are merged by position."""
 
@@ -135,6 +162,12 @@ class _Builder:
                 or (self.oy == 0.0 and math.copysign(1.0, self.oy) < 0)):
             uniq, inverse = np.unique(poly_xy, axis=0, return_inverse=True)
             return uniq, inverse.reshape(-1)
+        return _unique_rows_kernel(np.ascontiguousarray(p))
+
+    @staticmethod
+    def _unique_rows_reference(p) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_unique_rows`' sort and merge by numpy (finite float rows; the reference of
+        :func:`_unique_rows_kernel`)."""
         x, y = p[:, 0], p[:, 1]
         order = np.lexsort((y, x))  # x first, then y, as np.unique's row order
         xs, ys = x[order], y[order]

@@ -147,6 +147,33 @@ def _as_mask(mask) -> np.ndarray:
     return m
 
 
+def _cells_of_reference(m) -> np.ndarray:
+    """The cells of ``U`` around the mask ``m`` in numpy: the mask padded with False (``p``), a cell
+    set where any of its four corners is, and one background cell all around."""
+    ny, nx = m.shape
+    p = np.zeros((ny + 2, nx + 2), dtype=bool)
+    p[1:-1, 1:-1] = m
+    cells = np.zeros((ny + 3, nx + 3), dtype=np.bool_)
+    cells[1:-1, 1:-1] = p[:-1, :-1] | p[1:, :-1] | p[:-1, 1:] | p[1:, 1:]
+    return cells
+
+
+@njit(cache=True)
+def _cells_of(m):
+    """:func:`_cells_of_reference` in one pass: ``cells[r, c]`` (``1 <= r <= ny + 1``, ``1 <= c <= nx
+    + 1``) is set where a mask point ``m[j, i]`` with ``j in (r - 2, r - 1)``, ``i in (c - 2, c - 1)`` is."""
+    ny, nx = m.shape
+    cells = np.zeros((ny + 3, nx + 3), dtype=np.bool_)
+    for j in range(ny):
+        for i in range(nx):
+            if m[j, i]:
+                cells[j + 1, i + 1] = True
+                cells[j + 1, i + 2] = True
+                cells[j + 2, i + 1] = True
+                cells[j + 2, i + 2] = True
+    return cells
+
+
 def trace_contours(mask, x0: int = 0, y0: int = 0) -> tuple[list[np.ndarray], list[int]]:
     """Closed 4-contours of the outer Jordan digitization of a slice, with hole nesting.
 
@@ -191,13 +218,9 @@ def trace_contours(mask, x0: int = 0, y0: int = 0) -> tuple[list[np.ndarray], li
     x0, y0 = int(x0), int(y0)
     if not m.any():
         return [], []
-    ny, nx = m.shape
-    # P: the mask padded with False; cells[r, c] = cell whose lower-left corner is the local grid
-    # point (c - 2, r - 2), i.e. cells has one background cell all around U.
-    p = np.zeros((ny + 2, nx + 2), dtype=bool)
-    p[1:-1, 1:-1] = m
-    cells = np.zeros((ny + 3, nx + 3), dtype=np.bool_)
-    cells[1:-1, 1:-1] = p[:-1, :-1] | p[1:, :-1] | p[:-1, 1:] | p[1:, 1:]
+    # cells[r, c] = cell whose lower-left corner is the local grid point (c - 2, r - 2), i.e. cells
+    # has one background cell all around U (:func:`_cells_of`, compiled; :func:`_cells_of_reference`)
+    cells = _cells_of(np.ascontiguousarray(m))  # one compiled signature for every slice
     pts, starts, area2, left_cell = _follow_boundaries(cells)
     offset = np.array([x0 - 2, y0 - 2], dtype=np.int64)
     contours = [pts[starts[i] : starts[i + 1]] + offset for i in range(len(area2))]

@@ -319,8 +319,8 @@ def _warm_volumes() -> list:
 def _warm_rare() -> None:
     """Kernels of paths that small volumes rarely take: the vertex-fan split of the manifold repair
     (two tetrahedra sharing a vertex), the crossing repair (two overlapping cubes
-    pulled apart, and the crossing pairs recounted after one cube moved) and the optimal band
-    with its work bounded (large polygons)."""
+    pulled apart, and the crossing pairs recounted after one cube moved), the optimal band
+    with its work bounded (large polygons) and the band refinement's crease gains."""
     import numpy as np
 
     from ..bands.optimal import triangulate_band_optimal
@@ -330,6 +330,14 @@ def _warm_rare() -> None:
     t = np.linspace(0, 2 * np.pi, 9, endpoint=False)
     ring = np.c_[np.cos(t), np.sin(t), np.zeros_like(t)]
     triangulate_band_optimal(ring[:-1], ring + [0.1, 0.0, 1.0], max_work=10.0)
+
+    # the band refinement's two-scale targets with and without a gain per vertex (the small
+    # warm-up volumes take one of the two)
+    from ..refine import _two_scale_targets
+
+    xy, yes = np.zeros((3, 2)), np.ones(3, dtype=np.bool_)
+    for gains in ((np.ones(3), np.ones(3)), (None, None)):
+        _two_scale_targets(xy, xy + 0.2, yes, yes, 0.1, 0.2, 0.3, np.empty_like(xy), *gains)
 
     cube = volume_to_mesh(np.pad(np.ones((2, 2, 2), dtype=bool), 1))
     # two tetrahedra sharing a vertex: the vertex-fan split and its renumbering
