@@ -975,8 +975,8 @@ def bridged_ring_arrays(lengths, bridges, root: int = 0):
         tour(root, seen_start, -1, False)
     finally:
         # (tour calls itself through its own closure cell: a reference cycle, which would leave
-        # this call's lists to the cyclic garbage collector; emptying the cell frees them now)
-        del tour
+        # this call's lists to the cyclic garbage collector; clearing the cell frees them now)
+        tour = None
     return np.concatenate(rr), np.concatenate(vv)
 
 
