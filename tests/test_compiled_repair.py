@@ -720,3 +720,27 @@ def test_release_free_heap_only_for_large_meshes(monkeypatch):
     assert np.array_equal(got.vertices, want.vertices) and np.array_equal(got.faces, want.faces)
     monkeypatch.setattr(_heap, "_trim", False)  # no malloc_trim here
     assert not _heap.release_free_heap(10**9)
+
+
+def test_midpoints_in_rounds_equal_the_one_row_form():
+    # new vertices made from old ones and from earlier new ones (chains several rounds deep),
+    # with edges whose opposite corners average onto the midpoint (no nudge there), in float64
+    # and float32: bit for bit what the one-row form makes in order
+    rng = np.random.default_rng(5)
+    for dtype in (np.float64, np.float32):
+        V = (rng.random((40, 3)) * 10).astype(dtype)
+        V[3:6] = [[1, 2, 3], [1.5, 2, 3], [0.5, 2, 3]]  # o0=4, o1=5 average onto 3 (zero toward)
+        made = []
+        for j in range(60):
+            top = 40 + j
+            made.append(rng.integers(0, top, 4) if j % 7 else [3, 3, 4, 5])
+        made = np.array(made, dtype=np.int64)
+        got = repair._midpoints(V, made, 0.01)
+        pts = list(V)
+        for u, v, a, b in made.tolist():
+            pts.append(repair._midpoint_one(pts[u], pts[v], pts[a], pts[b], 0.01))
+        want = np.array(pts[40:])
+        assert got.dtype == want.dtype == dtype
+        assert np.array_equal(got.view(np.uint8), want.view(np.uint8))
+        assert np.array_equal(got[0], 0.5 * (V[3] + V[3]))  # (the zero-length toward: not moved)
+    assert repair._midpoints(V, np.zeros((0, 4), np.int64), 0.01).shape == (0, 3)

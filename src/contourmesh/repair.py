@@ -30,6 +30,8 @@ def _split_four_face_edges(V, F, side, nudge):
     Only the four-face edges' sets are ever read, and a face's split replaces its four-face edge
     and keeps its two other edges, so here only the four-face edges have sets, each receiving the
     same additions and removals in the same order: the same iteration orders, the same mesh.
+    The loop handles integers alone; the new vertices' coordinates are made after it, in a few
+    whole-array steps (:func:`_midpoints`).
     """
     m = len(F)
     mult = _edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V))
@@ -55,15 +57,11 @@ def _split_four_face_edges(V, F, side, nudge):
     for i, u, v in zip(work[rows].tolist(), lo_w[rows, ts].tolist(), hi_w[rows, ts].tolist()):
         by_edge.setdefault((u, v), set()).add(i)
     todo = sorted(by_edge)
-    newV = []
+    # the faces first, in integers alone: each new vertex recorded as (u, v, o0, o1), the edge it
+    # splits and the opposite corners of its two faces; their coordinates after (_midpoints)
+    made = []
     nxt_v = len(V)
     nxt_f = m
-    Vl = V
-    n_old = len(Vl)
-
-    def coord(i):
-        return Vl[i] if i < n_old else newV[i - n_old]
-
     for u, v in todo:
         fs = list(by_edge.get((u, v), ()))
         if len(fs) != 4:
@@ -74,17 +72,11 @@ def _split_four_face_edges(V, F, side, nudge):
         for sd, group in groups.items():
             if len(group) != 2:
                 raise RuntimeError("internal error: a four-face edge does not pair by side")
-            mid = 0.5 * (coord(u) + coord(v))
             opp = []
             for i in group:
                 f = faces[i][0]
                 opp.append([w for w in f if w != u and w != v][0])
-            # the mean of the two opposite corners (np.mean of two rows: their sum over 2)
-            toward = (coord(opp[0]) + coord(opp[1])) / 2.0 - mid
-            nrm = np.linalg.norm(toward)
-            if nrm > 0:
-                mid = mid + toward * (nudge / nrm)
-            newV.append(mid)
+            made.append((u, v, opp[0], opp[1]))
             mv = nxt_v
             nxt_v += 1
             for i in group:
@@ -107,12 +99,64 @@ def _split_four_face_edges(V, F, side, nudge):
                 if key in by_edge:
                     by_edge[key].add(nxt_f)
                 nxt_f += 1
+    newV = _midpoints(V, np.array(made, dtype=np.int64).reshape(-1, 4), nudge)
     keep = np.ones(m, dtype=bool)
     keep[work] = False
     items = list(faces.values())
     F2, S2 = _kept_and_added(F, side, keep, [f for f, _ in items], [sd for _, sd in items])
-    V2 = np.concatenate([V, np.array(newV).reshape(-1, 3)])
+    V2 = np.concatenate([V, newV])
     return V2, F2, S2
+
+
+def _midpoints(V, made, nudge):
+    """The new vertices of :func:`_split_four_face_edges`: row ``j`` of ``made`` is ``(u, v, o0,
+    o1)``, vertex ``len(V) + j`` the midpoint of ``u`` and ``v`` moved ``nudge`` toward the mean of
+    ``o0`` and ``o1`` (any of them may be an earlier new vertex).  Computed in rounds, each taking
+    the rows whose four vertices are known, with the operations of the one-row form
+    (:func:`_midpoint_one`, kept for the tests) in the same order: the same bits."""
+    n_old, n = len(V), len(made)
+    dt = (0.5 * V[:1]).dtype  # (the one-row form's result type)
+    out = np.empty((n, 3), dtype=dt)
+    if n == 0:
+        return out.reshape(-1, 3)
+    # the round of a row: one more than the latest round among the new vertices it uses
+    level = np.zeros(n, dtype=np.int64)
+    dep = made - n_old  # (>= 0: a new vertex)
+    if (dep >= 0).any():
+        for j in np.flatnonzero((dep >= 0).any(axis=1)).tolist():
+            d = dep[j][dep[j] >= 0]
+            level[j] = 1 + int(level[d].max())
+
+    def at(ids):  # the coordinates of vertices old or new (the new ones of earlier rounds)
+        old = ids < n_old
+        if old.all():
+            return V[ids]
+        got = np.empty((len(ids), 3), dtype=dt)
+        got[old] = V[ids[old]]
+        got[~old] = out[ids[~old] - n_old]
+        return got
+
+    for lv in range(int(level.max()) + 1):
+        rows = np.flatnonzero(level == lv)
+        cu, cv, c0, c1 = (at(made[rows, t]) for t in range(4))
+        mid = 0.5 * (cu + cv)
+        toward = (c0 + c1) / 2.0 - mid
+        # (np.linalg.norm of each row: its dot product, as the one-row form takes it)
+        nrm = np.array([np.linalg.norm(r) for r in toward], dtype=toward.dtype).reshape(-1)
+        pos = nrm > 0
+        mid[pos] = mid[pos] + toward[pos] * (nudge / nrm[pos])[:, None]
+        out[rows] = mid
+    return out
+
+
+def _midpoint_one(cu, cv, c0, c1, nudge):
+    """One new vertex of :func:`_split_four_face_edges` as the splitting loop first made it."""
+    mid = 0.5 * (cu + cv)
+    toward = (c0 + c1) / 2.0 - mid
+    nrm = np.linalg.norm(toward)
+    if nrm > 0:
+        mid = mid + toward * (nudge / nrm)
+    return mid
 
 
 def _kept_and_added(F, side, keep, added_faces, added_sides):

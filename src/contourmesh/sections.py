@@ -444,6 +444,12 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         got = split(lo, hi, MAX_DEPTH, True, ())
     except _NoTopology:
         return None
+    finally:
+        # the nested functions that call themselves or each other (split, ends, stacks, and
+        # sdf_at with section_mask) hold their own closure cells: reference cycles that would leave
+        # the join's sections, masks and layers to the cyclic garbage collector; clearing the cells
+        # frees them by reference counting when the join returns
+        split = ends = stacks = sdf_at = None
     if got is None:
         return None
     layers, pieces = got

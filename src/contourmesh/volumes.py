@@ -827,6 +827,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                   len(left), n_j, n_c)
     exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections, least_area = counts
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
+    # (the slices held there hold it back: a reference cycle, which would leave the slices to the
+    # cyclic garbage collector; emptied, they go when this call returns)
+    recent.held.clear()
     meta = {
         "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
         "caps": caps_given, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,

@@ -971,7 +971,12 @@ def bridged_ring_arrays(lengths, bridges, root: int = 0):
         emit(r, (e + np.arange(t0, m + (1 if closing else 0), dtype=np.int64)) % m)
 
     seen_start = next((v for v in range(lengths[root]) if (root, v) not in at), 0)
-    tour(root, seen_start, -1, False)
+    try:
+        tour(root, seen_start, -1, False)
+    finally:
+        # (tour calls itself through its own closure cell: a reference cycle, which would leave
+        # this call's lists to the cyclic garbage collector; clearing the cell frees them now)
+        tour = None
     return np.concatenate(rr), np.concatenate(vv)
 
 
