@@ -584,3 +584,54 @@ def test_fast_path_alone_keeps_a_self_crossing_band():
     i = np.searchsorted(table[:, 0], changed[0], side="right") - 1
     assert table[i, 6] == 1 and np.all(changed < table[i, 0] + table[i, 1]) and np.all(changed >= table[i, 0])
     assert len(intersecting_pairs(fast.vertices, F2)) == 0
+
+
+def test_shared_positions_bit_map_against_a_set():
+    # _slice_polygons_k flags a slice whose MLP vertices share a position (status 2) with a bit
+    # map that it leaves zero (before: an int64 stamp image, a stamp id per slice).  _mark_seen
+    # and _clear_seen against a set of positions, over point sets of every corner of the range
+    # [-1, w] x [-1, h] and many slices through one bit map; then _slice_polygons' flag against
+    # np.unique of its rings (random masks: all without shared positions)
+    from numba import njit
+
+    from contourmesh.fastpath import _clear_seen, _mark_seen, _scratch, _seen_bits, _slice_polygons, _words
+
+    @njit
+    def mark_all(seen, p, starts, w):
+        out = np.empty(len(starts) - 1, np.bool_)
+        for s in range(len(starts) - 1):
+            out[s] = _mark_seen(seen, p[starts[s]:starts[s + 1]].copy(), starts[s + 1] - starts[s], w)
+        _clear_seen(seen, p, starts[-1], w)
+        return out
+
+    rng = np.random.default_rng(11)
+    for trial in range(200):
+        h, w = int(rng.integers(1, 40)), int(rng.integers(1, 90))
+        seen = _seen_bits(h, w)
+        for _ in range(3):  # slices through one map
+            n = int(rng.integers(0, 30))
+            p = np.c_[rng.integers(-1, w + 1, n), rng.integers(-1, h + 1, n)].astype(np.int64)
+            if n and trial % 3 == 0:
+                p[-1] = p[0]
+            starts = np.unique(np.r_[0, rng.integers(0, n + 1, 3), n]).astype(np.int64)
+            got = mark_all(seen, p, starts, np.int64(w))
+            marked, want = set(), []
+            for a, b in zip(starts[:-1], starts[1:]):
+                pts = [tuple(v) for v in p[a:b].tolist()]
+                want.append(len(set(pts)) < len(pts) or bool(marked & set(pts)))
+                marked |= set(pts)
+            assert got.tolist() == want, trial
+            assert not seen.any()
+    for trial in range(300):
+        h, w = int(rng.integers(2, 24)), int(rng.integers(2, 70))
+        m = np.ascontiguousarray(rng.random((h, w)) < rng.uniform(0.2, 0.7))
+        b8 = m.reshape(-1).view(np.uint8)
+        b64, aligned = _words(b8)
+        seen, on, bg = _scratch(h, w)
+        out = _slice_polygons(b8, b64, 0, h, w, aligned, seen, on, bg)
+        assert not seen.any() and not on.any() and not bg.any()
+        status, poly, ps, deg = out[6], out[8], out[9], out[10]
+        if status != 1:  # (1: a hole, no polygons)
+            rings = [poly[ps[c]: ps[c + 1]] for c in range(out[5]) if not deg[c]]
+            pts = np.concatenate(rings) if rings else np.zeros((0, 2), np.int64)
+            assert (status == 2) == (len(np.unique(pts, axis=0)) != len(pts)), trial
