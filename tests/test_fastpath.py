@@ -635,3 +635,65 @@ def test_shared_positions_bit_map_against_a_set():
             rings = [poly[ps[c]: ps[c + 1]] for c in range(out[5]) if not deg[c]]
             pts = np.concatenate(rings) if rings else np.zeros((0, 2), np.int64)
             assert (status == 2) == (len(np.unique(pts, axis=0)) != len(pts)), trial
+
+
+def test_stack_join_is_pair_joins_where_it_decides():
+    # _slab_pairs asks _stack_join first for two slices of one component each: where it decides
+    # (both slices one run per row and their overlap a stack, or no overlap) its answer must be
+    # _pair_joins'; shapes: discs, bars, staircases, rows with gaps and with two runs, overlaps
+    # that split, pinch, go round a hole or touch only at a corner
+    from numba import njit
+
+    from contourmesh.fastpath import _pair_joins, _stack_join, slice_components
+
+    @njit
+    def both(ry, rx0, rx1, rs, lab, n, a0, a1, b1, h):
+        ok, pa, pb = _pair_joins(ry[a0:a1], rx0[a0:a1], rx1[a0:a1], rs[0], lab[a0:a1], n[0],
+                                 ry[a1:b1], rx0[a1:b1], rx1[a1:b1], rs[1], lab[a1:b1], n[1], h)
+        return _stack_join(ry, rx0, rx1, a0, a1, b1), ok, pa, pb
+
+    rng = np.random.default_rng(17)
+    decided = {0: 0, 1: 0}
+    undecided = 0
+    for trial in range(600):
+        h, w = int(rng.integers(2, 16)), int(rng.integers(2, 20))
+        pair = []
+        for _ in range(2):
+            kind = rng.integers(4)
+            if kind == 0:  # a random stack: one interval per row over consecutive rows
+                m = np.zeros((h, w), bool)
+                y0 = int(rng.integers(0, h))
+                y1 = int(rng.integers(y0 + 1, h + 1))
+                x = int(rng.integers(0, w))
+                for y in range(y0, y1):
+                    a = int(np.clip(x + rng.integers(-2, 3), 0, w - 1))
+                    b = int(rng.integers(a + 1, min(w, a + 8) + 1))
+                    m[y, a:b] = True
+                    x = a
+            elif kind == 1:
+                m = ball(1, rng.uniform(1, 8), c=(0, rng.uniform(0, h), rng.uniform(0, w)), shape=(1, h, w))[0]
+            else:
+                m = rng.random((h, w)) < rng.uniform(0.3, 0.9)
+            lab, n = ndimage.label(m)
+            if n == 0:
+                break
+            pair.append(lab == 1 + int(rng.integers(n)))  # one 4-component
+        if len(pair) < 2:
+            continue
+        runs, labs, ns = [], [], []
+        for m in pair:
+            (ry, rx0, rx1, rs), lab, n, _, _ = slice_components(m)
+            assert n == 1
+            runs.append((ry, rx0, rx1, rs))
+            labs.append(lab)
+            ns.append(n)
+        ry, rx0, rx1 = (np.concatenate([r[i] for r in runs]) for i in range(3))
+        rs = np.stack([runs[0][3], runs[1][3]])
+        a1, b1 = len(runs[0][0]), len(ry)
+        got, ok, pa, pb = both(ry, rx0, rx1, rs, np.concatenate(labs), np.array(ns, np.int64), 0, a1, b1, h)
+        if got < 0:
+            undecided += 1
+            continue
+        decided[int(got)] += 1
+        assert ok and pa.tolist() == [got - 1] and pb.tolist() == [got - 1], trial
+    assert min(decided.values()) > 20 and undecided > 20, (decided, undecided)

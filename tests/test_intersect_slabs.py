@@ -287,8 +287,7 @@ def test_slab_pairs_over_ranges_of_planes_partition_the_pairs():
     decided there: over any partition of the levels into ranges the lists are disjoint and their
     union is the whole call's list (faces spanning several slabs, flat faces, touching and
     coplanar cases), with and without the quick decisions; the grid agrees."""
-    from contourmesh.intersect import (_EXP_LEN, _SLAB_BUDGET, _levels, _on_small_dyadic_grid, _slab_pairs,
-                                       canonical_vertices)
+    from contourmesh.intersect import _EXP_LEN, _SLAB_BUDGET, _levels, _on_small_dyadic_grid, _slab_pairs, canonical_vertices
 
     rng = np.random.default_rng(41)
     checked = 0

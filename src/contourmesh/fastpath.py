@@ -949,6 +949,49 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
     return ok, pa, pb
 
 
+@_kernel
+def _stack_join(ry, rx0, rx1, a0, a1, b1):
+    """:func:`_pair_joins` for two slices of one component each (runs ``a0:a1`` and ``a1:b1``)
+    where it is decided from the runs alone: 1 when both slices have one run per row and their
+    overlap is a stack (its rows consecutive, one run each, every run overlapping the one below:
+    one component without holes, the case :func:`_components` takes without union-find), so the
+    components join; 0 when they do not overlap; -1 otherwise (then :func:`_pair_joins`).
+
+    The 512^3 ball's 500 slice pairs are all stacks: this walk takes about 1 ms of the 12 ms that
+    :func:`_pair_joins` spends building and labelling their overlap runs."""
+    for r in range(a0 + 1, a1):
+        if ry[r] != ry[r - 1] + 1:
+            return np.int64(-1)  # (rows in order: a row twice, or a gap, is not one run per row)
+    for r in range(a1 + 1, b1):
+        if ry[r] != ry[r - 1] + 1:
+            return np.int64(-1)
+    i = a0
+    j = a1
+    n = 0
+    py = 0
+    plo = 0
+    phi = 0
+    while i < a1 and j < b1:
+        if ry[i] < ry[j]:
+            i += 1
+            continue
+        if ry[j] < ry[i]:
+            j += 1
+            continue
+        lo = rx0[i] if rx0[i] > rx0[j] else rx0[j]
+        hi = rx1[i] if rx1[i] < rx1[j] else rx1[j]
+        if lo < hi:
+            if n > 0 and (ry[i] != py + 1 or lo >= phi or plo >= hi):
+                return np.int64(-1)
+            n += 1
+            py = ry[i]
+            plo = lo
+            phi = hi
+        i += 1
+        j += 1
+    return np.int64(1) if n > 0 else np.int64(0)
+
+
 # ------------------------------------------------------------------------------------------------
 # 6. bands (the paper's triangulation with the full mesher's twist guard)
 # ------------------------------------------------------------------------------------------------
@@ -1140,8 +1183,19 @@ def _slab_pairs(k0, k1, h, ry, rx0, rx1, lab, meta, rs, xyz, soff, rst, window, 
             continue
         a0, a1 = meta[k, 3], meta[k + 1, 3]
         b1 = meta[k + 2, 3]
-        ok, pa, pb = _pair_joins(ry[a0:a1], rx0[a0:a1], rx1[a0:a1], rs[k], lab[a0:a1], na,
-                                 ry[a1:b1], rx0[a1:b1], rx1[a1:b1], rs[k + 1], lab[a1:b1], nbk, h)
+        joined = -1
+        if na == 1 and nbk == 1:
+            joined = _stack_join(ry, rx0, rx1, a0, a1, b1)
+        if joined >= 0:
+            # (two stacks whose overlap is a stack or empty: _pair_joins' answer without its arrays)
+            ok = True
+            pa = np.empty(1, np.int64)
+            pb = np.empty(1, np.int64)
+            pa[0] = joined - 1
+            pb[0] = joined - 1
+        else:
+            ok, pa, pb = _pair_joins(ry[a0:a1], rx0[a0:a1], rx1[a0:a1], rs[k], lab[a0:a1], na,
+                                     ry[a1:b1], rx0[a1:b1], rx1[a1:b1], rs[k + 1], lab[a1:b1], nbk, h)
         if not ok:
             return False, bands[:0], faces[:0]
         ca = meta[k, 4]
