@@ -62,6 +62,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import KERNEL_OPTIONS, internal_kernel
+from ._workers import run_all
 from .bands import _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands import arclength as _arclength
 from .bands import wiederhold as _wiederhold
@@ -1470,16 +1471,10 @@ def _map(fn, items, threads):
     more than a thin slice's kernel takes."""
     if threads <= 1 or len(items) < 4:
         return [fn(i) for i in items]
-    from concurrent.futures import ThreadPoolExecutor
-
     n = len(items)
     bounds = np.linspace(0, n, min(n, threads * SLABS_PER_THREAD) + 1).astype(int)
-    slabs = [items[a:b] for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-    ex = ThreadPoolExecutor(max_workers=threads)
-    try:
-        return [r for part in ex.map(lambda slab: [fn(i) for i in slab], slabs) for r in part]
-    finally:
-        ex.shutdown(wait=True, cancel_futures=True)
+    slabs = [(items[a:b],) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    return [r for part in run_all(lambda slab: [fn(i) for i in slab], slabs, threads) for r in part]
 
 
 def _pack_slices(outs, h, ox, oy, dx, dy, zs):
@@ -1529,15 +1524,9 @@ def _map_slabs(fn, n, threads):
     one slab on one thread, a few per thread (:data:`SLABS_PER_THREAD`) on a thread pool."""
     if threads <= 1 or n < 4:
         return fn(0, n)
-    from concurrent.futures import ThreadPoolExecutor
-
     bounds = np.linspace(0, n, min(n, threads * SLABS_PER_THREAD) + 1).astype(int).tolist()
     slabs = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-    ex = ThreadPoolExecutor(max_workers=threads)
-    try:
-        return [r for part in ex.map(lambda ab: fn(*ab), slabs) for r in part]
-    finally:
-        ex.shutdown(wait=True, cancel_futures=True)
+    return [r for part in run_all(fn, slabs, threads) for r in part]
 
 
 def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, bands_out=None):

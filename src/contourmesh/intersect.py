@@ -2179,7 +2179,7 @@ def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev):
     returned sorted the same way.  None where a range is not finished there (a sweep over its
     budget, or faces spanning too many slabs): the caller then runs the whole mesh as one call,
     whose outcome (the slab phase's pairs or the grid's) is the same pairs."""
-    import threading
+    from ._workers import worker_pool
 
     mid = int(np.partition(lev, len(lev) // 2)[len(lev) // 2])
     if mid <= 0 or mid >= nlev:
@@ -2192,13 +2192,12 @@ def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev):
         out[t] = _slab_pairs(V, w, Fc, star, sst0.copy(), qk, lev, np.int64(nlev), np.int64(_SLAB_BUDGET),
                              np.int64(0), np.int64(k0), np.int64(k1))
 
-    other = threading.Thread(target=part, args=(1, mid, nlev))
-    other.start()
+    other = worker_pool(2).submit(part, 1, mid, nlev)
     try:
         part(0, 0, mid)
     finally:
-        other.join()
-    if out[1] is None or out[0][2] != 1 or out[1][2] != 1:  # (None: the thread failed)
+        other.result()
+    if out[0][2] != 1 or out[1][2] != 1:
         return None
     res = np.stack([np.concatenate([out[0][0], out[1][0]]), np.concatenate([out[0][1], out[1][1]])],
                    axis=1).astype(np.int64, copy=False)
