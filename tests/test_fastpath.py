@@ -697,3 +697,60 @@ def test_stack_join_is_pair_joins_where_it_decides():
         decided[int(got)] += 1
         assert ok and pa.tolist() == [got - 1] and pb.tolist() == [got - 1], trial
     assert min(decided.values()) > 20 and undecided > 20, (decided, undecided)
+
+
+def test_stack_candidates_are_the_grid_kernels():
+    # the MLP of a stack (one run per row) starts from candidates made from its intervals
+    # (_stack_candidates) instead of the grids of _mlp_grid: the same candidates in the same
+    # order, and so the same MLP, on random stacks (width-one rows, rows that only touch the next
+    # one at a corner of their cells, staircases, discs) and on the slices of a ball
+    from numba import njit
+
+    from contourmesh.fastpath import _stack_candidates, _trace_runs
+    from contourmesh.polygons.mlp import _mlp_grid, _mlp_pull
+
+    @njit
+    def both(ry, rx0, rx1, order, colour, on, bg, w):
+        cc = _trace_runs(ry, rx0, rx1, order, np.int64(0), np.int64(len(order)))
+        if len(cc) == 0:
+            e = np.empty((0, 2), np.int64)
+            return False, e, np.empty(0, np.int64), e, e, np.empty(0, np.int64), e
+        cand, kind, m = _stack_candidates(cc, ry, rx0, rx1, order, np.int64(0), np.int64(len(order)))
+        c1, k1, p1 = _mlp_pull(cc, cand, kind, m, colour)
+        c2, k2, p2 = _mlp_grid(cc, colour, on, bg, np.int64(-3), np.int64(-3), w + 6)
+        return True, c1, k1, p1, c2, k2, p2
+
+    rng = np.random.default_rng(23)
+    masks = []
+    for _ in range(400):
+        h, w = int(rng.integers(1, 14)), int(rng.integers(1, 24))
+        m = np.zeros((h, w), bool)
+        y0 = int(rng.integers(0, h))
+        y1 = int(rng.integers(y0 + 1, h + 1))
+        x = int(rng.integers(0, w))
+        for y in range(y0, y1):
+            a = int(np.clip(x + rng.integers(-3, 4), 0, w - 1))
+            b = int(rng.integers(a + 1, min(w, a + int(rng.integers(1, 9))) + 1))
+            m[y, a:b] = True
+            x = a if rng.random() < 0.5 else b - 1
+        masks.append(m)
+    masks += list(ball(1, 5.3, c=(0, 7, 7), shape=(1, 15, 15))) + list(ball(24, 10.7))
+    done = 0
+    for m in masks:
+        if not m.any():
+            continue
+        (ry, rx0, rx1, rs), lab, n, _, _ = slice_components(m)
+        if n != 1:
+            continue
+        h, w = m.shape
+        on = np.zeros((h + 6) * (w + 6), np.uint8)
+        bg = on.copy()
+        order = np.arange(len(ry), dtype=np.int64)
+        for colour in (1, 0):
+            ok, c1, k1, p1, c2, k2, p2 = both(ry, rx0, rx1, order, np.int64(colour), on, bg, np.int64(w))
+            if not ok:
+                break
+            assert np.array_equal(c1, c2) and np.array_equal(k1, k2) and np.array_equal(p1, p2)
+            assert not on.any() and not bg.any()
+            done += colour
+    assert done > 200

@@ -119,6 +119,7 @@ def _entry(fn):
 
 _mlp = _mlp_module._mlp_kernel
 _mlp_grid = _mlp_module._mlp_grid
+_mlp_pull = _mlp_module._mlp_pull
 wiederhold_edges = _wiederhold._wiederhold_edges
 _edges_to_faces = _wiederhold._edges_to_faces_kernel
 arclength_edges = _arclength._arclength_edges
@@ -583,6 +584,80 @@ def _trace_runs_py(ry, rx0, rx1, order, t0, t1):
     return _trace_runs(ry, rx0, rx1, order, t0, t1)
 
 
+@_kernel
+def _stack_candidates(pts, ry, rx0, rx1, order, t0, t1):
+    """Step 1 of the MLP (:func:`contourmesh.polygons.mlp._mlp_grid`) for the contour ``pts`` that
+    :func:`_trace_runs` wrote for the stack ``order[t0:t1]``, without the grids: ``(cand, kind,
+    m)``, the candidates being ``cand[:m]``, ``kind[:m]``, for :func:`~contourmesh.polygons.mlp._mlp_pull`.
+
+    The grids decide whether an inner corner ``q`` of a contour step is a W: ``q`` not on the
+    contour and no cell around it right of a step.  ``q`` is a corner of the cell left of the step,
+    which is in ``U``; were another cell around ``q`` outside ``U``, an edge at ``q`` would part the
+    two, so ``q`` would be on the boundary of ``U``, which for a stack is this one contour; and a
+    point of the contour has a cell around it outside ``U``.  So ``q`` is a W exactly when its four
+    cells are in ``U``: rows ``q_y - 1`` and ``q_y`` of the stack's intervals (as
+    :func:`_trace_runs` makes them) both hold the cells ``q_x - 1`` and ``q_x``.  The rest is the
+    grid kernel's loop.  For the 512^3 ball's 785k contour points: half the time of the grids,
+    which write, read and clear five bytes of two slice-sized images per point.
+    """
+    mr = t1 - t0
+    y0 = ry[order[t0]] - 1
+    lo = np.empty(mr + 1, np.int64)
+    hi = np.empty(mr + 1, np.int64)
+    for i in range(mr + 1):
+        if i == 0:
+            r = order[t0]
+            a = rx0[r] - 1
+            b = rx1[r]
+        else:
+            r = order[t0 + i - 1]
+            a = rx0[r] - 1
+            b = rx1[r]
+            if i < mr:
+                r = order[t0 + i]
+                if rx0[r] - 1 < a:
+                    a = rx0[r] - 1
+                if rx1[r] > b:
+                    b = rx1[r]
+        lo[i] = a
+        hi[i] = b
+    n = len(pts)
+    cand = np.empty((3 * n, 2), np.int64)
+    kind = np.empty(3 * n, np.int64)
+    m = 0
+    lastw_x, lastw_y, has_w = 0, 0, False
+    for k in range(n):
+        kp = k - 1 if k > 0 else n - 1
+        kn = k + 1 if k + 1 < n else 0
+        px, py = pts[kp, 0], pts[kp, 1]
+        cx, cy = pts[k, 0], pts[k, 1]
+        nx, ny = pts[kn, 0], pts[kn, 1]
+        ix, iy = cx - px, cy - py  # incoming step
+        sx, sy = nx - cx, ny - cy  # outgoing step
+        turn = ix * sy - iy * sx
+        if turn != 0:
+            cand[m, 0] = cx
+            cand[m, 1] = cy
+            kind[m] = 0 if turn > 0 else -1
+            m += 1
+        lx, ly = -sy, sx
+        for j in range(2):
+            qx, qy = cx + lx + j * sx, cy + ly + j * sy
+            i = qy - 1 - y0  # the rows of the cells below and above q: i and i + 1
+            if i < 0 or i >= mr:
+                continue
+            if lo[i] >= qx or qx >= hi[i] or lo[i + 1] >= qx or qx >= hi[i + 1]:
+                continue  # a cell around q is not in U
+            if has_w and qx == lastw_x and qy == lastw_y:
+                continue
+            cand[m, 0] = qx
+            cand[m, 1] = qy
+            kind[m] = 1
+            m += 1
+            lastw_x, lastw_y, has_w = qx, qy, True
+    return cand, kind, np.int64(m)
+
+
 def outer_jordan_contour(mask2d) -> np.ndarray:
     """The outer contour of the outer Jordan digitization of a 2D mask (one 4-component).
 
@@ -751,7 +826,10 @@ def _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg):
     for c in range(n):
         # one run per row: the contour from the runs; else the walk over the pixels
         cc = _trace_runs(ry, rx0, rx1, order, cnt[c], cnt[c + 1])
-        if len(cc) == 0:
+        if len(cc) > 0:
+            cand, kind, mc = _stack_candidates(cc, ry, rx0, rx1, order, cnt[c], cnt[c + 1])
+            _, _, p = _mlp_pull(cc, cand, kind, mc, outer)
+        else:
             if n == 1:
                 # the slice itself is the component's image
                 img, ibase, ih, iw, ox, oy = b8, base, h, w, 0, 0
@@ -771,7 +849,7 @@ def _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg):
                         img[row + x] = 1
             r = first[c]
             cc = _trace_outer(img, ibase, ih, iw, ox, oy, rx0[r] - 1, ry[r] - 1)
-        _, _, p = _mlp_grid(cc, outer, on, bg, mthree, mthree, w + 6)
+            _, _, p = _mlp_grid(cc, outer, on, bg, mthree, mthree, w + 6)
         k = len(p)
         a2 = 0
         for i in range(k):
