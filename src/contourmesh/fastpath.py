@@ -29,9 +29,13 @@ same order) and the same faces, because every step is the full mesher's step don
    :func:`contourmesh.tracing.trace_contours` does, but reading the 3 x 3 pixels around each
    vertex instead of a dilated cell image (so only the boundary is touched).
 4. *MLP.*  The candidates and string pulling of :mod:`contourmesh.polygons.mlp` (Klette & Yip),
-   called on that contour; degenerate MLPs fall back to the crack contour as in the full mesher.
+   called on that contour; a component with one run per row (a *stack*, such as every slice of a
+   ball) gets its candidates from its rows' intervals instead of the MLP's grids
+   (:func:`_stack_candidates`, the same list); degenerate MLPs fall back to the crack contour as in
+   the full mesher.  Shared vertex positions are found with a bit map of the slice.
 5. *Joins.*  Overlap runs of consecutive slices give the component pairs; the overlap of each pair
-   is checked connected and hole-free with the same run Euler number.
+   is checked connected and hole-free with the same run Euler number (two stacks whose overlap is a
+   stack join by a walk over their runs, :func:`_stack_join`, without the overlap's arrays).
 6. *Bands.*  The paper's triangulation (section 3.4, :func:`~contourmesh.bands.wiederhold.wiederhold_edges`)
    with the initial edge of section 3.2, and the full mesher's twist guard (arc-length band of
    Ganapathy & Dennehy as the reference); the rare folded or twisted bands (and near-ties of the
@@ -44,7 +48,7 @@ same order) and the same faces, because every step is the full mesher's step don
 Steps 1-4 run over a slab of consecutive slices and 5-6 over a slab of slice pairs in one
 ``nogil`` numba call each (:func:`_slab_polygons`, :func:`_slab_pairs`; their outputs packed into
 flat arrays, no Python per slice, pair or component), so ``threads > 1`` spreads the slabs over a
-thread pool; the vertex ids and faces of the bands are then assembled by one more kernel
+thread pool (:mod:`contourmesh._workers`, kept between calls); the vertex ids and faces of the bands are then assembled by one more kernel
 (:func:`_assemble`), and Python only redoes the bands the twist guard hands back, the rings of
 degenerate MLPs and the caps.  The full mesher's manifold repair steps are provably no-ops on
 this scope (every edge has two faces, every vertex one fan; positions are checked distinct per
