@@ -66,7 +66,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import KERNEL_OPTIONS, internal_kernel
-from ._workers import run_all, worker_pool
+from ._workers import run_all
 from .bands import _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands import arclength as _arclength
 from .bands import wiederhold as _wiederhold
@@ -1603,12 +1603,8 @@ def _join_packs(packs, threads=1):
         return [np.concatenate([p[i] for p in packs]) for i in fields]
 
     if threads > 1:
-        runs = worker_pool(threads).submit(join, (1, 2, 3))  # (ry, rx0, rx1; the rest here)
-        try:
-            rest = join(range(4, 11))
-        finally:
-            cat = runs.result()
-        cat += rest
+        runs, rest = run_all(join, [((1, 2, 3),), (range(4, 11),)], threads)  # (ry, rx0, rx1; the rest)
+        cat = runs + rest
     else:
         cat = join(range(1, 11))
     cat[5] = cat[5].reshape(-1, 4)

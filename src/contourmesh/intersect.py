@@ -2130,7 +2130,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
             lev, nlev = lev.astype(np.int64).reshape(-1), len(levels)
         threads = _threads() if stop == 0 and method == "auto" and len(Fc) >= _SPLIT_FACES and nlev > 8 else 1
         if threads > 1:
-            got = _split_slab_pairs(V, ws, Fc, sst, qk, lev, nlev)
+            got = _split_slab_pairs(V, ws, Fc, sst, qk, lev, nlev, threads)
             if got is not None:
                 return got
         # a box test is cheap next to the grid's cost per face: on the liver's whole mesh a budget
@@ -2171,35 +2171,34 @@ def _threads() -> int:
         return 1
 
 
-def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev):
-    """The slab broad phase on two threads: the planes ``0 .. mid - 1`` (with the slabs below
-    them) on one, ``mid .. nlev - 1`` on the other (:func:`_slab_pairs` with a range of planes,
-    the kernels release the GIL), ``mid`` the median level of the vertices.  Each pair is decided
-    at one plane or slab, so the two lists are disjoint and together the pairs of one call,
-    returned sorted the same way.  None where a range is not finished there (a sweep over its
-    budget, or faces spanning too many slabs): the caller then runs the whole mesh as one call,
-    whose outcome (the slab phase's pairs or the grid's) is the same pairs."""
-    from ._workers import worker_pool
+def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev, threads):
+    """The slab broad phase on ``threads`` threads: :func:`_slab_pairs` over ``2 threads`` ranges of
+    planes (with the slabs below them), cut at quantiles of the vertices' levels, taken one after
+    another by the calling thread and the workers (:func:`contourmesh._workers.run_all`; the
+    kernels release the GIL).  Each pair is decided at one plane or slab, so the lists are
+    disjoint and together the pairs of one call, returned sorted the same way.  None where a range
+    is not finished there (a sweep over its budget, or faces spanning too many slabs): the caller
+    then runs the whole mesh as one call, whose outcome (the slab phase's pairs or the grid's) is
+    the same pairs."""
+    from ._workers import run_all
 
-    mid = int(np.partition(lev, len(lev) // 2)[len(lev) // 2])
-    if mid <= 0 or mid >= nlev:
+    parts = 2 * threads
+    cuts = np.unique(np.partition(lev, [len(lev) * q // parts for q in range(1, parts)])[
+        [len(lev) * q // parts for q in range(1, parts)]])
+    bounds = [0] + [int(c) for c in cuts if 0 < c < nlev] + [nlev]
+    if len(bounds) < 3:
         return None
-    out = [None, None]
 
-    def part(t, k0, k1):
+    def part(k0, k1):
         w = ws.copy()  # the exact predicates' workspace is written to
         star = np.zeros(len(V), np.int8)  # (each range's stars: those of its faces)
-        out[t] = _slab_pairs(V, w, Fc, star, sst0.copy(), qk, lev, np.int64(nlev), np.int64(_SLAB_BUDGET),
-                             np.int64(0), np.int64(k0), np.int64(k1))
+        return _slab_pairs(V, w, Fc, star, sst0.copy(), qk, lev, np.int64(nlev), np.int64(_SLAB_BUDGET),
+                           np.int64(0), np.int64(k0), np.int64(k1))
 
-    other = worker_pool(2).submit(part, 1, mid, nlev)
-    try:
-        part(0, 0, mid)
-    finally:
-        other.result()
-    if out[0][2] != 1 or out[1][2] != 1:
+    out = run_all(part, list(zip(bounds[:-1], bounds[1:])), threads)
+    if any(ok != 1 for _, _, ok in out):
         return None
-    res = np.stack([np.concatenate([out[0][0], out[1][0]]), np.concatenate([out[0][1], out[1][1]])],
+    res = np.stack([np.concatenate([o[0] for o in out]), np.concatenate([o[1] for o in out])],
                    axis=1).astype(np.int64, copy=False)
     if len(res):
         res = res[np.lexsort((res[:, 1], res[:, 0]))]
