@@ -584,3 +584,173 @@ def test_fast_path_alone_keeps_a_self_crossing_band():
     i = np.searchsorted(table[:, 0], changed[0], side="right") - 1
     assert table[i, 6] == 1 and np.all(changed < table[i, 0] + table[i, 1]) and np.all(changed >= table[i, 0])
     assert len(intersecting_pairs(fast.vertices, F2)) == 0
+
+
+def test_shared_positions_bit_map_against_a_set():
+    # _slice_polygons_k flags a slice whose MLP vertices share a position (status 2) with a bit
+    # map that it leaves zero (before: an int64 stamp image, a stamp id per slice).  _mark_seen
+    # and _clear_seen against a set of positions, over point sets of every corner of the range
+    # [-1, w] x [-1, h] and many slices through one bit map; then _slice_polygons' flag against
+    # np.unique of its rings (random masks: all without shared positions)
+    from numba import njit
+
+    from contourmesh.fastpath import _clear_seen, _mark_seen, _scratch, _seen_bits, _slice_polygons, _words
+
+    @njit
+    def mark_all(seen, p, starts, w):
+        out = np.empty(len(starts) - 1, np.bool_)
+        for s in range(len(starts) - 1):
+            out[s] = _mark_seen(seen, p[starts[s]:starts[s + 1]].copy(), starts[s + 1] - starts[s], w)
+        _clear_seen(seen, p, starts[-1], w)
+        return out
+
+    rng = np.random.default_rng(11)
+    for trial in range(200):
+        h, w = int(rng.integers(1, 40)), int(rng.integers(1, 90))
+        seen = _seen_bits(h, w)
+        for _ in range(3):  # slices through one map
+            n = int(rng.integers(0, 30))
+            p = np.c_[rng.integers(-1, w + 1, n), rng.integers(-1, h + 1, n)].astype(np.int64)
+            if n and trial % 3 == 0:
+                p[-1] = p[0]
+            starts = np.unique(np.r_[0, rng.integers(0, n + 1, 3), n]).astype(np.int64)
+            got = mark_all(seen, p, starts, np.int64(w))
+            marked, want = set(), []
+            for a, b in zip(starts[:-1], starts[1:]):
+                pts = [tuple(v) for v in p[a:b].tolist()]
+                want.append(len(set(pts)) < len(pts) or bool(marked & set(pts)))
+                marked |= set(pts)
+            assert got.tolist() == want, trial
+            assert not seen.any()
+    for trial in range(300):
+        h, w = int(rng.integers(2, 24)), int(rng.integers(2, 70))
+        m = np.ascontiguousarray(rng.random((h, w)) < rng.uniform(0.2, 0.7))
+        b8 = m.reshape(-1).view(np.uint8)
+        b64, aligned = _words(b8)
+        seen, on, bg = _scratch(h, w)
+        out = _slice_polygons(b8, b64, 0, h, w, aligned, seen, on, bg)
+        assert not seen.any() and not on.any() and not bg.any()
+        status, poly, ps, deg = out[6], out[8], out[9], out[10]
+        if status != 1:  # (1: a hole, no polygons)
+            rings = [poly[ps[c]: ps[c + 1]] for c in range(out[5]) if not deg[c]]
+            pts = np.concatenate(rings) if rings else np.zeros((0, 2), np.int64)
+            assert (status == 2) == (len(np.unique(pts, axis=0)) != len(pts)), trial
+
+
+def test_stack_join_is_pair_joins_where_it_decides():
+    # _slab_pairs asks _stack_join first for two slices of one component each: where it decides
+    # (both slices one run per row and their overlap a stack, or no overlap) its answer must be
+    # _pair_joins'; shapes: discs, bars, staircases, rows with gaps and with two runs, overlaps
+    # that split, pinch, go round a hole or touch only at a corner
+    from numba import njit
+
+    from contourmesh.fastpath import _pair_joins, _stack_join, slice_components
+
+    @njit
+    def both(ry, rx0, rx1, rs, lab, n, a0, a1, b1, h):
+        ok, pa, pb = _pair_joins(ry[a0:a1], rx0[a0:a1], rx1[a0:a1], rs[0], lab[a0:a1], n[0],
+                                 ry[a1:b1], rx0[a1:b1], rx1[a1:b1], rs[1], lab[a1:b1], n[1], h)
+        return _stack_join(ry, rx0, rx1, a0, a1, b1), ok, pa, pb
+
+    rng = np.random.default_rng(17)
+    decided = {0: 0, 1: 0}
+    undecided = 0
+    for trial in range(600):
+        h, w = int(rng.integers(2, 16)), int(rng.integers(2, 20))
+        pair = []
+        for _ in range(2):
+            kind = rng.integers(4)
+            if kind == 0:  # a random stack: one interval per row over consecutive rows
+                m = np.zeros((h, w), bool)
+                y0 = int(rng.integers(0, h))
+                y1 = int(rng.integers(y0 + 1, h + 1))
+                x = int(rng.integers(0, w))
+                for y in range(y0, y1):
+                    a = int(np.clip(x + rng.integers(-2, 3), 0, w - 1))
+                    b = int(rng.integers(a + 1, min(w, a + 8) + 1))
+                    m[y, a:b] = True
+                    x = a
+            elif kind == 1:
+                m = ball(1, rng.uniform(1, 8), c=(0, rng.uniform(0, h), rng.uniform(0, w)), shape=(1, h, w))[0]
+            else:
+                m = rng.random((h, w)) < rng.uniform(0.3, 0.9)
+            lab, n = ndimage.label(m)
+            if n == 0:
+                break
+            pair.append(lab == 1 + int(rng.integers(n)))  # one 4-component
+        if len(pair) < 2:
+            continue
+        runs, labs, ns = [], [], []
+        for m in pair:
+            (ry, rx0, rx1, rs), lab, n, _, _ = slice_components(m)
+            assert n == 1
+            runs.append((ry, rx0, rx1, rs))
+            labs.append(lab)
+            ns.append(n)
+        ry, rx0, rx1 = (np.concatenate([r[i] for r in runs]) for i in range(3))
+        rs = np.stack([runs[0][3], runs[1][3]])
+        a1, b1 = len(runs[0][0]), len(ry)
+        got, ok, pa, pb = both(ry, rx0, rx1, rs, np.concatenate(labs), np.array(ns, np.int64), 0, a1, b1, h)
+        if got < 0:
+            undecided += 1
+            continue
+        decided[int(got)] += 1
+        assert ok and pa.tolist() == [got - 1] and pb.tolist() == [got - 1], trial
+    assert min(decided.values()) > 20 and undecided > 20, (decided, undecided)
+
+
+def test_stack_candidates_are_the_grid_kernels():
+    # the MLP of a stack (one run per row) starts from candidates made from its intervals
+    # (_stack_candidates) instead of the grids of _mlp_grid: the same candidates in the same
+    # order, and so the same MLP, on random stacks (width-one rows, rows that only touch the next
+    # one at a corner of their cells, staircases, discs) and on the slices of a ball
+    from numba import njit
+
+    from contourmesh.fastpath import _stack_candidates, _trace_runs
+    from contourmesh.polygons.mlp import _mlp_grid, _mlp_pull
+
+    @njit
+    def both(ry, rx0, rx1, order, colour, on, bg, w):
+        cc = _trace_runs(ry, rx0, rx1, order, np.int64(0), np.int64(len(order)))
+        if len(cc) == 0:
+            e = np.empty((0, 2), np.int64)
+            return False, e, np.empty(0, np.int64), e, e, np.empty(0, np.int64), e
+        cand, kind, m = _stack_candidates(cc, ry, rx0, rx1, order, np.int64(0), np.int64(len(order)))
+        c1, k1, p1 = _mlp_pull(cc, cand, kind, m, colour)
+        c2, k2, p2 = _mlp_grid(cc, colour, on, bg, np.int64(-3), np.int64(-3), w + 6)
+        return True, c1, k1, p1, c2, k2, p2
+
+    rng = np.random.default_rng(23)
+    masks = []
+    for _ in range(400):
+        h, w = int(rng.integers(1, 14)), int(rng.integers(1, 24))
+        m = np.zeros((h, w), bool)
+        y0 = int(rng.integers(0, h))
+        y1 = int(rng.integers(y0 + 1, h + 1))
+        x = int(rng.integers(0, w))
+        for y in range(y0, y1):
+            a = int(np.clip(x + rng.integers(-3, 4), 0, w - 1))
+            b = int(rng.integers(a + 1, min(w, a + int(rng.integers(1, 9))) + 1))
+            m[y, a:b] = True
+            x = a if rng.random() < 0.5 else b - 1
+        masks.append(m)
+    masks += list(ball(1, 5.3, c=(0, 7, 7), shape=(1, 15, 15))) + list(ball(24, 10.7))
+    done = 0
+    for m in masks:
+        if not m.any():
+            continue
+        (ry, rx0, rx1, rs), lab, n, _, _ = slice_components(m)
+        if n != 1:
+            continue
+        h, w = m.shape
+        on = np.zeros((h + 6) * (w + 6), np.uint8)
+        bg = on.copy()
+        order = np.arange(len(ry), dtype=np.int64)
+        for colour in (1, 0):
+            ok, c1, k1, p1, c2, k2, p2 = both(ry, rx0, rx1, order, np.int64(colour), on, bg, np.int64(w))
+            if not ok:
+                break
+            assert np.array_equal(c1, c2) and np.array_equal(k1, k2) and np.array_equal(p1, p2)
+            assert not on.any() and not bg.any()
+            done += colour
+    assert done > 200

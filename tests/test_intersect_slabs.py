@@ -39,7 +39,8 @@ def _same(V, F, *, expect_slabs=None):
 
 def test_levels_equal_np_unique():
     # the heights' ranks of the slab phase, compiled: np.unique's inverse and count (equal heights,
-    # -0.0 and 0.0 among them, share a level; a NaN height is left to np.unique)
+    # -0.0 and 0.0 among them, share a level; a NaN height is left to np.unique); heights in
+    # order take one pass without the sort
     from contourmesh.intersect import _levels
 
     rng = np.random.default_rng(8)
@@ -48,6 +49,10 @@ def test_levels_equal_np_unique():
         z = rng.integers(-3, 4, n) * 0.5 if t % 2 else rng.normal(size=n)
         if n and t % 5 == 0:
             z[rng.integers(n)] = -0.0
+        if t % 3 == 0:  # heights in order (the one-pass case), -0.0 and 0.0 in either order
+            z = np.sort(z)
+            if n and t % 4 == 0:
+                z[z == 0] = rng.choice([-0.0, 0.0], int(np.count_nonzero(z == 0)))
         levels, inv = np.unique(z, return_inverse=True)
         lev, nlev = _levels(np.ascontiguousarray(z, dtype=np.float64))
         assert nlev == len(levels) and np.array_equal(lev, inv.reshape(-1))
@@ -245,10 +250,9 @@ def test_twisted_tubes(shifts, crossing):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_two_thread_split_gives_the_one_call_pairs(seed, monkeypatch):
-    """With ``CONTOURMESH_THREADS=2`` a large sectioned mesh is tested in two halves of height
+    """With ``CONTOURMESH_THREADS=2`` a large sectioned mesh is tested in two ranges of height
     levels on two threads (issue 16): the pairs must be those of one call, in the same order,
-    including pairs of faces through the middle level (found by both halves) and faces lying
-    flat in it; a mesh that does not split in two keeps the one call."""
+    including pairs of faces through the middle level and faces lying flat in it."""
     import contourmesh.intersect as I
 
     rng = np.random.default_rng(seed)
@@ -275,6 +279,44 @@ def test_two_thread_split_gives_the_one_call_pairs(seed, monkeypatch):
     two = intersecting_pairs(V, F)
     assert len(calls) == 1 and calls[0] is not None and np.array_equal(two, one)
     assert np.array_equal(intersecting_pairs(V, F, method="grid"), one)
+
+
+
+def test_slab_pairs_over_ranges_of_planes_partition_the_pairs():
+    """``_slab_pairs`` over the planes ``k0 .. k1 - 1`` (and the slabs below them) finds the pairs
+    decided there: over any partition of the levels into ranges the lists are disjoint and their
+    union is the whole call's list (faces spanning several slabs, flat faces, touching and
+    coplanar cases), with and without the quick decisions; the grid agrees."""
+    from contourmesh.intersect import _EXP_LEN, _SLAB_BUDGET, _levels, _on_small_dyadic_grid, _slab_pairs, canonical_vertices
+
+    rng = np.random.default_rng(41)
+    checked = 0
+    for trial in range(60):
+        V, F = _random_sectioned(rng, int(rng.integers(3, 9)), 30, int(rng.integers(10, 60)), 0.2)
+        Fc = canonical_vertices(V)[F]  # (the kernels take canonical vertex indices)
+        lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
+        ws0 = np.zeros(1 + 3 * _EXP_LEN)
+        ws0[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
+        i64 = np.int64
+
+        def run(k0, k1, quick):
+            sst = np.array([0 if quick else -1, len(Fc) // 8 + 100], np.int64)
+            pi, pj, ok = _slab_pairs(V, ws0.copy(), Fc, np.zeros(len(V), np.int8), sst, i64(quick), lev, i64(nlev),
+                                     i64(_SLAB_BUDGET), i64(0), i64(k0), i64(k1))
+            assert ok == 1
+            return sorted(zip(pi.tolist(), pj.tolist()))
+
+        for quick in (1, 0):
+            whole = run(0, nlev, quick)
+            cuts = sorted(set(rng.integers(1, nlev, int(rng.integers(1, 4))).tolist())) if nlev > 1 else []
+            bounds = [0] + cuts + [nlev]
+            parts = [run(a, b, quick) for a, b in zip(bounds[:-1], bounds[1:])]
+            union = sorted(p for part in parts for p in part)
+            assert union == whole, (trial, bounds)
+            assert len(set(union)) == len(union)
+        assert [tuple(p) for p in intersecting_pairs(V, F, method="grid").tolist()] == whole
+        checked += len(whole) > 0
+    assert checked > 20
 
 
 def test_any_intersecting_in_one_call_on_any_arrays():

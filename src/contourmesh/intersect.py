@@ -1662,14 +1662,22 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces,
 
 
 @njit(cache=True, **_OPTIONS)
-def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop):
+def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
     """The pairs of :func:`_intersecting_pairs` for a mesh whose vertex heights have level indices
     ``lev`` (``0 .. nlev-1``, in the order of the heights), by slabs and planes (see above).
     Returns ``(pi, pj, ok)``: ``ok == 1`` done; ``0`` the mesh is not sectioned (its faces span
     more than four slabs per face on average); ``-1`` the sweeps did more than ``budget`` box
     tests per face (very long thin faces): then nothing is decided here.  ``stop > 0``: done
-    (``ok == 1``) as soon as ``stop`` pairs are found (see :func:`_intersecting_pairs`)."""
+    (``ok == 1``) as soon as ``stop`` pairs are found (see :func:`_intersecting_pairs`).
+
+    ``k0 <= k < k1``: only the pairs decided at the planes ``k`` and in the slabs below them
+    (``k - 1``, ``k > 0``), and only the faces that reach them are sorted into the slabs and
+    planes (:func:`_split_slab_pairs` gives each thread a range; ``0, nlev`` is the whole mesh).
+    Every pair is decided at exactly one plane or slab, so the ranges of a partition of
+    ``0 .. nlev - 1`` find every pair once; ``ok`` and the work counted against ``budget`` are
+    then the range's own (a range may finish where the whole would give up)."""
     m = len(F)
+    kr0 = max(k0 - 1, 0)  # plane k0 - 1 only for whether it is embedded (slab k0 - 1 needs it)
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
     # (no boxes of the whole mesh: each slab's and plane's faces get theirs in a workspace)
@@ -1689,10 +1697,12 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop):
         c = F[i, 2]
         if a == b or b == c or a == c:
             continue
-        if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
-            continue  # collinear (exactly)
         la = min(lev[a], min(lev[b], lev[c]))
         ha = max(lev[a], max(lev[b], lev[c]))
+        if ha < kr0 or la >= k1:
+            continue  # reaches no plane or slab of the range
+        if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
+            continue  # collinear (exactly)
         lo[i] = la
         hi[i] = ha
         total += ha - la
@@ -1760,7 +1770,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop):
     head = np.empty(len(V), np.int32)
     hstamp = np.full(len(V), -1, np.int32)
     nxt = np.empty(ms + 1, np.int64)
-    for k in range(nlev):
+    for k in range(kr0, k1):
         # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
         # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
         # meet the others in a slab, only flat faces here)
@@ -1826,6 +1836,8 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop):
             emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01), np.int64(k),
                                                 stamp, d1, d2, cert, all2, ci, cj, work, limit)
         pemb[k] = 1 if emb else 0
+        if k < k0:
+            continue  # (plane k0 - 1: its pairs are another range's)
         if k > 0:
             ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids,
                                                       slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, keys,
@@ -1896,9 +1908,23 @@ def _levels(z):
     where a height is NaN (the caller then asks np.unique, which counts NaNs as one height)."""
     n = len(z)
     lev = np.empty(n, np.int64)
+    ascending = True
     for t in range(n):
         if z[t] != z[t]:
             return lev, np.int64(-1)
+        if t > 0 and z[t] < z[t - 1]:
+            ascending = False
+    if ascending:
+        # heights already in order (a mesh of sections whose vertices come slice by slice, as the
+        # fast path's without half caps): the ranks in one pass, no sort
+        k = np.int64(-1)
+        prev = 0.0
+        for t in range(n):
+            if t == 0 or z[t] != prev:
+                k += 1
+                prev = z[t]
+            lev[t] = k
+        return lev, k + 1
     order = np.argsort(z)
     k = np.int64(-1)
     prev = 0.0
@@ -2072,7 +2098,7 @@ def _any_kernel(V, F, delay):
     sst[1] = m // 8 + delay
     one = m - m + 1  # (int64 values, not literals: the signatures of the Python calls)
     lev, nlev = _levels(V[:, 2].copy())
-    pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one)
+    pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one, one - one, nlev)
     if ok != 1:
         pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one)
     return len(pi) > 0
@@ -2102,15 +2128,15 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
         if nlev < 0:  # a NaN height: np.unique's levels (NaNs as one)
             levels, lev = np.unique(V[:, 2], return_inverse=True)
             lev, nlev = lev.astype(np.int64).reshape(-1), len(levels)
-        threads = _threads() if stop == 0 and len(Fc) >= _SPLIT_FACES and nlev > 8 else 1
+        threads = _threads() if stop == 0 and method == "auto" and len(Fc) >= _SPLIT_FACES and nlev > 8 else 1
         if threads > 1:
-            got = _split_slab_pairs(V, ws, Fc, sst, qk, lev, nlev, budget)
+            got = _split_slab_pairs(V, ws, Fc, sst, qk, lev, nlev, threads)
             if got is not None:
                 return got
         # a box test is cheap next to the grid's cost per face: on the liver's whole mesh a budget
         # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
-                                 np.int64(_SLAB_BUDGET), np.int64(stop))
+                                 np.int64(_SLAB_BUDGET), np.int64(stop), np.int64(0), np.int64(nlev))
         if ok == 0 and method == "slabs":
             raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
                              "than four slabs between consecutive vertex heights per face on average")
@@ -2127,11 +2153,12 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
 #: 117k faces take 14 ms, the stars 17 ms more; the lobster's and the liver's meshes need them).
 _STAR_DELAY = 100
 
-#: Meshes of at least this many faces are tested in two halves on two threads (where
-#: ``CONTOURMESH_THREADS`` asks for more than one): below it the split's copies cost what the
-#: second thread saves (the 512^3 ball's 117k faces: 18 ms on one thread, 23-26 ms split; the
-#: liver's 408k: 0.60 s on one, 0.37-0.48 s split, on a machine with another job running).
-_SPLIT_FACES = 200_000
+#: Meshes of at least this many faces are tested in two ranges of heights on two threads (where
+#: ``CONTOURMESH_THREADS`` asks for more than one): below it a thread costs more than it saves.
+#: (Until issue 16's second round the split copied each half's faces and found the pairs through
+#: the middle level twice: the 512^3 ball's 117k faces took 18 ms on one thread, 23-26 ms split,
+#: and the split started at 200,000 faces; the ranges of planes copy nothing.)
+_SPLIT_FACES = 20_000
 
 
 def _threads() -> int:
@@ -2144,42 +2171,38 @@ def _threads() -> int:
         return 1
 
 
-def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev, budget):
-    """The slab broad phase on two threads: the faces reaching at or below a middle height level
-    ``mid`` and those reaching at or above it are tested apart (the kernels release the GIL).  Two
-    faces that meet do so at some height ``z``; at ``z <= z_mid`` both reach down to ``mid`` or
-    below, at ``z >= z_mid`` both reach up to it or above, so every pair is in one half (pairs of
-    faces through ``mid`` may be in both: duplicates are removed).  The pairs are those of one
-    call, sorted the same way (a half whose sweep gives up takes the grid, as one call does).
-    None where the split would not halve the work (the caller then runs the whole mesh)."""
-    from concurrent.futures import ThreadPoolExecutor
+def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev, threads):
+    """The slab broad phase on ``threads`` threads: :func:`_slab_pairs` over ``2 threads`` ranges of
+    planes (with the slabs below them), cut at quantiles of the vertices' levels, taken one after
+    another by the calling thread and the workers (:func:`contourmesh._workers.run_all`; the
+    kernels release the GIL).  Each pair is decided at one plane or slab, so the lists are
+    disjoint and together the pairs of one call, returned sorted the same way.  None where a range
+    is not finished there (a sweep over its budget, or faces spanning too many slabs): the caller
+    then runs the whole mesh as one call, whose outcome (the slab phase's pairs or the grid's) is
+    the same pairs."""
+    from ._workers import run_all
 
-    lf = lev[Fc]
-    lo, hi = lf.min(axis=1), lf.max(axis=1)
-    del lf
-    mid = int(np.median(lo + hi) // 2)
-    halves = [np.flatnonzero(lo <= mid), np.flatnonzero(hi >= mid)]
-    del lo, hi
-    if max(len(h) for h in halves) > 0.8 * len(Fc):
-        return None  # no split worth two threads
+    parts = 2 * threads
+    cuts = np.unique(np.partition(lev, [len(lev) * q // parts for q in range(1, parts)])[
+        [len(lev) * q // parts for q in range(1, parts)]])
+    bounds = [0] + [int(c) for c in cuts if 0 < c < nlev] + [nlev]
+    if len(bounds) < 3:
+        return None
 
-    def half(idx):
+    def part(k0, k1):
         w = ws.copy()  # the exact predicates' workspace is written to
-        star = np.zeros(len(V), np.int8)  # (each half's stars: those of its faces)
-        sst = sst0.copy()
-        pi, pj, ok = _slab_pairs(V, w, np.ascontiguousarray(Fc[idx]), star, sst, qk, lev, np.int64(nlev),
-                                 np.int64(_SLAB_BUDGET), np.int64(0))
-        if ok != 1:
-            pi, pj = _intersecting_pairs(V, w, np.ascontiguousarray(Fc[idx]), star, sst, qk, np.int64(budget), np.int64(0))
-        return idx[pi], idx[pj]
+        star = np.zeros(len(V), np.int8)  # (each range's stars: those of its faces)
+        return _slab_pairs(V, w, Fc, star, sst0.copy(), qk, lev, np.int64(nlev), np.int64(_SLAB_BUDGET),
+                           np.int64(0), np.int64(k0), np.int64(k1))
 
-    with ThreadPoolExecutor(max_workers=2) as ex:
-        parts = list(ex.map(half, halves))
-    out = np.stack([np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])],
+    out = run_all(part, list(zip(bounds[:-1], bounds[1:])), threads)
+    if any(ok != 1 for _, _, ok in out):
+        return None
+    res = np.stack([np.concatenate([o[0] for o in out]), np.concatenate([o[1] for o in out])],
                    axis=1).astype(np.int64, copy=False)
-    if len(out):
-        out = np.unique(out, axis=0)  # sorted by (i, j), as the one-call result
-    return out
+    if len(res):
+        res = res[np.lexsort((res[:, 1], res[:, 0]))]
+    return res
 
 
 def self_intersections(vertices, faces) -> int:

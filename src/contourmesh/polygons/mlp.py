@@ -101,8 +101,8 @@ def _mlp_grid(pts, colour, on, bg, ox, oy, w):
     are written), so that a caller meshing many slices reuses one pair of slice-sized grids
     instead of allocating and clearing a pair per contour.
 
-    (One kernel with explicit loops and no helper kernels: the fast path compiles it at its first
-    call, and each separately compiled kernel costs compile time.)
+    (Explicit loops and one helper kernel, :func:`_mlp_pull` for everything after the candidates,
+    which the fast path shares: each separately compiled kernel costs compile time.)
     """
     # ---- step 1: the candidates
     n = len(pts)
@@ -166,6 +166,16 @@ def _mlp_grid(pts, colour, on, bg, ox, oy, w):
         bg[q - 1] = 0
         bg[q - w] = 0
         bg[q - w - 1] = 0
+    return _mlp_pull(pts, cand, kind, np.int64(m), colour)  # (int64: m may start as a literal)
+
+
+@internal_kernel
+def _mlp_pull(pts, cand, kind, m, colour):
+    """The end of :func:`_mlp_grid` on its step 1 candidates ``cand[:m]``, ``kind[:m]`` (in contour
+    order, consecutive equal W dropped): the last W dropped where it repeats the first, then step 2
+    from the lowest-then-leftmost candidate of kind ``colour``; returns ``(cand, kind, poly)`` as
+    :func:`_mlp_grid` does.  (The fast path makes the candidates of its stacks without the grids,
+    :func:`contourmesh.fastpath._stack_candidates`, and pulls them here.)"""
     # the last W may repeat the first W (cyclically consecutive): drop the later copy, the first
     # one, as above - the B/C candidates between the two copies (a convex corner is listed after
     # its diagonal W) must stay after the kept one, or a C is tested before its W is reached
