@@ -78,6 +78,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -602,7 +603,7 @@ class _Mesher:
 def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
                    origin=(0.0, 0.0, 0.0), polygon: str = "mlp", triangulation: str = "wiederhold",
                    caps: str = "flat", refine: str | None = None, progress: bool = False,
-                   polygons=None) -> Mesh:
+                   polygons=None, general=None, slab=None) -> Mesh:
     """Mesh a binary (or labelled) volume: the mesh source for volumes (see the module docstring).
 
     ``refine="band"`` replaces every polygon of a component that is not crack-only (its rings
@@ -622,6 +623,13 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     called on every end of a component that is not crack-only as ``end_cap(mesher, k, c, ring_ids,
     upward)`` and returns True where it closed that end itself.  The compiled fast path is not used with it
     (the contours route, :mod:`contourmesh.drawn`, puts the drawn rings in this way).
+
+    ``general`` (internal): a callable ``general(mask, zs, (dy, dx), (ox, oy), polygon=, triangulation=,
+    caps=)`` asked for the mesh where the general mesher would make it (paper mode only: no
+    ``polygons``, no refinement); it returns a Mesh, or None to let this call mesh the volume
+    itself (:mod:`contourmesh.parallel`: slabs of slices on worker processes).  ``slab``
+    (internal): this volume is one slab of a larger one (:class:`SlabPart`); the fast path is not
+    tried, the slab's cut ends are left open, and ``meta["slab"]`` holds what the driver needs.
 
     Returns a closed, outward-oriented, manifold Mesh whose genus equals that of the 6-connected
     voxel object; ``meta`` records the method, the number of exact (voxel-like) joins and of
@@ -646,7 +654,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         label = binary_label(volume)  # a two-valued volume (0/255) is binary: its non-zero value
     # the common case (no holes, every slice pair a simple band join) in compiled code, the same mesh
     bands = []
-    fast = None if polygons is not None or smooth_ends is not None else \
+    if slab is not None and (polygons is not None or refine is not None or smooth_ends is not None
+                             or not slab_supported()):
+        raise ValueError("slab= meshes a slab in paper mode only (no polygons= hook, no refinement)")
+    fast = None if polygons is not None or smooth_ends is not None or slab is not None else \
         _fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
                              origin=origin, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine,
                              bands_out=bands)
@@ -677,6 +688,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                   threshold=threshold, origin=origin)
+    if general is not None and polygons is None and refine is None and smooth_ends is None and slab_supported():
+        got = general(mask, zs, (dy, dx), (ox, oy), polygon=polygon, triangulation=triangulation, caps=caps)
+        if got is not None:
+            return got
     from tqdm.auto import tqdm
 
     nz = mask.shape[0]
@@ -775,11 +790,15 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         if trial:
             return {(k, c): [d for d, _a in _dense_rings(mask, slices, k, c, (ox, oy, dx, dy), step, True)]
                     for k, c in comps}
-        got = _densify_components(mask, slices, set(comps), (ox, oy, dx, dy), step, total=True)
+        got = _densify_components(mask, slices, set(comps), (ox, oy, dx, dy), step, total=True, tally=dense_tally)
         densified[0] += got
         touched.update(comps)
         return got
 
+    dense_tally: dict = {}  # rings densified per slice (a slab's meta counts those of its own slices)
+    own_gap = slab.gap if slab is not None else None
+    own_slice = slab.slice if slab is not None else None
+    crossing_owned = 0
     dense_failed = densify if (polygons is None and _DENSE_FAILED_STEP is not None and not retry_dense
                                and (refine is None or _DENSE_FAILED_REFINED)) else None
     for attempt in range(_MAX_REBUILDS + 1):
@@ -801,26 +820,36 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         if _DENSE_MIXED_STEP is not None and polygons is None:
             # the polygons banded to crack rings (next to exact joins) get a vertex every pixel
             dense_rings += _densify_mixed(mask, slices, joins, crack_only, (ox, oy, dx, dy),
-                                          _DENSE_MIXED_STEP * dense_step, touched)
+                                          _DENSE_MIXED_STEP * dense_step, touched, tally=dense_tally)
         dense_rings += densified[0] - n_before
         if touched and unit_cache:  # (a unit's key does not hold its rings' points)
             _forget_units(unit_cache, joins, touched)
         touched.clear()
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
-                                       getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
+                                       getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache,
+                                       owned=(own_gap, own_slice) if slab is not None else None)
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         release_free_heap(len(F))
-        pairs = _crossing_pairs(V, F, previous)
-        previous = (V, F, pairs)
+        if slab is None:
+            pairs = _crossing_pairs(V, F, previous)
+            previous = (V, F, pairs)
+        else:  # a slab: its cut ends' caps are not tested (see SlabPart)
+            keep = np.flatnonzero(~slab.cut_caps(tags, joins, slices))
+            Fk = F[keep]
+            got = _crossing_pairs(V, Fk, previous)
+            previous = (V, Fk, got)
+            pairs = keep[got] if len(got) else got
         V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
         left = info.pop("pairs")
         if not len(left) or attempt == _MAX_REBUILDS:
             break
-        n_j, n_c = _fall_back(np.unique(tags[np.unique(left)]), joins, crack_only, slices, has_above, has_below)
+        n_j, n_c, n_own = _fall_back(np.unique(tags[np.unique(left)]), joins, crack_only, slices, has_above,
+                                     has_below, owned=(own_gap, own_slice) if slab is not None else None)
         if n_j + n_c == 0:  # only exact joins involved: nothing left to fall back to
             break
+        crossing_owned += n_own
         fallback_joins += n_j
         fallback_caps += n_c
         log.debug("volume mesher: %d crossing pairs left; %d joins and %d caps fall back to crack rings",
@@ -846,10 +875,63 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         meta.update(smooth_domes=smooth_ends.count("dome"), smooth_tapers=smooth_ends.count("taper"),
                     smooth_cut_ends=smooth_ends.count("cut"))
     meta.update(hook_info or {})
+    if slab is not None:
+        # the counts of the joins and caps this slab owns (see SlabPart), and what the driver needs
+        # for the crossing counts of the faces it keeps
+        meta.update(polygon_fallbacks=sum(s.fallbacks for k, s in enumerate(slices) if s is not None and own_slice(k)),
+                    crack_rings=sum(1 for k, _c in crack_only if own_slice(k)),
+                    dense_rings=sum(n for k, n in dense_tally.items() if own_slice(k)),
+                    crossing_fallbacks=crossing_owned)
+        meta["slab"] = {"pairs_before": np.asarray(pairs, np.int64).reshape(-1, 2), "pairs_left": left,
+                        "move": np.linalg.norm(V2 - V, axis=1) if info["vertices_moved"] else None}
+        return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, warn=False, resolved=(V2, info))
     if exact_joins or fallbacks or band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, band_fallbacks)
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
+
+
+def slab_supported() -> bool:
+    """Whether the general mesher's settings allow meshing in slabs (:class:`SlabPart`): the
+    opt-in densifications (``_DENSE_STEP``, ``_DENSE_RETRY_STEP``) count rings that a slab cannot
+    attribute to its own slices."""
+    return _DENSE_STEP is None and _DENSE_RETRY_STEP is None
+
+
+@dataclass(frozen=True)
+class SlabPart:
+    """A volume given to the general mesher is one slab of a larger volume (:mod:`contourmesh.parallel`).
+
+    In the slab's own slice numbers it *owns* the gaps ``lo <= k < hi`` and the slices ``lo <= k <
+    hi`` (and ``hi`` too when it is the ``last`` slab): its meta counts only the joins of those
+    gaps and the caps, rings and polygon fallbacks of those slices, so that the slabs' counts add
+    up to the whole volume's.  ``open_below`` / ``open_above``: its first / last slice is a cut
+    inside the whole volume (the end of a halo): the caps of that slice's components close the
+    slab's mesh (the repairs need a closed surface) but are not tested for crossing faces: the
+    whole volume continues there, and a flat cap across the cut is a fan of long faces that the
+    crossing test would pair with every face near that plane, for nothing."""
+
+    lo: int
+    hi: int
+    last: bool
+    open_below: bool
+    open_above: bool
+
+    def cut_caps(self, tags, joins, slices) -> np.ndarray:
+        """Per face (``tags`` from :func:`_assemble`), whether it belongs to a cap of a component of
+        a cut end's slice."""
+        first = np.cumsum([len(joins)] + [0 if s is None else s.n for s in slices])
+        out = np.zeros(len(tags), dtype=bool)
+        for k, cut in ((0, self.open_below), (len(slices) - 1, self.open_above)):
+            if cut:
+                out |= (tags >= first[k]) & (tags < first[k + 1])
+        return out
+
+    def gap(self, k: int) -> bool:
+        return self.lo <= k < self.hi
+
+    def slice(self, k: int) -> bool:
+        return self.lo <= k < self.hi or (self.last and k == self.hi)
 
 
 def _crossing_pairs(V, F, previous):
@@ -866,11 +948,12 @@ def _crossing_pairs(V, F, previous):
 _MAX_REBUILDS = 16
 
 
-def _fall_back(tags, joins, crack_only, slices, has_above, has_below):
+def _fall_back(tags, joins, crack_only, slices, has_above, has_below, owned=None):
     """Joins and caps whose faces cross (``tags`` from :func:`_assemble`) fall back: a band or
     bridged join becomes exact (its components keep crack rings), a capped component keeps its
-    crack rings.  Returns how many joins and how many caps changed."""
-    n_j = n_c = 0
+    crack rings.  Returns how many joins and how many caps changed, and how many of those are
+    owned (``owned = (gap, slice)`` predicates of a slab, :class:`SlabPart`; all when None)."""
+    n_j = n_c = n_own = 0
     ncaps = sum(s.n for s in slices if s is not None)
     for t in tags.tolist():
         if t < 0:
@@ -884,12 +967,14 @@ def _fall_back(tags, joins, crack_only, slices, has_above, has_below):
             crack_only.update((k, a) for a in ga)
             crack_only.update((k + 1, b) for b in gb)
             n_j += 1
+            n_own += owned is None or owned[0](k)
         elif t - len(joins) < ncaps:
             key = _cap_key(slices, t - len(joins))
             if key not in crack_only:
                 crack_only.add(key)
                 n_c += 1
-    return n_j, n_c
+                n_own += owned is None or owned[1](key[0])
+    return n_j, n_c, int(n_own)
 
 
 def _cap_key(slices, i):
@@ -904,7 +989,7 @@ def _cap_key(slices, i):
 
 
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
-              to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None):
+              to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None, owned=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
@@ -918,7 +1003,10 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     on (its join or cap, and which of its rings are crack rings): a rebuild after a crossing
     fallback makes again only the joins and caps whose rings or kind changed.  ``tube_cache``
     (a dict kept the same way) holds the answers of the necks' tube tests
-    (:func:`contourmesh.repair._open_necks`): a rebuild meets most necks again."""
+    (:func:`contourmesh.repair._open_necks`): a rebuild meets most necks again.
+
+    A slab's (:class:`SlabPart`): ``owned = (gap, slice)`` predicates restrict ``counts`` to the
+    joins of its own gaps and the caps of its own slices."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
     band_maker = getattr(end_cap, "make_band", None)
@@ -1038,12 +1126,15 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             cache[uid] = u
         return u
 
-    units, tags = [], []
+    units, tags, counted = [], [], []
     exact_joins = band_joins = bridged_joins = n_bridges = n_sections = 0
     for idx, (k, kind, data) in enumerate(joins):
         key, make = join_unit(idx)
         units.append(unit(("join", idx), key, make))
         tags.append(idx)
+        counted.append(owned is None or owned[0](k))
+        if not counted[-1]:
+            continue
         if kind == "band":
             band_joins += 1
         elif kind == "bridge":
@@ -1063,14 +1154,15 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             key, make = cap_unit(k, c)
             units.append(unit(("cap", k, c), key, make))
             tags.append(first + c)
+            counted.append(owned is None or owned[1](k))
         first += s.n
     # (the freed heap given back between the large steps: see contourmesh._heap)
     nf = sum(len(u.F) for u in units)
     release_free_heap(nf)
     V, F, S, N, T = _number_units(units, tags, lambda rk: _with_z(polygon_of(*rk), zs[rk[0]]))
-    band_fallbacks = sum(u.replaced for u in units)
-    pixel_caps = sum(u.pixel_caps for u in units)
-    least_area = sum(u.least_area for u in units)
+    band_fallbacks = sum(u.replaced for u, o in zip(units, counted) if o)
+    pixel_caps = sum(u.pixel_caps for u, o in zip(units, counted) if o)
+    least_area = sum(u.least_area for u, o in zip(units, counted) if o)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     # (in int32, as the tags: there are far fewer joins and caps than 2^29)
@@ -1425,13 +1517,14 @@ def _forget_units(cache, joins, comps):
         cache.pop(("cap", k, c), None)
 
 
-def _densify_mixed(mask, slices, joins, crack_only, grid, step, touched=None) -> int:
+def _densify_mixed(mask, slices, joins, crack_only, grid, step, touched=None, tally=None) -> int:
     """The polygons of every component that a band join pairs with a crack ring (a mixed band: one
     side of the join is next to an exact join) get a vertex at least every ``step`` along their
     edges (:func:`_densify_components`); not those densified before, nor those of components in a
     bridged join (built from the rings as they were: densifying them as well and building their
     bridged joins again changed nothing on fandisk rotated #1 at 256 and cost the lobster time).
-    Returns how many rings changed; ``touched`` (a set, where given) gets the components.
+    Returns how many rings changed; ``touched`` (a set, where given) gets the components, and
+    ``tally`` (a dict, where given) the rings changed per slice.
 
     A polygon's straight run has only its two end vertices, and the least-area band fans each of
     them over the crack ring's staircase: long thin faces that lie almost flat, several times the
@@ -1453,14 +1546,14 @@ def _densify_mixed(mask, slices, joins, crack_only, grid, step, touched=None) ->
     comps = {(k, c) for k, c in comps - in_bridge if c not in slices[k].dense_gen}
     if touched is not None:
         touched.update(comps)
-    return _densify_components(mask, slices, comps, grid, step) if comps else 0
+    return _densify_components(mask, slices, comps, grid, step, tally=tally) if comps else 0
 
 
-def _densify_components(mask, slices, comps, grid, step, total=False) -> int:
+def _densify_components(mask, slices, comps, grid, step, total=False, tally=None) -> int:
     """The polygons of the components ``comps`` (``(slice, component)`` pairs) with a vertex at
     least every ``step`` where the point lies in the slice's band (see :func:`_densify_branching`;
     ``total``: at most about ``_DENSE_MAX`` points per ring, see :func:`_densify`); returns how
-    many rings changed."""
+    many rings changed (and adds them per slice to ``tally``, a dict, where given)."""
     n = 0
     for k, c in sorted(comps):
         s = slices[k]
@@ -1468,6 +1561,8 @@ def _densify_components(mask, slices, comps, grid, step, total=False) -> int:
         for h, (d, added) in enumerate(_dense_rings(mask, slices, k, c, grid, step, total)):
             if added is not None:
                 n += 1
+                if tally is not None:
+                    tally[k] = tally.get(k, 0) + 1
                 mark = added
                 prev = s.dense.get((c, h - 1))
                 if prev is not None:  # densified before: its added points stay added ones
