@@ -51,22 +51,25 @@ import time
 import numpy as np
 from numba import njit
 
-from .intersect import _threads
-from .seams import DEFAULT_HALO, SeamMismatch, join_pieces, seam_hashes
+from .intersect import _threads, intersecting_pairs
+from .repair import resolve_crossings
+from .seams import DEFAULT_HALO
 from .types import Mesh
-from .volumes import SlabPart, volume_to_mesh
+from .volumes import SlabPart, _checked, _join_units, volume_to_mesh
 
 __all__ = ["mesh_in_slabs", "slice_work", "balanced_cuts", "MIN_WORK"]
 
 log = logging.getLogger("contourmesh")
 
 #: The slab route is taken only when the volume's work estimate (:func:`slice_work`, summed) is at
-#: least this: below it the forks, the halos and the join cost more than the second worker saves.
-MIN_WORK = 20_000
+#: least this: below it the forks, the halos and the join cost more than the second worker saves
+#: (the liver, 16.9 k: 1.4 times faster on two processes; the lobster, 5.4 k, 57 slices: its eight
+#: slabs disagree at a seam, and with fewer its halos cost more than the second process saves).
+MIN_WORK = 10_000
 
 #: Slabs per worker process: more slabs than workers even out slabs whose work the estimate
 #: misjudges, at the cost of two halos each.
-_SLABS_PER_WORKER = 3
+_SLABS_PER_WORKER = 4
 
 #: The meta counts that the slabs add up (each counts its own gaps' joins and its own slices' caps).
 _COUNTS = ("band_joins", "bridged_joins", "bridges", "intermediate_sections", "exact_joins", "polygon_fallbacks",
@@ -81,7 +84,7 @@ def _runs_per_slice(mask):  # pragma: no cover - compiled
     out = np.zeros(nz, np.int64)
     for k in range(nz):
         n = 0
-        for y in range(h):
+        for y in range(0, h, 4):
             prev = False
             for x in range(w):
                 v = mask[k, y, x]
@@ -93,26 +96,38 @@ def _runs_per_slice(mask):  # pragma: no cover - compiled
 
 
 def slice_work(mask: np.ndarray) -> np.ndarray:
-    """Per slice of a boolean ``[z, y, x]`` mask, the number of runs of object pixels along x (about
-    half the boundary length in pixels): the general mesher's work grows with the slices' contour
-    lengths, not their areas."""
-    return _runs_per_slice(np.ascontiguousarray(mask, dtype=bool))
+    """Per slice of a boolean ``[z, y, x]`` mask, the number of runs of object pixels along x in every
+    fourth row (about an eighth of the boundary length in pixels): the general mesher's work grows
+    with the slices' contour lengths, not their areas (liver-x2, 413 M voxels: about 0.1 s)."""
+    mask = np.asarray(mask)
+    if mask.dtype != np.bool_:
+        mask = mask.astype(bool)
+    return _runs_per_slice(mask)
 
 
 def balanced_cuts(work, n_slabs: int, halo: int = DEFAULT_HALO) -> list:
     """Cut slices ``[0, c_1, ..., nz - 1]`` giving up to ``n_slabs`` slabs of about equal work, a gap
-    ``k`` weighing ``work[k] + work[k + 1]``; each slab owns at least ``2 * halo`` gaps."""
+    ``k`` weighing ``work[k] + work[k + 1]``, each cut moved (by at most a quarter of a slab's share of
+    the work) to where the gaps its two slabs both mesh weigh least; each slab owns at least ``2 * halo``
+    gaps."""
     w = np.asarray(work, dtype=np.float64)
     nz = len(w)
     if nz < 2:
         return [0, max(nz - 1, 0)]
     gaps = w[:-1] + w[1:] + 1.0
     csum = np.concatenate([[0.0], np.cumsum(gaps)])
+    # the work two slabs repeat around a cut at c: its halo window's gaps
+    win = np.array([csum[min(c + halo, nz - 1)] - csum[max(c - halo, 0)] for c in range(nz)])
     cuts = [0]
     for i in range(1, n_slabs):
         c = int(np.searchsorted(csum, csum[-1] * i / n_slabs))
-        if c - cuts[-1] >= 2 * halo and (nz - 1) - c >= 2 * halo:
-            cuts.append(c)
+        # within a quarter of a slab's share either way, the cut whose halo window is lightest
+        share = csum[-1] / n_slabs / 4
+        lo = int(np.searchsorted(csum, max(csum[c] - share, 0.0)))
+        hi = int(np.searchsorted(csum, csum[c] + share))
+        cand = np.arange(max(lo, cuts[-1] + 2 * halo), min(hi, nz - 1 - 2 * halo) + 1)
+        if len(cand):
+            cuts.append(int(cand[np.argmin(win[cand])]))
     return cuts + [nz - 1]
 
 
@@ -124,9 +139,9 @@ def _fork_context():
 
 def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
     """The general mesher's mesh of a prepared volume (``mask``, slice heights ``zs``, pixel size
-    ``(dy, dx)``, origin ``(ox, oy)``) made in slabs on ``CONTOURMESH_THREADS`` worker processes,
-    in canonical order; None where this route does not apply or does not pay, or a slab failed or
-    disagreed with its neighbour (the caller then meshes the volume itself)."""
+    ``(dy, dx)``, origin ``(ox, oy)``) made in slabs on ``CONTOURMESH_THREADS`` worker processes;
+    None where this route does not apply or does not pay, or a slab failed or disagreed with its
+    neighbour (the caller then meshes the volume itself)."""
     n = _threads()
     if n < 2:
         return None
@@ -136,6 +151,7 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
         return None
     t0 = time.perf_counter()
     work = slice_work(mask)
+    log.debug("slab route: work estimate %.3f s", time.perf_counter() - t0)
     total = int(work.sum())
     if total < MIN_WORK:
         log.debug("slab route: work estimate %d below %d; one process", total, MIN_WORK)
@@ -152,43 +168,88 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
     gaps = work[:-1] + work[1:]
     est = [float(gaps[max(cuts[j] - DEFAULT_HALO, 0): cuts[j + 1] + DEFAULT_HALO].sum()) for j in range(nslab)]
     order = sorted(range(nslab), key=lambda j: -est[j])
+    zs = np.asarray(zs, dtype=np.float64)
+    dy, dx = (float(v) for v in d_yx)
     global _JOB
-    _JOB = (mask, np.asarray(zs, dtype=np.float64), tuple(float(v) for v in d_yx), tuple(float(v) for v in o_xy),
-            cuts, dict(polygon=polygon, triangulation=triangulation, caps=caps))
-    try:
-        with ctx.Pool(min(n, nslab), initializer=_child_init) as pool:
-            pieces = list(pool.imap_unordered(_piece, order, chunksize=1))
-    except Exception as exc:  # a slab the mesher could not make: the whole volume in this process
-        log.debug("slab route: a slab failed (%s: %s); one process", type(exc).__name__, exc)
-        return None
-    finally:
-        _JOB = None
-    t1 = time.perf_counter()
-    try:
-        V, F = join_pieces(pieces, "volume")
-    except SeamMismatch as exc:
-        log.debug("slab route: %s; one process", exc)
-        return None
+    # first the slabs' units alone, tested together here; where faces still cross so that the
+    # one-process mesher would build again, the slabs again, each tested and rebuilt as the whole is
+    for test in (False, True):
+        _JOB = (mask, zs, (dy, dx), tuple(float(v) for v in o_xy), cuts,
+                dict(polygon=polygon, triangulation=triangulation, caps=caps), test)
+        try:
+            with ctx.Pool(min(n, nslab), initializer=_child_init) as pool:
+                pieces = sorted(pool.imap_unordered(_piece, order, chunksize=1), key=lambda p: p["j"])
+        except Exception as exc:  # a slab the mesher could not make: the whole volume in this process
+            log.debug("slab route: a slab failed (%s: %s); one process", type(exc).__name__, exc)
+            return None
+        finally:
+            _JOB = None
+        t1 = time.perf_counter()
+        got = _join(pieces, zs, min(dx, dy), polygon, triangulation, caps, last=test)
+        if got is not _AGAIN:
+            break
+        log.debug("slab route: faces cross that the one-process mesher would rebuild; the slabs again, tested")
+    if got is not None:
+        log.debug("slab route: %d slabs on %d processes, cuts %s; slabs %.2f s, join and checks %.2f s "
+                  "(slab CPU %s s)", nslab, min(n, nslab), cuts, t1 - t0, time.perf_counter() - t1,
+                  [round(p["cpu"], 2) for p in pieces])
+    return got
+
+
+_AGAIN = object()
+
+
+def _join(pieces, zs, px, polygon, triangulation, caps, last):
+    """The whole mesh from the slabs' units, numbered, repaired, tested and measured as the
+    one-process mesher's last build does it; None where two slabs disagree on a unit next to their
+    seam; where faces still cross that would make the one-process mesher build again, ``_AGAIN``
+    (None when ``last``)."""
+    for p, q in zip(pieces[:-1], pieces[1:]):
+        shared = p["hashes"].keys() & q["hashes"].keys()
+        if any(p["hashes"][k] != q["hashes"][k] for k in shared):
+            log.debug("slab route: slabs %d and %d disagree on the joins or caps next to their seam; one process",
+                      p["j"], q["j"])
+            return None
+    joins = [(ident, u) for p in pieces for ident, u in p["units"] if ident[0] == "join"]
+    capped = [(ident, u) for p in pieces for ident, u in p["units"] if ident[0] == "cap"]
+    n_comp = {}
+    for p in pieces:
+        n_comp.update(p["n_comp"])
+    first = np.cumsum([len(joins)] + [n_comp[k] for k in range(len(zs))])
+    units = [u for _i, u in joins] + [u for _i, u in capped]
+    tags = list(range(len(joins))) + [int(first[ident[1]] + ident[2]) for ident, _u in capped]
+    rings = {}
+    for p in pieces:
+        rings.update(p["rings"])
+    nf = sum(len(u.F) for u in units)
+    tj = time.perf_counter()
+    V, F, T = _join_units(units, tags, rings.__getitem__, px, {}, nf)
+    tj1 = time.perf_counter()
+    # the whole mesh's crossing test (on the threads asked for: intersect splits it by heights)
+    pairs = intersecting_pairs(V, F)
+    tj2 = time.perf_counter()
+    V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
+    left = info.pop("pairs")
+    log.debug("slab route join: units %.2f s, pairs %.2f s, resolve %.2f s", tj1 - tj, tj2 - tj1, time.perf_counter() - tj2)
+    if len(left):
+        ts = np.unique(T[np.unique(left)])
+        idents = [i for i, _u in joins] + [i for i, _u in capped]
+        for t in ts.tolist():
+            if t < 0:
+                continue
+            ident = idents[t] if t < len(joins) else next(i for i, tag in zip(idents[len(joins):], tags[len(joins):])
+                                                          if tag == t)
+            if (ident[0] == "join" and ident[4] != "exact") or (ident[0] == "cap" and not ident[3]):
+                if last:
+                    log.debug("slab route: crossing faces left that the one-process mesher would rebuild; "
+                              "one process")
+                    return None
+                return _AGAIN
     meta = {"method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
             "caps": caps, "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)"}
     for k in _COUNTS:
         meta[k] = int(sum(p["counts"][k] for p in pieces))
-    left = int(sum(p["left"] for p in pieces))
-    repaired = int(sum(p["before"] for p in pieces)) - left
-    meta.update(self_intersections=left, crossings_repaired=repaired)
-    if repaired:
-        meta["crossing_repair_max_move"] = max(p["max_move"] for p in pieces)
-    if left:
-        from .errors import SelfIntersectionWarning, warn_external
-
-        log.warning("volume mesher: %d pairs of faces cross (%d repaired); the mesh is closed but not embedded",
-                    left, repaired)
-        warn_external(f"volume mesher: {left} pairs of faces still cross ({repaired} repaired); the mesh is "
-                      "closed but not embedded (meta['self_intersections'])", SelfIntersectionWarning)
-    log.debug("slab route: %d slabs on %d processes, cuts %s; slabs %.2f s, join %.2f s (slab CPU %s s)",
-              nslab, min(n, nslab), cuts, t1 - t0, time.perf_counter() - t1,
-              [round(p["cpu"], 2) for p in sorted(pieces, key=lambda p: p["j"])])
-    return Mesh(V, F, P=len(V), meta=meta)
+    return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
 
 
 def _no_other_threads() -> bool:
@@ -212,42 +273,24 @@ def _child_init():
 
 
 def _piece(j: int) -> dict:
-    """Slab ``j`` of the job: its kept faces, seam hashes, counts and crossing tallies."""
+    """Slab ``j`` of the job: its own joins' and caps' units, seam digests and counts, and the
+    faces it keeps away from its seams with their crossing pairs (before the crossing repair)."""
     c0 = time.process_time()
-    mask, zs, (dy, dx), (ox, oy), cuts, method = _JOB
+    mask, zs, (dy, dx), (ox, oy), cuts, method, test = _JOB
     nz = len(zs)
     a = max(cuts[j] - DEFAULT_HALO, 0)
     b = min(cuts[j + 1] + DEFAULT_HALO, nz - 1) + 1
     last = j == len(cuts) - 2
-    part = SlabPart(lo=cuts[j] - a, hi=cuts[j + 1] - a, last=last, open_below=a > 0, open_above=b < nz)
+    part = SlabPart(lo=cuts[j] - a, hi=cuts[j + 1] - a, last=last, open_below=a > 0, open_above=b < nz, offset=a,
+                    test=test)
     sub = np.ascontiguousarray(mask[a:b])
-    out = {"j": j, "counts": dict.fromkeys(_COUNTS, 0), "left": 0, "before": 0, "max_move": 0.0}
-    if not sub.any():
-        V, F, slab = np.zeros((0, 3)), np.zeros((0, 3), np.int64), None
-    else:
+    out = {"j": j, "counts": dict.fromkeys(_COUNTS, 0), "units": [], "rings": {}, "hashes": {},
+           "n_comp": {k: 0 for k in range(cuts[j], cuts[j + 1] + (1 if last else 0))}}
+    if sub.any():
         m = volume_to_mesh(sub, spacing=(1.0, dy, dx), z=zs[a:b], origin=(ox, oy, 0.0), slab=part, **method)
-        V = np.asarray(m.vertices, dtype=np.float64) + 0.0
-        F = np.asarray(m.faces, dtype=np.int64)
-        slab = m.meta["slab"]
+        info = m.meta["slab"]
         out["counts"] = {k: int(m.meta[k]) for k in _COUNTS}
-    owner, _key, out["hash_seen"], out["hash_own"] = seam_hashes(V, F, zs, j, cuts, a, b)
-    mine = owner == j
-    if slab is not None:
-        # a pair is counted by the slab that owns the higher-numbered of its faces (both faces are
-        # the joined mesh's: see the module docstring)
-        def counted(p):
-            if not len(p):
-                return 0
-            o = owner[p]
-            return int(((o.max(1) == j) & (o.min(1) >= j - 1)).sum())
-
-        out["left"], out["before"] = counted(slab["pairs_left"]), counted(slab["pairs_before"])
-        if slab["move"] is not None and mine.any():
-            out["max_move"] = float(slab["move"][np.unique(F[mine])].max())
-    Fm = F[mine]
-    used = np.unique(Fm)
-    remap = np.full(len(V), -1, np.int64)
-    remap[used] = np.arange(len(used))
-    out["V"], out["F"] = V[used], remap[Fm]
+        out.update(units=info["units"], rings=info["rings"], hashes=info["hashes"])
+        out["n_comp"].update(info["n_comp"])
     out["cpu"] = time.process_time() - c0
     return out

@@ -795,6 +795,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         touched.update(comps)
         return got
 
+    kept_units = {"test": slab.test} if slab is not None else None  # (a slab's last build's units, for the driver)
     dense_tally: dict = {}  # rings densified per slice (a slab's meta counts those of its own slices)
     own_gap = slab.gap if slab is not None else None
     own_slice = slab.slice if slab is not None else None
@@ -828,7 +829,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache,
-                                       owned=(own_gap, own_slice) if slab is not None else None)
+                                       owned=(own_gap, own_slice) if slab is not None else None,
+                                       keep=kept_units)
+        if V is None:  # a slab's units alone (SlabPart.test False): the driver tests the whole
+            break
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         release_free_heap(len(F))
@@ -882,13 +886,60 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                     crack_rings=sum(1 for k, _c in crack_only if own_slice(k)),
                     dense_rings=sum(n for k, n in dense_tally.items() if own_slice(k)),
                     crossing_fallbacks=crossing_owned)
-        meta["slab"] = {"pairs_before": np.asarray(pairs, np.int64).reshape(-1, 2), "pairs_left": left,
-                        "move": np.linalg.norm(V2 - V, axis=1) if info["vertices_moved"] else None}
-        return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, warn=False, resolved=(V2, info))
+        meta["slab"] = _slab_units(kept_units, joins, slices, slab)
+        # (the mesh itself is not used: the driver numbers, repairs and tests the slabs' units together)
+        return Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), P=0, meta=meta)
     if exact_joins or fallbacks or band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, band_fallbacks)
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
+
+
+def _slab_units(kept, joins, slices, slab) -> dict:
+    """What a slab's last build hands to the driver (:mod:`contourmesh.parallel`), in the whole
+    volume's slice numbers: ``units``, its own joins' and caps' units in order, each as
+    ``(ident, unit)`` with ``ident`` ``("join", k, ga, gb, kind)`` or ``("cap", k, c, crack)``
+    (kind and crack: whether a crossing would make it fall back); ``rings``, the points of every
+    ring they use; ``n_comp``, the component count of each of its own slices; and ``hashes``, a
+    digest of every unit (its own or not) within one gap of its seams, keyed by ident."""
+    import hashlib
+
+    o = slab.offset
+    units, tags, counted, ring_points, is_crack = (kept[k] for k in ("units", "tags", "counted", "ring_points",
+                                                                    "is_crack"))
+    first = np.cumsum([len(joins)] + [0 if s is None else s.n for s in slices])
+    seams = ([slab.lo] if slab.open_below or slab.lo > 0 else []) + ([slab.hi] if not slab.last else [])
+    out, rings, hashes = [], {}, {}
+    for u, t, own in zip(units, tags, counted):
+        if t < len(joins):
+            k, kind, data = joins[t]
+            ga, gb = ([data[0]], [data[1]]) if kind == "band" else (list(data[0]), list(data[1]))
+            ident = ("join", k + o, tuple(ga), tuple(gb), kind)
+            near = any(c - 1 <= k <= c for c in seams)
+        else:
+            k = int(np.searchsorted(first, t, side="right")) - 1
+            c = int(t - first[k])
+            ident = ("cap", k + o, c, bool(is_crack(k, c)))
+            near = any(c_ - 1 <= k <= c_ + 1 for c_ in seams)
+        rks = [rk for rk, _a, _b in u.rings]
+        pts = {rk: ring_points(rk) for rk in rks}
+        if near:
+            h = hashlib.blake2b(digest_size=16)
+            h.update(repr((ident, u.nv, [(rk[0] + o,) + tuple(rk[1:]) for rk in rks], [(a, b) for _r, a, b in u.rings],
+                           u.replaced, u.pixel_caps, u.least_area)).encode())
+            for arr in [u.V, u.F, u.S, u.N] + [pts[rk] for rk in rks]:
+                h.update(np.ascontiguousarray(arr).tobytes())
+            hashes[ident] = h.hexdigest()
+        if own:
+            c_u = _Unit()
+            c_u.key, c_u.V, c_u.nv, c_u.F, c_u.S, c_u.N = None, u.V, u.nv, u.F, u.S, u.N
+            c_u.rings = [((rk[0] + o,) + tuple(rk[1:]), a, b) for rk, a, b in u.rings]
+            c_u.replaced, c_u.pixel_caps, c_u.least_area = u.replaced, u.pixel_caps, u.least_area
+            out.append((ident, c_u))
+            for rk in rks:
+                rings[(rk[0] + o,) + tuple(rk[1:])] = pts[rk]
+    n_comp = {k + o: (0 if s is None else s.n) for k, s in enumerate(slices) if slab.slice(k)}
+    return {"units": out, "rings": rings, "n_comp": n_comp, "hashes": hashes}
 
 
 def slab_supported() -> bool:
@@ -909,13 +960,18 @@ class SlabPart:
     inside the whole volume (the end of a halo): the caps of that slice's components close the
     slab's mesh (the repairs need a closed surface) but are not tested for crossing faces: the
     whole volume continues there, and a flat cap across the cut is a fan of long faces that the
-    crossing test would pair with every face near that plane, for nothing."""
+    crossing test would pair with every face near that plane, for nothing.  With ``test`` False
+    the slab is built once, its units kept, and neither made a manifold nor tested: the driver does
+    that for the whole volume, and builds the slabs again with ``test`` where the whole's faces
+    still cross in a way that would make the one-process mesher build again."""
 
     lo: int
     hi: int
     last: bool
     open_below: bool
     open_above: bool
+    offset: int = 0  # the whole volume's number of the slab's first slice
+    test: bool = True  # test the slab's mesh for crossing faces (and fall back, rebuild) as the whole's
 
     def cut_caps(self, tags, joins, slices) -> np.ndarray:
         """Per face (``tags`` from :func:`_assemble`), whether it belongs to a cap of a component of
@@ -989,7 +1045,7 @@ def _cap_key(slices, i):
 
 
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
-              to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None, owned=None):
+              to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None, owned=None, keep=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
@@ -1006,7 +1062,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     (:func:`contourmesh.repair._open_necks`): a rebuild meets most necks again.
 
     A slab's (:class:`SlabPart`): ``owned = (gap, slice)`` predicates restrict ``counts`` to the
-    joins of its own gaps and the caps of its own slices."""
+    joins of its own gaps and the caps of its own slices, and ``keep`` (a dict) receives the units,
+    their tags, which are owned, and the ring points."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
     band_maker = getattr(end_cap, "make_band", None)
@@ -1159,10 +1216,28 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     # (the freed heap given back between the large steps: see contourmesh._heap)
     nf = sum(len(u.F) for u in units)
     release_free_heap(nf)
-    V, F, S, N, T = _number_units(units, tags, lambda rk: _with_z(polygon_of(*rk), zs[rk[0]]))
+
+    def ring_points(rk):
+        return _with_z(polygon_of(*rk), zs[rk[0]])
+
+    if keep is not None:  # (a slab's: its units, for the driver to number with the other slabs')
+        keep.update(units=units, tags=tags, counted=counted, ring_points=ring_points, is_crack=is_crack)
     band_fallbacks = sum(u.replaced for u, o in zip(units, counted) if o)
     pixel_caps = sum(u.pixel_caps for u, o in zip(units, counted) if o)
     least_area = sum(u.least_area for u, o in zip(units, counted) if o)
+    counts = (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections, least_area)
+    if keep is not None and not keep.get("test", True):
+        return None, None, None, counts  # (the units alone: see SlabPart.test)
+    V, F, T = _join_units(units, tags, ring_points, px, tube_cache, nf)
+    return V, F, T, counts
+
+
+def _join_units(units, tags, ring_points, px, tube_cache=None, nf=0):
+    """The units numbered into one mesh (:func:`_number_units`) and made a manifold: ``(V, F,
+    tags)``, the tag of each face's unit (-1 for faces the repair made).  The general mesher's
+    last step of every build, and the slab driver's (:mod:`contourmesh.parallel`) on the units of
+    all slabs, so that both make the same mesh in the same order."""
+    V, F, S, N, T = _number_units(units, tags, ring_points)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     # (in int32, as the tags: there are far fewer joins and caps than 2^29)
@@ -1176,8 +1251,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     release_free_heap(nf)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
-    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps,
-                              n_sections, least_area)
+    return V, F, S // 4 - 1
 
 
 class _Unit:
