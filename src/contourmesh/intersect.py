@@ -2140,7 +2140,7 @@ def _threads() -> int:
     import os
 
     raw = os.environ.get("CONTOURMESH_THREADS")
-    if raw is None or not raw.strip():
+    if raw is None:
         return 1
     try:
         n = int(raw.strip())

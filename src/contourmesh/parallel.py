@@ -171,24 +171,18 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
     zs = np.asarray(zs, dtype=np.float64)
     dy, dx = (float(v) for v in d_yx)
     global _JOB
-    # first the slabs' units alone, tested together here; where faces still cross so that the
-    # one-process mesher would build again, the slabs again, each tested and rebuilt as the whole is
-    for test in (False, True):
-        _JOB = (mask, zs, (dy, dx), tuple(float(v) for v in o_xy), cuts,
-                dict(polygon=polygon, triangulation=triangulation, caps=caps), test)
-        try:
-            with ctx.Pool(min(n, nslab), initializer=_child_init) as pool:
-                pieces = sorted(pool.imap_unordered(_piece, order, chunksize=1), key=lambda p: p["j"])
-        except Exception as exc:  # a slab the mesher could not make: the whole volume in this process
-            log.debug("slab route: a slab failed (%s: %s); one process", type(exc).__name__, exc)
-            return None
-        finally:
-            _JOB = None
-        t1 = time.perf_counter()
-        got = _join(pieces, zs, min(dx, dy), polygon, triangulation, caps, last=test)
-        if got is not _AGAIN:
-            break
-        log.debug("slab route: faces cross that the one-process mesher would rebuild; the slabs again, tested")
+    _JOB = (mask, zs, (dy, dx), tuple(float(v) for v in o_xy), cuts,
+            dict(polygon=polygon, triangulation=triangulation, caps=caps))
+    try:
+        with ctx.Pool(min(n, nslab), initializer=_child_init) as pool:
+            pieces = sorted(pool.imap_unordered(_piece, order, chunksize=1), key=lambda p: p["j"])
+    except Exception as exc:  # a slab the mesher could not make: the whole volume in this process
+        log.debug("slab route: a slab failed (%s: %s); one process", type(exc).__name__, exc)
+        return None
+    finally:
+        _JOB = None
+    t1 = time.perf_counter()
+    got = _join(pieces, zs, min(dx, dy), polygon, triangulation, caps)
     if got is not None:
         log.debug("slab route: %d slabs on %d processes, cuts %s; slabs %.2f s, join and checks %.2f s "
                   "(slab CPU %s s)", nslab, min(n, nslab), cuts, t1 - t0, time.perf_counter() - t1,
@@ -196,14 +190,10 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
     return got
 
 
-_AGAIN = object()
-
-
-def _join(pieces, zs, px, polygon, triangulation, caps, last):
+def _join(pieces, zs, px, polygon, triangulation, caps):
     """The whole mesh from the slabs' units, numbered, repaired, tested and measured as the
-    one-process mesher's last build does it; None where two slabs disagree on a unit next to their
-    seam; where faces still cross that would make the one-process mesher build again, ``_AGAIN``
-    (None when ``last``)."""
+    one-process mesher's first build does it; None where two slabs disagree on a unit next to their
+    seam, or where faces still cross that would make the one-process mesher build again."""
     for p, q in zip(pieces[:-1], pieces[1:]):
         shared = p["hashes"].keys() & q["hashes"].keys()
         if any(p["hashes"][k] != q["hashes"][k] for k in shared):
@@ -240,11 +230,9 @@ def _join(pieces, zs, px, polygon, triangulation, caps, last):
             ident = idents[t] if t < len(joins) else next(i for i, tag in zip(idents[len(joins):], tags[len(joins):])
                                                           if tag == t)
             if (ident[0] == "join" and ident[4] != "exact") or (ident[0] == "cap" and not ident[3]):
-                if last:
-                    log.debug("slab route: crossing faces left that the one-process mesher would rebuild; "
-                              "one process")
-                    return None
-                return _AGAIN
+                log.debug("slab route: faces cross that the one-process mesher would rebuild (crossing "
+                          "fallbacks); one process")
+                return None
     meta = {"method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
             "caps": caps, "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)"}
     for k in _COUNTS:
@@ -269,20 +257,38 @@ def _no_other_threads() -> bool:
 
 
 def _child_init():
-    os.environ["CONTOURMESH_THREADS"] = "1"  # the workers are the threads
+    """A worker's set-up: one thread (the workers are the threads), and locks of its own for tqdm.
+
+    tqdm guards its bars with a process-shared semaphore made before the fork; a worker ended
+    while holding it (the pool stops its workers when a slab fails) would block the calling
+    process's next progress bar for ever.  The workers' bars (disabled ones: the general mesher's)
+    take a thread lock of their own instead."""
+    import sys
+
+    os.environ["CONTOURMESH_THREADS"] = "1"
+    std = sys.modules.get("tqdm.std")
+    if std is not None:
+        lock = std.TqdmDefaultWriteLock
+        lock.mp_lock = None
+        lock.th_lock = threading.RLock()
+        todo = [std.tqdm]
+        while todo:
+            c = todo.pop()
+            todo.extend(c.__subclasses__())
+            if "_lock" in vars(c):
+                c._lock = lock()
 
 
 def _piece(j: int) -> dict:
     """Slab ``j`` of the job: its own joins' and caps' units, seam digests and counts, and the
     faces it keeps away from its seams with their crossing pairs (before the crossing repair)."""
     c0 = time.process_time()
-    mask, zs, (dy, dx), (ox, oy), cuts, method, test = _JOB
+    mask, zs, (dy, dx), (ox, oy), cuts, method = _JOB
     nz = len(zs)
     a = max(cuts[j] - DEFAULT_HALO, 0)
     b = min(cuts[j + 1] + DEFAULT_HALO, nz - 1) + 1
     last = j == len(cuts) - 2
-    part = SlabPart(lo=cuts[j] - a, hi=cuts[j + 1] - a, last=last, open_below=a > 0, open_above=b < nz, offset=a,
-                    test=test)
+    part = SlabPart(lo=cuts[j] - a, hi=cuts[j + 1] - a, last=last, open_below=a > 0, open_above=b < nz, offset=a)
     sub = np.ascontiguousarray(mask[a:b])
     out = {"j": j, "counts": dict.fromkeys(_COUNTS, 0), "units": [], "rings": {}, "hashes": {},
            "n_comp": {k: 0 for k in range(cuts[j], cuts[j + 1] + (1 if last else 0))}}

@@ -629,7 +629,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     ``polygons``, no refinement); it returns a Mesh, or None to let this call mesh the volume
     itself (:mod:`contourmesh.parallel`: slabs of slices on worker processes).  ``slab``
     (internal): this volume is one slab of a larger one (:class:`SlabPart`); the fast path is not
-    tried, the slab's cut ends are left open, and ``meta["slab"]`` holds what the driver needs.
+    tried, the slab is built once, and the returned Mesh is empty: ``meta["slab"]`` holds the slab's
+    joins and caps for the driver, and its counts are those of its own gaps and slices.
 
     Returns a closed, outward-oriented, manifold Mesh whose genus equals that of the 6-connected
     voxel object; ``meta`` records the method, the number of exact (voxel-like) joins and of
@@ -795,11 +796,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         touched.update(comps)
         return got
 
-    kept_units = {"test": slab.test} if slab is not None else None  # (a slab's last build's units, for the driver)
+    kept_units = {"units_only": True} if slab is not None else None  # (a slab's units, for the driver)
     dense_tally: dict = {}  # rings densified per slice (a slab's meta counts those of its own slices)
     own_gap = slab.gap if slab is not None else None
     own_slice = slab.slice if slab is not None else None
-    crossing_owned = 0
     dense_failed = densify if (polygons is None and _DENSE_FAILED_STEP is not None and not retry_dense
                                and (refine is None or _DENSE_FAILED_REFINED)) else None
     for attempt in range(_MAX_REBUILDS + 1):
@@ -831,29 +831,20 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                        getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache,
                                        owned=(own_gap, own_slice) if slab is not None else None,
                                        keep=kept_units)
-        if V is None:  # a slab's units alone (SlabPart.test False): the driver tests the whole
+        if V is None:  # a slab's units alone (SlabPart): the driver repairs and tests the whole
             break
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         release_free_heap(len(F))
-        if slab is None:
-            pairs = _crossing_pairs(V, F, previous)
-            previous = (V, F, pairs)
-        else:  # a slab: its cut ends' caps are not tested (see SlabPart)
-            keep = np.flatnonzero(~slab.cut_caps(tags, joins, slices))
-            Fk = F[keep]
-            got = _crossing_pairs(V, Fk, previous)
-            previous = (V, Fk, got)
-            pairs = keep[got] if len(got) else got
+        pairs = _crossing_pairs(V, F, previous)
+        previous = (V, F, pairs)
         V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
         left = info.pop("pairs")
         if not len(left) or attempt == _MAX_REBUILDS:
             break
-        n_j, n_c, n_own = _fall_back(np.unique(tags[np.unique(left)]), joins, crack_only, slices, has_above,
-                                     has_below, owned=(own_gap, own_slice) if slab is not None else None)
+        n_j, n_c = _fall_back(np.unique(tags[np.unique(left)]), joins, crack_only, slices, has_above, has_below)
         if n_j + n_c == 0:  # only exact joins involved: nothing left to fall back to
             break
-        crossing_owned += n_own
         fallback_joins += n_j
         fallback_caps += n_c
         log.debug("volume mesher: %d crossing pairs left; %d joins and %d caps fall back to crack rings",
@@ -884,8 +875,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         # for the crossing counts of the faces it keeps
         meta.update(polygon_fallbacks=sum(s.fallbacks for k, s in enumerate(slices) if s is not None and own_slice(k)),
                     crack_rings=sum(1 for k, _c in crack_only if own_slice(k)),
-                    dense_rings=sum(n for k, n in dense_tally.items() if own_slice(k)),
-                    crossing_fallbacks=crossing_owned)
+                    dense_rings=sum(n for k, n in dense_tally.items() if own_slice(k)))
         meta["slab"] = _slab_units(kept_units, joins, slices, slab)
         # (the mesh itself is not used: the driver numbers, repairs and tests the slabs' units together)
         return Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), P=0, meta=meta)
@@ -896,7 +886,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 
 
 def _slab_units(kept, joins, slices, slab) -> dict:
-    """What a slab's last build hands to the driver (:mod:`contourmesh.parallel`), in the whole
+    """What a slab's build hands to the driver (:mod:`contourmesh.parallel`), in the whole
     volume's slice numbers: ``units``, its own joins' and caps' units in order, each as
     ``(ident, unit)`` with ``ident`` ``("join", k, ga, gb, kind)`` or ``("cap", k, c, crack)``
     (kind and crack: whether a crossing would make it fall back); ``rings``, the points of every
@@ -957,13 +947,11 @@ class SlabPart:
     hi`` (and ``hi`` too when it is the ``last`` slab): its meta counts only the joins of those
     gaps and the caps, rings and polygon fallbacks of those slices, so that the slabs' counts add
     up to the whole volume's.  ``open_below`` / ``open_above``: its first / last slice is a cut
-    inside the whole volume (the end of a halo): the caps of that slice's components close the
-    slab's mesh (the repairs need a closed surface) but are not tested for crossing faces: the
-    whole volume continues there, and a flat cap across the cut is a fan of long faces that the
-    crossing test would pair with every face near that plane, for nothing.  With ``test`` False
-    the slab is built once, its units kept, and neither made a manifold nor tested: the driver does
-    that for the whole volume, and builds the slabs again with ``test`` where the whole's faces
-    still cross in a way that would make the one-process mesher build again."""
+    inside the whole volume (the end of a halo).  A slab is built once: its joins and caps (the
+    units of :func:`_assemble`) are kept and handed to the driver, which numbers the units of all
+    slabs into one mesh, makes it a manifold and tests it for crossing faces as the one-process
+    mesher does its first build (:mod:`contourmesh.parallel`); the slab itself is neither made a
+    manifold nor tested, so its cut ends cost no more than its other slices."""
 
     lo: int
     hi: int
@@ -971,17 +959,6 @@ class SlabPart:
     open_below: bool
     open_above: bool
     offset: int = 0  # the whole volume's number of the slab's first slice
-    test: bool = True  # test the slab's mesh for crossing faces (and fall back, rebuild) as the whole's
-
-    def cut_caps(self, tags, joins, slices) -> np.ndarray:
-        """Per face (``tags`` from :func:`_assemble`), whether it belongs to a cap of a component of
-        a cut end's slice."""
-        first = np.cumsum([len(joins)] + [0 if s is None else s.n for s in slices])
-        out = np.zeros(len(tags), dtype=bool)
-        for k, cut in ((0, self.open_below), (len(slices) - 1, self.open_above)):
-            if cut:
-                out |= (tags >= first[k]) & (tags < first[k + 1])
-        return out
 
     def gap(self, k: int) -> bool:
         return self.lo <= k < self.hi
@@ -1004,12 +981,11 @@ def _crossing_pairs(V, F, previous):
 _MAX_REBUILDS = 16
 
 
-def _fall_back(tags, joins, crack_only, slices, has_above, has_below, owned=None):
+def _fall_back(tags, joins, crack_only, slices, has_above, has_below):
     """Joins and caps whose faces cross (``tags`` from :func:`_assemble`) fall back: a band or
     bridged join becomes exact (its components keep crack rings), a capped component keeps its
-    crack rings.  Returns how many joins and how many caps changed, and how many of those are
-    owned (``owned = (gap, slice)`` predicates of a slab, :class:`SlabPart`; all when None)."""
-    n_j = n_c = n_own = 0
+    crack rings.  Returns how many joins and how many caps changed."""
+    n_j = n_c = 0
     ncaps = sum(s.n for s in slices if s is not None)
     for t in tags.tolist():
         if t < 0:
@@ -1023,14 +999,12 @@ def _fall_back(tags, joins, crack_only, slices, has_above, has_below, owned=None
             crack_only.update((k, a) for a in ga)
             crack_only.update((k + 1, b) for b in gb)
             n_j += 1
-            n_own += owned is None or owned[0](k)
         elif t - len(joins) < ncaps:
             key = _cap_key(slices, t - len(joins))
             if key not in crack_only:
                 crack_only.add(key)
                 n_c += 1
-                n_own += owned is None or owned[1](key[0])
-    return n_j, n_c, int(n_own)
+    return n_j, n_c
 
 
 def _cap_key(slices, i):
@@ -1226,8 +1200,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     pixel_caps = sum(u.pixel_caps for u, o in zip(units, counted) if o)
     least_area = sum(u.least_area for u, o in zip(units, counted) if o)
     counts = (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections, least_area)
-    if keep is not None and not keep.get("test", True):
-        return None, None, None, counts  # (the units alone: see SlabPart.test)
+    if keep is not None and keep.get("units_only"):
+        return None, None, None, counts  # (a slab's units alone: see SlabPart)
     V, F, T = _join_units(units, tags, ring_points, px, tube_cache, nf)
     return V, F, T, counts
 
