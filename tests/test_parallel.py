@@ -79,8 +79,18 @@ def _routed(caplog):
 
 @pytest.fixture
 def slab_route(monkeypatch, caplog):
-    """The slab route on small volumes too (no work threshold), its decisions logged."""
+    """The slab route on small volumes too (no work threshold), its decisions logged.  Threads that
+    earlier tests left idle in this process (Dask's offload thread) do not keep it from forking
+    here; a thread started during the test does."""
     monkeypatch.setattr(parallel, "MIN_WORK", 0)
+    before = {t.ident for t in threading.enumerate()}
+    check = parallel._no_other_threads
+
+    def no_new_threads():
+        check()  # (stops tqdm's monitor)
+        return all(t.ident in before for t in threading.enumerate())
+
+    monkeypatch.setattr(parallel, "_no_other_threads", no_new_threads)
     caplog.set_level(logging.DEBUG, logger="contourmesh")
     return caplog
 
@@ -182,12 +192,12 @@ def test_paper_options_in_slabs(kw, slab_route, monkeypatch):
 def test_no_fork_or_a_live_thread_means_one_process(slab_route, monkeypatch):
     vol = _blob(0)
     m1 = _mesh(vol, 1, monkeypatch)
+    fork_context = parallel._fork_context
     monkeypatch.setattr(parallel, "_fork_context", lambda: None)
     m2 = _mesh(vol, 2, monkeypatch)
     assert any("no fork" in m for m in _routed(slab_route))
     _same(m1, m2)
-    monkeypatch.undo()
-    monkeypatch.setattr(parallel, "MIN_WORK", 0)
+    monkeypatch.setattr(parallel, "_fork_context", fork_context)
     stop = threading.Event()
     t = threading.Thread(target=stop.wait, name="someone else's thread")
     t.start()

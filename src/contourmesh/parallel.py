@@ -1,43 +1,44 @@
-"""The general mesher on worker processes: a volume meshed in slabs of slices, joined at their seams.
+"""The general mesher on worker processes: a volume built in slabs of slices, numbered and checked as one.
 
 The general volume mesher is mostly Python, so threads cannot share its work (the GIL).  With
 ``CONTOURMESH_THREADS`` = ``n`` > 1, a volume that takes the general mesher in paper mode
-(``refine=None``) and is large enough to pay for it is cut into slabs of slices, more slabs than
-workers, which ``n`` worker processes forked from the calling process mesh at the same time.
-The slabs are those of :mod:`contourmesh.seams`: slab ``j`` owns the gaps ``c_j .. c_{j+1}``,
-meshes them with a halo of :data:`~contourmesh.seams.DEFAULT_HALO` slices each side at the whole
-volume's slice heights, keeps the faces it owns, and the neighbours' hashes of the faces next to
-every seam must agree (else :class:`~contourmesh.seams.SeamMismatch`).  The faces are joined by
-identical coordinates (:func:`~contourmesh.seams.join_pieces`): the mesh is the one-process mesh
-in canonical order (vertices sorted, each face rotated to its smallest index, faces sorted).
+(``refine=None``) and is large enough to pay for it (:data:`MIN_WORK`) is cut into slabs of
+slices, more slabs than workers, which ``n`` worker processes forked from the calling process
+build at the same time.  The slabs are those of :mod:`contourmesh.seams`: slab ``j`` owns the gaps
+``c_j .. c_{j+1}`` (and their slices) and is built with a halo of
+:data:`~contourmesh.seams.DEFAULT_HALO` slices each side, at the whole volume's slice heights.
 
-**Cut ends.**  A slab's first and last slices, where they are cuts inside the volume, are left
-uncapped (:class:`~contourmesh.volumes.SlabPart`): a flat cap there would be a fan of long
-triangles across the cut plane that the crossing test pairs with every face near it, and would
-be repaired and tested for nothing (the halo's faces are not kept).  The faces a slab keeps lie
-at least ``halo`` slices from its cut ends; the seam hashes check that the neighbourhood of every
-seam came out the same from both sides.
+**What a slab hands back.**  Not faces: its *units*, the joins of its own gaps and the caps of its
+own slices as the general mesher makes each of them on its own, in local vertex numbers
+(:func:`contourmesh.volumes._assemble`), with the points of the rings they use.  The driver numbers
+the units of all slabs in the one-process order (joins by gap, then caps by slice) and makes the
+mesh a manifold, tests it for crossing faces (on the threads asked for: the test splits by
+heights) and repairs the crossings as the one-process mesher does with its first build
+(:func:`contourmesh.volumes._join_units`).  So the mesh is the one-process mesh in the same order,
+bit for bit, and ``meta``, area, volume and ``checks()`` are the same: the manifold repairs and the
+crossing repair depend on the faces' numbers (Python sets of face numbers, sums over a vertex's
+faces in order), so slabs repaired apart and joined by coordinates would differ from the
+one-process mesh in the last bit of a few moved vertices (the lobster: one vertex).  A slab is
+neither repaired nor tested, so its cut ends cost no more than its other slices.  ``meta``'s
+counts are each slab's counts of its own gaps' joins and its own slices' caps, rings and
+polygon fallbacks (:class:`~contourmesh.volumes.SlabPart`), added up.
 
-**Cuts.**  The slabs are balanced on a per-slice work estimate (:func:`slice_work`: the object's
-boundary runs along x in the slice, counted in one compiled pass), ``_SLABS_PER_WORKER`` slabs per
-worker, and handed out largest first.
+**Checks.**  Each slab also digests every unit within one gap of its seams; two neighbours must
+agree on all they share, else the volume is meshed in one process.  Where the whole mesh's
+faces still cross so that the one-process mesher would fall back and build again (crossing
+fallbacks: the build history is not local to a slab), the volume is meshed in one process too.
 
-**Checks and meta.**  Every face pair of the joined mesh that can meet lies in one slab's mesh
-as that slab made it: faces span at most one slice gap, so two faces that meet are owned by one
-slab or by the two slabs of one seam, and then both lie within one gap of that seam, where each
-slab's copy of its neighbour's faces is the neighbour's own (the seam hashes).  So the slabs'
-crossing tests are the joined mesh's: each pair a slab finds is counted by the slab owning the
-higher-numbered of its two faces.  ``meta``'s counts are the slabs' counts of the joins of their
-own gaps and the caps and rings of their own slices (:class:`~contourmesh.volumes.SlabPart`),
-added up, so they equal the one-process counts; ``crossing_repair_max_move`` is the largest move
-of a kept face's vertex.  Area and volume are order-independent sums (:class:`contourmesh.Mesh`).
+**Cuts.**  The slabs are balanced on a per-slice work estimate (:func:`slice_work`: runs of
+object pixels along x in every fourth row, counted in one compiled pass), ``_SLABS_PER_WORKER``
+slabs per worker, each cut moved to where the gaps its two slabs both build weigh least, and
+handed out largest first.
 
 **Processes.**  Linux's ``fork`` only, from the calling process (its compiled kernels are the
-children's), and only while no other thread runs in it (the package's thread pools are made per
-call and shut down; a thread holding a lock at the fork could deadlock the child).  The children
-mesh with ``CONTOURMESH_THREADS=1``.  Elsewhere, below :data:`MIN_WORK`, when a worker fails or
-a seam disagrees, the volume is meshed in this process as before (logged at DEBUG): never a
-different mesh.
+children's), and only while no other thread runs in it (tqdm's idle monitor thread is stopped
+first; a thread holding a lock at the fork could deadlock a child).  The workers mesh with
+``CONTOURMESH_THREADS=1`` and locks of their own for tqdm.  Elsewhere, below :data:`MIN_WORK`,
+when a worker fails or a seam disagrees, the volume is meshed in this process (each decision
+logged at DEBUG): never a different mesh.
 """
 
 from __future__ import annotations
