@@ -829,8 +829,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
                                        getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache,
-                                       owned=(own_gap, own_slice) if slab is not None else None,
-                                       keep=kept_units)
+                                       **({} if slab is None else dict(owned=(own_gap, own_slice), keep=kept_units)))
         if V is None:  # a slab's units alone (SlabPart): the driver repairs and tests the whole
             break
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
