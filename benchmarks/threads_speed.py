@@ -49,21 +49,29 @@ def speed(names, threads: int, repeat: int) -> None:
         contourmesh.mesh(vol[len(vol) // 2 - 6: len(vol) // 2 + 6], spacing=sp)
         wall = {1: [], threads: []}
         cpu = {1: [], threads: []}
+        kids = []
+        loads = []
         last = {}
         for r in range(repeat):
             for th in ((1, threads) if r % 2 == 0 else (threads, 1)):
                 os.environ["CONTOURMESH_THREADS"] = str(th)
+                k0 = resource.getrusage(resource.RUSAGE_CHILDREN)
                 c0, t0 = time.process_time(), time.perf_counter()
                 m = contourmesh.mesh(vol, spacing=sp)
                 wall[th].append(time.perf_counter() - t0)
                 cpu[th].append(time.process_time() - c0)
+                k1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                if th != 1:
+                    kids.append(k1.ru_utime + k1.ru_stime - k0.ru_utime - k0.ru_stime)
+                loads.append(os.getloadavg()[0])
                 last[th] = m
                 del m
         med = {th: float(np.median(v)) for th, v in wall.items()}
         print(f"{name}: 1 process {med[1]:.2f} s {[round(x, 2) for x in wall[1]]} (CPU {[round(x, 2) for x in cpu[1]]}); "
               f"{threads} {med[threads]:.2f} s {[round(x, 2) for x in wall[threads]]} (calling process CPU "
-              f"{[round(x, 2) for x in cpu[threads]]}); x{med[1] / med[threads]:.2f}; same mesh: "
-              f"{_same(last[1], last[threads])}; load {os.getloadavg()[0]:.2f}", flush=True)
+              f"{[round(x, 2) for x in cpu[threads]]}, workers' CPU {[round(x, 2) for x in kids]}); "
+              f"x{med[1] / med[threads]:.2f}; same mesh: {_same(last[1], last[threads])}; "
+              f"load {min(loads):.2f}-{max(loads):.2f}", flush=True)
         del last
 
 
