@@ -17,7 +17,7 @@ LAYERS = {
     1: ["shapes", "tracing", "polygons", "bands", "digitize", "rasterize", "repair", "stacks", "volume_input",
         "voxelize", "datasets", "cells"],
     2: ["surface", "fastpath", "volumes", "sections", "refine", "drawn"],
-    3: ["io", "api", "trimesh_plugin", "scale", "seams"],
+    3: ["io", "api", "trimesh_plugin", "scale", "seams", "parallel"],
     4: ["compare", "cli", "__main__", ""],
 }
 LAYER = {name: k for k, names in LAYERS.items() for name in names}

@@ -2162,13 +2162,21 @@ _SPLIT_FACES = 20_000
 
 
 def _threads() -> int:
-    """Worker threads asked for (``CONTOURMESH_THREADS``, default 1), as the fast path reads them."""
+    """Worker threads asked for (``CONTOURMESH_THREADS``, default 1): a whole number of at least 1;
+    anything else is refused (ValueError) rather than read as one thread."""
     import os
 
-    try:
-        return max(1, int(os.environ.get("CONTOURMESH_THREADS", 1)))
-    except ValueError:
+    raw = os.environ.get("CONTOURMESH_THREADS")
+    if raw is None:
         return 1
+    try:
+        n = int(raw.strip())
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ValueError(f"CONTOURMESH_THREADS must be a whole number of at least 1 (the worker threads and "
+                         f"processes a mesh may use); got {raw!r}")
+    return n
 
 
 def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev, threads):

@@ -76,13 +76,92 @@ def mesh_area(vertices: np.ndarray, faces: np.ndarray) -> float:
 
 
 def mesh_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
-    """Signed enclosed volume by the divergence theorem (positive when oriented outward)."""
+    """Signed enclosed volume by the divergence theorem (positive when oriented outward).
+
+    The same number however the vertices and faces are ordered and wherever each face starts
+    (:func:`face_terms`): a mesh made in slabs on worker processes, which comes back in canonical
+    order, has the volume of the one-process mesh to the bit."""
     if len(faces) == 0:
         return 0.0
-    # Translate to the centroid first: the sum is exact in theory and better conditioned.
-    c = vertices.mean(axis=0)
-    tri = vertices[faces] - c
-    return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0)
+    return math.fsum(face_terms(vertices, faces)[2]) / 6.0
+
+
+def surface_area(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Surface area: the correctly rounded sum of the triangle areas, each computed from the face
+    started at its lexicographically smallest corner, so the same number however the vertices
+    and faces are ordered (:func:`face_terms`)."""
+    if len(faces) == 0:
+        return 0.0
+    return 0.5 * math.fsum(face_terms(vertices, faces)[0])
+
+
+def face_terms(vertices, faces):
+    """Per face, started at its lexicographically smallest corner (orientation kept):
+    ``(|(b - a) x (c - a)|, wall, (a - o) . ((b - o) x (c - o)))``, twice its area, whether its normal
+    lies along +-x or +-y (relative tolerance 1e-12, :func:`axis_wall_fraction`) and six times its
+    signed volume term about ``o``, the centre of the vertices' bounding box (translated there
+    first, the sum is better conditioned).  Each value depends on the face's corners alone, and
+    ``o`` on the set of vertices, so sums of them taken with :func:`math.fsum` do not depend on the
+    order of vertices or faces."""
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        return np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0)
+    if f.min() < 0 or f.max() >= len(v):
+        raise ValueError(f"faces refer to vertices outside 0 .. {len(v) - 1}")
+    return _face_terms(v, f, _corner_box_centre(v, f))
+
+
+@njit(cache=True, nogil=True)
+def _corner_box_centre(v, f):
+    """The centre of the bounding box of the faces' corners (unused vertices left out)."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for i in range(f.shape[0]):
+        for t in range(3):
+            for d in range(3):
+                x = v[f[i, t], d]
+                if x < lo[d]:
+                    lo[d] = x
+                if x > hi[d]:
+                    hi[d] = x
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True, nogil=True)
+def _lex_less(v, i, j):
+    for t in range(3):
+        if v[i, t] != v[j, t]:
+            return v[i, t] < v[j, t]
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _face_terms(v, f, o):
+    m = f.shape[0]
+    size = np.empty(m)
+    wall = np.zeros(m, np.bool_)
+    six = np.empty(m)
+    for i in range(m):
+        p, q, r = f[i, 0], f[i, 1], f[i, 2]
+        if _lex_less(v, q, p) and not _lex_less(v, r, q):
+            p, q, r = q, r, p
+        elif _lex_less(v, r, p) and _lex_less(v, r, q):
+            p, q, r = r, p, q
+        ux, uy, uz = v[q, 0] - v[p, 0], v[q, 1] - v[p, 1], v[q, 2] - v[p, 2]
+        wx, wy, wz = v[r, 0] - v[p, 0], v[r, 1] - v[p, 1], v[r, 2] - v[p, 2]
+        nx = uy * wz - uz * wy
+        ny = uz * wx - ux * wz
+        nz = ux * wy - uy * wx
+        s = math.sqrt(nx * nx + ny * ny + nz * nz)
+        size[i] = s
+        tol = 1e-12 * s
+        wall[i] = s > 0 and abs(nz) <= tol and (abs(nx) <= tol or abs(ny) <= tol)
+        ax, ay, az = v[p, 0] - o[0], v[p, 1] - o[1], v[p, 2] - o[2]
+        bx, by, bz = v[q, 0] - o[0], v[q, 1] - o[1], v[q, 2] - o[2]
+        cx, cy, cz = v[r, 0] - o[0], v[r, 1] - o[1], v[r, 2] - o[2]
+        six[i] = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+    return size, wall, six
 
 
 def axis_wall_fraction(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -105,29 +184,9 @@ def axis_wall_fraction(vertices: np.ndarray, faces: np.ndarray) -> float:
         raise ValueError(f"expected (n, 3) vertices and (m, 3) faces; got {v.shape} and {f.shape}")
     if f.min() < 0 or f.max() >= len(v):
         raise ValueError(f"faces refer to vertices outside 0 .. {len(v) - 1}")
-    wall, total = _wall_area(v, f)
-    return float(wall / total) if total > 0 else 0.0
-
-
-@njit(cache=True, nogil=True)
-def _wall_area(v, f):
-    """Twice the area on faces whose normal lies along +-x or +-y (relative tolerance 1e-12), and
-    twice the whole area: one pass, no per-face temporaries (it runs on every mesh we return)."""
-    wall = 0.0
-    total = 0.0
-    for i in range(f.shape[0]):
-        a, b, c = f[i, 0], f[i, 1], f[i, 2]
-        ux, uy, uz = v[b, 0] - v[a, 0], v[b, 1] - v[a, 1], v[b, 2] - v[a, 2]
-        wx, wy, wz = v[c, 0] - v[a, 0], v[c, 1] - v[a, 1], v[c, 2] - v[a, 2]
-        nx = uy * wz - uz * wy
-        ny = uz * wx - ux * wz
-        nz = ux * wy - uy * wx
-        size = math.sqrt(nx * nx + ny * ny + nz * nz)
-        total += size
-        tol = 1e-12 * size
-        if size > 0 and abs(nz) <= tol and (abs(nx) <= tol or abs(ny) <= tol):
-            wall += size
-    return wall, total
+    size, wall, _six = face_terms(v, f)
+    total = math.fsum(size)
+    return float(math.fsum(size[wall]) / total) if total > 0 else 0.0
 
 
 def relative_error(area: float, area_true: float | None) -> float | None:
@@ -351,8 +410,8 @@ def mesh_checks(vertices: np.ndarray, faces: np.ndarray, *, rel_tol: float = 1e-
     n_used, n_edges, boundary, nonmanifold, dup_directed, comps = _topology_kernel(F, np.int64(len(V)))
     diag2 = float(np.sum((V.max(0) - V.min(0)) ** 2)) or 1.0
     canon = canonical_vertices(V)
-    vol, degenerate, dup_vertices = _face_kernel(V, F, V.mean(axis=0), float(rel_tol * diag2), canon)
-    volume = float(vol.sum() / 6.0)
+    _vol, degenerate, dup_vertices = _face_kernel(V, F, V.mean(axis=0), float(rel_tol * diag2), canon)
+    volume = mesh_volume(V, F)  # (order-independent, as Mesh.volume)
     watertight = boundary == 0 and nonmanifold == 0
     # the pairs on the used vertices only when the mesh is a few faces of many vertices (as
     # intersecting_pairs does)

@@ -42,7 +42,7 @@ import numpy as np
 from .measure import _area_terms, _rotated, _volume_parts, exact_area_volume, exact_parts
 
 __all__ = ["DEFAULT_HALO", "SeamMismatch", "exact_parts", "exact_area_volume", "face_owner", "slab_cuts",
-           "slab_piece", "join_pieces", "join_stats"]
+           "slab_piece", "seam_hashes", "join_pieces", "join_stats"]
 
 #: Slices read beyond each end of a slab's own range (paper mode; see the module docstring).
 DEFAULT_HALO = 3
@@ -99,36 +99,23 @@ def slab_piece(mask, zs, j: int, cuts, halo: int, spacing, origin, method, meshe
     """Mesh slab ``j`` of a label's box.  ``mask`` holds the box's slices ``a .. b`` (``a = max(cuts[j]
     - halo, 0)``), ``zs`` the heights of *all* the box's slices.  Returns a dict: ``V``, ``F`` (the
     owned faces, ``meshes``) or their statistics, and the seam hashes."""
-    from .api import mesh_volume
+    from .volumes import volume_to_mesh
 
-    nz = len(zs)
     a = max(cuts[j] - halo, 0)
     b = a + mask.shape[0]
-    seams = [float(zs[c]) for c in cuts[1:-1]]
-    out = {"j": j, "hash_own": {}, "hash_seen": {}}
+    out = {"j": j}
     if not mask.any():
         V = np.zeros((0, 3))
         F = np.zeros((0, 3), np.int64)
     else:
-        m = mesh_volume(mask, spacing=tuple(spacing), z=zs[a:b], origin=tuple(origin), **method)
+        m = volume_to_mesh(mask, spacing=tuple(spacing), z=zs[a:b], origin=tuple(origin),
+                           polygon=method.get("polygon") or "mlp",
+                           triangulation=method.get("triangulation") or "wiederhold", caps=method.get("caps") or "flat")
         V = np.asarray(m.vertices, dtype=np.float64) + 0.0
         F = np.asarray(m.faces, dtype=np.int64)
-    owner = face_owner(V, F, seams) if len(F) else np.zeros(0, np.int64)
+    owner, key, out["hash_seen"], out["hash_own"] = seam_hashes(V, F, zs, j, cuts, a, b)
     mine = owner == j
-    # seam checks: the faces within one gap of each seam, as this slab made them
-    key, _ = _face_keys(V, F) if len(F) else (np.zeros(0), None)
-    for s in (j, j + 1):  # seam s lies between slabs s - 1 and s, at cut s
-        if s < 1 or s > len(cuts) - 2:
-            continue
-        zc = cuts[s]
-        lo, hi = zs[max(zc - 1, 0)], zs[min(zc + 1, nz - 1)]
-        near = (key >= 2 * lo) & (key <= 2 * hi)
-        other = s - 1 if s == j else s
-        if zc - 1 >= a and zc + 1 < b:  # this slab sees the whole neighbourhood
-            out["hash_seen"][s] = _faces_hash(V, F[near & (owner == other)])
     Fm = F[mine]
-    out["hash_own"] = {s: _faces_hash(V, Fm[_near(key[mine], zs, cuts, s)]) for s in (j, j + 1)
-                       if 1 <= s <= len(cuts) - 2}
     if meshes:
         used = np.unique(Fm)
         remap = np.full(len(V), -1, np.int64)
@@ -137,6 +124,32 @@ def slab_piece(mask, zs, j: int, cuts, halo: int, spacing, origin, method, meshe
         return out
     out.update(_piece_stats(V, F, owner, j, zs, cuts))
     return out
+
+
+def seam_hashes(V, F, zs, j: int, cuts, a: int, b: int):
+    """Slab ``j``'s side of the seam checks, from its mesh ``V, F`` of the box's slices ``a .. b - 1``
+    (``zs``: the heights of all the box's slices): ``(owner, key, hash_seen, hash_own)``, the
+    owner of each face (:func:`face_owner`), its ``zmin + zmax``, and per seam the hash of the
+    neighbour's faces within one gap of it as this slab made them (where it sees that whole
+    neighbourhood) and of its own faces there."""
+    nz = len(zs)
+    seams = [float(zs[c]) for c in cuts[1:-1]]
+    owner = face_owner(V, F, seams) if len(F) else np.zeros(0, np.int64)
+    key, _ = _face_keys(V, F) if len(F) else (np.zeros(0), None)
+    seen = {}
+    for s in (j, j + 1):  # seam s lies between slabs s - 1 and s, at cut s
+        if s < 1 or s > len(cuts) - 2:
+            continue
+        zc = cuts[s]
+        lo, hi = zs[max(zc - 1, 0)], zs[min(zc + 1, nz - 1)]
+        near = (key >= 2 * lo) & (key <= 2 * hi)
+        other = s - 1 if s == j else s
+        if zc - 1 >= a and zc + 1 < b:  # this slab sees the whole neighbourhood
+            seen[s] = _faces_hash(V, F[near & (owner == other)])
+    mine = owner == j
+    Fm = F[mine]
+    own = {s: _faces_hash(V, Fm[_near(key[mine], zs, cuts, s)]) for s in (j, j + 1) if 1 <= s <= len(cuts) - 2}
+    return owner, key, seen, own
 
 
 def _near(key, zs, cuts, s):

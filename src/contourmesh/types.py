@@ -22,7 +22,7 @@ from typing import Optional
 import numpy as np
 
 from .geometry import shoelace_area
-from .measure import mesh_checks, mesh_volume, triangle_areas
+from .measure import mesh_checks, mesh_volume, surface_area, triangle_areas
 from .meshes import save_mesh, to_open3d, to_pymeshlab, to_trimesh
 
 __all__ = ["Section", "ContourStack", "Mesh", "shoelace_area"]
@@ -108,8 +108,9 @@ class Mesh:
 
     @property
     def area(self) -> float:
-        """Surface area: the sum of the triangle areas."""
-        return float(self.triangle_areas.sum())
+        """Surface area: the sum of the triangle areas, correctly rounded and independent of the
+        order of the vertices and faces (:func:`contourmesh.measure.surface_area`)."""
+        return surface_area(self.vertices, self.faces)
 
     @property
     def volume(self) -> float:

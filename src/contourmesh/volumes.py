@@ -78,6 +78,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -602,7 +603,7 @@ class _Mesher:
 def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
                    origin=(0.0, 0.0, 0.0), polygon: str = "mlp", triangulation: str = "wiederhold",
                    caps: str = "flat", refine: str | None = None, progress: bool = False,
-                   polygons=None) -> Mesh:
+                   polygons=None, general=None, slab=None) -> Mesh:
     """Mesh a binary (or labelled) volume: the mesh source for volumes (see the module docstring).
 
     ``refine="band"`` replaces every polygon of a component that is not crack-only (its rings
@@ -622,6 +623,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     called on every end of a component that is not crack-only as ``end_cap(mesher, k, c, ring_ids,
     upward)`` and returns True where it closed that end itself.  The compiled fast path is not used with it
     (the contours route, :mod:`contourmesh.drawn`, puts the drawn rings in this way).
+
+    ``general`` (internal): a callable ``general(mask, zs, (dy, dx), (ox, oy), polygon=, triangulation=,
+    caps=)`` asked for the mesh where the general mesher would make it (paper mode only: no
+    ``polygons``, no refinement); it returns a Mesh, or None to let this call mesh the volume
+    itself (:mod:`contourmesh.parallel`: slabs of slices on worker processes).  ``slab``
+    (internal): this volume is one slab of a larger one (:class:`SlabPart`); the fast path is not
+    tried, the slab is built once, and the returned Mesh is empty: ``meta["slab"]`` holds the slab's
+    joins and caps for the driver, and its counts are those of its own gaps and slices.
 
     Returns a closed, outward-oriented, manifold Mesh whose genus equals that of the 6-connected
     voxel object; ``meta`` records the method, the number of exact (voxel-like) joins and of
@@ -646,7 +655,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         label = binary_label(volume)  # a two-valued volume (0/255) is binary: its non-zero value
     # the common case (no holes, every slice pair a simple band join) in compiled code, the same mesh
     bands = []
-    fast = None if polygons is not None or smooth_ends is not None else \
+    if slab is not None and (polygons is not None or refine is not None or smooth_ends is not None
+                             or not slab_supported()):
+        raise ValueError("slab= meshes a slab in paper mode only (no polygons= hook, no refinement)")
+    fast = None if polygons is not None or smooth_ends is not None or slab is not None else \
         _fast_volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
                              origin=origin, polygon=polygon, triangulation=triangulation, caps=caps, refine=refine,
                              bands_out=bands)
@@ -677,6 +689,10 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
                                                   threshold=threshold, origin=origin)
+    if general is not None and polygons is None and refine is None and smooth_ends is None and slab_supported():
+        got = general(mask, zs, (dy, dx), (ox, oy), polygon=polygon, triangulation=triangulation, caps=caps)
+        if got is not None:
+            return got
     from tqdm.auto import tqdm
 
     nz = mask.shape[0]
@@ -775,11 +791,15 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         if trial:
             return {(k, c): [d for d, _a in _dense_rings(mask, slices, k, c, (ox, oy, dx, dy), step, True)]
                     for k, c in comps}
-        got = _densify_components(mask, slices, set(comps), (ox, oy, dx, dy), step, total=True)
+        got = _densify_components(mask, slices, set(comps), (ox, oy, dx, dy), step, total=True, tally=dense_tally)
         densified[0] += got
         touched.update(comps)
         return got
 
+    kept_units = {"units_only": True} if slab is not None else None  # (a slab's units, for the driver)
+    dense_tally: dict = {}  # rings densified per slice (a slab's meta counts those of its own slices)
+    own_gap = slab.gap if slab is not None else None
+    own_slice = slab.slice if slab is not None else None
     dense_failed = densify if (polygons is None and _DENSE_FAILED_STEP is not None and not retry_dense
                                and (refine is None or _DENSE_FAILED_REFINED)) else None
     for attempt in range(_MAX_REBUILDS + 1):
@@ -801,14 +821,17 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         if _DENSE_MIXED_STEP is not None and polygons is None:
             # the polygons banded to crack rings (next to exact joins) get a vertex every pixel
             dense_rings += _densify_mixed(mask, slices, joins, crack_only, (ox, oy, dx, dy),
-                                          _DENSE_MIXED_STEP * dense_step, touched)
+                                          _DENSE_MIXED_STEP * dense_step, touched, tally=dense_tally)
         dense_rings += densified[0] - n_before
         if touched and unit_cache:  # (a unit's key does not hold its rings' points)
             _forget_units(unit_cache, joins, touched)
         touched.clear()
         V, F, tags, counts = _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs,
                                        triangulation, caps, (ox, oy, dx, dy), to_xy_corner,
-                                       getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache)
+                                       getattr(polygons, "band_guard", None), end_cap, unit_cache, tube_cache,
+                                       **({} if slab is None else dict(owned=(own_gap, own_slice), keep=kept_units)))
+        if V is None:  # a slab's units alone (SlabPart): the driver repairs and tests the whole
+            break
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         release_free_heap(len(F))
@@ -846,10 +869,101 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         meta.update(smooth_domes=smooth_ends.count("dome"), smooth_tapers=smooth_ends.count("taper"),
                     smooth_cut_ends=smooth_ends.count("cut"))
     meta.update(hook_info or {})
+    if slab is not None:
+        # the counts of the joins and caps this slab owns (see SlabPart), and what the driver needs
+        # for the crossing counts of the faces it keeps
+        meta.update(polygon_fallbacks=sum(s.fallbacks for k, s in enumerate(slices) if s is not None and own_slice(k)),
+                    crack_rings=sum(1 for k, _c in crack_only if own_slice(k)),
+                    dense_rings=sum(n for k, n in dense_tally.items() if own_slice(k)))
+        meta["slab"] = _slab_units(kept_units, joins, slices, slab)
+        # (the mesh itself is not used: the driver numbers, repairs and tests the slabs' units together)
+        return Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), P=0, meta=meta)
     if exact_joins or fallbacks or band_fallbacks:
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, band_fallbacks)
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
+
+
+def _slab_units(kept, joins, slices, slab) -> dict:
+    """What a slab's build hands to the driver (:mod:`contourmesh.parallel`), in the whole
+    volume's slice numbers: ``units``, its own joins' and caps' units in order, each as
+    ``(ident, unit)`` with ``ident`` ``("join", k, ga, gb, kind)`` or ``("cap", k, c, crack)``
+    (kind and crack: whether a crossing would make it fall back); ``rings``, the points of every
+    ring they use; ``n_comp``, the component count of each of its own slices; and ``hashes``, a
+    digest of every unit (its own or not) within one gap of its seams, keyed by ident."""
+    import hashlib
+
+    o = slab.offset
+    units, tags, counted, ring_points, is_crack = (kept[k] for k in ("units", "tags", "counted", "ring_points",
+                                                                    "is_crack"))
+    first = np.cumsum([len(joins)] + [0 if s is None else s.n for s in slices])
+    seams = ([slab.lo] if slab.open_below or slab.lo > 0 else []) + ([slab.hi] if not slab.last else [])
+    out, rings, hashes = [], {}, {}
+    for u, t, own in zip(units, tags, counted):
+        if t < len(joins):
+            k, kind, data = joins[t]
+            ga, gb = ([data[0]], [data[1]]) if kind == "band" else (list(data[0]), list(data[1]))
+            ident = ("join", k + o, tuple(ga), tuple(gb), kind)
+            near = any(c - 1 <= k <= c for c in seams)
+        else:
+            k = int(np.searchsorted(first, t, side="right")) - 1
+            c = int(t - first[k])
+            ident = ("cap", k + o, c, bool(is_crack(k, c)))
+            near = any(c_ - 1 <= k <= c_ + 1 for c_ in seams)
+        rks = [rk for rk, _a, _b in u.rings]
+        pts = {rk: ring_points(rk) for rk in rks}
+        if near:
+            h = hashlib.blake2b(digest_size=16)
+            h.update(repr((ident, u.nv, [(rk[0] + o,) + tuple(rk[1:]) for rk in rks], [(a, b) for _r, a, b in u.rings],
+                           u.replaced, u.pixel_caps, u.least_area)).encode())
+            for arr in [u.V, u.F, u.S, u.N] + [pts[rk] for rk in rks]:
+                h.update(np.ascontiguousarray(arr).tobytes())
+            hashes[ident] = h.hexdigest()
+        if own:
+            c_u = _Unit()
+            c_u.key, c_u.V, c_u.nv, c_u.F, c_u.S, c_u.N = None, u.V, u.nv, u.F, u.S, u.N
+            c_u.rings = [((rk[0] + o,) + tuple(rk[1:]), a, b) for rk, a, b in u.rings]
+            c_u.replaced, c_u.pixel_caps, c_u.least_area = u.replaced, u.pixel_caps, u.least_area
+            out.append((ident, c_u))
+            for rk in rks:
+                rings[(rk[0] + o,) + tuple(rk[1:])] = pts[rk]
+    n_comp = {k + o: (0 if s is None else s.n) for k, s in enumerate(slices) if slab.slice(k)}
+    return {"units": out, "rings": rings, "n_comp": n_comp, "hashes": hashes}
+
+
+def slab_supported() -> bool:
+    """Whether the general mesher's settings allow meshing in slabs (:class:`SlabPart`): the
+    opt-in densifications (``_DENSE_STEP``, ``_DENSE_RETRY_STEP``) count rings that a slab cannot
+    attribute to its own slices."""
+    return _DENSE_STEP is None and _DENSE_RETRY_STEP is None
+
+
+@dataclass(frozen=True)
+class SlabPart:
+    """A volume given to the general mesher is one slab of a larger volume (:mod:`contourmesh.parallel`).
+
+    In the slab's own slice numbers it *owns* the gaps ``lo <= k < hi`` and the slices ``lo <= k <
+    hi`` (and ``hi`` too when it is the ``last`` slab): its meta counts only the joins of those
+    gaps and the caps, rings and polygon fallbacks of those slices, so that the slabs' counts add
+    up to the whole volume's.  ``open_below`` / ``open_above``: its first / last slice is a cut
+    inside the whole volume (the end of a halo).  A slab is built once: its joins and caps (the
+    units of :func:`_assemble`) are kept and handed to the driver, which numbers the units of all
+    slabs into one mesh, makes it a manifold and tests it for crossing faces as the one-process
+    mesher does its first build (:mod:`contourmesh.parallel`); the slab itself is neither made a
+    manifold nor tested, so its cut ends cost no more than its other slices."""
+
+    lo: int
+    hi: int
+    last: bool
+    open_below: bool
+    open_above: bool
+    offset: int = 0  # the whole volume's number of the slab's first slice
+
+    def gap(self, k: int) -> bool:
+        return self.lo <= k < self.hi
+
+    def slice(self, k: int) -> bool:
+        return self.lo <= k < self.hi or (self.last and k == self.hi)
 
 
 def _crossing_pairs(V, F, previous):
@@ -904,7 +1018,7 @@ def _cap_key(slices, i):
 
 
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
-              to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None):
+              to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None, owned=None, keep=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
     manifold.  Returns ``(V, F, tags, counts)``: ``tags`` per face the index of the join that made
     it, or ``len(joins) + i`` for the caps of the ``i``-th component over all slices, or -1
@@ -918,7 +1032,11 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     on (its join or cap, and which of its rings are crack rings): a rebuild after a crossing
     fallback makes again only the joins and caps whose rings or kind changed.  ``tube_cache``
     (a dict kept the same way) holds the answers of the necks' tube tests
-    (:func:`contourmesh.repair._open_necks`): a rebuild meets most necks again."""
+    (:func:`contourmesh.repair._open_necks`): a rebuild meets most necks again.
+
+    A slab's (:class:`SlabPart`): ``owned = (gap, slice)`` predicates restrict ``counts`` to the
+    joins of its own gaps and the caps of its own slices, and ``keep`` (a dict) receives the units,
+    their tags, which are owned, and the ring points."""
     ox, oy, dx, dy = grid
     px = min(dx, dy)
     band_maker = getattr(end_cap, "make_band", None)
@@ -1038,12 +1156,15 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             cache[uid] = u
         return u
 
-    units, tags = [], []
+    units, tags, counted = [], [], []
     exact_joins = band_joins = bridged_joins = n_bridges = n_sections = 0
     for idx, (k, kind, data) in enumerate(joins):
         key, make = join_unit(idx)
         units.append(unit(("join", idx), key, make))
         tags.append(idx)
+        counted.append(owned is None or owned[0](k))
+        if not counted[-1]:
+            continue
         if kind == "band":
             band_joins += 1
         elif kind == "bridge":
@@ -1063,14 +1184,33 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             key, make = cap_unit(k, c)
             units.append(unit(("cap", k, c), key, make))
             tags.append(first + c)
+            counted.append(owned is None or owned[1](k))
         first += s.n
     # (the freed heap given back between the large steps: see contourmesh._heap)
     nf = sum(len(u.F) for u in units)
     release_free_heap(nf)
-    V, F, S, N, T = _number_units(units, tags, lambda rk: _with_z(polygon_of(*rk), zs[rk[0]]))
-    band_fallbacks = sum(u.replaced for u in units)
-    pixel_caps = sum(u.pixel_caps for u in units)
-    least_area = sum(u.least_area for u in units)
+
+    def ring_points(rk):
+        return _with_z(polygon_of(*rk), zs[rk[0]])
+
+    if keep is not None:  # (a slab's: its units, for the driver to number with the other slabs')
+        keep.update(units=units, tags=tags, counted=counted, ring_points=ring_points, is_crack=is_crack)
+    band_fallbacks = sum(u.replaced for u, o in zip(units, counted) if o)
+    pixel_caps = sum(u.pixel_caps for u, o in zip(units, counted) if o)
+    least_area = sum(u.least_area for u, o in zip(units, counted) if o)
+    counts = (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections, least_area)
+    if keep is not None and keep.get("units_only"):
+        return None, None, None, counts  # (a slab's units alone: see SlabPart)
+    V, F, T = _join_units(units, tags, ring_points, px, tube_cache, nf)
+    return V, F, T, counts
+
+
+def _join_units(units, tags, ring_points, px, tube_cache=None, nf=0):
+    """The units numbered into one mesh (:func:`_number_units`) and made a manifold: ``(V, F,
+    tags)``, the tag of each face's unit (-1 for faces the repair made).  The general mesher's
+    last step of every build, and the slab driver's (:mod:`contourmesh.parallel`) on the units of
+    all slabs, so that both make the same mesh in the same order."""
+    V, F, S, N, T = _number_units(units, tags, ring_points)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     # (in int32, as the tags: there are far fewer joins and caps than 2^29)
@@ -1084,8 +1224,7 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     release_free_heap(nf)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
     V = _separate_coincident(V, F, 1e-3 * px)
-    return V, F, S // 4 - 1, (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps,
-                              n_sections, least_area)
+    return V, F, S // 4 - 1
 
 
 class _Unit:
@@ -1425,13 +1564,14 @@ def _forget_units(cache, joins, comps):
         cache.pop(("cap", k, c), None)
 
 
-def _densify_mixed(mask, slices, joins, crack_only, grid, step, touched=None) -> int:
+def _densify_mixed(mask, slices, joins, crack_only, grid, step, touched=None, tally=None) -> int:
     """The polygons of every component that a band join pairs with a crack ring (a mixed band: one
     side of the join is next to an exact join) get a vertex at least every ``step`` along their
     edges (:func:`_densify_components`); not those densified before, nor those of components in a
     bridged join (built from the rings as they were: densifying them as well and building their
     bridged joins again changed nothing on fandisk rotated #1 at 256 and cost the lobster time).
-    Returns how many rings changed; ``touched`` (a set, where given) gets the components.
+    Returns how many rings changed; ``touched`` (a set, where given) gets the components, and
+    ``tally`` (a dict, where given) the rings changed per slice.
 
     A polygon's straight run has only its two end vertices, and the least-area band fans each of
     them over the crack ring's staircase: long thin faces that lie almost flat, several times the
@@ -1453,14 +1593,14 @@ def _densify_mixed(mask, slices, joins, crack_only, grid, step, touched=None) ->
     comps = {(k, c) for k, c in comps - in_bridge if c not in slices[k].dense_gen}
     if touched is not None:
         touched.update(comps)
-    return _densify_components(mask, slices, comps, grid, step) if comps else 0
+    return _densify_components(mask, slices, comps, grid, step, tally=tally) if comps else 0
 
 
-def _densify_components(mask, slices, comps, grid, step, total=False) -> int:
+def _densify_components(mask, slices, comps, grid, step, total=False, tally=None) -> int:
     """The polygons of the components ``comps`` (``(slice, component)`` pairs) with a vertex at
     least every ``step`` where the point lies in the slice's band (see :func:`_densify_branching`;
     ``total``: at most about ``_DENSE_MAX`` points per ring, see :func:`_densify`); returns how
-    many rings changed."""
+    many rings changed (and adds them per slice to ``tally``, a dict, where given)."""
     n = 0
     for k, c in sorted(comps):
         s = slices[k]
@@ -1468,6 +1608,8 @@ def _densify_components(mask, slices, comps, grid, step, total=False) -> int:
         for h, (d, added) in enumerate(_dense_rings(mask, slices, k, c, grid, step, total)):
             if added is not None:
                 n += 1
+                if tally is not None:
+                    tally[k] = tally.get(k, 0) + 1
                 mark = added
                 prev = s.dense.get((c, h - 1))
                 if prev is not None:  # densified before: its added points stay added ones

@@ -1,0 +1,263 @@
+"""The general mesher in slabs on worker processes (``CONTOURMESH_THREADS`` > 1, :mod:`contourmesh.parallel`):
+the same mesh as one process, in the same order, with the same meta, area, volume and checks; every
+case the slab route does not handle, or a slab that fails or disagrees with its neighbour, gives the
+one-process mesh."""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+import contourmesh
+from contourmesh import parallel
+
+pytestmark = pytest.mark.skipif(parallel._fork_context() is None, reason="the slab route needs the fork start method")
+
+DATA = Path(os.environ.get("CONTOURMESH_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+
+
+def _blob(seed, shape=(30, 36, 36), sigma=1.3, level=0.5):
+    rng = np.random.default_rng(seed)
+    return ndimage.gaussian_filter(rng.random(shape), sigma) > level
+
+
+def _specks(seed):
+    """A blob with one-voxel specks and pinholes scattered through it."""
+    rng = np.random.default_rng(seed)
+    v = ndimage.gaussian_filter(rng.random((28, 32, 32)), 1.6) > 0.5
+    v |= rng.random(v.shape) < 0.003
+    v &= ~(rng.random(v.shape) < 0.003)
+    return v
+
+
+def _tori(seed):
+    """Stacked rings (holes) whose radii drift, so that they split and merge between slices."""
+    rng = np.random.default_rng(seed)
+    nz, n = 26, 40
+    yy, xx = np.mgrid[:n, :n]
+    v = np.zeros((nz, n, n), bool)
+    for k in range(nz):
+        for cx, cy in ((12, 14), (27, 25)):
+            r = np.hypot(xx - cx - rng.integers(-1, 2), yy - cy)
+            v[k] |= (r > 3 + k % 4) & (r < 8 + rng.integers(0, 3))
+    return v
+
+
+def _fallback_stack():
+    """Blobs one above the other; the lowest one's mesh needs a crossing fallback (a rebuild)
+    in the one-process mesher (test_rebuild_checks.BLOB_WITH_FALLBACK)."""
+    rng = np.random.default_rng(18)
+    low = ndimage.gaussian_filter(rng.random((10, 24, 24)), 1.2) > 0.5
+    high = _blob(5, (14, 24, 24))
+    return np.concatenate([low, np.zeros((1, 24, 24), bool), high, low[::-1]])
+
+
+def _mesh(vol, threads, monkeypatch, **kw):
+    monkeypatch.setenv("CONTOURMESH_THREADS", str(threads))
+    return contourmesh.mesh(vol, **kw)
+
+
+def _same(m1, m2):
+    assert m1.vertices.shape == m2.vertices.shape and m1.faces.shape == m2.faces.shape
+    assert np.array_equal(m1.vertices, m2.vertices)  # the same bits, in the same order
+    assert np.array_equal(m1.faces, m2.faces)
+    assert m1.P == m2.P
+    assert m1.meta == m2.meta
+    assert m1.area == m2.area and m1.volume == m2.volume
+    assert m1.checks() == m2.checks()
+
+
+def _routed(caplog):
+    return [r.getMessage() for r in caplog.records if r.getMessage().startswith("slab route")]
+
+
+@pytest.fixture
+def slab_route(monkeypatch, caplog):
+    """The slab route on small volumes too (no work threshold), its decisions logged.  Threads that
+    earlier tests left idle in this process (Dask's offload thread) do not keep it from forking
+    here; a thread started during the test does."""
+    monkeypatch.setattr(parallel, "MIN_WORK", 0)
+    before = {t.ident for t in threading.enumerate()}
+    check = parallel._no_other_threads
+
+    def no_new_threads():
+        check()  # (stops tqdm's monitor)
+        return all(t.ident in before for t in threading.enumerate())
+
+    monkeypatch.setattr(parallel, "_no_other_threads", no_new_threads)
+    caplog.set_level(logging.DEBUG, logger="contourmesh")
+    return caplog
+
+
+@pytest.mark.parametrize("make,seed,rebuilds", [(_blob, 0, False), (_blob, 3, False), (_specks, 1, True),
+                                                (_specks, 2, False), (_specks, 3, False), (_tori, 2, False)])
+def test_two_processes_make_the_one_process_mesh(make, seed, rebuilds, slab_route, monkeypatch):
+    vol = make(seed)
+    m1 = _mesh(vol, 1, monkeypatch, spacing=(1.5, 0.8, 0.7))
+    assert not _routed(slab_route)
+    assert (m1.meta["crossing_fallbacks"] > 0) == rebuilds
+    m2 = _mesh(vol, 2, monkeypatch, spacing=(1.5, 0.8, 0.7))
+    msgs = _routed(slab_route)
+    if rebuilds:  # the one-process mesher builds again where faces cross: the slabs do not
+        assert any("would rebuild" in m for m in msgs), msgs
+    else:
+        assert any("slabs on 2 processes" in m for m in msgs), msgs  # the slab route made it
+    _same(m1, m2)
+    assert m2.meta["route"] == "volume" and m2.checks()["closed"]
+
+
+def test_a_rebuild_in_the_whole_takes_one_process(slab_route, monkeypatch):
+    vol = _fallback_stack()
+    m1 = _mesh(vol, 1, monkeypatch)
+    assert m1.meta["crossing_fallbacks"] > 0
+    m2 = _mesh(vol, 2, monkeypatch)
+    msgs = _routed(slab_route)
+    assert any("would rebuild" in m for m in msgs), msgs
+    _same(m1, m2)
+
+
+def test_three_workers_and_uneven_slices(slab_route, monkeypatch):
+    vol = _blob(7, (34, 30, 30))
+    z = np.cumsum(np.random.default_rng(7).uniform(0.5, 2.0, len(vol)))
+    m1 = _mesh(vol, 1, monkeypatch, z=z, origin=(1.0, -2.0, 0.0))
+    m3 = _mesh(vol, 3, monkeypatch, z=z, origin=(1.0, -2.0, 0.0))
+    assert any("slabs on 3 processes" in m for m in _routed(slab_route))
+    _same(m1, m3)
+
+
+def test_a_seam_mismatch_falls_back_to_one_process(slab_route, monkeypatch):
+    from contourmesh import volumes
+
+    vol = _blob(0)
+    m1 = _mesh(vol, 1, monkeypatch)
+    units = volumes._slab_units
+
+    def disagreeing(kept, joins, slices, slab):  # (runs in the forked workers)
+        out = units(kept, joins, slices, slab)
+        if slab.lo == slab.offset == 0:  # the first slab: its digests of the units next to its seam
+            out["hashes"] = {k: "not the neighbour's" for k in out["hashes"]}
+        return out
+
+    monkeypatch.setattr(volumes, "_slab_units", disagreeing)
+    m2 = _mesh(vol, 2, monkeypatch)
+    assert any("disagree" in m for m in _routed(slab_route))
+    _same(m1, m2)
+
+
+def test_a_failing_slab_falls_back_to_one_process(slab_route, monkeypatch):
+    vol = _blob(3)
+    m1 = _mesh(vol, 1, monkeypatch)
+    mesher = parallel.volume_to_mesh
+
+    def failing(sub, **kw):  # (runs in the forked workers)
+        if kw["slab"].offset > 0:
+            raise RuntimeError("this slab cannot be meshed")
+        return mesher(sub, **kw)
+
+    monkeypatch.setattr(parallel, "volume_to_mesh", failing)
+    m2 = _mesh(vol, 2, monkeypatch)
+    assert any("a slab failed" in m and "this slab cannot be meshed" in m for m in _routed(slab_route))
+    _same(m1, m2)
+
+
+@pytest.mark.parametrize("kw", [dict(refine="band"), dict(refine="band2"), dict(polygon="dss", refine="band")])
+def test_refined_meshes_take_one_process(kw, slab_route, monkeypatch):
+    vol = _blob(0, (16, 24, 24))
+    m1 = _mesh(vol, 1, monkeypatch, **kw)
+    m2 = _mesh(vol, 2, monkeypatch, **kw)
+    assert not any("slabs on" in m for m in _routed(slab_route))
+    _same(m1, m2)
+
+
+@pytest.mark.parametrize("kw", [dict(polygon="dss"), dict(polygon="none"), dict(triangulation="optimal"),
+                                dict(caps="half"), dict(axis=2)])
+def test_paper_options_in_slabs(kw, slab_route, monkeypatch):
+    vol = _blob(4, (24, 26, 28))
+    m1 = _mesh(vol, 1, monkeypatch, **kw)
+    m2 = _mesh(vol, 2, monkeypatch, **kw)
+    msgs = _routed(slab_route)
+    # (triangulation="optimal" and caps="half": two slabs of this blob disagree on a band next to a
+    # seam, three gaps from one's cut end: the one-process mesh)
+    may_disagree = "triangulation" in kw or "caps" in kw
+    assert any("slabs on 2 processes" in m or ("disagree" in m and may_disagree) for m in msgs), msgs
+    _same(m1, m2)
+
+
+def test_no_fork_or_a_live_thread_means_one_process(slab_route, monkeypatch):
+    vol = _blob(0)
+    m1 = _mesh(vol, 1, monkeypatch)
+    fork_context = parallel._fork_context
+    monkeypatch.setattr(parallel, "_fork_context", lambda: None)
+    m2 = _mesh(vol, 2, monkeypatch)
+    assert any("no fork" in m for m in _routed(slab_route))
+    _same(m1, m2)
+    monkeypatch.setattr(parallel, "_fork_context", fork_context)
+    stop = threading.Event()
+    t = threading.Thread(target=stop.wait, name="someone else's thread")
+    t.start()
+    try:
+        slab_route.clear()
+        m3 = _mesh(vol, 2, monkeypatch)
+    finally:
+        stop.set()
+        t.join()
+    assert any("threads alive" in m and "someone else's thread" in m for m in _routed(slab_route))
+    _same(m1, m3)
+
+
+def test_small_volumes_take_one_process(monkeypatch, caplog):
+    caplog.set_level(logging.DEBUG, logger="contourmesh")
+    vol = _blob(0)
+    m1 = _mesh(vol, 1, monkeypatch)
+    m2 = _mesh(vol, 2, monkeypatch)
+    assert any("below" in m for m in _routed(caplog))
+    _same(m1, m2)
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "two", "1.5", " "])
+def test_bad_thread_settings_are_refused(value, monkeypatch):
+    monkeypatch.setenv("CONTOURMESH_THREADS", value)
+    with pytest.raises(ValueError, match="CONTOURMESH_THREADS must be a whole number of at least 1"):
+        contourmesh.mesh(_blob(0, (6, 12, 12)))
+
+
+def test_balanced_cuts():
+    work = np.r_[np.zeros(20), np.full(40, 100.0), np.ones(100)]
+    cuts = parallel.balanced_cuts(work, 8)
+    assert cuts[0] == 0 and cuts[-1] == len(work) - 1
+    assert all(b - a >= 2 * parallel.DEFAULT_HALO for a, b in zip(cuts[:-1], cuts[1:]))
+    assert sum(20 <= c <= 60 for c in cuts) >= 4  # most cuts where the work is
+    assert parallel.balanced_cuts(np.ones(10), 4) == [0, 9]  # too few slices for two slabs
+    assert parallel.balanced_cuts(np.ones(1), 4) == [0, 0]
+
+
+def test_slice_work_counts_runs():
+    m = np.zeros((2, 8, 9), bool)
+    m[0, 0, 1:3] = m[0, 0, 5:7] = True  # two runs in row 0
+    m[1, 4, :] = True  # one run in row 4
+    m[1, 1, :] = True  # (row 1: not sampled)
+    assert parallel.slice_work(m).tolist() == [2, 1]
+
+
+@pytest.mark.parametrize("name", ["liver", "lobster"])
+def test_shared_samples(name, slab_route, monkeypatch):
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import volume_speed
+
+    try:
+        vol, sp = volume_speed.make_input(name)[:2]
+    except (FileNotFoundError, OSError) as exc:
+        pytest.skip(f"shared sample {name!r} not found under {DATA} ({exc})")
+    m1 = _mesh(vol, 1, monkeypatch, spacing=sp)
+    m2 = _mesh(vol, 2, monkeypatch, spacing=sp)
+    msgs = _routed(slab_route)
+    assert any("slabs on 2 processes" in m or "disagree" in m for m in msgs), msgs
+    _same(m1, m2)
