@@ -80,15 +80,17 @@ def _routed(caplog):
 @pytest.fixture
 def slab_route(monkeypatch, caplog):
     """The slab route on small volumes too (no work threshold), its decisions logged.  Threads that
-    earlier tests left idle in this process (Dask's offload thread) do not keep it from forking
-    here; a thread started during the test does."""
+    earlier tests left idle in this process (Dask's offload thread) and the package's own idle
+    worker threads do not keep it from forking here; another thread started during the test does."""
     monkeypatch.setattr(parallel, "MIN_WORK", 0)
     before = {t.ident for t in threading.enumerate()}
     check = parallel._no_other_threads
 
     def no_new_threads():
+        from contourmesh._workers import kept_threads_idle
+
         check()  # (stops tqdm's monitor)
-        return all(t.ident in before for t in threading.enumerate())
+        return all(t.ident in before or kept_threads_idle(t) for t in threading.enumerate())
 
     monkeypatch.setattr(parallel, "_no_other_threads", no_new_threads)
     caplog.set_level(logging.DEBUG, logger="contourmesh")
@@ -260,4 +262,32 @@ def test_shared_samples(name, slab_route, monkeypatch):
     m2 = _mesh(vol, 2, monkeypatch, spacing=sp)
     msgs = _routed(slab_route)
     assert any("slabs on 2 processes" in m or "disagree" in m for m in msgs), msgs
+    _same(m1, m2)
+
+
+def test_the_kept_worker_threads_do_not_keep_the_slab_route_from_forking(monkeypatch, caplog):
+    """The fast path and the crossing test leave their worker threads waiting between calls
+    (contourmesh._workers); idle, they do not stop the fork, busy they do."""
+    from contourmesh import _workers
+
+    monkeypatch.setattr(parallel, "MIN_WORK", 0)
+    caplog.set_level(logging.DEBUG, logger="contourmesh")
+    zz, yy, xx = np.mgrid[:40, :40, :40]
+    ball = (zz - 20) ** 2 + (yy - 20) ** 2 + (xx - 20) ** 2 < 15**2
+    _mesh(ball, 2, monkeypatch)  # the fast path on two threads: one kept worker thread
+    kept = [t for t in threading.enumerate() if t.name.startswith(_workers.THREAD_PREFIX)]
+    assert kept and all(_workers.kept_threads_idle(t) for t in kept)
+    seen = []
+    _workers.run_all(lambda i: seen.append(_workers.kept_threads_idle(kept[0])), [(0,), (1,), (2,)], 2)
+    assert seen == [False, False, False]  # busy while a call runs
+    # other threads earlier tests left in this process are not this test's subject
+    others = {t.ident for t in threading.enumerate() if not t.name.startswith(_workers.THREAD_PREFIX)}
+    others.discard(threading.current_thread().ident)
+    enumerate_all = threading.enumerate
+    monkeypatch.setattr(threading, "enumerate", lambda: [t for t in enumerate_all() if t.ident not in others])
+    vol = _blob(0)
+    m1 = _mesh(vol, 1, monkeypatch)
+    caplog.clear()
+    m2 = _mesh(vol, 2, monkeypatch)
+    assert any("slabs on 2 processes" in m for m in _routed(caplog)), _routed(caplog)
     _same(m1, m2)

@@ -19,6 +19,9 @@ from concurrent.futures import ThreadPoolExecutor
 
 _POOLS: dict = {}
 _LOCK = threading.Lock()
+_BUSY = [0]  # run_all calls in progress in this process (under _LOCK)
+#: The name every kept worker thread starts with.
+THREAD_PREFIX = "contourmesh-worker"
 
 
 def worker_pool(threads: int) -> ThreadPoolExecutor:
@@ -27,7 +30,7 @@ def worker_pool(threads: int) -> ThreadPoolExecutor:
     with _LOCK:
         pool = _POOLS.get(key)
         if pool is None:
-            pool = _POOLS[key] = ThreadPoolExecutor(max_workers=int(threads), thread_name_prefix="contourmesh")
+            pool = _POOLS[key] = ThreadPoolExecutor(max_workers=int(threads), thread_name_prefix=THREAD_PREFIX)
         return pool
 
 
@@ -60,10 +63,26 @@ def run_all(fn, args, threads: int) -> list:
                 return
 
     pool = worker_pool(threads - 1)
-    helpers = [pool.submit(take) for _ in range(min(threads - 1, n - 1))]
-    take()
-    for f in helpers:
-        f.result()
+    with _LOCK:
+        _BUSY[0] += 1
+    try:
+        helpers = [pool.submit(take) for _ in range(min(threads - 1, n - 1))]
+        take()
+        for f in helpers:
+            f.result()
+    finally:
+        with _LOCK:
+            _BUSY[0] -= 1
     if state["error"] is not None:
         raise state["error"]
     return results
+
+
+def kept_threads_idle(t: threading.Thread) -> bool:
+    """Whether ``t`` is one of this module's kept worker threads and none of them has work: such a
+    thread waits on its pool's queue holding no lock a forked child would need (a child makes its
+    own pool, :func:`worker_pool` is keyed by the process id)."""
+    if not t.name.startswith(THREAD_PREFIX):
+        return False
+    with _LOCK:
+        return _BUSY[0] == 0

@@ -35,8 +35,8 @@ handed out largest first.
 
 **Processes.**  Linux's ``fork`` only, from the calling process (its compiled kernels are the
 children's), and only while no other thread runs in it (tqdm's idle monitor thread is stopped
-first; a thread holding a lock at the fork could deadlock a child).  The workers mesh with
-``CONTOURMESH_THREADS=1`` and locks of their own for tqdm.  Elsewhere, below :data:`MIN_WORK`,
+first, the package's own idle worker threads are let be; a thread holding a lock at the fork
+could deadlock a child).  The workers mesh with ``CONTOURMESH_THREADS=1`` and locks of their own for tqdm.  Elsewhere, below :data:`MIN_WORK`,
 when a worker fails or a seam disagrees, the volume is meshed in this process (each decision
 logged at DEBUG): never a different mesh.
 """
@@ -244,7 +244,9 @@ def _join(pieces, zs, px, polygon, triangulation, caps):
 def _no_other_threads() -> bool:
     """Whether this thread is the process's only one, after stopping tqdm's idle monitor thread
     (tqdm starts one with its first bar, the general mesher's progress bar included, and keeps it
-    after the last bar closes; it is started again by the next bar)."""
+    after the last bar closes; it is started again by the next bar), apart from the package's own
+    kept worker threads while none of them has work (:func:`contourmesh._workers.kept_threads_idle`:
+    the fast path and the crossing test leave them waiting between calls)."""
     import sys
 
     mon = sys.modules.get("tqdm._monitor")
@@ -254,7 +256,10 @@ def _no_other_threads() -> bool:
                 if t.tqdm_cls.monitor is t:
                     t.tqdm_cls.monitor = None
             t.exit()
-    return threading.active_count() == 1
+    from ._workers import kept_threads_idle
+
+    me = threading.current_thread()
+    return all(t is me or kept_threads_idle(t) for t in threading.enumerate())
 
 
 def _child_init():
