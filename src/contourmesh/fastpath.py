@@ -496,26 +496,13 @@ def _trace_outer_py(img, base, hh, ww, ox, oy, sx, sy):
 
 
 @_kernel
-def _trace_runs(ry, rx0, rx1, order, t0, t1):
-    """The contour :func:`_trace_outer` walks, written from the runs when the component has one
-    run in each of its rows (``order[t0:t1]``, rows ascending), without reading a pixel; else an
-    empty array (the walk is needed).
-
-    Run ``r`` puts the rectangle ``[rx0 - 1, rx1] x [ry - 1, ry + 1]`` into ``U``, so the cells
-    between heights ``y`` and ``y + 1`` span one interval ``[L, R]`` (the union of the rectangles
-    of rows ``y`` and ``y + 1``, which overlap in a 4-connected component): ``U`` is a stack of
-    intervals, without the pinches where the walk's turning rule decides.  Its boundary, from the
-    lowest-then-leftmost vertex counterclockwise, is the bottom edge, the right side (one unit up
-    per interval, then along to the next interval's end), the top edge and the left side down,
-    every lattice point on the way listed once, as the walk lists them.
-    """
+def _stack_intervals(ry, rx0, rx1, order, t0, t1):
+    """The intervals ``[lo[i], hi[i]]`` of lattice x of a stack of runs ``order[t0:t1]`` (one run per
+    row, rows consecutive) between heights ``y0 + i`` and ``y0 + i + 1`` (``y0`` the bottom edge's):
+    the union of the cells of the rows below and above, as corner coordinates.  Returns
+    ``(y0, lo, hi)``, ``m + 1`` intervals for ``m`` rows."""
     m = t1 - t0
-    if m <= 0:
-        return np.empty((0, 2), np.int64)
-    for t in range(t0 + 1, t1):
-        if ry[order[t]] != ry[order[t - 1]] + 1:
-            return np.empty((0, 2), np.int64)
-    y0 = ry[order[t0]] - 1  # height of the bottom edge: interval i lies between y0 + i and y0 + i + 1
+    y0 = ry[order[t0]] - 1
     lo = np.empty(m + 1, np.int64)
     hi = np.empty(m + 1, np.int64)
     for i in range(m + 1):
@@ -535,6 +522,30 @@ def _trace_runs(ry, rx0, rx1, order, t0, t1):
                     b = rx1[r]
         lo[i] = a
         hi[i] = b
+    return y0, lo, hi
+
+
+@_kernel
+def _trace_runs(ry, rx0, rx1, order, t0, t1):
+    """The contour :func:`_trace_outer` walks, written from the runs when the component has one
+    run in each of its rows (``order[t0:t1]``, rows ascending), without reading a pixel; else an
+    empty array (the walk is needed).
+
+    Run ``r`` puts the rectangle ``[rx0 - 1, rx1] x [ry - 1, ry + 1]`` into ``U``, so the cells
+    between heights ``y`` and ``y + 1`` span one interval ``[L, R]`` (the union of the rectangles
+    of rows ``y`` and ``y + 1``, which overlap in a 4-connected component): ``U`` is a stack of
+    intervals, without the pinches where the walk's turning rule decides.  Its boundary, from the
+    lowest-then-leftmost vertex counterclockwise, is the bottom edge, the right side (one unit up
+    per interval, then along to the next interval's end), the top edge and the left side down,
+    every lattice point on the way listed once, as the walk lists them.
+    """
+    m = t1 - t0
+    if m <= 0:
+        return np.empty((0, 2), np.int64)
+    for t in range(t0 + 1, t1):
+        if ry[order[t]] != ry[order[t - 1]] + 1:
+            return np.empty((0, 2), np.int64)
+    y0, lo, hi = _stack_intervals(ry, rx0, rx1, order, t0, t1)  # interval i: y0 + i .. y0 + i + 1
     n = (hi[0] - lo[0]) + (hi[m] - lo[m]) + 2 * (m + 1)
     for i in range(m):
         n += abs(hi[i + 1] - hi[i]) + abs(lo[i + 1] - lo[i])
@@ -605,26 +616,7 @@ def _stack_candidates(pts, ry, rx0, rx1, order, t0, t1):
     which write, read and clear five bytes of two slice-sized images per point.
     """
     mr = t1 - t0
-    y0 = ry[order[t0]] - 1
-    lo = np.empty(mr + 1, np.int64)
-    hi = np.empty(mr + 1, np.int64)
-    for i in range(mr + 1):
-        if i == 0:
-            r = order[t0]
-            a = rx0[r] - 1
-            b = rx1[r]
-        else:
-            r = order[t0 + i - 1]
-            a = rx0[r] - 1
-            b = rx1[r]
-            if i < mr:
-                r = order[t0 + i]
-                if rx0[r] - 1 < a:
-                    a = rx0[r] - 1
-                if rx1[r] > b:
-                    b = rx1[r]
-        lo[i] = a
-        hi[i] = b
+    y0, lo, hi = _stack_intervals(ry, rx0, rx1, order, t0, t1)
     n = len(pts)
     cand = np.empty((3 * n, 2), np.int64)
     kind = np.empty(3 * n, np.int64)
