@@ -233,7 +233,7 @@ def test_balanced_cuts():
     work = np.r_[np.zeros(20), np.full(40, 100.0), np.ones(100)]
     cuts = parallel.balanced_cuts(work, 8)
     assert cuts[0] == 0 and cuts[-1] == len(work) - 1
-    assert all(b - a >= 2 * parallel.DEFAULT_HALO for a, b in zip(cuts[:-1], cuts[1:]))
+    assert all(b - a >= 2 * parallel.HALO for a, b in zip(cuts[:-1], cuts[1:]))
     assert sum(20 <= c <= 60 for c in cuts) >= 4  # most cuts where the work is
     assert parallel.balanced_cuts(np.ones(10), 4) == [0, 9]  # too few slices for two slabs
     assert parallel.balanced_cuts(np.ones(1), 4) == [0, 0]
@@ -261,7 +261,10 @@ def test_shared_samples(name, slab_route, monkeypatch):
     m1 = _mesh(vol, 1, monkeypatch, spacing=sp)
     m2 = _mesh(vol, 2, monkeypatch, spacing=sp)
     msgs = _routed(slab_route)
-    assert any("slabs on 2 processes" in m or "disagree" in m for m in msgs), msgs
+    if name == "liver":
+        assert any("slabs on 2 processes" in m for m in msgs), msgs
+    else:  # the lobster's mesh is built again after crossing fallbacks: one process, by a fall-back
+        assert any("slabs on 2 processes" in m or "disagree" in m or "would rebuild" in m for m in msgs), msgs
     _same(m1, m2)
 
 
@@ -291,3 +294,30 @@ def test_the_kept_worker_threads_do_not_keep_the_slab_route_from_forking(monkeyp
     m2 = _mesh(vol, 2, monkeypatch)
     assert any("slabs on 2 processes" in m for m in _routed(caplog)), _routed(caplog)
     _same(m1, m2)
+
+
+def _soak_stack(seed):
+    """A stack of small random shapes of the robustness soak (tests/soak.py), one above another."""
+    import soak
+
+    rng = np.random.default_rng(seed)
+    parts = []
+    kinds = ["blob", "sheet", "line", "tube", "checker", "staircase", "border", "components", "shells", "single"]
+    for _ in range(int(rng.integers(3, 7))):
+        v = soak.make_volume(str(rng.choice(kinds)), rng)[:, :12, :12]
+        parts.append(np.pad(v, ((0, int(rng.integers(0, 2))), (0, 12 - v.shape[1]), (0, 12 - v.shape[2]))))
+    return np.pad(np.concatenate(parts), 1)
+
+
+def test_a_join_four_slices_from_a_cut_end_is_the_one_process_join(slab_route, monkeypatch):
+    """Seed 1086 of the threads soak: with a halo of three slices both slabs next to the seam at slice
+    21 made the same bridged join, where the whole volume makes an exact one (a different mesh that
+    no seam check could see); the slabs' halo of four gives the one-process mesh."""
+    vol = _soak_stack(1086)
+    m1 = _mesh(vol, 1, monkeypatch)
+    m2 = _mesh(vol, 2, monkeypatch)
+    assert any("slabs on 2 processes" in m for m in _routed(slab_route)), _routed(slab_route)
+    _same(m1, m2)
+    monkeypatch.setattr(parallel, "HALO", 3)
+    m3 = _mesh(vol, 2, monkeypatch)
+    assert m3.meta["bridged_joins"] != m1.meta["bridged_joins"]  # (why the halo is four)
