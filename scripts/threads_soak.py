@@ -23,9 +23,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-import soak  # noqa: E402
-
 import contourmesh  # noqa: E402
+import soak  # noqa: E402
 from contourmesh import parallel  # noqa: E402
 
 KINDS = ["blob", "sheet", "line", "tube", "checker", "staircase", "border", "components", "shells", "single"]
