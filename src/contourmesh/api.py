@@ -598,7 +598,7 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
     origin : (x, y, z), default (0, 0, 0)
         Physical position of the centre of voxel ``[0, 0, 0]``.
     """
-    _threads()  # (a bad CONTOURMESH_THREADS is refused before any work)
+    threads = _threads()  # (a bad CONTOURMESH_THREADS is refused before any work)
     spacing = (1.0, 1.0, 1.0) if spacing is None else spacing
     origin = (0.0, 0.0, 0.0) if origin is None else origin
     axis = 0 if axis is None else axis
@@ -625,7 +625,7 @@ def mesh_volume(volume, *, spacing=None, z=None, axis: int | None = None, label=
     _volume_caps(caps, "a volume is meshed by the volume mesher (with refine='band', a volume with one contour "
                  "per slice is meshed as its contour stack)")
     general = None
-    if _threads() > 1:  # the general mesher in slabs on worker processes (contourmesh.parallel)
+    if threads > 1:  # the general mesher in slabs on worker processes (contourmesh.parallel)
         from .parallel import mesh_in_slabs as general
     m = volume_to_mesh(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold, origin=origin,
                        polygon=polygon, triangulation=triangulation or "wiederhold", caps=caps, progress=progress,

@@ -113,6 +113,9 @@ __all__ = ["fast_volume_to_mesh", "slice_runs", "slice_components", "slice_label
 _OPTIONS = KERNEL_OPTIONS
 _kernel = internal_kernel  # ``fn`` as an internal numba kernel (see above)
 
+#: The connectivity every volume mesh is made with (recorded in ``meta``).
+CONNECTIVITY = "object 6 (4 in slice) / background 26 (8 in slice)"
+
 
 def _entry(fn):
     """A cached, Python-callable entry point (for the Python-level helpers) that only calls an
@@ -1892,7 +1895,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, ban
         "exact_joins": 0,
         "polygon_fallbacks": fallbacks,
         "crack_rings": 0, "band_fallbacks": band_fallbacks, "pixel_caps": 0, "least_area_bands": 0, "dense_rings": 0,
-        "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)", "fast_path": True,
+        "connectivity": CONNECTIVITY, "fast_path": True,
     }
     return Mesh(V, F, P=len(V), meta=meta)
 

@@ -55,7 +55,7 @@ from numba import njit
 from .intersect import _threads, intersecting_pairs
 from .repair import resolve_crossings
 from .types import Mesh
-from .volumes import SlabPart, _checked, _join_units, volume_to_mesh
+from .volumes import VOLUME_COUNTS, SlabPart, _checked, _join_units, volume_meta, volume_to_mesh
 
 __all__ = ["mesh_in_slabs", "slice_work", "balanced_cuts", "MIN_WORK"]
 
@@ -70,10 +70,6 @@ MIN_WORK = 10_000
 #: Slabs per worker process: more slabs than workers even out slabs whose work the estimate
 #: misjudges, at the cost of two halos each.
 _SLABS_PER_WORKER = 4
-
-#: The meta counts that the slabs add up (each counts its own gaps' joins and its own slices' caps).
-_COUNTS = ("band_joins", "bridged_joins", "bridges", "intermediate_sections", "exact_joins", "polygon_fallbacks",
-           "crack_rings", "band_fallbacks", "pixel_caps", "least_area_bands", "dense_rings", "crossing_fallbacks")
 
 _JOB = None  # the job the forked workers read (set only while the pool runs)
 
@@ -231,21 +227,17 @@ def _join(pieces, zs, px, polygon, triangulation, caps):
     left = info.pop("pairs")
     log.debug("slab route join: units %.2f s, pairs %.2f s, resolve %.2f s", tj1 - tj, tj2 - tj1, time.perf_counter() - tj2)
     if len(left):
-        ts = np.unique(T[np.unique(left)])
-        idents = [i for i, _u in joins] + [i for i, _u in capped]
-        for t in ts.tolist():
+        ident_of = dict(zip(tags, [i for i, _u in joins] + [i for i, _u in capped]))
+        for t in np.unique(T[np.unique(left)]).tolist():
             if t < 0:
                 continue
-            ident = idents[t] if t < len(joins) else next(i for i, tag in zip(idents[len(joins):], tags[len(joins):])
-                                                          if tag == t)
+            ident = ident_of[t]
             if (ident[0] == "join" and ident[4] != "exact") or (ident[0] == "cap" and not ident[3]):
                 log.debug("slab route: faces cross that the one-process mesher would rebuild (crossing "
                           "fallbacks); one process")
                 return None
-    meta = {"method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
-            "caps": caps, "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)"}
-    for k in _COUNTS:
-        meta[k] = int(sum(p["counts"][k] for p in pieces))
+    meta = volume_meta(polygon, triangulation, caps,
+                       {k: int(sum(p["counts"][k] for p in pieces)) for k in VOLUME_COUNTS})
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
 
 
@@ -294,8 +286,8 @@ def _child_init():
 
 
 def _piece(j: int) -> dict:
-    """Slab ``j`` of the job: its own joins' and caps' units, seam digests and counts, and the
-    faces it keeps away from its seams with their crossing pairs (before the crossing repair)."""
+    """Slab ``j`` of the job: its own joins' and caps' units with their rings' points, the digests
+    of the units next to its seams, its own slices' component counts and its meta counts."""
     c0 = time.process_time()
     mask, zs, (dy, dx), (ox, oy), cuts, method = _JOB
     nz = len(zs)
@@ -304,12 +296,12 @@ def _piece(j: int) -> dict:
     last = j == len(cuts) - 2
     part = SlabPart(lo=cuts[j] - a, hi=cuts[j + 1] - a, last=last, open_below=a > 0, open_above=b < nz, offset=a)
     sub = np.ascontiguousarray(mask[a:b])
-    out = {"j": j, "counts": dict.fromkeys(_COUNTS, 0), "units": [], "rings": {}, "hashes": {},
+    out = {"j": j, "counts": dict.fromkeys(VOLUME_COUNTS, 0), "units": [], "rings": {}, "hashes": {},
            "n_comp": {k: 0 for k in range(cuts[j], cuts[j + 1] + (1 if last else 0))}}
     if sub.any():
         m = volume_to_mesh(sub, spacing=(1.0, dy, dx), z=zs[a:b], origin=(ox, oy, 0.0), slab=part, **method)
         info = m.meta["slab"]
-        out["counts"] = {k: int(m.meta[k]) for k in _COUNTS}
+        out["counts"] = {k: int(m.meta[k]) for k in VOLUME_COUNTS}
         out.update(units=info["units"], rings=info["rings"], hashes=info["hashes"])
         out["n_comp"].update(info["n_comp"])
     out["cpu"] = time.process_time() - c0

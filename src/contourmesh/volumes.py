@@ -87,7 +87,15 @@ from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_ban
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
 from .bands.optimal import triangulate_band_optimal
-from .fastpath import _fast_volume_to_mesh, _one_band, pixels_mlp, redo_self_crossing_bands, slice_components, slice_labels
+from .fastpath import (
+    CONNECTIVITY,
+    _fast_volume_to_mesh,
+    _one_band,
+    pixels_mlp,
+    redo_self_crossing_bands,
+    slice_components,
+    slice_labels,
+)
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
 from .measure import triangle_areas
@@ -853,16 +861,12 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # (the slices held there hold it back: a reference cycle, which would leave the slices to the
     # cyclic garbage collector; emptied, they go when this call returns)
     recent.held.clear()
-    meta = {
-        "method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
-        "caps": caps_given, "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
-        "intermediate_sections": n_sections,
-        "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
+    meta = volume_meta(polygon, triangulation, caps_given, {
+        "band_joins": band_joins, "bridged_joins": bridged_joins, "bridges": n_bridges,
+        "intermediate_sections": n_sections, "exact_joins": exact_joins, "polygon_fallbacks": fallbacks,
         "crack_rings": len(crack_only), "band_fallbacks": band_fallbacks, "pixel_caps": pixel_caps,
         "least_area_bands": least_area, "dense_rings": dense_rings,
-        "crossing_fallbacks": fallback_joins + fallback_caps,
-        "connectivity": "object 6 (4 in slice) / background 26 (8 in slice)",
-    }
+        "crossing_fallbacks": fallback_joins + fallback_caps})
     if refine is not None:
         meta.update(refine_info, refine=refine)
     if smooth_ends is not None:
@@ -882,6 +886,23 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: %d exact (voxel-like) joins, %d polygon fallbacks to crack contours, "
                   "%d twisted bands replaced", exact_joins, fallbacks, band_fallbacks)
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
+
+
+#: The general mesher's counts in ``meta``, in order (a slab counts those of its own gaps and slices,
+#: and :mod:`contourmesh.parallel` adds the slabs' up).
+VOLUME_COUNTS = ("band_joins", "bridged_joins", "bridges", "intermediate_sections", "exact_joins",
+                 "polygon_fallbacks", "crack_rings", "band_fallbacks", "pixel_caps", "least_area_bands",
+                 "dense_rings", "crossing_fallbacks")
+
+
+def volume_meta(polygon, triangulation, caps, counts: dict) -> dict:
+    """The general mesher's ``meta``: the method, the options and the :data:`VOLUME_COUNTS` from
+    ``counts``, in one order for the one-process mesher and the slab driver."""
+    meta = {"method": "contourmesh", "source": "volume", "polygon": polygon, "triangulation": triangulation,
+            "caps": caps}
+    meta.update((k, counts[k]) for k in VOLUME_COUNTS)
+    meta["connectivity"] = CONNECTIVITY
+    return meta
 
 
 def _slab_units(kept, joins, slices, slab) -> dict:
