@@ -2098,11 +2098,11 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     if any_intersecting(V, F):
         # the bands were tested with the two visits of each bridge end a hair apart (as pinches); as
         # one vertex a band can cross itself where they meet: try the other rules on the band as built
+        # (only faces that the retry replaced are tested again: those that passed keep their answer)
         F = _merged_band_retry(V, faces, bands)
-        if F is not None:
-            replaced += 1
-    if F is None or any_intersecting(V, F):
-        return None
+        if F is None or any_intersecting(V, F):
+            return None
+        replaced += 1
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
     return out
