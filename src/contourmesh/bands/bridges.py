@@ -937,8 +937,128 @@ def _outside_corner(a, c, b, d) -> bool:
 
 
 def bridged_ring_arrays(lengths, bridges, root: int = 0):
-    """:func:`bridged_ring` as two int64 arrays ``(ring, vertex)``: the same sequence, each run of
-    a contour between two bridge ends emitted as one range instead of vertex by vertex."""
+    """:func:`bridged_ring` as two int64 arrays ``(ring, vertex)``: the same sequence.  Compiled
+    (:func:`_tour_kernel`) where every contour has a vertex and no two bridge ends share a ring's
+    vertex (as :func:`bridge_tree` makes them); else :func:`_bridged_ring_arrays_py`."""
+    n = len(lengths)
+    lens = np.asarray(lengths, dtype=np.int64).reshape(-1)
+    br = np.array([tuple(b[:4]) + (len(b[4]) if len(b) > 4 else 0,) for b in bridges], dtype=np.int64).reshape(-1, 5)
+    if n and lens.min() > 0 and 0 <= root < n:
+        rr, vv, ok = _tour_kernel(lens, br, np.int64(root))
+        if ok:
+            return rr, vv
+    return _bridged_ring_arrays_py(lengths, bridges, root)
+
+
+@njit(cache=True, nogil=True)
+def _tour_kernel(lengths, br, root):
+    """:func:`_bridged_ring_arrays_py`'s tour without recursion: ``br`` holds the bridges' rows ``(i,
+    vi, j, vj, points)``.  Returns ``(rings, vertices, 1)``, or ``(.., .., 0)`` where two bridge ends
+    share a ring's vertex or a bridge end is not a vertex of its ring (the caller then takes the
+    Python tour)."""
+    n = lengths.shape[0]
+    nb = br.shape[0]
+    rr = np.empty(0, np.int64)
+    vv = np.empty(0, np.int64)
+    off = np.zeros(n + 1, np.int64)
+    for r in range(n):
+        off[r + 1] = off[r] + lengths[r]
+    # per ring vertex: the bridge end there (2 b for the end (i, vi), 2 b + 1 for (j, vj)), or -1
+    end_at = np.full(off[n], -1, np.int64)
+    for b in range(nb):
+        for s in range(2):
+            r, v = br[b, 2 * s], br[b, 2 * s + 1]
+            if r < 0 or r >= n or v < 0 or v >= lengths[r] or end_at[off[r] + v] >= 0:
+                return rr, vv, 0
+            end_at[off[r] + v] = 2 * b + s
+    # the bridges must form a forest (then each ring is entered once at most, and the frames and
+    # the output below are large enough); else the Python tour (which would not end either)
+    parent = np.arange(n)
+    for b in range(nb):
+        a, c = _root(parent, br[b, 0]), _root(parent, br[b, 2])
+        if a == c:
+            return rr, vv, 0
+        parent[a] = c
+    n_hooks = np.zeros(n, np.int64)
+    total = off[n] + n
+    for b in range(nb):
+        total += 2 * br[b, 4] + 1
+    rr = np.empty(total, np.int64)
+    vv = np.empty(total, np.int64)
+    k = 0
+    # each frame: ring, entry vertex, parent ring, closing, the next hook to follow and the first
+    # vertex not yet emitted, the bridge end it was entered by (-1: the root)
+    fr = np.empty(n, np.int64)
+    fe = np.empty(n, np.int64)
+    fp = np.empty(n, np.int64)
+    fc = np.empty(n, np.int64)
+    fh = np.empty(n, np.int64)
+    ft = np.empty(n, np.int64)
+    fin = np.empty(n, np.int64)
+    hooks = np.empty(off[n], np.int64)  # each entered ring's hooks to follow, at off[ring]
+    start = 0
+    for v in range(lengths[root]):
+        if end_at[off[root] + v] < 0:
+            start = v
+            break
+    fr[0], fe[0], fp[0], fc[0], fin[0] = root, start, -1, 0, -1
+    fh[0], ft[0] = -1, 0
+    sp = 1
+    while sp > 0:
+        d = sp - 1
+        r, e, m = fr[d], fe[d], lengths[fr[d]]
+        if fh[d] < 0:
+            # entering the ring: its hooks to rings other than the parent, in the order of the walk
+            # from e (the distance (v - e) mod m, distinct for distinct vertices)
+            cnt = 0
+            o = off[r]
+            for v in range(m):
+                x = end_at[o + (e + v) % m]
+                if x >= 0:
+                    other = br[x // 2, 2 * (1 - x % 2)]
+                    if other != fp[d]:
+                        hooks[o + cnt] = (e + v) % m
+                        cnt += 1
+            n_hooks[r] = cnt
+            fh[d] = 0
+        if fh[d] < n_hooks[r]:
+            v = hooks[off[r] + fh[d]]
+            t = (v - e) % m
+            for u in range(ft[d], t + 1):
+                rr[k], vv[k] = r, (e + u) % m
+                k += 1
+            x = end_at[off[r] + v]
+            b, s = x // 2, x % 2
+            pts = br[b, 4]
+            for u in range(pts):
+                rr[k], vv[k] = n + b, u if s == 0 else pts - 1 - u
+                k += 1
+            fh[d] += 1
+            ft[d] = t + 1
+            c = sp
+            fr[c], fe[c], fp[c], fc[c], fin[c] = br[b, 2 * (1 - s)], br[b, 2 * (1 - s) + 1], r, 1, x
+            fh[c], ft[c] = -1, 0
+            sp += 1
+            continue
+        for u in range(ft[d], m + fc[d]):
+            rr[k], vv[k] = r, (e + u) % m
+            k += 1
+        sp -= 1
+        x = fin[d]
+        if x >= 0:  # back along the bridge it was entered by, to the parent's vertex
+            b, s = x // 2, x % 2
+            pts = br[b, 4]
+            for u in range(pts):
+                rr[k], vv[k] = n + b, pts - 1 - u if s == 0 else u
+                k += 1
+            rr[k], vv[k] = br[b, 2 * s], br[b, 2 * s + 1]
+            k += 1
+    return rr[:k], vv[:k], 1
+
+
+def _bridged_ring_arrays_py(lengths, bridges, root: int = 0):
+    """:func:`bridged_ring_arrays` in Python, each run of a contour between two bridge ends emitted
+    as one range instead of vertex by vertex (the reference of :func:`_tour_kernel`)."""
     n = len(lengths)
     at = {}
     hooks = [[] for _ in range(n)]  # per ring, the vertices where bridges leave it
