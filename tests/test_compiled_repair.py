@@ -322,6 +322,56 @@ def test_straight_bridges_kernel_equals_the_python_loop():
     assert min(seen.values()) > 20, seen
 
 
+def test_candidate_kernel_equals_the_python_loop():
+    # bridge_tree's candidates, compiled in one call (_candidate_columns), against the loop over the
+    # pairs of rings it replaced (each pair's nearest vertices, the preference over a label image,
+    # the rounded keys and their lexicographic order): the same seven columns, bit for bit.  Rings
+    # on a half-pixel grid give equal lengths and tie-breaks; the large pair goes back to Python
+    from contourmesh.bands import bridges as B
+
+    rng = np.random.default_rng(97)
+    seen = {"compiled": 0, "python": 0, "preferred": 0}
+    for trial in range(300):
+        grid = trial % 2 == 0
+        nr = int(rng.integers(2, 9))
+        rings, owners = [], []
+        for r in range(nr):
+            hole = r > 0 and rng.random() < 0.4
+            comp = owners[int(rng.integers(0, r))][0] if hole else r
+            k = 250 if trial % 50 == 7 and r < 2 else int(rng.integers(3, 14))
+            ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), k, grid)
+            if len(np.unique(ring, axis=0)) < 3:
+                ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)
+            rings.append(ring[::-1] if hole else ring)
+            owners.append((comp, hole))
+        prefer = None
+        if trial % 3:
+            lab = rng.integers(0, 3, (24, 24)).astype(np.uint8 if trial % 3 == 1 else np.int32)
+            prefer = B.PreferCovered(B.keyhole_uncovered(lab, [int(rng.integers(0, 2))], (-8.0, -8.0, 0.7, 0.7)),
+                                     float(rng.choice([0.25, 0.5, 0.75])))
+        pairs = [(i, j) for i, j in B._near_pairs(rings)
+                 if (owners[i][0] != owners[j][0] and not owners[i][1] and not owners[j][1])
+                 or (owners[i][0] == owners[j][0] and (owners[i][1] or owners[j][1]))]
+        parts = []
+        for i, j in pairs:
+            vi, vj, d, tie = B._candidates(rings[i], rings[j], B.CANDIDATES)
+            later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) \
+                if prefer is not None and owners[i][0] != owners[j][0] else np.zeros(len(vi), dtype=bool)
+            parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
+        want = B._candidate_arrays(parts)
+        got = B._candidate_columns(rings, pairs, owners, prefer)
+        if got is None:
+            seen["python"] += 1
+            continue
+        seen["compiled"] += 1
+        seen["preferred"] += int((got[0] == 0).sum() > 0 and prefer is not None)
+        assert len(got) == 7
+        for a, b in zip(got, want):
+            assert a.dtype == b.dtype
+            assert a.tobytes() == b.tobytes()
+    assert seen["compiled"] > 200 and seen["python"] >= 3 and seen["preferred"] > 20, seen
+
+
 def _random_faces(rng, m, nv):
     F = np.stack([rng.choice(nv, 3, replace=False) for _ in range(m)])
     return np.ascontiguousarray(F, dtype=np.int64)

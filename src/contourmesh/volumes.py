@@ -1955,7 +1955,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 
     Where the join's faces cross at a bridge end, its band gets other rules
     (:func:`_merged_band_retry`)."""
-    from .bands.bridges import bridge_tree, bridged_ring_arrays
+    from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays
     from .intersect import any_intersecting
 
     tubes, lids_a, lids_b, open_a, open_b = plan
@@ -1992,7 +1992,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
         cover = uncovered(other, comps)
         br = bridge_tree(rs, oa, ob, owners=owners, allowed=cover, waypoints=points_of, step=step,
-                         prefer=lambda P, Q: cover.shares(P, Q) >= 0.5)
+                         prefer=PreferCovered(cover, 0.5))
         if br is None:
             return None
         ids_of = {}

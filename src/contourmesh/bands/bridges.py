@@ -29,7 +29,7 @@ from numba import njit
 
 from ..topology import _root  # the compiled union-find root (path halving), shared
 
-__all__ = ["bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
+__all__ = ["PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
 #: Candidate vertex pairs tried per pair of contours (nearest first).
 CANDIDATES = 12
@@ -407,6 +407,148 @@ def _sorted_candidates_reference(parts) -> list:
     return cand
 
 
+class PreferCovered:
+    """A ``prefer`` test of :func:`bridge_tree`: the bridges of which at least ``share`` of the
+    samples lie on the components of a :func:`keyhole_uncovered` test (``cover``), i.e. over the
+    other slice's material.  Called, it gives that test's answer; :func:`bridge_tree` reads its
+    data and orders the candidates in compiled code (:func:`_candidate_kernel`)."""
+
+    def __init__(self, cover, share=0.5):
+        self.cover, self.share = cover, float(share)
+
+    def __call__(self, P, Q):
+        return self.cover.shares(P, Q) >= self.share
+
+
+def _candidate_columns(rings, pairs, owners, prefer):
+    """:func:`_candidate_arrays` of the candidates of ``pairs`` (rings to bridge, in order) as
+    :func:`bridge_tree`'s loop makes them, for ``prefer`` None or a :class:`PreferCovered`: in one
+    compiled call (:func:`_candidate_kernel`).  None where some pair is left to Python (rings
+    too large for the compiled search, ties the k-d tree decides, NaN, or a length or tie-break
+    that Python must round)."""
+    if not pairs or any(len(r) == 0 for r in rings):
+        return None
+    rs = [np.ascontiguousarray(r, dtype=np.float64).reshape(-1, 2) for r in rings]
+    lens = np.array([len(r) for r in rs], dtype=np.int64)
+    if max(int(lens[i]) * int(lens[j]) for i, j in pairs) > _BRUTE_PAIRS:
+        return None
+    off = np.zeros(len(rs), dtype=np.int64)
+    np.cumsum(lens[:-1], out=off[1:])
+    pr = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+    ask = np.array([prefer is not None and owners[i][0] != owners[j][0] for i, j in pairs], dtype=np.bool_)
+    if prefer is None:
+        lab, cids, grid, share = np.zeros((1, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64), (0.0, 0.0, 1.0, 1.0), 0.5
+    else:
+        c = prefer.cover
+        lab, cids, grid, share = c.lab, c._ids64, c._grid64, prefer.share
+    cols = _candidate_kernel(np.concatenate(rs), off, lens, pr, ask, np.int64(CANDIDATES), lab, cids, *grid, share)
+    return cols[:7] if cols[7] else None
+
+
+@njit(cache=True, nogil=True)
+def _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share):
+    """The loop of :func:`bridge_tree` over the pairs of rings (``pts[off[r]: off[r] + lens[r]]``)
+    and :func:`_candidate_arrays` in one: per pair :func:`_nearest_kernel` and :func:`_tie_kernel`,
+    the preference where ``ask`` (:func:`_coverage_kernel`'s covered share at least ``share``),
+    lengths and tie-breaks rounded (:func:`_round9_kernel`), and the rows sorted as ``np.lexsort``
+    sorts them (a stable sort per key, the last key first).  The eighth value is False where
+    :func:`_candidates` or :func:`_round9` would hand something to Python: the caller then takes
+    the Python loop."""
+    np_ = pairs.shape[0]
+    cap = 0  # (a pair has at most min(k, len(ri)) candidates per vertex of rj)
+    for p in range(np_):
+        cap += lens[pairs[p, 1]] * min(k, lens[pairs[p, 0]])
+    c_lt = np.zeros(cap, np.int64)
+    c_d = np.empty(cap)
+    c_tie = np.empty(cap)
+    c_i = np.empty(cap, np.int64)
+    c_vi = np.empty(cap, np.int64)
+    c_j = np.empty(cap, np.int64)
+    c_vj = np.empty(cap, np.int64)
+    total = 0
+    ok = True
+    for p in range(np_):
+        i, j = pairs[p, 0], pairs[p, 1]
+        ri = pts[off[i]: off[i] + lens[i]].copy()
+        rj = pts[off[j]: off[j] + lens[j]].copy()
+        vi, vj, d, found = _nearest_kernel(ri, rj, k)
+        if not found:
+            ok = False
+            break
+        tie = _tie_kernel(ri, rj, vi, vj)
+        m = vi.shape[0]
+        for t in range(m):
+            c_d[total + t], c_tie[total + t] = d[t], tie[t]
+            c_i[total + t], c_vi[total + t], c_j[total + t], c_vj[total + t] = i, vi[t], j, vj[t]
+        if ask[p]:
+            P = np.empty((m, 2))
+            Q = np.empty((m, 2))
+            for t in range(m):
+                P[t, 0], P[t, 1] = ri[vi[t], 0], ri[vi[t], 1]
+                Q[t, 0], Q[t, 1] = rj[vj[t], 0], rj[vj[t], 1]
+            count, n = _coverage_kernel(P, Q, lab, cids, ox, oy, dx, dy)
+            for t in range(m):
+                c_lt[total + t] = 0 if count[t] / n[t] >= share else 1
+        total += m
+    c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj = c_lt[:total], c_d[:total], c_tie[:total], c_i[:total], \
+        c_vi[:total], c_j[:total], c_vj[:total]
+    for t in range(total):
+        if np.isnan(c_d[t]) or np.isnan(c_tie[t]):
+            ok = False
+    if ok:
+        c_d, bad_d = _round9_kernel(c_d)
+        c_tie, bad_tie = _round9_kernel(c_tie)
+        ok = bad_d.shape[0] == 0 and bad_tie.shape[0] == 0
+    # the order of np.lexsort((vj, j, vi, i, tie, d, lt)): a stable merge sort on the seven keys
+    order = np.arange(total)
+    if ok:
+        tmp = np.empty(total, np.int64)
+        width = 1
+        while width < total:
+            for lo in range(0, total, 2 * width):
+                mid, hi = min(lo + width, total), min(lo + 2 * width, total)
+                a, b, t = lo, mid, lo
+                while a < mid and b < hi:
+                    x, y = order[a], order[b]
+                    # y before x only where its keys are smaller (equal keys keep their order)
+                    if _key_less(y, x, c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj):
+                        tmp[t] = y
+                        b += 1
+                    else:
+                        tmp[t] = x
+                        a += 1
+                    t += 1
+                while a < mid:
+                    tmp[t] = order[a]
+                    a += 1
+                    t += 1
+                while b < hi:
+                    tmp[t] = order[b]
+                    b += 1
+                    t += 1
+            order, tmp = tmp, order
+            width *= 2
+    return (c_lt[order], c_d[order], c_tie[order], c_i[order], c_vi[order], c_j[order], c_vj[order], ok)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _key_less(x, y, lt, d, tie, i, vi, j, vj):
+    """Whether row ``x``'s keys ``(lt, d, tie, i, vi, j, vj)`` come before row ``y``'s (no NaN)."""
+    if lt[x] != lt[y]:
+        return lt[x] < lt[y]
+    if d[x] != d[y]:
+        return d[x] < d[y]
+    if tie[x] != tie[y]:
+        return tie[x] < tie[y]
+    if i[x] != i[y]:
+        return i[x] < i[y]
+    if vi[x] != vi[y]:
+        return vi[x] < vi[y]
+    if j[x] != j[y]:
+        return j[x] < j[y]
+    return vj[x] < vj[y]
+
+
 def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None, waypoints=None,
                 step=1.0, prefer=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
@@ -455,18 +597,21 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     if n < 2:
         return []
     owners = owners or [(i, False) for i in range(n)]
-    pairs = _near_pairs(rings)
-    parts = []  # per pair of rings: (not preferred, length, tie-break, i, vi, j, vj) as arrays
-    for i, j in pairs:
-        (ci, hi), (cj, hj) = owners[i], owners[j]
-        if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
-            continue
-        vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
-        # preferred bridges between components first (``prefer`` asked of all the pairs at once)
-        later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) if prefer is not None and ci != cj \
-            else np.zeros(len(vi), dtype=bool)
-        parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
-    cols = _candidate_arrays(parts)  # (not preferred, length, tie-break, ...): each kind shortest first
+    pairs = [(i, j) for i, j in _near_pairs(rings)
+             if (owners[i][0] != owners[j][0] and not owners[i][1] and not owners[j][1])
+             or (owners[i][0] == owners[j][0] and (owners[i][1] or owners[j][1]))]
+    # (not preferred, length, tie-break, i, vi, j, vj): each kind shortest first
+    cols = _candidate_columns(rings, pairs, owners, prefer) if prefer is None or isinstance(prefer, PreferCovered) \
+        else None
+    if cols is None:
+        parts = []  # per pair of rings: (not preferred, length, tie-break, i, vi, j, vj) as arrays
+        for i, j in pairs:
+            vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
+            # preferred bridges between components first (``prefer`` asked of all the pairs at once)
+            later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) \
+                if prefer is not None and owners[i][0] != owners[j][0] else np.zeros(len(vi), dtype=bool)
+            parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
+        cols = _candidate_arrays(parts)
     if allowed is None or isinstance(allowed, _Coverage):  # (compiled)
         chosen = _straight_bridges(rings, np.stack(cols[3:], axis=1), owners, obstacles_a, obstacles_b, avoid, allowed)
     else:
