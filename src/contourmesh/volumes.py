@@ -2266,7 +2266,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     (fandisk rotated #1 at 256: 9 exact joins -> 3)."""
     from collections import defaultdict
 
-    from .bands.bridges import keyhole_uncovered, segments_cross
+    from .bands.bridges import OverlapFree, keyhole_uncovered, segments_cross
     from .sections import sectioned_join
 
     by_slice = defaultdict(set)
@@ -2344,17 +2344,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             over = own & label_mask(lab[box], n_other, comps)
             j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
             pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
-
-            def ok(p, q):
-                steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
-                t = np.arange(1, steps)[:, None] / steps
-                pt = p + t * (q - p)
-                ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - x0  # halves up, as in uncovered
-                jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - y0
-                inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
-                return not over[jj[inside], ii[inside]].any()
-
-            return pts, ok
+            # (samples taken to their nearest pixel with halves up, as in uncovered)
+            return pts, OverlapFree(over, x0, y0, (ox, oy, dx, dy))
 
         return max(dx, dy), points_of
 

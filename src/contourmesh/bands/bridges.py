@@ -29,7 +29,7 @@ from numba import njit
 
 from ..topology import _root  # the compiled union-find root (path halving), shared
 
-__all__ = ["PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
+__all__ = ["OverlapFree", "PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
 #: Candidate vertex pairs tried per pair of contours (nearest first).
 CANDIDATES = 12
@@ -821,6 +821,14 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
     m, ni = len(W), len(ri)
     # nodes: waypoints [0, m), ri's vertices [m, m + ni), rj's vertices [m + ni, ...)
     P = np.concatenate([W, ri, rj])
+    if (allowed is None or isinstance(allowed, OverlapFree)) and len(ri) and len(rj):
+        # the search and the straightening in compiled code (the same path; -1: a distance too close
+        # to a neighbourhood's radius to be sure of the k-d tree's answer, searched below)
+        path = _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j, max_nodes)
+        if path is None:
+            return None
+        if not isinstance(path, int):
+            return _keyhole_result(P, path, m, ni)
 
     def end(node):
         if node < m:
@@ -896,6 +904,12 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
                 out.append(path[j])
                 i = j
                 break
+    return _keyhole_result(P, out, m, ni)
+
+
+def _keyhole_result(P, out, m, ni):
+    """:func:`keyhole_path`'s answer for the straightened path ``out`` (node numbers): None where
+    two of its pieces meet other than at their common end."""
     pts = P[out[1:-1]]
     # the pieces of the path must not meet each other (only consecutive pieces, at their common end)
     full = P[out]
@@ -904,6 +918,257 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
         if others and segments_cross(full[t], full[t + 1], full[others], full[[u + 1 for u in others]]).any():
             return None
     return out[0] - m, out[-1] - m - ni, pts
+
+
+class OverlapFree:
+    """The test ``ok(p, q)`` that a polyline keyhole's piece ``p q`` keeps out of the pixels set in
+    ``over`` (a boolean image whose pixel ``(0, 0)`` is pixel ``(x0, y0)`` of the grid ``(ox, oy,
+    dx, dy)``, which puts pixel ``(i, j)``'s centre at ``(ox + i dx, oy + j dy)``): the piece is
+    sampled 8 times per pixel, its ends left out, each sample taken to its nearest pixel (halves
+    up).  :func:`keyhole_path` runs it in compiled code (:func:`_overlap_free_kernel`)."""
+
+    def __init__(self, over, x0, y0, grid):
+        self.over = np.ascontiguousarray(over, dtype=np.bool_)
+        self.x0, self.y0 = int(x0), int(y0)
+        self.grid = tuple(float(g) for g in grid)
+
+    def __call__(self, p, q) -> bool:
+        ox, oy, dx, dy = self.grid
+        over = self.over
+        steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
+        t = np.arange(1, steps)[:, None] / steps
+        pt = p + t * (q - p)
+        ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - self.x0  # halves up
+        jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - self.y0
+        inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
+        return not over[jj[inside], ii[inside]].any()
+
+
+@njit(cache=True, nogil=True)
+def _overlap_free_kernel(px, py, qx, qy, over, x0, y0, ox, oy, dx, dy):
+    """:meth:`OverlapFree.__call__` sample by sample (the same arithmetic)."""
+    steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
+    ny, nx = over.shape
+    for u in range(1, steps):
+        t = u / steps
+        i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5)) - x0
+        j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5)) - y0
+        if i >= 0 and j >= 0 and i < nx and j < ny and over[j, i]:
+            return False
+    return True
+
+
+def _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j, max_nodes):
+    """:func:`keyhole_path`'s search and straightening by :func:`_keyhole_kernel`: the straightened
+    path (a list of node numbers), None where there is none, or -1 where the Python search must
+    decide (a node's distance to another within a hair of a neighbourhood's radius)."""
+    from scipy.spatial import cKDTree
+
+    ni, nj = len(ri), len(rj)
+    dist_j = np.ascontiguousarray(cKDTree(rj).query(P)[0], dtype=np.float64)  # (as the Python search)
+    free_i = np.ones(ni, dtype=np.bool_)
+    free_i[[v for v in used_i if 0 <= v < ni]] = False
+    free_j = np.ones(nj, dtype=np.bool_)
+    free_j[[v for v in used_j if 0 <= v < nj]] = False
+    if allowed is None:
+        over, x0, y0, grid, use = np.zeros((1, 1), dtype=np.bool_), 0, 0, (0.0, 0.0, 1.0, 1.0), False
+    else:
+        over, x0, y0, grid, use = allowed.over, allowed.x0, allowed.y0, allowed.grid, True
+    sa, sb = segs
+    status, path = _keyhole_kernel(np.ascontiguousarray(P, dtype=np.float64), np.int64(m), np.int64(ni),
+                                   float(step), np.ascontiguousarray(oa, dtype=np.float64),
+                                   np.ascontiguousarray(ob, dtype=np.float64), np.ascontiguousarray(sa, dtype=np.float64),
+                                   np.ascontiguousarray(sb, dtype=np.float64), free_i, free_j, dist_j, over,
+                                   np.int64(x0), np.int64(y0), *grid, use, np.int64(max_nodes))
+    if status < 0:
+        return -1
+    return path.tolist() if status == 1 else None
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _heap_less(hf, hg, hv, hu, a, b):
+    """Whether heap entry ``a``'s tuple ``(f, g, node, from)`` is smaller than entry ``b``'s."""
+    if hf[a] != hf[b]:
+        return hf[a] < hf[b]
+    if hg[a] != hg[b]:
+        return hg[a] < hg[b]
+    if hv[a] != hv[b]:
+        return hv[a] < hv[b]
+    return hu[a] < hu[b]
+
+
+@njit(cache=True, nogil=True)
+def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, dy, use, corners):
+    """``ok(u, v)`` of :func:`keyhole_path`: the piece between nodes ``u`` and ``v`` keeps clear
+    (:func:`_clear_kernel`, leaving the rings on their left) and, more than a step from a ring's
+    vertex, passes the overlap test where ``use``."""
+    has = np.zeros(2, np.int64)
+    for t in range(2):
+        node = u if t == 0 else v
+        if node >= m:
+            if node < m + ni:
+                o, n_r = m, ni
+            else:
+                o, n_r = m + ni, P.shape[0] - m - ni
+            w = node - o
+            for c in range(3):
+                x = o + (w - 1 + c) % n_r  # (r[v - 1] wraps to the ring's last vertex)
+                corners[t, c, 0] = P[x, 0]
+                corners[t, c, 1] = P[x, 1]
+            has[t] = 1
+    px, py, qx, qy = P[u, 0], P[u, 1], P[v, 0], P[v, 1]
+    if not _clear_kernel(px, py, qx, qy, corners, has[0], has[1], oa, ob, sa, sb, True):
+        return False
+    if not use:
+        return True
+    d = np.hypot(qx - px, qy - py)
+    t0 = step / d if has[0] else 0.0
+    t1 = 1.0 - step / d if has[1] else 1.0
+    if t0 >= t1:
+        return True
+    return _overlap_free_kernel(px + t0 * (qx - px), py + t0 * (qy - py), px + t1 * (qx - px), py + t1 * (qy - py),
+                                over, x0, y0, ox, oy, dx, dy)
+
+
+@njit(cache=True, nogil=True)
+def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over, x0, y0, ox, oy, dx, dy, use,
+                    max_nodes):
+    """The A* search of :func:`keyhole_path` and the straightening of its path.  The heap holds the
+    Python search's tuples ``(g + h, g, node, from)`` and pops them in the same order (all are
+    distinct, so the order is that of the tuples).  The neighbours are the nodes within the radii
+    of the k-d tree queries (squared distances against the squared radius); where one lies within
+    a relative ``1e-9`` of it, ``(-1, ..)`` (the caller searches in Python).  Returns ``(1,
+    path)``, or ``(0, ..)`` where there is no path (or the search settles more than
+    ``max_nodes`` nodes)."""
+    n = P.shape[0]
+    corners = np.zeros((2, 3, 2))
+    came = np.full(n, -2, np.int64)
+    cap = 64 + ni
+    hf = np.empty(cap)
+    hg = np.empty(cap)
+    hv = np.empty(cap, np.int64)
+    hu = np.empty(cap, np.int64)
+    size = 0
+    r_w, r_v = 1.5 * step, 2.5 * step
+    r_w2, r_v2 = r_w * r_w, r_v * r_v
+    none = np.zeros(0, np.int64)
+    # the first pushes: every free vertex of ri, from nowhere
+    for v in range(ni):
+        if free_i[v]:
+            hf[size], hg[size], hv[size], hu[size] = dist_j[m + v], 0.0, m + v, -1
+            size += 1
+            c = size - 1
+            while c > 0:
+                p = (c - 1) // 2
+                if _heap_less(hf, hg, hv, hu, c, p):
+                    hf[c], hf[p] = hf[p], hf[c]
+                    hg[c], hg[p] = hg[p], hg[c]
+                    hv[c], hv[p] = hv[p], hv[c]
+                    hu[c], hu[p] = hu[p], hu[c]
+                    c = p
+                else:
+                    break
+    settled = 0
+    goal = -1
+    while size > 0:
+        # pop the smallest
+        g, u, frm = hg[0], hv[0], hu[0]
+        size -= 1
+        hf[0], hg[0], hv[0], hu[0] = hf[size], hg[size], hv[size], hu[size]
+        c = 0
+        while True:
+            a, b, s_ = 2 * c + 1, 2 * c + 2, c
+            if a < size and _heap_less(hf, hg, hv, hu, a, s_):
+                s_ = a
+            if b < size and _heap_less(hf, hg, hv, hu, b, s_):
+                s_ = b
+            if s_ == c:
+                break
+            hf[c], hf[s_] = hf[s_], hf[c]
+            hg[c], hg[s_] = hg[s_], hg[c]
+            hv[c], hv[s_] = hv[s_], hv[c]
+            hu[c], hu[s_] = hu[s_], hu[c]
+            c = s_
+        if came[u] != -2:
+            continue
+        if frm >= 0 and not _keyhole_ok(P, frm, u, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, dy, use,
+                                        corners):
+            continue
+        came[u] = frm
+        if u >= m + ni:
+            goal = u
+            break
+        settled += 1
+        if settled > max_nodes:
+            return 0, none
+        # the neighbours: waypoints within 2.5 steps of a vertex of ri, within 1.5 steps of a
+        # waypoint, and the free vertices of rj within 2.5 steps of a waypoint
+        hi_v = m if u >= m else n
+        for v in range(hi_v):
+            if m <= v < m + ni:
+                continue
+            if v >= m + ni and not free_j[v - m - ni]:
+                continue
+            ddx = P[v, 0] - P[u, 0]
+            ddy = P[v, 1] - P[u, 1]
+            d2 = ddx * ddx + ddy * ddy
+            r2 = r_w2 if (u < m and v < m) else r_v2
+            if abs(d2 - r2) <= 1e-9 * r2:
+                return -1, none
+            if d2 > r2 or came[v] != -2 or v == u:
+                continue
+            gv = g + np.hypot(P[v, 0] - P[u, 0], P[v, 1] - P[u, 1])
+            if size == cap:
+                cap *= 2
+                hf2 = np.empty(cap)
+                hg2 = np.empty(cap)
+                hv2 = np.empty(cap, np.int64)
+                hu2 = np.empty(cap, np.int64)
+                hf2[:size], hg2[:size], hv2[:size], hu2[:size] = hf[:size], hg[:size], hv[:size], hu[:size]
+                hf, hg, hv, hu = hf2, hg2, hv2, hu2
+            hf[size], hg[size], hv[size], hu[size] = gv + dist_j[v], gv, v, u
+            size += 1
+            c = size - 1
+            while c > 0:
+                p = (c - 1) // 2
+                if _heap_less(hf, hg, hv, hu, c, p):
+                    hf[c], hf[p] = hf[p], hf[c]
+                    hg[c], hg[p] = hg[p], hg[c]
+                    hv[c], hv[p] = hv[p], hv[c]
+                    hu[c], hu[p] = hu[p], hu[c]
+                    c = p
+                else:
+                    break
+    if goal < 0:
+        return 0, none
+    L = 1
+    x = goal
+    while came[x] >= 0:
+        x = came[x]
+        L += 1
+    path = np.empty(L, np.int64)
+    x = goal
+    for t in range(L - 1, -1, -1):
+        path[t] = x
+        x = came[x]
+    if L < 3:
+        return 0, none
+    # straighten: from each point, the farthest later point that keeps clear
+    out = np.empty(L, np.int64)
+    out[0] = path[0]
+    k = 1
+    i = 0
+    while i < L - 1:
+        for j in range(L - 1, i, -1):
+            if j == L - 1 and i == 0:
+                continue
+            if j == i + 1 or _keyhole_ok(P, path[i], path[j], m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy,
+                                         dx, dy, use, corners):
+                out[k] = path[j]
+                k += 1
+                i = j
+                break
+    return 1, out[:k]
 
 
 def _clear(p, q, ri, vi, rj, vj, oa, ob, segs, left=False) -> bool:
