@@ -975,11 +975,15 @@ def _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j,
     else:
         over, x0, y0, grid, use = allowed.over, allowed.x0, allowed.y0, allowed.grid, True
     sa, sb = segs
+    # every coordinate and the step a multiple of 2^-10 below 2^15 (a pixel grid of power-of-two
+    # spacing): the squared distances and radii are exact, and the k-d tree's answer is theirs
+    Q = np.concatenate([np.asarray(P, dtype=np.float64).reshape(-1), [float(step)]]) * 1024.0
+    exact = bool(np.all(Q == np.floor(Q)) and np.abs(Q).max() < 2.0 ** 25)
     status, path = _keyhole_kernel(np.ascontiguousarray(P, dtype=np.float64), np.int64(m), np.int64(ni),
                                    float(step), np.ascontiguousarray(oa, dtype=np.float64),
                                    np.ascontiguousarray(ob, dtype=np.float64), np.ascontiguousarray(sa, dtype=np.float64),
                                    np.ascontiguousarray(sb, dtype=np.float64), free_i, free_j, dist_j, over,
-                                   np.int64(x0), np.int64(y0), *grid, use, np.int64(max_nodes))
+                                   np.int64(x0), np.int64(y0), *grid, use, np.int64(max_nodes), exact)
     if status < 0:
         return -1
     return path.tolist() if status == 1 else None
@@ -1032,12 +1036,13 @@ def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, 
 
 @njit(cache=True, nogil=True)
 def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over, x0, y0, ox, oy, dx, dy, use,
-                    max_nodes):
+                    max_nodes, exact):
     """The A* search of :func:`keyhole_path` and the straightening of its path.  The heap holds the
     Python search's tuples ``(g + h, g, node, from)`` and pops them in the same order (all are
     distinct, so the order is that of the tuples).  The neighbours are the nodes within the radii
-    of the k-d tree queries (squared distances against the squared radius); where one lies within
-    a relative ``1e-9`` of it, ``(-1, ..)`` (the caller searches in Python).  Returns ``(1,
+    of the k-d tree queries (squared distances against the squared radius); unless the distances
+    are ``exact`` (see :func:`_keyhole_compiled`), where one lies within a relative ``1e-9`` of the
+    radius, ``(-1, ..)`` (the caller searches in Python).  Returns ``(1,
     path)``, or ``(0, ..)`` where there is no path (or the search settles more than
     ``max_nodes`` nodes)."""
     n = P.shape[0]
@@ -1113,7 +1118,7 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
             ddy = P[v, 1] - P[u, 1]
             d2 = ddx * ddx + ddy * ddy
             r2 = r_w2 if (u < m and v < m) else r_v2
-            if abs(d2 - r2) <= 1e-9 * r2:
+            if not exact and abs(d2 - r2) <= 1e-9 * r2:
                 return -1, none
             if d2 > r2 or came[v] != -2 or v == u:
                 continue
