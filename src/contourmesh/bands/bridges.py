@@ -961,7 +961,8 @@ def _overlap_free_kernel(px, py, qx, qy, over, x0, y0, ox, oy, dx, dy):
 def _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j, max_nodes):
     """:func:`keyhole_path`'s search and straightening by :func:`_keyhole_kernel`: the straightened
     path (a list of node numbers), None where there is none, or -1 where the Python search must
-    decide (a node's distance to another within a hair of a neighbourhood's radius)."""
+    decide (more than :data:`_KEYHOLE_ASKS` nodes whose distance to another lies within a hair of a
+    neighbourhood's radius, whose neighbours the k-d tree gives)."""
     from scipy.spatial import cKDTree
 
     ni, nj = len(ri), len(rj)
@@ -979,14 +980,40 @@ def _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j,
     # spacing): the squared distances and radii are exact, and the k-d tree's answer is theirs
     Q = np.concatenate([np.asarray(P, dtype=np.float64).reshape(-1), [float(step)]]) * 1024.0
     exact = bool(np.all(Q == np.floor(Q)) and np.abs(Q).max() < 2.0 ** 25)
-    status, path = _keyhole_kernel(np.ascontiguousarray(P, dtype=np.float64), np.int64(m), np.int64(ni),
-                                   float(step), np.ascontiguousarray(oa, dtype=np.float64),
-                                   np.ascontiguousarray(ob, dtype=np.float64), np.ascontiguousarray(sa, dtype=np.float64),
-                                   np.ascontiguousarray(sb, dtype=np.float64), free_i, free_j, dist_j, over,
-                                   np.int64(x0), np.int64(y0), *grid, use, np.int64(max_nodes), exact)
-    if status < 0:
-        return -1
-    return path.tolist() if status == 1 else None
+    args = (np.ascontiguousarray(P, dtype=np.float64), np.int64(m), np.int64(ni), float(step),
+            np.ascontiguousarray(oa, dtype=np.float64), np.ascontiguousarray(ob, dtype=np.float64),
+            np.ascontiguousarray(sa, dtype=np.float64), np.ascontiguousarray(sb, dtype=np.float64), free_i, free_j,
+            dist_j, over, np.int64(x0), np.int64(y0), *grid, use, np.int64(max_nodes), exact)
+    # the nodes whose neighbours the k-d tree gave (a distance within a hair of a radius), as the
+    # Python search asks it
+    asked = {}
+    ov_at = np.full(len(P), -1, dtype=np.int64)
+    ov_ptr, ov_idx = np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    tw = tj = None
+    for _ in range(_KEYHOLE_ASKS):
+        status, path = _keyhole_kernel(*args, ov_at, ov_ptr, ov_idx)
+        if status >= 0:
+            return path.tolist() if status == 1 else None
+        u = int(path[0])
+        if tw is None:
+            tw, tj = cKDTree(P[:m]), cKDTree(rj)
+        if u >= m:
+            nbr = tw.query_ball_point(P[u], 2.5 * step)
+        else:
+            bad_j = set(used_j)
+            nbr = list(tw.query_ball_point(P[u], 1.5 * step)) + \
+                [m + ni + v for v in tj.query_ball_point(P[u], 2.5 * step) if v not in bad_j]
+        asked[u] = nbr
+        ov_at[:] = -1
+        ov_at[list(asked)] = np.arange(len(asked))
+        ov_ptr = np.concatenate([[0], np.cumsum([len(v) for v in asked.values()])]).astype(np.int64)
+        ov_idx = np.array([v for vs in asked.values() for v in vs], dtype=np.int64)
+    return -1
+
+
+#: How many nodes' neighbourhoods the compiled keyhole search asks the k-d tree for before it hands
+#: the search to Python.
+_KEYHOLE_ASKS = 16
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -1036,13 +1063,14 @@ def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, 
 
 @njit(cache=True, nogil=True)
 def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over, x0, y0, ox, oy, dx, dy, use,
-                    max_nodes, exact):
+                    max_nodes, exact, ov_at, ov_ptr, ov_idx):
     """The A* search of :func:`keyhole_path` and the straightening of its path.  The heap holds the
     Python search's tuples ``(g + h, g, node, from)`` and pops them in the same order (all are
     distinct, so the order is that of the tuples).  The neighbours are the nodes within the radii
     of the k-d tree queries (squared distances against the squared radius); unless the distances
     are ``exact`` (see :func:`_keyhole_compiled`), where one lies within a relative ``1e-9`` of the
-    radius, ``(-1, ..)`` (the caller searches in Python).  Returns ``(1,
+    radius, ``(-1, [u])``: the caller asks the k-d tree for node ``u``'s neighbours and searches
+    again with them (``ov_at[u]``: their row in ``ov_ptr`` / ``ov_idx``, or -1).  Returns ``(1,
     path)``, or ``(0, ..)`` where there is no path (or the search settles more than
     ``max_nodes`` nodes)."""
     n = P.shape[0]
@@ -1057,6 +1085,7 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
     r_w, r_v = 1.5 * step, 2.5 * step
     r_w2, r_v2 = r_w * r_w, r_v * r_v
     none = np.zeros(0, np.int64)
+    nb = np.empty(n, np.int64)
     # the first pushes: every free vertex of ri, from nowhere
     for v in range(ni):
         if free_i[v]:
@@ -1107,20 +1136,34 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
         if settled > max_nodes:
             return 0, none
         # the neighbours: waypoints within 2.5 steps of a vertex of ri, within 1.5 steps of a
-        # waypoint, and the free vertices of rj within 2.5 steps of a waypoint
-        hi_v = m if u >= m else n
-        for v in range(hi_v):
-            if m <= v < m + ni:
-                continue
-            if v >= m + ni and not free_j[v - m - ni]:
-                continue
-            ddx = P[v, 0] - P[u, 0]
-            ddy = P[v, 1] - P[u, 1]
-            d2 = ddx * ddx + ddy * ddy
-            r2 = r_w2 if (u < m and v < m) else r_v2
-            if not exact and abs(d2 - r2) <= 1e-9 * r2:
-                return -1, none
-            if d2 > r2 or came[v] != -2 or v == u:
+        # waypoint, and the free vertices of rj within 2.5 steps of a waypoint (or the k-d tree's
+        # answer for u, where the caller found it)
+        n_nb = 0
+        if ov_at[u] >= 0:
+            for t in range(ov_ptr[ov_at[u]], ov_ptr[ov_at[u] + 1]):
+                nb[n_nb] = ov_idx[t]
+                n_nb += 1
+        else:
+            hi_v = m if u >= m else n
+            for v in range(hi_v):
+                if m <= v < m + ni:
+                    continue
+                if v >= m + ni and not free_j[v - m - ni]:
+                    continue
+                ddx = P[v, 0] - P[u, 0]
+                ddy = P[v, 1] - P[u, 1]
+                d2 = ddx * ddx + ddy * ddy
+                r2 = r_w2 if (u < m and v < m) else r_v2
+                if not exact and abs(d2 - r2) <= 1e-9 * r2:
+                    ask = np.empty(1, np.int64)
+                    ask[0] = u
+                    return -1, ask
+                if d2 <= r2:
+                    nb[n_nb] = v
+                    n_nb += 1
+        for t in range(n_nb):
+            v = nb[t]
+            if came[v] != -2 or v == u:
                 continue
             gv = g + np.hypot(P[v, 0] - P[u, 0], P[v, 1] - P[u, 1])
             if size == cap:
