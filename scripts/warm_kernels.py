@@ -104,6 +104,13 @@ def _general_mesher():
     edges = np.concatenate([hole, outer])
     keyhole_path(hole, outer, pts, 1.0, edges, np.concatenate([np.roll(hole, -1, axis=0), np.roll(outer, -1, axis=0)]),
                  allowed=OverlapFree(np.eye(6, dtype=bool), 0, 0, (0.5, 0.5, 1.0, 1.0)))
+    # bridge_tree's candidates in Python (the loop the compiled one hands back to: ties the k-d
+    # tree breaks, values Python rounds), with a preference over a label image
+    from contourmesh.bands.bridges import bridge_tree, keyhole_uncovered
+
+    cover = keyhole_uncovered(np.eye(8, dtype=np.uint8), [0], (0.0, 0.0, 1.0, 1.0))
+    bridge_tree([outer[::-1] + 8.0, outer[::-1]], edges, edges[::-1], allowed=cover,
+                prefer=lambda P, Q: cover.shares(P, Q) >= 0.5)
 
 
 def _checks():

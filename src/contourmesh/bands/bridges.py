@@ -575,7 +575,8 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         Points in a component's material that a keyhole may pass through (e.g. the centres of its
         pixels that do not overlap the other slice), and the test its pieces must pass (``None``:
         ``allowed``).  Where no straight keyhole keeps clear, a *polyline* keyhole is searched
-        through them (:func:`keyhole_path`); without it only straight bridges are made.
+        through them (:func:`keyhole_path`); without it only straight bridges are made.  With
+        an :class:`OverlapFree` test (or none) the search runs in compiled code.
     step : float
         The spacing of the waypoints (the pixel size): neighbours are at most ``1.5 step`` apart.
     prefer : callable ``(P, Q) -> bool array``, optional
@@ -584,7 +585,8 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         (each kind shortest first).  The mesher prefers bridges over the other slice's material:
         the crotch of a fork lies above what the branches grew from.  A shorter bridge across
         empty space (the mouth of a C whose two arms part above it) would make the band fold
-        across the whole opening.
+        across the whole opening.  A :class:`PreferCovered` test is run in compiled code with the
+        candidates (:func:`_candidate_kernel`); any other callable in Python.
 
     Returns
     -------
