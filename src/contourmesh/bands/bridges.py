@@ -1174,7 +1174,8 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
                 hg2 = np.empty(cap)
                 hv2 = np.empty(cap, np.int64)
                 hu2 = np.empty(cap, np.int64)
-                hf2[:size], hg2[:size], hv2[:size], hu2[:size] = hf[:size], hg[:size], hv[:size], hu[:size]
+                for t2 in range(size):  # (element by element: slice assignment compiles slowly)
+                    hf2[t2], hg2[t2], hv2[t2], hu2[t2] = hf[t2], hg[t2], hv[t2], hu[t2]
                 hf, hg, hv, hu = hf2, hg2, hv2, hu2
             hf[size], hg[size], hv[size], hu[size] = gv + dist_j[v], gv, v, u
             size += 1
