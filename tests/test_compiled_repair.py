@@ -322,6 +322,56 @@ def test_straight_bridges_kernel_equals_the_python_loop():
     assert min(seen.values()) > 20, seen
 
 
+def test_candidate_kernel_equals_the_python_loop():
+    # bridge_tree's candidates, compiled in one call (_candidate_columns), against the loop over the
+    # pairs of rings it replaced (each pair's nearest vertices, the preference over a label image,
+    # the rounded keys and their lexicographic order): the same seven columns, bit for bit.  Rings
+    # on a half-pixel grid give equal lengths and tie-breaks; the large pair goes back to Python
+    from contourmesh.bands import bridges as B
+
+    rng = np.random.default_rng(97)
+    seen = {"compiled": 0, "python": 0, "preferred": 0}
+    for trial in range(300):
+        grid = trial % 2 == 0
+        nr = int(rng.integers(2, 9))
+        rings, owners = [], []
+        for r in range(nr):
+            hole = r > 0 and rng.random() < 0.4
+            comp = owners[int(rng.integers(0, r))][0] if hole else r
+            k = 250 if trial % 50 == 7 and r < 2 else int(rng.integers(3, 14))
+            ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), k, grid)
+            if len(np.unique(ring, axis=0)) < 3:
+                ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)
+            rings.append(ring[::-1] if hole else ring)
+            owners.append((comp, hole))
+        prefer = None
+        if trial % 3:
+            lab = rng.integers(0, 3, (24, 24)).astype(np.uint8 if trial % 3 == 1 else np.int32)
+            prefer = B.PreferCovered(B.keyhole_uncovered(lab, [int(rng.integers(0, 2))], (-8.0, -8.0, 0.7, 0.7)),
+                                     float(rng.choice([0.25, 0.5, 0.75])))
+        pairs = [(i, j) for i, j in B._near_pairs(rings)
+                 if (owners[i][0] != owners[j][0] and not owners[i][1] and not owners[j][1])
+                 or (owners[i][0] == owners[j][0] and (owners[i][1] or owners[j][1]))]
+        parts = []
+        for i, j in pairs:
+            vi, vj, d, tie = B._candidates(rings[i], rings[j], B.CANDIDATES)
+            later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) \
+                if prefer is not None and owners[i][0] != owners[j][0] else np.zeros(len(vi), dtype=bool)
+            parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
+        want = B._candidate_arrays(parts)
+        got = B._candidate_columns(rings, pairs, owners, prefer)
+        if got is None:
+            seen["python"] += 1
+            continue
+        seen["compiled"] += 1
+        seen["preferred"] += int((got[0] == 0).sum() > 0 and prefer is not None)
+        assert len(got) == 7
+        for a, b in zip(got, want):
+            assert a.dtype == b.dtype
+            assert a.tobytes() == b.tobytes()
+    assert seen["compiled"] > 200 and seen["python"] >= 3 and seen["preferred"] > 20, seen
+
+
 def _random_faces(rng, m, nv):
     F = np.stack([rng.choice(nv, 3, replace=False) for _ in range(m)])
     return np.ascontiguousarray(F, dtype=np.int64)
@@ -744,3 +794,84 @@ def test_midpoints_in_rounds_equal_the_one_row_form():
         assert np.array_equal(got.view(np.uint8), want.view(np.uint8))
         assert np.array_equal(got[0], 0.5 * (V[3] + V[3]))  # (the zero-length toward: not moved)
     assert repair._midpoints(V, np.zeros((0, 4), np.int64), 0.01).shape == (0, 3)
+
+
+def test_keyhole_kernel_equals_the_python_search():
+    # polyline keyholes from a hole to its component's outer ring through waypoints on a pixel grid,
+    # past stray edges and segments, kept out of random overlap pixels: the compiled search and
+    # straightening (keyhole_path with an OverlapFree test, or none) against the Python search (the
+    # same tests as plain functions); rings on the half-pixel grid meet the neighbourhoods' radii
+    # exactly, where the compiled search asks the k-d tree (on a grid of 0.7: not exact numbers)
+    from contourmesh.bands import bridges as B
+
+    rng = np.random.default_rng(97)
+    seen = {"path": 0, "none": 0, "asked": 0}
+    calls = []
+    real, real_kernel = B._keyhole_compiled, B._keyhole_kernel
+
+    def spy(*a, **k):
+        got = real(*a, **k)
+        calls.append(isinstance(got, int))
+        return got
+
+    def spy_kernel(*a):
+        got = real_kernel(*a)
+        seen["asked"] += int(got[0] < 0)
+        return got
+
+    B._keyhole_compiled, B._keyhole_kernel = spy, spy_kernel
+    try:
+        for trial in range(160):
+            s = float(rng.choice([0.5, 0.7, 1.0]))
+            half = trial % 4 == 0
+            outer = _star(rng, np.zeros(2), 8 * s, int(rng.integers(8, 30)), False)
+            hole = _star(rng, rng.uniform(-2, 2, 2) * s, 2 * s, int(rng.integers(4, 12)), False)[::-1]
+            if half:
+                outer, hole = np.round(outer / (0.5 * s)) * 0.5 * s, np.round(hole / (0.5 * s)) * 0.5 * s
+            g = np.arange(-9, 10) * s
+            W = np.array([(x, y) for x in g for y in g if 1.5 * s < np.hypot(x, y) < 7.5 * s])
+            stray = rng.uniform(-8, 8, (int(rng.integers(0, 6)), 2)) * s
+            oa = np.concatenate([hole, outer, stray])
+            ob = np.concatenate([np.roll(hole, -1, axis=0), np.roll(outer, -1, axis=0),
+                                 stray + rng.normal(0, 2 * s, stray.shape)])
+            segs = [(rng.uniform(-8, 8, 2) * s, rng.uniform(-8, 8, 2) * s) for _ in range(int(rng.integers(0, 3)))]
+            over = rng.random((20, 20)) < rng.uniform(0.0, 0.15)
+            test = B.OverlapFree(over, int(rng.integers(-3, 3)), int(rng.integers(-3, 3)), (-10 * s, -10 * s, s, s))
+            used_i = set(rng.choice(len(hole), int(rng.integers(0, 3))).tolist())
+            used_j = set(rng.choice(len(outer), int(rng.integers(0, 4))).tolist())
+            limit = 5 if trial % 7 == 3 else B.KEYHOLE_MAX_NODES
+            for allowed, plain in ((test, lambda p, q, t=test: t(p, q)), (None, lambda p, q: True)):
+                n0 = len(calls)
+                got = B.keyhole_path(hole, outer, W, s, oa, ob, segs, allowed=allowed, used_i=used_i, used_j=used_j,
+                                     max_nodes=limit)
+                assert len(calls) == n0 + 1
+                want = B.keyhole_path(hole, outer, W, s, oa, ob, segs, allowed=plain, used_i=used_i, used_j=used_j,
+                                      max_nodes=limit)
+                assert len(calls) == n0 + 1  # (the plain test takes the Python search)
+                assert (got is None) == (want is None)
+                if got is not None:
+                    assert got[:2] == want[:2] and got[2].tobytes() == want[2].tobytes()
+                seen["none" if got is None else "path"] += 1
+    finally:
+        B._keyhole_compiled, B._keyhole_kernel = real, real_kernel
+    assert min(seen.values()) >= 5, seen
+
+
+def test_overlap_free_kernel_equals_the_numpy_test():
+    from contourmesh.bands import bridges as B
+
+    rng = np.random.default_rng(98)
+    hits = 0
+    for _ in range(2000):
+        dx, dy = rng.choice([0.5, 0.7, 1.0], 2)
+        over = rng.random((12, 14)) < 0.2
+        t = B.OverlapFree(over, int(rng.integers(-2, 3)), int(rng.integers(-2, 3)), (-1.0, -2.0, dx, dy))
+        p, q = rng.uniform(-3, 12, 2), rng.uniform(-3, 12, 2)
+        if rng.random() < 0.3:
+            p, q = np.round(p * 2) / 2, np.round(q * 2) / 2  # (samples on halves)
+        want = t(p, q)
+        got = B._overlap_free_kernel(float(p[0]), float(p[1]), float(q[0]), float(q[1]), t.over, np.int64(t.x0),
+                                     np.int64(t.y0), *t.grid)
+        assert bool(got) == bool(want)
+        hits += not want
+    assert hits > 200

@@ -467,6 +467,51 @@ def test_bridged_ring_arrays_are_the_tour_of_bridged_ring():
     assert trees > 500
 
 
+def test_tour_kernel_gives_the_python_tour():
+    # the compiled tour against the Python ranges it replaced: random forests of bridges over 1-7
+    # rings (any root, rings numbered in any order, polyline bridges), and the inputs it hands back
+    # to Python (two bridge ends at one vertex, a cycle of bridges)
+    from contourmesh.bands.bridges import _bridged_ring_arrays_py, _tour_kernel, bridged_ring_arrays
+
+    rng = np.random.default_rng(97)
+    compiled = 0
+    for _ in range(2000):
+        n = int(rng.integers(1, 8))
+        lengths = [int(v) for v in rng.integers(1, 10, n)]
+        order = rng.permutation(n)
+        bridges, used = [], set()
+        for t in range(1, n):
+            if rng.random() < 0.1:
+                continue  # (a forest: some rings stay unreached)
+            i, j = int(order[int(rng.integers(0, t))]), int(order[t])
+            vi, vj = int(rng.integers(0, lengths[i])), int(rng.integers(0, lengths[j]))
+            used_before = (i, vi) in used or (j, vj) in used
+            if used_before and rng.random() < 0.7:
+                continue
+            used |= {(i, vi), (j, vj)}
+            br = (i, vi, j, vj) if rng.random() < 0.5 else (j, vj, i, vi)
+            if rng.random() < 0.3:
+                br = br + (rng.random((int(rng.integers(1, 4)), 2)),)
+            bridges.append(br)
+        root = int(rng.integers(0, n))
+        want = _bridged_ring_arrays_py(lengths, bridges, root)
+        got = bridged_ring_arrays(lengths, bridges, root)
+        assert [a.tolist() for a in got] == [a.tolist() for a in want]
+        br = np.array([tuple(b[:4]) + (len(b[4]) if len(b) > 4 else 0,) for b in bridges], np.int64).reshape(-1, 5)
+        rr, vv, ok = _tour_kernel(np.array(lengths, np.int64), br, np.int64(root))
+        if ok:
+            compiled += 1
+            assert [rr.tolist(), vv.tolist()] == [a.tolist() for a in want]
+        else:  # handed back: two ends at one vertex
+            ends = [(b[0], b[1]) for b in bridges] + [(b[2], b[3]) for b in bridges]
+            assert len(set(ends)) < len(ends)
+    assert compiled > 1500
+    # a cycle of bridges is handed back to Python
+    _, _, ok = _tour_kernel(np.array([3, 3, 3], np.int64), np.array([[0, 0, 1, 0, 0], [1, 1, 2, 0, 0],
+                                                                     [2, 1, 0, 1, 0]], np.int64), np.int64(0))
+    assert ok == 0
+
+
 def test_bridged_joins_of_drawn_rings_keep_the_volume_within_the_rules(monkeypatch):
     """Issue 15 (through issue 14's bridged joins): on the contours route a fork or merge is a
     bridged join, and its band goes through the same volume guard as every other band: the two

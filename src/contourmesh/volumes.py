@@ -1955,7 +1955,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 
     Where the join's faces cross at a bridge end, its band gets other rules
     (:func:`_merged_band_retry`)."""
-    from .bands.bridges import bridge_tree, bridged_ring_arrays
+    from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays
     from .intersect import any_intersecting
 
     tubes, lids_a, lids_b, open_a, open_b = plan
@@ -1992,7 +1992,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
         cover = uncovered(other, comps)
         br = bridge_tree(rs, oa, ob, owners=owners, allowed=cover, waypoints=points_of, step=step,
-                         prefer=lambda P, Q: cover.shares(P, Q) >= 0.5)
+                         prefer=PreferCovered(cover, 0.5))
         if br is None:
             return None
         ids_of = {}
@@ -2098,11 +2098,11 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     if any_intersecting(V, F):
         # the bands were tested with the two visits of each bridge end a hair apart (as pinches); as
         # one vertex a band can cross itself where they meet: try the other rules on the band as built
+        # (only faces that the retry replaced are tested again: those that passed keep their answer)
         F = _merged_band_retry(V, faces, bands)
-        if F is not None:
-            replaced += 1
-    if F is None or any_intersecting(V, F):
-        return None
+        if F is None or any_intersecting(V, F):
+            return None
+        replaced += 1
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
     return out
@@ -2266,7 +2266,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     (fandisk rotated #1 at 256: 9 exact joins -> 3)."""
     from collections import defaultdict
 
-    from .bands.bridges import keyhole_uncovered, segments_cross
+    from .bands.bridges import OverlapFree, keyhole_uncovered, segments_cross
     from .sections import sectioned_join
 
     by_slice = defaultdict(set)
@@ -2344,17 +2344,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             over = own & label_mask(lab[box], n_other, comps)
             j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
             pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
-
-            def ok(p, q):
-                steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
-                t = np.arange(1, steps)[:, None] / steps
-                pt = p + t * (q - p)
-                ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - x0  # halves up, as in uncovered
-                jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - y0
-                inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
-                return not over[jj[inside], ii[inside]].any()
-
-            return pts, ok
+            # (samples taken to their nearest pixel with halves up, as in uncovered)
+            return pts, OverlapFree(over, x0, y0, (ox, oy, dx, dy))
 
         return max(dx, dy), points_of
 

@@ -29,7 +29,7 @@ from numba import njit
 
 from ..topology import _root  # the compiled union-find root (path halving), shared
 
-__all__ = ["bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
+__all__ = ["OverlapFree", "PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
 #: Candidate vertex pairs tried per pair of contours (nearest first).
 CANDIDATES = 12
@@ -407,6 +407,148 @@ def _sorted_candidates_reference(parts) -> list:
     return cand
 
 
+class PreferCovered:
+    """A ``prefer`` test of :func:`bridge_tree`: the bridges of which at least ``share`` of the
+    samples lie on the components of a :func:`keyhole_uncovered` test (``cover``), i.e. over the
+    other slice's material.  Called, it gives that test's answer; :func:`bridge_tree` reads its
+    data and orders the candidates in compiled code (:func:`_candidate_kernel`)."""
+
+    def __init__(self, cover, share=0.5):
+        self.cover, self.share = cover, float(share)
+
+    def __call__(self, P, Q):
+        return self.cover.shares(P, Q) >= self.share
+
+
+def _candidate_columns(rings, pairs, owners, prefer):
+    """:func:`_candidate_arrays` of the candidates of ``pairs`` (rings to bridge, in order) as
+    :func:`bridge_tree`'s loop makes them, for ``prefer`` None or a :class:`PreferCovered`: in one
+    compiled call (:func:`_candidate_kernel`).  None where some pair is left to Python (rings
+    too large for the compiled search, ties the k-d tree decides, NaN, or a length or tie-break
+    that Python must round)."""
+    if not pairs or any(len(r) == 0 for r in rings):
+        return None
+    rs = [np.ascontiguousarray(r, dtype=np.float64).reshape(-1, 2) for r in rings]
+    lens = np.array([len(r) for r in rs], dtype=np.int64)
+    if max(int(lens[i]) * int(lens[j]) for i, j in pairs) > _BRUTE_PAIRS:
+        return None
+    off = np.zeros(len(rs), dtype=np.int64)
+    np.cumsum(lens[:-1], out=off[1:])
+    pr = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+    ask = np.array([prefer is not None and owners[i][0] != owners[j][0] for i, j in pairs], dtype=np.bool_)
+    if prefer is None:
+        lab, cids, grid, share = np.zeros((1, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64), (0.0, 0.0, 1.0, 1.0), 0.5
+    else:
+        c = prefer.cover
+        lab, cids, grid, share = c.lab, c._ids64, c._grid64, prefer.share
+    cols = _candidate_kernel(np.concatenate(rs), off, lens, pr, ask, np.int64(CANDIDATES), lab, cids, *grid, share)
+    return cols[:7] if cols[7] else None
+
+
+@njit(cache=True, nogil=True)
+def _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share):
+    """The loop of :func:`bridge_tree` over the pairs of rings (``pts[off[r]: off[r] + lens[r]]``)
+    and :func:`_candidate_arrays` in one: per pair :func:`_nearest_kernel` and :func:`_tie_kernel`,
+    the preference where ``ask`` (:func:`_coverage_kernel`'s covered share at least ``share``),
+    lengths and tie-breaks rounded (:func:`_round9_kernel`), and the rows sorted as ``np.lexsort``
+    sorts them (a stable sort per key, the last key first).  The eighth value is False where
+    :func:`_candidates` or :func:`_round9` would hand something to Python: the caller then takes
+    the Python loop."""
+    np_ = pairs.shape[0]
+    cap = 0  # (a pair has at most min(k, len(ri)) candidates per vertex of rj)
+    for p in range(np_):
+        cap += lens[pairs[p, 1]] * min(k, lens[pairs[p, 0]])
+    c_lt = np.zeros(cap, np.int64)
+    c_d = np.empty(cap)
+    c_tie = np.empty(cap)
+    c_i = np.empty(cap, np.int64)
+    c_vi = np.empty(cap, np.int64)
+    c_j = np.empty(cap, np.int64)
+    c_vj = np.empty(cap, np.int64)
+    total = 0
+    ok = True
+    for p in range(np_):
+        i, j = pairs[p, 0], pairs[p, 1]
+        ri = pts[off[i]: off[i] + lens[i]].copy()
+        rj = pts[off[j]: off[j] + lens[j]].copy()
+        vi, vj, d, found = _nearest_kernel(ri, rj, k)
+        if not found:
+            ok = False
+            break
+        tie = _tie_kernel(ri, rj, vi, vj)
+        m = vi.shape[0]
+        for t in range(m):
+            c_d[total + t], c_tie[total + t] = d[t], tie[t]
+            c_i[total + t], c_vi[total + t], c_j[total + t], c_vj[total + t] = i, vi[t], j, vj[t]
+        if ask[p]:
+            P = np.empty((m, 2))
+            Q = np.empty((m, 2))
+            for t in range(m):
+                P[t, 0], P[t, 1] = ri[vi[t], 0], ri[vi[t], 1]
+                Q[t, 0], Q[t, 1] = rj[vj[t], 0], rj[vj[t], 1]
+            count, n = _coverage_kernel(P, Q, lab, cids, ox, oy, dx, dy)
+            for t in range(m):
+                c_lt[total + t] = 0 if count[t] / n[t] >= share else 1
+        total += m
+    c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj = c_lt[:total], c_d[:total], c_tie[:total], c_i[:total], \
+        c_vi[:total], c_j[:total], c_vj[:total]
+    for t in range(total):
+        if np.isnan(c_d[t]) or np.isnan(c_tie[t]):
+            ok = False
+    if ok:
+        c_d, bad_d = _round9_kernel(c_d)
+        c_tie, bad_tie = _round9_kernel(c_tie)
+        ok = bad_d.shape[0] == 0 and bad_tie.shape[0] == 0
+    # the order of np.lexsort((vj, j, vi, i, tie, d, lt)): a stable merge sort on the seven keys
+    order = np.arange(total)
+    if ok:
+        tmp = np.empty(total, np.int64)
+        width = 1
+        while width < total:
+            for lo in range(0, total, 2 * width):
+                mid, hi = min(lo + width, total), min(lo + 2 * width, total)
+                a, b, t = lo, mid, lo
+                while a < mid and b < hi:
+                    x, y = order[a], order[b]
+                    # y before x only where its keys are smaller (equal keys keep their order)
+                    if _key_less(y, x, c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj):
+                        tmp[t] = y
+                        b += 1
+                    else:
+                        tmp[t] = x
+                        a += 1
+                    t += 1
+                while a < mid:
+                    tmp[t] = order[a]
+                    a += 1
+                    t += 1
+                while b < hi:
+                    tmp[t] = order[b]
+                    b += 1
+                    t += 1
+            order, tmp = tmp, order
+            width *= 2
+    return (c_lt[order], c_d[order], c_tie[order], c_i[order], c_vi[order], c_j[order], c_vj[order], ok)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _key_less(x, y, lt, d, tie, i, vi, j, vj):
+    """Whether row ``x``'s keys ``(lt, d, tie, i, vi, j, vj)`` come before row ``y``'s (no NaN)."""
+    if lt[x] != lt[y]:
+        return lt[x] < lt[y]
+    if d[x] != d[y]:
+        return d[x] < d[y]
+    if tie[x] != tie[y]:
+        return tie[x] < tie[y]
+    if i[x] != i[y]:
+        return i[x] < i[y]
+    if vi[x] != vi[y]:
+        return vi[x] < vi[y]
+    if j[x] != j[y]:
+        return j[x] < j[y]
+    return vj[x] < vj[y]
+
+
 def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None, waypoints=None,
                 step=1.0, prefer=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
@@ -433,7 +575,8 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         Points in a component's material that a keyhole may pass through (e.g. the centres of its
         pixels that do not overlap the other slice), and the test its pieces must pass (``None``:
         ``allowed``).  Where no straight keyhole keeps clear, a *polyline* keyhole is searched
-        through them (:func:`keyhole_path`); without it only straight bridges are made.
+        through them (:func:`keyhole_path`); without it only straight bridges are made.  With
+        an :class:`OverlapFree` test (or none) the search runs in compiled code.
     step : float
         The spacing of the waypoints (the pixel size): neighbours are at most ``1.5 step`` apart.
     prefer : callable ``(P, Q) -> bool array``, optional
@@ -442,7 +585,8 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         (each kind shortest first).  The mesher prefers bridges over the other slice's material:
         the crotch of a fork lies above what the branches grew from.  A shorter bridge across
         empty space (the mouth of a C whose two arms part above it) would make the band fold
-        across the whole opening.
+        across the whole opening.  A :class:`PreferCovered` test is run in compiled code with the
+        candidates (:func:`_candidate_kernel`); any other callable in Python.
 
     Returns
     -------
@@ -455,18 +599,21 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     if n < 2:
         return []
     owners = owners or [(i, False) for i in range(n)]
-    pairs = _near_pairs(rings)
-    parts = []  # per pair of rings: (not preferred, length, tie-break, i, vi, j, vj) as arrays
-    for i, j in pairs:
-        (ci, hi), (cj, hj) = owners[i], owners[j]
-        if not ((ci != cj and not hi and not hj) or (ci == cj and (hi or hj))):
-            continue
-        vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
-        # preferred bridges between components first (``prefer`` asked of all the pairs at once)
-        later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) if prefer is not None and ci != cj \
-            else np.zeros(len(vi), dtype=bool)
-        parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
-    cols = _candidate_arrays(parts)  # (not preferred, length, tie-break, ...): each kind shortest first
+    pairs = [(i, j) for i, j in _near_pairs(rings)
+             if (owners[i][0] != owners[j][0] and not owners[i][1] and not owners[j][1])
+             or (owners[i][0] == owners[j][0] and (owners[i][1] or owners[j][1]))]
+    # (not preferred, length, tie-break, i, vi, j, vj): each kind shortest first
+    cols = _candidate_columns(rings, pairs, owners, prefer) if prefer is None or isinstance(prefer, PreferCovered) \
+        else None
+    if cols is None:
+        parts = []  # per pair of rings: (not preferred, length, tie-break, i, vi, j, vj) as arrays
+        for i, j in pairs:
+            vi, vj, d, tie = _candidates(rings[i], rings[j], CANDIDATES)
+            # preferred bridges between components first (``prefer`` asked of all the pairs at once)
+            later = ~np.asarray(prefer(rings[i][vi], rings[j][vj]), dtype=bool) \
+                if prefer is not None and owners[i][0] != owners[j][0] else np.zeros(len(vi), dtype=bool)
+            parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
+        cols = _candidate_arrays(parts)
     if allowed is None or isinstance(allowed, _Coverage):  # (compiled)
         chosen = _straight_bridges(rings, np.stack(cols[3:], axis=1), owners, obstacles_a, obstacles_b, avoid, allowed)
     else:
@@ -676,6 +823,14 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
     m, ni = len(W), len(ri)
     # nodes: waypoints [0, m), ri's vertices [m, m + ni), rj's vertices [m + ni, ...)
     P = np.concatenate([W, ri, rj])
+    if (allowed is None or isinstance(allowed, OverlapFree)) and len(ri) and len(rj):
+        # the search and the straightening in compiled code (the same path; -1: a distance too close
+        # to a neighbourhood's radius to be sure of the k-d tree's answer, searched below)
+        path = _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j, max_nodes)
+        if path is None:
+            return None
+        if not isinstance(path, int):
+            return _keyhole_result(P, path, m, ni)
 
     def end(node):
         if node < m:
@@ -751,6 +906,12 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
                 out.append(path[j])
                 i = j
                 break
+    return _keyhole_result(P, out, m, ni)
+
+
+def _keyhole_result(P, out, m, ni):
+    """:func:`keyhole_path`'s answer for the straightened path ``out`` (node numbers): None where
+    two of its pieces meet other than at their common end."""
     pts = P[out[1:-1]]
     # the pieces of the path must not meet each other (only consecutive pieces, at their common end)
     full = P[out]
@@ -759,6 +920,306 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
         if others and segments_cross(full[t], full[t + 1], full[others], full[[u + 1 for u in others]]).any():
             return None
     return out[0] - m, out[-1] - m - ni, pts
+
+
+class OverlapFree:
+    """The test ``ok(p, q)`` that a polyline keyhole's piece ``p q`` keeps out of the pixels set in
+    ``over`` (a boolean image whose pixel ``(0, 0)`` is pixel ``(x0, y0)`` of the grid ``(ox, oy,
+    dx, dy)``, which puts pixel ``(i, j)``'s centre at ``(ox + i dx, oy + j dy)``): the piece is
+    sampled 8 times per pixel, its ends left out, each sample taken to its nearest pixel (halves
+    up).  :func:`keyhole_path` runs it in compiled code (:func:`_overlap_free_kernel`)."""
+
+    def __init__(self, over, x0, y0, grid):
+        self.over = np.ascontiguousarray(over, dtype=np.bool_)
+        self.x0, self.y0 = int(x0), int(y0)
+        self.grid = tuple(float(g) for g in grid)
+
+    def __call__(self, p, q) -> bool:
+        ox, oy, dx, dy = self.grid
+        over = self.over
+        steps = max(2, int(np.ceil(8 * max(abs(q[0] - p[0]) / dx, abs(q[1] - p[1]) / dy))))
+        t = np.arange(1, steps)[:, None] / steps
+        pt = p + t * (q - p)
+        ii = np.floor((pt[:, 0] - ox) / dx + 0.5).astype(np.int64) - self.x0  # halves up
+        jj = np.floor((pt[:, 1] - oy) / dy + 0.5).astype(np.int64) - self.y0
+        inside = (ii >= 0) & (jj >= 0) & (ii < over.shape[1]) & (jj < over.shape[0])
+        return not over[jj[inside], ii[inside]].any()
+
+
+@njit(cache=True, nogil=True)
+def _overlap_free_kernel(px, py, qx, qy, over, x0, y0, ox, oy, dx, dy):
+    """:meth:`OverlapFree.__call__` sample by sample (the same arithmetic)."""
+    steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
+    ny, nx = over.shape
+    for u in range(1, steps):
+        t = u / steps
+        i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5)) - x0
+        j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5)) - y0
+        if i >= 0 and j >= 0 and i < nx and j < ny and over[j, i]:
+            return False
+    return True
+
+
+def _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j, max_nodes):
+    """:func:`keyhole_path`'s search and straightening by :func:`_keyhole_kernel`: the straightened
+    path (a list of node numbers), None where there is none, or -1 where the Python search must
+    decide (more than :data:`_KEYHOLE_ASKS` nodes whose distance to another lies within a hair of a
+    neighbourhood's radius, whose neighbours the k-d tree gives)."""
+    from scipy.spatial import cKDTree
+
+    ni, nj = len(ri), len(rj)
+    dist_j = np.ascontiguousarray(cKDTree(rj).query(P)[0], dtype=np.float64)  # (as the Python search)
+    free_i = np.ones(ni, dtype=np.bool_)
+    free_i[[v for v in used_i if 0 <= v < ni]] = False
+    free_j = np.ones(nj, dtype=np.bool_)
+    free_j[[v for v in used_j if 0 <= v < nj]] = False
+    if allowed is None:
+        over, x0, y0, grid, use = np.zeros((1, 1), dtype=np.bool_), 0, 0, (0.0, 0.0, 1.0, 1.0), False
+    else:
+        over, x0, y0, grid, use = allowed.over, allowed.x0, allowed.y0, allowed.grid, True
+    sa, sb = segs
+    # every coordinate and the step a multiple of 2^-10 below 2^15 (a pixel grid of power-of-two
+    # spacing): the squared distances and radii are exact, and the k-d tree's answer is theirs
+    Q = np.concatenate([np.asarray(P, dtype=np.float64).reshape(-1), [float(step)]]) * 1024.0
+    exact = bool(np.all(Q == np.floor(Q)) and np.abs(Q).max() < 2.0 ** 25)
+    args = (np.ascontiguousarray(P, dtype=np.float64), np.int64(m), np.int64(ni), float(step),
+            np.ascontiguousarray(oa, dtype=np.float64), np.ascontiguousarray(ob, dtype=np.float64),
+            np.ascontiguousarray(sa, dtype=np.float64), np.ascontiguousarray(sb, dtype=np.float64), free_i, free_j,
+            dist_j, over, np.int64(x0), np.int64(y0), *grid, use, np.int64(max_nodes), exact)
+    # the nodes whose neighbours the k-d tree gave (a distance within a hair of a radius), as the
+    # Python search asks it
+    asked = {}
+    ov_at = np.full(len(P), -1, dtype=np.int64)
+    ov_ptr, ov_idx = np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    tw = tj = None
+    for _ in range(_KEYHOLE_ASKS):
+        status, path = _keyhole_kernel(*args, ov_at, ov_ptr, ov_idx)
+        if status >= 0:
+            return path.tolist() if status == 1 else None
+        u = int(path[0])
+        if tw is None:
+            tw, tj = cKDTree(P[:m]), cKDTree(rj)
+        if u >= m:
+            nbr = tw.query_ball_point(P[u], 2.5 * step)
+        else:
+            bad_j = set(used_j)
+            nbr = list(tw.query_ball_point(P[u], 1.5 * step)) + \
+                [m + ni + v for v in tj.query_ball_point(P[u], 2.5 * step) if v not in bad_j]
+        asked[u] = nbr
+        ov_at[:] = -1
+        ov_at[list(asked)] = np.arange(len(asked))
+        ov_ptr = np.concatenate([[0], np.cumsum([len(v) for v in asked.values()])]).astype(np.int64)
+        ov_idx = np.array([v for vs in asked.values() for v in vs], dtype=np.int64)
+    return -1
+
+
+#: How many nodes' neighbourhoods the compiled keyhole search asks the k-d tree for before it hands
+#: the search to Python.
+_KEYHOLE_ASKS = 16
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _heap_less(hf, hg, hv, hu, a, b):
+    """Whether heap entry ``a``'s tuple ``(f, g, node, from)`` is smaller than entry ``b``'s."""
+    if hf[a] != hf[b]:
+        return hf[a] < hf[b]
+    if hg[a] != hg[b]:
+        return hg[a] < hg[b]
+    if hv[a] != hv[b]:
+        return hv[a] < hv[b]
+    return hu[a] < hu[b]
+
+
+@njit(cache=True, nogil=True)
+def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, dy, use, corners):
+    """``ok(u, v)`` of :func:`keyhole_path`: the piece between nodes ``u`` and ``v`` keeps clear
+    (:func:`_clear_kernel`, leaving the rings on their left) and, more than a step from a ring's
+    vertex, passes the overlap test where ``use``."""
+    has = np.zeros(2, np.int64)
+    for t in range(2):
+        node = u if t == 0 else v
+        if node >= m:
+            if node < m + ni:
+                o, n_r = m, ni
+            else:
+                o, n_r = m + ni, P.shape[0] - m - ni
+            w = node - o
+            for c in range(3):
+                x = o + (w - 1 + c) % n_r  # (r[v - 1] wraps to the ring's last vertex)
+                corners[t, c, 0] = P[x, 0]
+                corners[t, c, 1] = P[x, 1]
+            has[t] = 1
+    px, py, qx, qy = P[u, 0], P[u, 1], P[v, 0], P[v, 1]
+    if not _clear_kernel(px, py, qx, qy, corners, has[0], has[1], oa, ob, sa, sb, True):
+        return False
+    if not use:
+        return True
+    d = np.hypot(qx - px, qy - py)
+    t0 = step / d if has[0] else 0.0
+    t1 = 1.0 - step / d if has[1] else 1.0
+    if t0 >= t1:
+        return True
+    return _overlap_free_kernel(px + t0 * (qx - px), py + t0 * (qy - py), px + t1 * (qx - px), py + t1 * (qy - py),
+                                over, x0, y0, ox, oy, dx, dy)
+
+
+@njit(cache=True, nogil=True)
+def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over, x0, y0, ox, oy, dx, dy, use,
+                    max_nodes, exact, ov_at, ov_ptr, ov_idx):
+    """The A* search of :func:`keyhole_path` and the straightening of its path.  The heap holds the
+    Python search's tuples ``(g + h, g, node, from)`` and pops them in the same order (all are
+    distinct, so the order is that of the tuples).  The neighbours are the nodes within the radii
+    of the k-d tree queries (squared distances against the squared radius); unless the distances
+    are ``exact`` (see :func:`_keyhole_compiled`), where one lies within a relative ``1e-9`` of the
+    radius, ``(-1, [u])``: the caller asks the k-d tree for node ``u``'s neighbours and searches
+    again with them (``ov_at[u]``: their row in ``ov_ptr`` / ``ov_idx``, or -1).  Returns ``(1,
+    path)``, or ``(0, ..)`` where there is no path (or the search settles more than
+    ``max_nodes`` nodes)."""
+    n = P.shape[0]
+    corners = np.zeros((2, 3, 2))
+    came = np.full(n, -2, np.int64)
+    cap = 64 + ni
+    hf = np.empty(cap)
+    hg = np.empty(cap)
+    hv = np.empty(cap, np.int64)
+    hu = np.empty(cap, np.int64)
+    size = 0
+    r_w, r_v = 1.5 * step, 2.5 * step
+    r_w2, r_v2 = r_w * r_w, r_v * r_v
+    none = np.zeros(0, np.int64)
+    nb = np.empty(n, np.int64)
+    # the first pushes: every free vertex of ri, from nowhere
+    for v in range(ni):
+        if free_i[v]:
+            hf[size], hg[size], hv[size], hu[size] = dist_j[m + v], 0.0, m + v, -1
+            size += 1
+            c = size - 1
+            while c > 0:
+                p = (c - 1) // 2
+                if _heap_less(hf, hg, hv, hu, c, p):
+                    hf[c], hf[p] = hf[p], hf[c]
+                    hg[c], hg[p] = hg[p], hg[c]
+                    hv[c], hv[p] = hv[p], hv[c]
+                    hu[c], hu[p] = hu[p], hu[c]
+                    c = p
+                else:
+                    break
+    settled = 0
+    goal = -1
+    while size > 0:
+        # pop the smallest
+        g, u, frm = hg[0], hv[0], hu[0]
+        size -= 1
+        hf[0], hg[0], hv[0], hu[0] = hf[size], hg[size], hv[size], hu[size]
+        c = 0
+        while True:
+            a, b, s_ = 2 * c + 1, 2 * c + 2, c
+            if a < size and _heap_less(hf, hg, hv, hu, a, s_):
+                s_ = a
+            if b < size and _heap_less(hf, hg, hv, hu, b, s_):
+                s_ = b
+            if s_ == c:
+                break
+            hf[c], hf[s_] = hf[s_], hf[c]
+            hg[c], hg[s_] = hg[s_], hg[c]
+            hv[c], hv[s_] = hv[s_], hv[c]
+            hu[c], hu[s_] = hu[s_], hu[c]
+            c = s_
+        if came[u] != -2:
+            continue
+        if frm >= 0 and not _keyhole_ok(P, frm, u, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, dy, use,
+                                        corners):
+            continue
+        came[u] = frm
+        if u >= m + ni:
+            goal = u
+            break
+        settled += 1
+        if settled > max_nodes:
+            return 0, none
+        # the neighbours: waypoints within 2.5 steps of a vertex of ri, within 1.5 steps of a
+        # waypoint, and the free vertices of rj within 2.5 steps of a waypoint (or the k-d tree's
+        # answer for u, where the caller found it)
+        n_nb = 0
+        if ov_at[u] >= 0:
+            for t in range(ov_ptr[ov_at[u]], ov_ptr[ov_at[u] + 1]):
+                nb[n_nb] = ov_idx[t]
+                n_nb += 1
+        else:
+            hi_v = m if u >= m else n
+            for v in range(hi_v):
+                if m <= v < m + ni:
+                    continue
+                if v >= m + ni and not free_j[v - m - ni]:
+                    continue
+                ddx = P[v, 0] - P[u, 0]
+                ddy = P[v, 1] - P[u, 1]
+                d2 = ddx * ddx + ddy * ddy
+                r2 = r_w2 if (u < m and v < m) else r_v2
+                if not exact and abs(d2 - r2) <= 1e-9 * r2:
+                    ask = np.empty(1, np.int64)
+                    ask[0] = u
+                    return -1, ask
+                if d2 <= r2:
+                    nb[n_nb] = v
+                    n_nb += 1
+        for t in range(n_nb):
+            v = nb[t]
+            if came[v] != -2 or v == u:
+                continue
+            gv = g + np.hypot(P[v, 0] - P[u, 0], P[v, 1] - P[u, 1])
+            if size == cap:
+                cap *= 2
+                hf2 = np.empty(cap)
+                hg2 = np.empty(cap)
+                hv2 = np.empty(cap, np.int64)
+                hu2 = np.empty(cap, np.int64)
+                for t2 in range(size):  # (element by element: slice assignment compiles slowly)
+                    hf2[t2], hg2[t2], hv2[t2], hu2[t2] = hf[t2], hg[t2], hv[t2], hu[t2]
+                hf, hg, hv, hu = hf2, hg2, hv2, hu2
+            hf[size], hg[size], hv[size], hu[size] = gv + dist_j[v], gv, v, u
+            size += 1
+            c = size - 1
+            while c > 0:
+                p = (c - 1) // 2
+                if _heap_less(hf, hg, hv, hu, c, p):
+                    hf[c], hf[p] = hf[p], hf[c]
+                    hg[c], hg[p] = hg[p], hg[c]
+                    hv[c], hv[p] = hv[p], hv[c]
+                    hu[c], hu[p] = hu[p], hu[c]
+                    c = p
+                else:
+                    break
+    if goal < 0:
+        return 0, none
+    L = 1
+    x = goal
+    while came[x] >= 0:
+        x = came[x]
+        L += 1
+    path = np.empty(L, np.int64)
+    x = goal
+    for t in range(L - 1, -1, -1):
+        path[t] = x
+        x = came[x]
+    if L < 3:
+        return 0, none
+    # straighten: from each point, the farthest later point that keeps clear
+    out = np.empty(L, np.int64)
+    out[0] = path[0]
+    k = 1
+    i = 0
+    while i < L - 1:
+        for j in range(L - 1, i, -1):
+            if j == L - 1 and i == 0:
+                continue
+            if j == i + 1 or _keyhole_ok(P, path[i], path[j], m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy,
+                                         dx, dy, use, corners):
+                out[k] = path[j]
+                k += 1
+                i = j
+                break
+    return 1, out[:k]
 
 
 def _clear(p, q, ri, vi, rj, vj, oa, ob, segs, left=False) -> bool:
@@ -937,8 +1398,128 @@ def _outside_corner(a, c, b, d) -> bool:
 
 
 def bridged_ring_arrays(lengths, bridges, root: int = 0):
-    """:func:`bridged_ring` as two int64 arrays ``(ring, vertex)``: the same sequence, each run of
-    a contour between two bridge ends emitted as one range instead of vertex by vertex."""
+    """:func:`bridged_ring` as two int64 arrays ``(ring, vertex)``: the same sequence.  Compiled
+    (:func:`_tour_kernel`) where every contour has a vertex and no two bridge ends share a ring's
+    vertex (as :func:`bridge_tree` makes them); else :func:`_bridged_ring_arrays_py`."""
+    n = len(lengths)
+    lens = np.asarray(lengths, dtype=np.int64).reshape(-1)
+    br = np.array([tuple(b[:4]) + (len(b[4]) if len(b) > 4 else 0,) for b in bridges], dtype=np.int64).reshape(-1, 5)
+    if n and lens.min() > 0 and 0 <= root < n:
+        rr, vv, ok = _tour_kernel(lens, br, np.int64(root))
+        if ok:
+            return rr, vv
+    return _bridged_ring_arrays_py(lengths, bridges, root)
+
+
+@njit(cache=True, nogil=True)
+def _tour_kernel(lengths, br, root):
+    """:func:`_bridged_ring_arrays_py`'s tour without recursion: ``br`` holds the bridges' rows ``(i,
+    vi, j, vj, points)``.  Returns ``(rings, vertices, 1)``, or ``(.., .., 0)`` where two bridge ends
+    share a ring's vertex or a bridge end is not a vertex of its ring (the caller then takes the
+    Python tour)."""
+    n = lengths.shape[0]
+    nb = br.shape[0]
+    rr = np.empty(0, np.int64)
+    vv = np.empty(0, np.int64)
+    off = np.zeros(n + 1, np.int64)
+    for r in range(n):
+        off[r + 1] = off[r] + lengths[r]
+    # per ring vertex: the bridge end there (2 b for the end (i, vi), 2 b + 1 for (j, vj)), or -1
+    end_at = np.full(off[n], -1, np.int64)
+    for b in range(nb):
+        for s in range(2):
+            r, v = br[b, 2 * s], br[b, 2 * s + 1]
+            if r < 0 or r >= n or v < 0 or v >= lengths[r] or end_at[off[r] + v] >= 0:
+                return rr, vv, 0
+            end_at[off[r] + v] = 2 * b + s
+    # the bridges must form a forest (then each ring is entered once at most, and the frames and
+    # the output below are large enough); else the Python tour (which would not end either)
+    parent = np.arange(n)
+    for b in range(nb):
+        a, c = _root(parent, br[b, 0]), _root(parent, br[b, 2])
+        if a == c:
+            return rr, vv, 0
+        parent[a] = c
+    n_hooks = np.zeros(n, np.int64)
+    total = off[n] + n
+    for b in range(nb):
+        total += 2 * br[b, 4] + 1
+    rr = np.empty(total, np.int64)
+    vv = np.empty(total, np.int64)
+    k = 0
+    # each frame: ring, entry vertex, parent ring, closing, the next hook to follow and the first
+    # vertex not yet emitted, the bridge end it was entered by (-1: the root)
+    fr = np.empty(n, np.int64)
+    fe = np.empty(n, np.int64)
+    fp = np.empty(n, np.int64)
+    fc = np.empty(n, np.int64)
+    fh = np.empty(n, np.int64)
+    ft = np.empty(n, np.int64)
+    fin = np.empty(n, np.int64)
+    hooks = np.empty(off[n], np.int64)  # each entered ring's hooks to follow, at off[ring]
+    start = 0
+    for v in range(lengths[root]):
+        if end_at[off[root] + v] < 0:
+            start = v
+            break
+    fr[0], fe[0], fp[0], fc[0], fin[0] = root, start, -1, 0, -1
+    fh[0], ft[0] = -1, 0
+    sp = 1
+    while sp > 0:
+        d = sp - 1
+        r, e, m = fr[d], fe[d], lengths[fr[d]]
+        if fh[d] < 0:
+            # entering the ring: its hooks to rings other than the parent, in the order of the walk
+            # from e (the distance (v - e) mod m, distinct for distinct vertices)
+            cnt = 0
+            o = off[r]
+            for v in range(m):
+                x = end_at[o + (e + v) % m]
+                if x >= 0:
+                    other = br[x // 2, 2 * (1 - x % 2)]
+                    if other != fp[d]:
+                        hooks[o + cnt] = (e + v) % m
+                        cnt += 1
+            n_hooks[r] = cnt
+            fh[d] = 0
+        if fh[d] < n_hooks[r]:
+            v = hooks[off[r] + fh[d]]
+            t = (v - e) % m
+            for u in range(ft[d], t + 1):
+                rr[k], vv[k] = r, (e + u) % m
+                k += 1
+            x = end_at[off[r] + v]
+            b, s = x // 2, x % 2
+            pts = br[b, 4]
+            for u in range(pts):
+                rr[k], vv[k] = n + b, u if s == 0 else pts - 1 - u
+                k += 1
+            fh[d] += 1
+            ft[d] = t + 1
+            c = sp
+            fr[c], fe[c], fp[c], fc[c], fin[c] = br[b, 2 * (1 - s)], br[b, 2 * (1 - s) + 1], r, 1, x
+            fh[c], ft[c] = -1, 0
+            sp += 1
+            continue
+        for u in range(ft[d], m + fc[d]):
+            rr[k], vv[k] = r, (e + u) % m
+            k += 1
+        sp -= 1
+        x = fin[d]
+        if x >= 0:  # back along the bridge it was entered by, to the parent's vertex
+            b, s = x // 2, x % 2
+            pts = br[b, 4]
+            for u in range(pts):
+                rr[k], vv[k] = n + b, pts - 1 - u if s == 0 else u
+                k += 1
+            rr[k], vv[k] = br[b, 2 * s], br[b, 2 * s + 1]
+            k += 1
+    return rr[:k], vv[:k], 1
+
+
+def _bridged_ring_arrays_py(lengths, bridges, root: int = 0):
+    """:func:`bridged_ring_arrays` in Python, each run of a contour between two bridge ends emitted
+    as one range instead of vertex by vertex (the reference of :func:`_tour_kernel`)."""
     n = len(lengths)
     at = {}
     hooks = [[] for _ in range(n)]  # per ring, the vertices where bridges leave it
