@@ -94,23 +94,10 @@ def _general_mesher():
     # a small random volume: forks and merges whose bridged joins take intermediate sections (their
     # signed distances and topology counts are compiled too)
     contourmesh.mesh(np.pad(np.random.default_rng(1).random((8, 9, 9)) < 0.4, 1))
-    # a polyline keyhole (compiled search), which small volumes rarely need: a square hole in a
-    # square ring, waypoints on the pixels between them, one pixel kept out
-    from contourmesh.bands.bridges import OverlapFree, keyhole_path
+    # the bridged joins' rare paths (a polyline keyhole; bridge_tree's Python loop)
+    from contourmesh.bands.bridges import warm_rare_paths
 
-    outer = np.array([[0.0, 0.0], [6.0, 0.0], [6.0, 6.0], [0.0, 6.0]])
-    hole = np.array([[2.0, 2.0], [2.0, 4.0], [4.0, 4.0], [4.0, 2.0]])
-    pts = np.array([(x + 0.5, y + 0.5) for x in range(6) for y in range(6) if not (2 <= x < 4 and 2 <= y < 4)])
-    edges = np.concatenate([hole, outer])
-    keyhole_path(hole, outer, pts, 1.0, edges, np.concatenate([np.roll(hole, -1, axis=0), np.roll(outer, -1, axis=0)]),
-                 allowed=OverlapFree(np.eye(6, dtype=bool), 0, 0, (0.5, 0.5, 1.0, 1.0)))
-    # bridge_tree's candidates in Python (the loop the compiled one hands back to: ties the k-d
-    # tree breaks, values Python rounds), with a preference over a label image
-    from contourmesh.bands.bridges import bridge_tree, keyhole_uncovered
-
-    cover = keyhole_uncovered(np.eye(8, dtype=np.uint8), [0], (0.0, 0.0, 1.0, 1.0))
-    bridge_tree([outer[::-1] + 8.0, outer[::-1]], edges, edges[::-1], allowed=cover,
-                prefer=lambda P, Q: cover.shares(P, Q) >= 0.5)
+    warm_rare_paths()
 
 
 def _checks():

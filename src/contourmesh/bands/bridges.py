@@ -1030,6 +1030,20 @@ def _heap_less(hf, hg, hv, hu, a, b):
     return hu[a] < hu[b]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _sift_up(hf, hg, hv, hu, c):
+    """Moves the heap's entry ``c`` up to its place (the four arrays hold one field of every entry)."""
+    while c > 0:
+        p = (c - 1) // 2
+        if not _heap_less(hf, hg, hv, hu, c, p):
+            return
+        hf[c], hf[p] = hf[p], hf[c]
+        hg[c], hg[p] = hg[p], hg[c]
+        hv[c], hv[p] = hv[p], hv[c]
+        hu[c], hu[p] = hu[p], hu[c]
+        c = p
+
+
 @njit(cache=True, nogil=True)
 def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, dy, use, corners):
     """``ok(u, v)`` of :func:`keyhole_path`: the piece between nodes ``u`` and ``v`` keeps clear
@@ -1093,17 +1107,7 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
         if free_i[v]:
             hf[size], hg[size], hv[size], hu[size] = dist_j[m + v], 0.0, m + v, -1
             size += 1
-            c = size - 1
-            while c > 0:
-                p = (c - 1) // 2
-                if _heap_less(hf, hg, hv, hu, c, p):
-                    hf[c], hf[p] = hf[p], hf[c]
-                    hg[c], hg[p] = hg[p], hg[c]
-                    hv[c], hv[p] = hv[p], hv[c]
-                    hu[c], hu[p] = hu[p], hu[c]
-                    c = p
-                else:
-                    break
+            _sift_up(hf, hg, hv, hu, size - 1)
     settled = 0
     goal = -1
     while size > 0:
@@ -1179,17 +1183,7 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
                 hf, hg, hv, hu = hf2, hg2, hv2, hu2
             hf[size], hg[size], hv[size], hu[size] = gv + dist_j[v], gv, v, u
             size += 1
-            c = size - 1
-            while c > 0:
-                p = (c - 1) // 2
-                if _heap_less(hf, hg, hv, hu, c, p):
-                    hf[c], hf[p] = hf[p], hf[c]
-                    hg[c], hg[p] = hg[p], hg[c]
-                    hv[c], hv[p] = hv[p], hv[c]
-                    hu[c], hu[p] = hu[p], hu[c]
-                    c = p
-                else:
-                    break
+            _sift_up(hf, hg, hv, hu, size - 1)
     if goal < 0:
         return 0, none
     L = 1
@@ -1598,3 +1592,20 @@ def bridged_ring(lengths, bridges, root: int = 0):
     seen_start = next((v for v in range(lengths[root]) if (root, v) not in at), 0)
     tour(root, seen_start, -1, False)
     return out
+
+
+def warm_rare_paths() -> None:
+    """Compiles (or loads) the kernels of two paths that small volumes rarely take, for the warm-ups
+    (``scripts/warm_kernels.py``, the comparison runner): a polyline keyhole's compiled search (a
+    square hole in a square ring, waypoints on the pixels between them, one pixel kept out) and
+    :func:`bridge_tree`'s Python candidate loop (the one the compiled search hands back to), with a
+    preference over a label image."""
+    outer = np.array([[0.0, 0.0], [6.0, 0.0], [6.0, 6.0], [0.0, 6.0]])
+    hole = np.array([[2.0, 2.0], [2.0, 4.0], [4.0, 4.0], [4.0, 2.0]])
+    pts = np.array([(x + 0.5, y + 0.5) for x in range(6) for y in range(6) if not (2 <= x < 4 and 2 <= y < 4)])
+    edges = np.concatenate([hole, outer])
+    keyhole_path(hole, outer, pts, 1.0, edges, np.concatenate([np.roll(hole, -1, axis=0), np.roll(outer, -1, axis=0)]),
+                 allowed=OverlapFree(np.eye(6, dtype=bool), 0, 0, (0.5, 0.5, 1.0, 1.0)))
+    cover = keyhole_uncovered(np.eye(8, dtype=np.uint8), [0], (0.0, 0.0, 1.0, 1.0))
+    bridge_tree([outer[::-1] + 8.0, outer[::-1]], edges, edges[::-1], allowed=cover,
+                prefer=lambda P, Q: cover.shares(P, Q) >= 0.5)
