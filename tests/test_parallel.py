@@ -245,6 +245,21 @@ def test_slice_work_counts_runs():
     m[1, 4, :] = True  # one run in row 4
     m[1, 1, :] = True  # (row 1: not sampled)
     assert parallel.slice_work(m).tolist() == [2, 1]
+    assert parallel.slab_work(m).tolist() == [2, 1]  # (no holes)
+
+
+def test_slab_work_weighs_small_holes():
+    m = np.zeros((3, 40, 40), bool)
+    m[:, 4:36, 4:36] = True
+    m[1, 10:14, 10:14] = False  # a small hole crossed by sampled rows 12
+    m[2, 8:30, 20:23] = False  # a narrow slit closed above and below: counted as well (rows 8, ..., 28)
+    runs = parallel.slice_work(m)
+    assert runs.tolist() == [8, 9, 8 + 6]  # rows 4, 8, ..., 32; the hole's row 12 has two runs
+    assert parallel.slab_work(m).tolist() == [8, 9 + parallel.HOLE_WEIGHT, 14 + 6 * parallel.HOLE_WEIGHT]
+    wide = np.zeros((1, 60, 60), bool)
+    wide[0, 4:56, 4:56] = True
+    wide[0, 10:14, 6:54] = False  # wider than the reach: not a small hole
+    assert parallel.slab_work(wide).tolist() == parallel.slice_work(wide).tolist() == [14]
 
 
 @pytest.mark.parametrize("name", ["liver", "lobster"])
@@ -312,7 +327,10 @@ def _soak_stack(seed):
 def test_a_join_four_slices_from_a_cut_end_is_the_one_process_join(slab_route, monkeypatch):
     """Seed 1086 of the threads soak: with a halo of three slices both slabs next to the seam at slice
     21 made the same bridged join, where the whole volume makes an exact one (a different mesh that
-    no seam check could see); the slabs' halo of four gives the one-process mesh."""
+    no seam check could see); the slabs' halo of four gives the one-process mesh.  (The cuts of
+    then: four slabs per worker on runs alone.)"""
+    monkeypatch.setattr(parallel, "_SLABS_PER_WORKER", 4)
+    monkeypatch.setattr(parallel, "HOLE_WEIGHT", 0)
     vol = _soak_stack(1086)
     m1 = _mesh(vol, 1, monkeypatch)
     m2 = _mesh(vol, 2, monkeypatch)

@@ -28,10 +28,13 @@ agree on all they share, else the volume is meshed in one process.  Where the wh
 faces still cross so that the one-process mesher would fall back and build again (crossing
 fallbacks: the build history is not local to a slab), the volume is meshed in one process too.
 
-**Cuts.**  The slabs are balanced on a per-slice work estimate (:func:`slice_work`: runs of
-object pixels along x in every fourth row, counted in one compiled pass), ``_SLABS_PER_WORKER``
-slabs per worker, each cut moved to where the gaps its two slabs both build weigh least, and
-handed out largest first.
+**Cuts.**  The slabs are balanced on a per-slice work estimate (:func:`slab_work`: runs of
+object pixels along x in every fourth row, and small holes those rows cross, weighed
+:data:`HOLE_WEIGHT` runs each, counted in one compiled pass), ``_SLABS_PER_WORKER`` slabs per
+worker, each cut moved to where the gaps its two slabs both build weigh least, and handed out
+largest first.  The holes matter: the general mesher's work on a slice with holes (labels, joins
+of rings with holes, intermediate sections) is many times its work on a slice of the same contour
+length without, and a halo costs what its slices cost, so few slabs cut where the holes are.
 
 **Processes.**  Linux's ``fork`` only, from the calling process (its compiled kernels are the
 children's), and only while no other thread runs in it (tqdm's idle monitor thread is stopped
@@ -57,7 +60,7 @@ from .repair import resolve_crossings
 from .types import Mesh
 from .volumes import VOLUME_COUNTS, SlabPart, _checked, _join_units, volume_meta, volume_to_mesh
 
-__all__ = ["mesh_in_slabs", "slice_work", "balanced_cuts", "MIN_WORK"]
+__all__ = ["mesh_in_slabs", "slice_work", "slab_work", "balanced_cuts", "MIN_WORK"]
 
 log = logging.getLogger("contourmesh")
 
@@ -68,8 +71,10 @@ log = logging.getLogger("contourmesh")
 MIN_WORK = 10_000
 
 #: Slabs per worker process: more slabs than workers even out slabs whose work the estimate
-#: misjudges, at the cost of two halos each.
-_SLABS_PER_WORKER = 4
+#: misjudges, at the cost of two halos each (a halo where the holes are costs as much as the slices
+#: it repeats: liver x2 on four slabs per worker, the seven cuts' halos took 1.1 CPU-s more than three
+#: per worker's five; the two workers' longer share, modelled from each slab's CPU time, 4.4 s -> 3.8 s).
+_SLABS_PER_WORKER = 3
 
 _JOB = None  # the job the forked workers read (set only while the pool runs)
 
@@ -84,30 +89,74 @@ HALO = 4
 
 
 @njit(cache=True, nogil=True)
-def _runs_per_slice(mask):  # pragma: no cover - compiled
+def _runs_per_slice(mask, reach):  # pragma: no cover - compiled
     nz, h, w = mask.shape
     out = np.zeros(nz, np.int64)
+    holes = np.zeros(nz, np.int64)
     for k in range(nz):
         n = 0
+        e = 0
         for y in range(0, h, 4):
             prev = False
+            end = -1  # where the last run ended
             for x in range(w):
                 v = mask[k, y, x]
                 if v and not prev:
                     n += 1
+                    # a gap of at most `reach` pixels between two runs, closed within `reach`
+                    # rows above and below at its middle: a small hole (or a narrow inlet)
+                    if end >= 0 and x - end <= reach:
+                        mid = (end + x) // 2
+                        for yy in range(y - 1, max(y - reach, 0) - 1, -1):
+                            if mask[k, yy, mid]:
+                                for y2 in range(y + 1, min(y + reach + 1, h)):
+                                    if mask[k, y2, mid]:
+                                        e += 1
+                                        break
+                                break
+                if prev and not v:
+                    end = x
                 prev = v
         out[k] = n
-    return out
+        holes[k] = e
+    return out, holes
+
+
+def _slice_counts(mask):
+    mask = np.asarray(mask)
+    if mask.dtype != np.bool_:
+        mask = mask.astype(bool)
+    return _runs_per_slice(mask, np.int64(_HOLE_REACH))
 
 
 def slice_work(mask: np.ndarray) -> np.ndarray:
     """Per slice of a boolean ``[z, y, x]`` mask, the number of runs of object pixels along x in every
     fourth row (about an eighth of the boundary length in pixels): the general mesher's work grows
-    with the slices' contour lengths, not their areas (liver-x2, 413 M voxels: about 0.1 s)."""
-    mask = np.asarray(mask)
-    if mask.dtype != np.bool_:
-        mask = mask.astype(bool)
-    return _runs_per_slice(mask)
+    with the slices' contour lengths, not their areas (liver-x2, 413 M voxels: about 0.1 s).  The
+    route's size test (:data:`MIN_WORK`) sums it; the cuts weigh small holes too
+    (:func:`slab_work`)."""
+    return _slice_counts(mask)[0]
+
+
+#: The gaps between runs that :func:`slab_work` counts as small holes: at most this many pixels
+#: wide, closed within as many rows above and below.
+_HOLE_REACH = 32
+
+#: A small hole's weight in :func:`slab_work`, in runs.  The general mesher's holes (their labels,
+#: the joins of rings with holes, intermediate sections) cost far more than their contours' length:
+#: on liver x2, 24 slabs of about equal runs took 0.06 to 1.22 CPU-s, the costly ones those with the
+#: vessels' holes (a least-squares fit of the slabs' times on runs and small holes: 25, noisy);
+#: with three slabs per worker 12 gave the best-balanced slabs of 0, 8, 12, 25 and 50 on liver x2
+#: and the liver.
+HOLE_WEIGHT = 12
+
+
+def slab_work(mask: np.ndarray) -> np.ndarray:
+    """The cuts' work estimate per slice: :func:`slice_work` plus :data:`HOLE_WEIGHT` per small hole
+    crossed by a sampled row (a gap of at most ``_HOLE_REACH`` pixels between two runs, closed
+    within as many rows above and below at its middle; narrow inlets count too)."""
+    runs, holes = _slice_counts(mask)
+    return runs + HOLE_WEIGHT * holes
 
 
 def balanced_cuts(work, n_slabs: int, halo: int = HALO) -> list:
@@ -155,9 +204,10 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
         log.debug("slab route: no fork start method here; one process")
         return None
     t0 = time.perf_counter()
-    work = slice_work(mask)
+    runs, holes = _slice_counts(mask)
+    work = runs + HOLE_WEIGHT * holes  # (slab_work)
     log.debug("slab route: work estimate %.3f s", time.perf_counter() - t0)
-    total = int(work.sum())
+    total = int(runs.sum())
     if total < MIN_WORK:
         log.debug("slab route: work estimate %d below %d; one process", total, MIN_WORK)
         return None
