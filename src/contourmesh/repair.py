@@ -942,13 +942,15 @@ def _share_cell(clo, chi, chosen):
 
 
 @njit(cache=True, nogil=True)
-def _row_ids(R, sort_rows):
+def _row_ids(R, sort_rows, overwrite=False):
     """A group number per row of the int64 array ``R`` (rows with equal values share it; with
-    ``sort_rows``, rows equal up to the order of their values), numbered in order of first
-    occurrence; an open-addressing hash table, linear in the number of rows."""
+    ``sort_rows``, rows equal up to the order of their values: sorted in ``R`` itself where
+    ``overwrite``), numbered in order of first occurrence; an open-addressing hash table, linear in
+    the number of rows."""
     n, k = R.shape
     if sort_rows:  # (insertion sort of each short row)
-        R = R.copy()
+        if not overwrite:
+            R = R.copy()
         for i in range(n):
             for c in range(1, k):
                 x = R[i, c]
@@ -995,9 +997,16 @@ def _face_position_keys(V0, F0, V1, F1):
     """One integer per face of two meshes such that two faces (of either mesh) get the same
     number exactly when they have the same three corner positions (in any order; positions equal
     bit for bit after ``-0.0`` becomes ``0.0``)."""
-    bits = (np.concatenate([V0, V1]) + 0.0).view(np.int64)
-    pos = _row_ids(np.ascontiguousarray(bits), False)
-    key = _row_ids(np.concatenate([pos[: len(V0)][F0], pos[len(V0):][F1]]), True)
+    # (written into arrays of their final size: no whole-mesh temporaries besides them)
+    bits = np.concatenate([V0, V1]).astype(np.float64, copy=False)
+    bits += 0.0
+    pos = _row_ids(bits.view(np.int64), False)
+    del bits
+    R = np.empty((len(F0) + len(F1), 3), np.int64)
+    np.take(pos[: len(V0)], F0, out=R[: len(F0)])
+    np.take(pos[len(V0):], F1, out=R[len(F0):])
+    del pos
+    key = _row_ids(R, True, True)
     return key[: len(F0)], key[len(F0):]
 
 
