@@ -2210,7 +2210,9 @@ def _split_slab_pairs(V, ws, Fc, sst0, qk, lev, nlev, threads):
     disjoint and together the pairs of one call, returned sorted the same way.  None where a range
     is not finished there (a sweep over its budget, or faces spanning too many slabs): the caller
     then runs the whole mesh as one call, whose outcome (the slab phase's pairs or the grid's) is
-    the same pairs."""
+    the same pairs.  Each range certifies the stars of its own vertices only, once its tests reach
+    its share of the whole call's threshold (until issue 16's third round every range certified the
+    whole mesh's: liver x2's repaired mesh took 1.8 CPU-s on two threads, 1.4 now, 1.3 on one)."""
     from ._workers import run_all
 
     parts = 2 * threads
