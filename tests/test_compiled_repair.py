@@ -716,19 +716,18 @@ def test_compact_renumbers_in_place_and_leaves_a_mesh_using_every_vertex_alone()
     assert W is want_V and H is want_F
 
 
-def test_kept_and_added_equals_the_concatenation_over_several_blocks(monkeypatch):
+def test_kept_and_added_equals_the_concatenation():
     rng = np.random.default_rng(29)
     F = _random_faces(rng, 1000, 300)
-    side = rng.integers(0, 40, 1000).astype(np.int32)
-    keep = rng.random(1000) < 0.9
-    added = [[1, 2, 3], [4, 5, 6]]
-    want_F = np.concatenate([F[keep], np.array(added, dtype=np.int64)])
-    want_S = np.concatenate([side[keep], np.array([7, 8], dtype=np.int32)])
-    for block in (64, 1000, 1 << 16):  # a block boundary inside the faces, at their end, beyond
-        monkeypatch.setattr(repair, "_ROW_BLOCK", block)
-        got_F, got_S = repair._kept_and_added(F, side, keep, added, [7, 8])
-        assert got_F.dtype == np.int64 and got_S.dtype == side.dtype
-        assert np.array_equal(got_F, want_F) and np.array_equal(got_S, want_S)
+    for dtype in (np.int32, np.int64):  # (the volume mesher's sides carry tags in int32; the repair's int64)
+        side = rng.integers(0, 40, 1000).astype(dtype)
+        for keep in (rng.random(1000) < 0.9, np.ones(1000, bool), np.zeros(1000, bool)):
+            for added, sides in (([[1, 2, 3], [4, 5, 6]], [7, 8]), ([], [])):
+                want_F = np.concatenate([F[keep], np.array(added, dtype=np.int64).reshape(-1, 3)])
+                want_S = np.concatenate([side[keep], np.array(sides, dtype=dtype)])
+                got_F, got_S = repair._kept_and_added(F, side, keep, added, sides)
+                assert got_F.dtype == np.int64 and got_S.dtype == side.dtype
+                assert np.array_equal(got_F, want_F) and np.array_equal(got_S, want_S)
 
 
 def test_fan_numbers_equal_the_stable_sort_by_vertex():

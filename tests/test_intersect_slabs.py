@@ -345,3 +345,37 @@ def test_any_intersecting_in_one_call_on_any_arrays():
     from contourmesh import intersect
     assert len(intersect._any_kernel.signatures) == 1
     assert isinstance(intersect._any_kernel, CPUDispatcher)
+
+
+def test_range_stars_are_the_whole_meshs_stars_and_the_split_pairs_the_one_calls(monkeypatch):
+    """A range of heights certifies the stars of its own vertices only (``_star_fill_levels``,
+    issue 16: ranges on two threads no longer each certify the whole mesh's): those stars are the
+    whole mesh's at those levels, and two overlapping closed sectioned meshes tested in ranges on
+    two threads give the one call's pairs."""
+    import contourmesh
+    import contourmesh.intersect as I
+
+    zz, yy, xx = np.mgrid[:14, :24, :24]
+    ball = (zz - 6.5) ** 2 + (yy - 11.5) ** 2 + (xx - 11.5) ** 2 < 36
+    m = contourmesh.mesh(ball | np.roll(ball, 5, axis=2))
+    V = np.concatenate([m.vertices, m.vertices + [2.25, 1.5, 0.0]])
+    F = np.concatenate([m.faces, m.faces + len(m.vertices)])
+    Fc = I.canonical_vertices(V)[F]
+    lev, nlev = I._levels(np.ascontiguousarray(V[:, 2]))
+    whole = I._star_certified(V, Fc)
+    assert whole.sum() > len(V) // 2
+    for l0, l1 in [(0, 3), (2, 7), (5, nlev - 1), (0, nlev - 1)]:
+        part = I._star_certified(V, Fc, lev, l0, l1)
+        inside = (lev >= l0) & (lev <= l1)
+        assert np.array_equal(part[inside], whole[inside]) and not part[~inside].any()
+    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
+    one = intersecting_pairs(V, F)
+    assert len(one) > 20
+    calls = []
+    real = I._split_slab_pairs
+    monkeypatch.setattr(I, "_split_slab_pairs", lambda *a: calls.append(real(*a)) or calls[-1])
+    monkeypatch.setattr(I, "_SPLIT_FACES", 100)
+    monkeypatch.setattr(I, "_STAR_DELAY", 0)  # (the ranges certify their stars early)
+    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
+    two = intersecting_pairs(V, F)
+    assert len(calls) == 1 and calls[0] is not None and np.array_equal(two, one)

@@ -237,6 +237,13 @@ def test_balanced_cuts():
     assert sum(20 <= c <= 60 for c in cuts) >= 4  # most cuts where the work is
     assert parallel.balanced_cuts(np.ones(10), 4) == [0, 9]  # too few slices for two slabs
     assert parallel.balanced_cuts(np.ones(1), 4) == [0, 0]
+    # shares: a slab of twice the work where asked
+    cuts = parallel.balanced_cuts(np.ones(301), 3, shares=[2, 1, 1])
+    assert cuts[0] == 0 and cuts[-1] == 300 and abs(cuts[1] - 150) <= 19 and abs(cuts[2] - 225) <= 19  # (moved by at most a quarter of the smaller share: 18.75 gaps)
+    assert parallel.slab_shares(2) == [3.0, 3.0, 2.0, 2.0, 1.0, 1.0]
+    for bad in ([1, 1], [1, 0, 1], [[1, 1, 1]]):
+        with pytest.raises(ValueError, match="shares must be 3 positive numbers"):
+            parallel.balanced_cuts(np.ones(301), 3, shares=bad)
 
 
 def test_slice_work_counts_runs():
@@ -245,6 +252,26 @@ def test_slice_work_counts_runs():
     m[1, 4, :] = True  # one run in row 4
     m[1, 1, :] = True  # (row 1: not sampled)
     assert parallel.slice_work(m).tolist() == [2, 1]
+    assert parallel.slab_work(m).tolist() == [2, 1]  # (no holes)
+
+
+def test_slab_work_weighs_small_holes():
+    m = np.zeros((3, 40, 40), bool)
+    m[:, 4:36, 4:36] = True
+    m[1, 10:14, 10:14] = False  # a small hole crossed by sampled rows 12
+    m[2, 8:30, 20:23] = False  # a narrow slit closed above and below: counted as well (rows 8, ..., 28)
+    runs = parallel.slice_work(m)
+    assert runs.tolist() == [8, 9, 8 + 6]  # rows 4, 8, ..., 32; the hole's row 12 has two runs
+    assert parallel.slab_work(m).tolist() == [8, 9 + parallel.HOLE_WEIGHT, 14 + 6 * parallel.HOLE_WEIGHT]
+    wide = np.zeros((1, 60, 60), bool)
+    wide[0, 4:56, 4:56] = True
+    wide[0, 10:14, 6:54] = False  # wider than the reach: not a small hole
+    assert parallel.slab_work(wide).tolist() == parallel.slice_work(wide).tolist() == [14]
+    vol = np.concatenate([m, wide[:, :40, :40], m[::-1], m])
+    one = parallel._slice_counts(vol)
+    for threads in (2, 3):  # slices split in ranges on threads: the same counts
+        got = parallel._slice_counts(vol, threads)
+        assert all(np.array_equal(a, b) for a, b in zip(got, one))
 
 
 @pytest.mark.parametrize("name", ["liver", "lobster"])
@@ -312,7 +339,10 @@ def _soak_stack(seed):
 def test_a_join_four_slices_from_a_cut_end_is_the_one_process_join(slab_route, monkeypatch):
     """Seed 1086 of the threads soak: with a halo of three slices both slabs next to the seam at slice
     21 made the same bridged join, where the whole volume makes an exact one (a different mesh that
-    no seam check could see); the slabs' halo of four gives the one-process mesh."""
+    no seam check could see); the slabs' halo of four gives the one-process mesh.  (The cuts of
+    then: four slabs per worker on runs alone.)"""
+    monkeypatch.setattr(parallel, "slab_shares", lambda workers: [1.0] * (4 * workers))
+    monkeypatch.setattr(parallel, "HOLE_WEIGHT", 0)
     vol = _soak_stack(1086)
     m1 = _mesh(vol, 1, monkeypatch)
     m2 = _mesh(vol, 2, monkeypatch)

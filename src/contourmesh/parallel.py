@@ -28,10 +28,15 @@ agree on all they share, else the volume is meshed in one process.  Where the wh
 faces still cross so that the one-process mesher would fall back and build again (crossing
 fallbacks: the build history is not local to a slab), the volume is meshed in one process too.
 
-**Cuts.**  The slabs are balanced on a per-slice work estimate (:func:`slice_work`: runs of
-object pixels along x in every fourth row, counted in one compiled pass), ``_SLABS_PER_WORKER``
-slabs per worker, each cut moved to where the gaps its two slabs both build weigh least, and
-handed out largest first.
+**Cuts.**  The slabs are cut on a per-slice work estimate (:func:`slab_work`: runs of object
+pixels along x in every fourth row, and small holes those rows cross, weighed :data:`HOLE_WEIGHT`
+runs each, counted in one compiled pass on the threads asked for), in the shares of
+:func:`slab_shares` (per worker one slab of share 3, one of 2 and one of 1), each cut moved to
+where the gaps its two slabs both build weigh least, and handed out largest first.  The
+holes matter: the general mesher's work on a slice with holes (labels, joins of rings with holes,
+intermediate sections) is many times its work on a slice of the same contour length without, and a
+cut's halos cost what the slices they repeat cost, so few cuts should fall where the holes are
+(liver x2's six equal slabs spent 7.6 CPU-s against the one-process build's 7.0).
 
 **Processes.**  Linux's ``fork`` only, from the calling process (its compiled kernels are the
 children's), and only while no other thread runs in it (tqdm's idle monitor thread is stopped
@@ -57,7 +62,7 @@ from .repair import resolve_crossings
 from .types import Mesh
 from .volumes import VOLUME_COUNTS, SlabPart, _checked, _join_units, volume_meta, volume_to_mesh
 
-__all__ = ["mesh_in_slabs", "slice_work", "balanced_cuts", "MIN_WORK"]
+__all__ = ["mesh_in_slabs", "slice_work", "slab_work", "balanced_cuts", "MIN_WORK"]
 
 log = logging.getLogger("contourmesh")
 
@@ -66,10 +71,6 @@ log = logging.getLogger("contourmesh")
 #: (the liver, 16.9 k: 1.4 times faster on two processes; the lobster, 5.4 k, 57 slices: its eight
 #: slabs disagree at a seam, and with fewer its halos cost more than the second process saves).
 MIN_WORK = 10_000
-
-#: Slabs per worker process: more slabs than workers even out slabs whose work the estimate
-#: misjudges, at the cost of two halos each.
-_SLABS_PER_WORKER = 4
 
 _JOB = None  # the job the forked workers read (set only while the pool runs)
 
@@ -84,37 +85,99 @@ HALO = 4
 
 
 @njit(cache=True, nogil=True)
-def _runs_per_slice(mask):  # pragma: no cover - compiled
+def _runs_per_slice(mask, reach):  # pragma: no cover - compiled
     nz, h, w = mask.shape
     out = np.zeros(nz, np.int64)
+    holes = np.zeros(nz, np.int64)
     for k in range(nz):
         n = 0
+        e = 0
         for y in range(0, h, 4):
             prev = False
+            end = -1  # where the last run ended
             for x in range(w):
                 v = mask[k, y, x]
                 if v and not prev:
                     n += 1
+                    # a gap of at most `reach` pixels between two runs, closed within `reach`
+                    # rows above and below at its middle: a small hole (or a narrow inlet)
+                    if end >= 0 and x - end <= reach:
+                        mid = (end + x) // 2
+                        for yy in range(y - 1, max(y - reach, 0) - 1, -1):
+                            if mask[k, yy, mid]:
+                                for y2 in range(y + 1, min(y + reach + 1, h)):
+                                    if mask[k, y2, mid]:
+                                        e += 1
+                                        break
+                                break
+                if prev and not v:
+                    end = x
                 prev = v
         out[k] = n
-    return out
+        holes[k] = e
+    return out, holes
+
+
+def _slice_counts(mask, threads: int = 1):
+    """``(runs, small holes)`` per slice (:func:`slice_work`, :func:`slab_work`), the slices split
+    in ``threads`` ranges on as many threads (the kernel releases the GIL; liver x2: 0.1 s on one)."""
+    mask = np.asarray(mask)
+    if mask.dtype != np.bool_:
+        mask = mask.astype(bool)
+    reach = np.int64(_HOLE_REACH)
+    nz = len(mask)
+    if threads < 2 or nz < 2 * threads:
+        return _runs_per_slice(mask, reach)
+    from ._workers import run_all
+
+    bounds = np.linspace(0, nz, threads + 1).astype(int)
+    parts = run_all(lambda a, b: _runs_per_slice(mask[a:b], reach), list(zip(bounds[:-1], bounds[1:])), threads)
+    return np.concatenate([r for r, _h in parts]), np.concatenate([h for _r, h in parts])
 
 
 def slice_work(mask: np.ndarray) -> np.ndarray:
     """Per slice of a boolean ``[z, y, x]`` mask, the number of runs of object pixels along x in every
     fourth row (about an eighth of the boundary length in pixels): the general mesher's work grows
-    with the slices' contour lengths, not their areas (liver-x2, 413 M voxels: about 0.1 s)."""
-    mask = np.asarray(mask)
-    if mask.dtype != np.bool_:
-        mask = mask.astype(bool)
-    return _runs_per_slice(mask)
+    with the slices' contour lengths, not their areas (liver-x2, 413 M voxels: about 0.1 s).  The
+    route's size test (:data:`MIN_WORK`) sums it; the cuts weigh small holes too
+    (:func:`slab_work`)."""
+    return _slice_counts(mask)[0]
 
 
-def balanced_cuts(work, n_slabs: int, halo: int = HALO) -> list:
-    """Cut slices ``[0, c_1, ..., nz - 1]`` giving up to ``n_slabs`` slabs of about equal work, a gap
-    ``k`` weighing ``work[k] + work[k + 1]``, each cut moved (by at most a quarter of a slab's share of
-    the work) to where the gaps its two slabs both mesh weigh least; each slab owns at least ``2 * halo``
-    gaps."""
+#: The gaps between runs that :func:`slab_work` counts as small holes: at most this many pixels
+#: wide, closed within as many rows above and below.
+_HOLE_REACH = 32
+
+#: A small hole's weight in :func:`slab_work`, in runs.  The general mesher's holes (their labels,
+#: the joins of rings with holes, intermediate sections) cost far more than their contours' length:
+#: on liver x2, 24 slabs of about equal runs took 0.06 to 1.22 CPU-s, the costly ones those with the
+#: vessels' holes (a least-squares fit of the slabs' times on runs and small holes: 25, noisy);
+#: with three equal slabs per worker 12 gave the best-balanced slabs of 0, 8, 12, 25 and 50 on
+#: liver x2 and the liver, and with the shares of :func:`slab_shares` it did as well as 25 and
+#: better than 40.
+HOLE_WEIGHT = 12
+
+
+def slab_work(mask: np.ndarray) -> np.ndarray:
+    """The cuts' work estimate per slice: :func:`slice_work` plus :data:`HOLE_WEIGHT` per small hole
+    crossed by a sampled row (a gap of at most ``_HOLE_REACH`` pixels between two runs, closed
+    within as many rows above and below at its middle; narrow inlets count too)."""
+    runs, holes = _slice_counts(mask)
+    return runs + HOLE_WEIGHT * holes
+
+
+def balanced_cuts(work, n_slabs: int, halo: int = HALO, shares=None) -> list:
+    """Cut slices ``[0, c_1, ..., nz - 1]`` giving up to ``n_slabs`` slabs of about equal work (or of
+    the relative ``shares`` given, one per slab in order: ``len(shares) == n_slabs``), a gap
+    ``k`` weighing ``work[k] + work[k + 1]``, each cut moved (by at most a quarter of the smaller
+    share of its two slabs) to where the gaps its two slabs both mesh weigh least; each slab owns
+    at least ``2 * halo`` gaps."""
+    if shares is None:
+        shares = [1.0] * int(n_slabs)
+    shares = np.asarray(shares, dtype=np.float64)
+    if shares.ndim != 1 or len(shares) != n_slabs or not (shares > 0).all():
+        raise ValueError(f"shares must be {n_slabs} positive numbers, one per slab; got {shares!r}")
+    shares = shares / shares.sum()
     w = np.asarray(work, dtype=np.float64)
     nz = len(w)
     if nz < 2:
@@ -124,16 +187,29 @@ def balanced_cuts(work, n_slabs: int, halo: int = HALO) -> list:
     # the work two slabs repeat around a cut at c: its halo window's gaps
     win = np.array([csum[min(c + halo, nz - 1)] - csum[max(c - halo, 0)] for c in range(nz)])
     cuts = [0]
-    for i in range(1, n_slabs):
-        c = int(np.searchsorted(csum, csum[-1] * i / n_slabs))
-        # within a quarter of a slab's share either way, the cut whose halo window is lightest
-        share = csum[-1] / n_slabs / 4
+    ends = np.cumsum(shares)
+    for i in range(len(shares) - 1):
+        c = int(np.searchsorted(csum, csum[-1] * ends[i]))
+        # within a quarter of the smaller share either way, the cut whose halo window is lightest
+        share = csum[-1] * min(shares[i], shares[i + 1]) / 4
         lo = int(np.searchsorted(csum, max(csum[c] - share, 0.0)))
         hi = int(np.searchsorted(csum, csum[c] + share))
         cand = np.arange(max(lo, cuts[-1] + 2 * halo), min(hi, nz - 1 - 2 * halo) + 1)
         if len(cand):
             cuts.append(int(cand[np.argmin(win[cand])]))
     return cuts + [nz - 1]
+
+
+def slab_shares(workers: int) -> list:
+    """The relative work of the slabs for ``workers`` processes, in slice order: per worker one slab
+    of share 3, one of 2 and one of 1, handed out largest first, so that each worker starts on a
+    large slab and the small ones even out what the estimate misjudged, with fewer cuts where the
+    work is than equal slabs make (a cut's halos cost what the slices they repeat cost, see
+    :data:`HOLE_WEIGHT`).  Modelled from each slab's CPU time (two workers taking the slabs largest
+    estimate first; a loaded machine): liver x2 3.8-3.9 s against 4.2-4.3 s for six equal slabs, the
+    liver 1.8-1.9 s against 2.1 s; shares 2, 2, 1, 1, 1 did as well on those two but cut the liver
+    where its two slabs disagreed (one process)."""
+    return [3.0] * workers + [2.0] * workers + [1.0] * workers
 
 
 def _fork_context():
@@ -155,13 +231,15 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
         log.debug("slab route: no fork start method here; one process")
         return None
     t0 = time.perf_counter()
-    work = slice_work(mask)
+    runs, holes = _slice_counts(mask, n)
+    work = runs + HOLE_WEIGHT * holes  # (slab_work)
     log.debug("slab route: work estimate %.3f s", time.perf_counter() - t0)
-    total = int(work.sum())
+    total = int(runs.sum())
     if total < MIN_WORK:
         log.debug("slab route: work estimate %d below %d; one process", total, MIN_WORK)
         return None
-    cuts = balanced_cuts(work, n * _SLABS_PER_WORKER)
+    shares = slab_shares(n)
+    cuts = balanced_cuts(work, len(shares), shares=shares)
     if len(cuts) < 3:
         log.debug("slab route: too few slices for two slabs; one process")
         return None

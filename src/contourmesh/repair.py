@@ -161,25 +161,31 @@ def _midpoint_one(cu, cv, c0, c1, nudge):
 
 def _kept_and_added(F, side, keep, added_faces, added_sides):
     """``np.concatenate([F[keep], added_faces])`` and the same of the sides, the kept rows
-    written straight into the results (no whole-mesh temporaries besides them)."""
+    written straight into the results in one compiled pass (:func:`_copy_kept`; no whole-mesh
+    temporaries besides them)."""
     nk = int(np.count_nonzero(keep))
     F2 = np.empty((nk + len(added_faces), 3), dtype=np.int64)
     S2 = np.empty(nk + len(added_sides), dtype=side.dtype)
-    at = 0
-    for a in range(0, len(F), _ROW_BLOCK):  # (np.compress with out= copies the whole result once more)
-        b = min(a + _ROW_BLOCK, len(F))
-        kb = keep[a:b]
-        n = int(np.count_nonzero(kb))
-        F2[at: at + n] = F[a:b][kb]
-        S2[at: at + n] = side[a:b][kb]
-        at += n
+    _copy_kept(np.ascontiguousarray(F, dtype=np.int64), np.ascontiguousarray(side), np.ascontiguousarray(keep), F2, S2)
     F2[nk:] = np.array(added_faces, dtype=np.int64).reshape(-1, 3)
     S2[nk:] = np.array(added_sides, dtype=side.dtype)
     return F2, S2
 
 
-#: Rows per block of the copies of :func:`_kept_and_added`.
-_ROW_BLOCK = 1 << 16
+@njit(cache=True, nogil=True)
+def _copy_kept(F, side, keep, F2, S2):
+    """The rows of ``F`` and ``side`` where ``keep``, in order, into the first rows of ``F2`` and
+    ``S2`` (a boolean-mask copy block by block cost about 0.09 s per call on liver x2's 1.1 M
+    faces, twice per build)."""
+    at = 0
+    for i in range(F.shape[0]):
+        if keep[i]:
+            F2[at, 0] = F[i, 0]
+            F2[at, 1] = F[i, 1]
+            F2[at, 2] = F[i, 2]
+            S2[at] = side[i]
+            at += 1
+    return at
 
 
 @njit(cache=True, nogil=True)
@@ -936,13 +942,15 @@ def _share_cell(clo, chi, chosen):
 
 
 @njit(cache=True, nogil=True)
-def _row_ids(R, sort_rows):
+def _row_ids(R, sort_rows, overwrite=False):
     """A group number per row of the int64 array ``R`` (rows with equal values share it; with
-    ``sort_rows``, rows equal up to the order of their values), numbered in order of first
-    occurrence; an open-addressing hash table, linear in the number of rows."""
+    ``sort_rows``, rows equal up to the order of their values: sorted in ``R`` itself where
+    ``overwrite``), numbered in order of first occurrence; an open-addressing hash table, linear in
+    the number of rows."""
     n, k = R.shape
     if sort_rows:  # (insertion sort of each short row)
-        R = R.copy()
+        if not overwrite:
+            R = R.copy()
         for i in range(n):
             for c in range(1, k):
                 x = R[i, c]
@@ -989,9 +997,16 @@ def _face_position_keys(V0, F0, V1, F1):
     """One integer per face of two meshes such that two faces (of either mesh) get the same
     number exactly when they have the same three corner positions (in any order; positions equal
     bit for bit after ``-0.0`` becomes ``0.0``)."""
-    bits = (np.concatenate([V0, V1]) + 0.0).view(np.int64)
-    pos = _row_ids(np.ascontiguousarray(bits), False)
-    key = _row_ids(np.concatenate([pos[: len(V0)][F0], pos[len(V0):][F1]]), True)
+    # (written into arrays of their final size: no whole-mesh temporaries besides them)
+    bits = np.concatenate([V0, V1]).astype(np.float64, copy=False)
+    bits += 0.0
+    pos = _row_ids(bits.view(np.int64), False)
+    del bits
+    R = np.empty((len(F0) + len(F1), 3), np.int64)
+    np.take(pos[: len(V0)], F0, out=R[: len(F0)])
+    np.take(pos[len(V0):], F1, out=R[len(F0):])
+    del pos
+    key = _row_ids(R, True, True)
     return key[: len(F0)], key[len(F0):]
 
 

@@ -318,13 +318,13 @@ def _warm_volumes() -> list:
 
 def _warm_rare() -> None:
     """Kernels of paths that small volumes rarely take: the vertex-fan split of the manifold repair
-    (two tetrahedra sharing a vertex), the crossing repair (two overlapping cubes
+    (two tetrahedra sharing a vertex) and its copy of the kept faces, the crossing repair (two overlapping cubes
     pulled apart, and the crossing pairs recounted after one cube moved), the optimal band
     with its work bounded (large polygons) and the band refinement's crease gains."""
     import numpy as np
 
     from ..bands.optimal import triangulate_band_optimal
-    from ..repair import crossing_pairs_after_change, resolve_crossings, split_nonmanifold_vertices
+    from ..repair import _kept_and_added, crossing_pairs_after_change, resolve_crossings, split_nonmanifold_vertices
     from ..volumes import volume_to_mesh
 
     t = np.linspace(0, 2 * np.pi, 9, endpoint=False)
@@ -345,6 +345,10 @@ def _warm_rare() -> None:
     split_nonmanifold_vertices(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0],
                                          [0, 0, -1.0]]), np.vstack([tet, np.where(tet > 0, tet + 3, 0)]),
                                1e-3, four_face=False)
+    # the manifold repair's copy of the kept faces (four-face edges, necks), with sides of both
+    # widths (the volume mesher's carry tags in int32, the repair's own are int64)
+    for dt in (np.int32, np.int64):
+        _kept_and_added(np.zeros((2, 3), np.int64), np.zeros(2, dt), np.array([True, False]), [[0, 1, 2]], [0])
     V = np.vstack([cube.vertices, cube.vertices + 0.3])
     F = np.vstack([cube.faces, cube.faces + len(cube.vertices)])
     V1, info = resolve_crossings(V, F, 1e-3)
