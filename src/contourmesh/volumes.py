@@ -2413,7 +2413,11 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             else:
                 dbl = () if plan is None else \
                     tuple((k, a, h) in double for a, h in plan[1]) + tuple((k + 1, b, h) in double for b, h in plan[2])
-                key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl, near_dense(k, ga), near_dense(k + 1, gb))
+                # (whether the join may try intermediate sections is part of the key: a join densified in
+                # one build does not try them there, and may in a later build; see sectioned below)
+                sectioned = sections and (_DENSE_FAILED_SECTIONS or idx not in dense_tried)
+                key = (idx, near_sig(k, ga), near_sig(k + 1, gb), dbl, near_dense(k, ga), near_dense(k + 1, gb),
+                       sectioned)
                 # a keyhole lies in its component's plane, inside the component: a flat cap there (the
                 # component ends on the other side) would meet the fold along it
                 if plan is not None and caps == "flat" and (any((k, a) not in has_below for a, _ in plan[3])
@@ -2434,8 +2438,8 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     exact = cache[exact_key]
                     limit = _BRIDGED_AREA_LIMIT * exact
                     area = float(triangle_areas(got.V, got.F).sum()) if got is not None else None
-                    # (a join tried again with densified polygons does not try sections again)
-                    sectioned = sections and (_DENSE_FAILED_SECTIONS or idx not in dense_tried)
+                    # (a join tried again with densified polygons does not try sections again: key[-1])
+                    sectioned = key[-1]
                     if got is not None and area > limit:
                         cache[key] = None
                     elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None and sectioned:
