@@ -64,8 +64,9 @@ Conventions (stated once)
   (:func:`contourmesh.repair.resolve_crossings`).  Where faces still cross, each band or bridged
   join that made one becomes an exact join and each capped component that made one keeps its crack
   rings, and the mesh is built again (a few rounds at most; ``meta["crossing_fallbacks"]`` counts
-  the joins and caps changed).  A rebuild keeps the bridged joins whose rings and neighbourhood
-  did not change, makes again only the joins and caps whose kind or rings changed (each is made in
+  the joins and caps changed).  A rebuild keeps the bridged joins whose rings, neighbourhood and
+  permission to try intermediate sections did not change (a kept join is what building it again
+  would give: tested), makes again only the joins and caps whose kind or rings changed (each is made in
   local vertex numbers and the mesh numbered from them in order: the same mesh as making them one
   after the other), and only its faces that did not occur in the previous build are tested again
   (the other pairs are known: the same answer as a whole check).  This covers a band sweeping through the prism of a component that
