@@ -279,3 +279,40 @@ def test_strip_programme_equals_its_first_form_bit_for_bit():
         assert np.array_equal(D1, D2)
         finite += bool(np.isfinite(c_ref))
     assert finite > 100  # most strips hold a path to the last column
+
+
+@pytest.mark.parametrize("grid", [None, 2])
+def test_one_near_start_records_its_tables_once_and_the_band_is_unchanged(grid):
+    # optimal_edges_from records the moves in the programme of the one start point the strips
+    # leave near the bound (or the one given) instead of running it again: the same start point,
+    # total and edges as the search that runs each start point and then the best one with tables
+    from contourmesh.bands.optimal import _annulus_dp, _best_band, _trace_back, optimal_edges_from
+
+    rs = np.random.default_rng(23 + (grid or 0))
+    kinds = {"one": 0, "several": 0}
+    for t in range(120):
+        n = int(rs.integers(3, 30))
+        m = int(rs.integers(n, 50))
+        c1 = _ring(rs, n, rs.uniform(0.2, 2), 0.0, rs.uniform(0, 0.3), grid=grid)
+        c2 = _ring(rs, m, rs.uniform(0.2, 2), 1.0, rs.uniform(0, 0.3), rs.uniform(0, 6), grid=grid)
+        k = [1, 2, 5, n][t % 4]
+        a = int(rs.integers(n))
+        starts = np.sort((a + np.arange(min(k, n))) % n).astype(np.int64)
+        A1, A2 = _step_areas(c1, c2)
+        D2 = np.empty((2, N_LAYERS, m + 1))
+        s = _best_start_each(A1, A2, starts, D2)
+        s = starts[0] if s < 0 else s
+        move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
+        parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
+        total = _annulus_dp(A1, A2, s, D2, move, parent, np.bool_(True))
+        edges, s2, total2 = optimal_edges_from(c1, c2, starts)
+        assert (s2, total2) == (s, total)
+        assert np.array_equal(edges, _trace_back(move, parent, n, m))
+        got = _best_band(A1, A2, starts, D2)
+        assert (got[0], got[1]) == (s, total)
+        if len(starts) >= 4:
+            free, ok = _strip_costs(A1, A2, _cyclic_run(starts, n), len(starts))
+            if ok:
+                kinds["one" if (free <= free.min() + 1e-9 * (n + m) * max(A1.max(), A2.max()) * 2).sum() == 1
+                      else "several"] += 1
+    assert kinds["one"] >= 10 and kinds["several"] >= 3, kinds  # both routes are taken

@@ -252,16 +252,51 @@ def optimal_edges_from(c1, c2, starts):
         Its total triangle area.
     """
     A1, A2 = _step_areas(c1, c2)
-    n = c1.shape[0]
-    m = c2.shape[0]
-    D2 = np.empty((2, N_LAYERS, m + 1))
-    best_s = _best_start(A1, A2, starts, D2)
-    if best_s < 0:
-        best_s = starts[0]
+    D2 = np.empty((2, N_LAYERS, c2.shape[0] + 1))
+    best_s, total, move, parent = _best_band(A1, A2, starts, D2)
+    return _trace_back(move, parent, c1.shape[0], c2.shape[0]), best_s, total
+
+
+@njit(cache=True)
+def _best_band(A1, A2, starts, D2):
+    """The start point :func:`_best_start` picks (``starts[0]`` where none is finite), its
+    programme's total and its ``move`` / ``parent`` tables.
+
+    Where one start point is given, or the strip search leaves one start point near the bound
+    and certifies it, that start point's one programme records the tables: it is not run a second
+    time for them (the same programme on the same numbers: the same cost and moves).  Where it
+    leaves several, they run without tables and the best runs again with them (a programme that
+    records its moves costs about 1.7 programmes without: on the liver, recording all of two
+    or three near start points saved nothing)."""
+    n, m = A1.shape
+    k = starts.shape[0]
     move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
+    if k == 1:
+        return starts[0], _annulus_dp(A1, A2, starts[0], D2, move, parent, np.bool_(True)), move, parent
+    best_s = -2
+    if k >= _STRIP_MIN_STARTS:
+        a = _cyclic_run(starts, n)
+        if a >= 0:
+            near, low, tol = _near_starts(A1, A2, a, k)
+            if low >= 0.0:
+                n_near = 0
+                for s in range(n):
+                    if near[s]:
+                        n_near += 1
+                        only = s
+                if n_near == 1:
+                    c = _annulus_dp(A1, A2, only, D2, move, parent, np.bool_(True))
+                    if c <= low + tol:
+                        return only, c, move, parent
+                else:
+                    best_s = _near_best(A1, A2, near, low, tol, D2)
+    if best_s == -2:
+        best_s = _best_start_each(A1, A2, starts, D2)
+    if best_s < 0:
+        best_s = starts[0]
     total = _annulus_dp(A1, A2, best_s, D2, move, parent, np.bool_(True))
-    return _trace_back(move, parent, n, m), best_s, total
+    return best_s, total, move, parent
 
 
 @njit(cache=True)
@@ -455,25 +490,20 @@ def _best_start_strips(A1, A2, a, k, D2):
     is the one that function gives (floating-point ties broken alike).  Otherwise (a double cone
     is cheaper than every annulus near the bound) -2 sends the caller to the full search."""
     n, m = A1.shape
-    free, ok = _strip_costs(A1, A2, a, k)
-    if not ok:
+    near, low, tol = _near_starts(A1, A2, a, k)
+    if low < 0.0:
         return -2
-    low = np.inf
-    for t in range(k):
-        low = min(low, free[t])
-    amax = 0.0
-    for i in range(n):
-        for j in range(m):
-            amax = max(amax, abs(A1[i, j]), abs(A2[i, j]))
-    tol = _TIE * (n + m) * amax
-    near = np.zeros(n, dtype=np.bool_)
-    for t in range(k):
-        if free[t] <= low + 2.0 * tol:
-            near[(a + t) % n] = True
+    return _near_best(A1, A2, near, low, tol, D2)
+
+
+@njit(cache=True)
+def _near_best(A1, A2, near, low, tol, D2):
+    """The best of the start points ``near`` by their full programmes, taken in increasing order
+    (the first of equal costs), or -2 where it is not within ``tol`` of the bound ``low``."""
     dummy = np.empty((1, 1, 1), dtype=np.int8)
     best_s = -1
     best = np.inf
-    for s in range(n):
+    for s in range(near.shape[0]):
         if near[s]:
             c = _annulus_dp(A1, A2, s, D2, dummy, dummy, np.bool_(False))
             if c < best:
@@ -482,6 +512,29 @@ def _best_start_strips(A1, A2, a, k, D2):
     if best_s < 0 or best > low + tol:
         return -2
     return best_s
+
+
+@njit(cache=True)
+def _near_starts(A1, A2, a, k):
+    """:func:`_best_start_strips`' start points near the bound (a mask over the points of
+    ``c1``), the least bound and the margin; a bound of -1 where the strip search found no path."""
+    n, m = A1.shape
+    free, ok = _strip_costs(A1, A2, a, k)
+    near = np.zeros(n, dtype=np.bool_)
+    if not ok:
+        return near, -1.0, 0.0
+    low = np.inf
+    for t in range(k):
+        low = min(low, free[t])
+    amax = 0.0
+    for i in range(n):
+        for j in range(m):
+            amax = max(amax, abs(A1[i, j]), abs(A2[i, j]))
+    tol = _TIE * (n + m) * amax
+    for t in range(k):
+        if free[t] <= low + 2.0 * tol:
+            near[(a + t) % n] = True
+    return near, low, tol
 
 
 @njit(cache=True)
