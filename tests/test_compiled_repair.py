@@ -684,6 +684,26 @@ def test_label_mask_equals_isin():
             assert got.dtype == bool and np.array_equal(got, np.isin(lab, [c + 1 for c in comps]))
 
 
+def test_label_mask_on_boxes_of_a_label_image_for_one_some_and_all_components():
+    # label_mask compares where it selects one component or all of them, and takes from its table
+    # otherwise: on views of a larger image (the mesher's boxes), the same pixels as np.isin
+    from contourmesh.tracing import label_mask
+
+    rng = np.random.default_rng(32)
+    for dtype in (np.uint8, np.int32):
+        for t in range(60):
+            n = int(rng.integers(1, 7))
+            big = rng.integers(0, n + 1, (40, 50)).astype(dtype)
+            lab = big[int(rng.integers(0, 10)):int(rng.integers(20, 40)), int(rng.integers(0, 10)):int(rng.integers(20, 50))]
+            comps = [list(range(n)), [int(rng.integers(n))], sorted(set(rng.integers(0, n, 3).tolist()))][t % 3]
+            before = big.copy()
+            got = label_mask(lab, n, comps)
+            assert got.dtype == bool and got.shape == lab.shape and got.flags.c_contiguous
+            assert np.array_equal(got, np.isin(lab, [c + 1 for c in comps]))
+            got[...] = True  # (a fresh array: the label image is untouched)
+            assert np.array_equal(big, before)
+
+
 def test_vertex_normals_at_some_vertices_equal_the_whole_mesh_normals():
     rng = np.random.default_rng(37)
     s = trimesh.creation.icosphere(subdivisions=3)
