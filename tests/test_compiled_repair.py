@@ -894,3 +894,19 @@ def test_overlap_free_kernel_equals_the_numpy_test():
         assert bool(got) == bool(want)
         hits += not want
     assert hits > 200
+
+
+def test_fortran_ordered_volume_is_copied_to_c_order_exactly():
+    # prepare_volume copies a Fortran-ordered boolean volume by tiles (volume_input._fortran_to_c):
+    # the same voxels, C-contiguous, for shapes around and across the tile side
+    from contourmesh.volume_input import _c_order, prepare_volume
+
+    rng = np.random.default_rng(41)
+    for shape in [(1, 1, 1), (3, 5, 7), (64, 3, 64), (65, 2, 130), (130, 4, 63), (7, 129, 66)]:
+        v = rng.random(shape) < 0.3
+        f = np.asfortranarray(v)
+        got = _c_order(f)
+        assert got.dtype == bool and got.flags.c_contiguous and got.shape == shape and np.array_equal(got, v)
+        assert np.array_equal(_c_order(v[:, ::2]), v[:, ::2])  # (other layouts: numpy's copy)
+        if v.any():
+            assert np.array_equal(prepare_volume(f)[0], v)
