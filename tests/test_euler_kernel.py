@@ -99,6 +99,33 @@ def test_overlap_groups_equal_the_scipy_reference():
     assert several > 100
 
 
+def test_overlap_groups_of_uint8_label_images_take_the_pair_table_and_equal_the_reference():
+    # the volume mesher's label images (uint8, C order) take the compiled pair table; views and
+    # other dtypes the histogram / np.unique route: the same pairs and groups either way
+    from scipy import ndimage
+
+    from contourmesh.tracing import _pair_table_ok
+
+    rng = np.random.default_rng(4)
+    taken = 0
+    for t in range(300):
+        shape = tuple(int(v) for v in rng.integers(2, 40, 2))
+        la, na = ndimage.label(rng.random(shape) < rng.uniform(0.2, 0.7))
+        lb, nb = ndimage.label(rng.random(shape) < rng.uniform(0.2, 0.7))
+        if na > 255 or nb > 255:
+            continue
+        la8, lb8 = la.astype(np.uint8), lb.astype(np.uint8)
+        if t % 3 == 2:  # (a view: not C-ordered)
+            la8, lb8, la, lb = la8[:, ::-1], lb8[:, ::-1], la[:, ::-1], lb[:, ::-1]
+        taken += _pair_table_ok(la8, lb8, (na + 1) * (nb + 1))
+        pairs, groups = overlap_groups(la8, lb8, na, nb)
+        ref_pairs, ref_groups = _overlap_groups_reference(la, lb, na, nb)
+        assert pairs.dtype == np.int64
+        np.testing.assert_array_equal(pairs, ref_pairs)
+        assert groups == ref_groups
+    assert taken >= 150
+
+
 def test_distinct_rows_is_the_length_of_numpy_unique_rows():
     rng = np.random.default_rng(8)
     for _ in range(2000):
