@@ -399,6 +399,69 @@ def _strip_dp(A1, A2, s, lo, hi, D, move):
 
 
 @njit(cache=True)
+def _grid_dp_pair(A1, A2, s, u, D, E, move, move_u):
+    """:func:`_strip_dp` over the whole grid (``lo = 0``, ``hi = m`` in every row) for the start
+    points ``s`` and ``u`` at once: the same offers for each, in the same order (``D``, ``move``
+    for ``s``; ``E``, ``move_u`` for ``u``), in one loop, so that the processor runs the two
+    programmes' chains of additions side by side: on the liver's bridged rings the two ends'
+    programmes take 0.65 ms where one after the other took 1.4 ms.  (Written out: the same
+    offers as small compiled functions, inlined or not, made both programmes ten times slower.)
+    Returns the two costs."""
+    n, m = A1.shape
+    inf = np.inf
+    for j in range(m + 1):
+        D[0, j] = inf
+        E[0, j] = inf
+    D[0, 0] = 0.0
+    E[0, 0] = 0.0
+    for i in range(n + 1):
+        r = i % 2
+        a2s = A2[(s + i) % n]
+        a2u = A2[(u + i) % n]
+        d = D[r, 0]
+        e = E[r, 0]
+        for j in range(m):
+            nxt = D[r, j + 1]
+            if d != inf:
+                c = d + a2s[j]
+                if c < nxt:
+                    nxt = c
+                    D[r, j + 1] = c
+                    move[i, j + 1] = 1
+            d = nxt
+            nxt = E[r, j + 1]
+            if e != inf:
+                c = e + a2u[j]
+                if c < nxt:
+                    nxt = c
+                    E[r, j + 1] = c
+                    move_u[i, j + 1] = 1
+            e = nxt
+        if i == n:
+            break
+        rn = (i + 1) % 2
+        a1s = A1[(s + i) % n]
+        a1u = A1[(u + i) % n]
+        for j in range(m + 1):
+            D[rn, j] = inf
+            E[rn, j] = inf
+            jj = 0 if j == m else j  # A1[ib, j % m], 0 <= j <= m
+            d = D[r, j]
+            if d != inf:
+                c = d + a1s[jj]
+                if c < inf:
+                    D[rn, j] = c
+                    move[i + 1, j] = 0
+            e = E[r, j]
+            if e != inf:
+                c = e + a1u[jj]
+                if c < inf:
+                    E[rn, j] = c
+                    move_u[i + 1, j] = 0
+    return D[n % 2, m], E[n % 2, m]
+
+
+@njit(cache=True)
 def _strip_path(move, n, m, first):
     """Column where the traced path enters each row ``i`` (``first[i]``, the row's smallest column)."""
     i = n
@@ -426,12 +489,17 @@ def _strip_costs(A1, A2, a, k):
     first = np.empty((k, n + 1), dtype=np.int32)   # per start, per row of its own: entry column
     lo = np.zeros(n + 1, dtype=np.int64)
     hi = np.full(n + 1, m, dtype=np.int64)
-    for t in (0, k - 1):
-        c = _strip_dp(A1, A2, a + t, lo, hi, D, move)
-        if c == np.inf:
-            return cost, False
-        cost[t] = c
-        _strip_path(move, n, m, first[t])
+    # the two ends' programmes over the whole grid, side by side (_grid_dp_pair)
+    move_b = np.zeros((n + 1, m + 1), dtype=np.int8)
+    c0, c1 = _grid_dp_pair(A1, A2, a, a + k - 1, D, np.empty((2, m + 1)), move, move_b)
+    if c0 == np.inf:
+        return cost, False
+    cost[0] = c0
+    _strip_path(move, n, m, first[0])
+    if c1 == np.inf:
+        return cost, False
+    cost[k - 1] = c1
+    _strip_path(move_b, n, m, first[k - 1])
     stack = np.empty((2 * k + 2, 2), dtype=np.int64)
     stack[0, 0] = 0
     stack[0, 1] = k - 1
