@@ -249,8 +249,9 @@ def _strip_dp_reference(A1, A2, s, lo, hi, D, move):
 def test_strip_programme_equals_its_first_form_bit_for_bit():
     """The compiled strip programme (no modulo, each cell's cost carried to the next) gives the
     same cost and the same moves as its first form, on random strips (some empty rows, some that
-    end short of the last column, coarse-grid rings with tied areas)."""
-    from contourmesh.bands.optimal import _strip_dp
+    end short of the last column, coarse-grid rings with tied areas); and so do the two
+    programmes that run side by side on the whole grid."""
+    from contourmesh.bands.optimal import _grid_dp_pair, _strip_dp
 
     rs = np.random.default_rng(12)
     finite = 0
@@ -278,6 +279,19 @@ def test_strip_programme_equals_its_first_form_bit_for_bit():
         assert (c_ref == c_new or (np.isinf(c_ref) and np.isinf(c_new))) and np.array_equal(M1, M2)
         assert np.array_equal(D1, D2)
         finite += bool(np.isfinite(c_ref))
+        # the first and last start points' programmes side by side (_strip_costs' _grid_dp_pair):
+        # each the cost, moves and rows of _strip_dp over the whole grid
+        u = int(rs.integers(0, 2 * n))
+        full_lo, full_hi = np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64)
+        ref = []
+        for v in (s, u):
+            D, M = np.full((2, m + 1), 7.0), np.zeros((n + 1, m + 1), np.int8)
+            ref.append((_strip_dp(A1, A2, v, full_lo, full_hi, D, M), D, M))
+        D, E = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
+        M, N = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
+        got = _grid_dp_pair(A1, A2, s, u, D, E, M, N)
+        for (c, D_ref, M_ref), c_new, D_new, M_new in zip(ref, got, (D, E), (M, N)):
+            assert c == c_new and np.array_equal(D_ref, D_new) and np.array_equal(M_ref, M_new)
     assert finite > 100  # most strips hold a path to the last column
 
 
@@ -317,27 +331,3 @@ def test_one_near_start_records_its_tables_once_and_the_band_is_unchanged(grid):
                       else "several"] += 1
     assert kinds["one"] >= 10 and kinds["several"] >= 3, kinds  # both routes are taken
 
-
-def test_the_two_ends_programmes_side_by_side_equal_the_strip_programme_on_the_whole_grid():
-    # _strip_costs runs the first and last start points' programmes in one loop (_grid_dp_pair):
-    # each the cost, the moves and the rows of _strip_dp over the whole grid, bit for bit
-    from contourmesh.bands.optimal import _grid_dp_pair, _strip_dp
-
-    rs = np.random.default_rng(13)
-    for t in range(200):
-        n = int(rs.integers(2, 25))
-        m = int(rs.integers(n, 40))
-        c1 = _ring(rs, n, rs.uniform(0.2, 2), 0.0, 0.2, grid=3 if t % 2 else None)
-        c2 = _ring(rs, m, rs.uniform(0.2, 2), 1.0, 0.2, rs.uniform(0, 6), grid=3 if t % 2 else None)
-        A1, A2 = _step_areas(c1, c2)
-        s, u = int(rs.integers(0, n)), int(rs.integers(0, 2 * n))
-        lo, hi = np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64)
-        ref = []
-        for v in (s, u):
-            D, M = np.full((2, m + 1), 7.0), np.zeros((n + 1, m + 1), np.int8)
-            ref.append((_strip_dp(A1, A2, v, lo, hi, D, M), D, M))
-        D, E = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
-        M, N = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
-        got = _grid_dp_pair(A1, A2, s, u, D, E, M, N)
-        for (c, D_ref, M_ref), c_new, D_new, M_new in zip(ref, got, (D, E), (M, N)):
-            assert c == c_new and np.array_equal(D_ref, D_new) and np.array_equal(M_ref, M_new)
