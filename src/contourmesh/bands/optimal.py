@@ -64,31 +64,43 @@ def _step_areas(c1, c2):
     """``A1[i, j]`` = area of ``(a_i, a_{i+1}, b_j)``; ``A2[i, j]`` = area of ``(a_i, b_{j+1}, b_j)``.
 
     The arithmetic of :func:`_tri_area` (the same operations in the same order, so the same
-    numbers) on coordinates read as scalars: no array view per triangle."""
+    numbers) on coordinates read as scalars: no array view per triangle.  ``c2``'s coordinates
+    are first copied into three arrays with its first point again at the end, so that the inner
+    loop has no modulo and the compiler does several cells at once (half the time on the liver's
+    bridged rings; a square root is exact in either form)."""
     n = c1.shape[0]
     m = c2.shape[0]
     A1 = np.empty((n, m))
     A2 = np.empty((n, m))
+    bx = np.empty(m + 1)
+    by = np.empty(m + 1)
+    bz = np.empty(m + 1)
+    for j in range(m + 1):
+        jj = j % m
+        bx[j] = c2[jj, 0]
+        by[j] = c2[jj, 1]
+        bz[j] = c2[jj, 2]
     for i in range(n):
         i1 = (i + 1) % n
         px, py, pz = c1[i, 0], c1[i, 1], c1[i, 2]
         ux, uy, uz = c1[i1, 0] - px, c1[i1, 1] - py, c1[i1, 2] - pz  # a_i -> a_{i+1}
+        a1 = A1[i]
+        a2 = A2[i]
         for j in range(m):
-            j1 = (j + 1) % m
-            vx = c2[j, 0] - px  # a_i -> b_j
-            vy = c2[j, 1] - py
-            vz = c2[j, 2] - pz
+            vx = bx[j] - px  # a_i -> b_j
+            vy = by[j] - py
+            vz = bz[j] - pz
             cx = uy * vz - uz * vy
             cy = uz * vx - ux * vz
             cz = ux * vy - uy * vx
-            A1[i, j] = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
-            wx = c2[j1, 0] - px  # a_i -> b_{j+1}
-            wy = c2[j1, 1] - py
-            wz = c2[j1, 2] - pz
+            a1[j] = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+            wx = bx[j + 1] - px  # a_i -> b_{j+1}
+            wy = by[j + 1] - py
+            wz = bz[j + 1] - pz
             cx = wy * vz - wz * vy
             cy = wz * vx - wx * vz
             cz = wx * vy - wy * vx
-            A2[i, j] = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+            a2[j] = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
     return A1, A2
 
 
