@@ -87,7 +87,7 @@ def _general_mesher():
     v[4, 3:9, 3:9] = True  # ... closed in one slice: branching above and below
     v[2:4, 3, 8] = False  # a small cavity
     contourmesh.mesh(v)
-    labels = np.zeros((6, 8, 8), dtype=np.uint8)
+    labels = np.zeros((6, 8, 8), dtype=np.uint8, order="F")  # (Fortran order: volume_input's copy)
     labels[1:5, 1:7, 1:4] = 3
     labels[1:5, 1:7, 5:7] = 7
     contourmesh.mesh(labels, label=7, spacing=(2.0, 1.0, 1.0))

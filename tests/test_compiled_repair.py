@@ -684,6 +684,26 @@ def test_label_mask_equals_isin():
             assert got.dtype == bool and np.array_equal(got, np.isin(lab, [c + 1 for c in comps]))
 
 
+def test_label_mask_on_boxes_of_a_label_image_for_one_some_and_all_components():
+    # label_mask compares where it selects one component or all of them, and takes from its table
+    # otherwise: on views of a larger image (the mesher's boxes), the same pixels as np.isin
+    from contourmesh.tracing import label_mask
+
+    rng = np.random.default_rng(32)
+    for dtype in (np.uint8, np.int32):
+        for t in range(60):
+            n = int(rng.integers(1, 7))
+            big = rng.integers(0, n + 1, (40, 50)).astype(dtype)
+            lab = big[int(rng.integers(0, 10)):int(rng.integers(20, 40)), int(rng.integers(0, 10)):int(rng.integers(20, 50))]
+            comps = [list(range(n)), [int(rng.integers(n))], sorted(set(rng.integers(0, n, 3).tolist()))][t % 3]
+            before = big.copy()
+            got = label_mask(lab, n, comps)
+            assert got.dtype == bool and got.shape == lab.shape and got.flags.c_contiguous
+            assert np.array_equal(got, np.isin(lab, [c + 1 for c in comps]))
+            got[...] = True  # (a fresh array: the label image is untouched)
+            assert np.array_equal(big, before)
+
+
 def test_vertex_normals_at_some_vertices_equal_the_whole_mesh_normals():
     rng = np.random.default_rng(37)
     s = trimesh.creation.icosphere(subdivisions=3)
@@ -874,3 +894,19 @@ def test_overlap_free_kernel_equals_the_numpy_test():
         assert bool(got) == bool(want)
         hits += not want
     assert hits > 200
+
+
+def test_fortran_ordered_volume_is_copied_to_c_order_exactly():
+    # prepare_volume copies a Fortran-ordered boolean volume by tiles (volume_input._fortran_to_c):
+    # the same voxels, C-contiguous, for shapes around and across the tile side
+    from contourmesh.volume_input import _c_order, prepare_volume
+
+    rng = np.random.default_rng(41)
+    for shape in [(1, 1, 1), (3, 5, 7), (64, 3, 64), (65, 2, 130), (130, 4, 63), (7, 129, 66)]:
+        v = rng.random(shape) < 0.3
+        f = np.asfortranarray(v)
+        got = _c_order(f)
+        assert got.dtype == bool and got.flags.c_contiguous and got.shape == shape and np.array_equal(got, v)
+        assert np.array_equal(_c_order(v[:, ::2]), v[:, ::2])  # (other layouts: numpy's copy)
+        if v.any():
+            assert np.array_equal(prepare_volume(f)[0], v)

@@ -83,20 +83,34 @@ def _overlap_groups_reference(la, lb, na, nb):
 
 
 def test_overlap_groups_equal_the_scipy_reference():
+    # int32 images take the histogram / np.unique route; the volume mesher's (uint8, C order) the
+    # compiled pair table (_pair_table), and uint8 views the first route again: the same pairs and
+    # groups, in the same order, each way
     from scipy import ndimage
 
+    from contourmesh.tracing import _pair_table_ok
+
     rng = np.random.default_rng(3)
-    several = 0
+    several = taken = 0
     for _ in range(400):
-        shape = tuple(int(v) for v in rng.integers(2, 14, 2))
+        shape = tuple(int(v) for v in rng.integers(2, 30, 2))
         la, na = ndimage.label(rng.random(shape) < rng.uniform(0.2, 0.7))
         lb, nb = ndimage.label(rng.random(shape) < rng.uniform(0.2, 0.7))
-        pairs, groups = overlap_groups(la, lb, na, nb)
         ref_pairs, ref_groups = _overlap_groups_reference(la, lb, na, nb)
-        np.testing.assert_array_equal(pairs, ref_pairs)
-        assert groups == ref_groups  # the same sets in the same order
-        several += len(groups) > 1
-    assert several > 100
+        forms = [(la, lb)]
+        if na < 256 and nb < 256:
+            la8, lb8 = la.astype(np.uint8), lb.astype(np.uint8)
+            taken += _pair_table_ok(la8, lb8, (na + 1) * (nb + 1))
+            forms += [(la8, lb8), (la8[:, ::-1], lb8[:, ::-1])]
+        for t, (x, y) in enumerate(forms):
+            pairs, groups = overlap_groups(x, y, na, nb)
+            want_pairs, want_groups = (ref_pairs, ref_groups) if t < 2 else \
+                _overlap_groups_reference(la[:, ::-1], lb[:, ::-1], na, nb)
+            assert pairs.dtype == np.int64
+            np.testing.assert_array_equal(pairs, want_pairs)
+            assert groups == want_groups  # the same sets in the same order
+        several += len(ref_groups) > 1
+    assert several > 100 and taken > 300
 
 
 def test_distinct_rows_is_the_length_of_numpy_unique_rows():

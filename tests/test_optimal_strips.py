@@ -249,8 +249,9 @@ def _strip_dp_reference(A1, A2, s, lo, hi, D, move):
 def test_strip_programme_equals_its_first_form_bit_for_bit():
     """The compiled strip programme (no modulo, each cell's cost carried to the next) gives the
     same cost and the same moves as its first form, on random strips (some empty rows, some that
-    end short of the last column, coarse-grid rings with tied areas)."""
-    from contourmesh.bands.optimal import _strip_dp
+    end short of the last column, coarse-grid rings with tied areas); and so do the two
+    programmes that run side by side on the whole grid."""
+    from contourmesh.bands.optimal import _grid_dp_pair, _strip_dp
 
     rs = np.random.default_rng(12)
     finite = 0
@@ -278,4 +279,55 @@ def test_strip_programme_equals_its_first_form_bit_for_bit():
         assert (c_ref == c_new or (np.isinf(c_ref) and np.isinf(c_new))) and np.array_equal(M1, M2)
         assert np.array_equal(D1, D2)
         finite += bool(np.isfinite(c_ref))
+        # the first and last start points' programmes side by side (_strip_costs' _grid_dp_pair):
+        # each the cost, moves and rows of _strip_dp over the whole grid
+        u = int(rs.integers(0, 2 * n))
+        full_lo, full_hi = np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64)
+        ref = []
+        for v in (s, u):
+            D, M = np.full((2, m + 1), 7.0), np.zeros((n + 1, m + 1), np.int8)
+            ref.append((_strip_dp(A1, A2, v, full_lo, full_hi, D, M), D, M))
+        D, E = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
+        M, N = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
+        got = _grid_dp_pair(A1, A2, s, u, D, E, M, N)
+        for (c, D_ref, M_ref), c_new, D_new, M_new in zip(ref, got, (D, E), (M, N)):
+            assert c == c_new and np.array_equal(D_ref, D_new) and np.array_equal(M_ref, M_new)
     assert finite > 100  # most strips hold a path to the last column
+
+
+@pytest.mark.parametrize("grid", [None, 2])
+def test_one_near_start_records_its_tables_once_and_the_band_is_unchanged(grid):
+    # optimal_edges_from records the moves in the programme of the one start point the strips
+    # leave near the bound (or the one given) instead of running it again: the same start point,
+    # total and edges as the search that runs each start point and then the best one with tables
+    from contourmesh.bands.optimal import _annulus_dp, _best_band, _trace_back, optimal_edges_from
+
+    rs = np.random.default_rng(23 + (grid or 0))
+    kinds = {"one": 0, "several": 0}
+    for t in range(120):
+        n = int(rs.integers(3, 30))
+        m = int(rs.integers(n, 50))
+        c1 = _ring(rs, n, rs.uniform(0.2, 2), 0.0, rs.uniform(0, 0.3), grid=grid)
+        c2 = _ring(rs, m, rs.uniform(0.2, 2), 1.0, rs.uniform(0, 0.3), rs.uniform(0, 6), grid=grid)
+        k = [1, 2, 5, n][t % 4]
+        a = int(rs.integers(n))
+        starts = np.sort((a + np.arange(min(k, n))) % n).astype(np.int64)
+        A1, A2 = _step_areas(c1, c2)
+        D2 = np.empty((2, N_LAYERS, m + 1))
+        s = _best_start_each(A1, A2, starts, D2)
+        s = starts[0] if s < 0 else s
+        move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
+        parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
+        total = _annulus_dp(A1, A2, s, D2, move, parent, np.bool_(True))
+        edges, s2, total2 = optimal_edges_from(c1, c2, starts)
+        assert (s2, total2) == (s, total)
+        assert np.array_equal(edges, _trace_back(move, parent, n, m))
+        got = _best_band(A1, A2, starts, D2)
+        assert (got[0], got[1]) == (s, total)
+        if len(starts) >= 4:
+            free, ok = _strip_costs(A1, A2, _cyclic_run(starts, n), len(starts))
+            if ok:
+                kinds["one" if (free <= free.min() + 1e-9 * (n + m) * max(A1.max(), A2.max()) * 2).sum() == 1
+                      else "several"] += 1
+    assert kinds["one"] >= 10 and kinds["several"] >= 3, kinds  # both routes are taken
+

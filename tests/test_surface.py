@@ -253,3 +253,29 @@ def test_band_is_folded_kernel_matches_numpy():
         assert band_is_folded(f) is want
     assert seen == {True, False}
     assert band_is_folded(np.zeros((0, 3), np.int64)) is False
+
+
+def test_band_is_folded_by_buckets_and_by_sorting_agree():
+    # _folded counts each edge in buckets where the vertex numbers are small next to the number of
+    # edges, and sorts keys otherwise (a band's faces in a join's numbering): both as the numpy form,
+    # on random faces, on bands with a doubled diagonal, and with vertex numbers offset far
+    from contourmesh.bands import _folded, _folded_sorted, band_is_folded
+
+    rng = np.random.default_rng(6)
+    seen = set()
+    for t in range(600):
+        nv = int(rng.integers(3, 60))
+        f = rng.integers(0, nv, size=(int(rng.integers(1, 3 * nv)), 3))
+        if t % 3 == 1:  # a band: fans between two rings, one diagonal used again
+            n = int(rng.integers(3, 30))
+            f = np.array([[i, (i + 1) % n, n + i] for i in range(n)] + [[(i + 1) % n, n + (i + 1) % n, n + i] for i in range(n)])
+            if t % 2:
+                f = np.concatenate([f, f[int(rng.integers(len(f)))][None]])
+        if t % 5 == 4:
+            f = f + int(rng.integers(10**4, 10**6))  # (the sorting route)
+        want = _band_is_folded_numpy(f)
+        seen.add(want)
+        g = np.ascontiguousarray(f, dtype=np.int64)
+        assert band_is_folded(f) is want
+        assert bool(_folded(g)) is bool(_folded_sorted(g)) is want
+    assert seen == {True, False}

@@ -192,6 +192,25 @@ def test_compiled_signed_distance_is_the_reference_bit_for_bit(sampling):
         assert np.array_equal(sections._sdf(empty, sampling), sections._sdf_reference(empty, sampling), equal_nan=True)
 
 
+def test_compiled_signed_distance_on_larger_regions_with_full_and_empty_rows():
+    # the compiled transform skips a row's inside envelope where the row has no region pixel and
+    # its outside one where the row is full: blobs with holes, full and empty rows and columns
+    rng = np.random.default_rng(73)
+    for t in range(40):
+        h, w = int(rng.integers(1, 140)), int(rng.integers(1, 140))
+        m = ndimage.gaussian_filter(rng.random((h, w)), rng.uniform(1.0, 6.0)) > rng.uniform(0.45, 0.55)
+        if t % 3 == 0:
+            m[int(rng.integers(h))] = True
+            m[:, int(rng.integers(w))] = False
+        if t % 4 == 1:
+            m[: h // 3] = True
+        if not m.any():
+            continue
+        for sampling in ((1.0, 1.0), (0.25, 0.25)):
+            got, ref = sections._sdf(m, sampling), sections._sdf_reference(m, sampling)
+            assert got.tobytes() == ref.tobytes()
+
+
 def test_stack_invariants_see_a_tube_closed_by_a_section():
     ring = np.zeros((9, 9), bool)
     ring[1:8, 1:8] = True

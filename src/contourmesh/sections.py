@@ -64,89 +64,123 @@ def _sdf(m: np.ndarray, sampling) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _column_distances(m, inside):
+def _column_distances(m):
     """Squared distances along each column of the image ``m`` padded by one empty pixel, to the
-    nearest feature pixel of that column (-1 where it has none): the padded image's empty pixels
-    (``inside``) or its object pixels (not ``inside``)."""
+    nearest feature pixel of that column: ``gi`` to the padded image's empty pixels (every column
+    has some: the padding), ``go`` to its object pixels (-1 where a column has none).  Both in one
+    pass down the rows and one up, every column at once (row-major: the image is read in order)."""
     H, W = m.shape
     Hp, Wp = H + 2, W + 2
-    g = np.empty((Hp, Wp), np.int64)
+    gi = np.empty((Hp, Wp), np.int64)
+    go = np.empty((Hp, Wp), np.int64)
+    li = np.zeros(Wp, np.int64)  # the row of the last empty pixel seen from above (row 0: padding)
+    lo = np.full(Wp, -1, np.int64)  # ... of the last object pixel (-1: none yet)
     for x in range(Wp):
-        last = -1  # the row of the last feature seen from above
-        for y in range(Hp):
-            if y == 0 or y == Hp - 1 or x == 0 or x == Wp - 1:
-                feat = inside
+        gi[0, x] = 0
+        go[0, x] = -1
+    for y in range(1, Hp):
+        inner = y < Hp - 1
+        for x in range(Wp):
+            if inner and 0 < x < Wp - 1 and m[y - 1, x - 1] != 0:
+                li_ = li[x]
+                gi[y, x] = (y - li_) * (y - li_)
+                lo[x] = y
+                go[y, x] = 0
             else:
-                feat = (m[y - 1, x - 1] == 0) == inside
-            if feat:
-                last = y
-                g[y, x] = 0
+                li[x] = y
+                gi[y, x] = 0
+                lo_ = lo[x]
+                go[y, x] = -1 if lo_ < 0 else (y - lo_) * (y - lo_)
+    for x in range(Wp):  # (now the next feature from below)
+        li[x] = Hp - 1
+        lo[x] = -1
+    for y in range(Hp - 2, -1, -1):
+        for x in range(Wp):
+            if gi[y, x] == 0:
+                li[x] = y
             else:
-                g[y, x] = -1 if last < 0 else (y - last) * (y - last)
-        last = -1
-        for y in range(Hp - 1, -1, -1):
-            if g[y, x] == 0:
-                last = y
-            elif last >= 0:
-                d = (last - y) * (last - y)
-                if g[y, x] < 0 or d < g[y, x]:
-                    g[y, x] = d
-    return g
+                d = (li[x] - y) * (li[x] - y)
+                if d < gi[y, x]:
+                    gi[y, x] = d
+            if go[y, x] == 0:
+                lo[x] = y
+            elif lo[x] >= 0:
+                d = (lo[x] - y) * (lo[x] - y)
+                if go[y, x] < 0 or d < go[y, x]:
+                    go[y, x] = d
+    return gi, go
 
 
 @njit(cache=True, nogil=True)
-def _envelope_rows(g):
-    """Per row of ``g`` (squared column distances, -1 where a column has no feature), the squared
-    distance to the nearest feature pixel: the lower envelope of the parabolas ``(x - q)^2 +
-    g[q]`` (Felzenszwalb & Huttenlocher), their crossings compared exactly (integers)."""
-    H, W = g.shape
-    D = np.empty((H, W), np.int64)
-    v = np.empty(W, np.int64)
-    zn = np.empty(W, np.int64)  # the crossing of parabola t with t - 1: zn[t] / zd[t]
-    zd = np.empty(W, np.int64)
-    for y in range(H):
-        k = -1
-        for q in range(W):
-            fq = g[y, q]
-            if fq < 0:
-                continue
-            while k > 0:
-                p = v[k]
-                num = (fq + q * q) - (g[y, p] + p * p)
-                if num * zd[k] <= zn[k] * (2 * (q - p)):
-                    k -= 1
-                else:
-                    break
-            k += 1
-            v[k] = q
-            if k > 0:
-                p = v[k - 1]
-                zn[k] = (fq + q * q) - (g[y, p] + p * p)
-                zd[k] = 2 * (q - p)
-        t = 0
-        for x in range(W):
-            while t < k and zn[t + 1] < x * zd[t + 1]:
-                t += 1
-            p = v[t]
-            D[y, x] = (x - p) * (x - p) + g[y, p]
-    return D
+def _envelope(grow, v, zn, zd):
+    """The lower envelope of the parabolas ``(x - q)^2 + grow[q]`` over the columns ``q`` with
+    ``grow[q] >= 0`` (Felzenszwalb & Huttenlocher), their crossings compared exactly (integers):
+    parabola ``v[t]`` is the lowest from ``zn[t] / zd[t]`` on.  Returns the last ``t``."""
+    k = -1
+    for q in range(grow.shape[0]):
+        fq = grow[q]
+        if fq < 0:
+            continue
+        while k > 0:
+            p = v[k]
+            num = (fq + q * q) - (grow[p] + p * p)
+            if num * zd[k] <= zn[k] * (2 * (q - p)):
+                k -= 1
+            else:
+                break
+        k += 1
+        v[k] = q
+        if k > 0:
+            p = v[k - 1]
+            zn[k] = (fq + q * q) - (grow[p] + p * p)
+            zd[k] = 2 * (q - p)
+    return k
 
 
 @njit(cache=True, nogil=True)
 def _sdf_square(m, area, h):
     """:func:`_sdf` of a non-empty mask (uint8) on square pixels of area ``area`` (a power of two
     squared), ``h`` half the pixel side: ``h - inside`` on the region, ``outside - h`` off it, each
-    distance the square root of its squared number of pixel steps times ``area`` (exact)."""
+    distance the square root of its squared number of pixel steps times ``area`` (exact).
+
+    The squared distances of each row (to the nearest empty pixel of the padded mask for the
+    region's pixels, to the nearest region pixel for the others) are read off the lower envelope
+    of that row's column distances, only where the row needs them (a row without region pixels
+    builds no inside envelope, a full row no outside one)."""
     H, W = m.shape
-    din = _envelope_rows(_column_distances(m, True))
-    dout = _envelope_rows(_column_distances(m, False))
+    Wp = W + 2
+    gi, go = _column_distances(m)
     out = np.empty((H, W), np.float64)
+    vi = np.empty(Wp, np.int64)  # the inside envelope
+    zni = np.empty(Wp, np.int64)
+    zdi = np.empty(Wp, np.int64)
+    vo = np.empty(Wp, np.int64)  # the outside one
+    zno = np.empty(Wp, np.int64)
+    zdo = np.empty(Wp, np.int64)
     for y in range(H):
+        row = m[y]
+        n_in = 0
         for x in range(W):
-            if m[y, x] != 0:
-                out[y, x] = h - math.sqrt(float(din[y + 1, x + 1]) * area)
+            if row[x] != 0:
+                n_in += 1
+        ri = gi[y + 1]
+        ro = go[y + 1]
+        ki = _envelope(ri, vi, zni, zdi) if n_in > 0 else 0
+        ko = _envelope(ro, vo, zno, zdo) if n_in < W else 0
+        ti = 0
+        to = 0
+        for x in range(W):
+            xp = x + 1  # the padded column
+            if row[x] != 0:
+                while ti < ki and zni[ti + 1] < xp * zdi[ti + 1]:
+                    ti += 1
+                p = vi[ti]
+                out[y, x] = h - math.sqrt(float((xp - p) * (xp - p) + ri[p]) * area)
             else:
-                out[y, x] = math.sqrt(float(dout[y + 1, x + 1]) * area) - h
+                while to < ko and zno[to + 1] < xp * zdo[to + 1]:
+                    to += 1
+                p = vo[to]
+                out[y, x] = math.sqrt(float((xp - p) * (xp - p) + ro[p]) * area) - h
     return out
 
 

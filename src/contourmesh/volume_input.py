@@ -13,6 +13,7 @@ Volumes are indexed ``[z, y, x]`` with ``spacing = (dz, dy, dx)``; ``origin`` is
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 __all__ = ["check_volume_array", "check_spacing", "check_origin", "binary_label", "select_voxels", "binary_volume",
            "prepare_volume"]
@@ -102,7 +103,7 @@ def prepare_volume(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         order = [axis] + [a for a in (0, 1, 2) if a != axis]
         mask = np.transpose(mask, order)
         sp = sp[order]
-    mask = np.ascontiguousarray(mask, dtype=bool)
+    mask = _c_order(mask)
     if not mask.any():
         raise ValueError("volume holds no foreground voxels (nothing to mesh)")
     nz = mask.shape[0]
@@ -145,3 +146,37 @@ def check_origin(origin) -> np.ndarray:
 def binary_volume(volume, where: str = "volume") -> np.ndarray:
     """A checked volume's object mask, without label/threshold (boolean, 0/1, or two-valued)."""
     return select_voxels(check_volume_array(volume, where), where=where)
+
+
+def _c_order(mask: np.ndarray) -> np.ndarray:
+    """``np.ascontiguousarray(mask, dtype=bool)``; a Fortran-ordered boolean volume (as NIfTI
+    readers and ``np.load`` of such files give, the liver benchmark's among them) is copied by
+    :func:`_fortran_to_c` in tiles, about twice as fast as numpy's element-by-element copy."""
+    if mask.dtype == bool and mask.ndim == 3 and mask.flags.f_contiguous and not mask.flags.c_contiguous:
+        n0, n1, n2 = mask.shape
+        flat = mask.ravel(order="F").view(np.uint8)  # (a view: the array's own memory order)
+        return _fortran_to_c(flat, np.int64(n0), np.int64(n1), np.int64(n2)).view(bool)
+    return np.ascontiguousarray(mask, dtype=bool)
+
+
+#: Side of :func:`_fortran_to_c`'s tiles: 64 input lines of 64 bytes and 64 output lines stay in
+#: the first-level cache while a tile is copied.
+_TILE = 64
+
+
+@njit(cache=True, nogil=True)
+def _fortran_to_c(flat, n0, n1, n2):
+    """The C-ordered ``(n0, n1, n2)`` array whose Fortran-ordered bytes are ``flat``: per index
+    ``i1``, tiles of ``_TILE`` values of ``i2`` by ``_TILE`` of ``i0``, reading runs of ``i0``
+    (contiguous in ``flat``) and writing each to its ``_TILE`` output lines."""
+    out = np.empty((n0, n1, n2), np.uint8)
+    for i1 in range(n1):
+        for a2 in range(0, n2, _TILE):
+            e2 = min(a2 + _TILE, n2)
+            for a0 in range(0, n0, _TILE):
+                e0 = min(a0 + _TILE, n0)
+                for i2 in range(a2, e2):
+                    base = n0 * (i1 + n1 * i2)
+                    for i0 in range(a0, e0):
+                        out[i0, i1, i2] = flat[base + i0]
+    return out

@@ -71,7 +71,45 @@ def band_is_folded(faces: np.ndarray) -> bool:
 
 @njit(cache=True)
 def _folded(f):
-    """:func:`band_is_folded` compiled: one integer ``lo * (max + 1) + hi`` per undirected edge of
+    """:func:`band_is_folded` compiled: the undirected edges ``(lo, hi)`` of the faces bucketed by
+    ``lo`` (a counting sort), each bucket's ``hi`` counted in a table; some edge is in more than two
+    faces when a count reaches three.  Where the vertex numbers are not small next to the number
+    of edges (a band's faces in a join's numbering), :func:`_folded_sorted` (the same answer)."""
+    nf = f.shape[0]
+    ne = 3 * nf
+    base = f.max() + 1
+    if f.min() < 0 or base > 2 * ne + 64:
+        return _folded_sorted(f)
+    start = np.zeros(base + 1, np.int64)
+    for k in range(3):
+        for t in range(nf):
+            a, b = f[t, k], f[t, (k + 1) % 3]
+            start[min(a, b) + 1] += 1
+    for v in range(base):
+        start[v + 1] += start[v]
+    pos = start[:base].copy()
+    his = np.empty(ne, np.int64)
+    for k in range(3):
+        for t in range(nf):
+            a, b = f[t, k], f[t, (k + 1) % 3]
+            lo = min(a, b)
+            his[pos[lo]] = max(a, b)
+            pos[lo] += 1
+    cnt = np.zeros(base, np.int8)
+    for v in range(base):
+        for q in range(start[v], start[v + 1]):
+            h = his[q]
+            cnt[h] += 1
+            if cnt[h] == 3:
+                return True
+        for q in range(start[v], start[v + 1]):
+            cnt[his[q]] = 0
+    return False
+
+
+@njit(cache=True)
+def _folded_sorted(f):
+    """:func:`_folded` by sorting: one integer ``lo * (max + 1) + hi`` per undirected edge of
     each face, sorted; some edge is in more than two faces when a key equals the one two places
     before it."""
     nf = f.shape[0]
