@@ -676,7 +676,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         sp = [float(s) for i, s in enumerate(np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))) if i != axis]
         def planes():  # the section heights, needed only where faces cross
             return prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
-                                  origin=origin)[1]
+                                  origin=origin, contiguous=False)[1]
 
         V, F = fast.vertices, fast.faces
         pairs = intersecting_pairs(V, F)
@@ -696,10 +696,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: the fast path's mesh has crossing faces; general mesher")
     else:
         log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
+    # the mask as given where it is boolean (a view): the slices are read one at a time and each made
+    # C-ordered where labelled (slice_labels); a C-ordered copy of a Fortran-ordered volume (as read
+    # from many files) was a second volume held to the end, 49 of the 132 MiB the liver took
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
-                                                  threshold=threshold, origin=origin)
+                                                  threshold=threshold, origin=origin, contiguous=False)
     if general is not None and polygons is None and refine is None and smooth_ends is None and slab_supported():
-        got = general(mask, zs, (dy, dx), (ox, oy), polygon=polygon, triangulation=triangulation, caps=caps)
+        got = general(np.ascontiguousarray(mask), zs, (dy, dx), (ox, oy), polygon=polygon, triangulation=triangulation,
+                      caps=caps)
         if got is not None:
             return got
     from tqdm.auto import tqdm
@@ -761,7 +765,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 
     refine_info = {}
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
-        refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy), refine)
+        refine_info = _refine_polygons(np.ascontiguousarray(mask), zs, slices, occupied, crack_only, joins, (dx, dy),
+                                       (ox, oy), refine)
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
     # with _DENSE_STEP set, the rings of branching joins get a vertex at least every pixel (see _densify_branching)
     # (band2: a vertex every half pixel, as its refined polygons have twice the vertices)
@@ -1657,7 +1662,8 @@ def _dense_rings(mask, slices, k, c, grid, step, total=False) -> list:
         if added.any():
             idx = np.c_[(d[added, 0] - ox) / dx, (d[added, 1] - oy) / dy]
             keep = ~added
-            keep[added] = ~_off_band(mask, k, idx, (1.0, 1.0))
+            # (slice k alone, C-ordered: a view where the mask is; the band test reads no other slice)
+            keep[added] = ~_off_band(np.ascontiguousarray(mask[k: k + 1]), 0, idx, (1.0, 1.0))
             d, added = d[keep], added[keep]
         out.append((d, added) if len(d) != len(r) else (r, None))
     return out
