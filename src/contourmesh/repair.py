@@ -865,16 +865,20 @@ def _faces_near(V, W, F, moved_faces):
     division each); the boxes, their extents and the float cells of the whole mesh took some 60
     MiB on the lobster's mesh, at the general mesher's peak."""
     moved = np.asarray(moved_faces, dtype=np.int64)
-    glo, ext = _box_extents(V, W, F)
+    glo, ext = _box_extents(V, W, F, True)
     # cells as large as the moved faces (so each covers a few), and no smaller than most faces
     h = max(float(ext[moved].max()), float(np.median(ext)), 1e-12)
-    clo, chi = _box_cells(V, W, F, glo, h)
+    clo, chi = _box_cells(V, W, F, glo, h, True)
     return np.flatnonzero(_share_cell(clo, chi, moved))
 
 
 @njit(cache=True, nogil=True)
-def _face_box(V, W, F, i, d):
-    """The extent ``(lo, hi)`` along axis ``d`` of face ``i``'s corners in ``V`` and in ``W`` together."""
+def _face_box(V, W, F, i, d, both):
+    """The extent ``(lo, hi)`` along axis ``d`` of face ``i``'s corners in ``V`` (and in ``W``
+    with ``both``)."""
+    if not both:
+        x0, x1, x2 = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
+        return min(x0, x1, x2), max(x0, x1, x2)
     a = V[F[i, 0], d]
     b = a
     for P in (V, W):
@@ -886,15 +890,15 @@ def _face_box(V, W, F, i, d):
 
 
 @njit(cache=True, nogil=True)
-def _box_extents(V, W, F):
-    """``(glo, ext)``: the low corner of all the faces' boxes (corners in ``V`` and ``W``), and per
-    face the longest side of its box."""
+def _box_extents(V, W, F, both):
+    """``(glo, ext)``: the low corner of all the faces' boxes (corners in ``V``, and ``W`` with
+    ``both``), and per face the longest side of its box."""
     glo = np.full(3, np.inf)
     ext = np.empty(F.shape[0])
     for i in range(F.shape[0]):
         e = 0.0
         for d in range(3):
-            a, b = _face_box(V, W, F, i, d)
+            a, b = _face_box(V, W, F, i, d, both)
             glo[d] = min(glo[d], a)
             e = max(e, b - a)
         ext[i] = e
@@ -902,14 +906,14 @@ def _box_extents(V, W, F):
 
 
 @njit(cache=True, nogil=True)
-def _box_cells(V, W, F, glo, h):
+def _box_cells(V, W, F, glo, h, both):
     """``(clo, chi)``: per face the cells (of size ``h`` from ``glo``) of its box's low and high
-    corners, ``floor((x - glo) / h)``."""
+    corners, ``floor((x - glo) / h)`` (boxes as :func:`_box_extents`)."""
     clo = np.empty((F.shape[0], 3), np.int64)
     chi = np.empty((F.shape[0], 3), np.int64)
     for i in range(F.shape[0]):
         for d in range(3):
-            a, b = _face_box(V, W, F, i, d)
+            a, b = _face_box(V, W, F, i, d, both)
             clo[i, d] = np.int64(np.floor((a - glo[d]) / h))
             chi[i, d] = np.int64(np.floor((b - glo[d]) / h))
     return clo, chi
@@ -1041,11 +1045,11 @@ def _boxes_near(V, F, chosen):
     """Faces sharing a cell of a grid with a face in ``chosen``: a superset of the faces whose
     closed bounding boxes meet the box of a chosen face.  The cells are as large as the chosen
     faces and no smaller than most faces.  (The faces' boxes are not kept: see :func:`_faces_near`.)"""
-    glo, ext = _box_extents(V, V, F)
+    glo, ext = _box_extents(V, V, F, False)
     h = max(np.median(ext), 1e-12)
     for t in range(len(chosen)):
         h = max(h, ext[chosen[t]])
-    clo, chi = _box_cells(V, V, F, glo, h)
+    clo, chi = _box_cells(V, V, F, glo, h, False)
     return np.flatnonzero(_share_cell(clo, chi, chosen))
 
 
