@@ -211,12 +211,12 @@ class _RecentLabels:
 
 
 class _Planes:
-    """The slices of a boolean volume, each C-ordered when read (``planes[k]``, a 2D view): the
-    volume's own where it is C-ordered, else from a copy of the block of about 4 MiB of
-    consecutive slices that holds it (the last block read is kept).  The general mesher reads the
-    slices going up the stack; a volume in another layout (Fortran-ordered, as many file readers
-    give it) read a slice at a time costs a cache line per voxel, a block at a time about as much
-    as one C-ordered copy of the whole, without holding a second volume to the end."""
+    """The slices of a boolean volume, each C-ordered when read (``planes[k]``, a 2D array): the
+    volume's own where it is C-ordered, else from the block of about 4 MiB of consecutive slices
+    last read going up the stack (:meth:`reading`), else copied alone.  The general mesher reads
+    the slices going up the stack; a volume in another layout (Fortran-ordered, as many file
+    readers give it) read a slice at a time costs a cache line per voxel, a block at a time about
+    as much as one C-ordered copy of the whole, without holding a second volume to the end."""
 
     def __init__(self, mask, block_bytes: int = 4 << 20):
         self.mask = mask
@@ -230,12 +230,30 @@ class _Planes:
     def __getitem__(self, k: int) -> np.ndarray:
         if self.direct:
             return self.mask[k]
-        k0 = k - k % self.block
-        if k0 != self.k0:
+        if self.part is not None and 0 <= k - self.k0 < len(self.part):
+            return self.part[k - self.k0]
+        return np.ascontiguousarray(self.mask[k])
+
+    def reading(self, k: int) -> np.ndarray:
+        """``self[k]``, from the block that holds it (read now where it is not the last one)."""
+        if not self.direct and (self.part is None or not 0 <= k - self.k0 < len(self.part)):
             self.part = None  # (the old block goes first)
-            self.part = np.ascontiguousarray(self.mask[k0: k0 + self.block])
-            self.k0 = k0
-        return self.part[k - k0]
+            self.k0 = k - k % self.block
+            self.part = np.ascontiguousarray(self.mask[self.k0: self.k0 + self.block])
+        return self[k]
+
+
+def _packed_source(mask2d):
+    """A callable that gives ``mask2d`` (2D bool) again, from its bits packed eight to a byte: what a
+    slice of a volume read in blocks (:class:`_Planes`) keeps to make its label image again (an
+    eighth of its pixels' bytes; a slice copied alone from a Fortran-ordered volume took twice
+    as long as labelling it)."""
+    bits, shape = np.packbits(mask2d), mask2d.shape
+
+    def source():
+        return np.unpackbits(bits, count=shape[0] * shape[1]).view(bool).reshape(shape)
+
+    return source
 
 
 class _HoleMasks(Sequence):
@@ -755,8 +773,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
 
     def load(k):
         if slices[k] is None and k in occupied_set:
-            slices[k] = _Slice(planes[k], polygon, to_xy_corner, to_xy_center, recent,
-                               source=None if planes.direct else (lambda k=k: planes[k]))
+            m2 = planes.reading(k)
+            slices[k] = _Slice(m2, polygon, to_xy_corner, to_xy_center, recent,
+                               source=None if planes.direct else _packed_source(m2))
             bar.update()
 
     occupied_set = set(occupied)
