@@ -910,3 +910,68 @@ def test_fortran_ordered_volume_is_copied_to_c_order_exactly():
         assert np.array_equal(_c_order(v[:, ::2]), v[:, ::2])  # (other layouts: numpy's copy)
         if v.any():
             assert np.array_equal(prepare_volume(f)[0], v)
+
+
+def _faces_near_reference(V, W, F, moved_faces):
+    # repair._faces_near until issue 16's memory round: the whole mesh's boxes, extents and cells
+    # as numpy arrays
+    P = np.stack([V[F], W[F]], axis=1).reshape(len(F), 6, 3)
+    lo, hi = P.min(axis=1), P.max(axis=1)
+    glo = lo.min(axis=0)
+    ext = hi - lo
+    h = max(float(ext[moved_faces].max()), float(np.median(ext.max(axis=1))), 1e-12)
+    clo = np.floor((lo - glo) / h).astype(np.int64)
+    chi = np.floor((hi - glo) / h).astype(np.int64)
+    return np.flatnonzero(repair._share_cell(clo, chi, np.asarray(moved_faces, dtype=np.int64)))
+
+
+@njit(cache=False)
+def _boxes_near_reference(V, F, chosen):
+    # repair._boxes_near until issue 16's memory round (boxes, extents and cells kept per face)
+    n = F.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    ext = np.empty(n)
+    for i in range(n):
+        e = 0.0
+        for d in range(3):
+            a, b, c = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
+            lo[i, d] = min(a, b, c)
+            hi[i, d] = max(a, b, c)
+            e = max(e, hi[i, d] - lo[i, d])
+        ext[i] = e
+    h = max(np.median(ext), 1e-12)
+    for t in range(len(chosen)):
+        h = max(h, ext[chosen[t]])
+    glo = np.empty(3)
+    for d in range(3):
+        glo[d] = lo[:, d].min()
+    clo = np.empty((n, 3), np.int64)
+    chi = np.empty((n, 3), np.int64)
+    for i in range(n):
+        for d in range(3):
+            clo[i, d] = np.int64(np.floor((lo[i, d] - glo[d]) / h))
+            chi[i, d] = np.int64(np.floor((hi[i, d] - glo[d]) / h))
+    return np.flatnonzero(repair._share_cell(clo, chi, chosen))
+
+
+def test_faces_near_without_whole_mesh_boxes_equals_the_reference():
+    # issue 16 (memory): the faces near the moved ones (resolve_crossings) and near the changed
+    # ones (crossing_pairs_after_change) from compiled passes over the corners, without the whole
+    # mesh's boxes: the same faces as from the boxes, on grid coordinates (cells meet exactly at
+    # box sides) and anywhere, with few and many chosen faces
+    rng = np.random.default_rng(37)
+    sizes = set()
+    for trial in range(120):
+        nv, m = int(rng.integers(4, 200)), int(rng.integers(2, 400))
+        V = (rng.integers(-20, 21, (nv, 3)) / 4.0) if trial % 2 == 0 else rng.normal(scale=5.0, size=(nv, 3))
+        W = V.copy()
+        F = _random_faces(rng, m, nv)
+        chosen = np.unique(rng.choice(m, int(rng.integers(1, max(2, m // (1 + 9 * (trial % 3)))))))
+        W[np.unique(F[chosen])] += rng.normal(scale=0.3, size=(len(np.unique(F[chosen])), 3))
+        got = repair._faces_near(V, W, F, chosen)
+        assert np.array_equal(got, _faces_near_reference(V, W, F, chosen))
+        got = repair._boxes_near(V, F, chosen)
+        assert np.array_equal(got, _boxes_near_reference(V, F, chosen))
+        sizes.add(len(got) == m)
+    assert sizes == {True, False}

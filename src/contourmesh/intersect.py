@@ -871,14 +871,17 @@ def _star_fill_levels(V, F, star, lev, l0, l1):
     for v in range(nv):
         start[v + 1] += start[v]
     fill = start[:nv].copy()
-    inc = np.empty(start[nv], np.int64)  # the faces at each vertex, by corner: 3 * face + corner
+    # the faces at each vertex, by corner: 3 * face + corner; int32, as the per-vertex arrays below
+    # (a byte for the grid bits): on the liver's whole mesh these were some 18 MiB in int64, at the
+    # peak of the general mesher's crossing test (a mesh of 2^29 faces would not fit in memory here)
+    inc = np.empty(start[nv], np.int32)
     for i in range(m):
         for t in range(3):
             v = F[i, t]
             if l0 <= lev[v] <= l1:
                 inc[fill[v]] = 3 * i + t
                 fill[v] += 1
-    grid = np.zeros(nv, np.int64)  # coordinates on the grid of _dir_sign (bit k: coordinate k)
+    grid = np.zeros(nv, np.int8)  # coordinates on the grid of _dir_sign (bit k: coordinate k)
     for v in range(nv):
         g = 0
         for k in range(3):
@@ -886,8 +889,8 @@ def _star_fill_levels(V, F, star, lev, l0, l1):
             if abs(x) < 16384.0 and x * 1024.0 == math.floor(x * 1024.0):
                 g |= 1 << k
         grid[v] = g
-    nxt = np.empty(nv, np.int64)  # link edge a -> b of the face (p, a, b), stamped by p
-    stamp = np.full(nv, -1, np.int64)
+    nxt = np.empty(nv, np.int32)  # link edge a -> b of the face (p, a, b), stamped by p
+    stamp = np.full(nv, -1, np.int32)
     most = 0
     for p in range(nv):
         most = max(most, start[p + 1] - start[p])
@@ -1079,7 +1082,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
     asks only whether there are any)."""
     m = len(F)
     box = np.empty((m, 6), np.float64)
-    live = np.empty(m, np.int64)
+    live = np.empty(m, np.int8)
     glo = np.empty(3, np.float64)
     ghi = np.empty(3, np.float64)
     for k in range(3):
@@ -1135,25 +1138,29 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
         total = _count_cells(box, live, glo, h)
     # hash table of cells: counting sort of (face, cell) entries by bucket (about one entry per
     # bucket: the entries of one cell share a bucket anyway; twice as many buckets took a fifth
-    # more memory on the lobster's mesh for no speed)
+    # more memory on the lobster's mesh for no speed).  Bucket starts and entry faces in int32
+    # (the keys need int64): with int64 they were 48 of the 81 MiB this test took on the lobster's
+    # mesh (396k faces, 2M entries); 2^31 entries would take more than 24 GiB
+    if total >= 2**31 - 1:
+        raise MemoryError("too many grid cells for the crossing test's int32 tables")
     nb = 1
     while nb < total:
         nb *= 2
     mask = nb - 1
-    start = np.empty(nb + 1, np.int64)
+    start = np.empty(nb + 1, np.int32)
     for q in range(nb + 1):
         start[q] = 0
     ny = _cell(ghi[1], glo[1], h[1]) + 1
     nx = _cell(ghi[0], glo[0], h[0]) + 1
-    dummy = np.empty(0, np.int64)
-    _visit_cells(box, live, glo, h, mask, ny, nx, start, dummy, dummy, dummy, np.int64(0))
+    dummy = np.empty(0, np.int32)
+    _visit_cells(box, live, glo, h, mask, ny, nx, start, dummy, dummy, np.empty(0, np.int64), np.int64(0))
     acc = 0
     for q in range(nb):
         cnt = start[q]
         start[q] = acc
         acc += cnt
     start[nb] = acc
-    ent_face = np.empty(acc, np.int64)
+    ent_face = np.empty(acc, np.int32)
     ent_key = np.empty(acc, np.int64)
     # start itself is the fill pointer (each bucket's ends at the next one's start), then shifted back
     _visit_cells(box, live, glo, h, mask, ny, nx, start, start, ent_face, ent_key, np.int64(1))
@@ -1170,8 +1177,8 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
                 if ent_key[t] != key:
                     continue
                 j0 = ent_face[t]
-                i = min(i0, j0)
-                j = max(i0, j0)
+                i = np.int64(min(i0, j0))  # (int64: one signature for the tests below)
+                j = np.int64(max(i0, j0))
                 if (box[i, 0] > box[j, 3] or box[j, 0] > box[i, 3] or box[i, 1] > box[j, 4]
                         or box[j, 1] > box[i, 4] or box[i, 2] > box[j, 5] or box[j, 2] > box[i, 5]):
                     continue

@@ -858,35 +858,65 @@ def _add_at_rows(acc, F, rows):
 def _faces_near(V, W, F, moved_faces):
     """Indices of the faces whose bounding box (in ``V`` or ``W``) may meet the bounding box (in
     ``V`` or ``W``) of a face in ``moved_faces`` (a superset: faces sharing a grid cell with one):
-    every face that can meet a moved face, whichever position it is in."""
-    lo, hi = _two_position_boxes(V, W, F)
-    glo = lo.min(axis=0)
-    ext = hi - lo
+    every face that can meet a moved face, whichever position it is in.
+
+    The boxes are not kept: their extents, then their cells, are made from the corners in two
+    compiled passes (the same numbers as from the boxes: minima, maxima and one subtraction and
+    division each); the boxes, their extents and the float cells of the whole mesh took some 60
+    MiB on the lobster's mesh, at the general mesher's peak."""
+    moved = np.asarray(moved_faces, dtype=np.int64)
+    glo, ext = _box_extents(V, W, F, True)
     # cells as large as the moved faces (so each covers a few), and no smaller than most faces
-    h = max(float(ext[moved_faces].max()), float(np.median(ext.max(axis=1))), 1e-12)
-    clo = np.floor((lo - glo) / h).astype(np.int64)
-    chi = np.floor((hi - glo) / h).astype(np.int64)
-    return np.flatnonzero(_share_cell(clo, chi, np.asarray(moved_faces, dtype=np.int64)))
+    h = max(float(ext[moved].max()), float(np.median(ext)), 1e-12)
+    clo, chi = _box_cells(V, W, F, glo, h, True)
+    return np.flatnonzero(_share_cell(clo, chi, moved))
 
 
 @njit(cache=True, nogil=True)
-def _two_position_boxes(V, W, F):
-    """Per face, the bounding box of its corners in ``V`` and in ``W`` together: ``(lo, hi)``."""
-    m = F.shape[0]
-    lo = np.empty((m, 3))
-    hi = np.empty((m, 3))
-    for i in range(m):
+def _face_box(V, W, F, i, d, both):
+    """The extent ``(lo, hi)`` along axis ``d`` of face ``i``'s corners in ``V`` (and in ``W``
+    with ``both``)."""
+    if not both:
+        x0, x1, x2 = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
+        return min(x0, x1, x2), max(x0, x1, x2)
+    a = V[F[i, 0], d]
+    b = a
+    for P in (V, W):
+        for c in range(3):
+            x = P[F[i, c], d]
+            a = min(a, x)
+            b = max(b, x)
+    return a, b
+
+
+@njit(cache=True, nogil=True)
+def _box_extents(V, W, F, both):
+    """``(glo, ext)``: the low corner of all the faces' boxes (corners in ``V``, and ``W`` with
+    ``both``), and per face the longest side of its box."""
+    glo = np.full(3, np.inf)
+    ext = np.empty(F.shape[0])
+    for i in range(F.shape[0]):
+        e = 0.0
         for d in range(3):
-            a = V[F[i, 0], d]
-            b = a
-            for P in (V, W):
-                for c in range(3):
-                    x = P[F[i, c], d]
-                    a = min(a, x)
-                    b = max(b, x)
-            lo[i, d] = a
-            hi[i, d] = b
-    return lo, hi
+            a, b = _face_box(V, W, F, i, d, both)
+            glo[d] = min(glo[d], a)
+            e = max(e, b - a)
+        ext[i] = e
+    return glo, ext
+
+
+@njit(cache=True, nogil=True)
+def _box_cells(V, W, F, glo, h, both):
+    """``(clo, chi)``: per face the cells (of size ``h`` from ``glo``) of its box's low and high
+    corners, ``floor((x - glo) / h)`` (boxes as :func:`_box_extents`)."""
+    clo = np.empty((F.shape[0], 3), np.int64)
+    chi = np.empty((F.shape[0], 3), np.int64)
+    for i in range(F.shape[0]):
+        for d in range(3):
+            a, b = _face_box(V, W, F, i, d, both)
+            clo[i, d] = np.int64(np.floor((a - glo[d]) / h))
+            chi[i, d] = np.int64(np.floor((b - glo[d]) / h))
+    return clo, chi
 
 
 @njit(cache=True, nogil=True)
@@ -1014,31 +1044,12 @@ def _face_position_keys(V0, F0, V1, F1):
 def _boxes_near(V, F, chosen):
     """Faces sharing a cell of a grid with a face in ``chosen``: a superset of the faces whose
     closed bounding boxes meet the box of a chosen face.  The cells are as large as the chosen
-    faces and no smaller than most faces."""
-    n = F.shape[0]
-    lo = np.empty((n, 3))
-    hi = np.empty((n, 3))
-    ext = np.empty(n)
-    for i in range(n):
-        e = 0.0
-        for d in range(3):
-            a, b, c = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
-            lo[i, d] = min(a, b, c)
-            hi[i, d] = max(a, b, c)
-            e = max(e, hi[i, d] - lo[i, d])
-        ext[i] = e
+    faces and no smaller than most faces.  (The faces' boxes are not kept: see :func:`_faces_near`.)"""
+    glo, ext = _box_extents(V, V, F, False)
     h = max(np.median(ext), 1e-12)
     for t in range(len(chosen)):
         h = max(h, ext[chosen[t]])
-    glo = np.empty(3)
-    for d in range(3):
-        glo[d] = lo[:, d].min()
-    clo = np.empty((n, 3), np.int64)
-    chi = np.empty((n, 3), np.int64)
-    for i in range(n):
-        for d in range(3):
-            clo[i, d] = np.int64(np.floor((lo[i, d] - glo[d]) / h))
-            chi[i, d] = np.int64(np.floor((hi[i, d] - glo[d]) / h))
+    clo, chi = _box_cells(V, V, F, glo, h, False)
     return np.flatnonzero(_share_cell(clo, chi, chosen))
 
 

@@ -84,13 +84,16 @@ def select_voxels(vol: np.ndarray, *, label=None, threshold=None, where: str = "
 
 
 def prepare_volume(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
-                   origin=(0.0, 0.0, 0.0)):
+                   origin=(0.0, 0.0, 0.0), contiguous: bool = True):
     """Validate a volume and return ``(mask [z, y, x] bool, zs, (dy, dx), (ox, oy))``.
 
     ``label=L`` selects voxels equal to ``L``; ``threshold=T`` selects voxels ``> T``; without
     either the array must be boolean or hold only 0 and 1.  ``axis`` is the slicing axis (its
     spacing becomes ``dz``); ``z`` gives explicit slice positions (strictly increasing).
     ``origin`` is the physical ``(x, y, z)`` of voxel ``[0, 0, 0]``'s centre (after ``axis``).
+    ``contiguous=False``: the mask may be a view of a boolean volume in another memory layout (a
+    Fortran-ordered array, or ``axis`` other than 0) rather than a C-ordered copy of it, for a
+    caller that reads it a slice at a time (the copy is the size of the volume).
     """
     vol = check_volume_array(volume)
     if axis not in (0, 1, 2):
@@ -103,7 +106,8 @@ def prepare_volume(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         order = [axis] + [a for a in (0, 1, 2) if a != axis]
         mask = np.transpose(mask, order)
         sp = sp[order]
-    mask = _c_order(mask)
+    if contiguous:
+        mask = _c_order(mask)
     if not mask.any():
         raise ValueError("volume holds no foreground voxels (nothing to mesh)")
     nz = mask.shape[0]

@@ -113,7 +113,7 @@ from .repair import (
 )
 from .tracing import _crack_contours, label_mask, missing_corners, overlap_groups, overlap_holes, unique_keys
 from .types import Mesh
-from .volume_input import binary_label, prepare_volume
+from .volume_input import _c_order, binary_label, prepare_volume
 
 log = logging.getLogger("contourmesh")
 
@@ -210,6 +210,52 @@ class _RecentLabels:
             held.pop(0)._labels = None
 
 
+class _Planes:
+    """The slices of a boolean volume, each C-ordered when read (``planes[k]``, a 2D array): the
+    volume's own where it is C-ordered, else from the block of about 4 MiB of consecutive slices
+    last read going up the stack (:meth:`reading`), else copied alone.  The general mesher reads
+    the slices going up the stack; a volume in another layout (Fortran-ordered, as many file
+    readers give it) read a slice at a time costs a cache line per voxel, a block at a time about
+    as much as one C-ordered copy of the whole, without holding a second volume to the end."""
+
+    def __init__(self, mask, block_bytes: int = 4 << 20):
+        self.mask = mask
+        self.direct = mask.flags.c_contiguous
+        self.block = int(min(64, max(1, block_bytes // max(1, mask[0].size)))) if len(mask) else 1
+        self.k0, self.part = -1, None
+
+    def __len__(self) -> int:
+        return len(self.mask)
+
+    def __getitem__(self, k: int) -> np.ndarray:
+        if self.direct:
+            return self.mask[k]
+        if self.part is not None and 0 <= k - self.k0 < len(self.part):
+            return self.part[k - self.k0]
+        return np.ascontiguousarray(self.mask[k])
+
+    def reading(self, k: int) -> np.ndarray:
+        """``self[k]``, from the block that holds it (read now where it is not the last one)."""
+        if not self.direct and (self.part is None or not 0 <= k - self.k0 < len(self.part)):
+            self.part = None  # (the old block goes first)
+            self.k0 = k - k % self.block
+            self.part = np.ascontiguousarray(self.mask[self.k0: self.k0 + self.block])
+        return self[k]
+
+
+def _packed_source(mask2d):
+    """A callable that gives ``mask2d`` (2D bool) again, from its bits packed eight to a byte: what a
+    slice of a volume read in blocks (:class:`_Planes`) keeps to make its label image again (an
+    eighth of its pixels' bytes; a slice copied alone from a Fortran-ordered volume took twice
+    as long as labelling it)."""
+    bits, shape = np.packbits(mask2d), mask2d.shape
+
+    def source():
+        return np.unpackbits(bits, count=shape[0] * shape[1]).view(bool).reshape(shape)
+
+    return source
+
+
 class _HoleMasks(Sequence):
     """The holes of one component as pixel sets: a sequence of bool masks over the component's
     box (``hole_masks[c][1]`` of a :class:`_Slice`).  Each is kept cropped to the hole's own box
@@ -278,15 +324,17 @@ class _Slice:
     """The components of one slice with their contours and polygons (physical xy).
 
     ``recent``: a :class:`_RecentLabels` that decides how long the slice keeps its label image
-    (``None``: for the slice's lifetime).  ``box``: a pair of slices of ``mask2d`` outside which it
+    (``None``: for the slice's lifetime).  ``source``: where ``mask2d`` is a view of a block that
+    should not be kept (:class:`_Planes`), a callable that gives the mask again when the label
+    image is made again.  ``box``: a pair of slices of ``mask2d`` outside which it
     has no pixel (an intermediate section): only the box is labelled (the same labels, numbered
     in raster order within it, and the same boxes, moved back to the whole image)."""
 
-    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None, box=None):
+    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None, box=None, source=None):
         from scipy import ndimage
 
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
-        self._mask, self._recent = mask2d, recent
+        self._mask, self._recent, self._source = (mask2d if source is None else None), recent, source
         if box is None:
             labels, self.n, self.objects = slice_labels(mask2d)
             # the labels in the smallest dtype that holds them
@@ -356,7 +404,7 @@ class _Slice:
         ``slice_labels`` makes them from the mask: made again where :class:`_RecentLabels`
         dropped them."""
         if self._labels is None:
-            self._labels = self._small(slice_labels(self._mask)[0])
+            self._labels = self._small(slice_labels(self._mask if self._source is None else self._source())[0])
             self._recent.remade += 1
         if self._recent is not None:
             self._recent.hold(self)
@@ -676,7 +724,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         sp = [float(s) for i, s in enumerate(np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,))) if i != axis]
         def planes():  # the section heights, needed only where faces cross
             return prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label, threshold=threshold,
-                                  origin=origin)[1]
+                                  origin=origin, contiguous=False)[1]
 
         V, F = fast.vertices, fast.faces
         pairs = intersecting_pairs(V, F)
@@ -696,10 +744,14 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         log.debug("volume mesher: the fast path's mesh has crossing faces; general mesher")
     else:
         log.debug("volume mesher: the fast path declined (holes, branching or options); general mesher")
+    # the mask as given where it is boolean (a view): the slices are read one at a time and each made
+    # C-ordered where labelled (slice_labels); a C-ordered copy of a Fortran-ordered volume (as read
+    # from many files) was a second volume held to the end, 49 of the 132 MiB the liver took
     mask, zs, (dy, dx), (ox, oy) = prepare_volume(volume, spacing=spacing, z=z, axis=axis, label=label,
-                                                  threshold=threshold, origin=origin)
+                                                  threshold=threshold, origin=origin, contiguous=False)
     if general is not None and polygons is None and refine is None and smooth_ends is None and slab_supported():
-        got = general(mask, zs, (dy, dx), (ox, oy), polygon=polygon, triangulation=triangulation, caps=caps)
+        got = general(_c_order(mask), zs, (dy, dx), (ox, oy), polygon=polygon, triangulation=triangulation,
+                      caps=caps)
         if got is not None:
             return got
     from tqdm.auto import tqdm
@@ -712,13 +764,18 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # pass 1: contours and polygons of every slice, made as pass 2 reaches the slice; only the
     # label images of the last few slices used are kept (_RecentLabels)
     slices = [None] * nz
-    occupied = [k for k in range(nz) if mask[k].any()]
+    planes = _Planes(mask)  # (the slices C-ordered, a block at a time where the volume is not)
+    # (a volume in another layout in one pass: a slice at a time costs a cache line per voxel)
+    occupied = [k for k in range(nz) if mask[k].any()] if mask.flags.c_contiguous else \
+        np.flatnonzero(mask.any(axis=(1, 2))).tolist()
     recent = _RecentLabels()
     bar = tqdm(total=len(occupied), desc="slices", disable=not progress, leave=False)
 
     def load(k):
         if slices[k] is None and k in occupied_set:
-            slices[k] = _Slice(mask[k], polygon, to_xy_corner, to_xy_center, recent)
+            m2 = planes.reading(k)
+            slices[k] = _Slice(m2, polygon, to_xy_corner, to_xy_center, recent,
+                               source=None if planes.direct else _packed_source(m2))
             bar.update()
 
     occupied_set = set(occupied)
@@ -758,16 +815,18 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     for k in occupied:  # (a single slice)
         load(k)
     bar.close()
+    planes.part = None  # (every slice is read: the last block goes; 3.9 MiB on the liver)
 
     refine_info = {}
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
-        refine_info = _refine_polygons(mask, zs, slices, occupied, crack_only, joins, (dx, dy), (ox, oy), refine)
+        refine_info = _refine_polygons(np.ascontiguousarray(mask), zs, slices, occupied, crack_only, joins, (dx, dy),
+                                       (ox, oy), refine)
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
     # with _DENSE_STEP set, the rings of branching joins get a vertex at least every pixel (see _densify_branching)
     # (band2: a vertex every half pixel, as its refined polygons have twice the vertices)
     dense_step = px / (2.0 if refine == "band2" else 1.0)
     dense_rings = 0 if polygons is not None or _DENSE_STEP is None else \
-        _densify_branching(mask, slices, joins, crack_only, (ox, oy, dx, dy), _DENSE_STEP * dense_step)
+        _densify_branching(planes, slices, joins, crack_only, (ox, oy, dx, dy), _DENSE_STEP * dense_step)
     # without it, the components of the branching joins that fail (would become exact) are densified
     # and the bridged joins built again (see _retry_dense); not on the contours route
     retry_dense = polygons is None and _DENSE_STEP is None and _DENSE_RETRY_STEP is not None and \
@@ -798,9 +857,9 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         densify them (the number of rings changed)."""
         step = _DENSE_FAILED_STEP * dense_step
         if trial:
-            return {(k, c): [d for d, _a in _dense_rings(mask, slices, k, c, (ox, oy, dx, dy), step, True)]
+            return {(k, c): [d for d, _a in _dense_rings(planes, slices, k, c, (ox, oy, dx, dy), step, True)]
                     for k, c in comps}
-        got = _densify_components(mask, slices, set(comps), (ox, oy, dx, dy), step, total=True, tally=dense_tally)
+        got = _densify_components(planes, slices, set(comps), (ox, oy, dx, dy), step, total=True, tally=dense_tally)
         densified[0] += got
         touched.update(comps)
         return got
@@ -819,7 +878,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
                                polygon=polygon, densify=dense_failed)
         if retry_dense:  # (also after a crossing fallback: its crack rings can make neighbours fail)
             built, bridge_cache, n_dense = _retry_dense(
-                built, bridge_cache, joins, joins0, crack_only, crack0, mask, slices,
+                built, bridge_cache, joins, joins0, crack_only, crack0, planes, slices,
                 (ox, oy, dx, dy), _DENSE_RETRY_STEP * dense_step,
                 lambda cache, sections: _build_bridges(joins, slices, zs, crack_only, triangulation, caps,
                                                        (ox, oy, dx, dy), has_above, has_below, cache,
@@ -829,7 +888,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
             dense_rings += n_dense
         if _DENSE_MIXED_STEP is not None and polygons is None:
             # the polygons banded to crack rings (next to exact joins) get a vertex every pixel
-            dense_rings += _densify_mixed(mask, slices, joins, crack_only, (ox, oy, dx, dy),
+            dense_rings += _densify_mixed(planes, slices, joins, crack_only, (ox, oy, dx, dy),
                                           _DENSE_MIXED_STEP * dense_step, touched, tally=dense_tally)
         dense_rings += densified[0] - n_before
         if touched and unit_cache:  # (a unit's key does not hold its rings' points)
@@ -1657,7 +1716,8 @@ def _dense_rings(mask, slices, k, c, grid, step, total=False) -> list:
         if added.any():
             idx = np.c_[(d[added, 0] - ox) / dx, (d[added, 1] - oy) / dy]
             keep = ~added
-            keep[added] = ~_off_band(mask, k, idx, (1.0, 1.0))
+            # (slice k alone, C-ordered (mask: the volume or its _Planes); the band test reads no other slice)
+            keep[added] = ~_off_band(mask[k][None], 0, idx, (1.0, 1.0))
             d, added = d[keep], added[keep]
         out.append((d, added) if len(d) != len(r) else (r, None))
     return out
