@@ -101,10 +101,15 @@ def _general_mesher():
 
 
 def _checks():
-    """Mesh.checks() (and --json): the self-intersection test."""
+    """Mesh.checks() (and --json): the self-intersection test; and the manifold repair's edge
+    kernels on threads (CONTOURMESH_THREADS > 1, large meshes)."""
     import contourmesh
+    from contourmesh import repair
 
-    contourmesh.mesh(np.pad(np.ones((2, 2, 2), dtype=bool), 1)).checks()
+    m = contourmesh.mesh(np.pad(np.ones((2, 2, 2), dtype=bool), 1))
+    m.checks()
+    repair._edge_multiplicity_threads(m.faces, len(m.vertices), 2)
+    repair._half_edge_twins_threads(m.faces, len(m.vertices), 2)
 
 
 STEPS = (

@@ -975,3 +975,34 @@ def test_faces_near_without_whole_mesh_boxes_equals_the_reference():
         assert np.array_equal(got, _boxes_near_reference(V, F, chosen))
         sizes.add(len(got) == m)
     assert sizes == {True, False}
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+def test_edge_counts_and_twins_on_threads_equal_one_threads(monkeypatch, threads):
+    """The manifold repair's edge counts and half-edge twins on threads (meshes of at least
+    _SPLIT_EDGES faces, CONTOURMESH_THREADS > 1): the one-thread kernels' arrays, a non-zero status
+    where theirs is, and the same repaired meshes."""
+    rng = np.random.default_rng(17)
+    for m, nv in ((400, 40), (3000, 900), (5, 9)):
+        F = _random_faces(rng, m, nv)
+        assert np.array_equal(repair._edge_multiplicity_threads(F, nv, threads), repair._edge_multiplicity(F, nv))
+    s = trimesh.creation.icosphere(subdivisions=4)
+    F = np.ascontiguousarray(s.faces, dtype=np.int64)[rng.permutation(len(s.faces))]
+    nv = len(s.vertices)
+    twin, status = repair._half_edge_twins_threads(F, nv, threads)
+    assert status == 0 and np.array_equal(twin, repair._half_edge_twins(F, nv)[0])
+    assert repair._half_edge_twins_threads(F[1:], nv, threads)[1] != 0
+    assert repair._half_edge_twins_threads(np.concatenate([F, F[:1]]), nv, threads)[1] != 0
+    # the general mesher's repair (four-face edges split by side, vertex fans) on a noisy volume
+    import contourmesh
+
+    vol = np.pad(rng.random((10, 12, 11)) < 0.45, 1)
+    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
+    one = contourmesh.mesh(vol)
+    calls = []
+    monkeypatch.setattr(repair, "_SPLIT_EDGES", 10)
+    monkeypatch.setattr(repair, "_buckets_on_threads", lambda *a, f=repair._buckets_on_threads: calls.append(1) or f(*a))
+    monkeypatch.setenv("CONTOURMESH_THREADS", str(threads))
+    many = contourmesh.mesh(vol)
+    assert len(calls) >= 2 and one.meta == many.meta
+    assert one.vertices.tobytes() == many.vertices.tobytes() and one.faces.tobytes() == many.faces.tobytes()

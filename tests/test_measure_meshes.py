@@ -153,3 +153,62 @@ def test_axis_wall_fraction_matches_the_normals_rule():
         axis_wall_fraction(v, f + 300)
     with pytest.raises(ValueError, match=r"\(m, 3\) faces"):
         axis_wall_fraction(v, f[:, :2])
+
+
+@pytest.mark.parametrize("threads", ["1", "2", "3"])
+def test_compiled_size_sums_are_fsums_of_the_face_terms(monkeypatch, threads):
+    """surface_area and axis_wall_fraction sum the faces' sizes in compiled ranges (on threads where
+    CONTOURMESH_THREADS asks): the same floats as math.fsum of face_terms' sizes, at scales from
+    tiny to large, with exact walls mixed in; NaN and infinite sizes and bad faces take
+    face_terms' route (its values and errors)."""
+    import math
+
+    from contourmesh import measure
+
+    monkeypatch.setenv("CONTOURMESH_THREADS", threads)
+    monkeypatch.setattr(measure, "_SPLIT_SIZES", 50)
+
+    def reference(v, f):
+        size, wall, _six = measure.face_terms(v, f)
+        total = math.fsum(size)
+        return 0.5 * total, (float(math.fsum(size[wall]) / total) if total > 0 else 0.0)
+
+    rng = np.random.default_rng(11)
+    for t in range(120):
+        n, m = int(rng.integers(3, 80)), int(rng.integers(1, 700))
+        scale = 10.0 ** int(rng.integers(-70, 76))  # (squares of the cross products below 1e308)
+        v = rng.normal(size=(n, 3))
+        if t % 3 == 0:
+            v = np.round(v * 4) / 4  # faces in x = c or y = c planes, some degenerate
+        v *= scale
+        f = rng.integers(0, n, size=(m, 3))
+        got = (measure.surface_area(v, f), measure.axis_wall_fraction(v, f))
+        assert got == reference(v, f), (t, scale)
+        assert Mesh(v, f).area == got[0]
+    v = rng.normal(size=(40, 3)) * 1e76
+    f = rng.integers(0, 40, size=(400, 3))
+    nan, inf = (np.where(rng.random(v.shape) < 0.01, x, v) for x in (np.nan, np.inf))
+    for bad in (v, v * 1e84, nan, inf):  # (finite; cross products whose squares overflow; NaN; inf)
+        assert np.array_equal((measure.surface_area(bad, f), measure.axis_wall_fraction(bad, f)),
+                              reference(bad, f), equal_nan=True)
+    with pytest.raises(ValueError, match="outside"):
+        measure.surface_area(v, f + 40)
+
+
+def test_size_sums_kernel_is_exact_per_range():
+    """The kernel's two expansions sum exactly what fsum sums (each range's, then all ranges' parts)."""
+    import math
+
+    from contourmesh import measure
+
+    rng = np.random.default_rng(12)
+    v = rng.normal(size=(200, 3)) * np.array([1.0, 1e-9, 1e9])
+    v[:50, 0] = np.round(v[:50, 0])
+    f = rng.integers(0, 200, size=(5000, 3))
+    size, wall, _ = measure.face_terms(v, f)
+    for a, b in ((0, 5000), (0, 1), (17, 4000), (3000, 3000)):
+        ok, parts, n, wparts, nw = measure._size_sums(v, f, a, b)
+        assert ok and n < measure._PARTS and nw < measure._PARTS
+        assert math.fsum(parts[:n].tolist() + [-x for x in size[a:b]]) == 0.0
+        assert math.fsum(wparts[:nw].tolist() + [-x for x in size[a:b][wall[a:b]]]) == 0.0
+        assert math.fsum(parts[:n].tolist()) == math.fsum(size[a:b])

@@ -45,3 +45,22 @@ def test_run_all_stops_after_a_failure_and_raises_it():
 
 def test_one_pool_per_thread_count():
     assert worker_pool(2) is worker_pool(2) and worker_pool(2) is not worker_pool(3)
+
+
+def test_run_all_inside_a_worker_runs_there():
+    """A call on the pool that itself asks for threads (the area of a large mesh measured in a
+    slab task, say) runs its calls on its own thread instead of waiting for a helper queued behind
+    itself on a one-worker pool."""
+    import threading
+
+    from contourmesh._workers import run_all
+
+    def outer(i):
+        names = run_all(lambda j: threading.current_thread().name, [(j,) for j in range(4)], 2)
+        return i, threading.current_thread().name, names
+
+    got = run_all(outer, [(i,) for i in range(6)], 2)
+    assert [i for i, _, _ in got] == list(range(6))
+    for _, where, names in got:
+        if where.startswith("contourmesh-worker"):
+            assert names == [where] * 4

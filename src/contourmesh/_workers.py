@@ -39,9 +39,11 @@ def run_all(fn, args, threads: int) -> list:
     ``threads - 1`` workers of the pool take the calls one after another from a shared counter,
     so that where a worker is not scheduled (another process on the core) the caller goes on with
     the calls instead of waiting for it.  Where a call raises, no further call starts, the running
-    ones finish, and the first exception goes on."""
+    ones finish, and the first exception goes on.  Called from one of the kept worker threads
+    (a call that itself runs on the pool), it runs the calls there, in order: a helper submitted
+    to the pool could wait behind the very call that waits for it."""
     n = len(args)
-    if threads <= 1 or n <= 1:
+    if threads <= 1 or n <= 1 or threading.current_thread().name.startswith(THREAD_PREFIX):
         return [fn(*a) for a in args]
     results = [None] * n
     lock = threading.Lock()

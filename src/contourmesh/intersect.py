@@ -1955,15 +1955,33 @@ def _levels(z):
                 prev = z[t]
             lev[t] = k
         return lev, k + 1
-    order = np.argsort(z)
+    # the heights come in runs (a ring's points share one): the runs' heights sorted, not every
+    # vertex's (liver x2's repaired mesh, 0.56 M vertices: 50 ms sorting them all, serial in a
+    # two-thread call)
+    run = np.empty(n, np.int64)  # each vertex's run
+    starts = np.empty(n, np.int64)
+    r = np.int64(-1)
+    for t in range(n):
+        if t == 0 or z[t] != z[t - 1]:
+            r += 1
+            starts[r] = t
+        run[t] = r
+    nr = r + 1
+    rz = np.empty(nr)
+    for i in range(nr):
+        rz[i] = z[starts[i]]
+    order = np.argsort(rz)
+    rank = np.empty(nr, np.int64)
     k = np.int64(-1)
     prev = 0.0
-    for t in range(n):
-        v = z[order[t]]
+    for t in range(nr):
+        v = rz[order[t]]
         if t == 0 or v != prev:
             k += 1
             prev = v
-        lev[order[t]] = k
+        rank[order[t]] = k
+    for t in range(n):
+        lev[t] = rank[run[t]]
     return lev, k + 1
 
 

@@ -92,6 +92,9 @@ def surface_area(vertices: np.ndarray, faces: np.ndarray) -> float:
     and faces are ordered (:func:`face_terms`)."""
     if len(faces) == 0:
         return 0.0
+    sums = _size_totals(vertices, faces)
+    if sums is not None:
+        return 0.5 * sums[0]
     return 0.5 * math.fsum(face_terms(vertices, faces)[0])
 
 
@@ -137,31 +140,131 @@ def _lex_less(v, i, j):
 
 
 @njit(cache=True, nogil=True)
+def _lex_first(v, p, q, r):
+    """The face ``(p, q, r)`` rotated (orientation kept) to start at its lexicographically smallest corner."""
+    if _lex_less(v, q, p) and not _lex_less(v, r, q):
+        return q, r, p
+    if _lex_less(v, r, p) and _lex_less(v, r, q):
+        return r, p, q
+    return p, q, r
+
+
+@njit(cache=True, nogil=True)
+def _size_wall(v, p, q, r):
+    """``(|(q - p) x (r - p)|, wall)`` of a face already started at its smallest corner (see
+    :func:`face_terms`)."""
+    ux, uy, uz = v[q, 0] - v[p, 0], v[q, 1] - v[p, 1], v[q, 2] - v[p, 2]
+    wx, wy, wz = v[r, 0] - v[p, 0], v[r, 1] - v[p, 1], v[r, 2] - v[p, 2]
+    nx = uy * wz - uz * wy
+    ny = uz * wx - ux * wz
+    nz = ux * wy - uy * wx
+    s = math.sqrt(nx * nx + ny * ny + nz * nz)
+    tol = 1e-12 * s
+    return s, s > 0 and abs(nz) <= tol and (abs(nx) <= tol or abs(ny) <= tol)
+
+
+@njit(cache=True, nogil=True)
 def _face_terms(v, f, o):
     m = f.shape[0]
     size = np.empty(m)
     wall = np.zeros(m, np.bool_)
     six = np.empty(m)
     for i in range(m):
-        p, q, r = f[i, 0], f[i, 1], f[i, 2]
-        if _lex_less(v, q, p) and not _lex_less(v, r, q):
-            p, q, r = q, r, p
-        elif _lex_less(v, r, p) and _lex_less(v, r, q):
-            p, q, r = r, p, q
-        ux, uy, uz = v[q, 0] - v[p, 0], v[q, 1] - v[p, 1], v[q, 2] - v[p, 2]
-        wx, wy, wz = v[r, 0] - v[p, 0], v[r, 1] - v[p, 1], v[r, 2] - v[p, 2]
-        nx = uy * wz - uz * wy
-        ny = uz * wx - ux * wz
-        nz = ux * wy - uy * wx
-        s = math.sqrt(nx * nx + ny * ny + nz * nz)
-        size[i] = s
-        tol = 1e-12 * s
-        wall[i] = s > 0 and abs(nz) <= tol and (abs(nx) <= tol or abs(ny) <= tol)
+        p, q, r = _lex_first(v, f[i, 0], f[i, 1], f[i, 2])
+        size[i], wall[i] = _size_wall(v, p, q, r)
         ax, ay, az = v[p, 0] - o[0], v[p, 1] - o[1], v[p, 2] - o[2]
         bx, by, bz = v[q, 0] - o[0], v[q, 1] - o[1], v[q, 2] - o[2]
         cx, cy, cz = v[r, 0] - o[0], v[r, 1] - o[1], v[r, 2] - o[2]
         six[i] = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
     return size, wall, six
+
+
+#: Room for one partial sum's expansion (:func:`_add_exact`): non-overlapping float64 components
+#: number at most about 40 (the exponent range over the 53-bit significand).
+_PARTS = 64
+
+
+@njit(cache=True, nogil=True)
+def _add_exact(parts, n, x):
+    """Add ``x`` to the non-overlapping expansion ``parts[:n]`` (exactly, as :func:`math.fsum`
+    accumulates its partials); returns the new length.  An overflow shows as a non-finite part."""
+    i = 0
+    for j in range(n):
+        y = parts[j]
+        if abs(x) < abs(y):
+            x, y = y, x
+        hi = x + y
+        lo = y - (hi - x)
+        if lo != 0.0:
+            parts[i] = lo
+            i += 1
+        x = hi
+    parts[i] = x
+    return i + 1
+
+
+@njit(cache=True, nogil=True)
+def _size_sums(v, f, i0, i1):
+    """The faces ``i0 .. i1 - 1``'s sizes (twice their areas, :func:`face_terms`) summed exactly:
+    ``(ok, parts, n, wall_parts, n_wall)``, two expansions whose exact sums are the sum of all the
+    sizes and of the walls' sizes.  ``ok`` is False where a face indexes outside ``v`` or a part is
+    not finite (NaN or infinite vertices, an overflow): the caller then takes :func:`face_terms`."""
+    parts = np.zeros(_PARTS)
+    wparts = np.zeros(_PARTS)
+    n = 0
+    nw = 0
+    nv = v.shape[0]
+    for i in range(i0, i1):
+        a, b, c = f[i, 0], f[i, 1], f[i, 2]
+        if a < 0 or a >= nv or b < 0 or b >= nv or c < 0 or c >= nv:
+            return False, parts, n, wparts, nw
+        p, q, r = _lex_first(v, a, b, c)
+        s, w = _size_wall(v, p, q, r)
+        if s != 0.0:  # (fsum's partials skip zeros too; a NaN is caught below)
+            n = _add_exact(parts, n, s)
+            if w:
+                nw = _add_exact(wparts, nw, s)
+        if n >= _PARTS - 1 or nw >= _PARTS - 1:
+            return False, parts, n, wparts, nw
+    for j in range(n):
+        if not math.isfinite(parts[j]):
+            return False, parts, n, wparts, nw
+    for j in range(nw):
+        if not math.isfinite(wparts[j]):
+            return False, parts, n, wparts, nw
+    return True, parts, n, wparts, nw
+
+
+#: From this many faces on, :func:`_size_totals` sums the faces' sizes in ranges on
+#: ``CONTOURMESH_THREADS`` threads (the kernel releases the GIL): below it a thread costs more.
+_SPLIT_SIZES = 20_000
+
+
+def _size_totals(vertices, faces):
+    """``(sum of the sizes, sum of the walls' sizes)`` of :func:`face_terms`, each the correctly
+    rounded sum :func:`math.fsum` gives of them (the same floats), or None where the compiled sums
+    decline (see :func:`_size_sums`).  Each range of faces (one per thread and a few more, where
+    ``CONTOURMESH_THREADS`` asks for threads) sums its sizes exactly as an expansion; ``fsum`` of
+    all the ranges' expansions is then the correctly rounded exact sum of every size, which is
+    what ``fsum`` of the sizes themselves is."""
+    from .intersect import _threads
+
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
+    m = len(f)
+    threads = _threads() if m >= _SPLIT_SIZES else 1
+    if threads > 1:
+        from ._workers import run_all
+
+        bounds = np.linspace(0, m, 2 * threads + 1).astype(np.int64).tolist()
+        out = run_all(lambda a, b: _size_sums(v, f, a, b), list(zip(bounds[:-1], bounds[1:])), threads)
+    else:
+        out = [_size_sums(v, f, 0, m)]
+    if not all(o[0] for o in out):
+        return None
+    total = math.fsum([x for o in out for x in o[1][: o[2]].tolist()])
+    walls = math.fsum([x for o in out for x in o[3][: o[4]].tolist()])
+    return total, walls
 
 
 def axis_wall_fraction(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -182,11 +285,14 @@ def axis_wall_fraction(vertices: np.ndarray, faces: np.ndarray) -> float:
         return 0.0
     if f.ndim != 2 or f.shape[1] != 3 or v.ndim != 2 or v.shape[1] != 3:
         raise ValueError(f"expected (n, 3) vertices and (m, 3) faces; got {v.shape} and {f.shape}")
-    if f.min() < 0 or f.max() >= len(v):
-        raise ValueError(f"faces refer to vertices outside 0 .. {len(v) - 1}")
-    size, wall, _six = face_terms(v, f)
-    total = math.fsum(size)
-    return float(math.fsum(size[wall]) / total) if total > 0 else 0.0
+    sums = _size_totals(v, f)
+    if sums is None:  # (faces outside the vertices: face_terms raises; non-finite sizes)
+        if f.min() < 0 or f.max() >= len(v):
+            raise ValueError(f"faces refer to vertices outside 0 .. {len(v) - 1}")
+        size, wall, _six = face_terms(v, f)
+        sums = math.fsum(size), math.fsum(size[wall])
+    total, walls = sums
+    return float(walls / total) if total > 0 else 0.0
 
 
 def relative_error(area: float, area_true: float | None) -> float | None:

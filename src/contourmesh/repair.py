@@ -34,7 +34,10 @@ def _split_four_face_edges(V, F, side, nudge):
     whole-array steps (:func:`_midpoints`).
     """
     m = len(F)
-    mult = _edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V))
+    Fc = np.ascontiguousarray(F, dtype=np.int64)
+    threads = _edge_threads(Fc)
+    mult = _edge_multiplicity(Fc, len(V)) if threads < 2 else _edge_multiplicity_threads(Fc, len(V), threads)
+    del Fc
     if np.any(mult % 2):
         bad = np.argwhere(mult % 2 == 1)[0]
         raise RuntimeError(f"internal error: an edge is shared by {int(mult[tuple(bad)])} faces")
@@ -223,8 +226,14 @@ def _edge_multiplicity(F, nv):
     m = F.shape[0]
     start, items = _half_edges_by_vertex(F, nv, np.int64(2))
     out = np.empty((m, 3), np.int32)  # (counts of faces: int32 holds them)
-    cnt = np.zeros(nv, np.int32)
-    for v in range(nv):
+    _edge_multiplicity_range(F, start, items, 0, nv, out, np.zeros(nv, np.int32))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _edge_multiplicity_range(F, start, items, v0, v1, out, cnt):
+    """:func:`_edge_multiplicity`'s counts for the buckets ``v0 .. v1 - 1`` (``cnt``: zeros, ``nv``)."""
+    for v in range(v0, v1):
         for t in range(start[v], start[v + 1]):
             h = items[t]
             cnt[max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])] += 1
@@ -234,7 +243,87 @@ def _edge_multiplicity(F, nv):
         for t in range(start[v], start[v + 1]):
             h = items[t]
             cnt[max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])] = 0
+
+
+@njit(cache=True, nogil=True)
+def _key_counts(F, nv, which, h0, h1):
+    """Per vertex, the half-edges ``h0 .. h1 - 1`` in its bucket (:func:`_half_edges_by_vertex`)."""
+    cnt = np.zeros(nv, np.int64)
+    for h in range(h0, h1):
+        cnt[_bucket_key(F, h, which)] += 1
+    return cnt
+
+
+@njit(cache=True, nogil=True)
+def _key_scatter(F, which, v0, v1, fill, items):
+    """The half-edges of the buckets ``v0 .. v1 - 1`` written to them from ``fill`` on (advanced),
+    in increasing order (every half-edge is read; only those are written, so that threads filling
+    other buckets do not write to the same cache lines)."""
+    for h in range(3 * F.shape[0]):
+        key = _bucket_key(F, h, which)
+        if v0 <= key < v1:
+            items[fill[key]] = h
+            fill[key] += 1
+
+
+#: From this many faces on, the manifold repair's edge counts and half-edge twins
+#: (:func:`_edge_multiplicity`, :func:`_half_edge_twins`) run on ``CONTOURMESH_THREADS`` threads.
+_SPLIT_EDGES = 20_000
+
+
+def _edge_threads(F) -> int:
+    from .intersect import _threads
+
+    return _threads() if len(F) >= _SPLIT_EDGES else 1
+
+
+def _buckets_on_threads(F, nv, threads):
+    """:func:`_half_edges_by_vertex` by lower vertex (``which`` 2) on ``threads`` threads: each
+    counts its own range of half-edges, then fills its own range of buckets (the same buckets, in
+    the same increasing order); and the ``threads * 2`` ranges of buckets, of about equal
+    half-edge counts, that the callers work on."""
+    from ._workers import run_all
+
+    n = 3 * F.shape[0]
+    hb = np.linspace(0, n, threads + 1).astype(np.int64).tolist()
+    which = np.int64(2)
+    counts = run_all(lambda a, b: _key_counts(F, nv, which, a, b), list(zip(hb[:-1], hb[1:])), threads)
+    start = np.zeros(nv + 1, np.int64)
+    np.cumsum(sum(counts), out=start[1:])
+    del counts
+    fill = start[:nv].copy()
+    items = np.empty(n, np.int32)
+
+    def ranges(parts):
+        vb = np.searchsorted(start, np.linspace(0, n, parts + 1)[1:-1]).tolist()
+        vb = [0] + [min(max(int(v), 0), nv) for v in vb] + [nv]
+        return [(a, b) for a, b in zip(vb[:-1], vb[1:]) if b > a]
+
+    run_all(lambda a, b: _key_scatter(F, which, a, b, fill, items), ranges(threads), threads)
+    return start, items, ranges(2 * threads)
+
+
+def _edge_multiplicity_threads(F, nv, threads):
+    """:func:`_edge_multiplicity` on ``threads`` threads (the same counts)."""
+    from ._workers import run_all
+
+    start, items, vparts = _buckets_on_threads(F, nv, threads)
+    out = np.empty((F.shape[0], 3), np.int32)
+    run_all(lambda a, b: _edge_multiplicity_range(F, start, items, a, b, out, np.zeros(nv, np.int32)), vparts,
+            threads)
     return out
+
+
+def _half_edge_twins_threads(F, nv, threads):
+    """:func:`_half_edge_twins` on ``threads`` threads: the same twins where its status is 0, a
+    non-zero status (1 or 2, not necessarily the one-thread call's) where that call's is."""
+    from ._workers import run_all
+
+    start, items, vparts = _buckets_on_threads(F, nv, threads)
+    twin = np.empty(3 * F.shape[0], np.int32)
+    got = run_all(lambda a, b: _twins_range(F, start, items, a, b, twin, np.full(nv, -1, np.int32),
+                                            np.full(nv, -1, np.int32)), vparts, threads)
+    return twin, np.int64(max(got, default=0))
 
 
 @njit(cache=True, nogil=True)
@@ -309,7 +398,10 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     m = len(F)
     nv = len(V) + 1
     # every directed edge once and every one with its opposite <=> every edge in exactly two faces
-    twin, status = _half_edge_twins(np.ascontiguousarray(F), len(V))
+    Fc = np.ascontiguousarray(F)
+    threads = _edge_threads(Fc)
+    twin, status = _half_edge_twins(Fc, len(V)) if threads < 2 else _half_edge_twins_threads(Fc, len(V), threads)
+    del Fc
     if status != 0:  # the sorted search names the edge at fault
         twin = _half_edge_twins_reference(F, nv)
     # fans = connected components of the corners linked across every edge (union-find; labels
@@ -437,20 +529,26 @@ def _half_edge_twins(F, nv):
     n = 3 * F.shape[0]
     start, items = _half_edges_by_vertex(F, nv, np.int64(2))
     twin = np.empty(n, np.int32)
-    up = np.full(nv, -1, np.int32)
-    down = np.full(nv, -1, np.int32)
-    for x in range(nv):
+    status = _twins_range(F, start, items, 0, nv, twin, np.full(nv, -1, np.int32), np.full(nv, -1, np.int32))
+    return twin, status
+
+
+@njit(cache=True, nogil=True)
+def _twins_range(F, start, items, x0, x1, twin, up, down):
+    """:func:`_half_edge_twins` for the buckets ``x0 .. x1 - 1`` (``up``, ``down``: -1, ``nv``);
+    returns its status."""
+    for x in range(x0, x1):
         for t in range(start[x], start[x + 1]):
             h = items[t]
             a = F[h // 3, h % 3]
             b = F[h // 3, (h % 3 + 1) % 3]
             if a <= b:  # x -> b (a == b == x: a loop)
                 if up[b] >= 0:
-                    return twin, np.int64(1)
+                    return np.int64(1)
                 up[b] = h
             else:  # a -> x
                 if down[a] >= 0:
-                    return twin, np.int64(1)
+                    return np.int64(1)
                 down[a] = h
         for t in range(start[x], start[x + 1]):
             h = items[t]
@@ -458,14 +556,14 @@ def _half_edge_twins(F, nv):
             b = F[h // 3, (h % 3 + 1) % 3]
             g = up[a] if a == b else down[b] if a < b else up[a]
             if g < 0:
-                return twin, np.int64(2)
+                return np.int64(2)
             twin[h] = g
         for t in range(start[x], start[x + 1]):
             h = items[t]
             w = max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])
             up[w] = -1
             down[w] = -1
-    return twin, np.int64(0)
+    return np.int64(0)
 
 
 @njit(cache=True, nogil=True)
