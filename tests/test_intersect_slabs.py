@@ -251,12 +251,29 @@ def test_twisted_tubes(shifts, crossing):
     _same(V * 0.3 + 0.1, F, expect_slabs=True)  # off the dyadic grid: no certificate, pair by pair
 
 
+def _pairs_on_one_and_two_threads(monkeypatch, V, F, **settings):
+    """``intersecting_pairs(V, F)`` with ``CONTOURMESH_THREADS`` 1, then 2 with the two-thread split
+    taken from 100 faces on (and ``settings``: other module constants of ``intersect``); returns
+    ``(one, two, calls)``, ``calls`` the split's results."""
+    import contourmesh.intersect as I
+
+    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
+    one = intersecting_pairs(V, F)
+    calls = []
+    real = I._split_slab_pairs
+    monkeypatch.setattr(I, "_split_slab_pairs", lambda *a: calls.append(real(*a)) or calls[-1])
+    monkeypatch.setattr(I, "_SPLIT_FACES", 100)
+    for name, value in settings.items():
+        monkeypatch.setattr(I, name, value)
+    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
+    return one, intersecting_pairs(V, F), calls
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_two_thread_split_gives_the_one_call_pairs(seed, monkeypatch):
     """With ``CONTOURMESH_THREADS=2`` a large sectioned mesh is tested in two ranges of height
     levels on two threads (issue 16): the pairs must be those of one call, in the same order,
     including pairs of faces through the middle level and faces lying flat in it."""
-    import contourmesh.intersect as I
 
     rng = np.random.default_rng(seed)
     nl, per = 14, 300
@@ -271,15 +288,8 @@ def test_two_thread_split_gives_the_one_call_pairs(seed, monkeypatch):
         F.append(np.c_[a, b, c])
     flat = rng.integers(0, per, (40, 3)) + (nl // 2) * per  # flat faces in the middle level
     F = np.concatenate(F + [flat[(flat[:, 0] != flat[:, 1]) & (flat[:, 1] != flat[:, 2]) & (flat[:, 0] != flat[:, 2])]])
-    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
-    one = intersecting_pairs(V, F)
+    one, two, calls = _pairs_on_one_and_two_threads(monkeypatch, V, F)
     assert len(one) > 50
-    calls = []
-    real = I._split_slab_pairs
-    monkeypatch.setattr(I, "_split_slab_pairs", lambda *a: calls.append(real(*a)) or calls[-1])
-    monkeypatch.setattr(I, "_SPLIT_FACES", 100)
-    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
-    two = intersecting_pairs(V, F)
     assert len(calls) == 1 and calls[0] is not None and np.array_equal(two, one)
     assert np.array_equal(intersecting_pairs(V, F, method="grid"), one)
 
@@ -371,14 +381,6 @@ def test_range_stars_are_the_whole_meshs_stars_and_the_split_pairs_the_one_calls
         part = I._star_certified(V, Fc, lev, l0, l1)
         inside = (lev >= l0) & (lev <= l1)
         assert np.array_equal(part[inside], whole[inside]) and not part[~inside].any()
-    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
-    one = intersecting_pairs(V, F)
+    one, two, calls = _pairs_on_one_and_two_threads(monkeypatch, V, F, _STAR_DELAY=0)  # (stars certified early)
     assert len(one) > 20
-    calls = []
-    real = I._split_slab_pairs
-    monkeypatch.setattr(I, "_split_slab_pairs", lambda *a: calls.append(real(*a)) or calls[-1])
-    monkeypatch.setattr(I, "_SPLIT_FACES", 100)
-    monkeypatch.setattr(I, "_STAR_DELAY", 0)  # (the ranges certify their stars early)
-    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
-    two = intersecting_pairs(V, F)
     assert len(calls) == 1 and calls[0] is not None and np.array_equal(two, one)

@@ -242,6 +242,10 @@ class _Planes:
             self.part = np.ascontiguousarray(self.mask[self.k0: self.k0 + self.block])
         return self[k]
 
+    def release(self) -> None:
+        """Drops the block last read (the slices read later are copied alone)."""
+        self.k0, self.part = -1, None
+
 
 def _packed_source(mask2d):
     """A callable that gives ``mask2d`` (2D bool) again, from its bits packed eight to a byte: what a
@@ -765,9 +769,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # label images of the last few slices used are kept (_RecentLabels)
     slices = [None] * nz
     planes = _Planes(mask)  # (the slices C-ordered, a block at a time where the volume is not)
-    # (a volume in another layout in one pass: a slice at a time costs a cache line per voxel)
-    occupied = [k for k in range(nz) if mask[k].any()] if mask.flags.c_contiguous else \
-        np.flatnonzero(mask.any(axis=(1, 2))).tolist()
+    # (in one pass over the volume: in another layout a slice at a time costs a cache line per voxel)
+    occupied = np.flatnonzero(mask.any(axis=(1, 2))).tolist()
     recent = _RecentLabels()
     bar = tqdm(total=len(occupied), desc="slices", disable=not progress, leave=False)
 
@@ -815,11 +818,11 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     for k in occupied:  # (a single slice)
         load(k)
     bar.close()
-    planes.part = None  # (every slice is read: the last block goes; 3.9 MiB on the liver)
+    planes.release()  # (every slice is read: the last block goes; 3.9 MiB on the liver)
 
     refine_info = {}
     if refine is not None:  # the polygons of band joins and caps become their refined polygons
-        refine_info = _refine_polygons(np.ascontiguousarray(mask), zs, slices, occupied, crack_only, joins, (dx, dy),
+        refine_info = _refine_polygons(_c_order(mask), zs, slices, occupied, crack_only, joins, (dx, dy),
                                        (ox, oy), refine)
     hook_info = polygons(slices, zs, crack_only, joins) if polygons is not None else {}
     # with _DENSE_STEP set, the rings of branching joins get a vertex at least every pixel (see _densify_branching)

@@ -1031,16 +1031,22 @@ def _heap_less(hf, hg, hv, hu, a, b):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _heap_swap(hf, hg, hv, hu, a, b):
+    """Swaps the heap's entries ``a`` and ``b`` (one field of every entry in each array)."""
+    hf[a], hf[b] = hf[b], hf[a]
+    hg[a], hg[b] = hg[b], hg[a]
+    hv[a], hv[b] = hv[b], hv[a]
+    hu[a], hu[b] = hu[b], hu[a]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _sift_up(hf, hg, hv, hu, c):
     """Moves the heap's entry ``c`` up to its place (the four arrays hold one field of every entry)."""
     while c > 0:
         p = (c - 1) // 2
         if not _heap_less(hf, hg, hv, hu, c, p):
             return
-        hf[c], hf[p] = hf[p], hf[c]
-        hg[c], hg[p] = hg[p], hg[c]
-        hv[c], hv[p] = hv[p], hv[c]
-        hu[c], hu[p] = hu[p], hu[c]
+        _heap_swap(hf, hg, hv, hu, c, p)
         c = p
 
 
@@ -1124,10 +1130,7 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
                 s_ = b
             if s_ == c:
                 break
-            hf[c], hf[s_] = hf[s_], hf[c]
-            hg[c], hg[s_] = hg[s_], hg[c]
-            hv[c], hv[s_] = hv[s_], hv[c]
-            hu[c], hu[s_] = hu[s_], hu[c]
+            _heap_swap(hf, hg, hv, hu, c, s_)
             c = s_
         if came[u] != -2:
             continue
