@@ -1,6 +1,7 @@
-"""Issue 16: ``method="auto"`` takes the slab phase for meshes on a small dyadic grid (or split
-over threads) and the grid for the others (the repaired meshes of real volumes, whose vertex
-heights are moved by hairs: the lobster's 2,058 heights).  The route changes the speed only: the
+"""Issue 16: ``method="auto"`` takes the grid for meshes off the small dyadic grid of fewer than
+``_GRID_FACES`` faces (the mesher's bands and joins whose heights are moved by hairs) and the slab
+phase for the others (or the split over threads; the grid where slabs give up, as on the lobster's
+repaired mesh and its 2,058 heights).  The route changes the speed only: the
 pairs must be those of the grid and of the slab phase, exactly, also where heights differ from a
 section plane by one unit in the last place or by tiny amounts, and ``any_intersecting`` (one
 compiled call with the same routes) must answer as the whole list does."""
@@ -81,8 +82,9 @@ def test_our_meshes_with_heights_moved_by_hairs(kind):
 
 
 def test_auto_routes(monkeypatch):
-    """``auto`` asks the slab phase only for meshes on a small dyadic grid, or to split a large mesh
-    over two threads; the grid decides the others (the same pairs)."""
+    """``auto`` asks the slab phase only for meshes on a small dyadic grid, meshes of at least
+    ``_GRID_FACES`` faces, or to split a large mesh over two threads; the grid decides the others
+    (the same pairs)."""
     calls = []
     real = I._slab_pairs
     monkeypatch.setattr(I, "_slab_pairs", lambda *a: calls.append(1) or real(*a))
@@ -97,6 +99,9 @@ def test_auto_routes(monkeypatch):
     assert np.array_equal(on_grid, intersecting_pairs(V, F, method="grid"))
     assert np.array_equal(off_grid, intersecting_pairs(W, F, method="grid")) and len(calls) == 1
     assert np.array_equal(intersecting_pairs(W, F, method="slabs"), off_grid) and len(calls) == 2
+    monkeypatch.setattr(I, "_GRID_FACES", len(F))  # a large mesh off the grid: slabs (memory)
+    assert np.array_equal(intersecting_pairs(W, F), off_grid) and len(calls) == 3
+    monkeypatch.setattr(I, "_GRID_FACES", len(F) + 1)
     split = []
     real_split = I._split_slab_pairs
     monkeypatch.setattr(I, "_split_slab_pairs", lambda *a: split.append(real_split(*a)) or split[-1])

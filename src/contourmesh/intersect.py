@@ -2146,7 +2146,7 @@ def _any_kernel(V, F, delay):
     sst[1] = m // 8 + delay
     one = m - m + 1  # (int64 values, not literals: the signatures of the Python calls)
     ok = one - one
-    if ws[0] == 1.0:  # (off the dyadic grid the grid is as fast or faster: see _pairs)
+    if ws[0] == 1.0 or m >= _GRID_FACES:  # (the route of _pairs)
         lev, nlev = _levels(V[:, 2].copy())
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one, one - one, nlev)
     if ok != 1:
@@ -2173,13 +2173,11 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
     sst = np.array([0 if quick else -1, len(Fc) // 8 + _STAR_DELAY], np.int64)
     qk = np.int64(1 if quick else 0)
     ok = 0
-    # "auto": the slab phase where the mesh lies on a small dyadic grid (its certificates decide
-    # whole planes and slabs there: the 512^3 ball's 117k faces in 15 ms, 85 ms by the grid), or
-    # where two threads share it; otherwise the grid, which finds the same pairs with less work on
-    # meshes off that grid (as the repaired meshes of real volumes: one thread, liver 0.43 s by the
-    # grid vs 0.55 s by slabs, liver x2 1.10 s vs 1.31 s; the lobster's gave up on slabs anyway)
+    # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces (see
+    # there), else the slab phase (the grid where it gives up)
+    on_grid = ws[0] == 0.0 and len(Fc) < _GRID_FACES
     split = stop == 0 and method == "auto" and len(Fc) >= _SPLIT_FACES and _threads() > 1
-    if method == "slabs" or (method == "auto" and (ws[0] == 1.0 or split)):
+    if method == "slabs" or (method == "auto" and (not on_grid or split)):
         lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
         if nlev < 0:  # a NaN height: np.unique's levels (NaNs as one)
             levels, lev = np.unique(V[:, 2], return_inverse=True)
@@ -2188,7 +2186,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
             got = _split_slab_pairs(V, ws, Fc, sst, qk, lev, nlev, _threads())
             if got is not None:
                 return got
-    if method == "slabs" or (method == "auto" and ws[0] == 1.0):
+    if method == "slabs" or (method == "auto" and not on_grid):
         # a box test is cheap next to the grid's cost per face: on the liver's whole mesh a budget
         # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
@@ -2208,6 +2206,16 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
 #: faces have reached the tests (the 512^3 ball's slab phase decides its pairs without them: its
 #: 117k faces take 14 ms, the stars 17 ms more; the lobster's and the liver's meshes need them).
 _STAR_DELAY = 100
+
+#: Meshes off the small dyadic grid (:func:`_on_small_dyadic_grid`; as the repaired meshes of real
+#: volumes and many of the mesher's bands and joins) of fewer faces than this are tested by the grid
+#: (``method="auto"``): the slab phase's certificates that decide whole planes and slabs need the
+#: dyadic grid (the 512^3 ball's 117k faces: 15 ms by slabs, 85 ms by the grid), and off it the grid
+#: finds the same pairs with less work (any_intersecting's calls on the lobster 0.18 s vs 0.24 s,
+#: on the liver even; one thread, the whole meshes: liver 0.37 s vs 0.47 s, liver x2 1.00 s vs
+#: 1.17 s).  Larger meshes stay on the slab phase all the same: the grid's tables (some 150 bytes
+#: per face) then set the general mesher's peak memory (the liver's +56 MiB, 80 -> 136 MiB).
+_GRID_FACES = 20_000
 
 #: Meshes of at least this many faces are tested in two ranges of heights on two threads (where
 #: ``CONTOURMESH_THREADS`` asks for more than one): below it a thread costs more than it saves.
