@@ -1,0 +1,128 @@
+"""Issue 16: ``method="auto"`` takes the grid for meshes off the small dyadic grid of fewer than
+``_GRID_FACES`` faces (the mesher's bands and joins whose heights are moved by hairs) and the slab
+phase for the others (or the split over threads; the grid where slabs give up, as on the lobster's
+repaired mesh and its 2,058 heights).  The route changes the speed only: the
+pairs must be those of the grid and of the slab phase, exactly, also where heights differ from a
+section plane by one unit in the last place or by tiny amounts, and ``any_intersecting`` (one
+compiled call with the same routes) must answer as the whole list does."""
+
+import numpy as np
+import pytest
+
+import contourmesh
+import contourmesh.intersect as I
+from contourmesh.intersect import _as_mesh_arrays, _pairs, any_intersecting, canonical_vertices, intersecting_pairs
+from test_intersect import reference_pairs
+from test_intersect_slabs import _our_meshes, _random_sectioned, _sectioned
+
+
+def _agree(V, F):
+    """The pairs by the grid, by slabs (where the mesh is sectioned), by ``auto``; the first pair
+    of each; ``any_intersecting``: all the same.  Returns the number of pairs."""
+    grid = intersecting_pairs(V, F, method="grid")
+    assert np.array_equal(intersecting_pairs(V, F), grid)
+    sectioned = _sectioned(V, F)
+    if sectioned:
+        try:
+            slabs = intersecting_pairs(V, F, method="slabs")
+        except ValueError:  # (ties of heights counted otherwise than by _sectioned: no structure)
+            slabs = grid
+        assert np.array_equal(slabs, grid), (len(slabs), len(grid))
+    assert any_intersecting(V, F) == (len(grid) > 0)
+    Va, Fa = _as_mesh_arrays(V, F)
+    every = set(map(tuple, grid.tolist()))
+    for method in ("auto", "grid"):
+        first = _pairs(Va, Fa, canonical_vertices(Va), 8, method, stop=1)
+        assert len(first) == min(1, len(grid)) and all(tuple(p) in every for p in first.tolist())
+    return len(grid)
+
+
+def _perturbed(rng, V, kind):
+    """V with some vertex heights moved: by one unit in the last place up or down, by 1e-9, or by
+    up to 1e-4 (the repair's hairs), on about a third of the vertices."""
+    W = V.copy()
+    # (not heights 0: one unit in the last place there is subnormal, where the exact predicates'
+    # products underflow; the reference and the kernels then disagree, in main as well)
+    pick = (rng.random(len(W)) < 1 / 3) & (W[:, 2] != 0)
+    z = W[pick, 2]
+    if kind == "ulp":
+        W[pick, 2] = np.where(rng.random(len(z)) < 0.5, np.nextafter(z, np.inf), np.nextafter(z, -np.inf))
+    elif kind == "1e-9":
+        W[pick, 2] = z + rng.choice([-1e-9, 1e-9], len(z))
+    else:
+        W[pick, 2] = z + rng.uniform(-1e-4, 1e-4, len(z))
+    return W
+
+
+@pytest.mark.parametrize("kind", ["ulp", "1e-9", "1e-4"])
+def test_random_sectioned_meshes_with_heights_moved_by_hairs(kind):
+    rng = np.random.default_rng({"ulp": 1, "1e-9": 2, "1e-4": 3}[kind])
+    hits = 0
+    for t in range(40):
+        V, F = _random_sectioned(rng, int(rng.integers(2, 6)), 30, 40, 0.2)
+        W = _perturbed(rng, V, kind)
+        n = _agree(W, F)
+        hits += n > 0
+        if t < 8:  # and the exact rule, pair by pair in rationals
+            assert set(map(tuple, intersecting_pairs(W, F).tolist())) == reference_pairs(W, F)
+        _agree(V, F)  # (the dyadic original: the slab route)
+    assert hits >= 20, hits
+
+
+@pytest.mark.parametrize("kind", ["ulp", "1e-4"])
+def test_our_meshes_with_heights_moved_by_hairs(kind):
+    """Meshes of small volumes, with heights moved: meshes on many heights near few planes (the
+    lobster's case: the slab phase's faces span many slabs), with crossings where a hair is enough."""
+    rng = np.random.default_rng(7)
+    n = 0
+    for V, F in _our_meshes(seed=3, n=9):
+        _agree(_perturbed(rng, V, kind), F)
+        n += 1
+    assert n >= 10
+
+
+def test_auto_routes(monkeypatch):
+    """``auto`` asks the slab phase only for meshes on a small dyadic grid, meshes of at least
+    ``_GRID_FACES`` faces, or to split a large mesh over two threads; the grid decides the others
+    (the same pairs)."""
+    calls = []
+    real = I._slab_pairs
+    monkeypatch.setattr(I, "_slab_pairs", lambda *a: calls.append(1) or real(*a))
+    V, F = _random_sectioned(np.random.default_rng(4), 12, 200, 300, 0.1)
+    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
+    on_grid = intersecting_pairs(V, F)
+    assert len(calls) == 1 and I._on_small_dyadic_grid(V)
+    W = V * 0.1 + 0.37  # off the dyadic grid
+    assert not I._on_small_dyadic_grid(W)
+    off_grid = intersecting_pairs(W, F)
+    assert len(calls) == 1
+    assert np.array_equal(on_grid, intersecting_pairs(V, F, method="grid"))
+    assert np.array_equal(off_grid, intersecting_pairs(W, F, method="grid")) and len(calls) == 1
+    assert np.array_equal(intersecting_pairs(W, F, method="slabs"), off_grid) and len(calls) == 2
+    monkeypatch.setattr(I, "_GRID_FACES", len(F))  # a large mesh off the grid: slabs (memory)
+    assert np.array_equal(intersecting_pairs(W, F), off_grid) and len(calls) == 3
+    monkeypatch.setattr(I, "_GRID_FACES", len(F) + 1)
+    split = []
+    real_split = I._split_slab_pairs
+    monkeypatch.setattr(I, "_split_slab_pairs", lambda *a: split.append(real_split(*a)) or split[-1])
+    monkeypatch.setattr(I, "_SPLIT_FACES", 10)
+    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
+    assert np.array_equal(intersecting_pairs(W, F), off_grid)
+    assert len(split) == 1 and split[0] is not None and len(off_grid) > 0
+
+
+@pytest.mark.parametrize("label", [85, 255])
+def test_liver_meshes_by_every_route(shared_data, label):
+    """The repaired mesh of a real segmentation (heights moved by the repair: off the dyadic grid),
+    by every broad phase, and with its heights moved by hairs more."""
+    z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz", allow_pickle=False)
+    vol = np.transpose(z["volume"], (2, 1, 0))
+    sel = np.argwhere(vol == label)
+    lo, hi = sel.min(0), sel.max(0) + 1
+    crop = vol[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] == label
+    m = contourmesh.mesh(crop, spacing=tuple(float(s) for s in z["spacing_xyz"][::-1]))
+    V, F = m.vertices.copy(), m.faces.copy()
+    assert _agree(V, F) == 0
+    rng = np.random.default_rng(label)
+    for kind in ("ulp", "1e-4"):
+        _agree(_perturbed(rng, V, kind), F)
