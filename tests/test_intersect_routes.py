@@ -126,3 +126,35 @@ def test_liver_meshes_by_every_route(shared_data, label):
     rng = np.random.default_rng(label)
     for kind in ("ulp", "1e-4"):
         _agree(_perturbed(rng, V, kind), F)
+
+
+@pytest.mark.parametrize("kind", ["tiny", "huge", "subnormal"])
+def test_tiny_huge_and_subnormal_coordinates_keep_the_exact_pairs(kind):
+    """The exact predicates' products underflowed for tiny coordinates (a mesh scaled by 2^-1040
+    had no pairs where rationals find dozens) and overflowed for huge ones: a mesh is now scaled by a
+    power of two into their range (the same signs), and one whose nonzero magnitudes span too far
+    for any such scaling (a height of 5e-324 or 1e-300 beside 3.5) is refused with a clear error."""
+    from test_intersect_slabs import _random_sectioned
+
+    checked = 0
+    for seed in range(6):
+        rng = np.random.default_rng(100 + seed)
+        V, F = _random_sectioned(rng, 4, 30, 40, 0.3)
+        if kind == "subnormal":
+            W = V.copy()
+            for tiny in (5e-324, 1e-300):
+                W[F[0, 0], 2] = tiny  # (a used vertex)
+                with pytest.raises(ValueError, match="orders of magnitude"):
+                    intersecting_pairs(W, F)
+                with pytest.raises(ValueError, match="orders of magnitude"):
+                    any_intersecting(W, F)
+            continue
+        W = V * 2.0 ** (-1040 if kind == "tiny" else 1000)
+        want = np.array(sorted(reference_pairs(W, F)), dtype=np.int64).reshape(-1, 2)
+        assert np.array_equal(intersecting_pairs(W, F), want)
+        assert np.array_equal(intersecting_pairs(W, F, method="grid"), want)
+        assert any_intersecting(W, F) == (len(want) > 0)
+        assert np.array_equal(intersecting_pairs(V, F), want)  # (the scaling keeps every sign)
+        checked += len(want) > 0
+    if kind != "subnormal":
+        assert checked >= 3  # (meshes with pairs: a test that an underflow to "no pair" would fail)

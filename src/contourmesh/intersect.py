@@ -2109,6 +2109,53 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
     return _pairs(V, F, canonical_vertices(V), budget, method)
 
 
+#: The exact predicates hold for coordinates whose nonzero magnitudes lie in ``[2^-L, 2^H]``
+#: (``L, H = _EXACT_EXP``).  A coordinate difference and its rounding error are multiples of the
+#: smaller coordinate's unit in the last place, so where they are not zero they are at least
+#: 2^(-L-53); the smallest term of the exact path (the rounding error of a product of three, times
+#: a third) is then above 2^-969, where every error-free product is still exact (L <= 252), and the
+#: largest product of three differences stays far from overflow (H <= 330).  Tiny coordinates broke
+#: this before: a mesh scaled by 2^-1040 had no crossing pairs where exact rationals find dozens
+#: (its products underflowed to zero), and one scaled by 2^1000 lost pairs to overflow.
+_EXACT_EXP = (240, 320)
+
+
+@njit(cache=True, nogil=True)
+def _magnitudes(V):
+    """The smallest nonzero and the largest magnitude of ``V``'s entries (inf, 0 where all are 0)."""
+    lo = np.inf
+    hi = 0.0
+    for i in range(V.shape[0]):
+        for t in range(V.shape[1]):
+            a = abs(V[i, t])
+            if a > hi:
+                hi = a
+            if 0.0 < a < lo:
+                lo = a
+    return lo, hi
+
+
+def _exact_range(V):
+    """``V`` itself where its coordinates suit the exact predicates (:data:`_EXACT_EXP`), else ``V``
+    times a power of two that brings them into that range: an exact scaling, which keeps every
+    orientation's sign and so every pair.  A ValueError where no power of two does (the nonzero
+    magnitudes span more than about ``2^559``: a vertex at 1e-300 beside one at 1, say)."""
+    if len(V) == 0:
+        return V
+    lo, hi = _magnitudes(V)
+    low, high = _EXACT_EXP
+    if hi <= 2.0 ** high and lo >= 2.0 ** -low:
+        return V
+    e_lo, e_hi = math.frexp(lo)[1], math.frexp(hi)[1]  # 2^(e_lo - 1) <= lo, hi < 2^e_hi
+    # a shift s fits where e_lo - 1 + s >= -low and e_hi + s <= high
+    s_min, s_max = 1 - low - e_lo, high - e_hi
+    if s_min > s_max:
+        raise ValueError(f"the vertex coordinates span too many orders of magnitude for the exact crossing "
+                         f"test (smallest nonzero |x| {lo:.3g}, largest {hi:.3g}; at most about a factor "
+                         f"2^{low + high - 1}): snap the tiny coordinates to zero or rescale the mesh")
+    return np.ldexp(V, (s_min + s_max) // 2)
+
+
 def any_intersecting(vertices, faces) -> bool:
     """``len(intersecting_pairs(vertices, faces)) > 0``, stopping at the first pair found.
 
@@ -2121,6 +2168,7 @@ def any_intersecting(vertices, faces) -> bool:
     if 3 * len(F) < len(V):
         used = np.unique(F)
         V, F = V[used], np.searchsorted(used, F)
+    V = _exact_range(V)
     if not V.flags.writeable:  # one compiled signature: writable C arrays
         V = V.copy()
     if not F.flags.writeable:
@@ -2161,6 +2209,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
     ``quick=False``: every candidate pair gets the general test, none is decided by a vertex's
     star (:func:`_star_certified`) or in the plane where the boxes touch (:func:`_touching_boxes`):
     the same pairs, for the tests that compare the two."""
+    V = _exact_range(V)
     if not V.flags.writeable:  # one compiled signature: writable C arrays
         V = V.copy()
     if F.flags.writeable and F.flags.c_contiguous and bool((canon == np.arange(len(canon))).all()):
