@@ -96,6 +96,7 @@ from .fastpath import (
     redo_self_crossing_bands,
     slice_components,
     slice_labels,
+    slice_mlps,
 )
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
@@ -111,7 +112,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, label_mask, missing_corners, overlap_groups, overlap_holes, unique_keys
+from .tracing import label_mask, missing_corners, overlap_groups, overlap_holes, slice_boxes, slice_cracks, unique_keys
 from .types import Mesh
 from .volume_input import _c_order, binary_label, prepare_volume
 
@@ -339,17 +340,28 @@ class _Slice:
 
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
         self._mask, self._recent, self._source = (mask2d if source is None else None), recent, source
+        # every component's crack contours in one compiled pass over the int32 labels (slice corner
+        # coordinates; component c's contours are first[c]: first[c + 1], outer and holes in the
+        # order _crack_contours gives them for the component's cropped mask), and with "mlp" every
+        # component's MLP in another (what _mlp_of_pixels gives for its cropped mask)
         if box is None:
             labels, self.n, self.objects = slice_labels(mask2d)
+            boxes = slice_boxes(self.objects)
+            pts, starts, area2, first = slice_cracks(labels, boxes)
+            mlps = slice_mlps(labels, boxes) if polygon == "mlp" else None
             # the labels in the smallest dtype that holds them
             self._labels = self._small(labels)
         else:
             part, self.n, objects = slice_labels(mask2d[box])
+            boxes = slice_boxes(objects)
+            pts, starts, area2, first = slice_cracks(part, boxes)
+            mlps = slice_mlps(part, boxes) if polygon == "mlp" else None
             part = self._small(part)  # (the whole image's labels made in that dtype at once)
             labels = np.zeros(mask2d.shape, dtype=part.dtype)
             labels[box] = part
             self._labels = labels
             y0, x0 = box[0].start or 0, box[1].start or 0
+            pts += np.array([x0, y0], dtype=np.int64)
             self.objects = [(slice(a.start + y0, a.stop + y0), slice(b.start + x0, b.stop + x0)) for a, b in objects]
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
@@ -365,17 +377,24 @@ class _Slice:
         for c in range(self.n):
             sl = self.objects[c]
             y0, x0 = sl[0].start, sl[1].start
-            comp = self._labels[sl] == c + 1
-            cont, area2 = _crack_contours(comp)
-            outer_i = [i for i in range(len(cont)) if area2[i] > 0]
-            if len(outer_i) != 1:  # pragma: no cover - a 4-component has one outer boundary
-                raise RuntimeError(f"component {c} has {len(outer_i)} outer crack contours")
+            k0, k1 = int(first[c]), int(first[c + 1])
+            if k1 - k0 == 1 and area2[k0] > 0:  # (most components: one outer contour, no hole)
+                crack_o, crack_h = pts[starts[k0]: starts[k1]], []
+            else:
+                cont = [pts[starts[i]: starts[i + 1]] for i in range(k0, k1)]
+                outer_i = [i for i in range(len(cont)) if area2[k0 + i] > 0]
+                if len(outer_i) != 1:  # pragma: no cover - a 4-component has one outer boundary
+                    raise RuntimeError(f"component {c} has {len(outer_i)} outer crack contours")
+                crack_o = cont[outer_i[0]]
+                crack_h = [cont[i] for i in range(len(cont)) if area2[k0 + i] < 0]
             off = np.array([x0, y0])
-            crack_o = cont[outer_i[0]] + off
-            crack_h = [cont[i] + off for i in range(len(cont)) if area2[i] < 0]
             # the holes as pixel sets: background 8-components of the component's bbox not
             # connected to the bbox border
             hmasks = []
+            shape = (sl[0].stop - y0, sl[1].stop - x0)
+            comp = None  # (the component's cropped mask: read for its holes, and by "dss" / "none" not at all)
+            if crack_h or mlps is None:
+                comp = self._labels[sl] == c + 1
             if crack_h:  # (a component without hole contours has no holes: skip the labelling)
                 padded = _pad1(~comp, True)
                 blab, nb = ndimage.label(padded, structure=_SQUARE)
@@ -387,10 +406,11 @@ class _Slice:
                     hmasks.append(hm)
             # order hole masks like the crack holes: match by a pixel left of each hole contour
             hmasks = self._match_holes(crack_h, hmasks, off)
-            self.hole_masks.append((sl, _HoleMasks(comp.shape, hmasks)))
+            self.hole_masks.append((sl, _HoleMasks(shape, hmasks)))
             self.crack_outer_c.append(crack_o)
             self.crack_holes_c.append(crack_h)
-            self.outer.append(self._polygon(crack_o, comp, polygon, to_xy_corner, to_xy_center, off, hole=False))
+            self.outer.append(self._polygon(crack_o, comp, polygon, to_xy_corner, to_xy_center, off, hole=False,
+                                            mlp=False if mlps is None else mlps[c]))
             self.holes.append([
                 self._polygon(h, hm, polygon, to_xy_corner, to_xy_center, off, hole=True)
                 for h, hm in zip(crack_h, hmasks)
@@ -438,7 +458,10 @@ class _Slice:
             out.append(found[0])
         return out
 
-    def _polygon(self, crack, pixels, method, to_xy_corner, to_xy_center, off, hole):
+    def _polygon(self, crack, pixels, method, to_xy_corner, to_xy_center, off, hole, mlp=False):
+        """The polygon of one crack contour by ``method`` (physical xy).  ``mlp``: with "mlp", the
+        MLP of ``pixels`` made already (:func:`contourmesh.fastpath.slice_mlps`: int64 or ``None``),
+        ``False`` where it is to be made here from ``pixels``."""
 
         if method == "none":
             return to_xy_corner(crack)
@@ -449,7 +472,7 @@ class _Slice:
             self.fallbacks += 1
             return to_xy_corner(crack)
         # mlp: the outer Jordan construction with these pixels as I
-        poly = _mlp_of_pixels(pixels)
+        poly = _mlp_of_pixels(pixels) if mlp is False else None if mlp is None else mlp.astype(np.float64)
         if poly is None:  # a part one pixel wide: the MLP is a segment or a point
             self.fallbacks += 1
             return to_xy_corner(thin_part_polygon(crack))
