@@ -459,6 +459,58 @@ def _slice_cracks(lab, boxes):
     return pts[:pos], starts[: n_cont + 1], area2[:n_cont], first
 
 
+@njit(cache=True, nogil=True)
+def _hole_parts(lab, v, box, seeds):
+    """The holes of component ``v`` of ``lab`` (inside ``box = (y0, y1, x0, x1)``) as pixel sets:
+    for each seed pixel ``seeds[k] = (y, x)`` (a pixel of the hole, in box coordinates), the
+    8-connected set of the pixels not labelled ``v`` that holds it, within the box.  Returns
+    ``(meta, flat)``: hole ``k``'s cropped mask is ``flat[o: o + h * w]`` as ``(h, w)`` with
+    ``meta[k] = (y, x, h, w, o)`` (its first row and column in the box, its size, its offset)."""
+    y0, y1, x0, x1 = box[0], box[1], box[2], box[3]
+    bh, bw = y1 - y0, x1 - x0
+    seen = np.zeros((bh, bw), np.uint8)
+    stack = np.empty((bh * bw, 2), np.int64)
+    got = np.empty((bh * bw, 2), np.int64)
+    k = seeds.shape[0]
+    meta = np.empty((k, 5), np.int64)
+    flat = np.zeros(0, np.uint8)
+    used = 0
+    for s in range(k):
+        sy, sx = seeds[s, 0], seeds[s, 1]
+        ng = 0
+        top = 0
+        if not seen[sy, sx]:
+            seen[sy, sx] = 1
+            stack[0, 0], stack[0, 1] = sy, sx
+            top = 1
+        while top > 0:
+            top -= 1
+            y, x = stack[top, 0], stack[top, 1]
+            got[ng, 0], got[ng, 1] = y, x
+            ng += 1
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    yy, xx = y + dy, x + dx
+                    if 0 <= yy < bh and 0 <= xx < bw and not seen[yy, xx] and lab[y0 + yy, x0 + xx] != v:
+                        seen[yy, xx] = 1
+                        stack[top, 0], stack[top, 1] = yy, xx
+                        top += 1
+        ly, lx, hy, hx = bh, bw, -1, -1
+        for i in range(ng):
+            ly, hy = min(ly, got[i, 0]), max(hy, got[i, 0])
+            lx, hx = min(lx, got[i, 1]), max(hx, got[i, 1])
+        hh, ww = hy - ly + 1, hx - lx + 1
+        if used + hh * ww > flat.shape[0]:
+            flat2 = np.zeros(max(2 * flat.shape[0], used + hh * ww), np.uint8)
+            flat2[:used] = flat[:used]
+            flat = flat2
+        for i in range(ng):
+            flat[used + (got[i, 0] - ly) * ww + got[i, 1] - lx] = 1
+        meta[s, 0], meta[s, 1], meta[s, 2], meta[s, 3], meta[s, 4] = ly, lx, hh, ww, used
+        used += hh * ww
+    return meta, flat[:used]
+
+
 def slice_boxes(objects) -> np.ndarray:
     """A slice's ``find_objects`` boxes as an ``(n, 4)`` int64 array of ``(y0, y1, x0, x1)``."""
     return np.array([(a.start, a.stop, b.start, b.stop) for a, b in objects], dtype=np.int64).reshape(-1, 4)
