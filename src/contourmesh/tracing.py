@@ -64,6 +64,15 @@ def _uniform(cells, vx, vy):
     return a == cells[vy - 1, vx] and a == cells[vy, vx - 1] and a == cells[vy, vx]
 
 
+@njit(cache=True, inline="always")
+def _crack_step(vx, vy, d, a2):
+    """One unit step of a crack walk from vertex ``(vx, vy)`` in direction ``d``: the next vertex
+    and the running twice-signed area ``a2`` with the step's term added."""
+    nx = vx + _DX[d]
+    ny = vy + _DY[d]
+    return nx, ny, a2 + vx * ny - nx * vy
+
+
 @njit(cache=True)
 def _follow_boundaries(cells):
     """Crack following on the cell image (every boundary edge of ``U`` exactly once).
@@ -116,10 +125,7 @@ def _follow_boundaries(cells):
                     pts[pos, 0] = vx
                     pts[pos, 1] = vy
                     pos += 1
-                    nx = vx + _DX[d]
-                    ny = vy + _DY[d]
-                    a2 += vx * ny - nx * vy
-                    vx, vy = nx, ny
+                    vx, vy, a2 = _crack_step(vx, vy, d, a2)
                     # turn left, straight, turn right: the first boundary edge wins
                     for t in (1, 0, 3):
                         nd = (d + t) % 4
@@ -351,6 +357,17 @@ def _is_label_edge(lab, vx, vy, d, v):
         return _is_label(lab, vy - 1, vx, v) and not _is_label(lab, vy - 1, vx - 1, v)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _label_turn(lab, vx, vy, d, v):
+    """The direction leaving vertex ``(vx, vy)`` of a crack walk round component ``v`` entered in
+    direction ``d``: of turn left, go straight, turn right the first boundary edge."""
+    for t in (1, 0, 3):
+        nd = (d + t) % 4
+        if _is_label_edge(lab, vx, vy, nd, v):
+            return nd
+    return d  # pragma: no cover - a closed walk always has a way on
+
+
 @njit(cache=True, nogil=True)
 def _slice_cracks(lab, boxes):
     """:func:`_crack_contours` of every component of a label image at once, in slice corner
@@ -440,16 +457,8 @@ def _slice_cracks(lab, boxes):
                         pts[pos, 0] = vx
                         pts[pos, 1] = vy
                         pos += 1
-                        nx = vx + _DX[d]
-                        ny = vy + _DY[d]
-                        a2 += vx * ny - nx * vy
-                        vx, vy = nx, ny
-                        # turn left, straight, turn right: the first boundary edge wins
-                        for t in (1, 0, 3):
-                            nd = (d + t) % 4
-                            if _is_label_edge(lab, vx, vy, nd, v):
-                                d = nd
-                                break
+                        vx, vy, a2 = _crack_step(vx, vy, d, a2)
+                        d = _label_turn(lab, vx, vy, d, v)
                         if vx == vx0 and vy == vy0 and d == d0:
                             break
                     area2[n_cont] = a2
