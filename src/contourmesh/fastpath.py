@@ -932,6 +932,56 @@ def pixels_mlp(pixels):
     return p
 
 
+@njit(cache=True, **_OPTIONS)
+def _slice_mlps(lab, boxes):
+    """:func:`_pixels_mlp` of every component of a label image (``c + 1`` for component ``c``, in
+    ``boxes[c] = (y0, y1, x0, x1)``, stops exclusive), each on its cropped mask as
+    :func:`pixels_mlp` reads it: the concatenated MLP vertices (pixel-centre coordinates local to
+    the component's box), the start of each component's and twice their signed areas."""
+    n = boxes.shape[0]
+    size = 1
+    for c in range(n):
+        size = max(size, (boxes[c, 1] - boxes[c, 0]) * (boxes[c, 3] - boxes[c, 2]))
+    buf = np.empty(size, np.uint8)
+    ps = np.empty(n + 1, np.int64)
+    a2s = np.empty(n, np.int64)
+    cap = 64
+    out = np.empty((cap, 2), np.int64)
+    pos = 0
+    for c in range(n):
+        y0, y1, x0, x1 = boxes[c, 0], boxes[c, 1], boxes[c, 2], boxes[c, 3]
+        hh, ww = y1 - y0, x1 - x0
+        v = c + 1
+        for j in range(hh):
+            for i in range(ww):
+                buf[j * ww + i] = 1 if lab[y0 + j, x0 + i] == v else 0
+        p, a2 = _pixels_mlp(buf[: hh * ww], hh, ww)
+        k = len(p)
+        if pos + k > cap:
+            cap = max(2 * cap, pos + k)
+            out2 = np.empty((cap, 2), np.int64)
+            out2[:pos] = out[:pos]
+            out = out2
+        ps[c] = pos
+        out[pos: pos + k] = p
+        pos += k
+        a2s[c] = a2
+    ps[n] = pos
+    return out[:pos], ps, a2s
+
+
+def slice_mlps(labels, boxes):
+    """:func:`pixels_mlp` of every component of a slice's int32 label image at once (``boxes`` as
+    :func:`contourmesh.tracing.slice_boxes`): a list with, per component, its MLP (``(p, 2)`` int64
+    pixel-centre coordinates local to its box, a copy) or ``None`` where it encloses no area."""
+    pts, ps, a2s = _slice_mlps(np.ascontiguousarray(labels, dtype=np.int32), boxes)
+    out = []
+    for c in range(len(a2s)):
+        p = pts[ps[c]: ps[c + 1]]
+        out.append(None if len(p) < 3 or a2s[c] == 0 else p.copy())
+    return out
+
+
 def slice_polygons(mask2d):
     """MLPs of the 4-components of a 2D mask (the full mesher's ``"mlp"`` rings, in pixel-centre
     coordinates): ``(polygons, degenerate, holes)`` with ``polygons[c]`` a ``(p, 2)`` int64 array."""

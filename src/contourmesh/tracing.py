@@ -64,6 +64,15 @@ def _uniform(cells, vx, vy):
     return a == cells[vy - 1, vx] and a == cells[vy, vx - 1] and a == cells[vy, vx]
 
 
+@njit(cache=True, inline="always")
+def _crack_step(vx, vy, d, a2):
+    """One unit step of a crack walk from vertex ``(vx, vy)`` in direction ``d``: the next vertex
+    and the running twice-signed area ``a2`` with the step's term added."""
+    nx = vx + _DX[d]
+    ny = vy + _DY[d]
+    return nx, ny, a2 + vx * ny - nx * vy
+
+
 @njit(cache=True)
 def _follow_boundaries(cells):
     """Crack following on the cell image (every boundary edge of ``U`` exactly once).
@@ -116,10 +125,7 @@ def _follow_boundaries(cells):
                     pts[pos, 0] = vx
                     pts[pos, 1] = vy
                     pos += 1
-                    nx = vx + _DX[d]
-                    ny = vy + _DY[d]
-                    a2 += vx * ny - nx * vy
-                    vx, vy = nx, ny
+                    vx, vy, a2 = _crack_step(vx, vy, d, a2)
                     # turn left, straight, turn right: the first boundary edge wins
                     for t in (1, 0, 3):
                         nd = (d + t) % 4
@@ -328,6 +334,205 @@ def _crack_contours(cells: np.ndarray):
     padded[1:-1, 1:-1] = cells
     pts, starts, area2, _ = _follow_boundaries(padded)
     return [pts[starts[i]: starts[i + 1]] - 1 for i in range(len(area2))], area2
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _is_label(lab, y, x, v):
+    """Whether pixel ``[y, x]`` of the label image ``lab`` is in range and has the label ``v``."""
+    return 0 <= y < lab.shape[0] and 0 <= x < lab.shape[1] and lab[y, x] == v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _is_label_edge(lab, vx, vy, d, v):
+    """:func:`_is_boundary_edge` of component ``v`` of ``lab`` without padding: the unit step
+    from corner ``(vx, vy)`` in direction ``d`` has a pixel labelled ``v`` on its left and none on
+    its right (corner ``(i, j)`` is the lower-left corner of pixel ``[j, i]``)."""
+    if d == 0:
+        return _is_label(lab, vy, vx, v) and not _is_label(lab, vy - 1, vx, v)
+    elif d == 1:
+        return _is_label(lab, vy, vx - 1, v) and not _is_label(lab, vy, vx, v)
+    elif d == 2:
+        return _is_label(lab, vy - 1, vx - 1, v) and not _is_label(lab, vy, vx - 1, v)
+    else:
+        return _is_label(lab, vy - 1, vx, v) and not _is_label(lab, vy - 1, vx - 1, v)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _label_turn(lab, vx, vy, d, v):
+    """The direction leaving vertex ``(vx, vy)`` of a crack walk round component ``v`` entered in
+    direction ``d``: of turn left, go straight, turn right the first boundary edge."""
+    for t in (1, 0, 3):
+        nd = (d + t) % 4
+        if _is_label_edge(lab, vx, vy, nd, v):
+            return nd
+    return d  # pragma: no cover - a closed walk always has a way on
+
+
+@njit(cache=True, nogil=True)
+def _slice_cracks(lab, boxes):
+    """:func:`_crack_contours` of every component of a label image at once, in slice corner
+    coordinates: component ``c`` (label ``c + 1``, inside ``boxes[c] = (y0, y1, x0, x1)``, stops
+    exclusive) is traced on its box's corners in raster order, as :func:`_follow_boundaries` traces
+    the component's cropped mask, so that its contours, their start points and their order are
+    those of ``_crack_contours(lab[box] == c + 1)`` moved by ``(x0, y0)``.
+
+    Returns the concatenated points, the start offset of each contour, twice its signed area and
+    the first contour of each component (``first[c]: first[c + 1]``).  Every boundary edge is
+    marked visited as a bit of the pixel on its left (the pixel and the direction name the edge;
+    two components never share a pixel)."""
+    h, w = lab.shape
+    n = boxes.shape[0]
+    visited = np.zeros((h, w), dtype=np.uint8)
+    cap = 64
+    pts = np.empty((cap, 2), dtype=np.int64)
+    cs = 16
+    starts = np.empty(cs + 1, dtype=np.int64)
+    area2 = np.empty(cs, dtype=np.int64)
+    first = np.empty(n + 1, dtype=np.int64)
+    n_cont = 0
+    pos = 0
+    for c in range(n):
+        v = c + 1
+        first[c] = n_cont
+        y0, y1, x0, x1 = boxes[c, 0], boxes[c, 1], boxes[c, 2], boxes[c, 3]
+        for vy0 in range(y0, y1 + 1):
+            # the four pixels around corner (vx0, vy0): a = [vy0 - 1, vx0 - 1], b = [vy0 - 1, vx0],
+            # c = [vy0, vx0 - 1], e = [vy0, vx0] (in component v), slid along the row
+            lo, hi = vy0 - 1 >= 0, vy0 < h
+            b = lo and x0 - 1 >= 0 and lab[vy0 - 1, x0 - 1] == v
+            e = hi and x0 - 1 >= 0 and lab[vy0, x0 - 1] == v
+            for vx0 in range(x0, x1 + 1):
+                a, c = b, e
+                b = lo and vx0 < w and lab[vy0 - 1, vx0] == v
+                e = hi and vx0 < w and lab[vy0, vx0] == v
+                if a == b and a == c and a == e:
+                    continue  # no boundary edge at this corner
+                for d0 in range(4):
+                    if d0 == 0:
+                        edge = e and not b
+                    elif d0 == 1:
+                        edge = c and not e
+                    elif d0 == 2:
+                        edge = a and not c
+                    else:
+                        edge = b and not a
+                    if not edge:
+                        continue
+                    # the edge's left pixel
+                    if d0 == 0:
+                        ly, lx = vy0, vx0
+                    elif d0 == 1:
+                        ly, lx = vy0, vx0 - 1
+                    elif d0 == 2:
+                        ly, lx = vy0 - 1, vx0 - 1
+                    else:
+                        ly, lx = vy0 - 1, vx0
+                    if visited[ly, lx] & (1 << d0):
+                        continue
+                    if n_cont == cs:
+                        cs *= 2
+                        starts2 = np.empty(cs + 1, dtype=np.int64)
+                        starts2[:n_cont] = starts[:n_cont]
+                        starts = starts2
+                        area2b = np.empty(cs, dtype=np.int64)
+                        area2b[:n_cont] = area2[:n_cont]
+                        area2 = area2b
+                    starts[n_cont] = pos
+                    a2 = 0
+                    vx, vy, d = vx0, vy0, d0
+                    while True:
+                        if d == 0:
+                            visited[vy, vx] |= 1
+                        elif d == 1:
+                            visited[vy, vx - 1] |= 2
+                        elif d == 2:
+                            visited[vy - 1, vx - 1] |= 4
+                        else:
+                            visited[vy - 1, vx] |= 8
+                        if pos == cap:
+                            cap *= 2
+                            pts2 = np.empty((cap, 2), dtype=np.int64)
+                            pts2[:pos] = pts[:pos]
+                            pts = pts2
+                        pts[pos, 0] = vx
+                        pts[pos, 1] = vy
+                        pos += 1
+                        vx, vy, a2 = _crack_step(vx, vy, d, a2)
+                        d = _label_turn(lab, vx, vy, d, v)
+                        if vx == vx0 and vy == vy0 and d == d0:
+                            break
+                    area2[n_cont] = a2
+                    n_cont += 1
+    first[n] = n_cont
+    starts[n_cont] = pos
+    return pts[:pos], starts[: n_cont + 1], area2[:n_cont], first
+
+
+@njit(cache=True, nogil=True)
+def _hole_parts(lab, v, box, seeds):
+    """The holes of component ``v`` of ``lab`` (inside ``box = (y0, y1, x0, x1)``) as pixel sets:
+    for each seed pixel ``seeds[k] = (y, x)`` (a pixel of the hole, in box coordinates), the
+    8-connected set of the pixels not labelled ``v`` that holds it, within the box.  Returns
+    ``(meta, flat)``: hole ``k``'s cropped mask is ``flat[o: o + h * w]`` as ``(h, w)`` with
+    ``meta[k] = (y, x, h, w, o)`` (its first row and column in the box, its size, its offset)."""
+    y0, y1, x0, x1 = box[0], box[1], box[2], box[3]
+    bh, bw = y1 - y0, x1 - x0
+    seen = np.zeros((bh, bw), np.uint8)
+    stack = np.empty((bh * bw, 2), np.int64)
+    got = np.empty((bh * bw, 2), np.int64)
+    k = seeds.shape[0]
+    meta = np.empty((k, 5), np.int64)
+    flat = np.zeros(0, np.uint8)
+    used = 0
+    for s in range(k):
+        sy, sx = seeds[s, 0], seeds[s, 1]
+        ng = 0
+        top = 0
+        if not seen[sy, sx]:
+            seen[sy, sx] = 1
+            stack[0, 0], stack[0, 1] = sy, sx
+            top = 1
+        while top > 0:
+            top -= 1
+            y, x = stack[top, 0], stack[top, 1]
+            got[ng, 0], got[ng, 1] = y, x
+            ng += 1
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    yy, xx = y + dy, x + dx
+                    if 0 <= yy < bh and 0 <= xx < bw and not seen[yy, xx] and lab[y0 + yy, x0 + xx] != v:
+                        seen[yy, xx] = 1
+                        stack[top, 0], stack[top, 1] = yy, xx
+                        top += 1
+        ly, lx, hy, hx = bh, bw, -1, -1
+        for i in range(ng):
+            ly, hy = min(ly, got[i, 0]), max(hy, got[i, 0])
+            lx, hx = min(lx, got[i, 1]), max(hx, got[i, 1])
+        hh, ww = hy - ly + 1, hx - lx + 1
+        if used + hh * ww > flat.shape[0]:
+            flat2 = np.zeros(max(2 * flat.shape[0], used + hh * ww), np.uint8)
+            flat2[:used] = flat[:used]
+            flat = flat2
+        for i in range(ng):
+            flat[used + (got[i, 0] - ly) * ww + got[i, 1] - lx] = 1
+        meta[s, 0], meta[s, 1], meta[s, 2], meta[s, 3], meta[s, 4] = ly, lx, hh, ww, used
+        used += hh * ww
+    return meta, flat[:used]
+
+
+def slice_boxes(objects) -> np.ndarray:
+    """A slice's ``find_objects`` boxes as an ``(n, 4)`` int64 array of ``(y0, y1, x0, x1)``."""
+    return np.array([(a.start, a.stop, b.start, b.stop) for a, b in objects], dtype=np.int64).reshape(-1, 4)
+
+
+def slice_cracks(labels: np.ndarray, boxes: np.ndarray) -> tuple:
+    """The crack contours of every component of a slice's label image (``labels`` int32, ``c + 1``
+    for component ``c``), in slice corner coordinates, in one
+    compiled pass: ``(points, starts, area2, first)`` as :func:`_slice_cracks`.  Contour ``i`` is
+    ``points[starts[i]: starts[i + 1]]``; component ``c``'s are ``first[c]: first[c + 1]``, the same
+    contours in the same order as ``_crack_contours(labels[objects[c]] == c + 1)`` gives them, moved
+    to the slice (``boxes``: :func:`slice_boxes` of ``objects``)."""
+    return _slice_cracks(np.ascontiguousarray(labels, dtype=np.int32), boxes)
 
 
 @njit(cache=True, nogil=True)

@@ -96,6 +96,7 @@ from .fastpath import (
     redo_self_crossing_bands,
     slice_components,
     slice_labels,
+    slice_mlps,
 )
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
@@ -111,7 +112,16 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
-from .tracing import _crack_contours, label_mask, missing_corners, overlap_groups, overlap_holes, unique_keys
+from .tracing import (
+    _hole_parts,
+    label_mask,
+    missing_corners,
+    overlap_groups,
+    overlap_holes,
+    slice_boxes,
+    slice_cracks,
+    unique_keys,
+)
 from .types import Mesh
 from .volume_input import _c_order, binary_label, prepare_volume
 
@@ -276,6 +286,14 @@ class _HoleMasks(Sequence):
             y0, x0 = int(ys[0]), int(xs[0])
             self.parts.append((y0, x0, m[y0: ys[-1] + 1, x0: xs[-1] + 1].copy()))
 
+    @classmethod
+    def of_parts(cls, shape, parts):
+        """The holes given as ``(y0, x0, cropped mask)`` (each mask's first and last rows and columns
+        hold a pixel), as ``__init__`` crops them."""
+        out = cls(shape, [])
+        out.parts = list(parts)
+        return out
+
     def __len__(self) -> int:
         return len(self.parts)
 
@@ -335,21 +353,30 @@ class _Slice:
     in raster order within it, and the same boxes, moved back to the whole image)."""
 
     def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None, box=None, source=None):
-        from scipy import ndimage
-
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
         self._mask, self._recent, self._source = (mask2d if source is None else None), recent, source
+        # every component's crack contours in one compiled pass over the int32 labels (slice corner
+        # coordinates; component c's contours are first[c]: first[c + 1], outer and holes in the
+        # order _crack_contours gives them for the component's cropped mask), and with "mlp" every
+        # component's MLP in another (what _mlp_of_pixels gives for its cropped mask)
         if box is None:
             labels, self.n, self.objects = slice_labels(mask2d)
+            boxes = slice_boxes(self.objects)
+            pts, starts, area2, first = slice_cracks(labels, boxes)
+            lab32 = labels
             # the labels in the smallest dtype that holds them
             self._labels = self._small(labels)
         else:
             part, self.n, objects = slice_labels(mask2d[box])
+            boxes = slice_boxes(objects)
+            pts, starts, area2, first = slice_cracks(part, boxes)
+            lab32 = part
             part = self._small(part)  # (the whole image's labels made in that dtype at once)
             labels = np.zeros(mask2d.shape, dtype=part.dtype)
             labels[box] = part
             self._labels = labels
             y0, x0 = box[0].start or 0, box[1].start or 0
+            pts += np.array([x0, y0], dtype=np.int64)
             self.objects = [(slice(a.start + y0, a.stop + y0), slice(b.start + x0, b.stop + x0)) for a, b in objects]
         self.outer = []   # per component: polygon (physical xy)
         self.holes = []   # per component: list of hole polygons
@@ -362,38 +389,44 @@ class _Slice:
         self.crack_outer = _CrackXY(self.crack_outer_c, to_xy_corner, False)
         self.crack_holes = _CrackXY(self.crack_holes_c, to_xy_corner, True)
         self.fallbacks = 0
+        mlps = slice_mlps(lab32, boxes) if polygon not in ("dss", "none") else None
         for c in range(self.n):
             sl = self.objects[c]
             y0, x0 = sl[0].start, sl[1].start
-            comp = self._labels[sl] == c + 1
-            cont, area2 = _crack_contours(comp)
-            outer_i = [i for i in range(len(cont)) if area2[i] > 0]
-            if len(outer_i) != 1:  # pragma: no cover - a 4-component has one outer boundary
-                raise RuntimeError(f"component {c} has {len(outer_i)} outer crack contours")
+            k0, k1 = int(first[c]), int(first[c + 1])
+            if k1 - k0 == 1 and area2[k0] > 0:  # (most components: one outer contour, no hole)
+                crack_o, crack_h = pts[starts[k0]: starts[k1]], []
+            else:
+                cont = [pts[starts[i]: starts[i + 1]] for i in range(k0, k1)]
+                outer_i = [i for i in range(len(cont)) if area2[k0 + i] > 0]
+                if len(outer_i) != 1:  # pragma: no cover - a 4-component has one outer boundary
+                    raise RuntimeError(f"component {c} has {len(outer_i)} outer crack contours")
+                crack_o = cont[outer_i[0]]
+                crack_h = [cont[i] for i in range(len(cont)) if area2[k0 + i] < 0]
             off = np.array([x0, y0])
-            crack_o = cont[outer_i[0]] + off
-            crack_h = [cont[i] + off for i in range(len(cont)) if area2[i] < 0]
             # the holes as pixel sets: background 8-components of the component's bbox not
-            # connected to the bbox border
-            hmasks = []
-            if crack_h:  # (a component without hole contours has no holes: skip the labelling)
-                padded = _pad1(~comp, True)
-                blab, nb = ndimage.label(padded, structure=_SQUARE)
-                ext = blab[0, 0]
-                for b in range(1, nb + 1):
-                    if b == ext:
-                        continue
-                    hm = (blab == b)[1:-1, 1:-1]
-                    hmasks.append(hm)
-            # order hole masks like the crack holes: match by a pixel left of each hole contour
-            hmasks = self._match_holes(crack_h, hmasks, off)
-            self.hole_masks.append((sl, _HoleMasks(comp.shape, hmasks)))
+            # connected to the bbox border: each filled (compiled) from the pixel right of its hole
+            # contour's first edge, so in the order of the contours; cropped to its own box
+            shape = (sl[0].stop - y0, sl[1].stop - x0)
+            parts = []
+            if crack_h:  # (a component without hole contours has no holes)
+                seeds = np.array([self._hole_seed(h, off) for h in crack_h], dtype=np.int64)
+                meta, flat = _hole_parts(lab32, c + 1, boxes[c], seeds)
+                for hy, hx, hh, hw, o in meta.tolist():
+                    if hh <= 0:  # pragma: no cover - 4/8 duality: one hole per hole contour
+                        raise RuntimeError("could not pair a hole contour with its pixels")
+                    parts.append((hy, hx, flat[o: o + hh * hw].view(bool).reshape(hh, hw).copy()))
+            self.hole_masks.append((sl, _HoleMasks.of_parts(shape, parts)))
             self.crack_outer_c.append(crack_o)
             self.crack_holes_c.append(crack_h)
-            self.outer.append(self._polygon(crack_o, comp, polygon, to_xy_corner, to_xy_center, off, hole=False))
+            # (the polygons by "mlp" from the MLPs made above: the component's and each hole's, the
+            # latter made from its cropped mask and moved to the component's box)
+            self.outer.append(self._polygon(crack_o, None, polygon, to_xy_corner, to_xy_center, off, hole=False,
+                                            mlp=False if mlps is None else mlps[c]))
             self.holes.append([
-                self._polygon(h, hm, polygon, to_xy_corner, to_xy_center, off, hole=True)
-                for h, hm in zip(crack_h, hmasks)
+                self._polygon(h, None, polygon, to_xy_corner, to_xy_center, off, hole=True,
+                              mlp=False if mlps is None else self._moved(pixels_mlp(part), hx, hy))
+                for h, (hy, hx, part) in zip(crack_h, parts)
             ])
         if recent is not None:
             recent.hold(self)
@@ -415,30 +448,42 @@ class _Slice:
         return self._labels
 
     @staticmethod
+    def _moved(p, x, y):
+        """An MLP of :func:`pixels_mlp` (or ``None``) moved by ``(x, y)``."""
+        return None if p is None else p + np.array([x, y], dtype=np.int64)
+
+    @staticmethod
+    def _hole_seed(h, off):
+        """``(py, px)``: the pixel (in the component's box, whose lower-left corner is ``off``) right of
+        the first edge of the hole contour ``h``, a pixel of the hole (the object is on its left)."""
+        p, q = h[0] - off, h[1 % len(h)] - off
+        d = q - p
+        # pixel on the right of the step p->q (y up): for +x step it is the pixel below
+        if d[0] == 1:
+            return p[1] - 1, p[0]
+        if d[0] == -1:
+            return p[1], p[0] - 1
+        if d[1] == 1:
+            return p[1], p[0]
+        return p[1] - 1, p[0] - 1
+
+    @staticmethod
     def _match_holes(crack_h, hmasks, off):
         if len(crack_h) != len(hmasks):  # pragma: no cover - 4/8 duality guarantees equality
             raise RuntimeError("hole contours and hole pixel sets disagree")
         out = []
         for h in crack_h:
-            # a hole contour has the object on its left; the hole pixel right of its first edge
-            p, q = h[0] - off, h[1 % len(h)] - off
-            d = q - p
-            # pixel on the right of the step p->q (y up): for +x step it is the pixel below
-            if d[0] == 1:
-                px, py = p[0], p[1] - 1
-            elif d[0] == -1:
-                px, py = p[0] - 1, p[1]
-            elif d[1] == 1:
-                px, py = p[0], p[1]
-            else:
-                px, py = p[0] - 1, p[1] - 1
+            py, px = _Slice._hole_seed(h, off)
             found = [m for m in hmasks if 0 <= py < m.shape[0] and 0 <= px < m.shape[1] and m[py, px]]
             if len(found) != 1:  # pragma: no cover
                 raise RuntimeError("could not pair a hole contour with its pixels")
             out.append(found[0])
         return out
 
-    def _polygon(self, crack, pixels, method, to_xy_corner, to_xy_center, off, hole):
+    def _polygon(self, crack, pixels, method, to_xy_corner, to_xy_center, off, hole, mlp=False):
+        """The polygon of one crack contour by ``method`` (physical xy).  ``mlp``: with "mlp", the
+        MLP of ``pixels`` made already (:func:`contourmesh.fastpath.slice_mlps`: int64 or ``None``),
+        ``False`` where it is to be made here from ``pixels``."""
 
         if method == "none":
             return to_xy_corner(crack)
@@ -449,7 +494,7 @@ class _Slice:
             self.fallbacks += 1
             return to_xy_corner(crack)
         # mlp: the outer Jordan construction with these pixels as I
-        poly = _mlp_of_pixels(pixels)
+        poly = _mlp_of_pixels(pixels) if mlp is False else None if mlp is None else mlp.astype(np.float64)
         if poly is None:  # a part one pixel wide: the MLP is a segment or a point
             self.fallbacks += 1
             return to_xy_corner(thin_part_polygon(crack))
