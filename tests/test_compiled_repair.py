@@ -409,6 +409,50 @@ def test_half_edge_twins_equal_the_sorted_search_and_errors_are_named():
         repair.split_nonmanifold_vertices(s.vertices, G, four_face=False)
 
 
+def _bipyramid(n, apex_lo=True):
+    """A closed double cone over an ``n``-gon, outward: apexes 0 and ``n + 1`` (``apex_lo``: both
+    numbered below the ring's vertices, so that their buckets hold ``2 n`` half-edges each)."""
+    ring = np.arange(1, n + 1) if apex_lo else np.arange(n)
+    top, bot = (0, n + 1) if apex_lo else (n, n + 1)
+    nxt = np.roll(ring, -1)
+    F = np.concatenate([np.stack([np.full(n, top), ring, nxt], 1), np.stack([np.full(n, bot), nxt, ring], 1)])
+    return np.ascontiguousarray(F, dtype=np.int64), n + 2
+
+
+@pytest.mark.parametrize("n", [3, 11, 12, 13, 40])
+def test_edge_kernels_small_and_large_buckets_equal_the_sorted_forms(n):
+    """The edge counts and half-edge twins match buckets by comparing their entries up to
+    _SMALL_BUCKET half-edges and through tables per vertex above: both ways give the counts of
+    np.unique and the twins and statuses of the sorted search (bipyramids whose apexes have 2 n
+    half-edges in their buckets, on both sides of the bound; faces and vertices shuffled)."""
+    rng = np.random.default_rng(n)
+    for apex_lo in (True, False):
+        F, nv = _bipyramid(n, apex_lo)
+        perm = rng.permutation(nv)
+        F = np.ascontiguousarray(perm[F][rng.permutation(len(F))])
+        F = np.ascontiguousarray(np.roll(F, rng.integers(3), axis=1))
+        twin, status = repair._half_edge_twins(F, nv)
+        assert status == 0
+        assert np.array_equal(twin, repair._half_edge_twins_reference(F, nv + 1))
+        assert np.array_equal(repair._edge_multiplicity(F, nv), np.full(F.shape, 2))
+        assert repair._half_edge_twins(F[1:], nv)[1] == 2  # an open surface
+        assert repair._half_edge_twins(np.concatenate([F, F[-1:]]), nv)[1] == 1  # a face twice
+        # a second copy glued along the same vertices: four-face edges, every edge used twice each way
+        G = np.concatenate([F, F])
+        assert np.array_equal(repair._edge_multiplicity(G, nv), np.full(G.shape, 4))
+        for threads in (2, 3):
+            assert np.array_equal(repair._half_edge_twins_threads(F, nv, threads)[0], twin)
+            assert repair._half_edge_twins_threads(F[1:], nv, threads)[1] != 0
+    # random faces on few vertices: buckets of every size, edges in one face up to many
+    for nv in (6, 20, 60, 400):
+        F = _random_faces(rng, 300, nv)
+        e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
+        und = np.minimum(e[..., 0], e[..., 1]) * (nv + 1) + np.maximum(e[..., 0], e[..., 1])
+        _, inv, cnt = np.unique(und.reshape(-1), return_inverse=True, return_counts=True)
+        assert np.array_equal(repair._edge_multiplicity(F, nv), cnt[inv].reshape(-1, 3))
+        assert np.array_equal(repair._edge_multiplicity_threads(F, nv, 2), cnt[inv].reshape(-1, 3))
+
+
 @njit
 def _corner_components(n, a1, b1, a2, b2):
     """Connected components of ``n`` nodes under the links ``a1[i] - b1[i]`` and ``a2[i] - b2[i]``:
