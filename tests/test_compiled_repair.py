@@ -966,12 +966,22 @@ def _faces_near_reference(V, W, F, moved_faces):
     h = max(float(ext[moved_faces].max()), float(np.median(ext.max(axis=1))), 1e-12)
     clo = np.floor((lo - glo) / h).astype(np.int64)
     chi = np.floor((hi - glo) / h).astype(np.int64)
-    return np.flatnonzero(repair._share_cell(clo, chi, np.asarray(moved_faces, dtype=np.int64)))
+    return _share_cell_brute(clo, chi, np.asarray(moved_faces, dtype=np.int64))
+
+
+def _share_cell_brute(clo, chi, chosen):
+    # faces sharing a cell with a chosen one: their ranges of cells overlap along every axis (no
+    # hash table: repair._share_cell and repair._near_cells share theirs)
+    meet = ((clo[:, None, :] <= chi[None, chosen, :]) & (clo[None, chosen, :] <= chi[:, None, :])).all(axis=2)
+    near = np.flatnonzero(meet.any(axis=1))
+    assert np.array_equal(near, np.flatnonzero(repair._share_cell(clo, chi, chosen)))
+    return near
 
 
 @njit(cache=False)
 def _boxes_near_reference(V, F, chosen):
-    # repair._boxes_near until issue 16's memory round (boxes, extents and cells kept per face)
+    # repair._boxes_near until issue 16's memory round (boxes, extents and cells kept per face):
+    # the cells of every face
     n = F.shape[0]
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
@@ -996,7 +1006,7 @@ def _boxes_near_reference(V, F, chosen):
         for d in range(3):
             clo[i, d] = np.int64(np.floor((lo[i, d] - glo[d]) / h))
             chi[i, d] = np.int64(np.floor((hi[i, d] - glo[d]) / h))
-    return np.flatnonzero(repair._share_cell(clo, chi, chosen))
+    return clo, chi
 
 
 def test_faces_near_without_whole_mesh_boxes_equals_the_reference():
@@ -1016,7 +1026,7 @@ def test_faces_near_without_whole_mesh_boxes_equals_the_reference():
         got = repair._faces_near(V, W, F, chosen)
         assert np.array_equal(got, _faces_near_reference(V, W, F, chosen))
         got = repair._boxes_near(V, F, chosen)
-        assert np.array_equal(got, _boxes_near_reference(V, F, chosen))
+        assert np.array_equal(got, _share_cell_brute(*_boxes_near_reference(V, F, chosen), chosen))
         sizes.add(len(got) == m)
     assert sizes == {True, False}
 

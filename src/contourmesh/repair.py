@@ -1003,31 +1003,27 @@ def _faces_near(V, W, F, moved_faces):
 
     The boxes are not kept: their extents, then their cells, are made from the corners in two
     compiled passes (the same numbers as from the boxes: minima, maxima and one subtraction and
-    division each); the boxes, their extents and the float cells of the whole mesh took some 60
-    MiB on the lobster's mesh, at the general mesher's peak."""
+    division each), the second testing each face's cells as it makes them
+    (:func:`_near_cells`); the boxes, their extents and the float cells of the whole mesh took
+    some 60 MiB on the lobster's mesh, at the general mesher's peak."""
     moved = np.asarray(moved_faces, dtype=np.int64)
     glo, ext = _box_extents(V, W, F, True)
     # cells as large as the moved faces (so each covers a few), and no smaller than most faces
     h = max(float(ext[moved].max()), float(np.median(ext)), 1e-12)
-    clo, chi = _box_cells(V, W, F, glo, h, True)
-    return np.flatnonzero(_share_cell(clo, chi, moved))
+    return np.flatnonzero(_near_cells(V, W, F, glo, h, moved, True))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _face_box(V, W, F, i, d, both):
     """The extent ``(lo, hi)`` along axis ``d`` of face ``i``'s corners in ``V`` (and in ``W``
-    with ``both``)."""
+    with ``both``).  (Inlined: a call per face and axis, and a loop over the tuple ``(V, W)``,
+    made the passes over the faces five times slower; numba's ``min`` and ``max`` of several
+    numbers compare them left to right, as that loop did.)"""
+    x0, x1, x2 = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
     if not both:
-        x0, x1, x2 = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
         return min(x0, x1, x2), max(x0, x1, x2)
-    a = V[F[i, 0], d]
-    b = a
-    for P in (V, W):
-        for c in range(3):
-            x = P[F[i, c], d]
-            a = min(a, x)
-            b = max(b, x)
-    return a, b
+    w0, w1, w2 = W[F[i, 0], d], W[F[i, 1], d], W[F[i, 2], d]
+    return min(x0, x1, x2, w0, w1, w2), max(x0, x1, x2, w0, w1, w2)
 
 
 @njit(cache=True, nogil=True)
@@ -1047,69 +1043,99 @@ def _box_extents(V, W, F, both):
 
 
 @njit(cache=True, nogil=True)
-def _box_cells(V, W, F, glo, h, both):
-    """``(clo, chi)``: per face the cells (of size ``h`` from ``glo``) of its box's low and high
-    corners, ``floor((x - glo) / h)`` (boxes as :func:`_box_extents`)."""
-    clo = np.empty((F.shape[0], 3), np.int64)
-    chi = np.empty((F.shape[0], 3), np.int64)
-    for i in range(F.shape[0]):
-        for d in range(3):
-            a, b = _face_box(V, W, F, i, d, both)
-            clo[i, d] = np.int64(np.floor((a - glo[d]) / h))
-            chi[i, d] = np.int64(np.floor((b - glo[d]) / h))
-    return clo, chi
-
-
-@njit(cache=True, nogil=True)
 def _share_cell(clo, chi, chosen):
     """Per face (cells ``clo[i] .. chi[i]`` of a grid), whether it shares a cell with a face in
     ``chosen`` (the chosen ones included)."""
-    ncell = 0
-    for t in range(len(chosen)):
-        i = chosen[t]
-        ncell += (chi[i, 0] - clo[i, 0] + 1) * (chi[i, 1] - clo[i, 1] + 1) * (chi[i, 2] - clo[i, 2] + 1)
-    size = 1
-    while size < 2 * ncell + 2:
-        size *= 2
-    keys = np.empty((size, 3), np.int64)
-    used = np.zeros(size, np.bool_)
-    for t in range(len(chosen)):
-        i = chosen[t]
-        for x in range(clo[i, 0], chi[i, 0] + 1):
-            for y in range(clo[i, 1], chi[i, 1] + 1):
-                for z in range(clo[i, 2], chi[i, 2] + 1):
-                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
-                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
-                    while used[slot] and not (keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z):
-                        slot = (slot + 1) & (size - 1)
-                    used[slot] = True
-                    keys[slot, 0], keys[slot, 1], keys[slot, 2] = x, y, z
+    keys, used = _cell_table(clo, chi, chosen)
     n = clo.shape[0]
     near = np.zeros(n, np.bool_)
     for t in range(len(chosen)):
         near[chosen[t]] = True
     for i in range(n):
+        if not near[i]:
+            near[i] = _in_cells(keys, used, clo[i, 0], chi[i, 0], clo[i, 1], chi[i, 1], clo[i, 2], chi[i, 2])
+    return near
+
+
+@njit(cache=True, nogil=True)
+def _near_cells(V, W, F, glo, h, chosen, both):
+    """Per face, whether it shares a cell of the grid of size ``h`` from ``glo`` with a face in
+    ``chosen`` (boxes as :func:`_box_extents`; a face's cells along an axis ``floor((lo - glo) /
+    h) .. floor((hi - glo) / h)``): :func:`_share_cell` without the whole mesh's cells, those of the
+    chosen faces filling the table and every other face's made and looked up in turn."""
+    k = len(chosen)
+    clo = np.empty((k, 3), np.int64)
+    chi = np.empty((k, 3), np.int64)
+    for t in range(k):
+        for d in range(3):
+            clo[t, d], chi[t, d] = _face_cells(V, W, F, chosen[t], d, glo, h, both)
+    keys, used = _cell_table(clo, chi, np.arange(k))
+    n = F.shape[0]
+    near = np.zeros(n, np.bool_)
+    for t in range(k):
+        near[chosen[t]] = True
+    for i in range(n):
         if near[i]:
             continue
-        found = False
-        for x in range(clo[i, 0], chi[i, 0] + 1):
-            for y in range(clo[i, 1], chi[i, 1] + 1):
-                for z in range(clo[i, 2], chi[i, 2] + 1):
-                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
-                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
-                    while used[slot]:
-                        if keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z:
-                            found = True
-                            break
-                        slot = (slot + 1) & (size - 1)
-                    if found:
-                        break
-                if found:
-                    break
-            if found:
-                break
-        near[i] = found
+        x0, x1 = _face_cells(V, W, F, i, 0, glo, h, both)
+        y0, y1 = _face_cells(V, W, F, i, 1, glo, h, both)
+        z0, z1 = _face_cells(V, W, F, i, 2, glo, h, both)
+        near[i] = _in_cells(keys, used, x0, x1, y0, y1, z0, z1)
     return near
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _face_cells(V, W, F, i, d, glo, h, both):
+    """The cells of face ``i``'s box along axis ``d`` (see :func:`_near_cells`)."""
+    a, b = _face_box(V, W, F, i, d, both)
+    return np.int64(np.floor((a - glo[d]) / h)), np.int64(np.floor((b - glo[d]) / h))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cell_slot(x, y, z, size):
+    return np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
+                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
+
+
+@njit(cache=True, nogil=True)
+def _cell_table(clo, chi, rows):
+    """An open-addressing set ``(keys, used)`` of the cells ``clo[r] .. chi[r]`` for ``r`` in
+    ``rows``."""
+    ncell = 0
+    for t in range(len(rows)):
+        r = rows[t]
+        ncell += (chi[r, 0] - clo[r, 0] + 1) * (chi[r, 1] - clo[r, 1] + 1) * (chi[r, 2] - clo[r, 2] + 1)
+    size = 1
+    while size < 2 * ncell + 2:
+        size *= 2
+    keys = np.empty((size, 3), np.int64)
+    used = np.zeros(size, np.bool_)
+    for t in range(len(rows)):
+        r = rows[t]
+        for x in range(clo[r, 0], chi[r, 0] + 1):
+            for y in range(clo[r, 1], chi[r, 1] + 1):
+                for z in range(clo[r, 2], chi[r, 2] + 1):
+                    slot = _cell_slot(x, y, z, size)
+                    while used[slot] and not (keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z):
+                        slot = (slot + 1) & (size - 1)
+                    used[slot] = True
+                    keys[slot, 0], keys[slot, 1], keys[slot, 2] = x, y, z
+    return keys, used
+
+
+@njit(cache=True, nogil=True)
+def _in_cells(keys, used, x0, x1, y0, y1, z0, z1):
+    """Whether a cell of ``x0 .. x1, y0 .. y1, z0 .. z1`` is in the set (:func:`_cell_table`)."""
+    size = used.shape[0]
+    for x in range(x0, x1 + 1):
+        for y in range(y0, y1 + 1):
+            for z in range(z0, z1 + 1):
+                slot = _cell_slot(x, y, z, size)
+                while used[slot]:
+                    if keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z:
+                        return True
+                    slot = (slot + 1) & (size - 1)
+    return False
 
 
 @njit(cache=True, nogil=True)
@@ -1190,8 +1216,7 @@ def _boxes_near(V, F, chosen):
     h = max(np.median(ext), 1e-12)
     for t in range(len(chosen)):
         h = max(h, ext[chosen[t]])
-    clo, chi = _box_cells(V, V, F, glo, h, False)
-    return np.flatnonzero(_share_cell(clo, chi, chosen))
+    return np.flatnonzero(_near_cells(V, V, F, glo, h, chosen, False))
 
 
 def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):
