@@ -655,6 +655,33 @@ def split_four_face_edges_reference(V, F, side, nudge):
     return V2, F2, S2
 
 
+def test_four_face_rows_equal_the_whole_array_steps():
+    """The four-face edge split's one pass over the edge counts: the first odd count (row order),
+    the largest, and the faces with a four-face edge with the mask of those edges, as the numpy
+    steps it replaced gave them; and the split raises the same errors as its reference."""
+    rng = np.random.default_rng(23)
+    for trial in range(200):
+        m = int(rng.integers(0, 40))
+        mult = (2 * rng.integers(1, 3 if trial % 3 else 4, (m, 3))).astype(np.int32)
+        if trial % 4 == 0 and m:
+            mult.reshape(-1)[rng.integers(mult.size, size=int(rng.integers(1, 4)))] = rng.choice([1, 3, 5])
+        odd, most, rows, hit = repair._four_face_rows(mult)
+        want = np.argwhere(mult % 2 == 1)
+        assert odd == (int(mult[tuple(want[0])]) if len(want) else 0)
+        assert most == (int(mult.max()) if m else 0)
+        four = mult == 4
+        assert np.array_equal(rows, np.flatnonzero(four.any(axis=1)))
+        assert np.array_equal(hit, four[rows])
+    V = np.zeros((8, 3))
+    for F in (np.array([[0, 1, 2], [0, 1, 3], [1, 0, 4]]), np.concatenate([np.array([[0, 1, 2], [1, 0, 3]])] * 3)):
+        msgs = []
+        for fn in (repair._split_four_face_edges, split_four_face_edges_reference):
+            with pytest.raises(RuntimeError, match="an edge is shared by") as err:
+                fn(V, F, np.zeros(len(F), dtype=np.int64), 1e-3)
+            msgs.append(str(err.value))
+        assert msgs[0] == msgs[1]
+
+
 def test_split_four_face_edges_equals_the_reference_on_voxel_meshes(monkeypatch):
     # the general mesher's four-face edges (voxels of consecutive slices touching along an edge),
     # among them faces with two such edges (a split face's other edge is split after it), and the

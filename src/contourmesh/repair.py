@@ -38,21 +38,17 @@ def _split_four_face_edges(V, F, side, nudge):
     threads = _edge_threads(Fc)
     mult = _edge_multiplicity(Fc, len(V)) if threads < 2 else _edge_multiplicity_threads(Fc, len(V), threads)
     del Fc
-    if np.any(mult % 2):
-        bad = np.argwhere(mult % 2 == 1)[0]
-        raise RuntimeError(f"internal error: an edge is shared by {int(mult[tuple(bad)])} faces")
-    if np.any(mult > 4):
-        raise RuntimeError(f"internal error: an edge is shared by {int(mult.max())} faces")
-    hit = mult == 4
+    odd, most, work, fw_hit = _four_face_rows(mult)
     del mult
-    if not hit.any():
+    if odd:
+        raise RuntimeError(f"internal error: an edge is shared by {int(odd)} faces")
+    if most > 4:
+        raise RuntimeError(f"internal error: an edge is shared by {int(most)} faces")
+    if not len(work):
         return V, F, side
-    work = np.flatnonzero(hit.any(axis=1))
     Fw = F[work]
     faces = dict(zip(work.tolist(), zip(Fw.tolist(), side[work].tolist())))
     # the four-face edges' sets, filled as the reference fills them: faces in order, edges in order
-    fw_hit = hit[work]
-    del hit
     lo_w = np.minimum(Fw, np.roll(Fw, -1, axis=1))
     hi_w = np.maximum(Fw, np.roll(Fw, -1, axis=1))
     rows, ts = np.nonzero(fw_hit)
@@ -109,6 +105,35 @@ def _split_four_face_edges(V, F, side, nudge):
     F2, S2 = _kept_and_added(F, side, keep, [f for f, _ in items], [sd for _, sd in items])
     V2 = np.concatenate([V, newV])
     return V2, F2, S2
+
+
+@njit(cache=True, nogil=True)
+def _four_face_rows(mult):
+    """From the edge counts (:func:`_edge_multiplicity`): ``(odd, most, rows, hit)``, the first odd
+    count in row order (0 if none), the largest count, the faces with an edge shared by four
+    (increasing) and, per such face, which of its edges are (one pass, no whole-mesh masks)."""
+    odd = 0
+    most = 0
+    n = 0
+    for i in range(mult.shape[0]):
+        four = False
+        for k in range(3):
+            c = mult[i, k]
+            if c % 2 and not odd:
+                odd = c
+            most = max(most, c)
+            four = four or c == 4
+        n += four
+    rows = np.empty(n, np.int64)
+    hit = np.empty((n, 3), np.bool_)
+    at = 0
+    for i in range(mult.shape[0]):
+        if mult[i, 0] == 4 or mult[i, 1] == 4 or mult[i, 2] == 4:
+            rows[at] = i
+            for k in range(3):
+                hit[at, k] = mult[i, k] == 4
+            at += 1
+    return odd, most, rows, hit
 
 
 def _midpoints(V, made, nudge):
