@@ -409,6 +409,50 @@ def test_half_edge_twins_equal_the_sorted_search_and_errors_are_named():
         repair.split_nonmanifold_vertices(s.vertices, G, four_face=False)
 
 
+def _bipyramid(n, apex_lo=True):
+    """A closed double cone over an ``n``-gon, outward: apexes 0 and ``n + 1`` (``apex_lo``: both
+    numbered below the ring's vertices, so that their buckets hold ``2 n`` half-edges each)."""
+    ring = np.arange(1, n + 1) if apex_lo else np.arange(n)
+    top, bot = (0, n + 1) if apex_lo else (n, n + 1)
+    nxt = np.roll(ring, -1)
+    F = np.concatenate([np.stack([np.full(n, top), ring, nxt], 1), np.stack([np.full(n, bot), nxt, ring], 1)])
+    return np.ascontiguousarray(F, dtype=np.int64), n + 2
+
+
+@pytest.mark.parametrize("n", [3, 11, 12, 13, 40])
+def test_edge_kernels_small_and_large_buckets_equal_the_sorted_forms(n):
+    """The edge counts and half-edge twins match buckets by comparing their entries up to
+    _SMALL_BUCKET half-edges and through tables per vertex above: both ways give the counts of
+    np.unique and the twins and statuses of the sorted search (bipyramids whose apexes have 2 n
+    half-edges in their buckets, on both sides of the bound; faces and vertices shuffled)."""
+    rng = np.random.default_rng(n)
+    for apex_lo in (True, False):
+        F, nv = _bipyramid(n, apex_lo)
+        perm = rng.permutation(nv)
+        F = np.ascontiguousarray(perm[F][rng.permutation(len(F))])
+        F = np.ascontiguousarray(np.roll(F, rng.integers(3), axis=1))
+        twin, status = repair._half_edge_twins(F, nv)
+        assert status == 0
+        assert np.array_equal(twin, repair._half_edge_twins_reference(F, nv + 1))
+        assert np.array_equal(repair._edge_multiplicity(F, nv), np.full(F.shape, 2))
+        assert repair._half_edge_twins(F[1:], nv)[1] == 2  # an open surface
+        assert repair._half_edge_twins(np.concatenate([F, F[-1:]]), nv)[1] == 1  # a face twice
+        # a second copy glued along the same vertices: four-face edges, every edge used twice each way
+        G = np.concatenate([F, F])
+        assert np.array_equal(repair._edge_multiplicity(G, nv), np.full(G.shape, 4))
+        for threads in (2, 3):
+            assert np.array_equal(repair._half_edge_twins_threads(F, nv, threads)[0], twin)
+            assert repair._half_edge_twins_threads(F[1:], nv, threads)[1] != 0
+    # random faces on few vertices: buckets of every size, edges in one face up to many
+    for nv in (6, 20, 60, 400):
+        F = _random_faces(rng, 300, nv)
+        e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
+        und = np.minimum(e[..., 0], e[..., 1]) * (nv + 1) + np.maximum(e[..., 0], e[..., 1])
+        _, inv, cnt = np.unique(und.reshape(-1), return_inverse=True, return_counts=True)
+        assert np.array_equal(repair._edge_multiplicity(F, nv), cnt[inv].reshape(-1, 3))
+        assert np.array_equal(repair._edge_multiplicity_threads(F, nv, 2), cnt[inv].reshape(-1, 3))
+
+
 @njit
 def _corner_components(n, a1, b1, a2, b2):
     """Connected components of ``n`` nodes under the links ``a1[i] - b1[i]`` and ``a2[i] - b2[i]``:
@@ -609,6 +653,33 @@ def split_four_face_edges_reference(V, F, side, nudge):
     S2 = np.concatenate([side[keep], np.array([sd for _, sd in items], dtype=side.dtype)])
     V2 = np.concatenate([V, np.array(newV).reshape(-1, 3)])
     return V2, F2, S2
+
+
+def test_four_face_rows_equal_the_whole_array_steps():
+    """The four-face edge split's one pass over the edge counts: the first odd count (row order),
+    the largest, and the faces with a four-face edge with the mask of those edges, as the numpy
+    steps it replaced gave them; and the split raises the same errors as its reference."""
+    rng = np.random.default_rng(23)
+    for trial in range(200):
+        m = int(rng.integers(0, 40))
+        mult = (2 * rng.integers(1, 3 if trial % 3 else 4, (m, 3))).astype(np.int32)
+        if trial % 4 == 0 and m:
+            mult.reshape(-1)[rng.integers(mult.size, size=int(rng.integers(1, 4)))] = rng.choice([1, 3, 5])
+        odd, most, rows, hit = repair._four_face_rows(mult)
+        want = np.argwhere(mult % 2 == 1)
+        assert odd == (int(mult[tuple(want[0])]) if len(want) else 0)
+        assert most == (int(mult.max()) if m else 0)
+        four = mult == 4
+        assert np.array_equal(rows, np.flatnonzero(four.any(axis=1)))
+        assert np.array_equal(hit, four[rows])
+    V = np.zeros((8, 3))
+    for F in (np.array([[0, 1, 2], [0, 1, 3], [1, 0, 4]]), np.concatenate([np.array([[0, 1, 2], [1, 0, 3]])] * 3)):
+        msgs = []
+        for fn in (repair._split_four_face_edges, split_four_face_edges_reference):
+            with pytest.raises(RuntimeError, match="an edge is shared by") as err:
+                fn(V, F, np.zeros(len(F), dtype=np.int64), 1e-3)
+            msgs.append(str(err.value))
+        assert msgs[0] == msgs[1]
 
 
 def test_split_four_face_edges_equals_the_reference_on_voxel_meshes(monkeypatch):
@@ -922,12 +993,22 @@ def _faces_near_reference(V, W, F, moved_faces):
     h = max(float(ext[moved_faces].max()), float(np.median(ext.max(axis=1))), 1e-12)
     clo = np.floor((lo - glo) / h).astype(np.int64)
     chi = np.floor((hi - glo) / h).astype(np.int64)
-    return np.flatnonzero(repair._share_cell(clo, chi, np.asarray(moved_faces, dtype=np.int64)))
+    return _share_cell_brute(clo, chi, np.asarray(moved_faces, dtype=np.int64))
+
+
+def _share_cell_brute(clo, chi, chosen):
+    # faces sharing a cell with a chosen one: their ranges of cells overlap along every axis (no
+    # hash table: repair._share_cell and repair._near_cells share theirs)
+    meet = ((clo[:, None, :] <= chi[None, chosen, :]) & (clo[None, chosen, :] <= chi[:, None, :])).all(axis=2)
+    near = np.flatnonzero(meet.any(axis=1))
+    assert np.array_equal(near, np.flatnonzero(repair._share_cell(clo, chi, chosen)))
+    return near
 
 
 @njit(cache=False)
 def _boxes_near_reference(V, F, chosen):
-    # repair._boxes_near until issue 16's memory round (boxes, extents and cells kept per face)
+    # repair._boxes_near until issue 16's memory round (boxes, extents and cells kept per face):
+    # the cells of every face
     n = F.shape[0]
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
@@ -952,7 +1033,7 @@ def _boxes_near_reference(V, F, chosen):
         for d in range(3):
             clo[i, d] = np.int64(np.floor((lo[i, d] - glo[d]) / h))
             chi[i, d] = np.int64(np.floor((hi[i, d] - glo[d]) / h))
-    return np.flatnonzero(repair._share_cell(clo, chi, chosen))
+    return clo, chi
 
 
 def test_faces_near_without_whole_mesh_boxes_equals_the_reference():
@@ -972,7 +1053,7 @@ def test_faces_near_without_whole_mesh_boxes_equals_the_reference():
         got = repair._faces_near(V, W, F, chosen)
         assert np.array_equal(got, _faces_near_reference(V, W, F, chosen))
         got = repair._boxes_near(V, F, chosen)
-        assert np.array_equal(got, _boxes_near_reference(V, F, chosen))
+        assert np.array_equal(got, _share_cell_brute(*_boxes_near_reference(V, F, chosen), chosen))
         sizes.add(len(got) == m)
     assert sizes == {True, False}
 

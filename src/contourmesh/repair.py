@@ -38,21 +38,17 @@ def _split_four_face_edges(V, F, side, nudge):
     threads = _edge_threads(Fc)
     mult = _edge_multiplicity(Fc, len(V)) if threads < 2 else _edge_multiplicity_threads(Fc, len(V), threads)
     del Fc
-    if np.any(mult % 2):
-        bad = np.argwhere(mult % 2 == 1)[0]
-        raise RuntimeError(f"internal error: an edge is shared by {int(mult[tuple(bad)])} faces")
-    if np.any(mult > 4):
-        raise RuntimeError(f"internal error: an edge is shared by {int(mult.max())} faces")
-    hit = mult == 4
+    odd, most, work, fw_hit = _four_face_rows(mult)
     del mult
-    if not hit.any():
+    if odd:
+        raise RuntimeError(f"internal error: an edge is shared by {int(odd)} faces")
+    if most > 4:
+        raise RuntimeError(f"internal error: an edge is shared by {int(most)} faces")
+    if not len(work):
         return V, F, side
-    work = np.flatnonzero(hit.any(axis=1))
     Fw = F[work]
     faces = dict(zip(work.tolist(), zip(Fw.tolist(), side[work].tolist())))
     # the four-face edges' sets, filled as the reference fills them: faces in order, edges in order
-    fw_hit = hit[work]
-    del hit
     lo_w = np.minimum(Fw, np.roll(Fw, -1, axis=1))
     hi_w = np.maximum(Fw, np.roll(Fw, -1, axis=1))
     rows, ts = np.nonzero(fw_hit)
@@ -109,6 +105,35 @@ def _split_four_face_edges(V, F, side, nudge):
     F2, S2 = _kept_and_added(F, side, keep, [f for f, _ in items], [sd for _, sd in items])
     V2 = np.concatenate([V, newV])
     return V2, F2, S2
+
+
+@njit(cache=True, nogil=True)
+def _four_face_rows(mult):
+    """From the edge counts (:func:`_edge_multiplicity`): ``(odd, most, rows, hit)``, the first odd
+    count in row order (0 if none), the largest count, the faces with an edge shared by four
+    (increasing) and, per such face, which of its edges are (one pass, no whole-mesh masks)."""
+    odd = 0
+    most = 0
+    n = 0
+    for i in range(mult.shape[0]):
+        four = False
+        for k in range(3):
+            c = mult[i, k]
+            if c % 2 and not odd:
+                odd = c
+            most = max(most, c)
+            four = four or c == 4
+        n += four
+    rows = np.empty(n, np.int64)
+    hit = np.empty((n, 3), np.bool_)
+    at = 0
+    for i in range(mult.shape[0]):
+        if mult[i, 0] == 4 or mult[i, 1] == 4 or mult[i, 2] == 4:
+            rows[at] = i
+            for k in range(3):
+                hit[at, k] = mult[i, k] == 4
+            at += 1
+    return odd, most, rows, hit
 
 
 def _midpoints(V, made, nudge):
@@ -192,78 +217,106 @@ def _copy_kept(F, side, keep, F2, S2):
 
 
 @njit(cache=True, nogil=True)
-def _half_edges_by_vertex(F, nv, which):
-    """The half-edges ``3 i + k`` (face ``i``'s edge from corner ``k`` to ``k + 1``) bucketed by a
-    vertex: ``which`` 0 their start, 1 their end, 2 their lower vertex.  Returns ``(start, items)``,
-    bucket ``v`` being ``items[start[v]:start[v + 1]]`` in increasing order (a counting sort)."""
+def _half_edges_by_vertex(F, nv):
+    """The half-edges ``3 i + k`` (face ``i``'s edge from corner ``k`` to ``k + 1``) bucketed by
+    their lower vertex.  Returns ``(start, items, other)``: bucket ``v`` is ``items[start[v]:start[v
+    + 1]]`` in increasing order (a counting sort), and ``other`` (beside ``items``) the half-edge's
+    other vertex ``w >= v``, as ``w`` where it runs ``v -> w`` and ``~w`` where it runs ``w -> v``
+    (a loop ``v -> v`` counts as the first): the passes over a bucket then read two arrays in
+    order instead of the faces at random."""
     n = 3 * F.shape[0]
     start = np.zeros(nv + 1, np.int64)
-    for h in range(n):
-        start[_bucket_key(F, h, which) + 1] += 1
+    _lower_counts(F, 0, F.shape[0], start[1:])
     for v in range(nv):
         start[v + 1] += start[v]
     fill = start[:nv].copy()
     items = np.empty(n, np.int32)  # (half-edge numbers: a mesh of 700 M faces would not fit in memory anyway)
-    for h in range(n):  # (the keys made again: no array of them per half-edge)
-        key = _bucket_key(F, h, which)
-        items[fill[key]] = h
-        fill[key] += 1
-    return start, items
+    other = np.empty(n, np.int32)  # (vertex numbers, fewer than the half-edges)
+    _lower_scatter(F, 0, nv, fill, items, other)
+    return start, items, other
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _bucket_key(F, h, which):
-    a = F[h // 3, h % 3]
-    b = F[h // 3, (h % 3 + 1) % 3]
-    return a if which == 0 else b if which == 1 else min(a, b)
+@njit(cache=True, nogil=True)
+def _lower_counts(F, i0, i1, cnt):
+    """``cnt[v] +=`` the half-edges of faces ``i0 .. i1 - 1`` whose lower vertex is ``v``."""
+    for i in range(i0, i1):
+        for k in range(3):
+            cnt[min(F[i, k], F[i, (k + 1) % 3])] += 1
+
+
+@njit(cache=True, nogil=True)
+def _lower_scatter(F, v0, v1, fill, items, other):
+    """The half-edges whose lower vertex is in ``v0 .. v1 - 1`` written to their buckets from
+    ``fill`` on (advanced), in increasing order, with their ``other`` entries (see
+    :func:`_half_edges_by_vertex`; every face is read, only those half-edges written, so that
+    threads filling other buckets do not write to the same cache lines)."""
+    for i in range(F.shape[0]):
+        for k in range(3):
+            a = F[i, k]
+            b = F[i, (k + 1) % 3]
+            key, o = (a, b) if a <= b else (b, ~a)
+            if v0 <= key < v1:
+                t = fill[key]
+                items[t] = 3 * i + k
+                other[t] = o
+                fill[key] = t + 1
+
+
+#: Buckets (:func:`_half_edges_by_vertex`) of at most this many half-edges are matched among
+#: themselves (a few comparisons each, in the bucket's own rows); larger ones through tables per
+#: vertex.  A closed mesh's buckets hold about six.
+_SMALL_BUCKET = 24
 
 
 @njit(cache=True, nogil=True)
 def _edge_multiplicity(F, nv):
     """Per face edge ``(F[i, k], F[i, k + 1])``, the number of face edges with the same two
-    vertices (either direction): an ``(m, 3)`` array (the edges bucketed by their lower vertex,
-    counted per bucket in a scratch array indexed by the upper one)."""
+    vertices (either direction): an ``(m, 3)`` array (the edges bucketed by their lower vertex and
+    counted per bucket)."""
     m = F.shape[0]
-    start, items = _half_edges_by_vertex(F, nv, np.int64(2))
+    start, items, other = _half_edges_by_vertex(F, nv)
     out = np.empty((m, 3), np.int32)  # (counts of faces: int32 holds them)
-    _edge_multiplicity_range(F, start, items, 0, nv, out, np.zeros(nv, np.int32))
+    _edge_multiplicity_range(start, items, other, 0, nv, out, np.zeros(nv, np.int32))
     return out
 
 
 @njit(cache=True, nogil=True)
-def _edge_multiplicity_range(F, start, items, v0, v1, out, cnt):
-    """:func:`_edge_multiplicity`'s counts for the buckets ``v0 .. v1 - 1`` (``cnt``: zeros, ``nv``)."""
+def _edge_multiplicity_range(start, items, other, v0, v1, out, cnt):
+    """:func:`_edge_multiplicity`'s counts for the buckets ``v0 .. v1 - 1``: in a small bucket by
+    comparing its entries, in a large one in a scratch array indexed by the upper vertex (``cnt``:
+    zeros, ``nv``; left zero)."""
     for v in range(v0, v1):
-        for t in range(start[v], start[v + 1]):
+        s0, s1 = start[v], start[v + 1]
+        if s1 - s0 <= _SMALL_BUCKET:
+            for t in range(s0, s1):
+                w = _upper(other[t])
+                c = 0
+                for t2 in range(s0, s1):
+                    c += _upper(other[t2]) == w
+                h = items[t]
+                out[h // 3, h % 3] = c
+            continue
+        for t in range(s0, s1):
+            cnt[_upper(other[t])] += 1
+        for t in range(s0, s1):
             h = items[t]
-            cnt[max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])] += 1
-        for t in range(start[v], start[v + 1]):
-            h = items[t]
-            out[h // 3, h % 3] = cnt[max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])]
-        for t in range(start[v], start[v + 1]):
-            h = items[t]
-            cnt[max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])] = 0
+            out[h // 3, h % 3] = cnt[_upper(other[t])]
+        for t in range(s0, s1):
+            cnt[_upper(other[t])] = 0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _upper(o):
+    """The upper vertex of an ``other`` entry (:func:`_half_edges_by_vertex`)."""
+    return o if o >= 0 else ~o
 
 
 @njit(cache=True, nogil=True)
-def _key_counts(F, nv, which, h0, h1):
-    """Per vertex, the half-edges ``h0 .. h1 - 1`` in its bucket (:func:`_half_edges_by_vertex`)."""
+def _key_counts(F, nv, i0, i1):
+    """Per vertex, the half-edges of faces ``i0 .. i1 - 1`` in its bucket (:func:`_half_edges_by_vertex`)."""
     cnt = np.zeros(nv, np.int64)
-    for h in range(h0, h1):
-        cnt[_bucket_key(F, h, which)] += 1
+    _lower_counts(F, i0, i1, cnt)
     return cnt
-
-
-@njit(cache=True, nogil=True)
-def _key_scatter(F, which, v0, v1, fill, items):
-    """The half-edges of the buckets ``v0 .. v1 - 1`` written to them from ``fill`` on (advanced),
-    in increasing order (every half-edge is read; only those are written, so that threads filling
-    other buckets do not write to the same cache lines)."""
-    for h in range(3 * F.shape[0]):
-        key = _bucket_key(F, h, which)
-        if v0 <= key < v1:
-            items[fill[key]] = h
-            fill[key] += 1
 
 
 #: From this many faces on, the manifold repair's edge counts and half-edge twins
@@ -278,38 +331,38 @@ def _edge_threads(F) -> int:
 
 
 def _buckets_on_threads(F, nv, threads):
-    """:func:`_half_edges_by_vertex` by lower vertex (``which`` 2) on ``threads`` threads: each
-    counts its own range of half-edges, then fills its own range of buckets (the same buckets, in
-    the same increasing order); and the ``threads * 2`` ranges of buckets, of about equal
-    half-edge counts, that the callers work on."""
+    """:func:`_half_edges_by_vertex` on ``threads`` threads: each counts the half-edges of its own
+    range of faces, then fills its own range of buckets (the same buckets, in the same increasing
+    order); and the ``threads * 2`` ranges of buckets, of about equal half-edge counts, that the
+    callers work on."""
     from ._workers import run_all
 
     n = 3 * F.shape[0]
-    hb = np.linspace(0, n, threads + 1).astype(np.int64).tolist()
-    which = np.int64(2)
-    counts = run_all(lambda a, b: _key_counts(F, nv, which, a, b), list(zip(hb[:-1], hb[1:])), threads)
+    fb = np.linspace(0, F.shape[0], threads + 1).astype(np.int64).tolist()
+    counts = run_all(lambda a, b: _key_counts(F, nv, a, b), list(zip(fb[:-1], fb[1:])), threads)
     start = np.zeros(nv + 1, np.int64)
     np.cumsum(sum(counts), out=start[1:])
     del counts
     fill = start[:nv].copy()
     items = np.empty(n, np.int32)
+    other = np.empty(n, np.int32)
 
     def ranges(parts):
         vb = np.searchsorted(start, np.linspace(0, n, parts + 1)[1:-1]).tolist()
         vb = [0] + [min(max(int(v), 0), nv) for v in vb] + [nv]
         return [(a, b) for a, b in zip(vb[:-1], vb[1:]) if b > a]
 
-    run_all(lambda a, b: _key_scatter(F, which, a, b, fill, items), ranges(threads), threads)
-    return start, items, ranges(2 * threads)
+    run_all(lambda a, b: _lower_scatter(F, a, b, fill, items, other), ranges(threads), threads)
+    return start, items, other, ranges(2 * threads)
 
 
 def _edge_multiplicity_threads(F, nv, threads):
     """:func:`_edge_multiplicity` on ``threads`` threads (the same counts)."""
     from ._workers import run_all
 
-    start, items, vparts = _buckets_on_threads(F, nv, threads)
+    start, items, other, vparts = _buckets_on_threads(F, nv, threads)
     out = np.empty((F.shape[0], 3), np.int32)
-    run_all(lambda a, b: _edge_multiplicity_range(F, start, items, a, b, out, np.zeros(nv, np.int32)), vparts,
+    run_all(lambda a, b: _edge_multiplicity_range(start, items, other, a, b, out, np.zeros(nv, np.int32)), vparts,
             threads)
     return out
 
@@ -319,9 +372,9 @@ def _half_edge_twins_threads(F, nv, threads):
     non-zero status (1 or 2, not necessarily the one-thread call's) where that call's is."""
     from ._workers import run_all
 
-    start, items, vparts = _buckets_on_threads(F, nv, threads)
+    start, items, other, vparts = _buckets_on_threads(F, nv, threads)
     twin = np.empty(3 * F.shape[0], np.int32)
-    got = run_all(lambda a, b: _twins_range(F, start, items, a, b, twin, np.full(nv, -1, np.int32),
+    got = run_all(lambda a, b: _twins_range(start, items, other, a, b, twin, np.full(nv, -1, np.int32),
                                             np.full(nv, -1, np.int32)), vparts, threads)
     return twin, np.int64(max(got, default=0))
 
@@ -523,44 +576,59 @@ def _half_edge_twins(F, nv):
     """:func:`_half_edge_twins_reference` with the half-edges bucketed by their lower vertex (one
     counting sort, int32 half-edge numbers): ``(twin, status)``, status 0, or 1 where an edge is
     used twice in one direction, 2 where a half-edge has no opposite (then the twins are not all
-    set).  In the bucket of ``x``, ``up[w]`` is the half-edge ``x -> w`` and ``down[w]`` the
-    half-edge ``w -> x`` (``w > x``; an edge from ``x`` to itself is its own opposite, as in the
-    sorted search)."""
+    set).  An edge from a vertex to itself is its own opposite, as in the sorted search."""
     n = 3 * F.shape[0]
-    start, items = _half_edges_by_vertex(F, nv, np.int64(2))
+    start, items, other = _half_edges_by_vertex(F, nv)
     twin = np.empty(n, np.int32)
-    status = _twins_range(F, start, items, 0, nv, twin, np.full(nv, -1, np.int32), np.full(nv, -1, np.int32))
+    status = _twins_range(start, items, other, 0, nv, twin, np.full(nv, -1, np.int32), np.full(nv, -1, np.int32))
     return twin, status
 
 
 @njit(cache=True, nogil=True)
-def _twins_range(F, start, items, x0, x1, twin, up, down):
-    """:func:`_half_edge_twins` for the buckets ``x0 .. x1 - 1`` (``up``, ``down``: -1, ``nv``);
-    returns its status."""
+def _twins_range(start, items, other, x0, x1, twin, up, down):
+    """:func:`_half_edge_twins` for the buckets ``x0 .. x1 - 1``; returns its status.  Each
+    bucket is first checked for an edge used twice in one direction (status 1), then every
+    half-edge is matched with its opposite (status 2 where there is none): in a small bucket by
+    comparing its entries, in a large one through ``up[w]`` (the half-edge ``x -> w``) and
+    ``down[w]`` (the half-edge ``w -> x``), tables of -1 over the vertices (left so)."""
     for x in range(x0, x1):
-        for t in range(start[x], start[x + 1]):
-            h = items[t]
-            a = F[h // 3, h % 3]
-            b = F[h // 3, (h % 3 + 1) % 3]
-            if a <= b:  # x -> b (a == b == x: a loop)
-                if up[b] >= 0:
+        s0, s1 = start[x], start[x + 1]
+        if s1 - s0 <= _SMALL_BUCKET:
+            for t in range(s0 + 1, s1):  # (the same entry, direction and vertex, twice)
+                o = other[t]
+                for t2 in range(s0, t):
+                    if other[t2] == o:
+                        return np.int64(1)
+            for t in range(s0, s1):
+                o = other[t]
+                want = o if o == x else ~o  # (a loop is its own opposite)
+                g = -1
+                for t2 in range(s0, s1):
+                    if other[t2] == want:
+                        g = items[t2]
+                        break
+                if g < 0:
+                    return np.int64(2)
+                twin[items[t]] = g
+            continue
+        for t in range(s0, s1):
+            o = other[t]
+            if o >= 0:  # x -> o (o == x: a loop)
+                if up[o] >= 0:
                     return np.int64(1)
-                up[b] = h
-            else:  # a -> x
-                if down[a] >= 0:
+                up[o] = items[t]
+            else:  # ~o -> x
+                if down[~o] >= 0:
                     return np.int64(1)
-                down[a] = h
-        for t in range(start[x], start[x + 1]):
-            h = items[t]
-            a = F[h // 3, h % 3]
-            b = F[h // 3, (h % 3 + 1) % 3]
-            g = up[a] if a == b else down[b] if a < b else up[a]
+                down[~o] = items[t]
+        for t in range(s0, s1):
+            o = other[t]
+            g = up[o] if o == x else down[o] if o >= 0 else up[~o]
             if g < 0:
                 return np.int64(2)
-            twin[h] = g
-        for t in range(start[x], start[x + 1]):
-            h = items[t]
-            w = max(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])
+            twin[items[t]] = g
+        for t in range(s0, s1):
+            w = _upper(other[t])
             up[w] = -1
             down[w] = -1
     return np.int64(0)
@@ -960,31 +1028,27 @@ def _faces_near(V, W, F, moved_faces):
 
     The boxes are not kept: their extents, then their cells, are made from the corners in two
     compiled passes (the same numbers as from the boxes: minima, maxima and one subtraction and
-    division each); the boxes, their extents and the float cells of the whole mesh took some 60
-    MiB on the lobster's mesh, at the general mesher's peak."""
+    division each), the second testing each face's cells as it makes them
+    (:func:`_near_cells`); the boxes, their extents and the float cells of the whole mesh took
+    some 60 MiB on the lobster's mesh, at the general mesher's peak."""
     moved = np.asarray(moved_faces, dtype=np.int64)
     glo, ext = _box_extents(V, W, F, True)
     # cells as large as the moved faces (so each covers a few), and no smaller than most faces
     h = max(float(ext[moved].max()), float(np.median(ext)), 1e-12)
-    clo, chi = _box_cells(V, W, F, glo, h, True)
-    return np.flatnonzero(_share_cell(clo, chi, moved))
+    return np.flatnonzero(_near_cells(V, W, F, glo, h, moved, True))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _face_box(V, W, F, i, d, both):
     """The extent ``(lo, hi)`` along axis ``d`` of face ``i``'s corners in ``V`` (and in ``W``
-    with ``both``)."""
+    with ``both``).  (Inlined: a call per face and axis, and a loop over the tuple ``(V, W)``,
+    made the passes over the faces five times slower; numba's ``min`` and ``max`` of several
+    numbers compare them left to right, as that loop did.)"""
+    x0, x1, x2 = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
     if not both:
-        x0, x1, x2 = V[F[i, 0], d], V[F[i, 1], d], V[F[i, 2], d]
         return min(x0, x1, x2), max(x0, x1, x2)
-    a = V[F[i, 0], d]
-    b = a
-    for P in (V, W):
-        for c in range(3):
-            x = P[F[i, c], d]
-            a = min(a, x)
-            b = max(b, x)
-    return a, b
+    w0, w1, w2 = W[F[i, 0], d], W[F[i, 1], d], W[F[i, 2], d]
+    return min(x0, x1, x2, w0, w1, w2), max(x0, x1, x2, w0, w1, w2)
 
 
 @njit(cache=True, nogil=True)
@@ -1004,69 +1068,99 @@ def _box_extents(V, W, F, both):
 
 
 @njit(cache=True, nogil=True)
-def _box_cells(V, W, F, glo, h, both):
-    """``(clo, chi)``: per face the cells (of size ``h`` from ``glo``) of its box's low and high
-    corners, ``floor((x - glo) / h)`` (boxes as :func:`_box_extents`)."""
-    clo = np.empty((F.shape[0], 3), np.int64)
-    chi = np.empty((F.shape[0], 3), np.int64)
-    for i in range(F.shape[0]):
-        for d in range(3):
-            a, b = _face_box(V, W, F, i, d, both)
-            clo[i, d] = np.int64(np.floor((a - glo[d]) / h))
-            chi[i, d] = np.int64(np.floor((b - glo[d]) / h))
-    return clo, chi
-
-
-@njit(cache=True, nogil=True)
 def _share_cell(clo, chi, chosen):
     """Per face (cells ``clo[i] .. chi[i]`` of a grid), whether it shares a cell with a face in
     ``chosen`` (the chosen ones included)."""
-    ncell = 0
-    for t in range(len(chosen)):
-        i = chosen[t]
-        ncell += (chi[i, 0] - clo[i, 0] + 1) * (chi[i, 1] - clo[i, 1] + 1) * (chi[i, 2] - clo[i, 2] + 1)
-    size = 1
-    while size < 2 * ncell + 2:
-        size *= 2
-    keys = np.empty((size, 3), np.int64)
-    used = np.zeros(size, np.bool_)
-    for t in range(len(chosen)):
-        i = chosen[t]
-        for x in range(clo[i, 0], chi[i, 0] + 1):
-            for y in range(clo[i, 1], chi[i, 1] + 1):
-                for z in range(clo[i, 2], chi[i, 2] + 1):
-                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
-                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
-                    while used[slot] and not (keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z):
-                        slot = (slot + 1) & (size - 1)
-                    used[slot] = True
-                    keys[slot, 0], keys[slot, 1], keys[slot, 2] = x, y, z
+    keys, used = _cell_table(clo, chi, chosen)
     n = clo.shape[0]
     near = np.zeros(n, np.bool_)
     for t in range(len(chosen)):
         near[chosen[t]] = True
     for i in range(n):
+        if not near[i]:
+            near[i] = _in_cells(keys, used, clo[i, 0], chi[i, 0], clo[i, 1], chi[i, 1], clo[i, 2], chi[i, 2])
+    return near
+
+
+@njit(cache=True, nogil=True)
+def _near_cells(V, W, F, glo, h, chosen, both):
+    """Per face, whether it shares a cell of the grid of size ``h`` from ``glo`` with a face in
+    ``chosen`` (boxes as :func:`_box_extents`; a face's cells along an axis ``floor((lo - glo) /
+    h) .. floor((hi - glo) / h)``): :func:`_share_cell` without the whole mesh's cells, those of the
+    chosen faces filling the table and every other face's made and looked up in turn."""
+    k = len(chosen)
+    clo = np.empty((k, 3), np.int64)
+    chi = np.empty((k, 3), np.int64)
+    for t in range(k):
+        for d in range(3):
+            clo[t, d], chi[t, d] = _face_cells(V, W, F, chosen[t], d, glo, h, both)
+    keys, used = _cell_table(clo, chi, np.arange(k))
+    n = F.shape[0]
+    near = np.zeros(n, np.bool_)
+    for t in range(k):
+        near[chosen[t]] = True
+    for i in range(n):
         if near[i]:
             continue
-        found = False
-        for x in range(clo[i, 0], chi[i, 0] + 1):
-            for y in range(clo[i, 1], chi[i, 1] + 1):
-                for z in range(clo[i, 2], chi[i, 2] + 1):
-                    slot = np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
-                                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
-                    while used[slot]:
-                        if keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z:
-                            found = True
-                            break
-                        slot = (slot + 1) & (size - 1)
-                    if found:
-                        break
-                if found:
-                    break
-            if found:
-                break
-        near[i] = found
+        x0, x1 = _face_cells(V, W, F, i, 0, glo, h, both)
+        y0, y1 = _face_cells(V, W, F, i, 1, glo, h, both)
+        z0, z1 = _face_cells(V, W, F, i, 2, glo, h, both)
+        near[i] = _in_cells(keys, used, x0, x1, y0, y1, z0, z1)
     return near
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _face_cells(V, W, F, i, d, glo, h, both):
+    """The cells of face ``i``'s box along axis ``d`` (see :func:`_near_cells`)."""
+    a, b = _face_box(V, W, F, i, d, both)
+    return np.int64(np.floor((a - glo[d]) / h)), np.int64(np.floor((b - glo[d]) / h))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cell_slot(x, y, z, size):
+    return np.int64((np.uint64(x) * np.uint64(73856093) ^ np.uint64(y) * np.uint64(19349663)
+                     ^ np.uint64(z) * np.uint64(83492791)) & np.uint64(size - 1))
+
+
+@njit(cache=True, nogil=True)
+def _cell_table(clo, chi, rows):
+    """An open-addressing set ``(keys, used)`` of the cells ``clo[r] .. chi[r]`` for ``r`` in
+    ``rows``."""
+    ncell = 0
+    for t in range(len(rows)):
+        r = rows[t]
+        ncell += (chi[r, 0] - clo[r, 0] + 1) * (chi[r, 1] - clo[r, 1] + 1) * (chi[r, 2] - clo[r, 2] + 1)
+    size = 1
+    while size < 2 * ncell + 2:
+        size *= 2
+    keys = np.empty((size, 3), np.int64)
+    used = np.zeros(size, np.bool_)
+    for t in range(len(rows)):
+        r = rows[t]
+        for x in range(clo[r, 0], chi[r, 0] + 1):
+            for y in range(clo[r, 1], chi[r, 1] + 1):
+                for z in range(clo[r, 2], chi[r, 2] + 1):
+                    slot = _cell_slot(x, y, z, size)
+                    while used[slot] and not (keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z):
+                        slot = (slot + 1) & (size - 1)
+                    used[slot] = True
+                    keys[slot, 0], keys[slot, 1], keys[slot, 2] = x, y, z
+    return keys, used
+
+
+@njit(cache=True, nogil=True)
+def _in_cells(keys, used, x0, x1, y0, y1, z0, z1):
+    """Whether a cell of ``x0 .. x1, y0 .. y1, z0 .. z1`` is in the set (:func:`_cell_table`)."""
+    size = used.shape[0]
+    for x in range(x0, x1 + 1):
+        for y in range(y0, y1 + 1):
+            for z in range(z0, z1 + 1):
+                slot = _cell_slot(x, y, z, size)
+                while used[slot]:
+                    if keys[slot, 0] == x and keys[slot, 1] == y and keys[slot, 2] == z:
+                        return True
+                    slot = (slot + 1) & (size - 1)
+    return False
 
 
 @njit(cache=True, nogil=True)
@@ -1147,8 +1241,7 @@ def _boxes_near(V, F, chosen):
     h = max(np.median(ext), 1e-12)
     for t in range(len(chosen)):
         h = max(h, ext[chosen[t]])
-    clo, chi = _box_cells(V, V, F, glo, h, False)
-    return np.flatnonzero(_share_cell(clo, chi, chosen))
+    return np.flatnonzero(_near_cells(V, V, F, glo, h, chosen, False))
 
 
 def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):
