@@ -89,6 +89,19 @@ def test_slice_cracks_of_an_empty_slice():
     assert slice_mlps(labels, slice_boxes(objects)) == []
 
 
+def _match_holes(crack_h, hmasks, off):
+    """The old loop's pairing of hole contours with hole pixel sets: each contour takes the set that
+    holds the pixel right of its first edge."""
+    assert len(crack_h) == len(hmasks)
+    out = []
+    for h in crack_h:
+        py, px = volumes._Slice._hole_seed(h, off)
+        found = [m for m in hmasks if 0 <= py < m.shape[0] and 0 <= px < m.shape[1] and m[py, px]]
+        assert len(found) == 1
+        out.append(found[0])
+    return out
+
+
 def _reference_slice(s, mask2d, polygon, to_xy_corner, to_xy_center):
     """The per-component loop of ``_Slice.__init__`` before the compiled passes, on ``s``'s labels:
     ``(outer, holes, crack_outer_c, crack_holes_c, hole masks, fallbacks)``."""
@@ -110,7 +123,7 @@ def _reference_slice(s, mask2d, polygon, to_xy_corner, to_xy_center):
         if crack_h:
             blab, nb = ndimage.label(volumes._pad1(~comp, True), structure=volumes._SQUARE)
             hmasks = [(blab == b)[1:-1, 1:-1] for b in range(1, nb + 1) if b != blab[0, 0]]
-        hmasks = ref._match_holes(crack_h, hmasks, off)
+        hmasks = _match_holes(crack_h, hmasks, off)
         hms.append((sl, hmasks, comp.shape))
         co.append(crack_o)
         ch.append(crack_h)

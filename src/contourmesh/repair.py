@@ -1068,26 +1068,11 @@ def _box_extents(V, W, F, both):
 
 
 @njit(cache=True, nogil=True)
-def _share_cell(clo, chi, chosen):
-    """Per face (cells ``clo[i] .. chi[i]`` of a grid), whether it shares a cell with a face in
-    ``chosen`` (the chosen ones included)."""
-    keys, used = _cell_table(clo, chi, chosen)
-    n = clo.shape[0]
-    near = np.zeros(n, np.bool_)
-    for t in range(len(chosen)):
-        near[chosen[t]] = True
-    for i in range(n):
-        if not near[i]:
-            near[i] = _in_cells(keys, used, clo[i, 0], chi[i, 0], clo[i, 1], chi[i, 1], clo[i, 2], chi[i, 2])
-    return near
-
-
-@njit(cache=True, nogil=True)
 def _near_cells(V, W, F, glo, h, chosen, both):
     """Per face, whether it shares a cell of the grid of size ``h`` from ``glo`` with a face in
     ``chosen`` (boxes as :func:`_box_extents`; a face's cells along an axis ``floor((lo - glo) /
-    h) .. floor((hi - glo) / h)``): :func:`_share_cell` without the whole mesh's cells, those of the
-    chosen faces filling the table and every other face's made and looked up in turn."""
+    h) .. floor((hi - glo) / h)``): the chosen faces' cells fill a table, every other face's are made and
+    looked up in turn (no array of the whole mesh's cells)."""
     k = len(chosen)
     clo = np.empty((k, 3), np.int64)
     chi = np.empty((k, 3), np.int64)

@@ -467,19 +467,6 @@ class _Slice:
             return p[1], p[0]
         return p[1] - 1, p[0] - 1
 
-    @staticmethod
-    def _match_holes(crack_h, hmasks, off):
-        if len(crack_h) != len(hmasks):  # pragma: no cover - 4/8 duality guarantees equality
-            raise RuntimeError("hole contours and hole pixel sets disagree")
-        out = []
-        for h in crack_h:
-            py, px = _Slice._hole_seed(h, off)
-            found = [m for m in hmasks if 0 <= py < m.shape[0] and 0 <= px < m.shape[1] and m[py, px]]
-            if len(found) != 1:  # pragma: no cover
-                raise RuntimeError("could not pair a hole contour with its pixels")
-            out.append(found[0])
-        return out
-
     def _polygon(self, crack, pixels, method, to_xy_corner, to_xy_center, off, hole, mlp=False):
         """The polygon of one crack contour by ``method`` (physical xy).  ``mlp``: with "mlp", the
         MLP of ``pixels`` made already (:func:`contourmesh.fastpath.slice_mlps`: int64 or ``None``),
