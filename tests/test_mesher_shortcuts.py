@@ -234,6 +234,31 @@ def test_exact_join_kernel_refuses_corners_outside_the_box():
     assert not bad[-1]
 
 
+@pytest.mark.parametrize("kw", [{}, {"caps": "half"}, {"polygon": "none"}])
+def test_flat_ends_made_without_a_mesher_are_the_recorded_units(monkeypatch, kw):
+    """The flat ends' units made directly (_Unit.flat) against the same units recorded on a mesher
+    (the direct route refused): the same mesh bytes, on volumes with holes, specks (pixel caps),
+    one-slice components (prisms) and crossing fallbacks."""
+    import contourmesh
+
+    made = []
+    flat = volumes._Unit.flat.__func__
+
+    def counted(cls, *a):
+        made.append(1)
+        return flat(cls, *a)
+
+    for seed in range(4):
+        vol = _masks(20 + seed, shape=(5, 30, 34))
+        monkeypatch.setattr(volumes._Unit, "flat", classmethod(counted))
+        a = contourmesh.mesh(vol, spacing=(1.1, 0.8, 0.9), **kw)
+        monkeypatch.setattr(volumes._Unit, "flat", classmethod(lambda cls, *a: None))
+        b = contourmesh.mesh(vol, spacing=(1.1, 0.8, 0.9), **kw)
+        assert a.vertices.tobytes() == b.vertices.tobytes() and np.array_equal(a.faces, b.faces)
+        assert a.meta == b.meta
+    assert (len(made) > 20) == (kw.get("caps") != "half")
+
+
 def test_round9_compiled_equals_the_numpy_form():
     from contourmesh.bands import bridges
 

@@ -1220,7 +1220,26 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             zc = zs[k] + (gap(k, up) / 2 if up else -gap(k, up) / 2) if caps == "half" else None
             close(rs, up, zc)
 
-        return ("cap", is_crack(k, c)), make
+        def direct():
+            """The unit of a flat end (the usual one) made without a mesher: its rings' points are
+            all its vertices, in order, and the earcut faces number them as they are (the mesher
+            would give the same numbers, faces and sides).  None where the end is not so made (a
+            prism, half a spacing beyond, a hook's, rings that touch or a cap that fails: the pixel
+            cap), for ``make`` to do."""
+            if above == below or caps == "half" or end_cap is not None:
+                return None
+            keys = [(k, c, h) for h in range(-1, len(s.holes[c]))]
+            xy = [np.asarray(polygon_of(*rk), dtype=np.float64).reshape(-1, 2) for rk in keys]
+            allxy = np.concatenate(xy) if len(xy) > 1 else xy[0]
+            if not _distinct_rows(allxy):
+                return None
+            try:
+                f = cap_faces(xy[0], xy[1:], upward=not above)
+            except ValueError:
+                return None
+            return _Unit.flat(keys, [len(r) for r in xy], f)
+
+        return ("cap", is_crack(k, c)), make, direct
 
     def join_unit(idx):
         k, kind, data = joins[idx]
@@ -1265,11 +1284,14 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         return ("exact", tuple(ga), tuple(gb), tuple(is_crack(k, a) for a in ga),
                 tuple(is_crack(k + 1, b) for b in gb)), make
 
-    def unit(uid, key, make):
+    def unit(uid, key, make, direct=None):
         old = None if cache is None else cache.get(uid)
         if old is not None and old.key == key:
             return old
-        u = _Unit.record(key, make, polygon_of, zs, triangulation, band_guard)
+        u = None if direct is None else direct()
+        if u is None:
+            u = _Unit.record(key, make, polygon_of, zs, triangulation, band_guard)
+        u.key = key
         if cache is not None:
             cache[uid] = u
         return u
@@ -1299,8 +1321,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         for c in range(s.n):
             if (k, c) in has_above and (k, c) in has_below:
                 continue
-            key, make = cap_unit(k, c)
-            units.append(unit(("cap", k, c), key, make))
+            key, make, direct = cap_unit(k, c)
+            units.append(unit(("cap", k, c), key, make, direct))
             tags.append(first + c)
             counted.append(owned is None or owned[1](k))
         first += s.n
@@ -1388,6 +1410,28 @@ class _Unit:
         u.replaced = M.band_fallbacks
         u.pixel_caps = M.pixel_caps
         u.least_area = M.least_area
+        return u
+
+    @classmethod
+    def flat(cls, keys, sizes, f):
+        """The unit of faces ``f`` on the rings ``keys`` (``sizes`` points each) alone, made in
+        this order: what :meth:`record` gives for a ``make`` that makes the rings and then adds
+        ``f`` (numbering their concatenation) with nothing else."""
+        u = cls()
+        u.key = None
+        spans, at = [], 0
+        for rk, n in zip(keys, sizes):
+            if n:
+                spans.append((rk, at, at + n))
+            at += n
+        u.nv = at
+        u.V = np.zeros((0, 3))
+        f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
+        u.F = f.astype(np.int32) if at < 2**31 else f
+        u.S = np.zeros(len(f), dtype=np.int8)
+        u.N = np.zeros(0, dtype=np.int64)
+        u.rings = spans
+        u.replaced = u.pixel_caps = u.least_area = 0
         return u
 
 
