@@ -119,6 +119,46 @@ def test_caps_with_the_compiled_steps_equal_the_reference_steps(monkeypatch):
             assert g == r
 
 
+def test_caps_equal_the_step_by_step_reference():
+    """cap_faces (its checks after ear clipping in one compiled pass, fewer numpy steps) against
+    _cap_faces_reference: the same faces (values and dtype) or the same error, on slices' MLP and
+    crack rings with their holes, and on rings with collinear runs, flat ears, T-junctions, holes
+    of zero area, touching and crossing rings, both orientations."""
+    from contourmesh.bands import caps
+
+    def run(f, outer, holes, up):
+        try:
+            return f(outer, holes, upward=up)
+        except ValueError as e:
+            return type(e).__name__
+
+    rng = np.random.default_rng(3)
+    cases = [(o, hs) for seed in (1, 2, 6) for o, hs in _rings_of_slices(seed)]
+    sq = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], float)
+    run4 = np.array([[0, 0], [1, 0], [2, 0], [3, 0], [3, 1], [3, 2], [2, 2], [1, 2], [0, 2], [0, 1]], float)
+    flat = np.array([[0, 0], [4, 0], [4, 4], [2, 4], [2, 2], [2, 4.0 - 1e-300], [0, 4]], float)
+    cases += [(sq, [sq[::-1] * 0.5 + 1]), (sq, [sq[::-1] * 0.5 + 3]), (sq, [sq[::-1]]), (np.r_[sq, [[2, 2]]], []),
+              (run4, []), (run4 * 2, [run4[::-1] * 0.5 + 1]), (sq * 3, [sq[::-1] + 1, np.zeros((3, 2)), sq[::-1] + 6]),
+              (sq * 3, [sq[::-1] + [1, 4], sq[::-1] + [5, 4]]), (flat, []), (sq[:2], []), (np.zeros((4, 2)), []),
+              (sq * 3, [sq[:2]]), (np.c_[sq, np.ones(4)], [np.c_[sq[::-1] * 0.5 + 1, np.ones(4)]])]
+    for n in (3, 5, 12, 40):
+        t = np.sort(rng.random(n)) * 2 * np.pi
+        r = np.c_[np.cos(t), np.sin(t)] * 10
+        cases += [(r, []), (r + rng.normal(scale=1e-12, size=r.shape), [0.3 * r[::-1]]), (r[::-1], [])]
+    n_faces = n_errors = 0
+    for outer, holes in cases:
+        for up in (True, False):
+            got, ref = run(caps.cap_faces, outer, holes, up), run(caps._cap_faces_reference, outer, holes, up)
+            assert type(got) is type(ref)
+            if isinstance(ref, np.ndarray):
+                assert got.dtype == ref.dtype and got.shape == ref.shape and np.array_equal(got, ref)
+                n_faces += len(ref) > 0
+            else:
+                assert got == ref
+                n_errors += 1
+    assert n_faces > 100 and n_errors >= 2
+
+
 def test_t_junction_fast_path_refuses_what_the_loop_refuses():
     from contourmesh.bands import caps
 
