@@ -1257,7 +1257,30 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                 for ha, hb in [(-1, -1)] + list(matched):
                     M.band(ring(k, a, ha), ring(k + 1, b, hb), mixed, added(k, a, ha), added(k + 1, b, hb))
 
-            return ("band", is_crack(k, a), is_crack(k + 1, b)), make
+            def direct():
+                """The band join's unit made without a mesher (its rings in order, each pair's band
+                numbering them as they are): what ``make`` records, where no hook, guard or densified
+                ring takes part; None otherwise."""
+                pairs = [(-1, -1)] + list(matched)
+                if band_maker is not None or band_guard is not None or \
+                        any(added(k, a, ha) is not None or added(k + 1, b, hb) is not None for ha, hb in pairs):
+                    return None
+                keys, sizes, faces = [], [], []
+                at = replaced = least_area = 0
+                for ha, hb in pairs:
+                    lo, hi = _with_z(polygon_of(k, a, ha), zs[k]), _with_z(polygon_of(k + 1, b, hb), zs[k + 1])
+                    f, r = _band_faces(lo, hi, triangulation, mixed=mixed)
+                    if mixed and _dissimilar_rule(len(lo), len(hi), triangulation, _MIXED_OPTIMAL_BUDGET) != triangulation:
+                        least_area += 1
+                    replaced += r
+                    faces.append(np.arange(at, at + len(lo) + len(hi))[f])
+                    keys += [(k, a, ha), (k + 1, b, hb)]
+                    sizes += [len(lo), len(hi)]
+                    at += len(lo) + len(hi)
+                return _Unit.flat(keys, sizes, np.concatenate(faces) if len(faces) > 1 else faces[0],
+                                  replaced, least_area)
+
+            return ("band", is_crack(k, a), is_crack(k + 1, b)), make, direct
         if kind == "bridge":
             b_ = built[k, tuple(data[0]), tuple(data[1])]
 
@@ -1275,14 +1298,17 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                 M.band_fallbacks += b_.replaced
                 M.least_area += b_.least_area
 
-            return ("bridge", b_, tuple(is_crack(kk, c) for (kk, c, _), _o in b_.rings)), make
+            return ("bridge", b_, tuple(is_crack(kk, c) for (kk, c, _), _o in b_.rings)), make, None
         ga, gb = data
 
         def make(M, ring):
             _exact_join(M, slices[k], slices[k + 1], k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
 
+        def direct():
+            return _exact_unit(slices[k], slices[k + 1], k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, polygon_of)
+
         return ("exact", tuple(ga), tuple(gb), tuple(is_crack(k, a) for a in ga),
-                tuple(is_crack(k + 1, b) for b in gb)), make
+                tuple(is_crack(k + 1, b) for b in gb)), make, direct
 
     def unit(uid, key, make, direct=None):
         old = None if cache is None else cache.get(uid)
@@ -1299,8 +1325,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     units, tags, counted = [], [], []
     exact_joins = band_joins = bridged_joins = n_bridges = n_sections = 0
     for idx, (k, kind, data) in enumerate(joins):
-        key, make = join_unit(idx)
-        units.append(unit(("join", idx), key, make))
+        key, make, direct = join_unit(idx)
+        units.append(unit(("join", idx), key, make, direct))
         tags.append(idx)
         counted.append(owned is None or owned[0](k))
         if not counted[-1]:
@@ -1413,10 +1439,11 @@ class _Unit:
         return u
 
     @classmethod
-    def flat(cls, keys, sizes, f):
+    def flat(cls, keys, sizes, f, replaced=0, least_area=0):
         """The unit of faces ``f`` on the rings ``keys`` (``sizes`` points each) alone, made in
-        this order: what :meth:`record` gives for a ``make`` that makes the rings and then adds
-        ``f`` (numbering their concatenation) with nothing else."""
+        this order: what :meth:`record` gives for a ``make`` that makes the rings and adds ``f``
+        (numbering their concatenation) with nothing else (``replaced``, ``least_area``: the
+        bands' counts)."""
         u = cls()
         u.key = None
         spans, at = [], 0
@@ -1431,7 +1458,7 @@ class _Unit:
         u.S = np.zeros(len(f), dtype=np.int8)
         u.N = np.zeros(0, dtype=np.int64)
         u.rings = spans
-        u.replaced = u.pixel_caps = u.least_area = 0
+        u.replaced, u.pixel_caps, u.least_area = replaced, 0, least_area
         return u
 
 
@@ -1920,11 +1947,71 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     the corner are necks.  The same vertices and faces, in the same order, as
     :func:`_exact_join_reference` (each collar and pixel pass a call of its own): the corners'
     numbering, the collars and the pixel faces are worked out in one compiled pass
-    (:func:`_exact_join_kernel`), and the mesher then receives the points in the order the reference
+    (:func:`_exact_plan`), and the mesher then receives the points in the order the reference
     makes them (each ring through ``ring``, where the reference first uses it).  Groups with a
     caller's polygons (whose collars are bands) take the reference."""
-    if getattr(A, "own", ()) or getattr(B, "own", ()):
+    n0 = M.n
+    plan = _exact_plan(A, B, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, n0)
+    if plan is None:
         return _exact_join_reference(M, A, B, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
+    keys, starts, XY, made, F, n_f1, necks = plan
+    at = 0  # corners handed to the mesher so far
+    for i, key in enumerate(keys):
+        if made[i] > at:  # the corners the reference makes before this ring
+            M.points(XY[at: made[i]])
+            at = int(made[i])
+        r = ring(*key)
+        if len(r) != starts[i + 1] - starts[i] or (len(r) and r[0] != n0 + at + starts[i]):
+            raise RuntimeError(f"internal error: exact join's ring {key} not made where expected")
+    if at < len(XY):
+        M.points(XY[at:])
+    M.side = 1
+    M.faces(F[:n_f1])
+    M.side = 2
+    M.faces(F[n_f1:])
+    M.side = 0
+    if len(necks):
+        M.necks.append(necks)
+
+
+def _exact_unit(A: _Slice, B: _Slice, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, polygon_of):
+    """The unit of :func:`_exact_join` made without a mesher (what :meth:`_Unit.record` gives for
+    it: its rings where it first uses them, its corners its own vertices in the order made), or
+    None where the join takes the reference or a ring's polygon is not its crack ring's size."""
+    plan = _exact_plan(A, B, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, 0)
+    if plan is None:
+        return None
+    keys, starts, XY, made, F, n_f1, necks = plan
+    spans = []
+    for i, key in enumerate(keys):
+        n = int(starts[i + 1] - starts[i])
+        if len(polygon_of(*key)) != n:  # pragma: no cover - crack rings are their corners' size
+            return None
+        if n:
+            a = int(made[i] + starts[i])
+            spans.append((key, a, a + n))
+    u = _Unit()
+    u.key = None
+    u.nv = int(starts[-1]) + len(XY)
+    u.V = XY
+    u.F = F.astype(np.int32) if u.nv < 2**31 else F
+    u.S = np.empty(len(F), dtype=np.int8)
+    u.S[:n_f1] = 1
+    u.S[n_f1:] = 2
+    u.N = necks
+    u.rings = spans
+    u.replaced = u.pixel_caps = u.least_area = 0
+    return u
+
+
+def _exact_plan(A: _Slice, B: _Slice, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, n0):
+    """:func:`_exact_join`'s numbering for a mesher whose next vertex is ``n0``: ``(keys, starts,
+    XY, made, F, n_f1, necks)``, the rings ``(k, comp, hole)`` in the order first used and their
+    sizes (``starts``), the corner points in the order made, how many corners come before each
+    ring, the faces (the ``n_f1`` of side 1 first) and the neck vertices; None where the group
+    takes the reference (a caller's polygons, a corner outside the box)."""
+    if getattr(A, "own", ()) or getattr(B, "own", ()):
+        return None
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     y0 = min(s[0].start for s in sl)
     y1 = max(s[0].stop for s in sl)
@@ -1949,31 +2036,14 @@ def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, o
     starts = np.zeros(len(corners) + 1, dtype=np.int64)
     starts[1:] = np.cumsum([len(r) for r in corners])
     cxy = np.concatenate(corners) if corners else np.zeros((0, 2), dtype=np.int64)
-    n0 = np.int64(M.n)
     ux, uy, made, F, n_f1, necks, ok = _exact_join_kernel(
         np.ascontiguousarray(ra), np.ascontiguousarray(rb), np.int64(x0), np.int64(y0),
-        np.ascontiguousarray(cxy[:, 0]), np.ascontiguousarray(cxy[:, 1]), starts, np.int64(n_lower), n0)
+        np.ascontiguousarray(cxy[:, 0]), np.ascontiguousarray(cxy[:, 1]), starts, np.int64(n_lower), np.int64(n0))
     if not ok:  # pragma: no cover - a crack corner outside the group's box (numpy's indexing decides)
-        return _exact_join_reference(M, A, B, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
+        return None
     zm = 0.5 * (zs[k] + zs[k + 1])
-    XY = _with_z(to_xy_corner(np.stack([ux + x0, uy + y0], axis=1)), zm) if len(ux) else None
-    at = 0  # corners handed to the mesher so far
-    for i, key in enumerate(keys):
-        if made[i] > at:  # the corners the reference makes before this ring
-            M.points(XY[at: made[i]])
-            at = int(made[i])
-        r = ring(*key)
-        if len(r) != starts[i + 1] - starts[i] or (len(r) and r[0] != n0 + at + starts[i]):
-            raise RuntimeError(f"internal error: exact join's ring {key} not made where expected")
-    if at < len(ux):
-        M.points(XY[at:])
-    M.side = 1
-    M.faces(F[:n_f1])
-    M.side = 2
-    M.faces(F[n_f1:])
-    M.side = 0
-    if len(necks):
-        M.necks.append(necks)
+    XY = _with_z(to_xy_corner(np.stack([ux + x0, uy + y0], axis=1)), zm) if len(ux) else np.zeros((0, 3))
+    return keys, starts, XY, made, F, int(n_f1), necks
 
 
 def _back_to_corners(xy, dx, dy, ox, oy):
