@@ -2012,13 +2012,7 @@ def _exact_plan(A: _Slice, B: _Slice, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corne
     takes the reference (a caller's polygons, a corner outside the box)."""
     if getattr(A, "own", ()) or getattr(B, "own", ()):
         return None
-    sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
-    y0 = min(s[0].start for s in sl)
-    y1 = max(s[0].stop for s in sl)
-    x0 = min(s[1].start for s in sl)
-    x1 = max(s[1].stop for s in sl)
-    ra = label_mask(A.labels[y0:y1, x0:x1], A.n, ga)
-    rb = label_mask(B.labels[y0:y1, x0:x1], B.n, gb)
+    x0, y0, x1, y1, ra, rb = _group_box(A, B, ga, gb)
     exact_trip = (A.crack_outer.to_xy is to_xy_corner and B.crack_outer.to_xy is to_xy_corner
                   and A.crack_holes.to_xy is to_xy_corner and B.crack_holes.to_xy is to_xy_corner
                   and max(abs(ox) / dx, abs(oy) / dy) + max(y1, x1) + 1 < _EXACT_TRIP_LIMIT)
@@ -2112,14 +2106,8 @@ def _exact_join_kernel(ra, rb, x0, y0, cx, cy, starts, n_lower, n0):  # pragma: 
     n_f1 = 0
     nxt = n0
     nu = 0
-    px = np.empty(n_pix, np.int64)
-    py = np.empty(n_pix, np.int64)
-    lx = np.empty(n_pix, np.int64)
-    ly = np.empty(n_pix, np.int64)
-    c00 = np.empty(n_pix, np.int64)
-    c10 = np.empty(n_pix, np.int64)
-    c11 = np.empty(n_pix, np.int64)
-    c01 = np.empty(n_pix, np.int64)
+    work = np.empty((8, n_pix), np.int64)  # a side's pixels, a corner's places, the four corners' numbers
+    px, py, lx, ly, c00, c10, c11, c01 = work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7]
     for side in range(2):
         r0 = 0 if side == 0 else n_lower
         r1 = n_lower if side == 0 else nr
@@ -2220,18 +2208,23 @@ def _exact_join_kernel(ra, rb, x0, y0, cx, cy, starts, n_lower, n0):  # pragma: 
     return ux[:nu], uy[:nu], made, F[:nf], n_f1, necks[:nn], True
 
 
-def _exact_join_reference(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner):
-    """:func:`_exact_join` step by step: each collar and each pixel pass a call of its own on the
-    mesher, the corners made on demand (:class:`_CornerGrid`).  The reference of the compiled
-    form, and the route of groups with a caller's polygons (their collars are bands)."""
-
+def _group_box(A: _Slice, B: _Slice, ga, gb):
+    """``(x0, y0, x1, y1, ra, rb)``: the box of components ``ga`` below and ``gb`` above, and their
+    pixels in it."""
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     y0 = min(s[0].start for s in sl)
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    ra = label_mask(A.labels[y0:y1, x0:x1], A.n, ga)
-    rb = label_mask(B.labels[y0:y1, x0:x1], B.n, gb)
+    return x0, y0, x1, y1, label_mask(A.labels[y0:y1, x0:x1], A.n, ga), label_mask(B.labels[y0:y1, x0:x1], B.n, gb)
+
+
+def _exact_join_reference(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner):
+    """:func:`_exact_join` step by step: each collar and each pixel pass a call of its own on the
+    mesher, the corners made on demand (:class:`_CornerGrid`).  The reference of the compiled
+    form, and the route of groups with a caller's polygons (their collars are bands)."""
+
+    x0, y0, x1, y1, ra, rb = _group_box(A, B, ga, gb)
     o = ra & rb
     zk, zk1 = zs[k], zs[k + 1]
     zm = 0.5 * (zk + zk1)

@@ -363,6 +363,15 @@ def split_t_junctions(vertices, tris, boundary):
     return np.asarray(out, dtype=np.int64).reshape(-1, 3)
 
 
+def _cap_rings(polygon_xy, holes_xy):
+    """:func:`cap_faces`' arguments checked: the outer ring and the holes, ``(k, 2)`` float64 each."""
+    outer = _as_ring(polygon_xy, "polygon_xy")
+    if isinstance(holes_xy, np.ndarray) and holes_xy.ndim == 2:
+        raise ValueError("holes_xy must be a sequence of (h, 2) arrays, not a single array; "
+                         "wrap a single hole in a list")
+    return outer, [_as_ring(h, f"holes_xy[{k}]") for k, h in enumerate(holes_xy)]
+
+
 def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     """Triangulate a flat polygon with holes into a cap.
 
@@ -389,11 +398,7 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     >>> cap_faces([[0, 0], [2, 0], [2, 2], [0, 2]]).shape
     (2, 3)
     """
-    outer = _as_ring(polygon_xy, "polygon_xy")
-    if isinstance(holes_xy, np.ndarray) and holes_xy.ndim == 2:
-        raise ValueError("holes_xy must be a sequence of (h, 2) arrays, not a single array; "
-                         "wrap a single hole in a list")
-    holes = [_as_ring(h, f"holes_xy[{k}]") for k, h in enumerate(holes_xy)]
+    outer, holes = _cap_rings(polygon_xy, holes_xy)
     empty = np.empty((0, 3), dtype=np.int64)
     if len(outer) < 3 or _signed_area(outer) == 0.0:
         return empty
@@ -425,17 +430,7 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
             k = a + np.flatnonzero(keep)
             kept_idx.append(k)
             kept_ends.append(len(k))
-            first = int(k[0]) - a
-            order = (first + np.arange(len(r))) % len(r)  # ring order starting at a kept point
-            anchor, inner = a + first, []
-            for j in order[1:].tolist() + [first]:
-                if keep[j]:
-                    if inner:
-                        runs[(anchor, a + j)] = inner
-                        runs[(a + j, anchor)] = inner[::-1]
-                    anchor, inner = a + j, []
-                else:
-                    inner.append(a + j)
+            _note_runs(keep, a, runs)
         a = b
     if runs:
         kept_idx = np.concatenate(kept_idx)
@@ -468,6 +463,24 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     if (total < 0) if upward else (total > 0):
         tri = tri[:, [0, 2, 1]]
     return np.ascontiguousarray(tri if glob is None else glob[tri])
+
+
+def _note_runs(keep, a, runs) -> None:
+    """Record in ``runs`` the collinear runs a ring (its points from ``a``, ``keep`` from
+    :func:`collinear_runs`, some False) loses: ``runs[(p, q)]`` the points dropped between kept
+    points ``p`` and ``q``, both ways round."""
+    n = len(keep)
+    first = int(np.flatnonzero(keep)[0])
+    order = (first + np.arange(n)) % n  # ring order starting at a kept point
+    anchor, inner = a + first, []
+    for j in order[1:].tolist() + [first]:
+        if keep[j]:
+            if inner:
+                runs[(anchor, a + j)] = inner
+                runs[(a + j, anchor)] = inner[::-1]
+            anchor, inner = a + j, []
+        else:
+            inner.append(a + j)
 
 
 def _earcut():
@@ -532,11 +545,7 @@ def _cap_tail(verts, tri, ends, tol):  # pragma: no cover (compiled)
 def _cap_faces_reference(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     """:func:`cap_faces` step by step (each check a numpy step or a kernel call of its own): the
     reference of its compiled tail (:func:`_cap_tail`)."""
-    outer = _as_ring(polygon_xy, "polygon_xy")
-    if isinstance(holes_xy, np.ndarray) and holes_xy.ndim == 2:
-        raise ValueError("holes_xy must be a sequence of (h, 2) arrays, not a single array; "
-                         "wrap a single hole in a list")
-    holes = [_as_ring(h, f"holes_xy[{k}]") for k, h in enumerate(holes_xy)]
+    outer, holes = _cap_rings(polygon_xy, holes_xy)
     empty = np.empty((0, 3), dtype=np.int64)
     if len(outer) < 3 or _signed_area(outer) == 0.0:
         return empty
@@ -562,17 +571,7 @@ def _cap_faces_reference(polygon_xy, holes_xy=(), upward: bool = True) -> np.nda
         kept_idx.append(k)
         kept_ends.append(len(k))
         if not keep.all():
-            first = int(np.flatnonzero(keep)[0])
-            order = (first + np.arange(len(r))) % len(r)  # ring order starting at a kept point
-            anchor, inner = a + first, []
-            for j in order[1:].tolist() + [first]:
-                if keep[j]:
-                    if inner:
-                        runs[(anchor, a + j)] = inner
-                        runs[(a + j, anchor)] = inner[::-1]
-                    anchor, inner = a + j, []
-                else:
-                    inner.append(a + j)
+            _note_runs(keep, a, runs)
     kept_idx = np.concatenate(kept_idx)
     tri = np.asarray(mapbox_earcut.triangulate_float64(np.ascontiguousarray(verts[kept_idx]),
                                                        np.cumsum(kept_ends).astype(np.uint32)),
