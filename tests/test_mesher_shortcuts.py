@@ -119,6 +119,46 @@ def test_caps_with_the_compiled_steps_equal_the_reference_steps(monkeypatch):
             assert g == r
 
 
+def test_caps_equal_the_step_by_step_reference():
+    """cap_faces (its checks after ear clipping in one compiled pass, fewer numpy steps) against
+    _cap_faces_reference: the same faces (values and dtype) or the same error, on slices' MLP and
+    crack rings with their holes, and on rings with collinear runs, flat ears, T-junctions, holes
+    of zero area, touching and crossing rings, both orientations."""
+    from contourmesh.bands import caps
+
+    def run(f, outer, holes, up):
+        try:
+            return f(outer, holes, upward=up)
+        except ValueError as e:
+            return type(e).__name__
+
+    rng = np.random.default_rng(3)
+    cases = [(o, hs) for seed in (1, 2, 6) for o, hs in _rings_of_slices(seed)]
+    sq = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], float)
+    run4 = np.array([[0, 0], [1, 0], [2, 0], [3, 0], [3, 1], [3, 2], [2, 2], [1, 2], [0, 2], [0, 1]], float)
+    flat = np.array([[0, 0], [4, 0], [4, 4], [2, 4], [2, 2], [2, 4.0 - 1e-300], [0, 4]], float)
+    cases += [(sq, [sq[::-1] * 0.5 + 1]), (sq, [sq[::-1] * 0.5 + 3]), (sq, [sq[::-1]]), (np.r_[sq, [[2, 2]]], []),
+              (run4, []), (run4 * 2, [run4[::-1] * 0.5 + 1]), (sq * 3, [sq[::-1] + 1, np.zeros((3, 2)), sq[::-1] + 6]),
+              (sq * 3, [sq[::-1] + [1, 4], sq[::-1] + [5, 4]]), (flat, []), (sq[:2], []), (np.zeros((4, 2)), []),
+              (sq * 3, [sq[:2]]), (np.c_[sq, np.ones(4)], [np.c_[sq[::-1] * 0.5 + 1, np.ones(4)]])]
+    for n in (3, 5, 12, 40):
+        t = np.sort(rng.random(n)) * 2 * np.pi
+        r = np.c_[np.cos(t), np.sin(t)] * 10
+        cases += [(r, []), (r + rng.normal(scale=1e-12, size=r.shape), [0.3 * r[::-1]]), (r[::-1], [])]
+    n_faces = n_errors = 0
+    for outer, holes in cases:
+        for up in (True, False):
+            got, ref = run(caps.cap_faces, outer, holes, up), run(caps._cap_faces_reference, outer, holes, up)
+            assert type(got) is type(ref)
+            if isinstance(ref, np.ndarray):
+                assert got.dtype == ref.dtype and got.shape == ref.shape and np.array_equal(got, ref)
+                n_faces += len(ref) > 0
+            else:
+                assert got == ref
+                n_errors += 1
+    assert n_faces > 100 and n_errors >= 2
+
+
 def test_t_junction_fast_path_refuses_what_the_loop_refuses():
     from contourmesh.bands import caps
 
@@ -157,6 +197,97 @@ def test_exact_joins_are_the_same_with_the_corner_round_trip(monkeypatch):
     monkeypatch.setattr(volumes, "_EXACT_TRIP_LIMIT", 0.0)
     b = contourmesh.mesh(vol, spacing=(1.3, 0.7, 0.9))
     assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+
+
+def _record_exact_units(monkeypatch, vol, spacing):
+    """Each exact join's unit of one mesh made three ways: directly (_exact_unit, the mesher's
+    route), on a mesher by the compiled join (_exact_join) and on a mesher by the step-by-step
+    reference: the triples of ``(nv, V, F, S, N, rings)``."""
+    import contourmesh
+
+    out = []
+    direct = volumes._exact_unit
+
+    def fields(u):
+        return (u.nv, u.V, u.F, u.S, u.N, u.rings)
+
+    def three(A, B, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, polygon_of):
+        u = direct(A, B, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, polygon_of)
+        args = (A, B, k, ga, gb, zs)
+        made = [volumes._Unit.record(None, lambda M, ring, f=f: f(M, *args, ring, dx, dy, ox, oy, to_xy_corner),
+                                     polygon_of, zs, "wiederhold", None)
+                for f in (volumes._exact_join, volumes._exact_join_reference)]
+        out.append([fields(u)] + [fields(m) for m in made])
+        return u
+
+    monkeypatch.setattr(volumes, "_exact_unit", three)
+    contourmesh.mesh(vol, spacing=spacing)
+    monkeypatch.setattr(volumes, "_exact_unit", direct)
+    return out
+
+
+@pytest.mark.parametrize("trip", [True, False])
+def test_exact_joins_compiled_equal_the_reference(monkeypatch, trip):
+    """The exact join's compiled pass (numbering, collars, pixel faces, necks), on a mesher and as a
+    unit made directly, against the step by step reference, join by join on random volumes (forks,
+    handles, diagonal touches), with the crack corners read directly and through the xy round trip:
+    the same vertices (bits), faces, sides, neck vertices and rings' places."""
+    if not trip:
+        monkeypatch.setattr(volumes, "_EXACT_TRIP_LIMIT", 0.0)
+    n = necks = 0
+    for seed in range(6):
+        rng = np.random.default_rng(100 + seed)
+        vol = ndimage.gaussian_filter(rng.random((7, 26, 30)), rng.uniform(0.6, 1.3)) > rng.uniform(0.47, 0.53)
+        vol[:, ::5, ::6] ^= rng.random(vol[:, ::5, ::6].shape) < 0.3  # specks, pin holes, diagonal touches
+        for units in _record_exact_units(monkeypatch, vol, tuple(rng.uniform(0.4, 1.6, 3))):
+            ref = units[-1]
+            n += 1
+            necks += len(ref[4])
+            for got in units[:2]:
+                assert got[0] == ref[0] and got[5] == ref[5]  # vertex count, rings' places
+                assert got[1].shape == ref[1].shape and got[1].tobytes() == ref[1].tobytes()
+                for g, r in zip(got[2:5], ref[2:5]):
+                    assert g.dtype == r.dtype and np.array_equal(g, r)
+    assert n > 20 and necks > 0
+
+
+def test_exact_join_kernel_refuses_corners_outside_the_box():
+    ra = np.ones((2, 2), dtype=bool)
+    cx = np.array([0, 2, 2, 0, 0, 3], dtype=np.int64)
+    cy = np.array([0, 0, 2, 2, 0, 0], dtype=np.int64)
+    ok = volumes._exact_join_kernel(ra, ra, np.int64(0), np.int64(0), cx[:4], cy[:4],
+                                    np.array([0, 4], dtype=np.int64), np.int64(1), np.int64(0))
+    assert ok[-1] and len(ok[0]) == 4 and len(ok[3]) == 8  # a collar of 8 faces, no pixel left open
+    bad = volumes._exact_join_kernel(ra, ra, np.int64(0), np.int64(0), cx[4:], cy[4:],
+                                     np.array([0, 2], dtype=np.int64), np.int64(1), np.int64(0))
+    assert not bad[-1]
+
+
+@pytest.mark.parametrize("kw", [{}, {"caps": "half"}, {"polygon": "none"}, {"triangulation": "greedy"},
+                                {"triangulation": "optimal", "caps": "half"}])
+def test_units_made_without_a_mesher_are_the_recorded_units(monkeypatch, kw):
+    """The flat ends' and band joins' units made directly (_Unit.flat) against the same units
+    recorded on a mesher (the direct route refused): the same mesh bytes and counts, on volumes
+    with holes, specks (pixel caps), one-slice components (prisms), mixed bands and crossing
+    fallbacks."""
+    import contourmesh
+
+    made = []
+    flat = volumes._Unit.flat.__func__
+
+    def counted(cls, *a):
+        made.append(1)
+        return flat(cls, *a)
+
+    for seed in range(4):
+        vol = _masks(20 + seed, shape=(5, 30, 34))
+        monkeypatch.setattr(volumes._Unit, "flat", classmethod(counted))
+        a = contourmesh.mesh(vol, spacing=(1.1, 0.8, 0.9), **kw)
+        monkeypatch.setattr(volumes._Unit, "flat", classmethod(lambda cls, *a: None))
+        b = contourmesh.mesh(vol, spacing=(1.1, 0.8, 0.9), **kw)
+        assert a.vertices.tobytes() == b.vertices.tobytes() and np.array_equal(a.faces, b.faces)
+        assert a.meta == b.meta
+    assert len(made) > 20
 
 
 def test_round9_compiled_equals_the_numpy_form():

@@ -82,8 +82,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ._heap import release_free_heap
+from ._kernels import KERNEL_OPTIONS, internal_kernel
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
@@ -1218,7 +1220,26 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
             zc = zs[k] + (gap(k, up) / 2 if up else -gap(k, up) / 2) if caps == "half" else None
             close(rs, up, zc)
 
-        return ("cap", is_crack(k, c)), make
+        def direct():
+            """The unit of a flat end (the usual one) made without a mesher: its rings' points are
+            all its vertices, in order, and the earcut faces number them as they are (the mesher
+            would give the same numbers, faces and sides).  None where the end is not so made (a
+            prism, half a spacing beyond, a hook's, rings that touch or a cap that fails: the pixel
+            cap), for ``make`` to do."""
+            if above == below or caps == "half" or end_cap is not None:
+                return None
+            keys = [(k, c, h) for h in range(-1, len(s.holes[c]))]
+            xy = [np.asarray(polygon_of(*rk), dtype=np.float64).reshape(-1, 2) for rk in keys]
+            allxy = np.concatenate(xy) if len(xy) > 1 else xy[0]
+            if not _distinct_rows(allxy):
+                return None
+            try:
+                f = cap_faces(xy[0], xy[1:], upward=not above)
+            except ValueError:
+                return None
+            return _Unit.flat(keys, [len(r) for r in xy], f)
+
+        return ("cap", is_crack(k, c)), make, direct
 
     def join_unit(idx):
         k, kind, data = joins[idx]
@@ -1236,7 +1257,30 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                 for ha, hb in [(-1, -1)] + list(matched):
                     M.band(ring(k, a, ha), ring(k + 1, b, hb), mixed, added(k, a, ha), added(k + 1, b, hb))
 
-            return ("band", is_crack(k, a), is_crack(k + 1, b)), make
+            def direct():
+                """The band join's unit made without a mesher (its rings in order, each pair's band
+                numbering them as they are): what ``make`` records, where no hook, guard or densified
+                ring takes part; None otherwise."""
+                pairs = [(-1, -1)] + list(matched)
+                if band_maker is not None or band_guard is not None or \
+                        any(added(k, a, ha) is not None or added(k + 1, b, hb) is not None for ha, hb in pairs):
+                    return None
+                keys, sizes, faces = [], [], []
+                at = replaced = least_area = 0
+                for ha, hb in pairs:
+                    lo, hi = _with_z(polygon_of(k, a, ha), zs[k]), _with_z(polygon_of(k + 1, b, hb), zs[k + 1])
+                    f, r = _band_faces(lo, hi, triangulation, mixed=mixed)
+                    if mixed and _dissimilar_rule(len(lo), len(hi), triangulation, _MIXED_OPTIMAL_BUDGET) != triangulation:
+                        least_area += 1
+                    replaced += r
+                    faces.append(np.arange(at, at + len(lo) + len(hi))[f])
+                    keys += [(k, a, ha), (k + 1, b, hb)]
+                    sizes += [len(lo), len(hi)]
+                    at += len(lo) + len(hi)
+                return _Unit.flat(keys, sizes, np.concatenate(faces) if len(faces) > 1 else faces[0],
+                                  replaced, least_area)
+
+            return ("band", is_crack(k, a), is_crack(k + 1, b)), make, direct
         if kind == "bridge":
             b_ = built[k, tuple(data[0]), tuple(data[1])]
 
@@ -1254,20 +1298,26 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                 M.band_fallbacks += b_.replaced
                 M.least_area += b_.least_area
 
-            return ("bridge", b_, tuple(is_crack(kk, c) for (kk, c, _), _o in b_.rings)), make
+            return ("bridge", b_, tuple(is_crack(kk, c) for (kk, c, _), _o in b_.rings)), make, None
         ga, gb = data
 
         def make(M, ring):
             _exact_join(M, slices[k], slices[k + 1], k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
 
-        return ("exact", tuple(ga), tuple(gb), tuple(is_crack(k, a) for a in ga),
-                tuple(is_crack(k + 1, b) for b in gb)), make
+        def direct():
+            return _exact_unit(slices[k], slices[k + 1], k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, polygon_of)
 
-    def unit(uid, key, make):
+        return ("exact", tuple(ga), tuple(gb), tuple(is_crack(k, a) for a in ga),
+                tuple(is_crack(k + 1, b) for b in gb)), make, direct
+
+    def unit(uid, key, make, direct=None):
         old = None if cache is None else cache.get(uid)
         if old is not None and old.key == key:
             return old
-        u = _Unit.record(key, make, polygon_of, zs, triangulation, band_guard)
+        u = None if direct is None else direct()
+        if u is None:
+            u = _Unit.record(key, make, polygon_of, zs, triangulation, band_guard)
+        u.key = key
         if cache is not None:
             cache[uid] = u
         return u
@@ -1275,8 +1325,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     units, tags, counted = [], [], []
     exact_joins = band_joins = bridged_joins = n_bridges = n_sections = 0
     for idx, (k, kind, data) in enumerate(joins):
-        key, make = join_unit(idx)
-        units.append(unit(("join", idx), key, make))
+        key, make, direct = join_unit(idx)
+        units.append(unit(("join", idx), key, make, direct))
         tags.append(idx)
         counted.append(owned is None or owned[0](k))
         if not counted[-1]:
@@ -1297,8 +1347,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         for c in range(s.n):
             if (k, c) in has_above and (k, c) in has_below:
                 continue
-            key, make = cap_unit(k, c)
-            units.append(unit(("cap", k, c), key, make))
+            key, make, direct = cap_unit(k, c)
+            units.append(unit(("cap", k, c), key, make, direct))
             tags.append(first + c)
             counted.append(owned is None or owned[1](k))
         first += s.n
@@ -1386,6 +1436,29 @@ class _Unit:
         u.replaced = M.band_fallbacks
         u.pixel_caps = M.pixel_caps
         u.least_area = M.least_area
+        return u
+
+    @classmethod
+    def flat(cls, keys, sizes, f, replaced=0, least_area=0):
+        """The unit of faces ``f`` on the rings ``keys`` (``sizes`` points each) alone, made in
+        this order: what :meth:`record` gives for a ``make`` that makes the rings and adds ``f``
+        (numbering their concatenation) with nothing else (``replaced``, ``least_area``: the
+        bands' counts)."""
+        u = cls()
+        u.key = None
+        spans, at = [], 0
+        for rk, n in zip(keys, sizes):
+            if n:
+                spans.append((rk, at, at + n))
+            at += n
+        u.nv = at
+        u.V = np.zeros((0, 3))
+        f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
+        u.F = f.astype(np.int32) if at < 2**31 else f
+        u.S = np.zeros(len(f), dtype=np.int8)
+        u.N = np.zeros(0, dtype=np.int64)
+        u.rings = spans
+        u.replaced, u.pixel_caps, u.least_area = replaced, 0, least_area
         return u
 
 
@@ -1866,15 +1939,292 @@ _EXACT_TRIP_LIMIT = 2.0 ** 40
 
 
 def _exact_join(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner):
-    """The voxel-exact join of a group of components between slices k and k+1."""
+    """The voxel-exact join of a group of components between slices k and k+1.
 
+    Each contour of the group rises as a collar (two triangles per edge) to its crack contour in
+    the mid-plane; the lower slice's pixels not covered from above close there facing up, the upper
+    slice's facing down, and the corners where the empty voxels of a 2 x 2 x 2 block touch only at
+    the corner are necks.  The same vertices and faces, in the same order, as
+    :func:`_exact_join_reference` (each collar and pixel pass a call of its own): the corners'
+    numbering, the collars and the pixel faces are worked out in one compiled pass
+    (:func:`_exact_plan`), and the mesher then receives the points in the order the reference
+    makes them (each ring through ``ring``, where the reference first uses it).  Groups with a
+    caller's polygons (whose collars are bands) take the reference."""
+    n0 = M.n
+    plan = _exact_plan(A, B, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, n0)
+    if plan is None:
+        return _exact_join_reference(M, A, B, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner)
+    keys, starts, XY, made, F, n_f1, necks = plan
+    at = 0  # corners handed to the mesher so far
+    for i, key in enumerate(keys):
+        if made[i] > at:  # the corners the reference makes before this ring
+            M.points(XY[at: made[i]])
+            at = int(made[i])
+        r = ring(*key)
+        if len(r) != starts[i + 1] - starts[i] or (len(r) and r[0] != n0 + at + starts[i]):
+            raise RuntimeError(f"internal error: exact join's ring {key} not made where expected")
+    if at < len(XY):
+        M.points(XY[at:])
+    M.side = 1
+    M.faces(F[:n_f1])
+    M.side = 2
+    M.faces(F[n_f1:])
+    M.side = 0
+    if len(necks):
+        M.necks.append(necks)
+
+
+def _exact_unit(A: _Slice, B: _Slice, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, polygon_of):
+    """The unit of :func:`_exact_join` made without a mesher (what :meth:`_Unit.record` gives for
+    it: its rings where it first uses them, its corners its own vertices in the order made), or
+    None where the join takes the reference or a ring's polygon is not its crack ring's size."""
+    plan = _exact_plan(A, B, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, 0)
+    if plan is None:
+        return None
+    keys, starts, XY, made, F, n_f1, necks = plan
+    spans = []
+    for i, key in enumerate(keys):
+        n = int(starts[i + 1] - starts[i])
+        if len(polygon_of(*key)) != n:  # pragma: no cover - crack rings are their corners' size
+            return None
+        if n:
+            a = int(made[i] + starts[i])
+            spans.append((key, a, a + n))
+    u = _Unit()
+    u.key = None
+    u.nv = int(starts[-1]) + len(XY)
+    u.V = XY
+    u.F = F.astype(np.int32) if u.nv < 2**31 else F
+    u.S = np.empty(len(F), dtype=np.int8)
+    u.S[:n_f1] = 1
+    u.S[n_f1:] = 2
+    u.N = necks
+    u.rings = spans
+    u.replaced = u.pixel_caps = u.least_area = 0
+    return u
+
+
+def _exact_plan(A: _Slice, B: _Slice, k, ga, gb, zs, dx, dy, ox, oy, to_xy_corner, n0):
+    """:func:`_exact_join`'s numbering for a mesher whose next vertex is ``n0``: ``(keys, starts,
+    XY, made, F, n_f1, necks)``, the rings ``(k, comp, hole)`` in the order first used and their
+    sizes (``starts``), the corner points in the order made, how many corners come before each
+    ring, the faces (the ``n_f1`` of side 1 first) and the neck vertices; None where the group
+    takes the reference (a caller's polygons, a corner outside the box)."""
+    if getattr(A, "own", ()) or getattr(B, "own", ()):
+        return None
+    x0, y0, x1, y1, ra, rb = _group_box(A, B, ga, gb)
+    exact_trip = (A.crack_outer.to_xy is to_xy_corner and B.crack_outer.to_xy is to_xy_corner
+                  and A.crack_holes.to_xy is to_xy_corner and B.crack_holes.to_xy is to_xy_corner
+                  and max(abs(ox) / dx, abs(oy) / dy) + max(y1, x1) + 1 < _EXACT_TRIP_LIMIT)
+    keys, corners = [], []  # the rings (k, c, hole) in the reference's order, and their crack corners
+    for kk, S, group in ((k, A, ga), (k + 1, B, gb)):
+        for c in group:
+            if exact_trip:
+                rc = [np.asarray(S.crack_outer_c[c], dtype=np.int64)] + \
+                    [np.asarray(r, dtype=np.int64) for r in S.crack_holes_c[c]]
+            else:
+                rc = [_back_to_corners(xy, dx, dy, ox, oy) for xy in [S.crack_outer[c]] + list(S.crack_holes[c])]
+            keys += [(kk, c, h) for h in range(-1, len(rc) - 1)]
+            corners += rc
+    n_lower = sum(1 for key in keys if key[0] == k)
+    starts = np.zeros(len(corners) + 1, dtype=np.int64)
+    starts[1:] = np.cumsum([len(r) for r in corners])
+    cxy = np.concatenate(corners) if corners else np.zeros((0, 2), dtype=np.int64)
+    ux, uy, made, F, n_f1, necks, ok = _exact_join_kernel(
+        np.ascontiguousarray(ra), np.ascontiguousarray(rb), np.int64(x0), np.int64(y0),
+        np.ascontiguousarray(cxy[:, 0]), np.ascontiguousarray(cxy[:, 1]), starts, np.int64(n_lower), np.int64(n0))
+    if not ok:  # pragma: no cover - a crack corner outside the group's box (numpy's indexing decides)
+        return None
+    zm = 0.5 * (zs[k] + zs[k + 1])
+    XY = _with_z(to_xy_corner(np.stack([ux + x0, uy + y0], axis=1)), zm) if len(ux) else np.zeros((0, 3))
+    return keys, starts, XY, made, F, int(n_f1), necks
+
+
+def _back_to_corners(xy, dx, dy, ox, oy):
+    """A crack ring's integer corners from its points (``to_xy_corner`` undone, rounded)."""
+    return np.stack([np.rint((xy[:, 0] - ox) / dx + 0.5), np.rint((xy[:, 1] - oy) / dy + 0.5)], axis=1).astype(np.int64)
+
+
+@internal_kernel
+def _corner_pass(ids, lx, ly, nxt, ux, uy, nu):  # pragma: no cover (compiled)
+    """:class:`_CornerGrid` on the places ``(lx, ly)`` (box coordinates): the missing corners get
+    the numbers ``nxt, nxt + 1, ...`` in (x, y) order and are appended to ``ux, uy`` (from ``nu``).
+    Returns ``(nxt, nu)`` after them, or ``(-1, -1)`` where a place lies outside the box."""
+    h = ids.shape[0]
+    w = ids.shape[1]
+    keys = np.empty(len(lx), np.int64)
+    nk = 0
+    for t in range(len(lx)):
+        if lx[t] < 0 or ly[t] < 0 or lx[t] >= w or ly[t] >= h:
+            return np.int64(-1), np.int64(-1)
+        if ids[ly[t], lx[t]] < 0:
+            keys[nk] = lx[t] * h + ly[t]
+            nk += 1
+    keys = np.sort(keys[:nk])
+    for t in range(nk):
+        if t == 0 or keys[t] != keys[t - 1]:
+            x = keys[t] // h
+            y = keys[t] % h
+            ids[y, x] = nxt
+            nxt += 1
+            ux[nu] = x
+            uy[nu] = y
+            nu += 1
+    return nxt, nu
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _exact_join_kernel(ra, rb, x0, y0, cx, cy, starts, n_lower, n0):  # pragma: no cover (compiled)
+    """The numbering and faces of :func:`_exact_join_reference` in one pass.  ``ra, rb``: the
+    group's pixels below and above (its box); ``cx, cy``: the crack corners of its rings (pixel
+    coordinates), ring ``i`` in ``starts[i]:starts[i + 1]``, the ``n_lower`` rings of the lower
+    slice first, in the reference's order; ``n0``: the mesher's next vertex number.
+
+    Returns ``(ux, uy, made, F, n_f1, necks, ok)``: the new corners (box coordinates) in the order
+    they are made, how many corners are made before ring ``i`` is, the faces (the ``n_f1`` of side
+    1 first), the neck vertices, and False where a corner lies outside the box."""
+    hgt = ra.shape[0]
+    wid = ra.shape[1]
+    nr = len(starts) - 1
+    ids = np.empty((hgt + 1, wid + 1), np.int64)
+    for y in range(hgt + 1):
+        for x in range(wid + 1):
+            ids[y, x] = -1
+    n_pix = 0
+    for y in range(hgt):
+        for x in range(wid):
+            if ra[y, x] != rb[y, x]:
+                n_pix += 1
+    n_ring = starts[nr]
+    empty = np.empty(0, np.int64)
+    cap = (hgt + 1) * (wid + 1)  # (each corner is made once)
+    ux = np.empty(cap, np.int64)
+    uy = np.empty(cap, np.int64)
+    made = np.empty(nr, np.int64)
+    F = np.empty((2 * n_ring + 2 * n_pix, 3), np.int64)
+    nf = 0
+    n_f1 = 0
+    nxt = n0
+    nu = 0
+    work = np.empty((8, n_pix), np.int64)  # a side's pixels, a corner's places, the four corners' numbers
+    px, py, lx, ly, c00, c10, c11, c01 = work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7]
+    for side in range(2):
+        r0 = 0 if side == 0 else n_lower
+        r1 = n_lower if side == 0 else nr
+        for i in range(r0, r1):
+            a, b = starts[i], starts[i + 1]
+            m = b - a
+            lxr = np.empty(m, np.int64)
+            lyr = np.empty(m, np.int64)
+            for t in range(m):
+                lxr[t] = cx[a + t] - x0
+                lyr[t] = cy[a + t] - y0
+            if side == 0:  # the ring first, then its corners: quads(ring, corners)
+                made[i] = nu
+                first = nxt
+                nxt += m
+                nxt, nu = _corner_pass(ids, lxr, lyr, nxt, ux, uy, nu)
+                if nxt < 0:
+                    return ux[:0], uy[:0], made, F[:0], np.int64(0), empty[:0], False
+            else:  # the corners first, then the ring: quads(corners, ring)
+                nxt, nu = _corner_pass(ids, lxr, lyr, nxt, ux, uy, nu)
+                if nxt < 0:
+                    return ux[:0], uy[:0], made, F[:0], np.int64(0), empty[:0], False
+                made[i] = nu
+                first = nxt
+                nxt += m
+            for t in range(m):
+                t1 = t + 1 if t + 1 < m else 0
+                rt, rt1 = first + t, first + t1
+                gt, gt1 = ids[lyr[t], lxr[t]], ids[lyr[t1], lxr[t1]]
+                if side == 0:
+                    F[nf + t, 0], F[nf + t, 1], F[nf + t, 2] = rt, rt1, gt1
+                    F[nf + m + t, 0], F[nf + m + t, 1], F[nf + m + t, 2] = rt, gt1, gt
+                else:
+                    F[nf + t, 0], F[nf + t, 1], F[nf + t, 2] = gt, gt1, rt1
+                    F[nf + m + t, 0], F[nf + m + t, 1], F[nf + m + t, 2] = gt, rt1, rt
+            nf += 2 * m
+        # the pixels of this side not covered by the other, row by row (np.nonzero's order)
+        own = ra if side == 0 else rb
+        other = rb if side == 0 else ra
+        npx = 0
+        for y in range(hgt):
+            for x in range(wid):
+                if own[y, x] and not other[y, x]:
+                    px[npx] = x
+                    py[npx] = y
+                    npx += 1
+        if npx:
+            for corner in range(4):
+                ox_ = 1 if corner == 1 or corner == 2 else 0
+                oy_ = 1 if corner >= 2 else 0
+                for t in range(npx):
+                    lx[t] = px[t] + ox_
+                    ly[t] = py[t] + oy_
+                nxt, nu = _corner_pass(ids, lx[:npx], ly[:npx], nxt, ux, uy, nu)
+                if nxt < 0:
+                    return ux[:0], uy[:0], made, F[:0], np.int64(0), empty[:0], False
+                out = c00 if corner == 0 else c10 if corner == 1 else c11 if corner == 2 else c01
+                for t in range(npx):
+                    out[t] = ids[ly[t], lx[t]]
+            for t in range(npx):
+                if side == 0:  # facing up
+                    F[nf + t, 0], F[nf + t, 1], F[nf + t, 2] = c00[t], c10[t], c11[t]
+                    F[nf + npx + t, 0], F[nf + npx + t, 1], F[nf + npx + t, 2] = c00[t], c11[t], c01[t]
+                else:
+                    F[nf + t, 0], F[nf + t, 1], F[nf + t, 2] = c00[t], c11[t], c10[t]
+                    F[nf + npx + t, 0], F[nf + npx + t, 1], F[nf + npx + t, 2] = c00[t], c01[t], c11[t]
+            nf += 2 * npx
+        if side == 0:
+            n_f1 = nf
+    # necks: three of the four pixels below and three above, the two missing ones diagonally opposite
+    nn = 0
+    nkx = np.empty((hgt + 1) * (wid + 1), np.int64)
+    nky = np.empty((hgt + 1) * (wid + 1), np.int64)
+    for y in range(hgt + 1):
+        for x in range(wid + 1):
+            # pixel (x - 1 + i, y - 1 + j) of each side, outside the box empty
+            lla = y >= 1 and x >= 1 and ra[y - 1, x - 1]
+            lra = y >= 1 and x < wid and ra[y - 1, x]
+            ula = y < hgt and x >= 1 and ra[y, x - 1]
+            ura = y < hgt and x < wid and ra[y, x]
+            llb = y >= 1 and x >= 1 and rb[y - 1, x - 1]
+            lrb = y >= 1 and x < wid and rb[y - 1, x]
+            ulb = y < hgt and x >= 1 and rb[y, x - 1]
+            urb = y < hgt and x < wid and rb[y, x]
+            if int(lla) + int(lra) + int(ula) + int(ura) != 3 or int(llb) + int(lrb) + int(ulb) + int(urb) != 3:
+                continue
+            if (not lla and not urb) or (not ura and not llb) or (not lra and not ulb) or (not ula and not lrb):
+                nkx[nn] = x
+                nky[nn] = y
+                nn += 1
+    necks = np.empty(nn, np.int64)
+    if nn:
+        nxt, nu = _corner_pass(ids, nkx[:nn], nky[:nn], nxt, ux, uy, nu)
+        if nxt < 0:
+            return ux[:0], uy[:0], made, F[:0], np.int64(0), empty[:0], False
+        for t in range(nn):
+            necks[t] = ids[nky[t], nkx[t]]
+    return ux[:nu], uy[:nu], made, F[:nf], n_f1, necks[:nn], True
+
+
+def _group_box(A: _Slice, B: _Slice, ga, gb):
+    """``(x0, y0, x1, y1, ra, rb)``: the box of components ``ga`` below and ``gb`` above, and their
+    pixels in it."""
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     y0 = min(s[0].start for s in sl)
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    ra = label_mask(A.labels[y0:y1, x0:x1], A.n, ga)
-    rb = label_mask(B.labels[y0:y1, x0:x1], B.n, gb)
+    return x0, y0, x1, y1, label_mask(A.labels[y0:y1, x0:x1], A.n, ga), label_mask(B.labels[y0:y1, x0:x1], B.n, gb)
+
+
+def _exact_join_reference(M: _Mesher, A: _Slice, B: _Slice, k, ga, gb, zs, ring, dx, dy, ox, oy, to_xy_corner):
+    """:func:`_exact_join` step by step: each collar and each pixel pass a call of its own on the
+    mesher, the corners made on demand (:class:`_CornerGrid`).  The reference of the compiled
+    form, and the route of groups with a caller's polygons (their collars are bands)."""
+
+    x0, y0, x1, y1, ra, rb = _group_box(A, B, ga, gb)
     o = ra & rb
     zk, zk1 = zs[k], zs[k + 1]
     zm = 0.5 * (zk + zk1)

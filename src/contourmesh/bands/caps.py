@@ -363,6 +363,15 @@ def split_t_junctions(vertices, tris, boundary):
     return np.asarray(out, dtype=np.int64).reshape(-1, 3)
 
 
+def _cap_rings(polygon_xy, holes_xy):
+    """:func:`cap_faces`' arguments checked: the outer ring and the holes, ``(k, 2)`` float64 each."""
+    outer = _as_ring(polygon_xy, "polygon_xy")
+    if isinstance(holes_xy, np.ndarray) and holes_xy.ndim == 2:
+        raise ValueError("holes_xy must be a sequence of (h, 2) arrays, not a single array; "
+                         "wrap a single hole in a list")
+    return outer, [_as_ring(h, f"holes_xy[{k}]") for k, h in enumerate(holes_xy)]
+
+
 def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     """Triangulate a flat polygon with holes into a cap.
 
@@ -389,11 +398,154 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     >>> cap_faces([[0, 0], [2, 0], [2, 2], [0, 2]]).shape
     (2, 3)
     """
-    outer = _as_ring(polygon_xy, "polygon_xy")
-    if isinstance(holes_xy, np.ndarray) and holes_xy.ndim == 2:
-        raise ValueError("holes_xy must be a sequence of (h, 2) arrays, not a single array; "
-                         "wrap a single hole in a list")
-    holes = [_as_ring(h, f"holes_xy[{k}]") for k, h in enumerate(holes_xy)]
+    outer, holes = _cap_rings(polygon_xy, holes_xy)
+    empty = np.empty((0, 3), dtype=np.int64)
+    if len(outer) < 3 or _signed_area(outer) == 0.0:
+        return empty
+    # (the steps of _cap_faces_reference with fewer numpy calls: most caps are a few points, where
+    # the calls, not the arithmetic, cost; the checks after ear clipping in one compiled pass)
+    if holes:
+        used = [h for h in holes if len(h) >= 3 and _signed_area(h) != 0.0]
+        rings = [outer] + used
+        if len(used) < len(holes):  # global index of each vertex handed to earcut
+            offsets = np.cumsum([0] + [len(r) for r in [outer] + holes])[:-1]
+            glob = np.concatenate([np.arange(len(outer))] + [offsets[k + 1] + np.arange(len(h)) for k, h in
+                                                             enumerate(holes) if len(h) >= 3 and _signed_area(h) != 0.0])
+        else:
+            glob = None  # (all rings used: the identity)
+        verts = np.ascontiguousarray(np.vstack(rings))
+        ends = np.cumsum([len(r) for r in rings])
+    else:
+        rings, glob, verts = [outer], None, outer
+        ends = np.array([len(outer)])
+    ends = ends.astype(np.int64)
+    # take collinear runs out of each ring (kept: the runs' ends), ear-clip the rest, put them back
+    kept_idx, runs, kept_ends, a = [], {}, [], 0
+    for b, r in zip(ends.tolist(), rings):
+        keep = collinear_runs(r)
+        if keep.all():
+            kept_idx.append(np.arange(a, b))
+            kept_ends.append(b - a)
+        else:
+            k = a + np.flatnonzero(keep)
+            kept_idx.append(k)
+            kept_ends.append(len(k))
+            _note_runs(keep, a, runs)
+        a = b
+    if runs:
+        kept_idx = np.concatenate(kept_idx)
+        tri = np.asarray(_earcut().triangulate_float64(np.ascontiguousarray(verts[kept_idx]),
+                                                       np.cumsum(kept_ends).astype(np.uint32)),
+                         dtype=np.int64).reshape(-1, 3)
+        if len(tri) == 0:
+            return empty
+        tri = _reinsert_runs(kept_idx[tri], runs)
+    else:
+        tri = np.asarray(_earcut().triangulate_float64(verts, ends.astype(np.uint32)),
+                         dtype=np.int64).reshape(-1, 3)
+        if len(tri) == 0:
+            return empty
+    # flat ears dropped, then the T-junction test, the closing test and each triangle's signed area
+    status, tri, s = _cap_tail(verts, np.ascontiguousarray(tri), ends, COLLINEAR_TOL)
+    if status == 1:  # an edge with a ring vertex on it: the splitting loop
+        starts = np.concatenate([[0], ends[:-1]])
+        nxt = np.arange(1, len(verts) + 1, dtype=np.int64)
+        nxt[ends - 1] = starts
+        boundary = np.stack([np.arange(len(verts), dtype=np.int64), nxt], axis=1)
+        tri = split_t_junctions(verts, tri, np.concatenate([boundary, boundary[:, ::-1]]))
+        if tri is None:
+            raise CapError("cannot triangulate the cap: its rings cross or touch each other")
+        p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
+        s = (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+    elif status == 2:
+        raise CapError("cannot triangulate the cap: its rings cross or touch each other")
+    total = float(s.sum())
+    if (total < 0) if upward else (total > 0):
+        tri = tri[:, [0, 2, 1]]
+    return np.ascontiguousarray(tri if glob is None else glob[tri])
+
+
+def _note_runs(keep, a, runs) -> None:
+    """Record in ``runs`` the collinear runs a ring (its points from ``a``, ``keep`` from
+    :func:`collinear_runs`, some False) loses: ``runs[(p, q)]`` the points dropped between kept
+    points ``p`` and ``q``, both ways round."""
+    n = len(keep)
+    first = int(np.flatnonzero(keep)[0])
+    order = (first + np.arange(n)) % n  # ring order starting at a kept point
+    anchor, inner = a + first, []
+    for j in order[1:].tolist() + [first]:
+        if keep[j]:
+            if inner:
+                runs[(anchor, a + j)] = inner
+                runs[(a + j, anchor)] = inner[::-1]
+            anchor, inner = a + j, []
+        else:
+            inner.append(a + j)
+
+
+def _earcut():
+    import mapbox_earcut
+
+    return mapbox_earcut
+
+
+@njit(cache=True, nogil=True)
+def _cap_tail(verts, tri, ends, tol):  # pragma: no cover (compiled)
+    """:func:`_cap_faces_reference`'s steps after ear clipping, for rings ending at ``ends`` in
+    ``verts``: the triangles that are not flat (:func:`_flat_kernel`), then, where no edge may hold a
+    ring vertex (:func:`_busy_edges`, every vertex a candidate), :func:`split_t_junctions`' closing
+    test (:func:`_closes_up`) and each triangle's signed area (the reference's arithmetic).
+    Returns ``(status, tri, s)``: 0 with the areas ``s``, 1 where an edge must be split (``tri``
+    the triangles to split), 2 where the triangles do not close up."""
+    keep = _flat_kernel(verts, tri, tol)
+    m = 0
+    for t in range(len(tri)):
+        m += keep[t]
+    out = np.empty((m, 3), np.int64)
+    m = 0
+    for t in range(len(tri)):
+        if keep[t]:
+            out[m, 0], out[m, 1], out[m, 2] = tri[t, 0], tri[t, 1], tri[t, 2]
+            m += 1
+    s = np.empty(m)
+    if m == 0:
+        return 0, out, s
+    n = len(verts)
+    e = np.empty((3 * m, 2), np.int64)
+    for t in range(m):
+        for k in range(3):
+            e[k * m + t, 0] = out[t, k]
+            e[k * m + t, 1] = out[t, (k + 1) % 3]
+    cand = np.empty(n, np.int64)
+    for i in range(n):
+        cand[i] = i
+    busy = _busy_edges(verts, e, cand)
+    for i in range(len(busy)):
+        if busy[i]:
+            return 1, out, s
+    boundary = np.empty((2 * n, 2), np.int64)
+    a = 0
+    for r in range(len(ends)):
+        b = ends[r]
+        for i in range(a, b):
+            j = i + 1 if i + 1 < b else a
+            boundary[i, 0], boundary[i, 1] = i, j
+            boundary[n + i, 0], boundary[n + i, 1] = j, i
+        a = b
+    if not _closes_up(out, boundary):
+        return 2, out, s
+    for t in range(m):
+        p0, p1 = verts[out[t, 0], 0], verts[out[t, 0], 1]
+        q0, q1 = verts[out[t, 1], 0], verts[out[t, 1], 1]
+        r0, r1 = verts[out[t, 2], 0], verts[out[t, 2], 1]
+        s[t] = (q0 - p0) * (r1 - p1) - (q1 - p1) * (r0 - p0)
+    return 0, out, s
+
+
+def _cap_faces_reference(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
+    """:func:`cap_faces` step by step (each check a numpy step or a kernel call of its own): the
+    reference of its compiled tail (:func:`_cap_tail`)."""
+    outer, holes = _cap_rings(polygon_xy, holes_xy)
     empty = np.empty((0, 3), dtype=np.int64)
     if len(outer) < 3 or _signed_area(outer) == 0.0:
         return empty
@@ -419,17 +571,7 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
         kept_idx.append(k)
         kept_ends.append(len(k))
         if not keep.all():
-            first = int(np.flatnonzero(keep)[0])
-            order = (first + np.arange(len(r))) % len(r)  # ring order starting at a kept point
-            anchor, inner = a + first, []
-            for j in order[1:].tolist() + [first]:
-                if keep[j]:
-                    if inner:
-                        runs[(anchor, a + j)] = inner
-                        runs[(a + j, anchor)] = inner[::-1]
-                    anchor, inner = a + j, []
-                else:
-                    inner.append(a + j)
+            _note_runs(keep, a, runs)
     kept_idx = np.concatenate(kept_idx)
     tri = np.asarray(mapbox_earcut.triangulate_float64(np.ascontiguousarray(verts[kept_idx]),
                                                        np.cumsum(kept_ends).astype(np.uint32)),
