@@ -188,8 +188,9 @@ def test_missing_corners_equal_the_unique_keys_form():
 
 
 def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
-    """repair._open_necks with a kept dict: a second call on the same mesh takes every neck's rings
-    and faces from it, and gives the same arrays as a call without the dict."""
+    """repair._open_necks_loop (the one-neck-at-a-time form, which _open_necks falls back on) with a
+    kept dict: a second call on the same mesh takes every neck's rings and faces from it, and gives
+    the same arrays as a call without the dict, and as _open_necks (which keeps nothing in it)."""
     import contourmesh
     from contourmesh import repair
 
@@ -205,13 +206,14 @@ def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
     contourmesh.mesh(ndimage.gaussian_filter(rng.random((10, 40, 40)), 0.7) > 0.5)
     V, F, S, N, nudge = max(seen_inputs, key=lambda x: len(x[3]))
     assert len(np.unique(N)) > 10  # (necks to open)
-    plain = repair._open_necks(V, F, S, N, nudge)
+    plain = repair._open_necks_loop(V, F, S, N, nudge)
     kept: dict = {}
-    first = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    first = repair._open_necks_loop(V, F, S, N, nudge, tube_seen=kept)
     n_kept = sum(1 for k in kept if isinstance(k, tuple) and k and k[0] == "neck")
-    again = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    again = repair._open_necks_loop(V, F, S, N, nudge, tube_seen=kept)
     assert n_kept == len(np.unique(N))
-    for out in (first, again):
+    at_once = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    for out in (first, again, at_once):
         assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(plain, out))
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .intersect import any_intersecting, intersecting_pairs
+from .intersect import _any_kernel, any_intersecting, intersecting_pairs
 
 __all__ = ["split_nonmanifold_vertices", "resolve_crossings", "crossing_pairs_after_change"]
 
@@ -641,6 +641,574 @@ def _renumber(a, table):
         a[i] = table[a[i]]
 
 def _open_necks(V, F, S, necks, nudge, tube_seen=None):
+    """Replace each neck vertex by a small tube joining its two fans.
+
+    At a mid-plane corner where the two empty voxels of the 2 x 2 x 2 block around it touch only
+    at that corner (the six others are object), the surface meets itself in two cones there.  The
+    background is 26-connected, so it passes through the point: the cones are joined by a tube
+    (the star of the vertex is removed and its two link cycles are joined by a band).
+
+    The mesh of :func:`_open_necks_loop` (the form before, one neck at a time in Python; kept for
+    the cases below and as the tests' reference), made in four steps over all necks at once:
+
+    1. the links, cycles and fan faces of every neck (:func:`_neck_cycles`, compiled): they
+       depend on no coordinates (a neck's star changes only by the fan faces of earlier necks;
+       tube faces hold new vertices alone, never a neck), and every new vertex's number follows
+       from the cycles' lengths;
+    2. the rings, in rounds (a neck whose link holds an earlier neck's ring vertices waits for
+       that ring) and the rings' angles about each tube's axis, in whole-array numpy steps that
+       make the one-neck steps' numbers row by row (the same ufuncs, reductions in the same order;
+       the BLAS products as the same calls, stacked by ring length: :func:`_necks_angles`);
+    3. each neck's tube walk and exact crossing test (:func:`_neck_tubes`, compiled, calling the
+       crossing kernel of :func:`contourmesh.intersect.any_intersecting` directly);
+    4. the faces, in the order the loop adds them (each neck's fan faces still alive, then its tube).
+
+    ``tube_seen`` (a dict kept by the caller across rebuilds) is used by the loop form alone.
+    Vertices other than finite float64 ones, or coordinates that the crossing test would have to
+    rescale, and meshes the loop refuses (with its message) go to :func:`_open_necks_loop`.
+    """
+    if len(necks) == 0:
+        return V, F, S
+    if not (isinstance(V, np.ndarray) and V.dtype == np.float64 and V.ndim == 2):
+        return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
+    neck_ids = np.unique(necks)
+    n_v = len(V)
+    is_neck = np.zeros(n_v, dtype=bool)
+    is_neck[neck_ids] = True
+    old_index = _rows_touching(np.ascontiguousarray(F, dtype=np.int64), is_neck)
+    del is_neck
+    Fo = np.ascontiguousarray(F[old_index], dtype=np.int64)
+    neck_ids = np.ascontiguousarray(neck_ids, dtype=np.int64)
+    status, cyc, cyc_at, old_alive, fans, fan_alive = _neck_cycles(Fo, neck_ids, n_v)
+    del Fo
+    if status != 0:  # (the loop raises its own message)
+        return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
+    R = _necks_rings(V, neck_ids, cyc, cyc_at, float(nudge))
+    j0, ua, ub = _necks_angles(V, neck_ids, R, cyc_at)
+    # the crossing test's kernel takes the points as they are where any_intersecting would check
+    # and keep them: finite, and not to be rescaled (:func:`contourmesh.intersect._exact_range`;
+    # the magnitudes of each neck's points lie within those of all the necks' points)
+    from .intersect import _EXACT_EXP, _STAR_DELAY, _magnitudes
+
+    Vc = np.ascontiguousarray(V)
+    P = np.concatenate([Vc[cyc[cyc < n_v]], R])
+    lo, hi = _magnitudes(P)
+    low, high = _EXACT_EXP
+    if not (np.isfinite(P).all() and hi <= 2.0 ** high and lo >= 2.0 ** -low):
+        return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
+    del P
+    tube = _neck_tubes(Vc, R, fans, cyc_at, j0, ua, ub, np.int64(_STAR_DELAY))
+    added = _neck_faces(cyc_at, fans, fan_alive, tube)
+    keep = np.ones(len(F), dtype=bool)
+    keep[old_index[~old_alive]] = False
+    F2, S2 = _kept_and_added(F, S, keep, added, np.zeros(len(added), dtype=S.dtype))
+    return np.concatenate([V, R]), F2, S2
+
+
+@njit(cache=True, nogil=True)
+def _rows_touching(F, mark):
+    """The rows of ``F`` with a corner ``v`` where ``mark[v]`` (``np.flatnonzero(mark[F].any(axis=1))``)."""
+    n = 0
+    for i in range(F.shape[0]):
+        n += mark[F[i, 0]] or mark[F[i, 1]] or mark[F[i, 2]]
+    out = np.empty(n, np.int64)
+    t = 0
+    for i in range(F.shape[0]):
+        if mark[F[i, 0]] or mark[F[i, 1]] or mark[F[i, 2]]:
+            out[t] = i
+            t += 1
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _neck_cycles(Fo, necks, n_v):
+    """Step 1 of :func:`_open_necks`: ``(status, cyc, cyc_at, old_alive, fans, fan_alive)``.  Neck ``k``'s
+    two link cycles are ``cyc[cyc_at[2k]:cyc_at[2k + 1]]`` and ``cyc[cyc_at[2k + 1]:cyc_at[2k +
+    2]]``, each as the loop finds it; the new vertex of cycle entry ``p`` is ``n_v + p``.  The fan
+    faces, two per cycle entry in the loop's order (``(r_t, x_t, x_t+1), (r_t, x_t+1, r_t+1)``),
+    are ``fans``, numbered along ``cyc`` (neck ``k``'s from row ``2 cyc_at[2k]``); ``fan_alive`` says which are left at the end, ``old_alive`` which
+    of the faces ``Fo`` (the faces at a neck, in mesh order).  A nonzero status where the loop
+    raises (an apex not of two cones, a link that is not closed)."""
+    k = necks.shape[0]
+    n_old = Fo.shape[0]
+    pos = np.full(n_v, -1, np.int64)
+    for j in range(k):
+        pos[necks[j]] = j
+    # the faces (old, then fans: face g >= n_old is fan g - n_old) and each neck's star as a
+    # linked list of faces in the order the loop appends them
+    cap = max(16, 2 * n_old)
+    faces = np.empty((cap, 3), np.int64)
+    alive = np.ones(cap, np.bool_)
+    ent_face = np.empty(cap, np.int64)
+    ent_next = np.empty(cap, np.int64)
+    head = np.full(k, -1, np.int64)
+    tail = np.full(k, -1, np.int64)
+    nent = 0
+    nf = 0
+    cyc = np.empty(max(16, n_old), np.int64)
+    cyc_at = np.zeros(2 * k + 1, np.int64)
+    ncyc = 0
+    for t in range(n_old):
+        for d in range(3):
+            faces[t, d] = Fo[t, d]
+    nf = n_old
+    for t in range(n_old):
+        for d in range(3):
+            v = Fo[t, d]
+            j = pos[v]
+            if j >= 0:
+                if nent == ent_face.shape[0]:
+                    ent_face = _grown1(ent_face)
+                    ent_next = _grown1(ent_next)
+                ent_face[nent] = t
+                ent_next[nent] = -1
+                if tail[j] >= 0:
+                    ent_next[tail[j]] = nent
+                else:
+                    head[j] = nent
+                tail[j] = nent
+                nent += 1
+    lx = np.empty(16, np.int64)
+    ly = np.empty(16, np.int64)
+    for j in range(k):
+        c = necks[j]
+        nl = 0
+        e = head[j]
+        while e >= 0:
+            t = ent_face[e]
+            e = ent_next[e]
+            if not alive[t]:
+                continue
+            i = 0 if faces[t, 0] == c else 1 if faces[t, 1] == c else 2
+            x = faces[t, (i + 1) % 3]
+            y = faces[t, (i + 2) % 3]
+            for q in range(nl):
+                if lx[q] == x:
+                    return np.int64(1), cyc, cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+            if nl == lx.shape[0]:
+                lx = _grown1(lx)
+                ly = _grown1(ly)
+            lx[nl] = x
+            ly[nl] = y
+            nl += 1
+        # the cycles, from the link's entries in order
+        seen = np.zeros(nl, np.bool_)
+        ncycles = 0
+        for q0 in range(nl):
+            if seen[q0]:
+                continue
+            ncycles += 1
+            if ncycles > 2:
+                return np.int64(2), cyc, cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+            x0 = lx[q0]
+            q = q0
+            steps = 0
+            while True:
+                seen[q] = True
+                if ncyc == cyc.shape[0]:
+                    cyc = _grown1(cyc)
+                cyc[ncyc] = lx[q]
+                ncyc += 1
+                x = ly[q]
+                if x == x0:
+                    break
+                q = -1
+                for q2 in range(nl):
+                    if lx[q2] == x:
+                        q = q2
+                        break
+                steps += 1
+                if q < 0 or steps > nl:  # (the loop: a KeyError, or no end)
+                    return np.int64(3), cyc, cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+            cyc_at[2 * j + ncycles] = ncyc
+        if ncycles != 2:
+            return np.int64(2), cyc, cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+        e = head[j]  # the star retired
+        while e >= 0:
+            alive[ent_face[e]] = False
+            e = ent_next[e]
+        # the fan faces, and the later necks' stars they join
+        for h in range(2):
+            c0, c1 = cyc_at[2 * j + h], cyc_at[2 * j + h + 1]
+            m = c1 - c0
+            for t in range(m):
+                p, p1 = c0 + t, c0 + (t + 1) % m
+                for w in range(2):
+                    if nf == faces.shape[0]:
+                        faces = _grown2(faces)
+                        alive = _grown_bool(alive)
+                    if w == 0:
+                        faces[nf, 0], faces[nf, 1], faces[nf, 2] = n_v + p, cyc[p], cyc[p1]
+                    else:
+                        faces[nf, 0], faces[nf, 1], faces[nf, 2] = n_v + p, cyc[p1], n_v + p1
+                    alive[nf] = True
+                    for d in range(3):
+                        v = faces[nf, d]
+                        if v < n_v and pos[v] > j:
+                            jj = pos[v]
+                            if nent == ent_face.shape[0]:
+                                ent_face = _grown1(ent_face)
+                                ent_next = _grown1(ent_next)
+                            ent_face[nent] = nf
+                            ent_next[nent] = -1
+                            if tail[jj] >= 0:
+                                ent_next[tail[jj]] = nent
+                            else:
+                                head[jj] = nent
+                            tail[jj] = nent
+                            nent += 1
+                    nf += 1
+    return np.int64(0), cyc[:ncyc].copy(), cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+
+
+@njit(cache=True, nogil=True)
+def _grown1(a):
+    b = np.empty(2 * a.shape[0], a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _grown2(a):
+    b = np.empty((2 * a.shape[0], a.shape[1]), a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _grown_bool(a):
+    b = np.ones(2 * a.shape[0], np.bool_)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _neck_rounds(cyc, cyc_at, n_v):
+    """The round of each neck's rings (:func:`_necks_rings`): 0, or one more than the latest round
+    of the necks whose new vertices its cycles hold (always earlier necks)."""
+    k = (cyc_at.shape[0] - 1) // 2
+    rnd = np.zeros(k, np.int64)
+    owner = np.empty(cyc.shape[0], np.int64)
+    for j in range(k):
+        for p in range(cyc_at[2 * j], cyc_at[2 * j + 2]):
+            owner[p] = j
+    for j in range(k):
+        for p in range(cyc_at[2 * j], cyc_at[2 * j + 2]):
+            v = cyc[p]
+            if v >= n_v:
+                rnd[j] = max(rnd[j], rnd[owner[v - n_v]] + 1)
+    return rnd
+
+
+def _necks_rings(V, necks, cyc, cyc_at, nudge):
+    """Step 2 of :func:`_open_necks`: the new vertices (row ``p`` for cycle entry ``p``), each a
+    hair from its neck towards its link vertex, as the loop makes them: ``pc + eps * dirs`` with
+    ``dirs`` the unit directions, ``eps`` ``nudge`` on the first cycle and 1.5 ``nudge`` on the
+    second; row by row, the same operations."""
+    n_v = len(V)
+    n = len(cyc)
+    R = np.empty((n, 3))
+    lens = np.diff(cyc_at)
+    which = np.repeat(np.arange(len(lens)), lens)  # (2 neck + cycle) of each entry
+    nk = which // 2
+    eps = np.array([nudge * (1.0 + 0.5 * 0), nudge * (1.0 + 0.5 * 1)])[which % 2]
+    rnd = _neck_rounds(cyc, cyc_at, n_v)[nk]
+    for r in range(int(rnd.max(initial=-1)) + 1):
+        rows = np.flatnonzero(rnd == r)
+        v = cyc[rows]
+        P = np.empty((len(rows), 3))
+        old = v < n_v
+        P[old] = V[v[old]]
+        P[~old] = R[v[~old] - n_v]
+        pc = V[necks[nk[rows]]]
+        dirs = P - pc
+        dirs /= np.maximum(np.linalg.norm(dirs, axis=1), 1e-300)[:, None]
+        R[rows] = pc + eps[rows, None] * dirs
+    return R
+
+
+def _necks_angles(V, necks, R, cyc_at):
+    """Step 2 of :func:`_open_necks`, continued: per neck the angles of its two rings about its
+    tube's axis (the loop's :func:`_ring_angles` of ``ring0 - pc`` and ``ring1[::-1] - pc``) and
+    the unwrapped angles its walk compares, all necks in whole-array steps.  Returns ``(ta, tb, ua,
+    ub)`` flat along the rings' entries (the second ring's reversed), ``ta`` and ``tb`` as
+    :func:`_ring_angles` gives them, ``ua`` and ``ub`` the loop's ``np.unwrap`` of them rolled
+    (the second ring to start at the angle nearest the first's first) and turned, without the
+    closing entry.
+
+    Each step computes what the loop computes per neck, row by row: elementwise ufuncs on the
+    stacked rows, the means as sums row after row (as numpy's reduction over the first axis adds
+    them), the vectors' norms as ``np.vecdot`` (the dot product ``np.linalg.norm`` takes of one
+    vector) and the matrix-vector products as the same BLAS calls (``np.matmul`` on the rings of
+    one length, stacked)."""
+    la = cyc_at[1::2] - cyc_at[0:-1:2]
+    lb = cyc_at[2::2] - cyc_at[1::2]
+    a_rows, b_rows = _ring_rows(cyc_at)
+    pc = V[necks]
+    A = R[a_rows] - np.repeat(pc, la, axis=0)
+    B = R[b_rows] - np.repeat(pc, lb, axis=0)
+    da = A / np.maximum(np.linalg.norm(A, axis=1), 1e-300)[:, None]
+    db = B / np.maximum(np.linalg.norm(B, axis=1), 1e-300)[:, None]
+    ax = _segment_means(db, lb) - _segment_means(da, la)
+    ax /= np.maximum(np.sqrt(np.vecdot(ax, ax)), 1e-300)[:, None]
+    # (_cross3 with (1, 0, 0), and with (0, 1, 0) where that is short: the same products)
+    a0, a1, a2 = ax[:, 0], ax[:, 1], ax[:, 2]
+    e1 = np.stack([a1 * 0.0 - a2 * 0.0, a2 * 1.0 - a0 * 0.0, a0 * 0.0 - a1 * 1.0], axis=1)
+    short = np.sqrt(np.vecdot(e1, e1)) < 0.5
+    if short.any():
+        e1[short] = np.stack([a1 * 0.0 - a2 * 1.0, a2 * 0.0 - a0 * 0.0, a0 * 1.0 - a1 * 0.0], axis=1)[short]
+    e1 /= np.sqrt(np.vecdot(e1, e1))[:, None]
+    b0, b1, b2 = e1[:, 0], e1[:, 1], e1[:, 2]
+    e2 = np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+    ta = np.arctan2(_stacked_products(A, la, e2), _stacked_products(A, la, e1))
+    tb = np.arctan2(_stacked_products(B, lb, e2), _stacked_products(B, lb, e1))
+    # the second ring's start: the first angle nearest the first ring's first
+    ta0 = ta[_starts(la)]
+    ta0b = np.repeat(ta0, lb)
+    j0 = _segment_argmin(np.abs(np.angle(np.exp(1j * (tb - ta0b)))), lb)
+    ua = _unwrap_segments(ta - np.repeat(ta0, la), la)
+    ub = _unwrap_segments(tb[_rolled_rows(lb, j0)] - ta0b, lb)
+    return j0, ua, ub
+
+
+def _ring_rows(cyc_at):
+    """The rows of the first rings' entries in order and of the second rings' reversed."""
+    s0, s1, s2 = cyc_at[0:-1:2], cyc_at[1::2], cyc_at[2::2]
+    la, lb = s1 - s0, s2 - s1
+    a_rows = np.arange(int(la.sum())) + np.repeat(s0 - _starts(la), la)
+    # second rings reversed: entry i of neck j -> s2[j] - 1 - i
+    i = np.arange(int(lb.sum())) - np.repeat(_starts(lb), lb)
+    b_rows = np.repeat(s2 - 1, lb) - i
+    return a_rows, b_rows
+
+
+def _starts(lens):
+    """Where each segment of lengths ``lens`` starts in the flat array."""
+    out = np.zeros(len(lens), dtype=np.int64)
+    np.cumsum(lens[:-1], out=out[1:])
+    return out
+
+@njit(cache=True, nogil=True)
+def _segment_means(X, lens):
+    """Per segment of rows (lengths ``lens``) ``X[seg].mean(axis=0)``: numpy adds the rows one
+    after another from the first and divides by their count; so here."""
+    out = np.empty((lens.shape[0], X.shape[1]))
+    at = 0
+    for j in range(lens.shape[0]):
+        n = lens[j]
+        for d in range(X.shape[1]):
+            s = X[at, d]
+            for i in range(at + 1, at + n):
+                s += X[i, d]
+            out[j, d] = s / np.float64(n)
+        at += n
+    return out
+
+
+def _stacked_products(X, lens, e):
+    """Per segment ``j`` of rows (lengths ``lens``), ``X[seg] @ e[j]``, flat: one ``np.matmul`` per
+    length on the segments of that length stacked, which makes the BLAS call of each segment's own
+    product (the same matrix-vector call per segment, so the same numbers)."""
+    out = np.empty(len(X))
+    starts = _starts(lens)
+    for n in np.unique(lens).tolist():
+        segs = np.flatnonzero(lens == n)
+        rows = (starts[segs][:, None] + np.arange(n)).reshape(-1)
+        got = np.matmul(X[rows].reshape(len(segs), n, X.shape[1]), e[segs][:, :, None])
+        out[rows] = got.reshape(-1)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _segment_argmin(x, lens):
+    """Per segment (lengths ``lens``) ``np.argmin`` of its entries: the first least one, or the
+    first NaN."""
+    out = np.empty(lens.shape[0], np.int64)
+    at = 0
+    for j in range(lens.shape[0]):
+        best = 0
+        for i in range(lens[j]):
+            v = x[at + i]
+            if v != v:
+                best = i
+                break
+            if v < x[at + best]:
+                best = i
+        out[j] = best
+        at += lens[j]
+    return out
+
+
+def _rolled_rows(lens, k):
+    """The flat rows of each segment (lengths ``lens``) rolled to start at its entry ``k[j]``
+    (``_rolled`` per segment)."""
+    starts = _starts(lens)
+    i = np.arange(int(lens.sum())) - np.repeat(starts, lens)
+    n = np.repeat(lens, lens)
+    return np.repeat(starts, lens) + (i + np.repeat(k, lens)) % n
+
+
+def _unwrap_segments(p, lens):
+    """``np.unwrap`` of each segment (lengths ``lens``) of ``p``: its steps made on the whole array
+    at once (the differences across two segments made and not used), the corrections summed up
+    per segment in order (:func:`_add_segment_cumsums`, numpy's cumsum adds in order)."""
+    period = 2 * np.pi
+    discont = period / 2
+    interval_high = period / 2
+    interval_low = -interval_high
+    dd = p[1:] - p[:-1]
+    ddmod = np.mod(dd - interval_low, period) + interval_low
+    np.copyto(ddmod, interval_high, where=(ddmod == interval_low) & (dd > 0))
+    ph_correct = ddmod - dd
+    np.copyto(ph_correct, 0, where=abs(dd) < discont)
+    return _add_segment_cumsums(p, ph_correct, lens)
+
+
+@njit(cache=True, nogil=True)
+def _add_segment_cumsums(p, ph, lens):
+    """``up[s] = p[s]`` and ``up[s + i] = p[s + i] + cumsum(ph[s:s + i])[-1]`` per segment from
+    ``s`` (``ph[t]``: the correction between entries ``t`` and ``t + 1``)."""
+    up = p.copy()
+    at = 0
+    for j in range(lens.shape[0]):
+        c = 0.0
+        for i in range(1, lens[j]):
+            c = ph[at + i - 1] if i == 1 else c + ph[at + i - 1]
+            up[at + i] = p[at + i] + c
+        at += lens[j]
+    return up
+
+
+@njit(cache=True, nogil=True)
+def _tube_walk(a, b, ua, ub, proportional, faces):
+    """The loop's ``walk``: join rings ``a`` and ``b`` (``n``, ``m`` vertices) by ``n + m``
+    triangles written to ``faces``, advancing the ring whose next vertex comes first around the
+    axis (``ua[i + 1] <= ub[j + 1]``) or, ``proportional``, both in proportion to their sizes;
+    returns whether the walk's path visits no pair ``(i % n, j % m)`` twice."""
+    n, m = a.shape[0], b.shape[0]
+    seen = np.zeros(n * m, np.bool_)
+    seen[0] = True
+    simple = True
+    i = j = 0
+    t = 0
+    while i < n or j < m:
+        if j >= m:
+            first = True
+        elif proportional:
+            first = i < n and (i + 1) * m <= (j + 1) * n
+        else:
+            first = i < n and ua[i + 1] <= ub[j + 1]
+        if first:
+            faces[t, 0], faces[t, 1], faces[t, 2] = a[i % n], a[(i + 1) % n], b[j % m]
+            i += 1
+        else:
+            faces[t, 0], faces[t, 1], faces[t, 2] = a[i % n], b[(j + 1) % m], b[j % m]
+            j += 1
+        t += 1
+        if i < n or j < m:  # (the path's last point is not counted)
+            q = (i % n) * m + (j % m)
+            if seen[q]:
+                simple = False
+            seen[q] = True
+    return simple
+
+
+@njit(cache=True, nogil=True)
+def _tube_crosses_kernel(V, R, fans, tube, delay):
+    """The loop's :func:`_tube_crosses` without the dict: the fans' and the tube's faces in local
+    numbers (their vertices sorted), the points from ``V`` and ``R`` (vertex ``len(V) + p`` is
+    ``R[p]``), and the crossing kernel of :func:`contourmesh.intersect.any_intersecting`."""
+    n_v = V.shape[0]
+    nf = fans.shape[0] + tube.shape[0]
+    allv = np.empty(3 * nf, np.int64)
+    for i in range(fans.shape[0]):
+        for d in range(3):
+            allv[3 * i + d] = fans[i, d]
+    for i in range(tube.shape[0]):
+        for d in range(3):
+            allv[3 * (fans.shape[0] + i) + d] = tube[i, d]
+    ids = np.unique(allv)
+    P = np.empty((ids.shape[0], 3))
+    for t in range(ids.shape[0]):
+        v = ids[t]
+        for d in range(3):
+            P[t, d] = V[v, d] if v < n_v else R[v - n_v, d]
+    Fl = np.searchsorted(ids, allv).reshape(nf, 3)
+    return _any_kernel(P, Fl, delay)
+
+
+@njit(cache=True, nogil=True)
+def _neck_tubes(V, R, fans, cyc_at, j0, ua, ub, delay):
+    """Step 3 of :func:`_open_necks`: each neck's tube faces as the loop chooses them, rows
+    ``cyc_at[2k]:cyc_at[2k + 2]`` for neck ``k`` (a tube has as many faces as its rings have
+    vertices).  The first ring runs in order, the second reversed and rolled to start at ``j0``;
+    the walk by angle, or the proportional one where that path is not simple; where the tube
+    crosses the fans or itself, the proportional walk from each start on the second ring in turn,
+    the first simple one keeping clear."""
+    n_v = V.shape[0]
+    k = j0.shape[0]
+    tube = np.empty((cyc_at[2 * k], 3), np.int64)
+    oa = ob = 0  # (where the neck's entries start in ua, ub)
+    for j in range(k):
+        s0, s1, s2 = cyc_at[2 * j], cyc_at[2 * j + 1], cyc_at[2 * j + 2]
+        n, m = s1 - s0, s2 - s1
+        a = np.arange(n_v + s0, n_v + s1)
+        b = np.empty(m, np.int64)
+        for i in range(m):
+            b[i] = n_v + s2 - 1 - (j0[j] + i) % m
+        # the unwrapped angles, turned where the first ring runs backwards, and closed
+        wa = np.empty(n + 1)
+        wb = np.empty(m + 1)
+        wa[:n] = ua[oa:oa + n]
+        wb[:m] = ub[ob:ob + m]
+        oa += n
+        ob += m
+        if wa[n - 1] < 0:
+            for i in range(n):
+                wa[i] = -wa[i]
+            for i in range(m):
+                wb[i] = -wb[i]
+        wa[n] = wa[0] + 2 * np.pi
+        wb[m] = wb[0] + 2 * np.pi
+        faces = tube[s0:s2]
+        if not _tube_walk(a, b, wa, wb, False, faces):
+            _tube_walk(a, b, wa, wb, True, faces)
+        fj = fans[2 * s0:2 * s2]
+        if _tube_crosses_kernel(V, R, fj, faces, delay):
+            trial = np.empty((n + m, 3), np.int64)
+            br = np.empty(m, np.int64)
+            for r in range(m):
+                for i in range(m):
+                    br[i] = b[(r + i) % m]
+                if _tube_walk(a, br, wa, wb, True, trial) and not _tube_crosses_kernel(V, R, fj, trial, delay):
+                    faces[:] = trial
+                    break
+    return tube
+
+
+@njit(cache=True, nogil=True)
+def _neck_faces(cyc_at, fans, fan_alive, tube):
+    """Step 4 of :func:`_open_necks`: the faces the necks add, in the loop's order: per neck its
+    fan faces left alive (later necks retire those at them), then its tube."""
+    k = (cyc_at.shape[0] - 1) // 2
+    n = 0
+    for i in range(fan_alive.shape[0]):
+        n += fan_alive[i]
+    out = np.empty((n + tube.shape[0], 3), np.int64)
+    t = 0
+    for j in range(k):
+        s0, s2 = cyc_at[2 * j], cyc_at[2 * j + 2]
+        for i in range(2 * s0, 2 * s2):
+            if fan_alive[i]:
+                out[t] = fans[i]
+                t += 1
+        for i in range(s0, s2):
+            out[t] = tube[i]
+            t += 1
+    return out
+
+
+def _open_necks_loop(V, F, S, necks, nudge, tube_seen=None):
     """Replace each neck vertex by a small tube joining its two fans.
 
     At a mid-plane corner where the two empty voxels of the 2 x 2 x 2 block around it touch only
