@@ -1216,3 +1216,38 @@ def test_neck_steps_equal_their_numpy_forms():
             assert got.tolist() == [list(f) for f in faces]
             simple[ok] += 1
     assert min(simple) > 20
+
+
+def test_fan_cycles_equal_the_union_find_over_the_links(monkeypatch):
+    """repair._fan_components walks the corners around each vertex (the links' permutation): the
+    count, labels and lowest corners of the union-find over the links, on touching boxes (faces
+    shuffled and their corners rotated) and on the meshes the volume mesher splits."""
+    rng = np.random.default_rng(29)
+    meshes = []
+    for _ in range(4):
+        V, F = _touching_boxes(rng)
+        F = F[rng.permutation(len(F))]
+        F = np.ascontiguousarray(np.roll(F, 1, axis=1) if rng.random() < 0.5 else F)
+        meshes.append((V, F))
+    from scipy import ndimage
+
+    import contourmesh
+    from contourmesh import volumes
+
+    real = volumes.split_nonmanifold_vertices
+    monkeypatch.setattr(volumes, "split_nonmanifold_vertices",
+                        lambda V, F, **k: meshes.append((V.copy(), F.copy())) or real(V, F, **k))
+    contourmesh.mesh(ndimage.gaussian_filter(rng.random((8, 30, 30)), 0.7) > 0.5)
+    several = 0
+    for V, F in meshes:
+        twin, status = repair._half_edge_twins(np.ascontiguousarray(F, dtype=np.int64), len(V))
+        assert status == 0
+        m = len(F)
+        t = twin.astype(np.int64)
+        c = np.arange(3 * m)
+        nxt = 3 * (c // 3) + (c % 3 + 1) % 3
+        want = _corner_components(3 * m, c, 3 * (t // 3) + (t % 3 + 1) % 3, nxt, t)
+        got = repair._fan_components(twin)
+        assert got[0] == want[0] and np.array_equal(got[1], want[1]) and np.array_equal(got[2], want[2])
+        several += int((np.bincount(F.reshape(-1)[got[2]]) > 1).sum())
+    assert several > 10  # (vertices of several fans)

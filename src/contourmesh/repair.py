@@ -381,53 +381,38 @@ def _half_edge_twins_threads(F, nv, threads):
 
 @njit(cache=True, nogil=True)
 def _fan_components(twin):
-    """Connected components of the corners of a closed mesh linked across its edges, from the
-    half-edge twins (half-edge ``h = 3 i + k`` of face ``i`` runs from corner ``h`` to corner ``3 i +
-    (k + 1) % 3``): half-edge ``h`` and its twin ``t`` link corner ``h`` with the corner after ``t``
-    in its face, and the corner after ``h`` with corner ``t``.  Returns ``(count, label per corner,
-    lowest corner of each label)``, labels numbered in order of each component's lowest corner."""
+    """The fans of a closed mesh: the connected components of its corners linked across its edges,
+    from the half-edge twins (half-edge ``h = 3 i + k`` of face ``i`` runs from corner ``h`` to
+    corner ``3 i + (k + 1) % 3``; ``twin`` pairs each with its opposite, an involution).  Returns
+    ``(count, label per corner, lowest corner of each label)``, labels numbered in order of each
+    component's lowest corner.
+
+    Across edge ``h`` corner ``h`` is linked with the corner after ``twin[h]`` in its face, and
+    the corner after ``h`` with corner ``twin[h]``: every link joins a corner ``c`` and the corner
+    ``twin[prev(c)]`` that follows it around its vertex (``prev(c)``, the half-edge of ``c``'s face
+    ending at ``c``).  That map is a permutation (twins are an involution), so the components are
+    its cycles, each walked from its lowest corner, corners in increasing order: one pass, and
+    the same labels as a union-find over the links (the form before)."""
     n = twin.shape[0]
-    parent = np.arange(n)
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for h in range(n):
-        t = np.int64(twin[h])  # (int32 or int64 twins)
-        a1 = h
-        b1 = 3 * (t // 3) + (t % 3 + 1) % 3
-        a2 = 3 * (h // 3) + (h % 3 + 1) % 3
-        b2 = t
-        for x, y in ((a1, b1), (a2, b2)):
-            rx, ry = find(x), find(y)
-            if rx != ry:
-                if rx < ry:
-                    parent[ry] = rx
-                else:
-                    parent[rx] = ry
-    # every link points at the lower of two roots, and path halving at an ancestor: parent[x] <= x,
-    # and a fan's root is its lowest corner.  One pass up the corners gives each its root (its
-    # parent's is final by then); a second numbers the roots and turns parent into the labels in
-    # place (a corner's root, below it, is numbered by then): no arrays per corner besides parent
+    lab = np.full(n, -1, np.int64)
     count = 0
-    for x in range(n):
-        parent[x] = parent[parent[x]]
-        if parent[x] == x:
-            count += 1
+    for c in range(n):
+        if lab[c] >= 0:
+            continue
+        x = c
+        while True:
+            lab[x] = count
+            x = np.int64(twin[3 * (x // 3) + (x % 3 + 2) % 3])
+            if lab[x] >= 0:  # (back at c; twins that are no involution stop here too)
+                break
+        count += 1
     first = np.empty(count, np.int64)
-    c = 0
-    for x in range(n):
-        r = parent[x]
-        if r == x:
-            parent[x] = c
-            first[c] = x
-            c += 1
-        else:
-            parent[x] = parent[r]
-    return count, parent, first
+    at = 0
+    for c in range(n):
+        if lab[c] == at:
+            first[at] = c
+            at += 1
+    return count, lab, first
 
 
 def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
