@@ -1221,7 +1221,8 @@ def test_neck_steps_equal_their_numpy_forms():
 def test_fan_cycles_equal_the_union_find_over_the_links(monkeypatch):
     """repair._fan_components walks the corners around each vertex (the links' permutation): the
     count, labels and lowest corners of the union-find over the links, on touching boxes (faces
-    shuffled and their corners rotated) and on the meshes the volume mesher splits."""
+    shuffled and their corners rotated) and on the meshes the volume mesher splits; and
+    split_nonmanifold_vertices (the same walk in _split_fans) makes the reference's meshes there."""
     rng = np.random.default_rng(29)
     meshes = []
     for _ in range(4):
@@ -1250,4 +1251,8 @@ def test_fan_cycles_equal_the_union_find_over_the_links(monkeypatch):
         got = repair._fan_components(twin)
         assert got[0] == want[0] and np.array_equal(got[1], want[1]) and np.array_equal(got[2], want[2])
         several += int((np.bincount(F.reshape(-1)[got[2]]) > 1).sum())
+        # and the split itself (its fans, numbers and nudges in one compiled pass) as the reference
+        got_V, got_F = repair.split_nonmanifold_vertices(V, F, nudge=1e-3, four_face=False)
+        want_V, want_F = _split_reference(V, F, 1e-3)
+        assert np.array_equal(got_F, want_F) and np.array_equal(got_V.view(np.int64), want_V.view(np.int64))
     assert several > 10  # (vertices of several fans)

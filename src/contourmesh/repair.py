@@ -442,44 +442,16 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     del Fc
     if status != 0:  # the sorted search names the edge at fault
         twin = _half_edge_twins_reference(F, nv)
-    # fans = connected components of the corners linked across every edge (union-find; labels
-    # numbered in order of each component's lowest corner, as scipy's connected_components does)
-    ncomp, lab, first = _fan_components(twin)
+    # fans = connected components of the corners linked across every edge, numbered in order of
+    # their lowest corners; each vertex keeps its first fan, its other fans get new vertices
+    # (numbered in the order of (vertex, fan)), and every fan of a split vertex has its vertex (or
+    # the copy) nudged towards the fan's centroid: all in one compiled pass (_split_fans), the new
+    # faces written over the fan labels
+    several, F2, target, start, copies, vid = _split_fans(twin, np.ascontiguousarray(F.reshape(-1)), V, len(V))
     del twin
-    vert_of_corner = F.reshape(-1)
-    # a vertex keeps its first fan; other fans get new vertices
-    fan_vertex = vert_of_corner[first]  # vertex of each fan
-    del first
-    split = np.bincount(fan_vertex, minlength=len(V)) > 1  # the vertices with several fans
-    if not split.any():
+    if not several:
         return V, F
-    # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
-    # in the order of (vertex, fan)
-    fan_to_new, others = _fan_numbers(fan_vertex, len(V))
-    # nudge every copy of a split vertex towards the centroid of its fan (the mean of its faces'
-    # centroids, summed over its corners in order: only the corners of those fans are visited)
-    moved = np.flatnonzero(split[fan_vertex])
-    del split
-    in_moved = np.zeros(ncomp, dtype=bool)
-    in_moved[moved] = True
-    corners = np.flatnonzero(in_moved[lab])
-    centroids = V[F[corners // 3]].mean(axis=1)
-    # sums per moved fan only (numbered in the order of moved, which is sorted): the same sums, in
-    # the same order, as over all fans, without arrays over all of them
-    at = np.searchsorted(moved, lab[corners])
-    del in_moved
-    start = fan_vertex[moved]  # where each moved fan's vertex (or its copy) is before the nudge
-    copies = fan_vertex[others]  # the new vertices are copies of these
-    del fan_vertex
-    # the new faces: fan_to_new[lab], written over the labels (int64, one per corner)
-    _renumber(lab, fan_to_new)
-    F2 = lab.reshape(-1, 3)
-    del lab
-    counts = np.bincount(at, minlength=len(moved)).astype(np.float64)
-    target = np.stack([np.bincount(at, weights=centroids[:, d], minlength=len(moved)) for d in range(3)], axis=1)
-    target = target / counts[:, None]
-    vid = fan_to_new[moved]
-    del fan_to_new
+    F2 = F2.reshape(-1, 3)
     d = target - V[start]  # (V2[vid]: a fan's vertex or the copy of it)
     V2 = np.concatenate([V, V[copies]])
     nrm = np.linalg.norm(d, axis=1)
@@ -520,6 +492,70 @@ def _fan_numbers(fan_vertex, nv):
             fan_to_new[f] = nv + j
             off[v] = j + 1
     return fan_to_new, others
+
+
+@njit(cache=True, nogil=True)
+def _split_fans(twin, corner_vertex, V, nv):
+    """The fans of :func:`split_nonmanifold_vertices` from the half-edge twins, in one pass over
+    the corners and one over the fans' corners: ``(several, F2, target, start, copies, vid)``,
+    several False where no vertex has two fans (the rest then not made).  ``F2`` (flat, one entry
+    per corner) numbers each corner by its fan's vertex (:func:`_fan_numbers`); per fan of a
+    vertex with several, in fan order, ``target`` is the mean of its faces' centroids over its
+    corners in order, ``start`` its vertex, ``vid`` its vertex or copy in ``F2``; ``copies`` the
+    vertices the new ones copy.  The fans are :func:`_fan_components`'s, the sums those of the
+    whole-array form before: each centroid ``((a + b) + c) / 3``, added in corner order from zero,
+    divided by the count."""
+    n = twin.shape[0]
+    count, lab, first = _fan_components(twin)
+    fan_vertex = np.empty(count, np.int64)
+    fans_at = np.zeros(nv, np.int32)
+    for f in range(count):
+        v = corner_vertex[first[f]]
+        fan_vertex[f] = v
+        fans_at[v] += 1
+    empty = np.zeros((0, 3))
+    none = np.zeros(0, np.int64)
+    several = False
+    for v in range(nv):
+        if fans_at[v] > 1:
+            several = True
+            break
+    if not several:
+        return False, lab, empty, none, none, none
+    fan_to_new, others = _fan_numbers(fan_vertex, nv)
+    # the fans of split vertices (in fan order) and their place among them
+    k = 0
+    for f in range(count):
+        k += fans_at[fan_vertex[f]] > 1
+    at = np.full(count, -1, np.int64)
+    start = np.empty(k, np.int64)
+    vid = np.empty(k, np.int64)
+    t = 0
+    for f in range(count):
+        if fans_at[fan_vertex[f]] > 1:
+            at[f] = t
+            start[t] = fan_vertex[f]
+            vid[t] = fan_to_new[f]
+            t += 1
+    sums = np.zeros((k, 3))
+    cnt = np.zeros(k, np.int64)
+    for c in range(n):
+        f = lab[c]
+        j = at[f]
+        if j >= 0:
+            i = c // 3
+            for d in range(3):
+                sums[j, d] += ((V[corner_vertex[3 * i], d] + V[corner_vertex[3 * i + 1], d])
+                               + V[corner_vertex[3 * i + 2], d]) / 3.0
+            cnt[j] += 1
+        lab[c] = fan_to_new[f]
+    for j in range(k):
+        for d in range(3):
+            sums[j, d] = sums[j, d] / np.float64(cnt[j])
+    copies = np.empty(others.shape[0], np.int64)
+    for j in range(others.shape[0]):
+        copies[j] = fan_vertex[others[j]]
+    return True, lab, sums, start, copies, vid
 
 
 def _half_edge_twins_reference(F, nv):
