@@ -47,62 +47,90 @@ def _split_four_face_edges(V, F, side, nudge):
     if not len(work):
         return V, F, side
     Fw = F[work]
-    faces = dict(zip(work.tolist(), zip(Fw.tolist(), side[work].tolist())))
+    # the faces as slots of flat lists of ints (the work faces in order, then the new ones; ints
+    # and flat lists: few objects for the collector to count, as lists and tuples per face were),
+    # ``slot`` the live faces' (face number -> slot, in insertion order as the reference's dict)
+    fa, fb, fc = Fw[:, 0].tolist(), Fw[:, 1].tolist(), Fw[:, 2].tolist()
+    fside = side[work].tolist()
+    slot = dict(zip(work.tolist(), range(len(work))))
+    # an edge u < v as the int u * base + v (every vertex, old or new, is below base)
+    base = len(V) + 2 * len(work) + 1  # (at most two new vertices per four-face edge, 3/4 of one per face)
     # the four-face edges' sets, filled as the reference fills them: faces in order, edges in order
     lo_w = np.minimum(Fw, np.roll(Fw, -1, axis=1))
     hi_w = np.maximum(Fw, np.roll(Fw, -1, axis=1))
     rows, ts = np.nonzero(fw_hit)
     by_edge: dict = {}
-    for i, u, v in zip(work[rows].tolist(), lo_w[rows, ts].tolist(), hi_w[rows, ts].tolist()):
-        by_edge.setdefault((u, v), set()).add(i)
-    todo = sorted(by_edge)
+    for i, key in zip(work[rows].tolist(), (lo_w[rows, ts] * base + hi_w[rows, ts]).tolist()):
+        by_edge.setdefault(key, set()).add(i)
+    del lo_w, hi_w, rows, ts
+    get = by_edge.get
     # the faces first, in integers alone: each new vertex recorded as (u, v, o0, o1), the edge it
     # splits and the opposite corners of its two faces; their coordinates after (_midpoints)
     made = []
     nxt_v = len(V)
     nxt_f = m
-    for u, v in todo:
-        fs = list(by_edge.get((u, v), ()))
+    for key in sorted(by_edge):  # (the edges (u, v) in order)
+        u, v = divmod(key, base)
+        fs = list(by_edge[key])
         if len(fs) != 4:
             raise RuntimeError(f"internal error: edge ({u}, {v}) is shared by {len(fs)} faces while splitting")
-        groups: dict = {}
-        for i in fs:
-            groups.setdefault(faces[i][1], []).append(i)
-        for sd, group in groups.items():
-            if len(group) != 2:
-                raise RuntimeError("internal error: a four-face edge does not pair by side")
-            opp = []
+        # the faces by side, the sides in order of first appearance (as the reference's dict)
+        s0 = fside[slot[fs[0]]]
+        pair0 = [i for i in fs if fside[slot[i]] == s0]
+        pair1 = [i for i in fs if fside[slot[i]] != s0]
+        if len(pair0) != 2 or len({fside[slot[i]] for i in pair1}) != 1:
+            raise RuntimeError("internal error: a four-face edge does not pair by side")
+        for group in (pair0, pair1):
+            sd = fside[slot[group[0]]]
             for i in group:
-                f = faces[i][0]
-                opp.append([w for w in f if w != u and w != v][0])
-            made.append((u, v, opp[0], opp[1]))
+                q = slot[i]
+                made.append([w for w in (fa[q], fb[q], fc[q]) if w != u and w != v][0])
+            made.append(u)
+            made.append(v)
             mv = nxt_v
             nxt_v += 1
             for i in group:
-                f, _ = faces.pop(i)
-                for t in range(3):
-                    x, y = f[t], f[(t + 1) % 3]
-                    key = (x, y) if x < y else (y, x)
-                    if key in by_edge:
-                        by_edge[key].discard(i)
-                t = 0 if {f[0], f[1]} == {u, v} else 1 if {f[1], f[2]} == {u, v} else 2
-                a, b, c = f[t], f[(t + 1) % 3], f[(t + 2) % 3]
+                q = slot.pop(i)
+                f0, f1, f2 = fa[q], fb[q], fc[q]
+                for x, y in ((f0, f1), (f1, f2), (f2, f0)):
+                    st = get(x * base + y if x < y else y * base + x)
+                    if st is not None:
+                        st.discard(i)
+                # (the corner where the split edge starts)
+                if (f0 == u and f1 == v) or (f0 == v and f1 == u):
+                    a, b, c = f0, f1, f2
+                elif (f1 == u and f2 == v) or (f1 == v and f2 == u):
+                    a, b, c = f1, f2, f0
+                else:
+                    a, b, c = f2, f0, f1
                 # the new faces' edges through mv are new; (c, a) and (b, c) may be four-face edges
-                faces[nxt_f] = ([a, mv, c], sd)
-                key = (c, a) if c < a else (a, c)
-                if key in by_edge:
-                    by_edge[key].add(nxt_f)
+                slot[nxt_f] = len(fa)
+                fa.append(a)
+                fb.append(mv)
+                fc.append(c)
+                fside.append(sd)
+                st = get(c * base + a if c < a else a * base + c)
+                if st is not None:
+                    st.add(nxt_f)
                 nxt_f += 1
-                faces[nxt_f] = ([mv, b, c], sd)
-                key = (b, c) if b < c else (c, b)
-                if key in by_edge:
-                    by_edge[key].add(nxt_f)
+                slot[nxt_f] = len(fa)
+                fa.append(mv)
+                fb.append(b)
+                fc.append(c)
+                fside.append(sd)
+                st = get(b * base + c if b < c else c * base + b)
+                if st is not None:
+                    st.add(nxt_f)
                 nxt_f += 1
-    newV = _midpoints(V, np.array(made, dtype=np.int64).reshape(-1, 4), nudge)
+    del by_edge
+    # (made: per new vertex o0, o1, u, v)
+    made = np.array(made, dtype=np.int64).reshape(-1, 4)[:, [2, 3, 0, 1]]
+    newV = _midpoints(V, np.ascontiguousarray(made), nudge)
     keep = np.ones(m, dtype=bool)
     keep[work] = False
-    items = list(faces.values())
-    F2, S2 = _kept_and_added(F, side, keep, [f for f, _ in items], [sd for _, sd in items])
+    live = np.fromiter(slot.values(), dtype=np.int64, count=len(slot))  # (the live faces' slots, in order)
+    added = np.stack([np.array(fa)[live], np.array(fb)[live], np.array(fc)[live]], axis=1)
+    F2, S2 = _kept_and_added(F, side, keep, added, np.array(fside)[live])
     V2 = np.concatenate([V, newV])
     return V2, F2, S2
 
@@ -169,8 +197,9 @@ def _midpoints(V, made, nudge):
         cu, cv, c0, c1 = (at(made[rows, t]) for t in range(4))
         mid = 0.5 * (cu + cv)
         toward = (c0 + c1) / 2.0 - mid
-        # (np.linalg.norm of each row: its dot product, as the one-row form takes it)
-        nrm = np.array([np.linalg.norm(r) for r in toward], dtype=toward.dtype).reshape(-1)
+        # (np.linalg.norm of each row: the square root of its dot product, as the one-row form
+        # takes it; np.vecdot makes the same dot call per row)
+        nrm = np.sqrt(np.vecdot(toward, toward))
         pos = nrm > 0
         mid[pos] = mid[pos] + toward[pos] * (nudge / nrm[pos])[:, None]
         out[rows] = mid
