@@ -1088,58 +1088,6 @@ def test_edge_counts_and_twins_on_threads_equal_one_threads(monkeypatch, threads
     assert one.vertices.tobytes() == many.vertices.tobytes() and one.faces.tobytes() == many.faces.tobytes()
 
 
-def _neck_inputs(monkeypatch, cases):
-    """The inputs of the volume mesher's _open_necks on the noisy volumes ``cases`` ((seed, shape,
-    spacing, threshold))."""
-    from scipy import ndimage
-
-    import contourmesh
-    from contourmesh import volumes
-
-    seen = []
-    real = volumes._open_necks
-
-    def keep(V, F, S, N, nudge, tube_seen=None):
-        seen.append((V.copy(), F.copy(), S.copy(), np.array(N).copy(), nudge))
-        return real(V, F, S, N, nudge, tube_seen=tube_seen)
-
-    monkeypatch.setattr(volumes, "_open_necks", keep)
-    for seed, shape, spacing, thr in cases:
-        rng = np.random.default_rng(seed)
-        contourmesh.mesh(ndimage.gaussian_filter(rng.random(shape), 0.7) > thr, spacing=spacing)
-    monkeypatch.undo()
-    return seen
-
-
-def test_open_necks_at_once_equals_the_loop(monkeypatch):
-    """repair._open_necks (all necks at once: compiled links and walks, whole-array rings and
-    angles) against the loop over the necks (_open_necks_loop): the same arrays, bit for bit, on
-    noisy volumes whose necks include ones whose link holds an earlier neck's ring (later rounds)
-    and tubes whose first walk crosses its fans (the tries from every start), the slices far apart
-    against the pixels."""
-    cases = [(4, (10, 40, 40), (1.0, 1.0, 1.0), 0.5), (5, (12, 30, 30), (4.0, 1.0, 1.0), 0.5),
-             (6, (8, 40, 40), (8.0, 0.5, 0.7), 0.45)]
-    inputs = _neck_inputs(monkeypatch, cases)
-    crossed = []
-    real = repair._tube_crosses
-    monkeypatch.setattr(repair, "_tube_crosses", lambda *a, **k: crossed.append(real(*a, **k)) or crossed[-1])
-    later = 0
-    for V, F, S, N, nudge in inputs:
-        want = repair._open_necks_loop(V, F, S, N, nudge)
-        got = repair._open_necks(V, F, S, N, nudge)
-        for a, b in zip(got, want):
-            assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
-        ids = np.unique(N)
-        mark = np.zeros(len(V), dtype=bool)
-        mark[ids] = True
-        rows = repair._rows_touching(F, mark)
-        assert np.array_equal(rows, np.flatnonzero(mark[F].any(axis=1)))
-        status, cyc, cyc_at = repair._neck_cycles(F[rows], ids, len(V))[:3]
-        assert status == 0
-        later += int((repair._neck_rounds(cyc, cyc_at, len(V)) > 0).sum())
-    assert later >= 3 and sum(crossed) >= 5
-
-
 def test_open_necks_refused_as_the_loop_refuses():
     # a vertex whose star is three cones, and one whose link is not closed: the loop's messages
     rng = np.random.default_rng(3)
@@ -1187,20 +1135,6 @@ def test_neck_steps_equal_their_numpy_forms():
         assert arg[j] == np.argmin(x[seg])
         assert np.array_equal(rolled[seg], s + repair._rolled(np.arange(m), int(k[j])))
 
-    def walk(a, b, ua, ub, first_of):  # (the loop's)
-        n, m = len(a), len(b)
-        i = j = 0
-        path, faces = [(0, 0)], []
-        while i < n or j < m:
-            if j >= m or (i < n and first_of(i, j)):
-                faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
-                i += 1
-            else:
-                faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
-                j += 1
-            path.append((i % n, j % m))
-        return len(set(path[:-1])) == len(path) - 1, faces
-
     simple = [0, 0]
     for _ in range(400):
         na, nb = (int(v) for v in rng.integers(1, 10, size=2))
@@ -1210,7 +1144,7 @@ def test_neck_steps_equal_their_numpy_forms():
         ub = np.round(np.sort(rng.random(nb + 1)) * 6, 1)
         for prop in (False, True):
             rule = (lambda i, j: (i + 1) * nb <= (j + 1) * na) if prop else (lambda i, j: ua[i + 1] <= ub[j + 1])
-            ok, faces = walk(a.tolist(), b.tolist(), ua, ub, rule)
+            ok, faces = repair._walk_rings(a.tolist(), b.tolist(), rule)
             got = np.empty((na + nb, 3), np.int64)
             assert repair._tube_walk(a, b, ua, ub, prop, got) == ok
             assert got.tolist() == [list(f) for f in faces]

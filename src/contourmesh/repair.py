@@ -104,24 +104,16 @@ def _split_four_face_edges(V, F, side, nudge):
                 else:
                     a, b, c = f2, f0, f1
                 # the new faces' edges through mv are new; (c, a) and (b, c) may be four-face edges
-                slot[nxt_f] = len(fa)
-                fa.append(a)
-                fb.append(mv)
-                fc.append(c)
-                fside.append(sd)
-                st = get(c * base + a if c < a else a * base + c)
-                if st is not None:
-                    st.add(nxt_f)
-                nxt_f += 1
-                slot[nxt_f] = len(fa)
-                fa.append(mv)
-                fb.append(b)
-                fc.append(c)
-                fside.append(sd)
-                st = get(b * base + c if b < c else c * base + b)
-                if st is not None:
-                    st.add(nxt_f)
-                nxt_f += 1
+                for x, y, z, p, q in ((a, mv, c, c, a), (mv, b, c, b, c)):
+                    slot[nxt_f] = len(fa)
+                    fa.append(x)
+                    fb.append(y)
+                    fc.append(z)
+                    fside.append(sd)
+                    st = get(p * base + q if p < q else q * base + p)
+                    if st is not None:
+                        st.add(nxt_f)
+                    nxt_f += 1
     del by_edge
     # (made: per new vertex o0, o1, u, v)
     made = np.array(made, dtype=np.int64).reshape(-1, 4)[:, [2, 3, 0, 1]]
@@ -787,7 +779,7 @@ def _neck_cycles(Fo, necks, n_v):
     # the faces (old, then fans: face g >= n_old is fan g - n_old) and each neck's star as a
     # linked list of faces in the order the loop appends them
     cap = max(16, 2 * n_old)
-    faces = np.empty((cap, 3), np.int64)
+    faces = np.empty(3 * cap, np.int64)  # (flat: face g is faces[3 g:3 g + 3])
     alive = np.ones(cap, np.bool_)
     ent_face = np.empty(cap, np.int64)
     ent_next = np.empty(cap, np.int64)
@@ -800,24 +792,14 @@ def _neck_cycles(Fo, necks, n_v):
     ncyc = 0
     for t in range(n_old):
         for d in range(3):
-            faces[t, d] = Fo[t, d]
+            faces[3 * t + d] = Fo[t, d]
     nf = n_old
     for t in range(n_old):
         for d in range(3):
             v = Fo[t, d]
             j = pos[v]
             if j >= 0:
-                if nent == ent_face.shape[0]:
-                    ent_face = _grown1(ent_face)
-                    ent_next = _grown1(ent_next)
-                ent_face[nent] = t
-                ent_next[nent] = -1
-                if tail[j] >= 0:
-                    ent_next[tail[j]] = nent
-                else:
-                    head[j] = nent
-                tail[j] = nent
-                nent += 1
+                ent_face, ent_next, nent = _star_append(j, t, ent_face, ent_next, head, tail, nent)
     lx = np.empty(16, np.int64)
     ly = np.empty(16, np.int64)
     for j in range(k):
@@ -829,12 +811,12 @@ def _neck_cycles(Fo, necks, n_v):
             e = ent_next[e]
             if not alive[t]:
                 continue
-            i = 0 if faces[t, 0] == c else 1 if faces[t, 1] == c else 2
-            x = faces[t, (i + 1) % 3]
-            y = faces[t, (i + 2) % 3]
+            i = 0 if faces[3 * t] == c else 1 if faces[3 * t + 1] == c else 2
+            x = faces[3 * t + (i + 1) % 3]
+            y = faces[3 * t + (i + 2) % 3]
             for q in range(nl):
                 if lx[q] == x:
-                    return np.int64(1), cyc, cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+                    return np.int64(1), cyc, cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
             if nl == lx.shape[0]:
                 lx = _grown1(lx)
                 ly = _grown1(ly)
@@ -849,7 +831,7 @@ def _neck_cycles(Fo, necks, n_v):
                 continue
             ncycles += 1
             if ncycles > 2:
-                return np.int64(2), cyc, cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+                return np.int64(2), cyc, cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
             x0 = lx[q0]
             q = q0
             steps = 0
@@ -869,10 +851,10 @@ def _neck_cycles(Fo, necks, n_v):
                         break
                 steps += 1
                 if q < 0 or steps > nl:  # (the loop: a KeyError, or no end)
-                    return np.int64(3), cyc, cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+                    return np.int64(3), cyc, cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
             cyc_at[2 * j + ncycles] = ncyc
         if ncycles != 2:
-            return np.int64(2), cyc, cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+            return np.int64(2), cyc, cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
         e = head[j]  # the star retired
         while e >= 0:
             alive[ent_face[e]] = False
@@ -884,50 +866,44 @@ def _neck_cycles(Fo, necks, n_v):
             for t in range(m):
                 p, p1 = c0 + t, c0 + (t + 1) % m
                 for w in range(2):
-                    if nf == faces.shape[0]:
-                        faces = _grown2(faces)
-                        alive = _grown_bool(alive)
+                    if nf == alive.shape[0]:
+                        faces = _grown1(faces)
+                        alive = _grown1(alive)
                     if w == 0:
-                        faces[nf, 0], faces[nf, 1], faces[nf, 2] = n_v + p, cyc[p], cyc[p1]
+                        faces[3 * nf], faces[3 * nf + 1], faces[3 * nf + 2] = n_v + p, cyc[p], cyc[p1]
                     else:
-                        faces[nf, 0], faces[nf, 1], faces[nf, 2] = n_v + p, cyc[p1], n_v + p1
+                        faces[3 * nf], faces[3 * nf + 1], faces[3 * nf + 2] = n_v + p, cyc[p1], n_v + p1
                     alive[nf] = True
                     for d in range(3):
-                        v = faces[nf, d]
+                        v = faces[3 * nf + d]
                         if v < n_v and pos[v] > j:
-                            jj = pos[v]
-                            if nent == ent_face.shape[0]:
-                                ent_face = _grown1(ent_face)
-                                ent_next = _grown1(ent_next)
-                            ent_face[nent] = nf
-                            ent_next[nent] = -1
-                            if tail[jj] >= 0:
-                                ent_next[tail[jj]] = nent
-                            else:
-                                head[jj] = nent
-                            tail[jj] = nent
-                            nent += 1
+                            ent_face, ent_next, nent = _star_append(pos[v], nf, ent_face, ent_next, head, tail, nent)
                     nf += 1
-    return np.int64(0), cyc[:ncyc].copy(), cyc_at, alive[:n_old].copy(), faces[n_old:nf].copy(), alive[n_old:nf].copy()
+    return np.int64(0), cyc[:ncyc].copy(), cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _star_append(j, t, ent_face, ent_next, head, tail, nent):
+    """Face ``t`` appended to neck ``j``'s star (a linked list of entries ``ent_face``,
+    ``ent_next`` from ``head[j]`` to ``tail[j]``; ``nent`` entries used): the entry arrays (grown
+    where full) and the new count."""
+    if nent == ent_face.shape[0]:
+        ent_face = _grown1(ent_face)
+        ent_next = _grown1(ent_next)
+    ent_face[nent] = t
+    ent_next[nent] = -1
+    if tail[j] >= 0:
+        ent_next[tail[j]] = nent
+    else:
+        head[j] = nent
+    tail[j] = nent
+    return ent_face, ent_next, nent + 1
 
 
 @njit(cache=True, nogil=True)
 def _grown1(a):
+    """``a`` in an array twice as long (the rest not set)."""
     b = np.empty(2 * a.shape[0], a.dtype)
-    b[: a.shape[0]] = a
-    return b
-
-
-@njit(cache=True, nogil=True)
-def _grown2(a):
-    b = np.empty((2 * a.shape[0], a.shape[1]), a.dtype)
-    b[: a.shape[0]] = a
-    return b
-
-
-@njit(cache=True, nogil=True)
-def _grown_bool(a):
-    b = np.ones(2 * a.shape[0], np.bool_)
     b[: a.shape[0]] = a
     return b
 
@@ -1405,17 +1381,7 @@ def _open_necks_loop(V, F, S, necks, nudge, tube_seen=None):
         # ring while the other waits (rings that are not star-shaped about the axis: the same
         # diagonal twice, four faces on an edge), advance both in proportion to their sizes instead
         def walk(b, first_of):
-            i = j = 0
-            path, tube_faces = [(0, 0)], []
-            while i < n or j < m:
-                if j >= m or (i < n and first_of(i, j)):
-                    tube_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
-                    i += 1
-                else:
-                    tube_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
-                    j += 1
-                path.append((i % n, j % m))
-            return len(set(path[:-1])) == len(path) - 1, tube_faces
+            return _walk_rings(a, b, first_of)
 
         for first_of in (lambda i, j: ua[i + 1] <= ub[j + 1], lambda i, j: (i + 1) * m <= (j + 1) * n):
             simple, tube_faces = walk(b, first_of)
@@ -1441,6 +1407,24 @@ def _open_necks_loop(V, F, S, necks, nudge, tube_seen=None):
     F, S = _kept_and_added(F, S, keep, added, [0] * len(added))
     V = np.concatenate(Vs)
     return V, F, S
+
+
+def _walk_rings(a, b, first_of):
+    """The loop's walk joining rings ``a`` and ``b`` (lists): ``(simple, faces)``, the ``len(a) +
+    len(b)`` triangles made advancing ``a`` where ``first_of(i, j)`` (else ``b``), and whether the
+    path visits no pair ``(i % n, j % m)`` twice (see :func:`_tube_walk`, its compiled form)."""
+    n, m = len(a), len(b)
+    i = j = 0
+    path, tube_faces = [(0, 0)], []
+    while i < n or j < m:
+        if j >= m or (i < n and first_of(i, j)):
+            tube_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
+            i += 1
+        else:
+            tube_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
+            j += 1
+        path.append((i % n, j % m))
+    return len(set(path[:-1])) == len(path) - 1, tube_faces
 
 
 def _tube_crosses(fans, tube, xyz, seen=None) -> bool:
