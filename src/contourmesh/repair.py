@@ -701,8 +701,9 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
        that ring) and the rings' angles about each tube's axis, in whole-array numpy steps that
        make the one-neck steps' numbers row by row (the same ufuncs, reductions in the same order;
        the BLAS products as the same calls, stacked by ring length: :func:`_necks_angles`);
-    3. each neck's tube walk and exact crossing test (:func:`_neck_tubes`, compiled, calling the
-       crossing kernel of :func:`contourmesh.intersect.any_intersecting` directly);
+    3. each neck's tube walk and the mesh of its exact crossing test (:func:`_neck_walks`,
+       compiled), the test by the kernel of :func:`contourmesh.intersect.any_intersecting` called
+       directly, and for the few tubes that cross, the loop's further walks (:func:`_tube_retry`);
     4. the faces, in the order the loop adds them (each neck's fan faces still alive, then its tube).
 
     ``tube_seen`` (a dict kept by the caller across rebuilds) is used by the loop form alone.
@@ -715,36 +716,59 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
         return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
     neck_ids = np.unique(necks)
     n_v = len(V)
-    is_neck = np.zeros(n_v, dtype=bool)
-    is_neck[neck_ids] = True
-    old_index = _rows_touching(np.ascontiguousarray(F, dtype=np.int64), is_neck)
-    del is_neck
-    Fo = np.ascontiguousarray(F[old_index], dtype=np.int64)
     neck_ids = np.ascontiguousarray(neck_ids, dtype=np.int64)
-    status, cyc, cyc_at, old_alive, fans, fan_alive = _neck_cycles(Fo, neck_ids, n_v)
-    del Fo
+    status, old_index, cyc, cyc_at, old_alive, fans, fan_alive, rnd = _neck_steps(
+        np.ascontiguousarray(F, dtype=np.int64), neck_ids, n_v)
     if status != 0:  # (the loop raises its own message)
         return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
-    R = _necks_rings(V, neck_ids, cyc, cyc_at, float(nudge))
+    R = _necks_rings(V, neck_ids, cyc, cyc_at, rnd, float(nudge))
     j0, ua, ub = _necks_angles(V, neck_ids, R, cyc_at)
     # the crossing test's kernel takes the points as they are where any_intersecting would check
     # and keep them: finite, and not to be rescaled (:func:`contourmesh.intersect._exact_range`;
     # the magnitudes of each neck's points lie within those of all the necks' points)
-    from .intersect import _EXACT_EXP, _STAR_DELAY, _magnitudes
+    from .intersect import _EXACT_EXP, _STAR_DELAY
 
     Vc = np.ascontiguousarray(V)
-    P = np.concatenate([Vc[cyc[cyc < n_v]], R])
-    lo, hi = _magnitudes(P)
+    P = np.abs(np.concatenate([Vc[cyc[cyc < n_v]], R]))
+    hi = float(P.max(initial=0.0))
+    lo = float(P[P > 0].min(initial=np.inf))
     low, high = _EXACT_EXP
     if not (np.isfinite(P).all() and hi <= 2.0 ** high and lo >= 2.0 ** -low):
         return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
     del P
-    tube = _neck_tubes(Vc, R, fans, cyc_at, j0, ua, ub, np.int64(_STAR_DELAY))
+    tube, P, p_at, Fl = _neck_walks(Vc, R, fans, cyc_at, j0, ua, ub)
+    delay = np.int64(_STAR_DELAY)
+    at, pa = cyc_at.tolist(), p_at.tolist()
+    for j in range(len(neck_ids)):  # (the crossing kernel itself: the mesher's tests load it anyway)
+        s0, s1, s2 = at[2 * j], at[2 * j + 1], at[2 * j + 2]
+        if _any_kernel(P[pa[j]:pa[j + 1]], Fl[3 * s0:3 * s2], delay):
+            b = (n_v + s2 - 1 - (j0[j] + np.arange(s2 - s1)) % (s2 - s1)).tolist()
+            _tube_retry(Vc, R, fans[2 * s0:2 * s2], tube[s0:s2], list(range(n_v + s0, n_v + s1)), b, delay)
     added = _neck_faces(cyc_at, fans, fan_alive, tube)
     keep = np.ones(len(F), dtype=bool)
     keep[old_index[~old_alive]] = False
     F2, S2 = _kept_and_added(F, S, keep, added, np.zeros(len(added), dtype=S.dtype))
     return np.concatenate([V, R]), F2, S2
+
+
+@njit(cache=True, nogil=True)
+def _neck_steps(F, necks, n_v):
+    """Step 1 of :func:`_open_necks` in one compiled call (one kernel to load): the faces at the
+    necks (their rows, :func:`_rows_touching`), their cycles and fans (:func:`_neck_cycles`:
+    ``status, cyc, cyc_at, old_alive, fans, fan_alive``) and each neck's round
+    (:func:`_neck_rounds`).  Returns ``(status, rows, cyc, cyc_at, old_alive, fans, fan_alive,
+    rounds)``."""
+    mark = np.zeros(n_v, np.bool_)
+    for j in range(necks.shape[0]):
+        mark[necks[j]] = True
+    rows = _rows_touching(F, mark)
+    Fo = np.empty((rows.shape[0], 3), np.int64)
+    for t in range(rows.shape[0]):
+        for d in range(3):
+            Fo[t, d] = F[rows[t], d]
+    status, cyc, cyc_at, old_alive, fans, fan_alive = _neck_cycles(Fo, necks, n_v)
+    rnd = _neck_rounds(cyc, cyc_at, n_v) if status == 0 else np.zeros(0, np.int64)
+    return status, rows, cyc, cyc_at, old_alive, fans, fan_alive, rnd
 
 
 @njit(cache=True, nogil=True)
@@ -926,11 +950,11 @@ def _neck_rounds(cyc, cyc_at, n_v):
     return rnd
 
 
-def _necks_rings(V, necks, cyc, cyc_at, nudge):
+def _necks_rings(V, necks, cyc, cyc_at, rounds, nudge):
     """Step 2 of :func:`_open_necks`: the new vertices (row ``p`` for cycle entry ``p``), each a
     hair from its neck towards its link vertex, as the loop makes them: ``pc + eps * dirs`` with
     ``dirs`` the unit directions, ``eps`` ``nudge`` on the first cycle and 1.5 ``nudge`` on the
-    second; row by row, the same operations."""
+    second; row by row, the same operations; ``rounds`` per neck (:func:`_neck_rounds`)."""
     n_v = len(V)
     n = len(cyc)
     R = np.empty((n, 3))
@@ -938,7 +962,7 @@ def _necks_rings(V, necks, cyc, cyc_at, nudge):
     which = np.repeat(np.arange(len(lens)), lens)  # (2 neck + cycle) of each entry
     nk = which // 2
     eps = np.array([nudge * (1.0 + 0.5 * 0), nudge * (1.0 + 0.5 * 1)])[which % 2]
-    rnd = _neck_rounds(cyc, cyc_at, n_v)[nk]
+    rnd = rounds[nk]
     for r in range(int(rnd.max(initial=-1)) + 1):
         rows = np.flatnonzero(rnd == r)
         v = cyc[rows]
@@ -1140,10 +1164,10 @@ def _tube_walk(a, b, ua, ub, proportional, faces):
 
 
 @njit(cache=True, nogil=True)
-def _tube_crosses_kernel(V, R, fans, tube, delay):
-    """The loop's :func:`_tube_crosses` without the dict: the fans' and the tube's faces in local
-    numbers (their vertices sorted), the points from ``V`` and ``R`` (vertex ``len(V) + p`` is
-    ``R[p]``), and the crossing kernel of :func:`contourmesh.intersect.any_intersecting`."""
+def _test_mesh(V, R, fans, tube, P, Fl):
+    """The mesh the loop's :func:`_tube_crosses` tests, without the dict: the fans' and the tube's
+    faces in local numbers (their vertices sorted) written to ``Fl`` (one row per face), the points
+    to ``P`` (from ``V`` and ``R``: vertex ``len(V) + p`` is ``R[p]``); returns the number of points."""
     n_v = V.shape[0]
     nf = fans.shape[0] + tube.shape[0]
     allv = np.empty(3 * nf, np.int64)
@@ -1154,34 +1178,39 @@ def _tube_crosses_kernel(V, R, fans, tube, delay):
         for d in range(3):
             allv[3 * (fans.shape[0] + i) + d] = tube[i, d]
     ids = np.unique(allv)
-    P = np.empty((ids.shape[0], 3))
     for t in range(ids.shape[0]):
         v = ids[t]
         for d in range(3):
             P[t, d] = V[v, d] if v < n_v else R[v - n_v, d]
-    Fl = np.searchsorted(ids, allv).reshape(nf, 3)
-    return _any_kernel(P, Fl, delay)
+    loc = np.searchsorted(ids, allv)
+    for i in range(nf):
+        for d in range(3):
+            Fl[i, d] = loc[3 * i + d]
+    return ids.shape[0]
 
 
 @njit(cache=True, nogil=True)
-def _neck_tubes(V, R, fans, cyc_at, j0, ua, ub, delay):
-    """Step 3 of :func:`_open_necks`: each neck's tube faces as the loop chooses them, rows
-    ``cyc_at[2k]:cyc_at[2k + 2]`` for neck ``k`` (a tube has as many faces as its rings have
-    vertices).  The first ring runs in order, the second reversed and rolled to start at ``j0``;
-    the walk by angle, or the proportional one where that path is not simple; where the tube
-    crosses the fans or itself, the proportional walk from each start on the second ring in turn,
-    the first simple one keeping clear."""
+def _neck_walks(V, R, fans, cyc_at, j0, ua, ub):
+    """Step 3 of :func:`_open_necks`: each neck's tube faces as the loop's first choice makes
+    them, rows ``cyc_at[2k]:cyc_at[2k + 2]`` for neck ``k`` (a tube has as many faces as its rings
+    have vertices), and the meshes of their crossing tests: ``(tube, P, p_at, Fl)``, neck ``k``'s
+    points ``P[p_at[k]:p_at[k + 1]]`` and faces ``Fl[3 cyc_at[2k]:3 cyc_at[2k + 2]]`` (its fans,
+    then its tube).  The first ring runs in order, the second reversed and rolled to start at
+    ``j0`` (:func:`_second_rings`); the walk by angle, or the proportional one where that path is
+    not simple."""
     n_v = V.shape[0]
     k = j0.shape[0]
     tube = np.empty((cyc_at[2 * k], 3), np.int64)
+    P = np.empty((2 * cyc_at[2 * k], 3))
+    p_at = np.zeros(k + 1, np.int64)
+    Fl = np.empty((3 * cyc_at[2 * k], 3), np.int64)
+    rings = _second_rings(cyc_at, j0, n_v)
     oa = ob = 0  # (where the neck's entries start in ua, ub)
     for j in range(k):
         s0, s1, s2 = cyc_at[2 * j], cyc_at[2 * j + 1], cyc_at[2 * j + 2]
         n, m = s1 - s0, s2 - s1
         a = np.arange(n_v + s0, n_v + s1)
-        b = np.empty(m, np.int64)
-        for i in range(m):
-            b[i] = n_v + s2 - 1 - (j0[j] + i) % m
+        b = rings[s1:s2]
         # the unwrapped angles, turned where the first ring runs backwards, and closed
         wa = np.empty(n + 1)
         wb = np.empty(m + 1)
@@ -1199,17 +1228,43 @@ def _neck_tubes(V, R, fans, cyc_at, j0, ua, ub, delay):
         faces = tube[s0:s2]
         if not _tube_walk(a, b, wa, wb, False, faces):
             _tube_walk(a, b, wa, wb, True, faces)
-        fj = fans[2 * s0:2 * s2]
-        if _tube_crosses_kernel(V, R, fj, faces, delay):
-            trial = np.empty((n + m, 3), np.int64)
-            br = np.empty(m, np.int64)
-            for r in range(m):
-                for i in range(m):
-                    br[i] = b[(r + i) % m]
-                if _tube_walk(a, br, wa, wb, True, trial) and not _tube_crosses_kernel(V, R, fj, trial, delay):
-                    faces[:] = trial
-                    break
-    return tube
+        got = _test_mesh(V, R, fans[2 * s0:2 * s2], faces, P[p_at[j]:], Fl[3 * s0:3 * s2])
+        p_at[j + 1] = p_at[j] + got
+    return tube, P, p_at, Fl
+
+
+@njit(cache=True, nogil=True)
+def _second_rings(cyc_at, j0, n_v):
+    """Per neck ``k``, at rows ``cyc_at[2k + 1]:cyc_at[2k + 2]``: its second ring's new vertices
+    reversed and rolled to start at entry ``j0[k]`` (the loop's ``b``); the other rows not set."""
+    out = np.empty(cyc_at[-1], np.int64)
+    for j in range(j0.shape[0]):
+        s1, s2 = cyc_at[2 * j + 1], cyc_at[2 * j + 2]
+        m = s2 - s1
+        for i in range(m):
+            out[s1 + i] = n_v + s2 - 1 - (j0[j] + i) % m
+    return out
+
+
+def _tube_retry(V, R, fans, faces, a, b, delay):
+    """A tube whose first walk crosses its fans or itself (:func:`_neck_walks`): as the loop, the
+    proportional walk from each start on the second ring ``b`` in turn, the first simple one
+    keeping clear written over ``faces`` (else they are kept); ``a``, ``b``: the rings (lists)."""
+    n, m = len(a), len(b)
+    n_v = len(V)
+    for r in range(m):
+        simple, trial = _walk_rings(a, b[r:] + b[:r], lambda i, j: (i + 1) * m <= (j + 1) * n)
+        if not simple:
+            continue
+        f = np.concatenate([fans, np.array(trial, dtype=np.int64)])
+        ids, local = np.unique(f.reshape(-1), return_inverse=True)
+        P = np.empty((len(ids), 3))
+        old = ids < n_v
+        P[old] = V[ids[old]]
+        P[~old] = R[ids[~old] - n_v]
+        if not _any_kernel(P, local.reshape(-1, 3).astype(np.int64), np.int64(delay)):
+            faces[:] = trial
+            return
 
 
 @njit(cache=True, nogil=True)
