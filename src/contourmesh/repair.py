@@ -682,6 +682,7 @@ def _renumber(a, table):
     for i in range(a.shape[0]):
         a[i] = table[a[i]]
 
+
 def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     """Replace each neck vertex by a small tube joining its two fans.
 
@@ -693,7 +694,7 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     The mesh of :func:`_open_necks_loop` (the form before, one neck at a time in Python; kept for
     the cases below and as the tests' reference), made in four steps over all necks at once:
 
-    1. the links, cycles and fan faces of every neck (:func:`_neck_cycles`, compiled): they
+    1. the links, cycles and fan faces of every neck (:func:`_neck_steps`, compiled): they
        depend on no coordinates (a neck's star changes only by the fan faces of earlier necks;
        tube faces hold new vertices alone, never a neck), and every new vertex's number follows
        from the cycles' lengths;
@@ -714,9 +715,8 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
         return V, F, S
     if not (isinstance(V, np.ndarray) and V.dtype == np.float64 and V.ndim == 2):
         return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
-    neck_ids = np.unique(necks)
+    neck_ids = np.ascontiguousarray(np.unique(necks), dtype=np.int64)
     n_v = len(V)
-    neck_ids = np.ascontiguousarray(neck_ids, dtype=np.int64)
     status, old_index, cyc, cyc_at, old_alive, fans, fan_alive, rnd = _neck_steps(
         np.ascontiguousarray(F, dtype=np.int64), neck_ids, n_v)
     if status != 0:  # (the loop raises its own message)
