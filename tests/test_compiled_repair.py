@@ -1088,7 +1088,7 @@ def test_edge_counts_and_twins_on_threads_equal_one_threads(monkeypatch, threads
     assert one.vertices.tobytes() == many.vertices.tobytes() and one.faces.tobytes() == many.faces.tobytes()
 
 
-def test_open_necks_refused_as_the_loop_refuses():
+def test_open_necks_refused_as_the_loop_refuses(monkeypatch):
     # a vertex whose star is three cones, and one whose link is not closed: the loop's messages
     rng = np.random.default_rng(3)
 
@@ -1096,6 +1096,7 @@ def test_open_necks_refused_as_the_loop_refuses():
         k = len(ring)
         return [[apex, ring[t], ring[(t + 1) % k]] for t in range(k)] + [[base, ring[(t + 1) % k], ring[t]] for t in range(k)]
 
+    monkeypatch.setattr(repair, "_NECKS_AT_ONCE", 1)
     V = rng.normal(size=(40, 3))
     F = np.array(cone(0, [1, 2, 3], 4) + cone(0, [5, 6, 7], 8) + cone(0, [9, 10, 11], 12), dtype=np.int64)
     S = np.zeros(len(F), dtype=np.int32)

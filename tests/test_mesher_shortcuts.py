@@ -221,6 +221,9 @@ def test_open_necks_at_once_equals_the_loop(monkeypatch):
     from contourmesh import repair
 
     inputs = _neck_inputs(monkeypatch, cases)
+    monkeypatch.setattr(repair, "_NECKS_AT_ONCE", 1)  # (all of them at once, however few)
+    V, F, S = repair.warm_neck_kernels()  # (the warm-up's two cones: one tube, a closed manifold)
+    assert len(V) == 19 and len(F) == 32 and np.array_equal(np.bincount(F.reshape(-1), minlength=19) > 0, np.r_[False, [True] * 18])
     crossed = []
     real = repair._tube_crosses
     monkeypatch.setattr(repair, "_tube_crosses", lambda *a, **k: crossed.append(real(*a, **k)) or crossed[-1])
@@ -256,6 +259,7 @@ def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
     n_kept = sum(1 for k in kept if isinstance(k, tuple) and k and k[0] == "neck")
     again = repair._open_necks_loop(V, F, S, N, nudge, tube_seen=kept)
     assert n_kept == len(np.unique(N))
+    monkeypatch.setattr(repair, "_NECKS_AT_ONCE", 1)
     at_once = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
     for out in (first, again, at_once):
         assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(plain, out))
