@@ -98,6 +98,10 @@ def _general_mesher():
     from contourmesh.bands.bridges import warm_rare_paths
 
     warm_rare_paths()
+    # the manifold repair's necks opened all at once (real volumes have hundreds; these, a few)
+    from contourmesh.repair import warm_neck_kernels
+
+    warm_neck_kernels()
 
 
 def _checks():

@@ -1086,3 +1086,108 @@ def test_edge_counts_and_twins_on_threads_equal_one_threads(monkeypatch, threads
     many = contourmesh.mesh(vol)
     assert len(calls) >= 2 and one.meta == many.meta
     assert one.vertices.tobytes() == many.vertices.tobytes() and one.faces.tobytes() == many.faces.tobytes()
+
+
+def test_open_necks_refused_as_the_loop_refuses(monkeypatch):
+    # a vertex whose star is three cones, and one whose link is not closed: the loop's messages
+    rng = np.random.default_rng(3)
+
+    def cone(apex, ring, base):
+        k = len(ring)
+        return [[apex, ring[t], ring[(t + 1) % k]] for t in range(k)] + [[base, ring[(t + 1) % k], ring[t]] for t in range(k)]
+
+    monkeypatch.setattr(repair, "_NECKS_AT_ONCE", 1)
+    V = rng.normal(size=(40, 3))
+    F = np.array(cone(0, [1, 2, 3], 4) + cone(0, [5, 6, 7], 8) + cone(0, [9, 10, 11], 12), dtype=np.int64)
+    S = np.zeros(len(F), dtype=np.int32)
+    with pytest.raises(RuntimeError, match="has 3 fans, expected 2"):
+        repair._open_necks(V, F, S, np.array([0]), 1e-3)
+    with pytest.raises(RuntimeError, match="not the apex of two cones"):
+        repair._open_necks(V, np.concatenate([F[:3], F[:1]]), S, np.array([0]), 1e-3)
+
+
+def test_neck_steps_equal_their_numpy_forms():
+    # the whole-array steps of _necks_angles, segment by segment, against the numpy calls the
+    # loop makes per neck (means, matrix-vector products, argmin with NaN, unwrap, roll), and the
+    # compiled walk against the loop's
+    rng = np.random.default_rng(23)
+    lens = rng.integers(1, 14, size=300)
+    lens[:5] = [1, 2, 3, 8, 9]
+    n = int(lens.sum())
+    starts = repair._starts(lens)
+    X = rng.normal(size=(n, 3)) * rng.choice([1e-3, 1.0, 1e3], size=(n, 1))
+    E = rng.normal(size=(len(lens), 3))
+    means = repair._segment_means(X, lens)
+    prods = repair._stacked_products(X, lens, E)
+    # angles with steps of about pi and 2 pi, and exact ties
+    p = np.round(np.cumsum(rng.normal(size=n) * 2.5), 1)
+    p[::7] = np.pi
+    up = repair._unwrap_segments(p, lens)
+    x = np.round(rng.random(n), 1)
+    x[rng.random(n) < 0.02] = np.nan
+    arg = repair._segment_argmin(x, lens)
+    k = rng.integers(0, lens)
+    rolled = repair._rolled_rows(lens, k)
+    for j, (s, m) in enumerate(zip(starts.tolist(), lens.tolist())):
+        seg = slice(s, s + m)
+        assert means[j].tobytes() == X[seg].mean(axis=0).tobytes()
+        assert prods[seg].tobytes() == (X[seg] @ E[j]).tobytes()
+        assert up[seg].tobytes() == np.unwrap(p[seg]).tobytes()
+        assert arg[j] == np.argmin(x[seg])
+        assert np.array_equal(rolled[seg], s + repair._rolled(np.arange(m), int(k[j])))
+
+    simple = [0, 0]
+    for _ in range(400):
+        na, nb = (int(v) for v in rng.integers(1, 10, size=2))
+        a = np.arange(100, 100 + na)
+        b = np.arange(200, 200 + nb)
+        ua = np.round(np.sort(rng.random(na + 1)) * 6 * rng.choice([1, -1]), 1)
+        ub = np.round(np.sort(rng.random(nb + 1)) * 6, 1)
+        for prop in (False, True):
+            rule = (lambda i, j: (i + 1) * nb <= (j + 1) * na) if prop else (lambda i, j: ua[i + 1] <= ub[j + 1])
+            ok, faces = repair._walk_rings(a.tolist(), b.tolist(), rule)
+            got = np.empty((na + nb, 3), np.int64)
+            assert repair._tube_walk(a, b, ua, ub, prop, got) == ok
+            assert got.tolist() == [list(f) for f in faces]
+            simple[ok] += 1
+    assert min(simple) > 20
+
+
+def test_fan_cycles_equal_the_union_find_over_the_links(monkeypatch):
+    """repair._fan_components walks the corners around each vertex (the links' permutation): the
+    count, labels and lowest corners of the union-find over the links, on touching boxes (faces
+    shuffled and their corners rotated) and on the meshes the volume mesher splits; and
+    split_nonmanifold_vertices (the same walk in _split_fans) makes the reference's meshes there."""
+    rng = np.random.default_rng(29)
+    meshes = []
+    for _ in range(4):
+        V, F = _touching_boxes(rng)
+        F = F[rng.permutation(len(F))]
+        F = np.ascontiguousarray(np.roll(F, 1, axis=1) if rng.random() < 0.5 else F)
+        meshes.append((V, F))
+    from scipy import ndimage
+
+    import contourmesh
+    from contourmesh import volumes
+
+    real = volumes.split_nonmanifold_vertices
+    monkeypatch.setattr(volumes, "split_nonmanifold_vertices",
+                        lambda V, F, **k: meshes.append((V.copy(), F.copy())) or real(V, F, **k))
+    contourmesh.mesh(ndimage.gaussian_filter(rng.random((8, 30, 30)), 0.7) > 0.5)
+    several = 0
+    for V, F in meshes:
+        twin, status = repair._half_edge_twins(np.ascontiguousarray(F, dtype=np.int64), len(V))
+        assert status == 0
+        m = len(F)
+        t = twin.astype(np.int64)
+        c = np.arange(3 * m)
+        nxt = 3 * (c // 3) + (c % 3 + 1) % 3
+        want = _corner_components(3 * m, c, 3 * (t // 3) + (t % 3 + 1) % 3, nxt, t)
+        got = repair._fan_components(twin)
+        assert got[0] == want[0] and np.array_equal(got[1], want[1]) and np.array_equal(got[2], want[2])
+        several += int((np.bincount(F.reshape(-1)[got[2]]) > 1).sum())
+        # and the split itself (its fans, numbers and nudges in one compiled pass) as the reference
+        got_V, got_F = repair.split_nonmanifold_vertices(V, F, nudge=1e-3, four_face=False)
+        want_V, want_F = _split_reference(V, F, 1e-3)
+        assert np.array_equal(got_F, want_F) and np.array_equal(got_V.view(np.int64), want_V.view(np.int64))
+    assert several > 10  # (vertices of several fans)

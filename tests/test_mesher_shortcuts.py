@@ -318,31 +318,81 @@ def test_missing_corners_equal_the_unique_keys_form():
     assert not missing_corners(ids, np.array([-1], dtype=np.int64), np.array([0], dtype=np.int64))[2]
 
 
-def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
-    """repair._open_necks with a kept dict: a second call on the same mesh takes every neck's rings
-    and faces from it, and gives the same arrays as a call without the dict."""
-    import contourmesh
-    from contourmesh import repair
+def _neck_inputs(monkeypatch, cases):
+    """The inputs of the volume mesher's _open_necks on the noisy volumes ``cases`` ((seed, shape,
+    spacing, threshold))."""
+    from scipy import ndimage
 
-    seen_inputs = []
+    import contourmesh
+    from contourmesh import volumes
+
+    seen = []
     real = volumes._open_necks
 
     def keep(V, F, S, N, nudge, tube_seen=None):
-        seen_inputs.append((V.copy(), F.copy(), S.copy(), np.array(N).copy(), nudge))
+        seen.append((V.copy(), F.copy(), S.copy(), np.array(N).copy(), nudge))
         return real(V, F, S, N, nudge, tube_seen=tube_seen)
 
     monkeypatch.setattr(volumes, "_open_necks", keep)
-    rng = np.random.default_rng(4)
-    contourmesh.mesh(ndimage.gaussian_filter(rng.random((10, 40, 40)), 0.7) > 0.5)
+    for seed, shape, spacing, thr in cases:
+        rng = np.random.default_rng(seed)
+        contourmesh.mesh(ndimage.gaussian_filter(rng.random(shape), 0.7) > thr, spacing=spacing)
+    monkeypatch.undo()
+    return seen
+
+
+def test_open_necks_at_once_equals_the_loop(monkeypatch):
+    """repair._open_necks (all necks at once: compiled links and walks, whole-array rings and
+    angles) against the loop over the necks (_open_necks_loop): the same arrays, bit for bit, on
+    noisy volumes whose necks include ones whose link holds an earlier neck's ring (later rounds)
+    and tubes whose first walk crosses its fans (the tries from every start), the slices far apart
+    against the pixels."""
+    cases = [(4, (10, 40, 40), (1.0, 1.0, 1.0), 0.5), (5, (12, 30, 30), (4.0, 1.0, 1.0), 0.5),
+             (6, (8, 40, 40), (8.0, 0.5, 0.7), 0.45)]
+    from contourmesh import repair
+
+    inputs = _neck_inputs(monkeypatch, cases)
+    monkeypatch.setattr(repair, "_NECKS_AT_ONCE", 1)  # (all of them at once, however few)
+    V, F, S = repair.warm_neck_kernels()  # (the warm-up's two cones: one tube, a closed manifold)
+    assert len(V) == 19 and len(F) == 32 and np.array_equal(np.bincount(F.reshape(-1), minlength=19) > 0, np.r_[False, [True] * 18])
+    crossed = []
+    real = repair._tube_crosses
+    monkeypatch.setattr(repair, "_tube_crosses", lambda *a, **k: crossed.append(real(*a, **k)) or crossed[-1])
+    later = 0
+    for V, F, S, N, nudge in inputs:
+        want = repair._open_necks_loop(V, F, S, N, nudge)
+        got = repair._open_necks(V, F, S, N, nudge)
+        for a, b in zip(got, want):
+            assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
+        ids = np.unique(N)
+        mark = np.zeros(len(V), dtype=bool)
+        mark[ids] = True
+        rows = repair._rows_touching(F, mark)
+        assert np.array_equal(rows, np.flatnonzero(mark[F].any(axis=1)))
+        status, cyc, cyc_at = repair._neck_cycles(F[rows], ids, len(V))[:3]
+        assert status == 0
+        later += int((repair._neck_rounds(cyc, cyc_at, len(V)) > 0).sum())
+    assert later >= 3 and sum(crossed) >= 5
+
+
+def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
+    """repair._open_necks_loop (the one-neck-at-a-time form, which _open_necks falls back on) with a
+    kept dict: a second call on the same mesh takes every neck's rings and faces from it, and gives
+    the same arrays as a call without the dict, and as _open_necks (which keeps nothing in it)."""
+    from contourmesh import repair
+
+    seen_inputs = _neck_inputs(monkeypatch, [(4, (10, 40, 40), None, 0.5)])
     V, F, S, N, nudge = max(seen_inputs, key=lambda x: len(x[3]))
     assert len(np.unique(N)) > 10  # (necks to open)
-    plain = repair._open_necks(V, F, S, N, nudge)
+    plain = repair._open_necks_loop(V, F, S, N, nudge)
     kept: dict = {}
-    first = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    first = repair._open_necks_loop(V, F, S, N, nudge, tube_seen=kept)
     n_kept = sum(1 for k in kept if isinstance(k, tuple) and k and k[0] == "neck")
-    again = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    again = repair._open_necks_loop(V, F, S, N, nudge, tube_seen=kept)
     assert n_kept == len(np.unique(N))
-    for out in (first, again):
+    monkeypatch.setattr(repair, "_NECKS_AT_ONCE", 1)
+    at_once = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
+    for out in (first, again, at_once):
         assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(plain, out))
 
 

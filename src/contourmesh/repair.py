@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .intersect import any_intersecting, intersecting_pairs
+from .intersect import _any_kernel, any_intersecting, intersecting_pairs
 
 __all__ = ["split_nonmanifold_vertices", "resolve_crossings", "crossing_pairs_after_change"]
 
@@ -47,62 +47,82 @@ def _split_four_face_edges(V, F, side, nudge):
     if not len(work):
         return V, F, side
     Fw = F[work]
-    faces = dict(zip(work.tolist(), zip(Fw.tolist(), side[work].tolist())))
+    # the faces as slots of flat lists of ints (the work faces in order, then the new ones; ints
+    # and flat lists: few objects for the collector to count, as lists and tuples per face were),
+    # ``slot`` the live faces' (face number -> slot, in insertion order as the reference's dict)
+    fa, fb, fc = Fw[:, 0].tolist(), Fw[:, 1].tolist(), Fw[:, 2].tolist()
+    fside = side[work].tolist()
+    slot = dict(zip(work.tolist(), range(len(work))))
+    # an edge u < v as the int u * base + v (every vertex, old or new, is below base)
+    base = len(V) + 2 * len(work) + 1  # (at most two new vertices per four-face edge, 3/4 of one per face)
     # the four-face edges' sets, filled as the reference fills them: faces in order, edges in order
     lo_w = np.minimum(Fw, np.roll(Fw, -1, axis=1))
     hi_w = np.maximum(Fw, np.roll(Fw, -1, axis=1))
     rows, ts = np.nonzero(fw_hit)
     by_edge: dict = {}
-    for i, u, v in zip(work[rows].tolist(), lo_w[rows, ts].tolist(), hi_w[rows, ts].tolist()):
-        by_edge.setdefault((u, v), set()).add(i)
-    todo = sorted(by_edge)
+    for i, key in zip(work[rows].tolist(), (lo_w[rows, ts] * base + hi_w[rows, ts]).tolist()):
+        by_edge.setdefault(key, set()).add(i)
+    del lo_w, hi_w, rows, ts
+    get = by_edge.get
     # the faces first, in integers alone: each new vertex recorded as (u, v, o0, o1), the edge it
     # splits and the opposite corners of its two faces; their coordinates after (_midpoints)
     made = []
     nxt_v = len(V)
     nxt_f = m
-    for u, v in todo:
-        fs = list(by_edge.get((u, v), ()))
+    for key in sorted(by_edge):  # (the edges (u, v) in order)
+        u, v = divmod(key, base)
+        fs = list(by_edge[key])
         if len(fs) != 4:
             raise RuntimeError(f"internal error: edge ({u}, {v}) is shared by {len(fs)} faces while splitting")
-        groups: dict = {}
-        for i in fs:
-            groups.setdefault(faces[i][1], []).append(i)
-        for sd, group in groups.items():
-            if len(group) != 2:
-                raise RuntimeError("internal error: a four-face edge does not pair by side")
-            opp = []
+        # the faces by side, the sides in order of first appearance (as the reference's dict)
+        s0 = fside[slot[fs[0]]]
+        pair0 = [i for i in fs if fside[slot[i]] == s0]
+        pair1 = [i for i in fs if fside[slot[i]] != s0]
+        if len(pair0) != 2 or len({fside[slot[i]] for i in pair1}) != 1:
+            raise RuntimeError("internal error: a four-face edge does not pair by side")
+        for group in (pair0, pair1):
+            sd = fside[slot[group[0]]]
             for i in group:
-                f = faces[i][0]
-                opp.append([w for w in f if w != u and w != v][0])
-            made.append((u, v, opp[0], opp[1]))
+                q = slot[i]
+                made.append([w for w in (fa[q], fb[q], fc[q]) if w != u and w != v][0])
+            made.append(u)
+            made.append(v)
             mv = nxt_v
             nxt_v += 1
             for i in group:
-                f, _ = faces.pop(i)
-                for t in range(3):
-                    x, y = f[t], f[(t + 1) % 3]
-                    key = (x, y) if x < y else (y, x)
-                    if key in by_edge:
-                        by_edge[key].discard(i)
-                t = 0 if {f[0], f[1]} == {u, v} else 1 if {f[1], f[2]} == {u, v} else 2
-                a, b, c = f[t], f[(t + 1) % 3], f[(t + 2) % 3]
+                q = slot.pop(i)
+                f0, f1, f2 = fa[q], fb[q], fc[q]
+                for x, y in ((f0, f1), (f1, f2), (f2, f0)):
+                    st = get(x * base + y if x < y else y * base + x)
+                    if st is not None:
+                        st.discard(i)
+                # (the corner where the split edge starts)
+                if (f0 == u and f1 == v) or (f0 == v and f1 == u):
+                    a, b, c = f0, f1, f2
+                elif (f1 == u and f2 == v) or (f1 == v and f2 == u):
+                    a, b, c = f1, f2, f0
+                else:
+                    a, b, c = f2, f0, f1
                 # the new faces' edges through mv are new; (c, a) and (b, c) may be four-face edges
-                faces[nxt_f] = ([a, mv, c], sd)
-                key = (c, a) if c < a else (a, c)
-                if key in by_edge:
-                    by_edge[key].add(nxt_f)
-                nxt_f += 1
-                faces[nxt_f] = ([mv, b, c], sd)
-                key = (b, c) if b < c else (c, b)
-                if key in by_edge:
-                    by_edge[key].add(nxt_f)
-                nxt_f += 1
-    newV = _midpoints(V, np.array(made, dtype=np.int64).reshape(-1, 4), nudge)
+                for x, y, z, p, q in ((a, mv, c, c, a), (mv, b, c, b, c)):
+                    slot[nxt_f] = len(fa)
+                    fa.append(x)
+                    fb.append(y)
+                    fc.append(z)
+                    fside.append(sd)
+                    st = get(p * base + q if p < q else q * base + p)
+                    if st is not None:
+                        st.add(nxt_f)
+                    nxt_f += 1
+    del by_edge
+    # (made: per new vertex o0, o1, u, v)
+    made = np.array(made, dtype=np.int64).reshape(-1, 4)[:, [2, 3, 0, 1]]
+    newV = _midpoints(V, np.ascontiguousarray(made), nudge)
     keep = np.ones(m, dtype=bool)
     keep[work] = False
-    items = list(faces.values())
-    F2, S2 = _kept_and_added(F, side, keep, [f for f, _ in items], [sd for _, sd in items])
+    live = np.fromiter(slot.values(), dtype=np.int64, count=len(slot))  # (the live faces' slots, in order)
+    added = np.stack([np.array(fa)[live], np.array(fb)[live], np.array(fc)[live]], axis=1)
+    F2, S2 = _kept_and_added(F, side, keep, added, np.array(fside)[live])
     V2 = np.concatenate([V, newV])
     return V2, F2, S2
 
@@ -169,8 +189,9 @@ def _midpoints(V, made, nudge):
         cu, cv, c0, c1 = (at(made[rows, t]) for t in range(4))
         mid = 0.5 * (cu + cv)
         toward = (c0 + c1) / 2.0 - mid
-        # (np.linalg.norm of each row: its dot product, as the one-row form takes it)
-        nrm = np.array([np.linalg.norm(r) for r in toward], dtype=toward.dtype).reshape(-1)
+        # (np.linalg.norm of each row: the square root of its dot product, as the one-row form
+        # takes it; np.vecdot makes the same dot call per row)
+        nrm = np.sqrt(np.vecdot(toward, toward))
         pos = nrm > 0
         mid[pos] = mid[pos] + toward[pos] * (nudge / nrm[pos])[:, None]
         out[rows] = mid
@@ -381,53 +402,38 @@ def _half_edge_twins_threads(F, nv, threads):
 
 @njit(cache=True, nogil=True)
 def _fan_components(twin):
-    """Connected components of the corners of a closed mesh linked across its edges, from the
-    half-edge twins (half-edge ``h = 3 i + k`` of face ``i`` runs from corner ``h`` to corner ``3 i +
-    (k + 1) % 3``): half-edge ``h`` and its twin ``t`` link corner ``h`` with the corner after ``t``
-    in its face, and the corner after ``h`` with corner ``t``.  Returns ``(count, label per corner,
-    lowest corner of each label)``, labels numbered in order of each component's lowest corner."""
+    """The fans of a closed mesh: the connected components of its corners linked across its edges,
+    from the half-edge twins (half-edge ``h = 3 i + k`` of face ``i`` runs from corner ``h`` to
+    corner ``3 i + (k + 1) % 3``; ``twin`` pairs each with its opposite, an involution).  Returns
+    ``(count, label per corner, lowest corner of each label)``, labels numbered in order of each
+    component's lowest corner.
+
+    Across edge ``h`` corner ``h`` is linked with the corner after ``twin[h]`` in its face, and
+    the corner after ``h`` with corner ``twin[h]``: every link joins a corner ``c`` and the corner
+    ``twin[prev(c)]`` that follows it around its vertex (``prev(c)``, the half-edge of ``c``'s face
+    ending at ``c``).  That map is a permutation (twins are an involution), so the components are
+    its cycles, each walked from its lowest corner, corners in increasing order: one pass, and
+    the same labels as a union-find over the links (the form before)."""
     n = twin.shape[0]
-    parent = np.arange(n)
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for h in range(n):
-        t = np.int64(twin[h])  # (int32 or int64 twins)
-        a1 = h
-        b1 = 3 * (t // 3) + (t % 3 + 1) % 3
-        a2 = 3 * (h // 3) + (h % 3 + 1) % 3
-        b2 = t
-        for x, y in ((a1, b1), (a2, b2)):
-            rx, ry = find(x), find(y)
-            if rx != ry:
-                if rx < ry:
-                    parent[ry] = rx
-                else:
-                    parent[rx] = ry
-    # every link points at the lower of two roots, and path halving at an ancestor: parent[x] <= x,
-    # and a fan's root is its lowest corner.  One pass up the corners gives each its root (its
-    # parent's is final by then); a second numbers the roots and turns parent into the labels in
-    # place (a corner's root, below it, is numbered by then): no arrays per corner besides parent
+    lab = np.full(n, -1, np.int64)
     count = 0
-    for x in range(n):
-        parent[x] = parent[parent[x]]
-        if parent[x] == x:
-            count += 1
+    for c in range(n):
+        if lab[c] >= 0:
+            continue
+        x = c
+        while True:
+            lab[x] = count
+            x = np.int64(twin[3 * (x // 3) + (x % 3 + 2) % 3])
+            if lab[x] >= 0:  # (back at c; twins that are no involution stop here too)
+                break
+        count += 1
     first = np.empty(count, np.int64)
-    c = 0
-    for x in range(n):
-        r = parent[x]
-        if r == x:
-            parent[x] = c
-            first[c] = x
-            c += 1
-        else:
-            parent[x] = parent[r]
-    return count, parent, first
+    at = 0
+    for c in range(n):
+        if lab[c] == at:
+            first[at] = c
+            at += 1
+    return count, lab, first
 
 
 def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
@@ -457,44 +463,16 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     del Fc
     if status != 0:  # the sorted search names the edge at fault
         twin = _half_edge_twins_reference(F, nv)
-    # fans = connected components of the corners linked across every edge (union-find; labels
-    # numbered in order of each component's lowest corner, as scipy's connected_components does)
-    ncomp, lab, first = _fan_components(twin)
+    # fans = connected components of the corners linked across every edge, numbered in order of
+    # their lowest corners; each vertex keeps its first fan, its other fans get new vertices
+    # (numbered in the order of (vertex, fan)), and every fan of a split vertex has its vertex (or
+    # the copy) nudged towards the fan's centroid: all in one compiled pass (_split_fans), the new
+    # faces written over the fan labels
+    several, F2, target, start, copies, vid = _split_fans(twin, np.ascontiguousarray(F.reshape(-1)), V, len(V))
     del twin
-    vert_of_corner = F.reshape(-1)
-    # a vertex keeps its first fan; other fans get new vertices
-    fan_vertex = vert_of_corner[first]  # vertex of each fan
-    del first
-    split = np.bincount(fan_vertex, minlength=len(V)) > 1  # the vertices with several fans
-    if not split.any():
+    if not several:
         return V, F
-    # each vertex keeps its first fan (in fan order); its other fans get new vertices, numbered
-    # in the order of (vertex, fan)
-    fan_to_new, others = _fan_numbers(fan_vertex, len(V))
-    # nudge every copy of a split vertex towards the centroid of its fan (the mean of its faces'
-    # centroids, summed over its corners in order: only the corners of those fans are visited)
-    moved = np.flatnonzero(split[fan_vertex])
-    del split
-    in_moved = np.zeros(ncomp, dtype=bool)
-    in_moved[moved] = True
-    corners = np.flatnonzero(in_moved[lab])
-    centroids = V[F[corners // 3]].mean(axis=1)
-    # sums per moved fan only (numbered in the order of moved, which is sorted): the same sums, in
-    # the same order, as over all fans, without arrays over all of them
-    at = np.searchsorted(moved, lab[corners])
-    del in_moved
-    start = fan_vertex[moved]  # where each moved fan's vertex (or its copy) is before the nudge
-    copies = fan_vertex[others]  # the new vertices are copies of these
-    del fan_vertex
-    # the new faces: fan_to_new[lab], written over the labels (int64, one per corner)
-    _renumber(lab, fan_to_new)
-    F2 = lab.reshape(-1, 3)
-    del lab
-    counts = np.bincount(at, minlength=len(moved)).astype(np.float64)
-    target = np.stack([np.bincount(at, weights=centroids[:, d], minlength=len(moved)) for d in range(3)], axis=1)
-    target = target / counts[:, None]
-    vid = fan_to_new[moved]
-    del fan_to_new
+    F2 = F2.reshape(-1, 3)
     d = target - V[start]  # (V2[vid]: a fan's vertex or the copy of it)
     V2 = np.concatenate([V, V[copies]])
     nrm = np.linalg.norm(d, axis=1)
@@ -535,6 +513,70 @@ def _fan_numbers(fan_vertex, nv):
             fan_to_new[f] = nv + j
             off[v] = j + 1
     return fan_to_new, others
+
+
+@njit(cache=True, nogil=True)
+def _split_fans(twin, corner_vertex, V, nv):
+    """The fans of :func:`split_nonmanifold_vertices` from the half-edge twins, in one pass over
+    the corners and one over the fans' corners: ``(several, F2, target, start, copies, vid)``,
+    several False where no vertex has two fans (the rest then not made).  ``F2`` (flat, one entry
+    per corner) numbers each corner by its fan's vertex (:func:`_fan_numbers`); per fan of a
+    vertex with several, in fan order, ``target`` is the mean of its faces' centroids over its
+    corners in order, ``start`` its vertex, ``vid`` its vertex or copy in ``F2``; ``copies`` the
+    vertices the new ones copy.  The fans are :func:`_fan_components`'s, the sums those of the
+    whole-array form before: each centroid ``((a + b) + c) / 3``, added in corner order from zero,
+    divided by the count."""
+    n = twin.shape[0]
+    count, lab, first = _fan_components(twin)
+    fan_vertex = np.empty(count, np.int64)
+    fans_at = np.zeros(nv, np.int32)
+    for f in range(count):
+        v = corner_vertex[first[f]]
+        fan_vertex[f] = v
+        fans_at[v] += 1
+    empty = np.zeros((0, 3))
+    none = np.zeros(0, np.int64)
+    several = False
+    for v in range(nv):
+        if fans_at[v] > 1:
+            several = True
+            break
+    if not several:
+        return False, lab, empty, none, none, none
+    fan_to_new, others = _fan_numbers(fan_vertex, nv)
+    # the fans of split vertices (in fan order) and their place among them
+    k = 0
+    for f in range(count):
+        k += fans_at[fan_vertex[f]] > 1
+    at = np.full(count, -1, np.int64)
+    start = np.empty(k, np.int64)
+    vid = np.empty(k, np.int64)
+    t = 0
+    for f in range(count):
+        if fans_at[fan_vertex[f]] > 1:
+            at[f] = t
+            start[t] = fan_vertex[f]
+            vid[t] = fan_to_new[f]
+            t += 1
+    sums = np.zeros((k, 3))
+    cnt = np.zeros(k, np.int64)
+    for c in range(n):
+        f = lab[c]
+        j = at[f]
+        if j >= 0:
+            i = c // 3
+            for d in range(3):
+                sums[j, d] += ((V[corner_vertex[3 * i], d] + V[corner_vertex[3 * i + 1], d])
+                               + V[corner_vertex[3 * i + 2], d]) / 3.0
+            cnt[j] += 1
+        lab[c] = fan_to_new[f]
+    for j in range(k):
+        for d in range(3):
+            sums[j, d] = sums[j, d] / np.float64(cnt[j])
+    copies = np.empty(others.shape[0], np.int64)
+    for j in range(others.shape[0]):
+        copies[j] = fan_vertex[others[j]]
+    return True, lab, sums, start, copies, vid
 
 
 def _half_edge_twins_reference(F, nv):
@@ -640,7 +682,645 @@ def _renumber(a, table):
     for i in range(a.shape[0]):
         a[i] = table[a[i]]
 
+
+#: From this many necks on, :func:`_open_necks` opens them all at once; below, one at a time
+#: (:func:`_open_necks_loop`, the same mesh).  The compiled steps' kernels take some 0.04 s to load
+#: on a process's first mesh with necks, as long as the loop takes for some 150 necks: the liver's
+#: 9 necks cost 0.019 s in the loop, 0.062 s at once on a first mesh (0.013 s on later ones); the
+#: lobster's 546, 0.23 and 0.085 s (0.27 and 0.035 s on later meshes).
+_NECKS_AT_ONCE = 32
+
+
 def _open_necks(V, F, S, necks, nudge, tube_seen=None):
+    """Replace each neck vertex by a small tube joining its two fans.
+
+    At a mid-plane corner where the two empty voxels of the 2 x 2 x 2 block around it touch only
+    at that corner (the six others are object), the surface meets itself in two cones there.  The
+    background is 26-connected, so it passes through the point: the cones are joined by a tube
+    (the star of the vertex is removed and its two link cycles are joined by a band).
+
+    The mesh of :func:`_open_necks_loop` (the form before, one neck at a time in Python; kept for
+    the cases below and as the tests' reference), made in four steps over all necks at once:
+
+    1. the links, cycles and fan faces of every neck (:func:`_neck_steps`, compiled): they
+       depend on no coordinates (a neck's star changes only by the fan faces of earlier necks;
+       tube faces hold new vertices alone, never a neck), and every new vertex's number follows
+       from the cycles' lengths;
+    2. the rings, in rounds (a neck whose link holds an earlier neck's ring vertices waits for
+       that ring) and the rings' angles about each tube's axis, in whole-array numpy steps that
+       make the one-neck steps' numbers row by row (the same ufuncs, reductions in the same order;
+       the BLAS products as the same calls, stacked by ring length: :func:`_necks_angles`);
+    3. each neck's tube walk and the mesh of its exact crossing test (:func:`_neck_walks`,
+       compiled), the test by the kernel of :func:`contourmesh.intersect.any_intersecting` called
+       directly, and for the few tubes that cross, the loop's further walks (:func:`_tube_retry`);
+    4. the faces, in the order the loop adds them (each neck's fan faces still alive, then its tube).
+
+    ``tube_seen`` (a dict kept by the caller across rebuilds) is used by the loop form alone.
+    Fewer than :data:`_NECKS_AT_ONCE` necks, vertices other than finite float64 ones, or
+    coordinates that the crossing test would have to rescale, and meshes the loop refuses (with
+    its message) go to :func:`_open_necks_loop`.
+    """
+    if len(necks) == 0:
+        return V, F, S
+    if len(np.unique(necks)) < _NECKS_AT_ONCE:
+        return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
+    return _open_necks_at_once(V, F, S, necks, nudge, tube_seen)
+
+
+def _open_necks_at_once(V, F, S, necks, nudge, tube_seen=None):
+    """:func:`_open_necks` with the necks all at once (steps 1 to 4 there), however few."""
+    neck_ids = np.ascontiguousarray(np.unique(necks), dtype=np.int64)
+    if not (isinstance(V, np.ndarray) and V.dtype == np.float64 and V.ndim == 2):
+        return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
+    n_v = len(V)
+    status, old_index, cyc, cyc_at, old_alive, fans, fan_alive, rnd = _neck_steps(
+        np.ascontiguousarray(F, dtype=np.int64), neck_ids, n_v)
+    if status != 0:  # (the loop raises its own message)
+        return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
+    R = _necks_rings(V, neck_ids, cyc, cyc_at, rnd, float(nudge))
+    j0, ua, ub = _necks_angles(V, neck_ids, R, cyc_at)
+    # the crossing test's kernel takes the points as they are where any_intersecting would check
+    # and keep them: finite, and not to be rescaled (:func:`contourmesh.intersect._exact_range`;
+    # the magnitudes of each neck's points lie within those of all the necks' points)
+    from .intersect import _EXACT_EXP, _STAR_DELAY
+
+    Vc = np.ascontiguousarray(V)
+    P = np.abs(np.concatenate([Vc[cyc[cyc < n_v]], R]))
+    hi = float(P.max(initial=0.0))
+    lo = float(P[P > 0].min(initial=np.inf))
+    low, high = _EXACT_EXP
+    if not (np.isfinite(P).all() and hi <= 2.0 ** high and lo >= 2.0 ** -low):
+        return _open_necks_loop(V, F, S, necks, nudge, tube_seen)
+    del P
+    tube, P, p_at, Fl = _neck_walks(Vc, R, fans, cyc_at, j0, ua, ub)
+    delay = np.int64(_STAR_DELAY)
+    at, pa = cyc_at.tolist(), p_at.tolist()
+    for j in range(len(neck_ids)):  # (the crossing kernel itself: the mesher's tests load it anyway)
+        s0, s1, s2 = at[2 * j], at[2 * j + 1], at[2 * j + 2]
+        if _any_kernel(P[pa[j]:pa[j + 1]], Fl[3 * s0:3 * s2], delay):
+            b = (n_v + s2 - 1 - (j0[j] + np.arange(s2 - s1)) % (s2 - s1)).tolist()
+            _tube_retry(Vc, R, fans[2 * s0:2 * s2], tube[s0:s2], list(range(n_v + s0, n_v + s1)), b, delay)
+    added = _neck_faces(cyc_at, fans, fan_alive, tube)
+    keep = np.ones(len(F), dtype=bool)
+    keep[old_index[~old_alive]] = False
+    F2, S2 = _kept_and_added(F, S, keep, added, np.zeros(len(added), dtype=S.dtype))
+    return np.concatenate([V, R]), F2, S2
+
+
+def warm_neck_kernels():
+    """Compile (or load) the kernels of :func:`_open_necks_at_once` (for ``scripts/warm_kernels.py``:
+    the small volumes there have fewer necks than open at once): on two cones meeting at a point,
+    with the volume mesher's argument types."""
+    t = np.linspace(0.0, 2.0 * np.pi, 5)[:-1]
+    ring = np.stack([np.cos(t), np.sin(t), np.ones(4)], axis=1)
+    V = np.concatenate([[[0.0, 0.0, 0.0]], ring, ring * [1.0, 1.0, -1.0], [[0.0, 0.0, 2.0], [0.0, 0.0, -2.0]]])
+    F = []
+    for k in range(4):
+        a, b = 1 + k, 1 + (k + 1) % 4
+        F += [[0, a, b], [9, b, a], [0, b + 4, a + 4], [10, a + 4, b + 4]]
+    F = np.array(F, dtype=np.int64)
+    return _open_necks_at_once(V, F, np.zeros(len(F), np.int32), np.array([0]), 1e-2)
+
+
+@njit(cache=True, nogil=True)
+def _neck_steps(F, necks, n_v):
+    """Step 1 of :func:`_open_necks` in one compiled call (one kernel to load): the faces at the
+    necks (their rows, :func:`_rows_touching`), their cycles and fans (:func:`_neck_cycles`:
+    ``status, cyc, cyc_at, old_alive, fans, fan_alive``) and each neck's round
+    (:func:`_neck_rounds`).  Returns ``(status, rows, cyc, cyc_at, old_alive, fans, fan_alive,
+    rounds)``."""
+    mark = np.zeros(n_v, np.bool_)
+    for j in range(necks.shape[0]):
+        mark[necks[j]] = True
+    rows = _rows_touching(F, mark)
+    Fo = np.empty((rows.shape[0], 3), np.int64)
+    for t in range(rows.shape[0]):
+        for d in range(3):
+            Fo[t, d] = F[rows[t], d]
+    status, cyc, cyc_at, old_alive, fans, fan_alive = _neck_cycles(Fo, necks, n_v)
+    rnd = _neck_rounds(cyc, cyc_at, n_v) if status == 0 else np.zeros(0, np.int64)
+    return status, rows, cyc, cyc_at, old_alive, fans, fan_alive, rnd
+
+
+@njit(cache=True, nogil=True)
+def _rows_touching(F, mark):
+    """The rows of ``F`` with a corner ``v`` where ``mark[v]`` (``np.flatnonzero(mark[F].any(axis=1))``)."""
+    n = 0
+    for i in range(F.shape[0]):
+        n += mark[F[i, 0]] or mark[F[i, 1]] or mark[F[i, 2]]
+    out = np.empty(n, np.int64)
+    t = 0
+    for i in range(F.shape[0]):
+        if mark[F[i, 0]] or mark[F[i, 1]] or mark[F[i, 2]]:
+            out[t] = i
+            t += 1
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _neck_cycles(Fo, necks, n_v):
+    """Step 1 of :func:`_open_necks`: ``(status, cyc, cyc_at, old_alive, fans, fan_alive)``.  Neck ``k``'s
+    two link cycles are ``cyc[cyc_at[2k]:cyc_at[2k + 1]]`` and ``cyc[cyc_at[2k + 1]:cyc_at[2k +
+    2]]``, each as the loop finds it; the new vertex of cycle entry ``p`` is ``n_v + p``.  The fan
+    faces, two per cycle entry in the loop's order (``(r_t, x_t, x_t+1), (r_t, x_t+1, r_t+1)``),
+    are ``fans``, numbered along ``cyc`` (neck ``k``'s from row ``2 cyc_at[2k]``); ``fan_alive`` says which are left at the end, ``old_alive`` which
+    of the faces ``Fo`` (the faces at a neck, in mesh order).  A nonzero status where the loop
+    raises (an apex not of two cones, a link that is not closed)."""
+    k = necks.shape[0]
+    n_old = Fo.shape[0]
+    pos = np.full(n_v, -1, np.int64)
+    for j in range(k):
+        pos[necks[j]] = j
+    # the faces (old, then fans: face g >= n_old is fan g - n_old) and each neck's star as a
+    # linked list of faces in the order the loop appends them
+    cap = max(16, 2 * n_old)
+    faces = np.empty(3 * cap, np.int64)  # (flat: face g is faces[3 g:3 g + 3])
+    alive = np.ones(cap, np.bool_)
+    ent_face = np.empty(cap, np.int64)
+    ent_next = np.empty(cap, np.int64)
+    head = np.full(k, -1, np.int64)
+    tail = np.full(k, -1, np.int64)
+    nent = 0
+    nf = 0
+    cyc = np.empty(max(16, n_old), np.int64)
+    cyc_at = np.zeros(2 * k + 1, np.int64)
+    ncyc = 0
+    for t in range(n_old):
+        for d in range(3):
+            faces[3 * t + d] = Fo[t, d]
+    nf = n_old
+    for t in range(n_old):
+        for d in range(3):
+            v = Fo[t, d]
+            j = pos[v]
+            if j >= 0:
+                ent_face, ent_next, nent = _star_append(j, t, ent_face, ent_next, head, tail, nent)
+    lx = np.empty(16, np.int64)
+    ly = np.empty(16, np.int64)
+    for j in range(k):
+        c = necks[j]
+        nl = 0
+        e = head[j]
+        while e >= 0:
+            t = ent_face[e]
+            e = ent_next[e]
+            if not alive[t]:
+                continue
+            i = 0 if faces[3 * t] == c else 1 if faces[3 * t + 1] == c else 2
+            x = faces[3 * t + (i + 1) % 3]
+            y = faces[3 * t + (i + 2) % 3]
+            for q in range(nl):
+                if lx[q] == x:
+                    return np.int64(1), cyc, cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
+            if nl == lx.shape[0]:
+                lx = _grown1(lx)
+                ly = _grown1(ly)
+            lx[nl] = x
+            ly[nl] = y
+            nl += 1
+        # the cycles, from the link's entries in order
+        seen = np.zeros(nl, np.bool_)
+        ncycles = 0
+        for q0 in range(nl):
+            if seen[q0]:
+                continue
+            ncycles += 1
+            if ncycles > 2:
+                return np.int64(2), cyc, cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
+            x0 = lx[q0]
+            q = q0
+            steps = 0
+            while True:
+                seen[q] = True
+                if ncyc == cyc.shape[0]:
+                    cyc = _grown1(cyc)
+                cyc[ncyc] = lx[q]
+                ncyc += 1
+                x = ly[q]
+                if x == x0:
+                    break
+                q = -1
+                for q2 in range(nl):
+                    if lx[q2] == x:
+                        q = q2
+                        break
+                steps += 1
+                if q < 0 or steps > nl:  # (the loop: a KeyError, or no end)
+                    return np.int64(3), cyc, cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
+            cyc_at[2 * j + ncycles] = ncyc
+        if ncycles != 2:
+            return np.int64(2), cyc, cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
+        e = head[j]  # the star retired
+        while e >= 0:
+            alive[ent_face[e]] = False
+            e = ent_next[e]
+        # the fan faces, and the later necks' stars they join
+        for h in range(2):
+            c0, c1 = cyc_at[2 * j + h], cyc_at[2 * j + h + 1]
+            m = c1 - c0
+            for t in range(m):
+                p, p1 = c0 + t, c0 + (t + 1) % m
+                for w in range(2):
+                    if nf == alive.shape[0]:
+                        faces = _grown1(faces)
+                        alive = _grown1(alive)
+                    if w == 0:
+                        faces[3 * nf], faces[3 * nf + 1], faces[3 * nf + 2] = n_v + p, cyc[p], cyc[p1]
+                    else:
+                        faces[3 * nf], faces[3 * nf + 1], faces[3 * nf + 2] = n_v + p, cyc[p1], n_v + p1
+                    alive[nf] = True
+                    for d in range(3):
+                        v = faces[3 * nf + d]
+                        if v < n_v and pos[v] > j:
+                            ent_face, ent_next, nent = _star_append(pos[v], nf, ent_face, ent_next, head, tail, nent)
+                    nf += 1
+    return np.int64(0), cyc[:ncyc].copy(), cyc_at, alive[:n_old].copy(), faces[3 * n_old:3 * nf].reshape(-1, 3).copy(), alive[n_old:nf].copy()
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _star_append(j, t, ent_face, ent_next, head, tail, nent):
+    """Face ``t`` appended to neck ``j``'s star (a linked list of entries ``ent_face``,
+    ``ent_next`` from ``head[j]`` to ``tail[j]``; ``nent`` entries used): the entry arrays (grown
+    where full) and the new count."""
+    if nent == ent_face.shape[0]:
+        ent_face = _grown1(ent_face)
+        ent_next = _grown1(ent_next)
+    ent_face[nent] = t
+    ent_next[nent] = -1
+    if tail[j] >= 0:
+        ent_next[tail[j]] = nent
+    else:
+        head[j] = nent
+    tail[j] = nent
+    return ent_face, ent_next, nent + 1
+
+
+@njit(cache=True, nogil=True)
+def _grown1(a):
+    """``a`` in an array twice as long (the rest not set)."""
+    b = np.empty(2 * a.shape[0], a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _neck_rounds(cyc, cyc_at, n_v):
+    """The round of each neck's rings (:func:`_necks_rings`): 0, or one more than the latest round
+    of the necks whose new vertices its cycles hold (always earlier necks)."""
+    k = (cyc_at.shape[0] - 1) // 2
+    rnd = np.zeros(k, np.int64)
+    owner = np.empty(cyc.shape[0], np.int64)
+    for j in range(k):
+        for p in range(cyc_at[2 * j], cyc_at[2 * j + 2]):
+            owner[p] = j
+    for j in range(k):
+        for p in range(cyc_at[2 * j], cyc_at[2 * j + 2]):
+            v = cyc[p]
+            if v >= n_v:
+                rnd[j] = max(rnd[j], rnd[owner[v - n_v]] + 1)
+    return rnd
+
+
+def _necks_rings(V, necks, cyc, cyc_at, rounds, nudge):
+    """Step 2 of :func:`_open_necks`: the new vertices (row ``p`` for cycle entry ``p``), each a
+    hair from its neck towards its link vertex, as the loop makes them: ``pc + eps * dirs`` with
+    ``dirs`` the unit directions, ``eps`` ``nudge`` on the first cycle and 1.5 ``nudge`` on the
+    second; row by row, the same operations; ``rounds`` per neck (:func:`_neck_rounds`)."""
+    n_v = len(V)
+    n = len(cyc)
+    R = np.empty((n, 3))
+    lens = np.diff(cyc_at)
+    which = np.repeat(np.arange(len(lens)), lens)  # (2 neck + cycle) of each entry
+    nk = which // 2
+    eps = np.array([nudge * (1.0 + 0.5 * 0), nudge * (1.0 + 0.5 * 1)])[which % 2]
+    rnd = rounds[nk]
+    for r in range(int(rnd.max(initial=-1)) + 1):
+        rows = np.flatnonzero(rnd == r)
+        v = cyc[rows]
+        P = np.empty((len(rows), 3))
+        old = v < n_v
+        P[old] = V[v[old]]
+        P[~old] = R[v[~old] - n_v]
+        pc = V[necks[nk[rows]]]
+        dirs = P - pc
+        dirs /= np.maximum(np.linalg.norm(dirs, axis=1), 1e-300)[:, None]
+        R[rows] = pc + eps[rows, None] * dirs
+    return R
+
+
+def _necks_angles(V, necks, R, cyc_at):
+    """Step 2 of :func:`_open_necks`, continued: per neck the angles of its two rings about its
+    tube's axis (the loop's :func:`_ring_angles` of ``ring0 - pc`` and ``ring1[::-1] - pc``) and
+    the unwrapped angles its walk compares, all necks in whole-array steps.  Returns ``(ta, tb, ua,
+    ub)`` flat along the rings' entries (the second ring's reversed), ``ta`` and ``tb`` as
+    :func:`_ring_angles` gives them, ``ua`` and ``ub`` the loop's ``np.unwrap`` of them rolled
+    (the second ring to start at the angle nearest the first's first) and turned, without the
+    closing entry.
+
+    Each step computes what the loop computes per neck, row by row: elementwise ufuncs on the
+    stacked rows, the means as sums row after row (as numpy's reduction over the first axis adds
+    them), the vectors' norms as ``np.vecdot`` (the dot product ``np.linalg.norm`` takes of one
+    vector) and the matrix-vector products as the same BLAS calls (``np.matmul`` on the rings of
+    one length, stacked)."""
+    la = cyc_at[1::2] - cyc_at[0:-1:2]
+    lb = cyc_at[2::2] - cyc_at[1::2]
+    a_rows, b_rows = _ring_rows(cyc_at)
+    pc = V[necks]
+    A = R[a_rows] - np.repeat(pc, la, axis=0)
+    B = R[b_rows] - np.repeat(pc, lb, axis=0)
+    da = A / np.maximum(np.linalg.norm(A, axis=1), 1e-300)[:, None]
+    db = B / np.maximum(np.linalg.norm(B, axis=1), 1e-300)[:, None]
+    ax = _segment_means(db, lb) - _segment_means(da, la)
+    ax /= np.maximum(np.sqrt(np.vecdot(ax, ax)), 1e-300)[:, None]
+    # (_cross3 with (1, 0, 0), and with (0, 1, 0) where that is short: the same products)
+    a0, a1, a2 = ax[:, 0], ax[:, 1], ax[:, 2]
+    e1 = np.stack([a1 * 0.0 - a2 * 0.0, a2 * 1.0 - a0 * 0.0, a0 * 0.0 - a1 * 1.0], axis=1)
+    short = np.sqrt(np.vecdot(e1, e1)) < 0.5
+    if short.any():
+        e1[short] = np.stack([a1 * 0.0 - a2 * 1.0, a2 * 0.0 - a0 * 0.0, a0 * 1.0 - a1 * 0.0], axis=1)[short]
+    e1 /= np.sqrt(np.vecdot(e1, e1))[:, None]
+    b0, b1, b2 = e1[:, 0], e1[:, 1], e1[:, 2]
+    e2 = np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+    ta = np.arctan2(_stacked_products(A, la, e2), _stacked_products(A, la, e1))
+    tb = np.arctan2(_stacked_products(B, lb, e2), _stacked_products(B, lb, e1))
+    # the second ring's start: the first angle nearest the first ring's first
+    ta0 = ta[_starts(la)]
+    ta0b = np.repeat(ta0, lb)
+    j0 = _segment_argmin(np.abs(np.angle(np.exp(1j * (tb - ta0b)))), lb)
+    ua = _unwrap_segments(ta - np.repeat(ta0, la), la)
+    ub = _unwrap_segments(tb[_rolled_rows(lb, j0)] - ta0b, lb)
+    return j0, ua, ub
+
+
+def _ring_rows(cyc_at):
+    """The rows of the first rings' entries in order and of the second rings' reversed."""
+    s0, s1, s2 = cyc_at[0:-1:2], cyc_at[1::2], cyc_at[2::2]
+    la, lb = s1 - s0, s2 - s1
+    a_rows = np.arange(int(la.sum())) + np.repeat(s0 - _starts(la), la)
+    # second rings reversed: entry i of neck j -> s2[j] - 1 - i
+    i = np.arange(int(lb.sum())) - np.repeat(_starts(lb), lb)
+    b_rows = np.repeat(s2 - 1, lb) - i
+    return a_rows, b_rows
+
+
+def _starts(lens):
+    """Where each segment of lengths ``lens`` starts in the flat array."""
+    out = np.zeros(len(lens), dtype=np.int64)
+    np.cumsum(lens[:-1], out=out[1:])
+    return out
+
+@njit(cache=True, nogil=True)
+def _segment_means(X, lens):
+    """Per segment of rows (lengths ``lens``) ``X[seg].mean(axis=0)``: numpy adds the rows one
+    after another from the first and divides by their count; so here."""
+    out = np.empty((lens.shape[0], X.shape[1]))
+    at = 0
+    for j in range(lens.shape[0]):
+        n = lens[j]
+        for d in range(X.shape[1]):
+            s = X[at, d]
+            for i in range(at + 1, at + n):
+                s += X[i, d]
+            out[j, d] = s / np.float64(n)
+        at += n
+    return out
+
+
+def _stacked_products(X, lens, e):
+    """Per segment ``j`` of rows (lengths ``lens``), ``X[seg] @ e[j]``, flat: one ``np.matmul`` per
+    length on the segments of that length stacked, which makes the BLAS call of each segment's own
+    product (the same matrix-vector call per segment, so the same numbers)."""
+    out = np.empty(len(X))
+    starts = _starts(lens)
+    for n in np.unique(lens).tolist():
+        segs = np.flatnonzero(lens == n)
+        rows = (starts[segs][:, None] + np.arange(n)).reshape(-1)
+        got = np.matmul(X[rows].reshape(len(segs), n, X.shape[1]), e[segs][:, :, None])
+        out[rows] = got.reshape(-1)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _segment_argmin(x, lens):
+    """Per segment (lengths ``lens``) ``np.argmin`` of its entries: the first least one, or the
+    first NaN."""
+    out = np.empty(lens.shape[0], np.int64)
+    at = 0
+    for j in range(lens.shape[0]):
+        best = 0
+        for i in range(lens[j]):
+            v = x[at + i]
+            if v != v:
+                best = i
+                break
+            if v < x[at + best]:
+                best = i
+        out[j] = best
+        at += lens[j]
+    return out
+
+
+def _rolled_rows(lens, k):
+    """The flat rows of each segment (lengths ``lens``) rolled to start at its entry ``k[j]``
+    (``_rolled`` per segment)."""
+    starts = _starts(lens)
+    i = np.arange(int(lens.sum())) - np.repeat(starts, lens)
+    n = np.repeat(lens, lens)
+    return np.repeat(starts, lens) + (i + np.repeat(k, lens)) % n
+
+
+def _unwrap_segments(p, lens):
+    """``np.unwrap`` of each segment (lengths ``lens``) of ``p``: its steps made on the whole array
+    at once (the differences across two segments made and not used), the corrections summed up
+    per segment in order (:func:`_add_segment_cumsums`, numpy's cumsum adds in order)."""
+    period = 2 * np.pi
+    discont = period / 2
+    interval_high = period / 2
+    interval_low = -interval_high
+    dd = p[1:] - p[:-1]
+    ddmod = np.mod(dd - interval_low, period) + interval_low
+    np.copyto(ddmod, interval_high, where=(ddmod == interval_low) & (dd > 0))
+    ph_correct = ddmod - dd
+    np.copyto(ph_correct, 0, where=abs(dd) < discont)
+    return _add_segment_cumsums(p, ph_correct, lens)
+
+
+@njit(cache=True, nogil=True)
+def _add_segment_cumsums(p, ph, lens):
+    """``up[s] = p[s]`` and ``up[s + i] = p[s + i] + cumsum(ph[s:s + i])[-1]`` per segment from
+    ``s`` (``ph[t]``: the correction between entries ``t`` and ``t + 1``)."""
+    up = p.copy()
+    at = 0
+    for j in range(lens.shape[0]):
+        c = 0.0
+        for i in range(1, lens[j]):
+            c = ph[at + i - 1] if i == 1 else c + ph[at + i - 1]
+            up[at + i] = p[at + i] + c
+        at += lens[j]
+    return up
+
+
+@njit(cache=True, nogil=True)
+def _tube_walk(a, b, ua, ub, proportional, faces):
+    """The loop's ``walk``: join rings ``a`` and ``b`` (``n``, ``m`` vertices) by ``n + m``
+    triangles written to ``faces``, advancing the ring whose next vertex comes first around the
+    axis (``ua[i + 1] <= ub[j + 1]``) or, ``proportional``, both in proportion to their sizes;
+    returns whether the walk's path visits no pair ``(i % n, j % m)`` twice."""
+    n, m = a.shape[0], b.shape[0]
+    seen = np.zeros(n * m, np.bool_)
+    seen[0] = True
+    simple = True
+    i = j = 0
+    t = 0
+    while i < n or j < m:
+        if j >= m:
+            first = True
+        elif proportional:
+            first = i < n and (i + 1) * m <= (j + 1) * n
+        else:
+            first = i < n and ua[i + 1] <= ub[j + 1]
+        if first:
+            faces[t, 0], faces[t, 1], faces[t, 2] = a[i % n], a[(i + 1) % n], b[j % m]
+            i += 1
+        else:
+            faces[t, 0], faces[t, 1], faces[t, 2] = a[i % n], b[(j + 1) % m], b[j % m]
+            j += 1
+        t += 1
+        if i < n or j < m:  # (the path's last point is not counted)
+            q = (i % n) * m + (j % m)
+            if seen[q]:
+                simple = False
+            seen[q] = True
+    return simple
+
+
+@njit(cache=True, nogil=True)
+def _test_mesh(V, R, fans, tube, P, Fl):
+    """The mesh the loop's :func:`_tube_crosses` tests, without the dict: the fans' and the tube's
+    faces in local numbers (their vertices sorted) written to ``Fl`` (one row per face), the points
+    to ``P`` (from ``V`` and ``R``: vertex ``len(V) + p`` is ``R[p]``); returns the number of points."""
+    n_v = V.shape[0]
+    nf = fans.shape[0] + tube.shape[0]
+    allv = np.empty(3 * nf, np.int64)
+    for i in range(fans.shape[0]):
+        for d in range(3):
+            allv[3 * i + d] = fans[i, d]
+    for i in range(tube.shape[0]):
+        for d in range(3):
+            allv[3 * (fans.shape[0] + i) + d] = tube[i, d]
+    ids = np.unique(allv)
+    for t in range(ids.shape[0]):
+        v = ids[t]
+        for d in range(3):
+            P[t, d] = V[v, d] if v < n_v else R[v - n_v, d]
+    loc = np.searchsorted(ids, allv)
+    for i in range(nf):
+        for d in range(3):
+            Fl[i, d] = loc[3 * i + d]
+    return ids.shape[0]
+
+
+@njit(cache=True, nogil=True)
+def _neck_walks(V, R, fans, cyc_at, j0, ua, ub):
+    """Step 3 of :func:`_open_necks`: each neck's tube faces as the loop's first choice makes
+    them, rows ``cyc_at[2k]:cyc_at[2k + 2]`` for neck ``k`` (a tube has as many faces as its rings
+    have vertices), and the meshes of their crossing tests: ``(tube, P, p_at, Fl)``, neck ``k``'s
+    points ``P[p_at[k]:p_at[k + 1]]`` and faces ``Fl[3 cyc_at[2k]:3 cyc_at[2k + 2]]`` (its fans,
+    then its tube).  The first ring runs in order, the second reversed and rolled to start at
+    ``j0`` (:func:`_second_rings`); the walk by angle, or the proportional one where that path is
+    not simple."""
+    n_v = V.shape[0]
+    k = j0.shape[0]
+    tube = np.empty((cyc_at[2 * k], 3), np.int64)
+    P = np.empty((2 * cyc_at[2 * k], 3))
+    p_at = np.zeros(k + 1, np.int64)
+    Fl = np.empty((3 * cyc_at[2 * k], 3), np.int64)
+    rings = _second_rings(cyc_at, j0, n_v)
+    oa = ob = 0  # (where the neck's entries start in ua, ub)
+    for j in range(k):
+        s0, s1, s2 = cyc_at[2 * j], cyc_at[2 * j + 1], cyc_at[2 * j + 2]
+        n, m = s1 - s0, s2 - s1
+        a = np.arange(n_v + s0, n_v + s1)
+        b = rings[s1:s2]
+        # the unwrapped angles, turned where the first ring runs backwards, and closed
+        wa = np.empty(n + 1)
+        wb = np.empty(m + 1)
+        wa[:n] = ua[oa:oa + n]
+        wb[:m] = ub[ob:ob + m]
+        oa += n
+        ob += m
+        if wa[n - 1] < 0:
+            for i in range(n):
+                wa[i] = -wa[i]
+            for i in range(m):
+                wb[i] = -wb[i]
+        wa[n] = wa[0] + 2 * np.pi
+        wb[m] = wb[0] + 2 * np.pi
+        faces = tube[s0:s2]
+        if not _tube_walk(a, b, wa, wb, False, faces):
+            _tube_walk(a, b, wa, wb, True, faces)
+        got = _test_mesh(V, R, fans[2 * s0:2 * s2], faces, P[p_at[j]:], Fl[3 * s0:3 * s2])
+        p_at[j + 1] = p_at[j] + got
+    return tube, P, p_at, Fl
+
+
+@njit(cache=True, nogil=True)
+def _second_rings(cyc_at, j0, n_v):
+    """Per neck ``k``, at rows ``cyc_at[2k + 1]:cyc_at[2k + 2]``: its second ring's new vertices
+    reversed and rolled to start at entry ``j0[k]`` (the loop's ``b``); the other rows not set."""
+    out = np.empty(cyc_at[-1], np.int64)
+    for j in range(j0.shape[0]):
+        s1, s2 = cyc_at[2 * j + 1], cyc_at[2 * j + 2]
+        m = s2 - s1
+        for i in range(m):
+            out[s1 + i] = n_v + s2 - 1 - (j0[j] + i) % m
+    return out
+
+
+def _tube_retry(V, R, fans, faces, a, b, delay):
+    """A tube whose first walk crosses its fans or itself (:func:`_neck_walks`): as the loop, the
+    proportional walk from each start on the second ring ``b`` in turn, the first simple one
+    keeping clear written over ``faces`` (else they are kept); ``a``, ``b``: the rings (lists)."""
+    n, m = len(a), len(b)
+    n_v = len(V)
+    for r in range(m):
+        simple, trial = _walk_rings(a, b[r:] + b[:r], lambda i, j: (i + 1) * m <= (j + 1) * n)
+        if not simple:
+            continue
+        f = np.concatenate([fans, np.array(trial, dtype=np.int64)])
+        ids, local = np.unique(f.reshape(-1), return_inverse=True)
+        P = np.empty((len(ids), 3))
+        old = ids < n_v
+        P[old] = V[ids[old]]
+        P[~old] = R[ids[~old] - n_v]
+        if not _any_kernel(P, local.reshape(-1, 3).astype(np.int64), np.int64(delay)):
+            faces[:] = trial
+            return
+
+
+@njit(cache=True, nogil=True)
+def _neck_faces(cyc_at, fans, fan_alive, tube):
+    """Step 4 of :func:`_open_necks`: the faces the necks add, in the loop's order: per neck its
+    fan faces left alive (later necks retire those at them), then its tube."""
+    k = (cyc_at.shape[0] - 1) // 2
+    n = 0
+    for i in range(fan_alive.shape[0]):
+        n += fan_alive[i]
+    out = np.empty((n + tube.shape[0], 3), np.int64)
+    t = 0
+    for j in range(k):
+        s0, s2 = cyc_at[2 * j], cyc_at[2 * j + 2]
+        for i in range(2 * s0, 2 * s2):
+            if fan_alive[i]:
+                out[t] = fans[i]
+                t += 1
+        for i in range(s0, s2):
+            out[t] = tube[i]
+            t += 1
+    return out
+
+
+def _open_necks_loop(V, F, S, necks, nudge, tube_seen=None):
     """Replace each neck vertex by a small tube joining its two fans.
 
     At a mid-plane corner where the two empty voxels of the 2 x 2 x 2 block around it touch only
@@ -787,17 +1467,7 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
         # ring while the other waits (rings that are not star-shaped about the axis: the same
         # diagonal twice, four faces on an edge), advance both in proportion to their sizes instead
         def walk(b, first_of):
-            i = j = 0
-            path, tube_faces = [(0, 0)], []
-            while i < n or j < m:
-                if j >= m or (i < n and first_of(i, j)):
-                    tube_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
-                    i += 1
-                else:
-                    tube_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
-                    j += 1
-                path.append((i % n, j % m))
-            return len(set(path[:-1])) == len(path) - 1, tube_faces
+            return _walk_rings(a, b, first_of)
 
         for first_of in (lambda i, j: ua[i + 1] <= ub[j + 1], lambda i, j: (i + 1) * m <= (j + 1) * n):
             simple, tube_faces = walk(b, first_of)
@@ -823,6 +1493,24 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
     F, S = _kept_and_added(F, S, keep, added, [0] * len(added))
     V = np.concatenate(Vs)
     return V, F, S
+
+
+def _walk_rings(a, b, first_of):
+    """The loop's walk joining rings ``a`` and ``b`` (lists): ``(simple, faces)``, the ``len(a) +
+    len(b)`` triangles made advancing ``a`` where ``first_of(i, j)`` (else ``b``), and whether the
+    path visits no pair ``(i % n, j % m)`` twice (see :func:`_tube_walk`, its compiled form)."""
+    n, m = len(a), len(b)
+    i = j = 0
+    path, tube_faces = [(0, 0)], []
+    while i < n or j < m:
+        if j >= m or (i < n and first_of(i, j)):
+            tube_faces.append((a[i % n], a[(i + 1) % n], b[j % m]))
+            i += 1
+        else:
+            tube_faces.append((a[i % n], b[(j + 1) % m], b[j % m]))
+            j += 1
+        path.append((i % n, j % m))
+    return len(set(path[:-1])) == len(path) - 1, tube_faces
 
 
 def _tube_crosses(fans, tube, xyz, seen=None) -> bool:
