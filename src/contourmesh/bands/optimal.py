@@ -150,83 +150,95 @@ def _annulus_dp(A1, A2, s, D, move, parent, keep):
         d4 = D[r, TWO_ROWS]
         a2row = A2[ib]
         # C(2)-advances within row i, (i, j) -> (i, j + 1), in increasing j: a cell is final
-        # before it offers; the offers to a cell come from the layers in increasing order
+        # before it offers; the offers to a cell come from the layers in increasing order.  NONE
+        # (no C(2)-advance yet) is finite in column 0 only: elsewhere it would offer infinity (or
+        # NaN), which wins no comparison, so its one offer is made first, before the others to
+        # that cell.  The final costs of the layers that advance along the row are carried to the
+        # next cell in registers (the numbers stored in D, not read back from it)
         row0 = i == 0 or i == n
+        c = d0[0] + a2row[0]
+        if row0:
+            if c < d1[1]:  # NONE -> ROW0
+                d1[1] = c
+                if keep:
+                    move[i, ROW0, 1] = 1
+                    parent[i, ROW0, 1] = NONE
+        elif c < d2[1]:  # NONE -> ROW_HERE
+            d2[1] = c
+            if keep:
+                move[i, ROW_HERE, 1] = 1
+                parent[i, ROW_HERE, 1] = NONE
+        x1 = d1[0]
+        x2 = d2[0]
+        x4 = d4[0]
         for j in range(m):
             a2 = a2row[j]
             t = j + 1
             if row0:
-                c = d0[j] + a2  # NONE -> ROW0
-                if c < d1[t]:
-                    d1[t] = c
-                    if keep:
-                        move[i, ROW0, t] = 1
-                        parent[i, ROW0, t] = NONE
-                c = d1[j] + a2  # ROW0 -> ROW0
-                if c < d1[t]:
-                    d1[t] = c
+                y = d1[t]
+                c = x1 + a2  # ROW0 -> ROW0
+                if c < y:
+                    y = c
                     if keep:
                         move[i, ROW0, t] = 1
                         parent[i, ROW0, t] = ROW0
-            else:
-                c = d0[j] + a2  # NONE -> ROW_HERE
-                if c < d2[t]:
-                    d2[t] = c
-                    if keep:
-                        move[i, ROW_HERE, t] = 1
-                        parent[i, ROW_HERE, t] = NONE
-                c = d1[j] + a2  # ROW0 -> TWO_ROWS
-                if c < d4[t]:
-                    d4[t] = c
-                    if keep:
-                        move[i, TWO_ROWS, t] = 1
-                        parent[i, TWO_ROWS, t] = ROW0
-            c = d2[j] + a2  # ROW_HERE -> ROW_HERE
-            if c < d2[t]:
-                d2[t] = c
+                d1[t] = y
+                x1 = y
+            y = d2[t]
+            c = x2 + a2  # ROW_HERE -> ROW_HERE
+            if c < y:
+                y = c
                 if keep:
                     move[i, ROW_HERE, t] = 1
                     parent[i, ROW_HERE, t] = ROW_HERE
+            d2[t] = y
+            x2 = y
+            y = d4[t]
+            if not row0:
+                c = d1[j] + a2  # ROW0 -> TWO_ROWS
+                if c < y:
+                    y = c
+                    if keep:
+                        move[i, TWO_ROWS, t] = 1
+                        parent[i, TWO_ROWS, t] = ROW0
             c = d3[j] + a2  # ROW_PAST -> TWO_ROWS
-            if c < d4[t]:
-                d4[t] = c
+            if c < y:
+                y = c
                 if keep:
                     move[i, TWO_ROWS, t] = 1
                     parent[i, TWO_ROWS, t] = ROW_PAST
-            c = d4[j] + a2  # TWO_ROWS -> TWO_ROWS
-            if c < d4[t]:
-                d4[t] = c
+            c = x4 + a2  # TWO_ROWS -> TWO_ROWS
+            if c < y:
+                y = c
                 if keep:
                     move[i, TWO_ROWS, t] = 1
                     parent[i, TWO_ROWS, t] = TWO_ROWS
+            d4[t] = y
+            x4 = y
         if i == n:
             break
         # C(1)-advances to row i + 1, (i, j) -> (i + 1, j): every layer keeps its own, except
-        # ROW_HERE, which becomes ROW_PAST (offered before ROW_PAST's own)
+        # ROW_HERE, which becomes ROW_PAST (offered before ROW_PAST's own); NONE's only in column 0
+        # (its move and parent are the tables' zeros)
         rn = (i + 1) % 2
-        e0 = D[rn, NONE]
         e1 = D[rn, ROW0]
         e2 = D[rn, ROW_HERE]
         e3 = D[rn, ROW_PAST]
         e4 = D[rn, TWO_ROWS]
         a1row = A1[ib]
         i1 = i + 1
+        D[rn, NONE, 0] = d0[0] + a1row[0]
         for j in range(m + 1):
             a1 = a1row[0] if j == m else a1row[j]
-            c0 = d0[j] + a1
             c1 = d1[j] + a1
             ch = d2[j] + a1
             cp = d3[j] + a1
             c4 = d4[j] + a1
-            e0[j] = c0
             e1[j] = c1
             e2[j] = inf
             e3[j] = cp if cp < ch else ch
             e4[j] = c4
             if keep:
-                if c0 < inf:
-                    move[i1, NONE, j] = 0
-                    parent[i1, NONE, j] = NONE
                 if c1 < inf:
                     move[i1, ROW0, j] = 0
                     parent[i1, ROW0, j] = ROW0
