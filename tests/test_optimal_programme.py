@@ -136,3 +136,33 @@ def test_step_areas_are_the_triangle_areas():
             for j in range(m):
                 assert A1[i, j] == _tri_area(c1[i], c1[(i + 1) % n], c2[j])
                 assert A2[i, j] == _tri_area(c1[i], c2[(j + 1) % m], c2[j])
+
+
+def test_abs_max_is_the_largest_magnitude_in_any_order():
+    """``_abs_max`` (four running maxima) is the plain loop's ``max(amax, |a|, |b|)`` from 0, bit for bit:
+    NaNs passed over, signed costs by magnitude, rows of odd and even length."""
+    from numba import njit
+
+    from contourmesh.bands.optimal import _abs_max
+
+    @njit
+    def plain(A1, A2):
+        amax = 0.0
+        for i in range(A1.shape[0]):
+            for j in range(A1.shape[1]):
+                amax = max(amax, abs(A1[i, j]), abs(A2[i, j]))
+        return amax
+
+    rs = np.random.default_rng(11)
+    for t in range(300):
+        shape = (int(rs.integers(1, 7)), int(rs.integers(1, 9)))
+        A1, A2 = rs.normal(size=shape) * 10.0 ** rs.integers(-3, 4), rs.normal(size=shape)
+        for A in (A1, A2):
+            if rs.random() < 0.3:
+                A[rs.random(shape) < 0.3] = np.nan
+            if rs.random() < 0.2:
+                A[rs.random(shape) < 0.3] = -np.inf if rs.random() < 0.5 else 0.0
+        want = plain(A1, A2)
+        got = _abs_max(A1, A2)
+        assert got == want or (np.isnan(got) and np.isnan(want)), (A1, A2)
+    assert _abs_max(np.full((2, 3), np.nan), np.full((2, 3), np.nan)) == 0.0

@@ -32,6 +32,8 @@ start points, the smallest ``s`` with the minimum total wins.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from numba import njit
 
@@ -72,6 +74,15 @@ def _step_areas(c1, c2):
     m = c2.shape[0]
     A1 = np.empty((n, m))
     A2 = np.empty((n, m))
+    _step_areas_into(c1, c2, A1, A2)
+    return A1, A2
+
+
+@njit(cache=True)
+def _step_areas_into(c1, c2, A1, A2):
+    """:func:`_step_areas` written into ``A1`` and ``A2`` (``(n, m)`` each)."""
+    n = c1.shape[0]
+    m = c2.shape[0]
     bx = np.empty(m + 1)
     by = np.empty(m + 1)
     bz = np.empty(m + 1)
@@ -101,7 +112,6 @@ def _step_areas(c1, c2):
             cy = wz * vx - wx * vz
             cz = wx * vy - wy * vx
             a2[j] = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
-    return A1, A2
 
 
 # Layers of the dynamic programme (see the module docstring): which torus rows (points of
@@ -275,16 +285,33 @@ def optimal_edges_from(c1, c2, starts):
     total : float
         Its total triangle area.
     """
-    A1, A2 = _step_areas(c1, c2)
-    D2 = np.empty((2, N_LAYERS, c2.shape[0] + 1))
-    best_s, total, move, parent = _best_band(A1, A2, starts, D2)
-    return _trace_back(move, parent, c1.shape[0], c2.shape[0]), best_s, total
+    n, m = c1.shape[0], c2.shape[0]
+    return _optimal_edges_in(c1, c2, starts, np.empty(2 * n * m), np.empty(2 * (n + 1) * N_LAYERS * (m + 1), np.int8))
 
 
 @njit(cache=True)
-def _best_band(A1, A2, starts, D2):
-    """The start point :func:`_best_start` picks (``starts[0]`` where none is finite), its
-    programme's total and its ``move`` / ``parent`` tables.
+def _optimal_edges_in(c1, c2, starts, fbuf, bbuf):
+    """:func:`optimal_edges_from` with its largest arrays in the buffers ``fbuf`` (float64, at least
+    ``2 n m``: the step areas) and ``bbuf`` (int8, at least ``2 (n + 1) N_LAYERS (m + 1)``: the
+    ``move`` / ``parent`` tables, zeroed here), whose contents do not matter: the same result."""
+    n, m = c1.shape[0], c2.shape[0]
+    A1 = fbuf[:n * m].reshape((n, m))
+    A2 = fbuf[n * m:2 * n * m].reshape((n, m))
+    _step_areas_into(c1, c2, A1, A2)
+    cells = (n + 1) * N_LAYERS * (m + 1)
+    tables = bbuf[:2 * cells]
+    tables[:] = 0
+    move = tables[:cells].reshape((n + 1, N_LAYERS, m + 1))
+    parent = tables[cells:].reshape((n + 1, N_LAYERS, m + 1))
+    D2 = np.empty((2, N_LAYERS, m + 1))
+    best_s, total = _best_band(A1, A2, starts, D2, move, parent)
+    return _trace_back(move, parent, n, m), best_s, total
+
+
+@njit(cache=True)
+def _best_band(A1, A2, starts, D2, move, parent):
+    """The start point :func:`_best_start` picks (``starts[0]`` where none is finite) and its
+    programme's total; its moves recorded in ``move`` / ``parent`` (zero tables).
 
     Where one start point is given, or the strip search leaves one start point near the bound
     and certifies it, that start point's one programme records the tables: it is not run a second
@@ -294,10 +321,8 @@ def _best_band(A1, A2, starts, D2):
     or three near start points saved nothing)."""
     n, m = A1.shape
     k = starts.shape[0]
-    move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     if k == 1:
-        return starts[0], _annulus_dp(A1, A2, starts[0], D2, move, parent, np.bool_(True)), move, parent
+        return starts[0], _annulus_dp(A1, A2, starts[0], D2, move, parent, np.bool_(True))
     best_s = -2
     if k >= _STRIP_MIN_STARTS:
         a = _cyclic_run(starts, n)
@@ -312,15 +337,14 @@ def _best_band(A1, A2, starts, D2):
                 if n_near == 1:
                     c = _annulus_dp(A1, A2, only, D2, move, parent, np.bool_(True))
                     if c <= low + tol:
-                        return only, c, move, parent
+                        return only, c
                 else:
                     best_s = _near_best(A1, A2, near, low, tol, D2)
     if best_s == -2:
         best_s = _best_start_each(A1, A2, starts, D2)
     if best_s < 0:
         best_s = starts[0]
-    total = _annulus_dp(A1, A2, best_s, D2, move, parent, np.bool_(True))
-    return best_s, total, move, parent
+    return best_s, _annulus_dp(A1, A2, best_s, D2, move, parent, np.bool_(True))
 
 
 @njit(cache=True)
@@ -618,15 +642,40 @@ def _near_starts(A1, A2, a, k):
     low = np.inf
     for t in range(k):
         low = min(low, free[t])
-    amax = 0.0
-    for i in range(n):
-        for j in range(m):
-            amax = max(amax, abs(A1[i, j]), abs(A2[i, j]))
-    tol = _TIE * (n + m) * amax
+    tol = _TIE * (n + m) * _abs_max(A1, A2)
     for t in range(k):
         if free[t] <= low + 2.0 * tol:
             near[(a + t) % n] = True
     return near, low, tol
+
+
+@njit(cache=True)
+def _abs_max(A1, A2):
+    """The largest ``|A1[i, j]|`` and ``|A2[i, j]|`` (NaNs passed over; 0 for none), in four running
+    maxima (each a chain of comparisons: one chain waits for the last comparison at every value).
+    The same number in any order: the largest of the values that are not NaN."""
+    n, m = A1.shape
+    p0 = p1 = p2 = p3 = 0.0
+    for i in range(n):
+        a1 = A1[i]
+        a2 = A2[i]
+        for j in range(0, m - 1, 2):
+            x = abs(a1[j])
+            p0 = x if x > p0 else p0
+            x = abs(a2[j])
+            p1 = x if x > p1 else p1
+            x = abs(a1[j + 1])
+            p2 = x if x > p2 else p2
+            x = abs(a2[j + 1])
+            p3 = x if x > p3 else p3
+        if m % 2:
+            x = abs(a1[m - 1])
+            p0 = x if x > p0 else p0
+            x = abs(a2[m - 1])
+            p1 = x if x > p1 else p1
+    p0 = p1 if p1 > p0 else p0
+    p2 = p3 if p3 > p2 else p2
+    return p2 if p2 > p0 else p0
 
 
 @njit(cache=True)
@@ -646,6 +695,28 @@ def _trace_back(move, parent, n, m):
         E[k, 0] = i
         E[k, 1] = j
     return E
+
+
+#: Largest ``n m`` whose buffers (:func:`_buffers`) a thread keeps for its next band: about 26 bytes
+#: per cell, 13.6 MiB here; larger bands take fresh arrays.
+_KEPT_CELLS = 1 << 19
+_LOCAL = threading.local()
+
+
+def _buffers(n, m):
+    """``fbuf`` and ``bbuf`` for :func:`_optimal_edges_in` (``n <= m`` points): this thread's,
+    grown as needed, where ``n m <= _KEPT_CELLS``.  Fresh arrays of these sizes cost the system
+    about as much as the programmes that fill them (every page is zeroed at its first write:
+    1 ms of the liver's costly bands' 8); kept ones are in place and often in cache."""
+    nf, nb = 2 * n * m, 2 * (n + 1) * N_LAYERS * (m + 1)
+    if n * m > _KEPT_CELLS:
+        return np.empty(nf), np.empty(nb, np.int8)
+    got = getattr(_LOCAL, "buffers", None)
+    if got is None or len(got[0]) < nf or len(got[1]) < nb:
+        got = np.empty(max(nf, 0 if got is None else len(got[0]))), \
+            np.empty(max(nb, 0 if got is None else len(got[1])), np.int8)
+        _LOCAL.buffers = got
+    return got
 
 
 def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.ndarray:
@@ -684,11 +755,12 @@ def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.
     if len(c1) == 1:
         edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
         s = 0
-    elif bounded:
-        k = int(max(1, max_work // (n * m)))
-        near = int(np.argmin(((c1 - c2[0]) ** 2).sum(axis=1)))
-        starts = np.sort((near - k // 2 + np.arange(k)) % n).astype(np.int64)
-        edges, s, _ = optimal_edges_from(c1, c2, starts)
     else:
-        edges, s, _ = optimal_edges(c1, c2)
+        if bounded:
+            k = int(max(1, max_work // (n * m)))
+            near = int(np.argmin(((c1 - c2[0]) ** 2).sum(axis=1)))
+            starts = np.sort((near - k // 2 + np.arange(k)) % n).astype(np.int64)
+        else:
+            starts = np.arange(n, dtype=np.int64)  # (optimal_edges)
+        edges, s, _ = _optimal_edges_in(c1, c2, starts, *_buffers(n, m))
     return edges_to_faces(edges, len(c1), len(c2), s, 0, len(lo), swapped)
