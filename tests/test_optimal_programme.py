@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numba import njit
 
 from contourmesh.bands.fidelity import _costs
 from contourmesh.bands.optimal import (
@@ -77,6 +78,12 @@ def _plain_dp(A1, A2, s):
     return D[n, TWO_ROWS, m], D, move, parent
 
 
+@njit
+def _cost_only(A1, A2, s, D):
+    dummy = np.empty((1, 1, 1), np.int8)
+    return _annulus_dp(A1, A2, s, D, dummy, dummy, False)
+
+
 def _ring(rs, n, z, grid):
     t = np.sort(rs.uniform(0, 2 * np.pi, n))
     r = rs.uniform(0.3, 2) * (1 + 0.2 * rs.standard_normal(n))
@@ -108,6 +115,9 @@ def test_the_kernel_is_the_plain_programme(kind):
             dummy = np.empty((1, 1, 1), np.int8)
             cost = _annulus_dp(A1, A2, s, D, dummy, dummy, np.bool_(False))
             assert got == want or (np.isinf(got) and np.isinf(want)), (n, m, s)
+            assert cost == got or (np.isinf(cost) and np.isinf(got))
+            # the version compiled for the literal False (the callers' that do not record)
+            cost = _cost_only(A1, A2, s, D)
             assert cost == got or (np.isinf(cost) and np.isinf(got))
             # the moves of every reachable cell, and so the band read back from them
             live = np.isfinite(Dref)

@@ -128,139 +128,132 @@ N_LAYERS = 5
 def _annulus_dp(A1, A2, s, D, move, parent, keep):
     """Least total area of an annular path from edge ``(s, 0)`` to ``(s + n, m)``.
 
-    Forward ("push") relaxation over rows ``i = 0..n``; ``D[r, layer, j]`` holds row ``i`` at
-    ``r = i % 2`` (two rolling rows); if ``keep``, ``move``/``parent`` (full tables, one byte per
-    cell) record every cell's best step for backtracking.  On equal cost the C(1)-advance (pushed
-    first) wins, and among the offers of one kind the one from the lower layer.  Callers pass
-    ``keep`` as ``np.bool_``: a literal ``True``/``False`` would compile the programme once for
-    each value.
+    One pass over the rows ``i = 0..n`` and in each row over the cells ``t = 0..m``: a cell takes
+    the C(1)-advance from the row before (``(i - 1, t) -> (i, t)``), then the C(2)-advance from the
+    cell before it in its row (``(i, t - 1) -> (i, t)``), whose costs are final and carried in
+    registers.  ``D[r, layer, j]`` holds row ``i`` at ``r = i % 2`` (two rolling rows); if
+    ``keep``, ``move``/``parent`` (full zero tables, one byte per cell) record every cell's best step
+    for backtracking.  On equal cost the C(1)-advance (offered first) wins, and among the offers
+    of one kind the one from the lower layer.  The programmes that record pass ``keep`` as
+    ``np.bool_`` (one compiled version, as :mod:`contourmesh.bands.fidelity`'s); those that do
+    not pass the literal ``False``, a second version without the recording (a quarter faster).
 
     The layers' transitions are written out per row kind (rows 0 and ``n``, where a
-    C(2)-advance is at row 0, and the others), each layer a row of ``D``: a C(2)-advance takes
-    NONE to ROW0 at row 0 or ``n`` and to ROW_HERE elsewhere, ROW0 to itself at row 0 or ``n``
-    and to TWO_ROWS elsewhere, ROW_HERE to itself, ROW_PAST and TWO_ROWS to TWO_ROWS; a
-    C(1)-advance takes ROW_HERE to ROW_PAST and keeps every other layer.  Infinite cells offer
-    infinity instead of being skipped: the same offers in the same order as relaxing every layer
-    of every cell by these rules, so the same costs and moves (``tests/test_optimal_programme.py``
+    C(2)-advance is at row 0, and the others): a C(2)-advance takes NONE to ROW0 at row 0 or
+    ``n`` and to ROW_HERE elsewhere, ROW0 to itself at row 0 or ``n`` and to TWO_ROWS elsewhere,
+    ROW_HERE to itself, ROW_PAST and TWO_ROWS to TWO_ROWS; a C(1)-advance takes ROW_HERE to
+    ROW_PAST and keeps every other layer.  Infinite cells offer infinity instead of being skipped
+    (except NONE's, finite in column 0 only): the same winning offers in the same order as relaxing
+    every layer of every cell by these rules, row by row (all C(2)-advances of a row, then its
+    C(1)-advances to the next), so the same costs and moves (``tests/test_optimal_programme.py``
     compares it with that loop written plainly).
     """
     n, m = A1.shape
     inf = np.inf
     for L in range(N_LAYERS):
         for j in range(m + 1):
-            D[0, L, j] = inf
-    D[0, NONE, 0] = 0.0
+            D[1, L, j] = inf  # the row before row 0: nothing reached (its C(1)-steps cost 0 below)
+    none_row = np.zeros(m)
     for i in range(n + 1):
         r = i % 2
         ib = (s + i) % n                      # the C(1) point of row i
-        d0 = D[r, NONE]
+        a2row = A2[ib]
+        a1row = none_row if i == 0 else A1[(ib + n - 1) % n]  # the C(1)-steps into row i
+        p1 = D[1 - r, ROW0]  # the row before
+        p2 = D[1 - r, ROW_HERE]
+        p3 = D[1 - r, ROW_PAST]
+        p4 = D[1 - r, TWO_ROWS]
         d1 = D[r, ROW0]
         d2 = D[r, ROW_HERE]
         d3 = D[r, ROW_PAST]
         d4 = D[r, TWO_ROWS]
-        a2row = A2[ib]
-        # C(2)-advances within row i, (i, j) -> (i, j + 1), in increasing j: a cell is final
-        # before it offers; the offers to a cell come from the layers in increasing order.  NONE
-        # (no C(2)-advance yet) is finite in column 0 only: elsewhere it would offer infinity (or
-        # NaN), which wins no comparison, so its one offer is made first, before the others to
-        # that cell.  The final costs of the layers that advance along the row are carried to the
-        # next cell in registers (the numbers stored in D, not read back from it)
         row0 = i == 0 or i == n
-        c = d0[0] + a2row[0]
-        if row0:
-            if c < d1[1]:  # NONE -> ROW0
-                d1[1] = c
-                if keep:
-                    move[i, ROW0, 1] = 1
-                    parent[i, ROW0, 1] = NONE
-        elif c < d2[1]:  # NONE -> ROW_HERE
-            d2[1] = c
+        # NONE (no C(2)-step yet) is finite in column 0 only: elsewhere it would offer infinity
+        # (or NaN), which wins no comparison
+        x0 = 0.0 if i == 0 else D[1 - r, NONE, 0] + a1row[0]
+        D[r, NONE, 0] = x0
+        x1 = x2 = x3 = x4 = inf
+        for t in range(m + 1):
+            # cell (i, t): first the C(1)-step from (i - 1, t), where every layer keeps its own,
+            # except ROW_HERE, which becomes ROW_PAST (offered before ROW_PAST's own; NONE's move
+            # and parent are the tables' zeros) ...
+            a1 = a1row[t] if t < m else a1row[0]
+            y1 = p1[t] + a1
+            ch = p2[t] + a1
+            cp = p3[t] + a1
+            y3 = cp if cp < ch else ch
+            y4 = p4[t] + a1
+            y2 = inf
             if keep:
-                move[i, ROW_HERE, 1] = 1
-                parent[i, ROW_HERE, 1] = NONE
-        x1 = d1[0]
-        x2 = d2[0]
-        x4 = d4[0]
-        for j in range(m):
-            a2 = a2row[j]
-            t = j + 1
-            if row0:
-                y = d1[t]
-                c = x1 + a2  # ROW0 -> ROW0
-                if c < y:
-                    y = c
+                if y1 < inf:
+                    move[i, ROW0, t] = 0
+                    parent[i, ROW0, t] = ROW0
+                if cp < ch:
+                    move[i, ROW_PAST, t] = 0
+                    parent[i, ROW_PAST, t] = ROW_PAST
+                elif ch < inf:
+                    move[i, ROW_PAST, t] = 0
+                    parent[i, ROW_PAST, t] = ROW_HERE
+                if y4 < inf:
+                    move[i, TWO_ROWS, t] = 0
+                    parent[i, TWO_ROWS, t] = TWO_ROWS
+            if t > 0:
+                # ... then the C(2)-steps from (i, t - 1), whose costs are final (x0 .. x4), from
+                # the layers in increasing order
+                a2 = a2row[t - 1]
+                if row0:
+                    c = x0 + a2  # NONE -> ROW0
+                    if c < y1:
+                        y1 = c
+                        if keep:
+                            move[i, ROW0, t] = 1
+                            parent[i, ROW0, t] = NONE
+                    c = x1 + a2  # ROW0 -> ROW0
+                    if c < y1:
+                        y1 = c
+                        if keep:
+                            move[i, ROW0, t] = 1
+                            parent[i, ROW0, t] = ROW0
+                else:
+                    c = x0 + a2  # NONE -> ROW_HERE
+                    if c < y2:
+                        y2 = c
+                        if keep:
+                            move[i, ROW_HERE, t] = 1
+                            parent[i, ROW_HERE, t] = NONE
+                    c = x1 + a2  # ROW0 -> TWO_ROWS
+                    if c < y4:
+                        y4 = c
+                        if keep:
+                            move[i, TWO_ROWS, t] = 1
+                            parent[i, TWO_ROWS, t] = ROW0
+                c = x2 + a2  # ROW_HERE -> ROW_HERE
+                if c < y2:
+                    y2 = c
                     if keep:
-                        move[i, ROW0, t] = 1
-                        parent[i, ROW0, t] = ROW0
-                d1[t] = y
-                x1 = y
-            y = d2[t]
-            c = x2 + a2  # ROW_HERE -> ROW_HERE
-            if c < y:
-                y = c
-                if keep:
-                    move[i, ROW_HERE, t] = 1
-                    parent[i, ROW_HERE, t] = ROW_HERE
-            d2[t] = y
-            x2 = y
-            y = d4[t]
-            if not row0:
-                c = d1[j] + a2  # ROW0 -> TWO_ROWS
-                if c < y:
-                    y = c
+                        move[i, ROW_HERE, t] = 1
+                        parent[i, ROW_HERE, t] = ROW_HERE
+                c = x3 + a2  # ROW_PAST -> TWO_ROWS
+                if c < y4:
+                    y4 = c
                     if keep:
                         move[i, TWO_ROWS, t] = 1
-                        parent[i, TWO_ROWS, t] = ROW0
-            c = d3[j] + a2  # ROW_PAST -> TWO_ROWS
-            if c < y:
-                y = c
-                if keep:
-                    move[i, TWO_ROWS, t] = 1
-                    parent[i, TWO_ROWS, t] = ROW_PAST
-            c = x4 + a2  # TWO_ROWS -> TWO_ROWS
-            if c < y:
-                y = c
-                if keep:
-                    move[i, TWO_ROWS, t] = 1
-                    parent[i, TWO_ROWS, t] = TWO_ROWS
-            d4[t] = y
-            x4 = y
-        if i == n:
-            break
-        # C(1)-advances to row i + 1, (i, j) -> (i + 1, j): every layer keeps its own, except
-        # ROW_HERE, which becomes ROW_PAST (offered before ROW_PAST's own); NONE's only in column 0
-        # (its move and parent are the tables' zeros)
-        rn = (i + 1) % 2
-        e1 = D[rn, ROW0]
-        e2 = D[rn, ROW_HERE]
-        e3 = D[rn, ROW_PAST]
-        e4 = D[rn, TWO_ROWS]
-        a1row = A1[ib]
-        i1 = i + 1
-        D[rn, NONE, 0] = d0[0] + a1row[0]
-        for j in range(m + 1):
-            a1 = a1row[0] if j == m else a1row[j]
-            c1 = d1[j] + a1
-            ch = d2[j] + a1
-            cp = d3[j] + a1
-            c4 = d4[j] + a1
-            e1[j] = c1
-            e2[j] = inf
-            e3[j] = cp if cp < ch else ch
-            e4[j] = c4
-            if keep:
-                if c1 < inf:
-                    move[i1, ROW0, j] = 0
-                    parent[i1, ROW0, j] = ROW0
-                if cp < ch:
-                    move[i1, ROW_PAST, j] = 0
-                    parent[i1, ROW_PAST, j] = ROW_PAST
-                elif ch < inf:
-                    move[i1, ROW_PAST, j] = 0
-                    parent[i1, ROW_PAST, j] = ROW_HERE
-                if c4 < inf:
-                    move[i1, TWO_ROWS, j] = 0
-                    parent[i1, TWO_ROWS, j] = TWO_ROWS
+                        parent[i, TWO_ROWS, t] = ROW_PAST
+                c = x4 + a2  # TWO_ROWS -> TWO_ROWS
+                if c < y4:
+                    y4 = c
+                    if keep:
+                        move[i, TWO_ROWS, t] = 1
+                        parent[i, TWO_ROWS, t] = TWO_ROWS
+                x0 = inf
+            d1[t] = y1
+            d2[t] = y2
+            d3[t] = y3
+            d4[t] = y4
+            x1 = y1
+            x2 = y2
+            x3 = y3
+            x4 = y4
     return D[n % 2, TWO_ROWS, m]
 
 
@@ -373,7 +366,7 @@ def _best_start_each(A1, A2, starts, D2):
     best_s = -1
     best = np.inf
     for s in starts:
-        c = _annulus_dp(A1, A2, s, D2, dummy, dummy, np.bool_(False))
+        c = _annulus_dp(A1, A2, s, D2, dummy, dummy, False)
         if c < best:
             best = c
             best_s = s
@@ -621,7 +614,7 @@ def _near_best(A1, A2, near, low, tol, D2):
     best = np.inf
     for s in range(near.shape[0]):
         if near[s]:
-            c = _annulus_dp(A1, A2, s, D2, dummy, dummy, np.bool_(False))
+            c = _annulus_dp(A1, A2, s, D2, dummy, dummy, False)
             if c < best:
                 best = c
                 best_s = s
