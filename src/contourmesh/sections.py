@@ -65,7 +65,7 @@ def _sdf(m: np.ndarray, sampling) -> np.ndarray:
 
 
 #: Largest padded image (pixels) whose column-distance arrays a thread keeps for the next one.
-_KEPT_PIXELS = 1 << 22
+_KEPT_PIXELS = 1 << 20
 _LOCAL = threading.local()
 
 
