@@ -1,9 +1,10 @@
 """The least-area band's dynamic programme (``bands.optimal._annulus_dp``) against the same
 programme written plainly: every layer of every cell relaxed through the layer rules
 ``_after_c2`` / ``_after_c1`` below, skipping infinite cells.  The compiled kernel writes the layers'
-transitions out per row kind; it must give the same cost (bit for bit) and the same recorded
-moves, hence the same band, also where bands tie (points on a coarse grid) and on the signed
-costs of the drawn-fidelity band.
+transitions out per row kind and records each cell's steps in one byte; it must give the same cost
+(bit for bit) and, read back into the plain tables (``_decode``), the same recorded moves at every
+reachable cell, hence the same band, also where bands tie (points on a coarse grid) and on the
+signed costs of the drawn-fidelity band.
 """
 
 from __future__ import annotations
@@ -77,6 +78,36 @@ def _plain_dp(A1, A2, s):
     return D[n, TWO_ROWS, m], D, move, parent
 
 
+def _decode(steps):
+    """The kernel's record of each cell (one byte: two bits per layer, see bands.optimal) as the plain
+    programme's tables: per cell and layer, the step's move (0: along C(1), 1: along C(2)) and the
+    layer it came from."""
+    b = steps.astype(np.int64)
+    move = np.zeros((b.shape[0], N_LAYERS, b.shape[1]), np.int8)
+    parent = np.zeros_like(move)  # NONE: its C(1)-step from NONE (0, 0)
+    x = (b >> 4) & 3  # ROW0: 0 its C(1)-step, 1 the C(2)-step from NONE, 2 from ROW0
+    move[:, ROW0], parent[:, ROW0] = x != 0, np.where(x == 1, NONE, ROW0)
+    move[:, ROW_HERE], parent[:, ROW_HERE] = 1, np.where((b >> 3) & 1, NONE, ROW_HERE)
+    move[:, ROW_PAST], parent[:, ROW_PAST] = 0, np.where((b >> 2) & 1, ROW_HERE, ROW_PAST)
+    x = b & 3  # TWO_ROWS: 0 its C(1)-step, else the C(2)-step from TWO_ROWS 1, ROW0 2, ROW_PAST 3
+    move[:, TWO_ROWS], parent[:, TWO_ROWS] = x != 0, np.choose(x, [TWO_ROWS, TWO_ROWS, ROW0, ROW_PAST])
+    return move, parent
+
+
+def _plain_trace_back(move, parent, n, m):
+    """The band's edges read back from the plain tables (the kernel's former reading)."""
+    E = np.empty((n + m, 2), dtype=np.int64)
+    i, j, L = n, m, TWO_ROWS
+    for k in range(n + m - 1, -1, -1):
+        mv, L = move[i, L, j], parent[i, L, j]
+        if mv == 0:
+            i -= 1
+        else:
+            j -= 1
+        E[k] = i, j
+    return E
+
+
 def _ring(rs, n, z, grid):
     t = np.sort(rs.uniform(0, 2 * np.pi, n))
     r = rs.uniform(0.3, 2) * (1 + 0.2 * rs.standard_normal(n))
@@ -102,11 +133,11 @@ def test_the_kernel_is_the_plain_programme(kind):
         for s in range(n):
             want, Dref, mref, pref = _plain_dp(A1, A2, s)
             D = np.empty((2, N_LAYERS, m + 1))
-            move = np.zeros((n + 1, N_LAYERS, m + 1), np.int8)
-            parent = np.zeros((n + 1, N_LAYERS, m + 1), np.int8)
-            got = _annulus_dp(A1, A2, s, D, move, parent, np.bool_(True))
-            dummy = np.empty((1, 1, 1), np.int8)
-            cost = _annulus_dp(A1, A2, s, D, dummy, dummy, np.bool_(False))
+            steps = np.full((n + 1, m + 1), -1, np.int8)  # (every cell is written)
+            got = _annulus_dp(A1, A2, s, D, steps, np.bool_(True))
+            move, parent = _decode(steps)
+            dummy = np.empty((1, 1), np.int8)
+            cost = _annulus_dp(A1, A2, s, D, dummy, np.bool_(False))
             assert got == want or (np.isinf(got) and np.isinf(want)), (n, m, s)
             assert cost == got or (np.isinf(cost) and np.isinf(got))
             # the moves of every reachable cell, and so the band read back from them
@@ -114,7 +145,7 @@ def test_the_kernel_is_the_plain_programme(kind):
             assert np.array_equal(move[live], mref[live]) and np.array_equal(parent[live], pref[live])
             if np.isfinite(want):
                 finite += 1
-                assert np.array_equal(_trace_back(move, parent, n, m), _trace_back(mref, pref, n, m))
+                assert np.array_equal(_trace_back(steps, n, m), _plain_trace_back(mref, pref, n, m))
             compared += 1
     assert finite > compared // 2  # most programmes reach the goal (else the comparison proves little)
 
@@ -136,3 +167,33 @@ def test_step_areas_are_the_triangle_areas():
             for j in range(m):
                 assert A1[i, j] == _tri_area(c1[i], c1[(i + 1) % n], c2[j])
                 assert A2[i, j] == _tri_area(c1[i], c2[(j + 1) % m], c2[j])
+
+
+def test_abs_max_is_the_largest_magnitude_in_any_order():
+    """``_abs_max`` (four running maxima) is the plain loop's ``max(amax, |a|, |b|)`` from 0, bit for bit:
+    NaNs passed over, signed costs by magnitude, rows of odd and even length."""
+    from numba import njit
+
+    from contourmesh.bands.optimal import _abs_max
+
+    @njit
+    def plain(A1, A2):
+        amax = 0.0
+        for i in range(A1.shape[0]):
+            for j in range(A1.shape[1]):
+                amax = max(amax, abs(A1[i, j]), abs(A2[i, j]))
+        return amax
+
+    rs = np.random.default_rng(11)
+    for t in range(300):
+        shape = (int(rs.integers(1, 7)), int(rs.integers(1, 9)))
+        A1, A2 = rs.normal(size=shape) * 10.0 ** rs.integers(-3, 4), rs.normal(size=shape)
+        for A in (A1, A2):
+            if rs.random() < 0.3:
+                A[rs.random(shape) < 0.3] = np.nan
+            if rs.random() < 0.2:
+                A[rs.random(shape) < 0.3] = -np.inf if rs.random() < 0.5 else 0.0
+        want = plain(A1, A2)
+        got = _abs_max(A1, A2)
+        assert got == want or (np.isnan(got) and np.isnan(want)), (A1, A2)
+    assert _abs_max(np.full((2, 3), np.nan), np.full((2, 3), np.nan)) == 0.0

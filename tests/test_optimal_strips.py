@@ -300,7 +300,7 @@ def test_one_near_start_records_its_tables_once_and_the_band_is_unchanged(grid):
     # optimal_edges_from records the moves in the programme of the one start point the strips
     # leave near the bound (or the one given) instead of running it again: the same start point,
     # total and edges as the search that runs each start point and then the best one with tables
-    from contourmesh.bands.optimal import _annulus_dp, _best_band, _trace_back, optimal_edges_from
+    from contourmesh.bands.optimal import _annulus_dp, _best_band, _optimal_edges_in, _trace_back, optimal_edges_from
 
     rs = np.random.default_rng(23 + (grid or 0))
     kinds = {"one": 0, "several": 0}
@@ -316,14 +316,20 @@ def test_one_near_start_records_its_tables_once_and_the_band_is_unchanged(grid):
         D2 = np.empty((2, N_LAYERS, m + 1))
         s = _best_start_each(A1, A2, starts, D2)
         s = starts[0] if s < 0 else s
-        move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-        parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-        total = _annulus_dp(A1, A2, s, D2, move, parent, np.bool_(True))
+        steps = np.empty((n + 1, m + 1), dtype=np.int8)
+        total = _annulus_dp(A1, A2, s, D2, steps, np.bool_(True))
         edges, s2, total2 = optimal_edges_from(c1, c2, starts)
         assert (s2, total2) == (s, total)
-        assert np.array_equal(edges, _trace_back(move, parent, n, m))
-        got = _best_band(A1, A2, starts, D2)
-        assert (got[0], got[1]) == (s, total)
+        assert np.array_equal(edges, _trace_back(steps, n, m))
+        steps2 = np.empty_like(steps)
+        got = _best_band(A1, A2, starts, D2, steps2)
+        assert got == (s, total)
+        assert np.array_equal(_trace_back(steps2, n, m), edges)
+        # the same through buffers left dirty by other bands (triangulate_band_optimal's, kept per thread)
+        fbuf = rs.normal(size=2 * n * m + int(rs.integers(0, 9)))
+        bbuf = rs.integers(-128, 128, size=(n + 1) * (m + 1) + int(rs.integers(0, 9))).astype(np.int8)
+        e3, s3, total3 = _optimal_edges_in(c1, c2, starts, fbuf, bbuf)
+        assert (s3, total3) == (s, total) and np.array_equal(e3, edges)
         if len(starts) >= 4:
             free, ok = _strip_costs(A1, A2, _cyclic_run(starts, n), len(starts))
             if ok:

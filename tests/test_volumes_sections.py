@@ -519,3 +519,26 @@ def test_a_cached_bridged_join_is_what_a_fresh_build_of_its_key_gives(monkeypatc
         if a is not None:
             assert np.array_equal(a.V, b.V) and np.array_equal(a.F, b.F), k
     assert np.array_equal(m.vertices, ref.vertices) and np.array_equal(m.faces, ref.faces)
+
+
+def test_signed_distance_column_arrays_of_either_width_and_dirty():
+    # _sdf_square takes its column distances' arrays from the caller (int32 kept per thread where the
+    # squared distances fit, int64 beyond): the same bytes with int64 arrays, with arrays left dirty
+    # by another mask, and by runs of every length (single pixels, full rows, stripes)
+    rng = np.random.default_rng(74)
+    for t in range(60):
+        h, w = int(rng.integers(1, 60)), int(rng.integers(1, 60))
+        m = ndimage.gaussian_filter(rng.random((h, w)), rng.uniform(0.5, 4.0)) > rng.uniform(0.4, 0.6)
+        if t % 5 == 0:
+            m[:, ::2] = rng.random() < 0.5
+        if t % 7 == 0:
+            m = rng.random((h, w)) < 0.5
+        if not m.any():
+            continue
+        ref = sections._sdf_reference(m, (0.5, 0.5))
+        u8 = np.ascontiguousarray(m).view(np.uint8)
+        for dt in (np.int32, np.int64):
+            gi, go = (rng.integers(-5, 9, size=(h + 2, w + 2)).astype(dt) for _ in range(2))
+            got = sections._sdf_square(u8, 0.25, 0.25, gi, go)
+            assert got.tobytes() == ref.tobytes()
+        assert sections._sdf(m, (0.5, 0.5)).tobytes() == ref.tobytes()  # (the thread's kept arrays, dirty)

@@ -26,6 +26,7 @@ bridged join.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 from numba import njit
@@ -59,20 +60,40 @@ def _sdf(m: np.ndarray, sampling) -> np.ndarray:
     m = np.asarray(m, dtype=bool)
     s0, s1 = (float(x) for x in sampling)
     if s0 == s1 and 2.0 ** -200 <= s0 <= 2.0 ** 200 and math.frexp(s0)[0] == 0.5 and m.ndim == 2 and m.any():
-        return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1))
+        return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1), *_column_buffers(*m.shape))
     return _sdf_reference(m, sampling)
 
 
+#: Largest padded image (pixels) whose column-distance arrays a thread keeps for the next one.
+_KEPT_PIXELS = 1 << 20
+_LOCAL = threading.local()
+
+
+def _column_buffers(H, W):
+    """``gi`` and ``go`` for :func:`_sdf_square` on an ``H x W`` mask: int32 where the squared
+    distances fit (``(H + 1)^2 < 2^31``), this thread's (grown as needed, up to ``_KEPT_PIXELS``):
+    fresh arrays of a megabyte or so are mapped anew at every call, and their pages being zeroed at
+    the first write cost the liver's sections half of their signed distances' time."""
+    shape, dt = (H + 2, W + 2), np.int32 if H + 2 <= 46_340 else np.int64
+    n = shape[0] * shape[1]
+    if n > _KEPT_PIXELS or dt is np.int64:
+        return np.empty(shape, dt), np.empty(shape, dt)
+    got = getattr(_LOCAL, "columns", None)
+    if got is None or len(got) < 2 * n:
+        got = np.empty(2 * n, np.int32)
+        _LOCAL.columns = got
+    return got[:n].reshape(shape), got[n:2 * n].reshape(shape)
+
+
 @njit(cache=True, nogil=True)
-def _column_distances(m):
+def _column_distances(m, gi, go):
     """Squared distances along each column of the image ``m`` padded by one empty pixel, to the
-    nearest feature pixel of that column: ``gi`` to the padded image's empty pixels (every column
+    nearest feature pixel of that column, written into ``gi`` and ``go`` (``(H + 2, W + 2)``, an
+    integer type that holds ``(H + 1)^2``): ``gi`` to the padded image's empty pixels (every column
     has some: the padding), ``go`` to its object pixels (-1 where a column has none).  Both in one
     pass down the rows and one up, every column at once (row-major: the image is read in order)."""
     H, W = m.shape
     Hp, Wp = H + 2, W + 2
-    gi = np.empty((Hp, Wp), np.int64)
-    go = np.empty((Hp, Wp), np.int64)
     li = np.zeros(Wp, np.int64)  # the row of the last empty pixel seen from above (row 0: padding)
     lo = np.full(Wp, -1, np.int64)  # ... of the last object pixel (-1: none yet)
     for x in range(Wp):
@@ -108,7 +129,6 @@ def _column_distances(m):
                 d = (lo[x] - y) * (lo[x] - y)
                 if go[y, x] < 0 or d < go[y, x]:
                     go[y, x] = d
-    return gi, go
 
 
 @njit(cache=True, nogil=True)
@@ -138,49 +158,53 @@ def _envelope(grow, v, zn, zd):
 
 
 @njit(cache=True, nogil=True)
-def _sdf_square(m, area, h):
+def _sdf_square(m, area, h, gi, go):
     """:func:`_sdf` of a non-empty mask (uint8) on square pixels of area ``area`` (a power of two
     squared), ``h`` half the pixel side: ``h - inside`` on the region, ``outside - h`` off it, each
-    distance the square root of its squared number of pixel steps times ``area`` (exact).
+    distance the square root of its squared number of pixel steps times ``area`` (exact).  ``gi``
+    and ``go``: :func:`_column_distances`' arrays (their contents do not matter).
 
     The squared distances of each row (to the nearest empty pixel of the padded mask for the
     region's pixels, to the nearest region pixel for the others) are read off the lower envelope
-    of that row's column distances, only where the row needs them (a row without region pixels
-    builds no inside envelope, a full row no outside one)."""
+    of that row's column distances, one envelope per run of the row: a run's nearest pixel lies in
+    the columns of the run or of the pixels just beyond it, which are of the other kind (at column
+    distance 0: every column farther is farther), so each envelope has only those columns (about
+    half as many parabolas as two envelopes of the whole row).  The pixels beyond a run at the
+    padding of an outside run are no region pixels, but there the run reaches the padding: no
+    column lies beyond it."""
     H, W = m.shape
     Wp = W + 2
-    gi, go = _column_distances(m)
+    _column_distances(m, gi, go)
     out = np.empty((H, W), np.float64)
-    vi = np.empty(Wp, np.int64)  # the inside envelope
-    zni = np.empty(Wp, np.int64)
-    zdi = np.empty(Wp, np.int64)
-    vo = np.empty(Wp, np.int64)  # the outside one
-    zno = np.empty(Wp, np.int64)
-    zdo = np.empty(Wp, np.int64)
+    v = np.empty(Wp, np.int64)  # the run's envelope
+    zn = np.empty(Wp, np.int64)
+    zd = np.empty(Wp, np.int64)
     for y in range(H):
         row = m[y]
-        n_in = 0
-        for x in range(W):
-            if row[x] != 0:
-                n_in += 1
-        ri = gi[y + 1]
-        ro = go[y + 1]
-        ki = _envelope(ri, vi, zni, zdi) if n_in > 0 else 0
-        ko = _envelope(ro, vo, zno, zdo) if n_in < W else 0
-        ti = 0
-        to = 0
-        for x in range(W):
-            xp = x + 1  # the padded column
-            if row[x] != 0:
-                while ti < ki and zni[ti + 1] < xp * zdi[ti + 1]:
-                    ti += 1
-                p = vi[ti]
-                out[y, x] = h - math.sqrt(float((xp - p) * (xp - p) + ri[p]) * area)
-            else:
-                while to < ko and zno[to + 1] < xp * zdo[to + 1]:
-                    to += 1
-                p = vo[to]
-                out[y, x] = math.sqrt(float((xp - p) * (xp - p) + ro[p]) * area) - h
+        x = 0
+        while x < W:
+            inside = row[x] != 0
+            b = x + 1
+            while b < W and (row[b] != 0) == inside:
+                b += 1
+            # the run is image columns x .. b - 1, padded x + 1 .. b; with the pixels beyond it,
+            # padded columns x .. b + 1 (relative columns 0 .. b - x + 1)
+            g = gi[y + 1, x:b + 2] if inside else go[y + 1, x:b + 2]
+            k = _envelope(g, v, zn, zd)
+            # parabola v[t] is the lowest on the columns past zn[t] / zd[t] (zd > 0; increasing
+            # in t) up to the next one's: the integer columns from floor(zn / zd) + 1 on
+            o = out[y, x:b]  # (relative column xr at o[xr - 1])
+            sgn = -1.0 if inside else 1.0
+            hs = h if inside else -h
+            end = b - x + 1
+            for t in range(k + 1):
+                lo = 1 if t == 0 else max(1, zn[t] // zd[t] + 1)
+                hi = end if t == k else min(end, zn[t + 1] // zd[t + 1] + 1)
+                p = v[t]
+                gp = g[p]
+                for xr in range(lo, hi):
+                    o[xr - 1] = hs + sgn * math.sqrt(float((xr - p) * (xr - p) + gp) * area)
+            x = b
     return out
 
 

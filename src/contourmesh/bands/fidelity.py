@@ -104,10 +104,9 @@ def _best_edges(A1, A2, starts):
     best_s = _best_start(A1, A2, starts, D2)
     if best_s < 0:
         return np.empty((n + m, 2), dtype=np.int64), best_s
-    move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    _annulus_dp(A1, A2, best_s, D2, move, parent, np.bool_(True))
-    return _trace_back(move, parent, n, m), best_s
+    steps = np.empty((n + 1, m + 1), dtype=np.int8)
+    _annulus_dp(A1, A2, best_s, D2, steps, np.bool_(True))
+    return _trace_back(steps, n, m), best_s
 
 
 #: Work (``starts * n * m``) of one dynamic programme; beyond it the start points are thinned.

@@ -32,6 +32,8 @@ start points, the smallest ``s`` with the minimum total wins.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from numba import njit
 
@@ -39,7 +41,7 @@ from .wiederhold import edges_to_faces, oriented_pair, validate_band_polygons
 
 __all__ = ["triangulate_band_optimal", "optimal_edges", "MAX_OPTIMAL_CELLS", "MAX_OPTIMAL_WORK"]
 
-#: Largest ``n * m`` the optimal band accepts: its tables take 26 bytes per cell (about 420 MB).
+#: Largest ``n * m`` the optimal band accepts: its tables take 19 bytes per cell (about 290 MiB).
 MAX_OPTIMAL_CELLS = 16_000_000
 #: Largest ``min(n, m)^2 * max(n, m)`` it accepts (about 8 ns each here: about a minute).
 MAX_OPTIMAL_WORK = 8_000_000_000
@@ -72,6 +74,15 @@ def _step_areas(c1, c2):
     m = c2.shape[0]
     A1 = np.empty((n, m))
     A2 = np.empty((n, m))
+    _step_areas_into(c1, c2, A1, A2)
+    return A1, A2
+
+
+@njit(cache=True)
+def _step_areas_into(c1, c2, A1, A2):
+    """:func:`_step_areas` written into ``A1`` and ``A2`` (``(n, m)`` each)."""
+    n = c1.shape[0]
+    m = c2.shape[0]
     bx = np.empty(m + 1)
     by = np.empty(m + 1)
     bz = np.empty(m + 1)
@@ -101,7 +112,6 @@ def _step_areas(c1, c2):
             cy = wz * vx - wx * vz
             cz = wx * vy - wy * vx
             a2[j] = 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
-    return A1, A2
 
 
 # Layers of the dynamic programme (see the module docstring): which torus rows (points of
@@ -113,132 +123,135 @@ ROW_PAST = 3      # only at one row 0 < r < n, and the path has left it
 TWO_ROWS = 4      # at two or more distinct rows: the band is an annulus (the goal layer)
 N_LAYERS = 5
 
+# The programme's record of a cell (:func:`_annulus_dp`'s ``steps``): one byte, the step into each
+# layer of the cell but NONE's (always the C(1)-step from NONE) in its bits: TWO_ROWS's in bits 0-1
+# (0 the C(1)-step from TWO_ROWS, else the C(2)-step from TWO_ROWS 1, ROW0 2 or ROW_PAST 3),
+# ROW_PAST's in bit 2 (its C(1)-step from ROW_PAST 0 or ROW_HERE 1), ROW_HERE's in bit 3 (its
+# C(2)-step from ROW_HERE 0 or NONE 1) and ROW0's in bits 4-5 (0 the C(1)-step from ROW0, else the
+# C(2)-step from NONE 1 or ROW0 2)
+_FROM_NONE = 1
+_FROM_ROW0 = 2
+_FROM_ROW_PAST = 3
+_FROM_TWO_ROWS = 1
+_FROM_ROW_HERE = 1
+_PAST_BITS = 2
+_HERE_BITS = 3
+_ROW0_BITS = 4
+
 
 @njit(cache=True)
-def _annulus_dp(A1, A2, s, D, move, parent, keep):
+def _annulus_dp(A1, A2, s, D, steps, keep):
     """Least total area of an annular path from edge ``(s, 0)`` to ``(s + n, m)``.
 
-    Forward ("push") relaxation over rows ``i = 0..n``; ``D[r, layer, j]`` holds row ``i`` at
-    ``r = i % 2`` (two rolling rows); if ``keep``, ``move``/``parent`` (full tables, one byte per
-    cell) record every cell's best step for backtracking.  On equal cost the C(1)-advance (pushed
-    first) wins, and among the offers of one kind the one from the lower layer.  Callers pass
-    ``keep`` as ``np.bool_``: a literal ``True``/``False`` would compile the programme once for
-    each value.
+    One pass over the rows ``i = 0..n`` and in each row over the cells ``t = 0..m``: a cell takes
+    the C(1)-advance from the row before (``(i - 1, t) -> (i, t)``), then the C(2)-advance from the
+    cell before it in its row (``(i, t - 1) -> (i, t)``), whose costs are final and carried in
+    registers.  ``D[r, layer, j]`` holds row ``i`` at ``r = i % 2`` (two rolling rows); if
+    ``keep``, ``steps[i, t]`` (one byte per cell, every cell written) records the best step into
+    each layer of the cell, for backtracking (:func:`_trace_back`; its bits are described above
+    :func:`_annulus_dp`).  On equal cost the C(1)-advance (offered first) wins, and among the offers of one kind
+    the one from the lower layer.  Callers pass ``keep`` as ``np.bool_``: a literal
+    ``True``/``False`` would compile the programme once for each value (the version for the literal
+    ``False`` ran a fifth faster on the liver's costly bands, 0.65 against 0.83 ms: about 20 ms of
+    the liver's mesh, not worth a second compiled programme).
 
     The layers' transitions are written out per row kind (rows 0 and ``n``, where a
-    C(2)-advance is at row 0, and the others), each layer a row of ``D``: a C(2)-advance takes
-    NONE to ROW0 at row 0 or ``n`` and to ROW_HERE elsewhere, ROW0 to itself at row 0 or ``n``
-    and to TWO_ROWS elsewhere, ROW_HERE to itself, ROW_PAST and TWO_ROWS to TWO_ROWS; a
-    C(1)-advance takes ROW_HERE to ROW_PAST and keeps every other layer.  Infinite cells offer
-    infinity instead of being skipped: the same offers in the same order as relaxing every layer
-    of every cell by these rules, so the same costs and moves (``tests/test_optimal_programme.py``
-    compares it with that loop written plainly).
+    C(2)-advance is at row 0, and the others): a C(2)-advance takes NONE to ROW0 at row 0 or
+    ``n`` and to ROW_HERE elsewhere, ROW0 to itself at row 0 or ``n`` and to TWO_ROWS elsewhere,
+    ROW_HERE to itself, ROW_PAST and TWO_ROWS to TWO_ROWS; a C(1)-advance takes ROW_HERE to
+    ROW_PAST and keeps every other layer.  So a layer's step is one of at most four (NONE's
+    always the C(1)-advance, ROW0's too except in rows 0 and ``n``, ROW_HERE's always a
+    C(2)-advance, ROW_PAST's always a C(1)-advance).  Infinite cells offer infinity instead of
+    being skipped (except NONE's, finite in column 0 only): the same winning offers in the same
+    order as relaxing every layer of every cell by these rules, row by row (all C(2)-advances of
+    a row, then its C(1)-advances to the next), so the same costs and, at every reachable cell,
+    the same steps (``tests/test_optimal_programme.py`` compares it with that loop written
+    plainly).
     """
     n, m = A1.shape
     inf = np.inf
     for L in range(N_LAYERS):
         for j in range(m + 1):
-            D[0, L, j] = inf
-    D[0, NONE, 0] = 0.0
+            D[1, L, j] = inf  # the row before row 0: nothing reached (its C(1)-steps cost 0 below)
+    none_row = np.zeros(m)
     for i in range(n + 1):
         r = i % 2
         ib = (s + i) % n                      # the C(1) point of row i
-        d0 = D[r, NONE]
+        a2row = A2[ib]
+        a1row = none_row if i == 0 else A1[(ib + n - 1) % n]  # the C(1)-steps into row i
+        p1 = D[1 - r, ROW0]  # the row before
+        p2 = D[1 - r, ROW_HERE]
+        p3 = D[1 - r, ROW_PAST]
+        p4 = D[1 - r, TWO_ROWS]
         d1 = D[r, ROW0]
         d2 = D[r, ROW_HERE]
         d3 = D[r, ROW_PAST]
         d4 = D[r, TWO_ROWS]
-        a2row = A2[ib]
-        # C(2)-advances within row i, (i, j) -> (i, j + 1), in increasing j: a cell is final
-        # before it offers; the offers to a cell come from the layers in increasing order
         row0 = i == 0 or i == n
-        for j in range(m):
-            a2 = a2row[j]
-            t = j + 1
-            if row0:
-                c = d0[j] + a2  # NONE -> ROW0
-                if c < d1[t]:
-                    d1[t] = c
-                    if keep:
-                        move[i, ROW0, t] = 1
-                        parent[i, ROW0, t] = NONE
-                c = d1[j] + a2  # ROW0 -> ROW0
-                if c < d1[t]:
-                    d1[t] = c
-                    if keep:
-                        move[i, ROW0, t] = 1
-                        parent[i, ROW0, t] = ROW0
-            else:
-                c = d0[j] + a2  # NONE -> ROW_HERE
-                if c < d2[t]:
-                    d2[t] = c
-                    if keep:
-                        move[i, ROW_HERE, t] = 1
-                        parent[i, ROW_HERE, t] = NONE
-                c = d1[j] + a2  # ROW0 -> TWO_ROWS
-                if c < d4[t]:
-                    d4[t] = c
-                    if keep:
-                        move[i, TWO_ROWS, t] = 1
-                        parent[i, TWO_ROWS, t] = ROW0
-            c = d2[j] + a2  # ROW_HERE -> ROW_HERE
-            if c < d2[t]:
-                d2[t] = c
-                if keep:
-                    move[i, ROW_HERE, t] = 1
-                    parent[i, ROW_HERE, t] = ROW_HERE
-            c = d3[j] + a2  # ROW_PAST -> TWO_ROWS
-            if c < d4[t]:
-                d4[t] = c
-                if keep:
-                    move[i, TWO_ROWS, t] = 1
-                    parent[i, TWO_ROWS, t] = ROW_PAST
-            c = d4[j] + a2  # TWO_ROWS -> TWO_ROWS
-            if c < d4[t]:
-                d4[t] = c
-                if keep:
-                    move[i, TWO_ROWS, t] = 1
-                    parent[i, TWO_ROWS, t] = TWO_ROWS
-        if i == n:
-            break
-        # C(1)-advances to row i + 1, (i, j) -> (i + 1, j): every layer keeps its own, except
-        # ROW_HERE, which becomes ROW_PAST (offered before ROW_PAST's own)
-        rn = (i + 1) % 2
-        e0 = D[rn, NONE]
-        e1 = D[rn, ROW0]
-        e2 = D[rn, ROW_HERE]
-        e3 = D[rn, ROW_PAST]
-        e4 = D[rn, TWO_ROWS]
-        a1row = A1[ib]
-        i1 = i + 1
-        for j in range(m + 1):
-            a1 = a1row[0] if j == m else a1row[j]
-            c0 = d0[j] + a1
-            c1 = d1[j] + a1
-            ch = d2[j] + a1
-            cp = d3[j] + a1
-            c4 = d4[j] + a1
-            e0[j] = c0
-            e1[j] = c1
-            e2[j] = inf
-            e3[j] = cp if cp < ch else ch
-            e4[j] = c4
+        # NONE (no C(2)-step yet) is finite in column 0 only: elsewhere it would offer infinity
+        # (or NaN), which wins no comparison
+        x0 = 0.0 if i == 0 else D[1 - r, NONE, 0] + a1row[0]
+        D[r, NONE, 0] = x0
+        x1 = x2 = x3 = x4 = inf
+        for t in range(m + 1):
+            # cell (i, t): first the C(1)-step from (i - 1, t), where every layer keeps its own,
+            # except ROW_HERE, which becomes ROW_PAST (offered before ROW_PAST's own) ...
+            a1 = a1row[t] if t < m else a1row[0]
+            y1 = p1[t] + a1
+            ch = p2[t] + a1
+            cp = p3[t] + a1
+            y3 = cp if cp < ch else ch
+            y4 = p4[t] + a1
+            y2 = inf
+            k1 = 0  # each layer's step (see _FROM_ROW0): the C(1)-step unless an offer below wins
+            k2 = 0
+            k4 = 0
+            if t > 0:
+                # ... then the C(2)-steps from (i, t - 1), whose costs are final (x0 .. x4), from
+                # the layers in increasing order
+                a2 = a2row[t - 1]
+                if row0:
+                    c = x0 + a2  # NONE -> ROW0
+                    if c < y1:
+                        y1 = c
+                        k1 = _FROM_NONE
+                    c = x1 + a2  # ROW0 -> ROW0
+                    if c < y1:
+                        y1 = c
+                        k1 = _FROM_ROW0
+                else:
+                    c = x0 + a2  # NONE -> ROW_HERE
+                    if c < y2:
+                        y2 = c
+                        k2 = _FROM_NONE
+                    c = x1 + a2  # ROW0 -> TWO_ROWS
+                    if c < y4:
+                        y4 = c
+                        k4 = _FROM_ROW0
+                c = x2 + a2  # ROW_HERE -> ROW_HERE
+                if c < y2:
+                    y2 = c
+                    k2 = 0
+                c = x3 + a2  # ROW_PAST -> TWO_ROWS
+                if c < y4:
+                    y4 = c
+                    k4 = _FROM_ROW_PAST
+                c = x4 + a2  # TWO_ROWS -> TWO_ROWS
+                if c < y4:
+                    y4 = c
+                    k4 = _FROM_TWO_ROWS
+                x0 = inf
             if keep:
-                if c0 < inf:
-                    move[i1, NONE, j] = 0
-                    parent[i1, NONE, j] = NONE
-                if c1 < inf:
-                    move[i1, ROW0, j] = 0
-                    parent[i1, ROW0, j] = ROW0
-                if cp < ch:
-                    move[i1, ROW_PAST, j] = 0
-                    parent[i1, ROW_PAST, j] = ROW_PAST
-                elif ch < inf:
-                    move[i1, ROW_PAST, j] = 0
-                    parent[i1, ROW_PAST, j] = ROW_HERE
-                if c4 < inf:
-                    move[i1, TWO_ROWS, j] = 0
-                    parent[i1, TWO_ROWS, j] = TWO_ROWS
+                steps[i, t] = (k1 << _ROW0_BITS) | (k2 << _HERE_BITS) | \
+                    (0 if cp < ch else _FROM_ROW_HERE) << _PAST_BITS | k4
+            d1[t] = y1
+            d2[t] = y2
+            d3[t] = y3
+            d4[t] = y4
+            x1 = y1
+            x2 = y2
+            x3 = y3
+            x4 = y4
     return D[n % 2, TWO_ROWS, m]
 
 
@@ -263,29 +276,40 @@ def optimal_edges_from(c1, c2, starts):
     total : float
         Its total triangle area.
     """
-    A1, A2 = _step_areas(c1, c2)
-    D2 = np.empty((2, N_LAYERS, c2.shape[0] + 1))
-    best_s, total, move, parent = _best_band(A1, A2, starts, D2)
-    return _trace_back(move, parent, c1.shape[0], c2.shape[0]), best_s, total
+    n, m = c1.shape[0], c2.shape[0]
+    return _optimal_edges_in(c1, c2, starts, np.empty(2 * n * m), np.empty((n + 1) * (m + 1), np.int8))
 
 
 @njit(cache=True)
-def _best_band(A1, A2, starts, D2):
-    """The start point :func:`_best_start` picks (``starts[0]`` where none is finite), its
-    programme's total and its ``move`` / ``parent`` tables.
+def _optimal_edges_in(c1, c2, starts, fbuf, bbuf):
+    """:func:`optimal_edges_from` with its largest arrays in the buffers ``fbuf`` (float64, at least
+    ``2 n m``: the step areas) and ``bbuf`` (int8, at least ``(n + 1) (m + 1)``: the programme's
+    steps), whose contents do not matter: the same result."""
+    n, m = c1.shape[0], c2.shape[0]
+    A1 = fbuf[:n * m].reshape((n, m))
+    A2 = fbuf[n * m:2 * n * m].reshape((n, m))
+    _step_areas_into(c1, c2, A1, A2)
+    steps = bbuf[:(n + 1) * (m + 1)].reshape((n + 1, m + 1))
+    D2 = np.empty((2, N_LAYERS, m + 1))
+    best_s, total = _best_band(A1, A2, starts, D2, steps)
+    return _trace_back(steps, n, m), best_s, total
+
+
+@njit(cache=True)
+def _best_band(A1, A2, starts, D2, steps):
+    """The start point :func:`_best_start` picks (``starts[0]`` where none is finite) and its
+    programme's total; its steps recorded in ``steps``.
 
     Where one start point is given, or the strip search leaves one start point near the bound
-    and certifies it, that start point's one programme records the tables: it is not run a second
-    time for them (the same programme on the same numbers: the same cost and moves).  Where it
-    leaves several, they run without tables and the best runs again with them (a programme that
-    records its moves costs about 1.7 programmes without: on the liver, recording all of two
-    or three near start points saved nothing)."""
+    and certifies it, that start point's one programme records its steps: it is not run a second
+    time for them (the same programme on the same numbers: the same cost and steps).  Where it
+    leaves several, they run without recording and the best runs again recording (a programme
+    that records costs about 1.5 programmes without; on the liver, recording all of two or three
+    near start points saved nothing when it cost 1.7)."""
     n, m = A1.shape
     k = starts.shape[0]
-    move = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
-    parent = np.zeros((n + 1, N_LAYERS, m + 1), dtype=np.int8)
     if k == 1:
-        return starts[0], _annulus_dp(A1, A2, starts[0], D2, move, parent, np.bool_(True)), move, parent
+        return starts[0], _annulus_dp(A1, A2, starts[0], D2, steps, np.bool_(True))
     best_s = -2
     if k >= _STRIP_MIN_STARTS:
         a = _cyclic_run(starts, n)
@@ -298,17 +322,16 @@ def _best_band(A1, A2, starts, D2):
                         n_near += 1
                         only = s
                 if n_near == 1:
-                    c = _annulus_dp(A1, A2, only, D2, move, parent, np.bool_(True))
+                    c = _annulus_dp(A1, A2, only, D2, steps, np.bool_(True))
                     if c <= low + tol:
-                        return only, c, move, parent
+                        return only, c
                 else:
                     best_s = _near_best(A1, A2, near, low, tol, D2)
     if best_s == -2:
         best_s = _best_start_each(A1, A2, starts, D2)
     if best_s < 0:
         best_s = starts[0]
-    total = _annulus_dp(A1, A2, best_s, D2, move, parent, np.bool_(True))
-    return best_s, total, move, parent
+    return best_s, _annulus_dp(A1, A2, best_s, D2, steps, np.bool_(True))
 
 
 @njit(cache=True)
@@ -333,11 +356,11 @@ def _best_start(A1, A2, starts, D2):
 @njit(cache=True)
 def _best_start_each(A1, A2, starts, D2):
     """:func:`_best_start` by one full programme per start point (``O(n m)`` each)."""
-    dummy = np.empty((1, 1, 1), dtype=np.int8)
+    dummy = np.empty((1, 1), dtype=np.int8)
     best_s = -1
     best = np.inf
     for s in starts:
-        c = _annulus_dp(A1, A2, s, D2, dummy, dummy, np.bool_(False))
+        c = _annulus_dp(A1, A2, s, D2, dummy, np.bool_(False))
         if c < best:
             best = c
             best_s = s
@@ -580,12 +603,12 @@ def _best_start_strips(A1, A2, a, k, D2):
 def _near_best(A1, A2, near, low, tol, D2):
     """The best of the start points ``near`` by their full programmes, taken in increasing order
     (the first of equal costs), or -2 where it is not within ``tol`` of the bound ``low``."""
-    dummy = np.empty((1, 1, 1), dtype=np.int8)
+    dummy = np.empty((1, 1), dtype=np.int8)
     best_s = -1
     best = np.inf
     for s in range(near.shape[0]):
         if near[s]:
-            c = _annulus_dp(A1, A2, s, D2, dummy, dummy, np.bool_(False))
+            c = _annulus_dp(A1, A2, s, D2, dummy, np.bool_(False))
             if c < best:
                 best = c
                 best_s = s
@@ -606,11 +629,7 @@ def _near_starts(A1, A2, a, k):
     low = np.inf
     for t in range(k):
         low = min(low, free[t])
-    amax = 0.0
-    for i in range(n):
-        for j in range(m):
-            amax = max(amax, abs(A1[i, j]), abs(A2[i, j]))
-    tol = _TIE * (n + m) * amax
+    tol = _TIE * (n + m) * _abs_max(A1, A2)
     for t in range(k):
         if free[t] <= low + 2.0 * tol:
             near[(a + t) % n] = True
@@ -618,22 +637,89 @@ def _near_starts(A1, A2, a, k):
 
 
 @njit(cache=True)
-def _trace_back(move, parent, n, m):
-    """The band's edges ``(i, j)`` read back from the programme's moves, from the goal layer."""
+def _abs_max(A1, A2):
+    """The largest ``|A1[i, j]|`` and ``|A2[i, j]|`` (NaNs passed over; 0 for none), in four running
+    maxima (each a chain of comparisons: one chain waits for the last comparison at every value).
+    The same number in any order: the largest of the values that are not NaN."""
+    n, m = A1.shape
+    p0 = p1 = p2 = p3 = 0.0
+    for i in range(n):
+        a1 = A1[i]
+        a2 = A2[i]
+        for j in range(0, m - 1, 2):
+            x = abs(a1[j])
+            p0 = x if x > p0 else p0
+            x = abs(a2[j])
+            p1 = x if x > p1 else p1
+            x = abs(a1[j + 1])
+            p2 = x if x > p2 else p2
+            x = abs(a2[j + 1])
+            p3 = x if x > p3 else p3
+        if m % 2:
+            x = abs(a1[m - 1])
+            p0 = x if x > p0 else p0
+            x = abs(a2[m - 1])
+            p1 = x if x > p1 else p1
+    p0 = p1 if p1 > p0 else p0
+    p2 = p3 if p3 > p2 else p2
+    return p2 if p2 > p0 else p0
+
+
+@njit(cache=True)
+def _trace_back(steps, n, m):
+    """The band's edges ``(i, j)`` read back from the programme's steps, from the goal layer."""
     E = np.empty((n + m, 2), dtype=np.int64)
     i = n
     j = m
     L = TWO_ROWS
     for k in range(n + m - 1, -1, -1):
-        mv = move[i, L, j]
-        L = parent[i, L, j]
-        if mv == 0:
-            i -= 1
+        b = steps[i, j]
+        c2 = True  # whether the step into (i, L, j) is a C(2)-advance, and its layer L before it
+        if L == TWO_ROWS:
+            x = b & 3
+            c2 = x != 0
+            L = TWO_ROWS if x == 0 or x == _FROM_TWO_ROWS else (ROW0 if x == _FROM_ROW0 else ROW_PAST)
+        elif L == ROW_PAST:
+            c2 = False
+            L = ROW_HERE if (b >> _PAST_BITS) & 1 else ROW_PAST
+        elif L == ROW_HERE:
+            L = NONE if (b >> _HERE_BITS) & 1 else ROW_HERE
+        elif L == ROW0:
+            x = (b >> _ROW0_BITS) & 3
+            c2 = x != 0
+            L = NONE if x == _FROM_NONE else ROW0
         else:
+            c2 = False
+        if c2:
             j -= 1
+        else:
+            i -= 1
         E[k, 0] = i
         E[k, 1] = j
     return E
+
+
+#: Largest ``n m`` whose buffers (:func:`_buffers`) a thread keeps for its next band: 17 bytes per
+#: cell, 8.5 MiB here; larger bands take fresh arrays.
+_KEPT_CELLS = 1 << 19
+_LOCAL = threading.local()
+
+
+def _buffers(n, m):
+    """``fbuf`` and ``bbuf`` for :func:`_optimal_edges_in` (``n <= m`` points): this thread's,
+    grown as needed, where ``n m <= _KEPT_CELLS``.  Fresh arrays of these sizes cost the system
+    about as much as the programmes that fill them (every page is zeroed at its first write:
+    1 ms of the liver's costly bands' 8 before their steps took one byte per cell); kept ones are
+    in place and often in cache."""
+    nf, nb = 2 * n * m, (n + 1) * (m + 1)
+    if n * m > _KEPT_CELLS:
+        return np.empty(nf), np.empty(nb, np.int8)
+    got = getattr(_LOCAL, "buffers", None)
+    if got is None or len(got[0]) < nf or len(got[1]) < nb:
+        got = np.empty(max(nf, 0 if got is None else len(got[0]))), \
+            np.empty(max(nb, 0 if got is None else len(got[1])), np.int8)
+        _LOCAL.buffers = got
+    return got
 
 
 def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.ndarray:
@@ -666,17 +752,18 @@ def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.
     if n * m > MAX_OPTIMAL_CELLS or (n * n * m > MAX_OPTIMAL_WORK and not bounded):
         raise ValueError(
             f"the optimal band between polygons of {n} and {m} vertices needs {n * m:,} table cells (about "
-            f"{26 * n * m / 2**20:,.0f} MiB) and {n * n * m:.2g} steps; the limits are {MAX_OPTIMAL_CELLS:,} cells and "
+            f"{19 * n * m / 2**20:,.0f} MiB) and {n * n * m:.2g} steps; the limits are {MAX_OPTIMAL_CELLS:,} cells and "
             f"{MAX_OPTIMAL_WORK:.2g} steps. Use triangulation='wiederhold' or 'greedy' (linear time), or "
             "polygon='mlp'/'dss' (fewer vertices)")
     if len(c1) == 1:
         edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
         s = 0
-    elif bounded:
-        k = int(max(1, max_work // (n * m)))
-        near = int(np.argmin(((c1 - c2[0]) ** 2).sum(axis=1)))
-        starts = np.sort((near - k // 2 + np.arange(k)) % n).astype(np.int64)
-        edges, s, _ = optimal_edges_from(c1, c2, starts)
     else:
-        edges, s, _ = optimal_edges(c1, c2)
+        if bounded:
+            k = int(max(1, max_work // (n * m)))
+            near = int(np.argmin(((c1 - c2[0]) ** 2).sum(axis=1)))
+            starts = np.sort((near - k // 2 + np.arange(k)) % n).astype(np.int64)
+        else:
+            starts = np.arange(n, dtype=np.int64)  # (optimal_edges)
+        edges, s, _ = _optimal_edges_in(c1, c2, starts, *_buffers(n, m))
     return edges_to_faces(edges, len(c1), len(c2), s, 0, len(lo), swapped)
