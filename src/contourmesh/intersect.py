@@ -1618,24 +1618,19 @@ def _apart_but_corner(V, F, lev, i, j, p):
 
 
 @_kernel
-def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
+def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, scert, ci, cj,
                npairs, pi, pj, work, limit, stop, l0, l1):
     """Slab k of :func:`_slab_pairs`: its pairs, each tested in the lowest slab the two faces
     share; none when the planes on both sides hold embedded planar graphs and the slab's faces
-    (all within it) have the certificate of :func:`_slab_embedded`.  ``npairs`` is -1 when the
+    (all within it) have the certificate of :func:`_slab_embedded` (``scert[k]``, and ``pemb``
+    for the planes).  ``npairs`` is -1 when the
     sweep went over ``limit``.  ``sbox`` (the slab's faces' xy boxes, by their place in ``faces``),
     ``sgrp`` (all 2) and ``sids`` (``0, 1, ...``) are workspaces of one entry per face of the
     fullest slab.  ``l0 .. l1``: the levels of the vertices whose stars the range certifies."""
     if len(faces) < 2:
         return ci, cj, npairs, pi, pj, work
-    if ws[0] == 1.0 and pemb[k] == 1 and pemb[k + 1] == 1:
-        single = True
-        for t in range(len(faces)):
-            if lo[faces[t]] != k or hi[faces[t]] != k + 1:
-                single = False
-                break
-        if single and _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
-            return ci, cj, npairs, pi, pj, work
+    if scert[k] == 1 and pemb[k] == 1 and pemb[k + 1] == 1:
+        return ci, cj, npairs, pi, pj, work
     # the sweep over the faces' places in the slab list (the same order, so the same candidates
     # in the same order as over their face numbers), then back to face numbers
     ns = len(faces)
@@ -1800,6 +1795,23 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
     head = np.empty(len(V), np.int32)
     hstamp = np.full(len(V), -1, np.int32)
     nxt = np.empty(ms + 1, np.int64)
+    # the slabs' certificates first (_slab_embedded: cheap, and on the dyadic grid only): a plane
+    # that holds only parts of faces ending there or only of faces starting there has no pairs of
+    # its own to decide, and its embedded graph (the costlier check) matters only to a certified
+    # slab beside it (the mesher's bands between two rings: most slabs fail the certificate)
+    scert = np.zeros(nslab, np.int8)
+    if ws[0] == 1.0:
+        for k in range(max(k0 - 1, 0), min(k1 - 1, nslab)):
+            faces = slab_faces[cnt_s[k]:cnt_s[k + 1]]
+            if len(faces) < 2:
+                continue
+            single = True
+            for t in range(len(faces)):
+                if lo[faces[t]] != k or hi[faces[t]] != k + 1:
+                    single = False
+                    break
+            if single and _slab_embedded(V, F, lev, faces, np.int64(k), keys, head, hstamp, nxt):
+                scert[k] = 1
     for k in range(kr0, k1):
         # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
         # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
@@ -1861,8 +1873,9 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
             ne += 1
         # the pairs of a face ending here and a face starting here are all decided at once (none
         # intersects) when their parts form an embedded planar graph (_plane_embedded)
+        # (unchecked, True: no parts here, or the parts of one side only and no certified slab beside)
         emb = True
-        if n0 + n1 > 0:
+        if n0 + n1 > 0 and ((n0 > 0 and n1 > 0) or (k > 0 and scert[k - 1] == 1) or (k < nslab and scert[k] == 1)):
             emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01), np.int64(k),
                                                 stamp, d1, d2, cert, all2, ci, cj, work, limit)
         pemb[k] = 1 if emb else 0
@@ -1870,8 +1883,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
             continue  # (plane k0 - 1: its pairs are another range's)
         if k > 0:
             ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids,
-                                                      slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, keys,
-                                                      head, hstamp, nxt,
+                                                      slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, scert,
                                                       ci, cj, npairs, pi, pj, work, limit, stop, kr0, k1 - 1)
             if npairs < 0:
                 return pi[:0], pj[:0], np.int64(-1)
