@@ -1617,9 +1617,159 @@ def _apart_but_corner(V, F, lev, i, j, p):
     return False
 
 
+@_pure
+def _apart_but_corner_w(W, a, b, px, py, bottom):
+    """:func:`_apart_but_corner` for the faces of rows ``a`` and ``b`` of :func:`_single_sweep`'s
+    ``W`` with their one common corner at ``px, py`` on plane k (``bottom``) or k + 1: the same
+    comparisons, on the ranges of the rows (on p's plane the range of a face's corners there
+    holds p, and its other corner, where it has one, is the end of the range below p if there is
+    one, else the upper end; ``W[., 12]`` is the number of corners on plane k)."""
+    oa = 4 if bottom else 8  # p's plane's ranges, then the other plane's
+    ob = 8 if bottom else 4
+    na = W[a, 12] if bottom else 3.0 - W[a, 12]  # corners on p's plane
+    nb = W[b, 12] if bottom else 3.0 - W[b, 12]
+    for c in range(2):
+        pc = px if c == 0 else py
+        i0lo = np.inf
+        i0hi = -np.inf
+        if na == 2.0:
+            o = W[a, oa + 2 * c] if W[a, oa + 2 * c] < pc else W[a, oa + 2 * c + 1]
+            i0lo = o
+            i0hi = o
+        j0lo = np.inf
+        j0hi = -np.inf
+        if nb == 2.0:
+            o = W[b, oa + 2 * c] if W[b, oa + 2 * c] < pc else W[b, oa + 2 * c + 1]
+            j0lo = o
+            j0hi = o
+        i1lo = W[a, ob + 2 * c]
+        i1hi = W[a, ob + 2 * c + 1]
+        j1lo = W[b, ob + 2 * c]
+        j1hi = W[b, ob + 2 * c + 1]
+        if i1hi < j1lo and i0hi < pc and pc < j0lo:
+            return True
+        if j1hi < i1lo and j0hi < pc and pc < i0lo:
+            return True
+    return False
+
+
 @_kernel
-def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, scert, ci, cj,
-               npairs, pi, pj, work, limit, stop, l0, l1):
+def _single_sweep(V, F, lev, faces, k, W, order, bk, start, ci, cj, work, limit):
+    """The candidates of a slab whose faces all have their corners on the heights ``k`` and
+    ``k + 1`` only, as :func:`_sweep` finds them (the same buckets, box tests and work), less the
+    pairs that :func:`_ends_apart` and :func:`_apart_but_corner` decide, which it tests as it goes
+    instead of listing them (most candidates of a two-ring band: on the liver's bands some nine in
+    ten).  Each face's corner ranges on the two planes are computed once, into ``W`` by its place
+    in the sweep's order (a row: xy box, then the x and y ranges on plane k, then on plane k + 1).
+    Returns ``(ci, cj, n_out, work)``, the pairs as places in ``faces``; ``n_out`` is -1 when
+    ``work`` exceeds ``limit``.  ``W``, ``order``, ``bk``, ``start``: workspaces of one entry
+    per face (``start`` one more)."""
+    n = len(faces)
+    n_out = np.int64(0)
+    if n < 2:
+        return ci, cj, n_out, work
+    lo = np.inf
+    hi = -np.inf
+    for t in range(n):
+        i = faces[t]
+        for q in range(3):
+            x = V[F[i, q], 0]
+            lo = min(lo, x)
+            hi = max(hi, x)
+    nb = n
+    h = (hi - lo) / nb
+    if not h > 0.0:
+        h = 1.0
+    for q in range(nb + 1):
+        start[q] = 0
+    for t in range(n):
+        i = faces[t]
+        xl = min(V[F[i, 0], 0], min(V[F[i, 1], 0], V[F[i, 2], 0]))
+        q = min(np.int64((xl - lo) / h), nb - 1)
+        bk[t] = q
+        start[q + 1] += 1
+    for q in range(nb):
+        start[q + 1] += start[q]
+    for t in range(n):  # (start[q] is the fill pointer of bucket q, shifted back below)
+        s = start[bk[t]]
+        order[s] = t
+        start[bk[t]] = s + 1
+    for q in range(nb, 0, -1):
+        start[q] = start[q - 1]
+    start[0] = 0
+    for s in range(n):
+        i = faces[order[s]]
+        bx0 = np.inf
+        bx1 = -np.inf
+        by0 = np.inf
+        by1 = -np.inf
+        tx0 = np.inf
+        tx1 = -np.inf
+        ty0 = np.inf
+        ty1 = -np.inf
+        for q in range(3):
+            v = F[i, q]
+            x = V[v, 0]
+            y = V[v, 1]
+            if lev[v] == k:
+                bx0 = min(bx0, x)
+                bx1 = max(bx1, x)
+                by0 = min(by0, y)
+                by1 = max(by1, y)
+            else:
+                tx0 = min(tx0, x)
+                tx1 = max(tx1, x)
+                ty0 = min(ty0, y)
+                ty1 = max(ty1, y)
+        W[s, 0] = min(bx0, tx0)
+        W[s, 1] = max(bx1, tx1)
+        W[s, 2] = min(by0, ty0)
+        W[s, 3] = max(by1, ty1)
+        W[s, 4] = bx0
+        W[s, 5] = bx1
+        W[s, 6] = by0
+        W[s, 7] = by1
+        W[s, 8] = tx0
+        W[s, 9] = tx1
+        W[s, 10] = ty0
+        W[s, 11] = ty1
+        W[s, 12] = 1.0 * ((lev[F[i, 0]] == k) + (lev[F[i, 1]] == k) + (lev[F[i, 2]] == k))
+    for s in range(n):
+        xa = W[s, 1]
+        qh = min(np.int64((xa - lo) / h), nb - 1)
+        for u in range(s + 1, start[qh + 1]):
+            work += 1
+            # boxes apart, or _ends_apart (which no two faces with a common corner are); & and |,
+            # not "and" and "or": one branch, hard to predict, instead of up to twelve
+            if ((W[u, 0] > xa) | (W[s, 0] > W[u, 1]) | (W[s, 2] > W[u, 3]) | (W[u, 2] > W[s, 3])
+                    | ((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
+                    | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
+                continue
+            i = np.int64(faces[order[s]])
+            j = np.int64(faces[order[u]])
+            ns = 0
+            p = np.int64(-1)
+            for q in range(3):
+                v = F[i, q]
+                if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
+                    ns += 1
+                    p = v
+            if ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == k):
+                continue
+            if n_out == len(ci):
+                ci = _grow(ci, 2 * n_out)
+                cj = _grow(cj, 2 * n_out)
+            ci[n_out] = order[s]
+            cj[n_out] = order[u]
+            n_out += 1
+        if work > limit:
+            return ci, cj, np.int64(-1), work
+    return ci, cj, n_out, work
+
+
+@_kernel
+def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, sW, sord, sbk, sstart, faces, k, pemb, scert,
+               ci, cj, npairs, pi, pj, work, limit, stop, l0, l1):
     """Slab k of :func:`_slab_pairs`: its pairs, each tested in the lowest slab the two faces
     share; none when the planes on both sides hold embedded planar graphs and the slab's faces
     (all within it) have the certificate of :func:`_slab_embedded` (``scert[k]``, and ``pemb``
@@ -1631,6 +1781,36 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces,
         return ci, cj, npairs, pi, pj, work
     if scert[k] == 1 and pemb[k] == 1 and pemb[k + 1] == 1:
         return ci, cj, npairs, pi, pj, work
+    if quick == 1:
+        single = True
+        for t in range(len(faces)):
+            if lo[faces[t]] != k or hi[faces[t]] != k + 1:
+                single = False
+                break
+        if single:  # (the candidates that coordinates decide are decided in the sweep)
+            ci, cj, n_out, work = _single_sweep(V, F, lev, faces, k, sW, sord, sbk, sstart, ci, cj, work, limit)
+            if n_out < 0:
+                return ci, cj, np.int64(-1), pi, pj, work
+            for t in range(n_out):
+                i = np.int64(min(faces[ci[t]], faces[cj[t]]))
+                j = np.int64(max(faces[ci[t]], faces[cj[t]]))
+                if _star_due(sst):
+                    _star_fill_levels(V, F, star, lev, l0, l1)
+                if _shares_certified(F, star, i, j):
+                    continue
+                hit = _touching_boxes(V, ws, F, i, j)
+                if hit < 0:
+                    hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+                if hit == 1:
+                    if npairs == len(pi):
+                        pi = _grow(pi, 2 * npairs)
+                        pj = _grow(pj, 2 * npairs)
+                    pi[npairs] = i
+                    pj[npairs] = j
+                    npairs += 1
+                    if npairs == stop:
+                        break
+            return ci, cj, npairs, pi, pj, work
     # the sweep over the faces' places in the slab list (the same order, so the same candidates
     # in the same order as over their face numbers), then back to face numbers
     ns = len(faces)
@@ -1644,7 +1824,7 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces,
         sbox[t, 2] = min(V[a, 1], min(V[b, 1], V[c, 1]))
         sbox[t, 3] = max(V[a, 1], max(V[b, 1], V[c, 1]))
     ci, cj, n_out, work = _sweep(sbox[:, 0], sbox[:, 1], sbox[:, 2], sbox[:, 3], sgrp, sids[:ns], ci, cj,
-                                 np.int64(0), work, limit, np.int64(0))
+                                 np.int64(0), work, limit, np.int64(1))
     if n_out < 0:
         return ci, cj, np.int64(-1), pi, pj, work
     for t in range(n_out):
@@ -1775,6 +1955,10 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
     sbox = np.empty((ms, 4), np.float64)  # (a slab's: every pair of its faces is a candidate, group 2)
     sgrp = np.full(ms, 2, np.int8)
     sids = np.arange(ms).astype(np.int32)
+    sW = np.empty((ms, 13), np.float64)  # (_single_sweep's)
+    sord = np.empty(ms, np.int64)
+    sbk = np.empty(ms, np.int64)
+    sstart = np.empty(ms + 1, np.int64)
     pxlo = pbox[:, 0]
     pxhi = pbox[:, 1]
     pylo = pbox[:, 2]
@@ -1883,6 +2067,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
             continue  # (plane k0 - 1: its pairs are another range's)
         if k > 0:
             ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids,
+                                                      sW, sord, sbk, sstart,
                                                       slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, scert,
                                                       ci, cj, npairs, pi, pj, work, limit, stop, kr0, k1 - 1)
             if npairs < 0:
