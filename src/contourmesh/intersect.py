@@ -1654,20 +1654,20 @@ def _apart_but_corner_w(W, a, b, px, py, bottom):
 
 
 @_kernel
-def _single_sweep(V, F, lev, faces, k, W, order, bk, start, ci, cj, work, limit):
+def _single_sweep(V, ws, F, star, sst, lev, faces, k, W, order, bk, start, npairs, pi, pj, work, limit, stop, l0, l1):
     """The candidates of a slab whose faces all have their corners on the heights ``k`` and
     ``k + 1`` only, as :func:`_sweep` finds them (the same buckets, box tests and work), less the
     pairs that :func:`_ends_apart` and :func:`_apart_but_corner` decide, which it tests as it goes
     instead of listing them (most candidates of a two-ring band: on the liver's bands some nine in
-    ten).  Each face's corner ranges on the two planes are computed once, into ``W`` by its place
-    in the sweep's order (a row: xy box, then the x and y ranges on plane k, then on plane k + 1).
-    Returns ``(ci, cj, n_out, work)``, the pairs as places in ``faces``; ``n_out`` is -1 when
-    ``work`` exceeds ``limit``.  ``W``, ``order``, ``bk``, ``start``: workspaces of one entry
-    per face (``start`` one more)."""
+    ten); the other candidates are tested as they are found (as in :func:`_slab_step`), so a
+    search that stops at its first pair stops there.  Each face's corner ranges on the two planes
+    are computed once, into ``W`` by its place in the sweep's order (a row: xy box, then the x and
+    y ranges on plane k, then on plane k + 1, then the number of corners on plane k).  Returns
+    ``(npairs, pi, pj, work)``; ``npairs`` is -1 when ``work`` exceeds ``limit``.  ``W``,
+    ``order``, ``bk``, ``start``: workspaces of one entry per face (``start`` one more)."""
     n = len(faces)
-    n_out = np.int64(0)
     if n < 2:
-        return ci, cj, n_out, work
+        return npairs, pi, pj, work
     lo = np.inf
     hi = -np.inf
     for t in range(n):
@@ -1756,15 +1756,27 @@ def _single_sweep(V, F, lev, faces, k, W, order, bk, start, ci, cj, work, limit)
                     p = v
             if ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == k):
                 continue
-            if n_out == len(ci):
-                ci = _grow(ci, 2 * n_out)
-                cj = _grow(cj, 2 * n_out)
-            ci[n_out] = order[s]
-            cj[n_out] = order[u]
-            n_out += 1
+            if i > j:
+                i, j = j, i
+            if _star_due(sst):
+                _star_fill_levels(V, F, star, lev, l0, l1)
+            if _shares_certified(F, star, i, j):
+                continue
+            hit = _touching_boxes(V, ws, F, i, j)
+            if hit < 0:
+                hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+            if hit == 1:
+                if npairs == len(pi):
+                    pi = _grow(pi, 2 * npairs)
+                    pj = _grow(pj, 2 * npairs)
+                pi[npairs] = i
+                pj[npairs] = j
+                npairs += 1
+                if npairs == stop:
+                    return npairs, pi, pj, work
         if work > limit:
-            return ci, cj, np.int64(-1), work
-    return ci, cj, n_out, work
+            return np.int64(-1), pi, pj, work
+    return npairs, pi, pj, work
 
 
 @_kernel
@@ -1788,28 +1800,8 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, sW, so
                 single = False
                 break
         if single:  # (the candidates that coordinates decide are decided in the sweep)
-            ci, cj, n_out, work = _single_sweep(V, F, lev, faces, k, sW, sord, sbk, sstart, ci, cj, work, limit)
-            if n_out < 0:
-                return ci, cj, np.int64(-1), pi, pj, work
-            for t in range(n_out):
-                i = np.int64(min(faces[ci[t]], faces[cj[t]]))
-                j = np.int64(max(faces[ci[t]], faces[cj[t]]))
-                if _star_due(sst):
-                    _star_fill_levels(V, F, star, lev, l0, l1)
-                if _shares_certified(F, star, i, j):
-                    continue
-                hit = _touching_boxes(V, ws, F, i, j)
-                if hit < 0:
-                    hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
-                if hit == 1:
-                    if npairs == len(pi):
-                        pi = _grow(pi, 2 * npairs)
-                        pj = _grow(pj, 2 * npairs)
-                    pi[npairs] = i
-                    pj[npairs] = j
-                    npairs += 1
-                    if npairs == stop:
-                        break
+            npairs, pi, pj, work = _single_sweep(V, ws, F, star, sst, lev, faces, k, sW, sord, sbk, sstart, npairs, pi,
+                                                 pj, work, limit, stop, l0, l1)
             return ci, cj, npairs, pi, pj, work
     # the sweep over the faces' places in the slab list (the same order, so the same candidates
     # in the same order as over their face numbers), then back to face numbers
