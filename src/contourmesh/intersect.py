@@ -2278,7 +2278,8 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
     slabs between consecutive vertex heights (for meshes made from sections; an error for a mesh
     without that structure; where a sweep would test too many boxes, the grid takes over),
     ``"auto"`` slabs where the mesh has that structure, else the grid (and the grid for a mesh
-    of fewer than ``_GRID_FACES`` faces off the small dyadic grid, where it is as fast or faster).
+    of fewer than ``_GRID_FACES`` faces off the small dyadic grid, where it is as fast or faster,
+    unless its vertices lie on two heights: a band between two rings).
     The pairs are the same whichever method decides them.
     """
     if method not in ("auto", "grid", "slabs"):
@@ -2384,8 +2385,8 @@ def _any_kernel(V, F, delay):
     sst[1] = m // 8 + delay
     one = m - m + 1  # (int64 values, not literals: the signatures of the Python calls)
     ok = one - one
-    if ws[0] == 1.0 or m >= _GRID_FACES:  # (the route of _pairs)
-        lev, nlev = _levels(V[:, 2].copy())
+    lev, nlev = _levels(V[:, 2].copy())
+    if ws[0] == 1.0 or m >= _GRID_FACES or nlev == 2:  # (the route of _pairs)
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one, one - one, nlev)
     if ok != 1:
         pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one)
@@ -2412,12 +2413,18 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
     sst = np.array([0 if quick else -1, len(Fc) // 8 + _STAR_DELAY], np.int64)
     qk = np.int64(1 if quick else 0)
     ok = 0
-    # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces (see
-    # there), else the slab phase (the grid where it gives up)
+    # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces whose
+    # vertices lie on other than two heights (see there), else the slab phase (the grid where it
+    # gives up)
     on_grid = ws[0] == 0.0 and len(Fc) < _GRID_FACES
+    lev = None
+    if method == "auto" and on_grid:
+        lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
+        on_grid = nlev != 2  # (a band between two rings: slabs all the same, see _GRID_FACES)
     split = stop == 0 and method == "auto" and len(Fc) >= _SPLIT_FACES and _threads() > 1
     if method == "slabs" or (method == "auto" and (not on_grid or split)):
-        lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
+        if lev is None:
+            lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
         if nlev < 0:  # a NaN height: np.unique's levels (NaNs as one)
             levels, lev = np.unique(V[:, 2], return_inverse=True)
             lev, nlev = lev.astype(np.int64).reshape(-1), len(levels)
@@ -2452,7 +2459,11 @@ _STAR_DELAY = 100
 #: dyadic grid (the 512^3 ball's 117k faces: 15 ms by slabs, 85 ms by the grid), and off it the grid
 #: finds the same pairs with less work (the 3,280 any_intersecting calls of a lobster build: 0.22 s
 #: vs 0.26 s, the liver's 988 as fast; one thread, whole meshes: liver 0.37 s vs 0.46 s, liver x2
-#: 1.00 s vs 1.16 s).  Larger meshes stay on the slab phase all the same: the grid's tables (some 150 bytes
+#: 1.00 s vs 1.16 s).  But for a mesh whose vertices lie on two heights (a band between two rings,
+#: with or without flat faces): since its slab's pairs that coordinates decide are decided in the
+#: sweep (:func:`_single_sweep`), the slabs take it in a half to a third of the grid's time (issue
+#: 16's seventh round, the dumped calls off the dyadic grid: the liver's 198 such bands 0.048 s by
+#: slabs vs 0.175 s by the grid, the lobster's 792 0.026 s vs 0.057 s).  Larger meshes stay on the slab phase all the same: the grid's tables (some 150 bytes
 #: per face) then set the general mesher's peak memory (the liver's +56 MiB, 80 -> 136 MiB).
 _GRID_FACES = 20_000
 
