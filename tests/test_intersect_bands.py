@@ -95,3 +95,35 @@ def test_bands_with_one_common_corner_beside_each_other():
                     F.append((i % n, n + (j + 1) % m, n + j % m))
                     j += 1
             _check(V, np.array(F))
+
+
+def test_any_intersecting_checks_in_its_compiled_call():
+    """Arrays as the mesher passes them go straight to the compiled call, which checks them itself:
+    a face index out of range, a coordinate not finite, or magnitudes out of the exact predicates'
+    range make it refuse (-1, nothing done), and the checked path then gives its errors, or its
+    answer on the rescaled coordinates."""
+    from contourmesh import intersect as I
+
+    rng = np.random.default_rng(3)
+    V, F = _band(rng)
+    d = np.int64(I._STAR_DELAY)
+    want = len(intersecting_pairs(V, F)) > 0
+    assert I._any_kernel(V, F, d) == int(want)
+    for bad in (-1, len(V)):
+        G = F.copy()
+        G[5, 1] = bad
+        assert I._any_kernel(V, G, d) == -1
+        with pytest.raises(ValueError, match="do not exist"):
+            any_intersecting(V, G)
+    for x in (np.nan, np.inf, -np.inf):
+        W = V.copy()
+        W[3, 0] = x
+        assert I._any_kernel(W, F, d) == -1
+        with pytest.raises(ValueError, match="finite"):
+            any_intersecting(W, F)
+    for scale in (2.0 ** -300, 2.0 ** 400):  # exact scalings: the same answer, by the checked path
+        W = V * scale
+        assert I._any_kernel(W, F, d) == -1
+        assert any_intersecting(W, F) == want
+    W = V * 2.0 ** -200  # within range: the compiled call answers
+    assert I._any_kernel(W, F, d) == int(want) and any_intersecting(W, F) == want

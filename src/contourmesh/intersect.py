@@ -2308,6 +2308,8 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
 #: this before: a mesh scaled by 2^-1040 had no crossing pairs where exact rationals find dozens
 #: (its products underflowed to zero), and one scaled by 2^1000 lost pairs to overflow.
 _EXACT_EXP = (240, 320)
+_EXACT_LO = 2.0 ** -_EXACT_EXP[0]
+_EXACT_HI = 2.0 ** _EXACT_EXP[1]
 
 
 @njit(cache=True, nogil=True)
@@ -2334,7 +2336,7 @@ def _exact_range(V):
         return V
     lo, hi = _magnitudes(V)
     low, high = _EXACT_EXP
-    if hi <= 2.0 ** high and lo >= 2.0 ** -low:
+    if hi <= _EXACT_HI and lo >= _EXACT_LO:
         return V
     e_lo, e_hi = math.frexp(lo)[1], math.frexp(hi)[1]  # 2^(e_lo - 1) <= lo, hi < 2^e_hi
     # a shift s fits where e_lo - 1 + s >= -low and e_hi + s <= high
@@ -2352,6 +2354,16 @@ def any_intersecting(vertices, faces) -> bool:
     Every pair the search reports is tested exactly, and the broad phases find every pair
     whichever decides them, so the first pair found answers the question as the whole list
     would; a mesh without crossing faces costs the same as :func:`intersecting_pairs`."""
+    # (the mesher asks this of thousands of small bands and joins: arrays as the mesher passes them
+    # go straight to the compiled call, which checks them itself, some 5 us a call less than the
+    # numpy checks; anything it refuses takes the checked path below, with its errors)
+    V = np.ascontiguousarray(vertices, dtype=np.float64)
+    F = np.ascontiguousarray(faces, dtype=np.int64)
+    if (V.ndim == 2 and V.shape[1] == 3 and F.ndim == 2 and F.shape[1] == 3 and len(F) >= 2
+            and 3 * len(F) >= len(V) and V.flags.writeable and F.flags.writeable):
+        got = _any_kernel(V, F, np.int64(_STAR_DELAY))
+        if got >= 0:
+            return bool(got)
     V, F = _as_mesh_arrays(vertices, faces)
     if len(F) < 2:
         return False
@@ -2363,15 +2375,37 @@ def any_intersecting(vertices, faces) -> bool:
         V = V.copy()
     if not F.flags.writeable:
         F = F.copy()
-    # (the mesher asks this of thousands of small bands and joins: the steps of _pairs(..., "auto",
-    # stop=1) in one compiled call; the vertices are finite here, as canonical_vertices' kernel needs)
-    return bool(_any_kernel(V, F, np.int64(_STAR_DELAY)))
+    # (the steps of _pairs(..., "auto", stop=1) in one compiled call)
+    got = _any_kernel(V, F, np.int64(_STAR_DELAY))
+    if got < 0:  # pragma: no cover - checked and brought into range above
+        raise RuntimeError("the crossing test refused arrays it had checked")
+    return bool(got)
 
 
 @njit(cache=True, **_OPTIONS)
 def _any_kernel(V, F, delay):
-    """:func:`any_intersecting` on checked arrays (finite vertices): the steps of :func:`_pairs`
-    with ``method="auto"``, ``stop=1`` and the shortcuts, one thread; 1 where a pair is found."""
+    """:func:`any_intersecting` on C arrays of shapes (n, 3) and (m, 3): the steps of
+    :func:`_pairs` with ``method="auto"``, ``stop=1`` and the shortcuts, one thread; 1 where a pair
+    is found, 0 where none, -1 where the arrays need :func:`_as_mesh_arrays`' errors or
+    :func:`_exact_range`'s scaling (a face index out of range, a coordinate not finite, or
+    magnitudes out of the exact predicates' range): then nothing is done."""
+    n = V.shape[0]
+    for i in range(F.shape[0]):
+        for t in range(3):
+            if F[i, t] < 0 or F[i, t] >= n:
+                return -1
+    lo = np.inf
+    hi = 0.0
+    for i in range(n):
+        for t in range(3):
+            a = abs(V[i, t])
+            if not a <= 1.7976931348623157e308:  # (NaN or infinite)
+                return -1
+            hi = max(hi, a)
+            if 0.0 < a < lo:
+                lo = a
+    if not (hi <= _EXACT_HI and lo >= _EXACT_LO):
+        return -1
     canon = _canonical_kernel((V + 0.0).view(np.uint64))  # (-0.0 + 0.0 == +0.0)
     m = F.shape[0]
     Fc = np.empty((m, 3), np.int64)
@@ -2390,7 +2424,7 @@ def _any_kernel(V, F, delay):
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one, one - one, nlev)
     if ok != 1:
         pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one)
-    return len(pi) > 0
+    return 1 if len(pi) > 0 else 0
 
 
 def _pairs(V, F, canon, budget, method, stop=0, quick=True):
