@@ -21,19 +21,20 @@ def _ring(rng, n, shift, step):
     return P[keep]
 
 
-def _band(rng, step=0.5):
+def _band(rng, step=0.5, tidy=False):
     """Two rings at heights 0 and 1 joined by a band (each face two corners on one ring and one on
-    the other, walked along both rings in order from matched starting points)."""
+    the other, walked along both rings in order from matched starting points; ``tidy``: rings
+    shifted less, and walked in proportion, as the mesher's bands that do not cross)."""
     A = _ring(rng, int(rng.integers(8, 60)), (0.0, 0.0), step)
-    B = _ring(rng, int(rng.integers(8, 60)), rng.uniform(-2.5, 2.5, 2), step)
-    if rng.random() < 0.3:  # the other way round: faces twisted over each other
+    B = _ring(rng, int(rng.integers(8, 60)), rng.uniform(-2.5, 2.5, 2) * (0.2 if tidy else 1.0), step)
+    if not tidy and rng.random() < 0.3:  # the other way round: faces twisted over each other
         B = B[::-1]
     n, m = len(A), len(B)
     V = np.vstack([np.column_stack([A, np.zeros(n)]), np.column_stack([B, np.ones(m)])])
     F = []
     i = j = 0
     while i < n or j < m:
-        if j == m or (i < n and rng.random() < n / (n + m)):
+        if j == m or (i < n and ((i + 0.5) / n < (j + 0.5) / m if tidy else rng.random() < n / (n + m))):
             F.append((i % n, (i + 1) % n, n + j % m))
             i += 1
         else:
@@ -70,6 +71,30 @@ def test_random_two_ring_bands_by_slabs_equal_the_plain_test(grid):
         crossing += k > 0
         clean += k == 0
     assert crossing >= 10 and clean >= 10, (crossing, clean)
+
+
+@pytest.mark.parametrize("grid", ["dyadic", "off"])
+def test_bands_across_a_plane_with_few_points(grid):
+    # a band from height 0 to 1 with a small band from a mid-height to 1 beside or across it (as a
+    # join's few points at a mid-height): the large band's faces span two slabs with no corner on
+    # the middle plane, and their pairs are decided in the lower slab by the same coordinates
+    rng = np.random.default_rng(41 if grid == "dyadic" else 42)
+    crossing = clean = 0
+    for t in range(80):
+        V, F = _band(rng, step=0.5, tidy=True)
+        W, G = _band(rng, step=0.5, tidy=True)
+        W[:, :2] = W[:, :2] * 0.3 + rng.uniform(-10, 10, 2)  # in the hole, across the band or outside
+        W[:, 2] = np.where(W[:, 2] == 0, 0.5, 1.0)
+        if t % 2:  # the small band below the mid-height instead: from 0 to 0.5
+            W[:, 2] -= 0.5
+        V = np.vstack([V, W])
+        F = np.vstack([F, G + len(V) - len(W)])
+        if grid == "off":
+            V = V * np.array([0.7, 0.7, 1.3]) + 0.113
+        k = _check(V, F)
+        crossing += k > 0
+        clean += k == 0
+    assert crossing >= 3 and clean >= 3, (crossing, clean)
 
 
 def test_bands_with_one_common_corner_beside_each_other():

@@ -1654,17 +1654,22 @@ def _apart_but_corner_w(W, a, b, px, py, bottom):
 
 
 @_kernel
-def _single_sweep(V, ws, F, star, sst, lev, faces, k, W, order, bk, start, npairs, pi, pj, work, limit, stop, l0, l1):
-    """The candidates of a slab whose faces all have their corners on the heights ``k`` and
-    ``k + 1`` only, as :func:`_sweep` finds them (the same buckets, box tests and work), less the
-    pairs that :func:`_ends_apart` and :func:`_apart_but_corner` decide, which it tests as it goes
-    instead of listing them (most candidates of a two-ring band: on the liver's bands some nine in
-    ten); the other candidates are tested as they are found (as in :func:`_slab_step`), so a
-    search that stops at its first pair stops there.  Each face's corner ranges on the two planes
-    are computed once, into ``W`` by its place in the sweep's order (a row: xy box, then the x and
-    y ranges on plane k, then on plane k + 1, then the number of corners on plane k).  Returns
-    ``(npairs, pi, pj, work)``; ``npairs`` is -1 when ``work`` exceeds ``limit``.  ``W``,
-    ``order``, ``bk``, ``start``: workspaces of one entry per face (``start`` one more)."""
+def _single_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, npairs, pi, pj, work, limit, stop,
+                  l0, l1):
+    """The pairs of slab k (its faces ``faces``, levels ``lo_``, ``hi_`` per face), its candidates
+    as :func:`_sweep` finds them (the same buckets, box tests and work), tested as they are found
+    (as in :func:`_slab_step`, so a search that stops at its first pair stops there), less the
+    pairs that :func:`_ends_apart` and :func:`_apart_but_corner` decide, which it decides on the
+    way instead of listing them (most candidates of a two-ring band: on the liver's bands some nine
+    in ten).  Those two hold for any two faces with their corners on the same two heights only
+    (the argument is the same between any two planes): here the faces of one ``lo_``, ``hi_`` with
+    no corner between (a face across a plane with no corner on it, as over a join's few points at
+    a mid-height).  Each face's corner ranges on its two planes are computed once, into ``W`` by its
+    place in the sweep's order (a row: xy box, the x and y ranges on plane ``lo_``, then on plane
+    ``hi_``, the number of corners on plane ``lo_``, then ``lo_``, ``hi_`` and 1 where no corner
+    lies between, else 0).  Returns ``(npairs, pi, pj, work)``; ``npairs`` is -1 when ``work``
+    exceeds ``limit``.  ``W``, ``order``, ``bk``, ``start``: workspaces of one entry per face
+    (``start`` one more)."""
     n = len(faces)
     if n < 2:
         return npairs, pi, pj, work
@@ -1699,6 +1704,8 @@ def _single_sweep(V, ws, F, star, sst, lev, faces, k, W, order, bk, start, npair
     start[0] = 0
     for s in range(n):
         i = faces[order[s]]
+        kl = lo_[i]
+        kh = hi_[i]
         bx0 = np.inf
         bx1 = -np.inf
         by0 = np.inf
@@ -1711,7 +1718,7 @@ def _single_sweep(V, ws, F, star, sst, lev, faces, k, W, order, bk, start, npair
             v = F[i, q]
             x = V[v, 0]
             y = V[v, 1]
-            if lev[v] == k:
+            if lev[v] == kl:
                 bx0 = min(bx0, x)
                 bx1 = max(bx1, x)
                 by0 = min(by0, y)
@@ -1733,29 +1740,37 @@ def _single_sweep(V, ws, F, star, sst, lev, faces, k, W, order, bk, start, npair
         W[s, 9] = tx1
         W[s, 10] = ty0
         W[s, 11] = ty1
-        W[s, 12] = 1.0 * ((lev[F[i, 0]] == k) + (lev[F[i, 1]] == k) + (lev[F[i, 2]] == k))
+        nl = (lev[F[i, 0]] == kl) + (lev[F[i, 1]] == kl) + (lev[F[i, 2]] == kl)
+        nh = (lev[F[i, 0]] == kh) + (lev[F[i, 1]] == kh) + (lev[F[i, 2]] == kh)
+        W[s, 12] = 1.0 * nl
+        W[s, 13] = 1.0 * kl
+        W[s, 14] = 1.0 * kh
+        W[s, 15] = 1.0 if nl + nh == 3 and kl < kh else 0.0
     for s in range(n):
         xa = W[s, 1]
         qh = min(np.int64((xa - lo) / h), nb - 1)
         for u in range(s + 1, start[qh + 1]):
             work += 1
-            # boxes apart, or _ends_apart (which no two faces with a common corner are); & and |,
-            # not "and" and "or": one branch, hard to predict, instead of up to twelve
-            if ((W[u, 0] > xa) | (W[s, 0] > W[u, 1]) | (W[s, 2] > W[u, 3]) | (W[u, 2] > W[s, 3])
-                    | ((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
-                    | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
+            if W[u, 0] > xa or W[s, 0] > W[u, 1] or W[s, 2] > W[u, 3] or W[u, 2] > W[s, 3]:
                 continue
+            if max(W[s, 13], W[u, 13]) != k:
+                continue  # (a pair of a lower slab)
             i = np.int64(faces[order[s]])
             j = np.int64(faces[order[u]])
-            ns = 0
-            p = np.int64(-1)
-            for q in range(3):
-                v = F[i, q]
-                if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
-                    ns += 1
-                    p = v
-            if ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == k):
-                continue
+            if W[s, 15] == 1.0 and W[u, 15] == 1.0 and W[s, 13] == W[u, 13] and W[s, 14] == W[u, 14]:
+                # _ends_apart (which no two faces with a common corner are), _apart_but_corner
+                if ((W[s, 5] < W[u, 4] and W[s, 9] < W[u, 8]) or (W[u, 5] < W[s, 4] and W[u, 9] < W[s, 8])
+                        or (W[s, 7] < W[u, 6] and W[s, 11] < W[u, 10]) or (W[u, 7] < W[s, 6] and W[u, 11] < W[s, 10])):
+                    continue
+                ns = 0
+                p = np.int64(-1)
+                for q in range(3):
+                    v = F[i, q]
+                    if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
+                        ns += 1
+                        p = v
+                if ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo_[i]):
+                    continue
             if i > j:
                 i, j = j, i
             if _star_due(sst):
@@ -1793,16 +1808,10 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, sW, so
         return ci, cj, npairs, pi, pj, work
     if scert[k] == 1 and pemb[k] == 1 and pemb[k + 1] == 1:
         return ci, cj, npairs, pi, pj, work
-    if quick == 1:
-        single = True
-        for t in range(len(faces)):
-            if lo[faces[t]] != k or hi[faces[t]] != k + 1:
-                single = False
-                break
-        if single:  # (the candidates that coordinates decide are decided in the sweep)
-            npairs, pi, pj, work = _single_sweep(V, ws, F, star, sst, lev, faces, k, sW, sord, sbk, sstart, npairs, pi,
-                                                 pj, work, limit, stop, l0, l1)
-            return ci, cj, npairs, pi, pj, work
+    if quick == 1:  # (the candidates that coordinates decide are decided in the sweep)
+        npairs, pi, pj, work = _single_sweep(V, ws, F, star, sst, lev, lo, hi, faces, k, sW, sord, sbk, sstart, npairs,
+                                             pi, pj, work, limit, stop, l0, l1)
+        return ci, cj, npairs, pi, pj, work
     # the sweep over the faces' places in the slab list (the same order, so the same candidates
     # in the same order as over their face numbers), then back to face numbers
     ns = len(faces)
@@ -1947,7 +1956,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
     sbox = np.empty((ms, 4), np.float64)  # (a slab's: every pair of its faces is a candidate, group 2)
     sgrp = np.full(ms, 2, np.int8)
     sids = np.arange(ms).astype(np.int32)
-    sW = np.empty((ms, 13), np.float64)  # (_single_sweep's)
+    sW = np.empty((ms, 16), np.float64)  # (_single_sweep's)
     sord = np.empty(ms, np.int64)
     sbk = np.empty(ms, np.int64)
     sstart = np.empty(ms + 1, np.int64)
