@@ -1026,6 +1026,18 @@ def _grow(a, cap):
     return b
 
 
+@_kernel
+def _push(pi, pj, n, i, j):
+    """The pair ``(i, j)`` appended at ``n`` to the lists ``pi``, ``pj`` (grown when full):
+    ``(pi, pj, n + 1)``."""
+    if n == len(pi):
+        pi = _grow(pi, 2 * n)
+        pj = _grow(pj, 2 * n)
+    pi[n] = i
+    pj[n] = j
+    return pi, pj, n + 1
+
+
 @_pure
 def _cell(x, lo, h):
     return np.int64(math.floor((x - lo) / h))
@@ -1198,12 +1210,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
                 if hit < 0:
                     hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
                 if hit == 1:
-                    if npairs == len(pi):
-                        pi = _grow(pi, 2 * npairs)
-                        pj = _grow(pj, 2 * npairs)
-                    pi[npairs] = i
-                    pj[npairs] = j
-                    npairs += 1
+                    pi, pj, npairs = _push(pi, pj, npairs, i, j)
                     if npairs == stop:
                         return pi[:npairs], pj[:npairs]
     return pi[:npairs], pj[:npairs]
@@ -1508,6 +1515,35 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
 
 
 @_pure
+def _corner_ranges(V, F, lev, i, k):
+    """The x and y ranges of face i's corners on level k and of its other corners:
+    ``(bx0, bx1, by0, by1, tx0, tx1, ty0, ty1)`` (infinite, lower above upper, where none)."""
+    bx0 = np.inf
+    bx1 = -np.inf
+    by0 = np.inf
+    by1 = -np.inf
+    tx0 = np.inf
+    tx1 = -np.inf
+    ty0 = np.inf
+    ty1 = -np.inf
+    for q in range(3):
+        v = F[i, q]
+        x = V[v, 0]
+        y = V[v, 1]
+        if lev[v] == k:
+            bx0 = min(bx0, x)
+            bx1 = max(bx1, x)
+            by0 = min(by0, y)
+            by1 = max(by1, y)
+        else:
+            tx0 = min(tx0, x)
+            tx1 = max(tx1, x)
+            ty0 = min(ty0, y)
+            ty1 = max(ty1, y)
+    return bx0, bx1, by0, by1, tx0, tx1, ty0, ty1
+
+
+@_pure
 def _ends_apart(V, F, lev, k, i, j):
     """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, are apart:
     along x or along y, one face's corners on plane k all lie strictly before the other's there,
@@ -1520,49 +1556,8 @@ def _ends_apart(V, F, lev, k, i, j):
     and t = 1; the smallest x of face j's is concave, at least the interpolation of its own.  Both
     ends strictly apart put the interpolations, and so the sections, strictly apart at every t.
     Only comparisons of coordinates: exact."""
-    bxi0 = np.inf
-    bxi1 = -np.inf
-    byi0 = np.inf
-    byi1 = -np.inf
-    txi0 = np.inf
-    txi1 = -np.inf
-    tyi0 = np.inf
-    tyi1 = -np.inf
-    bxj0 = np.inf
-    bxj1 = -np.inf
-    byj0 = np.inf
-    byj1 = -np.inf
-    txj0 = np.inf
-    txj1 = -np.inf
-    tyj0 = np.inf
-    tyj1 = -np.inf
-    for q in range(3):
-        v = F[i, q]
-        x = V[v, 0]
-        y = V[v, 1]
-        if lev[v] == k:
-            bxi0 = min(bxi0, x)
-            bxi1 = max(bxi1, x)
-            byi0 = min(byi0, y)
-            byi1 = max(byi1, y)
-        else:
-            txi0 = min(txi0, x)
-            txi1 = max(txi1, x)
-            tyi0 = min(tyi0, y)
-            tyi1 = max(tyi1, y)
-        w = F[j, q]
-        x = V[w, 0]
-        y = V[w, 1]
-        if lev[w] == k:
-            bxj0 = min(bxj0, x)
-            bxj1 = max(bxj1, x)
-            byj0 = min(byj0, y)
-            byj1 = max(byj1, y)
-        else:
-            txj0 = min(txj0, x)
-            txj1 = max(txj1, x)
-            tyj0 = min(tyj0, y)
-            tyj1 = max(tyj1, y)
+    bxi0, bxi1, byi0, byi1, txi0, txi1, tyi0, tyi1 = _corner_ranges(V, F, lev, i, k)
+    bxj0, bxj1, byj0, byj1, txj0, txj1, tyj0, tyj1 = _corner_ranges(V, F, lev, j, k)
     return ((bxi1 < bxj0 and txi1 < txj0) or (bxj1 < bxi0 and txj1 < txi0)
             or (byi1 < byj0 and tyi1 < tyj0) or (byj1 < byi0 and tyj1 < tyi0))
 
@@ -1615,6 +1610,21 @@ def _apart_but_corner(V, F, lev, i, j, p):
         if j1hi < i1lo and j0hi < pc and pc < i0lo:
             return True
     return False
+
+
+@_kernel
+def _slab_hit(V, ws, F, star, sst, quick, lev, l0, l1, i, j):
+    """Faces i and j, a candidate pair of a slab, intersect: the stars of the levels ``l0 .. l1``
+    certified once due (:func:`_star_due`), a pair sharing a certified vertex not tested, with
+    ``quick`` boxes that only touch decided where they touch (:func:`_touching_boxes`)."""
+    if _star_due(sst):
+        _star_fill_levels(V, F, star, lev, l0, l1)
+    if _shares_certified(F, star, i, j):
+        return False
+    hit = _touching_boxes(V, ws, F, i, j) if quick == 1 else np.int64(-1)
+    if hit < 0:
+        hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+    return hit == 1
 
 
 @_pure
@@ -1706,28 +1716,7 @@ def _single_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, st
         i = faces[order[s]]
         kl = lo_[i]
         kh = hi_[i]
-        bx0 = np.inf
-        bx1 = -np.inf
-        by0 = np.inf
-        by1 = -np.inf
-        tx0 = np.inf
-        tx1 = -np.inf
-        ty0 = np.inf
-        ty1 = -np.inf
-        for q in range(3):
-            v = F[i, q]
-            x = V[v, 0]
-            y = V[v, 1]
-            if lev[v] == kl:
-                bx0 = min(bx0, x)
-                bx1 = max(bx1, x)
-                by0 = min(by0, y)
-                by1 = max(by1, y)
-            else:
-                tx0 = min(tx0, x)
-                tx1 = max(tx1, x)
-                ty0 = min(ty0, y)
-                ty1 = max(ty1, y)
+        bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, kl)
         W[s, 0] = min(bx0, tx0)
         W[s, 1] = max(bx1, tx1)
         W[s, 2] = min(by0, ty0)
@@ -1773,20 +1762,8 @@ def _single_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, st
                     continue
             if i > j:
                 i, j = j, i
-            if _star_due(sst):
-                _star_fill_levels(V, F, star, lev, l0, l1)
-            if _shares_certified(F, star, i, j):
-                continue
-            hit = _touching_boxes(V, ws, F, i, j)
-            if hit < 0:
-                hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
-            if hit == 1:
-                if npairs == len(pi):
-                    pi = _grow(pi, 2 * npairs)
-                    pj = _grow(pj, 2 * npairs)
-                pi[npairs] = i
-                pj[npairs] = j
-                npairs += 1
+            if _slab_hit(V, ws, F, star, sst, np.int64(1), lev, l0, l1, i, j):
+                pi, pj, npairs = _push(pi, pj, npairs, i, j)
                 if npairs == stop:
                     return npairs, pi, pj, work
         if work > limit:
@@ -1833,33 +1810,8 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, sW, so
         j = np.int64(max(faces[ci[t]], faces[cj[t]]))
         if max(lo[i], lo[j]) != k:
             continue
-        # (most candidates of a band between two rings that share at most one corner: decided here)
-        if quick == 1 and lo[i] == k and hi[i] == k + 1 and lo[j] == k and hi[j] == k + 1:
-            ns = 0
-            p = np.int64(-1)
-            for q in range(3):
-                v = F[i, q]
-                if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
-                    ns += 1
-                    p = v
-            if ns == 0 and _ends_apart(V, F, lev, k, i, j):
-                continue
-            if ns == 1 and _apart_but_corner(V, F, lev, i, j, p):
-                continue
-        if _star_due(sst):
-            _star_fill_levels(V, F, star, lev, l0, l1)
-        if _shares_certified(F, star, i, j):
-            continue
-        hit = _touching_boxes(V, ws, F, i, j) if quick == 1 else np.int64(-1)
-        if hit < 0:
-            hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
-        if hit == 1:
-            if npairs == len(pi):
-                pi = _grow(pi, 2 * npairs)
-                pj = _grow(pj, 2 * npairs)
-            pi[npairs] = i
-            pj[npairs] = j
-            npairs += 1
+        if _slab_hit(V, ws, F, star, sst, quick, lev, l0, l1, i, j):
+            pi, pj, npairs = _push(pi, pj, npairs, i, j)
             if npairs == stop:
                 break
     return ci, cj, npairs, pi, pj, work
@@ -2099,12 +2051,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
             if hit < 0:
                 hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
             if hit == 1:
-                if npairs == len(pi):
-                    pi = _grow(pi, 2 * npairs)
-                    pj = _grow(pj, 2 * npairs)
-                pi[npairs] = i
-                pj[npairs] = j
-                npairs += 1
+                pi, pj, npairs = _push(pi, pj, npairs, i, j)
                 if npairs == stop:
                     return pi[:npairs], pj[:npairs], np.int64(1)
     return pi[:npairs], pj[:npairs], np.int64(1)
