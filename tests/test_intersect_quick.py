@@ -263,3 +263,45 @@ def test_faces_with_one_common_corner_apart_meet_only_there():
                 assert not hit
                 decided += 1
     assert decided > 100 and crossing > 50
+
+
+def test_apart_but_corner_on_the_sweeps_ranges_is_the_rule():
+    """The slab sweep decides ``_apart_but_corner`` on its rows of corner ranges
+    (``_apart_but_corner_w``): the same answer on every pair of faces with one common corner, the
+    corner on either plane, on a coarse grid (coordinates level with p) and off it."""
+    from numba import njit
+
+    @njit
+    def both(V, F, lev, W, p):
+        return (intersect._apart_but_corner(V, F, lev, np.int64(0), np.int64(1), p),
+                intersect._apart_but_corner_w(W, np.int64(0), np.int64(1), V[p, 0], V[p, 1], lev[p] == 0))
+
+    def rows(V, F, lev):
+        W = np.empty((2, 13))
+        for r, f in enumerate(F):
+            bot, top = V[f[lev[f] == 0], :2], V[f[lev[f] == 1], :2]
+            W[r, :4] = V[f, 0].min(), V[f, 0].max(), V[f, 1].min(), V[f, 1].max()
+            W[r, 4:8] = bot[:, 0].min(), bot[:, 0].max(), bot[:, 1].min(), bot[:, 1].max()
+            W[r, 8:12] = top[:, 0].min(), top[:, 0].max(), top[:, 1].min(), top[:, 1].max()
+            W[r, 12] = len(bot)
+        return W
+
+    rng = np.random.default_rng(44)
+    decided = tried = 0
+    for it in range(60):
+        n = 12
+        V = np.c_[rng.integers(0, 4, (n, 2)) * 0.5, np.repeat([0.0, 1.0], n // 2)]
+        if it % 2:
+            V[:, :2] += rng.normal(0, 0.1, (n, 2))
+        lev = (V[:, 2] > 0).astype(np.int64)
+        for _ in range(40):
+            p = int(rng.integers(n))
+            a, b, c, d = rng.choice([v for v in range(n) if v != p], 4, replace=False)
+            F = np.array([[p, a, b], [p, c, d]], dtype=np.int64)
+            if len(set(lev[F[0]])) != 2 or len(set(lev[F[1]])) != 2:
+                continue
+            want, got = both(V, F, lev, rows(V, F, lev), np.int64(p))
+            assert want == got, (V[F], p)
+            decided += want
+            tried += 1
+    assert decided > 100 and tried > 1000

@@ -83,8 +83,8 @@ def test_our_meshes_with_heights_moved_by_hairs(kind):
 
 def test_auto_routes(monkeypatch):
     """``auto`` asks the slab phase only for meshes on a small dyadic grid, meshes of at least
-    ``_GRID_FACES`` faces, or to split a large mesh over two threads; the grid decides the others
-    (the same pairs)."""
+    ``_GRID_FACES`` faces, meshes on two heights (bands between two rings), or to split a large
+    mesh over two threads; the grid decides the others (the same pairs)."""
     calls = []
     real = I._slab_pairs
     monkeypatch.setattr(I, "_slab_pairs", lambda *a: calls.append(1) or real(*a))
@@ -158,3 +158,32 @@ def test_tiny_huge_and_subnormal_coordinates_keep_the_exact_pairs(kind):
         checked += len(want) > 0
     if kind != "subnormal":
         assert checked >= 3  # (meshes with pairs: a test that an underflow to "no pair" would fail)
+
+
+def test_auto_takes_the_slabs_for_two_heights_off_the_grid(monkeypatch):
+    """A mesh off the dyadic grid whose vertices lie on two heights (a band between two rings, with
+    or without its caps) goes to the slab phase in ``intersecting_pairs`` and ``any_intersecting``
+    alike; a third height sends it back to the grid.  The same pairs either way."""
+    calls = []
+    real = I._slab_pairs
+    monkeypatch.setattr(I, "_slab_pairs", lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
+    t = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ring = np.column_stack([np.cos(t), np.sin(t)])
+    n = len(ring)
+    V = np.vstack([np.column_stack([ring, np.zeros(n)]), np.column_stack([1.1 * ring + 0.05, np.full(n, 0.7)])])
+    F = np.array([f for i in range(n) for f in ((i, (i + 1) % n, n + i), ((i + 1) % n, n + (i + 1) % n, n + i))])
+    assert not I._on_small_dyadic_grid(V)
+    want = intersecting_pairs(V, F, method="grid")
+    assert np.array_equal(intersecting_pairs(V, F), want) and len(calls) == 1
+    W = V.copy()
+    W[0, 2] = 0.3  # a third height: the grid
+    assert np.array_equal(intersecting_pairs(W, F), intersecting_pairs(W, F, method="grid")) and len(calls) == 1
+    # any_intersecting's compiled route (the kernel sees the real _slab_pairs): a crossing put in (a
+    # top point pulled over the band) is found
+    monkeypatch.undo()
+    assert not I.any_intersecting(V, F)
+    X = V.copy()
+    X[n + 3, :2] = -X[n + 3, :2]
+    assert I.any_intersecting(X, F) == (len(intersecting_pairs(X, F, method="grid")) > 0) == True  # noqa: E712
+

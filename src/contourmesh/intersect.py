@@ -1026,6 +1026,18 @@ def _grow(a, cap):
     return b
 
 
+@_kernel
+def _push(pi, pj, n, i, j):
+    """The pair ``(i, j)`` appended at ``n`` to the lists ``pi``, ``pj`` (grown when full):
+    ``(pi, pj, n + 1)``."""
+    if n == len(pi):
+        pi = _grow(pi, 2 * n)
+        pj = _grow(pj, 2 * n)
+    pi[n] = i
+    pj[n] = j
+    return pi, pj, n + 1
+
+
 @_pure
 def _cell(x, lo, h):
     return np.int64(math.floor((x - lo) / h))
@@ -1198,12 +1210,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
                 if hit < 0:
                     hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
                 if hit == 1:
-                    if npairs == len(pi):
-                        pi = _grow(pi, 2 * npairs)
-                        pj = _grow(pj, 2 * npairs)
-                    pi[npairs] = i
-                    pj[npairs] = j
-                    npairs += 1
+                    pi, pj, npairs = _push(pi, pj, npairs, i, j)
                     if npairs == stop:
                         return pi[:npairs], pj[:npairs]
     return pi[:npairs], pj[:npairs]
@@ -1508,6 +1515,35 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
 
 
 @_pure
+def _corner_ranges(V, F, lev, i, k):
+    """The x and y ranges of face i's corners on level k and of its other corners:
+    ``(bx0, bx1, by0, by1, tx0, tx1, ty0, ty1)`` (infinite, lower above upper, where none)."""
+    bx0 = np.inf
+    bx1 = -np.inf
+    by0 = np.inf
+    by1 = -np.inf
+    tx0 = np.inf
+    tx1 = -np.inf
+    ty0 = np.inf
+    ty1 = -np.inf
+    for q in range(3):
+        v = F[i, q]
+        x = V[v, 0]
+        y = V[v, 1]
+        if lev[v] == k:
+            bx0 = min(bx0, x)
+            bx1 = max(bx1, x)
+            by0 = min(by0, y)
+            by1 = max(by1, y)
+        else:
+            tx0 = min(tx0, x)
+            tx1 = max(tx1, x)
+            ty0 = min(ty0, y)
+            ty1 = max(ty1, y)
+    return bx0, bx1, by0, by1, tx0, tx1, ty0, ty1
+
+
+@_pure
 def _ends_apart(V, F, lev, k, i, j):
     """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, are apart:
     along x or along y, one face's corners on plane k all lie strictly before the other's there,
@@ -1520,49 +1556,8 @@ def _ends_apart(V, F, lev, k, i, j):
     and t = 1; the smallest x of face j's is concave, at least the interpolation of its own.  Both
     ends strictly apart put the interpolations, and so the sections, strictly apart at every t.
     Only comparisons of coordinates: exact."""
-    bxi0 = np.inf
-    bxi1 = -np.inf
-    byi0 = np.inf
-    byi1 = -np.inf
-    txi0 = np.inf
-    txi1 = -np.inf
-    tyi0 = np.inf
-    tyi1 = -np.inf
-    bxj0 = np.inf
-    bxj1 = -np.inf
-    byj0 = np.inf
-    byj1 = -np.inf
-    txj0 = np.inf
-    txj1 = -np.inf
-    tyj0 = np.inf
-    tyj1 = -np.inf
-    for q in range(3):
-        v = F[i, q]
-        x = V[v, 0]
-        y = V[v, 1]
-        if lev[v] == k:
-            bxi0 = min(bxi0, x)
-            bxi1 = max(bxi1, x)
-            byi0 = min(byi0, y)
-            byi1 = max(byi1, y)
-        else:
-            txi0 = min(txi0, x)
-            txi1 = max(txi1, x)
-            tyi0 = min(tyi0, y)
-            tyi1 = max(tyi1, y)
-        w = F[j, q]
-        x = V[w, 0]
-        y = V[w, 1]
-        if lev[w] == k:
-            bxj0 = min(bxj0, x)
-            bxj1 = max(bxj1, x)
-            byj0 = min(byj0, y)
-            byj1 = max(byj1, y)
-        else:
-            txj0 = min(txj0, x)
-            txj1 = max(txj1, x)
-            tyj0 = min(tyj0, y)
-            tyj1 = max(tyj1, y)
+    bxi0, bxi1, byi0, byi1, txi0, txi1, tyi0, tyi1 = _corner_ranges(V, F, lev, i, k)
+    bxj0, bxj1, byj0, byj1, txj0, txj1, tyj0, tyj1 = _corner_ranges(V, F, lev, j, k)
     return ((bxi1 < bxj0 and txi1 < txj0) or (bxj1 < bxi0 and txj1 < txi0)
             or (byi1 < byj0 and tyi1 < tyj0) or (byj1 < byi0 and tyj1 < tyi0))
 
@@ -1617,25 +1612,184 @@ def _apart_but_corner(V, F, lev, i, j, p):
     return False
 
 
+@_pure
+def _slab_hit(V, ws, F, star, quick, i, j):
+    """Faces i and j, a candidate pair of a slab, intersect: a pair sharing a certified vertex not
+    tested, with ``quick`` boxes that only touch decided where they touch (:func:`_touching_boxes`).
+    (Allocating nothing, it is compiled without reference counting, :func:`_pure`: as a kernel that
+    also filled the stars it cost the liver's band calls some 15 %.)"""
+    if _shares_certified(F, star, i, j):
+        return False
+    hit = _touching_boxes(V, ws, F, i, j) if quick == 1 else np.int64(-1)
+    if hit < 0:
+        hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+    return hit == 1
+
+
+@_pure
+def _apart_but_corner_w(W, a, b, px, py, bottom):
+    """:func:`_apart_but_corner` for the faces of rows ``a`` and ``b`` of :func:`_single_sweep`'s
+    ``W`` with their one common corner at ``px, py`` on plane k (``bottom``) or k + 1: the same
+    comparisons, on the ranges of the rows (on p's plane the range of a face's corners there
+    holds p, and its other corner, where it has one, is the end of the range below p if there is
+    one, else the upper end; ``W[., 12]`` is the number of corners on plane k)."""
+    oa = 4 if bottom else 8  # p's plane's ranges, then the other plane's
+    ob = 8 if bottom else 4
+    na = W[a, 12] if bottom else 3.0 - W[a, 12]  # corners on p's plane
+    nb = W[b, 12] if bottom else 3.0 - W[b, 12]
+    for c in range(2):
+        pc = px if c == 0 else py
+        i0lo = np.inf
+        i0hi = -np.inf
+        if na == 2.0:
+            o = W[a, oa + 2 * c] if W[a, oa + 2 * c] < pc else W[a, oa + 2 * c + 1]
+            i0lo = o
+            i0hi = o
+        j0lo = np.inf
+        j0hi = -np.inf
+        if nb == 2.0:
+            o = W[b, oa + 2 * c] if W[b, oa + 2 * c] < pc else W[b, oa + 2 * c + 1]
+            j0lo = o
+            j0hi = o
+        i1lo = W[a, ob + 2 * c]
+        i1hi = W[a, ob + 2 * c + 1]
+        j1lo = W[b, ob + 2 * c]
+        j1hi = W[b, ob + 2 * c + 1]
+        if i1hi < j1lo and i0hi < pc and pc < j0lo:
+            return True
+        if j1hi < i1lo and j0hi < pc and pc < i0lo:
+            return True
+    return False
+
+
 @_kernel
-def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces, k, pemb, keys, head, hstamp, nxt, ci, cj,
-               npairs, pi, pj, work, limit, stop, l0, l1):
+def _single_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, npairs, pi, pj, work, limit, stop,
+                  l0, l1):
+    """The pairs of slab k (its faces ``faces``, levels ``lo_``, ``hi_`` per face), its candidates
+    as :func:`_sweep` finds them (the same buckets, box tests and work), tested as they are found
+    (as in :func:`_slab_step`, so a search that stops at its first pair stops there), less the
+    pairs that :func:`_ends_apart` and :func:`_apart_but_corner` decide, which it decides on the
+    way instead of listing them (most candidates of a two-ring band: on the liver's bands some nine
+    in ten).  Those two hold for any two faces with their corners on the same two heights only
+    (the argument is the same between any two planes): here the faces of one ``lo_``, ``hi_`` with
+    no corner between (a face across a plane with no corner on it, as over a join's few points at
+    a mid-height).  Each face's corner ranges on its two planes are computed once, into ``W`` by its
+    place in the sweep's order (a row: xy box, the x and y ranges on plane ``lo_``, then on plane
+    ``hi_``, the number of corners on plane ``lo_``, then ``lo_``, ``hi_`` and 1 where no corner
+    lies between, else 0).  Returns ``(npairs, pi, pj, work)``; ``npairs`` is -1 when ``work``
+    exceeds ``limit``.  ``W``, ``order``, ``bk``, ``start``: workspaces of one entry per face
+    (``start`` one more)."""
+    n = len(faces)
+    if n < 2:
+        return npairs, pi, pj, work
+    lo = np.inf
+    hi = -np.inf
+    for t in range(n):
+        i = faces[t]
+        for q in range(3):
+            x = V[F[i, q], 0]
+            lo = min(lo, x)
+            hi = max(hi, x)
+    nb = n
+    h = (hi - lo) / nb
+    if not h > 0.0:
+        h = 1.0
+    for q in range(nb + 1):
+        start[q] = 0
+    for t in range(n):
+        i = faces[t]
+        xl = min(V[F[i, 0], 0], min(V[F[i, 1], 0], V[F[i, 2], 0]))
+        q = min(np.int64((xl - lo) / h), nb - 1)
+        bk[t] = q
+        start[q + 1] += 1
+    for q in range(nb):
+        start[q + 1] += start[q]
+    for t in range(n):  # (start[q] is the fill pointer of bucket q, shifted back below)
+        s = start[bk[t]]
+        order[s] = t
+        start[bk[t]] = s + 1
+    for q in range(nb, 0, -1):
+        start[q] = start[q - 1]
+    start[0] = 0
+    for s in range(n):
+        i = faces[order[s]]
+        kl = lo_[i]
+        kh = hi_[i]
+        bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, kl)
+        W[s, 0] = min(bx0, tx0)
+        W[s, 1] = max(bx1, tx1)
+        W[s, 2] = min(by0, ty0)
+        W[s, 3] = max(by1, ty1)
+        W[s, 4] = bx0
+        W[s, 5] = bx1
+        W[s, 6] = by0
+        W[s, 7] = by1
+        W[s, 8] = tx0
+        W[s, 9] = tx1
+        W[s, 10] = ty0
+        W[s, 11] = ty1
+        nl = (lev[F[i, 0]] == kl) + (lev[F[i, 1]] == kl) + (lev[F[i, 2]] == kl)
+        nh = (lev[F[i, 0]] == kh) + (lev[F[i, 1]] == kh) + (lev[F[i, 2]] == kh)
+        W[s, 12] = 1.0 * nl
+        W[s, 13] = 1.0 * kl
+        W[s, 14] = 1.0 * kh
+        W[s, 15] = 1.0 if nl + nh == 3 and kl < kh else 0.0
+    for s in range(n):
+        xa = W[s, 1]
+        qh = min(np.int64((xa - lo) / h), nb - 1)
+        for u in range(s + 1, start[qh + 1]):
+            work += 1
+            if W[u, 0] > xa or W[s, 0] > W[u, 1] or W[s, 2] > W[u, 3] or W[u, 2] > W[s, 3]:
+                continue
+            if max(W[s, 13], W[u, 13]) != k:
+                continue  # (a pair of a lower slab)
+            i = np.int64(faces[order[s]])
+            j = np.int64(faces[order[u]])
+            if W[s, 15] == 1.0 and W[u, 15] == 1.0 and W[s, 13] == W[u, 13] and W[s, 14] == W[u, 14]:
+                # _ends_apart (which no two faces with a common corner are), _apart_but_corner
+                if ((W[s, 5] < W[u, 4] and W[s, 9] < W[u, 8]) or (W[u, 5] < W[s, 4] and W[u, 9] < W[s, 8])
+                        or (W[s, 7] < W[u, 6] and W[s, 11] < W[u, 10]) or (W[u, 7] < W[s, 6] and W[u, 11] < W[s, 10])):
+                    continue
+                ns = 0
+                p = np.int64(-1)
+                for q in range(3):
+                    v = F[i, q]
+                    if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
+                        ns += 1
+                        p = v
+                if ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo_[i]):
+                    continue
+            if i > j:
+                i, j = j, i
+            if _star_due(sst):
+                _star_fill_levels(V, F, star, lev, l0, l1)
+            if _slab_hit(V, ws, F, star, np.int64(1), i, j):
+                pi, pj, npairs = _push(pi, pj, npairs, i, j)
+                if npairs == stop:
+                    return npairs, pi, pj, work
+        if work > limit:
+            return np.int64(-1), pi, pj, work
+    return npairs, pi, pj, work
+
+
+@_kernel
+def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, sW, sord, sbk, sstart, faces, k, pemb, scert,
+               ci, cj, npairs, pi, pj, work, limit, stop, l0, l1):
     """Slab k of :func:`_slab_pairs`: its pairs, each tested in the lowest slab the two faces
     share; none when the planes on both sides hold embedded planar graphs and the slab's faces
-    (all within it) have the certificate of :func:`_slab_embedded`.  ``npairs`` is -1 when the
+    (all within it) have the certificate of :func:`_slab_embedded` (``scert[k]``, and ``pemb``
+    for the planes).  ``npairs`` is -1 when the
     sweep went over ``limit``.  ``sbox`` (the slab's faces' xy boxes, by their place in ``faces``),
     ``sgrp`` (all 2) and ``sids`` (``0, 1, ...``) are workspaces of one entry per face of the
     fullest slab.  ``l0 .. l1``: the levels of the vertices whose stars the range certifies."""
     if len(faces) < 2:
         return ci, cj, npairs, pi, pj, work
-    if ws[0] == 1.0 and pemb[k] == 1 and pemb[k + 1] == 1:
-        single = True
-        for t in range(len(faces)):
-            if lo[faces[t]] != k or hi[faces[t]] != k + 1:
-                single = False
-                break
-        if single and _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
-            return ci, cj, npairs, pi, pj, work
+    if scert[k] == 1 and pemb[k] == 1 and pemb[k + 1] == 1:
+        return ci, cj, npairs, pi, pj, work
+    if quick == 1:  # (the candidates that coordinates decide are decided in the sweep)
+        npairs, pi, pj, work = _single_sweep(V, ws, F, star, sst, lev, lo, hi, faces, k, sW, sord, sbk, sstart, npairs,
+                                             pi, pj, work, limit, stop, l0, l1)
+        return ci, cj, npairs, pi, pj, work
     # the sweep over the faces' places in the slab list (the same order, so the same candidates
     # in the same order as over their face numbers), then back to face numbers
     ns = len(faces)
@@ -1649,7 +1803,7 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces,
         sbox[t, 2] = min(V[a, 1], min(V[b, 1], V[c, 1]))
         sbox[t, 3] = max(V[a, 1], max(V[b, 1], V[c, 1]))
     ci, cj, n_out, work = _sweep(sbox[:, 0], sbox[:, 1], sbox[:, 2], sbox[:, 3], sgrp, sids[:ns], ci, cj,
-                                 np.int64(0), work, limit, np.int64(0))
+                                 np.int64(0), work, limit, np.int64(1))
     if n_out < 0:
         return ci, cj, np.int64(-1), pi, pj, work
     for t in range(n_out):
@@ -1657,33 +1811,10 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, faces,
         j = np.int64(max(faces[ci[t]], faces[cj[t]]))
         if max(lo[i], lo[j]) != k:
             continue
-        # (most candidates of a band between two rings that share at most one corner: decided here)
-        if quick == 1 and lo[i] == k and hi[i] == k + 1 and lo[j] == k and hi[j] == k + 1:
-            ns = 0
-            p = np.int64(-1)
-            for q in range(3):
-                v = F[i, q]
-                if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
-                    ns += 1
-                    p = v
-            if ns == 0 and _ends_apart(V, F, lev, k, i, j):
-                continue
-            if ns == 1 and _apart_but_corner(V, F, lev, i, j, p):
-                continue
         if _star_due(sst):
             _star_fill_levels(V, F, star, lev, l0, l1)
-        if _shares_certified(F, star, i, j):
-            continue
-        hit = _touching_boxes(V, ws, F, i, j) if quick == 1 else np.int64(-1)
-        if hit < 0:
-            hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
-        if hit == 1:
-            if npairs == len(pi):
-                pi = _grow(pi, 2 * npairs)
-                pj = _grow(pj, 2 * npairs)
-            pi[npairs] = i
-            pj[npairs] = j
-            npairs += 1
+        if _slab_hit(V, ws, F, star, quick, i, j):
+            pi, pj, npairs = _push(pi, pj, npairs, i, j)
             if npairs == stop:
                 break
     return ci, cj, npairs, pi, pj, work
@@ -1780,6 +1911,10 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
     sbox = np.empty((ms, 4), np.float64)  # (a slab's: every pair of its faces is a candidate, group 2)
     sgrp = np.full(ms, 2, np.int8)
     sids = np.arange(ms).astype(np.int32)
+    sW = np.empty((ms, 16), np.float64)  # (_single_sweep's)
+    sord = np.empty(ms, np.int64)
+    sbk = np.empty(ms, np.int64)
+    sstart = np.empty(ms + 1, np.int64)
     pxlo = pbox[:, 0]
     pxhi = pbox[:, 1]
     pylo = pbox[:, 2]
@@ -1800,6 +1935,23 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
     head = np.empty(len(V), np.int32)
     hstamp = np.full(len(V), -1, np.int32)
     nxt = np.empty(ms + 1, np.int64)
+    # the slabs' certificates first (_slab_embedded: cheap, and on the dyadic grid only): a plane
+    # that holds only parts of faces ending there or only of faces starting there has no pairs of
+    # its own to decide, and its embedded graph (the costlier check) matters only to a certified
+    # slab beside it (the mesher's bands between two rings: most slabs fail the certificate)
+    scert = np.zeros(nslab, np.int8)
+    if ws[0] == 1.0:
+        for k in range(max(k0 - 1, 0), min(k1 - 1, nslab)):
+            faces = slab_faces[cnt_s[k]:cnt_s[k + 1]]
+            if len(faces) < 2:
+                continue
+            single = True
+            for t in range(len(faces)):
+                if lo[faces[t]] != k or hi[faces[t]] != k + 1:
+                    single = False
+                    break
+            if single and _slab_embedded(V, F, lev, faces, np.int64(k), keys, head, hstamp, nxt):
+                scert[k] = 1
     for k in range(kr0, k1):
         # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
         # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
@@ -1861,8 +2013,9 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
             ne += 1
         # the pairs of a face ending here and a face starting here are all decided at once (none
         # intersects) when their parts form an embedded planar graph (_plane_embedded)
+        # (unchecked, True: no parts here, or the parts of one side only and no certified slab beside)
         emb = True
-        if n0 + n1 > 0:
+        if n0 + n1 > 0 and ((n0 > 0 and n1 > 0) or (k > 0 and scert[k - 1] == 1) or (k < nslab and scert[k] == 1)):
             emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01), np.int64(k),
                                                 stamp, d1, d2, cert, all2, ci, cj, work, limit)
         pemb[k] = 1 if emb else 0
@@ -1870,8 +2023,8 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
             continue  # (plane k0 - 1: its pairs are another range's)
         if k > 0:
             ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids,
-                                                      slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, keys,
-                                                      head, hstamp, nxt,
+                                                      sW, sord, sbk, sstart,
+                                                      slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, scert,
                                                       ci, cj, npairs, pi, pj, work, limit, stop, kr0, k1 - 1)
             if npairs < 0:
                 return pi[:0], pj[:0], np.int64(-1)
@@ -1901,12 +2054,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1):
             if hit < 0:
                 hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
             if hit == 1:
-                if npairs == len(pi):
-                    pi = _grow(pi, 2 * npairs)
-                    pj = _grow(pj, 2 * npairs)
-                pi[npairs] = i
-                pj[npairs] = j
-                npairs += 1
+                pi, pj, npairs = _push(pi, pj, npairs, i, j)
                 if npairs == stop:
                     return pi[:npairs], pj[:npairs], np.int64(1)
     return pi[:npairs], pj[:npairs], np.int64(1)
@@ -2089,7 +2237,8 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
     slabs between consecutive vertex heights (for meshes made from sections; an error for a mesh
     without that structure; where a sweep would test too many boxes, the grid takes over),
     ``"auto"`` slabs where the mesh has that structure, else the grid (and the grid for a mesh
-    of fewer than ``_GRID_FACES`` faces off the small dyadic grid, where it is as fast or faster).
+    of fewer than ``_GRID_FACES`` faces off the small dyadic grid, where it is as fast or faster,
+    unless its vertices lie on two heights: a band between two rings).
     The pairs are the same whichever method decides them.
     """
     if method not in ("auto", "grid", "slabs"):
@@ -2118,6 +2267,8 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
 #: this before: a mesh scaled by 2^-1040 had no crossing pairs where exact rationals find dozens
 #: (its products underflowed to zero), and one scaled by 2^1000 lost pairs to overflow.
 _EXACT_EXP = (240, 320)
+_EXACT_LO = 2.0 ** -_EXACT_EXP[0]
+_EXACT_HI = 2.0 ** _EXACT_EXP[1]
 
 
 @njit(cache=True, nogil=True)
@@ -2144,7 +2295,7 @@ def _exact_range(V):
         return V
     lo, hi = _magnitudes(V)
     low, high = _EXACT_EXP
-    if hi <= 2.0 ** high and lo >= 2.0 ** -low:
+    if hi <= _EXACT_HI and lo >= _EXACT_LO:
         return V
     e_lo, e_hi = math.frexp(lo)[1], math.frexp(hi)[1]  # 2^(e_lo - 1) <= lo, hi < 2^e_hi
     # a shift s fits where e_lo - 1 + s >= -low and e_hi + s <= high
@@ -2162,6 +2313,16 @@ def any_intersecting(vertices, faces) -> bool:
     Every pair the search reports is tested exactly, and the broad phases find every pair
     whichever decides them, so the first pair found answers the question as the whole list
     would; a mesh without crossing faces costs the same as :func:`intersecting_pairs`."""
+    # (the mesher asks this of thousands of small bands and joins: arrays as the mesher passes them
+    # go straight to the compiled call, which checks them itself, some 5 us a call less than the
+    # numpy checks; anything it refuses takes the checked path below, with its errors)
+    V = np.ascontiguousarray(vertices, dtype=np.float64)
+    F = np.ascontiguousarray(faces, dtype=np.int64)
+    if (V.ndim == 2 and V.shape[1] == 3 and F.ndim == 2 and F.shape[1] == 3 and len(F) >= 2
+            and 3 * len(F) >= len(V) and V.flags.writeable and F.flags.writeable):
+        got = _any_kernel(V, F, np.int64(_STAR_DELAY))
+        if got >= 0:
+            return bool(got)
     V, F = _as_mesh_arrays(vertices, faces)
     if len(F) < 2:
         return False
@@ -2173,15 +2334,37 @@ def any_intersecting(vertices, faces) -> bool:
         V = V.copy()
     if not F.flags.writeable:
         F = F.copy()
-    # (the mesher asks this of thousands of small bands and joins: the steps of _pairs(..., "auto",
-    # stop=1) in one compiled call; the vertices are finite here, as canonical_vertices' kernel needs)
-    return bool(_any_kernel(V, F, np.int64(_STAR_DELAY)))
+    # (the steps of _pairs(..., "auto", stop=1) in one compiled call)
+    got = _any_kernel(V, F, np.int64(_STAR_DELAY))
+    if got < 0:  # pragma: no cover - checked and brought into range above
+        raise RuntimeError("the crossing test refused arrays it had checked")
+    return bool(got)
 
 
 @njit(cache=True, **_OPTIONS)
 def _any_kernel(V, F, delay):
-    """:func:`any_intersecting` on checked arrays (finite vertices): the steps of :func:`_pairs`
-    with ``method="auto"``, ``stop=1`` and the shortcuts, one thread; 1 where a pair is found."""
+    """:func:`any_intersecting` on C arrays of shapes (n, 3) and (m, 3): the steps of
+    :func:`_pairs` with ``method="auto"``, ``stop=1`` and the shortcuts, one thread; 1 where a pair
+    is found, 0 where none, -1 where the arrays need :func:`_as_mesh_arrays`' errors or
+    :func:`_exact_range`'s scaling (a face index out of range, a coordinate not finite, or
+    magnitudes out of the exact predicates' range): then nothing is done."""
+    n = V.shape[0]
+    for i in range(F.shape[0]):
+        for t in range(3):
+            if F[i, t] < 0 or F[i, t] >= n:
+                return -1
+    lo = np.inf
+    hi = 0.0
+    for i in range(n):
+        for t in range(3):
+            a = abs(V[i, t])
+            if not a <= 1.7976931348623157e308:  # (NaN or infinite)
+                return -1
+            hi = max(hi, a)
+            if 0.0 < a < lo:
+                lo = a
+    if not (hi <= _EXACT_HI and lo >= _EXACT_LO):
+        return -1
     canon = _canonical_kernel((V + 0.0).view(np.uint64))  # (-0.0 + 0.0 == +0.0)
     m = F.shape[0]
     Fc = np.empty((m, 3), np.int64)
@@ -2195,12 +2378,12 @@ def _any_kernel(V, F, delay):
     sst[1] = m // 8 + delay
     one = m - m + 1  # (int64 values, not literals: the signatures of the Python calls)
     ok = one - one
-    if ws[0] == 1.0 or m >= _GRID_FACES:  # (the route of _pairs)
-        lev, nlev = _levels(V[:, 2].copy())
+    lev, nlev = _levels(V[:, 2].copy())
+    if ws[0] == 1.0 or m >= _GRID_FACES or nlev == 2:  # (the route of _pairs)
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one, one - one, nlev)
     if ok != 1:
         pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one)
-    return len(pi) > 0
+    return 1 if len(pi) > 0 else 0
 
 
 def _pairs(V, F, canon, budget, method, stop=0, quick=True):
@@ -2223,12 +2406,18 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
     sst = np.array([0 if quick else -1, len(Fc) // 8 + _STAR_DELAY], np.int64)
     qk = np.int64(1 if quick else 0)
     ok = 0
-    # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces (see
-    # there), else the slab phase (the grid where it gives up)
+    # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces whose
+    # vertices lie on other than two heights (see there), else the slab phase (the grid where it
+    # gives up)
     on_grid = ws[0] == 0.0 and len(Fc) < _GRID_FACES
+    lev = None
+    if method == "auto" and on_grid:
+        lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
+        on_grid = nlev != 2  # (a band between two rings: slabs all the same, see _GRID_FACES)
     split = stop == 0 and method == "auto" and len(Fc) >= _SPLIT_FACES and _threads() > 1
     if method == "slabs" or (method == "auto" and (not on_grid or split)):
-        lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
+        if lev is None:
+            lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
         if nlev < 0:  # a NaN height: np.unique's levels (NaNs as one)
             levels, lev = np.unique(V[:, 2], return_inverse=True)
             lev, nlev = lev.astype(np.int64).reshape(-1), len(levels)
@@ -2263,7 +2452,11 @@ _STAR_DELAY = 100
 #: dyadic grid (the 512^3 ball's 117k faces: 15 ms by slabs, 85 ms by the grid), and off it the grid
 #: finds the same pairs with less work (the 3,280 any_intersecting calls of a lobster build: 0.22 s
 #: vs 0.26 s, the liver's 988 as fast; one thread, whole meshes: liver 0.37 s vs 0.46 s, liver x2
-#: 1.00 s vs 1.16 s).  Larger meshes stay on the slab phase all the same: the grid's tables (some 150 bytes
+#: 1.00 s vs 1.16 s).  But for a mesh whose vertices lie on two heights (a band between two rings,
+#: with or without flat faces): since its slab's pairs that coordinates decide are decided in the
+#: sweep (:func:`_single_sweep`), the slabs take it in a half to a third of the grid's time (issue
+#: 16's seventh round, the dumped calls off the dyadic grid: the liver's 198 such bands 0.048 s by
+#: slabs vs 0.175 s by the grid, the lobster's 792 0.026 s vs 0.057 s).  Larger meshes stay on the slab phase all the same: the grid's tables (some 150 bytes
 #: per face) then set the general mesher's peak memory (the liver's +56 MiB, 80 -> 136 MiB).
 _GRID_FACES = 20_000
 
