@@ -85,6 +85,12 @@ def _column_buffers(H, W):
     return got[:n].reshape(shape), got[n:2 * n].reshape(shape)
 
 
+def release_buffers() -> None:
+    """Let go of this thread's kept column buffers (:func:`_column_buffers`; see
+    :func:`contourmesh.bands.optimal.release_buffers`)."""
+    _LOCAL.__dict__.pop("columns", None)
+
+
 @njit(cache=True, nogil=True)
 def _column_distances(m, gi, go):
     """Squared distances along each column of the image ``m`` padded by one empty pixel, to the

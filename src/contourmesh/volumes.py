@@ -77,6 +77,7 @@ Conventions (stated once)
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -2684,6 +2685,24 @@ def _has_speck(slices, k, ga, gb) -> bool:
     return False
 
 
+def _scratch_released(fn):
+    """``fn``, after which the calling thread's kept scratch buffers of the least-area bands and of
+    the sections' signed distances (up to some 16 MiB, reused from join to join) are let go: the
+    mesh's later steps, where its peak memory lies, do not hold them."""
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            from . import sections
+            from .bands import optimal
+
+            optimal.release_buffers()
+            sections.release_buffers()
+    return run
+
+
+@_scratch_released
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
                    band_guard=None, polygon="mlp", sections=True, densify=None):
     """Decide and build every bridged join; the ones that cannot be built become exact joins

@@ -722,6 +722,12 @@ def _buffers(n, m):
     return got
 
 
+def release_buffers() -> None:
+    """Let go of this thread's kept buffers (:func:`_buffers`): the general mesher does so once its
+    joins are built, so that their pages are not held through the steps after them."""
+    _LOCAL.__dict__.pop("buffers", None)
+
+
 def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.ndarray:
     """Triangulate a band with the least total triangle area (Fuchs-Kedem-Uselton).
 
