@@ -8,6 +8,7 @@ meshes and folded spheres; and the shortcuts must actually decide most pairs of 
 import numpy as np
 import pytest
 import trimesh
+from numba import njit
 from scipy import ndimage
 
 import contourmesh
@@ -193,16 +194,67 @@ def test_real_mesh_sample_pairs_unchanged():
     assert np.array_equal(intersecting_pairs(V, m.faces), full)
 
 
+# The slab sweep's two coordinate rules in their plain form (see the note before
+# ``intersect._slab_hit``): the references its rows of corner ranges are checked against.
+@njit(cache=False)
+def _ends_apart(V, F, lev, k, i, j):
+    """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, lie apart
+    along x or y on both planes, the same face first."""
+    bxi0, bxi1, byi0, byi1, txi0, txi1, tyi0, tyi1 = intersect._corner_ranges(V, F, lev, i, k)
+    bxj0, bxj1, byj0, byj1, txj0, txj1, tyj0, tyj1 = intersect._corner_ranges(V, F, lev, j, k)
+    return ((bxi1 < bxj0 and txi1 < txj0) or (bxj1 < bxi0 and txj1 < txi0)
+            or (byi1 < byj0 and tyi1 < tyj0) or (byj1 < byi0 and tyj1 < tyi0))
+
+
+@njit(cache=False)
+def _apart_but_corner(V, F, lev, i, j, p):
+    """Faces i and j with one common corner p lie apart beside it: along x or y, one face's
+    corners on the other plane strictly before the other's, and on p's plane the first face's
+    other corners strictly before p, the second's strictly after it."""
+    lp = lev[p]
+    for c in range(2):
+        pc = V[p, c]
+        i0lo = np.inf
+        i0hi = -np.inf
+        i1lo = np.inf
+        i1hi = -np.inf
+        j0lo = np.inf
+        j0hi = -np.inf
+        j1lo = np.inf
+        j1hi = -np.inf
+        for q in range(3):
+            v = F[i, q]
+            if v != p:
+                if lev[v] == lp:
+                    i0lo = min(i0lo, V[v, c])
+                    i0hi = max(i0hi, V[v, c])
+                else:
+                    i1lo = min(i1lo, V[v, c])
+                    i1hi = max(i1hi, V[v, c])
+            w = F[j, q]
+            if w != p:
+                if lev[w] == lp:
+                    j0lo = min(j0lo, V[w, c])
+                    j0hi = max(j0hi, V[w, c])
+                else:
+                    j1lo = min(j1lo, V[w, c])
+                    j1hi = max(j1hi, V[w, c])
+        if i1hi < j1lo and i0hi < pc and pc < j0lo:
+            return True
+        if j1hi < i1lo and j0hi < pc and pc < i0lo:
+            return True
+    return False
+
+
 def test_faces_whose_ends_are_apart_do_not_meet():
-    """``_ends_apart`` (two faces of one slab whose corners are strictly apart along x or y on
+    """The rule "ends apart" (two faces of one slab whose corners are strictly apart along x or y on
     both planes, the same face first) decides only pairs that do not intersect by the exact
     rational rule, on a coarse grid (corners level with each other, touching cases) and off it;
     and it decides many of them (else the slab sweep gains nothing)."""
-    from numba import njit
 
     @njit
     def apart(V, F, lev, i, j):  # (the signature the slab sweep compiles: no literal level)
-        return intersect._ends_apart(V, F, lev, lev[0] * 0, i, j)
+        return _ends_apart(V, F, lev, lev[0] * 0, i, j)
 
     rng = np.random.default_rng(41)
     decided = 0
@@ -230,15 +282,14 @@ def test_faces_whose_ends_are_apart_do_not_meet():
 
 
 def test_faces_with_one_common_corner_apart_meet_only_there():
-    """``_apart_but_corner`` (two faces of one slab with one common corner p, apart along x or y
+    """The rule "apart but at a corner" (two faces of one slab with one common corner p, apart along x or y
     on the other plane, and on p's plane each face's other corners strictly on its own side of p)
     decides only pairs that meet only at p by the exact rational rule (a common point elsewhere,
     or along a ray from p, is a crossing), on a coarse grid and off it; and it decides many."""
-    from numba import njit
 
     @njit
     def apart(V, F, lev, i, j, p):
-        return intersect._apart_but_corner(V, F, lev, i, j, p)
+        return _apart_but_corner(V, F, lev, i, j, p)
 
     rng = np.random.default_rng(43)
     decided = crossing = 0
@@ -266,14 +317,13 @@ def test_faces_with_one_common_corner_apart_meet_only_there():
 
 
 def test_apart_but_corner_on_the_sweeps_ranges_is_the_rule():
-    """The slab sweep decides ``_apart_but_corner`` on its rows of corner ranges
+    """The slab sweep decides the rule "apart but at a corner" on its rows of corner ranges
     (``_apart_but_corner_w``): the same answer on every pair of faces with one common corner, the
     corner on either plane, on a coarse grid (coordinates level with p) and off it."""
-    from numba import njit
 
     @njit
     def both(V, F, lev, W, p):
-        return (intersect._apart_but_corner(V, F, lev, np.int64(0), np.int64(1), p),
+        return (_apart_but_corner(V, F, lev, np.int64(0), np.int64(1), p),
                 intersect._apart_but_corner_w(W, np.int64(0), np.int64(1), V[p, 0], V[p, 1], lev[p] == 0))
 
     def rows(V, F, lev):

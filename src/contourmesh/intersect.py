@@ -1238,7 +1238,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
 # pairs of a face ending and a face starting at c are all decided without a test when their parts
 # at c form an embedded planar graph (_plane_embedded), which is checked once per plane.  Two faces
 # within one slab whose corners lie apart along x or y on both its planes, or that share one corner
-# and lie apart beside it (_ends_apart, _apart_but_corner: comparisons of coordinates), do not meet
+# and lie apart beside it (the two rules before _slab_hit: comparisons of coordinates), do not meet
 # (the bands between two rings: most of their candidates).
 @_kernel
 def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
@@ -1543,73 +1543,27 @@ def _corner_ranges(V, F, lev, i, k):
     return bx0, bx1, by0, by1, tx0, tx1, ty0, ty1
 
 
-@_pure
-def _ends_apart(V, F, lev, k, i, j):
-    """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, are apart:
-    along x or along y, one face's corners on plane k all lie strictly before the other's there,
-    and the same on plane k + 1 (the same face first).  Then they have no common point.
-
-    At a height ``t`` of the way up (``0 <= t <= 1``) a face's section is the hull of points that
-    move linearly with t from its corners on plane k to those on plane k + 1 (its edges between
-    the planes; at t = 0 and t = 1 its corners there): the largest x of face i's section is a
-    maximum of linear functions of t, convex, so at most the interpolation of its values at t = 0
-    and t = 1; the smallest x of face j's is concave, at least the interpolation of its own.  Both
-    ends strictly apart put the interpolations, and so the sections, strictly apart at every t.
-    Only comparisons of coordinates: exact."""
-    bxi0, bxi1, byi0, byi1, txi0, txi1, tyi0, tyi1 = _corner_ranges(V, F, lev, i, k)
-    bxj0, bxj1, byj0, byj1, txj0, txj1, tyj0, tyj1 = _corner_ranges(V, F, lev, j, k)
-    return ((bxi1 < bxj0 and txi1 < txj0) or (bxj1 < bxi0 and txj1 < txi0)
-            or (byi1 < byj0 and tyi1 < tyj0) or (byj1 < byi0 and tyj1 < tyi0))
-
-
-@_pure
-def _apart_but_corner(V, F, lev, i, j, p):
-    """Faces i and j, each with its corners on the heights ``k`` and ``k + 1`` only, with one
-    common corner p, meet only at p: along x or along y, one face's corners on the other plane
-    than p's all lie strictly before the other face's there, and on p's plane the first face's
-    other corners lie strictly before p and the second's strictly after it.
-
-    As for :func:`_ends_apart`, from p's plane (``t = 0``) to the other (``t = 1``): the first
-    face's largest coordinate at height t is at most ``(1 - t) p + t`` its largest on the other
-    plane, the second's smallest at least ``(1 - t) p + t`` its smallest there, so the sections
-    are strictly apart at every ``t > 0``; at ``t = 0`` the first face's part lies at or before p
-    and the second's at or after it, with p the only point of either on p's line.  Only
-    comparisons of coordinates: exact."""
-    lp = lev[p]
-    for c in range(2):
-        pc = V[p, c]
-        i0lo = np.inf
-        i0hi = -np.inf
-        i1lo = np.inf
-        i1hi = -np.inf
-        j0lo = np.inf
-        j0hi = -np.inf
-        j1lo = np.inf
-        j1hi = -np.inf
-        for q in range(3):
-            v = F[i, q]
-            if v != p:
-                x = V[v, c]
-                if lev[v] == lp:
-                    i0lo = min(i0lo, x)
-                    i0hi = max(i0hi, x)
-                else:
-                    i1lo = min(i1lo, x)
-                    i1hi = max(i1hi, x)
-            w = F[j, q]
-            if w != p:
-                x = V[w, c]
-                if lev[w] == lp:
-                    j0lo = min(j0lo, x)
-                    j0hi = max(j0hi, x)
-                else:
-                    j1lo = min(j1lo, x)
-                    j1hi = max(j1hi, x)
-        if i1hi < j1lo and i0hi < pc and pc < j0lo:
-            return True
-        if j1hi < i1lo and j0hi < pc and pc < i0lo:
-            return True
-    return False
+# Two rules decide most candidate pairs of a slab by comparisons of coordinates alone (exact);
+# the slab sweep (:func:`_single_sweep`) applies them to its rows of corner ranges, and the tests
+# keep them in their plain form.  Both hold for two faces whose corners lie on the same two
+# heights only, planes k and k + 1.
+#
+# Ends apart: along x or y, one face's corners on plane k all lie strictly before the other's
+# there, and the same on plane k + 1 (the same face first); then the faces have no common point.
+# At a height t of the way up (0 <= t <= 1) a face's section is the hull of points that move
+# linearly with t from its corners on plane k to those on plane k + 1: the largest x of the first
+# face's section is a maximum of linear functions of t, convex, so at most the interpolation of its
+# values at t = 0 and t = 1; the smallest x of the other's is concave, at least the interpolation of
+# its own.  Both ends strictly apart put the interpolations, and so the sections, apart at every t.
+#
+# Apart but at a corner: the faces share one corner p; along x or y, one face's corners on the
+# other plane than p's all lie strictly before the other face's there, and on p's plane the first
+# face's other corners lie strictly before p and the second's strictly after it.  Then they meet
+# only at p: as above, from p's plane (t = 0) to the other (t = 1), the first face's largest
+# coordinate at height t is at most (1 - t) p + t its largest on the other plane and the second's
+# smallest at least (1 - t) p + t its smallest there, so the sections are strictly apart at every
+# t > 0; at t = 0 the first face's part lies at or before p and the second's at or after it, with
+# p the only point of either on p's line.
 
 
 @_pure
@@ -1628,7 +1582,7 @@ def _slab_hit(V, ws, F, star, quick, i, j):
 
 @_pure
 def _apart_but_corner_w(W, a, b, px, py, bottom):
-    """:func:`_apart_but_corner` for the faces of rows ``a`` and ``b`` of :func:`_single_sweep`'s
+    """The rule "apart but at a corner" (see the note above) for the faces of rows ``a`` and ``b`` of :func:`_single_sweep`'s
     ``W`` with their one common corner at ``px, py`` on plane k (``bottom``) or k + 1: the same
     comparisons, on the ranges of the rows (on p's plane the range of a face's corners there
     holds p, and its other corner, where it has one, is the end of the range below p if there is
@@ -1668,7 +1622,8 @@ def _single_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, st
     """The pairs of slab k (its faces ``faces``, levels ``lo_``, ``hi_`` per face), its candidates
     as :func:`_sweep` finds them (the same buckets, box tests and work), tested as they are found
     (as in :func:`_slab_step`, so a search that stops at its first pair stops there), less the
-    pairs that :func:`_ends_apart` and :func:`_apart_but_corner` decide, which it decides on the
+    pairs that the rules "ends apart" and "apart but at a corner" decide (the note before
+    :func:`_slab_hit`), which it decides on the
     way instead of listing them (most candidates of a two-ring band: on the liver's bands some nine
     in ten).  Those two hold for any two faces with their corners on the same two heights only
     (the argument is the same between any two planes): here the faces of one ``lo_``, ``hi_`` with
@@ -1746,7 +1701,7 @@ def _single_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, st
             i = np.int64(faces[order[s]])
             j = np.int64(faces[order[u]])
             if W[s, 15] == 1.0 and W[u, 15] == 1.0 and W[s, 13] == W[u, 13] and W[s, 14] == W[u, 14]:
-                # _ends_apart (which no two faces with a common corner are), _apart_but_corner
+                # ends apart (which no two faces with a common corner are), apart but at a corner
                 if ((W[s, 5] < W[u, 4] and W[s, 9] < W[u, 8]) or (W[u, 5] < W[s, 4] and W[u, 9] < W[s, 8])
                         or (W[s, 7] < W[u, 6] and W[s, 11] < W[u, 10]) or (W[u, 7] < W[s, 6] and W[u, 11] < W[s, 10])):
                     continue
