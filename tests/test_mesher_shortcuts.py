@@ -6,6 +6,7 @@ import pytest
 from scipy import ndimage
 
 from contourmesh import volumes
+from contourmesh.bands import caps
 from contourmesh.geometry import grid_to_xy
 
 
@@ -68,8 +69,6 @@ def _rings_of_slices(seed):
 
 
 def test_collinear_runs_compiled_equal_the_reference():
-    from contourmesh.bands import caps
-
     rng = np.random.default_rng(5)
     rings = [r for seed in (1, 2) for o, hs in _rings_of_slices(seed) for r in [o] + hs]
     # rings with runs nearly straight (round-off off the line), spikes and repeated points
@@ -92,8 +91,6 @@ def test_caps_with_the_compiled_steps_equal_the_reference_steps(monkeypatch):
     """cap_faces with the compiled collinear runs, flat-triangle test and T-junction fast path
     against the same function with the references (every edge sent to the exact T-junction
     test): the same faces, or the same error."""
-    from contourmesh.bands import caps
-
     def run(outer, holes, up):
         try:
             return caps.cap_faces(outer, holes, upward=up)
@@ -119,13 +116,74 @@ def test_caps_with_the_compiled_steps_equal_the_reference_steps(monkeypatch):
             assert g == r
 
 
+def _cap_faces_reference(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
+    """``cap_faces`` step by step (each check a numpy step or a kernel call of its own): the
+    reference of its compiled tail (``_cap_tail``)."""
+    outer, holes = caps._cap_rings(polygon_xy, holes_xy)
+    empty = np.empty((0, 3), dtype=np.int64)
+    if len(outer) < 3 or caps._signed_area(outer) == 0.0:
+        return empty
+
+    import mapbox_earcut
+
+    rings = [outer] + [h for h in holes if len(h) >= 3 and caps._signed_area(h) != 0.0]
+    offsets = np.cumsum([0] + [len(r) for r in [outer] + holes])[:-1]
+    # global index of each vertex handed to earcut
+    glob = [np.arange(len(outer))]
+    for k, h in enumerate(holes):
+        if len(h) >= 3 and caps._signed_area(h) != 0.0:
+            glob.append(offsets[k + 1] + np.arange(len(h)))
+    glob = np.concatenate(glob).astype(np.int64)
+    verts = np.ascontiguousarray(np.vstack(rings))
+    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
+    # take collinear runs out of each ring (kept: the runs' ends), ear-clip the rest, put them back
+    starts0 = np.concatenate([[0], ends[:-1]]).astype(np.int64)
+    kept_idx, runs, kept_ends = [], {}, []
+    for a, r in zip(starts0, rings):
+        keep = caps.collinear_runs(r)
+        k = a + np.flatnonzero(keep)
+        kept_idx.append(k)
+        kept_ends.append(len(k))
+        if not keep.all():
+            caps._note_runs(keep, a, runs)
+    kept_idx = np.concatenate(kept_idx)
+    tri = np.asarray(mapbox_earcut.triangulate_float64(np.ascontiguousarray(verts[kept_idx]),
+                                                       np.cumsum(kept_ends).astype(np.uint32)),
+                     dtype=np.int64).reshape(-1, 3)
+    if len(tri) == 0:
+        return empty
+    tri = kept_idx[tri]
+    if runs:
+        tri = caps._reinsert_runs(tri, runs)
+    # a zero-area ear (three vertices on one line, not consecutive on a ring: a notch whose mouth
+    # lines up with a third point) is dropped; the T-junction split below joins its neighbours
+    tri = caps._drop_flat_triangles(verts, tri)
+    # earcut drops ring vertices lying on a straight line between their neighbours; put them
+    # back so that every ring edge is an edge of the cap (the bands share those edges)
+    starts = np.concatenate([[0], ends[:-1]]).astype(np.int64)
+    # each ring's edges (a, a + 1), ..., (b - 1, a), all rings at once
+    nxt = np.arange(1, len(verts) + 1, dtype=np.int64)
+    nxt[ends.astype(np.int64) - 1] = starts
+    boundary = np.stack([np.arange(len(verts), dtype=np.int64), nxt], axis=1)
+    fixed = caps.split_t_junctions(verts, tri, np.concatenate([boundary, boundary[:, ::-1]]))
+    if fixed is None:
+        raise caps.CapError("cannot triangulate the cap: its rings cross or touch each other")
+    tri = fixed
+    p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
+    s = (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+    # ear clipping emits its triangles in one winding: orient them together (by their total area),
+    # so that a sliver whose own sign is round-off cannot break the cap's consistency
+    total = float(s.sum())
+    if (total < 0) if upward else (total > 0):
+        tri = tri[:, [0, 2, 1]]
+    return np.ascontiguousarray(glob[tri])
+
+
 def test_caps_equal_the_step_by_step_reference():
     """cap_faces (its checks after ear clipping in one compiled pass, fewer numpy steps) against
     _cap_faces_reference: the same faces (values and dtype) or the same error, on slices' MLP and
     crack rings with their holes, and on rings with collinear runs, flat ears, T-junctions, holes
     of zero area, touching and crossing rings, both orientations."""
-    from contourmesh.bands import caps
-
     def run(f, outer, holes, up):
         try:
             return f(outer, holes, upward=up)
@@ -148,7 +206,7 @@ def test_caps_equal_the_step_by_step_reference():
     n_faces = n_errors = 0
     for outer, holes in cases:
         for up in (True, False):
-            got, ref = run(caps.cap_faces, outer, holes, up), run(caps._cap_faces_reference, outer, holes, up)
+            got, ref = run(caps.cap_faces, outer, holes, up), run(_cap_faces_reference, outer, holes, up)
             assert type(got) is type(ref)
             if isinstance(ref, np.ndarray):
                 assert got.dtype == ref.dtype and got.shape == ref.shape and np.array_equal(got, ref)
@@ -160,8 +218,6 @@ def test_caps_equal_the_step_by_step_reference():
 
 
 def test_t_junction_fast_path_refuses_what_the_loop_refuses():
-    from contourmesh.bands import caps
-
     v = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
     b = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
     loops = np.concatenate([b, b[:, ::-1]])

@@ -402,7 +402,7 @@ def cap_faces(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
     empty = np.empty((0, 3), dtype=np.int64)
     if len(outer) < 3 or _signed_area(outer) == 0.0:
         return empty
-    # (the steps of _cap_faces_reference with fewer numpy calls: most caps are a few points, where
+    # (the steps of the tests' step-by-step reference with fewer numpy calls: most caps are a few points, where
     # the calls, not the arithmetic, cost; the checks after ear clipping in one compiled pass)
     if holes:
         used = [h for h in holes if len(h) >= 3 and _signed_area(h) != 0.0]
@@ -491,7 +491,7 @@ def _earcut():
 
 @njit(cache=True, nogil=True)
 def _cap_tail(verts, tri, ends, tol):  # pragma: no cover (compiled)
-    """:func:`_cap_faces_reference`'s steps after ear clipping, for rings ending at ``ends`` in
+    """The step-by-step cap's checks after ear clipping (its reference is in the tests), for rings ending at ``ends`` in
     ``verts``: the triangles that are not flat (:func:`_flat_kernel`), then, where no edge may hold a
     ring vertex (:func:`_busy_edges`, every vertex a candidate), :func:`split_t_junctions`' closing
     test (:func:`_closes_up`) and each triangle's signed area (the reference's arithmetic).
@@ -540,69 +540,6 @@ def _cap_tail(verts, tri, ends, tol):  # pragma: no cover (compiled)
         r0, r1 = verts[out[t, 2], 0], verts[out[t, 2], 1]
         s[t] = (q0 - p0) * (r1 - p1) - (q1 - p1) * (r0 - p0)
     return 0, out, s
-
-
-def _cap_faces_reference(polygon_xy, holes_xy=(), upward: bool = True) -> np.ndarray:
-    """:func:`cap_faces` step by step (each check a numpy step or a kernel call of its own): the
-    reference of its compiled tail (:func:`_cap_tail`)."""
-    outer, holes = _cap_rings(polygon_xy, holes_xy)
-    empty = np.empty((0, 3), dtype=np.int64)
-    if len(outer) < 3 or _signed_area(outer) == 0.0:
-        return empty
-
-    import mapbox_earcut
-
-    rings = [outer] + [h for h in holes if len(h) >= 3 and _signed_area(h) != 0.0]
-    offsets = np.cumsum([0] + [len(r) for r in [outer] + holes])[:-1]
-    # global index of each vertex handed to earcut
-    glob = [np.arange(len(outer))]
-    for k, h in enumerate(holes):
-        if len(h) >= 3 and _signed_area(h) != 0.0:
-            glob.append(offsets[k + 1] + np.arange(len(h)))
-    glob = np.concatenate(glob).astype(np.int64)
-    verts = np.ascontiguousarray(np.vstack(rings))
-    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
-    # take collinear runs out of each ring (kept: the runs' ends), ear-clip the rest, put them back
-    starts0 = np.concatenate([[0], ends[:-1]]).astype(np.int64)
-    kept_idx, runs, kept_ends = [], {}, []
-    for a, r in zip(starts0, rings):
-        keep = collinear_runs(r)
-        k = a + np.flatnonzero(keep)
-        kept_idx.append(k)
-        kept_ends.append(len(k))
-        if not keep.all():
-            _note_runs(keep, a, runs)
-    kept_idx = np.concatenate(kept_idx)
-    tri = np.asarray(mapbox_earcut.triangulate_float64(np.ascontiguousarray(verts[kept_idx]),
-                                                       np.cumsum(kept_ends).astype(np.uint32)),
-                     dtype=np.int64).reshape(-1, 3)
-    if len(tri) == 0:
-        return empty
-    tri = kept_idx[tri]
-    if runs:
-        tri = _reinsert_runs(tri, runs)
-    # a zero-area ear (three vertices on one line, not consecutive on a ring: a notch whose mouth
-    # lines up with a third point) is dropped; the T-junction split below joins its neighbours
-    tri = _drop_flat_triangles(verts, tri)
-    # earcut drops ring vertices lying on a straight line between their neighbours; put them
-    # back so that every ring edge is an edge of the cap (the bands share those edges)
-    starts = np.concatenate([[0], ends[:-1]]).astype(np.int64)
-    # each ring's edges (a, a + 1), ..., (b - 1, a), all rings at once
-    nxt = np.arange(1, len(verts) + 1, dtype=np.int64)
-    nxt[ends.astype(np.int64) - 1] = starts
-    boundary = np.stack([np.arange(len(verts), dtype=np.int64), nxt], axis=1)
-    fixed = split_t_junctions(verts, tri, np.concatenate([boundary, boundary[:, ::-1]]))
-    if fixed is None:
-        raise CapError("cannot triangulate the cap: its rings cross or touch each other")
-    tri = fixed
-    p, q, r = verts[tri[:, 0]], verts[tri[:, 1]], verts[tri[:, 2]]
-    s = (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
-    # ear clipping emits its triangles in one winding: orient them together (by their total area),
-    # so that a sliver whose own sign is round-off cannot break the cap's consistency
-    total = float(s.sum())
-    if (total < 0) if upward else (total > 0):
-        tri = tri[:, [0, 2, 1]]
-    return np.ascontiguousarray(glob[tri])
 
 
 @njit(cache=True)
