@@ -7,11 +7,19 @@ points that call it hold its code).  A module that also needs it from Python wra
 fast path and from the general mesher compiles it once instead of once per copy.  The rules that
 keep each kernel at one signature (int64 values rather than literal constants, the same array
 layouts at every call site) are those of :mod:`contourmesh.fastpath`.
+
+Every module of the package takes ``njit`` from here rather than from numba, so that the cache
+guard of :mod:`contourmesh._cache_guard` is in place before any of them defines a cached kernel
+(``tests/test_cache_guard.py`` checks that every cached kernel goes through it).
 """
 
 from __future__ import annotations
 
-from numba import njit
+from . import _cache_guard
+
+_cache_guard.install()  # before this import hands ``njit`` to the modules that define kernels
+
+from numba import njit  # noqa: E402  (re-exported: the package's modules take njit from here)
 
 #: ``no_rewrites``: numba's IR rewrite passes find nothing to do in these loops and only cost
 #: compile time.

@@ -63,9 +63,8 @@ import sys
 import threading
 
 import numpy as np
-from numba import njit
 
-from ._kernels import KERNEL_OPTIONS, internal_kernel
+from ._kernels import KERNEL_OPTIONS, internal_kernel, njit
 from ._workers import run_all
 from .bands import _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands import arclength as _arclength

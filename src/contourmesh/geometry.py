@@ -7,7 +7,8 @@ sections, stacks or meshes.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ._kernels import njit
 
 __all__ = ["points_in_rings", "shoelace_area", "grid_to_xy", "slice_gap", "successor", "predecessor",
            "distinct_rows"]

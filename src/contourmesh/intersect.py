@@ -64,7 +64,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from ._kernels import njit
 
 __all__ = ["intersecting_pairs", "any_intersecting", "self_intersections", "canonical_vertices"]
 
@@ -1127,7 +1128,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
             ext[nlive - 1, k] = box[i, 3 + k] - box[i, k]
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
-    npairs = 0
+    npairs = np.int64(0)  # (a literal 0 would compile _push a second time, for Literal[int](0))
     if nlive < 2:
         return pi[:0], pj[:0]
     # cell sizes: per axis, the median face extent along it (slices make faces thin across them),

@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ._kernels import njit
 from .intersect import _as_mesh_arrays, _pairs, canonical_vertices, self_intersections
 
 __all__ = [

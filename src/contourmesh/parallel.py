@@ -55,8 +55,8 @@ import threading
 import time
 
 import numpy as np
-from numba import njit
 
+from ._kernels import njit
 from .intersect import _threads, intersecting_pairs
 from .repair import resolve_crossings
 from .types import Mesh

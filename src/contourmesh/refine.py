@@ -95,8 +95,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ._kernels import njit
 from .bands.caps import _segments_meet  # the closed-segment test, shared with the caps
 from .geometry import distinct_rows
 from .polygons import polygonize

@@ -10,8 +10,8 @@ same faces.  Used by the volume mesher and the stack mesher alike; mesh in, mesh
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ._kernels import njit
 from .intersect import _any_kernel, any_intersecting, intersecting_pairs
 
 __all__ = ["split_nonmanifold_vertices", "resolve_crossings", "crossing_pairs_after_change"]

@@ -29,7 +29,8 @@ import math
 import threading
 
 import numpy as np
-from numba import njit
+
+from ._kernels import njit
 
 #: How many times a join is split (1: one section at mid-gap; 2: also at quarters where needed).
 MAX_DEPTH = 2

@@ -43,8 +43,8 @@ import logging
 import math
 
 import numpy as np
-from numba import njit
 
+from ._kernels import njit
 from .bands import band_is_folded, triangulate_band
 from .bands.caps import CapError, cap_faces
 from .bands.ends import _CUT, _DOME_RINGS, _centroid, _dome_centre, _end_profile, _roundness

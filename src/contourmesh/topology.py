@@ -23,7 +23,8 @@ The tests compare them with the reference on random volumes.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ._kernels import njit
 
 __all__ = ["euler_characteristic", "topology"]
 

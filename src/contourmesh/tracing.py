@@ -30,9 +30,8 @@ Conventions (see :mod:`contourmesh.types`):
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from ._kernels import internal_kernel
+from ._kernels import internal_kernel, njit
 from .geometry import predecessor, successor
 
 __all__ = ["trace_contours", "rotate_start", "check_contour4", "overlap_groups"]

@@ -13,7 +13,8 @@ Volumes are indexed ``[z, y, x]`` with ``spacing = (dz, dy, dx)``; ``origin`` is
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ._kernels import njit
 
 __all__ = ["check_volume_array", "check_spacing", "check_origin", "binary_label", "select_voxels", "binary_volume",
            "prepare_volume"]

@@ -83,10 +83,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ._heap import release_free_heap
-from ._kernels import KERNEL_OPTIONS, internal_kernel
+from ._kernels import KERNEL_OPTIONS, internal_kernel, njit
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds

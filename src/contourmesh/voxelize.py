@@ -35,7 +35,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from ._kernels import njit
 
 __all__ = ["voxelize_mesh", "FIXED_POINT_BITS", "MAX_RESOLUTION"]
 

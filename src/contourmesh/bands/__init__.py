@@ -31,8 +31,8 @@ from __future__ import annotations
 import threading
 
 import numpy as np
-from numba import njit
 
+from .._kernels import njit
 from ..intersect import any_intersecting, canonical_vertices
 from ..measure import triangle_areas
 from .arclength import triangulate_band_arclength

@@ -12,9 +12,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from .._kernels import internal_kernel
+from .._kernels import internal_kernel, njit
 from .greedy import band_from_edge_rule
 from .wiederhold import INITIAL_EDGE_WINDOW
 

@@ -25,8 +25,8 @@ from __future__ import annotations
 from functools import partial
 
 import numpy as np
-from numba import njit
 
+from .._kernels import njit
 from ..topology import _root  # the compiled union-find root (path halving), shared
 
 __all__ = ["OverlapFree", "PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]

@@ -17,7 +17,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .._kernels import njit
 
 __all__ = ["cap_faces", "CapError"]
 

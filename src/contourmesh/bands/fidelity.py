@@ -24,8 +24,8 @@ the original band.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .._kernels import njit
 from .optimal import N_LAYERS, _annulus_dp, _best_start, _trace_back
 from .wiederhold import edges_to_faces, oriented_pair
 

@@ -11,8 +11,8 @@ complex contour line definitions into polygonal element mosaics", SIGGRAPH 1978.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .._kernels import njit
 from .wiederhold import (
     INITIAL_EDGE_WINDOW,
     edges_to_faces,

@@ -35,8 +35,8 @@ from __future__ import annotations
 import threading
 
 import numpy as np
-from numba import njit
 
+from .._kernels import njit
 from .wiederhold import edges_to_faces, oriented_pair, validate_band_polygons
 
 __all__ = ["triangulate_band_optimal", "optimal_edges", "MAX_OPTIMAL_CELLS", "MAX_OPTIMAL_WORK"]

@@ -44,9 +44,8 @@ the pseudo-code's own behaviour and is kept; ``"optimal"`` excludes such bands.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from .._kernels import internal_kernel
+from .._kernels import internal_kernel, njit
 from ..geometry import successor
 
 __all__ = [

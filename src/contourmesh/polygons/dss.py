@@ -16,8 +16,8 @@ starts the next one at the last point of the previous one, and closes the last o
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .._kernels import njit
 from ..tracing import check_contour4
 
 __all__ = ["dss_polygon", "dss_vertex_indices"]

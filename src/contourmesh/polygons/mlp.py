@@ -35,9 +35,8 @@ All predicates are exact integer cross and dot products.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from .._kernels import internal_kernel
+from .._kernels import internal_kernel, njit
 from ..errors import ThinRegionError
 from ..geometry import successor
 from ..tracing import check_contour4
