@@ -1467,66 +1467,106 @@ def _number_units(units, tags, ring_points):
     """The units' vertices and faces numbered into one mesh, in order: a ring gets its vertices
     where it is first used (``ring_points((k, comp, hole))``: its points, as the unit made them),
     a unit's own vertices where the unit makes them.  Returns ``(V, F, S, N, T)``: vertices,
-    faces, side per face, neck vertices, and per face the tag of its unit (int32)."""
-    # the vertex count first, then every array written at its final size (no per-unit copies
-    # and no concatenation)
-    seen = set()
-    nv = 0
-    for u in units:
-        nv += u.nv
-        for rk, a, b in u.rings:
-            if rk in seen:
-                nv -= b - a
-            seen.add(rk)
-    del seen
-    V = np.empty((nv, 3))
-    nf = sum(len(u.F) for u in units)
-    F = np.empty((nf, 3), dtype=np.int64)
-    S = np.empty(nf, dtype=np.int8)
-    T = np.empty(nf, dtype=np.int32)
-    ring_ids = {}
-    Nb = []
-    at = 0
-    n = 0
+    faces, side per face, neck vertices, and per face the tag of its unit (int32).
+
+    The loop over the units handles Python integers and collects array pieces alone: each unit's
+    local vertices as runs of consecutive mesh numbers (``seg_g``, ``seg_len``: its own vertices'
+    runs and its rings', in local order), the vertices' pieces in mesh order; the pieces and the
+    units' faces are then concatenated straight into the results, and the faces and necks
+    renumbered in one compiled pass (:func:`_unit_numbering`).  Every array is written at its
+    final size (no per-unit copies besides the pieces themselves).  The per-unit form it replaces
+    is kept in ``tests/test_number_units.py``."""
+    ring_at = {}  # (ring key -> the mesh number of its first point)
+    seg_g, seg_len, pieces = [], [], []
+    fs, ss, face_end, face_base, face_tag = [], [], [], [], []
+    ns, neck_end, neck_base = [], [], []
+    n = nl_all = nf = nn = 0  # (mesh vertices, local vertices of the units so far, faces, necks)
     for u, t in zip(units, tags):
         nl = u.nv
-        if not u.rings:  # (all its vertices its own: one block)
-            g = np.arange(n, n + nl)
-            V[n: n + nl] = u.V
-            n += nl
-        else:
-            g = np.empty(nl, dtype=np.int64)
-            pos = own = 0  # (local vertex; row of u.V)
-            for rk, a, b in u.rings:
-                if a > pos:
-                    g[pos:a] = np.arange(n, n + a - pos)
-                    V[n: n + a - pos] = u.V[own: own + a - pos]
-                    own += a - pos
-                    n += a - pos
-                r = ring_ids.get(rk)
-                if r is None:
-                    r = ring_ids[rk] = np.arange(n, n + b - a)
-                    xyz = ring_points(rk)
-                    if len(xyz) != b - a:  # pragma: no cover - the key holds the ring's polygon
-                        raise RuntimeError(f"internal error: ring {rk} changed under a kept unit")
-                    V[n: n + b - a] = xyz
-                    n += b - a
-                g[a:b] = r
-                pos = b
-            if nl > pos:
-                g[pos:] = np.arange(n, n + nl - pos)
-                V[n: n + nl - pos] = u.V[own:]
-                n += nl - pos
+        pos = own = 0  # (local vertex; row of u.V)
+        for rk, a, b in u.rings:
+            if a > pos:
+                seg_g.append(n)
+                seg_len.append(a - pos)
+                pieces.append(u.V[own: own + a - pos])
+                own += a - pos
+                n += a - pos
+            r = ring_at.get(rk)
+            if r is None:
+                r = ring_at[rk] = n
+                xyz = ring_points(rk)
+                if len(xyz) != b - a:  # pragma: no cover - the key holds the ring's polygon
+                    raise RuntimeError(f"internal error: ring {rk} changed under a kept unit")
+                pieces.append(xyz)
+                n += b - a
+            seg_g.append(r)
+            seg_len.append(b - a)
+            pos = b
+        if nl > pos:
+            seg_g.append(n)
+            seg_len.append(nl - pos)
+            pieces.append(u.V[own:])
+            n += nl - pos
         if len(u.F):
-            end = at + len(u.F)
-            F[at:end] = g[u.F]
-            S[at:end] = u.S
-            T[at:end] = t
-            at = end
+            fs.append(u.F)
+            ss.append(u.S)
+            nf += len(u.F)
+            face_end.append(nf)
+            face_base.append(nl_all)
+            face_tag.append(t)
         if len(u.N):
-            Nb.append(g[u.N])
-    N = np.concatenate(Nb) if Nb else np.zeros(0, dtype=np.int64)
+            ns.append(u.N)
+            nn += len(u.N)
+            neck_end.append(nn)
+            neck_base.append(nl_all)
+        nl_all += nl
+    V = np.empty((n, 3))
+    if pieces:
+        np.concatenate(pieces, out=V)
+    del pieces
+    F = np.empty((nf, 3), dtype=np.int64)
+    S = np.empty(nf, dtype=np.int8)
+    if fs:
+        np.concatenate(fs, out=F)
+        np.concatenate(ss, out=S)
+    del fs, ss
+    T = np.repeat(np.array(face_tag, dtype=np.int32), np.diff(np.array([0] + face_end, dtype=np.int64)))
+    N = np.concatenate(ns).astype(np.int64) if ns else np.zeros(0, dtype=np.int64)
+    i64 = functools.partial(np.array, dtype=np.int64)
+    _unit_numbering(i64(seg_g), i64(seg_len), F, i64(face_end), i64(face_base), N, i64(neck_end), i64(neck_base))
     return V, F, S, N, T
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _unit_numbering(seg_g, seg_len, F, face_end, face_base, N, neck_end, neck_base):  # pragma: no cover (compiled)
+    """:func:`_number_units`' renumbering, in place: the units' local vertices, concatenated in
+    unit order, are the runs ``seg_g[s], seg_g[s] + 1, ...`` (``seg_len[s]`` long) in order; the
+    faces ``face_end[j - 1] .. face_end[j] - 1`` and the necks ``neck_end[j - 1] ..
+    neck_end[j] - 1`` are a unit's whose local vertices begin at ``face_base[j]``
+    (``neck_base[j]``) in that concatenation."""
+    total = 0
+    for s in range(seg_len.shape[0]):
+        total += seg_len[s]
+    g = np.empty(total, np.int64)
+    t = 0
+    for s in range(seg_len.shape[0]):
+        g0 = seg_g[s]
+        for i in range(seg_len[s]):
+            g[t] = g0 + i
+            t += 1
+    a = 0
+    for j in range(face_end.shape[0]):
+        b0 = face_base[j]
+        for i in range(a, face_end[j]):
+            for d in range(3):
+                F[i, d] = g[b0 + F[i, d]]
+        a = face_end[j]
+    a = 0
+    for j in range(neck_end.shape[0]):
+        b0 = neck_base[j]
+        for i in range(a, neck_end[j]):
+            N[i] = g[b0 + N[i]]
+        a = neck_end[j]
 
 
 def _distinct_rows(xy) -> bool:
