@@ -171,3 +171,35 @@ def test_slices_of_the_shared_volumes(shared_data):
     masks = _slices_of_volumes(shared_data)
     assert _check_cracks_and_mlps(masks) > 0
     _check_slices(masks, "mlp")
+
+
+def test_thin_part_polygons_kernel_equals_thin_part_polygon():
+    """The slice's compiled batch of :func:`thin_part_polygon` (the outer polygons of components one
+    pixel wide) gives its polygons, on every crack contour of random masks (thin or not: both of its
+    answers, the DSS polygon and the crack contour itself), and leaves the contours that
+    ``check_contour4`` refuses (marked not ok) to it."""
+    from contourmesh.polygons import thin_part_polygon
+
+    kinds = set()
+    for m in _random_masks(7, count=80):
+        labels, n, objects = slice_labels(m)
+        pts, starts, _, _ = slice_cracks(labels, slice_boxes(objects))
+        which = np.arange(len(starts) - 1, dtype=np.int64)
+        # (a few faulty contours appended: too short, a step of two, a reversal)
+        bad = [np.array([[0, 0], [1, 0], [1, 1]]), np.array([[0, 0], [2, 0], [2, 1], [0, 1]]),
+               np.array([[0, 0], [1, 0], [0, 0], [0, 1]])]
+        allp = np.concatenate([pts] + bad).astype(np.int64)
+        st = np.concatenate([starts, starts[-1] + np.cumsum([len(b) for b in bad])]).astype(np.int64)
+        which = np.concatenate([which, len(starts) - 1 + np.arange(len(bad))]).astype(np.int64)
+        out, ost, ok = volumes._thin_part_polygons(allp, st, which)
+        for j, i in enumerate(which.tolist()):
+            c = allp[st[i]: st[i + 1]]
+            if j >= len(which) - len(bad):
+                assert not ok[j] and ost[j + 1] == ost[j]
+                continue
+            assert ok[j]
+            want = thin_part_polygon(c)
+            got = out[ost[j]: ost[j + 1]]
+            assert _same(got, want)
+            kinds.add(len(want) == len(c))
+    assert kinds == {True, False}
