@@ -10,7 +10,7 @@ from scipy import ndimage
 from contourmesh import volumes
 from contourmesh.fastpath import pixels_mlp, slice_labels, slice_mlps
 from contourmesh.geometry import grid_to_xy
-from contourmesh.tracing import _crack_contours, slice_boxes, slice_cracks
+from contourmesh.tracing import _crack_contours, _label_runs, slice_boxes, slice_cracks
 
 
 def _random_masks(seed, count=60):
@@ -54,9 +54,13 @@ def _slices_of_volumes(shared_data):
 def _check_cracks_and_mlps(masks):
     seen_holes = 0
     for m in masks:
-        labels, n, objects = slice_labels(m)
+        labels, n, objects, runs = slice_labels(m, runs=True)
         boxes = slice_boxes(objects)
         pts, starts, area2, first = slice_cracks(labels, boxes)
+        # (the labeller's runs are those the label image gives, and the scan restricted to their
+        # ends finds what it finds from them)
+        assert all(_same(a, b) for a, b in zip(runs, _label_runs(labels)))
+        assert all(_same(a, b) for a, b in zip(slice_cracks(labels, boxes, runs), (pts, starts, area2, first)))
         mlps = slice_mlps(labels, boxes)
         assert len(first) == n + 1 and len(mlps) == n
         for c, sl in enumerate(objects):

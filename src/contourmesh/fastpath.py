@@ -396,13 +396,18 @@ def _paint_labels(ry, rx0, rx1, lab, h, w):
     return out
 
 
-def slice_labels(mask2d):
+def slice_labels(mask2d, runs=False):
     """``scipy.ndimage.label(mask2d)`` (4-connected, int32 labels in raster order of each component's
-    first pixel) and ``find_objects`` of it, from the runs in compiled code: ``(labels, n, objects)``."""
+    first pixel) and ``find_objects`` of it, from the runs in compiled code: ``(labels, n, objects)``,
+    and with ``runs`` the runs too, ``(ry, rx0, rx1, label)`` (int64, raster order: run ``r`` the
+    pixels ``[ry[r], rx0[r]: rx1[r]]`` of label ``label[r]``, as
+    :func:`contourmesh.tracing.slice_cracks` takes them)."""
     m = np.ascontiguousarray(mask2d, dtype=bool)
     (ry, rx0, rx1, rs), lab, n, _, bbox = slice_components(m)
     labels = _paint_labels(ry, rx0, rx1, lab, m.shape[0], m.shape[1])
     objects = [(slice(int(b[1]), int(b[3]) + 1), slice(int(b[0]), int(b[2]) + 1)) for b in bbox.tolist()]
+    if runs:
+        return labels, int(n), objects, (ry, rx0, rx1, lab + 1)
     return labels, int(n), objects
 
 

@@ -365,16 +365,16 @@ class _Slice:
         # order _crack_contours gives them for the component's cropped mask), and with "mlp" every
         # component's MLP in another (what _mlp_of_pixels gives for its cropped mask)
         if box is None:
-            labels, self.n, self.objects = slice_labels(mask2d)
+            labels, self.n, self.objects, runs = slice_labels(mask2d, runs=True)
             boxes = slice_boxes(self.objects)
-            pts, starts, area2, first = slice_cracks(labels, boxes)
+            pts, starts, area2, first = slice_cracks(labels, boxes, runs)
             lab32 = labels
             # the labels in the smallest dtype that holds them
             self._labels = self._small(labels)
         else:
-            part, self.n, objects = slice_labels(mask2d[box])
+            part, self.n, objects, runs = slice_labels(mask2d[box], runs=True)
             boxes = slice_boxes(objects)
-            pts, starts, area2, first = slice_cracks(part, boxes)
+            pts, starts, area2, first = slice_cracks(part, boxes, runs)
             lab32 = part
             part = self._small(part)  # (the whole image's labels made in that dtype at once)
             labels = np.zeros(mask2d.shape, dtype=part.dtype)
