@@ -10,7 +10,7 @@ from scipy import ndimage
 from contourmesh import volumes
 from contourmesh.fastpath import pixels_mlp, slice_labels, slice_mlps
 from contourmesh.geometry import grid_to_xy
-from contourmesh.tracing import _crack_contours, slice_boxes, slice_cracks
+from contourmesh.tracing import _crack_contours, _label_runs, slice_boxes, slice_cracks
 
 
 def _random_masks(seed, count=60):
@@ -54,9 +54,13 @@ def _slices_of_volumes(shared_data):
 def _check_cracks_and_mlps(masks):
     seen_holes = 0
     for m in masks:
-        labels, n, objects = slice_labels(m)
+        labels, n, objects, runs = slice_labels(m, runs=True)
         boxes = slice_boxes(objects)
         pts, starts, area2, first = slice_cracks(labels, boxes)
+        # (the labeller's runs are those the label image gives, and the scan restricted to their
+        # ends finds what it finds from them)
+        assert all(_same(a, b) for a, b in zip(runs, _label_runs(labels)))
+        assert all(_same(a, b) for a, b in zip(slice_cracks(labels, boxes, runs), (pts, starts, area2, first)))
         mlps = slice_mlps(labels, boxes)
         assert len(first) == n + 1 and len(mlps) == n
         for c, sl in enumerate(objects):
@@ -171,3 +175,35 @@ def test_slices_of_the_shared_volumes(shared_data):
     masks = _slices_of_volumes(shared_data)
     assert _check_cracks_and_mlps(masks) > 0
     _check_slices(masks, "mlp")
+
+
+def test_thin_part_polygons_kernel_equals_thin_part_polygon():
+    """The slice's compiled batch of :func:`thin_part_polygon` (the outer polygons of components one
+    pixel wide) gives its polygons, on every crack contour of random masks (thin or not: both of its
+    answers, the DSS polygon and the crack contour itself), and leaves the contours that
+    ``check_contour4`` refuses (marked not ok) to it."""
+    from contourmesh.polygons import thin_part_polygon
+
+    kinds = set()
+    for m in _random_masks(7, count=80):
+        labels, n, objects = slice_labels(m)
+        pts, starts, _, _ = slice_cracks(labels, slice_boxes(objects))
+        which = np.arange(len(starts) - 1, dtype=np.int64)
+        # (a few faulty contours appended: too short, a step of two, a reversal)
+        bad = [np.array([[0, 0], [1, 0], [1, 1]]), np.array([[0, 0], [2, 0], [2, 1], [0, 1]]),
+               np.array([[0, 0], [1, 0], [0, 0], [0, 1]])]
+        allp = np.concatenate([pts] + bad).astype(np.int64)
+        st = np.concatenate([starts, starts[-1] + np.cumsum([len(b) for b in bad])]).astype(np.int64)
+        which = np.concatenate([which, len(starts) - 1 + np.arange(len(bad))]).astype(np.int64)
+        out, ost, ok = volumes._thin_part_polygons(allp, st, which)
+        for j, i in enumerate(which.tolist()):
+            c = allp[st[i]: st[i + 1]]
+            if j >= len(which) - len(bad):
+                assert not ok[j] and ost[j + 1] == ost[j]
+                continue
+            assert ok[j]
+            want = thin_part_polygon(c)
+            got = out[ost[j]: ost[j + 1]]
+            assert _same(got, want)
+            kinds.add(len(want) == len(c))
+    assert kinds == {True, False}

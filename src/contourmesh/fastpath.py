@@ -395,13 +395,18 @@ def _paint_labels(ry, rx0, rx1, lab, h, w):
     return out
 
 
-def slice_labels(mask2d):
+def slice_labels(mask2d, runs=False):
     """``scipy.ndimage.label(mask2d)`` (4-connected, int32 labels in raster order of each component's
-    first pixel) and ``find_objects`` of it, from the runs in compiled code: ``(labels, n, objects)``."""
+    first pixel) and ``find_objects`` of it, from the runs in compiled code: ``(labels, n, objects)``,
+    and with ``runs`` the runs too, ``(ry, rx0, rx1, label)`` (int64, raster order: run ``r`` the
+    pixels ``[ry[r], rx0[r]: rx1[r]]`` of label ``label[r]``, as
+    :func:`contourmesh.tracing.slice_cracks` takes them)."""
     m = np.ascontiguousarray(mask2d, dtype=bool)
     (ry, rx0, rx1, rs), lab, n, _, bbox = slice_components(m)
     labels = _paint_labels(ry, rx0, rx1, lab, m.shape[0], m.shape[1])
     objects = [(slice(int(b[1]), int(b[3]) + 1), slice(int(b[0]), int(b[2]) + 1)) for b in bbox.tolist()]
+    if runs:
+        return labels, int(n), objects, (ry, rx0, rx1, lab + 1)
     return labels, int(n), objects
 
 
@@ -973,12 +978,19 @@ def slice_mlps(labels, boxes):
     """:func:`pixels_mlp` of every component of a slice's int32 label image at once (``boxes`` as
     :func:`contourmesh.tracing.slice_boxes`): a list with, per component, its MLP (``(p, 2)`` int64
     pixel-centre coordinates local to its box, a copy) or ``None`` where it encloses no area."""
-    pts, ps, a2s = _slice_mlps(np.ascontiguousarray(labels, dtype=np.int32), boxes)
+    pts, ps, a2s = slice_mlps_flat(labels, boxes)
     out = []
     for c in range(len(a2s)):
         p = pts[ps[c]: ps[c + 1]]
         out.append(None if len(p) < 3 or a2s[c] == 0 else p.copy())
     return out
+
+
+def slice_mlps_flat(labels, boxes):
+    """:func:`slice_mlps` before it is cut into one array per component: ``(pts, ps, a2s)``, the
+    components' MLP vertices concatenated (component ``c``'s are ``pts[ps[c]: ps[c + 1]]``, local to
+    its box; ``None`` in :func:`slice_mlps` where fewer than three or ``a2s[c] == 0``)."""
+    return _slice_mlps(np.ascontiguousarray(labels, dtype=np.int32), boxes)
 
 
 def slice_polygons(mask2d):

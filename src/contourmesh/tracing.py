@@ -368,7 +368,50 @@ def _label_turn(lab, vx, vy, d, v):
 
 
 @njit(cache=True, nogil=True)
-def _slice_cracks(lab, boxes):
+def _label_runs(lab):
+    """The runs of equal non-zero labels of a label image, in raster order: ``(ry, rx0, rx1,
+    rlab)``, run ``r`` the pixels ``[ry[r], rx0[r]: rx1[r]]``, all labelled ``rlab[r]``."""
+    h, w = lab.shape
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if lab[y, x] != 0 and (x == 0 or lab[y, x - 1] != lab[y, x]):
+                n += 1
+    ry = np.empty(n, np.int64)
+    rx0 = np.empty(n, np.int64)
+    rx1 = np.empty(n, np.int64)
+    rlab = np.empty(n, np.int64)
+    r = 0
+    for y in range(h):
+        for x in range(w):
+            if lab[y, x] != 0 and (x == 0 or lab[y, x - 1] != lab[y, x]):
+                ry[r] = y
+                rx0[r] = x
+                rlab[r] = lab[y, x]
+                r += 1
+            if lab[y, x] != 0 and (x == w - 1 or lab[y, x + 1] != lab[y, x]):
+                rx1[r - 1] = x + 1
+    return ry, rx0, rx1, rlab
+
+
+@internal_kernel
+def _row_corners(ry, rx0, rx1, order, q0, q1, y, out, k):
+    """The corners of row ``y`` where a boundary edge may start (see :func:`_slice_cracks`): for each
+    run ``order[q]`` (``q0 <= q < q1``) of row ``y`` its ``rx0, rx0 + 1, rx1, rx1 + 1``, written to
+    ``out`` from ``k`` on, in increasing order (a row's runs are apart); returns the new ``k``."""
+    for q in range(q0, q1):
+        r = order[q]
+        if ry[r] == y:
+            out[k] = rx0[r]
+            out[k + 1] = rx0[r] + 1
+            out[k + 2] = rx1[r]
+            out[k + 3] = rx1[r] + 1
+            k += 4
+    return k
+
+
+@njit(cache=True, nogil=True)
+def _slice_cracks(lab, boxes, ry, rx0, rx1, rlab):
     """:func:`_crack_contours` of every component of a label image at once, in slice corner
     coordinates: component ``c`` (label ``c + 1``, inside ``boxes[c] = (y0, y1, x0, x1)``, stops
     exclusive) is traced on its box's corners in raster order, as :func:`_follow_boundaries` traces
@@ -378,9 +421,41 @@ def _slice_cracks(lab, boxes):
     Returns the concatenated points, the start offset of each contour, twice its signed area and
     the first contour of each component (``first[c]: first[c + 1]``).  Every boundary edge is
     marked visited as a bit of the pixel on its left (the pixel and the direction name the edge;
-    two components never share a pixel)."""
+    two components never share a pixel).
+
+    The raster scan visits only the corners of each corner row where a contour can start: the
+    ends ``x`` of the component's runs (``ry, rx0, rx1, rlab``: :func:`_label_runs`) in the pixel
+    rows above and below, and ``x + 1`` (in order).  Between two such ends the four pixels round
+    a corner do not change, so a corner there has at most one boundary edge, along the row, whose
+    straight stretch a walk passes whole: its first edge, at an end or one past it, is met first
+    by the scan, and a walk from there (or from before) marks the others.  The same contours, from
+    the same corners, as a scan of every corner of the box."""
     h, w = lab.shape
     n = boxes.shape[0]
+    nr = ry.shape[0]
+    # the runs of each component, in raster order (a counting sort on the labels)
+    rstart = np.zeros(n + 2, np.int64)
+    for r in range(nr):
+        rstart[rlab[r] + 1] += 1
+    for v in range(n + 1):
+        rstart[v + 1] += rstart[v]
+    fill = rstart.copy()
+    order = np.empty(nr, np.int64)
+    most = 0  # (the most runs of one component in one row)
+    for r in range(nr):
+        v = rlab[r]
+        order[fill[v]] = r
+        fill[v] += 1
+    for v in range(1, n + 1):
+        q = rstart[v]
+        while q < rstart[v + 1]:
+            q2 = q
+            while q2 < rstart[v + 1] and ry[order[q2]] == ry[order[q]]:
+                q2 += 1
+            most = max(most, q2 - q)
+            q = q2
+    cand = np.empty(8 * most + 8, np.int64)
+    merged = np.empty(8 * most + 8, np.int64)
     visited = np.zeros((h, w), dtype=np.uint8)
     cap = 64
     pts = np.empty((cap, 2), dtype=np.int64)
@@ -390,19 +465,40 @@ def _slice_cracks(lab, boxes):
     first = np.empty(n + 1, dtype=np.int64)
     n_cont = 0
     pos = 0
-    for c in range(n):
-        v = c + 1
-        first[c] = n_cont
-        y0, y1, x0, x1 = boxes[c, 0], boxes[c, 1], boxes[c, 2], boxes[c, 3]
+    for comp in range(n):
+        v = comp + 1
+        first[comp] = n_cont
+        y0, y1, x0, x1 = boxes[comp, 0], boxes[comp, 1], boxes[comp, 2], boxes[comp, 3]
+        q0, q1 = rstart[v], rstart[v + 1]
+        p = q0  # (the component's first run in row vy0 - 1 or later)
         for vy0 in range(y0, y1 + 1):
-            # the four pixels around corner (vx0, vy0): a = [vy0 - 1, vx0 - 1], b = [vy0 - 1, vx0],
-            # c = [vy0, vx0 - 1], e = [vy0, vx0] (in component v), slid along the row
             lo, hi = vy0 - 1 >= 0, vy0 < h
-            b = lo and x0 - 1 >= 0 and lab[vy0 - 1, x0 - 1] == v
-            e = hi and x0 - 1 >= 0 and lab[vy0, x0 - 1] == v
-            for vx0 in range(x0, x1 + 1):
-                a, c = b, e
+            while p < q1 and ry[order[p]] < vy0 - 1:
+                p += 1
+            pe = p
+            while pe < q1 and ry[order[pe]] <= vy0:
+                pe += 1
+            # the candidate corners of the two rows, each list increasing, merged
+            ka = _row_corners(ry, rx0, rx1, order, p, pe, vy0 - 1, cand, 0)
+            kb = _row_corners(ry, rx0, rx1, order, p, pe, vy0, cand, ka)
+            i, j, k = 0, ka, 0
+            while i < ka or j < kb:
+                if j >= kb or (i < ka and cand[i] <= cand[j]):
+                    x = cand[i]
+                    i += 1
+                else:
+                    x = cand[j]
+                    j += 1
+                if x >= x0 and x <= x1 and (k == 0 or merged[k - 1] != x):
+                    merged[k] = x
+                    k += 1
+            for t in range(k):
+                vx0 = merged[t]
+                # the four pixels around corner (vx0, vy0): a = [vy0 - 1, vx0 - 1], b = [vy0 - 1, vx0],
+                # c = [vy0, vx0 - 1], e = [vy0, vx0] (in component v)
+                a = lo and vx0 - 1 >= 0 and lab[vy0 - 1, vx0 - 1] == v
                 b = lo and vx0 < w and lab[vy0 - 1, vx0] == v
+                c = hi and vx0 - 1 >= 0 and lab[vy0, vx0 - 1] == v
                 e = hi and vx0 < w and lab[vy0, vx0] == v
                 if a == b and a == c and a == e:
                     continue  # no boundary edge at this corner
@@ -526,14 +622,18 @@ def slice_boxes(objects) -> np.ndarray:
     return np.array([(a.start, a.stop, b.start, b.stop) for a, b in objects], dtype=np.int64).reshape(-1, 4)
 
 
-def slice_cracks(labels: np.ndarray, boxes: np.ndarray) -> tuple:
+def slice_cracks(labels: np.ndarray, boxes: np.ndarray, runs=None) -> tuple:
     """The crack contours of every component of a slice's label image (``labels`` int32, ``c + 1``
     for component ``c``), in slice corner coordinates, in one
     compiled pass: ``(points, starts, area2, first)`` as :func:`_slice_cracks`.  Contour ``i`` is
     ``points[starts[i]: starts[i + 1]]``; component ``c``'s are ``first[c]: first[c + 1]``, the same
     contours in the same order as ``_crack_contours(labels[objects[c]] == c + 1)`` gives them, moved
-    to the slice (``boxes``: :func:`slice_boxes` of ``objects``)."""
-    return _slice_cracks(np.ascontiguousarray(labels, dtype=np.int32), boxes)
+    to the slice (``boxes``: :func:`slice_boxes` of ``objects``).  ``runs``: the labels' runs
+    ``(ry, rx0, rx1, rlab)`` as :func:`_label_runs` gives them (int64; the labeller has them), else
+    found here."""
+    lab = np.ascontiguousarray(labels, dtype=np.int32)
+    ry, rx0, rx1, rlab = _label_runs(lab) if runs is None else runs
+    return _slice_cracks(lab, boxes, ry, rx0, rx1, rlab)
 
 
 @njit(cache=True, nogil=True)

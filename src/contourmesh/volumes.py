@@ -98,12 +98,13 @@ from .fastpath import (
     redo_self_crossing_bands,
     slice_components,
     slice_labels,
-    slice_mlps,
+    slice_mlps_flat,
 )
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import intersecting_pairs
 from .measure import triangle_areas
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
+from .polygons.dss import _greedy_segmentation
 from .refine import REFINERS, refine_volume_rings
 from .repair import (
     _compact,
@@ -115,6 +116,7 @@ from .repair import (
     split_nonmanifold_vertices,
 )
 from .tracing import (
+    _contour4_ok,
     _hole_parts,
     label_mask,
     missing_corners,
@@ -362,16 +364,16 @@ class _Slice:
         # order _crack_contours gives them for the component's cropped mask), and with "mlp" every
         # component's MLP in another (what _mlp_of_pixels gives for its cropped mask)
         if box is None:
-            labels, self.n, self.objects = slice_labels(mask2d)
+            labels, self.n, self.objects, runs = slice_labels(mask2d, runs=True)
             boxes = slice_boxes(self.objects)
-            pts, starts, area2, first = slice_cracks(labels, boxes)
+            pts, starts, area2, first = slice_cracks(labels, boxes, runs)
             lab32 = labels
             # the labels in the smallest dtype that holds them
             self._labels = self._small(labels)
         else:
-            part, self.n, objects = slice_labels(mask2d[box])
+            part, self.n, objects, runs = slice_labels(mask2d[box], runs=True)
             boxes = slice_boxes(objects)
-            pts, starts, area2, first = slice_cracks(part, boxes)
+            pts, starts, area2, first = slice_cracks(part, boxes, runs)
             lab32 = part
             part = self._small(part)  # (the whole image's labels made in that dtype at once)
             labels = np.zeros(mask2d.shape, dtype=part.dtype)
@@ -391,19 +393,24 @@ class _Slice:
         self.crack_outer = _CrackXY(self.crack_outer_c, to_xy_corner, False)
         self.crack_holes = _CrackXY(self.crack_holes_c, to_xy_corner, True)
         self.fallbacks = 0
-        mlps = slice_mlps(lab32, boxes) if polygon not in ("dss", "none") else None
+        # with "mlp", every component's MLP (one compiled pass) and the outer polygons made after the
+        # loop, all at once (_outer_polygons)
+        mlps = slice_mlps_flat(lab32, boxes) if polygon not in ("dss", "none") else None
+        outer_at = []  # (per component, its outer crack contour's index in pts / starts)
         for c in range(self.n):
             sl = self.objects[c]
             y0, x0 = sl[0].start, sl[1].start
             k0, k1 = int(first[c]), int(first[c + 1])
             if k1 - k0 == 1 and area2[k0] > 0:  # (most components: one outer contour, no hole)
                 crack_o, crack_h = pts[starts[k0]: starts[k1]], []
+                outer_at.append(k0)
             else:
                 cont = [pts[starts[i]: starts[i + 1]] for i in range(k0, k1)]
                 outer_i = [i for i in range(len(cont)) if area2[k0 + i] > 0]
                 if len(outer_i) != 1:  # pragma: no cover - a 4-component has one outer boundary
                     raise RuntimeError(f"component {c} has {len(outer_i)} outer crack contours")
                 crack_o = cont[outer_i[0]]
+                outer_at.append(k0 + outer_i[0])
                 crack_h = [cont[i] for i in range(len(cont)) if area2[k0 + i] < 0]
             off = np.array([x0, y0])
             # the holes as pixel sets: background 8-components of the component's bbox not
@@ -421,17 +428,55 @@ class _Slice:
             self.hole_masks.append((sl, _HoleMasks.of_parts(shape, parts)))
             self.crack_outer_c.append(crack_o)
             self.crack_holes_c.append(crack_h)
-            # (the polygons by "mlp" from the MLPs made above: the component's and each hole's, the
-            # latter made from its cropped mask and moved to the component's box)
-            self.outer.append(self._polygon(crack_o, None, polygon, to_xy_corner, to_xy_center, off, hole=False,
-                                            mlp=False if mlps is None else mlps[c]))
+            # (the holes' polygons by "mlp" made from their cropped masks and moved to the component's box)
+            if mlps is None:
+                self.outer.append(self._polygon(crack_o, None, polygon, to_xy_corner, to_xy_center, off, hole=False))
             self.holes.append([
                 self._polygon(h, None, polygon, to_xy_corner, to_xy_center, off, hole=True,
                               mlp=False if mlps is None else self._moved(pixels_mlp(part), hx, hy))
                 for h, (hy, hx, part) in zip(crack_h, parts)
             ])
+        if mlps is not None:
+            self.outer = self._outer_polygons(mlps, pts, starts, np.array(outer_at, dtype=np.int64),
+                                              to_xy_corner, to_xy_center)
         if recent is not None:
             recent.hold(self)
+
+    def _outer_polygons(self, mlps, pts, starts, outer_at, to_xy_corner, to_xy_center):
+        """The components' outer polygons by "mlp", as :meth:`_polygon` makes each (``hole=False``),
+        made for the whole slice at once: the MLPs (``mlps``: :func:`contourmesh.fastpath.slice_mlps_flat`)
+        moved to the slice and mapped in one call; the components whose MLP encloses no area (parts
+        one pixel wide) by :func:`_thin_part_polygons` on their crack contours (``pts[starts[i]:
+        starts[i + 1]]`` for ``i`` in ``outer_at``), mapped in another.  The same numbers (integer
+        sums and maps of each row alone), each polygon a view of one of the two arrays."""
+        mp, mps, ma2 = mlps
+        n = self.n
+        if n == 0:
+            return []
+        cnt = np.diff(mps)
+        has = ((cnt >= 3) & (ma2 != 0)).tolist()
+        off = np.array([(sl[1].start, sl[0].start) for sl in self.objects], dtype=np.int64).reshape(-1, 2)
+        xy = to_xy_center(mp + np.repeat(off, cnt, axis=0)) if len(mp) else None
+        thin = [c for c in range(n) if not has[c]]
+        self.fallbacks += len(thin)
+        # (called where no component is thin too: every slice compiles it, so a warm-up does)
+        tp, ts, ok = _thin_part_polygons(pts, starts, outer_at[thin])
+        txy = to_xy_corner(tp)
+        ok, ts = ok.tolist(), ts.tolist()
+        out = []
+        mps = mps.tolist()
+        j = 0
+        for c in range(n):
+            if has[c]:
+                out.append(xy[mps[c]: mps[c + 1]])
+                continue
+            if ok[j]:
+                out.append(txy[ts[j]: ts[j + 1]])
+            else:  # (a contour the compiled checks refuse: the plain form, which names the fault)
+                i = int(outer_at[c])
+                out.append(to_xy_corner(thin_part_polygon(pts[starts[i]: starts[i + 1]])))
+            j += 1
+        return out
 
     def _small(self, labels):
         small = np.uint8 if self.n < 2**8 else np.uint16 if self.n < 2**16 else None
@@ -491,6 +536,98 @@ class _Slice:
         if hole:
             poly = poly[::-1]
         return to_xy_center(poly)
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _thin_part_polygons(pts, starts, which):  # pragma: no cover (compiled)
+    """:func:`contourmesh.polygons.thin_part_polygon` of the contours ``pts[starts[i]: starts[i +
+    1]]`` for ``i`` in ``which``, in one pass: ``(out, ostarts, ok)``, contour ``j``'s polygon
+    ``out[ostarts[j]: ostarts[j + 1]]`` where ``ok[j]``; not ok (nothing written) where the contour
+    fails :func:`contourmesh.tracing.check_contour4`'s compiled checks, for the plain form to take.
+    The areas' signs and the simplicity test as the plain form's on integer points: its float
+    orientations are exact there and only their signs are read."""
+    m = which.shape[0]
+    total = 0
+    for j in range(m):
+        total += starts[which[j] + 1] - starts[which[j]]
+    out = np.empty((total, 2), np.int64)
+    ost = np.zeros(m + 1, np.int64)
+    ok = np.zeros(m, np.bool_)
+    at = 0
+    for j in range(m):
+        c = pts[starts[which[j]]: starts[which[j] + 1]]
+        k = c.shape[0]
+        if k >= 4 and _contour4_ok(c):
+            ok[j] = True
+            idx = _greedy_segmentation(c)
+            nd = idx.shape[0]
+            use = False
+            if nd >= 3:
+                ad = _ring_area2(c, idx, nd)
+                ac = _ring_area2(c, np.arange(k), k)
+                if (ad > 0 and ac > 0) or (ad < 0 and ac < 0):
+                    use = _simple_ring(c, idx, nd)
+            if use:
+                for t in range(nd):
+                    out[at, 0] = c[idx[t], 0]
+                    out[at, 1] = c[idx[t], 1]
+                    at += 1
+            else:
+                for t in range(k):
+                    out[at, 0] = c[t, 0]
+                    out[at, 1] = c[t, 1]
+                    at += 1
+        ost[j + 1] = at
+    return out[:at], ost, ok
+
+
+@internal_kernel
+def _ring_area2(c, idx, n):  # pragma: no cover (compiled)
+    """Twice the signed area of the ring ``c[idx[:n]]`` (integers: ``thin_part_polygon``'s ``area``)."""
+    a = 0
+    b = 0
+    for t in range(n):
+        u = idx[t]
+        v = idx[(t + 1) % n]
+        a += c[u, 0] * c[v, 1]
+        b += c[v, 0] * c[u, 1]
+    return a - b
+
+
+@internal_kernel
+def _orient(ux, uy, vx, vy, wx, wy):  # pragma: no cover (compiled)
+    return (vx - ux) * (wy - uy) - (vy - uy) * (wx - ux)
+
+
+@internal_kernel
+def _simple_ring(c, idx, n):  # pragma: no cover (compiled)
+    """:func:`contourmesh.polygons.is_simple_polygon` of the ring ``c[idx[:n]]`` (``n >= 3``): distinct
+    points and no two non-adjacent edges meeting."""
+    for s in range(n):
+        for t in range(s):
+            if c[idx[s], 0] == c[idx[t], 0] and c[idx[s], 1] == c[idx[t], 1]:
+                return False
+    for i in range(n):
+        ax, ay = c[idx[i], 0], c[idx[i], 1]
+        bx, by = c[idx[(i + 1) % n], 0], c[idx[(i + 1) % n], 1]
+        for j in range(n):
+            d = abs(i - j)
+            if d <= 1 or d == n - 1:
+                continue
+            px, py = c[idx[j], 0], c[idx[j], 1]
+            qx, qy = c[idx[(j + 1) % n], 0], c[idx[(j + 1) % n], 1]
+            d1 = _orient(ax, ay, bx, by, px, py)
+            d2 = _orient(ax, ay, bx, by, qx, qy)
+            d3 = _orient(px, py, qx, qy, ax, ay)
+            d4 = _orient(px, py, qx, qy, bx, by)
+            if _sign(d1) * _sign(d2) <= 0 and _sign(d3) * _sign(d4) <= 0:
+                return False
+    return True
+
+
+@internal_kernel
+def _sign(x):  # pragma: no cover (compiled)
+    return (x > 0) - (x < 0)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -1466,66 +1603,106 @@ def _number_units(units, tags, ring_points):
     """The units' vertices and faces numbered into one mesh, in order: a ring gets its vertices
     where it is first used (``ring_points((k, comp, hole))``: its points, as the unit made them),
     a unit's own vertices where the unit makes them.  Returns ``(V, F, S, N, T)``: vertices,
-    faces, side per face, neck vertices, and per face the tag of its unit (int32)."""
-    # the vertex count first, then every array written at its final size (no per-unit copies
-    # and no concatenation)
-    seen = set()
-    nv = 0
-    for u in units:
-        nv += u.nv
-        for rk, a, b in u.rings:
-            if rk in seen:
-                nv -= b - a
-            seen.add(rk)
-    del seen
-    V = np.empty((nv, 3))
-    nf = sum(len(u.F) for u in units)
-    F = np.empty((nf, 3), dtype=np.int64)
-    S = np.empty(nf, dtype=np.int8)
-    T = np.empty(nf, dtype=np.int32)
-    ring_ids = {}
-    Nb = []
-    at = 0
-    n = 0
+    faces, side per face, neck vertices, and per face the tag of its unit (int32).
+
+    The loop over the units handles Python integers and collects array pieces alone: each unit's
+    local vertices as runs of consecutive mesh numbers (``seg_g``, ``seg_len``: its own vertices'
+    runs and its rings', in local order), the vertices' pieces in mesh order; the pieces and the
+    units' faces are then concatenated straight into the results, and the faces and necks
+    renumbered in one compiled pass (:func:`_unit_numbering`).  Every array is written at its
+    final size (no per-unit copies besides the pieces themselves).  The per-unit form it replaces
+    is kept in ``tests/test_number_units.py``."""
+    ring_at = {}  # (ring key -> the mesh number of its first point)
+    seg_g, seg_len, pieces = [], [], []
+    fs, ss, face_end, face_base, face_tag = [], [], [], [], []
+    ns, neck_end, neck_base = [], [], []
+    n = nl_all = nf = nn = 0  # (mesh vertices, local vertices of the units so far, faces, necks)
     for u, t in zip(units, tags):
         nl = u.nv
-        if not u.rings:  # (all its vertices its own: one block)
-            g = np.arange(n, n + nl)
-            V[n: n + nl] = u.V
-            n += nl
-        else:
-            g = np.empty(nl, dtype=np.int64)
-            pos = own = 0  # (local vertex; row of u.V)
-            for rk, a, b in u.rings:
-                if a > pos:
-                    g[pos:a] = np.arange(n, n + a - pos)
-                    V[n: n + a - pos] = u.V[own: own + a - pos]
-                    own += a - pos
-                    n += a - pos
-                r = ring_ids.get(rk)
-                if r is None:
-                    r = ring_ids[rk] = np.arange(n, n + b - a)
-                    xyz = ring_points(rk)
-                    if len(xyz) != b - a:  # pragma: no cover - the key holds the ring's polygon
-                        raise RuntimeError(f"internal error: ring {rk} changed under a kept unit")
-                    V[n: n + b - a] = xyz
-                    n += b - a
-                g[a:b] = r
-                pos = b
-            if nl > pos:
-                g[pos:] = np.arange(n, n + nl - pos)
-                V[n: n + nl - pos] = u.V[own:]
-                n += nl - pos
+        pos = own = 0  # (local vertex; row of u.V)
+        for rk, a, b in u.rings:
+            if a > pos:
+                seg_g.append(n)
+                seg_len.append(a - pos)
+                pieces.append(u.V[own: own + a - pos])
+                own += a - pos
+                n += a - pos
+            r = ring_at.get(rk)
+            if r is None:
+                r = ring_at[rk] = n
+                xyz = ring_points(rk)
+                if len(xyz) != b - a:  # pragma: no cover - the key holds the ring's polygon
+                    raise RuntimeError(f"internal error: ring {rk} changed under a kept unit")
+                pieces.append(xyz)
+                n += b - a
+            seg_g.append(r)
+            seg_len.append(b - a)
+            pos = b
+        if nl > pos:
+            seg_g.append(n)
+            seg_len.append(nl - pos)
+            pieces.append(u.V[own:])
+            n += nl - pos
         if len(u.F):
-            end = at + len(u.F)
-            F[at:end] = g[u.F]
-            S[at:end] = u.S
-            T[at:end] = t
-            at = end
+            fs.append(u.F)
+            ss.append(u.S)
+            nf += len(u.F)
+            face_end.append(nf)
+            face_base.append(nl_all)
+            face_tag.append(t)
         if len(u.N):
-            Nb.append(g[u.N])
-    N = np.concatenate(Nb) if Nb else np.zeros(0, dtype=np.int64)
+            ns.append(u.N)
+            nn += len(u.N)
+            neck_end.append(nn)
+            neck_base.append(nl_all)
+        nl_all += nl
+    V = np.empty((n, 3))
+    if pieces:
+        np.concatenate(pieces, out=V)
+    del pieces
+    F = np.empty((nf, 3), dtype=np.int64)
+    S = np.empty(nf, dtype=np.int8)
+    if fs:
+        np.concatenate(fs, out=F)
+        np.concatenate(ss, out=S)
+    del fs, ss
+    T = np.repeat(np.array(face_tag, dtype=np.int32), np.diff(np.array([0] + face_end, dtype=np.int64)))
+    N = np.concatenate(ns).astype(np.int64) if ns else np.zeros(0, dtype=np.int64)
+    i64 = functools.partial(np.array, dtype=np.int64)
+    _unit_numbering(i64(seg_g), i64(seg_len), F, i64(face_end), i64(face_base), N, i64(neck_end), i64(neck_base))
     return V, F, S, N, T
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _unit_numbering(seg_g, seg_len, F, face_end, face_base, N, neck_end, neck_base):  # pragma: no cover (compiled)
+    """:func:`_number_units`' renumbering, in place: the units' local vertices, concatenated in
+    unit order, are the runs ``seg_g[s], seg_g[s] + 1, ...`` (``seg_len[s]`` long) in order; the
+    faces ``face_end[j - 1] .. face_end[j] - 1`` and the necks ``neck_end[j - 1] ..
+    neck_end[j] - 1`` are a unit's whose local vertices begin at ``face_base[j]``
+    (``neck_base[j]``) in that concatenation."""
+    total = 0
+    for s in range(seg_len.shape[0]):
+        total += seg_len[s]
+    g = np.empty(total, np.int64)
+    t = 0
+    for s in range(seg_len.shape[0]):
+        g0 = seg_g[s]
+        for i in range(seg_len[s]):
+            g[t] = g0 + i
+            t += 1
+    a = 0
+    for j in range(face_end.shape[0]):
+        b0 = face_base[j]
+        for i in range(a, face_end[j]):
+            for d in range(3):
+                F[i, d] = g[b0 + F[i, d]]
+        a = face_end[j]
+    a = 0
+    for j in range(neck_end.shape[0]):
+        b0 = neck_base[j]
+        for i in range(a, neck_end[j]):
+            N[i] = g[b0 + N[i]]
+        a = neck_end[j]
 
 
 def _distinct_rows(xy) -> bool:
