@@ -211,6 +211,40 @@ def test_compiled_signed_distance_on_larger_regions_with_full_and_empty_rows():
             assert got.tobytes() == ref.tobytes()
 
 
+@pytest.mark.parametrize("sampling", [(1.0, 1.0), (0.25, 0.25), (0.617, 0.667)])
+def test_signed_distance_where_needed_is_the_full_one_there(sampling):
+    """``_sdf(m, need=...)`` gives the full transform's bits on the needed pixels and only the
+    sign (-inf on the region, +inf off it) elsewhere; so the sections of two regions (and the
+    sections of a section with either) are the same masks when their distances are measured
+    only where the two regions differ."""
+    rng = np.random.default_rng(74)
+    for t in range(60):
+        h, w = int(rng.integers(1, 60)), int(rng.integers(1, 60))
+        a = ndimage.gaussian_filter(rng.random((h, w)), rng.uniform(0.8, 3.0)) > rng.uniform(0.45, 0.55)
+        b = a ^ (rng.random((h, w)) < rng.uniform(0.0, 0.3)) if t % 3 else \
+            ndimage.gaussian_filter(rng.random((h, w)), 2.0) > 0.5
+        if t % 10 == 0:
+            b = a.copy()
+        if not a.any() or not b.any():
+            continue
+        need = a ^ b
+        for m in (a, b, rng.random((h, w)) < 0.5):
+            if not m.any():
+                continue
+            full, part = sections._sdf(m, sampling), sections._sdf(m, sampling, need=need)
+            assert part[need].tobytes() == full[need].tobytes()
+            assert (part[~need] == np.where(m, -np.inf, np.inf)[~need]).all()
+        # the sections (mid, then each quarter) as sectioned_join makes them
+        fa, fb = sections._sdf(a, sampling), sections._sdf(b, sampling)
+        pa, pb = sections._sdf(a, sampling, need=need), sections._sdf(b, sampling, need=need)
+        mid = fa + fb < 0
+        assert np.array_equal(mid, pa + pb < 0)
+        if mid.any():
+            fm, pm = sections._sdf(mid, sampling), sections._sdf(mid, sampling, need=need)
+            assert np.array_equal(fa + fm < 0, pa + pm < 0)
+            assert np.array_equal(fm + fb < 0, pm + pb < 0)
+
+
 def test_stack_invariants_see_a_tube_closed_by_a_section():
     ring = np.zeros((9, 9), bool)
     ring[1:8, 1:8] = True
@@ -539,6 +573,6 @@ def test_signed_distance_column_arrays_of_either_width_and_dirty():
         u8 = np.ascontiguousarray(m).view(np.uint8)
         for dt in (np.int32, np.int64):
             gi, go = (rng.integers(-5, 9, size=(h + 2, w + 2)).astype(dt) for _ in range(2))
-            got = sections._sdf_square(u8, 0.25, 0.25, gi, go)
+            got = sections._sdf_square(u8, 0.25, 0.25, gi, go, sections._ALL)
             assert got.tobytes() == ref.tobytes()
         assert sections._sdf(m, (0.5, 0.5)).tobytes() == ref.tobytes()  # (the thread's kept arrays, dirty)

@@ -49,19 +49,33 @@ def mid_section(ra: np.ndarray, rb: np.ndarray, sampling=(1.0, 1.0)) -> np.ndarr
     return _sdf(ra, sampling) + _sdf(rb, sampling) < 0
 
 
-def _sdf(m: np.ndarray, sampling) -> np.ndarray:
+def _sdf(m: np.ndarray, sampling, need=None) -> np.ndarray:
     """:func:`mid_section`'s signed distance of a region (a boolean mask).
 
     On square pixels whose side is a power of two (1 mm, 0.5 mm, ...; between 2^-200 and 2^200, so
     that no square underflows or overflows) and a region with a pixel, compiled
     (:func:`_sdf_square`): every squared distance is then an exact integer times the pixel area, so
     it is the same number whichever nearest pixel is found, and the same bits as the reference
-    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the reference."""
+    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the reference.
+
+    ``need`` (a boolean mask of the same shape, or None: every pixel): the pixels whose distance is
+    wanted; the others get ``-inf`` on the region and ``+inf`` off it (only the sign is right).  A
+    sectioned join's layers all agree outside the pixels where its two slices differ, so its
+    sections' signs there never depend on a distance (see :func:`sectioned_join`)."""
     m = np.asarray(m, dtype=bool)
     s0, s1 = (float(x) for x in sampling)
     if s0 == s1 and 2.0 ** -200 <= s0 <= 2.0 ** 200 and math.frexp(s0)[0] == 0.5 and m.ndim == 2 and m.any():
-        return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1), *_column_buffers(*m.shape))
-    return _sdf_reference(m, sampling)
+        want = _ALL if need is None else np.ascontiguousarray(need, dtype=bool).view(np.uint8)
+        return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1), *_column_buffers(*m.shape),
+                           want)
+    out = _sdf_reference(m, sampling)
+    if need is not None:
+        out[~np.asarray(need, dtype=bool)] = np.where(m, -np.inf, np.inf)[~np.asarray(need, dtype=bool)]
+    return out
+
+
+#: :func:`_sdf_square`'s ``need`` for every pixel.
+_ALL = np.zeros((0, 0), np.uint8)
 
 
 #: Largest padded image (pixels) whose column-distance arrays a thread keeps for the next one.
@@ -164,11 +178,13 @@ def _envelope(grow, v, zn, zd):
 
 
 @njit(cache=True, nogil=True)
-def _sdf_square(m, area, h, gi, go):
+def _sdf_square(m, area, h, gi, go, need):
     """:func:`_sdf` of a non-empty mask (uint8) on square pixels of area ``area`` (a power of two
     squared), ``h`` half the pixel side: ``h - inside`` on the region, ``outside - h`` off it, each
     distance the square root of its squared number of pixel steps times ``area`` (exact).  ``gi``
-    and ``go``: :func:`_column_distances`' arrays (their contents do not matter).
+    and ``go``: :func:`_column_distances`' arrays (their contents do not matter).  ``need``: a
+    uint8 mask of the pixels whose distance is wanted (the others get ``-inf`` on the region,
+    ``+inf`` off it), or an empty array: every pixel.
 
     The squared distances of each row (to the nearest empty pixel of the padded mask for the
     region's pixels, to the nearest region pixel for the others) are read off the lower envelope
@@ -177,9 +193,11 @@ def _sdf_square(m, area, h, gi, go):
     distance 0: every column farther is farther), so each envelope has only those columns (about
     half as many parabolas as two envelopes of the whole row).  The pixels beyond a run at the
     padding of an outside run are no region pixels, but there the run reaches the padding: no
-    column lies beyond it."""
+    column lies beyond it.  A run with no wanted pixel gets no envelope; a wanted pixel's number
+    is the one it gets with every pixel wanted (the same envelope, the same arithmetic)."""
     H, W = m.shape
     Wp = W + 2
+    every = need.shape[0] == 0
     _column_distances(m, gi, go)
     out = np.empty((H, W), np.float64)
     v = np.empty(Wp, np.int64)  # the run's envelope
@@ -193,13 +211,23 @@ def _sdf_square(m, area, h, gi, go):
             b = x + 1
             while b < W and (row[b] != 0) == inside:
                 b += 1
+            o = out[y, x:b]  # (relative column xr at o[xr - 1])
+            if not every:
+                wanted = False
+                for i in range(x, b):
+                    if need[y, i] != 0:
+                        wanted = True
+                        break
+                if not wanted:
+                    o[:] = -np.inf if inside else np.inf
+                    x = b
+                    continue
             # the run is image columns x .. b - 1, padded x + 1 .. b; with the pixels beyond it,
             # padded columns x .. b + 1 (relative columns 0 .. b - x + 1)
             g = gi[y + 1, x:b + 2] if inside else go[y + 1, x:b + 2]
             k = _envelope(g, v, zn, zd)
             # parabola v[t] is the lowest on the columns past zn[t] / zd[t] (zd > 0; increasing
             # in t) up to the next one's: the integer columns from floor(zn / zd) + 1 on
-            o = out[y, x:b]  # (relative column xr at o[xr - 1])
             sgn = -1.0 if inside else 1.0
             hs = h if inside else -h
             end = b - x + 1
@@ -209,7 +237,10 @@ def _sdf_square(m, area, h, gi, go):
                 p = v[t]
                 gp = g[p]
                 for xr in range(lo, hi):
-                    o[xr - 1] = hs + sgn * math.sqrt(float((xr - p) * (xr - p) + gp) * area)
+                    if every or need[y, x + xr - 1] != 0:
+                        o[xr - 1] = hs + sgn * math.sqrt(float((xr - p) * (xr - p) + gp) * area)
+                    else:
+                        o[xr - 1] = sgn * np.inf
             x = b
     return out
 
@@ -397,10 +428,21 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             masks[id(L)] = (L, label_mask(L.S.labels[box], L.S.n, L.comps))
         return masks[id(L)][1]
 
+    # Every layer agrees with lo and hi where those two agree (inside both: inside all, a section
+    # being where the mean of its two ends' signed distances is negative; outside both: outside
+    # all), so a section's sign is decided by distances only where lo and hi differ: the signed
+    # distances are measured there alone (the same numbers there; only their sign elsewhere).
+    differ = []
+
     def sdf_of(L):
         if id(L) not in sdfs:
-            sdfs[id(L)] = (L, _sdf(mask_of(L), sampling))
+            sdfs[id(L)] = (L, _sdf(mask_of(L), sampling, need=where_differ()))
         return sdfs[id(L)][1]
+
+    def where_differ():
+        if not differ:
+            differ.append(mask_of(lo) ^ mask_of(hi))
+        return differ[0]
 
     # The sections a join may get form a tree: pair () is (lo, hi), its section splits it into the
     # pairs path + (0,) (below) and path + (1,) (above).  The pieces decide which pairs are split
@@ -427,7 +469,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         if node in layer_at:
             return sdf_of(layer_at[node])
         if node not in node_sdf:
-            node_sdf[node] = _sdf(section_mask(node), sampling)
+            node_sdf[node] = _sdf(section_mask(node), sampling, need=where_differ())
         return node_sdf[node]
 
     def section_mask(path):
