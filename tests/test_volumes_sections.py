@@ -245,6 +245,56 @@ def test_signed_distance_where_needed_is_the_full_one_there(sampling):
             assert np.array_equal(fm + fb < 0, pm + pb < 0)
 
 
+def _groups_reference(P, Q):
+    """sections._groups as it was: the other components' labels cleared, then overlap_groups."""
+    from contourmesh.tracing import label_mask, overlap_groups
+
+    box = P.box if P.box is not None and P.box == Q.box else np.s_[:, :]
+    lp, lq = P.S.labels[box], Q.S.labels[box]
+    la = np.where(label_mask(lp, P.S.n, P.comps), lp, 0)
+    lb = np.where(label_mask(lq, Q.S.n, Q.comps), lq, 0)
+    pairs, groups = overlap_groups(la, lb, P.S.n, Q.S.n)
+    lone_p = sorted(set(P.comps) - set(int(a) for a in pairs[:, 0]))
+    lone_q = sorted(set(Q.comps) - set(int(b) for b in pairs[:, 1]))
+    return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
+
+
+def test_layer_groups_equal_the_reference():
+    """A sectioned join's overlap groups of two layers (one compiled pass over the box) are those
+    of the label images with the other components cleared: the same groups in the same order,
+    the same lone components; with or without a shared box, some or all components, uint8 and
+    uint16 labels."""
+    from types import SimpleNamespace
+
+    from contourmesh.fastpath import slice_labels
+
+    rng = np.random.default_rng(75)
+    kinds = set()
+    for t in range(150):
+        h, w = int(rng.integers(2, 40)), int(rng.integers(2, 40))
+        layers = []
+        for _ in range(2):
+            m = ndimage.gaussian_filter(rng.random((h, w)), rng.uniform(0.5, 2.0)) > rng.uniform(0.45, 0.6)
+            labels, n, _objects = slice_labels(m)
+            labels = labels.astype(np.uint16 if t % 4 == 3 else np.uint8) if n < 255 else labels
+            layers.append(SimpleNamespace(labels=labels, n=n))
+        if not all(S.n for S in layers):
+            continue
+        y0, x0 = int(rng.integers(0, h // 2 + 1)), int(rng.integers(0, w // 2 + 1))
+        box = np.s_[y0:int(rng.integers(y0 + 1, h + 1)), x0:int(rng.integers(x0 + 1, w + 1))]
+        Ls = []
+        for kk, S in enumerate(layers):
+            comps = range(S.n) if t % 3 == 0 else \
+                sorted(int(c) for c in rng.choice(S.n, size=int(rng.integers(1, S.n + 1)), replace=False))
+            Ls.append(sections._Layer(S, kk, comps, None, None, box=box if t % 5 else None))
+        if t % 7 == 0:
+            Ls[1].box = np.s_[0:h, 0:w]  # (boxes that differ: the whole images)
+        got = sections._groups(*Ls)
+        assert got == _groups_reference(*Ls), t
+        kinds.add((len(got[0]) > 1, bool(got[1] or got[2])))
+    assert kinds == {(False, False), (False, True), (True, False), (True, True)}
+
+
 def test_stack_invariants_see_a_tube_closed_by_a_section():
     ring = np.zeros((9, 9), bool)
     ring[1:8, 1:8] = True

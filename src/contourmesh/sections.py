@@ -366,19 +366,52 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
 
 def _groups(P: _Layer, Q: _Layer):
     """The overlap groups of two layers' components (as the mesher's pass 2), and the components
-    of each layer that overlap nothing on the other."""
-    from .tracing import label_mask, overlap_groups
+    of each layer that overlap nothing on the other.
 
-    # within the box that holds both layers' components (the groups do not depend on where the
-    # pixels lie, only on which labels overlap)
-    box = P.box if P.box is not None and P.box == Q.box else np.s_[:, :]
-    lp, lq = P.S.labels[box], Q.S.labels[box]
-    la = np.where(label_mask(lp, P.S.n, P.comps), lp, 0)
-    lb = np.where(label_mask(lq, Q.S.n, Q.comps), lq, 0)
-    pairs, groups = overlap_groups(la, lb, P.S.n, Q.S.n)
-    lone_p = sorted(set(P.comps) - set(int(a) for a in pairs[:, 0]))
-    lone_q = sorted(set(Q.comps) - set(int(b) for b in pairs[:, 1]))
+    Within the box that holds both layers' components (the groups do not depend on where the
+    pixels lie, only on which labels overlap), one compiled pass marks the pairs of the two
+    layers' components that share a pixel (:func:`_overlap_table`); the groups are the connected
+    sets of those pairs, in the order of their first pair, each side sorted: what
+    :func:`contourmesh.tracing.overlap_groups` gives for the two label images with every other
+    component cleared (as the tests check)."""
+    from .tracing import _pair_groups
+
+    lp, lq = P.S.labels, Q.S.labels
+    if P.box is not None and P.box == Q.box:
+        (y0, y1, _), (x0, x1, _) = (b.indices(n) for b, n in zip(P.box, lp.shape))
+    else:
+        y0, y1, x0, x1 = 0, lp.shape[0], 0, lp.shape[1]
+    na, nb = P.S.n, Q.S.n
+    inp, inq = np.zeros(na + 1, np.bool_), np.zeros(nb + 1, np.bool_)
+    inp[np.asarray(list(P.comps), dtype=np.int64) + 1] = True
+    inq[np.asarray(list(Q.comps), dtype=np.int64) + 1] = True
+    nbk = np.int64(nb + 1)
+    keys = np.flatnonzero(_overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk))
+    pa, pb = keys // nbk - 1, keys % nbk - 1
+    group, ng = _pair_groups(pa, pb, np.int64(na), np.int64(nb))
+    groups = [(set(), set()) for _ in range(ng)]
+    for a, b, g in zip(pa.tolist(), pb.tolist(), group.tolist()):
+        groups[g][0].add(a)
+        groups[g][1].add(b)
+    lone_p = sorted(set(P.comps) - set(pa.tolist()))
+    lone_q = sorted(set(Q.comps) - set(pb.tolist()))
     return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
+
+
+@njit(cache=True, nogil=True)
+def _overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk):
+    """Which pairs of labels ``a`` of ``lp`` and ``b`` of ``lq`` (both with ``inp[a]``, ``inq[b]``)
+    share a pixel of rows ``y0 .. y1 - 1``, columns ``x0 .. x1 - 1``: a table of ``len(inp) *
+    nbk`` booleans (``nbk = len(inq)``), pair ``(a, b)`` at ``a * nbk + b``."""
+    seen = np.zeros(inp.shape[0] * nbk, np.bool_)
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            a = np.int64(lp[y, x])
+            if a > 0 and inp[a]:
+                b = np.int64(lq[y, x])
+                if b > 0 and inq[b]:
+                    seen[a * nbk + b] = True
+    return seen
 
 
 class _NoTopology(Exception):
