@@ -501,6 +501,29 @@ def test_a_sectioned_join_gives_up_early_only_where_it_would_come_to_nothing(mon
     assert n_built[True] < n_built[False]
 
 
+def _euler2_reference(m):
+    """sections._euler2 as it was: four counts of shifted masks."""
+    m = np.asarray(m, dtype=bool)
+    a, b = slice(None, -1), slice(1, None)
+    return (int(np.count_nonzero(m)) - int(np.count_nonzero(m[a] & m[b])) - int(np.count_nonzero(m[:, a] & m[:, b]))
+            + int(np.count_nonzero(m[a, a] & m[a, b] & m[b, a] & m[b, b])))
+
+
+def test_compiled_euler2_equals_the_reference():
+    rng = np.random.default_rng(76)
+    seen = set()
+    for t in range(300):
+        h, w = int(rng.integers(0, 30)), int(rng.integers(0, 30))
+        m = rng.random((h, w)) < rng.uniform(0.0, 1.0) if t % 2 else \
+            ndimage.gaussian_filter(rng.random((h, w)), 1.5) > rng.uniform(0.4, 0.6)
+        if t % 9 == 0:
+            m = m[::2, 1::3]  # (a strided view)
+        got = sections._euler2(m)
+        assert got == _euler2_reference(m), t
+        seen.add(int(np.sign(got)))
+    assert seen == {-1, 0, 1}
+
+
 def test_stack_euler_from_layers_and_overlaps_equals_euler6():
     """A stack's Euler characteristic is its layers' (sections._euler2) less their consecutive
     overlaps': the sum the early topology test of a sectioned join compares (euler6 counts the
