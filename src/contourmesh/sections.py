@@ -717,13 +717,19 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
             if (L.main is not None) != main:
                 continue
             xy = np.asarray(L.poly(c, h), dtype=np.float64)
-            pts.append(np.c_[xy, np.full(len(xy), L.z)])
+            xyz = np.empty((len(xy), 3), dtype=np.float64)  # (np.c_[xy, z], without np.c_'s cost)
+            xyz[:, :2] = xy
+            xyz[:, 2] = L.z
+            pts.append(xyz)
             if main:
                 rings.append(((L.main, c, h), n))
             ids_of[id(L), c, h] = n + np.arange(len(xy))
             n += len(xy)
         if main:
             n_ring = n
+    # the bands and caps read only rings' vertices, all made above (the bridged pieces' own
+    # vertices come after them)
+    V_rings = np.concatenate(pts) if pts else np.zeros((0, 3))
     faces, replaced, nb, segments = [], 0, 0, []
     least_area = 0  # the pieces' bands made by the least-area rule
     in_section = {}  # id(section) -> its bridges' segments, per piece
@@ -733,8 +739,7 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
             _, P, Q, a, b, matched = p
             for ha, hb in [(-1, -1)] + list(matched):
                 lo, hi = ids_of[id(P), a, ha], ids_of[id(Q), b, hb]
-                V = np.concatenate(pts)
-                f, r = _band_faces(V[lo], V[hi], triangulation)
+                f, r = _band_faces(V_rings[lo], V_rings[hi], triangulation)
                 faces.append(np.concatenate([lo, hi])[f])
                 replaced += r
         elif p[0] == "bridged":
@@ -764,9 +769,8 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
             _, L, c, up = p
             capped.add((id(L), c))
             rs = [ids_of[id(L), c, -1]] + [ids_of[id(L), c, h] for h in range(len(L.S.holes[c]))]
-            V = np.concatenate(pts)
             try:
-                f = cap_faces(V[rs[0]][:, :2], [V[r][:, :2] for r in rs[1:]], upward=up)
+                f = cap_faces(V_rings[rs[0]][:, :2], [V_rings[r][:, :2] for r in rs[1:]], upward=up)
             except ValueError:
                 return None
             if len(f) == 0:
