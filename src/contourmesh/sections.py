@@ -314,6 +314,12 @@ def _euler2_kernel(m):
     return chi
 
 
+def warm_rare_kernels() -> None:
+    """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
+    numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps)."""
+    _euler2(np.eye(3, dtype=bool))
+
+
 def euler6(v) -> int:
     """The Euler characteristic of a 3D boolean array's object as a 6-connected voxel object
     (``skimage.measure.euler_number(v, connectivity=1)``, an integer, counted another way): the
