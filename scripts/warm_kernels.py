@@ -96,8 +96,10 @@ def _general_mesher():
     contourmesh.mesh(np.pad(np.random.default_rng(1).random((8, 9, 9)) < 0.4, 1))
     # the bridged joins' rare paths (a polyline keyhole; bridge_tree's Python loop)
     from contourmesh.bands.bridges import warm_rare_paths
+    from contourmesh.sections import warm_rare_kernels
 
     warm_rare_paths()
+    warm_rare_kernels()  # (the sections' early topology test: loops of overlaps)
     # the manifold repair's necks opened all at once (real volumes have hundreds; these, a few)
     from contourmesh.repair import warm_neck_kernels
 

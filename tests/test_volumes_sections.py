@@ -211,6 +211,90 @@ def test_compiled_signed_distance_on_larger_regions_with_full_and_empty_rows():
             assert got.tobytes() == ref.tobytes()
 
 
+@pytest.mark.parametrize("sampling", [(1.0, 1.0), (0.25, 0.25), (0.617, 0.667)])
+def test_signed_distance_where_needed_is_the_full_one_there(sampling):
+    """``_sdf(m, need=...)`` gives the full transform's bits on the needed pixels and only the
+    sign (-inf on the region, +inf off it) elsewhere; so the sections of two regions (and the
+    sections of a section with either) are the same masks when their distances are measured
+    only where the two regions differ."""
+    rng = np.random.default_rng(74)
+    for t in range(60):
+        h, w = int(rng.integers(1, 60)), int(rng.integers(1, 60))
+        a = ndimage.gaussian_filter(rng.random((h, w)), rng.uniform(0.8, 3.0)) > rng.uniform(0.45, 0.55)
+        b = a ^ (rng.random((h, w)) < rng.uniform(0.0, 0.3)) if t % 3 else \
+            ndimage.gaussian_filter(rng.random((h, w)), 2.0) > 0.5
+        if t % 10 == 0:
+            b = a.copy()
+        if not a.any() or not b.any():
+            continue
+        need = a ^ b
+        for m in (a, b, rng.random((h, w)) < 0.5):
+            if not m.any():
+                continue
+            full, part = sections._sdf(m, sampling), sections._sdf(m, sampling, need=need)
+            assert part[need].tobytes() == full[need].tobytes()
+            assert (part[~need] == np.where(m, -np.inf, np.inf)[~need]).all()
+        # the sections (mid, then each quarter) as sectioned_join makes them
+        fa, fb = sections._sdf(a, sampling), sections._sdf(b, sampling)
+        pa, pb = sections._sdf(a, sampling, need=need), sections._sdf(b, sampling, need=need)
+        mid = fa + fb < 0
+        assert np.array_equal(mid, pa + pb < 0)
+        if mid.any():
+            fm, pm = sections._sdf(mid, sampling), sections._sdf(mid, sampling, need=need)
+            assert np.array_equal(fa + fm < 0, pa + pm < 0)
+            assert np.array_equal(fm + fb < 0, pm + pb < 0)
+
+
+def _groups_reference(P, Q):
+    """sections._groups as it was: the other components' labels cleared, then overlap_groups."""
+    from contourmesh.tracing import label_mask, overlap_groups
+
+    box = P.box if P.box is not None and P.box == Q.box else np.s_[:, :]
+    lp, lq = P.S.labels[box], Q.S.labels[box]
+    la = np.where(label_mask(lp, P.S.n, P.comps), lp, 0)
+    lb = np.where(label_mask(lq, Q.S.n, Q.comps), lq, 0)
+    pairs, groups = overlap_groups(la, lb, P.S.n, Q.S.n)
+    lone_p = sorted(set(P.comps) - set(int(a) for a in pairs[:, 0]))
+    lone_q = sorted(set(Q.comps) - set(int(b) for b in pairs[:, 1]))
+    return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
+
+
+def test_layer_groups_equal_the_reference():
+    """A sectioned join's overlap groups of two layers (one compiled pass over the box) are those
+    of the label images with the other components cleared: the same groups in the same order,
+    the same lone components; with or without a shared box, some or all components, uint8 and
+    uint16 labels."""
+    from types import SimpleNamespace
+
+    from contourmesh.fastpath import slice_labels
+
+    rng = np.random.default_rng(75)
+    kinds = set()
+    for t in range(150):
+        h, w = int(rng.integers(2, 40)), int(rng.integers(2, 40))
+        layers = []
+        for _ in range(2):
+            m = ndimage.gaussian_filter(rng.random((h, w)), rng.uniform(0.5, 2.0)) > rng.uniform(0.45, 0.6)
+            labels, n, _objects = slice_labels(m)
+            labels = labels.astype(np.uint16 if t % 4 == 3 else np.uint8) if n < 255 else labels
+            layers.append(SimpleNamespace(labels=labels, n=n))
+        if not all(S.n for S in layers):
+            continue
+        y0, x0 = int(rng.integers(0, h // 2 + 1)), int(rng.integers(0, w // 2 + 1))
+        box = np.s_[y0:int(rng.integers(y0 + 1, h + 1)), x0:int(rng.integers(x0 + 1, w + 1))]
+        Ls = []
+        for kk, S in enumerate(layers):
+            comps = range(S.n) if t % 3 == 0 else \
+                sorted(int(c) for c in rng.choice(S.n, size=int(rng.integers(1, S.n + 1)), replace=False))
+            Ls.append(sections._Layer(S, kk, comps, None, None, box=box if t % 5 else None))
+        if t % 7 == 0:
+            Ls[1].box = np.s_[0:h, 0:w]  # (boxes that differ: the whole images)
+        got = sections._groups(*Ls)
+        assert got == _groups_reference(*Ls), t
+        kinds.add((len(got[0]) > 1, bool(got[1] or got[2])))
+    assert kinds == {(False, False), (False, True), (True, False), (True, True)}
+
+
 def test_stack_invariants_see_a_tube_closed_by_a_section():
     ring = np.zeros((9, 9), bool)
     ring[1:8, 1:8] = True
@@ -417,6 +501,29 @@ def test_a_sectioned_join_gives_up_early_only_where_it_would_come_to_nothing(mon
     assert n_built[True] < n_built[False]
 
 
+def _euler2_reference(m):
+    """sections._euler2 as it was: four counts of shifted masks."""
+    m = np.asarray(m, dtype=bool)
+    a, b = slice(None, -1), slice(1, None)
+    return (int(np.count_nonzero(m)) - int(np.count_nonzero(m[a] & m[b])) - int(np.count_nonzero(m[:, a] & m[:, b]))
+            + int(np.count_nonzero(m[a, a] & m[a, b] & m[b, a] & m[b, b])))
+
+
+def test_compiled_euler2_equals_the_reference():
+    rng = np.random.default_rng(76)
+    seen = set()
+    for t in range(300):
+        h, w = int(rng.integers(0, 30)), int(rng.integers(0, 30))
+        m = rng.random((h, w)) < rng.uniform(0.0, 1.0) if t % 2 else \
+            ndimage.gaussian_filter(rng.random((h, w)), 1.5) > rng.uniform(0.4, 0.6)
+        if t % 9 == 0:
+            m = m[::2, 1::3]  # (a strided view)
+        got = sections._euler2(m)
+        assert got == _euler2_reference(m), t
+        seen.add(int(np.sign(got)))
+    assert seen == {-1, 0, 1}
+
+
 def test_stack_euler_from_layers_and_overlaps_equals_euler6():
     """A stack's Euler characteristic is its layers' (sections._euler2) less their consecutive
     overlaps': the sum the early topology test of a sectioned join compares (euler6 counts the
@@ -539,6 +646,6 @@ def test_signed_distance_column_arrays_of_either_width_and_dirty():
         u8 = np.ascontiguousarray(m).view(np.uint8)
         for dt in (np.int32, np.int64):
             gi, go = (rng.integers(-5, 9, size=(h + 2, w + 2)).astype(dt) for _ in range(2))
-            got = sections._sdf_square(u8, 0.25, 0.25, gi, go)
+            got = sections._sdf_square(u8, 0.25, 0.25, gi, go, sections._ALL)
             assert got.tobytes() == ref.tobytes()
         assert sections._sdf(m, (0.5, 0.5)).tobytes() == ref.tobytes()  # (the thread's kept arrays, dirty)

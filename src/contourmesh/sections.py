@@ -50,19 +50,33 @@ def mid_section(ra: np.ndarray, rb: np.ndarray, sampling=(1.0, 1.0)) -> np.ndarr
     return _sdf(ra, sampling) + _sdf(rb, sampling) < 0
 
 
-def _sdf(m: np.ndarray, sampling) -> np.ndarray:
+def _sdf(m: np.ndarray, sampling, need=None) -> np.ndarray:
     """:func:`mid_section`'s signed distance of a region (a boolean mask).
 
     On square pixels whose side is a power of two (1 mm, 0.5 mm, ...; between 2^-200 and 2^200, so
     that no square underflows or overflows) and a region with a pixel, compiled
     (:func:`_sdf_square`): every squared distance is then an exact integer times the pixel area, so
     it is the same number whichever nearest pixel is found, and the same bits as the reference
-    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the reference."""
+    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the reference.
+
+    ``need`` (a boolean mask of the same shape, or None: every pixel): the pixels whose distance is
+    wanted; the others get ``-inf`` on the region and ``+inf`` off it (only the sign is right).  A
+    sectioned join's layers all agree outside the pixels where its two slices differ, so its
+    sections' signs there never depend on a distance (see :func:`sectioned_join`)."""
     m = np.asarray(m, dtype=bool)
     s0, s1 = (float(x) for x in sampling)
     if s0 == s1 and 2.0 ** -200 <= s0 <= 2.0 ** 200 and math.frexp(s0)[0] == 0.5 and m.ndim == 2 and m.any():
-        return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1), *_column_buffers(*m.shape))
-    return _sdf_reference(m, sampling)
+        want = _ALL if need is None else np.ascontiguousarray(need, dtype=bool).view(np.uint8)
+        return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1), *_column_buffers(*m.shape),
+                           want)
+    out = _sdf_reference(m, sampling)
+    if need is not None:
+        out[~np.asarray(need, dtype=bool)] = np.where(m, -np.inf, np.inf)[~np.asarray(need, dtype=bool)]
+    return out
+
+
+#: :func:`_sdf_square`'s ``need`` for every pixel.
+_ALL = np.zeros((0, 0), np.uint8)
 
 
 #: Largest padded image (pixels) whose column-distance arrays a thread keeps for the next one.
@@ -165,11 +179,13 @@ def _envelope(grow, v, zn, zd):
 
 
 @njit(cache=True, nogil=True)
-def _sdf_square(m, area, h, gi, go):
+def _sdf_square(m, area, h, gi, go, need):
     """:func:`_sdf` of a non-empty mask (uint8) on square pixels of area ``area`` (a power of two
     squared), ``h`` half the pixel side: ``h - inside`` on the region, ``outside - h`` off it, each
     distance the square root of its squared number of pixel steps times ``area`` (exact).  ``gi``
-    and ``go``: :func:`_column_distances`' arrays (their contents do not matter).
+    and ``go``: :func:`_column_distances`' arrays (their contents do not matter).  ``need``: a
+    uint8 mask of the pixels whose distance is wanted (the others get ``-inf`` on the region,
+    ``+inf`` off it), or an empty array: every pixel.
 
     The squared distances of each row (to the nearest empty pixel of the padded mask for the
     region's pixels, to the nearest region pixel for the others) are read off the lower envelope
@@ -178,9 +194,11 @@ def _sdf_square(m, area, h, gi, go):
     distance 0: every column farther is farther), so each envelope has only those columns (about
     half as many parabolas as two envelopes of the whole row).  The pixels beyond a run at the
     padding of an outside run are no region pixels, but there the run reaches the padding: no
-    column lies beyond it."""
+    column lies beyond it.  A run with no wanted pixel gets no envelope; a wanted pixel's number
+    is the one it gets with every pixel wanted (the same envelope, the same arithmetic)."""
     H, W = m.shape
     Wp = W + 2
+    every = need.shape[0] == 0
     _column_distances(m, gi, go)
     out = np.empty((H, W), np.float64)
     v = np.empty(Wp, np.int64)  # the run's envelope
@@ -194,13 +212,23 @@ def _sdf_square(m, area, h, gi, go):
             b = x + 1
             while b < W and (row[b] != 0) == inside:
                 b += 1
+            o = out[y, x:b]  # (relative column xr at o[xr - 1])
+            if not every:
+                wanted = False
+                for i in range(x, b):
+                    if need[y, i] != 0:
+                        wanted = True
+                        break
+                if not wanted:
+                    o[:] = -np.inf if inside else np.inf
+                    x = b
+                    continue
             # the run is image columns x .. b - 1, padded x + 1 .. b; with the pixels beyond it,
             # padded columns x .. b + 1 (relative columns 0 .. b - x + 1)
             g = gi[y + 1, x:b + 2] if inside else go[y + 1, x:b + 2]
             k = _envelope(g, v, zn, zd)
             # parabola v[t] is the lowest on the columns past zn[t] / zd[t] (zd > 0; increasing
             # in t) up to the next one's: the integer columns from floor(zn / zd) + 1 on
-            o = out[y, x:b]  # (relative column xr at o[xr - 1])
             sgn = -1.0 if inside else 1.0
             hs = h if inside else -h
             end = b - x + 1
@@ -210,7 +238,10 @@ def _sdf_square(m, area, h, gi, go):
                 p = v[t]
                 gp = g[p]
                 for xr in range(lo, hi):
-                    o[xr - 1] = hs + sgn * math.sqrt(float((xr - p) * (xr - p) + gp) * area)
+                    if every or need[y, x + xr - 1] != 0:
+                        o[xr - 1] = hs + sgn * math.sqrt(float((xr - p) * (xr - p) + gp) * area)
+                    else:
+                        o[xr - 1] = sgn * np.inf
             x = b
     return out
 
@@ -255,11 +286,39 @@ def _euler2(m) -> int:
     """The Euler characteristic of a 2D boolean mask as a 4-connected pixel complex: a vertex per
     pixel, an edge per pair of side-adjacent pixels, a square per 2 x 2 block.  A stack of masks
     has ``sum(_euler2(L_i)) - sum(_euler2(L_i & L_i+1))`` as :func:`euler6` (its vertical edges,
-    squares and cubes are the pixels, edges and squares of the overlaps of consecutive layers)."""
+    squares and cubes are the pixels, edges and squares of the overlaps of consecutive layers).
+    Counted in one compiled pass (:func:`_euler2_kernel`)."""
     m = np.asarray(m, dtype=bool)
-    a, b = slice(None, -1), slice(1, None)
-    return (int(np.count_nonzero(m)) - int(np.count_nonzero(m[a] & m[b])) - int(np.count_nonzero(m[:, a] & m[:, b]))
-            + int(np.count_nonzero(m[a, a] & m[a, b] & m[b, a] & m[b, b])))
+    if m.ndim != 2:
+        raise ValueError("_euler2 takes a 2D mask")
+    return int(_euler2_kernel(np.ascontiguousarray(m).view(np.uint8)))
+
+
+@njit(cache=True, nogil=True)
+def _euler2_kernel(m):
+    """:func:`_euler2` of a uint8 mask: pixels less side-adjacent pairs plus 2 x 2 blocks."""
+    H, W = m.shape
+    chi = 0
+    for y in range(H):
+        for x in range(W):
+            if m[y, x] == 0:
+                continue
+            chi += 1
+            right = x + 1 < W and m[y, x + 1] != 0
+            down = y + 1 < H and m[y + 1, x] != 0
+            if right:
+                chi -= 1
+            if down:
+                chi -= 1
+                if right and m[y + 1, x + 1] != 0:
+                    chi += 1
+    return chi
+
+
+def warm_rare_kernels() -> None:
+    """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
+    numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps)."""
+    _euler2(np.eye(3, dtype=bool))
 
 
 def euler6(v) -> int:
@@ -336,19 +395,52 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
 
 def _groups(P: _Layer, Q: _Layer):
     """The overlap groups of two layers' components (as the mesher's pass 2), and the components
-    of each layer that overlap nothing on the other."""
-    from .tracing import label_mask, overlap_groups
+    of each layer that overlap nothing on the other.
 
-    # within the box that holds both layers' components (the groups do not depend on where the
-    # pixels lie, only on which labels overlap)
-    box = P.box if P.box is not None and P.box == Q.box else np.s_[:, :]
-    lp, lq = P.S.labels[box], Q.S.labels[box]
-    la = np.where(label_mask(lp, P.S.n, P.comps), lp, 0)
-    lb = np.where(label_mask(lq, Q.S.n, Q.comps), lq, 0)
-    pairs, groups = overlap_groups(la, lb, P.S.n, Q.S.n)
-    lone_p = sorted(set(P.comps) - set(int(a) for a in pairs[:, 0]))
-    lone_q = sorted(set(Q.comps) - set(int(b) for b in pairs[:, 1]))
+    Within the box that holds both layers' components (the groups do not depend on where the
+    pixels lie, only on which labels overlap), one compiled pass marks the pairs of the two
+    layers' components that share a pixel (:func:`_overlap_table`); the groups are the connected
+    sets of those pairs, in the order of their first pair, each side sorted: what
+    :func:`contourmesh.tracing.overlap_groups` gives for the two label images with every other
+    component cleared (as the tests check)."""
+    from .tracing import _pair_groups
+
+    lp, lq = P.S.labels, Q.S.labels
+    if P.box is not None and P.box == Q.box:
+        (y0, y1, _), (x0, x1, _) = (b.indices(n) for b, n in zip(P.box, lp.shape))
+    else:
+        y0, y1, x0, x1 = 0, lp.shape[0], 0, lp.shape[1]
+    na, nb = P.S.n, Q.S.n
+    inp, inq = np.zeros(na + 1, np.bool_), np.zeros(nb + 1, np.bool_)
+    inp[np.asarray(list(P.comps), dtype=np.int64) + 1] = True
+    inq[np.asarray(list(Q.comps), dtype=np.int64) + 1] = True
+    nbk = np.int64(nb + 1)
+    keys = np.flatnonzero(_overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk))
+    pa, pb = keys // nbk - 1, keys % nbk - 1
+    group, ng = _pair_groups(pa, pb, np.int64(na), np.int64(nb))
+    groups = [(set(), set()) for _ in range(ng)]
+    for a, b, g in zip(pa.tolist(), pb.tolist(), group.tolist()):
+        groups[g][0].add(a)
+        groups[g][1].add(b)
+    lone_p = sorted(set(P.comps) - set(pa.tolist()))
+    lone_q = sorted(set(Q.comps) - set(pb.tolist()))
     return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
+
+
+@njit(cache=True, nogil=True)
+def _overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk):
+    """Which pairs of labels ``a`` of ``lp`` and ``b`` of ``lq`` (both with ``inp[a]``, ``inq[b]``)
+    share a pixel of rows ``y0 .. y1 - 1``, columns ``x0 .. x1 - 1``: a table of ``len(inp) *
+    nbk`` booleans (``nbk = len(inq)``), pair ``(a, b)`` at ``a * nbk + b``."""
+    seen = np.zeros(inp.shape[0] * nbk, np.bool_)
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            a = np.int64(lp[y, x])
+            if a > 0 and inp[a]:
+                b = np.int64(lq[y, x])
+                if b > 0 and inq[b]:
+                    seen[a * nbk + b] = True
+    return seen
 
 
 class _NoTopology(Exception):
@@ -398,10 +490,21 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             masks[id(L)] = (L, label_mask(L.S.labels[box], L.S.n, L.comps))
         return masks[id(L)][1]
 
+    # Every layer agrees with lo and hi where those two agree (inside both: inside all, a section
+    # being where the mean of its two ends' signed distances is negative; outside both: outside
+    # all), so a section's sign is decided by distances only where lo and hi differ: the signed
+    # distances are measured there alone (the same numbers there; only their sign elsewhere).
+    differ = []
+
     def sdf_of(L):
         if id(L) not in sdfs:
-            sdfs[id(L)] = (L, _sdf(mask_of(L), sampling))
+            sdfs[id(L)] = (L, _sdf(mask_of(L), sampling, need=where_differ()))
         return sdfs[id(L)][1]
+
+    def where_differ():
+        if not differ:
+            differ.append(mask_of(lo) ^ mask_of(hi))
+        return differ[0]
 
     # The sections a join may get form a tree: pair () is (lo, hi), its section splits it into the
     # pairs path + (0,) (below) and path + (1,) (above).  The pieces decide which pairs are split
@@ -428,7 +531,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         if node in layer_at:
             return sdf_of(layer_at[node])
         if node not in node_sdf:
-            node_sdf[node] = _sdf(section_mask(node), sampling)
+            node_sdf[node] = _sdf(section_mask(node), sampling, need=where_differ())
         return node_sdf[node]
 
     def section_mask(path):
@@ -621,13 +724,19 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
             if (L.main is not None) != main:
                 continue
             xy = np.asarray(L.poly(c, h), dtype=np.float64)
-            pts.append(np.c_[xy, np.full(len(xy), L.z)])
+            xyz = np.empty((len(xy), 3), dtype=np.float64)  # (np.c_[xy, z], without np.c_'s cost)
+            xyz[:, :2] = xy
+            xyz[:, 2] = L.z
+            pts.append(xyz)
             if main:
                 rings.append(((L.main, c, h), n))
             ids_of[id(L), c, h] = n + np.arange(len(xy))
             n += len(xy)
         if main:
             n_ring = n
+    # the bands and caps read only rings' vertices, all made above (the bridged pieces' own
+    # vertices come after them)
+    V_rings = np.concatenate(pts) if pts else np.zeros((0, 3))
     faces, replaced, nb, segments = [], 0, 0, []
     least_area = 0  # the pieces' bands made by the least-area rule
     in_section = {}  # id(section) -> its bridges' segments, per piece
@@ -637,8 +746,7 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
             _, P, Q, a, b, matched = p
             for ha, hb in [(-1, -1)] + list(matched):
                 lo, hi = ids_of[id(P), a, ha], ids_of[id(Q), b, hb]
-                V = np.concatenate(pts)
-                f, r = _band_faces(V[lo], V[hi], triangulation)
+                f, r = _band_faces(V_rings[lo], V_rings[hi], triangulation)
                 faces.append(np.concatenate([lo, hi])[f])
                 replaced += r
         elif p[0] == "bridged":
@@ -668,9 +776,8 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
             _, L, c, up = p
             capped.add((id(L), c))
             rs = [ids_of[id(L), c, -1]] + [ids_of[id(L), c, h] for h in range(len(L.S.holes[c]))]
-            V = np.concatenate(pts)
             try:
-                f = cap_faces(V[rs[0]][:, :2], [V[r][:, :2] for r in rs[1:]], upward=up)
+                f = cap_faces(V_rings[rs[0]][:, :2], [V_rings[r][:, :2] for r in rs[1:]], upward=up)
             except ValueError:
                 return None
             if len(f) == 0:

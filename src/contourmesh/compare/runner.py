@@ -357,8 +357,10 @@ def _warm_rare() -> None:
     crossing_pairs_after_change(V1, F, info["pairs"], V2, F)
     # the bridged joins' rare paths (a polyline keyhole; bridge_tree's Python loop)
     from ..bands.bridges import warm_rare_paths
+    from ..sections import warm_rare_kernels
 
     warm_rare_paths()
+    warm_rare_kernels()
 
 
 def warm_up(methods) -> list:
