@@ -1897,12 +1897,77 @@ def _face_position_keys(V0, F0, V1, F1):
     bits += 0.0
     pos = _row_ids(bits.view(np.int64), False)
     del bits
-    R = np.empty((len(F0) + len(F1), 3), np.int64)
-    np.take(pos[: len(V0)], F0, out=R[: len(F0)])
-    np.take(pos[len(V0):], F1, out=R[len(F0):])
-    del pos
-    key = _row_ids(R, True, True)
+    key = _face_groups(pos, np.ascontiguousarray(F0), np.ascontiguousarray(F1), np.int64(len(V0)))
     return key[: len(F0)], key[len(F0):]
+
+
+@njit(cache=True, nogil=True)
+def _face_groups(pos, F0, F1, off):
+    """A group number per face of ``F0`` then ``F1`` (corners ``pos[v]`` and ``pos[off + v]``):
+    faces share one exactly when their sets of three corner numbers are equal.
+
+    The faces are sorted by their smallest corner (a counting sort), and within one smallest
+    corner matched through lists by the middle one, stamped per smallest corner: a face is compared
+    only with the faces that share its two smallest corners (an edge), not looked up in a hash
+    table of all faces as :func:`_row_ids` would (on the lobster's rebuild, 0.79 M faces of two
+    meshes: 42 ms there, the table's and the rows' random reads)."""
+    m0 = len(F0)
+    m = m0 + len(F1)
+    npos = np.int64(0)
+    for v in range(len(pos)):
+        npos = max(npos, pos[v] + 1)
+    T = np.empty((m, 3), np.int64)  # each face's corner numbers, sorted
+    start = np.zeros(npos + 1, np.int64)
+    for g in range(m):
+        if g < m0:
+            a = pos[F0[g, 0]]
+            b = pos[F0[g, 1]]
+            c = pos[F0[g, 2]]
+        else:
+            a = pos[off + F1[g - m0, 0]]
+            b = pos[off + F1[g - m0, 1]]
+            c = pos[off + F1[g - m0, 2]]
+        if a > b:
+            a, b = b, a
+        if b > c:
+            b, c = c, b
+        if a > b:
+            a, b = b, a
+        T[g, 0] = a
+        T[g, 1] = b
+        T[g, 2] = c
+        start[a + 1] += 1
+    for q in range(npos):
+        start[q + 1] += start[q]
+    order = np.empty(m, np.int64)
+    fill = start[:npos].copy()
+    for g in range(m):
+        order[fill[T[g, 0]]] = g
+        fill[T[g, 0]] += 1
+    head = np.empty(npos, np.int64)  # per middle corner: the first face of its list (stamped)
+    stamp = np.full(npos, -1, np.int64)
+    nxt = np.empty(m, np.int64)
+    ids = np.empty(m, np.int64)
+    count = np.int64(0)
+    for a in range(npos):
+        for r in range(start[a], start[a + 1]):
+            g = order[r]
+            b = T[g, 1]
+            c = T[g, 2]
+            if stamp[b] != a:
+                stamp[b] = a
+                head[b] = -1
+            h = head[b]
+            while h >= 0 and T[h, 2] != c:
+                h = nxt[h]
+            if h >= 0:
+                ids[g] = ids[h]
+            else:
+                ids[g] = count
+                count += 1
+                nxt[g] = head[b]
+                head[b] = g
+    return ids
 
 
 @njit(cache=True, nogil=True)
