@@ -1686,11 +1686,14 @@ def _vertex_normals_at(V, F, ids):
     ids = np.asarray(ids, dtype=np.int64)
     pos = np.full(len(V), len(ids), dtype=np.int64)  # row len(ids): a sink for the other vertices
     pos[ids] = np.arange(len(ids))
-    Fm = pos[F]
-    sel = np.flatnonzero((Fm < len(ids)).any(axis=1))
+    mark = np.zeros(len(V), dtype=bool)
+    mark[ids] = True
+    # (the faces at those vertices in one compiled pass: numpy's pos[F] and .any(axis=1) over the
+    # whole mesh took most of this call)
+    sel = _rows_touching(np.ascontiguousarray(F, dtype=np.int64), mark)
     Fs = F[sel]
     fn = np.cross(V[Fs[:, 1]] - V[Fs[:, 0]], V[Fs[:, 2]] - V[Fs[:, 0]])
-    vn = _add_at_rows(np.zeros((len(ids) + 1, 3)), np.ascontiguousarray(Fm[sel]), fn)[:-1]
+    vn = _add_at_rows(np.zeros((len(ids) + 1, 3)), pos[Fs], fn)[:-1]
     nrm = np.linalg.norm(vn, axis=1)
     out = np.zeros_like(vn)
     ok = nrm > 0
@@ -2043,7 +2046,7 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
     crossing pairs left, (k, 2)}``.
     """
     V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
     p = intersecting_pairs(V, F) if pairs is None else np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     n0 = len(p)
     info = {"self_intersections": int(n0), "crossings_repaired": 0, "vertices_moved": 0, "max_move": 0.0,
@@ -2080,7 +2083,7 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
     # renumbered to them: what intersecting_pairs would take from the whole mesh's, the same pairs),
     # and the whole mesh is copied once, where a round is first kept (a copy of it per round, and
     # the vertices the faces use found again each time, were a fifth of this call on the lobster)
-    sub = _faces_near(V, Wmax, F, np.flatnonzero(touched[F].any(axis=1)))
+    sub = _faces_near(V, Wmax, F, _rows_touching(F, touched))
     used, Fs = _compact_rows(F, sub)
     for r in range(rounds):
         if len(p) == 0:
@@ -2090,7 +2093,7 @@ def resolve_crossings(V, F, nudge, *, rounds: int = 6, pairs=None, planes=None):
         if not touched[verts].all():  # a pair outside the region found first: widen it
             touched[verts] = True
             Wmax[verts] = V[verts] - nudge * (2.0 ** rounds) * nrm[verts]
-            sub = _faces_near(V, Wmax, F, np.flatnonzero(touched[F].any(axis=1)))
+            sub = _faces_near(V, Wmax, F, _rows_touching(F, touched))
             used, Fs = _compact_rows(F, sub)
         step = nudge * 2.0 ** r
         at = V[verts] - step * nrm[verts]  # (the crossing faces' vertices: used by faces of sub)
