@@ -160,3 +160,30 @@ def test_bounded_optimal_band_is_a_band_no_smaller_than_the_optimum():
     # these rings are alike: the window round the nearest point holds the optimal start
     assert triangle_areas(P, triangulate_band_optimal(lo, hi, max_work=7 * 40 * 150)).sum() == \
         pytest.approx(triangle_areas(P, full).sum(), rel=1e-12)
+
+
+def _same_partition(a, b):
+    """Two labellings group the same items together (a bijection between their labels)."""
+    pairs = np.unique(np.stack([a, b], axis=1), axis=0)
+    return len(pairs) == len(np.unique(a)) == len(np.unique(b))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_face_groups_equal_the_hashed_rows(seed):
+    # the faces of two meshes grouped by their corner positions (repair._face_groups, by smallest
+    # corner and edge) as the hash table of the sorted rows groups them (repair._row_ids): few
+    # distinct positions, so many faces share corners, edges and all three corners, in any order,
+    # within a mesh and across the two; degenerate faces (a corner twice) included
+    from contourmesh.repair import _face_groups, _row_ids
+
+    rng = np.random.default_rng(seed)
+    n0, n1 = rng.integers(5, 40, size=2)
+    pos = rng.integers(0, max(3, (n0 + n1) // 3), size=n0 + n1).astype(np.int64)
+    F0 = rng.integers(0, n0, size=(rng.integers(1, 300), 3)).astype(np.int64)
+    F1 = rng.integers(0, n1, size=(rng.integers(1, 300), 3)).astype(np.int64)
+    F1 = np.concatenate([F1, F0[rng.integers(len(F0), size=20)][:, ::-1] % n1])
+    got = _face_groups(pos, F0, F1, np.int64(n0))
+    R = np.concatenate([pos[F0], pos[n0 + F1]])
+    want = _row_ids(R, True)
+    assert len(np.unique(want)) < len(want)  # some faces do share their corners
+    assert _same_partition(got, want)
