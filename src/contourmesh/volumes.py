@@ -2407,16 +2407,17 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 
     tubes, lids_a, lids_b, open_a, open_b = plan
     zk, zk1 = float(zs[k]), float(zs[k + 1])
-    pts, rings = [], []
+    pts, heights, rings = [], [], []  # the rings' points (x, y), their planes' heights
     n = 0
 
     def add(kk, c, h):
         nonlocal n
-        xy = np.asarray(poly(kk, c, h), dtype=np.float64)
-        pts.append(_with_z(xy, zs[kk]))
+        xy = np.asarray(poly(kk, c, h), dtype=np.float64).reshape(-1, 2)
+        pts.append(xy)
+        heights.append(zs[kk])
         rings.append(((kk, c, h), n))
         n += len(xy)
-        return n - len(xy) + np.arange(len(xy))
+        return np.arange(n - len(xy), n)
 
     lo = [add(k, a, -1) for a in ga] + [add(k, a, h) for a, h in open_a]
     hi = [add(k + 1, b, -1) for b in gb] + [add(k + 1, b, h) for b, h in open_b]
@@ -2427,7 +2428,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     # the two do not coincide (as a component alone in its slice becomes a prism)
     lid_ids = [(add(k, a, h), True, (k, a, h) in double) for a, h in lids_a] + \
         [(add(k + 1, b, h), False, (k + 1, b, h) in double) for b, h in lids_b]
-    V = np.concatenate(pts)
+    # (as _with_z of each ring, concatenated: the same numbers, in one array)
+    V = np.empty((n, 3))
+    V[:, :2] = np.concatenate(pts)
+    V[:, 2] = np.repeat(np.array(heights, dtype=np.float64), [len(xy) for xy in pts])
     n_ring = len(V)
     segments, nb = [], 0
     path_pts = []  # interior points of polyline keyholes: new vertices after the rings'
@@ -2641,6 +2645,21 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
 
 
+def _ring_edges(s, poly):
+    """Every edge of slice ``s``'s rings ``poly(c, h)`` (each component's outer ring, then its
+    holes), as two ``(e, 2)`` arrays of end points: ``np.concatenate`` of the rings and of their
+    :func:`_next`, by one gather."""
+    rs = [np.asarray(poly(c, h), dtype=np.float64).reshape(-1, 2) for c in range(s.n)
+          for h in range(-1, len(s.holes[c]))]
+    a = np.concatenate(rs) if rs else np.zeros((0, 2))
+    lens = np.array([len(r) for r in rs], dtype=np.int64)
+    ends = np.cumsum(lens)
+    nxt = np.arange(1, len(a) + 1)
+    full = lens > 0
+    nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
+    return a, a[nxt]
+
+
 def _ring_boxes(s):
     """Per component of slice ``s``, the box ``(lo, hi)`` (two ``(n, 2)`` arrays) of all its rings:
     its polygons and its crack rings in physical xy.  The crack rings' corners are integers and
@@ -2817,10 +2836,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     def edges_of(kk):
         key = (kk, sig(kk))
         if key not in edge_cache:
-            s = slices[kk]
-            rs = [np.asarray(poly(kk, c, h), dtype=np.float64) for c in range(s.n)
-                  for h in range(-1, len(s.holes[c]))]
-            edge_cache[key] = (np.concatenate(rs), np.concatenate([_next(r) for r in rs]))
+            edge_cache[key] = _ring_edges(slices[kk], lambda c, h: poly(kk, c, h))
         return edge_cache[key]
 
     lids = defaultdict(int)
@@ -2850,10 +2866,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         def edges2(kk):
             if not any(kk == k_ for k_, _c in rings):
                 return edges_of(kk)
-            s = slices[kk]
-            rs = [np.asarray(poly2(kk, c, h), dtype=np.float64) for c in range(s.n)
-                  for h in range(-1, len(s.holes[c]))]
-            return np.concatenate(rs), np.concatenate([_next(r) for r in rs])
+            return _ring_edges(slices[kk], lambda c, h: poly2(kk, c, h))
 
         got = _bridge_join(k, ga, gb, plan, poly2, zs, edges2, uncovered, triangulation, caps, double, waypoints,
                            band_guard)
