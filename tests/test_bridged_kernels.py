@@ -1,0 +1,136 @@
+"""The bridged joins' compiled steps against the code they replaced: the nearest vertex pairs
+between two rings (the cut found as the q smallest distances of all pairs, not by sorting every
+vertex's k nearest), bridge_tree's candidates and straight bridges in one compiled call, and a
+slice's ring edges by one gather.  Random inputs, bit for bit, each comparison seeing both answers."""
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from contourmesh import volumes
+from contourmesh.bands import bridges as B
+
+
+def _nearest_reference(ri, rj, k):
+    """The nearest-pair search as it was: every vertex of ``rj`` with its ``min(k, len(ri))``
+    nearest distances, all of them sorted, the ``min(k, ...)``-th the cut (times ``1 + 1e-12``);
+    the pairs within the cut in row order; ok False where a vertex of ``rj`` has more than
+    ``min(k, len(ri))`` of them."""
+    ni, nj = len(ri), len(rj)
+    kk = min(k, ni)
+    D = np.empty((nj, ni))
+    for j in range(nj):
+        for i in range(ni):
+            dx = ri[i, 0] - rj[j, 0]
+            dy = ri[i, 1] - rj[j, 1]
+            D[j, i] = np.sqrt(dx * dx + dy * dy)
+    pool = np.sort(np.sort(D, axis=1)[:, :kk].ravel())
+    cut = pool[min(k, nj * kk) - 1] * (1 + 1e-12)
+    within = D <= cut
+    if (within.sum(axis=1) > kk).any():
+        return None
+    jj, ii = np.nonzero(within)
+    return ii.astype(np.int64), jj.astype(np.int64), D[jj, ii]
+
+
+def test_nearest_kernel_equals_the_sorted_pool():
+    rng = np.random.default_rng(112)
+    seen = {"ok": 0, "refused": 0, "ties": 0}
+    for trial in range(600):
+        ni, nj = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+        if trial % 3 == 0:  # a half-pixel grid: many equal distances
+            ri = rng.integers(-5, 6, (ni, 2)) / 2.0
+            rj = rng.integers(-5, 6, (nj, 2)) / 2.0 + (rng.integers(0, 6) / 2.0, 0.0)
+        else:
+            ri = rng.normal(size=(ni, 2)) * 5.1
+            rj = rng.normal(size=(nj, 2)) * 5.1 + rng.normal(size=2) * 6
+        k = int(rng.choice([1, 2, 5, 12]))
+        vi, vj, d, ok = B._nearest_kernel(np.ascontiguousarray(ri), np.ascontiguousarray(rj), np.int64(k))
+        want = _nearest_reference(ri, rj, k)
+        if want is None:
+            assert not ok
+            seen["refused"] += 1
+            continue
+        assert ok
+        assert np.array_equal(vi, want[0]) and np.array_equal(vj, want[1])
+        assert d.tobytes() == want[2].tobytes()
+        seen["ok"] += 1
+        seen["ties"] += len(d) > min(k, ni * nj)
+    assert min(seen.values()) > 20, seen
+
+
+def _star(rng, c, r, k, grid):
+    t = np.sort(rng.uniform(0, 2 * np.pi, k))
+    pts = c + (r * rng.uniform(0.5, 1.0, k))[:, None] * np.c_[np.cos(t), np.sin(t)]
+    return np.round(pts * 2) / 2 if grid else pts
+
+
+def test_tree_kernel_equals_candidates_then_straight_bridges():
+    # _candidate_columns with ``straight`` (one compiled call, _tree_kernel) against the two calls
+    # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test
+    # that is not compiled leaves the bridges to the caller
+    rng = np.random.default_rng(1120)
+    seen = {"compiled": 0, "python": 0, "whole": 0, "part": 0, "callable": 0}
+    for trial in range(300):
+        grid = trial % 2 == 0
+        nr = int(rng.integers(2, 8))
+        rings, owners = [], []
+        for r in range(nr):
+            hole = r > 0 and rng.random() < 0.4
+            comp = owners[int(rng.integers(0, r))][0] if hole else r
+            k = 250 if trial % 50 == 7 and r < 2 else int(rng.integers(3, 14))
+            ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), k, grid)
+            if len(np.unique(ring, axis=0)) < 3:
+                ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)
+            rings.append(ring[::-1] if hole else ring)
+            owners.append((comp, hole))
+        lab = rng.integers(0, 3, (24, 24)).astype(np.uint8 if trial % 4 < 2 else np.int32)
+        cover = B.keyhole_uncovered(lab, [int(rng.integers(0, 2))], (-8.0, -8.0, 0.7, 0.7))
+        prefer = B.PreferCovered(cover, float(rng.choice([0.25, 0.5]))) if trial % 3 else None
+        allowed = [None, cover, lambda p, q: True][trial % 3] if trial % 5 else cover
+        pairs = [(i, j) for i, j in B._near_pairs(rings)
+                 if (owners[i][0] != owners[j][0] and not owners[i][1] and not owners[j][1])
+                 or (owners[i][0] == owners[j][0] and (owners[i][1] or owners[j][1]))]
+        stray = rng.uniform(-8, 8, (int(rng.integers(0, 6)), 2))
+        oa = np.concatenate(rings + [stray])
+        ob = np.concatenate([np.roll(r, -1, axis=0) for r in rings] + [stray + rng.normal(0, 2, stray.shape)])
+        avoid = [(rng.uniform(-8, 8, 2), rng.uniform(-8, 8, 2)) for _ in range(int(rng.integers(0, 3)))]
+        got = B._candidate_columns(rings, pairs, owners, prefer, straight=(oa, ob, avoid, allowed))
+        cols = B._candidate_columns(rings, pairs, owners, prefer)
+        if cols is None:
+            assert got is None
+            seen["python"] += 1
+            continue
+        seen["compiled"] += 1
+        for a, b in zip(got[0], cols):
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+        if allowed is not None and not isinstance(allowed, B._Coverage):
+            assert got[1] is None
+            seen["callable"] += 1
+            continue
+        want = B._straight_bridges(rings, np.stack(cols[3:], axis=1), owners, oa, ob, avoid, allowed)
+        assert got[1] == want
+        assert all(type(v) is int for t in got[1] for v in t)
+        seen["whole" if len(want) == nr - 1 else "part"] += 1
+        # and bridge_tree as a whole, which takes the fused call
+        tree = B.bridge_tree(rings, oa, ob, avoid=avoid, owners=owners, allowed=allowed, prefer=prefer)
+        assert tree == (want if len(want) == nr - 1 else None)
+    assert min(seen.values()) >= 3 and seen["compiled"] > 200, seen
+
+
+def test_ring_edges_equal_each_ring_and_its_successors():
+    rng = np.random.default_rng(11201)
+    for trial in range(100):
+        n = int(rng.integers(1, 6))
+        holes = [[rng.normal(size=(int(rng.integers(1, 9)), 2)) for _ in range(int(rng.integers(0, 3)))]
+                 for _ in range(n)]
+        outer = [rng.normal(size=(int(rng.integers(1, 12)), 2)) for _ in range(n)]
+        s = SimpleNamespace(n=n, holes=holes)
+
+        def poly(c, h):
+            return outer[c] if h < 0 else holes[c][h]
+
+        rs = [poly(c, h) for c in range(n) for h in range(-1, len(holes[c]))]
+        a, b = volumes._ring_edges(s, poly)
+        assert a.tobytes() == np.concatenate(rs).tobytes()
+        assert b.tobytes() == np.concatenate([volumes._next(r) for r in rs]).tobytes()
