@@ -134,3 +134,55 @@ def test_ring_edges_equal_each_ring_and_its_successors():
         a, b = volumes._ring_edges(s, poly)
         assert a.tobytes() == np.concatenate(rs).tobytes()
         assert b.tobytes() == np.concatenate([volumes._next(r) for r in rs]).tobytes()
+
+
+def _outcome(fn, *args):
+    """``fn(*args)``, or the type of the error it raises."""
+    try:
+        return fn(*args)
+    except ValueError as e:
+        return type(e)
+
+
+def test_band_crosses_pinch_split_equals_the_steps():
+    # _band_crosses_uncached (repeated positions found and moved in one compiled call) against the
+    # steps it replaced (canonical_vertices, bincount, _split_pinches, then the crossing test):
+    # bands of rings that visit positions twice (bridge ends), some twisted so that they cross,
+    # points no face uses, flat bands whose points cannot move, -0.0, a NaN, and no pinch at all
+    from contourmesh.bands import _band_crosses_reference, _band_crosses_uncached, _pinch_split, triangulate_band
+
+    rng = np.random.default_rng(11202)
+    seen = {"crosses": 0, "clear": 0, "status0": 0, "status1": 0, "status2": 0}
+    for trial in range(400):
+        n = int(rng.integers(6, 50))
+        t = (np.arange(n) + rng.uniform(0, 0.5, n)) * (2 * np.pi / n)
+        lo = np.c_[np.cos(t), np.sin(t), np.zeros(n)] * rng.uniform(5, 50)
+        twist = rng.uniform(0.1, 3.0) if trial % 3 == 0 else 0.2
+        hi = np.c_[np.cos(t + twist), np.sin(t + twist), np.ones(n)] * rng.uniform(5, 50)
+        if trial % 2:
+            lo[:, :2], hi[:, :2] = np.round(lo[:, :2] * 16) / 16, np.round(hi[:, :2] * 16) / 16
+        if trial % 4:
+            for _ in range(int(rng.integers(1, 4))):
+                a, b = rng.choice(n, 2, replace=False)
+                if (a - b) % n not in (1, n - 1):
+                    lo[b] = lo[a]
+        if (lo[:, :2] == np.roll(lo[:, :2], -1, axis=0)).all(axis=1).any() or \
+                (hi[:, :2] == np.roll(hi[:, :2], -1, axis=0)).all(axis=1).any():
+            continue
+        f = triangulate_band(lo, hi, str(rng.choice(["arclength", "greedy", "wiederhold"])), fallback=False)
+        P = np.concatenate([lo, hi])
+        if trial % 7 == 0:
+            P = np.concatenate([P, P[:1]])
+        if trial % 11 == 0:
+            P[:, 2] = 0.0
+        if trial % 5 == 0:
+            P[:, 2] = -P[:, 2]
+        if trial % 37 == 0:  # not finite: the reference's route, its error
+            P[3, 0] = [np.nan, np.inf][trial % 2]
+            assert _outcome(_band_crosses_reference, P, f) == _outcome(_band_crosses_uncached, P, f)
+            continue
+        want = _band_crosses_reference(P, f)
+        assert _band_crosses_uncached(P, f) == want
+        seen["crosses" if want else "clear"] += 1
+        seen[f"status{int(_pinch_split(np.ascontiguousarray(P), np.ascontiguousarray(f))[1])}"] += 1
+    assert min(seen.values()) > 5, seen
