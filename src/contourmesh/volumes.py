@@ -2879,7 +2879,25 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         out = {}
         restart = False
         passed, replay = [], True
-        for idx, (k, kind, data) in enumerate(joins):
+        # the joins that the loop below would replay as they were (the previous pass's, in order, up
+        # to the first on a slice whose crack rings changed) only record their bridges again: done
+        # here without the loop, which starts after them
+        start = 0
+        if passed_before:
+            bridge_ids = [i for i, (_k, kind, _d) in enumerate(joins) if kind == "bridge"]
+            for (idx, key), at in zip(passed_before, bridge_ids):
+                k = joins[idx][0]
+                if idx != at or k in changed or k + 1 in changed:
+                    break
+                b = cache[key]
+                for plane, p, q in b.segments:
+                    taken[plane].append((p, q))
+                ga, gb, _plan = joins[idx][2]
+                out[k, tuple(ga), tuple(gb)] = b
+                passed.append((idx, key))
+                start = idx + 1
+        for idx in range(start, len(joins)):
+            k, kind, data = joins[idx]
             if kind != "bridge":
                 continue
             ga, gb, plan = data
