@@ -186,3 +186,29 @@ def test_band_crosses_pinch_split_equals_the_steps():
         seen["crosses" if want else "clear"] += 1
         seen[f"status{int(_pinch_split(np.ascontiguousarray(P), np.ascontiguousarray(f))[1])}"] += 1
     assert min(seen.values()) > 5, seen
+
+
+def test_overlap_pairs_equal_label_masks_and_unique_keys():
+    # _bridge_plan's overlap of a group (its components below and above) and its number of
+    # overlapping pairs of components, in one compiled pass, against the masks and keys it replaced
+    from contourmesh.tracing import label_mask, unique_keys
+
+    rng = np.random.default_rng(11203)
+    counts = set()
+    for trial in range(300):
+        h, w = int(rng.integers(1, 30)), int(rng.integers(1, 30))
+        na_, nb_ = int(rng.integers(1, 7)), int(rng.integers(1, 7))
+        dt = [np.int32, np.int64, np.uint16][trial % 3]
+        LA = rng.integers(0, na_ + 1, (h + 4, w + 4)).astype(dt)
+        LB = rng.integers(0, nb_ + 1, (h + 4, w + 4)).astype(dt)
+        la, lb = LA[2:2 + h, 1:1 + w], LB[2:2 + h, 1:1 + w]  # (views, as the plan's boxes)
+        ga = sorted(rng.choice(na_, int(rng.integers(1, na_ + 1)), replace=False).tolist())
+        gb = sorted(rng.choice(nb_, int(rng.integers(1, nb_ + 1)), replace=False).tolist())
+        want_o = label_mask(la, na_, ga) & label_mask(lb, nb_, gb)
+        want_n = len(unique_keys(la[want_o].astype(np.int64) * np.int64(nb_ + 1) + lb[want_o], (na_ + 1) * (nb_ + 1)))
+        o, n = volumes._overlap_pairs(la, lb, volumes._group_lut(na_, ga), volumes._group_lut(nb_, gb),
+                                      np.int64(len(ga)), np.int64(len(gb)))
+        assert o.dtype == np.bool_ and np.array_equal(o, want_o)
+        assert n == want_n
+        counts.add(min(int(n), 5))
+    assert counts == {0, 1, 2, 3, 4, 5}

@@ -2317,11 +2317,9 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    la = A.labels[y0:y1, x0:x1]
-    lb = B.labels[y0:y1, x0:x1]
-    o = label_mask(la, A.n, ga) & label_mask(lb, B.n, gb)
-    nbk = np.int64(B.n + 1)
-    npairs = len(unique_keys(la[o].astype(np.int64) * nbk + lb[o], (A.n + 1) * (B.n + 1)))
+    # the overlap and how many pairs of components overlap, in one compiled pass
+    o, npairs = _overlap_pairs(A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], _group_lut(A.n, ga), _group_lut(B.n, gb),
+                               np.int64(len(ga)), np.int64(len(gb)))
     if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
         return None
     # the overlap's 4-components, its padded background's 8-components (ndimage.label's numbers)
@@ -2355,6 +2353,37 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     lids_a = [wa[lab][0] for lab in sorted(set(wa) - set(wb))]
     lids_b = [wb[lab][0] for lab in sorted(set(wb) - set(wa))]
     return tubes, lids_a, lids_b, open_a, open_b
+
+
+def _group_lut(n, comps):
+    """Per label ``0 .. n`` of a slice, the place of its component in ``comps`` (0-based
+    components, label ``c + 1``), -1 for the labels of the others and the background."""
+    lut = np.full(n + 1, -1, dtype=np.int64)
+    lut[np.asarray(list(comps), dtype=np.int64) + 1] = np.arange(len(comps))
+    return lut
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _overlap_pairs(la, lb, lut_a, lut_b, na, nb):  # pragma: no cover (compiled)
+    """The overlap of a group's components below and above in its box (``la``, ``lb``: the two
+    label images there; ``lut_a``, ``lut_b``: :func:`_group_lut` of each side, ``na``, ``nb`` the
+    sizes of the two groups) and the number of distinct pairs ``(a, b)`` of components that overlap:
+    ``label_mask(la, .., ga) & label_mask(lb, .., gb)`` and the number of ``unique_keys`` of the
+    label pairs on it, in one pass."""
+    h, w = la.shape
+    o = np.empty((h, w), np.bool_)
+    seen = np.zeros((na, nb), np.bool_)
+    npairs = 0
+    for y in range(h):
+        for x in range(w):
+            a = lut_a[la[y, x]]
+            b = lut_b[lb[y, x]]
+            inside = a >= 0 and b >= 0
+            o[y, x] = inside
+            if inside and not seen[a, b]:
+                seen[a, b] = True
+                npairs += 1
+    return o, npairs
 
 
 #: Largest ``n^2 m`` for which a twisted bridged band is replaced by the optimal band (else by the
