@@ -212,3 +212,24 @@ def test_overlap_pairs_equal_label_masks_and_unique_keys():
         assert n == want_n
         counts.add(min(int(n), 5))
     assert counts == {0, 1, 2, 3, 4, 5}
+
+
+def test_count_one_side_equals_the_masks_xor():
+    # _exact_area's pixels of one group only, counted in compiled code, against the masks' xor
+    from contourmesh.tracing import label_mask
+
+    rng = np.random.default_rng(11204)
+    seen = set()
+    for trial in range(200):
+        h, w = int(rng.integers(1, 25)), int(rng.integers(1, 25))
+        na_, nb_ = int(rng.integers(1, 6)), int(rng.integers(1, 6))
+        dt = [np.uint8, np.int32, np.uint16][trial % 3]
+        la = rng.integers(0, na_ + 1, (h + 3, w + 3)).astype(dt)[1:1 + h, 2:2 + w]
+        lb = rng.integers(0, nb_ + 1, (h + 3, w + 3)).astype(dt)[2:2 + h, 1:1 + w]
+        ga = sorted(rng.choice(na_, int(rng.integers(1, na_ + 1)), replace=False).tolist())
+        gb = sorted(rng.choice(nb_, int(rng.integers(1, nb_ + 1)), replace=False).tolist())
+        want = int(np.count_nonzero(label_mask(la, na_, ga) ^ label_mask(lb, nb_, gb)))
+        got = volumes._count_one_side(la, lb, volumes._group_lut(na_, ga), volumes._group_lut(nb_, gb))
+        assert got == want
+        seen.add(want == 0)
+    assert seen == {True, False}
