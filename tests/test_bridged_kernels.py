@@ -9,6 +9,7 @@ import numpy as np
 
 from contourmesh import volumes
 from contourmesh.bands import bridges as B
+from test_compiled_repair import random_rings
 
 
 def _nearest_reference(ri, rj, k):
@@ -59,12 +60,6 @@ def test_nearest_kernel_equals_the_sorted_pool():
     assert min(seen.values()) > 20, seen
 
 
-def _star(rng, c, r, k, grid):
-    t = np.sort(rng.uniform(0, 2 * np.pi, k))
-    pts = c + (r * rng.uniform(0.5, 1.0, k))[:, None] * np.c_[np.cos(t), np.sin(t)]
-    return np.round(pts * 2) / 2 if grid else pts
-
-
 def test_tree_kernel_equals_candidates_then_straight_bridges():
     # _candidate_columns with ``straight`` (one compiled call, _tree_kernel) against the two calls
     # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test
@@ -74,16 +69,7 @@ def test_tree_kernel_equals_candidates_then_straight_bridges():
     for trial in range(300):
         grid = trial % 2 == 0
         nr = int(rng.integers(2, 8))
-        rings, owners = [], []
-        for r in range(nr):
-            hole = r > 0 and rng.random() < 0.4
-            comp = owners[int(rng.integers(0, r))][0] if hole else r
-            k = 250 if trial % 50 == 7 and r < 2 else int(rng.integers(3, 14))
-            ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), k, grid)
-            if len(np.unique(ring, axis=0)) < 3:
-                ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)
-            rings.append(ring[::-1] if hole else ring)
-            owners.append((comp, hole))
+        rings, owners = random_rings(rng, nr, grid, big=trial % 50 == 7)
         lab = rng.integers(0, 3, (24, 24)).astype(np.uint8 if trial % 4 < 2 else np.int32)
         cover = B.keyhole_uncovered(lab, [int(rng.integers(0, 2))], (-8.0, -8.0, 0.7, 0.7))
         prefer = B.PreferCovered(cover, float(rng.choice([0.25, 0.5]))) if trial % 3 else None
@@ -188,48 +174,39 @@ def test_band_crosses_pinch_split_equals_the_steps():
     assert min(seen.values()) > 5, seen
 
 
-def test_overlap_pairs_equal_label_masks_and_unique_keys():
+def _random_group(rng, trial):
+    """Two label images' boxes (views, as the plan's) of slices with ``na``, ``nb`` components and
+    a group of each: ``(la, lb, na, nb, ga, gb)``."""
+    h, w = int(rng.integers(1, 30)), int(rng.integers(1, 30))
+    na, nb = int(rng.integers(1, 7)), int(rng.integers(1, 7))
+    dt = [np.uint8, np.int32, np.uint16, np.int64][trial % 4]
+    la = rng.integers(0, na + 1, (h + 4, w + 4)).astype(dt)[2:2 + h, 1:1 + w]
+    lb = rng.integers(0, nb + 1, (h + 4, w + 4)).astype(dt)[1:1 + h, 2:2 + w]
+    ga = sorted(rng.choice(na, int(rng.integers(1, na + 1)), replace=False).tolist())
+    gb = sorted(rng.choice(nb, int(rng.integers(1, nb + 1)), replace=False).tolist())
+    return la, lb, na, nb, ga, gb
+
+
+def test_overlap_pairs_and_one_side_count_equal_the_label_masks():
     # _bridge_plan's overlap of a group (its components below and above) and its number of
-    # overlapping pairs of components, in one compiled pass, against the masks and keys it replaced
+    # overlapping pairs of components, and _exact_area's pixels of one group only, each in one
+    # compiled pass, against the masks, keys and xor they replaced
     from contourmesh.tracing import label_mask, unique_keys
 
     rng = np.random.default_rng(11203)
-    counts = set()
-    for trial in range(300):
-        h, w = int(rng.integers(1, 30)), int(rng.integers(1, 30))
-        na_, nb_ = int(rng.integers(1, 7)), int(rng.integers(1, 7))
-        dt = [np.int32, np.int64, np.uint16][trial % 3]
-        LA = rng.integers(0, na_ + 1, (h + 4, w + 4)).astype(dt)
-        LB = rng.integers(0, nb_ + 1, (h + 4, w + 4)).astype(dt)
-        la, lb = LA[2:2 + h, 1:1 + w], LB[2:2 + h, 1:1 + w]  # (views, as the plan's boxes)
-        ga = sorted(rng.choice(na_, int(rng.integers(1, na_ + 1)), replace=False).tolist())
-        gb = sorted(rng.choice(nb_, int(rng.integers(1, nb_ + 1)), replace=False).tolist())
-        want_o = label_mask(la, na_, ga) & label_mask(lb, nb_, gb)
-        want_n = len(unique_keys(la[want_o].astype(np.int64) * np.int64(nb_ + 1) + lb[want_o], (na_ + 1) * (nb_ + 1)))
-        o, n = volumes._overlap_pairs(la, lb, volumes._group_lut(na_, ga), volumes._group_lut(nb_, gb),
-                                      np.int64(len(ga)), np.int64(len(gb)))
-        assert o.dtype == np.bool_ and np.array_equal(o, want_o)
+    counts, empty = set(), set()
+    for trial in range(400):
+        la, lb, na, nb, ga, gb = _random_group(rng, trial)
+        if trial % 10 == 0:  # the same pixels on both sides
+            lb, nb, gb = la.copy(), na, ga
+        lut_a, lut_b = volumes._group_lut(na, ga), volumes._group_lut(nb, gb)
+        ma, mb = label_mask(la, na, ga), label_mask(lb, nb, gb)
+        want_n = len(unique_keys(la[ma & mb].astype(np.int64) * np.int64(nb + 1) + lb[ma & mb], (na + 1) * (nb + 1)))
+        o, n = volumes._overlap_pairs(la, lb, lut_a, lut_b, np.int64(len(ga)), np.int64(len(gb)))
+        assert o.dtype == np.bool_ and np.array_equal(o, ma & mb)
         assert n == want_n
         counts.add(min(int(n), 5))
-    assert counts == {0, 1, 2, 3, 4, 5}
-
-
-def test_count_one_side_equals_the_masks_xor():
-    # _exact_area's pixels of one group only, counted in compiled code, against the masks' xor
-    from contourmesh.tracing import label_mask
-
-    rng = np.random.default_rng(11204)
-    seen = set()
-    for trial in range(200):
-        h, w = int(rng.integers(1, 25)), int(rng.integers(1, 25))
-        na_, nb_ = int(rng.integers(1, 6)), int(rng.integers(1, 6))
-        dt = [np.uint8, np.int32, np.uint16][trial % 3]
-        la = rng.integers(0, na_ + 1, (h + 3, w + 3)).astype(dt)[1:1 + h, 2:2 + w]
-        lb = rng.integers(0, nb_ + 1, (h + 3, w + 3)).astype(dt)[2:2 + h, 1:1 + w]
-        ga = sorted(rng.choice(na_, int(rng.integers(1, na_ + 1)), replace=False).tolist())
-        gb = sorted(rng.choice(nb_, int(rng.integers(1, nb_ + 1)), replace=False).tolist())
-        want = int(np.count_nonzero(label_mask(la, na_, ga) ^ label_mask(lb, nb_, gb)))
-        got = volumes._count_one_side(la, lb, volumes._group_lut(na_, ga), volumes._group_lut(nb_, gb))
-        assert got == want
-        seen.add(want == 0)
-    assert seen == {True, False}
+        only = volumes._count_one_side(la, lb, lut_a, lut_b)
+        assert only == int(np.count_nonzero(ma ^ mb))
+        empty.add(only == 0)
+    assert counts == {0, 1, 2, 3, 4, 5} and empty == {True, False}
