@@ -277,6 +277,23 @@ def _star(rng, c, r, k, grid):
     return np.round(pts * 2) / 2 if grid else pts
 
 
+def random_rings(rng, nr, grid, big=False):
+    """``nr`` star-shaped rings and their owners ``(component, is_hole)``: outer rings, and holes
+    (reversed) of an earlier ring's component; with ``big`` the first two have 250 points (beyond
+    the compiled candidate search)."""
+    rings, owners = [], []
+    for r in range(nr):
+        hole = r > 0 and rng.random() < 0.4
+        comp = owners[int(rng.integers(0, r))][0] if hole else r
+        k = 250 if big and r < 2 else int(rng.integers(3, 14))
+        ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), k, grid)
+        if len(np.unique(ring, axis=0)) < 3:
+            ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)
+        rings.append(ring[::-1] if hole else ring)
+        owners.append((comp, hole))
+    return rings, owners
+
+
 def test_straight_bridges_kernel_equals_the_python_loop():
     # rings of a few components (outer rings, and holes bridged through the material), candidates
     # sorted as bridge_tree sorts them, the rings' edges and stray edges as obstacles, segments to
@@ -334,16 +351,7 @@ def test_candidate_kernel_equals_the_python_loop():
     for trial in range(300):
         grid = trial % 2 == 0
         nr = int(rng.integers(2, 9))
-        rings, owners = [], []
-        for r in range(nr):
-            hole = r > 0 and rng.random() < 0.4
-            comp = owners[int(rng.integers(0, r))][0] if hole else r
-            k = 250 if trial % 50 == 7 and r < 2 else int(rng.integers(3, 14))
-            ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), k, grid)
-            if len(np.unique(ring, axis=0)) < 3:
-                ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)
-            rings.append(ring[::-1] if hole else ring)
-            owners.append((comp, hole))
+        rings, owners = random_rings(rng, nr, grid, big=trial % 50 == 7)
         prefer = None
         if trial % 3:
             lab = rng.integers(0, 3, (24, 24)).astype(np.uint8 if trial % 3 == 1 else np.int32)

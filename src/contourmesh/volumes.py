@@ -2493,11 +2493,9 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    la = A.labels[y0:y1, x0:x1]
-    lb = B.labels[y0:y1, x0:x1]
-    o = label_mask(la, A.n, ga) & label_mask(lb, B.n, gb)
-    nbk = np.int64(B.n + 1)
-    npairs = len(unique_keys(la[o].astype(np.int64) * nbk + lb[o], (A.n + 1) * (B.n + 1)))
+    # the overlap and how many pairs of components overlap, in one compiled pass
+    o, npairs = _overlap_pairs(A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], _group_lut(A.n, ga), _group_lut(B.n, gb),
+                               np.int64(len(ga)), np.int64(len(gb)))
     if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
         return None
     # the overlap's 4-components, its padded background's 8-components (ndimage.label's numbers)
@@ -2531,6 +2529,37 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     lids_a = [wa[lab][0] for lab in sorted(set(wa) - set(wb))]
     lids_b = [wb[lab][0] for lab in sorted(set(wb) - set(wa))]
     return tubes, lids_a, lids_b, open_a, open_b
+
+
+def _group_lut(n, comps):
+    """Per label ``0 .. n`` of a slice, the place of its component in ``comps`` (0-based
+    components, label ``c + 1``), -1 for the labels of the others and the background."""
+    lut = np.full(n + 1, -1, dtype=np.int64)
+    lut[np.asarray(list(comps), dtype=np.int64) + 1] = np.arange(len(comps))
+    return lut
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _overlap_pairs(la, lb, lut_a, lut_b, na, nb):  # pragma: no cover (compiled)
+    """The overlap of a group's components below and above in its box (``la``, ``lb``: the two
+    label images there; ``lut_a``, ``lut_b``: :func:`_group_lut` of each side, ``na``, ``nb`` the
+    sizes of the two groups) and the number of distinct pairs ``(a, b)`` of components that overlap:
+    ``label_mask(la, .., ga) & label_mask(lb, .., gb)`` and the number of ``unique_keys`` of the
+    label pairs on it, in one pass."""
+    h, w = la.shape
+    o = np.empty((h, w), np.bool_)
+    seen = np.zeros((na, nb), np.bool_)
+    npairs = 0
+    for y in range(h):
+        for x in range(w):
+            a = lut_a[la[y, x]]
+            b = lut_b[lb[y, x]]
+            inside = a >= 0 and b >= 0
+            o[y, x] = inside
+            if inside and not seen[a, b]:
+                seen[a, b] = True
+                npairs += 1
+    return o, npairs
 
 
 #: Largest ``n^2 m`` for which a twisted bridged band is replaced by the optimal band (else by the
@@ -2583,16 +2612,17 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 
     tubes, lids_a, lids_b, open_a, open_b = plan
     zk, zk1 = float(zs[k]), float(zs[k + 1])
-    pts, rings = [], []
+    pts, heights, rings = [], [], []  # the rings' points (x, y), their planes' heights
     n = 0
 
     def add(kk, c, h):
         nonlocal n
-        xy = np.asarray(poly(kk, c, h), dtype=np.float64)
-        pts.append(_with_z(xy, zs[kk]))
+        xy = np.asarray(poly(kk, c, h), dtype=np.float64).reshape(-1, 2)
+        pts.append(xy)
+        heights.append(zs[kk])
         rings.append(((kk, c, h), n))
         n += len(xy)
-        return n - len(xy) + np.arange(len(xy))
+        return np.arange(n - len(xy), n)
 
     lo = [add(k, a, -1) for a in ga] + [add(k, a, h) for a, h in open_a]
     hi = [add(k + 1, b, -1) for b in gb] + [add(k + 1, b, h) for b, h in open_b]
@@ -2603,7 +2633,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     # the two do not coincide (as a component alone in its slice becomes a prism)
     lid_ids = [(add(k, a, h), True, (k, a, h) in double) for a, h in lids_a] + \
         [(add(k + 1, b, h), False, (k + 1, b, h) in double) for b, h in lids_b]
-    V = np.concatenate(pts)
+    # (as _with_z of each ring, concatenated: the same numbers, in one array)
+    V = np.empty((n, 3))
+    V[:, :2] = np.concatenate(pts)
+    V[:, 2] = np.repeat(np.array(heights, dtype=np.float64), [len(xy) for xy in pts])
     n_ring = len(V)
     segments, nb = [], 0
     path_pts = []  # interior points of polyline keyholes: new vertices after the rings'
@@ -2812,9 +2845,37 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
                 min(s[1].start for s in sl):max(s[1].stop for s in sl)]
-    ra = label_mask(A.labels[box], A.n, ga)
-    rb = label_mask(B.labels[box], B.n, gb)
-    return collars * h + float(np.count_nonzero(ra ^ rb)) * pixel_area
+    # (np.count_nonzero(label_mask(A's box, ga) ^ label_mask(B's box, gb)), compiled)
+    only = _count_one_side(A.labels[box], B.labels[box], _group_lut(A.n, ga), _group_lut(B.n, gb))
+    return collars * h + float(only) * pixel_area
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _count_one_side(la, lb, lut_a, lut_b):  # pragma: no cover (compiled)
+    """How many pixels of the box lie in a component of exactly one of the two groups (``la``,
+    ``lb``: the label images there; ``lut_a``, ``lut_b``: :func:`_group_lut` of each group)."""
+    h, w = la.shape
+    count = 0
+    for y in range(h):
+        for x in range(w):
+            if (lut_a[la[y, x]] >= 0) != (lut_b[lb[y, x]] >= 0):
+                count += 1
+    return count
+
+
+def _ring_edges(s, poly):
+    """Every edge of slice ``s``'s rings ``poly(c, h)`` (each component's outer ring, then its
+    holes), as two ``(e, 2)`` arrays of end points: ``np.concatenate`` of the rings and of their
+    :func:`_next`, by one gather."""
+    rs = [np.asarray(poly(c, h), dtype=np.float64).reshape(-1, 2) for c in range(s.n)
+          for h in range(-1, len(s.holes[c]))]
+    a = np.concatenate(rs) if rs else np.zeros((0, 2))
+    lens = np.array([len(r) for r in rs], dtype=np.int64)
+    ends = np.cumsum(lens)
+    nxt = np.arange(1, len(a) + 1)
+    full = lens > 0
+    nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
+    return a, a[nxt]
 
 
 def _ring_boxes(s):
@@ -2993,10 +3054,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     def edges_of(kk):
         key = (kk, sig(kk))
         if key not in edge_cache:
-            s = slices[kk]
-            rs = [np.asarray(poly(kk, c, h), dtype=np.float64) for c in range(s.n)
-                  for h in range(-1, len(s.holes[c]))]
-            edge_cache[key] = (np.concatenate(rs), np.concatenate([_next(r) for r in rs]))
+            edge_cache[key] = _ring_edges(slices[kk], lambda c, h: poly(kk, c, h))
         return edge_cache[key]
 
     lids = defaultdict(int)
@@ -3026,10 +3084,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         def edges2(kk):
             if not any(kk == k_ for k_, _c in rings):
                 return edges_of(kk)
-            s = slices[kk]
-            rs = [np.asarray(poly2(kk, c, h), dtype=np.float64) for c in range(s.n)
-                  for h in range(-1, len(s.holes[c]))]
-            return np.concatenate(rs), np.concatenate([_next(r) for r in rs])
+            return _ring_edges(slices[kk], lambda c, h: poly2(kk, c, h))
 
         got = _bridge_join(k, ga, gb, plan, poly2, zs, edges2, uncovered, triangulation, caps, double, waypoints,
                            band_guard)
@@ -3042,7 +3097,25 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         out = {}
         restart = False
         passed, replay = [], True
-        for idx, (k, kind, data) in enumerate(joins):
+        # the joins that the loop below would replay as they were (the previous pass's, in order, up
+        # to the first on a slice whose crack rings changed) only record their bridges again: done
+        # here without the loop, which starts after them
+        start = 0
+        if passed_before:
+            bridge_ids = [i for i, (_k, kind, _d) in enumerate(joins) if kind == "bridge"]
+            for (idx, key), at in zip(passed_before, bridge_ids):
+                k = joins[idx][0]
+                if idx != at or k in changed or k + 1 in changed:
+                    break
+                b = cache[key]
+                for plane, p, q in b.segments:
+                    taken[plane].append((p, q))
+                ga, gb, _plan = joins[idx][2]
+                out[k, tuple(ga), tuple(gb)] = b
+                passed.append((idx, key))
+                start = idx + 1
+        for idx in range(start, len(joins)):
+            k, kind, data = joins[idx]
             if kind != "bridge":
                 continue
             ga, gb, plan = data

@@ -33,7 +33,7 @@ import threading
 import numpy as np
 
 from .._kernels import njit
-from ..intersect import any_intersecting, canonical_vertices
+from ..intersect import _canonical_kernel, any_intersecting, canonical_vertices
 from ..measure import triangle_areas
 from .arclength import triangulate_band_arclength
 from .caps import cap_faces
@@ -222,7 +222,72 @@ def _band_crosses(P, f) -> bool:
 
 
 def _band_crosses_uncached(P, f) -> bool:
-    """:func:`_band_crosses` without the memory of recent calls."""
+    """:func:`_band_crosses` without the memory of recent calls.  The pinches are found and split
+    in one compiled call (:func:`_pinch_split`) where the points are finite; else, and in the
+    tests, :func:`_band_crosses_reference`."""
+    Pc = np.ascontiguousarray(P, dtype=np.float64)
+    fc = np.ascontiguousarray(f, dtype=np.int64)
+    if Pc.ndim == 2 and Pc.shape[1] == 3 and len(Pc) and fc.ndim == 2 and fc.shape[1] == 3:
+        Q, status = _pinch_split(Pc, fc)
+        if status == 2:
+            return False
+        if status != 3:
+            return any_intersecting(Q, f)
+    return _band_crosses_reference(P, f)
+
+
+@njit(cache=True, nogil=True)
+def _pinch_split(P, f):  # pragma: no cover (compiled)
+    """The steps of :func:`_band_crosses_reference` before its crossing test, in one pass:
+    ``(Q, status)``, status 0 where no position is repeated (``Q`` is ``P``), 1 where the repeated
+    ones were moved (``Q`` a moved copy, :func:`_split_pinches`), 2 where they cannot be (the band
+    is taken not to cross), 3 where ``P`` has a NaN or an infinity (nothing done: the caller takes
+    the reference, whose grouping of NaN points and extent of infinite ones differ).  Repeated positions as :func:`canonical_vertices`
+    finds them (its compiled table), the extent as ``np.ptp`` over x and y, the moves by
+    :func:`_pinch_moves`."""
+    n = P.shape[0]
+    for i in range(n):
+        for d in range(3):
+            if not np.isfinite(P[i, d]):
+                return P, 3
+    canon = _canonical_kernel((P + 0.0).view(np.uint64))  # (-0.0 + 0.0 == +0.0)
+    cnt = np.zeros(n, np.int64)
+    for i in range(n):
+        cnt[canon[i]] += 1
+    nd = 0
+    for i in range(n):
+        if cnt[canon[i]] > 1:
+            nd += 1
+    if nd == 0:
+        return P, 0
+    dup = np.empty(nd, np.int64)
+    nd = 0
+    for i in range(n):
+        if cnt[canon[i]] > 1:
+            dup[nd] = i
+            nd += 1
+    Q = P.copy()
+    ext = 0.0
+    for d in range(2):
+        lo = Q[0, d]
+        hi = Q[0, d]
+        for i in range(1, n):
+            lo = min(lo, Q[i, d])
+            hi = max(hi, Q[i, d])
+        ext = max(ext, hi - lo)
+    if not ext > 0:
+        return Q, 2
+    if not _pinch_moves(Q, f, dup, ext):
+        return Q, 2
+    canon = _canonical_kernel((Q + 0.0).view(np.uint64))
+    for i in range(n):
+        if canon[i] != i:  # two points still at one position
+            return Q, 2
+    return Q, 1
+
+
+def _band_crosses_reference(P, f) -> bool:
+    """:func:`_band_crosses_uncached` step by step (its NaN route, and the tests' reference)."""
     canon = canonical_vertices(P)  # (as np.unique(P, axis=0), hashed: the same groups)
     dup = np.flatnonzero(np.bincount(canon, minlength=len(P))[canon] > 1)
     if len(dup):

@@ -238,35 +238,37 @@ def _tie_kernel(ri, rj, vi, vj):
 def _nearest_kernel(ri, rj, k):
     """:func:`_candidates`' pairs by measuring every pair: ``(vi, vj, d, ok)``, ``ok`` False where
     a vertex of ``rj`` has more than ``min(k, len(ri))`` vertices within the cut (then the k-d
-    tree's choice among equal distances would decide, see :func:`_candidates_reference`)."""
+    tree's choice among equal distances would decide, see :func:`_candidates_reference`).
+
+    The cut is the ``q``-th smallest of all the distances, ``q = min(k, len(rj) min(k, len(ri)))``
+    (times ``1 + 1e-12``): the ``q``-th smallest of the tree's answers (each vertex of ``rj`` with
+    its ``min(k, len(ri))`` nearest), which hold the ``q`` smallest distances.  It is kept as the
+    ``q`` smallest so far, in one short ascending list, as the pairs are measured."""
     ni, nj = ri.shape[0], rj.shape[0]
     kk = min(k, ni)
+    q = min(k, nj * kk)
     D = np.empty((nj, ni))
-    pool = np.empty(nj * kk)
-    best = np.empty(kk)
+    best = np.empty(q)
+    nb = 0
     for j in range(nj):
-        nb = 0
         for i in range(ni):
             dx = ri[i, 0] - rj[j, 0]
             dy = ri[i, 1] - rj[j, 1]
             v = np.sqrt(dx * dx + dy * dy)
             D[j, i] = v
-            # the kk smallest so far, ascending (insertion)
-            if nb < kk:
+            # the q smallest so far, ascending (insertion)
+            if nb < q:
                 t = nb
                 nb += 1
-            elif v < best[kk - 1]:
-                t = kk - 1
+            elif v < best[q - 1]:
+                t = q - 1
             else:
                 continue
             while t > 0 and best[t - 1] > v:
                 best[t] = best[t - 1]
                 t -= 1
             best[t] = v
-        for t in range(kk):
-            pool[j * kk + t] = best[t]
-    pool.sort()
-    cut = pool[min(k, nj * kk) - 1] * (1 + 1e-12)
+    cut = best[q - 1] * (1 + 1e-12)
     count = 0
     for j in range(nj):
         c = 0
@@ -420,20 +422,41 @@ class PreferCovered:
         return self.cover.shares(P, Q) >= self.share
 
 
-def _candidate_columns(rings, pairs, owners, prefer):
+def _packed_rings(rings):
+    """``rings`` as the compiled kernels take them: ``(pts, off, lens)``, ring ``r`` in
+    ``pts[off[r]: off[r] + lens[r]]`` (float64, one C array)."""
+    rs = [np.ascontiguousarray(r, dtype=np.float64).reshape(-1, 2) for r in rings]
+    lens = np.array([len(r) for r in rs], dtype=np.int64)
+    off = np.zeros(len(rs), dtype=np.int64)
+    np.cumsum(lens[:-1], out=off[1:])
+    return np.concatenate(rs), off, lens
+
+
+def _keyhole_test_arrays(allowed):
+    """The label image, component ids and grid of a :func:`keyhole_uncovered` test (or a dummy for
+    None), as :func:`_straight_kernel` takes them."""
+    if allowed is None:
+        return np.zeros((1, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64), (0.0, 0.0, 1.0, 1.0)
+    return allowed.lab, allowed._ids64, allowed._grid64
+
+
+def _candidate_columns(rings, pairs, owners, prefer, straight=None):
     """:func:`_candidate_arrays` of the candidates of ``pairs`` (rings to bridge, in order) as
     :func:`bridge_tree`'s loop makes them, for ``prefer`` None or a :class:`PreferCovered`: in one
     compiled call (:func:`_candidate_kernel`).  None where some pair is left to Python (rings
     too large for the compiled search, ties the k-d tree decides, NaN, or a length or tie-break
-    that Python must round)."""
+    that Python must round).
+
+    ``straight``, where given, is ``(obstacles_a, obstacles_b, avoid, allowed)`` of
+    :func:`bridge_tree`: then the result is ``(columns, chosen)``, with ``chosen`` the straight
+    bridges of :func:`_straight_bridges` made in the same compiled call (:func:`_tree_kernel`)
+    where ``allowed`` is None or a :func:`keyhole_uncovered` test, else None (still None overall
+    where the candidates are left to Python)."""
     if not pairs or any(len(r) == 0 for r in rings):
         return None
-    rs = [np.ascontiguousarray(r, dtype=np.float64).reshape(-1, 2) for r in rings]
-    lens = np.array([len(r) for r in rs], dtype=np.int64)
+    pts, off, lens = _packed_rings(rings)
     if max(int(lens[i]) * int(lens[j]) for i, j in pairs) > _BRUTE_PAIRS:
         return None
-    off = np.zeros(len(rs), dtype=np.int64)
-    np.cumsum(lens[:-1], out=off[1:])
     pr = np.array(pairs, dtype=np.int64).reshape(-1, 2)
     ask = np.array([prefer is not None and owners[i][0] != owners[j][0] for i, j in pairs], dtype=np.bool_)
     if prefer is None:
@@ -441,8 +464,44 @@ def _candidate_columns(rings, pairs, owners, prefer):
     else:
         c = prefer.cover
         lab, cids, grid, share = c.lab, c._ids64, c._grid64, prefer.share
-    cols = _candidate_kernel(np.concatenate(rs), off, lens, pr, ask, np.int64(CANDIDATES), lab, cids, *grid, share)
-    return cols[:7] if cols[7] else None
+    if straight is None:
+        cols = _candidate_kernel(pts, off, lens, pr, ask, np.int64(CANDIDATES), lab, cids, *grid, share)
+        return cols[:7] if cols[7] else None
+    oa, ob, avoid, allowed = straight
+    if not (allowed is None or isinstance(allowed, _Coverage)):
+        cols = _candidate_kernel(pts, off, lens, pr, ask, np.int64(CANDIDATES), lab, cids, *grid, share)
+        return (cols[:7], None) if cols[7] else None
+    ids = {}
+    comp = np.array([ids.setdefault(o[0], len(ids)) for o in owners], dtype=np.int64)
+    sa, sb = _segment_arrays([tuple(map(np.asarray, s_)) for s_ in avoid]) if avoid else (_NO_SEGMENTS, _NO_SEGMENTS)
+    alab, acids, agrid = _keyhole_test_arrays(allowed)
+    got = _tree_kernel(pts, off, lens, pr, ask, np.int64(CANDIDATES), lab, cids, *grid, share, comp,
+                       np.ascontiguousarray(oa, dtype=np.float64), np.ascontiguousarray(ob, dtype=np.float64),
+                       np.ascontiguousarray(sa, dtype=np.float64), np.ascontiguousarray(sb, dtype=np.float64),
+                       alab, acids, *agrid, allowed is not None, np.int64(len(rings)))
+    if not got[7]:
+        return None
+    return got[:7], [tuple(row) for row in got[8].tolist()]
+
+
+@njit(cache=True, nogil=True)
+def _tree_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share, comp, oa, ob, sa0, sb0,
+                 alab, acids, aox, aoy, adx, ady, use_allowed, n):  # pragma: no cover (compiled)
+    """:func:`_candidate_kernel` and, where its candidates are all compiled (its eighth value),
+    :func:`_straight_kernel` on them, in one call: :func:`bridge_tree`'s candidates and straight
+    bridges without the trip through Python between the two.  Returns the candidate kernel's eight
+    values and the straight bridges (rows ``i, vi, j, vj``; none where the eighth value is False)."""
+    lt, d, tie, ci, cvi, cj, cvj, ok = _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy,
+                                                         share)
+    if not ok:
+        return lt, d, tie, ci, cvi, cj, cvj, ok, np.empty((0, 4), np.int64)
+    m = ci.shape[0]
+    c = np.empty((m, 4), np.int64)
+    for t in range(m):
+        c[t, 0], c[t, 1], c[t, 2], c[t, 3] = ci[t], cvi[t], cj[t], cvj[t]
+    chosen = _straight_kernel(c, pts, off, lens, comp, oa, ob, sa0, sb0, alab, acids, aox, aoy, adx, ady,
+                              use_allowed, n)
+    return lt, d, tie, ci, cvi, cj, cvj, ok, chosen
 
 
 @njit(cache=True, nogil=True)
@@ -603,8 +662,13 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
              if (owners[i][0] != owners[j][0] and not owners[i][1] and not owners[j][1])
              or (owners[i][0] == owners[j][0] and (owners[i][1] or owners[j][1]))]
     # (not preferred, length, tie-break, i, vi, j, vj): each kind shortest first
-    cols = _candidate_columns(rings, pairs, owners, prefer) if prefer is None or isinstance(prefer, PreferCovered) \
-        else None
+    cols = chosen = None
+    if prefer is None or isinstance(prefer, PreferCovered):
+        # the candidates and, where the keyhole test is compiled too, the straight bridges in one
+        # compiled call (:func:`_tree_kernel`)
+        got = _candidate_columns(rings, pairs, owners, prefer, straight=(obstacles_a, obstacles_b, avoid, allowed))
+        if got is not None:
+            cols, chosen = got
     if cols is None:
         parts = []  # per pair of rings: (not preferred, length, tie-break, i, vi, j, vj) as arrays
         for i, j in pairs:
@@ -614,9 +678,9 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
                 if prefer is not None and owners[i][0] != owners[j][0] else np.zeros(len(vi), dtype=bool)
             parts.append((later, d, tie, np.full(len(vi), i), vi, np.full(len(vi), j), vj))
         cols = _candidate_arrays(parts)
-    if allowed is None or isinstance(allowed, _Coverage):  # (compiled)
+    if chosen is None and (allowed is None or isinstance(allowed, _Coverage)):  # (compiled)
         chosen = _straight_bridges(rings, np.stack(cols[3:], axis=1), owners, obstacles_a, obstacles_b, avoid, allowed)
-    else:
+    elif chosen is None:
         chosen = _straight_bridges_reference(rings, _candidate_list(cols), owners, obstacles_a, obstacles_b, avoid,
                                              allowed)
     if len(chosen) == n - 1:
@@ -711,17 +775,11 @@ def _straight_bridges(rings, c, owners, obstacles_a, obstacles_b, avoid, allowed
     n = len(rings)
     if not len(c):
         return []
-    rs = [np.ascontiguousarray(r, dtype=np.float64).reshape(-1, 2) for r in rings]
-    lens = np.array([len(r) for r in rs], dtype=np.int64)
-    off = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64)
-    pts = np.concatenate(rs)
+    pts, off, lens = _packed_rings(rings)
     ids = {}
     comp = np.array([ids.setdefault(o[0], len(ids)) for o in owners], dtype=np.int64)
     sa, sb = _segment_arrays([tuple(map(np.asarray, s_)) for s_ in (avoid or [])])
-    if allowed is None:
-        lab, cids, grid = np.zeros((1, 1), dtype=np.uint8), np.zeros(0, dtype=np.int64), (0.0, 0.0, 1.0, 1.0)
-    else:
-        lab, cids, grid = allowed.lab, allowed._ids64, allowed._grid64
+    lab, cids, grid = _keyhole_test_arrays(allowed)
     got = _straight_kernel(np.ascontiguousarray(c, dtype=np.int64).reshape(-1, 4), pts, off, lens, comp, np.ascontiguousarray(obstacles_a, dtype=np.float64),
                            np.ascontiguousarray(obstacles_b, dtype=np.float64),
                            np.ascontiguousarray(sa, dtype=np.float64), np.ascontiguousarray(sb, dtype=np.float64),

@@ -1,0 +1,212 @@
+"""The bridged joins' compiled steps against the code they replaced: the nearest vertex pairs
+between two rings (the cut found as the q smallest distances of all pairs, not by sorting every
+vertex's k nearest), bridge_tree's candidates and straight bridges in one compiled call, and a
+slice's ring edges by one gather.  Random inputs, bit for bit, each comparison seeing both answers."""
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from contourmesh import volumes
+from contourmesh.bands import bridges as B
+from test_compiled_repair import random_rings
+
+
+def _nearest_reference(ri, rj, k):
+    """The nearest-pair search as it was: every vertex of ``rj`` with its ``min(k, len(ri))``
+    nearest distances, all of them sorted, the ``min(k, ...)``-th the cut (times ``1 + 1e-12``);
+    the pairs within the cut in row order; ok False where a vertex of ``rj`` has more than
+    ``min(k, len(ri))`` of them."""
+    ni, nj = len(ri), len(rj)
+    kk = min(k, ni)
+    D = np.empty((nj, ni))
+    for j in range(nj):
+        for i in range(ni):
+            dx = ri[i, 0] - rj[j, 0]
+            dy = ri[i, 1] - rj[j, 1]
+            D[j, i] = np.sqrt(dx * dx + dy * dy)
+    pool = np.sort(np.sort(D, axis=1)[:, :kk].ravel())
+    cut = pool[min(k, nj * kk) - 1] * (1 + 1e-12)
+    within = D <= cut
+    if (within.sum(axis=1) > kk).any():
+        return None
+    jj, ii = np.nonzero(within)
+    return ii.astype(np.int64), jj.astype(np.int64), D[jj, ii]
+
+
+def test_nearest_kernel_equals_the_sorted_pool():
+    rng = np.random.default_rng(112)
+    seen = {"ok": 0, "refused": 0, "ties": 0}
+    for trial in range(600):
+        ni, nj = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+        if trial % 3 == 0:  # a half-pixel grid: many equal distances
+            ri = rng.integers(-5, 6, (ni, 2)) / 2.0
+            rj = rng.integers(-5, 6, (nj, 2)) / 2.0 + (rng.integers(0, 6) / 2.0, 0.0)
+        else:
+            ri = rng.normal(size=(ni, 2)) * 5.1
+            rj = rng.normal(size=(nj, 2)) * 5.1 + rng.normal(size=2) * 6
+        k = int(rng.choice([1, 2, 5, 12]))
+        vi, vj, d, ok = B._nearest_kernel(np.ascontiguousarray(ri), np.ascontiguousarray(rj), np.int64(k))
+        want = _nearest_reference(ri, rj, k)
+        if want is None:
+            assert not ok
+            seen["refused"] += 1
+            continue
+        assert ok
+        assert np.array_equal(vi, want[0]) and np.array_equal(vj, want[1])
+        assert d.tobytes() == want[2].tobytes()
+        seen["ok"] += 1
+        seen["ties"] += len(d) > min(k, ni * nj)
+    assert min(seen.values()) > 20, seen
+
+
+def test_tree_kernel_equals_candidates_then_straight_bridges():
+    # _candidate_columns with ``straight`` (one compiled call, _tree_kernel) against the two calls
+    # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test
+    # that is not compiled leaves the bridges to the caller
+    rng = np.random.default_rng(1120)
+    seen = {"compiled": 0, "python": 0, "whole": 0, "part": 0, "callable": 0}
+    for trial in range(300):
+        grid = trial % 2 == 0
+        nr = int(rng.integers(2, 8))
+        rings, owners = random_rings(rng, nr, grid, big=trial % 50 == 7)
+        lab = rng.integers(0, 3, (24, 24)).astype(np.uint8 if trial % 4 < 2 else np.int32)
+        cover = B.keyhole_uncovered(lab, [int(rng.integers(0, 2))], (-8.0, -8.0, 0.7, 0.7))
+        prefer = B.PreferCovered(cover, float(rng.choice([0.25, 0.5]))) if trial % 3 else None
+        allowed = [None, cover, lambda p, q: True][trial % 3] if trial % 5 else cover
+        pairs = [(i, j) for i, j in B._near_pairs(rings)
+                 if (owners[i][0] != owners[j][0] and not owners[i][1] and not owners[j][1])
+                 or (owners[i][0] == owners[j][0] and (owners[i][1] or owners[j][1]))]
+        stray = rng.uniform(-8, 8, (int(rng.integers(0, 6)), 2))
+        oa = np.concatenate(rings + [stray])
+        ob = np.concatenate([np.roll(r, -1, axis=0) for r in rings] + [stray + rng.normal(0, 2, stray.shape)])
+        avoid = [(rng.uniform(-8, 8, 2), rng.uniform(-8, 8, 2)) for _ in range(int(rng.integers(0, 3)))]
+        got = B._candidate_columns(rings, pairs, owners, prefer, straight=(oa, ob, avoid, allowed))
+        cols = B._candidate_columns(rings, pairs, owners, prefer)
+        if cols is None:
+            assert got is None
+            seen["python"] += 1
+            continue
+        seen["compiled"] += 1
+        for a, b in zip(got[0], cols):
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+        if allowed is not None and not isinstance(allowed, B._Coverage):
+            assert got[1] is None
+            seen["callable"] += 1
+            continue
+        want = B._straight_bridges(rings, np.stack(cols[3:], axis=1), owners, oa, ob, avoid, allowed)
+        assert got[1] == want
+        assert all(type(v) is int for t in got[1] for v in t)
+        seen["whole" if len(want) == nr - 1 else "part"] += 1
+        # and bridge_tree as a whole, which takes the fused call
+        tree = B.bridge_tree(rings, oa, ob, avoid=avoid, owners=owners, allowed=allowed, prefer=prefer)
+        assert tree == (want if len(want) == nr - 1 else None)
+    assert min(seen.values()) >= 3 and seen["compiled"] > 200, seen
+
+
+def test_ring_edges_equal_each_ring_and_its_successors():
+    rng = np.random.default_rng(11201)
+    for trial in range(100):
+        n = int(rng.integers(1, 6))
+        holes = [[rng.normal(size=(int(rng.integers(1, 9)), 2)) for _ in range(int(rng.integers(0, 3)))]
+                 for _ in range(n)]
+        outer = [rng.normal(size=(int(rng.integers(1, 12)), 2)) for _ in range(n)]
+        s = SimpleNamespace(n=n, holes=holes)
+
+        def poly(c, h):
+            return outer[c] if h < 0 else holes[c][h]
+
+        rs = [poly(c, h) for c in range(n) for h in range(-1, len(holes[c]))]
+        a, b = volumes._ring_edges(s, poly)
+        assert a.tobytes() == np.concatenate(rs).tobytes()
+        assert b.tobytes() == np.concatenate([volumes._next(r) for r in rs]).tobytes()
+
+
+def _outcome(fn, *args):
+    """``fn(*args)``, or the type of the error it raises."""
+    try:
+        return fn(*args)
+    except ValueError as e:
+        return type(e)
+
+
+def test_band_crosses_pinch_split_equals_the_steps():
+    # _band_crosses_uncached (repeated positions found and moved in one compiled call) against the
+    # steps it replaced (canonical_vertices, bincount, _split_pinches, then the crossing test):
+    # bands of rings that visit positions twice (bridge ends), some twisted so that they cross,
+    # points no face uses, flat bands whose points cannot move, -0.0, a NaN, and no pinch at all
+    from contourmesh.bands import _band_crosses_reference, _band_crosses_uncached, _pinch_split, triangulate_band
+
+    rng = np.random.default_rng(11202)
+    seen = {"crosses": 0, "clear": 0, "status0": 0, "status1": 0, "status2": 0}
+    for trial in range(400):
+        n = int(rng.integers(6, 50))
+        t = (np.arange(n) + rng.uniform(0, 0.5, n)) * (2 * np.pi / n)
+        lo = np.c_[np.cos(t), np.sin(t), np.zeros(n)] * rng.uniform(5, 50)
+        twist = rng.uniform(0.1, 3.0) if trial % 3 == 0 else 0.2
+        hi = np.c_[np.cos(t + twist), np.sin(t + twist), np.ones(n)] * rng.uniform(5, 50)
+        if trial % 2:
+            lo[:, :2], hi[:, :2] = np.round(lo[:, :2] * 16) / 16, np.round(hi[:, :2] * 16) / 16
+        if trial % 4:
+            for _ in range(int(rng.integers(1, 4))):
+                a, b = rng.choice(n, 2, replace=False)
+                if (a - b) % n not in (1, n - 1):
+                    lo[b] = lo[a]
+        if (lo[:, :2] == np.roll(lo[:, :2], -1, axis=0)).all(axis=1).any() or \
+                (hi[:, :2] == np.roll(hi[:, :2], -1, axis=0)).all(axis=1).any():
+            continue
+        f = triangulate_band(lo, hi, str(rng.choice(["arclength", "greedy", "wiederhold"])), fallback=False)
+        P = np.concatenate([lo, hi])
+        if trial % 7 == 0:
+            P = np.concatenate([P, P[:1]])
+        if trial % 11 == 0:
+            P[:, 2] = 0.0
+        if trial % 5 == 0:
+            P[:, 2] = -P[:, 2]
+        if trial % 37 == 0:  # not finite: the reference's route, its error
+            P[3, 0] = [np.nan, np.inf][trial % 2]
+            assert _outcome(_band_crosses_reference, P, f) == _outcome(_band_crosses_uncached, P, f)
+            continue
+        want = _band_crosses_reference(P, f)
+        assert _band_crosses_uncached(P, f) == want
+        seen["crosses" if want else "clear"] += 1
+        seen[f"status{int(_pinch_split(np.ascontiguousarray(P), np.ascontiguousarray(f))[1])}"] += 1
+    assert min(seen.values()) > 5, seen
+
+
+def _random_group(rng, trial):
+    """Two label images' boxes (views, as the plan's) of slices with ``na``, ``nb`` components and
+    a group of each: ``(la, lb, na, nb, ga, gb)``."""
+    h, w = int(rng.integers(1, 30)), int(rng.integers(1, 30))
+    na, nb = int(rng.integers(1, 7)), int(rng.integers(1, 7))
+    dt = [np.uint8, np.int32, np.uint16, np.int64][trial % 4]
+    la = rng.integers(0, na + 1, (h + 4, w + 4)).astype(dt)[2:2 + h, 1:1 + w]
+    lb = rng.integers(0, nb + 1, (h + 4, w + 4)).astype(dt)[1:1 + h, 2:2 + w]
+    ga = sorted(rng.choice(na, int(rng.integers(1, na + 1)), replace=False).tolist())
+    gb = sorted(rng.choice(nb, int(rng.integers(1, nb + 1)), replace=False).tolist())
+    return la, lb, na, nb, ga, gb
+
+
+def test_overlap_pairs_and_one_side_count_equal_the_label_masks():
+    # _bridge_plan's overlap of a group (its components below and above) and its number of
+    # overlapping pairs of components, and _exact_area's pixels of one group only, each in one
+    # compiled pass, against the masks, keys and xor they replaced
+    from contourmesh.tracing import label_mask, unique_keys
+
+    rng = np.random.default_rng(11203)
+    counts, empty = set(), set()
+    for trial in range(400):
+        la, lb, na, nb, ga, gb = _random_group(rng, trial)
+        if trial % 10 == 0:  # the same pixels on both sides
+            lb, nb, gb = la.copy(), na, ga
+        lut_a, lut_b = volumes._group_lut(na, ga), volumes._group_lut(nb, gb)
+        ma, mb = label_mask(la, na, ga), label_mask(lb, nb, gb)
+        want_n = len(unique_keys(la[ma & mb].astype(np.int64) * np.int64(nb + 1) + lb[ma & mb], (na + 1) * (nb + 1)))
+        o, n = volumes._overlap_pairs(la, lb, lut_a, lut_b, np.int64(len(ga)), np.int64(len(gb)))
+        assert o.dtype == np.bool_ and np.array_equal(o, ma & mb)
+        assert n == want_n
+        counts.add(min(int(n), 5))
+        only = volumes._count_one_side(la, lb, lut_a, lut_b)
+        assert only == int(np.count_nonzero(ma ^ mb))
+        empty.add(only == 0)
+    assert counts == {0, 1, 2, 3, 4, 5} and empty == {True, False}
