@@ -1607,13 +1607,23 @@ def _number_units(units, tags, ring_points):
 
     The loop over the units handles Python integers and collects array pieces alone: each unit's
     local vertices as runs of consecutive mesh numbers (``seg_g``, ``seg_len``: its own vertices'
-    runs and its rings', in local order), the vertices' pieces in mesh order; the pieces and the
-    units' faces are then concatenated straight into the results, and the faces and necks
-    renumbered in one compiled pass (:func:`_unit_numbering`).  Every array is written at its
-    final size (no per-unit copies besides the pieces themselves).  The per-unit form it replaces
-    is kept in ``tests/test_number_units.py``."""
+    runs and its rings', in local order), each piece of vertices written into ``V`` as it comes
+    (``V`` is counted first, so a ring's points, which ``ring_points`` makes anew, are not all held
+    at once); the units' faces are then concatenated straight into the results, and the faces and
+    necks renumbered in one compiled pass (:func:`_unit_numbering`).  Every array is written at
+    its final size.  The per-unit form it replaces is kept in ``tests/test_number_units.py``."""
+    seen = set()
+    nv = 0
+    for u in units:
+        nv += u.nv
+        for rk, a, b in u.rings:
+            if rk in seen:
+                nv -= b - a
+            seen.add(rk)
+    del seen
+    V = np.empty((nv, 3))
     ring_at = {}  # (ring key -> the mesh number of its first point)
-    seg_g, seg_len, pieces = [], [], []
+    seg_g, seg_len = [], []
     fs, ss, face_end, face_base, face_tag = [], [], [], [], []
     ns, neck_end, neck_base = [], [], []
     n = nl_all = nf = nn = 0  # (mesh vertices, local vertices of the units so far, faces, necks)
@@ -1624,7 +1634,7 @@ def _number_units(units, tags, ring_points):
             if a > pos:
                 seg_g.append(n)
                 seg_len.append(a - pos)
-                pieces.append(u.V[own: own + a - pos])
+                V[n: n + a - pos] = u.V[own: own + a - pos]
                 own += a - pos
                 n += a - pos
             r = ring_at.get(rk)
@@ -1633,7 +1643,7 @@ def _number_units(units, tags, ring_points):
                 xyz = ring_points(rk)
                 if len(xyz) != b - a:  # pragma: no cover - the key holds the ring's polygon
                     raise RuntimeError(f"internal error: ring {rk} changed under a kept unit")
-                pieces.append(xyz)
+                V[n: n + b - a] = xyz
                 n += b - a
             seg_g.append(r)
             seg_len.append(b - a)
@@ -1641,7 +1651,7 @@ def _number_units(units, tags, ring_points):
         if nl > pos:
             seg_g.append(n)
             seg_len.append(nl - pos)
-            pieces.append(u.V[own:])
+            V[n: n + nl - pos] = u.V[own:]
             n += nl - pos
         if len(u.F):
             fs.append(u.F)
@@ -1656,10 +1666,8 @@ def _number_units(units, tags, ring_points):
             neck_end.append(nn)
             neck_base.append(nl_all)
         nl_all += nl
-    V = np.empty((n, 3))
-    if pieces:
-        np.concatenate(pieces, out=V)
-    del pieces
+    if n != nv:  # pragma: no cover - the count above walks the same rings
+        raise RuntimeError(f"internal error: {n} vertices numbered, {nv} counted")
     F = np.empty((nf, 3), dtype=np.int64)
     S = np.empty(nf, dtype=np.int8)
     if fs:
