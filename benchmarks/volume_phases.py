@@ -3,7 +3,10 @@ liver-x2, bunny-128, Al.100, or ball-N-R).
 
 The general mesher's phase functions are wrapped with timers (no cProfile, whose overhead distorts
 numpy-heavy code), and CPU time (``time.process_time``) is reported rather than wall time, so that a
-loaded machine changes the split little.  A phase called inside itself counts once.
+loaded machine changes the split little.  A phase called inside itself counts once.  The input is
+meshed once untimed first (``--no-warm`` skips it): small warm-up volumes leave some kernels of
+a large mesh to load from the numba cache in the timed call (the manifold repair's first edge
+count 0.35 s instead of 0.015 s on the lobster).
 
     python benchmarks/volume_phases.py lobster
 """
@@ -60,11 +63,13 @@ def instrument():
         setattr(cls, meth, _timed(getattr(cls, meth), f"{cls.__name__}.{meth}"))
 
 
-def main(name: str) -> None:
+def main(name: str, warm: bool = True) -> None:
     instrument()
     vol, sp = vs.make_input(name)
     contourmesh.mesh(vs.ball_volume(24, 9.0))  # numba cache loaded before timing
     contourmesh.mesh(np.pad(np.random.default_rng(1).random((12, 14, 13)) < 0.35, 1))
+    if warm:  # (every kernel and signature the input needs, loaded before timing)
+        contourmesh.mesh(vol, spacing=sp)
     SECONDS.clear()
     CALLS.clear()
     t = time.process_time()
@@ -82,4 +87,7 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("input", nargs="?", default="lobster",
                     help="lobster, liver, liver-x2, bunny-128, Al.100 or ball-N-R (default lobster)")
-    main(ap.parse_args().input)
+    ap.add_argument("--no-warm", dest="warm", action="store_false",
+                    help="time the first mesh of the input (kernels it alone needs load from the cache inside it)")
+    args = ap.parse_args()
+    main(args.input, warm=args.warm)
