@@ -1,6 +1,6 @@
 """The slices' compiled per-slice passes (issue 16: no Python per component) against the per-component
 code they replace: every component's crack contours (``tracing.slice_cracks``) and MLP
-(``fastpath.slice_mlps``) in one pass per slice, and a whole :class:`volumes._Slice` against the
+(``fastpath.slice_mlps_flat``) in one pass per slice, and a whole :class:`volumes._Slice` against the
 per-component loop it used to run, on random masks and on slices of the shared volumes."""
 
 import numpy as np
@@ -8,9 +8,20 @@ import pytest
 from scipy import ndimage
 
 from contourmesh import volumes
-from contourmesh.fastpath import pixels_mlp, slice_labels, slice_mlps
+from contourmesh.fastpath import pixels_mlp, slice_labels, slice_mlps_flat
 from contourmesh.geometry import grid_to_xy
 from contourmesh.tracing import _crack_contours, _label_runs, slice_boxes, slice_cracks
+
+
+def slice_mlps(labels, boxes):
+    """Per component, its MLP from :func:`slice_mlps_flat` (``None`` where it encloses no area), as
+    :func:`pixels_mlp` gives each."""
+    pts, ps, a2s = slice_mlps_flat(labels, boxes)
+    out = []
+    for c in range(len(a2s)):
+        p = pts[ps[c]: ps[c + 1]]
+        out.append(None if len(p) < 3 or a2s[c] == 0 else p.copy())
+    return out
 
 
 def _random_masks(seed, count=60):

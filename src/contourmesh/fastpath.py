@@ -974,22 +974,12 @@ def _slice_mlps(lab, boxes):
     return out[:pos], ps, a2s
 
 
-def slice_mlps(labels, boxes):
-    """:func:`pixels_mlp` of every component of a slice's int32 label image at once (``boxes`` as
-    :func:`contourmesh.tracing.slice_boxes`): a list with, per component, its MLP (``(p, 2)`` int64
-    pixel-centre coordinates local to its box, a copy) or ``None`` where it encloses no area."""
-    pts, ps, a2s = slice_mlps_flat(labels, boxes)
-    out = []
-    for c in range(len(a2s)):
-        p = pts[ps[c]: ps[c + 1]]
-        out.append(None if len(p) < 3 or a2s[c] == 0 else p.copy())
-    return out
-
-
 def slice_mlps_flat(labels, boxes):
-    """:func:`slice_mlps` before it is cut into one array per component: ``(pts, ps, a2s)``, the
-    components' MLP vertices concatenated (component ``c``'s are ``pts[ps[c]: ps[c + 1]]``, local to
-    its box; ``None`` in :func:`slice_mlps` where fewer than three or ``a2s[c] == 0``)."""
+    """:func:`pixels_mlp` of every component of a slice's int32 label image at once (``boxes`` as
+    :func:`contourmesh.tracing.slice_boxes`): ``(pts, ps, a2s)``, the components' MLP vertices
+    (pixel-centre coordinates local to each box) concatenated, component ``c``'s ``pts[ps[c]:
+    ps[c + 1]]``; a component whose MLP has fewer than three vertices or ``a2s[c] == 0`` encloses no
+    area (``pixels_mlp`` gives ``None`` there)."""
     return _slice_mlps(np.ascontiguousarray(labels, dtype=np.int32), boxes)
 
 

@@ -516,7 +516,8 @@ class _Slice:
 
     def _polygon(self, crack, pixels, method, to_xy_corner, to_xy_center, off, hole, mlp=False):
         """The polygon of one crack contour by ``method`` (physical xy).  ``mlp``: with "mlp", the
-        MLP of ``pixels`` made already (:func:`contourmesh.fastpath.slice_mlps`: int64 or ``None``),
+        MLP of ``pixels`` made already (:func:`contourmesh.fastpath.pixels_mlp` moved to the box: int64
+        or ``None``),
         ``False`` where it is to be made here from ``pixels``."""
 
         if method == "none":
