@@ -2887,15 +2887,58 @@ def _ring_edges(s, poly):
     return a, a[nxt]
 
 
+def _polygon_rings(s):
+    """Slice ``s``'s polygons as :func:`_ring_edges_spliced` reads them: ``(points, lengths, first,
+    start)``, every ring's points (each component's outer ring, then its holes) concatenated as
+    float64, each ring's length, each component's first ring (``n + 1`` entries) and each ring's
+    first point (``rings + 1`` entries)."""
+    rs = [np.asarray(s.outer[c] if h < 0 else s.holes[c][h], dtype=np.float64).reshape(-1, 2) for c in range(s.n)
+          for h in range(-1, len(s.holes[c]))]
+    lens = np.array([len(r) for r in rs], dtype=np.int64)
+    first = np.cumsum([0] + [1 + len(s.holes[c]) for c in range(s.n)]).astype(np.int64)
+    start = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    return (np.concatenate(rs) if rs else np.zeros((0, 2))), lens, first, start
+
+
+def _ring_edges_spliced(s, crack, polys):
+    """:func:`_ring_edges` of slice ``s`` with the components ``crack`` (sorted) on their crack rings
+    and the others on their polygons, ``polys`` being :func:`_polygon_rings` of ``s``: each run of
+    polygon components between two crack ones is sliced out of ``polys`` in one piece (the same
+    points and ring lengths as their rings one by one), so the arrays are :func:`_ring_edges`'s
+    bit for bit, made with a few steps per crack component rather than some per ring."""
+    cat, lens, first, start = polys
+    if crack:
+        pts, ls, at = [], [], 0
+        for c in crack:
+            if c > at:  # the polygon components at .. c - 1
+                pts.append(cat[start[first[at]]: start[first[c]]])
+                ls.append(lens[first[at]: first[c]])
+            rs = [np.asarray(r, dtype=np.float64).reshape(-1, 2)
+                  for r in [s.crack_outer[c]] + [s.crack_holes[c][h] for h in range(len(s.holes[c]))]]
+            pts += rs
+            ls.append(np.array([len(r) for r in rs], dtype=np.int64))
+            at = c + 1
+        if at < s.n:
+            pts.append(cat[start[first[at]]:])
+            ls.append(lens[first[at]:])
+        cat, lens = np.concatenate(pts), np.concatenate(ls)
+    ends = np.cumsum(lens)
+    nxt = np.arange(1, len(cat) + 1)
+    full = lens > 0
+    nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
+    return cat, cat[nxt]
+
+
 def _ring_boxes(s):
     """Per component of slice ``s``, the box ``(lo, hi)`` (two ``(n, 2)`` arrays) of all its rings:
     its polygons and its crack rings in physical xy.  The crack rings' corners are integers and
     ``to_xy`` is increasing in each coordinate, so their box is that of their integer corners' box,
     converted (no crack ring is made): the same numbers as :func:`_ring_boxes_reference`."""
     def per_component(rings_of):
-        rs = [r for c in range(s.n) for r in rings_of(c)]
-        sizes = [len(r) for c in range(s.n) for r in rings_of(c)]
-        owner = np.repeat(np.arange(s.n), [len(rings_of(c)) for c in range(s.n)])
+        per = [rings_of(c) for c in range(s.n)]  # (each component's rings, asked for once)
+        rs = [r for rings in per for r in rings]
+        sizes = [len(r) for r in rs]
+        owner = np.repeat(np.arange(s.n), [len(rings) for rings in per])
         cat = np.concatenate(rs)
         at = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
         lo, hi = np.minimum.reduceat(cat, at, axis=0), np.maximum.reduceat(cat, at, axis=0)
@@ -2948,6 +2991,40 @@ def _scratch_released(fn):
     return run
 
 
+class _PlaneSegments:
+    """The bridges' segments taken in one plane by the joins that passed, in the order they passed:
+    their end points in two growing ``(n, 2)`` float64 arrays (the test of a new segment reads
+    them as they are, not made again from a list each time) and, per segment, the place of its
+    join among the passed joins, so that a pass that repeats the previous pass's first joins keeps
+    exactly their segments (:meth:`keep`)."""
+
+    __slots__ = ("a", "b", "n", "owner")
+
+    def __init__(self):
+        self.a, self.b, self.n, self.owner = np.empty((8, 2)), np.empty((8, 2)), 0, []
+
+    def add(self, p, q, place):
+        if self.n == len(self.a):
+            self.a = np.concatenate([self.a, np.empty_like(self.a)])
+            self.b = np.concatenate([self.b, np.empty_like(self.b)])
+        self.a[self.n], self.b[self.n] = p, q
+        self.n += 1
+        self.owner.append(place)
+
+    def crosses(self, p, q) -> bool:
+        """Whether the segment ``p q`` shares a point with one taken (:func:`segments_cross`)."""
+        from .bands.bridges import segments_cross
+
+        return self.n > 0 and bool(segments_cross(p, q, self.a[:self.n], self.b[:self.n]).any())
+
+    def keep(self, count):
+        """Keep the segments of the first ``count`` passed joins only (their places are increasing)."""
+        from bisect import bisect_left
+
+        self.n = bisect_left(self.owner, count)
+        del self.owner[self.n:]
+
+
 @_scratch_released
 def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has_above, has_below, cache=None,
                    band_guard=None, polygon="mlp", sections=True, densify=None):
@@ -2977,7 +3054,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     (fandisk rotated #1 at 256: 9 exact joins -> 3)."""
     from collections import defaultdict
 
-    from .bands.bridges import OverlapFree, keyhole_uncovered, segments_cross
+    from .bands.bridges import OverlapFree, keyhole_uncovered
     from .sections import sectioned_join
 
     by_slice = defaultdict(set)
@@ -3060,10 +3137,17 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
         return max(dx, dy), points_of
 
+    polygon_rings = {}  # slice -> _polygon_rings (until its polygons are densified)
+
     def edges_of(kk):
         key = (kk, sig(kk))
         if key not in edge_cache:
-            edge_cache[key] = _ring_edges(slices[kk], lambda c, h: poly(kk, c, h))
+            # (_ring_edges with poly: the crack-only components not in s.own take their crack rings)
+            s = slices[kk]
+            if kk not in polygon_rings:
+                polygon_rings[kk] = _polygon_rings(s)
+            own = getattr(s, "own", ())
+            edge_cache[key] = _ring_edges_spliced(s, [c for c in key[1] if c not in own], polygon_rings[kk])
         return edge_cache[key]
 
     lids = defaultdict(int)
@@ -3079,7 +3163,6 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     # changed: while it does (the same joins passed with the same keys, in order), each join meets
     # the same bridges in its planes as before and passes their test again, so the test is skipped,
     # and a join away from the slices of the join that fell back keeps its key (see near_sig)
-    passed_before = []
     changed = set()  # the slices whose crack rings changed since the previous pass
     dense_tried = set()  # the joins whose components were densified (tried once more)
 
@@ -3101,28 +3184,30 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         if exact is None:
             exact = _exact_area(slices, zs, k, ga, gb, dx * dy, cache.setdefault(("crack perimeters",), {}))
         return got is not None and float(triangle_areas(got.V, got.F).sum()) <= _BRIDGED_AREA_LIMIT * exact
+    bridge_ids = [i for i, (_k, kind, _d) in enumerate(joins) if kind == "bridge"]  # (kept up to date below)
+    taken = defaultdict(_PlaneSegments)
+    out = {}
+    passed = []
     while True:
-        taken = defaultdict(list)
-        out = {}
         restart = False
-        passed, replay = [], True
+        replay = True
         # the joins that the loop below would replay as they were (the previous pass's, in order, up
-        # to the first on a slice whose crack rings changed) only record their bridges again: done
-        # here without the loop, which starts after them
-        start = 0
-        if passed_before:
-            bridge_ids = [i for i, (_k, kind, _d) in enumerate(joins) if kind == "bridge"]
-            for (idx, key), at in zip(passed_before, bridge_ids):
-                k = joins[idx][0]
-                if idx != at or k in changed or k + 1 in changed:
-                    break
-                b = cache[key]
-                for plane, p, q in b.segments:
-                    taken[plane].append((p, q))
-                ga, gb, _plan = joins[idx][2]
-                out[k, tuple(ga), tuple(gb)] = b
-                passed.append((idx, key))
-                start = idx + 1
+        # to the first on a slice whose crack rings changed) keep what they recorded: their bridges'
+        # segments (the first ones of each plane) and their results; the loop starts after them
+        passed_before = passed
+        kept = 0
+        for (idx, _key), at in zip(passed_before, bridge_ids):
+            k = joins[idx][0]
+            if idx != at or k in changed or k + 1 in changed:
+                break
+            kept += 1
+        for idx, _key in passed_before[kept:]:
+            k, _kind, (ga, gb, _plan) = joins[idx]
+            del out[k, tuple(ga), tuple(gb)]
+        for segs in taken.values():
+            segs.keep(kept)
+        passed = passed_before[:kept]
+        start = passed[-1][0] + 1 if passed else 0
         for idx in range(start, len(joins)):
             k, kind, data = joins[idx]
             if kind != "bridge":
@@ -3182,12 +3267,9 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             replay = prev is not None and prev[0] == idx and prev[1] == key
             if b is not None and not replay:
                 for plane, p, q in b.segments:
-                    if taken[plane]:
-                        sa = np.array([s[0] for s in taken[plane]])
-                        sb = np.array([s[1] for s in taken[plane]])
-                        if segments_cross(p, q, sa, sb).any():
-                            b = None
-                            break
+                    if taken[plane].crosses(p, q):
+                        b = None
+                        break
             if b is None and densify is not None and plan is not None and cache[key] is None and \
                     idx not in dense_tried and _has_speck(slices, k, ga, gb):
                 # a fork or merge that failed gets a vertex every pixel on its components' polygons
@@ -3199,11 +3281,13 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     for kk in (k, k + 1):
                         for ek in [ek for ek in edge_cache if ek[0] == kk]:
                             del edge_cache[ek]
+                        polygon_rings.pop(kk, None)
                     changed = {k, k + 1}
                     restart = True
                     break
             if b is None:
                 joins[idx] = (k, "exact", (ga, gb))
+                bridge_ids.remove(idx)
                 crack_only.update((k, a) for a in ga)
                 crack_only.update((k + 1, c) for c in gb)
                 by_slice[k].update(ga)
@@ -3212,12 +3296,11 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                 restart = True
                 break
             for plane, p, q in b.segments:
-                taken[plane].append((p, q))
+                taken[plane].add(p, q, len(passed))
             out[k, tuple(ga), tuple(gb)] = b
             passed.append((idx, key))
         if not restart:
             return out
-        passed_before = passed
 
 
 def _section_ops():

@@ -1,0 +1,141 @@
+"""The bridged-join driver's kept state against the plain forms it replaced (issue 16): the segments
+each plane's bridges took (growing arrays, cut back to a prefix of the passed joins, instead of
+lists rebuilt pass by pass and turned into arrays for every test) and a slice's ring edges spliced
+from its polygons (instead of made ring by ring).  Each comparison is bit for bit and sees both
+answers."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from contourmesh import volumes
+from contourmesh.bands.bridges import segments_cross
+from contourmesh.geometry import grid_to_xy
+
+
+def _crosses_reference(taken, p, q):
+    """The test as it was: the plane's segments (a list of ``(p, q)``) made into arrays, then
+    :func:`segments_cross`."""
+    if not taken:
+        return False
+    sa = np.array([s[0] for s in taken])
+    sb = np.array([s[1] for s in taken])
+    return bool(segments_cross(p, q, sa, sb).any())
+
+
+def _segment(rng, grid):
+    """A short segment ``(p, q)`` (on a grid of halves where ``grid``): many keep clear of the others."""
+    if grid:
+        p = rng.integers(-16, 17, 2) / 2.0
+        return p, p + rng.integers(-2, 3, 2) / 2.0
+    p = rng.uniform(-8, 8, 2)
+    return p, p + rng.uniform(-1, 1, 2)
+
+
+def test_plane_segments_equal_the_lists_rebuilt_each_pass():
+    # passes of joins, each adding a few segments to a few planes; a pass restarts after a random
+    # number of the passed joins, which keep their segments (keep) where the reference rebuilds the
+    # lists from those joins; every test of a new segment gives the reference's answer
+    rng = np.random.default_rng(1161)
+    seen = {"cross": 0, "clear": 0, "kept": 0, "grown": 0}
+    for trial in range(60):
+        grid = trial % 2 == 0
+        planes = {}  # plane -> _PlaneSegments
+        passed = []  # per passed join: its segments [(plane, p, q)]
+        for _pass in range(int(rng.integers(1, 6))):
+            kept = int(rng.integers(0, len(passed) + 1))
+            passed = passed[:kept]
+            for segs in planes.values():
+                segs.keep(kept)
+            seen["kept"] += kept > 0
+            lists = {}
+            for join in passed:
+                for plane, p, q in join:
+                    lists.setdefault(plane, []).append((p, q))
+            for plane, segs in planes.items():  # the arrays hold the lists' points, in order
+                want = lists.get(plane, [])
+                assert segs.n == len(want)
+                assert segs.a[:segs.n].tobytes() == np.array([s[0] for s in want], dtype=np.float64).reshape(-1, 2).tobytes()
+                assert segs.b[:segs.n].tobytes() == np.array([s[1] for s in want], dtype=np.float64).reshape(-1, 2).tobytes()
+            for _join in range(int(rng.integers(1, 12))):
+                segs_of_join = [(int(rng.integers(0, 3)), *_segment(rng, grid))
+                                for _ in range(int(rng.integers(1, 4)))]
+                clear = True
+                for plane, p, q in segs_of_join:
+                    got = planes.setdefault(plane, volumes._PlaneSegments()).crosses(p, q)
+                    assert got == _crosses_reference(lists.get(plane, []), p, q)
+                    seen["cross" if got else "clear"] += 1
+                    if got:
+                        clear = False
+                        break
+                if not clear and rng.random() < 0.7:
+                    continue  # (a join whose bridge meets a taken one is not recorded)
+                for plane, p, q in segs_of_join:
+                    segs = planes.setdefault(plane, volumes._PlaneSegments())
+                    before = len(segs.a)
+                    segs.add(p, q, len(passed))
+                    seen["grown"] += len(segs.a) > before
+                    lists.setdefault(plane, []).append((p, q))
+                passed.append(segs_of_join)
+    assert min(seen.values()) > 10, seen
+
+
+def _ring_edges_cases(rng, trial):
+    """A slice-like namespace (polygons and crack rings of ``n`` components, some empty or of one
+    point, integer-valued where ``trial`` is even) and sorted crack components."""
+    n = int(rng.integers(1, 8))
+
+    def ring():
+        k = int(rng.integers(0, 9)) if trial % 5 == 0 else int(rng.integers(1, 9))
+        r = rng.normal(size=(k, 2)) * 4
+        return np.round(r) if trial % 2 == 0 else r
+
+    holes = [[ring() for _ in range(int(rng.integers(0, 3)))] for _ in range(n)]
+    s = SimpleNamespace(n=n, outer=[ring() for _ in range(n)], holes=holes,
+                        crack_outer=[ring() for _ in range(n)],
+                        crack_holes=[[ring() for _ in holes[c]] for c in range(n)])
+    crack = sorted(rng.choice(n, int(rng.integers(0, n + 1)), replace=False).tolist())
+    return s, crack
+
+
+def _assert_spliced_equal(s, crack):
+    def poly(c, h):
+        if c in crack:
+            return s.crack_outer[c] if h < 0 else s.crack_holes[c][h]
+        return s.outer[c] if h < 0 else s.holes[c][h]
+
+    a, b = volumes._ring_edges(s, poly)
+    got_a, got_b = volumes._ring_edges_spliced(s, crack, volumes._polygon_rings(s))
+    assert got_a.dtype == a.dtype and got_a.shape == a.shape and got_a.tobytes() == a.tobytes()
+    assert got_b.dtype == b.dtype and got_b.shape == b.shape and got_b.tobytes() == b.tobytes()
+
+
+def test_ring_edges_spliced_equal_the_rings_one_by_one():
+    rng = np.random.default_rng(1162)
+    seen = {"none": 0, "some": 0, "all": 0, "first": 0, "last": 0}
+    for trial in range(400):
+        s, crack = _ring_edges_cases(rng, trial)
+        _assert_spliced_equal(s, crack)
+        seen["none" if not crack else "all" if len(crack) == s.n else "some"] += 1
+        seen["first"] += bool(crack) and crack[0] == 0 and len(crack) < s.n
+        seen["last"] += bool(crack) and crack[-1] == s.n - 1 and len(crack) < s.n
+    assert min(seen.values()) > 20, seen
+    _assert_spliced_equal(SimpleNamespace(n=0, outer=[], holes=[], crack_outer=[], crack_holes=[]), [])
+
+
+@pytest.mark.parametrize("polygon", ["mlp", "dss"])
+def test_ring_edges_spliced_on_real_slices(polygon):
+    # slices of smoothed noise (forks, holes, specks), their crack rings in physical xy as the
+    # driver reads them (_CrackXY), with every other component on its crack rings
+    to_center, to_corner = grid_to_xy(-3.7, 12.25, 0.3, 0.7)
+    rng = np.random.default_rng(1163)
+    v = ndimage.gaussian_filter(rng.random((6, 40, 44)), 1.2)
+    seen_holes = 0
+    for mask in v > np.quantile(v, 0.55):
+        s = volumes._Slice(mask, polygon, to_corner, to_center)
+        seen_holes += sum(len(h) for h in s.holes)
+        for crack in ([], list(range(0, s.n, 2)), list(range(1, s.n, 3)), list(range(s.n))):
+            _assert_spliced_equal(s, crack)
+    assert seen_holes > 0
