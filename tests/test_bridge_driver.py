@@ -1,7 +1,8 @@
 """The bridged-join driver's kept state against the plain forms it replaced (issue 16): the segments
 each plane's bridges took (growing arrays, cut back to a prefix of the passed joins, instead of
-lists rebuilt pass by pass and turned into arrays for every test) and a slice's ring edges spliced
-from its polygons (instead of made ring by ring).  Each comparison is bit for bit and sees both
+lists rebuilt pass by pass and turned into arrays for every test), a slice's ring edges from
+blocks kept per component (instead of made ring by ring) and the boxes near a join's components
+in one compiled pass.  Each comparison is bit for bit and sees both
 answers."""
 
 from types import SimpleNamespace
@@ -100,35 +101,47 @@ def _ring_edges_cases(rng, trial):
     return s, crack
 
 
-def _assert_spliced_equal(s, crack):
+def _poly_of(s, crack):
     def poly(c, h):
         if c in crack:
             return s.crack_outer[c] if h < 0 else s.crack_holes[c][h]
         return s.outer[c] if h < 0 else s.holes[c][h]
+    return poly
 
-    a, b = volumes._ring_edges(s, poly)
-    got_a, got_b = volumes._ring_edges_spliced(s, crack, volumes._polygon_rings(s))
+
+def _assert_blocks_equal(blocks, s, crack):
+    a, b = volumes._ring_edges(s, _poly_of(s, crack))
+    got_a, got_b = blocks.edges(set(crack))
     assert got_a.dtype == a.dtype and got_a.shape == a.shape and got_a.tobytes() == a.tobytes()
     assert got_b.dtype == b.dtype and got_b.shape == b.shape and got_b.tobytes() == b.tobytes()
 
 
-def test_ring_edges_spliced_equal_the_rings_one_by_one():
+def test_ring_blocks_equal_the_rings_one_by_one():
+    # a slice's crack-only components grow from none to all (and, once in a while, some go back to
+    # their polygons): at each step the blocks give _ring_edges's arrays
     rng = np.random.default_rng(1162)
-    seen = {"none": 0, "some": 0, "all": 0, "first": 0, "last": 0}
-    for trial in range(400):
-        s, crack = _ring_edges_cases(rng, trial)
-        _assert_spliced_equal(s, crack)
-        seen["none" if not crack else "all" if len(crack) == s.n else "some"] += 1
-        seen["first"] += bool(crack) and crack[0] == 0 and len(crack) < s.n
-        seen["last"] += bool(crack) and crack[-1] == s.n - 1 and len(crack) < s.n
+    seen = {"none": 0, "some": 0, "all": 0, "back": 0}
+    for trial in range(200):
+        s, _crack = _ring_edges_cases(rng, trial)
+        blocks = volumes._RingBlocks(s)
+        crack = []
+        for _step in range(5):
+            _assert_blocks_equal(blocks, s, crack)
+            seen["none" if not crack else "all" if len(crack) == s.n else "some"] += 1
+            if trial % 7 == 0 and crack:
+                crack = crack[1:]
+                seen["back"] += 1
+            else:
+                crack = sorted(set(crack) | set(rng.choice(s.n, int(rng.integers(0, 3)), replace=True).tolist()))
     assert min(seen.values()) > 20, seen
-    _assert_spliced_equal(SimpleNamespace(n=0, outer=[], holes=[], crack_outer=[], crack_holes=[]), [])
+    _assert_blocks_equal(volumes._RingBlocks(SimpleNamespace(n=0, outer=[], holes=[], crack_outer=[], crack_holes=[])),
+                         SimpleNamespace(n=0, outer=[], holes=[], crack_outer=[], crack_holes=[]), [])
 
 
 @pytest.mark.parametrize("polygon", ["mlp", "dss"])
-def test_ring_edges_spliced_on_real_slices(polygon):
+def test_ring_blocks_on_real_slices(polygon):
     # slices of smoothed noise (forks, holes, specks), their crack rings in physical xy as the
-    # driver reads them (_CrackXY), with every other component on its crack rings
+    # driver reads them (_CrackXY), more components on their crack rings at each step
     to_center, to_corner = grid_to_xy(-3.7, 12.25, 0.3, 0.7)
     rng = np.random.default_rng(1163)
     v = ndimage.gaussian_filter(rng.random((6, 40, 44)), 1.2)
@@ -136,6 +149,60 @@ def test_ring_edges_spliced_on_real_slices(polygon):
     for mask in v > np.quantile(v, 0.55):
         s = volumes._Slice(mask, polygon, to_corner, to_center)
         seen_holes += sum(len(h) for h in s.holes)
-        for crack in ([], list(range(0, s.n, 2)), list(range(1, s.n, 3)), list(range(s.n))):
-            _assert_spliced_equal(s, crack)
+        blocks = volumes._RingBlocks(s)
+        for crack in ([], list(range(1, s.n, 3)), list(range(0, s.n, 3)) + list(range(1, s.n, 3)), list(range(s.n))):
+            _assert_blocks_equal(blocks, s, sorted(crack))
     assert seen_holes > 0
+
+
+def _boxes_meeting_reference(blo, bhi, comps):
+    """The boxes meeting the box of ``comps``' boxes, as the driver found them in numpy."""
+    lo, hi = blo[list(comps)].min(axis=0), bhi[list(comps)].max(axis=0)
+    return np.flatnonzero((blo <= hi).all(axis=1) & (bhi >= lo).all(axis=1))
+
+
+def test_boxes_meeting_equal_the_numpy_masks():
+    rng = np.random.default_rng(1164)
+    sizes = set()
+    for trial in range(500):
+        n = int(rng.integers(1, 40))
+        lo = rng.integers(-20, 20, (n, 2)) / 2.0 if trial % 2 else rng.normal(size=(n, 2)) * 10
+        blo = lo.astype(np.float64)
+        bhi = blo + (rng.integers(0, 8, (n, 2)) / 2.0 if trial % 2 else rng.uniform(0, 5, (n, 2)))
+        if trial % 25 == 0:  # a NaN corner
+            [blo, bhi][trial % 2][int(rng.integers(0, n)), int(rng.integers(0, 2))] = np.nan
+        comps = tuple(sorted(rng.choice(n, int(rng.integers(1, min(n, 4) + 1)), replace=False).tolist()))
+        got = volumes._boxes_meeting(blo, bhi, np.array(comps, dtype=np.int64))
+        want = _boxes_meeting_reference(blo, bhi, comps)
+        assert got.dtype == np.int64 and np.array_equal(got, want)
+        sizes.add(len(want))
+    assert len(sizes) > 10
+
+
+def _crack_perimeter_reference(S, c):
+    """A component's crack perimeter as the exact join's area took it: ring by ring."""
+    return sum(float(np.hypot(*(volumes._next(r) - r).T).sum())
+               for r in [S.crack_outer.made(c)] + list(S.crack_holes.made(c)))
+
+
+@pytest.mark.parametrize("grid", [(0.0, 0.0, 1.0, 1.0), (-3.7, 12.25, 0.3, 0.7), (1e3, -1e3, 2.5, 0.125)])
+def test_crack_perimeter_equals_ring_by_ring(grid):
+    # real slices (holes, specks) and large blobs with many holes (rings beyond numpy's pairwise
+    # blocks of 128), on grids whose steps do not add up exactly
+    to_center, to_corner = grid_to_xy(*grid)
+    rng = np.random.default_rng(1165)
+    seen = {"holes": 0, "plain": 0, "long": 0}
+    masks = list(ndimage.gaussian_filter(rng.random((4, 40, 44)), 1.2) > 0.5)
+    for _ in range(3):
+        big = ndimage.gaussian_filter(rng.random((160, 170)), 2.5) > 0.47
+        big[ndimage.binary_erosion(ndimage.binary_fill_holes(big), iterations=3) & (rng.random(big.shape) < 0.01)] = False
+        masks.append(big)
+    for mask in masks:
+        s = volumes._Slice(mask, "mlp", to_corner, to_center)
+        for c in range(s.n):
+            got = volumes._crack_perimeter(s, c)
+            want = _crack_perimeter_reference(s, c)
+            assert type(got) is float and got == want and np.float64(got).tobytes() == np.float64(want).tobytes()
+            seen["holes" if len(s.crack_holes_c[c]) else "plain"] += 1
+            seen["long"] += max(len(r) for r in [s.crack_outer_c[c]] + list(s.crack_holes_c[c])) > 300
+    assert min(seen.values()) > 2, seen

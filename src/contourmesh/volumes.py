@@ -2843,10 +2843,7 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
 
     def perimeter(kk, c):
         if (kk, c) not in perimeters:
-            S = slices[kk]
-            # (made for the sum, not kept: see _CrackXY)
-            perimeters[kk, c] = sum(float(np.hypot(*(_next(r) - r).T).sum())
-                                    for r in [S.crack_outer.made(c)] + list(S.crack_holes.made(c)))
+            perimeters[kk, c] = _crack_perimeter(slices[kk], c)
         return perimeters[kk, c]
 
     collars = sum(perimeter(k, a) for a in ga) + sum(perimeter(k + 1, b) for b in gb)
@@ -2857,6 +2854,27 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     # (np.count_nonzero(label_mask(A's box, ga) ^ label_mask(B's box, gb)), compiled)
     only = _count_one_side(A.labels[box], B.labels[box], _group_lut(A.n, ga), _group_lut(B.n, gb))
     return collars * h + float(only) * pixel_area
+
+
+def _crack_perimeter(S, c):
+    """The length of component ``c``'s crack rings in slice ``S`` (outer ring and holes) in physical
+    xy: per ring ``np.hypot`` of its steps summed by numpy, the rings' sums added in order.  Their
+    xy, steps and lengths are made for all the rings at once (elementwise, so the same numbers as
+    ring by ring, :meth:`_CrackXY.made`) and each ring's lengths summed as a slice of them (numpy's
+    sum of a run depends only on its values and length): the same float as ring by ring."""
+    outer, holes = S.crack_outer, S.crack_holes
+    rings = [outer.corners[c]] + list(holes.corners[c])
+    if holes.to_xy is not outer.to_xy or len(rings) == 1:  # (made for the sum, not kept: see _CrackXY)
+        return sum(float(np.hypot(*(_next(r) - r).T).sum()) for r in [outer.made(c)] + list(holes.made(c)))
+    lens = np.array([len(r) for r in rings], dtype=np.int64)
+    xy = outer.to_xy(np.concatenate(rings))
+    ends = np.cumsum(lens)
+    nxt = np.arange(1, len(xy) + 1)
+    full = lens > 0
+    nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
+    d = xy[nxt] - xy
+    steps = np.hypot(d[:, 0], d[:, 1])
+    return sum(float(steps[e - n: e].sum()) for e, n in zip(ends.tolist(), lens.tolist()))
 
 
 @njit(cache=True, **KERNEL_OPTIONS)
@@ -2887,46 +2905,48 @@ def _ring_edges(s, poly):
     return a, a[nxt]
 
 
-def _polygon_rings(s):
-    """Slice ``s``'s polygons as :func:`_ring_edges_spliced` reads them: ``(points, lengths, first,
-    start)``, every ring's points (each component's outer ring, then its holes) concatenated as
-    float64, each ring's length, each component's first ring (``n + 1`` entries) and each ring's
-    first point (``rings + 1`` entries)."""
-    rs = [np.asarray(s.outer[c] if h < 0 else s.holes[c][h], dtype=np.float64).reshape(-1, 2) for c in range(s.n)
-          for h in range(-1, len(s.holes[c]))]
-    lens = np.array([len(r) for r in rs], dtype=np.int64)
-    first = np.cumsum([0] + [1 + len(s.holes[c]) for c in range(s.n)]).astype(np.int64)
-    start = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
-    return (np.concatenate(rs) if rs else np.zeros((0, 2))), lens, first, start
+class _RingBlocks:
+    """Per component of a slice, the points of its rings (its outer ring, then its holes)
+    concatenated as float64, and their lengths: its polygons', or its crack rings' once it is
+    crack-only (:meth:`edges`).  The driver's crack-only components only grow within a build, so
+    each component's block is made once or twice, not once per set of crack-only components."""
 
+    __slots__ = ("s", "pts", "lens", "crack")
 
-def _ring_edges_spliced(s, crack, polys):
-    """:func:`_ring_edges` of slice ``s`` with the components ``crack`` (sorted) on their crack rings
-    and the others on their polygons, ``polys`` being :func:`_polygon_rings` of ``s``: each run of
-    polygon components between two crack ones is sliced out of ``polys`` in one piece (the same
-    points and ring lengths as their rings one by one), so the arrays are :func:`_ring_edges`'s
-    bit for bit, made with a few steps per crack component rather than some per ring."""
-    cat, lens, first, start = polys
-    if crack:
-        pts, ls, at = [], [], 0
-        for c in crack:
-            if c > at:  # the polygon components at .. c - 1
-                pts.append(cat[start[first[at]]: start[first[c]]])
-                ls.append(lens[first[at]: first[c]])
-            rs = [np.asarray(r, dtype=np.float64).reshape(-1, 2)
-                  for r in [s.crack_outer[c]] + [s.crack_holes[c][h] for h in range(len(s.holes[c]))]]
-            pts += rs
-            ls.append(np.array([len(r) for r in rs], dtype=np.int64))
-            at = c + 1
-        if at < s.n:
-            pts.append(cat[start[first[at]]:])
-            ls.append(lens[first[at]:])
-        cat, lens = np.concatenate(pts), np.concatenate(ls)
-    ends = np.cumsum(lens)
-    nxt = np.arange(1, len(cat) + 1)
-    full = lens > 0
-    nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
-    return cat, cat[nxt]
+    def __init__(self, s):
+        self.s = s
+        self.pts, self.lens = [], []
+        for c in range(s.n):
+            p, n = self._block([s.outer[c]] + [s.holes[c][h] for h in range(len(s.holes[c]))])
+            self.pts.append(p)
+            self.lens.append(n)
+        self.crack = set()
+
+    @staticmethod
+    def _block(rings):
+        rs = [np.asarray(r, dtype=np.float64).reshape(-1, 2) for r in rings]
+        return np.concatenate(rs), np.array([len(r) for r in rs], dtype=np.int64)
+
+    def edges(self, crack):
+        """:func:`_ring_edges` of the slice with the components ``crack`` on their crack rings and
+        the others on their polygons: the same points and ring lengths, concatenated per component
+        (the same arrays, bit for bit)."""
+        s = self.s
+        for c in self.crack.symmetric_difference(crack):
+            if c in crack:
+                rings = [s.crack_outer[c]] + [s.crack_holes[c][h] for h in range(len(s.holes[c]))]
+            else:
+                rings = [s.outer[c]] + [s.holes[c][h] for h in range(len(s.holes[c]))]
+            self.pts[c], self.lens[c] = self._block(rings)
+        self.crack = set(crack)
+        if not self.pts:
+            return np.zeros((0, 2)), np.zeros((0, 2))
+        a, lens = np.concatenate(self.pts), np.concatenate(self.lens)
+        ends = np.cumsum(lens)
+        nxt = np.arange(1, len(a) + 1)
+        full = lens > 0
+        nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
+        return a, a[nxt]
 
 
 def _ring_boxes(s):
@@ -2952,6 +2972,37 @@ def _ring_boxes(s):
     plo, phi = per_component(lambda c: [np.asarray(s.outer[c], dtype=np.float64)] + list(s.holes[c]))
     to_xy = s.crack_outer.to_xy
     return np.minimum(to_xy(clo), plo), np.maximum(to_xy(chi), phi)
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _boxes_meeting(blo, bhi, comps):  # pragma: no cover (compiled)
+    """The boxes ``(blo[i], bhi[i])`` that meet the box of the boxes ``comps`` (one at least):
+    ``np.flatnonzero((blo <= hi).all(axis=1) & (bhi >= lo).all(axis=1))`` with ``lo, hi`` the
+    ``min``/``max`` over ``comps`` (a NaN taken on as numpy's minimum and maximum take it)."""
+    lo0, lo1, hi0, hi1 = blo[comps[0], 0], blo[comps[0], 1], bhi[comps[0], 0], bhi[comps[0], 1]
+    for t in range(1, comps.shape[0]):
+        c = comps[t]
+        lo0 = _min_nan(lo0, blo[c, 0])
+        lo1 = _min_nan(lo1, blo[c, 1])
+        hi0 = _max_nan(hi0, bhi[c, 0])
+        hi1 = _max_nan(hi1, bhi[c, 1])
+    out = np.empty(blo.shape[0], np.int64)
+    m = 0
+    for i in range(blo.shape[0]):
+        if blo[i, 0] <= hi0 and blo[i, 1] <= hi1 and bhi[i, 0] >= lo0 and bhi[i, 1] >= lo1:
+            out[m] = i
+            m += 1
+    return out[:m]
+
+
+@njit(cache=True, inline="always", **KERNEL_OPTIONS)
+def _min_nan(a, b):  # pragma: no cover (compiled)
+    return a if (a <= b or a != a) else b
+
+
+@njit(cache=True, inline="always", **KERNEL_OPTIONS)
+def _max_nan(a, b):  # pragma: no cover (compiled)
+    return a if (a >= b or a != a) else b
 
 
 def _ring_boxes_reference(s):
@@ -3102,12 +3153,17 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             if kk not in boxes:
                 boxes[kk] = _ring_boxes(slices[kk])
             blo, bhi = boxes[kk]
-            lo, hi = blo[list(comps)].min(axis=0), bhi[list(comps)].max(axis=0)
-            near[key] = frozenset(np.flatnonzero((blo <= hi).all(axis=1) & (bhi >= lo).all(axis=1)).tolist())
+            if not comps:
+                raise ValueError("a join without components on one side")
+            near[key] = frozenset(_boxes_meeting(blo, bhi, np.array(comps, dtype=np.int64)).tolist())
         return tuple(sorted(near[key] & by_slice[kk]))
 
     edge_cache = {}
     ox, oy, dx, dy = grid
+
+    @functools.lru_cache(maxsize=None)
+    def section_ops():
+        return _section_ops()  # (made once per build: the same pieces every time)
 
     def uncovered(other, comps):
         """A keyhole must run where the other slice does not cover its component: there the
@@ -3137,17 +3193,17 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
         return max(dx, dy), points_of
 
-    polygon_rings = {}  # slice -> _polygon_rings (until its polygons are densified)
+    ring_blocks = {}  # slice -> _RingBlocks (until its polygons are densified)
 
     def edges_of(kk):
         key = (kk, sig(kk))
         if key not in edge_cache:
             # (_ring_edges with poly: the crack-only components not in s.own take their crack rings)
             s = slices[kk]
-            if kk not in polygon_rings:
-                polygon_rings[kk] = _polygon_rings(s)
+            if kk not in ring_blocks:
+                ring_blocks[kk] = _RingBlocks(s)
             own = getattr(s, "own", ())
-            edge_cache[key] = _ring_edges_spliced(s, [c for c in key[1] if c not in own], polygon_rings[kk])
+            edge_cache[key] = ring_blocks[kk].edges({c for c in key[1] if c not in own})
         return edge_cache[key]
 
     lids = defaultdict(int)
@@ -3253,13 +3309,13 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     elif got is not None and area > _SECTION_TRIAL * exact and band_guard is None and sectioned:
                         # more area than the exact join: a fold is likely; intermediate sections may
                         # follow the surface with less, and the join takes whichever has less area
-                        alt = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
+                        alt = sectioned_join(section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
                                              triangulation, polygon, grid)
                         if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
                             cache[key] = alt
                     if cache[key] is None and band_guard is None and sectioned:
                         # split the gap by intermediate sections; held to the same area limit
-                        got = sectioned_join(_section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
+                        got = sectioned_join(section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
                                              polygon, grid, topology_first=plan is None)
                         if got is not None and float(triangle_areas(got.V, got.F).sum()) <= limit:
                             cache[key] = got
@@ -3281,7 +3337,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                     for kk in (k, k + 1):
                         for ek in [ek for ek in edge_cache if ek[0] == kk]:
                             del edge_cache[ek]
-                        polygon_rings.pop(kk, None)
+                        ring_blocks.pop(kk, None)
                     changed = {k, k + 1}
                     restart = True
                     break
