@@ -206,3 +206,34 @@ def test_crack_perimeter_equals_ring_by_ring(grid):
             seen["holes" if len(s.crack_holes_c[c]) else "plain"] += 1
             seen["long"] += max(len(r) for r in [s.crack_outer_c[c]] + list(s.crack_holes_c[c])) > 300
     assert min(seen.values()) > 2, seen
+
+
+def test_distinct_rows_is_the_unique_rows_test_of_the_lids():
+    # a lid's ring is refused where two of its points coincide: the sorted test gives numpy's
+    # answer (points on a grid of halves, repeats, -0.0 beside 0.0, one point, none)
+    rng = np.random.default_rng(1166)
+    seen = {True: 0, False: 0}
+    for trial in range(1500):
+        n = int(rng.integers(0, 40))
+        xy = rng.integers(-6, 7, (n, 2)) * rng.choice([0.5, -0.5, 1.0]) if trial % 3 else rng.normal(size=(n, 2))
+        if trial % 5 == 0 and n > 2:
+            xy[int(rng.integers(0, n))] = xy[int(rng.integers(0, n))]
+        got = volumes._distinct_rows(xy)
+        assert got == (len(np.unique(xy, axis=0)) == len(xy))
+        seen[got] += 1
+    assert min(seen.values()) > 100, seen
+
+
+def test_made_band_makes_each_rule_once_and_gives_its_faces():
+    from contourmesh.bands import triangulate_band
+
+    rng = np.random.default_rng(1167)
+    t = np.sort(rng.uniform(0, 2 * np.pi, 30))
+    lo = np.c_[np.cos(t), np.sin(t), np.zeros(30)] * 5
+    hi = np.c_[np.cos(t[::2] + 0.3), np.sin(t[::2] + 0.3), np.ones(15)] * 4
+    made = {}
+    for method in ("arclength", "wiederhold", "greedy", "arclength", "optimal"):
+        got = volumes._made_band(made, lo, hi, method)
+        assert got is made[method]
+        assert np.array_equal(got, triangulate_band(lo, hi, method, fallback=False))
+    assert sorted(made) == ["arclength", "greedy", "optimal", "wiederhold"]

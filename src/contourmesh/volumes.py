@@ -2696,27 +2696,31 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
         # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
         n_, m_ = sorted((len(a_ids), len(b_ids)))
+        Va, Vb = V[a_ids], V[b_ids]
+        made = {}  # the rules' bands made below for this pair, by name (_made_band)
         for method in ("optimal", "arclength"):
             if not band_is_folded(ids[f]):
                 break
             # (where _band_faces kept the least-area band of a pair within the budget, the bounded
             # one is that band: it is not made again)
             if method != "optimal" or rule != "optimal" or r != 0 or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET:
-                f = triangulate_band_optimal(V[a_ids], V[b_ids], max_work=_BRIDGED_OPTIMAL_BUDGET) \
-                    if method == "optimal" else triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
+                f = triangulate_band_optimal(Va, Vb, max_work=_BRIDGED_OPTIMAL_BUDGET) \
+                    if method == "optimal" else _made_band(made, Va, Vb, method)
             r += 1
         if band_is_folded(ids[f]):
             return None
         # a bridged ring is far from convex (its slits): the chosen band may cross itself where
         # another strategy does not; take the first embedded one that is not twisted (its area at
         # most _BRIDGED_AREA_SLACK times the crossing band's) before giving the join up
-        P = np.concatenate([V[a_ids], V[b_ids]])
+        P = np.concatenate([Va, Vb])
         if _band_crosses(P, f):
             limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
             for method in _BRIDGED_ALTERNATIVES:
                 if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
                     continue  # already tried, or too slow (cubic)
-                g = triangulate_band(V[a_ids], V[b_ids], method, fallback=False)
+                g = _made_band(made, Va, Vb, method)
+                if g is f:  # (the band that crosses: it would not pass the test below)
+                    continue
                 if (not band_is_folded(ids[g]) and float(triangle_areas(P, g).sum()) <= limit
                         and not _band_crosses(P, g)):
                     f, r = g, r + 1
@@ -2744,7 +2748,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             xy = Vx[ids][:, :2]
         else:
             xy = V[ids][:, :2]
-        if len(np.unique(xy, axis=0)) != len(xy):
+        if not _distinct_rows(xy):  # (len(np.unique(xy, axis=0)) != len(xy), sorted faster)
             return None
         try:
             f = cap_faces(xy, upward=not below)
@@ -2771,6 +2775,16 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
     return out
+
+
+def _made_band(made, lo, hi, method):
+    """``triangulate_band(lo, hi, method, fallback=False)``, kept in ``made`` (a dict by method, for
+    one pair of rings): a rule's band is made once per pair however often it is asked for (the
+    same rings give the same faces)."""
+    got = made.get(method)
+    if got is None:
+        got = made[method] = triangulate_band(lo, hi, method, fallback=False)
+    return got
 
 
 #: The rules :func:`_merged_band_retry` tries after ``_BRIDGED_ALTERNATIVES``: ``"bounded"`` is the
