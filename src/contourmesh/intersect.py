@@ -96,6 +96,14 @@ _EXP_LEN = 256
 _TERMS = 1 + 2 * _EXP_LEN
 _EPS53 = 2.0 ** -53
 _KEY_BITS = 21  # cell coordinates per axis below 2^21
+#: Slabs of at least this many faces, and planes of at least this many entries, find their
+#: candidate pairs in a grid of cells over x and y (:func:`_cell_sweep`, :func:`_cell_pairs`),
+#: smaller ones by the sweep over x (:func:`_x_sweep`, :func:`_x_pairs`): the same pairs.  On the
+#: liver's whole mesh the sweeps over x met 44 M pairs of boxes (23 M in the slabs, 16 M of those
+#: pairs of lower slabs: faces across thin slabs between nearby heights; 21 M in the planes), and
+#: the slab phase took some 0.43 s, 0.37 s with the cells; on the mesher's bands (small slabs) the
+#: cells were some 10 % slower than the sweep.
+_CELL_SWEEP = 1024
 _SLAB_BUDGET = 256  # box tests per face in the slab sweeps before the grid takes over
 
 
@@ -1243,6 +1251,123 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
 # (the bands between two rings: most of their candidates).
 @_kernel
 def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
+    """The candidate pairs of :func:`_x_pairs` (arguments and result as there), from
+    :func:`_cell_pairs` for at least :data:`_CELL_SWEEP` entries (the same pairs, in another order
+    and with less work: on the liver's whole mesh the planes' sweeps over x met some 21 M pairs of
+    boxes)."""
+    if len(ids) >= _CELL_SWEEP:
+        return _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2)
+    return _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2)
+
+
+@_pure
+def _group_pair(ga, gb, need2):
+    """Entries of groups ``ga`` and ``gb`` make a candidate pair (the rules of :func:`_x_pairs`)."""
+    if ga == gb and ga != 2:
+        return False
+    if (need2 == 1 or ga == 3 or gb == 3) and ga != 2 and gb != 2:
+        return False
+    return True
+
+
+@_kernel
+def _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
+    """:func:`_x_pairs`' candidate pairs (each once, in another order) from a grid of about
+    ``len(ids)`` cells over the entries' xy box, fewer where the entries would take more than four
+    cells each on average: two entries whose closed boxes overlap share the cell of the low corner
+    of the overlap and are taken there only.  ``work`` counts the pairs of entries met in a cell."""
+    n = len(ids)
+    if n < 2:
+        return out_i, out_j, n_out, work
+    gxl = np.inf
+    gxh = -np.inf
+    gyl = np.inf
+    gyh = -np.inf
+    for t in range(n):
+        e = ids[t]
+        gxl = min(gxl, xlo[e])
+        gxh = max(gxh, xhi[e])
+        gyl = min(gyl, ylo[e])
+        gyh = max(gyh, yhi[e])
+    g = np.int64(1)
+    while (g + 1) * (g + 1) <= n:
+        g += 1
+    gx = g
+    gy = g
+    cx0 = np.empty(n, np.int64)
+    cy0 = np.empty(n, np.int64)
+    while True:
+        hx = (gxh - gxl) / gx
+        hy = (gyh - gyl) / gy
+        if not hx > 0.0:
+            hx = 1.0
+        if not hy > 0.0:
+            hy = 1.0
+        nent = np.int64(0)
+        for t in range(n):
+            e = ids[t]
+            x0 = min(np.int64((xlo[e] - gxl) / hx), gx - 1)
+            x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
+            y0 = min(np.int64((ylo[e] - gyl) / hy), gy - 1)
+            y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
+            cx0[t] = x0
+            cy0[t] = y0
+            nent += (x1 - x0 + 1) * (y1 - y0 + 1)
+        if nent <= 4 * n or (gx == 1 and gy == 1):
+            break
+        gx = max(gx // 2, np.int64(1))
+        gy = max(gy // 2, np.int64(1))
+    nc = gx * gy
+    start = np.zeros(nc + 1, np.int64)
+    for t in range(n):
+        e = ids[t]
+        x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
+        y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
+        for cy in range(cy0[t], y1 + 1):
+            for cx in range(cx0[t], x1 + 1):
+                start[cy * gx + cx + 1] += 1
+    for q in range(nc):
+        start[q + 1] += start[q]
+    ent = np.empty(nent, np.int64)
+    for t in range(n):  # (start[q] is the fill pointer of cell q, shifted back below)
+        e = ids[t]
+        x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
+        y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
+        for cy in range(cy0[t], y1 + 1):
+            for cx in range(cx0[t], x1 + 1):
+                q = cy * gx + cx
+                ent[start[q]] = t
+                start[q] += 1
+    for q in range(nc, 0, -1):
+        start[q] = start[q - 1]
+    start[0] = 0
+    for q in range(nc):
+        for r in range(start[q], start[q + 1]):
+            s = ent[r]
+            a = ids[s]
+            for v in range(r + 1, start[q + 1]):
+                u = ent[v]
+                b = ids[u]
+                work += 1
+                if xlo[b] > xhi[a] or xlo[a] > xhi[b] or ylo[a] > yhi[b] or ylo[b] > yhi[a]:
+                    continue
+                if max(cy0[s], cy0[u]) * gx + max(cx0[s], cx0[u]) != q:
+                    continue  # (taken in the cell of the low corner of the overlap)
+                if not _group_pair(grp[a], grp[b], need2):
+                    continue
+                if n_out == len(out_i):
+                    out_i = _grow(out_i, 2 * n_out)
+                    out_j = _grow(out_j, 2 * n_out)
+                out_i[n_out] = a
+                out_j[n_out] = b
+                n_out += 1
+            if work > limit:
+                return out_i, out_j, np.int64(-1), work
+    return out_i, out_j, n_out, work
+
+
+@_kernel
+def _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
     """Candidate pairs among the entries ``ids``: closed xy boxes overlapping, not two entries of
     one group unless the group is 2, an entry of group 3 only with one of group 2 (with
     ``need2``: only pairs with an entry of group 2),
@@ -1618,8 +1743,209 @@ def _apart_but_corner_w(W, a, b, px, py, bottom):
 
 
 @_kernel
+def _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, cx0, cy0, start, npairs, pi, pj, work, limit, stop,
+                l0, l1):
+    """:func:`_x_sweep`'s pairs for a slab of many faces (at least :data:`_CELL_SWEEP`): the pairs of
+    slab k (its faces ``faces``, levels ``lo_``, ``hi_`` per face), those of
+    its faces whose closed xy boxes overlap and that first share this slab (no pair of a lower
+    slab), tested as they are found (as in :func:`_slab_step`, so a search that stops at its first
+    pair stops there), less the pairs that the rules "ends apart" and "apart but at a corner"
+    decide (the note before :func:`_slab_hit`), which it decides on the way instead of listing
+    them (most candidates of a two-ring band: on the liver's bands some nine in ten).  Those two
+    hold for any two faces with their corners on the same two heights only (the argument is the
+    same between any two planes): here the faces of one ``lo_``, ``hi_`` with no corner between
+    (a face across a plane with no corner on it, as over a join's few points at a mid-height).
+
+    Candidates come from a grid of about ``len(faces)`` cells over the faces' xy box (a counting
+    sort of (face, cell) entries): two faces whose boxes overlap share the cell of the low corner
+    of the overlap, and are taken there only, so once; a pair of a lower slab is dropped before its
+    box test.  (By the sweep over x alone the liver's whole mesh took 44 M box tests, 16 M of them
+    pairs of lower slabs: faces across thin slabs between nearby heights.)  Each
+    face's corner ranges on its two planes are computed once, into ``W`` by its place in
+    ``faces`` (a row: xy box, the x and y ranges on plane ``lo_``, then on plane ``hi_``, the
+    number of corners on plane ``lo_``, then ``lo_``, ``hi_`` and 1 where no corner lies between,
+    else 0).  Returns ``(npairs, pi, pj, work)`` (``work``: pairs of entries met in a cell);
+    ``npairs`` is -1 when ``work`` exceeds ``limit``.  ``W``, ``cx0``, ``cy0``, ``start``:
+    workspaces of one entry per face (``start`` one more)."""
+    n = len(faces)
+    if n < 2:
+        return npairs, pi, pj, work
+    gxl = np.inf
+    gxh = -np.inf
+    gyl = np.inf
+    gyh = -np.inf
+    for t in range(n):
+        i = faces[t]
+        kl = lo_[i]
+        kh = hi_[i]
+        bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, kl)
+        W[t, 0] = min(bx0, tx0)
+        W[t, 1] = max(bx1, tx1)
+        W[t, 2] = min(by0, ty0)
+        W[t, 3] = max(by1, ty1)
+        W[t, 4] = bx0
+        W[t, 5] = bx1
+        W[t, 6] = by0
+        W[t, 7] = by1
+        W[t, 8] = tx0
+        W[t, 9] = tx1
+        W[t, 10] = ty0
+        W[t, 11] = ty1
+        nl = (lev[F[i, 0]] == kl) + (lev[F[i, 1]] == kl) + (lev[F[i, 2]] == kl)
+        nh = (lev[F[i, 0]] == kh) + (lev[F[i, 1]] == kh) + (lev[F[i, 2]] == kh)
+        W[t, 12] = 1.0 * nl
+        W[t, 13] = 1.0 * kl
+        W[t, 14] = 1.0 * kh
+        W[t, 15] = 1.0 if nl + nh == 3 and kl < kh else 0.0
+        gxl = min(gxl, W[t, 0])
+        gxh = max(gxh, W[t, 1])
+        gyl = min(gyl, W[t, 2])
+        gyh = max(gyh, W[t, 3])
+    # about n cells, fewer where the faces would take more than four entries each on average
+    g = np.int64(1)
+    while (g + 1) * (g + 1) <= n:
+        g += 1
+    gx = g
+    gy = g
+    while True:
+        hx = (gxh - gxl) / gx
+        hy = (gyh - gyl) / gy
+        if not hx > 0.0:
+            hx = 1.0
+        if not hy > 0.0:
+            hy = 1.0
+        nent = np.int64(0)
+        for t in range(n):
+            x0 = min(np.int64((W[t, 0] - gxl) / hx), gx - 1)
+            x1 = min(np.int64((W[t, 1] - gxl) / hx), gx - 1)
+            y0 = min(np.int64((W[t, 2] - gyl) / hy), gy - 1)
+            y1 = min(np.int64((W[t, 3] - gyl) / hy), gy - 1)
+            cx0[t] = x0
+            cy0[t] = y0
+            nent += (x1 - x0 + 1) * (y1 - y0 + 1)
+        if nent <= 4 * n or (gx == 1 and gy == 1):
+            break
+        gx = max(gx // 2, np.int64(1))
+        gy = max(gy // 2, np.int64(1))
+    nc = gx * gy
+    for q in range(nc + 1):
+        start[q] = 0
+    for t in range(n):
+        x1 = min(np.int64((W[t, 1] - gxl) / hx), gx - 1)
+        y1 = min(np.int64((W[t, 3] - gyl) / hy), gy - 1)
+        for cy in range(cy0[t], y1 + 1):
+            for cx in range(cx0[t], x1 + 1):
+                start[cy * gx + cx + 1] += 1
+    for q in range(nc):
+        start[q + 1] += start[q]
+    ent = np.empty(nent, np.int64)
+    for t in range(n):  # (start[q] is the fill pointer of cell q, shifted back below)
+        x1 = min(np.int64((W[t, 1] - gxl) / hx), gx - 1)
+        y1 = min(np.int64((W[t, 3] - gyl) / hy), gy - 1)
+        for cy in range(cy0[t], y1 + 1):
+            for cx in range(cx0[t], x1 + 1):
+                q = cy * gx + cx
+                ent[start[q]] = t
+                start[q] += 1
+    for q in range(nc, 0, -1):
+        start[q] = start[q - 1]
+    start[0] = 0
+    for q in range(nc):
+        for r in range(start[q], start[q + 1]):
+            s = ent[r]
+            for v in range(r + 1, start[q + 1]):
+                u = ent[v]
+                work += 1
+                if max(W[s, 13], W[u, 13]) != k:
+                    continue  # (a pair of a lower slab)
+                if W[u, 0] > W[s, 1] or W[s, 0] > W[u, 1] or W[s, 2] > W[u, 3] or W[u, 2] > W[s, 3]:
+                    continue
+                if max(cy0[s], cy0[u]) * gx + max(cx0[s], cx0[u]) != q:
+                    continue  # (taken in the cell of the low corner of the overlap)
+                i = np.int64(faces[s])
+                j = np.int64(faces[u])
+                if W[s, 15] == 1.0 and W[u, 15] == 1.0 and W[s, 13] == W[u, 13] and W[s, 14] == W[u, 14]:
+                    # ends apart (which no two faces with a common corner are), apart but at a corner
+                    if ((W[s, 5] < W[u, 4] and W[s, 9] < W[u, 8]) or (W[u, 5] < W[s, 4] and W[u, 9] < W[s, 8])
+                            or (W[s, 7] < W[u, 6] and W[s, 11] < W[u, 10]) or (W[u, 7] < W[s, 6] and W[u, 11] < W[s, 10])):
+                        continue
+                    ns = 0
+                    p = np.int64(-1)
+                    for c in range(3):
+                        vv = F[i, c]
+                        if vv == F[j, 0] or vv == F[j, 1] or vv == F[j, 2]:
+                            ns += 1
+                            p = vv
+                    if ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo_[i]):
+                        continue
+                if i > j:
+                    i, j = j, i
+                if _star_due(sst):
+                    _star_fill_levels(V, F, star, lev, l0, l1)
+                if _slab_hit(V, ws, F, star, np.int64(1), i, j):
+                    pi, pj, npairs = _push(pi, pj, npairs, i, j)
+                    if npairs == stop:
+                        return npairs, pi, pj, work
+            if work > limit:
+                return np.int64(-1), pi, pj, work
+    return npairs, pi, pj, work
+
+
+@_kernel
 def _single_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, npairs, pi, pj, work, limit, stop,
                   l0, l1):
+    """The pairs of slab k as :func:`_slab_step` needs them: by :func:`_cell_sweep` for a slab of at
+    least :data:`_CELL_SWEEP` faces, else by :func:`_x_sweep` (the same pairs; arguments and
+    result as there)."""
+    if len(faces) >= _CELL_SWEEP:
+        return _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, npairs, pi, pj, work,
+                           limit, stop, l0, l1)
+    return _x_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, npairs, pi, pj, work, limit, stop,
+                    l0, l1)
+
+
+@njit(cache=True, **_OPTIONS)
+def _slab_sweep_pairs(V, ws, F, star, sst, lev, lo_, hi_, faces, k, cells):
+    """One slab's pairs by :func:`_cell_sweep` (``cells == 1``) or :func:`_x_sweep` (``0``), whatever
+    its size, with fresh workspaces and no budget: ``(pi, pj, work)``, for the tests that compare
+    the two."""
+    n = max(len(faces), 1)
+    W = np.empty((n, 16), np.float64)
+    a = np.empty(n, np.int64)
+    b = np.empty(n, np.int64)
+    start = np.empty(n + 1, np.int64)
+    pi = np.empty(16, np.int64)
+    pj = np.empty(16, np.int64)
+    zero = k - k
+    limit = zero + 2 ** 62
+    if cells == 1:
+        npairs, pi, pj, work = _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, a, b, start, zero, pi, pj,
+                                           zero, limit, zero, zero, zero)
+    else:
+        npairs, pi, pj, work = _x_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, a, b, start, zero, pi, pj, zero,
+                                        limit, zero, zero, zero)
+    return pi[:npairs], pj[:npairs], work
+
+
+@njit(cache=True, **_OPTIONS)
+def _plane_candidates(xlo, xhi, ylo, yhi, grp, ids, need2, cells):
+    """The candidate pairs of the entries ``ids`` by :func:`_cell_pairs` (``cells == 1``) or
+    :func:`_x_pairs` (``0``), whatever their number, without a budget: ``(out_i, out_j, work)``,
+    for the tests that compare the two."""
+    zero = need2 - need2
+    out_i = np.empty(16, np.int64)
+    out_j = np.empty(16, np.int64)
+    limit = zero + 2 ** 62
+    if cells == 1:
+        out_i, out_j, n_out, work = _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, zero, zero, limit, need2)
+    else:
+        out_i, out_j, n_out, work = _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, zero, zero, limit, need2)
+    return out_i[:n_out], out_j[:n_out], work
+
+
+@_kernel
+def _x_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, npairs, pi, pj, work, limit, stop,
+             l0, l1):
     """The pairs of slab k (its faces ``faces``, levels ``lo_``, ``hi_`` per face), its candidates
     as :func:`_sweep` finds them (the same buckets, box tests and work), tested as they are found
     (as in :func:`_slab_step`, so a search that stops at its first pair stops there), less the
