@@ -429,10 +429,10 @@ def _bipyramid(n, apex_lo=True):
 
 @pytest.mark.parametrize("n", [3, 11, 12, 13, 40])
 def test_edge_kernels_small_and_large_buckets_equal_the_sorted_forms(n):
-    """The edge counts and half-edge twins match buckets by comparing their entries up to
-    _SMALL_BUCKET half-edges and through tables per vertex above: both ways give the counts of
-    np.unique and the twins and statuses of the sorted search (bipyramids whose apexes have 2 n
-    half-edges in their buckets, on both sides of the bound; faces and vertices shuffled)."""
+    """The edge counts and half-edge twins match every bucket through tables per vertex, small
+    buckets and large alike: they give the counts of np.unique and the twins and statuses of the
+    sorted search (bipyramids whose apexes have 2 n half-edges in their buckets, on both sides
+    of the bound of 24 the comparing form used for small buckets; faces and vertices shuffled)."""
     rng = np.random.default_rng(n)
     for apex_lo in (True, False):
         F, nv = _bipyramid(n, apex_lo)
@@ -1199,3 +1199,120 @@ def test_fan_cycles_equal_the_union_find_over_the_links(monkeypatch):
         want_V, want_F = _split_reference(V, F, 1e-3)
         assert np.array_equal(got_F, want_F) and np.array_equal(got_V.view(np.int64), want_V.view(np.int64))
     assert several > 10  # (vertices of several fans)
+
+
+@njit
+def _set_replay(ops):
+    """The compiled set helpers of the four-face edge split replaying ``ops`` (rows ``(0, key)``
+    add, ``(1, key)`` discard) on one set: its keys in table order and whether it fit."""
+    tk = np.full((1, repair._SET_CAP), repair._SET_NULL, np.int64)
+    tq = np.zeros((1, repair._SET_CAP), np.int64)
+    meta = np.zeros((1, 3), np.int64)
+    meta[0, 0] = 7
+    old_k = np.empty(repair._SET_CAP, np.int64)
+    old_q = np.empty(repair._SET_CAP, np.int64)
+    for t in range(ops.shape[0]):
+        if ops[t, 0] == 0:
+            if not repair._set_add(tk, tq, meta, 0, ops[t, 1], -ops[t, 1], old_k, old_q):
+                return np.zeros(0, np.int64), np.zeros(0, np.int64), False
+        else:
+            repair._set_discard(tk, meta, 0, ops[t, 1])
+    keys, slots = [], []
+    for j in range(meta[0, 0] + 1):
+        if tk[0, j] >= 0:
+            keys.append(tk[0, j])
+            slots.append(tq[0, j])
+    return np.array(keys, dtype=np.int64), np.array(slots, dtype=np.int64), True
+
+
+def test_compiled_sets_iterate_as_python_sets():
+    """The four-face edge split's compiled sets of face numbers give the iteration order of this
+    Python's sets after the same additions and removals (random sequences of keys small and large,
+    re-added, removed and absent, with the tables' dummies and growth), each key with its slot."""
+    rng = np.random.default_rng(29)
+    fit = grown = 0
+    for trial in range(4000):
+        hi = int(rng.choice([8, 16, 33, 64, 10**6, 2**40]))
+        ops, s, live = [], set(), []
+        for _ in range(int(rng.integers(1, 30))):
+            if live and rng.random() < 0.4:
+                x = live.pop(int(rng.integers(len(live)))) if rng.random() < 0.9 else int(rng.integers(hi))
+                ops.append((1, x))
+                s.discard(x)
+            else:
+                x = int(rng.integers(hi))
+                ops.append((0, x))
+                if x not in s:
+                    live.append(x)
+                s.add(x)
+        keys, slots, ok = _set_replay(np.array(ops, dtype=np.int64).reshape(-1, 2))
+        if ok:
+            assert keys.tolist() == list(s)
+            assert np.array_equal(slots, -keys)
+            fit += 1
+            grown += len(ops) - sum(o == 1 for o, _ in ops) > 4
+    assert fit > 3000 and grown > 500
+
+
+def _four_face_inputs(rng, trials=6):
+    """The general mesher's inputs to the four-face edge split on random voxel volumes."""
+    import contourmesh
+    from contourmesh import volumes
+
+    seen = []
+    real = volumes._split_four_face_edges
+
+    def keep(V, F, side, nudge):
+        seen.append((V.copy(), F.copy(), side.copy(), nudge))
+        return real(V, F, side, nudge)
+
+    volumes._split_four_face_edges = keep
+    try:
+        for _ in range(trials):
+            contourmesh.mesh(np.pad(rng.random((6, 14, 13)) < 0.4, 1))
+    finally:
+        volumes._split_four_face_edges = real
+    return seen
+
+
+def test_compiled_split_loop_equals_the_python_loop(monkeypatch):
+    """The four-face edge split with its compiled loop (:func:`repair._split_faces`) gives what the
+    Python loop gives, bit for bit, on the general mesher's meshes (faces with two four-face edges
+    among them) and on those meshes with the sides of the faces renumbered at random (other
+    pairings, other orders of the sides); where a set does not pair by side or has other than four
+    faces the compiled loop reports it and the Python loop's error is raised."""
+    rng = np.random.default_rng(31)
+    runs = 0
+    for V, F, side, nudge in _four_face_inputs(rng):
+        for trial in range(3):
+            sd = side if trial == 0 else rng.permutation(8)[side % 8] + 4 * (side // 8)
+            monkeypatch.setattr(repair, "_COMPILED_SET_ORDER", False)
+            try:
+                want = repair._split_four_face_edges(V, F, sd, nudge)
+            except RuntimeError as err:
+                want = str(err)
+            monkeypatch.setattr(repair, "_COMPILED_SET_ORDER", True)
+            try:
+                got = repair._split_four_face_edges(V, F, sd, nudge)
+            except RuntimeError as err:
+                got = str(err)
+            if isinstance(want, str):
+                assert got == want
+                continue
+            assert all(np.array_equal(g, w) and g.dtype == w.dtype for g, w in zip(got, want))
+            assert np.array_equal(got[0].view(np.int64), want[0].view(np.int64))
+            runs += len(got[1]) > len(F)
+    assert runs >= 6
+    # a four-face edge whose faces do not pair by side, and one whose set lost a face: reported
+    # by the compiled loop, named by the Python loop
+    F = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 0, 5]], dtype=np.int64)
+    _, _, work, hit = repair._four_face_rows(repair._edge_multiplicity(F, 6))
+    args = (np.int64(4), np.int64(6), np.int64(20))
+    assert repair._split_faces(F[work], np.array([0, 1, 0, 1]), work, hit, *args)[0]
+    assert not repair._split_faces(F[work], np.array([0, 0, 0, 1]), work, hit, *args)[0]
+    with pytest.raises(RuntimeError, match="does not pair by side"):
+        repair._split_faces_py(F[work], np.array([0, 0, 0, 1]), work, hit, 4, 6, 20)
+    hit[0, 0] = False  # (face 0 left out of the edge's set: three faces)
+    assert not repair._split_faces(F[work], np.array([0, 1, 0, 1]), work, hit, *args)[0]
+    with pytest.raises(RuntimeError, match="shared by 3 faces while splitting"):
+        repair._split_faces_py(F[work], np.array([0, 1, 0, 1]), work, hit, 4, 6, 20)

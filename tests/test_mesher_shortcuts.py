@@ -414,13 +414,25 @@ def test_open_necks_at_once_equals_the_loop(monkeypatch):
     crossed = []
     real = repair._tube_crosses
     monkeypatch.setattr(repair, "_tube_crosses", lambda *a, **k: crossed.append(real(*a, **k)) or crossed[-1])
+    tests = []
+    real_any = repair._any_kernel
+    monkeypatch.setattr(repair, "_any_kernel", lambda *a: tests.append(1) or real_any(*a))
     later = 0
     for V, F, S, N, nudge in inputs:
         want = repair._open_necks_loop(V, F, S, N, nudge)
-        got = repair._open_necks(V, F, S, N, nudge)
-        for a, b in zip(got, want):
-            assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
         ids = np.unique(N)
+        # without a kept dict, and twice with one: the second time every tube's crossing test is
+        # answered from it (crossing tubes too: their further walks are made again)
+        kept: dict = {}
+        runs = []
+        for seen in (None, kept, kept):
+            n0 = len(tests)
+            got = repair._open_necks(V, F, S, N, nudge, tube_seen=seen)
+            runs.append(len(tests) - n0)
+            for a, b in zip(got, want):
+                assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
+        assert sum(1 for k in kept if k[0] == "tube at once") == len(ids)
+        assert runs[0] == runs[1] >= len(ids) and runs[2] == runs[0] - len(ids)
         mark = np.zeros(len(V), dtype=bool)
         mark[ids] = True
         rows = repair._rows_touching(F, mark)
@@ -434,7 +446,8 @@ def test_open_necks_at_once_equals_the_loop(monkeypatch):
 def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
     """repair._open_necks_loop (the one-neck-at-a-time form, which _open_necks falls back on) with a
     kept dict: a second call on the same mesh takes every neck's rings and faces from it, and gives
-    the same arrays as a call without the dict, and as _open_necks (which keeps nothing in it)."""
+    the same arrays as a call without the dict, and as _open_necks (which keeps only its tubes'
+    crossing answers in it)."""
     from contourmesh import repair
 
     seen_inputs = _neck_inputs(monkeypatch, [(4, (10, 40, 40), None, 0.5)])

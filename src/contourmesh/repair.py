@@ -9,6 +9,8 @@ same faces.  Used by the volume mesher and the stack mesher alike; mesh in, mesh
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from ._kernels import njit
@@ -30,8 +32,10 @@ def _split_four_face_edges(V, F, side, nudge):
     Only the four-face edges' sets are ever read, and a face's split replaces its four-face edge
     and keeps its two other edges, so here only the four-face edges have sets, each receiving the
     same additions and removals in the same order: the same iteration orders, the same mesh.
-    The loop handles integers alone; the new vertices' coordinates are made after it, in a few
-    whole-array steps (:func:`_midpoints`).
+    The loop handles integers alone, compiled (:func:`_split_faces`, which keeps each set as
+    CPython's table of it: the same iteration orders; the Python loop, :func:`_split_faces_py`, where
+    it reports a fault); the new vertices' coordinates are made after it, in a few whole-array
+    steps (:func:`_midpoints`).
     """
     m = len(F)
     Fc = np.ascontiguousarray(F, dtype=np.int64)
@@ -46,15 +50,38 @@ def _split_four_face_edges(V, F, side, nudge):
         raise RuntimeError(f"internal error: an edge is shared by {int(most)} faces")
     if not len(work):
         return V, F, side
-    Fw = F[work]
+    Fw = np.ascontiguousarray(F[work], dtype=np.int64)
+    # an edge u < v as the int u * base + v (every vertex, old or new, is below base)
+    base = len(V) + 2 * len(work) + 1  # (at most two new vertices per four-face edge, 3/4 of one per face)
+    done = False
+    if _COMPILED_SET_ORDER:
+        done, added, added_sides, made = _split_faces(Fw, np.ascontiguousarray(side[work], dtype=np.int64), work,
+                                                      fw_hit, np.int64(m), np.int64(len(V)), np.int64(base))
+    if not done:  # (the loop names the fault, if there is one)
+        added, added_sides, made = _split_faces_py(Fw, side[work], work, fw_hit, m, len(V), base)
+    # (made: per new vertex o0, o1, u, v)
+    made = made[:, [2, 3, 0, 1]]
+    newV = _midpoints(V, np.ascontiguousarray(made), nudge)
+    keep = np.ones(m, dtype=bool)
+    keep[work] = False
+    F2, S2 = _kept_and_added(F, side, keep, added, added_sides)
+    V2 = np.concatenate([V, newV])
+    return V2, F2, S2
+
+
+def _split_faces_py(Fw, sw, work, fw_hit, m, nv, base):
+    """The splitting loop of :func:`_split_four_face_edges` in Python, on the faces ``Fw`` (numbers
+    ``work``, sides ``sw``) with their four-face edges ``fw_hit``: ``(added, added_sides, made)``,
+    the faces made and left (``(k, 3)`` int64, in the order a dict of the live faces keeps them)
+    with their sides, and per new vertex ``(o0, o1, u, v)``.  The form :func:`_split_faces`
+    replaces; it runs where that one reports a fault (and raises the error that names it) or where
+    Python's sets are not CPython's."""
     # the faces as slots of flat lists of ints (the work faces in order, then the new ones; ints
     # and flat lists: few objects for the collector to count, as lists and tuples per face were),
     # ``slot`` the live faces' (face number -> slot, in insertion order as the reference's dict)
     fa, fb, fc = Fw[:, 0].tolist(), Fw[:, 1].tolist(), Fw[:, 2].tolist()
-    fside = side[work].tolist()
+    fside = np.asarray(sw).tolist()
     slot = dict(zip(work.tolist(), range(len(work))))
-    # an edge u < v as the int u * base + v (every vertex, old or new, is below base)
-    base = len(V) + 2 * len(work) + 1  # (at most two new vertices per four-face edge, 3/4 of one per face)
     # the four-face edges' sets, filled as the reference fills them: faces in order, edges in order
     lo_w = np.minimum(Fw, np.roll(Fw, -1, axis=1))
     hi_w = np.maximum(Fw, np.roll(Fw, -1, axis=1))
@@ -67,7 +94,7 @@ def _split_four_face_edges(V, F, side, nudge):
     # the faces first, in integers alone: each new vertex recorded as (u, v, o0, o1), the edge it
     # splits and the opposite corners of its two faces; their coordinates after (_midpoints)
     made = []
-    nxt_v = len(V)
+    nxt_v = nv
     nxt_f = m
     for key in sorted(by_edge):  # (the edges (u, v) in order)
         u, v = divmod(key, base)
@@ -115,16 +142,311 @@ def _split_four_face_edges(V, F, side, nudge):
                         st.add(nxt_f)
                     nxt_f += 1
     del by_edge
-    # (made: per new vertex o0, o1, u, v)
-    made = np.array(made, dtype=np.int64).reshape(-1, 4)[:, [2, 3, 0, 1]]
-    newV = _midpoints(V, np.ascontiguousarray(made), nudge)
-    keep = np.ones(m, dtype=bool)
-    keep[work] = False
     live = np.fromiter(slot.values(), dtype=np.int64, count=len(slot))  # (the live faces' slots, in order)
-    added = np.stack([np.array(fa)[live], np.array(fb)[live], np.array(fc)[live]], axis=1)
-    F2, S2 = _kept_and_added(F, side, keep, added, np.array(fside)[live])
-    V2 = np.concatenate([V, newV])
-    return V2, F2, S2
+    added = np.stack([np.array(fa, dtype=np.int64)[live], np.array(fb, dtype=np.int64)[live],
+                      np.array(fc, dtype=np.int64)[live]], axis=1)
+    return added, np.array(fside, dtype=np.int64)[live], np.array(made, dtype=np.int64).reshape(-1, 4)
+
+
+#: Whether :func:`_split_faces` may stand for the Python loop: it keeps each set of face numbers
+#: as CPython keeps a set of ints (``Objects/setobject.c``: an int's hash is its value, a small
+#: table of 8 slots, probing, dummies, resizing), so its iteration orders are CPython's.
+_COMPILED_SET_ORDER = sys.implementation.name == "cpython"
+
+# CPython's set tables: a lookup tries the slot ``hash & mask`` and, where they fit in the table,
+# the ``_LINEAR_PROBES`` slots after it, then jumps to ``(i * 5 + 1 + perturb) & mask`` with
+# ``perturb`` (at first the hash) shifted right by ``_PERTURB_SHIFT``; a table grows when its
+# used and dummy slots reach 3/5 of it.  ``_SET_CAP``: the largest table kept here (a set of
+# four faces, a few of them replaced, needs 32 slots at most; a larger one is reported).
+_LINEAR_PROBES = 9
+_PERTURB_SHIFT = 5
+_SET_CAP = 32
+_SET_NULL = -2  # (an empty slot; -1 a dummy, one emptied by a removal; >= 0 a face number)
+_SET_DUMMY = -1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _set_insert_clean(tk, tq, s, mask, key, q):
+    """CPython's ``set_insert_clean``: ``key`` (with its slot ``q``) into the first empty slot
+    of table ``s`` along its probe sequence (a table being rebuilt: no dummies, no equal key)."""
+    i = key & mask
+    perturb = key
+    while True:
+        if tk[s, i] == _SET_NULL:
+            tk[s, i] = key
+            tq[s, i] = q
+            return
+        if i + _LINEAR_PROBES <= mask:
+            for j in range(i + 1, i + _LINEAR_PROBES + 1):
+                if tk[s, j] == _SET_NULL:
+                    tk[s, j] = key
+                    tq[s, j] = q
+                    return
+        perturb >>= _PERTURB_SHIFT
+        i = (i * 5 + 1 + perturb) & mask
+
+
+@njit(cache=True, nogil=True)
+def _set_add(tk, tq, meta, s, key, q, old_k, old_q):
+    """CPython's ``set_add_entry`` for the int ``key`` (its own hash) on table ``s`` (``tk[s]``
+    its slots, ``tq[s]`` the face slot beside each key, ``meta[s]`` its mask, fill and used
+    counts): a key met on the probe sequence is kept; else the key goes into the last dummy slot
+    passed before the first empty one, or into that empty one, and then the table is rebuilt
+    (``set_table_resize``, ``old_k`` and ``old_q`` scratch) where its filled slots reach 3/5.
+    False where the table would grow beyond ``_SET_CAP`` (nothing then to rely on)."""
+    mask = meta[s, 0]
+    i = key & mask
+    perturb = key
+    free = -1
+    j = -1
+    while j < 0:
+        probes = _LINEAR_PROBES if i + _LINEAR_PROBES <= mask else 0
+        e = i
+        while True:
+            k = tk[s, e]
+            if k == _SET_NULL:
+                j = e
+                break
+            if k == key:
+                return True
+            if k == _SET_DUMMY:
+                free = e
+            e += 1
+            if probes == 0:
+                break
+            probes -= 1
+        if j < 0:
+            perturb >>= _PERTURB_SHIFT
+            i = (i * 5 + 1 + perturb) & mask
+    if free >= 0:
+        tk[s, free] = key
+        tq[s, free] = q
+        meta[s, 2] += 1
+        return True
+    tk[s, j] = key
+    tq[s, j] = q
+    meta[s, 1] += 1
+    meta[s, 2] += 1
+    if meta[s, 1] * 5 < mask * 3:
+        return True
+    used = meta[s, 2]
+    minused = used * 2 if used > 50000 else used * 4
+    size = 8
+    while size <= minused:
+        size <<= 1
+    if size > _SET_CAP:
+        return False
+    if size == 8 and mask == 7 and meta[s, 1] == used:  # (the small table without dummies stays)
+        return True
+    for e in range(mask + 1):
+        old_k[e] = tk[s, e]
+        old_q[e] = tq[s, e]
+        tk[s, e] = _SET_NULL
+    meta[s, 0] = size - 1
+    meta[s, 1] = used
+    for e in range(mask + 1):
+        if old_k[e] >= 0:
+            _set_insert_clean(tk, tq, s, size - 1, old_k[e], old_q[e])
+    return True
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _set_discard(tk, meta, s, key):
+    """CPython's ``set_discard_entry`` for the int ``key`` on table ``s``: its slot, if the probe
+    sequence meets it before an empty slot, becomes a dummy."""
+    mask = meta[s, 0]
+    i = key & mask
+    perturb = key
+    while True:
+        probes = _LINEAR_PROBES if i + _LINEAR_PROBES <= mask else 0
+        e = i
+        while True:
+            k = tk[s, e]
+            if k == _SET_NULL:
+                return
+            if k == key:
+                tk[s, e] = _SET_DUMMY
+                meta[s, 2] -= 1
+                return
+            e += 1
+            if probes == 0:
+                break
+            probes -= 1
+        perturb >>= _PERTURB_SHIFT
+        i = (i * 5 + 1 + perturb) & mask
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _edge_set(ekeys, x, y, base):
+    """The set of the edge ``(x, y)`` (its key's index in the sorted ``ekeys``), -1 if it has none."""
+    key = x * base + y if x < y else y * base + x
+    lo = 0
+    hi = ekeys.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if ekeys[mid] < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    if lo < ekeys.shape[0] and ekeys[lo] == key:
+        return lo
+    return -1
+
+
+@njit(cache=True, nogil=True)
+def _split_faces(Fw, sw, work, hit, m, nv, base):
+    """:func:`_split_faces_py` compiled: ``(done, added, added_sides, made)``, the same three
+    arrays where ``done``; not done (nothing to rely on) where the loop would raise (an edge
+    whose set does not hold four faces of two sides in pairs) or a set's table would outgrow
+    ``_SET_CAP``.  Each four-face edge's set of face numbers is kept as CPython's table of that
+    set (:func:`_set_add`, :func:`_set_discard`), filled, emptied and read in the loop's order,
+    so its faces come in the order the loop's ``list(set)`` gives them; a face's slot (its place
+    in the lists of faces) rides beside its number in the table."""
+    nw = Fw.shape[0]
+    nh = 0
+    for r in range(nw):
+        for t in range(3):
+            nh += hit[r, t]
+    hk = np.empty(nh, np.int64)
+    at = 0
+    for r in range(nw):
+        for t in range(3):
+            if hit[r, t]:
+                x = Fw[r, t]
+                y = Fw[r, (t + 1) % 3]
+                hk[at] = x * base + y if x < y else y * base + x
+                at += 1
+    srt = np.sort(hk)
+    ne = 0
+    for a in range(nh):
+        if a == 0 or srt[a] != srt[a - 1]:
+            srt[ne] = srt[a]
+            ne += 1
+    ekeys = srt[:ne]  # (the four-face edges' keys, increasing: the loop's order)
+    tk = np.full((ne, _SET_CAP), _SET_NULL, np.int64)
+    tq = np.empty((ne, _SET_CAP), np.int64)
+    meta = np.zeros((ne, 3), np.int64)  # (per set: mask, fill, used)
+    for s in range(ne):
+        meta[s, 0] = 7
+    old_k = np.empty(_SET_CAP, np.int64)
+    old_q = np.empty(_SET_CAP, np.int64)
+    cap = nw + 8 * ne  # (two new faces per face of a four-face edge)
+    fa = np.empty(cap, np.int64)
+    fb = np.empty(cap, np.int64)
+    fc = np.empty(cap, np.int64)
+    fs = np.empty(cap, np.int64)
+    alive = np.zeros(cap, np.bool_)
+    empty = np.zeros((0, 3), np.int64)
+    for r in range(nw):
+        fa[r] = Fw[r, 0]
+        fb[r] = Fw[r, 1]
+        fc[r] = Fw[r, 2]
+        fs[r] = sw[r]
+        alive[r] = True
+    for r in range(nw):  # (faces in order, edges in order)
+        for t in range(3):
+            if hit[r, t]:
+                s = _edge_set(ekeys, Fw[r, t], Fw[r, (t + 1) % 3], base)
+                if not _set_add(tk, tq, meta, s, work[r], r, old_k, old_q):
+                    return False, empty, fs[:0], empty
+    made = np.empty((2 * ne, 4), np.int64)
+    nm = 0
+    nslots = nw
+    nxt_v = nv
+    nxt_f = m
+    fk = np.empty(4, np.int64)  # (the edge's faces in the set's order: numbers and slots)
+    fq = np.empty(4, np.int64)
+    grp = np.empty(4, np.int64)  # (the two faces of the first face's side, then the other two)
+    for e in range(ne):
+        u = ekeys[e] // base
+        v = ekeys[e] % base
+        cnt = 0
+        for j in range(meta[e, 0] + 1):
+            k = tk[e, j]
+            if k >= 0:
+                if cnt < 4:
+                    fk[cnt] = k
+                    fq[cnt] = tq[e, j]
+                cnt += 1
+        if cnt != 4:
+            return False, empty, fs[:0], empty
+        s0 = fs[fq[0]]
+        n0 = 0
+        for i in range(4):
+            if fs[fq[i]] == s0:
+                grp[n0] = i
+                n0 += 1
+        if n0 != 2:
+            return False, empty, fs[:0], empty
+        n1 = 2
+        for i in range(4):
+            if fs[fq[i]] != s0:
+                grp[n1] = i
+                n1 += 1
+        if fs[fq[grp[2]]] != fs[fq[grp[3]]]:
+            return False, empty, fs[:0], empty
+        for g in range(2):
+            sd = fs[fq[grp[2 * g]]]
+            for h in range(2):  # (each face's first corner off the edge)
+                q = fq[grp[2 * g + h]]
+                if fa[q] != u and fa[q] != v:
+                    made[nm, h] = fa[q]
+                elif fb[q] != u and fb[q] != v:
+                    made[nm, h] = fb[q]
+                elif fc[q] != u and fc[q] != v:
+                    made[nm, h] = fc[q]
+                else:
+                    return False, empty, fs[:0], empty
+            made[nm, 2] = u
+            made[nm, 3] = v
+            nm += 1
+            mv = nxt_v
+            nxt_v += 1
+            for h in range(2):
+                i = fk[grp[2 * g + h]]
+                q = fq[grp[2 * g + h]]
+                if not alive[q]:
+                    return False, empty, fs[:0], empty
+                alive[q] = False
+                f0 = fa[q]
+                f1 = fb[q]
+                f2 = fc[q]
+                for x, y in ((f0, f1), (f1, f2), (f2, f0)):
+                    s = _edge_set(ekeys, x, y, base)
+                    if s >= 0:
+                        _set_discard(tk, meta, s, i)
+                if (f0 == u and f1 == v) or (f0 == v and f1 == u):
+                    a, b, c = f0, f1, f2
+                elif (f1 == u and f2 == v) or (f1 == v and f2 == u):
+                    a, b, c = f1, f2, f0
+                else:
+                    a, b, c = f2, f0, f1
+                for x, y, z, p, w in ((a, mv, c, c, a), (mv, b, c, b, c)):
+                    fa[nslots] = x
+                    fb[nslots] = y
+                    fc[nslots] = z
+                    fs[nslots] = sd
+                    alive[nslots] = True
+                    s = _edge_set(ekeys, p, w, base)
+                    if s >= 0:
+                        if not _set_add(tk, tq, meta, s, nxt_f, nslots, old_k, old_q):
+                            return False, empty, fs[:0], empty
+                    nslots += 1
+                    nxt_f += 1
+    k = 0
+    for q in range(nslots):
+        k += alive[q]
+    added = np.empty((k, 3), np.int64)
+    sides = np.empty(k, np.int64)
+    at = 0
+    for q in range(nslots):  # (the live faces by slot: the order of the loop's dict)
+        if alive[q]:
+            added[at, 0] = fa[q]
+            added[at, 1] = fb[q]
+            added[at, 2] = fc[q]
+            sides[at] = fs[q]
+            at += 1
+    return True, added, sides, made[:nm]
 
 
 @njit(cache=True, nogil=True)
@@ -283,12 +605,6 @@ def _lower_scatter(F, v0, v1, fill, items, other):
                 fill[key] = t + 1
 
 
-#: Buckets (:func:`_half_edges_by_vertex`) of at most this many half-edges are matched among
-#: themselves (a few comparisons each, in the bucket's own rows); larger ones through tables per
-#: vertex.  A closed mesh's buckets hold about six.
-_SMALL_BUCKET = 24
-
-
 @njit(cache=True, nogil=True)
 def _edge_multiplicity(F, nv):
     """Per face edge ``(F[i, k], F[i, k + 1])``, the number of face edges with the same two
@@ -303,25 +619,18 @@ def _edge_multiplicity(F, nv):
 
 @njit(cache=True, nogil=True)
 def _edge_multiplicity_range(start, items, other, v0, v1, out, cnt):
-    """:func:`_edge_multiplicity`'s counts for the buckets ``v0 .. v1 - 1``: in a small bucket by
-    comparing its entries, in a large one in a scratch array indexed by the upper vertex (``cnt``:
-    zeros, ``nv``; left zero)."""
+    """:func:`_edge_multiplicity`'s counts for the buckets ``v0 .. v1 - 1``, in a scratch array
+    indexed by the upper vertex (``cnt``: zeros, ``nv``; left zero), every bucket alike (three
+    short passes over a bucket instead of comparing each entry with all others: about 40% less
+    time on the lobster's meshes, whose buckets hold about six), written into ``out`` (``(m, 3)``)
+    by half-edge number."""
+    flat = out.reshape(-1)
     for v in range(v0, v1):
         s0, s1 = start[v], start[v + 1]
-        if s1 - s0 <= _SMALL_BUCKET:
-            for t in range(s0, s1):
-                w = _upper(other[t])
-                c = 0
-                for t2 in range(s0, s1):
-                    c += _upper(other[t2]) == w
-                h = items[t]
-                out[h // 3, h % 3] = c
-            continue
         for t in range(s0, s1):
             cnt[_upper(other[t])] += 1
         for t in range(s0, s1):
-            h = items[t]
-            out[h // 3, h % 3] = cnt[_upper(other[t])]
+            flat[items[t]] = cnt[_upper(other[t])]
         for t in range(s0, s1):
             cnt[_upper(other[t])] = 0
 
@@ -423,7 +732,8 @@ def _fan_components(twin):
         x = c
         while True:
             lab[x] = count
-            x = np.int64(twin[3 * (x // 3) + (x % 3 + 2) % 3])
+            # (prev(x): the corner before x in its face, without the division by 3)
+            x = np.int64(twin[x + 2 if x % 3 == 0 else x - 1])
             if lab[x] >= 0:  # (back at c; twins that are no involution stop here too)
                 break
         count += 1
@@ -630,29 +940,12 @@ def _half_edge_twins(F, nv):
 def _twins_range(start, items, other, x0, x1, twin, up, down):
     """:func:`_half_edge_twins` for the buckets ``x0 .. x1 - 1``; returns its status.  Each
     bucket is first checked for an edge used twice in one direction (status 1), then every
-    half-edge is matched with its opposite (status 2 where there is none): in a small bucket by
-    comparing its entries, in a large one through ``up[w]`` (the half-edge ``x -> w``) and
-    ``down[w]`` (the half-edge ``w -> x``), tables of -1 over the vertices (left so)."""
+    half-edge is matched with its opposite (status 2 where there is none), through ``up[w]`` (the
+    half-edge ``x -> w``) and ``down[w]`` (the half-edge ``w -> x``), tables of -1 over the
+    vertices (left so), every bucket alike (the same twins and statuses as comparing the entries
+    of a small bucket among themselves, the form before; about a quarter less time)."""
     for x in range(x0, x1):
         s0, s1 = start[x], start[x + 1]
-        if s1 - s0 <= _SMALL_BUCKET:
-            for t in range(s0 + 1, s1):  # (the same entry, direction and vertex, twice)
-                o = other[t]
-                for t2 in range(s0, t):
-                    if other[t2] == o:
-                        return np.int64(1)
-            for t in range(s0, s1):
-                o = other[t]
-                want = o if o == x else ~o  # (a loop is its own opposite)
-                g = -1
-                for t2 in range(s0, s1):
-                    if other[t2] == want:
-                        g = items[t2]
-                        break
-                if g < 0:
-                    return np.int64(2)
-                twin[items[t]] = g
-            continue
         for t in range(s0, s1):
             o = other[t]
             if o >= 0:  # x -> o (o == x: a loop)
@@ -715,7 +1008,10 @@ def _open_necks(V, F, S, necks, nudge, tube_seen=None):
        directly, and for the few tubes that cross, the loop's further walks (:func:`_tube_retry`);
     4. the faces, in the order the loop adds them (each neck's fan faces still alive, then its tube).
 
-    ``tube_seen`` (a dict kept by the caller across rebuilds) is used by the loop form alone.
+    ``tube_seen`` (a dict kept by the caller across rebuilds): the loop form's memo of whole necks
+    and here the answers of the tubes' crossing tests, each keyed by the bytes of the test's points
+    and faces (all that the answer depends on; on the lobster's rebuild all 546 tubes are met
+    again, 0.018 s of tests saved).
     Fewer than :data:`_NECKS_AT_ONCE` necks, vertices other than finite float64 ones, or
     coordinates that the crossing test would have to rescale, and meshes the loop refuses (with
     its message) go to :func:`_open_necks_loop`.
@@ -757,7 +1053,15 @@ def _open_necks_at_once(V, F, S, necks, nudge, tube_seen=None):
     at, pa = cyc_at.tolist(), p_at.tolist()
     for j in range(len(neck_ids)):  # (the crossing kernel itself: the mesher's tests load it anyway)
         s0, s1, s2 = at[2 * j], at[2 * j + 1], at[2 * j + 2]
-        if _any_kernel(P[pa[j]:pa[j + 1]], Fl[3 * s0:3 * s2], delay):
+        Pj, Fj = P[pa[j]:pa[j + 1]], Fl[3 * s0:3 * s2]
+        if tube_seen is None:
+            crosses = _any_kernel(Pj, Fj, delay)
+        else:  # (the test's answer depends on these bytes alone: a rebuild meets most tubes again)
+            memo = ("tube at once", Pj.tobytes(), Fj.tobytes())
+            crosses = tube_seen.get(memo)
+            if crosses is None:
+                crosses = tube_seen[memo] = _any_kernel(Pj, Fj, delay)
+        if crosses:
             b = (n_v + s2 - 1 - (j0[j] + np.arange(s2 - s1)) % (s2 - s1)).tolist()
             _tube_retry(Vc, R, fans[2 * s0:2 * s2], tube[s0:s2], list(range(n_v + s0, n_v + s1)), b, delay)
     added = _neck_faces(cyc_at, fans, fan_alive, tube)

@@ -318,7 +318,8 @@ def _warm_volumes() -> list:
 
 def _warm_rare() -> None:
     """Kernels of paths that small volumes rarely take: the vertex-fan split of the manifold repair
-    (two tetrahedra sharing a vertex) and its copy of the kept faces, the crossing repair (two overlapping cubes
+    (two tetrahedra sharing a vertex), its split of four-face edges (two sharing an edge) and its
+    copy of the kept faces, the crossing repair (two overlapping cubes
     pulled apart, and the crossing pairs recounted after one cube moved), the optimal band
     with its work bounded (large polygons) and the band refinement's crease gains."""
     import numpy as np
@@ -345,6 +346,9 @@ def _warm_rare() -> None:
     split_nonmanifold_vertices(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0],
                                          [0, 0, -1.0]]), np.vstack([tet, np.where(tet > 0, tet + 3, 0)]),
                                1e-3, four_face=False)
+    # ... and the split of four-face edges before it (two tetrahedra sharing an edge)
+    split_nonmanifold_vertices(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0], [0, 0, -1.0]]),
+                               np.vstack([tet, np.where(tet > 1, tet + 2, tet)]), 1e-3, side=np.repeat([1, 2], 4))
     # the manifold repair's copy of the kept faces (four-face edges, necks), with sides of both
     # widths (the volume mesher's carry tags in int32, the repair's own are int64)
     for dt in (np.int32, np.int64):
