@@ -1707,6 +1707,27 @@ def _slab_hit(V, ws, F, star, quick, i, j):
 
 
 @_pure
+def _apart_in_slab(V, F, lev, lo_, W, s, u, i, j):
+    """Whether faces ``i`` and ``j`` of one slab (rows ``s`` and ``u`` of its table ``W``, as
+    :func:`_x_sweep` and :func:`_cell_sweep` fill it) are apart by the corner-range rules, with no
+    exact test: both have every corner on the slab's two levels, and their ends are apart (which
+    no two faces with a common corner are), or apart but at their one common corner."""
+    if not (W[s, 15] == 1.0 and W[u, 15] == 1.0 and W[s, 13] == W[u, 13] and W[s, 14] == W[u, 14]):
+        return False
+    if ((W[s, 5] < W[u, 4] and W[s, 9] < W[u, 8]) or (W[u, 5] < W[s, 4] and W[u, 9] < W[s, 8])
+            or (W[s, 7] < W[u, 6] and W[s, 11] < W[u, 10]) or (W[u, 7] < W[s, 6] and W[u, 11] < W[s, 10])):
+        return True
+    ns = 0
+    p = np.int64(-1)
+    for c in range(3):
+        v = F[i, c]
+        if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
+            ns += 1
+            p = v
+    return ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo_[i])
+
+
+@_pure
 def _apart_but_corner_w(W, a, b, px, py, bottom):
     """The rule "apart but at a corner" (see the note above) for the faces of rows ``a`` and ``b`` of :func:`_single_sweep`'s
     ``W`` with their one common corner at ``px, py`` on plane k (``bottom``) or k + 1: the same
@@ -1864,20 +1885,8 @@ def _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, cx0, cy0, start
                     continue  # (taken in the cell of the low corner of the overlap)
                 i = np.int64(faces[s])
                 j = np.int64(faces[u])
-                if W[s, 15] == 1.0 and W[u, 15] == 1.0 and W[s, 13] == W[u, 13] and W[s, 14] == W[u, 14]:
-                    # ends apart (which no two faces with a common corner are), apart but at a corner
-                    if ((W[s, 5] < W[u, 4] and W[s, 9] < W[u, 8]) or (W[u, 5] < W[s, 4] and W[u, 9] < W[s, 8])
-                            or (W[s, 7] < W[u, 6] and W[s, 11] < W[u, 10]) or (W[u, 7] < W[s, 6] and W[u, 11] < W[s, 10])):
-                        continue
-                    ns = 0
-                    p = np.int64(-1)
-                    for c in range(3):
-                        vv = F[i, c]
-                        if vv == F[j, 0] or vv == F[j, 1] or vv == F[j, 2]:
-                            ns += 1
-                            p = vv
-                    if ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo_[i]):
-                        continue
+                if _apart_in_slab(V, F, lev, lo_, W, s, u, i, j):
+                    continue
                 if i > j:
                     i, j = j, i
                 if _star_due(sst):
@@ -2027,20 +2036,8 @@ def _x_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, 
                 continue  # (a pair of a lower slab)
             i = np.int64(faces[order[s]])
             j = np.int64(faces[order[u]])
-            if W[s, 15] == 1.0 and W[u, 15] == 1.0 and W[s, 13] == W[u, 13] and W[s, 14] == W[u, 14]:
-                # ends apart (which no two faces with a common corner are), apart but at a corner
-                if ((W[s, 5] < W[u, 4] and W[s, 9] < W[u, 8]) or (W[u, 5] < W[s, 4] and W[u, 9] < W[s, 8])
-                        or (W[s, 7] < W[u, 6] and W[s, 11] < W[u, 10]) or (W[u, 7] < W[s, 6] and W[u, 11] < W[s, 10])):
-                    continue
-                ns = 0
-                p = np.int64(-1)
-                for q in range(3):
-                    v = F[i, q]
-                    if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
-                        ns += 1
-                        p = v
-                if ns == 1 and _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo_[i]):
-                    continue
+            if _apart_in_slab(V, F, lev, lo_, W, s, u, i, j):
+                continue
             if i > j:
                 i, j = j, i
             if _star_due(sst):
