@@ -137,3 +137,101 @@ def test_the_package_has_cached_kernels_to_guard():
         total += sum(isinstance(v, CPUDispatcher) and v._cache.__class__.__name__ != "NullCache"
                      for v in vars(module).values())
     assert total > 50
+
+
+# --- the environment merge (a cached caller loaded before its callee is called from Python) ---
+
+_ENV_MODULE = textwrap.dedent("""\
+    import numpy as np
+    from numba import njit
+
+
+    @njit(cache=True)
+    def inner(n):
+        return np.zeros(n, np.int64)
+
+
+    @njit(cache=True)
+    def outer(n):
+        return inner(n).shape[0]
+    """)
+
+# Compiles and caches both; then, in a second process, loads the caller first and compiles the
+# callee again under the name its copy in the caller has (as a process whose numbering of
+# compiled functions matches an earlier one's does), so that the callee's own cache holds a
+# longer list of constants than the caller's copy.
+_ENV_SETUP = textwrap.dedent("""\
+    import glob, itertools, os, re, sys
+    from numba.core import bytecode
+    from numba.core.environment import Environment
+    import envmod
+    envmod.outer(3)
+    if sys.argv[1] == "again":
+        for f in glob.glob(os.path.join("__pycache__", "envmod.inner-*")):
+            os.remove(f)
+        envmod.outer(3)
+        name = next(k for k in Environment._memo if "5inner" in k)
+        bytecode.FunctionIdentity._unique_ids = itertools.count(int(re.search(r"5innerB\\d+v(\\d+)", name).group(1)))
+        envmod.inner(3)
+        print(max(len(v.consts) for k, v in Environment._memo.items() if "5inner" in k))
+    """)
+
+_ENV_RUN = textwrap.dedent("""\
+    import sys
+    sys.path.insert(0, {src!r})
+    if sys.argv[1] == "merge":
+        from contourmesh import _cache_guard
+        assert _cache_guard.install_environment_merge()
+    import envmod
+    envmod.outer(3)
+    print(envmod.inner(3).tolist())
+    """)
+
+
+def _python(tmp_path, script, *args):
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+    return subprocess.run([sys.executable, script, *args], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_a_callee_called_from_python_after_its_cached_caller_loaded(tmp_path):
+    (tmp_path / "envmod.py").write_text(_ENV_MODULE)
+    (tmp_path / "setup_env.py").write_text(_ENV_SETUP)
+    (tmp_path / "run_env.py").write_text(_ENV_RUN.format(src=_SRC))
+    assert _python(tmp_path, "setup_env.py", "first").returncode == 0
+    again = _python(tmp_path, "setup_env.py", "again")
+    assert again.returncode == 0, again.stderr
+    assert int(again.stdout.split()[-1]) == 2  # the callee's own copy is the longer one
+    plain = _python(tmp_path, "run_env.py", "plain")  # numba's loading as it is: the fault
+    assert plain.returncode != 0 and "descr" in plain.stderr
+    merged = _python(tmp_path, "run_env.py", "merge")
+    assert merged.returncode == 0, merged.stderr
+    assert merged.stdout.split("\n")[0] == "[0, 0, 0]"
+
+
+def test_environment_merge_is_in_place_and_extends_the_held_copy():
+    import pickle
+
+    import numpy as np
+    from numba.core import environment
+
+    import contourmesh._kernels  # noqa: F401  (installs the guard)
+
+    assert _cache_guard.environment_merge_installed()
+    name = "_contourmesh_test_env_merge"
+    held = environment._rebuild_env("contourmesh", [np.dtype(np.int64)], name)
+    assert environment._rebuild_env("contourmesh", [np.dtype(np.int64), np.dtype(np.float64)], name) is held
+    assert held.consts == [np.dtype(np.int64), np.dtype(np.float64)]
+    # a list that does not start with the held one is left alone (numba's behaviour)
+    assert environment._rebuild_env("contourmesh", [np.dtype(np.int32), np.dtype(np.int8), 1], name) is held
+    assert len(held.consts) == 2
+    # numba's own function keeps the first copy as it is: the merge is what extends it
+    other = environment._rebuild_env._original("contourmesh", [np.dtype(np.int64)], name + "_plain")
+    assert environment._rebuild_env._original("contourmesh", [np.dtype(np.int64), 2], name + "_plain") is other
+    assert len(other.consts) == 1
+    # pickled environments still name numba's function, so caches load with or without the merge
+    data = pickle.dumps(held)
+    assert b"numba.core.environment" in data and b"_rebuild_env" in data
+    assert pickle.loads(data) is held
+    fn = environment._rebuild_env  # installing again keeps the one merge
+    assert _cache_guard.install_environment_merge() and environment._rebuild_env is fn

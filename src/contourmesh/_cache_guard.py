@@ -17,6 +17,16 @@ editing them keeps the cache.  Functions of other packages are not touched.
 The locator classes are a numba internal (``CacheImpl._locator_classes``).  Where a numba
 release does not have them, :func:`install` leaves numba's cache as it is and says so in
 :func:`installed`.
+
+The guard also mends one fault of numba's cache loading (:func:`install_environment_merge`).
+Each compiled function has an environment, found by name, whose list of constants the code
+indexes; its Python entry reads the dtype of an array it returns from there.  A cached caller
+stores its own pickled copy of each callee's environment, taken while it was compiled, and numba
+keeps the first copy a process loads under each name.  When a caller is loaded before the callee
+is called from Python, the callee's entry can find the caller's shorter copy and read past its
+end (seen on the lobster after a warm cache: ``RuntimeError: In 'NRT_adapt_ndarray_to_python',
+'descr' is NULL``).  The copies of one name are taken from one list that only grows, so the
+shorter is a prefix of the longer; the merge extends the kept copy with the constants it lacks.
 """
 
 from __future__ import annotations
@@ -119,9 +129,64 @@ def locator_for(root: str):
     return PackageStampLocator
 
 
+def _same_constant(a, b) -> bool:
+    if a is b:
+        return True
+    if type(a) is not type(b):
+        return False
+    try:
+        return bool(a == b)
+    except Exception:  # arrays and other values without a plain equality
+        return False
+
+
+def install_environment_merge() -> bool:
+    """Make numba's loading of a pickled environment extend the copy it already holds under the
+    same name with the constants that copy lacks (see the module docstring).  The pickled files
+    name the function as numba's own (``numba.core.environment._rebuild_env``), so caches
+    written with the merge in place load in processes without it and the other way round.
+    Returns whether the merge is in place; where numba does not have the function, nothing
+    changes."""
+    try:
+        from numba.core import environment
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return False
+    original = getattr(environment, "_rebuild_env", None)
+    if original is None or not callable(getattr(environment, "lookup_environment", None)):
+        return False
+    if getattr(original, "_contourmesh_merge", False):
+        return True
+
+    def _rebuild_env(modname, consts, env_name):
+        env = original(modname, consts, env_name)
+        held = env.consts
+        if len(held) < len(consts) and all(_same_constant(a, b) for a, b in zip(held, consts)):
+            held.extend(consts[len(held):])
+        return env
+
+    _rebuild_env.__module__ = original.__module__
+    _rebuild_env.__qualname__ = original.__qualname__
+    _rebuild_env.__name__ = original.__name__
+    _rebuild_env._contourmesh_merge = True
+    _rebuild_env._original = original
+    environment._rebuild_env = _rebuild_env
+    return True
+
+
+def environment_merge_installed() -> bool:
+    """Whether numba's environment loading goes through :func:`install_environment_merge`."""
+    try:
+        from numba.core import environment
+    except ImportError:  # pragma: no cover
+        return False
+    return getattr(getattr(environment, "_rebuild_env", None), "_contourmesh_merge", False)
+
+
 def install(root: str = _ROOT) -> bool:
-    """Put the guard for the package under ``root`` in front of numba's cache locators (once).
-    Returns whether it is in place; kernels decorated before the call are not guarded."""
+    """Put the guard for the package under ``root`` in front of numba's cache locators (once),
+    and the environment merge in numba's cache loading.  Returns whether the locator is in place;
+    kernels decorated before the call are not guarded."""
+    install_environment_merge()
     cls = locator_for(root)
     if cls is None:
         return False
