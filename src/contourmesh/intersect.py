@@ -109,8 +109,9 @@ _SLAB_BUDGET = 256  # box tests per face in the slab sweeps before the grid take
 #: The grid of the whole-mesh test (:func:`_intersecting_pairs`) makes and searches its (face, cell)
 #: entries in chunks of layers of cells of about this many entries.  On the lobster's mesh (396k
 #: faces, 2M entries in 97 layers: a chunk per layer) the test held some 53 MiB in one table, 8 MiB
-#: in chunks, and took less time (the chunk's tables stay in cache): 0.43 -> 0.40 CPU-s; the
-#: liver's mesh by the grid 0.40 -> 0.35.  Chunks of 4096 and 65536 entries were no faster.
+#: in chunks, in about the same time (same-process A/Bs: 0.43 -> 0.40 CPU-s in one, 0.37 -> 0.38 in
+#: another); the liver's mesh by the grid 0.39 -> 0.35 (the chunk's tables stay in cache).  Chunks
+#: of 4096 and 65536 entries were no faster.
 _GRID_CHUNK = 16384
 
 
