@@ -42,7 +42,8 @@ Speed
 -----
 The broad phase is a uniform grid hashed into a table (cell sizes per axis from the faces'
 bounding boxes, grown until every face lies in a bounded number of cells; keys z-major), filled
-by a counting sort; each pair of faces whose boxes overlap is tested once, in the cell at the low
+by a counting sort, a chunk of layers of cells along z at a time (so only one chunk's entries and
+faces are held); each pair of faces whose boxes overlap is tested once, in the cell at the low
 corner of the overlap of their boxes.  Meshes made from sections have most vertices in the
 section planes: two faces whose boxes meet only in a plane ``z = c`` (one below, one above) can
 meet only there, in the hull of their corners at that height, so such a pair is decided by one
@@ -105,6 +106,13 @@ _KEY_BITS = 21  # cell coordinates per axis below 2^21
 #: cells were some 10 % slower than the sweep.
 _CELL_SWEEP = 1024
 _SLAB_BUDGET = 256  # box tests per face in the slab sweeps before the grid takes over
+#: The grid of the whole-mesh test (:func:`_intersecting_pairs`) makes and searches its (face, cell)
+#: entries in chunks of layers of cells of about this many entries.  On the lobster's mesh (396k
+#: faces, 2M entries in 97 layers: a chunk per layer) the test held some 53 MiB in one table, 8 MiB
+#: in chunks, in about the same time (same-process A/Bs: 0.43 -> 0.40 CPU-s in one, 0.37 -> 0.38 in
+#: another); the liver's mesh by the grid 0.39 -> 0.35 (the chunk's tables stay in cache).  Chunks
+#: of 4096 and 65536 entries were no faster.
+_GRID_CHUNK = 16384
 
 
 # ------------------------------------------------------------------------------------------------
@@ -1052,64 +1060,80 @@ def _cell(x, lo, h):
     return np.int64(math.floor((x - lo) / h))
 
 
+@_pure
+def _face_range(V, F, i, k):
+    """The lowest and highest coordinate ``k`` of face i's corners: its box along axis k."""
+    a = V[F[i, 0], k]
+    b = V[F[i, 1], k]
+    c = V[F[i, 2], k]
+    return min(a, min(b, c)), max(a, max(b, c))
+
+
 @_kernel
-def _count_cells(box, live, glo, h):
+def _median_extent(V, F, live, nlive, k):
+    """The median extent along axis ``k`` of the ``nlive`` faces marked in ``live``."""
+    ext = np.empty(nlive, np.float64)
+    n = 0
+    for i in range(len(F)):
+        if live[i] != 0:
+            lo, hi = _face_range(V, F, i, k)
+            ext[n] = hi - lo
+            n += 1
+    return np.median(ext)
+
+
+@_pure
+def _count_cells(V, F, live, glo, h):
+    """The (face, cell) entries of the faces marked in ``live`` in the grid of cell sizes ``h``
+    from ``glo``."""
     total = 0
-    for i in range(len(live)):
+    for i in range(len(F)):
         if live[i] == 0:
             continue
         n = 1
         for k in range(3):
-            n *= _cell(box[i, 3 + k], glo[k], h[k]) - _cell(box[i, k], glo[k], h[k]) + 1
+            lo, hi = _face_range(V, F, i, k)
+            n *= _cell(hi, glo[k], h[k]) - _cell(lo, glo[k], h[k]) + 1
         total += n
     return total
 
 
-@_kernel
-def _visit_cells(box, live, glo, h, mask, ny, nx, start, fill, ent_face, ent_key, store):
-    """Every (face, grid cell) entry: counted per hash bucket in ``start`` (``store == 0``) or
-    stored at ``fill`` of its bucket (``store == 1``)."""
-    for i in range(len(live)):
-        if live[i] == 0:
-            continue
-        x0 = _cell(box[i, 0], glo[0], h[0])
-        y0 = _cell(box[i, 1], glo[1], h[1])
-        z0 = _cell(box[i, 2], glo[2], h[2])
-        x1 = _cell(box[i, 3], glo[0], h[0])
-        y1 = _cell(box[i, 4], glo[1], h[1])
-        z1 = _cell(box[i, 5], glo[2], h[2])
-        for cx in range(x0, x1 + 1):
-            for cy in range(y0, y1 + 1):
-                for cz in range(z0, z1 + 1):
-                    key = (cz * ny + cy) * nx + cx  # z-major: a slab's cells are close in the table
-                    q = key & mask
-                    if store == 0:
-                        start[q] += 1
-                    else:
-                        r = fill[q]
-                        ent_face[r] = i
-                        ent_key[r] = key
-                        fill[q] = r + 1
+@_pure
+def _chunk_end(lay, z0, nz, chunk):
+    """The chunk of layers of cells from ``z0``: one layer, then as many more as keep its entries
+    (``lay`` per layer) at most ``chunk``.  Returns ``(z1, entries)``, the layers ``z0 .. z1 - 1``."""
+    z1 = z0
+    run = lay[z0] - lay[z0]
+    while z1 < nz and (run == 0 or run + lay[z1] <= chunk):
+        run += lay[z1]
+        z1 += 1
+    return z1, run
 
 
 @njit(cache=True, **_OPTIONS)
-def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
+def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk):
     """Pairs ``(i, j)``, ``i < j``, of faces that intersect (see the module docstring);
     ``F`` holds canonical vertex indices, ``star`` marks the vertices whose pairs are decided
     (:func:`_star_certified`; all 0 for none), filled when first needed (``sst``, see
     :func:`_shares_certified`); ``quick == 1``: pairs of faces whose boxes only touch
     are decided in the plane where they touch (:func:`_touching_boxes`).  ``budget`` bounds the grid cells per face on average.
     ``stop > 0``: return as soon as ``stop`` pairs are found (some of the pairs, for a caller that
-    asks only whether there are any)."""
+    asks only whether there are any).
+
+    The grid's (face, cell) entries are made and searched in chunks of consecutive layers of cells
+    along z of about ``chunk`` entries (one chunk for a small mesh): a pair is taken only in the
+    cell of the low corner of its boxes' overlap, which lies in one layer and so in one chunk, and
+    both faces have an entry there; so every pair is found once, as with all entries in one table.
+    Only the faces of the current chunk's layers are held (box, cells), and the faces' boxes come
+    from ``V`` and ``F`` (not a table of them): on the lobster's mesh (396k faces, 2M entries) the
+    test took some 53 MiB in one table, 8 in chunks."""
     m = len(F)
-    box = np.empty((m, 6), np.float64)
     live = np.empty(m, np.int8)
     glo = np.empty(3, np.float64)
     ghi = np.empty(3, np.float64)
     for k in range(3):
         glo[k] = np.inf
         ghi[k] = -np.inf
-    ext = np.empty((m, 3), np.float64)
     nlive = 0
     ax0 = np.int64(0)
     ax1 = np.int64(1)
@@ -1118,11 +1142,6 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
         a = F[i, 0]
         b = F[i, 1]
         c = F[i, 2]
-        for k in range(3):
-            lo = min(V[a, k], min(V[b, k], V[c, k]))
-            hi = max(V[a, k], max(V[b, k], V[c, k]))
-            box[i, k] = lo
-            box[i, 3 + k] = hi
         live[i] = 0
         if a == b or b == c or a == c:
             continue
@@ -1131,9 +1150,9 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
         live[i] = 1
         nlive += 1
         for k in range(3):
-            glo[k] = min(glo[k], box[i, k])
-            ghi[k] = max(ghi[k], box[i, 3 + k])
-            ext[nlive - 1, k] = box[i, 3 + k] - box[i, k]
+            lo, hi = _face_range(V, F, i, k)
+            glo[k] = min(glo[k], lo)
+            ghi[k] = max(ghi[k], hi)
     pi = np.empty(16, np.int64)
     pj = np.empty(16, np.int64)
     npairs = np.int64(0)  # (a literal 0 would compile _push a second time, for Literal[int](0))
@@ -1143,7 +1162,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
     # no smaller than 1/16 of the largest (a few long faces, such as caps, span many cells)
     h = np.empty(3, np.float64)
     for k in range(3):
-        h[k] = np.median(ext[:nlive, k])
+        h[k] = _median_extent(V, F, live, nlive, np.int64(k))
     hbig = max(h[0], max(h[1], h[2]))
     for k in range(3):
         hmin = max((ghi[k] - glo[k]) / (2.0 ** _KEY_BITS - 2.0), hbig / 16.0)
@@ -1152,76 +1171,182 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop):
         if not h[k] > 0.0:
             h[k] = 1.0
     limit = budget * nlive
-    total = _count_cells(box, live, glo, h)
+    total = _count_cells(V, F, live, glo, h)
     while total > limit:
         for k in range(3):
             h[k] *= 1.5
-        total = _count_cells(box, live, glo, h)
-    # hash table of cells: counting sort of (face, cell) entries by bucket (about one entry per
-    # bucket: the entries of one cell share a bucket anyway; twice as many buckets took a fifth
-    # more memory on the lobster's mesh for no speed).  Bucket starts and entry faces in int32
-    # (the keys need int64): with int64 they were 48 of the 81 MiB this test took on the lobster's
-    # mesh (396k faces, 2M entries); 2^31 entries would take more than 24 GiB
-    if total >= 2**31 - 1:
-        raise MemoryError("too many grid cells for the crossing test's int32 tables")
-    nb = 1
-    while nb < total:
-        nb *= 2
-    mask = nb - 1
-    start = np.empty(nb + 1, np.int32)
-    for q in range(nb + 1):
-        start[q] = 0
+        total = _count_cells(V, F, live, glo, h)
+    nz = _cell(ghi[2], glo[2], h[2]) + 1
     ny = _cell(ghi[1], glo[1], h[1]) + 1
     nx = _cell(ghi[0], glo[0], h[0]) + 1
-    dummy = np.empty(0, np.int32)
-    _visit_cells(box, live, glo, h, mask, ny, nx, start, dummy, dummy, np.empty(0, np.int64), np.int64(0))
-    acc = 0
-    for q in range(nb):
-        cnt = start[q]
-        start[q] = acc
-        acc += cnt
-    start[nb] = acc
-    ent_face = np.empty(acc, np.int32)
-    ent_key = np.empty(acc, np.int64)
-    # start itself is the fill pointer (each bucket's ends at the next one's start), then shifted back
-    _visit_cells(box, live, glo, h, mask, ny, nx, start, start, ent_face, ent_key, np.int64(1))
-    for q in range(nb, 0, -1):
-        start[q] = start[q - 1]
-    start[0] = 0
-    for q in range(nb):
-        s0 = start[q]
-        s1 = start[q + 1]
-        for r in range(s0, s1):
-            i0 = ent_face[r]
-            key = ent_key[r]
-            for t in range(r + 1, s1):
-                if ent_key[t] != key:
-                    continue
-                j0 = ent_face[t]
-                i = np.int64(min(i0, j0))  # (int64: one signature for the tests below)
-                j = np.int64(max(i0, j0))
-                if (box[i, 0] > box[j, 3] or box[j, 0] > box[i, 3] or box[i, 1] > box[j, 4]
-                        or box[j, 1] > box[i, 4] or box[i, 2] > box[j, 5] or box[j, 2] > box[i, 5]):
-                    continue
-                # test the pair only in the cell of the low corner of the boxes' overlap
-                cx = _cell(max(box[i, 0], box[j, 0]), glo[0], h[0])
-                cy = _cell(max(box[i, 1], box[j, 1]), glo[1], h[1])
-                cz = _cell(max(box[i, 2], box[j, 2]), glo[2], h[2])
-                if (cz * ny + cy) * nx + cx != key:
-                    continue
-                if _star_due(sst):
-                    _star_fill(V, F, star)
-                if _shares_certified(F, star, i, j):
-                    continue
-                hit = _across_plane(V, ws, F, i, j)
-                if hit < 0 and quick == 1:
-                    hit = _touching_boxes(V, ws, F, i, j)
-                if hit < 0:
-                    hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
-                if hit == 1:
-                    pi, pj, npairs = _push(pi, pj, npairs, i, j)
-                    if npairs == stop:
-                        return pi[:npairs], pj[:npairs]
+    # the live faces in order of their lowest layer (a counting sort), the entries per layer, and
+    # the largest chunk's entries (``most``) and faces (``cap``); one chunk where the mesh is
+    # small, or where its layers outnumber its faces (the tables per layer would be the larger)
+    chunked = total > chunk and 1 < nz <= nlive
+    order = np.empty(nlive, np.int32)
+    if chunked:
+        lay = np.zeros(nz, np.int64)
+        first = np.zeros(nz + 1, np.int64)  # faces whose lowest layer is below z: first[z]
+        last = np.zeros(nz + 1, np.int64)  # faces whose highest layer is below z: last[z]
+        for i in range(m):
+            if live[i] == 0:
+                continue
+            lo, hi = _face_range(V, F, i, ax0)
+            nxy = _cell(hi, glo[0], h[0]) - _cell(lo, glo[0], h[0]) + 1
+            lo, hi = _face_range(V, F, i, ax1)
+            nxy *= _cell(hi, glo[1], h[1]) - _cell(lo, glo[1], h[1]) + 1
+            lo, hi = _face_range(V, F, i, ax2)
+            z0 = _cell(lo, glo[2], h[2])
+            z1 = _cell(hi, glo[2], h[2])
+            for cz in range(z0, z1 + 1):
+                lay[cz] += nxy
+            first[z0 + 1] += 1
+            last[z1 + 1] += 1
+        for z in range(nz):
+            first[z + 1] += first[z]
+            last[z + 1] += last[z]
+        fill = first[:nz].copy()
+        for i in range(m):
+            if live[i] == 0:
+                continue
+            lo, hi = _face_range(V, F, i, ax2)
+            z0 = _cell(lo, glo[2], h[2])
+            order[fill[z0]] = i
+            fill[z0] += 1
+        most = np.int64(1)
+        cap = np.int64(1)
+        z0 = np.int64(0)
+        while z0 < nz:
+            z1, run = _chunk_end(lay, z0, nz, chunk)
+            most = max(most, run)
+            cap = max(cap, first[z1] - last[z0])  # faces with a layer in z0 .. z1 - 1
+            z0 = z1
+    else:
+        lay = np.zeros(1, np.int64)
+        first = np.zeros(1, np.int64)
+        n = 0
+        for i in range(m):
+            if live[i] != 0:
+                order[n] = i
+                n += 1
+        most = total
+        cap = np.int64(nlive)
+    # a chunk's hash table of cells: a counting sort of its (face, cell) entries by bucket (about
+    # one entry per bucket: the entries of one cell share a bucket anyway); bucket starts and slots
+    # in int32, the keys (cells, z-major) in int64
+    if most >= 2**31 - 1:
+        raise MemoryError("too many grid cells in one layer for the crossing test's int32 tables")
+    nb = 1
+    while nb < most:
+        nb *= 2
+    start = np.empty(nb + 1, np.int32)
+    ent_slot = np.empty(most, np.int32)
+    ent_key = np.empty(most, np.int64)
+    # the chunk's faces (slots): box, cells (lowest and highest per axis), face
+    abox = np.empty((cap, 6), np.float64)
+    acell = np.empty((cap, 6), np.int64)
+    aface = np.empty(cap, np.int64)
+    nact = 0
+    nxt = 0
+    z0 = np.int64(0)
+    while z0 < nz:
+        if chunked:
+            z1, run = _chunk_end(lay, z0, nz, chunk)
+            upto = first[z1]
+        else:
+            z1 = nz
+            run = total
+            upto = nlive
+        # the faces of the layers z0 .. z1 - 1: those still reaching z0, in order, then the new ones
+        keep = 0
+        for s in range(nact):
+            if acell[s, 5] >= z0:
+                if keep != s:
+                    for k in range(6):
+                        abox[keep, k] = abox[s, k]
+                        acell[keep, k] = acell[s, k]
+                    aface[keep] = aface[s]
+                keep += 1
+        nact = keep
+        while nxt < upto:
+            i = np.int64(order[nxt])
+            nxt += 1
+            for k in range(3):
+                lo, hi = _face_range(V, F, i, k)
+                abox[nact, k] = lo
+                abox[nact, 3 + k] = hi
+                acell[nact, k] = _cell(lo, glo[k], h[k])
+                acell[nact, 3 + k] = _cell(hi, glo[k], h[k])
+            aface[nact] = i
+            nact += 1
+        nbc = 1
+        while nbc < run:
+            nbc *= 2
+        mask = nbc - 1
+        for q in range(nbc + 1):
+            start[q] = 0
+        # every (face, cell) entry of the chunk: counted per bucket, then stored at its bucket's
+        # fill pointer (start itself, each bucket's ending at the next one's start; shifted back)
+        for store in range(2):
+            for s in range(nact):
+                for cz in range(max(acell[s, 2], z0), min(acell[s, 5], z1 - 1) + 1):
+                    for cy in range(acell[s, 1], acell[s, 4] + 1):
+                        for cx in range(acell[s, 0], acell[s, 3] + 1):
+                            key = (cz * ny + cy) * nx + cx
+                            q = key & mask
+                            if store == 0:
+                                start[q] += 1
+                            else:
+                                r = start[q]
+                                ent_slot[r] = s
+                                ent_key[r] = key
+                                start[q] = r + 1
+            if store == 0:
+                acc = 0
+                for q in range(nbc):
+                    cnt = start[q]
+                    start[q] = acc
+                    acc += cnt
+                start[nbc] = acc
+        for q in range(nbc, 0, -1):
+            start[q] = start[q - 1]
+        start[0] = 0
+        for q in range(nbc):
+            s0 = start[q]
+            s1 = start[q + 1]
+            for r in range(s0, s1):
+                a = ent_slot[r]
+                key = ent_key[r]
+                for t in range(r + 1, s1):
+                    if ent_key[t] != key:
+                        continue
+                    b = ent_slot[t]
+                    if (abox[a, 0] > abox[b, 3] or abox[b, 0] > abox[a, 3] or abox[a, 1] > abox[b, 4]
+                            or abox[b, 1] > abox[a, 4] or abox[a, 2] > abox[b, 5] or abox[b, 2] > abox[a, 5]):
+                        continue
+                    # test the pair only in the cell of the low corner of the boxes' overlap (the
+                    # cell of a larger coordinate is never lower: the larger of the two cells)
+                    cx = max(acell[a, 0], acell[b, 0])
+                    cy = max(acell[a, 1], acell[b, 1])
+                    cz = max(acell[a, 2], acell[b, 2])
+                    if (cz * ny + cy) * nx + cx != key:
+                        continue
+                    i = min(aface[a], aface[b])
+                    j = max(aface[a], aface[b])
+                    if _star_due(sst):
+                        _star_fill(V, F, star)
+                    if _shares_certified(F, star, i, j):
+                        continue
+                    hit = _across_plane(V, ws, F, i, j)
+                    if hit < 0 and quick == 1:
+                        hit = _touching_boxes(V, ws, F, i, j)
+                    if hit < 0:
+                        hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+                    if hit == 1:
+                        pi, pj, npairs = _push(pi, pj, npairs, i, j)
+                        if npairs == stop:
+                            return pi[:npairs], pj[:npairs]
+        z0 = z1
     return pi[:npairs], pj[:npairs]
 
 
@@ -2661,7 +2786,7 @@ def _any_kernel(V, F, delay):
     if ws[0] == 1.0 or m >= _GRID_FACES or nlev == 2:  # (the route of _pairs)
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one, one - one, nlev)
     if ok != 1:
-        pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one)
+        pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one, one * _GRID_CHUNK)
     return 1 if len(pi) > 0 else 0
 
 
@@ -2713,7 +2838,8 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True):
             raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
                              "than four slabs between consecutive vertex heights per face on average")
     if ok != 1:  # not sectioned, or a sweep over its budget: the grid (the same pairs)
-        pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, qk, np.int64(budget), np.int64(stop))
+        pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, qk, np.int64(budget), np.int64(stop),
+                                     np.int64(_GRID_CHUNK))
     out = np.stack([pi, pj], axis=1).astype(np.int64, copy=False)
     if len(out):
         out = out[np.lexsort((out[:, 1], out[:, 0]))]

@@ -1091,6 +1091,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         fallback_caps += n_c
         log.debug("volume mesher: %d crossing pairs left; %d joins and %d caps fall back to crack rings",
                   len(left), n_j, n_c)
+        # (this build's repaired vertices and face tags are not the next build's: not held through it)
+        V2 = info = tags = None
     exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections, least_area = counts
     fallbacks = sum(s.fallbacks for s in slices if s is not None)
     # (the slices held there hold it back: a reference cycle, which would leave the slices to the
