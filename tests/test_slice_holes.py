@@ -211,3 +211,29 @@ def test_labels_made_again_are_the_labels_first_made(box):
         again = s.labels
         assert again.dtype == first.dtype and np.array_equal(again, first)
     assert recent.remade == len(masks)
+
+
+def _mlps_both_ways(masks):
+    from contourmesh.fastpath import slice_labels, slice_mlps_flat
+    from contourmesh.tracing import slice_boxes
+
+    n = 0
+    for m in masks:
+        labels, _, objects, runs = slice_labels(m, runs=True)
+        boxes = slice_boxes(objects)
+        want = slice_mlps_flat(labels, boxes)
+        got = slice_mlps_flat(labels, boxes, runs)
+        assert all(_same(a, b) for a, b in zip(got, want))
+        n += len(boxes)
+    return n
+
+
+def test_mlps_from_the_runs_equal_the_mlps_from_the_labels():
+    """The components' MLPs with their masks made from the runs (``_slice_mlps_runs``) and from the
+    label image (``_slice_mlps``, the reference), on random masks and an empty one."""
+    assert _mlps_both_ways(_random_masks(13, count=80) + [np.zeros((4, 5), dtype=bool)]) > 100
+
+
+@pytest.mark.slow
+def test_mlps_from_the_runs_on_the_shared_volumes(shared_data):
+    assert _mlps_both_ways(_slices_of_volumes(shared_data)) > 100

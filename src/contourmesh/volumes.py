@@ -394,7 +394,7 @@ class _Slice:
         self.fallbacks = 0
         # with "mlp", every component's MLP (one compiled pass) and the outer polygons made after the
         # loop, all at once (_outer_polygons)
-        mlps = slice_mlps_flat(lab32, boxes) if mlp else None
+        mlps = slice_mlps_flat(lab32, boxes, runs) if mlp else None
         if found[0] == 0:
             outer_at = self._components(found, boxes, pts, starts, polygon, to_xy_corner, to_xy_center)
         else:  # pragma: no cover - (the plain loop raises the fault the compiled pass found)
