@@ -94,6 +94,8 @@ from .fastpath import (
     CONNECTIVITY,
     _fast_volume_to_mesh,
     _one_band,
+    _paint_labels,
+    _pixels_mlp,
     pixels_mlp,
     redo_self_crossing_bands,
     slice_components,
@@ -261,19 +263,6 @@ class _Planes:
         self.k0, self.part = -1, None
 
 
-def _packed_source(mask2d):
-    """A callable that gives ``mask2d`` (2D bool) again, from its bits packed eight to a byte: what a
-    slice of a volume read in blocks (:class:`_Planes`) keeps to make its label image again (an
-    eighth of its pixels' bytes; a slice copied alone from a Fortran-ordered volume took twice
-    as long as labelling it)."""
-    bits, shape = np.packbits(mask2d), mask2d.shape
-
-    def source():
-        return np.unpackbits(bits, count=shape[0] * shape[1]).view(bool).reshape(shape)
-
-    return source
-
-
 class _HoleMasks(Sequence):
     """The holes of one component as pixel sets: a sequence of bool masks over the component's
     box (``hole_masks[c][1]`` of a :class:`_Slice`).  Each is kept cropped to the hole's own box
@@ -289,6 +278,13 @@ class _HoleMasks(Sequence):
             ys, xs = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
             y0, x0 = int(ys[0]), int(xs[0])
             self.parts.append((y0, x0, m[y0: ys[-1] + 1, x0: xs[-1] + 1].copy()))
+
+    @classmethod
+    def empty(cls, shape):
+        """No hole in a box of ``shape`` (``cls(shape, [])``, made without the constructor's loop)."""
+        out = object.__new__(cls)
+        out.shape, out.parts = tuple(shape), []
+        return out
 
     @classmethod
     def of_parts(cls, shape, parts):
@@ -350,52 +346,134 @@ class _Slice:
     """The components of one slice with their contours and polygons (physical xy).
 
     ``recent``: a :class:`_RecentLabels` that decides how long the slice keeps its label image
-    (``None``: for the slice's lifetime).  ``source``: where ``mask2d`` is a view of a block that
-    should not be kept (:class:`_Planes`), a callable that gives the mask again when the label
-    image is made again.  ``box``: a pair of slices of ``mask2d`` outside which it
+    (``None``: for the slice's lifetime); the slice then keeps its runs instead of its mask, and
+    paints the label image again from them when it is asked for after being dropped (the same
+    image: the labeller paints it from these runs).  A view of a block of :class:`_Planes` is not
+    kept, nor the mask's bits; relabelling the mask, once more for each later pass over the slices
+    that reads it, took the lobster 0.031 CPU-s a call and painting 0.005 (liver 0.018 and 0.008),
+    and the liver's peak went from 89 to 84 MiB.  ``box``: a pair of slices of ``mask2d`` outside which it
     has no pixel (an intermediate section): only the box is labelled (the same labels, numbered
     in raster order within it, and the same boxes, moved back to the whole image)."""
 
-    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None, box=None, source=None):
+    def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None, box=None):
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
-        self._mask, self._recent, self._source = (mask2d if source is None else None), recent, source
+        self._recent, self._shape = recent, mask2d.shape
+        self._mask = self._runs = None
         # every component's crack contours in one compiled pass over the int32 labels (slice corner
         # coordinates; component c's contours are first[c]: first[c + 1], outer and holes in the
         # order _crack_contours gives them for the component's cropped mask), and with "mlp" every
         # component's MLP in another (what _mlp_of_pixels gives for its cropped mask)
         if box is None:
             labels, self.n, self.objects, runs = slice_labels(mask2d, runs=True)
-            boxes = slice_boxes(self.objects)
-            pts, starts, area2, first = slice_cracks(labels, boxes, runs)
-            lab32 = labels
+            lab32, sx, sy = labels, 0, 0
+            if recent is not None:  # (row, first and end column, component: a copy, not views of the labeller's buffers)
+                self._runs = np.stack([runs[0], runs[1], runs[2], runs[3] - 1])
+        else:
+            lab32, self.n, objects, runs = slice_labels(mask2d[box], runs=True)
+            sy, sx = box[0].start or 0, box[1].start or 0
+            if recent is not None:  # (labelled whole it gives the same labels)
+                self._mask = mask2d
+        boxes = slice_boxes(self.objects if box is None else objects)
+        pts, starts, area2, first = slice_cracks(lab32, boxes, runs)
+        mlp = polygon not in ("dss", "none")
+        # every component's outer contour, its holes' pixel sets and (with "mlp") its holes' MLPs in
+        # one compiled pass (_slice_holes; the loop it replaces is _components_plain, which also names
+        # a fault the pass refuses)
+        found = _slice_holes(lab32, boxes, pts, starts, area2, first, np.int64(sx), np.int64(sy), np.int64(mlp))
+        if box is None:
             # the labels in the smallest dtype that holds them
             self._labels = self._small(labels)
         else:
-            part, self.n, objects, runs = slice_labels(mask2d[box], runs=True)
-            boxes = slice_boxes(objects)
-            pts, starts, area2, first = slice_cracks(part, boxes, runs)
-            lab32 = part
-            part = self._small(part)  # (the whole image's labels made in that dtype at once)
+            part = self._small(lab32)  # (the whole image's labels made in that dtype at once)
             labels = np.zeros(mask2d.shape, dtype=part.dtype)
             labels[box] = part
             self._labels = labels
-            y0, x0 = box[0].start or 0, box[1].start or 0
-            pts += np.array([x0, y0], dtype=np.int64)
-            self.objects = [(slice(a.start + y0, a.stop + y0), slice(b.start + x0, b.stop + x0)) for a, b in objects]
-        self.outer = []   # per component: polygon (physical xy)
-        self.holes = []   # per component: list of hole polygons
+            pts += np.array([sx, sy], dtype=np.int64)
+            self.objects = [(slice(a.start + sy, a.stop + sy), slice(b.start + sx, b.stop + sx)) for a, b in objects]
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
         self.dense_gen = {}  # component -> how many times its polygons were densified (see _retry_dense)
-        self.hole_masks = []  # per component: list of (slices, mask) for each hole (local bbox)
-        self.crack_outer_c = []  # raw crack contours in corner coordinates (integers)
-        self.crack_holes_c = []
-        # the same in physical xy (used by exact joins), made when read
-        self.crack_outer = _CrackXY(self.crack_outer_c, to_xy_corner, False)
-        self.crack_holes = _CrackXY(self.crack_holes_c, to_xy_corner, True)
         self.fallbacks = 0
         # with "mlp", every component's MLP (one compiled pass) and the outer polygons made after the
         # loop, all at once (_outer_polygons)
-        mlps = slice_mlps_flat(lab32, boxes) if polygon not in ("dss", "none") else None
+        mlps = slice_mlps_flat(lab32, boxes, runs) if mlp else None
+        if found[0] == 0:
+            outer_at = self._components(found, boxes, pts, starts, polygon, to_xy_corner, to_xy_center)
+        else:  # pragma: no cover - (the plain loop raises the fault the compiled pass found)
+            outer_at = self._components_plain(lab32, boxes, pts, starts, area2, first, polygon, mlps,
+                                              to_xy_corner, to_xy_center)
+        # the crack contours in physical xy (used by exact joins), made when read
+        self.crack_outer = _CrackXY(self.crack_outer_c, to_xy_corner, False)
+        self.crack_holes = _CrackXY(self.crack_holes_c, to_xy_corner, True)
+        if mlps is not None:
+            self.outer = self._outer_polygons(mlps, pts, starts, outer_at, to_xy_corner, to_xy_center)
+        if recent is not None:
+            recent.hold(self)
+
+    def _components(self, found, boxes, pts, starts, polygon, to_xy_corner, to_xy_center):
+        """The per-component lists of the slice (``crack_outer_c``, ``crack_holes_c``, ``hole_masks``,
+        ``holes``, and ``outer`` but with "mlp") from :func:`_slice_holes`' pass ``found``; returns
+        the index of each component's outer crack contour (int64).  What :meth:`_components_plain`
+        makes, each hole's MLP polygon a view of one array of the slice's hole polygons (the same
+        integer sums and row maps; see :func:`_slice_holes`)."""
+        _, outer_at, hole_at, hole_start, hmeta, hflat, hp, hps, hok = found
+        st = starts.tolist()
+        self.crack_outer_c = [pts[st[i]: st[i + 1]] for i in outer_at.tolist()]
+        hs = hole_start.tolist()
+        hxy = to_xy_center(hp) if len(hp) else None
+        ha, hm, hps, hok = hole_at.tolist(), hmeta.tolist(), hps.tolist(), hok.tolist()
+        mlp = polygon not in ("dss", "none")
+        thin = {}  # (a hole one pixel wide, whose MLP encloses no area: its thin part's polygon)
+        if mlp and not all(hok):
+            which = [j for j in range(len(hok)) if not hok[j]]
+            tp, ts, tok = _thin_part_polygons(pts, starts, hole_at[which])
+            txy = to_xy_corner(tp)
+            ts = ts.tolist()
+            thin = {j: txy[ts[i]: ts[i + 1]] for i, (j, good) in enumerate(zip(which, tok.tolist())) if good}
+        crack_holes, hole_masks, holes = [], [], []
+        empty = _HoleMasks.empty
+        for c, (y0, y1, x0, x1) in enumerate(boxes.tolist()):
+            sl = self.objects[c]
+            h0, h1 = hs[c], hs[c + 1]
+            if h0 == h1:  # (most components: no hole)
+                crack_holes.append([])
+                hole_masks.append((sl, empty((y1 - y0, x1 - x0))))
+                holes.append([])
+                continue
+            crack_h = [pts[st[i]: st[i + 1]] for i in ha[h0: h1]]
+            crack_holes.append(crack_h)
+            hole_masks.append((sl, _HoleMasks.of_parts((y1 - y0, x1 - x0), [
+                (hy, hx, hflat[o: o + hh * hw].view(bool).reshape(hh, hw).copy())
+                for hy, hx, hh, hw, o in hm[h0: h1]])))
+            if not mlp:
+                off = np.array([sl[1].start, sl[0].start])
+                holes.append([self._polygon(h, None, polygon, to_xy_corner, to_xy_center, off, hole=True)
+                              for h in crack_h])
+                continue
+            got = []
+            for j, h in zip(range(h0, h1), crack_h):
+                if hok[j]:
+                    got.append(hxy[hps[j]: hps[j + 1]])
+                    continue
+                self.fallbacks += 1  # (as _polygon does; the compiled batch refuses what the plain form names)
+                t = thin.get(j)
+                got.append(to_xy_corner(thin_part_polygon(h)) if t is None else t)
+            holes.append(got)
+        self.crack_holes_c, self.hole_masks, self.holes = crack_holes, hole_masks, holes
+        if not mlp:
+            self.outer = [self._polygon(crack_o, None, polygon, to_xy_corner, to_xy_center,
+                                        np.array([sl[1].start, sl[0].start]), hole=False)
+                          for crack_o, sl in zip(self.crack_outer_c, self.objects)]
+        return outer_at
+
+    def _components_plain(self, lab32, boxes, pts, starts, area2, first, polygon, mlps, to_xy_corner,
+                          to_xy_center):
+        """The per-component loop that :meth:`_components` and :func:`_slice_holes` replace (kept as
+        their reference, and for the faults the compiled pass refuses, which it names)."""
+        self.outer = []   # per component: polygon (physical xy)
+        self.holes = []   # per component: list of hole polygons
+        self.hole_masks = []  # per component: list of (slices, mask) for each hole (local bbox)
+        self.crack_outer_c = []  # raw crack contours in corner coordinates (integers)
+        self.crack_holes_c = []
         outer_at = []  # (per component, its outer crack contour's index in pts / starts)
         for c in range(self.n):
             sl = self.objects[c]
@@ -436,11 +514,7 @@ class _Slice:
                               mlp=False if mlps is None else self._moved(pixels_mlp(part), hx, hy))
                 for h, (hy, hx, part) in zip(crack_h, parts)
             ])
-        if mlps is not None:
-            self.outer = self._outer_polygons(mlps, pts, starts, np.array(outer_at, dtype=np.int64),
-                                              to_xy_corner, to_xy_center)
-        if recent is not None:
-            recent.hold(self)
+        return np.array(outer_at, dtype=np.int64)
 
     def _outer_polygons(self, mlps, pts, starts, outer_at, to_xy_corner, to_xy_center):
         """The components' outer polygons by "mlp", as :meth:`_polygon` makes each (``hole=False``),
@@ -488,7 +562,11 @@ class _Slice:
         ``slice_labels`` makes them from the mask: made again where :class:`_RecentLabels`
         dropped them."""
         if self._labels is None:
-            self._labels = self._small(slice_labels(self._mask if self._source is None else self._source())[0])
+            if self._runs is not None:
+                ry, rx0, rx1, comp = self._runs
+                self._labels = self._small(_paint_labels(ry, rx0, rx1, comp, self._shape[0], self._shape[1]))
+            else:  # pragma: no cover - (a slice labelled in a box keeps its labels)
+                self._labels = self._small(slice_labels(self._mask)[0])
             self._recent.remade += 1
         if self._recent is not None:
             self._recent.hold(self)
@@ -537,6 +615,117 @@ class _Slice:
         if hole:
             poly = poly[::-1]
         return to_xy_center(poly)
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _slice_holes(lab, boxes, pts, starts, area2, first, sx, sy, mlp):  # pragma: no cover (compiled)
+    """The holes of every component of a slice in one pass (``lab`` its int32 labels; ``boxes``,
+    ``pts``, ``starts``, ``area2``, ``first`` as :func:`contourmesh.tracing.slice_cracks` gives them,
+    in the frame of ``lab``): what :meth:`_Slice._components_plain` finds component by component.
+    Returns ``(status, outer_at, hole_at, hole_start, meta, flat, hp, hps, ok)``:
+
+    * ``outer_at[c]``: the index of component ``c``'s outer crack contour (the one of positive
+      area); ``hole_at[hole_start[c]: hole_start[c + 1]]``: its hole contours (negative area), in
+      order;
+    * hole ``j``'s pixels (:func:`contourmesh.tracing._hole_parts` from the pixel right of its
+      contour's first edge, :meth:`_Slice._hole_seed`): ``flat[o: o + h * w]`` as ``(h, w)`` with
+      ``meta[j] = (y, x, h, w, o)``, ``(y, x)`` its first row and column in the component's box;
+    * with ``mlp``: hole ``j``'s MLP (:func:`contourmesh.fastpath._pixels_mlp` of those pixels, as
+      :func:`contourmesh.fastpath.pixels_mlp` reads them) moved to the slice (by the box's corner and
+      ``(sx, sy)``) and reversed, ``hp[hps[j]: hps[j + 1]]``, where ``ok[j]`` (three points or more
+      and a non-zero area; :meth:`_Slice._polygon` takes the thin part's polygon otherwise).  The
+      integers of ``(p + (hx, hy)) + off`` in the plain form, summed before the map to floats: the
+      same numbers.
+
+    ``status`` 1 where a component has not one outer contour or a hole contour finds no pixels (both
+    impossible for a 4-component; nothing else is then given, and the plain loop names the fault)."""
+    n = boxes.shape[0]
+    one = np.int64(1)
+    outer_at = np.empty(n, np.int64)
+    hole_at = np.empty(area2.shape[0], np.int64)
+    hole_start = np.empty(n + 1, np.int64)
+    nh = 0
+    for c in range(n):
+        hole_start[c] = nh
+        no = 0
+        for i in range(first[c], first[c + 1]):
+            if area2[i] > 0:
+                outer_at[c] = i
+                no += 1
+            elif area2[i] < 0:
+                hole_at[nh] = i
+                nh += 1
+        if no != 1:
+            return (one, outer_at, hole_at[:0], hole_start, np.empty((0, 5), np.int64), np.empty(0, np.uint8),
+                    np.empty((0, 2), np.int64), np.empty(1, np.int64), np.empty(0, np.bool_))
+    hole_start[n] = nh
+    meta = np.empty((nh, 5), np.int64)
+    fcap = 64
+    flat = np.empty(fcap, np.uint8)
+    fused = 0
+    pcap = 64
+    hp = np.empty((pcap, 2), np.int64)
+    hps = np.empty(nh + 1, np.int64)
+    ok = np.empty(nh, np.bool_)
+    pos = 0
+    hps[0] = 0
+    for c in range(n):
+        h0, h1 = hole_start[c], hole_start[c + 1]
+        if h0 == h1:
+            continue
+        x0, y0 = boxes[c, 2], boxes[c, 0]
+        seeds = np.empty((h1 - h0, 2), np.int64)
+        for j in range(h0, h1):
+            a = starts[hole_at[j]]
+            k = starts[hole_at[j] + 1] - a
+            b = a + 1 if k > 1 else a
+            px, py = pts[a, 0] - x0, pts[a, 1] - y0
+            dx, dy = pts[b, 0] - pts[a, 0], pts[b, 1] - pts[a, 1]
+            # the pixel right of the step (y up), as _Slice._hole_seed
+            if dx == 1:
+                seeds[j - h0, 0], seeds[j - h0, 1] = py - 1, px
+            elif dx == -1:
+                seeds[j - h0, 0], seeds[j - h0, 1] = py, px - 1
+            elif dy == 1:
+                seeds[j - h0, 0], seeds[j - h0, 1] = py, px
+            else:
+                seeds[j - h0, 0], seeds[j - h0, 1] = py - 1, px - 1
+        m, f = _hole_parts(lab, c + one, boxes[c], seeds)
+        if fused + f.shape[0] > fcap:
+            fcap = max(2 * fcap, fused + f.shape[0])
+            f2 = np.empty(fcap, np.uint8)
+            for t in range(fused):
+                f2[t] = flat[t]
+            flat = f2
+        for t in range(f.shape[0]):
+            flat[fused + t] = f[t]
+        for j in range(h0, h1):
+            hy, hx, hh, hw = m[j - h0, 0], m[j - h0, 1], m[j - h0, 2], m[j - h0, 3]
+            if hh <= 0:
+                return (one, outer_at, hole_at[:0], hole_start, np.empty((0, 5), np.int64), np.empty(0, np.uint8),
+                        np.empty((0, 2), np.int64), np.empty(1, np.int64), np.empty(0, np.bool_))
+            o = fused + m[j - h0, 4]
+            meta[j, 0], meta[j, 1], meta[j, 2], meta[j, 3], meta[j, 4] = hy, hx, hh, hw, o
+            ok[j] = False
+            if mlp:
+                p, a2 = _pixels_mlp(flat[o: o + hh * hw], hh, hw)
+                k = p.shape[0]
+                if k >= 3 and a2 != 0:
+                    ok[j] = True
+                    if pos + k > pcap:
+                        pcap = max(2 * pcap, pos + k)
+                        hp2 = np.empty((pcap, 2), np.int64)
+                        for t in range(pos):
+                            hp2[t, 0], hp2[t, 1] = hp[t, 0], hp[t, 1]
+                        hp = hp2
+                    mx, my = hx + x0 + sx, hy + y0 + sy
+                    for t in range(k):
+                        hp[pos + t, 0] = p[k - 1 - t, 0] + mx
+                        hp[pos + t, 1] = p[k - 1 - t, 1] + my
+                    pos += k
+            hps[j + 1] = pos
+        fused += f.shape[0]
+    return np.int64(0), outer_at, hole_at[:nh], hole_start, meta, flat[:fused], hp[:pos], hps, ok
 
 
 @njit(cache=True, **KERNEL_OPTIONS)
@@ -949,8 +1138,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     def load(k):
         if slices[k] is None and k in occupied_set:
             m2 = planes.reading(k)
-            slices[k] = _Slice(m2, polygon, to_xy_corner, to_xy_center, recent,
-                               source=None if planes.direct else _packed_source(m2))
+            slices[k] = _Slice(m2, polygon, to_xy_corner, to_xy_center, recent)
             bar.update()
 
     occupied_set = set(occupied)
@@ -2027,8 +2215,6 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     ``a`` and ``b`` lies in a hole of ``O``): then the 6-connected voxel object between the two
     slices has the topology of ``a`` times an interval (Mayer-Vietoris).
     """
-    from scipy import ndimage
-
     sa, sb = A.objects[a], B.objects[b]
     y0 = min(sa[0].start, sb[0].start)
     y1 = max(sa[0].stop, sb[0].stop)
@@ -2047,19 +2233,17 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
         return None
     if not ha:
         return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
-    comp_o = _pad1(~o, True)
-    olab, nol = ndimage.label(comp_o, structure=_SQUARE)
+    # (the padded background of O labelled 8-connected in compiled code: ndimage.label's labels)
+    _, olab, nol, _ = overlap_holes(o)
     ext = olab[0, 0]
     if nol - 1 != len(ha):
         return None
 
     def where(holes, sl):
         out = []
-        for hm in holes:
-            ys, xs = np.nonzero(hm)
-            yy = ys[0] + sl[0].start - y0 + 1
-            xx = xs[0] + sl[1].start - x0 + 1
-            out.append(int(olab[yy, xx]))
+        for i in range(len(holes)):
+            hy, hx = holes.first_pixel(i)  # (the first pixel of its whole mask, in raster order)
+            out.append(int(olab[hy + sl[0].start - y0 + 1, hx + sl[1].start - x0 + 1]))
         return out
 
     wa, wb = where(ha, sa), where(hb, sb)
