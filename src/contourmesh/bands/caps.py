@@ -30,10 +30,11 @@ def _as_ring(poly, name: str) -> np.ndarray:
     p = np.asarray(poly)
     if p.ndim != 2 or p.shape[1] not in (2, 3):
         raise ValueError(f"{name} must be a (k, 2) or (k, 3) array of points; got shape {p.shape}")
-    if not np.issubdtype(p.dtype, np.number) or np.issubdtype(p.dtype, np.complexfloating):
+    if p.dtype != np.float64 and (not np.issubdtype(p.dtype, np.number)
+                                  or np.issubdtype(p.dtype, np.complexfloating)):
         raise ValueError(f"{name} must hold real numbers; got dtype {p.dtype}")
     p = np.ascontiguousarray(p[:, :2], dtype=np.float64)
-    if not np.all(np.isfinite(p)):
+    if not np.isfinite(p).all():
         raise ValueError(f"{name} must contain only finite coordinates; found NaN or inf")
     return p
 

@@ -185,6 +185,61 @@ def initial_edge(c1: np.ndarray, c2: np.ndarray, window: int = INITIAL_EDGE_WIND
     int
         Index ``j`` in ``c2``.
     """
+    if radius is None and type(window) is int and _initial_edge_arrays_ok(c1, c2):
+        return int(_initial_edge_kernel(c1, c2, np.int64(window)))
+    return _initial_edge_reference(c1, c2, window, radius)
+
+
+def _initial_edge_arrays_ok(c1, c2) -> bool:
+    """Whether :func:`_initial_edge_kernel` takes ``c1`` and ``c2`` as they are: C-contiguous
+    ``(k, 3)`` float64 arrays, none empty (as :func:`validate_band_polygons` gives them)."""
+    return (type(c1) is np.ndarray and type(c2) is np.ndarray and c1.dtype == np.float64
+            and c2.dtype == np.float64 and c1.ndim == 2 and c2.ndim == 2 and c1.shape[1] == 3
+            and c2.shape[1] == 3 and len(c1) > 0 and len(c2) > 0 and c1.flags.c_contiguous
+            and c2.flags.c_contiguous)
+
+
+@njit(cache=True, nogil=True)
+def _initial_edge_kernel(c1, c2, window):  # pragma: no cover (compiled)
+    """:func:`initial_edge` with the default radius, compiled: the same squared distances
+    (``(dx * dx + dy * dy) + dz * dz``, the order in which numpy's sum over a row of three adds
+    them), the same window order (offsets 0, +1, -1, +2, ...), the first of equal minima (or the
+    first NaN) taken in each search as ``np.argmin`` takes it, and the same acceptance test."""
+    px, py, pz = c1[0, 0], c1[0, 1], c1[0, 2]
+    m = c2.shape[0]
+    radius = 2.0 * abs(c2[0, 2] - pz)
+    if m > 2 * window + 1:
+        bd = 0.0
+        bj = np.int64(0)
+        bo = np.int64(0)
+        for q in range(2 * window + 1):
+            off = 0 if q == 0 else ((q + 1) // 2 if q % 2 == 1 else -(q // 2))
+            j = off % m
+            dx = c2[j, 0] - px
+            dy = c2[j, 1] - py
+            dz = c2[j, 2] - pz
+            d2 = dx * dx + dy * dy + dz * dz
+            if q == 0 or d2 < bd or (d2 != d2 and bd == bd):  # (a NaN first, as np.argmin)
+                bd = d2
+                bj = j
+                bo = off
+        if bd <= radius * radius and abs(bo) < window:
+            return bj
+    bd = 0.0
+    bj = np.int64(0)
+    for j in range(m):
+        dx = c2[j, 0] - px
+        dy = c2[j, 1] - py
+        dz = c2[j, 2] - pz
+        d2 = dx * dx + dy * dy + dz * dz
+        if j == 0 or d2 < bd or (d2 != d2 and bd == bd):
+            bd = d2
+            bj = j
+    return bj
+
+
+def _initial_edge_reference(c1, c2, window=INITIAL_EDGE_WINDOW, radius=None) -> int:
+    """:func:`initial_edge` in numpy (any radius; the reference of :func:`_initial_edge_kernel`)."""
     p = c1[0]
     m = len(c2)
     if radius is None:
