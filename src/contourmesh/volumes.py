@@ -366,8 +366,10 @@ class _Slice:
         if box is None:
             labels, self.n, self.objects, runs = slice_labels(mask2d, runs=True)
             lab32, sx, sy = labels, 0, 0
-            if recent is not None:  # (row, first and end column, component: a copy, not views of the labeller's buffers)
-                self._runs = np.stack([runs[0], runs[1], runs[2], runs[3] - 1])
+            if recent is not None:  # (row, first and end column, component: a copy, not views of the labeller's
+                # buffers, in int32: half the bytes, for a volume of many slices held to the end)
+                self._runs = np.empty((4, len(runs[0])), np.int32)
+                self._runs[0], self._runs[1], self._runs[2], self._runs[3] = runs[0], runs[1], runs[2], runs[3] - 1
         else:
             lab32, self.n, objects, runs = slice_labels(mask2d[box], runs=True)
             sy, sx = box[0].start or 0, box[1].start or 0
@@ -563,7 +565,7 @@ class _Slice:
         dropped them."""
         if self._labels is None:
             if self._runs is not None:
-                ry, rx0, rx1, comp = self._runs
+                ry, rx0, rx1, comp = self._runs.astype(np.int64)  # (the labeller's int64 signature)
                 self._labels = self._small(_paint_labels(ry, rx0, rx1, comp, self._shape[0], self._shape[1]))
             else:  # pragma: no cover - (a slice labelled in a box keeps its labels)
                 self._labels = self._small(slice_labels(self._mask)[0])
