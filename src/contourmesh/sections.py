@@ -194,8 +194,11 @@ def _sdf_square(m, area, h, gi, go, need):
     distance 0: every column farther is farther), so each envelope has only those columns (about
     half as many parabolas as two envelopes of the whole row).  The pixels beyond a run at the
     padding of an outside run are no region pixels, but there the run reaches the padding: no
-    column lies beyond it.  A run with no wanted pixel gets no envelope; a wanted pixel's number
-    is the one it gets with every pixel wanted (the same envelope, the same arithmetic)."""
+    column lies beyond it.  A run with no wanted pixel gets no envelope.  Where some pixels are
+    wanted (:func:`_wanted_in_run`), each wanted pixel's nearest column lies no farther from it than
+    a column beyond the run (whose distance is 0), so the run's envelope is made only over the
+    columns within that reach of its wanted pixels: the lowest parabola there is as low as over the
+    whole run, the squared distance is the same integer, and the distance the same bits."""
     H, W = m.shape
     Wp = W + 2
     every = need.shape[0] == 0
@@ -206,6 +209,16 @@ def _sdf_square(m, area, h, gi, go, need):
     zd = np.empty(Wp, np.int64)
     for y in range(H):
         row = m[y]
+        if not every:  # a row with no wanted pixel is only signs (a loop the compiler vectorizes)
+            wanted = False
+            for x in range(W):
+                if need[y, x] != 0:
+                    wanted = True
+                    break
+            if not wanted:
+                for x in range(W):
+                    out[y, x] = -np.inf if row[x] != 0 else np.inf
+                continue
         x = 0
         while x < W:
             inside = row[x] != 0
@@ -213,19 +226,14 @@ def _sdf_square(m, area, h, gi, go, need):
             while b < W and (row[b] != 0) == inside:
                 b += 1
             o = out[y, x:b]  # (relative column xr at o[xr - 1])
-            if not every:
-                wanted = False
-                for i in range(x, b):
-                    if need[y, i] != 0:
-                        wanted = True
-                        break
-                if not wanted:
-                    o[:] = -np.inf if inside else np.inf
-                    x = b
-                    continue
             # the run is image columns x .. b - 1, padded x + 1 .. b; with the pixels beyond it,
             # padded columns x .. b + 1 (relative columns 0 .. b - x + 1)
             g = gi[y + 1, x:b + 2] if inside else go[y + 1, x:b + 2]
+            if not every:
+                # (an outside run's column beyond it at the padding has no distance: no bound there)
+                _wanted_in_run(o, g, need[y, x:b], inside, inside or x > 0, inside or b < W, h, area, v, zn, zd)
+                x = b
+                continue
             k = _envelope(g, v, zn, zd)
             # parabola v[t] is the lowest on the columns past zn[t] / zd[t] (zd > 0; increasing
             # in t) up to the next one's: the integer columns from floor(zn / zd) + 1 on
@@ -238,12 +246,57 @@ def _sdf_square(m, area, h, gi, go, need):
                 p = v[t]
                 gp = g[p]
                 for xr in range(lo, hi):
-                    if every or need[y, x + xr - 1] != 0:
-                        o[xr - 1] = hs + sgn * math.sqrt(float((xr - p) * (xr - p) + gp) * area)
-                    else:
-                        o[xr - 1] = sgn * np.inf
+                    o[xr - 1] = hs + sgn * math.sqrt(float((xr - p) * (xr - p) + gp) * area)
             x = b
     return out
+
+
+@njit(cache=True, nogil=True)
+def _wanted_in_run(o, g, need, inside, left, right, h, area, v, zn, zd):
+    """:func:`_sdf_square` on one run whose pixels ``need`` (uint8, the run's) are wanted: ``o``
+    (the run's output) gets each wanted pixel's signed distance, the others ``-inf`` on the region
+    and ``+inf`` off it.  ``g``: the column distances of the run's columns and of the two beyond it
+    (relative columns ``0 .. end``); ``left`` / ``right``: whether that beyond column has distance 0
+    (not a padding column of an outside run).
+
+    A wanted pixel at relative column ``xr`` is at most ``r = min(xr, end - xr)`` (of the beyond
+    columns with distance 0) from a feature, so its nearest column lies in ``xr - r .. xr + r``.
+    These windows move right with ``xr`` (both ends never decrease), so the wanted pixels fall
+    into runs of overlapping windows; each gets one envelope over the columns its windows cover,
+    read as the whole run's is (the owner of column ``c`` is the last parabola whose crossing's
+    floor is below ``c``)."""
+    end = g.shape[0] - 1
+    sgn = -1.0 if inside else 1.0
+    hs = h if inside else -h
+    o[:] = sgn * np.inf
+    big = end + 1
+    cl, ch, w0, w1 = -1, -1, -1, -1  # the current cluster's columns and first / last wanted pixel
+    xr = 1
+    while xr <= end:
+        lo_, hi_ = end + 1, end + 1
+        if xr < end and need[xr - 1] != 0:
+            r = min(xr if left else big, end - xr if right else big)
+            lo_, hi_ = max(0, xr - r), min(end, xr + r)
+        if cl >= 0 and (xr == end or lo_ <= end and lo_ > ch):
+            # the cluster's envelope over columns cl .. ch, read at its wanted pixels w0 .. w1
+            k = _envelope(g[cl:ch + 1], v, zn, zd)
+            t = 0
+            for w in range(w0, w1 + 1):
+                if need[w - 1] == 0:
+                    continue
+                c = w - cl
+                while t < k and zn[t + 1] // zd[t + 1] < c:
+                    t += 1
+                p = v[t] + cl
+                o[w - 1] = hs + sgn * math.sqrt(float((w - p) * (w - p) + g[p]) * area)
+            cl = -1
+        if lo_ <= end:
+            if cl < 0:
+                cl, ch, w0 = lo_, hi_, xr
+            elif hi_ > ch:
+                ch = hi_
+            w1 = xr
+        xr += 1
 
 
 def _sdf_reference(m: np.ndarray, sampling) -> np.ndarray:
