@@ -497,11 +497,19 @@ def _overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk):
 
 
 class _NoTopology(Exception):
-    """No stack of sections that a sectioned join can still get keeps the topology."""
+    """No stack of sections that a sectioned join can still get keeps the topology (or keeps within
+    the caller's area)."""
+
+
+#: :func:`sectioned_join` gives a join up once its kept pieces' area exceeds ``max_area`` times
+#: ``1 + _AREA_MARGIN``: the join's area and theirs are sums of the same faces' areas (the join's
+#: over more faces) in other orders, and rounding moves a sum of n positive numbers by less than
+#: ``n`` units in the last place (relative), far below this for any mesh.
+_AREA_MARGIN = 1e-9
 
 
 def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
-                   topology_first=False):
+                   topology_first=False, max_area=None):
     """Join components ``ga`` of slice ``k`` and ``gb`` of slice ``k + 1`` through intermediate
     sections (see the module docstring).  Returns a :class:`contourmesh.volumes._Bridged` (its
     ``sections`` counts the sections made) or None where no sectioning keeps every rule.
@@ -518,7 +526,14 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     are decided, and give the join up as soon as no stack they still allow keeps it (with
     :data:`GIVE_UP_EARLY`; the same answer, less work where the test fails early).  The mesher asks
     it for a loop of overlaps (a handle forms in the gap), whose sections often cannot keep the
-    topology; a fork or a merge rarely fails that test, and there it would only add work."""
+    topology; a fork or a merge rarely fails that test, and there it would only add work.
+
+    ``max_area``: where given, the caller keeps the join only if its area (``float(triangle_areas(V,
+    F).sum())``) is at most this; any other join is given up (None: the caller's answer is the
+    same).  The finished join is measured before its costlier tests (edges, crossings, topology),
+    and the join is given up as soon as the bridged pieces it keeps have more area than that with
+    a margin (:data:`_AREA_MARGIN`): each of their faces is a face of the join, the same numbers."""
+    from .measure import triangle_areas
     from .tracing import label_mask
 
     A, B = slices[k], slices[k + 1]
@@ -568,6 +583,16 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     # the same mask whether or not its layer is made yet; a stack with an empty section cannot be
     # built either: the join is given up only where it would come to nothing anyway.)
     early = GIVE_UP_EARLY and topology_first
+    kept_area = [0.0]  # the area of the bridged pieces decided so far (each is in the join, if any)
+
+    def keep(pieces):
+        if max_area is None:
+            return
+        for p_ in pieces:
+            if p_[0] == "bridged":
+                kept_area[0] += float(triangle_areas(p_[3].V, p_[3].F).sum())
+        if kept_area[0] > max_area * (1.0 + _AREA_MARGIN):
+            raise _NoTopology  # (no join within max_area: given up like one without the topology)
     split_at = {(): True}  # pair path -> whether it is split, where decided
     node_sdf = {}  # node ("lo", "hi" or a pair path: that pair's section) -> its signed distance
     layer_at = {"lo": lo, "hi": hi}  # node -> its layer, where made
@@ -636,6 +661,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         pieces = None if first else _pieces(ops, P, Q, caps, triangulation, grid)
         if pieces is not None:
             decide(path, False)
+            keep(pieces)
             return [], pieces
         if depth == 0:
             return None
@@ -674,11 +700,14 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     if got is None:
         return None
     layers, pieces = got
-    # the sections keep the topology of the join's voxel object
-    if stack_invariants([mask_of(lo), mask_of(hi)]) != \
+    # the join (None where it is no valid piece of mesh or has more area than max_area), and the
+    # sections must keep the topology of the join's voxel object: each of the three tests gives
+    # None alone, so the cheapest come first (the area before the costlier tests, in assembly)
+    out = _assemble_pieces(ops, pieces, layers, triangulation, max_area)
+    if out is None or stack_invariants([mask_of(lo), mask_of(hi)]) != \
             stack_invariants([mask_of(L) for L in [lo] + layers + [hi]]):
         return None
-    return _assemble_pieces(ops, pieces, layers, triangulation)
+    return out
 
 
 def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
@@ -736,13 +765,15 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
     return out
 
 
-def _assemble_pieces(ops, pieces, layers, triangulation):
+def _assemble_pieces(ops, pieces, layers, triangulation, max_area=None):
     """One :class:`contourmesh.volumes._Bridged` of all pieces: the slices' rings first (in order of
     first use), then the sections' rings and the pieces' own vertices; None where the result is
-    not a valid piece of mesh."""
+    not a valid piece of mesh, or (``max_area`` given) where its area, ``float(triangle_areas(V,
+    F).sum())`` of the ``V`` and ``F`` it would have, exceeds ``max_area``."""
     from .bands.bridges import segments_cross
     from .bands.caps import cap_faces
     from .intersect import any_intersecting
+    from .measure import triangle_areas
     _band_faces, _Bridged = ops.band_faces, ops.Bridged
 
     used = []  # ring keys (layer, c, h) in order of first use
@@ -846,6 +877,8 @@ def _assemble_pieces(ops, pieces, layers, triangulation):
                 return None
     V = np.concatenate(pts)
     F = np.concatenate(faces)
+    if max_area is not None and not float(triangle_areas(V, F).sum()) <= max_area:
+        return None
     if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
         return None
     # each new edge used twice (once each way), each edge of a slice's ring once

@@ -3512,13 +3512,13 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
                         # more area than the exact join: a fold is likely; intermediate sections may
                         # follow the surface with less, and the join takes whichever has less area
                         alt = sectioned_join(section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps,
-                                             triangulation, polygon, grid)
+                                             triangulation, polygon, grid, max_area=float(np.nextafter(area, -np.inf)))
                         if alt is not None and float(triangle_areas(alt.V, alt.F).sum()) < area:
                             cache[key] = alt
                     if cache[key] is None and band_guard is None and sectioned:
                         # split the gap by intermediate sections; held to the same area limit
                         got = sectioned_join(section_ops(), k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation,
-                                             polygon, grid, topology_first=plan is None)
+                                             polygon, grid, topology_first=plan is None, max_area=limit)
                         if got is not None and float(triangle_areas(got.V, got.F).sum()) <= limit:
                             cache[key] = got
             b = cache[key]
