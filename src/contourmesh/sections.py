@@ -898,7 +898,68 @@ def _edges_close(F, nv, spans) -> bool:
     """The faces ``F`` (of ``nv`` vertices) use every edge at most twice and never twice the same
     way, and the edges they use once are exactly those of the rings ``spans`` (``(offset, size)``:
     vertices ``offset .. offset + size - 1`` in order round the ring).  Each edge is one integer
-    (``u * nv + v``; undirected ``min * nv + max``), so the rows are compared as numbers."""
+    (``u * nv + v``; undirected ``min * nv + max``), so the rows are compared as numbers, in one
+    compiled pass (:func:`_edges_close_kernel`; :func:`_edges_close_numpy` is the same test with
+    numpy's sorts, its reference)."""
+    F = np.asarray(F)
+    if len(F) == 0:
+        return _edges_close_numpy(F, nv, spans)  # (no face: numpy's answer, as it always was)
+    sp = np.array(spans, dtype=np.int64).reshape(-1, 2)
+    return bool(_edges_close_kernel(np.ascontiguousarray(F, dtype=np.int64), np.int64(nv), sp))
+
+
+@njit(cache=True, nogil=True)
+def _edges_close_kernel(F, nv, spans):
+    """:func:`_edges_close` of int64 faces ``F`` (at least one) and rings ``spans`` (``(offset,
+    size)`` rows): the directed edge keys sorted (no two equal), the undirected ones sorted (no
+    run longer than two), and the keys of the runs of one equal to the rings' keys, sorted and
+    without repeats (a ring of one or two vertices repeats its keys)."""
+    m = F.shape[0]
+    d = np.empty(3 * m, np.int64)
+    u = np.empty(3 * m, np.int64)
+    for i in range(m):
+        for j in range(3):
+            a, b = F[i, j], F[i, (j + 1) % 3]
+            d[3 * i + j] = a * nv + b
+            u[3 * i + j] = min(a, b) * nv + max(a, b)
+    d.sort()
+    for i in range(1, 3 * m):
+        if d[i] == d[i - 1]:
+            return False
+    u.sort()
+    nr = 0
+    for r in range(spans.shape[0]):
+        nr += spans[r, 1]
+    ring = np.empty(nr, np.int64)
+    t = 0
+    for r in range(spans.shape[0]):
+        off, n = spans[r, 0], spans[r, 1]
+        for i in range(n):
+            a, b = off + i, off + (i + 1) % n
+            ring[t] = min(a, b) * nv + max(a, b)
+            t += 1
+    ring.sort()
+    # the once-used undirected keys, in order, against the rings' distinct keys, in order
+    j = 0  # next distinct ring key
+    i = 0
+    while i < 3 * m:
+        e = i + 1
+        while e < 3 * m and u[e] == u[i]:
+            e += 1
+        if e - i > 2:
+            return False
+        if e - i == 1:
+            if j >= nr or ring[j] != u[i]:
+                return False
+            key = ring[j]
+            while j < nr and ring[j] == key:
+                j += 1
+        i = e
+    return j == nr
+
+
+def _edges_close_numpy(F, nv, spans) -> bool:
+    """:func:`_edges_close` with numpy's sorts and ``np.unique`` (the form it had): the reference."""
     nv = np.int64(nv)
     d = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]).astype(np.int64, copy=False)
     directed = np.sort(d[:, 0] * nv + d[:, 1])
