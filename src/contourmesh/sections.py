@@ -370,8 +370,13 @@ def _euler2_kernel(m):
 
 def warm_rare_kernels() -> None:
     """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
-    numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps)."""
-    _euler2(np.eye(3, dtype=bool))
+    numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps), the signed
+    distances of wanted pixels (:func:`_sdf`) and the edge check of an assembled join
+    (:func:`_edges_close`)."""
+    m = np.eye(3, dtype=bool)
+    _euler2(m)
+    _sdf(m, (1.0, 1.0), need=m)
+    _edges_close(np.array([[0, 1, 2]], dtype=np.int64), 3, [(0, 3)])
 
 
 def euler6(v) -> int:
