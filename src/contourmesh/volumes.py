@@ -79,6 +79,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -2875,44 +2876,17 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     bands = []  # (lower ids, upper ids, rule) of each band, in the order of faces
     for t, (a_ids, b_ids) in enumerate([(lo[0], hi[0])] + tube_ids):
         ids = np.concatenate([a_ids, b_ids])
+        P = V[ids]  # (the rows of V[a_ids], then those of V[b_ids])
+        na = len(a_ids)
         # the bridged rings' band by the least-area rule (see _dissimilar_rule); the tubes (pairs
         # of holes) by the selected one
-        rule = triangulation if t else _dissimilar_rule(len(a_ids), len(b_ids), triangulation,
-                                                        _BRIDGED_OPTIMAL_BUDGET)
+        rule = triangulation if t else _dissimilar_rule(na, len(b_ids), triangulation, _BRIDGED_OPTIMAL_BUDGET)
         least_area += rule != triangulation
-        f, r = _band_faces(V[a_ids], V[b_ids], rule, _BRIDGED_OPTIMAL_BUDGET)
-        # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
-        # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
-        n_, m_ = sorted((len(a_ids), len(b_ids)))
-        Va, Vb = V[a_ids], V[b_ids]
-        made = {}  # the rules' bands made below for this pair, by name (_made_band)
-        for method in ("optimal", "arclength"):
-            if not band_is_folded(ids[f]):
-                break
-            # (where _band_faces kept the least-area band of a pair within the budget, the bounded
-            # one is that band: it is not made again)
-            if method != "optimal" or rule != "optimal" or r != 0 or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET:
-                f = triangulate_band_optimal(Va, Vb, max_work=_BRIDGED_OPTIMAL_BUDGET) \
-                    if method == "optimal" else _made_band(made, Va, Vb, method)
-            r += 1
-        if band_is_folded(ids[f]):
+        got = _bridged_band(P, na, ids, rule) if band_guard is not None else \
+            _bridged_band_seen(P, na, ids, rule)
+        if got is None:
             return None
-        # a bridged ring is far from convex (its slits): the chosen band may cross itself where
-        # another strategy does not; take the first embedded one that is not twisted (its area at
-        # most _BRIDGED_AREA_SLACK times the crossing band's) before giving the join up
-        P = np.concatenate([Va, Vb])
-        if _band_crosses(P, f):
-            limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
-            for method in _BRIDGED_ALTERNATIVES:
-                if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
-                    continue  # already tried, or too slow (cubic)
-                g = _made_band(made, Va, Vb, method)
-                if g is f:  # (the band that crosses: it would not pass the test below)
-                    continue
-                if (not band_is_folded(ids[g]) and float(triangle_areas(P, g).sum()) <= limit
-                        and not _band_crosses(P, g)):
-                    f, r = g, r + 1
-                    break
+        f, r = got
         if band_guard is not None:  # a bridged ring's area is the sum of its contours' (slits add none)
             g = np.asarray(band_guard(V[a_ids], V[b_ids], f))
             if not np.array_equal(g, f) and not band_is_folded(ids[g]) and not _band_crosses(P, g):
@@ -2963,6 +2937,73 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
     return out
+
+
+def _bridged_band(P, na, ids, rule):
+    """The faces (local numbers) of one band of a bridged join and how many guards fired, or None
+    where every rule's band folds: ``P`` its two rings' points (the lower ring's ``na`` first), ``ids``
+    their vertex ids in the join (a bridged ring visits its bridge ends twice, with one id) and
+    ``rule`` its band rule (:func:`_dissimilar_rule`'s).  The band of :func:`_band_faces`; where it
+    uses a diagonal twice in the join's numbering, the bounded least-area band, then the arc-length
+    band; where it crosses itself, the first other rule's that does not (see :func:`_bridge_join`).
+    A function of ``P``, ``na``, ``ids`` and ``rule`` only."""
+    Va, Vb = P[:na], P[na:]
+    f, r = _band_faces(Va, Vb, rule, _BRIDGED_OPTIMAL_BUDGET)
+    # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
+    # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
+    n_, m_ = sorted((na, len(P) - na))
+    made = {}  # the rules' bands made below for this pair, by name (_made_band)
+    for method in ("optimal", "arclength"):
+        if not band_is_folded(ids[f]):
+            break
+        # (where _band_faces kept the least-area band of a pair within the budget, the bounded
+        # one is that band: it is not made again)
+        if method != "optimal" or rule != "optimal" or r != 0 or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET:
+            f = triangulate_band_optimal(Va, Vb, max_work=_BRIDGED_OPTIMAL_BUDGET) \
+                if method == "optimal" else _made_band(made, Va, Vb, method)
+        r += 1
+    if band_is_folded(ids[f]):
+        return None
+    # a bridged ring is far from convex (its slits): the chosen band may cross itself where
+    # another strategy does not; take the first embedded one that is not twisted (its area at
+    # most _BRIDGED_AREA_SLACK times the crossing band's) before giving the join up
+    if _band_crosses(P, f):
+        limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
+        for method in _BRIDGED_ALTERNATIVES:
+            if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
+                continue  # already tried, or too slow (cubic)
+            g = _made_band(made, Va, Vb, method)
+            if g is f:  # (the band that crosses: it would not pass the test below)
+                continue
+            if (not band_is_folded(ids[g]) and float(triangle_areas(P, g).sum()) <= limit
+                    and not _band_crosses(P, g)):
+                f, r = g, r + 1
+                break
+    return f, r
+
+
+#: The last few answers of :func:`_bridged_band`, keyed by the bytes of its arguments: a bridged
+#: join is built again with the same rings (a pass that restarts after a join fell back, the same
+#: piece of intermediate sections tried again; about a sixth of the lobster's joins), and its bands
+#: are the same.  The faces are kept read-only (the callers index with them, never write).
+_BANDS_SEEN: dict = {}
+_BANDS_KEEP = 64
+_BANDS_LOCK = threading.Lock()
+
+
+def _bridged_band_seen(P, na, ids, rule):
+    """:func:`_bridged_band`, remembering the answers of the last :data:`_BANDS_KEEP` calls."""
+    key = (P.shape, P.dtype.str, P.tobytes(), na, ids.dtype.str, ids.tobytes(), rule)
+    got = _BANDS_SEEN.get(key, _BANDS_SEEN)
+    if got is _BANDS_SEEN:
+        got = _bridged_band(P, na, ids, rule)
+        if got is not None:
+            got[0].flags.writeable = False
+        with _BANDS_LOCK:  # (meshers may run in threads of one process)
+            while len(_BANDS_SEEN) >= _BANDS_KEEP:
+                del _BANDS_SEEN[next(iter(_BANDS_SEEN))]  # the oldest (dicts keep insertion order)
+            _BANDS_SEEN[key] = got
+    return got
 
 
 def _made_band(made, lo, hi, method):
