@@ -76,3 +76,16 @@ def test_rule_and_id_pattern_are_part_of_the_key():
         assert (got is None) == (want is None)
         if want is not None:
             assert np.array_equal(got[0], want[0]) and got[1] == want[1]
+
+
+def test_repeated_corner_test_is_the_numpy_form():
+    """``_repeats_a_corner`` (one compiled pass) against the three numpy comparisons it replaced."""
+    rs = np.random.default_rng(125)
+    seen = {True: 0, False: 0}
+    for t in range(300):
+        F = rs.integers(0, int(rs.integers(3, 400)), size=(int(rs.integers(0, 60)), 3)).astype(np.int64)
+        want = bool((F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any())
+        got = bool(volumes._repeats_a_corner(F))
+        assert got == want
+        seen[want] += 1
+    assert min(seen.values()) > 30, seen

@@ -82,12 +82,14 @@ import logging
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import accumulate
 
 import numpy as np
 
 from ._heap import release_free_heap
 from ._kernels import KERNEL_OPTIONS, internal_kernel, njit
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
+from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
 from .bands.optimal import triangulate_band_optimal
@@ -104,7 +106,7 @@ from .fastpath import (
     slice_mlps_flat,
 )
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
-from .intersect import intersecting_pairs
+from .intersect import any_intersecting, intersecting_pairs
 from .measure import triangle_areas
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
 from .polygons.dss import _greedy_segmentation
@@ -2805,9 +2807,6 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 
     Where the join's faces cross at a bridge end, its band gets other rules
     (:func:`_merged_band_retry`)."""
-    from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays
-    from .intersect import any_intersecting
-
     tubes, lids_a, lids_b, open_a, open_b = plan
     zk, zk1 = float(zs[k]), float(zs[k + 1])
     pts, heights, rings = [], [], []  # the rings' points (x, y), their planes' heights
@@ -2841,7 +2840,8 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     for plane, multi, owners, other, comps in ((k, lo, owners_lo, k + 1, gb), (k + 1, hi, owners_hi, k, ga)):
         if len(multi) == 1:
             continue
-        rs = [V[r][:, :2] for r in multi]
+        # (each ring's ids are a run: its rows of V, as a view, are V[r][:, :2])
+        rs = [V[r[0]:r[0] + len(r), :2] if len(r) else V[r][:, :2] for r in multi]
         oa, ob = edges_of(plane)
         step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
         cover = uncovered(other, comps)
@@ -2858,7 +2858,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         # the tour's (ring, vertex) pairs as vertex ids: ring r's ids, then each polyline bridge's
         tables = [np.asarray(multi[r], dtype=np.int64) for r in range(len(rs))] + \
             [ids_of.get(len(rs) + b, np.zeros(0, dtype=np.int64)).astype(np.int64) for b in range(len(br))]
-        start = np.cumsum([0] + [len(t) for t in tables[:-1]])
+        start = np.array(list(accumulate([len(t) for t in tables[:-1]], initial=0)), dtype=np.int64)
         tour_r, tour_v = bridged_ring_arrays([len(r) for r in rs], br)
         seq = np.concatenate(tables)[start[tour_r] + tour_v]
         for bridge in br:
@@ -2924,7 +2924,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     F = np.concatenate(faces)
     if band_is_folded(F):  # an edge in more than two faces (compiled: the sorted edge keys)
         return None
-    if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
+    if _repeats_a_corner(F):
         return None
     if any_intersecting(V, F):
         # the bands were tested with the two visits of each bridge end a hair apart (as pinches); as
@@ -3004,6 +3004,17 @@ def _bridged_band_seen(P, na, ids, rule):
                 del _BANDS_SEEN[next(iter(_BANDS_SEEN))]  # the oldest (dicts keep insertion order)
             _BANDS_SEEN[key] = got
     return got
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _repeats_a_corner(F):  # pragma: no cover (compiled)
+    """Whether some face of ``F`` names one vertex twice: ``(F[:, 0] == F[:, 1]).any() or (F[:, 1] ==
+    F[:, 2]).any() or (F[:, 0] == F[:, 2]).any()`` in one pass."""
+    for t in range(F.shape[0]):
+        a, b, c = F[t, 0], F[t, 1], F[t, 2]
+        if a == b or b == c or a == c:
+            return True
+    return False
 
 
 def _made_band(made, lo, hi, method):
