@@ -89,3 +89,13 @@ def test_repeated_corner_test_is_the_numpy_form():
         assert got == want
         seen[want] += 1
     assert min(seen.values()) > 30, seen
+
+
+def test_a_changed_setting_is_not_answered_from_memory(monkeypatch):
+    rs = np.random.default_rng(126)
+    volumes._BANDS_SEEN.clear()
+    P, na, ids = next(_cases(rs, 1))
+    volumes._bridged_band_seen(P, na, ids, "wiederhold")
+    monkeypatch.setattr(volumes, "_BRIDGED_ALTERNATIVES", ())
+    volumes._bridged_band_seen(P, na, ids, "wiederhold")
+    assert len(volumes._BANDS_SEEN) == 2

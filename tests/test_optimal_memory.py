@@ -49,3 +49,13 @@ def test_bad_input_keeps_its_error_and_is_not_remembered():
     with pytest.raises(ValueError):
         triangulate_band_optimal(np.full((4, 3), np.nan), np.zeros((5, 3)))
     assert not optimal._SEEN
+
+
+def test_the_size_limits_are_checked_before_the_memory(monkeypatch):
+    rs = np.random.default_rng(7)
+    lo, hi = _ring(rs, 20, 0.0), _ring(rs, 30, 1.0)
+    optimal._SEEN.clear()
+    triangulate_band_optimal(lo, hi)
+    monkeypatch.setattr(optimal, "MAX_OPTIMAL_CELLS", 100)
+    with pytest.raises(ValueError, match="table cells"):
+        triangulate_band_optimal(lo, hi)

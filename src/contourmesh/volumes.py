@@ -2982,7 +2982,8 @@ def _bridged_band(P, na, ids, rule):
     return f, r
 
 
-#: The last few answers of :func:`_bridged_band`, keyed by the bytes of its arguments: a bridged
+#: The last few answers of :func:`_bridged_band`, keyed by the bytes of its arguments and the
+#: settings it reads (``_BRIDGED_ALTERNATIVES``, ``_BRIDGED_OPTIMAL_BUDGET``, ``_BRIDGED_AREA_SLACK``): a bridged
 #: join is built again with the same rings (a pass that restarts after a join fell back, the same
 #: piece of intermediate sections tried again; about a sixth of the lobster's joins), and its bands
 #: are the same.  The faces are kept read-only (the callers index with them, never write).
@@ -2993,7 +2994,9 @@ _BANDS_LOCK = threading.Lock()
 
 def _bridged_band_seen(P, na, ids, rule):
     """:func:`_bridged_band`, remembering the answers of the last :data:`_BANDS_KEEP` calls."""
-    key = (P.shape, P.dtype.str, P.tobytes(), na, ids.dtype.str, ids.tobytes(), rule)
+    key = (P.shape, P.dtype.str, P.tobytes(), na, ids.dtype.str, ids.tobytes(), rule,
+           # (the settings it reads, so that a changed setting is never answered from memory)
+           _BRIDGED_ALTERNATIVES, _BRIDGED_OPTIMAL_BUDGET, _BRIDGED_AREA_SLACK)
     got = _BANDS_SEEN.get(key, _BANDS_SEEN)
     if got is _BANDS_SEEN:
         got = _bridged_band(P, na, ids, rule)

@@ -784,6 +784,14 @@ def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.
     lo, up = validate_band_polygons(lower, upper)
     if len(lo) == 1 and len(up) == 1:
         return np.empty((0, 3), dtype=np.int64)
+    n, m = sorted((len(lo), len(up)))  # (the smaller ring is C(1): oriented_pair)
+    bounded = max_work is not None and n * n * m > max_work
+    if n * m > MAX_OPTIMAL_CELLS or (n * n * m > MAX_OPTIMAL_WORK and not bounded):
+        raise ValueError(
+            f"the optimal band between polygons of {n} and {m} vertices needs {n * m:,} table cells (about "
+            f"{19 * n * m / 2**20:,.0f} MiB) and {n * n * m:.2g} steps; the limits are {MAX_OPTIMAL_CELLS:,} cells and "
+            f"{MAX_OPTIMAL_WORK:.2g} steps. Use triangulation='wiederhold' or 'greedy' (linear time), or "
+            "polygon='mlp'/'dss' (fewer vertices)")
     key = (lo.shape, lo.dtype.str, lo.tobytes(), up.shape, up.dtype.str, up.tobytes(), max_work)
     got = _SEEN.get(key)
     if got is None:
@@ -806,16 +814,10 @@ _SEEN_LOCK = threading.Lock()
 
 def _optimal_faces(lo, up, max_work):
     """:func:`triangulate_band_optimal` of the validated polygons ``lo`` and ``up`` (not both one
-    point), without the memory of recent calls."""
+    point, within the size limits), without the memory of recent calls."""
     c1, c2, swapped = oriented_pair(lo, up)
     n, m = len(c1), len(c2)
     bounded = max_work is not None and n * n * m > max_work
-    if n * m > MAX_OPTIMAL_CELLS or (n * n * m > MAX_OPTIMAL_WORK and not bounded):
-        raise ValueError(
-            f"the optimal band between polygons of {n} and {m} vertices needs {n * m:,} table cells (about "
-            f"{19 * n * m / 2**20:,.0f} MiB) and {n * n * m:.2g} steps; the limits are {MAX_OPTIMAL_CELLS:,} cells and "
-            f"{MAX_OPTIMAL_WORK:.2g} steps. Use triangulation='wiederhold' or 'greedy' (linear time), or "
-            "polygon='mlp'/'dss' (fewer vertices)")
     if len(c1) == 1:
         edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
         s = 0
