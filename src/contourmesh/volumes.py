@@ -79,14 +79,17 @@ from __future__ import annotations
 
 import functools
 import logging
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import accumulate
 
 import numpy as np
 
 from ._heap import release_free_heap
 from ._kernels import KERNEL_OPTIONS, internal_kernel, njit
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
+from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
 from .bands.optimal import triangulate_band_optimal
@@ -103,7 +106,7 @@ from .fastpath import (
     slice_mlps_flat,
 )
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
-from .intersect import intersecting_pairs
+from .intersect import any_intersecting, intersecting_pairs
 from .measure import triangle_areas
 from .polygons import POLYGONIZERS, dss_polygon, thin_part_polygon
 from .polygons.dss import _greedy_segmentation
@@ -2804,9 +2807,6 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 
     Where the join's faces cross at a bridge end, its band gets other rules
     (:func:`_merged_band_retry`)."""
-    from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays
-    from .intersect import any_intersecting
-
     tubes, lids_a, lids_b, open_a, open_b = plan
     zk, zk1 = float(zs[k]), float(zs[k + 1])
     pts, heights, rings = [], [], []  # the rings' points (x, y), their planes' heights
@@ -2840,7 +2840,8 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     for plane, multi, owners, other, comps in ((k, lo, owners_lo, k + 1, gb), (k + 1, hi, owners_hi, k, ga)):
         if len(multi) == 1:
             continue
-        rs = [V[r][:, :2] for r in multi]
+        # (each ring's ids are a run: its rows of V, as a view, are V[r][:, :2])
+        rs = [V[r[0]:r[0] + len(r), :2] if len(r) else V[r][:, :2] for r in multi]
         oa, ob = edges_of(plane)
         step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
         cover = uncovered(other, comps)
@@ -2857,7 +2858,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         # the tour's (ring, vertex) pairs as vertex ids: ring r's ids, then each polyline bridge's
         tables = [np.asarray(multi[r], dtype=np.int64) for r in range(len(rs))] + \
             [ids_of.get(len(rs) + b, np.zeros(0, dtype=np.int64)).astype(np.int64) for b in range(len(br))]
-        start = np.cumsum([0] + [len(t) for t in tables[:-1]])
+        start = np.array(list(accumulate([len(t) for t in tables[:-1]], initial=0)), dtype=np.int64)
         tour_r, tour_v = bridged_ring_arrays([len(r) for r in rs], br)
         seq = np.concatenate(tables)[start[tour_r] + tour_v]
         for bridge in br:
@@ -2875,44 +2876,17 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     bands = []  # (lower ids, upper ids, rule) of each band, in the order of faces
     for t, (a_ids, b_ids) in enumerate([(lo[0], hi[0])] + tube_ids):
         ids = np.concatenate([a_ids, b_ids])
+        P = V[ids]  # (the rows of V[a_ids], then those of V[b_ids])
+        na = len(a_ids)
         # the bridged rings' band by the least-area rule (see _dissimilar_rule); the tubes (pairs
         # of holes) by the selected one
-        rule = triangulation if t else _dissimilar_rule(len(a_ids), len(b_ids), triangulation,
-                                                        _BRIDGED_OPTIMAL_BUDGET)
+        rule = triangulation if t else _dissimilar_rule(na, len(b_ids), triangulation, _BRIDGED_OPTIMAL_BUDGET)
         least_area += rule != triangulation
-        f, r = _band_faces(V[a_ids], V[b_ids], rule, _BRIDGED_OPTIMAL_BUDGET)
-        # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
-        # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
-        n_, m_ = sorted((len(a_ids), len(b_ids)))
-        Va, Vb = V[a_ids], V[b_ids]
-        made = {}  # the rules' bands made below for this pair, by name (_made_band)
-        for method in ("optimal", "arclength"):
-            if not band_is_folded(ids[f]):
-                break
-            # (where _band_faces kept the least-area band of a pair within the budget, the bounded
-            # one is that band: it is not made again)
-            if method != "optimal" or rule != "optimal" or r != 0 or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET:
-                f = triangulate_band_optimal(Va, Vb, max_work=_BRIDGED_OPTIMAL_BUDGET) \
-                    if method == "optimal" else _made_band(made, Va, Vb, method)
-            r += 1
-        if band_is_folded(ids[f]):
+        got = _bridged_band(P, na, ids, rule) if band_guard is not None else \
+            _bridged_band_seen(P, na, ids, rule)
+        if got is None:
             return None
-        # a bridged ring is far from convex (its slits): the chosen band may cross itself where
-        # another strategy does not; take the first embedded one that is not twisted (its area at
-        # most _BRIDGED_AREA_SLACK times the crossing band's) before giving the join up
-        P = np.concatenate([Va, Vb])
-        if _band_crosses(P, f):
-            limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
-            for method in _BRIDGED_ALTERNATIVES:
-                if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
-                    continue  # already tried, or too slow (cubic)
-                g = _made_band(made, Va, Vb, method)
-                if g is f:  # (the band that crosses: it would not pass the test below)
-                    continue
-                if (not band_is_folded(ids[g]) and float(triangle_areas(P, g).sum()) <= limit
-                        and not _band_crosses(P, g)):
-                    f, r = g, r + 1
-                    break
+        f, r = got
         if band_guard is not None:  # a bridged ring's area is the sum of its contours' (slits add none)
             g = np.asarray(band_guard(V[a_ids], V[b_ids], f))
             if not np.array_equal(g, f) and not band_is_folded(ids[g]) and not _band_crosses(P, g):
@@ -2950,7 +2924,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     F = np.concatenate(faces)
     if band_is_folded(F):  # an edge in more than two faces (compiled: the sorted edge keys)
         return None
-    if (F[:, 0] == F[:, 1]).any() or (F[:, 1] == F[:, 2]).any() or (F[:, 0] == F[:, 2]).any():
+    if _repeats_a_corner(F):
         return None
     if any_intersecting(V, F):
         # the bands were tested with the two visits of each bridge end a hair apart (as pinches); as
@@ -2963,6 +2937,87 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
     return out
+
+
+def _bridged_band(P, na, ids, rule):
+    """The faces (local numbers) of one band of a bridged join and how many guards fired, or None
+    where every rule's band folds: ``P`` its two rings' points (the lower ring's ``na`` first), ``ids``
+    their vertex ids in the join (a bridged ring visits its bridge ends twice, with one id) and
+    ``rule`` its band rule (:func:`_dissimilar_rule`'s).  The band of :func:`_band_faces`; where it
+    uses a diagonal twice in the join's numbering, the bounded least-area band, then the arc-length
+    band; where it crosses itself, the first other rule's that does not (see :func:`_bridge_join`).
+    A function of ``P``, ``na``, ``ids`` and ``rule`` only."""
+    Va, Vb = P[:na], P[na:]
+    f, r = _band_faces(Va, Vb, rule, _BRIDGED_OPTIMAL_BUDGET)
+    # a bridged ring visits its bridge ends twice: the band must not use a diagonal twice.  The
+    # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
+    n_, m_ = sorted((na, len(P) - na))
+    made = {}  # the rules' bands made below for this pair, by name (_made_band)
+    for method in ("optimal", "arclength"):
+        if not band_is_folded(ids[f]):
+            break
+        # (where _band_faces kept the least-area band of a pair within the budget, the bounded
+        # one is that band: it is not made again)
+        if method != "optimal" or rule != "optimal" or r != 0 or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET:
+            f = triangulate_band_optimal(Va, Vb, max_work=_BRIDGED_OPTIMAL_BUDGET) \
+                if method == "optimal" else _made_band(made, Va, Vb, method)
+        r += 1
+    if band_is_folded(ids[f]):
+        return None
+    # a bridged ring is far from convex (its slits): the chosen band may cross itself where
+    # another strategy does not; take the first embedded one that is not twisted (its area at
+    # most _BRIDGED_AREA_SLACK times the crossing band's) before giving the join up
+    if _band_crosses(P, f):
+        limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
+        for method in _BRIDGED_ALTERNATIVES:
+            if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
+                continue  # already tried, or too slow (cubic)
+            g = _made_band(made, Va, Vb, method)
+            if g is f:  # (the band that crosses: it would not pass the test below)
+                continue
+            if (not band_is_folded(ids[g]) and float(triangle_areas(P, g).sum()) <= limit
+                    and not _band_crosses(P, g)):
+                f, r = g, r + 1
+                break
+    return f, r
+
+
+#: The last few answers of :func:`_bridged_band`, keyed by the bytes of its arguments and the
+#: settings it reads (``_BRIDGED_ALTERNATIVES``, ``_BRIDGED_OPTIMAL_BUDGET``, ``_BRIDGED_AREA_SLACK``): a bridged
+#: join is built again with the same rings (a pass that restarts after a join fell back, the same
+#: piece of intermediate sections tried again; about a sixth of the lobster's joins), and its bands
+#: are the same.  The faces are kept read-only (the callers index with them, never write).
+_BANDS_SEEN: dict = {}
+_BANDS_KEEP = 64
+_BANDS_LOCK = threading.Lock()
+
+
+def _bridged_band_seen(P, na, ids, rule):
+    """:func:`_bridged_band`, remembering the answers of the last :data:`_BANDS_KEEP` calls."""
+    key = (P.shape, P.dtype.str, P.tobytes(), na, ids.dtype.str, ids.tobytes(), rule,
+           # (the settings it reads, so that a changed setting is never answered from memory)
+           _BRIDGED_ALTERNATIVES, _BRIDGED_OPTIMAL_BUDGET, _BRIDGED_AREA_SLACK)
+    got = _BANDS_SEEN.get(key, _BANDS_SEEN)
+    if got is _BANDS_SEEN:
+        got = _bridged_band(P, na, ids, rule)
+        if got is not None:
+            got[0].flags.writeable = False
+        with _BANDS_LOCK:  # (meshers may run in threads of one process)
+            while len(_BANDS_SEEN) >= _BANDS_KEEP:
+                del _BANDS_SEEN[next(iter(_BANDS_SEEN))]  # the oldest (dicts keep insertion order)
+            _BANDS_SEEN[key] = got
+    return got
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _repeats_a_corner(F):  # pragma: no cover (compiled)
+    """Whether some face of ``F`` names one vertex twice: ``(F[:, 0] == F[:, 1]).any() or (F[:, 1] ==
+    F[:, 2]).any() or (F[:, 0] == F[:, 2]).any()`` in one pass."""
+    for t in range(F.shape[0]):
+        a, b, c = F[t, 0], F[t, 1], F[t, 2]
+        if a == b or b == c or a == c:
+            return True
+    return False
 
 
 def _made_band(made, lo, hi, method):

@@ -326,7 +326,9 @@ def _best_band(A1, A2, starts, D2, steps):
                     if c <= low + tol:
                         return only, c
                 else:
-                    best_s = _near_best(A1, A2, near, low, tol, D2)
+                    best_s, c, recorded = _near_best_kept(A1, A2, near, low, tol, D2, steps)
+                    if recorded:  # (the best is the first near start point: its steps are in steps)
+                        return best_s, c
     if best_s == -2:
         best_s = _best_start_each(A1, A2, starts, D2)
     if best_s < 0:
@@ -618,6 +620,36 @@ def _near_best(A1, A2, near, low, tol, D2):
 
 
 @njit(cache=True)
+def _near_best_kept(A1, A2, near, low, tol, D2, steps):
+    """:func:`_near_best` with the first near start point's programme recording its steps in
+    ``steps``: ``(s, cost, recorded)``, ``s`` as :func:`_near_best` gives it, ``cost`` its
+    programme's total and ``recorded`` whether ``s`` is that first start point (then its steps
+    need no second run).
+
+    The first of the near start points is the best in about two joins in three (the lobster's
+    and the liver's bridged bands); a recording programme costs about 1.5 without, so recording
+    it saves a programme there and costs half of one elsewhere.  The other start points run
+    without recording, in increasing order (the first of equal costs wins, as there)."""
+    dummy = np.empty((1, 1), dtype=np.int8)
+    best_s = -1
+    best = np.inf
+    first = -1
+    for s in range(near.shape[0]):
+        if near[s]:
+            if first < 0:
+                first = s
+                c = _annulus_dp(A1, A2, s, D2, steps, np.bool_(True))
+            else:
+                c = _annulus_dp(A1, A2, s, D2, dummy, np.bool_(False))
+            if c < best:
+                best = c
+                best_s = s
+    if best_s < 0 or best > low + tol:
+        return -2, best, False
+    return best_s, best, best_s == first
+
+
+@njit(cache=True)
 def _near_starts(A1, A2, a, k):
     """:func:`_best_start_strips`' start points near the bound (a mask over the points of
     ``c1``), the least bound and the margin; a bound of -1 where the strip search found no path."""
@@ -638,31 +670,31 @@ def _near_starts(A1, A2, a, k):
 
 @njit(cache=True)
 def _abs_max(A1, A2):
-    """The largest ``|A1[i, j]|`` and ``|A2[i, j]|`` (NaNs passed over; 0 for none), in four running
-    maxima (each a chain of comparisons: one chain waits for the last comparison at every value).
-    The same number in any order: the largest of the values that are not NaN."""
+    """The largest ``|A1[i, j]|`` and ``|A2[i, j]|`` (NaNs passed over; 0 for none).
+
+    Read as integers: the bits of a float without its sign bit order as the magnitudes do, from
+    0 (zero) to ``0x7FF0...0`` (infinity), and NaNs lie above that.  So the largest such integer
+    not above infinity's is the bits of the largest magnitude that is not NaN (a zero at worst,
+    the start), the same number in any order; as integers the compiler takes several values at
+    once (the float form's running maxima, a chain of comparisons each, took 0.33 ms of the
+    liver's costly bands' programmes; ``tests/test_optimal_programme.py`` holds it)."""
     n, m = A1.shape
-    p0 = p1 = p2 = p3 = 0.0
+    sign_off = np.int64(0x7FFFFFFFFFFFFFFF)
+    inf_bits = np.int64(0x7FF0000000000000)
+    best = np.int64(0)
     for i in range(n):
-        a1 = A1[i]
-        a2 = A2[i]
-        for j in range(0, m - 1, 2):
-            x = abs(a1[j])
-            p0 = x if x > p0 else p0
-            x = abs(a2[j])
-            p1 = x if x > p1 else p1
-            x = abs(a1[j + 1])
-            p2 = x if x > p2 else p2
-            x = abs(a2[j + 1])
-            p3 = x if x > p3 else p3
-        if m % 2:
-            x = abs(a1[m - 1])
-            p0 = x if x > p0 else p0
-            x = abs(a2[m - 1])
-            p1 = x if x > p1 else p1
-    p0 = p1 if p1 > p0 else p0
-    p2 = p3 if p3 > p2 else p2
-    return p2 if p2 > p0 else p0
+        a1 = A1[i].view(np.int64)
+        a2 = A2[i].view(np.int64)
+        for j in range(m):
+            x = a1[j] & sign_off
+            y = a2[j] & sign_off
+            x = x if x <= inf_bits else np.int64(0)
+            y = y if y <= inf_bits else np.int64(0)
+            x = x if x > y else y
+            best = x if x > best else best
+    out = np.empty(1, np.int64)
+    out[0] = best
+    return out.view(np.float64)[0]
 
 
 @njit(cache=True)
@@ -752,8 +784,7 @@ def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.
     lo, up = validate_band_polygons(lower, upper)
     if len(lo) == 1 and len(up) == 1:
         return np.empty((0, 3), dtype=np.int64)
-    c1, c2, swapped = oriented_pair(lo, up)
-    n, m = len(c1), len(c2)
+    n, m = sorted((len(lo), len(up)))  # (the smaller ring is C(1): oriented_pair)
     bounded = max_work is not None and n * n * m > max_work
     if n * m > MAX_OPTIMAL_CELLS or (n * n * m > MAX_OPTIMAL_WORK and not bounded):
         raise ValueError(
@@ -761,6 +792,32 @@ def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.
             f"{19 * n * m / 2**20:,.0f} MiB) and {n * n * m:.2g} steps; the limits are {MAX_OPTIMAL_CELLS:,} cells and "
             f"{MAX_OPTIMAL_WORK:.2g} steps. Use triangulation='wiederhold' or 'greedy' (linear time), or "
             "polygon='mlp'/'dss' (fewer vertices)")
+    key = (lo.shape, lo.dtype.str, lo.tobytes(), up.shape, up.dtype.str, up.tobytes(), max_work)
+    got = _SEEN.get(key)
+    if got is None:
+        got = _optimal_faces(lo, up, max_work)
+        with _SEEN_LOCK:  # (meshers may run in threads of one process)
+            while len(_SEEN) >= _SEEN_KEEP:
+                del _SEEN[next(iter(_SEEN))]  # the oldest (dicts keep insertion order)
+            _SEEN[key] = got
+    return got.copy()
+
+
+#: The last few bands of :func:`triangulate_band_optimal`, keyed by the bytes of its two validated
+#: polygons and ``max_work``: the volume mesher asks for some bands again (a bridged join built
+#: once more after a rebuild or inside intermediate sections, a band's rules tried twice), about
+#: an eighth of the lobster's least-area programmes' time.  The faces depend on those only.
+_SEEN: dict = {}
+_SEEN_KEEP = 32
+_SEEN_LOCK = threading.Lock()
+
+
+def _optimal_faces(lo, up, max_work):
+    """:func:`triangulate_band_optimal` of the validated polygons ``lo`` and ``up`` (not both one
+    point, within the size limits), without the memory of recent calls."""
+    c1, c2, swapped = oriented_pair(lo, up)
+    n, m = len(c1), len(c2)
+    bounded = max_work is not None and n * n * m > max_work
     if len(c1) == 1:
         edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
         s = 0
