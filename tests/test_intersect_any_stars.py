@@ -31,9 +31,8 @@ def _stars_off(V, F):
 def _closed_sectioned(rng, off_grid):
     """A closed mesh of stacked sections (a marching-cubes surface of a random blob), nudged off the
     dyadic grid where asked."""
-    from skimage.measure import marching_cubes
-
     from scipy import ndimage
+    from skimage.measure import marching_cubes
 
     v = ndimage.gaussian_filter(rng.random((10, 12, 12)), 1.3) > 0.5
     v = np.pad(v, 1)

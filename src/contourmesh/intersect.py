@@ -527,10 +527,23 @@ def _pair_intersects(V, ws, F, i, j):
     e = F[j, 1]
     f = F[j, 2]
     # which corners of j are corners of i
-    nshared = 0
     sd = d == a or d == b or d == c
     se = e == a or e == b or e == c
     sf = f == a or f == b or f == c
+    return _pair_shared(V, ws, F, i, j, sd, se, sf)
+
+
+@_pure
+def _pair_shared(V, ws, F, i, j, sd, se, sf):
+    """:func:`_pair_intersects` where it is known which corners of face j are corners of face i
+    (``sd``, ``se``, ``sf`` for ``F[j, 0]``, ``F[j, 1]``, ``F[j, 2]``)."""
+    a = F[i, 0]
+    b = F[i, 1]
+    c = F[i, 2]
+    d = F[j, 0]
+    e = F[j, 1]
+    f = F[j, 2]
+    nshared = 0
     if sd:
         nshared += 1
     if se:
@@ -1838,7 +1851,7 @@ def _slab_hit(V, ws, F, star, quick, i, j):
         hit = _touching_boxes(V, ws, F, i, j)
         if hit >= 0:
             return hit == 1
-    return _pair_intersects(V, ws, F, i, j)
+    return _pair_shared(V, ws, F, i, j, sd, se, sf)
 
 
 @_pure
