@@ -1,5 +1,5 @@
 """Issue 16, eleventh round: ``any_intersecting``'s compiled call certifies no vertex stars on a mesh
-of at most 1.5 faces per vertex (a band between two rings: every vertex on a ring, so no star could
+of fewer than 1.25 faces per vertex (a band between two rings: every vertex on a ring, so no star could
 be certified), and the slab sweeps' test of a candidate (``_slab_hit``) finds the faces' common
 corners once.  Neither may change an answer: on bands, on closed meshes (stars certified), with
 crossings and without, on and off the dyadic grid, and on the real joins of a lobster build, the
@@ -24,8 +24,8 @@ def _plain(V, F):
 
 
 def _stars_off(V, F):
-    """Whether the compiled call's rule leaves the stars out for this mesh (m <= 1.5 nv)."""
-    return 2 * len(F) <= 3 * len(np.unique(canonical_vertices(V)[F]))
+    """Whether the compiled call's rule leaves the stars out for this mesh (m < 1.25 nv)."""
+    return 4 * len(F) < 5 * len(np.unique(canonical_vertices(V)[F]))
 
 
 def _closed_sectioned(rng, off_grid):
