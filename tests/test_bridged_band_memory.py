@@ -1,6 +1,6 @@
 """A bridged join's band (``volumes._bridged_band``) and its memory of recent answers
 (``volumes._bridged_band_seen``): asked again with the same rings, ids and rule, the band is the
-one made afresh (faces and guard count bit for bit, None alike), kept read-only; a different rule
+one made afresh (faces and guard count bit for bit, None alike), kept as a read-only copy; a different rule
 or a different id pattern (which bridge ends are one vertex) is another key."""
 
 import numpy as np
@@ -54,7 +54,10 @@ def test_the_remembered_band_is_the_band_made_afresh():
                     kinds["none"] += rep == 0
                     continue
                 assert np.array_equal(got[0], want[0]) and got[1] == want[1]
-                assert not got[0].flags.writeable
+                # handed out writable (one array type for the kernels), and a caller writing to
+                # it does not change what the memory answers next
+                assert got[0].flags.writeable
+                got[0][:] = -1
                 kinds["band"] += rep == 0
                 kinds["replaced"] += rep == 0 and want[1] > 0
     assert kinds["band"] > 50, kinds

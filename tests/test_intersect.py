@@ -320,18 +320,33 @@ def test_import_compiles_nothing_and_no_literal_signatures():
         "assert not [k for k, v in ds.items() if v.signatures]\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
-    from numba.core import types
-    from numba.core.registry import CPUDispatcher
+    # the signatures, in a process that compiles the kernels (an empty numba cache: a kernel
+    # loaded from the cache does not type the kernels it calls, so a warm cache would hide a
+    # callee compiled a second time for a literal argument)
+    import os
+    import tempfile
+    from pathlib import Path
 
-    from contourmesh import intersect
-
-    V, F = _boxes_pushed_through()
-    intersecting_pairs(V * 0.3, F)  # the exact fallback too
-    for name, d in vars(intersect).items():
-        if isinstance(d, CPUDispatcher):
-            assert len(d.signatures) <= 1, (name, d.signatures)
-            for sig in d.signatures:
-                assert not any(isinstance(t, types.Literal) for t in sig), (name, sig)
+    code = (
+        "import sys; sys.path.insert(0, %r)\n"
+        "from test_intersect import _boxes_pushed_through\n"
+        "from numba.core import types\n"
+        "from numba.core.registry import CPUDispatcher\n"
+        "from contourmesh import intersect\n"
+        "V, F = _boxes_pushed_through()\n"
+        "intersect.intersecting_pairs(V * 0.3, F)  # the exact fallback too\n"
+        "for name, d in vars(intersect).items():\n"
+        "    if isinstance(d, CPUDispatcher):\n"
+        "        assert len(d.signatures) <= 1, (name, d.signatures)\n"
+        "        for sig in d.signatures:\n"
+        "            assert not any(isinstance(t, types.Literal) for t in sig), (name, sig)\n"
+        "print('checked', sum(isinstance(d, CPUDispatcher) and bool(d.signatures) for d in vars(intersect).values()))\n"
+    ) % str(Path(__file__).parent)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
+                             env=dict(os.environ, NUMBA_CACHE_DIR=tmp))
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert int(out.stdout.split()[-1]) >= 10, out.stdout
 
 
 # ------------------------------------------------------------------------------------------------

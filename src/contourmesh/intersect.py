@@ -1147,7 +1147,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk):
     for k in range(3):
         glo[k] = np.inf
         ghi[k] = -np.inf
-    nlive = 0
+    nlive = np.int64(0)  # (a literal 0 would compile _median_extent a second time, for Literal[int](0))
     ax0 = np.int64(0)
     ax1 = np.int64(1)
     ax2 = np.int64(2)

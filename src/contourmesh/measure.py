@@ -211,8 +211,8 @@ def _size_sums(v, f, i0, i1):
     not finite (NaN or infinite vertices, an overflow): the caller then takes :func:`face_terms`."""
     parts = np.zeros(_PARTS)
     wparts = np.zeros(_PARTS)
-    n = 0
-    nw = 0
+    n = np.int64(0)  # (literal zeros would compile _add_exact a second time, for Literal[int](0))
+    nw = np.int64(0)
     nv = v.shape[0]
     for i in range(i0, i1):
         a, b, c = f[i, 0], f[i, 1], f[i, 2]

@@ -1561,8 +1561,8 @@ def _neck_walks(V, R, fans, cyc_at, j0, ua, ub):
         wa[n] = wa[0] + 2 * np.pi
         wb[m] = wb[0] + 2 * np.pi
         faces = tube[s0:s2]
-        if not _tube_walk(a, b, wa, wb, False, faces):
-            _tube_walk(a, b, wa, wb, True, faces)
+        if not _tube_walk(a, b, wa, wb, np.bool_(False), faces):  # (typed: literals compile it twice)
+            _tube_walk(a, b, wa, wb, np.bool_(True), faces)
         got = _test_mesh(V, R, fans[2 * s0:2 * s2], faces, P[p_at[j]:], Fl[3 * s0:3 * s2])
         p_at[j + 1] = p_at[j] + got
     return tube, P, p_at, Fl
@@ -2288,11 +2288,11 @@ def _boxes_near(V, F, chosen):
     """Faces sharing a cell of a grid with a face in ``chosen``: a superset of the faces whose
     closed bounding boxes meet the box of a chosen face.  The cells are as large as the chosen
     faces and no smaller than most faces.  (The faces' boxes are not kept: see :func:`_faces_near`.)"""
-    glo, ext = _box_extents(V, V, F, False)
+    glo, ext = _box_extents(V, V, F, np.bool_(False))  # (typed: a literal compiles it twice)
     h = max(np.median(ext), 1e-12)
     for t in range(len(chosen)):
         h = max(h, ext[chosen[t]])
-    return np.flatnonzero(_near_cells(V, V, F, glo, h, chosen, False))
+    return np.flatnonzero(_near_cells(V, V, F, glo, h, chosen, np.bool_(False)))
 
 
 def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):

@@ -136,7 +136,7 @@ def _join_rows(parent, x0, x1, i, i1, j, j1, reach):
 def _count_object(m):
     """6-connected components of the object."""
     nz, ny, nx = m.shape
-    row_start, x0, x1 = _runs(m, 1)
+    row_start, x0, x1 = _runs(m, np.int64(1))
     n = len(x0)
     parent = np.empty(n, np.int64)
     for q in range(n):
@@ -146,9 +146,9 @@ def _count_object(m):
         if a == a1:
             continue
         if r % ny > 0:  # the row before in the slice
-            _join_rows(parent, x0, x1, row_start[r - 1], row_start[r], a, a1, 0)
+            _join_rows(parent, x0, x1, row_start[r - 1], row_start[r], a, a1, np.int64(0))
         if r >= ny:  # the same row in the slice before
-            _join_rows(parent, x0, x1, row_start[r - ny], row_start[r - ny + 1], a, a1, 0)
+            _join_rows(parent, x0, x1, row_start[r - ny], row_start[r - ny + 1], a, a1, np.int64(0))
     count = 0
     for q in range(n):
         if parent[q] == q:
@@ -160,7 +160,7 @@ def _count_object(m):
 def _count_cavities(m):
     """26-connected components of the background that do not reach the volume's border."""
     nz, ny, nx = m.shape
-    row_start, x0, x1 = _runs(m, 0)
+    row_start, x0, x1 = _runs(m, np.int64(0))
     n = len(x0)
     out = n  # the outside: every run on the border joins it
     parent = np.empty(n + 1, np.int64)
@@ -181,12 +181,12 @@ def _count_cavities(m):
                 if x1[a1 - 1] == nx:
                     _union(parent, a1 - 1, out)
             if j > 0:
-                _join_rows(parent, x0, x1, row_start[r - 1], row_start[r], a, a1, 1)
+                _join_rows(parent, x0, x1, row_start[r - 1], row_start[r], a, a1, np.int64(1))
             if k > 0:
                 for dj in range(-1, 2):
                     if 0 <= j + dj < ny:
                         rr = r - ny + dj
-                        _join_rows(parent, x0, x1, row_start[rr], row_start[rr + 1], a, a1, 1)
+                        _join_rows(parent, x0, x1, row_start[rr], row_start[rr + 1], a, a1, np.int64(1))
     outside = _root(parent, out)
     count = 0
     for q in range(n):

@@ -479,7 +479,7 @@ def _slice_cracks(lab, boxes, ry, rx0, rx1, rlab):
             while pe < q1 and ry[order[pe]] <= vy0:
                 pe += 1
             # the candidate corners of the two rows, each list increasing, merged
-            ka = _row_corners(ry, rx0, rx1, order, p, pe, vy0 - 1, cand, 0)
+            ka = _row_corners(ry, rx0, rx1, order, p, pe, vy0 - 1, cand, np.int64(0))
             kb = _row_corners(ry, rx0, rx1, order, p, pe, vy0, cand, ka)
             i, j, k = 0, ka, 0
             while i < ka or j < kb:

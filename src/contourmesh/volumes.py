@@ -2482,7 +2482,7 @@ def _exact_join_kernel(ra, rb, x0, y0, cx, cy, starts, n_lower, n0):  # pragma: 
     nf = 0
     n_f1 = 0
     nxt = n0
-    nu = 0
+    nu = np.int64(0)  # (a literal 0 would compile _corner_pass a second time, for Literal[int](0))
     work = np.empty((8, n_pix), np.int64)  # a side's pixels, a corner's places, the four corners' numbers
     px, py, lx, ly, c00, c10, c11, c01 = work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7]
     for side in range(2):
@@ -2986,7 +2986,7 @@ def _bridged_band(P, na, ids, rule):
 #: settings it reads (``_BRIDGED_ALTERNATIVES``, ``_BRIDGED_OPTIMAL_BUDGET``, ``_BRIDGED_AREA_SLACK``): a bridged
 #: join is built again with the same rings (a pass that restarts after a join fell back, the same
 #: piece of intermediate sections tried again; about a sixth of the lobster's joins), and its bands
-#: are the same.  The faces are kept read-only (the callers index with them, never write).
+#: are the same.  The memory keeps a read-only copy of the faces and hands out a writable copy.
 _BANDS_SEEN: dict = {}
 _BANDS_KEEP = 64
 _BANDS_LOCK = threading.Lock()
@@ -2998,14 +2998,18 @@ def _bridged_band_seen(P, na, ids, rule):
            # (the settings it reads, so that a changed setting is never answered from memory)
            _BRIDGED_ALTERNATIVES, _BRIDGED_OPTIMAL_BUDGET, _BRIDGED_AREA_SLACK)
     got = _BANDS_SEEN.get(key, _BANDS_SEEN)
-    if got is _BANDS_SEEN:
-        got = _bridged_band(P, na, ids, rule)
-        if got is not None:
-            got[0].flags.writeable = False
-        with _BANDS_LOCK:  # (meshers may run in threads of one process)
-            while len(_BANDS_SEEN) >= _BANDS_KEEP:
-                del _BANDS_SEEN[next(iter(_BANDS_SEEN))]  # the oldest (dicts keep insertion order)
-            _BANDS_SEEN[key] = got
+    if got is not _BANDS_SEEN:
+        # (a copy of the kept faces: writable, as a band made now, so that the kernels they go to
+        # see one array type and compile once, not again for read-only arrays)
+        return None if got is None else (got[0].copy(), got[1])
+    got = _bridged_band(P, na, ids, rule)
+    kept = None if got is None else (got[0].copy(), got[1])
+    if kept is not None:
+        kept[0].flags.writeable = False
+    with _BANDS_LOCK:  # (meshers may run in threads of one process)
+        while len(_BANDS_SEEN) >= _BANDS_KEEP:
+            del _BANDS_SEEN[next(iter(_BANDS_SEEN))]  # the oldest (dicts keep insertion order)
+        _BANDS_SEEN[key] = kept
     return got
 
 

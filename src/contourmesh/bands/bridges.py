@@ -821,7 +821,7 @@ def _straight_kernel(c, pts, off, lens, comp, oa, ob, sa0, sb0, lab, cids, ox, o
         px, py = pts[off[i] + vi, 0], pts[off[i] + vi, 1]
         qx, qy = pts[off[j] + vj, 0], pts[off[j] + vj, 1]
         through = comp[i] == comp[j]
-        if not _clear_kernel(px, py, qx, qy, corners, 1, 1, oa, ob, sa[:ns], sb[:ns], through):
+        if not _clear_kernel(px, py, qx, qy, corners, np.int64(1), np.int64(1), oa, ob, sa[:ns], sb[:ns], through):
             continue
         if through and use_allowed:
             P1[0, 0], P1[0, 1], Q1[0, 0], Q1[0, 1] = px, py, qx, qy
@@ -1129,7 +1129,7 @@ def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, 
                 corners[t, c, 1] = P[x, 1]
             has[t] = 1
     px, py, qx, qy = P[u, 0], P[u, 1], P[v, 0], P[v, 1]
-    if not _clear_kernel(px, py, qx, qy, corners, has[0], has[1], oa, ob, sa, sb, True):
+    if not _clear_kernel(px, py, qx, qy, corners, has[0], has[1], oa, ob, sa, sb, np.bool_(True)):
         return False
     if not use:
         return True
