@@ -3372,7 +3372,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     from collections import defaultdict
 
     from .bands.bridges import OverlapFree, keyhole_uncovered
-    from .sections import sectioned_join
+    from .sections import JoinMemory
 
     by_slice = defaultdict(set)
     for kk, c in crack_only:
@@ -3426,6 +3426,9 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     edge_cache = {}
     ox, oy, dx, dy = grid
+
+    # (a sectioned join asked for again after a restart, with all it reads the same, is not built again)
+    sectioned_join = JoinMemory().join
 
     @functools.lru_cache(maxsize=None)
     def section_ops():
