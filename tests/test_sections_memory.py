@@ -13,9 +13,10 @@ from test_volumes_sections import _blobs, _sparse_rings, _two_cs
 
 def _volumes():
     vols = [_blobs(), _blobs(seed=3, shape=(6, 18, 18)), _two_cs()]
-    for seed in (2, 16, 18, 21, 38):
+    # (with sparse rings each of these asks for some sectioned join again after a restart)
+    for seed in (5, 9, 22, 46):
         rng = np.random.default_rng(seed)
-        vols.append(ndimage.gaussian_filter(rng.random((6, 24, 24)), 1.2) > 0.5 + 0.03 * rng.standard_normal())
+        vols.append(ndimage.gaussian_filter(rng.random((8, 32, 32)), 1.2) > 0.5 + 0.03 * rng.standard_normal())
     return vols
 
 
@@ -39,7 +40,7 @@ def _counting(monkeypatch):
 @pytest.mark.parametrize("sparse", [True, False])
 def test_remembered_sectioned_joins_give_the_same_meshes(monkeypatch, sparse):
     """With the memory (the default) and without it (``JOIN_MEMORY = 0``): the same meshes, and
-    no more sectioned joins built with it."""
+    no more sectioned joins built with it (with sparse rings, fewer)."""
     if sparse:
         _sparse_rings(monkeypatch)
     calls = _counting(monkeypatch)
@@ -54,6 +55,8 @@ def test_remembered_sectioned_joins_give_the_same_meshes(monkeypatch, sparse):
     for a, b in zip(meshes[0], meshes[sections.JOIN_MEMORY]):
         _same(a, b)
     assert built[0] > 0 and built[sections.JOIN_MEMORY] <= built[0]
+    if sparse:
+        assert built[sections.JOIN_MEMORY] < built[0]
 
 
 def test_the_lobster_remembers_sectioned_joins(monkeypatch, shared_data):
