@@ -715,6 +715,97 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     return out
 
 
+class JoinMemory:
+    """The last few sectioned joins of one build of the bridged joins, with what each read from the
+    slices' planes, so that a join asked for again gets its answer without being built again.
+
+    The bridged joins' pass restarts after a join falls back to exact, and a sectioned join near
+    that slice is tried again (the mesher's key of the join names the crack rings near it, which
+    changed; on the lobster about one sectioned join in seven is such a repeat).  A sectioned join
+    (:func:`sectioned_join`) reads of the planes of its two slices only the labels (which do not
+    change while the joins are built), the rings of its own components (``poly``: of the
+    components ``ga`` and ``gb``, outer rings and holes), which of their holes are lidded from both
+    sides (``double``) and, in its pieces that bridge rings of a slice, that slice's edges
+    (``edges_of``) as obstacles of the bridges.  Those bridges join vertices of the components'
+    rings, so they lie in the box of those rings, and an obstacle edge enters a bridge's test only
+    where its box meets the bridge's (:func:`contourmesh.bands.bridges._clear`): the edges whose box
+    meets the box of the components' rings are all that the join can read of a plane.  A join asked
+    for again with the same components, bound and settings, the same rings (bytes), the same
+    lidded holes and, in each plane whose edges it read, the same such edges (bytes, in order) is
+    the same join: its answer is handed back (the same object; the mesher does not change a built
+    join).  :data:`JOIN_MEMORY` joins are kept."""
+
+    def __init__(self, keep=None):
+        self.keep = JOIN_MEMORY if keep is None else keep
+        self.seen = {}  # key -> (answer, {plane: edges as read}, {plane: near edges' bytes, when made})
+
+    def join(self, ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
+             topology_first=False, max_area=None):
+        """:func:`sectioned_join` with these arguments (the same answer), from memory where it can."""
+        ga, gb = list(ga), list(gb)
+        rings = []
+        for kk, comps in ((k, ga), (k + 1, gb)):
+            for c in comps:
+                for h in range(-1, len(slices[kk].holes[c])):
+                    r = np.asarray(poly(kk, c, h))
+                    rings.append((r.shape, r.dtype.str, r.tobytes()))
+        dbl = tuple(sorted(d for d in double if (d[0] == k and d[1] in ga) or (d[0] == k + 1 and d[1] in gb)))
+        key = (k, tuple(ga), tuple(gb), topology_first, max_area, tuple(rings), dbl, caps, triangulation, polygon,
+               tuple(float(g) for g in grid), tuple(float(z) for z in zs[k:k + 2]))
+        got = self.seen.get(key)
+        if got is not None:
+            answer, read, near = got
+            if all(self._same_edges(kk, read, near, edges_of(kk), poly, slices, ga if kk == k else gb)
+                   for kk in read):
+                self.seen[key] = self.seen.pop(key)  # (the most recent now)
+                return answer
+        planes = {}
+
+        def edges_read(kk):
+            e = planes[kk] = edges_of(kk)
+            return e
+
+        answer = sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_read, double, caps, triangulation, polygon,
+                                grid, topology_first=topology_first, max_area=max_area)
+        self.seen.pop(key, None)
+        while len(self.seen) >= self.keep > 0:
+            del self.seen[next(iter(self.seen))]  # the oldest (dicts keep insertion order)
+        if self.keep > 0:
+            self.seen[key] = (answer, planes, {})
+        return answer
+
+    @staticmethod
+    def _same_edges(kk, read, near, now, poly, slices, comps):
+        """Whether plane ``kk``'s edges ``now`` agree with those the kept join read (``read[kk]``)
+        wherever the join can see them: the same arrays, or the same edges meeting the box of the
+        components' rings (``near`` keeps the kept edges' share, once made)."""
+        then = read[kk]
+        if now is then:
+            return True
+        rs = [np.asarray(poly(kk, c, h), dtype=np.float64).reshape(-1, 2)
+              for c in comps for h in range(-1, len(slices[kk].holes[c]))]
+        xy = np.concatenate(rs)
+        box = xy.min(axis=0), xy.max(axis=0)
+        if kk not in near:
+            near[kk] = _edges_meeting(then, box)
+        return _edges_meeting(now, box) == near[kk]
+
+
+def _edges_meeting(edges, box):
+    """The bytes of the edges (``(a, b)``: two ``(e, 2)`` arrays of end points) whose box meets the
+    closed box ``(lo, hi)``, in order, and of their end points' dtype and shape."""
+    a, b = (np.asarray(e) for e in edges)
+    (x0, y0), (x1, y1) = box
+    keep = ((np.maximum(a[:, 0], b[:, 0]) >= x0) & (np.minimum(a[:, 0], b[:, 0]) <= x1)
+            & (np.maximum(a[:, 1], b[:, 1]) >= y0) & (np.minimum(a[:, 1], b[:, 1]) <= y1))
+    return a.dtype.str, b.dtype.str, a[keep].tobytes(), b[keep].tobytes()
+
+
+#: How many sectioned joins a :class:`JoinMemory` keeps (the repeats of the lobster's come within
+#: a dozen other sectioned joins but for a few).
+JOIN_MEMORY = 32
+
+
 def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
     """The joins between two adjacent layers, each ``("band", P, Q, a, b, matched)``, ``("bridged",
     P, Q, built)`` or ``("cap", layer, c, upward)``; None where some group is neither a band join

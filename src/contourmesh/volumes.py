@@ -2835,6 +2835,12 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     V[:, :2] = np.concatenate(pts)
     V[:, 2] = np.repeat(np.array(heights, dtype=np.float64), [len(xy) for xy in pts])
     n_ring = len(V)
+    # a lid needs its ring's points distinct (a collar copies them): a test of the rings alone, so
+    # it comes before the bridges and the bands, which a join that fails it would build in vain
+    # (the same None)
+    for ids, _below, _collar in lid_ids:
+        if not _distinct_rows(V[ids][:, :2]):  # (len(np.unique(xy, axis=0)) != len(xy), sorted faster)
+            return None
     segments, nb = [], 0
     path_pts = []  # interior points of polyline keyholes: new vertices after the rings'
     for plane, multi, owners, other, comps in ((k, lo, owners_lo, k + 1, gb), (k + 1, hi, owners_hi, k, ga)):
@@ -2910,8 +2916,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             xy = Vx[ids][:, :2]
         else:
             xy = V[ids][:, :2]
-        if not _distinct_rows(xy):  # (len(np.unique(xy, axis=0)) != len(xy), sorted faster)
-            return None
+        # (its points are distinct: tested with the rings, above)
         try:
             f = cap_faces(xy, upward=not below)
         except ValueError:
@@ -3367,7 +3372,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
     from collections import defaultdict
 
     from .bands.bridges import OverlapFree, keyhole_uncovered
-    from .sections import sectioned_join
+    from .sections import JoinMemory
 
     by_slice = defaultdict(set)
     for kk, c in crack_only:
@@ -3421,6 +3426,9 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
 
     edge_cache = {}
     ox, oy, dx, dy = grid
+
+    # (a sectioned join asked for again after a restart, with all it reads the same, is not built again)
+    sectioned_join = JoinMemory().join
 
     @functools.lru_cache(maxsize=None)
     def section_ops():
