@@ -2139,25 +2139,28 @@ def _ring_angles(A, B):
     return np.arctan2(A @ e2, A @ e1), np.arctan2(B @ e2, B @ e1)
 
 
-def _separate_coincident(V, F, nudge):
+def _separate_coincident(V, F, nudge, overwrite: bool = False):
     """Move vertices that share a position apart, each towards the centroid of its own faces.
 
     Only the shared positions' vertices and their faces are touched (a hash groups the positions;
     the sums run over each vertex's corners in face order, as ``np.add.at`` over all of them did):
-    the same result as :func:`_separate_coincident_reference`, in time linear in the vertices."""
+    the same result as :func:`_separate_coincident_reference`, in time linear in the vertices.
+    ``overwrite``: the moves may be made in ``V`` itself (a caller that does not need it any more)."""
     V = np.asarray(V, dtype=np.float64)
     if len(V) == 0:
         return V
     F = np.asarray(F, dtype=np.int64)
     # the vertices whose position another shares (-0.0 and 0.0: one position), each with the first
     # of its position's vertices (a name of its group), in one hashed pass (_shared_rows)
-    dup, group, is_dup = _shared_rows(np.ascontiguousarray(V + 0.0).view(np.int64))
+    own = V.flags.c_contiguous and V.ndim == 2 and V.shape[1] == 3
+    dup, group, is_dup = _shared_rows(V if own else np.ascontiguousarray(V).reshape(len(V), -1))
     if len(dup) == 0:
         return V
     # the j-th copy of a position (in index order) moves (1 + j/2) nudges: copies heading the same
     # way stay apart
     rank = _copy_rank(group)
-    V = V.copy()
+    if not (overwrite and own and V.flags.writeable):
+        V = V.copy()
     corner_v = np.ascontiguousarray(F.reshape(-1))
     corners = _marked_entries(corner_v, is_dup)  # the corners at a shared position, in face order
     del is_dup
@@ -2178,12 +2181,18 @@ def _separate_coincident(V, F, nudge):
 
 
 @njit(cache=True, nogil=True)
-def _shared_rows(R):
-    """The rows of the int64 array ``R`` whose values another row has too: ``(dup, group,
+def _shared_rows(V):
+    """The rows of the float64 array ``V`` whose values another row has too, as the bits of
+    ``V + 0.0`` tell (0.0 and -0.0 alike, a NaN like a NaN of the same bits): ``(dup, group,
     mark)``, their numbers (increasing), per such row the first row with its values, and a mark
-    per row.  The groups of :func:`_row_ids` (``np.bincount(ids)[ids] > 1`` there), by an
-    open-addressing table of each group's first row, without the ids of every row."""
-    n, k = R.shape
+    per row.  The groups of :func:`_row_ids` on ``(V + 0.0).view(np.int64)`` (``np.bincount(ids)[ids]
+    > 1`` there), by an open-addressing table of each group's first row, without that copy of
+    ``V`` or the ids of every row."""
+    n, k = V.shape
+    buf = np.empty(k)
+    R = buf.view(np.int64)  # (the bits of one row's values + 0.0)
+    Q = np.empty(k)
+    Rq = Q.view(np.int64)
     size = 1
     while size < 2 * n + 2:
         size *= 2
@@ -2194,7 +2203,8 @@ def _shared_rows(R):
     for i in range(n):
         h = np.uint64(0x9E3779B97F4A7C15)
         for c in range(k):
-            h ^= np.uint64(R[i, c]) + np.uint64(0x9E3779B97F4A7C15) + (h << np.uint64(6)) + (h >> np.uint64(2))
+            buf[c] = V[i, c] + 0.0
+            h ^= np.uint64(R[c]) + np.uint64(0x9E3779B97F4A7C15) + (h << np.uint64(6)) + (h >> np.uint64(2))
             h *= np.uint64(0xBF58476D1CE4E5B9)
             h ^= h >> np.uint64(31)
         slot = np.int64(h & np.uint64(size - 1))
@@ -2206,7 +2216,8 @@ def _shared_rows(R):
                 break
             same = True
             for c in range(k):
-                if R[j, c] != R[i, c]:
+                Q[c] = V[j, c] + 0.0
+                if Rq[c] != R[c]:
                     same = False
                     break
             if same:
