@@ -479,20 +479,95 @@ def _four_face_rows(mult):
 
 @njit(cache=True, nogil=True)
 def _four_face_edges(F, nv):
-    """``_four_face_rows(_edge_multiplicity(F, nv))`` without the counts of every edge: the same
-    buckets, each counted as there, its half-edges with a count of four marked (and the first odd
-    count in half-edge order, the largest count, kept) as they are counted (:func:`_four_face_range`)."""
-    start, items, other = _half_edges_by_vertex(F, nv)
-    hit = np.zeros(3 * F.shape[0], np.bool_)
-    first, odd, most = _four_face_range(start, items, other, 0, nv, np.zeros(nv, np.int32), hit)
-    rows, rows_hit = _hit_rows(hit)
-    return odd if first >= 0 else np.int32(0), most, rows, rows_hit
+    """``_four_face_rows(_edge_multiplicity(F, nv))`` without the counts of every edge: the
+    half-edges bucketed by their lower vertex with their upper vertex alone (no half-edge
+    numbers), each bucket counted as :func:`_edge_multiplicity_range` counts it, the largest count
+    kept and the buckets with a count other than two marked; then the faces are read in order and
+    only the half-edges of marked buckets counted again in their bucket (:func:`_marked_counts`):
+    every other edge is in two faces, so the first odd count, the faces with an edge in four and
+    which edges those are come out as the counts of every edge give them."""
+    m = F.shape[0]
+    start = np.zeros(nv + 2, np.int64)  # (counted at v + 2; each bucket's fill pointer at v + 1)
+    for i in range(m):
+        for k in range(3):
+            start[min(F[i, k], F[i, (k + 1) % 3]) + 2] += 1
+    for v in range(nv):
+        start[v + 2] += start[v + 1]
+    upper = np.empty(3 * m, np.int32)  # (vertex numbers: int32 as in _half_edges_by_vertex)
+    for i in range(m):
+        for k in range(3):
+            a = F[i, k]
+            b = F[i, (k + 1) % 3]
+            lo = min(a, b)
+            t = start[lo + 1]
+            upper[t] = max(a, b)
+            start[lo + 1] = t + 1
+    cnt = np.zeros(nv, np.int32)
+    marked = np.zeros(nv, np.bool_)
+    most = np.int32(0)
+    some = False
+    for v in range(nv):
+        s0, s1 = start[v], start[v + 1]
+        for t in range(s0, s1):
+            cnt[upper[t]] += 1
+        for t in range(s0, s1):
+            c = cnt[upper[t]]
+            if c > most:
+                most = c
+            if c != 2:
+                marked[v] = True
+                some = True
+        for t in range(s0, s1):
+            cnt[upper[t]] = 0
+    if not some:
+        return np.int32(0), most, np.zeros(0, np.int64), np.zeros((0, 3), np.bool_)
+    odd, rows, hit = _marked_counts(F, start, upper, marked)
+    return odd, most, rows, hit
+
+
+@njit(cache=True, nogil=True)
+def _marked_counts(F, start, upper, marked):
+    """:func:`_four_face_edges`' second pass: the faces in order, each half-edge whose lower
+    vertex is ``marked`` counted in its bucket (``upper[start[lo]:start[lo + 1]]``): the first odd
+    count (0 if none), the faces with a half-edge counted four and, per such face, which."""
+    m = F.shape[0]
+    odd = np.int32(0)
+    n = 0
+    four = np.zeros(3 * m, np.bool_)
+    for i in range(m):
+        got = False
+        for k in range(3):
+            a = F[i, k]
+            b = F[i, (k + 1) % 3]
+            lo = min(a, b)
+            if marked[lo]:
+                hi = max(a, b)
+                c = np.int32(0)
+                for t in range(start[lo], start[lo + 1]):
+                    c += upper[t] == hi
+                if c % 2 and odd == 0:
+                    odd = c
+                if c == 4:
+                    four[3 * i + k] = True
+                    got = True
+        n += got
+    rows = np.empty(n, np.int64)
+    hit = np.empty((n, 3), np.bool_)
+    at = 0
+    for i in range(m):
+        if four[3 * i] or four[3 * i + 1] or four[3 * i + 2]:
+            rows[at] = i
+            for k in range(3):
+                hit[at, k] = four[3 * i + k]
+            at += 1
+    return odd, rows, hit
 
 
 def _four_face_edges_threads(F, nv, threads):
-    """:func:`_four_face_edges` on ``threads`` threads (the buckets of :func:`_buckets_on_threads`,
-    each range counted on its own: the same marks, and the first odd count and the largest count
-    of all ranges)."""
+    """:func:`_four_face_edges` on ``threads`` threads: the half-edges with their numbers in the
+    buckets of :func:`_buckets_on_threads`, each range of buckets counted on its own
+    (:func:`_four_face_range`, the half-edges counted four marked), and the first odd count and the
+    largest count of all ranges."""
     from ._workers import run_all
 
     start, items, other, vparts = _buckets_on_threads(F, nv, threads)
