@@ -300,6 +300,19 @@ def test_shared_rows_and_separate_coincident_equal_the_ids_of_every_row():
         assert _bits(W) == _bits(V)
         seen.add(len(dup) > 0)
     assert seen == {True, False}
+    # many rows on a coarse grid (most shared, by two to many) and a few rows anywhere: the
+    # bitmap's candidates hold every shared row and some that are not
+    for n in (1, 2, 5000, 40000):
+        V = np.concatenate([rng.integers(-20, 20, (n // 2, 3)) / 4.0, rng.normal(size=(n - n // 2, 3))])
+        V = V[rng.permutation(n)]
+        R = np.ascontiguousarray(V + 0.0).view(np.int64)
+        ids = repair._row_ids(R, False)
+        want = np.flatnonzero(np.bincount(ids)[ids] > 1)
+        dup, group, mark = repair._shared_rows(V)
+        assert np.array_equal(dup, want) and np.array_equal(np.flatnonzero(mark), want)
+        assert np.array_equal(repair._copy_rank(group), repair._copy_rank(ids[want]))
+        first = np.unique(ids, return_index=True)[1]  # (ids are numbered in order of first rows)
+        assert np.array_equal(group, first[ids[want]])
 
 
 def test_compact_in_one_pass_equals_the_counts():

@@ -2255,40 +2255,70 @@ def _separate_coincident(V, F, nudge, overwrite: bool = False):
     return V
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _row_hash(V, i, buf, R):
+    """The hash of row ``i`` of ``V`` by the bits of its values + 0.0 (left in ``buf``, whose int64
+    view is ``R``), mixed as :func:`_row_ids` mixes a row."""
+    h = np.uint64(0x9E3779B97F4A7C15)
+    for c in range(V.shape[1]):
+        buf[c] = V[i, c] + 0.0
+        h ^= np.uint64(R[c]) + np.uint64(0x9E3779B97F4A7C15) + (h << np.uint64(6)) + (h >> np.uint64(2))
+        h *= np.uint64(0xBF58476D1CE4E5B9)
+        h ^= h >> np.uint64(31)
+    return h
+
+
 @njit(cache=True, nogil=True)
 def _shared_rows(V):
     """The rows of the float64 array ``V`` whose values another row has too, as the bits of
     ``V + 0.0`` tell (0.0 and -0.0 alike, a NaN like a NaN of the same bits): ``(dup, group,
     mark)``, their numbers (increasing), per such row the first row with its values, and a mark
     per row.  The groups of :func:`_row_ids` on ``(V + 0.0).view(np.int64)`` (``np.bincount(ids)[ids]
-    > 1`` there), by an open-addressing table of each group's first row, without that copy of
-    ``V`` or the ids of every row."""
+    > 1`` there), without that copy of ``V`` or the ids of every row: the rows' hashes are first
+    marked in a bitmap of about 8 bits per row (small enough to stay in cache), once and twice;
+    the rows whose hash was met twice (every row that shares its values, and a few others) are
+    then grouped exactly in an open-addressing table of each group's first row, in row order."""
     n, k = V.shape
     buf = np.empty(k)
     R = buf.view(np.int64)  # (the bits of one row's values + 0.0)
     Q = np.empty(k)
     Rq = Q.view(np.int64)
-    size = 1
-    while size < 2 * n + 2:
-        size *= 2
-    table = np.full(size, -1, np.int32)  # (a group's first row; 2^31 rows would not fit in memory here)
-    first = np.empty(n, np.int32)
-    mark = np.zeros(n, np.bool_)
-    count = 0
+    bits = 8
+    while bits < 8 * n + 8:
+        bits *= 2
+    once = np.zeros(bits // 8, np.uint8)
+    twice = np.zeros(bits // 8, np.uint8)
     for i in range(n):
-        h = np.uint64(0x9E3779B97F4A7C15)
-        for c in range(k):
-            buf[c] = V[i, c] + 0.0
-            h ^= np.uint64(R[c]) + np.uint64(0x9E3779B97F4A7C15) + (h << np.uint64(6)) + (h >> np.uint64(2))
-            h *= np.uint64(0xBF58476D1CE4E5B9)
-            h ^= h >> np.uint64(31)
-        slot = np.int64(h & np.uint64(size - 1))
+        s = np.int64(_row_hash(V, i, buf, R) >> np.uint64(20)) & (bits - 1)
+        b = np.uint8(1 << (s & 7))
+        if once[s >> 3] & b:
+            twice[s >> 3] |= b
+        else:
+            once[s >> 3] |= b
+    cand = np.empty(n, np.int32)  # (row numbers: 2^31 rows would not fit in memory here)
+    nc = 0
+    for i in range(n):
+        s = np.int64(_row_hash(V, i, buf, R) >> np.uint64(20)) & (bits - 1)
+        if twice[s >> 3] & np.uint8(1 << (s & 7)):
+            cand[nc] = i
+            nc += 1
+    size = 1
+    while size < 2 * nc + 2:
+        size *= 2
+    table = np.full(size, -1, np.int32)  # (a group's first candidate)
+    first = np.empty(nc, np.int32)
+    shared = np.zeros(nc, np.bool_)
+    count = 0
+    for q in range(nc):
+        i = cand[q]
+        slot = np.int64(_row_hash(V, i, buf, R) & np.uint64(size - 1))
         while True:
-            j = table[slot]
-            if j < 0:
-                table[slot] = i
-                first[i] = i
+            p = table[slot]
+            if p < 0:
+                table[slot] = q
+                first[q] = i
                 break
+            j = cand[p]
             same = True
             for c in range(k):
                 Q[c] = V[j, c] + 0.0
@@ -2296,21 +2326,24 @@ def _shared_rows(V):
                     same = False
                     break
             if same:
-                first[i] = j
-                if not mark[j]:
-                    mark[j] = True
+                first[q] = j
+                if not shared[p]:
+                    shared[p] = True
                     count += 1
-                mark[i] = True
+                shared[q] = True
                 count += 1
                 break
             slot = (slot + 1) & (size - 1)
+    mark = np.zeros(n, np.bool_)
     dup = np.empty(count, np.int64)
     group = np.empty(count, np.int64)
     t = 0
-    for i in range(n):
-        if mark[i]:
+    for q in range(nc):
+        if shared[q]:
+            i = cand[q]
+            mark[i] = True
             dup[t] = i
-            group[t] = first[i]
+            group[t] = first[q]
             t += 1
     return dup, group, mark
 
