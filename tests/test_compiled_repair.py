@@ -1092,7 +1092,7 @@ def test_edge_counts_and_twins_on_threads_equal_one_threads(monkeypatch, threads
     monkeypatch.setattr(repair, "_buckets_on_threads", lambda *a, f=repair._buckets_on_threads: calls.append(1) or f(*a))
     monkeypatch.setenv("CONTOURMESH_THREADS", str(threads))
     many = contourmesh.mesh(vol)
-    assert len(calls) >= 2 and one.meta == many.meta
+    assert len(calls) >= 1 and one.meta == many.meta  # (the four-face edges on threads; the fans walk per vertex)
     assert one.vertices.tobytes() == many.vertices.tobytes() and one.faces.tobytes() == many.faces.tobytes()
 
 

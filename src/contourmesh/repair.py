@@ -40,10 +40,8 @@ def _split_four_face_edges(V, F, side, nudge):
     m = len(F)
     Fc = np.ascontiguousarray(F, dtype=np.int64)
     threads = _edge_threads(Fc)
-    mult = _edge_multiplicity(Fc, len(V)) if threads < 2 else _edge_multiplicity_threads(Fc, len(V), threads)
+    odd, most, work, fw_hit = _four_face_edges(Fc, len(V)) if threads < 2 else _four_face_edges_threads(Fc, len(V), threads)
     del Fc
-    odd, most, work, fw_hit = _four_face_rows(mult)
-    del mult
     if odd:
         raise RuntimeError(f"internal error: an edge is shared by {int(odd)} faces")
     if most > 4:
@@ -478,6 +476,155 @@ def _four_face_rows(mult):
     return odd, most, rows, hit
 
 
+
+@njit(cache=True, nogil=True)
+def _four_face_edges(F, nv):
+    """``_four_face_rows(_edge_multiplicity(F, nv))`` without the counts of every edge: the
+    half-edges bucketed by their lower vertex with their upper vertex alone (no half-edge
+    numbers), each bucket counted as :func:`_edge_multiplicity_range` counts it, the largest count
+    kept and the buckets with a count other than two marked; then the faces are read in order and
+    only the half-edges of marked buckets counted again in their bucket (:func:`_marked_counts`):
+    every other edge is in two faces, so the first odd count, the faces with an edge in four and
+    which edges those are come out as the counts of every edge give them."""
+    m = F.shape[0]
+    start = np.zeros(nv + 2, np.int64)  # (counted at v + 2; each bucket's fill pointer at v + 1)
+    for i in range(m):
+        for k in range(3):
+            start[min(F[i, k], F[i, (k + 1) % 3]) + 2] += 1
+    for v in range(nv):
+        start[v + 2] += start[v + 1]
+    upper = np.empty(3 * m, np.int32)  # (vertex numbers: int32 as in _half_edges_by_vertex)
+    for i in range(m):
+        for k in range(3):
+            a = F[i, k]
+            b = F[i, (k + 1) % 3]
+            lo = min(a, b)
+            t = start[lo + 1]
+            upper[t] = max(a, b)
+            start[lo + 1] = t + 1
+    cnt = np.zeros(nv, np.int32)
+    marked = np.zeros(nv, np.bool_)
+    most = np.int32(0)
+    some = False
+    for v in range(nv):
+        s0, s1 = start[v], start[v + 1]
+        for t in range(s0, s1):
+            cnt[upper[t]] += 1
+        for t in range(s0, s1):
+            c = cnt[upper[t]]
+            if c > most:
+                most = c
+            if c != 2:
+                marked[v] = True
+                some = True
+        for t in range(s0, s1):
+            cnt[upper[t]] = 0
+    if not some:
+        return np.int32(0), most, np.zeros(0, np.int64), np.zeros((0, 3), np.bool_)
+    odd, rows, hit = _marked_counts(F, start, upper, marked)
+    return odd, most, rows, hit
+
+
+@njit(cache=True, nogil=True)
+def _marked_counts(F, start, upper, marked):
+    """:func:`_four_face_edges`' second pass: the faces in order, each half-edge whose lower
+    vertex is ``marked`` counted in its bucket (``upper[start[lo]:start[lo + 1]]``): the first odd
+    count (0 if none), the faces with a half-edge counted four and, per such face, which."""
+    m = F.shape[0]
+    odd = np.int32(0)
+    n = 0
+    four = np.zeros(3 * m, np.bool_)
+    for i in range(m):
+        got = False
+        for k in range(3):
+            a = F[i, k]
+            b = F[i, (k + 1) % 3]
+            lo = min(a, b)
+            if marked[lo]:
+                hi = max(a, b)
+                c = np.int32(0)
+                for t in range(start[lo], start[lo + 1]):
+                    c += upper[t] == hi
+                if c % 2 and odd == 0:
+                    odd = c
+                if c == 4:
+                    four[3 * i + k] = True
+                    got = True
+        n += got
+    rows = np.empty(n, np.int64)
+    hit = np.empty((n, 3), np.bool_)
+    at = 0
+    for i in range(m):
+        if four[3 * i] or four[3 * i + 1] or four[3 * i + 2]:
+            rows[at] = i
+            for k in range(3):
+                hit[at, k] = four[3 * i + k]
+            at += 1
+    return odd, rows, hit
+
+
+def _four_face_edges_threads(F, nv, threads):
+    """:func:`_four_face_edges` on ``threads`` threads: the half-edges with their numbers in the
+    buckets of :func:`_buckets_on_threads`, each range of buckets counted on its own
+    (:func:`_four_face_range`, the half-edges counted four marked), and the first odd count and the
+    largest count of all ranges."""
+    from ._workers import run_all
+
+    start, items, other, vparts = _buckets_on_threads(F, nv, threads)
+    hit = np.zeros(3 * F.shape[0], np.bool_)  # (each half-edge is in one bucket: one writer per entry)
+    got = run_all(lambda a, b: _four_face_range(start, items, other, a, b, np.zeros(nv, np.int32), hit), vparts,
+                  threads)
+    odd_at = [(int(h), int(c)) for h, c, _ in got if h >= 0]
+    most = max((int(x) for _, _, x in got), default=0)
+    rows, rows_hit = _hit_rows(hit)
+    return (min(odd_at)[1] if odd_at else 0), most, rows, rows_hit
+
+
+@njit(cache=True, nogil=True)
+def _four_face_range(start, items, other, v0, v1, cnt, hit):
+    """The counts of :func:`_edge_multiplicity_range` over the buckets ``v0 .. v1 - 1``, not kept:
+    ``hit[h]`` set for the half-edges ``h`` counted four; returns ``(h, c, most)``, the lowest
+    half-edge with an odd count and its count (-1, 0 where none) and the largest count."""
+    first = np.int64(-1)
+    odd = np.int32(0)
+    most = np.int32(0)
+    for v in range(v0, v1):
+        s0, s1 = start[v], start[v + 1]
+        for t in range(s0, s1):
+            cnt[_upper(other[t])] += 1
+        for t in range(s0, s1):
+            c = cnt[_upper(other[t])]
+            if c > most:
+                most = c
+            if c == 4:
+                hit[items[t]] = True
+            elif c % 2 and (first < 0 or items[t] < first):
+                first = np.int64(items[t])
+                odd = c
+        for t in range(s0, s1):
+            cnt[_upper(other[t])] = 0
+    return first, odd, most
+
+
+@njit(cache=True, nogil=True)
+def _hit_rows(hit):
+    """From the marks of :func:`_four_face_range` (one per half-edge): the faces with a marked
+    edge (increasing) and, per such face, which of its edges are (``_four_face_rows``' last two)."""
+    m = hit.shape[0] // 3
+    n = 0
+    for i in range(m):
+        n += hit[3 * i] or hit[3 * i + 1] or hit[3 * i + 2]
+    rows = np.empty(n, np.int64)
+    out = np.empty((n, 3), np.bool_)
+    at = 0
+    for i in range(m):
+        if hit[3 * i] or hit[3 * i + 1] or hit[3 * i + 2]:
+            rows[at] = i
+            for k in range(3):
+                out[at, k] = hit[3 * i + k]
+            at += 1
+    return rows, out
+
 def _midpoints(V, made, nudge):
     """The new vertices of :func:`_split_four_face_edges`: row ``j`` of ``made`` is ``(u, v, o0,
     o1)``, vertex ``len(V) + j`` the midpoint of ``u`` and ``v`` moved ``nudge`` toward the mean of
@@ -746,7 +893,8 @@ def _fan_components(twin):
     return count, lab, first
 
 
-def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True):
+def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3, side=None, four_face: bool = True,
+                               overwrite: bool = False):
     """Make a closed mesh a manifold: pair faces at 4-face edges by side, split vertex fans.
 
     Edges shared by four faces occur where two voxels of consecutive slices touch along an
@@ -754,7 +902,9 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
     own (:func:`_split_four_face_edges`).  Then every vertex whose faces form several fans (touching corners) is split
     into one vertex per fan, and each copy is moved ``nudge`` (absolute units) towards the
     centroid of its fan so that the touching surfaces no longer share a point.  ``four_face=False``
-    skips the first step (for a caller that has already split the four-face edges).
+    skips the first step (for a caller that has already split the four-face edges);
+    ``overwrite``: the new faces may be written into ``F`` itself where it is an int64 C array
+    (a caller that does not need it any more).
     """
     F = np.asarray(F, dtype=np.int64)
     m = len(F)
@@ -766,20 +916,28 @@ def split_nonmanifold_vertices(V: np.ndarray, F: np.ndarray, nudge: float = 1e-3
         V, F, side = _split_four_face_edges(V, F, side, nudge)
     m = len(F)
     nv = len(V) + 1
-    # every directed edge once and every one with its opposite <=> every edge in exactly two faces
-    Fc = np.ascontiguousarray(F)
-    threads = _edge_threads(Fc)
-    twin, status = _half_edge_twins(Fc, len(V)) if threads < 2 else _half_edge_twins_threads(Fc, len(V), threads)
-    del Fc
-    if status != 0:  # the sorted search names the edge at fault
-        twin = _half_edge_twins_reference(F, nv)
     # fans = connected components of the corners linked across every edge, numbered in order of
     # their lowest corners; each vertex keeps its first fan, its other fans get new vertices
     # (numbered in the order of (vertex, fan)), and every fan of a split vertex has its vertex (or
-    # the copy) nudged towards the fan's centroid: all in one compiled pass (_split_fans), the new
-    # faces written over the fan labels
-    several, F2, target, start, copies, vid = _split_fans(twin, np.ascontiguousarray(F.reshape(-1)), V, len(V))
-    del twin
+    # the copy) nudged towards the fan's centroid: walked per vertex on the corners bucketed by
+    # vertex (_vertex_fans, one compiled call on any number of threads), which also checks that
+    # every directed edge is used once and has its opposite (every edge in exactly two faces)
+    corner_vertex = np.ascontiguousarray(F.reshape(-1))
+    status, several, changed, new_ids, target, start, copies, vid = _vertex_fans(corner_vertex, V, len(V))
+    if status == 0 and several:  # (the other corners keep their vertices)
+        F2 = corner_vertex if overwrite and F.flags.c_contiguous and F.flags.writeable else corner_vertex.copy()
+        F2[changed] = new_ids
+        del changed, new_ids
+    if status != 0:  # (a fault, or a face with a repeated vertex: the twins' path names or handles it)
+        Fc = np.ascontiguousarray(F)
+        threads = _edge_threads(Fc)
+        twin, status = _half_edge_twins(Fc, len(V)) if threads < 2 else _half_edge_twins_threads(Fc, len(V), threads)
+        del Fc
+        if status != 0:  # the sorted search names the edge at fault
+            twin = _half_edge_twins_reference(F, nv)
+        # (the same fans from the twins, in one compiled pass; the new faces written over the labels)
+        several, F2, target, start, copies, vid = _split_fans(twin, corner_vertex, V, len(V))
+        del twin
     if not several:
         return V, F
     F2 = F2.reshape(-1, 3)
@@ -887,6 +1045,199 @@ def _split_fans(twin, corner_vertex, V, nv):
     for j in range(others.shape[0]):
         copies[j] = fan_vertex[others[j]]
     return True, lab, sums, start, copies, vid
+
+
+@njit(cache=True, nogil=True)
+def _vertex_fans(corner_vertex, V, nv):
+    """:func:`_split_fans`' results without the half-edge twins: ``(status, several, changed,
+    new_ids, target, start, copies, vid)``, where ``status`` is 0 and ``several``: the corners
+    ``changed`` (increasing) take the vertex numbers ``new_ids`` (every other corner keeps its
+    vertex: ``F2`` there), the rest as there.
+
+    The corners are bucketed by their vertex (a counting sort; per entry the next and the previous
+    vertex of its corner in its face), and each vertex's fans are walked in its own bucket: from a
+    corner whose previous vertex is ``b`` to the corner of the same vertex whose next vertex is
+    ``b`` (the corner after the twin of the half-edge ``b -> v``: the step of
+    :func:`_fan_components`).  The twins' checks are made per bucket, as every half-edge ``v -> w``
+    is the next vertex of one entry of ``v`` and every ``w -> v`` the previous vertex of one: two
+    entries of a vertex with the same next vertex (a half-edge used twice in one direction), a
+    previous vertex that is no entry's next (a half-edge without its opposite) or links that are
+    no permutation give ``status`` 1 or 2, a face with a repeated vertex or a vertex not below
+    ``nv`` 3; the caller then takes the twins' path, which names the fault (or handles the loops).
+
+    The fans of a vertex are its corners' classes under that step, whatever the corner they are
+    walked from, and they are numbered among all fans by their lowest corners, as
+    :func:`_fan_components` numbers them; the vertices with several fans (few) are then read again
+    corner by corner in increasing order, so that each fan's centroid sum is added in the order
+    of :func:`_split_fans` (from zero, in corner order, each face's ``((a + b) + c) / 3``), and
+    their other fans are numbered ``nv + j`` in the order of (vertex, fan): the same bits."""
+    n = corner_vertex.shape[0]
+    m = n // 3
+    empty = np.zeros((0, 3))
+    none = np.zeros(0, np.int64)
+    # the bucket of vertex v is e[cnt[v]:cnt[v + 1]] once filled (counted at v + 2, then each
+    # bucket's fill pointer at v + 1 ends at the next bucket's start)
+    cnt = np.zeros(nv + 2, np.int64)
+    for i in range(m):
+        a = corner_vertex[3 * i]
+        b = corner_vertex[3 * i + 1]
+        c = corner_vertex[3 * i + 2]
+        if a == b or b == c or a == c or min(a, b, c) < 0 or max(a, b, c) >= nv:
+            return np.int64(3), False, none, none, empty, none, none, none
+        cnt[a + 2] += 1
+        cnt[b + 2] += 1
+        cnt[c + 2] += 1
+    most = 0
+    for v in range(nv):
+        most = max(most, cnt[v + 2])
+        cnt[v + 2] += cnt[v + 1]
+    e = np.empty((n, 2), np.int32)  # (next, previous vertex; int32: 2^31 corners would not fit in memory here)
+    for i in range(m):
+        a = corner_vertex[3 * i]
+        b = corner_vertex[3 * i + 1]
+        c = corner_vertex[3 * i + 2]
+        t = cnt[a + 1]
+        e[t, 0] = b
+        e[t, 1] = c
+        cnt[a + 1] = t + 1
+        t = cnt[b + 1]
+        e[t, 0] = c
+        e[t, 1] = a
+        cnt[b + 1] = t + 1
+        t = cnt[c + 1]
+        e[t, 0] = a
+        e[t, 1] = b
+        cnt[c + 1] = t + 1
+    start = cnt[:nv + 1]
+    at_next = np.full(nv, -1, np.int64)  # (the entry of the current bucket with next vertex w; left so)
+    fans_at = np.zeros(nv, np.int32)
+    local = np.empty(most, np.int32)
+    k_split = 0  # (fans of vertices with several)
+    n_other = 0
+    n_corners = 0  # (their corners)
+    for v in range(nv):
+        s0, s1 = start[v], start[v + 1]
+        for t in range(s0, s1):
+            w = e[t, 0]
+            if at_next[w] >= 0:
+                return np.int64(1), False, none, none, empty, none, none, none
+            at_next[w] = t
+        q = 0
+        if s1 > s0:
+            # one walk from the first entry covers them all where the vertex has one fan
+            x = s0
+            steps = 0
+            while True:
+                x = at_next[e[x, 1]]
+                steps += 1
+                if x < 0:
+                    return np.int64(2), False, none, none, empty, none, none, none
+                if x == s0 or steps > s1 - s0:
+                    break
+            if x != s0:
+                return np.int64(1), False, none, none, empty, none, none, none
+            q = 1
+            if steps < s1 - s0:
+                q = _bucket_fans(e, s0, s1, at_next, local)
+                if q < 0:
+                    return np.int64(1), False, none, none, empty, none, none, none
+        for t in range(s0, s1):
+            at_next[e[t, 0]] = -1
+        fans_at[v] = q
+        if q > 1:
+            k_split += q
+            n_other += q - 1
+            n_corners += s1 - s0
+    if n_other == 0:
+        return np.int64(0), False, none, none, empty, none, none, none
+    # the fans of split vertices numbered in vertex order (g0[v]: v's first), and each entry's fan
+    # written over its previous vertex (no longer needed)
+    g0 = np.full(nv, -1, np.int64)
+    fv = np.empty(k_split, np.int64)
+    fid = np.empty(k_split, np.int64)
+    copies = np.empty(n_other, np.int64)
+    g = 0
+    j = 0
+    for v in range(nv):
+        q = fans_at[v]
+        if q > 1:
+            g0[v] = g
+            for p in range(q):
+                fv[g + p] = v
+                fid[g + p] = v if p == 0 else nv + j + p - 1
+            for p in range(1, q):
+                copies[j + p - 1] = v
+            g += q
+            j += q - 1
+            s0, s1 = start[v], start[v + 1]
+            for t in range(s0, s1):
+                at_next[e[t, 0]] = t
+            _bucket_fans(e, s0, s1, at_next, local)
+            for t in range(s0, s1):
+                at_next[e[t, 0]] = -1
+                e[t, 1] = local[t - s0]
+    # their corners in increasing order: each fan's lowest corner, sums and counts, new numbers
+    head = np.full(k_split, -1, np.int64)
+    sums = np.zeros((k_split, 3))
+    cn = np.zeros(k_split, np.int64)
+    changed = np.empty(n_corners, np.int64)
+    new_ids = np.empty(n_corners, np.int64)
+    nc = 0
+    for i in range(m):
+        for k in range(3):
+            c = 3 * i + k
+            v = corner_vertex[c]
+            b0 = g0[v]
+            if b0 < 0:
+                continue
+            w = corner_vertex[3 * i + (k + 1) % 3]
+            t = start[v]
+            while e[t, 0] != w:  # (the corner's entry: the one with its next vertex)
+                t += 1
+            p = e[t, 1]
+            f = b0 + p
+            if head[f] < 0:
+                head[f] = c
+            for d in range(3):
+                sums[f, d] += ((V[corner_vertex[3 * i], d] + V[corner_vertex[3 * i + 1], d])
+                               + V[corner_vertex[3 * i + 2], d]) / 3.0
+            cn[f] += 1
+            if p > 0:
+                changed[nc] = c
+                new_ids[nc] = fid[f]
+                nc += 1
+    order = np.argsort(head)  # (the fans' order among all fans: by lowest corner)
+    target = np.empty((k_split, 3))
+    st = np.empty(k_split, np.int64)
+    vid = np.empty(k_split, np.int64)
+    for r in range(k_split):
+        f = order[r]
+        for d in range(3):
+            target[r, d] = sums[f, d] / np.float64(cn[f])
+        st[r] = fv[f]
+        vid[r] = fid[f]
+    return np.int64(0), True, changed[:nc], new_ids[:nc], target, st, copies, vid
+
+
+@njit(cache=True, nogil=True)
+def _bucket_fans(e, s0, s1, at_next, local):
+    """The fans of one vertex of :func:`_vertex_fans`, its entries ``e[s0:s1]`` (``at_next`` filled
+    for them): each entry's fan (0, 1, ... in order of their first entries) into ``local[:s1 -
+    s0]``; returns their count, or -1 where the links are no permutation."""
+    d = s1 - s0
+    for t in range(d):
+        local[t] = -1
+    q = 0
+    for t in range(d):
+        if local[t] < 0:
+            x = t
+            while local[x] < 0:
+                local[x] = q
+                x = at_next[e[s0 + x, 1]] - s0
+            if x != t:
+                return np.int64(-1)
+            q += 1
+    return np.int64(q)
 
 
 def _half_edge_twins_reference(F, nv):
@@ -1863,29 +2214,30 @@ def _ring_angles(A, B):
     return np.arctan2(A @ e2, A @ e1), np.arctan2(B @ e2, B @ e1)
 
 
-def _separate_coincident(V, F, nudge):
+def _separate_coincident(V, F, nudge, overwrite: bool = False):
     """Move vertices that share a position apart, each towards the centroid of its own faces.
 
     Only the shared positions' vertices and their faces are touched (a hash groups the positions;
     the sums run over each vertex's corners in face order, as ``np.add.at`` over all of them did):
-    the same result as :func:`_separate_coincident_reference`, in time linear in the vertices."""
+    the same result as :func:`_separate_coincident_reference`, in time linear in the vertices.
+    ``overwrite``: the moves may be made in ``V`` itself (a caller that does not need it any more)."""
     V = np.asarray(V, dtype=np.float64)
     if len(V) == 0:
         return V
     F = np.asarray(F, dtype=np.int64)
-    inv = _row_ids(np.ascontiguousarray(V + 0.0).view(np.int64), False)  # -0.0 and 0.0: one position
-    cnt = np.bincount(inv)
-    dup = np.flatnonzero(cnt[inv] > 1)
+    # the vertices whose position another shares (-0.0 and 0.0: one position), each with the first
+    # of its position's vertices (a name of its group), in one hashed pass (_shared_rows)
+    own = V.flags.c_contiguous and V.ndim == 2 and V.shape[1] == 3
+    dup, group, is_dup = _shared_rows(V if own else np.ascontiguousarray(V).reshape(len(V), -1))
     if len(dup) == 0:
         return V
     # the j-th copy of a position (in index order) moves (1 + j/2) nudges: copies heading the same
     # way stay apart
-    rank = _copy_rank(inv[dup])
-    V = V.copy()
-    is_dup = np.zeros(len(V), dtype=bool)
-    is_dup[dup] = True
-    corner_v = F.reshape(-1)
-    corners = np.flatnonzero(is_dup[corner_v])  # the corners at a shared position, in face order
+    rank = _copy_rank(group)
+    if not (overwrite and own and V.flags.writeable):
+        V = V.copy()
+    corner_v = np.ascontiguousarray(F.reshape(-1))
+    corners = _marked_entries(corner_v, is_dup)  # the corners at a shared position, in face order
     del is_dup
     faces = corners // 3
     cen = V[F[faces]].mean(axis=1)
@@ -1901,6 +2253,114 @@ def _separate_coincident(V, F, nudge):
     step = nudge * (1.0 + 0.5 * rank)
     V[dup[ok]] += d[ok] * (step[ok] / nrm[ok])[:, None]
     return V
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _row_hash(V, i, buf, R):
+    """The hash of row ``i`` of ``V`` by the bits of its values + 0.0 (left in ``buf``, whose int64
+    view is ``R``), mixed as :func:`_row_ids` mixes a row."""
+    h = np.uint64(0x9E3779B97F4A7C15)
+    for c in range(V.shape[1]):
+        buf[c] = V[i, c] + 0.0
+        h ^= np.uint64(R[c]) + np.uint64(0x9E3779B97F4A7C15) + (h << np.uint64(6)) + (h >> np.uint64(2))
+        h *= np.uint64(0xBF58476D1CE4E5B9)
+        h ^= h >> np.uint64(31)
+    return h
+
+
+@njit(cache=True, nogil=True)
+def _shared_rows(V):
+    """The rows of the float64 array ``V`` whose values another row has too, as the bits of
+    ``V + 0.0`` tell (0.0 and -0.0 alike, a NaN like a NaN of the same bits): ``(dup, group,
+    mark)``, their numbers (increasing), per such row the first row with its values, and a mark
+    per row.  The groups of :func:`_row_ids` on ``(V + 0.0).view(np.int64)`` (``np.bincount(ids)[ids]
+    > 1`` there), without that copy of ``V`` or the ids of every row: the rows' hashes are first
+    marked in a bitmap of about 8 bits per row (small enough to stay in cache), once and twice;
+    the rows whose hash was met twice (every row that shares its values, and a few others) are
+    then grouped exactly in an open-addressing table of each group's first row, in row order."""
+    n, k = V.shape
+    buf = np.empty(k)
+    R = buf.view(np.int64)  # (the bits of one row's values + 0.0)
+    Q = np.empty(k)
+    Rq = Q.view(np.int64)
+    bits = 8
+    while bits < 8 * n + 8:
+        bits *= 2
+    once = np.zeros(bits // 8, np.uint8)
+    twice = np.zeros(bits // 8, np.uint8)
+    for i in range(n):
+        s = np.int64(_row_hash(V, i, buf, R) >> np.uint64(20)) & (bits - 1)
+        b = np.uint8(1 << (s & 7))
+        if once[s >> 3] & b:
+            twice[s >> 3] |= b
+        else:
+            once[s >> 3] |= b
+    cand = np.empty(n, np.int32)  # (row numbers: 2^31 rows would not fit in memory here)
+    nc = 0
+    for i in range(n):
+        s = np.int64(_row_hash(V, i, buf, R) >> np.uint64(20)) & (bits - 1)
+        if twice[s >> 3] & np.uint8(1 << (s & 7)):
+            cand[nc] = i
+            nc += 1
+    size = 1
+    while size < 2 * nc + 2:
+        size *= 2
+    table = np.full(size, -1, np.int32)  # (a group's first candidate)
+    first = np.empty(nc, np.int32)
+    shared = np.zeros(nc, np.bool_)
+    count = 0
+    for q in range(nc):
+        i = cand[q]
+        slot = np.int64(_row_hash(V, i, buf, R) & np.uint64(size - 1))
+        while True:
+            p = table[slot]
+            if p < 0:
+                table[slot] = q
+                first[q] = i
+                break
+            j = cand[p]
+            same = True
+            for c in range(k):
+                Q[c] = V[j, c] + 0.0
+                if Rq[c] != R[c]:
+                    same = False
+                    break
+            if same:
+                first[q] = j
+                if not shared[p]:
+                    shared[p] = True
+                    count += 1
+                shared[q] = True
+                count += 1
+                break
+            slot = (slot + 1) & (size - 1)
+    mark = np.zeros(n, np.bool_)
+    dup = np.empty(count, np.int64)
+    group = np.empty(count, np.int64)
+    t = 0
+    for q in range(nc):
+        if shared[q]:
+            i = cand[q]
+            mark[i] = True
+            dup[t] = i
+            group[t] = first[q]
+            t += 1
+    return dup, group, mark
+
+
+@njit(cache=True, nogil=True)
+def _marked_entries(a, mark):
+    """``np.flatnonzero(mark[a])`` for the 1-D int64 ``a`` (no mask of ``a``'s length)."""
+    n = 0
+    for i in range(a.shape[0]):
+        n += mark[a[i]]
+    out = np.empty(n, np.int64)
+    t = 0
+    for i in range(a.shape[0]):
+        if mark[a[i]]:
+            out[t] = i
+            t += 1
+    return out
 
 
 def _copy_rank(groups):
@@ -1958,15 +2418,53 @@ def _group_rows(V):
 def _compact(V, F, overwrite: bool = False):
     """The vertices the faces use, and the faces renumbered to them (``overwrite``: in ``F``
     itself, an int64 C array the caller does not need any more); every vertex used: ``V, F``."""
-    used = np.flatnonzero(np.bincount(F.reshape(-1), minlength=len(V)))
-    if len(used) == len(V):
-        return V, F
-    remap = np.full(len(V), -1, dtype=np.int64)
-    remap[used] = np.arange(len(used))
+    used = remap = None
+    if F.dtype == np.int64 and F.flags.c_contiguous:  # (the same arrays, in one compiled pass)
+        ok, used, remap = _used_remap(F.reshape(-1), len(V))
+        if ok and remap is None:
+            return V, F
+        if not ok:  # (a number out of range: np.bincount's answer or error)
+            used = remap = None
+    if used is None:
+        used = np.flatnonzero(np.bincount(F.reshape(-1), minlength=len(V)))
+        if len(used) == len(V):
+            return V, F
+        remap = np.full(len(V), -1, dtype=np.int64)
+        remap[used] = np.arange(len(used))
     if overwrite and F.dtype == np.int64 and F.flags.c_contiguous and F.flags.writeable:
         _renumber(F.reshape(-1), remap)
         return V[used], F
     return V[used], remap[F]
+
+
+@njit(cache=True, nogil=True)
+def _used_remap(a, nv):
+    """:func:`_compact`'s ``used`` (the vertices among ``a``, increasing) and ``remap`` (their new
+    numbers, -1 for the others) from the 1-D int64 ``a``: ``(ok, used, remap)``, ``remap`` None
+    where every vertex is used, ``ok`` False (nothing made) where a number is not below ``nv``
+    or negative."""
+    seen = np.zeros(nv, np.bool_)
+    for i in range(a.shape[0]):
+        v = a[i]
+        if v < 0 or v >= nv:
+            return False, None, None
+        seen[v] = True
+    n = 0
+    for v in range(nv):
+        n += seen[v]
+    if n == nv:
+        return True, None, None
+    used = np.empty(n, np.int64)
+    remap = np.empty(nv, np.int64)
+    t = 0
+    for v in range(nv):
+        if seen[v]:
+            used[t] = v
+            remap[v] = t
+            t += 1
+        else:
+            remap[v] = -1
+    return True, used, remap
 
 
 # ------------------------------------------------------------------------------------------------

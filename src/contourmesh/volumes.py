@@ -1721,8 +1721,8 @@ def _join_units(units, tags, ring_points, px, tube_cache=None, nf=0):
     V, F, S = _open_necks(V, F, S, N, 1e-2 * px, tube_seen=tube_cache)
     V, F = _compact(V, F, overwrite=True)  # (F is this function's own)
     release_free_heap(nf)
-    V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False)
-    V = _separate_coincident(V, F, 1e-3 * px)
+    V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False, overwrite=True)
+    V = _separate_coincident(V, F, 1e-3 * px, overwrite=True)  # (V is this function's own)
     return V, F, S // 4 - 1
 
 
