@@ -819,44 +819,49 @@ def _dir_sign(V, grid, p, a, b, d0, d1, d2):
 
 
 @_pure
-def _fan_winds_once(V, grid, F, inc, s0, s1, p, d0, d1, d2):
-    """The faces ``inc[s0:s1]`` around p (one fan, see :func:`_star_certified`), seen along d:
-    every one of one strict orientation, and the sectors at p cover the direction of the first
-    link vertex r exactly once (half-open: a sector holds its first side, not its second).
+def _fan_winds_once(V, grid, nxt, r, n, p, d0, d1, d2):
+    """The ``n`` faces around p (one fan, see :func:`_star_certified`), seen along d: every one of
+    one strict orientation, and the sectors at p cover the direction of the link vertex r exactly
+    once (half-open: a sector holds its first side, not its second).  The faces are walked along
+    the link cycle from r (``nxt``: the link edge a -> b of the face (p, a, b)), not read again
+    from the faces' rows.
 
     A sector from u to v (its link vertices a, b) of orientation s holds r when r is strictly
     inside (``s det[u, r] > 0``, ``s det[r, v] > 0``) or along u (``det[u, r] = 0`` and
-    ``s det[r, v] > 0``: r in the direction of u, not the opposite one)."""
-    r = F[inc[s0] // 3, (inc[s0] % 3 + 1) % 3]
+    ``s det[r, v] > 0``: r in the direction of u, not the opposite one).  Along the cycle a
+    sector's first side is the previous one's second, so ``det[r, u]`` is the previous sector's
+    ``det[r, v]`` where that was computed, and ``det[u, r] = -det[r, u]`` exactly
+    (:func:`_dir_sign` forms the same products and subtracts them the other way round, and
+    rounding to nearest is symmetric; an uncertified 2 stays 2): each sign that the test of
+    every sector in turn needs is the same number, computed once, and the outcome (which does
+    not depend on the order of the sectors) is the same."""
     sgn = 0
-    for t in range(s0, s1):
-        i = inc[t] // 3
-        c = inc[t] % 3
-        o = _dir_sign(V, grid, p, F[i, (c + 1) % 3], F[i, (c + 2) % 3], d0, d1, d2)
+    a = r
+    for t in range(n):
+        b = np.int64(nxt[a])  # (int64: one signature of _dir_sign)
+        o = _dir_sign(V, grid, p, a, b, d0, d1, d2)
         if o == 0 or o == 2 or (sgn != 0 and o != sgn):
             return False
         sgn = o
-    cover = 0
-    for t in range(s0, s1):
-        i = inc[t] // 3
-        c = inc[t] % 3
-        a = F[i, (c + 1) % 3]
-        b = F[i, (c + 2) % 3]
-        if a == r:
-            cover += 1
-            continue
-        if b == r:
-            continue
+        a = b
+    cover = 1  # (the sector from r holds r; the one to r does not)
+    a = np.int64(nxt[r])
+    prev = 3  # det[r, a] where the previous sector computed it, else 3
+    for t in range(n - 2):
+        b = np.int64(nxt[a])  # (int64: one signature of _dir_sign)
         o2 = _dir_sign(V, grid, p, r, b, d0, d1, d2)
         if o2 == 2:
             return False
-        if o2 != sgn:
-            continue
-        o1 = _dir_sign(V, grid, p, a, r, d0, d1, d2)
-        if o1 == 2:
-            return False
-        if o1 == sgn or o1 == 0:
-            cover += 1
+        if o2 == sgn:
+            sa = prev
+            if sa == 3:
+                sa = _dir_sign(V, grid, p, r, a, d0, d1, d2)
+            if sa == 2:
+                return False
+            if sa == -sgn or sa == 0:  # (det[a, r] = -sa is sgn or 0)
+                cover += 1
+        prev = o2
+        a = b
     return cover == 1
 
 
@@ -977,6 +982,7 @@ def _star_fill_levels(V, F, star, lev, l0, l1):
                 break
         if not ok or c != a0:
             continue
+        r0 = F[inc[s0] // 3, (inc[s0] % 3 + 1) % 3]  # (the cycle's start, a0 above)
         # the directions to project along: the summed unit normals rounded to a vector of -1, 0
         # and 1 (creases and corners of voxel surfaces: no coordinate plane sees their faces
         # one-to-one), then the axis of its largest component, then any of the 13 directions
@@ -1014,7 +1020,7 @@ def _star_fill_levels(V, F, star, lev, l0, l1):
                         neg += 1
                 if pos != n and neg != n:
                     continue
-            if _fan_winds_once(V, grid, F, inc, s0, s1, p, d0, d1, d2):
+            if _fan_winds_once(V, grid, nxt, r0, n, p, d0, d1, d2):
                 star[p] = 1
                 break
 
