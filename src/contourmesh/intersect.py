@@ -2167,20 +2167,30 @@ def _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, cx0, cy0, start
     for q in range(nc):
         start[q + 1] += start[q]
     ent = np.empty(nent, np.int64)
-    for t in range(n):  # (start[q] is the fill pointer of cell q, shifted back below)
-        x1 = min(np.int64((W[t, 1] - gxl) / hx), gx - 1)
-        y1 = min(np.int64((W[t, 3] - gyl) / hy), gy - 1)
-        for cy in range(cy0[t], y1 + 1):
-            for cx in range(cx0[t], x1 + 1):
-                q = cy * gx + cx
-                ent[start[q]] = t
-                start[q] += 1
+    # (start[q] is the fill pointer of cell q, shifted back below).  A cell lists first the faces
+    # that start in this slab, then those from a lower one: two of the latter met in a lower slab
+    # (the pair is not this slab's), so the pairs are those of a face of the first kind with any
+    # later entry, the same pairs in another order without meeting the others (on the liver's
+    # whole mesh 1.07 M slab entries of 417k faces: most slabs between nearby heights)
+    for lower in range(2):
+        for t in range(n):
+            if (W[t, 13] != k) != (lower == 1):
+                continue
+            x1 = min(np.int64((W[t, 1] - gxl) / hx), gx - 1)
+            y1 = min(np.int64((W[t, 3] - gyl) / hy), gy - 1)
+            for cy in range(cy0[t], y1 + 1):
+                for cx in range(cx0[t], x1 + 1):
+                    q = cy * gx + cx
+                    ent[start[q]] = t
+                    start[q] += 1
     for q in range(nc, 0, -1):
         start[q] = start[q - 1]
     start[0] = 0
     for q in range(nc):
         for r in range(start[q], start[q + 1]):
             s = ent[r]
+            if W[s, 13] != k:
+                break  # (the faces from a lower slab: every pair of theirs is a lower slab's)
             for v in range(r + 1, start[q + 1]):
                 u = ent[v]
                 work += 1
