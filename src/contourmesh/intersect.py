@@ -1427,8 +1427,6 @@ def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2
     and with less work: on the liver's whole mesh the planes' sweeps over x met some 21 M pairs of
     boxes)."""
     if len(ids) >= _CELL_SWEEP:
-        if need2 == 1:
-            return _cell_pairs2(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit)
         return _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2)
     return _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2)
 
@@ -1502,15 +1500,22 @@ def _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, 
     for q in range(nc):
         start[q + 1] += start[q]
     ent = np.empty(nent, np.int64)
-    for t in range(n):  # (start[q] is the fill pointer of cell q, shifted back below)
-        e = ids[t]
-        x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
-        y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
-        for cy in range(cy0[t], y1 + 1):
-            for cx in range(cx0[t], x1 + 1):
-                q = cy * gx + cx
-                ent[start[q]] = t
-                start[q] += 1
+    # (start[q] is the fill pointer of cell q, shifted back below).  A cell lists its entries of
+    # group 2 first: with need2 every pair has one, so only those start pairs, with any later
+    # entry, and two others are never met (on the liver's whole mesh the planes hold 467k
+    # entries, 52k of them flat faces: 5.0 M pairs of boxes met for 618k candidates before)
+    for two in range(2):
+        for t in range(n):
+            e = ids[t]
+            if (grp[e] == 2) != (two == 0):
+                continue
+            x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
+            y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
+            for cy in range(cy0[t], y1 + 1):
+                for cx in range(cx0[t], x1 + 1):
+                    q = cy * gx + cx
+                    ent[start[q]] = t
+                    start[q] += 1
     for q in range(nc, 0, -1):
         start[q] = start[q - 1]
     start[0] = 0
@@ -1518,6 +1523,8 @@ def _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, 
         for r in range(start[q], start[q + 1]):
             s = ent[r]
             a = ids[s]
+            if need2 == 1 and grp[a] != 2:
+                break  # (the others: no pair of two of them is a candidate)
             for v in range(r + 1, start[q + 1]):
                 u = ent[v]
                 b = ids[u]
@@ -1528,130 +1535,6 @@ def _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, 
                     continue  # (taken in the cell of the low corner of the overlap)
                 if not _group_pair(grp[a], grp[b], need2):
                     continue
-                if n_out == len(out_i):
-                    out_i = _grow(out_i, 2 * n_out)
-                    out_j = _grow(out_j, 2 * n_out)
-                out_i[n_out] = a
-                out_j[n_out] = b
-                n_out += 1
-            if work > limit:
-                return out_i, out_j, np.int64(-1), work
-    return out_i, out_j, n_out, work
-
-
-@_kernel
-def _cell_pairs2(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit):
-    """:func:`_cell_pairs` with ``need2`` (only pairs with an entry of group 2: a plane's flat
-    faces), the same pairs (in another order), meeting only those: the same grid of cells, each
-    cell listing its entries of group 2 and, apart, the others, which are entered only in cells
-    that hold an entry of group 2; a cell's entries of group 2 meet each other and its others, and
-    two others never meet.  On the liver's whole mesh the planes' flat faces are some 52k of 467k
-    entries, and the sweeps over all entries met 5.0 M pairs of boxes for 618k candidates."""
-    n = len(ids)
-    if n < 2:
-        return out_i, out_j, n_out, work
-    gxl = np.inf
-    gxh = -np.inf
-    gyl = np.inf
-    gyh = -np.inf
-    for t in range(n):
-        e = ids[t]
-        gxl = min(gxl, xlo[e])
-        gxh = max(gxh, xhi[e])
-        gyl = min(gyl, ylo[e])
-        gyh = max(gyh, yhi[e])
-    g = np.int64(1)
-    while (g + 1) * (g + 1) <= n:
-        g += 1
-    gx = g
-    gy = g
-    cx0 = np.empty(n, np.int64)
-    cy0 = np.empty(n, np.int64)
-    while True:  # (the cells of _cell_pairs)
-        hx = (gxh - gxl) / gx
-        hy = (gyh - gyl) / gy
-        if not hx > 0.0:
-            hx = 1.0
-        if not hy > 0.0:
-            hy = 1.0
-        nent = np.int64(0)
-        for t in range(n):
-            e = ids[t]
-            x0 = min(np.int64((xlo[e] - gxl) / hx), gx - 1)
-            x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
-            y0 = min(np.int64((ylo[e] - gyl) / hy), gy - 1)
-            y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
-            cx0[t] = x0
-            cy0[t] = y0
-            nent += (x1 - x0 + 1) * (y1 - y0 + 1)
-        if nent <= 4 * n or (gx == 1 and gy == 1):
-            break
-        gx = max(gx // 2, np.int64(1))
-        gy = max(gy // 2, np.int64(1))
-    nc = gx * gy
-    # per cell its entries of group 2 (from sf[q]) and its others (from so[q]; only in cells that
-    # hold an entry of group 2): counted, then stored at fill pointers
-    sf = np.zeros(nc + 1, np.int64)
-    so = np.zeros(nc + 1, np.int64)
-    for t in range(n):
-        e = ids[t]
-        if grp[e] != 2:
-            continue
-        x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
-        y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
-        for cy in range(cy0[t], y1 + 1):
-            for cx in range(cx0[t], x1 + 1):
-                sf[cy * gx + cx + 1] += 1
-    for q in range(nc):
-        sf[q + 1] += sf[q]
-    for t in range(n):
-        e = ids[t]
-        if grp[e] == 2:
-            continue
-        x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
-        y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
-        for cy in range(cy0[t], y1 + 1):
-            for cx in range(cx0[t], x1 + 1):
-                q = cy * gx + cx
-                if sf[q + 1] > sf[q]:
-                    so[q + 1] += 1
-    for q in range(nc):
-        so[q + 1] += so[q]
-    entf = np.empty(sf[nc], np.int64)
-    ento = np.empty(so[nc], np.int64)
-    pf = sf[:nc].copy()
-    po = so[:nc].copy()
-    for t in range(n):
-        e = ids[t]
-        two = grp[e] == 2
-        x1 = min(np.int64((xhi[e] - gxl) / hx), gx - 1)
-        y1 = min(np.int64((yhi[e] - gyl) / hy), gy - 1)
-        for cy in range(cy0[t], y1 + 1):
-            for cx in range(cx0[t], x1 + 1):
-                q = cy * gx + cx
-                if two:
-                    entf[pf[q]] = t
-                    pf[q] += 1
-                elif sf[q + 1] > sf[q]:
-                    ento[po[q]] = t
-                    po[q] += 1
-    for q in range(nc):
-        f0 = sf[q]
-        f1 = sf[q + 1]
-        no = so[q + 1] - so[q]
-        for r in range(f0, f1):
-            s = entf[r]
-            a = ids[s]
-            for v in range(r + 1, f1 + no):  # the later entries of group 2, then the others
-                u = entf[v] if v < f1 else ento[so[q] + v - f1]
-                b = ids[u]
-                work += 1
-                if xlo[b] > xhi[a] or xlo[a] > xhi[b] or ylo[a] > yhi[b] or ylo[b] > yhi[a]:
-                    continue
-                if max(cy0[s], cy0[u]) * gx + max(cx0[s], cx0[u]) != q:
-                    continue  # (taken in the cell of the low corner of the overlap)
-                if not _group_pair(grp[a], grp[b], np.int64(1)):
-                    continue  # pragma: no cover - an entry of group 2 pairs with any
                 if n_out == len(out_i):
                     out_i = _grow(out_i, 2 * n_out)
                     out_j = _grow(out_j, 2 * n_out)
@@ -2255,17 +2138,14 @@ def _slab_sweep_pairs(V, ws, F, star, sst, lev, lo_, hi_, faces, k, cells):
 
 @njit(cache=True, **_OPTIONS)
 def _plane_candidates(xlo, xhi, ylo, yhi, grp, ids, need2, cells):
-    """The candidate pairs of the entries ``ids`` by :func:`_cell_pairs` (``cells == 1``),
-    :func:`_cell_pairs2` (``cells == 2``, for ``need2 == 1`` only) or :func:`_x_pairs` (``0``),
-    whatever their number, without a budget: ``(out_i, out_j, work)``, for the tests that compare
-    them."""
+    """The candidate pairs of the entries ``ids`` by :func:`_cell_pairs` (``cells == 1``) or
+    :func:`_x_pairs` (``0``), whatever their number, without a budget: ``(out_i, out_j, work)``,
+    for the tests that compare the two."""
     zero = need2 - need2
     out_i = np.empty(16, np.int64)
     out_j = np.empty(16, np.int64)
     limit = zero + 2 ** 62
-    if cells == 2:
-        out_i, out_j, n_out, work = _cell_pairs2(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, zero, zero, limit)
-    elif cells == 1:
+    if cells == 1:
         out_i, out_j, n_out, work = _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, zero, zero, limit, need2)
     else:
         out_i, out_j, n_out, work = _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, zero, zero, limit, need2)
