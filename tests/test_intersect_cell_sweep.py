@@ -117,7 +117,8 @@ def test_cell_sweep_equals_x_sweep_on_a_real_mesh(shared_data):
 @pytest.mark.parametrize("seed", [0, 1])
 def test_plane_candidates_by_cells_equal_the_sweep_over_x(seed):
     """The planes' candidate pairs (``_sweep``: entries of groups 0 .. 3, closed xy boxes that
-    overlap or touch, with and without ``need2``) by the grid of cells and by the sweep over x: the
+    overlap or touch, with and without ``need2``) by the grid of cells (whose cells list the entries
+    of group 2 first, and with ``need2`` let only those start pairs) and by the sweep over x: the
     same pairs, each once; boxes on a coarse lattice (many touching), points, long and thin ones."""
     rng = np.random.default_rng(seed)
     for trial in range(12):
