@@ -116,6 +116,7 @@ def _checks():
     m.checks()
     repair._edge_multiplicity_threads(m.faces, len(m.vertices), 2)
     repair._half_edge_twins_threads(m.faces, len(m.vertices), 2)
+    repair._four_face_edges_threads(m.faces, len(m.vertices), 2)
 
 
 STEPS = (
