@@ -114,7 +114,6 @@ def _checks():
 
     m = contourmesh.mesh(np.pad(np.ones((2, 2, 2), dtype=bool), 1))
     m.checks()
-    repair._edge_multiplicity_threads(m.faces, len(m.vertices), 2)
     repair._half_edge_twins_threads(m.faces, len(m.vertices), 2)
     repair._four_face_edges_threads(m.faces, len(m.vertices), 2)
 

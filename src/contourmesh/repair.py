@@ -532,10 +532,8 @@ def _marked_counts(F, start, upper, marked):
     count (0 if none), the faces with a half-edge counted four and, per such face, which."""
     m = F.shape[0]
     odd = np.int32(0)
-    n = 0
     four = np.zeros(3 * m, np.bool_)
     for i in range(m):
-        got = False
         for k in range(3):
             a = F[i, k]
             b = F[i, (k + 1) % 3]
@@ -549,17 +547,7 @@ def _marked_counts(F, start, upper, marked):
                     odd = c
                 if c == 4:
                     four[3 * i + k] = True
-                    got = True
-        n += got
-    rows = np.empty(n, np.int64)
-    hit = np.empty((n, 3), np.bool_)
-    at = 0
-    for i in range(m):
-        if four[3 * i] or four[3 * i + 1] or four[3 * i + 2]:
-            rows[at] = i
-            for k in range(3):
-                hit[at, k] = four[3 * i + k]
-            at += 1
+    rows, hit = _hit_rows(four)
     return odd, rows, hit
 
 
