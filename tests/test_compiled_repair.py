@@ -1,13 +1,15 @@
 """Issue 16 (speed of the general mesher): the compiled kernels and the narrowed numpy passes give
 exactly what the code they replace gave.  Each is compared with its numpy reference (kept in the
-package, or written out here where the old code was replaced) on random inputs, bit for bit, and
-each comparison sees both answers (crossing and not, clear and not, split and not)."""
+package, in tests/repair_reference.py, or written out here where the old code was replaced) on
+random inputs, bit for bit, and each comparison sees both answers (crossing and not, clear and not,
+split and not)."""
 
 import numpy as np
 import pytest
 import trimesh
 from numba import njit
 
+import repair_reference
 from contourmesh import repair
 from contourmesh.bands import bridges
 
@@ -388,7 +390,7 @@ def _random_faces(rng, m, nv):
 def test_edge_multiplicity_counts_each_undirected_edge():
     rng = np.random.default_rng(7)
     F = _random_faces(rng, 400, 40)  # few vertices: edges shared by 1 .. many faces
-    got = repair._edge_multiplicity(F, 40)
+    got = repair_reference.edge_multiplicity(F, 40)
     e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
     und = np.minimum(e[..., 0], e[..., 1]) * 41 + np.maximum(e[..., 0], e[..., 1])
     _, inv, cnt = np.unique(und.reshape(-1), return_inverse=True, return_counts=True)
@@ -442,12 +444,12 @@ def test_edge_kernels_small_and_large_buckets_equal_the_sorted_forms(n):
         twin, status = repair._half_edge_twins(F, nv)
         assert status == 0
         assert np.array_equal(twin, repair._half_edge_twins_reference(F, nv + 1))
-        assert np.array_equal(repair._edge_multiplicity(F, nv), np.full(F.shape, 2))
+        assert np.array_equal(repair_reference.edge_multiplicity(F, nv), np.full(F.shape, 2))
         assert repair._half_edge_twins(F[1:], nv)[1] == 2  # an open surface
         assert repair._half_edge_twins(np.concatenate([F, F[-1:]]), nv)[1] == 1  # a face twice
         # a second copy glued along the same vertices: four-face edges, every edge used twice each way
         G = np.concatenate([F, F])
-        assert np.array_equal(repair._edge_multiplicity(G, nv), np.full(G.shape, 4))
+        assert np.array_equal(repair_reference.edge_multiplicity(G, nv), np.full(G.shape, 4))
         for threads in (2, 3):
             assert np.array_equal(repair._half_edge_twins_threads(F, nv, threads)[0], twin)
             assert repair._half_edge_twins_threads(F[1:], nv, threads)[1] != 0
@@ -457,8 +459,8 @@ def test_edge_kernels_small_and_large_buckets_equal_the_sorted_forms(n):
         e = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
         und = np.minimum(e[..., 0], e[..., 1]) * (nv + 1) + np.maximum(e[..., 0], e[..., 1])
         _, inv, cnt = np.unique(und.reshape(-1), return_inverse=True, return_counts=True)
-        assert np.array_equal(repair._edge_multiplicity(F, nv), cnt[inv].reshape(-1, 3))
-        assert np.array_equal(repair._edge_multiplicity_threads(F, nv, 2), cnt[inv].reshape(-1, 3))
+        assert np.array_equal(repair_reference.edge_multiplicity(F, nv), cnt[inv].reshape(-1, 3))
+        assert np.array_equal(repair_reference.edge_multiplicity_threads(F, nv, 2), cnt[inv].reshape(-1, 3))
 
 
 @njit
@@ -594,7 +596,7 @@ def split_four_face_edges_reference(V, F, side, nudge):
     ``nudge`` into its side, so the two sheets no longer share the edge.
     """
     m = len(F)
-    mult = repair._edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V))
+    mult = repair_reference.edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V))
     if np.any(mult % 2):
         bad = np.argwhere(mult % 2 == 1)[0]
         raise RuntimeError(f"internal error: an edge is shared by {int(mult[tuple(bad)])} faces")
@@ -673,7 +675,7 @@ def test_four_face_rows_equal_the_whole_array_steps():
         mult = (2 * rng.integers(1, 3 if trial % 3 else 4, (m, 3))).astype(np.int32)
         if trial % 4 == 0 and m:
             mult.reshape(-1)[rng.integers(mult.size, size=int(rng.integers(1, 4)))] = rng.choice([1, 3, 5])
-        odd, most, rows, hit = repair._four_face_rows(mult)
+        odd, most, rows, hit = repair_reference.four_face_rows(mult)
         want = np.argwhere(mult % 2 == 1)
         assert odd == (int(mult[tuple(want[0])]) if len(want) else 0)
         assert most == (int(mult.max()) if m else 0)
@@ -704,7 +706,7 @@ def test_split_four_face_edges_equals_the_reference_on_voxel_meshes(monkeypatch)
         want = split_four_face_edges_reference(V, F, side, nudge)
         assert all(np.array_equal(g, w) and g.dtype == w.dtype for g, w in zip(got, want))
         assert np.array_equal(got[0].view(np.int64), want[0].view(np.int64))
-        hit = repair._edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V)) == 4
+        hit = repair_reference.edge_multiplicity(np.ascontiguousarray(F, dtype=np.int64), len(V)) == 4
         seen["edges"] += int(hit.sum()) // 4
         seen["chained"] += int((hit.sum(axis=1) > 1).sum())
         return got
@@ -1073,7 +1075,7 @@ def test_edge_counts_and_twins_on_threads_equal_one_threads(monkeypatch, threads
     rng = np.random.default_rng(17)
     for m, nv in ((400, 40), (3000, 900), (5, 9)):
         F = _random_faces(rng, m, nv)
-        assert np.array_equal(repair._edge_multiplicity_threads(F, nv, threads), repair._edge_multiplicity(F, nv))
+        assert np.array_equal(repair_reference.edge_multiplicity_threads(F, nv, threads), repair_reference.edge_multiplicity(F, nv))
     s = trimesh.creation.icosphere(subdivisions=4)
     F = np.ascontiguousarray(s.faces, dtype=np.int64)[rng.permutation(len(s.faces))]
     nv = len(s.vertices)
@@ -1306,7 +1308,7 @@ def test_compiled_split_loop_equals_the_python_loop(monkeypatch):
     # a four-face edge whose faces do not pair by side, and one whose set lost a face: reported
     # by the compiled loop, named by the Python loop
     F = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 0, 5]], dtype=np.int64)
-    _, _, work, hit = repair._four_face_rows(repair._edge_multiplicity(F, 6))
+    _, _, work, hit = repair_reference.four_face_rows(repair_reference.edge_multiplicity(F, 6))
     args = (np.int64(4), np.int64(6), np.int64(20))
     assert repair._split_faces(F[work], np.array([0, 1, 0, 1]), work, hit, *args)[0]
     assert not repair._split_faces(F[work], np.array([0, 0, 0, 1]), work, hit, *args)[0]

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
+import repair_reference
 from contourmesh import repair
 
 
@@ -176,7 +177,7 @@ def _random_faces(rng, m, nv):
 
 
 def _four_before(F, nv):
-    odd, most, rows, hit = repair._four_face_rows(repair._edge_multiplicity(F, nv))
+    odd, most, rows, hit = repair_reference.four_face_rows(repair_reference.edge_multiplicity(F, nv))
     return int(odd), int(most), _bits(rows), _bits(hit)
 
 
@@ -223,12 +224,12 @@ def test_repair_with_the_new_kernels_meshes_as_before(monkeypatch, threads):
         return np.int64(1), False, None, None, None, None, None, None  # (always the twins' path)
 
     def old_four(F, nv):
-        return repair._four_face_rows(repair._edge_multiplicity(F, nv))
+        return repair_reference.four_face_rows(repair_reference.edge_multiplicity(F, nv))
 
     monkeypatch.setattr(repair, "_vertex_fans", old_fans)
     monkeypatch.setattr(repair, "_four_face_edges", old_four)
     monkeypatch.setattr(repair, "_four_face_edges_threads",
-                        lambda F, nv, t: repair._four_face_rows(repair._edge_multiplicity_threads(F, nv, t)))
+                        lambda F, nv, t: repair_reference.four_face_rows(repair_reference.edge_multiplicity_threads(F, nv, t)))
     before = contourmesh.mesh(vol)
     assert now.meta == before.meta
     assert now.vertices.tobytes() == before.vertices.tobytes() and now.faces.tobytes() == before.faces.tobytes()

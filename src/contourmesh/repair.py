@@ -448,44 +448,16 @@ def _split_faces(Fw, sw, work, hit, m, nv, base):
 
 
 @njit(cache=True, nogil=True)
-def _four_face_rows(mult):
-    """From the edge counts (:func:`_edge_multiplicity`): ``(odd, most, rows, hit)``, the first odd
-    count in row order (0 if none), the largest count, the faces with an edge shared by four
-    (increasing) and, per such face, which of its edges are (one pass, no whole-mesh masks)."""
-    odd = 0
-    most = 0
-    n = 0
-    for i in range(mult.shape[0]):
-        four = False
-        for k in range(3):
-            c = mult[i, k]
-            if c % 2 and not odd:
-                odd = c
-            most = max(most, c)
-            four = four or c == 4
-        n += four
-    rows = np.empty(n, np.int64)
-    hit = np.empty((n, 3), np.bool_)
-    at = 0
-    for i in range(mult.shape[0]):
-        if mult[i, 0] == 4 or mult[i, 1] == 4 or mult[i, 2] == 4:
-            rows[at] = i
-            for k in range(3):
-                hit[at, k] = mult[i, k] == 4
-            at += 1
-    return odd, most, rows, hit
-
-
-
-@njit(cache=True, nogil=True)
 def _four_face_edges(F, nv):
-    """``_four_face_rows(_edge_multiplicity(F, nv))`` without the counts of every edge: the
-    half-edges bucketed by their lower vertex with their upper vertex alone (no half-edge
-    numbers), each bucket counted as :func:`_edge_multiplicity_range` counts it, the largest count
-    kept and the buckets with a count other than two marked; then the faces are read in order and
-    only the half-edges of marked buckets counted again in their bucket (:func:`_marked_counts`):
-    every other edge is in two faces, so the first odd count, the faces with an edge in four and
-    which edges those are come out as the counts of every edge give them."""
+    """``(odd, most, rows, hit)``: the first odd count of faces on an edge in row order (0 if
+    none), the largest such count, the faces with an edge shared by four (increasing) and, per
+    such face, which of its edges are; found without the counts of every edge: the half-edges
+    bucketed by their lower vertex with their upper vertex alone (no half-edge numbers), each
+    bucket counted in three short passes (upper vertices counted in a scratch array, read back,
+    cleared), the largest count kept and the buckets with a count other than two marked; then the
+    faces are read in order and only the half-edges of marked buckets counted again in their
+    bucket (:func:`_marked_counts`): every other edge is in two faces, so the first odd count, the
+    faces with an edge in four and which edges those are come out as the counts of every edge give them."""
     m = F.shape[0]
     start = np.zeros(nv + 2, np.int64)  # (counted at v + 2; each bucket's fill pointer at v + 1)
     for i in range(m):
@@ -570,7 +542,7 @@ def _four_face_edges_threads(F, nv, threads):
 
 @njit(cache=True, nogil=True)
 def _four_face_range(start, items, other, v0, v1, cnt, hit):
-    """The counts of :func:`_edge_multiplicity_range` over the buckets ``v0 .. v1 - 1``, not kept:
+    """The counts of faces per edge over the buckets ``v0 .. v1 - 1`` (:func:`_half_edges_by_vertex`), not kept:
     ``hit[h]`` set for the half-edges ``h`` counted four; returns ``(h, c, most)``, the lowest
     half-edge with an odd count and its count (-1, 0 where none) and the largest count."""
     first = np.int64(-1)
@@ -597,7 +569,7 @@ def _four_face_range(start, items, other, v0, v1, cnt, hit):
 @njit(cache=True, nogil=True)
 def _hit_rows(hit):
     """From the marks of :func:`_four_face_range` (one per half-edge): the faces with a marked
-    edge (increasing) and, per such face, which of its edges are (``_four_face_rows``' last two)."""
+    edge (increasing) and, per such face, which of its edges are (:func:`_four_face_edges`' last two)."""
     m = hit.shape[0] // 3
     n = 0
     for i in range(m):
@@ -740,36 +712,6 @@ def _lower_scatter(F, v0, v1, fill, items, other):
                 fill[key] = t + 1
 
 
-@njit(cache=True, nogil=True)
-def _edge_multiplicity(F, nv):
-    """Per face edge ``(F[i, k], F[i, k + 1])``, the number of face edges with the same two
-    vertices (either direction): an ``(m, 3)`` array (the edges bucketed by their lower vertex and
-    counted per bucket)."""
-    m = F.shape[0]
-    start, items, other = _half_edges_by_vertex(F, nv)
-    out = np.empty((m, 3), np.int32)  # (counts of faces: int32 holds them)
-    _edge_multiplicity_range(start, items, other, 0, nv, out, np.zeros(nv, np.int32))
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _edge_multiplicity_range(start, items, other, v0, v1, out, cnt):
-    """:func:`_edge_multiplicity`'s counts for the buckets ``v0 .. v1 - 1``, in a scratch array
-    indexed by the upper vertex (``cnt``: zeros, ``nv``; left zero), every bucket alike (three
-    short passes over a bucket instead of comparing each entry with all others: about 40% less
-    time on the lobster's meshes, whose buckets hold about six), written into ``out`` (``(m, 3)``)
-    by half-edge number."""
-    flat = out.reshape(-1)
-    for v in range(v0, v1):
-        s0, s1 = start[v], start[v + 1]
-        for t in range(s0, s1):
-            cnt[_upper(other[t])] += 1
-        for t in range(s0, s1):
-            flat[items[t]] = cnt[_upper(other[t])]
-        for t in range(s0, s1):
-            cnt[_upper(other[t])] = 0
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _upper(o):
     """The upper vertex of an ``other`` entry (:func:`_half_edges_by_vertex`)."""
@@ -785,7 +727,7 @@ def _key_counts(F, nv, i0, i1):
 
 
 #: From this many faces on, the manifold repair's edge counts and half-edge twins
-#: (:func:`_edge_multiplicity`, :func:`_half_edge_twins`) run on ``CONTOURMESH_THREADS`` threads.
+#: (:func:`_four_face_edges`, :func:`_half_edge_twins`) run on ``CONTOURMESH_THREADS`` threads.
 _SPLIT_EDGES = 20_000
 
 
@@ -819,17 +761,6 @@ def _buckets_on_threads(F, nv, threads):
 
     run_all(lambda a, b: _lower_scatter(F, a, b, fill, items, other), ranges(threads), threads)
     return start, items, other, ranges(2 * threads)
-
-
-def _edge_multiplicity_threads(F, nv, threads):
-    """:func:`_edge_multiplicity` on ``threads`` threads (the same counts)."""
-    from ._workers import run_all
-
-    start, items, other, vparts = _buckets_on_threads(F, nv, threads)
-    out = np.empty((F.shape[0], 3), np.int32)
-    run_all(lambda a, b: _edge_multiplicity_range(start, items, other, a, b, out, np.zeros(nv, np.int32)), vparts,
-            threads)
-    return out
 
 
 def _half_edge_twins_threads(F, nv, threads):
