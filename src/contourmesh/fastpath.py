@@ -251,6 +251,15 @@ def _grow(a, cap):
     return b
 
 
+@_kernel
+def _grow32(a, cap):
+    """:func:`_grow` for the ``int32`` arrays of :func:`_slab_polygons`."""
+    b = np.empty(cap, np.int32)
+    for i in range(len(a)):
+        b[i] = a[i]
+    return b
+
+
 def slice_runs(mask2d) -> tuple:
     """Runs of a 2D boolean mask: ``(ry, rx0, rx1, row_start)`` (see :func:`_scan_runs`)."""
     m = np.ascontiguousarray(mask2d, dtype=bool)
@@ -693,18 +702,27 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     ``meta[k] = (n, status, bad, first run, first component, first polygon vertex)`` of slice k
     (with a last row holding the totals), the per-slice arrays of :func:`_slice_polygons_k`
     concatenated (``row_start`` as ``(nk, h + 1)``, ``poly_start`` with ``n + 1`` entries per
-    slice), and ``xyz`` the polygon vertices in physical coordinates ``(ox + x dx, oy + y dy,
+    slice; the runs, their labels and ``row_start`` as ``int32``, the rest ``int64``), and ``xyz`` the polygon vertices in physical coordinates ``(ox + x dx, oy + y dy,
     zs[k])``: the rings of the slices without degenerate MLPs.
     """
     meta = np.empty((nk + 1, 6), np.int64)
-    row_start = np.empty((nk, h + 1), np.int64)
-    rcap = 64
+    row_start = np.empty((nk, h + 1), np.int32)
+    # Room for two runs per row and 256 polygon vertices per slice from the start: np.empty only
+    # maps the pages, and a page costs its fault when first written, so room that is never used
+    # costs nothing, while each growth (a new array, the old contents copied in) touches the
+    # pages of the old contents once more.  The runs are int32 (the caller keeps h * w below
+    # 2^31): for the 512^3 ball the packed runs, written anew every call, are half the pages.
+    rcap = 2 * nk * h
+    if rcap < 64:
+        rcap = 64
     ccap = 8
-    pcap = 64
-    ry = np.empty(rcap, np.int64)
-    rx0 = np.empty(rcap, np.int64)
-    rx1 = np.empty(rcap, np.int64)
-    lab = np.empty(rcap, np.int64)
+    pcap = 256 * nk
+    if pcap < 64:
+        pcap = 64
+    ry = np.empty(rcap, np.int32)
+    rx0 = np.empty(rcap, np.int32)
+    rx1 = np.empty(rcap, np.int32)
+    lab = np.empty(rcap, np.int32)
     bbox = np.empty(4 * ccap, np.int64)
     deg = np.empty(ccap, np.int64)
     pst = np.empty(ccap + nk, np.int64)
@@ -727,10 +745,10 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
         m = len(sry)
         if nr + m > rcap:
             rcap = 2 * rcap + m
-            ry = _grow(ry, rcap)
-            rx0 = _grow(rx0, rcap)
-            rx1 = _grow(rx1, rcap)
-            lab = _grow(lab, rcap)
+            ry = _grow32(ry, rcap)
+            rx0 = _grow32(rx0, rcap)
+            rx1 = _grow32(rx1, rcap)
+            lab = _grow32(lab, rcap)
         for r in range(m):
             ry[nr + r] = sry[r]
             rx0[nr + r] = srx0[r]
@@ -1683,8 +1701,8 @@ def _pack_slices(outs, h, ox, oy, dx, dy, zs):
     meta[1:, 4] = np.cumsum(meta[:-1, 0])
     npoly = [len(o[8]) for o in outs]
     meta[1:, 5] = np.cumsum(npoly)
-    cat = [np.concatenate([o[i] for o in outs]).astype(np.int64) for i in (0, 1, 2, 4)]
-    rs = np.stack([o[3] for o in outs]).astype(np.int64) if nk else np.zeros((0, h + 1), np.int64)
+    cat = [np.concatenate([o[i] for o in outs]).astype(np.int32) for i in (0, 1, 2, 4)]
+    rs = np.stack([o[3] for o in outs]).astype(np.int32) if nk else np.zeros((0, h + 1), np.int32)
     bbox = np.concatenate([o[7] for o in outs]).astype(np.int64).reshape(-1)
     poly = np.concatenate([o[8] for o in outs]).astype(np.int64).reshape(-1, 2)
     pst = np.concatenate([o[9] for o in outs]).astype(np.int64)
@@ -1748,6 +1766,8 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, ban
     dy, dx = float(sp[1]), float(sp[2])
     ox, oy = float(org[0]), float(org[1])
     nz, h, w, get, direct = _slicer(volume, axis, label, threshold)
+    if h * w >= 2 ** 31:
+        raise _OutOfScope  # the packed runs are int32 (_slab_polygons): the full mesher takes it
     if z is None:
         zs = org[2] + sp[0] * np.arange(nz, dtype=np.float64)
     else:
