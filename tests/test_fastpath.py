@@ -317,6 +317,9 @@ def test_declines_outside_its_scope():
     assert fast_volume_to_mesh(np.zeros((4, 4, 4), bool)) is None
     assert fast_volume_to_mesh(vol, spacing=(1, -1, 1)) is None
     assert fast_volume_to_mesh(vol.astype(float) * np.nan, threshold=0.5) is None
+    # slices of 2^31 pixels or more (the packed runs are int32): a zero-strided view, never read
+    huge = np.broadcast_to(np.zeros(1, bool), (2, 2 ** 16, 2 ** 15))
+    assert fast_volume_to_mesh(huge) is None
 
 
 def test_shared_data_in_scope_volumes(shared_data):

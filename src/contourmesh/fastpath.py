@@ -633,16 +633,22 @@ def _stack_candidates(pts, ry, rx0, rx1, order, t0, t1):
     """
     mr = t1 - t0
     y0, lo, hi = _stack_intervals(ry, rx0, rx1, order, t0, t1)
+    # q = (qx, y0 + i + 1) has its four cells in U when il[i] < qx < ih[i]: the cells qx - 1 and qx
+    # in the intervals i and i + 1 both (lo[i] < qx < hi[i] and lo[i + 1] < qx < hi[i + 1])
+    il = np.empty(mr, np.int64)
+    ih = np.empty(mr, np.int64)
+    for i in range(mr):
+        il[i] = lo[i] if lo[i] > lo[i + 1] else lo[i + 1]
+        ih[i] = hi[i] if hi[i] < hi[i + 1] else hi[i + 1]
     n = len(pts)
     cand = np.empty((3 * n, 2), np.int64)
     kind = np.empty(3 * n, np.int64)
     m = 0
     lastw_x, lastw_y, has_w = 0, 0, False
+    px, py = pts[n - 1, 0], pts[n - 1, 1]  # the previous point, the current one (carried along)
+    cx, cy = pts[0, 0], pts[0, 1]
     for k in range(n):
-        kp = k - 1 if k > 0 else n - 1
         kn = k + 1 if k + 1 < n else 0
-        px, py = pts[kp, 0], pts[kp, 1]
-        cx, cy = pts[k, 0], pts[k, 1]
         nx, ny = pts[kn, 0], pts[kn, 1]
         ix, iy = cx - px, cy - py  # incoming step
         sx, sy = nx - cx, ny - cy  # outgoing step
@@ -652,21 +658,18 @@ def _stack_candidates(pts, ry, rx0, rx1, order, t0, t1):
             cand[m, 1] = cy
             kind[m] = 0 if turn > 0 else -1
             m += 1
-        lx, ly = -sy, sx
+        qx, qy = cx - sy, cy + sx  # c + left, then c + step + left
         for j in range(2):
-            qx, qy = cx + lx + j * sx, cy + ly + j * sy
             i = qy - 1 - y0  # the rows of the cells below and above q: i and i + 1
-            if i < 0 or i >= mr:
-                continue
-            if lo[i] >= qx or qx >= hi[i] or lo[i + 1] >= qx or qx >= hi[i + 1]:
-                continue  # a cell around q is not in U
-            if has_w and qx == lastw_x and qy == lastw_y:
-                continue
-            cand[m, 0] = qx
-            cand[m, 1] = qy
-            kind[m] = 1
-            m += 1
-            lastw_x, lastw_y, has_w = qx, qy, True
+            if 0 <= i and i < mr and il[i] < qx and qx < ih[i] and not (has_w and qx == lastw_x and qy == lastw_y):
+                cand[m, 0] = qx
+                cand[m, 1] = qy
+                kind[m] = 1
+                m += 1
+                lastw_x, lastw_y, has_w = qx, qy, True
+            qx += sx
+            qy += sy
+        px, py, cx, cy = cx, cy, nx, ny
     return cand, kind, np.int64(m)
 
 
@@ -726,8 +729,7 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     bbox = np.empty(4 * ccap, np.int64)
     deg = np.empty(ccap, np.int64)
     pst = np.empty(ccap + nk, np.int64)
-    px = np.empty(pcap, np.int64)
-    py = np.empty(pcap, np.int64)
+    poly = np.empty((pcap, 2), np.int64)
     nr = 0
     nc = 0
     npv = 0
@@ -770,11 +772,14 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
         q = len(spoly)
         if npv + q > pcap:
             pcap = 2 * pcap + q
-            px = _grow(px, pcap)
-            py = _grow(py, pcap)
+            grown = np.empty((pcap, 2), np.int64)
+            for i in range(npv):
+                grown[i, 0] = poly[i, 0]
+                grown[i, 1] = poly[i, 1]
+            poly = grown
         for i in range(q):
-            px[npv + i] = spoly[i, 0]
-            py[npv + i] = spoly[i, 1]
+            poly[npv + i, 0] = spoly[i, 0]
+            poly[npv + i, 1] = spoly[i, 1]
         npv += q
     meta[nk, 0] = 0
     meta[nk, 1] = 0
@@ -782,17 +787,14 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     meta[nk, 3] = nr
     meta[nk, 4] = nc
     meta[nk, 5] = npv
-    poly = np.empty((npv, 2), np.int64)
     xyz = np.empty((npv, 3), np.float64)
     for k in range(nk):
         for i in range(meta[k, 5], meta[k + 1, 5]):
-            poly[i, 0] = px[i]
-            poly[i, 1] = py[i]
-            xyz[i, 0] = ox + np.float64(px[i]) * dx
-            xyz[i, 1] = oy + np.float64(py[i]) * dy
+            xyz[i, 0] = ox + np.float64(poly[i, 0]) * dx
+            xyz[i, 1] = oy + np.float64(poly[i, 1]) * dy
             xyz[i, 2] = zs[k]
-    return (meta, ry[:nr], rx0[:nr], rx1[:nr], lab[:nr], row_start, bbox[: 4 * nc], poly, pst[: nc + nk], deg[:nc],
-            xyz)
+    return (meta, ry[:nr], rx0[:nr], rx1[:nr], lab[:nr], row_start, bbox[: 4 * nc], poly[:npv], pst[: nc + nk],
+            deg[:nc], xyz)
 
 
 @_kernel
