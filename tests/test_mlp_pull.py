@@ -253,9 +253,9 @@ def _stack(ry, rx0, rx1):
     order = np.arange(len(ry))
     t0, t1 = np.int64(0), np.int64(len(ry))
     cc = _trace_runs(ry, rx0, rx1, order, t0, t1)
+    _, cand, kind, mc = _stack_candidates(ry, rx0, rx1, order, t0, t1)
     if len(cc) == 0:
         return cc, np.empty((0, 2), np.int64), np.empty(0, np.int64)
-    cand, kind, mc = _stack_candidates(cc, ry, rx0, rx1, order, t0, t1)
     return cc, cand[:mc], kind[:mc]
 
 
