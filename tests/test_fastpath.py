@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from contourmesh._kernels import njit
 from contourmesh.fastpath import (
+    _stack_intervals,
     band_faces,
     fast_volume_to_mesh,
     outer_jordan_contour,
@@ -317,6 +319,9 @@ def test_declines_outside_its_scope():
     assert fast_volume_to_mesh(np.zeros((4, 4, 4), bool)) is None
     assert fast_volume_to_mesh(vol, spacing=(1, -1, 1)) is None
     assert fast_volume_to_mesh(vol.astype(float) * np.nan, threshold=0.5) is None
+    # slices of 2^31 pixels or more (the packed runs are int32): a zero-strided view, never read
+    huge = np.broadcast_to(np.zeros(1, bool), (2, 2 ** 16, 2 ** 15))
+    assert fast_volume_to_mesh(huge) is None
 
 
 def test_shared_data_in_scope_volumes(shared_data):
@@ -396,6 +401,8 @@ def test_kernels_are_compiled_without_literal_arguments():
     fast_volume_to_mesh(ball(20, 7.3), caps="half", threads=1)
     blob = ball(1, 5.2, c=(0, 7, 6), shape=(1, 15, 14))[0]
     slice_components(blob)
+    ry, rx0, rx1, _ = slice_runs(blob)
+    fastpath._trace_runs_py(ry, rx0, rx1, np.arange(len(ry)), np.int64(0), np.int64(len(ry)))
     contour = outer_jordan_contour(blob)
     dss_polygon(contour)
     mlp_polygon(contour)
@@ -699,11 +706,56 @@ def test_stack_join_is_pair_joins_where_it_decides():
     assert min(decided.values()) > 20 and undecided > 20, (decided, undecided)
 
 
+@njit(cache=False)
+def _stack_candidates_reference(pts, ry, rx0, rx1, order, t0, t1):
+    """The fast path's stack candidates in their earlier form (``fastpath._stack_candidates``
+    before it walked the contour without its array): read from the points ``pts`` that
+    ``_trace_runs`` wrote, each inner corner tested against the four interval ends."""
+    mr = t1 - t0
+    y0, lo, hi = _stack_intervals(ry, rx0, rx1, order, t0, t1)
+    n = len(pts)
+    cand = np.empty((3 * n, 2), np.int64)
+    kind = np.empty(3 * n, np.int64)
+    m = 0
+    lastw_x, lastw_y, has_w = 0, 0, False
+    for k in range(n):
+        kp = k - 1 if k > 0 else n - 1
+        kn = k + 1 if k + 1 < n else 0
+        px, py = pts[kp, 0], pts[kp, 1]
+        cx, cy = pts[k, 0], pts[k, 1]
+        nx, ny = pts[kn, 0], pts[kn, 1]
+        ix, iy = cx - px, cy - py  # incoming step
+        sx, sy = nx - cx, ny - cy  # outgoing step
+        turn = ix * sy - iy * sx
+        if turn != 0:
+            cand[m, 0] = cx
+            cand[m, 1] = cy
+            kind[m] = 0 if turn > 0 else -1
+            m += 1
+        lx, ly = -sy, sx
+        for j in range(2):
+            qx, qy = cx + lx + j * sx, cy + ly + j * sy
+            i = qy - 1 - y0  # the rows of the cells below and above q: i and i + 1
+            if i < 0 or i >= mr:
+                continue
+            if lo[i] >= qx or qx >= hi[i] or lo[i + 1] >= qx or qx >= hi[i + 1]:
+                continue  # a cell around q is not in U
+            if has_w and qx == lastw_x and qy == lastw_y:
+                continue
+            cand[m, 0] = qx
+            cand[m, 1] = qy
+            kind[m] = 1
+            m += 1
+            lastw_x, lastw_y, has_w = qx, qy, True
+    return cand, kind, np.int64(m)
+
+
 def test_stack_candidates_are_the_grid_kernels():
     # the MLP of a stack (one run per row) starts from candidates made from its intervals
     # (_stack_candidates) instead of the grids of _mlp_grid: the same candidates in the same
     # order, and so the same MLP, on random stacks (width-one rows, rows that only touch the next
-    # one at a corner of their cells, staircases, discs) and on the slices of a ball
+    # one at a corner of their cells, staircases, discs) and on the slices of a ball; and the same
+    # candidates as the earlier form that read the points of _trace_runs's contour
     from numba import njit
 
     from contourmesh.fastpath import _stack_candidates, _trace_runs
@@ -711,14 +763,21 @@ def test_stack_candidates_are_the_grid_kernels():
 
     @njit
     def both(ry, rx0, rx1, order, colour, on, bg, w):
-        cc = _trace_runs(ry, rx0, rx1, order, np.int64(0), np.int64(len(order)))
+        t0, t1 = np.int64(0), np.int64(len(order))
+        cc = _trace_runs(ry, rx0, rx1, order, t0, t1)
+        start, cand, kind, m = _stack_candidates(ry, rx0, rx1, order, t0, t1)
         if len(cc) == 0:
             e = np.empty((0, 2), np.int64)
-            return False, e, np.empty(0, np.int64), e, e, np.empty(0, np.int64), e
-        cand, kind, m = _stack_candidates(cc, ry, rx0, rx1, order, np.int64(0), np.int64(len(order)))
-        c1, k1, p1 = _mlp_pull(cc, cand, kind, m, colour)
+            return m == -1, False, e, np.empty(0, np.int64), e, e, np.empty(0, np.int64), e
+        rc, rk, rm = _stack_candidates_reference(cc, ry, rx0, rx1, order, t0, t1)
+        same = m == rm and start[0, 0] == cc[0, 0] and start[0, 1] == cc[0, 1]
+        if same:
+            for i in range(m):
+                if cand[i, 0] != rc[i, 0] or cand[i, 1] != rc[i, 1] or kind[i] != rk[i]:
+                    same = False
+        c1, k1, p1 = _mlp_pull(start, cand, kind, m, colour)
         c2, k2, p2 = _mlp_grid(cc, colour, on, bg, np.int64(-3), np.int64(-3), w + 6)
-        return True, c1, k1, p1, c2, k2, p2
+        return same, True, c1, k1, p1, c2, k2, p2
 
     rng = np.random.default_rng(23)
     masks = []
@@ -747,7 +806,8 @@ def test_stack_candidates_are_the_grid_kernels():
         bg = on.copy()
         order = np.arange(len(ry), dtype=np.int64)
         for colour in (1, 0):
-            ok, c1, k1, p1, c2, k2, p2 = both(ry, rx0, rx1, order, np.int64(colour), on, bg, np.int64(w))
+            same, ok, c1, k1, p1, c2, k2, p2 = both(ry, rx0, rx1, order, np.int64(colour), on, bg, np.int64(w))
+            assert same
             if not ok:
                 break
             assert np.array_equal(c1, c2) and np.array_equal(k1, k2) and np.array_equal(p1, p2)

@@ -251,6 +251,15 @@ def _grow(a, cap):
     return b
 
 
+@_kernel
+def _grow32(a, cap):
+    """:func:`_grow` for the ``int32`` arrays of :func:`_slab_polygons`."""
+    b = np.empty(cap, np.int32)
+    for i in range(len(a)):
+        b[i] = a[i]
+    return b
+
+
 def slice_runs(mask2d) -> tuple:
     """Runs of a 2D boolean mask: ``(ry, rx0, rx1, row_start)`` (see :func:`_scan_runs`)."""
     m = np.ascontiguousarray(mask2d, dtype=bool)
@@ -607,10 +616,47 @@ def _trace_runs_py(ry, rx0, rx1, order, t0, t1):
 
 
 @_kernel
-def _stack_candidates(pts, ry, rx0, rx1, order, t0, t1):
-    """Step 1 of the MLP (:func:`contourmesh.polygons.mlp._mlp_grid`) for the contour ``pts`` that
-    :func:`_trace_runs` wrote for the stack ``order[t0:t1]``, without the grids: ``(cand, kind,
-    m)``, the candidates being ``cand[:m]``, ``kind[:m]``, for :func:`~contourmesh.polygons.mlp._mlp_pull`.
+def _stack_point(cand, kind, m, wst, px, py, cx, cy, nx, ny, il, ih, y0, mr):
+    """The candidates of contour point ``c`` (after ``p``, before ``n``) of a stack, written from
+    ``cand[m]`` on: its turn (C or B) and the W among its two inner corners ``c + left`` and
+    ``c + step + left``; returns the new ``m``.  ``wst`` = (a W written yet, its x, its y): a W
+    equal to the last one is dropped.  The W test is :func:`_stack_candidates`'s."""
+    ix, iy = cx - px, cy - py  # incoming step
+    sx, sy = nx - cx, ny - cy  # outgoing step
+    turn = ix * sy - iy * sx
+    if turn != 0:
+        cand[m, 0] = cx
+        cand[m, 1] = cy
+        kind[m] = 0 if turn > 0 else -1
+        m += 1
+    qx, qy = cx - sy, cy + sx
+    for j in range(2):
+        i = qy - 1 - y0  # the rows of the cells below and above q: i and i + 1
+        if 0 <= i and i < mr and il[i] < qx and qx < ih[i] and not (wst[0] != 0 and qx == wst[1] and qy == wst[2]):
+            cand[m, 0] = qx
+            cand[m, 1] = qy
+            kind[m] = 1
+            m += 1
+            wst[0] = 1
+            wst[1] = qx
+            wst[2] = qy
+        qx += sx
+        qy += sy
+    return m
+
+
+@_kernel
+def _stack_candidates(ry, rx0, rx1, order, t0, t1):
+    """Step 1 of the MLP (:func:`contourmesh.polygons.mlp._mlp_grid`) for the contour that
+    :func:`_trace_runs` writes for the stack ``order[t0:t1]``, without the contour's array and
+    without the grids: ``(start, cand, kind, m)``, ``start`` the contour's first point (a ``(1, 2)``
+    array: :func:`~contourmesh.polygons.mlp._mlp_pull` reads only that point of the contour) and
+    the candidates ``cand[:m]``, ``kind[:m]``; ``m == -1`` when the runs are not a stack (their
+    rows not consecutive: the walk over the pixels is needed).
+
+    The points are visited in :func:`_trace_runs`'s order (its loops, each point handed to
+    :func:`_stack_point` when the next one is known; the first point's predecessor is the
+    contour's last point ``(lo[0], y0 + 1)``, and the last point is followed by the first).
 
     The grids decide whether an inner corner ``q`` of a contour step is a W: ``q`` not on the
     contour and no cell around it right of a step.  ``q`` is a corner of the cell left of the step,
@@ -618,47 +664,77 @@ def _stack_candidates(pts, ry, rx0, rx1, order, t0, t1):
     two, so ``q`` would be on the boundary of ``U``, which for a stack is this one contour; and a
     point of the contour has a cell around it outside ``U``.  So ``q`` is a W exactly when its four
     cells are in ``U``: rows ``q_y - 1`` and ``q_y`` of the stack's intervals (as
-    :func:`_trace_runs` makes them) both hold the cells ``q_x - 1`` and ``q_x``.  The rest is the
-    grid kernel's loop.  For the 512^3 ball's 785k contour points: half the time of the grids,
-    which write, read and clear five bytes of two slice-sized images per point.
+    :func:`_trace_runs` makes them) both hold the cells ``q_x - 1`` and ``q_x``, i.e. ``il[i] < q_x
+    < ih[i]`` with the larger of the two rows' lows and the smaller of their highs.  For the 512^3
+    ball's 785k contour points: a tenth of the time of the grids, which write, read and clear five
+    bytes of two slice-sized images per point.  (tests/test_fastpath.py keeps the earlier form that
+    read the points of :func:`_trace_runs`'s array, and compares.)
     """
+    start = np.empty((1, 2), np.int64)
+    for t in range(t0 + 1, t1):
+        if ry[order[t]] != ry[order[t - 1]] + 1:
+            return start, np.empty((0, 2), np.int64), np.empty(0, np.int64), np.int64(-1)
     mr = t1 - t0
-    y0, lo, hi = _stack_intervals(ry, rx0, rx1, order, t0, t1)
-    n = len(pts)
+    y0, lo, hi = _stack_intervals(ry, rx0, rx1, order, t0, t1)  # interval i: y0 + i .. y0 + i + 1
+    n = (hi[0] - lo[0]) + (hi[mr] - lo[mr]) + 2 * (mr + 1)  # the contour's points (_trace_runs)
+    for i in range(mr):
+        n += abs(hi[i + 1] - hi[i]) + abs(lo[i + 1] - lo[i])
+    # q = (qx, y0 + i + 1) has its four cells in U when il[i] < qx < ih[i]: the cells qx - 1 and qx
+    # in the intervals i and i + 1 both (lo[i] < qx < hi[i] and lo[i + 1] < qx < hi[i + 1])
+    il = np.empty(mr, np.int64)
+    ih = np.empty(mr, np.int64)
+    for i in range(mr):
+        il[i] = lo[i] if lo[i] > lo[i + 1] else lo[i + 1]
+        ih[i] = hi[i] if hi[i] < hi[i + 1] else hi[i + 1]
     cand = np.empty((3 * n, 2), np.int64)
     kind = np.empty(3 * n, np.int64)
-    m = 0
-    lastw_x, lastw_y, has_w = 0, 0, False
-    for k in range(n):
-        kp = k - 1 if k > 0 else n - 1
-        kn = k + 1 if k + 1 < n else 0
-        px, py = pts[kp, 0], pts[kp, 1]
-        cx, cy = pts[k, 0], pts[k, 1]
-        nx, ny = pts[kn, 0], pts[kn, 1]
-        ix, iy = cx - px, cy - py  # incoming step
-        sx, sy = nx - cx, ny - cy  # outgoing step
-        turn = ix * sy - iy * sx
-        if turn != 0:
-            cand[m, 0] = cx
-            cand[m, 1] = cy
-            kind[m] = 0 if turn > 0 else -1
-            m += 1
-        lx, ly = -sy, sx
-        for j in range(2):
-            qx, qy = cx + lx + j * sx, cy + ly + j * sy
-            i = qy - 1 - y0  # the rows of the cells below and above q: i and i + 1
-            if i < 0 or i >= mr:
-                continue
-            if lo[i] >= qx or qx >= hi[i] or lo[i + 1] >= qx or qx >= hi[i + 1]:
-                continue  # a cell around q is not in U
-            if has_w and qx == lastw_x and qy == lastw_y:
-                continue
-            cand[m, 0] = qx
-            cand[m, 1] = qy
-            kind[m] = 1
-            m += 1
-            lastw_x, lastw_y, has_w = qx, qy, True
-    return cand, kind, np.int64(m)
+    wst = np.empty(3, np.int64)
+    wst[0] = 0
+    wst[1] = 0
+    wst[2] = 0
+    m = np.int64(0)
+    start[0, 0] = lo[0]
+    start[0, 1] = y0
+    # a, b: the last two points met; b's candidates are written when the point after it comes
+    ax, ay = lo[0], y0 + 1  # the contour's last point (the end of the left side)
+    bx, by = lo[0], y0  # its first point
+    for x in range(lo[0] + 1, hi[0]):  # bottom, +x (after the first point)
+        m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, x, y0, il, ih, y0, mr)
+        ax, ay, bx, by = bx, by, x, y0
+    for i in range(mr + 1):  # right side, up
+        x, y = hi[i], y0 + i
+        m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, x, y, il, ih, y0, mr)
+        ax, ay, bx, by = bx, by, x, y
+        y = y0 + i + 1
+        if i < mr:
+            if hi[i + 1] > hi[i]:
+                for x in range(hi[i], hi[i + 1]):
+                    m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, x, y, il, ih, y0, mr)
+                    ax, ay, bx, by = bx, by, x, y
+            else:
+                for x in range(hi[i], hi[i + 1], -1):
+                    m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, x, y, il, ih, y0, mr)
+                    ax, ay, bx, by = bx, by, x, y
+    y = y0 + mr + 1
+    for x in range(hi[mr], lo[mr], -1):  # top, -x
+        m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, x, y, il, ih, y0, mr)
+        ax, ay, bx, by = bx, by, x, y
+    for i in range(mr, -1, -1):  # left side, down
+        x, y = lo[i], y0 + i + 1
+        m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, x, y, il, ih, y0, mr)
+        ax, ay, bx, by = bx, by, x, y
+        y = y0 + i
+        if i > 0:
+            if lo[i - 1] < lo[i]:
+                for x in range(lo[i], lo[i - 1], -1):
+                    m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, x, y, il, ih, y0, mr)
+                    ax, ay, bx, by = bx, by, x, y
+            else:
+                for x in range(lo[i], lo[i - 1]):
+                    m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, x, y, il, ih, y0, mr)
+                    ax, ay, bx, by = bx, by, x, y
+    m = _stack_point(cand, kind, m, wst, ax, ay, bx, by, lo[0], y0, il, ih, y0, mr)  # the last point
+    return start, cand, kind, m
 
 
 def outer_jordan_contour(mask2d) -> np.ndarray:
@@ -693,23 +769,31 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     ``meta[k] = (n, status, bad, first run, first component, first polygon vertex)`` of slice k
     (with a last row holding the totals), the per-slice arrays of :func:`_slice_polygons_k`
     concatenated (``row_start`` as ``(nk, h + 1)``, ``poly_start`` with ``n + 1`` entries per
-    slice), and ``xyz`` the polygon vertices in physical coordinates ``(ox + x dx, oy + y dy,
+    slice; the runs, their labels and ``row_start`` as ``int32``, the rest ``int64``), and ``xyz`` the polygon vertices in physical coordinates ``(ox + x dx, oy + y dy,
     zs[k])``: the rings of the slices without degenerate MLPs.
     """
     meta = np.empty((nk + 1, 6), np.int64)
-    row_start = np.empty((nk, h + 1), np.int64)
-    rcap = 64
+    row_start = np.empty((nk, h + 1), np.int32)
+    # Room for two runs per row and 256 polygon vertices per slice from the start: np.empty only
+    # maps the pages, and a page costs its fault when first written, so room that is never used
+    # costs nothing, while each growth (a new array, the old contents copied in) touches the
+    # pages of the old contents once more.  The runs are int32 (the caller keeps h * w below
+    # 2^31): for the 512^3 ball the packed runs, written anew every call, are half the pages.
+    rcap = 2 * nk * h
+    if rcap < 64:
+        rcap = 64
     ccap = 8
-    pcap = 64
-    ry = np.empty(rcap, np.int64)
-    rx0 = np.empty(rcap, np.int64)
-    rx1 = np.empty(rcap, np.int64)
-    lab = np.empty(rcap, np.int64)
+    pcap = 256 * nk
+    if pcap < 64:
+        pcap = 64
+    ry = np.empty(rcap, np.int32)
+    rx0 = np.empty(rcap, np.int32)
+    rx1 = np.empty(rcap, np.int32)
+    lab = np.empty(rcap, np.int32)
     bbox = np.empty(4 * ccap, np.int64)
     deg = np.empty(ccap, np.int64)
     pst = np.empty(ccap + nk, np.int64)
-    px = np.empty(pcap, np.int64)
-    py = np.empty(pcap, np.int64)
+    poly = np.empty((pcap, 2), np.int64)
     nr = 0
     nc = 0
     npv = 0
@@ -727,10 +811,10 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
         m = len(sry)
         if nr + m > rcap:
             rcap = 2 * rcap + m
-            ry = _grow(ry, rcap)
-            rx0 = _grow(rx0, rcap)
-            rx1 = _grow(rx1, rcap)
-            lab = _grow(lab, rcap)
+            ry = _grow32(ry, rcap)
+            rx0 = _grow32(rx0, rcap)
+            rx1 = _grow32(rx1, rcap)
+            lab = _grow32(lab, rcap)
         for r in range(m):
             ry[nr + r] = sry[r]
             rx0[nr + r] = srx0[r]
@@ -752,11 +836,14 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
         q = len(spoly)
         if npv + q > pcap:
             pcap = 2 * pcap + q
-            px = _grow(px, pcap)
-            py = _grow(py, pcap)
+            grown = np.empty((pcap, 2), np.int64)
+            for i in range(npv):
+                grown[i, 0] = poly[i, 0]
+                grown[i, 1] = poly[i, 1]
+            poly = grown
         for i in range(q):
-            px[npv + i] = spoly[i, 0]
-            py[npv + i] = spoly[i, 1]
+            poly[npv + i, 0] = spoly[i, 0]
+            poly[npv + i, 1] = spoly[i, 1]
         npv += q
     meta[nk, 0] = 0
     meta[nk, 1] = 0
@@ -764,17 +851,14 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     meta[nk, 3] = nr
     meta[nk, 4] = nc
     meta[nk, 5] = npv
-    poly = np.empty((npv, 2), np.int64)
     xyz = np.empty((npv, 3), np.float64)
     for k in range(nk):
         for i in range(meta[k, 5], meta[k + 1, 5]):
-            poly[i, 0] = px[i]
-            poly[i, 1] = py[i]
-            xyz[i, 0] = ox + np.float64(px[i]) * dx
-            xyz[i, 1] = oy + np.float64(py[i]) * dy
+            xyz[i, 0] = ox + np.float64(poly[i, 0]) * dx
+            xyz[i, 1] = oy + np.float64(poly[i, 1]) * dy
             xyz[i, 2] = zs[k]
-    return (meta, ry[:nr], rx0[:nr], rx1[:nr], lab[:nr], row_start, bbox[: 4 * nc], poly, pst[: nc + nk], deg[:nc],
-            xyz)
+    return (meta, ry[:nr], rx0[:nr], rx1[:nr], lab[:nr], row_start, bbox[: 4 * nc], poly[:npv], pst[: nc + nk],
+            deg[:nc], xyz)
 
 
 @_kernel
@@ -828,10 +912,9 @@ def _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg):
     mthree = np.int64(-3)  # the MLP grids' origin: contour vertices lie in [-1, w] x [-1, h]
     for c in range(n):
         # one run per row: the contour from the runs; else the walk over the pixels
-        cc = _trace_runs(ry, rx0, rx1, order, cnt[c], cnt[c + 1])
-        if len(cc) > 0:
-            cand, kind, mc = _stack_candidates(cc, ry, rx0, rx1, order, cnt[c], cnt[c + 1])
-            _, _, p = _mlp_pull(cc, cand, kind, mc, outer)
+        start, cand, kind, mc = _stack_candidates(ry, rx0, rx1, order, cnt[c], cnt[c + 1])
+        if mc >= 0:
+            _, _, p = _mlp_pull(start, cand, kind, mc, outer)
         else:
             if n == 1:
                 # the slice itself is the component's image
@@ -1683,8 +1766,8 @@ def _pack_slices(outs, h, ox, oy, dx, dy, zs):
     meta[1:, 4] = np.cumsum(meta[:-1, 0])
     npoly = [len(o[8]) for o in outs]
     meta[1:, 5] = np.cumsum(npoly)
-    cat = [np.concatenate([o[i] for o in outs]).astype(np.int64) for i in (0, 1, 2, 4)]
-    rs = np.stack([o[3] for o in outs]).astype(np.int64) if nk else np.zeros((0, h + 1), np.int64)
+    cat = [np.concatenate([o[i] for o in outs]).astype(np.int32) for i in (0, 1, 2, 4)]
+    rs = np.stack([o[3] for o in outs]).astype(np.int32) if nk else np.zeros((0, h + 1), np.int32)
     bbox = np.concatenate([o[7] for o in outs]).astype(np.int64).reshape(-1)
     poly = np.concatenate([o[8] for o in outs]).astype(np.int64).reshape(-1, 2)
     pst = np.concatenate([o[9] for o in outs]).astype(np.int64)
@@ -1748,6 +1831,8 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, ban
     dy, dx = float(sp[1]), float(sp[2])
     ox, oy = float(org[0]), float(org[1])
     nz, h, w, get, direct = _slicer(volume, axis, label, threshold)
+    if h * w >= 2 ** 31:
+        raise _OutOfScope  # the packed runs are int32 (_slab_polygons): the full mesher takes it
     if z is None:
         zs = org[2] + sp[0] * np.arange(nz, dtype=np.float64)
     else:

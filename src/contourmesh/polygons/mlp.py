@@ -229,21 +229,19 @@ def _mlp_pull(pts, cand, kind, m, colour):
         bc = s
         k = s + 1
         # (positions lie in [s, s + m] with s < m: position p is candidate p or p - m, taken
-        # with a comparison rather than an integer division)
+        # with a comparison rather than an integer division.)  VL's coordinates (lx, ly) and the
+        # crawlers' offsets from VL (wx, wy), (bx, by) are kept in variables, set where vl, wc or
+        # bc change, instead of read from cand for every candidate: the same values, so the same
+        # path (tests/test_mlp_pull.py keeps the form that read them and compares)
+        lx, ly = cand[s, 0], cand[s, 1]
+        wx, wy, bx, by = 0, 0, 0, 0
         while k <= s + m:
-            il = vl if vl < m else vl - m
             ik = k if k < m else k - m
-            iw = wc if wc < m else wc - m
-            ib = bc if bc < m else bc - m
-            lx, ly = cand[il, 0], cand[il, 1]
             vx, vy = cand[ik, 0] - lx, cand[ik, 1] - ly
-            wx, wy = cand[iw, 0] - lx, cand[iw, 1] - ly
-            bx, by = cand[ib, 0] - lx, cand[ib, 1] - ly
             new_vertex = -1
             w_set = wx != 0 or wy != 0
             b_set = bx != 0 or by != 0
             kk = kind[ik]
-            is_w = kk > 0
             if kk == 0:
                 # a convex corner of the contour (the outer wall) must stay on the right of the path:
                 # if it lies left of WC the path cannot go on straight and turns left at WC
@@ -251,27 +249,27 @@ def _mlp_pull(pts, cand, kind, m, colour):
                     new_vertex = wc
             elif vx == 0 and vy == 0:
                 # back at VL's position: the path turned round at the pending crawler
-                if is_w:
+                if kk > 0:
                     new_vertex = wc if w_set else (bc if b_set else -1)
                 else:
                     new_vertex = bc if b_set else (wc if w_set else -1)
-            elif is_w:
+            elif kk > 0:
                 # a W candidate must stay on the left: the free directions are clockwise of it
                 if b_set and bx * vy - by * vx < 0:
                     new_vertex = bc  # right of BC: the cone is empty, the path turns right at BC
                 elif w_set:
                     cw = wx * vy - wy * vx
                     if cw < 0:
-                        wc = k  # a tighter left bound
+                        wc, wx, wy = k, vx, vy  # a tighter left bound
                     elif cw == 0:
                         if wx * vx + wy * vy < wx * wx + wy * wy:
                             new_vertex = wc  # turns back along the ray: a U-turn at WC
                         else:
-                            wc = k  # straight on through WC
+                            wc, wx, wy = k, vx, vy  # straight on through WC
                     elif k == s + m:
                         new_vertex = wc  # the closing vertex lies left of WC: turn left at WC
                 else:
-                    wc = k
+                    wc, wx, wy = k, vx, vy
             else:
                 # a B candidate must stay on the right: the free directions are counter-clockwise of it
                 if w_set and wx * vy - wy * vx > 0:
@@ -279,22 +277,25 @@ def _mlp_pull(pts, cand, kind, m, colour):
                 elif b_set:
                     cb = bx * vy - by * vx
                     if cb > 0:
-                        bc = k  # a tighter right bound
+                        bc, bx, by = k, vx, vy  # a tighter right bound
                     elif cb == 0:
                         if bx * vx + by * vy < bx * bx + by * by:
                             new_vertex = bc  # turns back along the ray: a U-turn at BC
                         else:
-                            bc = k
+                            bc, bx, by = k, vx, vy
                     elif k == s + m:
                         new_vertex = bc  # the closing vertex lies right of BC: turn right at BC
                 else:
-                    bc = k
+                    bc, bx, by = k, vx, vy
             if new_vertex >= 0:
-                out[nv] = new_vertex if new_vertex < m else new_vertex - m
+                iv = new_vertex if new_vertex < m else new_vertex - m
+                out[nv] = iv
                 nv += 1
                 vl = new_vertex
                 wc = vl
                 bc = vl
+                lx, ly = cand[iv, 0], cand[iv, 1]
+                wx, wy, bx, by = 0, 0, 0, 0
                 k = vl + 1
                 continue
             k += 1
