@@ -1129,8 +1129,9 @@ def _lattice_cells(V, F, grp):
             fill[grp[i]] += 1
     for g in range(ng):
         most = max(most, cnt[g + 1] - cnt[g])
-    stamp = np.full(n, -1, np.int64)
-    rk = np.empty((n, 3), np.int64)  # a vertex's rank per axis among its group's values
+    # (per vertex in int32: a group's values and ranks are far fewer than 2^31)
+    stamp = np.full(n, -1, np.int32)
+    rk = np.empty((n, 3), np.int32)  # a vertex's rank per axis among its group's values
     verts = np.empty(3 * most + 1, np.int64)
     vals = np.empty(3 * most + 1, np.float64)
     vslot = np.empty(3 * most + 1, np.int64)
@@ -1508,6 +1509,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
     abox = np.empty((cap, 6), np.float64)
     acell = np.empty((cap, 6), np.int64)
     aface = np.empty(cap, np.int64)
+    acg = np.empty(cap, np.int64)  # (its group where certified, else -1: see _lattice_cells)
     nact = 0
     nxt = 0
     z0 = np.int64(0)
@@ -1528,6 +1530,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
                         abox[keep, k] = abox[s, k]
                         acell[keep, k] = acell[s, k]
                     aface[keep] = aface[s]
+                    acg[keep] = acg[s]
                 keep += 1
         nact = keep
         while nxt < upto:
@@ -1540,6 +1543,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
                 acell[nact, k] = _cell(lo, glo[k], h[k])
                 acell[nact, 3 + k] = _cell(hi, glo[k], h[k])
             aface[nact] = i
+            acg[nact] = cg[i] if len(cg) > 0 else -1
             nact += 1
         nbc = 1
         while nbc < run:
@@ -1583,6 +1587,8 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
                     if ent_key[t] != key:
                         continue
                     b = ent_slot[t]
+                    if acg[a] >= 0 and acg[a] == acg[b]:
+                        continue  # (two faces certified in one group: the pair needs nothing)
                     if (abox[a, 0] > abox[b, 3] or abox[b, 0] > abox[a, 3] or abox[a, 1] > abox[b, 4]
                             or abox[b, 1] > abox[a, 4] or abox[a, 2] > abox[b, 5] or abox[b, 2] > abox[a, 5]):
                         continue
@@ -1595,8 +1601,6 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
                         continue
                     i = min(aface[a], aface[b])
                     j = max(aface[a], aface[b])
-                    if _same_cells(cg, i, j):
-                        continue
                     if _star_due(sst):
                         _fill_stars(V, F, star, np.zeros(len(V), np.int64), ax0, ax0, cg)
                     if _shares_certified(F, star, i, j):
@@ -2198,7 +2202,8 @@ def _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, cx0, cy0, start
     face's corner ranges on its two planes are computed once, into ``W`` by its place in
     ``faces`` (a row: xy box, the x and y ranges on plane ``lo_``, then on plane ``hi_``, the
     number of corners on plane ``lo_``, then ``lo_``, ``hi_`` and 1 where no corner lies between,
-    else 0).  Returns ``(npairs, pi, pj, work)`` (``work``: pairs of entries met in a cell);
+    else 0, then the face's certified group, ``cg``, or -1).  Returns ``(npairs, pi, pj, work)``
+    (``work``: pairs of entries met in a cell);
     ``npairs`` is -1 when ``work`` exceeds ``limit``.  ``W``, ``cx0``, ``cy0``, ``start``:
     workspaces of one entry per face (``start`` one more)."""
     n = len(faces)
@@ -2231,6 +2236,7 @@ def _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, cx0, cy0, start
         W[t, 13] = 1.0 * kl
         W[t, 14] = 1.0 * kh
         W[t, 15] = 1.0 if nl + nh == 3 and kl < kh else 0.0
+        W[t, 16] = cg[i] if len(cg) > 0 else -1.0
         gxl = min(gxl, W[t, 0])
         gxh = max(gxh, W[t, 1])
         gyl = min(gyl, W[t, 2])
@@ -2304,11 +2310,13 @@ def _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, cx0, cy0, start
                     continue  # (a pair of a lower slab)
                 if W[u, 0] > W[s, 1] or W[s, 0] > W[u, 1] or W[s, 2] > W[u, 3] or W[u, 2] > W[s, 3]:
                     continue
+                if W[s, 16] >= 0.0 and W[s, 16] == W[u, 16]:
+                    continue  # (two faces certified in one group: the pair needs nothing)
                 if max(cy0[s], cy0[u]) * gx + max(cx0[s], cx0[u]) != q:
                     continue  # (taken in the cell of the low corner of the overlap)
                 i = np.int64(faces[s])
                 j = np.int64(faces[u])
-                if _same_cells(cg, i, j) or _apart_in_slab(V, F, lev, lo_, W, s, u, i, j):
+                if _apart_in_slab(V, F, lev, lo_, W, s, u, i, j):
                     continue
                 if i > j:
                     i, j = j, i
@@ -2342,7 +2350,7 @@ def _slab_sweep_pairs(V, ws, F, star, sst, lev, lo_, hi_, faces, k, cells):
     its size, with fresh workspaces and no budget: ``(pi, pj, work)``, for the tests that compare
     the two."""
     n = max(len(faces), 1)
-    W = np.empty((n, 16), np.float64)
+    W = np.empty((n, 17), np.float64)
     a = np.empty(n, np.int64)
     b = np.empty(n, np.int64)
     start = np.empty(n + 1, np.int64)
@@ -2391,7 +2399,8 @@ def _x_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, 
     a mid-height).  Each face's corner ranges on its two planes are computed once, into ``W`` by its
     place in the sweep's order (a row: xy box, the x and y ranges on plane ``lo_``, then on plane
     ``hi_``, the number of corners on plane ``lo_``, then ``lo_``, ``hi_`` and 1 where no corner
-    lies between, else 0).  Returns ``(npairs, pi, pj, work)``; ``npairs`` is -1 when ``work``
+    lies between, else 0, then the face's certified group, ``cg``, or -1).  Returns ``(npairs, pi,
+    pj, work)``; ``npairs`` is -1 when ``work``
     exceeds ``limit``.  ``W``, ``order``, ``bk``, ``start``: workspaces of one entry per face
     (``start`` one more)."""
     n = len(faces)
@@ -2449,6 +2458,7 @@ def _x_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, 
         W[s, 13] = 1.0 * kl
         W[s, 14] = 1.0 * kh
         W[s, 15] = 1.0 if nl + nh == 3 and kl < kh else 0.0
+        W[s, 16] = cg[i] if len(cg) > 0 else -1.0
     for s in range(n):
         xa = W[s, 1]
         qh = min(np.int64((xa - lo) / h), nb - 1)
@@ -2456,11 +2466,11 @@ def _x_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, 
             work += 1
             if W[u, 0] > xa or W[s, 0] > W[u, 1] or W[s, 2] > W[u, 3] or W[u, 2] > W[s, 3]:
                 continue
-            if max(W[s, 13], W[u, 13]) != k:
-                continue  # (a pair of a lower slab)
+            if max(W[s, 13], W[u, 13]) != k or (W[s, 16] >= 0.0 and W[s, 16] == W[u, 16]):
+                continue  # (a pair of a lower slab; two faces certified in one group)
             i = np.int64(faces[order[s]])
             j = np.int64(faces[order[u]])
-            if _same_cells(cg, i, j) or _apart_in_slab(V, F, lev, lo_, W, s, u, i, j):
+            if _apart_in_slab(V, F, lev, lo_, W, s, u, i, j):
                 continue
             if i > j:
                 i, j = j, i
@@ -2616,7 +2626,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
     sbox = np.empty((ms, 4), np.float64)  # (a slab's: every pair of its faces is a candidate, group 2)
     sgrp = np.full(ms, 2, np.int8)
     sids = np.arange(ms).astype(np.int32)
-    sW = np.empty((ms, 16), np.float64)  # (_single_sweep's)
+    sW = np.empty((ms, 17), np.float64)  # (_single_sweep's)
     sord = np.empty(ms, np.int64)
     sbk = np.empty(ms, np.int64)
     sstart = np.empty(ms + 1, np.int64)
