@@ -206,8 +206,8 @@ def _run(kernel, V, Fc, ws, *, quick, delay, stop=0, chunk=None):
     star = np.zeros(len(V), np.int8)
     sst = np.array([0 if quick else -1, len(Fc) // 8 + delay], np.int64)
     args = (V, ws.copy(), Fc, star, sst, np.int64(1 if quick else 0), np.int64(8), np.int64(stop))
-    if chunk is not None:
-        args = args + (np.int64(chunk),)
+    if chunk is not None:  # (the kernel's: a chunk size and no groups)
+        args = args + (np.int64(chunk), np.zeros(0, np.int64))
     pi, pj = kernel(*args)
     return sorted(zip(pi.tolist(), pj.tolist()))
 
@@ -297,9 +297,9 @@ def _first_build(vol, spacing=None):
     seen = []
     real = volumes.intersecting_pairs
 
-    def keep(V, F):
+    def keep(V, F, **kw):
         seen.append((np.array(V), np.array(F)))
-        return real(V, F)
+        return real(V, F, **kw)
 
     volumes.intersecting_pairs = keep
     try:

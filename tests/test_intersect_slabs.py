@@ -315,7 +315,7 @@ def test_slab_pairs_over_ranges_of_planes_partition_the_pairs():
         def run(k0, k1, quick):
             sst = np.array([0 if quick else -1, len(Fc) // 8 + 100], np.int64)
             pi, pj, ok = _slab_pairs(V, ws0.copy(), Fc, np.zeros(len(V), np.int8), sst, i64(quick), lev, i64(nlev),
-                                     i64(_SLAB_BUDGET), i64(0), i64(k0), i64(k1))
+                                     i64(_SLAB_BUDGET), i64(0), i64(k0), i64(k1), np.zeros(0, np.int64))
             assert ok == 1
             return sorted(zip(pi.tolist(), pj.tolist()))
 

@@ -72,8 +72,8 @@ def test_rebuilds_check_the_same_pairs_and_reuse_bridged_joins(monkeypatch):
     checks = []
     whole = volumes._crossing_pairs
 
-    def crossing_pairs(V, F, previous):
-        got = whole(V, F, previous)
+    def crossing_pairs(V, F, previous, tags=None):
+        got = whole(V, F, previous, tags)
         checks.append(previous is not None)
         np.testing.assert_array_equal(got, intersecting_pairs(V, F))
         return got

@@ -1271,7 +1271,7 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         # the first build is checked whole; a rebuild differs from it only around the joins and caps
         # that fell back, and only pairs with a changed face are tested again (the same pairs)
         release_free_heap(len(F))
-        pairs = _crossing_pairs(V, F, previous)
+        pairs = _crossing_pairs(V, F, previous, tags)
         previous = (V, F, pairs)
         V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
         left = info.pop("pairs")
@@ -1417,11 +1417,13 @@ class SlabPart:
         return self.lo <= k < self.hi or (self.last and k == self.hi)
 
 
-def _crossing_pairs(V, F, previous):
+def _crossing_pairs(V, F, previous, tags=None):
     """The crossing face pairs of a built mesh: checked whole, or from the ``previous`` build's
-    ``(V, F, pairs)`` where there is one (:func:`contourmesh.repair.crossing_pairs_after_change`)."""
+    ``(V, F, pairs)`` where there is one (:func:`contourmesh.repair.crossing_pairs_after_change`).
+    ``tags`` (:func:`_assemble`'s, a join or cap per face) group the faces for the whole test: the
+    voxel-exact faces of one join or cap need not be tested against each other (the same pairs)."""
     if previous is None:
-        return intersecting_pairs(V, F)
+        return intersecting_pairs(V, F, groups=tags)
     return crossing_pairs_after_change(*previous, V, F)
 
 
