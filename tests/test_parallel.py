@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numba import njit
 from scipy import ndimage
 
 import contourmesh
@@ -272,6 +273,91 @@ def test_slab_work_weighs_small_holes():
     for threads in (2, 3):  # slices split in ranges on threads: the same counts
         got = parallel._slice_counts(vol, threads)
         assert all(np.array_equal(a, b) for a, b in zip(got, one))
+
+
+@njit(cache=False, nogil=True)
+def _runs_per_slice_pixels(mask, reach):  # pragma: no cover - compiled
+    """The counts of :func:`contourmesh.parallel._runs_per_slice` as first written: every pixel of
+    every sampled row read on its own (the reference its word steps must match)."""
+    nz, h, w = mask.shape
+    out = np.zeros(nz, np.int64)
+    holes = np.zeros(nz, np.int64)
+    for k in range(nz):
+        n = 0
+        e = 0
+        for y in range(0, h, 4):
+            prev = False
+            end = -1
+            for x in range(w):
+                v = mask[k, y, x]
+                if v and not prev:
+                    n += 1
+                    if end >= 0 and x - end <= reach:
+                        mid = (end + x) // 2
+                        for yy in range(y - 1, max(y - reach, 0) - 1, -1):
+                            if mask[k, yy, mid]:
+                                for y2 in range(y + 1, min(y + reach + 1, h)):
+                                    if mask[k, y2, mid]:
+                                        e += 1
+                                        break
+                                break
+                if prev and not v:
+                    end = x
+                prev = v
+        out[k] = n
+        holes[k] = e
+    return out, holes
+
+
+def _counts_match(vol):
+    ref = _runs_per_slice_pixels(vol, np.int64(parallel._HOLE_REACH))
+    for threads in (1, 2, 3):
+        got = parallel._slice_counts(vol, threads)
+        assert all(np.array_equal(a, b) for a, b in zip(got, ref)), (vol.shape, threads)
+    return ref
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_slice_counts_step_words_as_pixels(seed):
+    """The run counts stepping over 8-byte words where nothing changes are the pixel loop's, bit for
+    bit: rows of any width (words straddling rows), masks starting off an 8-byte boundary (the
+    threads' ranges, slices of a larger array), masks not C-contiguous (no words), runs and gaps
+    of every length around 8, small holes and wide ones."""
+    rng = np.random.default_rng(seed)
+    for _ in range(4):
+        nz, h, w = (int(v) for v in rng.integers([2, 5, 1], [14, 60, 90]))
+        vol = ndimage.gaussian_filter(rng.random((nz, h, w)), float(rng.uniform(0.6, 4.0))) > rng.uniform(0.35, 0.65)
+        vol |= rng.random(vol.shape) < rng.uniform(0, 0.02)
+        vol &= ~(rng.random(vol.shape) < rng.uniform(0, 0.02))
+        _counts_match(vol)
+        big = np.zeros(vol.size + 16, bool)
+        for off in range(1, 8):  # the same mask at every offset from an 8-byte boundary
+            v = big[off: off + vol.size].reshape(vol.shape)
+            v[...] = vol
+            assert v.flags.c_contiguous
+            assert all(np.array_equal(a, b) for a, b in zip(parallel._slice_counts(v), _counts_match(vol)))
+        _counts_match(vol[:, :, ::-1])  # (a view, not C-contiguous)
+        _counts_match(np.asfortranarray(vol))
+    full = np.ones((3, 9, 67), bool)
+    full[1] = False
+    full[2, :, 30:33] = False
+    _counts_match(full)
+    _counts_match(np.zeros((2, 0, 5), bool))
+
+
+def test_slice_counts_step_words_as_pixels_on_shared_samples():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import volume_speed
+
+    for name in ("liver", "lobster"):
+        try:
+            vol = volume_speed.make_input(name)[0]
+        except (FileNotFoundError, OSError) as exc:
+            pytest.skip(f"shared sample {name!r} not found under {DATA} ({exc})")
+        ref = _counts_match(np.ascontiguousarray(vol, dtype=bool))
+        assert ref[0].sum() > 0 and ref[1].sum() > 0  # (runs and small holes both counted)
 
 
 @pytest.mark.parametrize("name", ["liver", "lobster"])
