@@ -169,6 +169,52 @@ def test_a_failing_slab_falls_back_to_one_process(slab_route, monkeypatch):
     _same(m1, m2)
 
 
+@pytest.mark.parametrize("case", ["made", "disagree", "failed", "join raises"])
+def test_the_workers_are_gone_after_the_slab_route(case, slab_route, monkeypatch):
+    """The workers are let go once every slab is in and exit while the calling process joins the
+    slabs; when the call returns (a mesh, a fall-back, or an error in the join) no worker process
+    and no pool thread is left, so the next call can fork again."""
+    import multiprocessing
+
+    from contourmesh import volumes
+
+    vol = _blob(3)
+    if case == "disagree":
+        units = volumes._slab_units
+
+        def disagreeing(kept, joins, slices, slab):
+            out = units(kept, joins, slices, slab)
+            if slab.offset == 0:
+                out["hashes"] = {k: "not the neighbour's" for k in out["hashes"]}
+            return out
+
+        monkeypatch.setattr(volumes, "_slab_units", disagreeing)
+    elif case == "failed":
+        mesher = parallel.volume_to_mesh
+
+        def failing(sub, **kw):
+            if kw["slab"].offset > 0:
+                raise RuntimeError("this slab cannot be meshed")
+            return mesher(sub, **kw)
+
+        monkeypatch.setattr(parallel, "volume_to_mesh", failing)
+    elif case == "join raises":
+        def broken(*a, **k):
+            raise KeyError("a join that fails")
+
+        monkeypatch.setattr(parallel, "_join", broken)
+    if case == "join raises":
+        with pytest.raises(KeyError, match="a join that fails"):
+            _mesh(vol, 2, monkeypatch)
+    else:
+        _mesh(vol, 2, monkeypatch)
+    msgs = _routed(slab_route)
+    want = {"made": "slabs on 2 processes", "disagree": "disagree", "failed": "a slab failed", "join raises": ""}[case]
+    assert any(want in m for m in msgs), msgs
+    assert multiprocessing.active_children() == []
+    assert parallel._no_other_threads()  # (the fixture's: no thread started by the call is left)
+
+
 @pytest.mark.parametrize("kw", [dict(refine="band"), dict(refine="band2"), dict(polygon="dss", refine="band")])
 def test_refined_meshes_take_one_process(kw, slab_route, monkeypatch):
     vol = _blob(0, (16, 24, 24))

@@ -286,16 +286,27 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
     global _JOB
     _JOB = (mask, zs, (dy, dx), tuple(float(v) for v in o_xy), cuts,
             dict(polygon=polygon, triangulation=triangulation, caps=caps))
+    pool = ctx.Pool(min(n, nslab), initializer=_child_init)
     try:
-        with ctx.Pool(min(n, nslab), initializer=_child_init) as pool:
-            pieces = sorted(pool.imap_unordered(_piece, order, chunksize=1), key=lambda p: p["j"])
+        pieces = sorted(pool.imap_unordered(_piece, order, chunksize=1), key=lambda p: p["j"])
     except Exception as exc:  # a slab the mesher could not make: the whole volume in this process
+        pool.terminate()
         log.debug("slab route: a slab failed (%s: %s); one process", type(exc).__name__, exc)
         return None
+    except BaseException:
+        pool.terminate()
+        raise
     finally:
         _JOB = None
+    # every slab is in: the workers are let go, and exit while this process joins the slabs (ending
+    # them first, as leaving a `with` block of the pool does, waited for their exits: about 0.03 s on
+    # liver x2); they are reaped when the mesh is made
+    pool.close()
     t1 = time.perf_counter()
-    got = _join(pieces, zs, min(dx, dy), polygon, triangulation, caps)
+    try:
+        got = _join(pieces, zs, min(dx, dy), polygon, triangulation, caps)
+    finally:
+        pool.join()
     if got is not None:
         log.debug("slab route: %d slabs on %d processes, cuts %s; slabs %.2f s, join and checks %.2f s "
                   "(slab CPU %s s)", nslab, min(n, nslab), cuts, t1 - t0, time.perf_counter() - t1,
