@@ -215,6 +215,22 @@ def test_the_workers_are_gone_after_the_slab_route(case, slab_route, monkeypatch
     assert parallel._no_other_threads()  # (the fixture's: no thread started by the call is left)
 
 
+def test_the_slab_join_does_not_trim_the_heap(slab_route, monkeypatch):
+    """The calling process joins the slabs without heap trims between the repair's steps (their
+    pages were touched again at once); the mesh is the one-process mesh all the same."""
+    from contourmesh import volumes
+
+    vol = _blob(0)
+    m1 = _mesh(vol, 1, monkeypatch)
+    asked = []
+    trim = volumes.release_free_heap
+    monkeypatch.setattr(volumes, "release_free_heap", lambda faces: asked.append(faces) or trim(faces))
+    m2 = _mesh(vol, 2, monkeypatch)
+    assert any("slabs on 2 processes" in m for m in _routed(slab_route))
+    assert asked == [0, 0, 0]  # (the join's three; the workers' asks are made in their own memory)
+    _same(m1, m2)
+
+
 @pytest.mark.parametrize("kw", [dict(refine="band"), dict(refine="band2"), dict(polygon="dss", refine="band")])
 def test_refined_meshes_take_one_process(kw, slab_route, monkeypatch):
     vol = _blob(0, (16, 24, 24))
