@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numba import njit
 from scipy import ndimage
 
 import contourmesh
@@ -168,6 +169,68 @@ def test_a_failing_slab_falls_back_to_one_process(slab_route, monkeypatch):
     _same(m1, m2)
 
 
+@pytest.mark.parametrize("case", ["made", "disagree", "failed", "join raises"])
+def test_the_workers_are_gone_after_the_slab_route(case, slab_route, monkeypatch):
+    """The workers are let go once every slab is in and exit while the calling process joins the
+    slabs; when the call returns (a mesh, a fall-back, or an error in the join) no worker process
+    and no pool thread is left, so the next call can fork again."""
+    import multiprocessing
+
+    from contourmesh import volumes
+
+    vol = _blob(3)
+    if case == "disagree":
+        units = volumes._slab_units
+
+        def disagreeing(kept, joins, slices, slab):
+            out = units(kept, joins, slices, slab)
+            if slab.offset == 0:
+                out["hashes"] = {k: "not the neighbour's" for k in out["hashes"]}
+            return out
+
+        monkeypatch.setattr(volumes, "_slab_units", disagreeing)
+    elif case == "failed":
+        mesher = parallel.volume_to_mesh
+
+        def failing(sub, **kw):
+            if kw["slab"].offset > 0:
+                raise RuntimeError("this slab cannot be meshed")
+            return mesher(sub, **kw)
+
+        monkeypatch.setattr(parallel, "volume_to_mesh", failing)
+    elif case == "join raises":
+        def broken(*a, **k):
+            raise KeyError("a join that fails")
+
+        monkeypatch.setattr(parallel, "_join", broken)
+    if case == "join raises":
+        with pytest.raises(KeyError, match="a join that fails"):
+            _mesh(vol, 2, monkeypatch)
+    else:
+        _mesh(vol, 2, monkeypatch)
+    msgs = _routed(slab_route)
+    want = {"made": "slabs on 2 processes", "disagree": "disagree", "failed": "a slab failed", "join raises": ""}[case]
+    assert any(want in m for m in msgs), msgs
+    assert multiprocessing.active_children() == []
+    assert parallel._no_other_threads()  # (the fixture's: no thread started by the call is left)
+
+
+def test_the_slab_join_does_not_trim_the_heap(slab_route, monkeypatch):
+    """The calling process joins the slabs without heap trims between the repair's steps (their
+    pages were touched again at once); the mesh is the one-process mesh all the same."""
+    from contourmesh import volumes
+
+    vol = _blob(0)
+    m1 = _mesh(vol, 1, monkeypatch)
+    asked = []
+    trim = volumes.release_free_heap
+    monkeypatch.setattr(volumes, "release_free_heap", lambda faces: asked.append(faces) or trim(faces))
+    m2 = _mesh(vol, 2, monkeypatch)
+    assert any("slabs on 2 processes" in m for m in _routed(slab_route))
+    assert asked == [0, 0, 0]  # (the join's three; the workers' asks are made in their own memory)
+    _same(m1, m2)
+
+
 @pytest.mark.parametrize("kw", [dict(refine="band"), dict(refine="band2"), dict(polygon="dss", refine="band")])
 def test_refined_meshes_take_one_process(kw, slab_route, monkeypatch):
     vol = _blob(0, (16, 24, 24))
@@ -272,6 +335,91 @@ def test_slab_work_weighs_small_holes():
     for threads in (2, 3):  # slices split in ranges on threads: the same counts
         got = parallel._slice_counts(vol, threads)
         assert all(np.array_equal(a, b) for a, b in zip(got, one))
+
+
+@njit(cache=False, nogil=True)
+def _runs_per_slice_pixels(mask, reach):  # pragma: no cover - compiled
+    """The counts of :func:`contourmesh.parallel._runs_per_slice` as first written: every pixel of
+    every sampled row read on its own (the reference its word steps must match)."""
+    nz, h, w = mask.shape
+    out = np.zeros(nz, np.int64)
+    holes = np.zeros(nz, np.int64)
+    for k in range(nz):
+        n = 0
+        e = 0
+        for y in range(0, h, 4):
+            prev = False
+            end = -1
+            for x in range(w):
+                v = mask[k, y, x]
+                if v and not prev:
+                    n += 1
+                    if end >= 0 and x - end <= reach:
+                        mid = (end + x) // 2
+                        for yy in range(y - 1, max(y - reach, 0) - 1, -1):
+                            if mask[k, yy, mid]:
+                                for y2 in range(y + 1, min(y + reach + 1, h)):
+                                    if mask[k, y2, mid]:
+                                        e += 1
+                                        break
+                                break
+                if prev and not v:
+                    end = x
+                prev = v
+        out[k] = n
+        holes[k] = e
+    return out, holes
+
+
+def _counts_match(vol):
+    ref = _runs_per_slice_pixels(vol, np.int64(parallel._HOLE_REACH))
+    for threads in (1, 2, 3):
+        got = parallel._slice_counts(vol, threads)
+        assert all(np.array_equal(a, b) for a, b in zip(got, ref)), (vol.shape, threads)
+    return ref
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_slice_counts_step_words_as_pixels(seed):
+    """The run counts stepping over 8-byte words where nothing changes are the pixel loop's, bit for
+    bit: rows of any width (words straddling rows), masks starting off an 8-byte boundary (the
+    threads' ranges, slices of a larger array), masks not C-contiguous (no words), runs and gaps
+    of every length around 8, small holes and wide ones."""
+    rng = np.random.default_rng(seed)
+    for _ in range(4):
+        nz, h, w = (int(v) for v in rng.integers([2, 5, 1], [14, 60, 90]))
+        vol = ndimage.gaussian_filter(rng.random((nz, h, w)), float(rng.uniform(0.6, 4.0))) > rng.uniform(0.35, 0.65)
+        vol |= rng.random(vol.shape) < rng.uniform(0, 0.02)
+        vol &= ~(rng.random(vol.shape) < rng.uniform(0, 0.02))
+        _counts_match(vol)
+        big = np.zeros(vol.size + 16, bool)
+        for off in range(1, 8):  # the same mask at every offset from an 8-byte boundary
+            v = big[off: off + vol.size].reshape(vol.shape)
+            v[...] = vol
+            assert v.flags.c_contiguous
+            assert all(np.array_equal(a, b) for a, b in zip(parallel._slice_counts(v), _counts_match(vol)))
+        _counts_match(vol[:, :, ::-1])  # (a view, not C-contiguous)
+        _counts_match(np.asfortranarray(vol))
+    full = np.ones((3, 9, 67), bool)
+    full[1] = False
+    full[2, :, 30:33] = False
+    _counts_match(full)
+    _counts_match(np.zeros((2, 0, 5), bool))
+
+
+def test_slice_counts_step_words_as_pixels_on_shared_samples():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import volume_speed
+
+    for name in ("liver", "lobster"):
+        try:
+            vol = volume_speed.make_input(name)[0]
+        except (FileNotFoundError, OSError) as exc:
+            pytest.skip(f"shared sample {name!r} not found under {DATA} ({exc})")
+        ref = _counts_match(np.ascontiguousarray(vol, dtype=bool))
+        assert ref[0].sum() > 0 and ref[1].sum() > 0  # (runs and small holes both counted)
 
 
 @pytest.mark.parametrize("name", ["liver", "lobster"])
