@@ -341,8 +341,10 @@ def _join(pieces, zs, px, polygon, triangulation, caps):
     # 0.04-0.07 s of the join, against 4-5 MiB more of the calling process's peak, 762 -> 767 MiB)
     V, F, T = _join_units(units, tags, rings.__getitem__, px, {}, 0)
     tj1 = time.perf_counter()
-    # the whole mesh's crossing test (on the threads asked for: intersect splits it by heights)
-    pairs = intersecting_pairs(V, F)
+    # the whole mesh's crossing test (on the threads asked for: intersect splits it by heights),
+    # with the faces grouped by the join or cap that made them (T) as the one-process mesher
+    # groups them: the voxel-exact faces of one group are certified apart, not paired (same pairs)
+    pairs = intersecting_pairs(V, F, groups=T)
     tj2 = time.perf_counter()
     V2, info = resolve_crossings(V, F, 1e-3 * px, planes=zs, pairs=pairs)
     left = info.pop("pairs")
