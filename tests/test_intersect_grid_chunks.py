@@ -27,7 +27,7 @@ from contourmesh.intersect import (
     _push,
     _shares_certified,
     _star_due,
-    _star_fill,
+    _star_fill_levels,
     _touching_boxes,
     canonical_vertices,
 )
@@ -174,7 +174,7 @@ def _one_table_pairs(V, ws, F, star, sst, quick, budget, stop):
                 if (cz * ny + cy) * nx + cx != key:
                     continue
                 if _star_due(sst):
-                    _star_fill(V, F, star)
+                    _star_fill_levels(V, F, star, np.zeros(len(V), np.int64), np.int64(0), np.int64(0))
                 if _shares_certified(F, star, i, j):
                     continue
                 hit = _across_plane(V, ws, F, i, j)

@@ -884,15 +884,9 @@ def _star_kernel(V, F, lev, l0, l1):
 
 
 @_kernel
-def _star_fill(V, F, star):
-    """:func:`_star_certified` into ``star`` (zeros on entry)."""
-    _star_fill_levels(V, F, star, np.zeros(len(V), np.int64), np.int64(0), np.int64(0))
-
-
-@_kernel
 def _star_fill_levels(V, F, star, lev, l0, l1):
-    """:func:`_star_fill` for the vertices ``p`` with ``l0 <= lev[p] <= l1`` only (the others stay
-    0): a range of heights of :func:`_slab_pairs` certifies the stars of its own vertices, not the
+    """:func:`_star_certified` into ``star`` (zeros on entry) for the vertices ``p`` with
+    ``l0 <= lev[p] <= l1`` only (the others stay 0): a range of heights of :func:`_slab_pairs` certifies the stars of its own vertices, not the
     whole mesh's once per range.  A vertex's star is the same whichever others are certified (its
     faces in the order of their numbers)."""
     nv = len(V)
@@ -1030,7 +1024,7 @@ def _star_due(sst):
     """The stars are computed when first needed: ``sst[0]`` counts the pairs that reach the tests
     until it passes ``sst[1]`` (a mesh whose pairs are mostly decided otherwise, as by the slab
     certificates of a mesh on a small dyadic grid, does not pay for them); then True, once (the
-    caller fills ``star``, :func:`_star_fill`), and ``sst[0]`` is -1 from then on.  Until then
+    caller fills ``star``, :func:`_fill_stars`), and ``sst[0]`` is -1 from then on.  Until then
     ``star`` is all 0: every pair is tested, with the same answers."""
     if sst[0] < 0:
         return False
