@@ -256,6 +256,169 @@ def _annulus_dp(A1, A2, s, D, steps, keep):
 
 
 @njit(cache=True)
+def _annulus_dp_within(A1, A2, s, D, steps, keep, B):
+    """:func:`_annulus_dp` where only a total of at most ``B`` matters, for step costs that are
+    not negative and not NaN (the triangle areas of :func:`_step_areas` of coordinates whose
+    products cannot overflow, see :func:`_no_nan_areas`): the same total where it is at most
+    ``B`` (else a number above ``B``, or infinity), and where ``keep``, the same steps at every
+    cell that the band traced back from such a total passes.
+
+    Adding a cost that is not negative never makes a sum smaller, rounded or not, so a path
+    through a cell whose cost exceeds ``B`` ends above ``B``: such cells (their every layer above
+    ``B``) are not needed.  Each row is run only from the first column where the row before has a
+    cell within ``B`` (or column 0, while the path down it is within ``B``) to where its C(2)-steps
+    leave ``B`` past the last such column of the row before; the C(1)-steps from cells outside the
+    row before's columns within ``B`` offer infinity instead of their cost above ``B``.  An offer
+    above ``B`` wins no cell whose cost is at most ``B`` (it is larger than that cost; ties go to
+    the first offer of the least cost either way), so such a cell gets the same cost and the same
+    step from the same offers in the same order.  On the liver's bridged bands about a seventh of
+    the cells have a cost within the band's total."""
+    n, m = A1.shape
+    inf = np.inf
+    none_row = np.zeros(m)
+    plo = np.int64(-1)  # the columns of the row before with a cell within B: plo .. phi (-1: none)
+    phi = np.int64(-1)
+    got_m = False
+    for i in range(n + 1):
+        r = i % 2
+        ib = (s + i) % n
+        a2row = A2[ib]
+        a1row = none_row if i == 0 else A1[(ib + n - 1) % n]
+        p1 = D[1 - r, ROW0]
+        p2 = D[1 - r, ROW_HERE]
+        p3 = D[1 - r, ROW_PAST]
+        p4 = D[1 - r, TWO_ROWS]
+        d1 = D[r, ROW0]
+        d2 = D[r, ROW_HERE]
+        d3 = D[r, ROW_PAST]
+        d4 = D[r, TWO_ROWS]
+        row0 = i == 0 or i == n
+        x0 = 0.0 if i == 0 else D[1 - r, NONE, 0] + a1row[0]
+        D[r, NONE, 0] = x0
+        if x0 <= B:
+            t = np.int64(0)
+        elif plo >= 0:
+            t = plo
+            x0 = inf  # (its C(2)-step is above B)
+        else:
+            return inf  # no cell of this row within B, nor of the rows after it
+        x1 = x2 = x3 = x4 = inf
+        nlo = np.int64(-1)
+        nhi = np.int64(-1)
+        while t <= m:
+            if plo <= t and t <= phi:
+                a1 = a1row[t] if t < m else a1row[0]
+                y1 = p1[t] + a1
+                ch = p2[t] + a1
+                cp = p3[t] + a1
+                y3 = cp if cp < ch else ch
+                y4 = p4[t] + a1
+            else:
+                if t > 0 and x0 > B and x1 > B and x2 > B and x3 > B and x4 > B:
+                    if t > phi:
+                        break  # nothing within B further right in this row
+                    # (t < plo: a C(2)-run from column 0 that left B) on at plo; the cells
+                    # passed over are above B, as infinity for the row after (which may read them)
+                    for q in range(t, plo):
+                        d1[q] = inf
+                        d2[q] = inf
+                        d3[q] = inf
+                        d4[q] = inf
+                    t = plo
+                    x0 = x1 = x2 = x3 = x4 = inf
+                    continue
+                y1 = ch = cp = y3 = y4 = inf
+            y2 = inf
+            k1 = 0
+            k2 = 0
+            k4 = 0
+            if t > 0:
+                a2 = a2row[t - 1]
+                if row0:
+                    c = x0 + a2  # NONE -> ROW0
+                    if c < y1:
+                        y1 = c
+                        k1 = _FROM_NONE
+                    c = x1 + a2  # ROW0 -> ROW0
+                    if c < y1:
+                        y1 = c
+                        k1 = _FROM_ROW0
+                else:
+                    c = x0 + a2  # NONE -> ROW_HERE
+                    if c < y2:
+                        y2 = c
+                        k2 = _FROM_NONE
+                    c = x1 + a2  # ROW0 -> TWO_ROWS
+                    if c < y4:
+                        y4 = c
+                        k4 = _FROM_ROW0
+                c = x2 + a2  # ROW_HERE -> ROW_HERE
+                if c < y2:
+                    y2 = c
+                    k2 = 0
+                c = x3 + a2  # ROW_PAST -> TWO_ROWS
+                if c < y4:
+                    y4 = c
+                    k4 = _FROM_ROW_PAST
+                c = x4 + a2  # TWO_ROWS -> TWO_ROWS
+                if c < y4:
+                    y4 = c
+                    k4 = _FROM_TWO_ROWS
+                x0 = inf
+            if keep:
+                steps[i, t] = (k1 << _ROW0_BITS) | (k2 << _HERE_BITS) | \
+                    (0 if cp < ch else _FROM_ROW_HERE) << _PAST_BITS | k4
+            d1[t] = y1
+            d2[t] = y2
+            d3[t] = y3
+            d4[t] = y4
+            x1 = y1
+            x2 = y2
+            x3 = y3
+            x4 = y4
+            if y1 <= B or y2 <= B or y3 <= B or y4 <= B:
+                if nlo < 0:
+                    nlo = t
+                nhi = t
+            if t == m and i == n:
+                got_m = True
+            t += 1
+        plo = nlo
+        phi = nhi
+    return D[n % 2, TWO_ROWS, m] if got_m else inf
+
+
+@njit(cache=True)
+def _dp_to(A1, A2, s, D, steps, keep, B, bounded):
+    """:func:`_annulus_dp_within` where ``bounded`` (the costs are known not negative and not NaN),
+    else :func:`_annulus_dp` (the whole programme, whatever ``B``)."""
+    if bounded:
+        return _annulus_dp_within(A1, A2, s, D, steps, keep, B)
+    return _annulus_dp(A1, A2, s, D, steps, keep)
+
+
+#: Coordinates of at most this magnitude give triangle areas that are not NaN (:func:`_no_nan_areas`).
+_AREA_SAFE = 1e150
+
+
+@njit(cache=True)
+def _no_nan_areas(c1, c2):
+    """Whether every coordinate of ``c1`` and ``c2`` is at most :data:`_AREA_SAFE` in magnitude:
+    then the differences and their products in :func:`_step_areas_into` stay finite (below
+    ``8e300``), a square may overflow only to infinity, and no area is NaN (infinity at worst).
+    The areas are then not negative and not NaN, as :func:`_annulus_dp_within` needs."""
+    for i in range(c1.shape[0]):
+        for d in range(c1.shape[1]):
+            if not abs(c1[i, d]) <= _AREA_SAFE:
+                return False
+    for i in range(c2.shape[0]):
+        for d in range(c2.shape[1]):
+            if not abs(c2[i, d]) <= _AREA_SAFE:
+                return False
+    return True
+
+
+@njit(cache=True)
 def optimal_edges(c1, c2):
     """See :func:`optimal_edges_from`: every start point of ``c1`` is tried (the optimum)."""
     return optimal_edges_from(c1, c2, np.arange(c1.shape[0]))
@@ -291,14 +454,21 @@ def _optimal_edges_in(c1, c2, starts, fbuf, bbuf):
     _step_areas_into(c1, c2, A1, A2)
     steps = bbuf[:(n + 1) * (m + 1)].reshape((n + 1, m + 1))
     D2 = np.empty((2, N_LAYERS, m + 1))
-    best_s, total = _best_band(A1, A2, starts, D2, steps)
+    best_s, total = _best_band(A1, A2, starts, D2, steps, _no_nan_areas(c1, c2))
     return _trace_back(steps, n, m), best_s, total
 
 
 @njit(cache=True)
-def _best_band(A1, A2, starts, D2, steps):
+def _best_band(A1, A2, starts, D2, steps, bounded):
     """The start point :func:`_best_start` picks (``starts[0]`` where none is finite) and its
     programme's total; its steps recorded in ``steps``.
+
+    ``bounded`` (the costs are not negative and not NaN, :func:`_no_nan_areas`): where a bound on
+    the total that matters is known (the strip search's bound and margin, the best total so far,
+    the best start point's own total when it runs again to record), the programmes run only over
+    the cells within it (:func:`_annulus_dp_within`): the same start point, total and steps as
+    with ``bounded`` False, which runs every programme over the whole grid (the liver's least-area
+    bands' programmes 0.10 -> 0.03 s).
 
     Where one start point is given, or the strip search leaves one start point near the bound
     and certifies it, that start point's one programme records its steps: it is not run a second
@@ -311,6 +481,7 @@ def _best_band(A1, A2, starts, D2, steps):
     if k == 1:
         return starts[0], _annulus_dp(A1, A2, starts[0], D2, steps, np.bool_(True))
     best_s = -2
+    bound = np.inf
     if k >= _STRIP_MIN_STARTS:
         a = _cyclic_run(starts, n)
         if a >= 0:
@@ -322,18 +493,19 @@ def _best_band(A1, A2, starts, D2, steps):
                         n_near += 1
                         only = s
                 if n_near == 1:
-                    c = _annulus_dp(A1, A2, only, D2, steps, np.bool_(True))
+                    c = _dp_to(A1, A2, only, D2, steps, np.bool_(True), low + tol, bounded)
                     if c <= low + tol:
                         return only, c
                 else:
-                    best_s, c, recorded = _near_best_kept(A1, A2, near, low, tol, D2, steps)
+                    best_s, c, recorded = _near_best_kept(A1, A2, near, low, tol, D2, steps, bounded)
                     if recorded:  # (the best is the first near start point: its steps are in steps)
                         return best_s, c
+                    bound = c  # (the best's own total, where best_s >= 0)
     if best_s == -2:
-        best_s = _best_start_each(A1, A2, starts, D2)
+        best_s, bound = _best_start_each_within(A1, A2, starts, D2, bounded)
     if best_s < 0:
-        best_s = starts[0]
-    return best_s, _annulus_dp(A1, A2, best_s, D2, steps, np.bool_(True))
+        return starts[0], _annulus_dp(A1, A2, starts[0], D2, steps, np.bool_(True))
+    return best_s, _dp_to(A1, A2, best_s, D2, steps, np.bool_(True), bound, bounded)
 
 
 @njit(cache=True)
@@ -367,6 +539,24 @@ def _best_start_each(A1, A2, starts, D2):
             best = c
             best_s = s
     return best_s
+
+
+@njit(cache=True)
+def _best_start_each_within(A1, A2, starts, D2, bounded):
+    """:func:`_best_start_each` and the best start point's total (-1 and infinity where none is
+    finite); where ``bounded``, each programme runs only within the best total so far
+    (:func:`_annulus_dp_within`): a start point's total is exact where it is at most that bound
+    and above it otherwise, so the first start point of the least total wins as there, with its
+    exact total."""
+    dummy = np.empty((1, 1), dtype=np.int8)
+    best_s = -1
+    best = np.inf
+    for s in starts:
+        c = _dp_to(A1, A2, s, D2, dummy, np.bool_(False), best, bounded)
+        if c < best:
+            best = c
+            best_s = s
+    return best_s, best
 
 
 #: Fewest start points for which the strip search is used (below it, one programme each).
@@ -620,7 +810,7 @@ def _near_best(A1, A2, near, low, tol, D2):
 
 
 @njit(cache=True)
-def _near_best_kept(A1, A2, near, low, tol, D2, steps):
+def _near_best_kept(A1, A2, near, low, tol, D2, steps, bounded):
     """:func:`_near_best` with the first near start point's programme recording its steps in
     ``steps``: ``(s, cost, recorded)``, ``s`` as :func:`_near_best` gives it, ``cost`` its
     programme's total and ``recorded`` whether ``s`` is that first start point (then its steps
@@ -629,7 +819,14 @@ def _near_best_kept(A1, A2, near, low, tol, D2, steps):
     The first of the near start points is the best in about two joins in three (the lobster's
     and the liver's bridged bands); a recording programme costs about 1.5 without, so recording
     it saves a programme there and costs half of one elsewhere.  The other start points run
-    without recording, in increasing order (the first of equal costs wins, as there)."""
+    without recording, in increasing order (the first of equal costs wins, as there).
+
+    Where ``bounded``, each programme runs only within ``low + tol`` and the best total so far
+    (:func:`_annulus_dp_within`).  The first start point of the least total, where that total is
+    within ``low + tol``, has every start point before it above its total, so their bounds (the
+    best so far, above its total, or ``low + tol``) hold its total: it runs exactly and wins; no
+    later one gets below it.  Where the least total exceeds ``low + tol``, every programme returns
+    a number above ``low + tol`` or infinity, and the answer is -2 as with the whole programmes."""
     dummy = np.empty((1, 1), dtype=np.int8)
     best_s = -1
     best = np.inf
@@ -638,9 +835,9 @@ def _near_best_kept(A1, A2, near, low, tol, D2, steps):
         if near[s]:
             if first < 0:
                 first = s
-                c = _annulus_dp(A1, A2, s, D2, steps, np.bool_(True))
+                c = _dp_to(A1, A2, s, D2, steps, np.bool_(True), low + tol, bounded)
             else:
-                c = _annulus_dp(A1, A2, s, D2, dummy, np.bool_(False))
+                c = _dp_to(A1, A2, s, D2, dummy, np.bool_(False), min(best, low + tol), bounded)
             if c < best:
                 best = c
                 best_s = s
