@@ -477,11 +477,12 @@ def _groups(P: _Layer, Q: _Layer):
     pa, pb = keys // nbk - 1, keys % nbk - 1
     group, ng = _pair_groups(pa, pb, np.int64(na), np.int64(nb))
     groups = [(set(), set()) for _ in range(ng)]
-    for a, b, g in zip(pa.tolist(), pb.tolist(), group.tolist()):
+    la, lb = pa.tolist(), pb.tolist()
+    for a, b, g in zip(la, lb, group.tolist()):
         groups[g][0].add(a)
         groups[g][1].add(b)
-    lone_p = sorted(set(P.comps) - set(pa.tolist()))
-    lone_q = sorted(set(Q.comps) - set(pb.tolist()))
+    lone_p = sorted(set(P.comps).difference(la))
+    lone_q = sorted(set(Q.comps).difference(lb))
     return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
 
 
