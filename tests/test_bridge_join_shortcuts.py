@@ -129,3 +129,65 @@ def test_a_crossing_band_makes_the_retry_give_none(shared_data, monkeypatch):
     got = _digest(contourmesh.mesh(vol, spacing=spacing))
     assert got == want
     assert asked["crossing"] > 20 and asked["other"] > 0, asked
+
+
+def _star(rng, c, r, k):
+    t = np.sort(rng.uniform(0, 2 * np.pi, k))
+    return c + (r * rng.uniform(0.5, 1.0, k))[:, None] * np.c_[np.cos(t), np.sin(t)]
+
+
+def test_remembered_keyholes_are_the_searches_made_afresh():
+    """``keyhole_path`` (with its memory of recent searches) against ``_keyhole_path`` (the search,
+    made every time): the same answers bit for bit, asked once and again, with obstacles far from
+    the keyhole added the second time (not read by the search: the same key), and with changes that
+    the key must see (a used vertex, an overlap pixel, a near obstacle, max_nodes)."""
+    from contourmesh.bands import bridges as B
+
+    rng = np.random.default_rng(131)
+    B._KEYHOLES_SEEN.clear()
+    seen = {"path": 0, "none": 0}
+    for trial in range(60):
+        s = float(rng.choice([0.5, 1.0]))
+        outer = _star(rng, np.zeros(2), 8 * s, int(rng.integers(8, 30)))
+        hole = _star(rng, rng.uniform(-2, 2, 2) * s, 2 * s, int(rng.integers(4, 12)))[::-1]
+        g = np.arange(-9, 10) * s
+        W = np.array([(x, y) for x in g for y in g if 1.5 * s < np.hypot(x, y) < 7.5 * s])
+        stray = rng.uniform(-8, 8, (int(rng.integers(0, 6)), 2)) * s
+        oa = np.concatenate([hole, outer, stray])
+        ob = np.concatenate([np.roll(hole, -1, axis=0), np.roll(outer, -1, axis=0),
+                             stray + rng.normal(0, 2 * s, stray.shape)])
+        segs = [(rng.uniform(-8, 8, 2) * s, rng.uniform(-8, 8, 2) * s) for _ in range(int(rng.integers(0, 3)))]
+        over = rng.random((20, 20)) < rng.uniform(0.0, 0.15)
+        test = B.OverlapFree(over, 0, 0, (-10 * s, -10 * s, s, s))
+        used_i = set(rng.choice(len(hole), int(rng.integers(0, 3))).tolist())
+        far = np.full((2, 2), 100.0 * s) + np.arange(4).reshape(2, 2)  # (edges far outside every box)
+        variants = [
+            dict(oa=oa, ob=ob, allowed=test, used_i=used_i, limit=B.KEYHOLE_MAX_NODES),
+            dict(oa=np.concatenate([far, oa]), ob=np.concatenate([far + 1, ob]), allowed=test, used_i=used_i,
+                 limit=B.KEYHOLE_MAX_NODES),
+            dict(oa=oa, ob=ob, allowed=None, used_i=used_i, limit=B.KEYHOLE_MAX_NODES),
+            dict(oa=oa, ob=ob, allowed=test, used_i=used_i | {0, 1}, limit=B.KEYHOLE_MAX_NODES),
+            dict(oa=oa, ob=ob, allowed=test, used_i=used_i, limit=5),
+            dict(oa=np.concatenate([oa, [[0.1 * s, 0.2 * s]]]), ob=np.concatenate([ob, [[0.3 * s, 2.5 * s]]]),
+                 allowed=test, used_i=used_i, limit=B.KEYHOLE_MAX_NODES),
+        ]
+        if over.any():
+            over2 = over.copy()
+            over2[np.unravel_index(np.flatnonzero(over)[0], over.shape)] = False
+            variants.append(dict(oa=oa, ob=ob, allowed=B.OverlapFree(over2, 0, 0, (-10 * s, -10 * s, s, s)),
+                                 used_i=used_i, limit=B.KEYHOLE_MAX_NODES))
+        for _rep in range(2):
+            for v in variants:
+                got = B.keyhole_path(hole, outer, W, s, v["oa"], v["ob"], segs, allowed=v["allowed"],
+                                     used_i=v["used_i"], max_nodes=v["limit"])
+                want = B._keyhole_path(hole, outer, W, s, v["oa"], v["ob"], segs, allowed=v["allowed"],
+                                       used_i=v["used_i"], max_nodes=v["limit"])
+                assert (got is None) == (want is None)
+                if got is not None:
+                    assert got[:2] == want[:2] and got[2].dtype == want[2].dtype
+                    assert got[2].tobytes() == want[2].tobytes() and got[2].shape == want[2].shape
+                    assert got[2].flags.writeable
+                    got[2][:] = np.nan  # (the caller's copy: the memory keeps its own)
+                seen["none" if got is None else "path"] += 1
+    assert seen["path"] >= 200 and seen["none"] >= 10, seen
+    assert 0 < len(B._KEYHOLES_SEEN) <= B._KEYHOLES_KEEP

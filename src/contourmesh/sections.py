@@ -31,6 +31,12 @@ import threading
 import numpy as np
 
 from ._kernels import njit
+from .bands.bridges import keyhole_uncovered, segments_cross
+from .bands.caps import cap_faces
+from .geometry import grid_to_xy
+from .intersect import any_intersecting
+from .measure import triangle_areas
+from .tracing import _pair_groups, label_mask
 
 #: How many times a join is split (1: one section at mid-gap; 2: also at quarters where needed).
 MAX_DEPTH = 2
@@ -427,8 +433,6 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
     """The intermediate section whose pixels in ``box`` (a pair of slices of an image of
     ``shape``) are ``m`` (:func:`mid_section` of the two layers' regions there), as a
     :class:`_Layer` of a new :class:`_Slice`."""
-    from .geometry import grid_to_xy
-
     if not m.any():
         return None, None
     full = np.zeros(shape, dtype=bool)
@@ -461,8 +465,6 @@ def _groups(P: _Layer, Q: _Layer):
     sets of those pairs, in the order of their first pair, each side sorted: what
     :func:`contourmesh.tracing.overlap_groups` gives for the two label images with every other
     component cleared (as the tests check)."""
-    from .tracing import _pair_groups
-
     lp, lq = P.S.labels, Q.S.labels
     if P.box is not None and P.box == Q.box:
         (y0, y1, _), (x0, x1, _) = (b.indices(n) for b, n in zip(P.box, lp.shape))
@@ -539,9 +541,6 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     same).  The finished join is measured before its costlier tests (edges, crossings, topology),
     and the join is given up as soon as the bridged pieces it keeps have more area than that with
     a margin (:data:`_AREA_MARGIN`): each of their faces is a face of the join, the same numbers."""
-    from .measure import triangle_areas
-    from .tracing import label_mask
-
     A, B = slices[k], slices[k + 1]
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     ny, nx = A.labels.shape
@@ -811,8 +810,6 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
     """The joins between two adjacent layers, each ``("band", P, Q, a, b, matched)``, ``("bridged",
     P, Q, built)`` or ``("cap", layer, c, upward)``; None where some group is neither a band join
     nor a bridged join that builds, or where a slice's component would have no partner."""
-    from .bands.bridges import keyhole_uncovered
-
     _bridge_join, _bridge_plan, _simple_join = ops.bridge_join, ops.bridge_plan, ops.simple_join
 
     groups, lone_p, lone_q = _groups(P, Q)
@@ -867,10 +864,6 @@ def _assemble_pieces(ops, pieces, layers, triangulation, max_area=None):
     first use), then the sections' rings and the pieces' own vertices; None where the result is
     not a valid piece of mesh, or (``max_area`` given) where its area, ``float(triangle_areas(V,
     F).sum())`` of the ``V`` and ``F`` it would have, exceeds ``max_area``."""
-    from .bands.bridges import segments_cross
-    from .bands.caps import cap_faces
-    from .intersect import any_intersecting
-    from .measure import triangle_areas
     _band_faces, _Bridged = ops.band_faces, ops.Bridged
 
     used = []  # ring keys (layer, c, h) in order of first use
