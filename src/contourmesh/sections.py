@@ -617,9 +617,23 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             node_sdf[node] = _sdf(section_mask(node), sampling, need=where_differ())
         return node_sdf[node]
 
+    section_masks = {}  # pair path -> its section's mask, made once (the same array whenever asked)
+    filled = {}  # pair path -> whether its section's mask has a pixel
+
     def section_mask(path):
-        a, b = ends(path)
-        return sdf_at(a) + sdf_at(b) < 0
+        got = section_masks.get(path)
+        if got is None:
+            a, b = ends(path)
+            got = section_masks[path] = sdf_at(a) + sdf_at(b) < 0
+        return got
+
+    def has_pixel(path, m):
+        """Whether ``m``, pair ``path``'s section mask (as made or as its layer keeps it: the same
+        array), has a pixel; asked once per path."""
+        got = filled.get(path)
+        if got is None:
+            got = filled[path] = bool(m.any())
+        return got
 
     def stacks(path, depth):
         """The section stacks (tuples of pair paths, bottom up) strictly inside pair ``path``."""
@@ -647,9 +661,9 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
                 ms = {}
                 for p in sorted(st, key=len):  # (a section before those made from it)
                     ms[p] = mask_of(layer_at[p]) if p in layer_at else section_mask(p)
-                    if not ms[p].any():
+                    if not has_pixel(p, ms[p]):
                         break
-                euler_kept[st] = all(p in ms and ms[p].any() for p in st) and \
+                euler_kept[st] = all(p in ms and has_pixel(p, ms[p]) for p in st) and \
                     stack_euler(("lo",) + st + ("hi",), [mask_of(lo)] + [ms[p] for p in st] + [mask_of(hi)]) == \
                     stack_euler(("lo", "hi"), [mask_of(lo), mask_of(hi)])
             if euler_kept[st]:
