@@ -7,6 +7,7 @@ import hashlib
 from bisect import bisect_left
 
 import numpy as np
+import pytest
 
 import contourmesh
 from contourmesh import volumes
@@ -191,3 +192,32 @@ def test_remembered_keyholes_are_the_searches_made_afresh():
                 seen["none" if got is None else "path"] += 1
     assert seen["path"] >= 200 and seen["none"] >= 10, seen
     assert 0 < len(B._KEYHOLES_SEEN) <= B._KEYHOLES_KEEP
+
+
+@pytest.mark.parametrize("grid", [(0.0, 0.0, 1.0, 1.0), (-3.7, 12.25, 0.3, 0.7), (1e3, -1e3, 2.5, 0.125)])
+def test_crack_perimeters_of_a_slice_are_the_components_one_by_one(grid):
+    # every component's crack perimeter in one pass against _crack_perimeter per component (and
+    # ring by ring): real-looking slices with holes and specks, large blobs with long rings, on
+    # grids whose steps do not add up exactly, an empty slice
+    from scipy import ndimage
+
+    to_center, to_corner = volumes.grid_to_xy(*grid)
+    rng = np.random.default_rng(1132)
+    masks = list(ndimage.gaussian_filter(rng.random((5, 40, 44)), 1.2) > 0.5) + [np.zeros((6, 7), bool)]
+    for _ in range(2):
+        big = ndimage.gaussian_filter(rng.random((160, 170)), 2.5) > 0.47
+        big[ndimage.binary_erosion(ndimage.binary_fill_holes(big), iterations=3) & (rng.random(big.shape) < 0.01)] = False
+        masks.append(big)
+    seen = {"holes": 0, "plain": 0}
+    for mask in masks:
+        s = volumes._Slice(mask, "mlp", to_corner, to_center)
+        got = volumes._crack_perimeters(s)
+        assert len(got) == s.n
+        for c in range(s.n):
+            want = volumes._crack_perimeter(s, c)
+            ring_by_ring = sum(float(np.hypot(*(volumes._next(r) - r).T).sum())
+                               for r in [s.crack_outer.made(c)] + list(s.crack_holes.made(c)))
+            assert type(got[c]) is float and np.float64(got[c]).tobytes() == np.float64(want).tobytes()
+            assert np.float64(want).tobytes() == np.float64(ring_by_ring).tobytes()
+            seen["holes" if len(s.crack_holes_c[c]) else "plain"] += 1
+    assert min(seen.values()) > 5, seen
