@@ -31,6 +31,12 @@ import threading
 import numpy as np
 
 from ._kernels import njit
+from .bands.bridges import keyhole_uncovered, segments_cross
+from .bands.caps import cap_faces
+from .geometry import grid_to_xy
+from .intersect import any_intersecting
+from .measure import triangle_areas
+from .tracing import _pair_groups, label_mask
 
 #: How many times a join is split (1: one section at mid-gap; 2: also at quarters where needed).
 MAX_DEPTH = 2
@@ -427,8 +433,6 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
     """The intermediate section whose pixels in ``box`` (a pair of slices of an image of
     ``shape``) are ``m`` (:func:`mid_section` of the two layers' regions there), as a
     :class:`_Layer` of a new :class:`_Slice`."""
-    from .geometry import grid_to_xy
-
     if not m.any():
         return None, None
     full = np.zeros(shape, dtype=bool)
@@ -461,8 +465,6 @@ def _groups(P: _Layer, Q: _Layer):
     sets of those pairs, in the order of their first pair, each side sorted: what
     :func:`contourmesh.tracing.overlap_groups` gives for the two label images with every other
     component cleared (as the tests check)."""
-    from .tracing import _pair_groups
-
     lp, lq = P.S.labels, Q.S.labels
     if P.box is not None and P.box == Q.box:
         (y0, y1, _), (x0, x1, _) = (b.indices(n) for b, n in zip(P.box, lp.shape))
@@ -477,11 +479,12 @@ def _groups(P: _Layer, Q: _Layer):
     pa, pb = keys // nbk - 1, keys % nbk - 1
     group, ng = _pair_groups(pa, pb, np.int64(na), np.int64(nb))
     groups = [(set(), set()) for _ in range(ng)]
-    for a, b, g in zip(pa.tolist(), pb.tolist(), group.tolist()):
+    la, lb = pa.tolist(), pb.tolist()
+    for a, b, g in zip(la, lb, group.tolist()):
         groups[g][0].add(a)
         groups[g][1].add(b)
-    lone_p = sorted(set(P.comps) - set(pa.tolist()))
-    lone_q = sorted(set(Q.comps) - set(pb.tolist()))
+    lone_p = sorted(set(P.comps).difference(la))
+    lone_q = sorted(set(Q.comps).difference(lb))
     return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
 
 
@@ -538,9 +541,6 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     same).  The finished join is measured before its costlier tests (edges, crossings, topology),
     and the join is given up as soon as the bridged pieces it keeps have more area than that with
     a margin (:data:`_AREA_MARGIN`): each of their faces is a face of the join, the same numbers."""
-    from .measure import triangle_areas
-    from .tracing import label_mask
-
     A, B = slices[k], slices[k + 1]
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     ny, nx = A.labels.shape
@@ -617,9 +617,23 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             node_sdf[node] = _sdf(section_mask(node), sampling, need=where_differ())
         return node_sdf[node]
 
+    section_masks = {}  # pair path -> its section's mask, made once (the same array whenever asked)
+    filled = {}  # pair path -> whether its section's mask has a pixel
+
     def section_mask(path):
-        a, b = ends(path)
-        return sdf_at(a) + sdf_at(b) < 0
+        got = section_masks.get(path)
+        if got is None:
+            a, b = ends(path)
+            got = section_masks[path] = sdf_at(a) + sdf_at(b) < 0
+        return got
+
+    def has_pixel(path, m):
+        """Whether ``m``, pair ``path``'s section mask (as made or as its layer keeps it: the same
+        array), has a pixel; asked once per path."""
+        got = filled.get(path)
+        if got is None:
+            got = filled[path] = bool(m.any())
+        return got
 
     def stacks(path, depth):
         """The section stacks (tuples of pair paths, bottom up) strictly inside pair ``path``."""
@@ -647,9 +661,9 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
                 ms = {}
                 for p in sorted(st, key=len):  # (a section before those made from it)
                     ms[p] = mask_of(layer_at[p]) if p in layer_at else section_mask(p)
-                    if not ms[p].any():
+                    if not has_pixel(p, ms[p]):
                         break
-                euler_kept[st] = all(p in ms and ms[p].any() for p in st) and \
+                euler_kept[st] = all(p in ms and has_pixel(p, ms[p]) for p in st) and \
                     stack_euler(("lo",) + st + ("hi",), [mask_of(lo)] + [ms[p] for p in st] + [mask_of(hi)]) == \
                     stack_euler(("lo", "hi"), [mask_of(lo), mask_of(hi)])
             if euler_kept[st]:
@@ -810,8 +824,6 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
     """The joins between two adjacent layers, each ``("band", P, Q, a, b, matched)``, ``("bridged",
     P, Q, built)`` or ``("cap", layer, c, upward)``; None where some group is neither a band join
     nor a bridged join that builds, or where a slice's component would have no partner."""
-    from .bands.bridges import keyhole_uncovered
-
     _bridge_join, _bridge_plan, _simple_join = ops.bridge_join, ops.bridge_plan, ops.simple_join
 
     groups, lone_p, lone_q = _groups(P, Q)
@@ -866,10 +878,6 @@ def _assemble_pieces(ops, pieces, layers, triangulation, max_area=None):
     first use), then the sections' rings and the pieces' own vertices; None where the result is
     not a valid piece of mesh, or (``max_area`` given) where its area, ``float(triangle_areas(V,
     F).sum())`` of the ``V`` and ``F`` it would have, exceeds ``max_area``."""
-    from .bands.bridges import segments_cross
-    from .bands.caps import cap_faces
-    from .intersect import any_intersecting
-    from .measure import triangle_areas
     _band_faces, _Bridged = ops.band_faces, ops.Bridged
 
     used = []  # ring keys (layer, c, h) in order of first use

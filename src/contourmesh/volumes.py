@@ -80,6 +80,7 @@ from __future__ import annotations
 import functools
 import logging
 import threading
+from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import accumulate
@@ -89,7 +90,7 @@ import numpy as np
 from ._heap import release_free_heap
 from ._kernels import KERNEL_OPTIONS, internal_kernel, njit
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
-from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays
+from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays, segments_cross
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
 from .bands.optimal import triangulate_band_optimal
@@ -2737,7 +2738,10 @@ def _group_lut(n, comps):
     """Per label ``0 .. n`` of a slice, the place of its component in ``comps`` (0-based
     components, label ``c + 1``), -1 for the labels of the others and the background."""
     lut = np.full(n + 1, -1, dtype=np.int64)
-    lut[np.asarray(list(comps), dtype=np.int64) + 1] = np.arange(len(comps))
+    # (a group has a few components: set one by one, in order, as the fancy assignment sets them;
+    # a component out of range raises as it did)
+    for t, c in enumerate(comps):
+        lut[int(c) + 1] = t
     return lut
 
 
@@ -2882,6 +2886,10 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         V = np.concatenate([V] + path_pts)
     faces, replaced, least_area = [], 0, 0
     bands = []  # (lower ids, upper ids, rule) of each band, in the order of faces
+    # some band kept crosses itself (its bridge ends a hair apart): then where the join's faces
+    # cross, _merged_band_retry gives None whatever the bands before it do (it gives None at that
+    # band at the latest), so it is not run
+    crossing = False
     for t, (a_ids, b_ids) in enumerate([(lo[0], hi[0])] + tube_ids):
         ids = np.concatenate([a_ids, b_ids])
         P = V[ids]  # (the rows of V[a_ids], then those of V[b_ids])
@@ -2890,15 +2898,16 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         # of holes) by the selected one
         rule = triangulation if t else _dissimilar_rule(na, len(b_ids), triangulation, _BRIDGED_OPTIMAL_BUDGET)
         least_area += rule != triangulation
-        got = _bridged_band(P, na, ids, rule) if band_guard is not None else \
+        got = _bridged_band_crossing(P, na, ids, rule) if band_guard is not None else \
             _bridged_band_seen(P, na, ids, rule)
         if got is None:
             return None
-        f, r = got
+        f, r, crosses = got
         if band_guard is not None:  # a bridged ring's area is the sum of its contours' (slits add none)
             g = np.asarray(band_guard(V[a_ids], V[b_ids], f))
             if not np.array_equal(g, f) and not band_is_folded(ids[g]) and not _band_crosses(P, g):
-                f = g
+                f, crosses = g, False
+        crossing = crossing or crosses
         faces.append(ids[f])
         bands.append((a_ids, b_ids, rule, f))
         replaced += r
@@ -2937,7 +2946,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         # the bands were tested with the two visits of each bridge end a hair apart (as pinches); as
         # one vertex a band can cross itself where they meet: try the other rules on the band as built
         # (only faces that the retry replaced are tested again: those that passed keep their answer)
-        F = _merged_band_retry(V, faces, bands)
+        F = None if crossing else _merged_band_retry(V, faces, bands)
         if F is None or any_intersecting(V, F):
             return None
         replaced += 1
@@ -2947,7 +2956,15 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
 
 
 def _bridged_band(P, na, ids, rule):
-    """The faces (local numbers) of one band of a bridged join and how many guards fired, or None
+    """:func:`_bridged_band_crossing` without its third value: ``(faces, guards)`` or None."""
+    got = _bridged_band_crossing(P, na, ids, rule)
+    return None if got is None else got[:2]
+
+
+def _bridged_band_crossing(P, na, ids, rule):
+    """The faces (local numbers) of one band of a bridged join, how many guards fired and whether
+    the band kept crosses itself (:func:`contourmesh.bands._band_crosses` of ``P`` and the faces:
+    True where no other rule's band replaced a band that crosses), or None
     where every rule's band folds: ``P`` its two rings' points (the lower ring's ``na`` first), ``ids``
     their vertex ids in the join (a bridged ring visits its bridge ends twice, with one id) and
     ``rule`` its band rule (:func:`_dissimilar_rule`'s).  The band of :func:`_band_faces`; where it
@@ -2974,7 +2991,8 @@ def _bridged_band(P, na, ids, rule):
     # a bridged ring is far from convex (its slits): the chosen band may cross itself where
     # another strategy does not; take the first embedded one that is not twisted (its area at
     # most _BRIDGED_AREA_SLACK times the crossing band's) before giving the join up
-    if _band_crosses(P, f):
+    crosses = _band_crosses(P, f)
+    if crosses:
         limit = _BRIDGED_AREA_SLACK * float(triangle_areas(P, f).sum())
         for method in _BRIDGED_ALTERNATIVES:
             if method == "optimal" and (rule == "optimal" or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET):
@@ -2984,9 +3002,9 @@ def _bridged_band(P, na, ids, rule):
                 continue
             if (not band_is_folded(ids[g]) and float(triangle_areas(P, g).sum()) <= limit
                     and not _band_crosses(P, g)):
-                f, r = g, r + 1
+                f, r, crosses = g, r + 1, False
                 break
-    return f, r
+    return f, r, crosses
 
 
 #: The last few answers of :func:`_bridged_band`, keyed by the bytes of its arguments and the
@@ -3000,7 +3018,8 @@ _BANDS_LOCK = threading.Lock()
 
 
 def _bridged_band_seen(P, na, ids, rule):
-    """:func:`_bridged_band`, remembering the answers of the last :data:`_BANDS_KEEP` calls."""
+    """:func:`_bridged_band_crossing` (faces, guards, whether the band crosses itself), remembering
+    the answers of the last :data:`_BANDS_KEEP` calls."""
     key = (P.shape, P.dtype.str, P.tobytes(), na, ids.dtype.str, ids.tobytes(), rule,
            # (the settings it reads, so that a changed setting is never answered from memory)
            _BRIDGED_ALTERNATIVES, _BRIDGED_OPTIMAL_BUDGET, _BRIDGED_AREA_SLACK)
@@ -3008,9 +3027,9 @@ def _bridged_band_seen(P, na, ids, rule):
     if got is not _BANDS_SEEN:
         # (a copy of the kept faces: writable, as a band made now, so that the kernels they go to
         # see one array type and compile once, not again for read-only arrays)
-        return None if got is None else (got[0].copy(), got[1])
-    got = _bridged_band(P, na, ids, rule)
-    kept = None if got is None else (got[0].copy(), got[1])
+        return None if got is None else (got[0].copy(), got[1], got[2])
+    got = _bridged_band_crossing(P, na, ids, rule)
+    kept = None if got is None else (got[0].copy(), got[1], got[2])
     if kept is not None:
         kept[0].flags.writeable = False
     with _BANDS_LOCK:  # (meshers may run in threads of one process)
@@ -3111,7 +3130,10 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
 
     def perimeter(kk, c):
         if (kk, c) not in perimeters:
-            perimeters[kk, c] = _crack_perimeter(slices[kk], c)
+            # (every component of the slice at once: most are asked for in time, and one pass over
+            # the slice's crack rings costs about what two components cost one by one)
+            for c2, got in enumerate(_crack_perimeters(slices[kk])):
+                perimeters.setdefault((kk, c2), got)
         return perimeters[kk, c]
 
     collars = sum(perimeter(k, a) for a in ga) + sum(perimeter(k + 1, b) for b in gb)
@@ -3143,6 +3165,38 @@ def _crack_perimeter(S, c):
     d = xy[nxt] - xy
     steps = np.hypot(d[:, 0], d[:, 1])
     return sum(float(steps[e - n: e].sum()) for e, n in zip(ends.tolist(), lens.tolist()))
+
+
+def _crack_perimeters(S) -> list:
+    """:func:`_crack_perimeter` of every component of slice ``S``, in order: the crack rings of all
+    the components (each one's outer ring, then its holes) made into xy, steps and lengths at once
+    (elementwise: the same numbers as ring by ring), each ring's lengths summed by numpy as its
+    slice of them (as :func:`_crack_perimeter` sums its rings'), and each component's rings' sums
+    added in order from 0 (Python's ``sum``): the same floats, bit for bit."""
+    outer, holes = S.crack_outer, S.crack_holes
+    if holes.to_xy is not outer.to_xy:
+        return [_crack_perimeter(S, c) for c in range(S.n)]
+    rings, per = [], []
+    for c in range(S.n):
+        rs = [outer.corners[c]] + list(holes.corners[c])
+        rings += rs
+        per.append(len(rs))
+    if not rings:
+        return []
+    lens = np.array([len(r) for r in rings], dtype=np.int64)
+    xy = outer.to_xy(np.concatenate(rings))
+    ends = np.cumsum(lens)
+    nxt = np.arange(1, len(xy) + 1)
+    full = lens > 0
+    nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
+    d = xy[nxt] - xy
+    steps = np.hypot(d[:, 0], d[:, 1])
+    sums = [float(steps[e - n: e].sum()) for e, n in zip(ends.tolist(), lens.tolist())]
+    out, t = [], 0
+    for m in per:
+        out.append(sum(sums[t: t + m]))
+        t += m
+    return out
 
 
 @njit(cache=True, **KERNEL_OPTIONS)
@@ -3332,14 +3386,13 @@ class _PlaneSegments:
 
     def crosses(self, p, q) -> bool:
         """Whether the segment ``p q`` shares a point with one taken (:func:`segments_cross`)."""
-        from .bands.bridges import segments_cross
-
         return self.n > 0 and bool(segments_cross(p, q, self.a[:self.n], self.b[:self.n]).any())
 
     def keep(self, count):
-        """Keep the segments of the first ``count`` passed joins only (their places are increasing)."""
-        from bisect import bisect_left
-
+        """Keep the segments of the first ``count`` passed joins only (their places are increasing).
+        (A plane whose last segment's join is among them keeps all: nothing to look up.)"""
+        if not self.owner or self.owner[-1] < count:
+            return
         self.n = bisect_left(self.owner, count)
         del self.owner[self.n:]
 
@@ -3535,10 +3588,10 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             segs.keep(kept)
         passed = passed_before[:kept]
         start = passed[-1][0] + 1 if passed else 0
-        for idx in range(start, len(joins)):
-            k, kind, data = joins[idx]
-            if kind != "bridge":
-                continue
+        # (the bridged joins from start on: bridge_ids lists them in order; a copy, since the loop
+        # takes a join that falls back out of it and leaves the loop)
+        for idx in bridge_ids[bisect_left(bridge_ids, start):]:
+            k, _kind, data = joins[idx]
             ga, gb, plan = data
             # while the pass repeats the previous one, a join whose two slices kept their crack rings
             # has the same key as then (near_sig reads only those slices' crack rings)

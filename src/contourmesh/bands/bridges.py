@@ -22,6 +22,7 @@ Functions here are pure: arrays in, arrays out.
 
 from __future__ import annotations
 
+import threading
 from functools import partial
 from itertools import accumulate
 
@@ -456,7 +457,8 @@ def _candidate_columns(rings, pairs, owners, prefer, straight=None):
     if not pairs or any(len(r) == 0 for r in rings):
         return None
     pts, off, lens = _packed_rings(rings)
-    if max(int(lens[i]) * int(lens[j]) for i, j in pairs) > _BRUTE_PAIRS:
+    sizes = lens.tolist()  # (Python ints: the products as int(lens[i]) * int(lens[j]))
+    if max(sizes[i] * sizes[j] for i, j in pairs) > _BRUTE_PAIRS:
         return None
     pr = np.array(pairs, dtype=np.int64).reshape(-1, 2)
     ask = np.array([prefer is not None and owners[i][0] != owners[j][0] for i, j in pairs], dtype=np.bool_)
@@ -842,8 +844,70 @@ def _straight_kernel(c, pts, off, lens, comp, oa, ob, sa0, sb0, lab, cids, ox, o
 KEYHOLE_MAX_NODES = 20000
 
 
+#: The last few answers of :func:`keyhole_path` (``allowed`` None or an :class:`OverlapFree`
+#: test), keyed by all that the search reads: a bridged join is built again with the same rings
+#: and obstacles near them (a pass that restarts after a join fell back, a sectioned join tried
+#: again), and its keyhole searches, a few of them long and failing, are the same.
+_KEYHOLES_SEEN: dict = {}
+_KEYHOLES_KEEP = 16
+_KEYHOLES_LOCK = threading.Lock()
+
+
 def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, allowed=None,
                  used_i=(), used_j=(), max_nodes=KEYHOLE_MAX_NODES):
+    """:func:`_keyhole_path` (see there), remembering the answers of the last
+    :data:`_KEYHOLES_KEEP` searches whose ``allowed`` is None or an :class:`OverlapFree` test.
+
+    The key holds what the search reads, as bytes: the waypoints and the two rings (float64), the
+    step, the obstacle edges whose box meets the box of those points grown by a step (the only
+    ones it tests, in order; the search keeps those alone), the segments ``segs``, the overlap
+    test's image, offset and grid, the used vertices and ``max_nodes``.  The same key gives the
+    same search, hence the same answer (its points handed out as a fresh copy)."""
+    if allowed is not None and type(allowed) is not OverlapFree:
+        return _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs, allowed=allowed,
+                             used_i=used_i, used_j=used_j, max_nodes=max_nodes)
+    ri = np.asarray(ri, dtype=np.float64)
+    rj = np.asarray(rj, dtype=np.float64)
+    W = np.asarray(waypoints, dtype=np.float64).reshape(-1, 2)
+    if len(W) == 0:
+        return None
+    oa, ob = _edges_near(np.concatenate([ri, rj, W]), step, obstacles_a, obstacles_b)
+    segs = list(segs)
+    sa, sb = _segment_arrays(segs)  # (as the search makes them)
+    key = (ri.shape, ri.tobytes(), rj.shape, rj.tobytes(), W.shape, W.tobytes(), float(step),
+           oa.shape, oa.tobytes(), ob.tobytes(), sa.shape, sa.tobytes(), sb.shape, sb.tobytes(),
+           None if allowed is None else (allowed.over.shape, allowed.over.tobytes(), allowed.x0, allowed.y0,
+                                         allowed.grid),
+           frozenset(used_i), frozenset(used_j), int(max_nodes), _KEYHOLE_ASKS, type(step))
+    got = _KEYHOLES_SEEN.get(key, _KEYHOLES_SEEN)
+    if got is _KEYHOLES_SEEN:
+        # (the obstacles near the points: the search keeps them all, the same edges in order)
+        got = _keyhole_path(ri, rj, W, step, oa, ob, segs, allowed=allowed, used_i=used_i, used_j=used_j,
+                            max_nodes=max_nodes)
+        if got is not None:
+            pts = np.array(got[2], dtype=np.float64)
+            pts.flags.writeable = False
+            got = (got[0], got[1], pts)
+        with _KEYHOLES_LOCK:  # (meshers may run in threads of one process)
+            while len(_KEYHOLES_SEEN) >= _KEYHOLES_KEEP:
+                del _KEYHOLES_SEEN[next(iter(_KEYHOLES_SEEN))]  # the oldest (dicts keep insertion order)
+            _KEYHOLES_SEEN[key] = got
+    return None if got is None else (got[0], got[1], got[2].copy())
+
+
+def _edges_near(points, step, obstacles_a, obstacles_b):
+    """The obstacle edges (as two float64 arrays, in order) whose box meets the box of ``points``
+    grown by ``step`` on every side: those :func:`_keyhole_path` tests."""
+    lo, hi = points.min(axis=0) - step, points.max(axis=0) + step
+    oa = np.asarray(obstacles_a, dtype=np.float64)
+    ob = np.asarray(obstacles_b, dtype=np.float64)
+    keep = ((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
+            & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
+    return oa[keep], ob[keep]
+
+
+def _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, allowed=None,
+                  used_i=(), used_j=(), max_nodes=KEYHOLE_MAX_NODES):
     """The shortest polyline keyhole from ring ``ri`` to ring ``rj`` through ``waypoints``, or None.
 
     Both rings bound the same material, which lies on their left (an outer ring counter-clockwise
@@ -871,13 +935,7 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
     W = np.asarray(waypoints, dtype=np.float64).reshape(-1, 2)
     if len(W) == 0:
         return None
-    allp = np.concatenate([ri, rj, W])
-    lo, hi = allp.min(axis=0) - step, allp.max(axis=0) + step
-    oa = np.asarray(obstacles_a, dtype=np.float64)
-    ob = np.asarray(obstacles_b, dtype=np.float64)
-    keep = ((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
-            & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
-    oa, ob = oa[keep], ob[keep]
+    oa, ob = _edges_near(np.concatenate([ri, rj, W]), step, obstacles_a, obstacles_b)
     segs = _segment_arrays(list(segs))
     m, ni = len(W), len(ri)
     # nodes: waypoints [0, m), ri's vertices [m, m + ni), rj's vertices [m + ni, ...)
