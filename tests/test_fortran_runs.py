@@ -3,8 +3,8 @@
 :meth:`volumes._Planes.runs`) against the scan of each slice made C-ordered
 (:func:`contourmesh.fastpath.slice_runs`, the form it replaces): the same arrays, bit for bit, on
 random volumes of every size modulo 8 (the word compare's shifted and aligned cases), bytes other
-than 0 and 1, a buffer not on a word boundary, a volume with more run ends than the pass's first
-buffer, and the shared volumes; and the slices (and meshes) made from them equal those made from
+than 0 and 1, a buffer not on a word boundary, more run ends than the pass's buffer holds (counted
+in one pass, placed in another), and the shared volumes; and the slices (and meshes) made from them equal those made from
 the mask."""
 
 import numpy as np
@@ -20,10 +20,10 @@ def _same(a, b):
     return a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b)
 
 
-def _check(vol):
+def _check(vol, cap=None):
     """Every slice's runs of ``FortranRuns(vol)`` equal ``slice_runs`` of the slice made C-ordered."""
     assert vol.flags.f_contiguous and vol.dtype == bool
-    got = FortranRuns(vol)
+    got = FortranRuns(vol, cap)
     for k in range(vol.shape[0]):
         want = slice_runs(np.ascontiguousarray(vol[k]))
         assert all(_same(a, b) for a, b in zip(got[k], want)), k
@@ -65,12 +65,17 @@ def test_a_buffer_off_a_word_boundary_is_read_byte_by_byte():
         _check(vol)
 
 
-def test_more_run_ends_than_the_first_buffer_holds():
-    """A checkerboard of 80 x 64 x 40: 102 400 run ends, the first buffer (65 536) doubled once."""
+def test_more_run_ends_than_the_buffer_holds_are_counted_then_placed():
+    """Past ``cap`` changes the pass counts them and finds them again (the buffer never grows):
+    the same runs for buffers of 8 changes and more, a checkerboard of 80 x 64 x 40 (204 800
+    changes) with the default buffer (one pass) and a smaller one."""
+    for cap in (8, 13, 100):
+        for vol in _random_volumes(17, 40):
+            _check(vol, cap)
     z, y, x = np.indices((80, 64, 40))
     vol = np.asfortranarray((x + y + z) % 2 == 0)
-    got = _check(vol)
-    assert len(got.tx) > 1 << 16
+    for cap in (None, 5000):
+        assert len(_check(vol, cap).tx) == 80 * 64 * 40
 
 
 def test_runs_of_the_shared_volumes(shared_data):

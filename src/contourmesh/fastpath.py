@@ -338,34 +338,59 @@ def _fortran_scan(b8, b64, p, n, aligned, i, buf, nb):
 
 
 @_kernel
-def _fortran_runs(b8, b64, k, h, w, aligned):
+def _fortran_runs(b8, b64, k, h, w, aligned, cap):
     """The runs of every slice of a Fortran-ordered ``(k, h, w)`` volume (bytes ``b8``, words
-    ``b64``: see :func:`_fortran_scan`) in one pass over its bytes in memory order: ``(tx, off)``,
-    where row ``y`` of slice ``z`` (place ``s = z * h + y``) changes value at the columns
-    ``tx[off[s]: off[s + 1]]`` (int32, increasing; the even ones start runs, the odd ones end
-    them): the runs :func:`_scan_runs` finds in ``volume[z]`` made C-ordered (:func:`_slice_of_runs`
-    gives them in its form), without the C-ordered copy."""
+    ``b64``: see :func:`_fortran_scan`) from its bytes in memory order: ``(tx, off)``, where row
+    ``y`` of slice ``z`` (place ``s = z * h + y``) changes value at the columns ``tx[off[s]: off[s +
+    1]]`` (int32, increasing; the even ones start runs, the odd ones end them): the runs
+    :func:`_scan_runs` finds in ``volume[z]`` made C-ordered (:func:`_slice_of_runs` gives them in
+    its form), without the C-ordered copy.
+
+    The changes are sorted by place (slice-major, then row; each place's in column order) by
+    counting.  One pass over the bytes where at most ``cap`` changes are found (a buffer of 8
+    bytes a change); with more (a noisy volume), a pass that counts them and another that puts
+    them in place, through the same buffer: never more than ``cap`` of them held twice."""
     p = k * h
     n = p * w
-    buf = np.empty(1 << 16, np.int64)  # (doubled as needed: the liver has 135 000 changes)
-    i, nb = _fortran_scan(b8, b64, p, n, aligned, np.int64(0), buf, np.int64(0))
-    while i < n + p:
-        buf = _grow(buf[:nb], 2 * len(buf))
-        i, nb = _fortran_scan(b8, b64, p, n, aligned, i, buf, nb)
-    # the changes by place (slice-major, then row), each place's in column order (counting sort)
+    end = n + p
+    buf = np.empty(cap + 8 if cap < end else end + 8, np.int64)
     off = np.empty(p + 1, np.int64)
     for s in range(p + 1):
         off[s] = 0
-    for t in range(nb):
-        r = buf[t] % p
-        y = r // k
-        off[(r - y * k) * h + y + 1] += 1
+    i, nb = _fortran_scan(b8, b64, p, n, aligned, np.int64(0), buf, np.int64(0))
+    one_pass = i >= end
+    _count_places(buf, nb, off, p, k, h)
+    while i < end:
+        i, nb = _fortran_scan(b8, b64, p, n, aligned, i, buf, np.int64(0))
+        _count_places(buf, nb, off, p, k, h)
     for s in range(p):
         off[s + 1] += off[s]
     at = np.empty(p, np.int64)
     for s in range(p):
         at[s] = off[s]
-    tx = np.empty(nb, np.int32)
+    tx = np.empty(off[p], np.int32)
+    if one_pass:
+        _put_places(buf, nb, at, tx, p, k, h)
+    else:
+        i = np.int64(0)
+        while i < end:
+            i, nb = _fortran_scan(b8, b64, p, n, aligned, i, buf, np.int64(0))
+            _put_places(buf, nb, at, tx, p, k, h)
+    return tx, off
+
+
+@_kernel
+def _count_places(buf, nb, off, p, k, h):
+    """``off[s + 1] += 1`` for the place ``s`` of each change ``buf[:nb]`` (see :func:`_fortran_runs`)."""
+    for t in range(nb):
+        r = buf[t] % p
+        y = r // k
+        off[(r - y * k) * h + y + 1] += 1
+
+
+@_kernel
+def _put_places(buf, nb, at, tx, p, k, h):
+    """Each change ``buf[:nb]``'s column put at its place's next slot (see :func:`_fortran_runs`)."""
     for t in range(nb):
         x = buf[t] // p
         r = buf[t] - x * p
@@ -373,12 +398,15 @@ def _fortran_runs(b8, b64, k, h, w, aligned):
         s = (r - y * k) * h + y
         tx[at[s]] = x
         at[s] += 1
-    return tx, off
+
+
+#: Changes :func:`_fortran_runs` finds in one pass (2 MiB of buffer; the liver has 135 000).
+FORTRAN_PASS_CHANGES = 1 << 18
 
 
 @_entry
-def _fortran_runs_py(b8, b64, k, h, w, aligned):
-    return _fortran_runs(b8, b64, k, h, w, aligned)
+def _fortran_runs_py(b8, b64, k, h, w, aligned, cap):
+    return _fortran_runs(b8, b64, k, h, w, aligned, cap)
 
 
 @_entry
@@ -408,17 +436,18 @@ class FortranRuns:
     found in one pass over its bytes in memory order (:func:`_fortran_runs`): ``self[z]`` is
     ``slice_runs(mask[z])``, ``(ry, rx0, rx1, row_start)``.  Reading a slice of such a volume
     in raster order costs a cache line a voxel, and a C-ordered copy of a block of slices
-    touches every page of the volume; this pass reads each byte once, in order.  Holds some 12
-    bytes a row of the volume and 4 a run end."""
+    touches every page of the volume; this pass reads each byte once, in order.  Holds 8 bytes a
+    row of the volume and 8 a run (``cap``: see :func:`_fortran_runs`)."""
 
-    def __init__(self, mask):
+    def __init__(self, mask, cap=None):
         if mask.ndim != 3 or mask.dtype != bool or not mask.flags.f_contiguous:
             raise ValueError("FortranRuns reads a Fortran-ordered 3D boolean volume")
         k, h, w = mask.shape
         b8 = mask.T.reshape(-1).view(np.uint8)  # (C-ordered [x, y, z]: the bytes in memory order)
         b64, aligned = _words(b8)
         self.shape = (h, w)
-        self.tx, self.off = _fortran_runs_py(b8, b64, np.int64(k), np.int64(h), np.int64(w), aligned)
+        self.tx, self.off = _fortran_runs_py(b8, b64, np.int64(k), np.int64(h), np.int64(w), aligned,
+                                             np.int64(FORTRAN_PASS_CHANGES if cap is None else cap))
 
     def __getitem__(self, z: int):
         return _slice_of_runs(self.tx, self.off, np.int64(z), np.int64(self.shape[0]))

@@ -1158,7 +1158,8 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
     # pass 1: contours and polygons of every slice, made as pass 2 reaches the slice; only the
     # label images of the last few slices used are kept (_RecentLabels)
     slices = [None] * nz
-    planes = _Planes(mask)  # (the slices C-ordered, a block at a time where the volume is not)
+    planes = _Planes(mask)  # (the slices C-ordered, a block at a time where the volume is not; the runs
+    # of a Fortran-ordered one from one pass over it, :meth:`_Planes.runs`)
     # (in one pass over the volume: in another layout a slice at a time costs a cache line per voxel)
     occupied = np.flatnonzero(mask.any(axis=(1, 2))).tolist()
     recent = _RecentLabels()
