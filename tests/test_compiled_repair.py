@@ -747,7 +747,7 @@ def test_overlap_holes_equals_ndimage_label():
     # its callees' code without typing them in this process)
     for sig in tracing._overlap_holes.signatures:
         njit(nogil=True)(tracing._overlap_holes.py_func).compile(sig)
-    for d in (tracing._overlap_holes, tracing._label_raster):
+    for d in (tracing._overlap_holes, tracing._join):
         assert len(d.signatures) == 1
         assert not any(isinstance(t, types.Literal) for t in d.signatures[0])
 

@@ -401,6 +401,7 @@ def test_kernels_are_compiled_without_literal_arguments():
     fast_volume_to_mesh(ball(20, 7.3), caps="half", threads=1)
     blob = ball(1, 5.2, c=(0, 7, 6), shape=(1, 15, 14))[0]
     slice_components(blob)
+    fastpath.FortranRuns(np.asfortranarray(ball(6, 4.1)), cap=64)[3]  # (the general mesher's Fortran read)
     ry, rx0, rx1, _ = slice_runs(blob)
     fastpath._trace_runs_py(ry, rx0, rx1, np.arange(len(ry)), np.int64(0), np.int64(len(ry)))
     contour = outer_jordan_contour(blob)

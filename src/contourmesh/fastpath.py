@@ -136,6 +136,7 @@ _ONE = np.uint64(1)
 _HIGH = np.uint64(0xFEFEFEFEFEFEFEFE)  # the bits a 0/1 byte never sets
 _EIGHT = np.uint64(8)
 _FIFTYSIX = np.uint64(56)
+_SIXTYFOUR = np.uint64(64)
 _BYTE_INDEX = np.uint64(0x0001020304050607)  # (1 << 8 j) * this >> 56 == j  (mod 2^64)
 
 
@@ -279,6 +280,180 @@ def _words(b8):
 
 
 # ------------------------------------------------------------------------------------------------
+# 1b. runs of every slice of a Fortran-ordered volume, in one pass over its bytes
+# ------------------------------------------------------------------------------------------------
+@_kernel
+def _fortran_scan(b8, b64, p, n, aligned, i, buf, nb):
+    """The places where a Fortran-ordered volume's rows change value, from byte ``i`` on.
+
+    ``b8``: the volume's ``n`` bytes in memory order (byte ``x * p + y * k + z`` is voxel ``[z,
+    y, x]`` of a ``(k, h, w)`` volume, ``p = k * h``); ``b64`` the same as words where
+    ``aligned``.  Row ``(z, y)`` of the volume runs through bytes ``r, r + p, r + 2 p, ...`` (``r
+    = y * k + z``), so it changes value at byte ``i`` (column ``i // p``) where ``b8[i] != 0``
+    differs from ``b8[i - p] != 0``, the bytes before the first column and from column ``w`` on
+    read as 0: a run starts or ends there.  Those places ``i`` (``0 <= i < n + p``, increasing)
+    are put in ``buf[nb:]`` until it has fewer than eight free places; returns ``(i, nb)``, where
+    to go on (``n + p`` at the end).  Whole words are compared at once: the word ``p`` bytes back
+    (two words shifted where ``p`` is not a multiple of 8) XOR the word is zero where no row
+    changes; its set bytes are the changes where both hold 0/1 bytes, each byte read alone
+    otherwise (any non-zero byte is a voxel, as :func:`_scan_runs` reads them)."""
+    cap = len(buf)
+    end = n + p
+    lim = ((p + 7) // 8) * 8  # (the first word all of whose bytes have a byte p back)
+    n8 = (n // 8) * 8
+    while i < end and nb + 8 <= cap:
+        if aligned and lim <= i < n8:
+            q = i >> 3
+            qe = n8 >> 3
+            while q < qe and nb + 8 <= cap:
+                w0 = b64[q]
+                j = 8 * q - p
+                a = j >> 3
+                sh = np.uint64(8 * (j & 7))
+                pw = b64[a] if sh == _ZERO else (b64[a] >> sh) | (b64[a + 1] << (_SIXTYFOUR - sh))
+                t = w0 ^ pw
+                if t != _ZERO:
+                    i0 = 8 * q
+                    if ((w0 | pw) & _HIGH) == _ZERO:
+                        while t != _ZERO:
+                            low = t & (~t + _ONE)
+                            buf[nb] = i0 + np.int64((low * _BYTE_INDEX) >> _FIFTYSIX)  # (low's byte)
+                            nb += 1
+                            t ^= low
+                    else:
+                        for ii in range(i0, i0 + 8):
+                            if (b8[ii] != 0) != (b8[ii - p] != 0):
+                                buf[nb] = ii
+                                nb += 1
+                q += 1
+            i = q << 3
+            continue
+        cur = b8[i] != 0 if i < n else False
+        prev = b8[i - p] != 0 if i >= p else False
+        if cur != prev:
+            buf[nb] = i
+            nb += 1
+        i += 1
+    return i, nb
+
+
+@_kernel
+def _fortran_runs(b8, b64, k, h, w, aligned, cap):
+    """The runs of every slice of a Fortran-ordered ``(k, h, w)`` volume (bytes ``b8``, words
+    ``b64``: see :func:`_fortran_scan`) from its bytes in memory order: ``(tx, off)``, where row
+    ``y`` of slice ``z`` (place ``s = z * h + y``) changes value at the columns ``tx[off[s]: off[s +
+    1]]`` (int32, increasing; the even ones start runs, the odd ones end them): the runs
+    :func:`_scan_runs` finds in ``volume[z]`` made C-ordered (:func:`_slice_of_runs` gives them in
+    its form), without the C-ordered copy.
+
+    The changes are sorted by place (slice-major, then row; each place's in column order) by
+    counting.  One pass over the bytes where at most ``cap`` changes are found (a buffer of 8
+    bytes a change); with more (a noisy volume), a pass that counts them and another that puts
+    them in place, through the same buffer: never more than ``cap`` of them held twice."""
+    p = k * h
+    n = p * w
+    end = n + p
+    buf = np.empty(cap + 8 if cap < end else end + 8, np.int64)
+    off = np.empty(p + 1, np.int64)
+    for s in range(p + 1):
+        off[s] = 0
+    i, nb = _fortran_scan(b8, b64, p, n, aligned, np.int64(0), buf, np.int64(0))
+    one_pass = i >= end
+    _count_places(buf, nb, off, p, k, h)
+    while i < end:
+        i, nb = _fortran_scan(b8, b64, p, n, aligned, i, buf, np.int64(0))
+        _count_places(buf, nb, off, p, k, h)
+    for s in range(p):
+        off[s + 1] += off[s]
+    at = np.empty(p, np.int64)
+    for s in range(p):
+        at[s] = off[s]
+    tx = np.empty(off[p], np.int32)
+    if one_pass:
+        _put_places(buf, nb, at, tx, p, k, h)
+    else:
+        i = np.int64(0)
+        while i < end:
+            i, nb = _fortran_scan(b8, b64, p, n, aligned, i, buf, np.int64(0))
+            _put_places(buf, nb, at, tx, p, k, h)
+    return tx, off
+
+
+@_kernel
+def _count_places(buf, nb, off, p, k, h):
+    """``off[s + 1] += 1`` for the place ``s`` of each change ``buf[:nb]`` (see :func:`_fortran_runs`)."""
+    for t in range(nb):
+        r = buf[t] % p
+        y = r // k
+        off[(r - y * k) * h + y + 1] += 1
+
+
+@_kernel
+def _put_places(buf, nb, at, tx, p, k, h):
+    """Each change ``buf[:nb]``'s column put at its place's next slot (see :func:`_fortran_runs`)."""
+    for t in range(nb):
+        x = buf[t] // p
+        r = buf[t] - x * p
+        y = r // k
+        s = (r - y * k) * h + y
+        tx[at[s]] = x
+        at[s] += 1
+
+
+#: Changes :func:`_fortran_runs` finds in one pass (2 MiB of buffer; the liver has 135 000).
+FORTRAN_PASS_CHANGES = 1 << 18
+
+
+@_entry
+def _fortran_runs_py(b8, b64, k, h, w, aligned, cap):
+    return _fortran_runs(b8, b64, k, h, w, aligned, cap)
+
+
+@_entry
+def _slice_of_runs(tx, off, z, h):
+    """Slice ``z``'s runs of :func:`_fortran_runs` as :func:`_scan_runs` gives them: ``(ry, rx0,
+    rx1, row_start)`` (int64)."""
+    a = off[z * h]
+    nr = (off[(z + 1) * h] - a) // 2
+    ry = np.empty(nr, np.int64)
+    rx0 = np.empty(nr, np.int64)
+    rx1 = np.empty(nr, np.int64)
+    rs = np.empty(h + 1, np.int64)
+    r = 0
+    for y in range(h):
+        rs[y] = r
+        for t in range(off[z * h + y], off[z * h + y + 1], 2):
+            ry[r] = y
+            rx0[r] = tx[t]
+            rx1[r] = tx[t + 1]
+            r += 1
+    rs[h] = r
+    return ry, rx0, rx1, rs
+
+
+class FortranRuns:
+    """The runs of every slice of a Fortran-ordered 3D boolean volume ``mask`` (``[z, y, x]``),
+    found in one pass over its bytes in memory order (:func:`_fortran_runs`): ``self[z]`` is
+    ``slice_runs(mask[z])``, ``(ry, rx0, rx1, row_start)``.  Reading a slice of such a volume
+    in raster order costs a cache line a voxel, and a C-ordered copy of a block of slices
+    touches every page of the volume; this pass reads each byte once, in order.  Holds 8 bytes a
+    row of the volume and 8 a run (``cap``: see :func:`_fortran_runs`)."""
+
+    def __init__(self, mask, cap=None):
+        if mask.ndim != 3 or mask.dtype != bool or not mask.flags.f_contiguous:
+            raise ValueError("FortranRuns reads a Fortran-ordered 3D boolean volume")
+        k, h, w = mask.shape
+        b8 = mask.T.reshape(-1).view(np.uint8)  # (C-ordered [x, y, z]: the bytes in memory order)
+        b64, aligned = _words(b8)
+        self.shape = (h, w)
+        self.tx, self.off = _fortran_runs_py(b8, b64, np.int64(k), np.int64(h), np.int64(w), aligned,
+                                             np.int64(FORTRAN_PASS_CHANGES if cap is None else cap))
+
+    def __getitem__(self, z: int):
+        return _slice_of_runs(self.tx, self.off, np.int64(z), np.int64(self.shape[0]))
+
+
+# ------------------------------------------------------------------------------------------------
 # 2. components (4-connected) of the runs
 # ------------------------------------------------------------------------------------------------
 @_kernel
@@ -412,7 +587,20 @@ def slice_labels(mask2d, runs=False):
     :func:`contourmesh.tracing.slice_cracks` takes them)."""
     m = np.ascontiguousarray(mask2d, dtype=bool)
     (ry, rx0, rx1, rs), lab, n, _, bbox = slice_components(m)
-    labels = _paint_labels(ry, rx0, rx1, lab, m.shape[0], m.shape[1])
+    return _labels_of(ry, rx0, rx1, rs, lab, n, bbox, m.shape, runs)
+
+
+def runs_labels(scanned, shape, runs=False):
+    """:func:`slice_labels` of a mask of ``shape`` from its runs ``scanned`` (``(ry, rx0, rx1,
+    row_start)`` as :func:`slice_runs` gives them, e.g. by :class:`FortranRuns`): the same labels,
+    objects and runs, without the mask."""
+    ry, rx0, rx1, rs = scanned
+    lab, n, _, bbox, _ = _components_py(ry, rx0, rx1, rs, shape[0])
+    return _labels_of(ry, rx0, rx1, rs, lab, n, bbox, shape, runs)
+
+
+def _labels_of(ry, rx0, rx1, rs, lab, n, bbox, shape, runs):
+    labels = _paint_labels(ry, rx0, rx1, lab, shape[0], shape[1])
     objects = [(slice(int(b[1]), int(b[3]) + 1), slice(int(b[0]), int(b[2]) + 1)) for b in bbox.tolist()]
     if runs:
         return labels, int(n), objects, (ry, rx0, rx1, lab + 1)

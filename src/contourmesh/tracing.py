@@ -785,103 +785,151 @@ def _join(parent, a, b):
     return s
 
 
-@internal_kernel
-def _label_raster(m, conn8, lab):
-    """``scipy.ndimage.label`` of a 2D boolean mask, 4-connected (``conn8 == 0``) or 8-connected:
-    ``lab`` (int64, the mask's shape) gets the labels 1 .. n, numbered in raster order of each
-    component's first pixel, 0 elsewhere; returns n.
-
-    One raster pass gives each pixel a provisional label (a neighbour's, or a new one) and joins
-    the labels of neighbours that meet there (union-find, the lower label the root); provisional
-    labels are made in raster order, so each component's root is the label of its first pixel,
-    and numbering the roots in order gives ``ndimage.label``'s numbers.  Of the neighbours above
-    and to the left only those that may still be apart are joined: 8-connected, a pixel above
-    touches the left and upper-left ones already."""
-    h, w = m.shape
-    parent = np.empty(h * w // 2 + 2, np.int64)
-    nprov = 0
-    for y in range(h):
-        for x in range(w):
-            if not m[y, x]:
-                lab[y, x] = 0
-                continue
-            up = lab[y - 1, x] if y > 0 else 0
-            left = lab[y, x - 1] if x > 0 else 0
-            if conn8 == 0:
-                if up and left:
-                    cur = _join(parent, up, left) if up != left else up
-                elif up:
-                    cur = up
-                elif left:
-                    cur = left
-                else:
-                    nprov += 1
-                    parent[nprov] = nprov
-                    cur = nprov
-            else:
-                ul = lab[y - 1, x - 1] if y > 0 and x > 0 else 0
-                ur = lab[y - 1, x + 1] if y > 0 and x < w - 1 else 0
-                if up:
-                    cur = up
-                elif ur:
-                    cur = ur
-                    if ul and ul != ur:
-                        cur = _join(parent, ur, ul)
-                    elif left and left != ur:
-                        cur = _join(parent, ur, left)
-                elif ul:
-                    cur = ul
-                elif left:
-                    cur = left
-                else:
-                    nprov += 1
-                    parent[nprov] = nprov
-                    cur = nprov
-            lab[y, x] = cur
-    final = np.zeros(nprov + 1, np.int64)
-    n = 0
-    for q in range(1, nprov + 1):
-        r = _root(parent, q)
-        if r == q:
-            n += 1
-            final[q] = n
-        else:
-            final[q] = final[r]
-    for y in range(h):
-        for x in range(w):
-            if lab[y, x]:
-                lab[y, x] = final[lab[y, x]]
-    return n
-
-
 @njit(cache=True, nogil=True)
 def _overlap_holes(o, one):
-    """:func:`overlap_holes` compiled (``one`` is 1: no literal argument)."""
+    """:func:`overlap_holes` compiled (``one`` is 1: no literal argument), from the runs of ``o``
+    and of its padded background rather than pixel by pixel.
+
+    The components are those of the runs: two runs of ``o`` in neighbouring rows are 4-connected
+    where they share a column, two background runs where they share or touch at a corner (8);
+    each background component is numbered by its first run in raster order, the run holding its
+    first pixel, so by ``ndimage.label``'s numbers (raster order of first pixels), and painted back.
+    A component of ``o`` meets the outside where one of its runs does: the 3 x 3 neighbourhoods
+    of a run ``[x0, x1)`` of row ``y`` are padded rows ``y .. y + 2``, columns ``x0 .. x1 + 1``.
+    The same four values as the pixel form it replaces (a raster union-find over every pixel, kept
+    in tests/test_overlap_holes.py), bit for bit."""
     h, w = o.shape
-    olab = np.empty((h, w), np.int64)
-    no = _label_raster(o, one - one, olab)
-    bg = np.ones((h + 2, w + 2), np.bool_)
+    hp, wp = h + 2, w + 2
+    # the runs of o, row by row (at most (w + 1) // 2 a row)
+    cap = h * ((w + 1) // 2)
+    ory = np.empty(cap, np.int64)
+    ox0 = np.empty(cap, np.int64)
+    ox1 = np.empty(cap, np.int64)
+    ors = np.empty(h + 1, np.int64)
+    nr = 0
     for y in range(h):
-        for x in range(w):
-            bg[y + 1, x + 1] = not o[y, x]
-    blab = np.empty((h + 2, w + 2), np.int64)
-    nbl = _label_raster(bg, one, blab)
+        ors[y] = nr
+        x = 0
+        while x < w:
+            if o[y, x]:
+                s = x
+                while x < w and o[y, x]:
+                    x += 1
+                ory[nr] = y
+                ox0[nr] = s
+                ox1[nr] = x
+                nr += 1
+            else:
+                x += 1
+    ors[h] = nr
+    # the background runs of the padded mask: its first and last rows whole, row y + 1 the gaps
+    # between the runs of row y of o (padded columns: one more)
+    nb = nr + hp
+    bx0 = np.empty(nb, np.int64)
+    bx1 = np.empty(nb, np.int64)
+    brs = np.empty(hp + 1, np.int64)
+    brs[0] = 0
+    bx0[0] = 0
+    bx1[0] = wp
+    m = one
+    for y in range(h):
+        brs[y + 1] = m
+        gap = 0
+        for r in range(ors[y], ors[y + 1]):
+            if ox0[r] + 1 > gap:
+                bx0[m] = gap
+                bx1[m] = ox0[r] + 1
+                m += 1
+            gap = ox1[r] + 1
+        bx0[m] = gap
+        bx1[m] = wp
+        m += 1
+    brs[h + 1] = m
+    bx0[m] = 0
+    bx1[m] = wp
+    m += 1
+    brs[hp] = m
+    # 4-components of o's runs
+    po = np.empty(nr, np.int64)
+    for r in range(nr):
+        po[r] = r
+    for y in range(1, h):
+        i, i1 = ors[y - 1], ors[y]
+        j, j1 = ors[y], ors[y + 1]
+        while i < i1 and j < j1:
+            if ox0[i] < ox1[j] and ox0[j] < ox1[i]:
+                _join(po, i, j)
+            if ox1[i] <= ox1[j]:
+                i += 1
+            else:
+                j += 1
+    comp = np.empty(nr, np.int64)
+    no = 0
+    for r in range(nr):
+        t = _root(po, r)
+        if t == r:
+            comp[r] = no
+            no += 1
+        else:
+            comp[r] = comp[t]
+    # 8-components of the background runs, numbered from 1 in raster order of their first run
+    pb = np.empty(m, np.int64)
+    for r in range(m):
+        pb[r] = r
+    for y in range(1, hp):
+        i, i1 = brs[y - 1], brs[y]
+        j, j1 = brs[y], brs[y + 1]
+        while i < i1 and j < j1:
+            if bx0[i] <= bx1[j] and bx0[j] <= bx1[i]:
+                _join(pb, i, j)
+            if bx1[i] <= bx1[j]:
+                i += 1
+            else:
+                j += 1
+    blab_r = np.empty(m, np.int64)
+    nbl = 0
+    for r in range(m):
+        t = _root(pb, r)
+        if t == r:
+            nbl += 1
+            blab_r[r] = nbl
+        else:
+            blab_r[r] = blab_r[t]
+    blab = np.empty((hp, wp), np.int64)
+    for y in range(hp):
+        x = 0
+        for r in range(brs[y], brs[y + 1]):
+            while x < bx0[r]:
+                blab[y, x] = 0
+                x += 1
+            v = blab_r[r]
+            while x < bx1[r]:
+                blab[y, x] = v
+                x += 1
+        while x < wp:
+            blab[y, x] = 0
+            x += 1
     ext = blab[0, 0]
-    # the overlaps that touch the outside (a pixel of it among their pixels' 8-neighbours)
-    seen = np.zeros(no + 1, np.bool_)
+    # the components of o with a run whose neighbourhood meets the outside
+    seen = np.empty(no, np.bool_)
+    for c in range(no):
+        seen[c] = False
     n_seen = 0
-    for y in range(h):
-        for x in range(w):
-            if not o[y, x] or seen[olab[y, x]]:
-                continue
-            near = False
-            for dy in range(3):
-                for dx in range(3):
-                    if blab[y + dy, x + dx] == ext:
-                        near = True
+    for r in range(nr):
+        c = comp[r]
+        if seen[c]:
+            continue
+        near = False
+        for yy in range(ory[r], ory[r] + 3):
+            for xx in range(ox0[r], ox1[r] + 2):
+                if blab[yy, xx] == ext:
+                    near = True
+                    break
             if near:
-                seen[olab[y, x]] = True
-                n_seen += 1
+                break
+        if near:
+            seen[c] = True
+            n_seen += 1
     return no, blab, nbl, n_seen
 
 
