@@ -536,7 +536,9 @@ def test_bridged_joins_of_drawn_rings_keep_the_volume_within_the_rules(monkeypat
 def test_the_general_mesher_reads_a_fortran_ordered_volume_without_copying_it():
     """Issue 16 (memory): a boolean volume in another memory layout (Fortran-ordered, as many file
     readers give it, or sliced along another axis) is read a slice at a time, not copied whole in
-    C order and held to the end (it is copied a block of slices at a time, :class:`_Planes`): a
+    C order and held to the end (a Fortran-ordered one gives its slices' runs from one pass over its
+    bytes, :class:`contourmesh.fastpath.FortranRuns`; another layout is copied a block of slices at
+    a time, :class:`_Planes`): a
     400 x 200 x 200 volume (15.3 MiB) with a small object (a box with a cavity and a hole through
     it: the general mesher) is meshed with less than 5 MiB of Python and numpy allocations at the
     peak (a block of 64 slices is 2.4 MiB; 16.1 MiB with the copy), and every layout gives the same
