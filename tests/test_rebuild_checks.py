@@ -187,3 +187,70 @@ def test_face_groups_equal_the_hashed_rows(seed):
     want = _row_ids(R, True)
     assert len(np.unique(want)) < len(want)  # some faces do share their corners
     assert _same_partition(got, want)
+
+
+def _kept_faces_reference(k0, k1, n_faces0):
+    """The numpy form :func:`contourmesh.repair._kept_faces` replaces (crossing_pairs_after_change's
+    masks as they were): ``(kept, new_of_old)``."""
+    nk = int(max(k0.max(initial=-1), k1.max(initial=-1))) + 1
+    c0 = np.bincount(k0, minlength=nk)
+    once0 = c0[k0] == 1
+    old_of_key = np.full(nk, -1, dtype=np.int64)
+    old_of_key[k0[once0]] = np.flatnonzero(once0)
+    kept = c0[k1] == 1
+    kept &= np.bincount(k1, minlength=nk)[k1] == 1  # the face occurs once in each mesh
+    new_of_old = np.full(n_faces0, -1, dtype=np.int64)
+    new_of_old[old_of_key[k1[kept]]] = np.flatnonzero(kept)
+    return kept, new_of_old
+
+
+def _assert_kept_faces_equal(k0, k1):
+    from contourmesh.repair import _kept_faces
+
+    nk = int(max(k0.max(initial=-1), k1.max(initial=-1))) + 1
+    kept, new_of_old = _kept_faces(k0, k1, np.int64(nk))
+    want_kept, want_new = _kept_faces_reference(k0, k1, len(k0))
+    assert kept.dtype == np.bool_ and new_of_old.dtype == np.int64
+    np.testing.assert_array_equal(kept, want_kept)
+    np.testing.assert_array_equal(new_of_old, want_new)
+    return kept
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_kept_faces_equal_the_numpy_form_on_random_keys(seed):
+    # keys drawn from few values: keys once in each, twice in one, only in one of the two meshes
+    rng = np.random.default_rng(seed)
+    hi = int(rng.integers(1, 60))
+    k0 = rng.integers(0, hi, size=int(rng.integers(0, 80))).astype(np.int32)
+    k1 = rng.integers(0, hi, size=int(rng.integers(0, 80))).astype(np.int32)
+    kept = _assert_kept_faces_equal(k0, k1)
+    if seed == 0:
+        assert kept.any() and not kept.all()
+
+
+def test_kept_faces_equal_the_numpy_form_on_rebuilds(monkeypatch):
+    # the face keys of real rebuilds: the blob with a crossing fallback, and random volumes of
+    # the digest that rebuild (most faces kept, some changed, repeated faces)
+    from contourmesh import repair
+
+    seen = []
+    keys = repair._face_position_keys
+
+    def recorded(V0, F0, V1, F1):
+        k0, k1 = keys(V0, F0, V1, F1)
+        seen.append((k0.copy(), k1.copy()))
+        return k0, k1
+
+    monkeypatch.setattr(repair, "_face_position_keys", recorded)
+    rng = np.random.default_rng(7)
+    vols = [np.pad(rng.random((12, 14, 13)) < 0.35, 1) for _ in range(2)]
+    for v in vols:
+        contourmesh.mesh(v)
+    with monkeypatch.context() as m:
+        m.setattr(volumes, "_DENSE_STEP", None)
+        m.setattr(volumes, "_DENSE_RETRY_STEP", None)
+        contourmesh.mesh(_blob(BLOB_WITH_FALLBACK))
+    assert len(seen) >= 3
+    for k0, k1 in seen:
+        kept = _assert_kept_faces_equal(k0, k1)
+        assert kept.any() and not kept.all()

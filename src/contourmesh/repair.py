@@ -2712,6 +2712,33 @@ def _boxes_near(V, F, chosen):
     return np.flatnonzero(_near_cells(V, V, F, glo, h, chosen, np.bool_(False)))
 
 
+@njit(cache=True, nogil=True)
+def _kept_faces(k0, k1, nk):
+    """``(kept, new_of_old)`` from the face keys ``k0`` of the old mesh and ``k1`` of the new one
+    (:func:`_face_position_keys`, below ``nk``): ``kept[j]`` where new face ``j``'s key occurs once
+    among the old faces and once among the new ones, and ``new_of_old[i]`` that ``j`` for the old
+    face ``i`` with that key (-1 for the other old faces).  What the numpy form (two ``bincount``
+    and the masks, kept in ``tests/test_rebuild_checks.py``) gives, in one pass over each key
+    array and int32 counts: a face occurs at most ``len(k0) + len(k1)`` times."""
+    c0 = np.zeros(nk, np.int32)
+    c1 = np.zeros(nk, np.int32)
+    old_of_key = np.empty(nk, np.int32)  # (read only where the key occurs once in k0: set there)
+    for i in range(len(k0)):
+        g = k0[i]
+        c0[g] += 1
+        old_of_key[g] = i
+    for j in range(len(k1)):
+        c1[k1[j]] += 1
+    kept = np.empty(len(k1), np.bool_)
+    new_of_old = np.full(len(k0), -1, np.int64)
+    for j in range(len(k1)):
+        g = k1[j]
+        kept[j] = c0[g] == 1 and c1[g] == 1
+        if kept[j]:
+            new_of_old[old_of_key[g]] = j
+    return kept, new_of_old
+
+
 def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):
     """The crossing face pairs of a mesh ``(V1, F1)`` that is a changed copy of ``(V0, F0)``, whose
     crossing pairs ``pairs0`` (:func:`contourmesh.intersect.intersecting_pairs`) are known.
@@ -2730,18 +2757,10 @@ def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):
     F1 = np.asarray(F1, dtype=np.int64).reshape(-1, 3)
     k0, k1 = _face_position_keys(V0, F0, V1, F1)
     nk = int(max(k0.max(initial=-1), k1.max(initial=-1))) + 1
-    # (each array dropped once used: this is where the general mesher's memory peaks on the lobster)
-    c0 = np.bincount(k0, minlength=nk)
-    once0 = c0[k0] == 1
-    old_of_key = np.full(nk, -1, dtype=np.int64)
-    old_of_key[k0[once0]] = np.flatnonzero(once0)
-    del once0, k0
-    kept = c0[k1] == 1
-    del c0
-    kept &= np.bincount(k1, minlength=nk)[k1] == 1  # the face occurs once in each mesh
-    new_of_old = np.full(len(F0), -1, dtype=np.int64)
-    new_of_old[old_of_key[k1[kept]]] = np.flatnonzero(kept)
-    del k1, old_of_key
+    # (this is where the general mesher's memory peaks on the lobster: one compiled pass, with
+    # int32 counts, instead of the whole-mesh temporaries of the numpy form)
+    kept, new_of_old = _kept_faces(k0, k1, np.int64(nk))
+    del k0, k1
     p0 = np.asarray(pairs0, dtype=np.int64).reshape(-1, 2)
     q = new_of_old[p0] if len(p0) else np.zeros((0, 2), dtype=np.int64)
     out = [q[(q >= 0).all(axis=1)]]
