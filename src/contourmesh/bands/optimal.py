@@ -139,6 +139,47 @@ _HERE_BITS = 3
 _ROW0_BITS = 4
 
 
+@njit(cache=True, inline="always")
+def _c2_offers(row0, a2, x0, x1, x2, x3, x4, y1, y2, y4, k1, k2, k4):
+    """A cell's C(2)-step offers (from the cell before it in its row, whose layers' costs are
+    ``x0 .. x4``, at step cost ``a2``) taken into the C(1)-step offers ``y1, y2, y4`` and their
+    steps ``k1, k2, k4`` (see :func:`_annulus_dp`): from the layers in increasing order, an offer
+    winning only where it is strictly less.  Returns the new ``y1, y2, y4, k1, k2, k4``.  Inlined
+    into both programmes (:func:`_annulus_dp`, :func:`_annulus_dp_within`): the same operations in
+    the same order as written out in each."""
+    if row0:
+        c = x0 + a2  # NONE -> ROW0
+        if c < y1:
+            y1 = c
+            k1 = _FROM_NONE
+        c = x1 + a2  # ROW0 -> ROW0
+        if c < y1:
+            y1 = c
+            k1 = _FROM_ROW0
+    else:
+        c = x0 + a2  # NONE -> ROW_HERE
+        if c < y2:
+            y2 = c
+            k2 = _FROM_NONE
+        c = x1 + a2  # ROW0 -> TWO_ROWS
+        if c < y4:
+            y4 = c
+            k4 = _FROM_ROW0
+    c = x2 + a2  # ROW_HERE -> ROW_HERE
+    if c < y2:
+        y2 = c
+        k2 = 0
+    c = x3 + a2  # ROW_PAST -> TWO_ROWS
+    if c < y4:
+        y4 = c
+        k4 = _FROM_ROW_PAST
+    c = x4 + a2  # TWO_ROWS -> TWO_ROWS
+    if c < y4:
+        y4 = c
+        k4 = _FROM_TWO_ROWS
+    return y1, y2, y4, k1, k2, k4
+
+
 @njit(cache=True)
 def _annulus_dp(A1, A2, s, D, steps, keep):
     """Least total area of an annular path from edge ``(s, 0)`` to ``(s + n, m)``.
@@ -209,37 +250,7 @@ def _annulus_dp(A1, A2, s, D, steps, keep):
             if t > 0:
                 # ... then the C(2)-steps from (i, t - 1), whose costs are final (x0 .. x4), from
                 # the layers in increasing order
-                a2 = a2row[t - 1]
-                if row0:
-                    c = x0 + a2  # NONE -> ROW0
-                    if c < y1:
-                        y1 = c
-                        k1 = _FROM_NONE
-                    c = x1 + a2  # ROW0 -> ROW0
-                    if c < y1:
-                        y1 = c
-                        k1 = _FROM_ROW0
-                else:
-                    c = x0 + a2  # NONE -> ROW_HERE
-                    if c < y2:
-                        y2 = c
-                        k2 = _FROM_NONE
-                    c = x1 + a2  # ROW0 -> TWO_ROWS
-                    if c < y4:
-                        y4 = c
-                        k4 = _FROM_ROW0
-                c = x2 + a2  # ROW_HERE -> ROW_HERE
-                if c < y2:
-                    y2 = c
-                    k2 = 0
-                c = x3 + a2  # ROW_PAST -> TWO_ROWS
-                if c < y4:
-                    y4 = c
-                    k4 = _FROM_ROW_PAST
-                c = x4 + a2  # TWO_ROWS -> TWO_ROWS
-                if c < y4:
-                    y4 = c
-                    k4 = _FROM_TWO_ROWS
+                y1, y2, y4, k1, k2, k4 = _c2_offers(row0, a2row[t - 1], x0, x1, x2, x3, x4, y1, y2, y4, k1, k2, k4)
                 x0 = inf
             if keep:
                 steps[i, t] = (k1 << _ROW0_BITS) | (k2 << _HERE_BITS) | \
@@ -333,37 +344,7 @@ def _annulus_dp_within(A1, A2, s, D, steps, keep, B):
             k2 = 0
             k4 = 0
             if t > 0:
-                a2 = a2row[t - 1]
-                if row0:
-                    c = x0 + a2  # NONE -> ROW0
-                    if c < y1:
-                        y1 = c
-                        k1 = _FROM_NONE
-                    c = x1 + a2  # ROW0 -> ROW0
-                    if c < y1:
-                        y1 = c
-                        k1 = _FROM_ROW0
-                else:
-                    c = x0 + a2  # NONE -> ROW_HERE
-                    if c < y2:
-                        y2 = c
-                        k2 = _FROM_NONE
-                    c = x1 + a2  # ROW0 -> TWO_ROWS
-                    if c < y4:
-                        y4 = c
-                        k4 = _FROM_ROW0
-                c = x2 + a2  # ROW_HERE -> ROW_HERE
-                if c < y2:
-                    y2 = c
-                    k2 = 0
-                c = x3 + a2  # ROW_PAST -> TWO_ROWS
-                if c < y4:
-                    y4 = c
-                    k4 = _FROM_ROW_PAST
-                c = x4 + a2  # TWO_ROWS -> TWO_ROWS
-                if c < y4:
-                    y4 = c
-                    k4 = _FROM_TWO_ROWS
+                y1, y2, y4, k1, k2, k4 = _c2_offers(row0, a2row[t - 1], x0, x1, x2, x3, x4, y1, y2, y4, k1, k2, k4)
                 x0 = inf
             if keep:
                 steps[i, t] = (k1 << _ROW0_BITS) | (k2 << _HERE_BITS) | \
