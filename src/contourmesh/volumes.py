@@ -3182,15 +3182,22 @@ def _crack_perimeter(S, c):
     rings = [outer.corners[c]] + list(holes.corners[c])
     if holes.to_xy is not outer.to_xy or len(rings) == 1:  # (made for the sum, not kept: see _CrackXY)
         return sum(float(np.hypot(*(_next(r) - r).T).sum()) for r in [outer.made(c)] + list(holes.made(c)))
+    return sum(_ring_lengths(outer.to_xy, rings))
+
+
+def _ring_lengths(to_xy, rings) -> list:
+    """The length of each crack ring of ``rings`` (corner coordinates) in physical xy, in order:
+    their xy, steps and step lengths made for all the rings at once (elementwise: the same numbers
+    as ring by ring) and each ring's step lengths summed by numpy as its slice of them."""
     lens = np.array([len(r) for r in rings], dtype=np.int64)
-    xy = outer.to_xy(np.concatenate(rings))
+    xy = to_xy(np.concatenate(rings))
     ends = np.cumsum(lens)
     nxt = np.arange(1, len(xy) + 1)
     full = lens > 0
     nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
     d = xy[nxt] - xy
     steps = np.hypot(d[:, 0], d[:, 1])
-    return sum(float(steps[e - n: e].sum()) for e, n in zip(ends.tolist(), lens.tolist()))
+    return [float(steps[e - n: e].sum()) for e, n in zip(ends.tolist(), lens.tolist())]
 
 
 def _crack_perimeters(S) -> list:
@@ -3209,15 +3216,7 @@ def _crack_perimeters(S) -> list:
         per.append(len(rs))
     if not rings:
         return []
-    lens = np.array([len(r) for r in rings], dtype=np.int64)
-    xy = outer.to_xy(np.concatenate(rings))
-    ends = np.cumsum(lens)
-    nxt = np.arange(1, len(xy) + 1)
-    full = lens > 0
-    nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
-    d = xy[nxt] - xy
-    steps = np.hypot(d[:, 0], d[:, 1])
-    sums = [float(steps[e - n: e].sum()) for e, n in zip(ends.tolist(), lens.tolist())]
+    sums = _ring_lengths(outer.to_xy, rings)
     out, t = [], 0
     for m in per:
         out.append(sum(sums[t: t + m]))
