@@ -785,6 +785,29 @@ def _join(parent, a, b):
     return s
 
 
+@internal_kernel
+def _run_union(starts, x0, x1, h, corner):
+    """The union-find parents of the runs ``[x0[r], x1[r])`` of ``h`` rows (row ``y``: runs
+    ``starts[y] .. starts[y + 1] - 1``, in increasing x), two runs of neighbouring rows joined
+    (:func:`_join`) where they share a column (``corner`` 0: 4-connected) or also where they touch
+    at a corner (``corner`` 1: 8-connected); each pair of rows merged in one sweep."""
+    n = starts[h]
+    parent = np.empty(n, np.int64)
+    for r in range(n):
+        parent[r] = r
+    for y in range(1, h):
+        i, i1 = starts[y - 1], starts[y]
+        j, j1 = starts[y], starts[y + 1]
+        while i < i1 and j < j1:
+            if x0[i] < x1[j] + corner and x0[j] < x1[i] + corner:
+                _join(parent, i, j)
+            if x1[i] <= x1[j]:
+                i += 1
+            else:
+                j += 1
+    return parent
+
+
 @njit(cache=True, nogil=True)
 def _overlap_holes(o, one):
     """:func:`overlap_holes` compiled (``one`` is 1: no literal argument), from the runs of ``o``
@@ -850,19 +873,7 @@ def _overlap_holes(o, one):
     m += 1
     brs[hp] = m
     # 4-components of o's runs
-    po = np.empty(nr, np.int64)
-    for r in range(nr):
-        po[r] = r
-    for y in range(1, h):
-        i, i1 = ors[y - 1], ors[y]
-        j, j1 = ors[y], ors[y + 1]
-        while i < i1 and j < j1:
-            if ox0[i] < ox1[j] and ox0[j] < ox1[i]:
-                _join(po, i, j)
-            if ox1[i] <= ox1[j]:
-                i += 1
-            else:
-                j += 1
+    po = _run_union(ors, ox0, ox1, h, one - one)
     comp = np.empty(nr, np.int64)
     no = 0
     for r in range(nr):
@@ -873,19 +884,7 @@ def _overlap_holes(o, one):
         else:
             comp[r] = comp[t]
     # 8-components of the background runs, numbered from 1 in raster order of their first run
-    pb = np.empty(m, np.int64)
-    for r in range(m):
-        pb[r] = r
-    for y in range(1, hp):
-        i, i1 = brs[y - 1], brs[y]
-        j, j1 = brs[y], brs[y + 1]
-        while i < i1 and j < j1:
-            if bx0[i] <= bx1[j] and bx0[j] <= bx1[i]:
-                _join(pb, i, j)
-            if bx1[i] <= bx1[j]:
-                i += 1
-            else:
-                j += 1
+    pb = _run_union(brs, bx0, bx1, hp, one)
     blab_r = np.empty(m, np.int64)
     nbl = 0
     for r in range(m):
