@@ -79,7 +79,6 @@ from __future__ import annotations
 
 import functools
 import logging
-import threading
 from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -89,6 +88,7 @@ import numpy as np
 
 from ._heap import release_free_heap
 from ._kernels import KERNEL_OPTIONS, internal_kernel, njit
+from ._recent import MISSING, Recent
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
 from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays, segments_cross
 from .bands.caps import cap_faces
@@ -3038,9 +3038,8 @@ def _bridged_band_crossing(P, na, ids, rule):
 #: join is built again with the same rings (a pass that restarts after a join fell back, the same
 #: piece of intermediate sections tried again; about a sixth of the lobster's joins), and its bands
 #: are the same.  The memory keeps a read-only copy of the faces and hands out a writable copy.
-_BANDS_SEEN: dict = {}
 _BANDS_KEEP = 64
-_BANDS_LOCK = threading.Lock()
+_BANDS_SEEN = Recent(_BANDS_KEEP)
 
 
 def _bridged_band_seen(P, na, ids, rule):
@@ -3049,8 +3048,8 @@ def _bridged_band_seen(P, na, ids, rule):
     key = (P.shape, P.dtype.str, P.tobytes(), na, ids.dtype.str, ids.tobytes(), rule,
            # (the settings it reads, so that a changed setting is never answered from memory)
            _BRIDGED_ALTERNATIVES, _BRIDGED_OPTIMAL_BUDGET, _BRIDGED_AREA_SLACK)
-    got = _BANDS_SEEN.get(key, _BANDS_SEEN)
-    if got is not _BANDS_SEEN:
+    got = _BANDS_SEEN.get(key, MISSING)
+    if got is not MISSING:
         # (a copy of the kept faces: writable, as a band made now, so that the kernels they go to
         # see one array type and compile once, not again for read-only arrays)
         return None if got is None else (got[0].copy(), got[1], got[2])
@@ -3058,10 +3057,7 @@ def _bridged_band_seen(P, na, ids, rule):
     kept = None if got is None else (got[0].copy(), got[1], got[2])
     if kept is not None:
         kept[0].flags.writeable = False
-    with _BANDS_LOCK:  # (meshers may run in threads of one process)
-        while len(_BANDS_SEEN) >= _BANDS_KEEP:
-            del _BANDS_SEEN[next(iter(_BANDS_SEEN))]  # the oldest (dicts keep insertion order)
-        _BANDS_SEEN[key] = kept
+    _BANDS_SEEN.put(key, kept)
     return got
 
 

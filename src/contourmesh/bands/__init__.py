@@ -28,11 +28,10 @@ pair instead, whose search excludes such bands.
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 
 from .._kernels import njit
+from .._recent import Recent
 from ..intersect import _canonical_kernel, any_intersecting, canonical_vertices
 from ..measure import triangle_areas
 from .arclength import triangulate_band_arclength
@@ -193,9 +192,8 @@ def twist_guarded_band(lo: np.ndarray, hi: np.ndarray, triangulation: str,
 #: The last few answers of :func:`_band_crosses`, keyed by the bytes of its two arrays: the volume
 #: mesher's bridged joins test the band that :func:`contourmesh.volumes._band_faces` has just tested
 #: (the same rings and faces: about a quarter of the liver's crossing tests were such repeats).
-_CROSSES_SEEN: dict = {}
 _CROSSES_KEEP = 16
-_CROSSES_LOCK = threading.Lock()
+_CROSSES_SEEN = Recent(_CROSSES_KEEP)
 
 
 def _band_crosses(P, f) -> bool:
@@ -214,10 +212,7 @@ def _band_crosses(P, f) -> bool:
     got = _CROSSES_SEEN.get(key)
     if got is None:
         got = _band_crosses_uncached(P, f)
-        with _CROSSES_LOCK:  # (meshers may run in threads of one process)
-            while len(_CROSSES_SEEN) >= _CROSSES_KEEP:
-                del _CROSSES_SEEN[next(iter(_CROSSES_SEEN))]  # the oldest (dicts keep insertion order)
-            _CROSSES_SEEN[key] = got
+        _CROSSES_SEEN.put(key, got)
     return got
 
 

@@ -22,13 +22,13 @@ Functions here are pure: arrays in, arrays out.
 
 from __future__ import annotations
 
-import threading
 from functools import partial
 from itertools import accumulate
 
 import numpy as np
 
 from .._kernels import njit
+from .._recent import MISSING, Recent
 from ..topology import _root  # the compiled union-find root (path halving), shared
 
 __all__ = ["OverlapFree", "PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
@@ -848,9 +848,8 @@ KEYHOLE_MAX_NODES = 20000
 #: test), keyed by all that the search reads: a bridged join is built again with the same rings
 #: and obstacles near them (a pass that restarts after a join fell back, a sectioned join tried
 #: again), and its keyhole searches, a few of them long and failing, are the same.
-_KEYHOLES_SEEN: dict = {}
 _KEYHOLES_KEEP = 16
-_KEYHOLES_LOCK = threading.Lock()
+_KEYHOLES_SEEN = Recent(_KEYHOLES_KEEP)
 
 
 def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, allowed=None,
@@ -879,8 +878,8 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
            None if allowed is None else (allowed.over.shape, allowed.over.tobytes(), allowed.x0, allowed.y0,
                                          allowed.grid),
            frozenset(used_i), frozenset(used_j), int(max_nodes), _KEYHOLE_ASKS, type(step))
-    got = _KEYHOLES_SEEN.get(key, _KEYHOLES_SEEN)
-    if got is _KEYHOLES_SEEN:
+    got = _KEYHOLES_SEEN.get(key, MISSING)
+    if got is MISSING:
         # (the obstacles near the points: the search keeps them all, the same edges in order)
         got = _keyhole_path(ri, rj, W, step, oa, ob, segs, allowed=allowed, used_i=used_i, used_j=used_j,
                             max_nodes=max_nodes)
@@ -888,10 +887,7 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
             pts = np.array(got[2], dtype=np.float64)
             pts.flags.writeable = False
             got = (got[0], got[1], pts)
-        with _KEYHOLES_LOCK:  # (meshers may run in threads of one process)
-            while len(_KEYHOLES_SEEN) >= _KEYHOLES_KEEP:
-                del _KEYHOLES_SEEN[next(iter(_KEYHOLES_SEEN))]  # the oldest (dicts keep insertion order)
-            _KEYHOLES_SEEN[key] = got
+        _KEYHOLES_SEEN.put(key, got)
     return None if got is None else (got[0], got[1], got[2].copy())
 
 

@@ -37,6 +37,7 @@ import threading
 import numpy as np
 
 from .._kernels import njit
+from .._recent import Recent
 from .wiederhold import edges_to_faces, oriented_pair, validate_band_polygons
 
 __all__ = ["triangulate_band_optimal", "optimal_edges", "MAX_OPTIMAL_CELLS", "MAX_OPTIMAL_WORK"]
@@ -974,10 +975,7 @@ def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.
     got = _SEEN.get(key)
     if got is None:
         got = _optimal_faces(lo, up, max_work)
-        with _SEEN_LOCK:  # (meshers may run in threads of one process)
-            while len(_SEEN) >= _SEEN_KEEP:
-                del _SEEN[next(iter(_SEEN))]  # the oldest (dicts keep insertion order)
-            _SEEN[key] = got
+        _SEEN.put(key, got)
     return got.copy()
 
 
@@ -985,9 +983,8 @@ def triangulate_band_optimal(lower, upper, max_work: float | None = None) -> np.
 #: polygons and ``max_work``: the volume mesher asks for some bands again (a bridged join built
 #: once more after a rebuild or inside intermediate sections, a band's rules tried twice), about
 #: an eighth of the lobster's least-area programmes' time.  The faces depend on those only.
-_SEEN: dict = {}
 _SEEN_KEEP = 32
-_SEEN_LOCK = threading.Lock()
+_SEEN = Recent(_SEEN_KEEP)
 
 
 def _optimal_faces(lo, up, max_work):
