@@ -286,6 +286,26 @@ def test_pieces_come_through_files_as_through_the_pipe(slab_route, monkeypatch):
     assert _open_slab_files() == []
 
 
+def test_a_worker_freezes_the_inherited_objects(monkeypatch):
+    """A worker's set-up moves the objects it inherits out of its garbage collector's reach
+    (``gc.freeze``); the calling process's collector is left as it was."""
+    import gc
+
+    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
+    before = gc.get_freeze_count()
+    with parallel._fork_context().Pool(1, initializer=parallel._child_init) as pool:
+        frozen, threads = pool.apply(_worker_state)
+    assert frozen > 1000 and threads == "1"
+    assert gc.get_freeze_count() == before
+    assert os.environ["CONTOURMESH_THREADS"] == "2"
+
+
+def _worker_state():
+    import gc
+
+    return gc.get_freeze_count(), os.environ["CONTOURMESH_THREADS"]
+
+
 def test_the_slab_join_does_not_trim_the_heap(slab_route, monkeypatch):
     """The calling process joins the slabs without heap trims between the repair's steps (their
     pages were touched again at once); the mesh is the one-process mesh all the same."""
