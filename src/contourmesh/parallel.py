@@ -384,7 +384,8 @@ def _slab_files(n: int):
     last chunk, a switch of processes per chunk, before it takes its next slab: on a loaded machine
     the workers of liver x2 waited 0.17-0.25 s in all between their slabs, 0.04-0.12 s with the
     pieces written to these files (`python benchmarks/threads_speed.py --inputs liver-x2`).  The
-    piece read back is the piece written (pickle), so the mesh is the same."""
+    piece read back is the piece written, pickled as the pool pickles it for the pipe, so the mesh
+    is the same."""
     make = getattr(os, "memfd_create", None)
     if make is None:
         return None
@@ -486,8 +487,10 @@ def _piece(j: int) -> dict:
     out["cpu"] = time.process_time() - c0
     if files is None:
         return out
+    from multiprocessing.reduction import ForkingPickler
+
     with open(files[j], "wb", closefd=False) as f:
         f.seek(0)
         f.truncate()
-        pickle.dump(out, f, protocol=pickle.HIGHEST_PROTOCOL)
+        ForkingPickler(f).dump(out)  # (as the pool pickles a result for its pipe: the same arrays back)
     return {"j": j, "in_file": True}
