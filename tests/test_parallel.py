@@ -213,6 +213,97 @@ def test_the_workers_are_gone_after_the_slab_route(case, slab_route, monkeypatch
     assert any(want in m for m in msgs), msgs
     assert multiprocessing.active_children() == []
     assert parallel._no_other_threads()  # (the fixture's: no thread started by the call is left)
+    assert _open_slab_files() == []  # (the slabs' files are closed whatever the outcome)
+
+
+def _open_slab_files():
+    """This process's open files made by :func:`contourmesh.parallel._slab_files`."""
+    fds = Path("/proc/self/fd")
+    if not fds.is_dir():  # pragma: no cover - Linux has it
+        return []
+    out = []
+    for f in fds.iterdir():
+        try:
+            if "contourmesh-slab" in os.readlink(f):
+                out.append(f.name)
+        except OSError:  # (the listing's own descriptor, closed since)
+            pass
+    return out
+
+
+def _same_piece(p, q):
+    """Two slabs' pieces hold the same units, rings, digests and counts (not the CPU times)."""
+    assert set(p) == set(q) and p["j"] == q["j"]
+    for k in ("counts", "hashes", "n_comp"):
+        assert p[k] == q[k]
+    assert p["rings"].keys() == q["rings"].keys()
+    for k in p["rings"]:
+        assert np.array_equal(p["rings"][k], q["rings"][k])
+    assert len(p["units"]) == len(q["units"])
+    for (i, u), (i2, u2) in zip(p["units"], q["units"]):
+        assert i == i2 and type(u) is type(u2)
+        for a in type(u).__slots__:
+            x, y = getattr(u, a), getattr(u2, a)
+            if isinstance(x, np.ndarray):
+                assert x.dtype == y.dtype and np.array_equal(x, y)
+            else:
+                assert x == y
+
+
+def test_pieces_come_through_files_as_through_the_pipe(slab_route, monkeypatch):
+    """The workers write their pieces to the slabs' files in memory (one per slab, made before the
+    fork) and the calling process reads them back: the same pieces as those sent through the pool's
+    pipe where there are no files, and the one-process mesh either way."""
+    vol = _tori(2)
+    m1 = _mesh(vol, 1, monkeypatch)
+    got, how = [], []
+    join, received = parallel._join, parallel._received
+
+    def keeping(pieces, *a):
+        got.append(pieces)
+        return join(pieces, *a)
+
+    def noting(p, files):
+        how.append(bool(p.get("in_file")))
+        if p.get("in_file"):  # (the piece itself is in the file)
+            assert set(p) == {"j", "in_file"}
+        return received(p, files)
+
+    monkeypatch.setattr(parallel, "_join", keeping)
+    monkeypatch.setattr(parallel, "_received", noting)
+    m_files = _mesh(vol, 2, monkeypatch)
+    assert how and all(how)
+    monkeypatch.setattr(parallel, "_slab_files", lambda n: None)
+    how.clear()
+    m_pipe = _mesh(vol, 2, monkeypatch)
+    assert how and not any(how)
+    assert sum("slabs on 2 processes" in m for m in _routed(slab_route)) == 2
+    assert len(got) == 2 and len(got[0]) == len(got[1]) > 2
+    for p, q in zip(*got):
+        _same_piece(p, q)
+    _same(m1, m_files)
+    _same(m1, m_pipe)
+    assert _open_slab_files() == []
+
+
+def test_a_worker_freezes_the_inherited_objects(monkeypatch):
+    """A worker's set-up moves the objects it inherits out of its garbage collector's reach
+    (``gc.freeze``); the calling process's collector is left as it was."""
+    import gc
+
+    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
+    before = gc.get_freeze_count()
+    with parallel._fork_context().Pool(1, initializer=parallel._child_init) as pool:
+        frozen, threads = pool.apply(_worker_state)
+    assert frozen > 1000 and threads == "1"
+    assert gc.get_freeze_count() == before
+    assert os.environ["CONTOURMESH_THREADS"] == "2"
+
+
+def _worker_state():
+    import gc
+
+    return gc.get_freeze_count(), os.environ["CONTOURMESH_THREADS"]
 
 
 def test_the_slab_join_does_not_trim_the_heap(slab_route, monkeypatch):

@@ -41,16 +41,21 @@ cut's halos cost what the slices they repeat cost, so few cuts should fall where
 **Processes.**  Linux's ``fork`` only, from the calling process (its compiled kernels are the
 children's), and only while no other thread runs in it (tqdm's idle monitor thread is stopped
 first, the package's own idle worker threads are let be; a thread holding a lock at the fork
-could deadlock a child).  The workers mesh with ``CONTOURMESH_THREADS=1`` and locks of their own for tqdm.  Elsewhere, below :data:`MIN_WORK`,
+could deadlock a child).  The workers mesh with ``CONTOURMESH_THREADS=1``, locks of their own for tqdm
+and the calling process's objects frozen out of their garbage collector (:func:`_child_init`), and
+write each slab's piece to a file in memory made for it before the fork (:func:`_slab_files`),
+which the calling process reads as it comes in.  Elsewhere, below :data:`MIN_WORK`,
 when a worker fails or a seam disagrees, the volume is meshed in this process (each decision
 logged at DEBUG): never a different mesh.
 """
 
 from __future__ import annotations
 
+import gc
 import logging
 import multiprocessing
 import os
+import pickle
 import threading
 import time
 
@@ -284,11 +289,14 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
     zs = np.asarray(zs, dtype=np.float64)
     dy, dx = (float(v) for v in d_yx)
     global _JOB
+    files = _slab_files(nslab)
     _JOB = (mask, zs, (dy, dx), tuple(float(v) for v in o_xy), cuts,
-            dict(polygon=polygon, triangulation=triangulation, caps=caps))
+            dict(polygon=polygon, triangulation=triangulation, caps=caps), files)
     pool = ctx.Pool(min(n, nslab), initializer=_child_init)
     try:
-        pieces = sorted(pool.imap_unordered(_piece, order, chunksize=1), key=lambda p: p["j"])
+        # (each slab read as it comes in, while the workers build the others)
+        pieces = sorted((_received(p, files) for p in pool.imap_unordered(_piece, order, chunksize=1)),
+                        key=lambda p: p["j"])
     except Exception as exc:  # a slab the mesher could not make: the whole volume in this process
         pool.terminate()
         log.debug("slab route: a slab failed (%s: %s); one process", type(exc).__name__, exc)
@@ -298,6 +306,8 @@ def mesh_in_slabs(mask, zs, d_yx, o_xy, *, polygon, triangulation, caps):
         raise
     finally:
         _JOB = None
+        for fd in files or ():
+            os.close(fd)
     # every slab is in: the workers are let go, and exit while this process joins the slabs (ending
     # them first, as leaving a `with` block of the pool does, waited for their exits: about 0.03 s on
     # liver x2); they are reaped when the mesh is made
@@ -364,6 +374,42 @@ def _join(pieces, zs, px, polygon, triangulation, caps):
     return _checked(Mesh(V, F, P=len(V), meta=meta), 1e-3 * px, zs, resolved=(V2, info))
 
 
+def _slab_files(n: int):
+    """``n`` anonymous files in memory (``os.memfd_create``), one per slab, made before the fork so
+    that the workers hold them too; None where the system makes none (the slabs then come back
+    through the pool's pipe).
+
+    A slab's piece is some megabytes of pickled units (liver x2: 0.7 to 11.7 MiB, 28 MiB in all).
+    Through the pipe (64 KiB at a time) the worker waits until the calling process has read the
+    last chunk, a switch of processes per chunk, before it takes its next slab: on a loaded machine
+    the workers of liver x2 waited 0.17-0.25 s in all between their slabs, 0.04-0.12 s with the
+    pieces written to these files (`python benchmarks/threads_speed.py --inputs liver-x2`).  The
+    piece read back is the piece written, pickled as the pool pickles it for the pipe, so the mesh
+    is the same."""
+    make = getattr(os, "memfd_create", None)
+    if make is None:
+        return None
+    files = []
+    try:
+        for j in range(n):
+            files.append(make(f"contourmesh-slab-{j}"))
+    except OSError:
+        for fd in files:
+            os.close(fd)
+        return None
+    return files
+
+
+def _received(p: dict, files) -> dict:
+    """A slab's piece as :func:`_piece` made it: ``p`` itself where it came through the pool's pipe,
+    else read from the slab's file (:func:`_slab_files`)."""
+    if not p.get("in_file"):
+        return p
+    with open(files[p["j"]], "rb", closefd=False) as f:
+        f.seek(0)
+        return pickle.load(f)
+
+
 def _no_other_threads() -> bool:
     """Whether this thread is the process's only one, after stopping tqdm's idle monitor thread
     (tqdm starts one with its first bar, the general mesher's progress bar included, and keeps it
@@ -386,7 +432,15 @@ def _no_other_threads() -> bool:
 
 
 def _child_init():
-    """A worker's set-up: one thread (the workers are the threads), and locks of its own for tqdm.
+    """A worker's set-up: the calling process's objects out of its garbage collector's reach, one
+    thread (the workers are the threads), and locks of its own for tqdm.
+
+    ``gc.freeze()``: a full collection in a worker would walk every object inherited from the
+    calling process (writing to each, so that the pages holding them are copied) besides the
+    slab's own.  After a one-process call of liver x2 the calling process's collector is due for
+    one, and a worker's full collection then cost it 0.1-0.17 s on liver x2; the inherited objects
+    are the calling process's and live as long as the worker, so nothing is kept that a
+    collection would have freed there.  The calling process's collector is not touched.
 
     tqdm guards its bars with a process-shared semaphore made before the fork; a worker ended
     while holding it (the pool stops its workers when a slab fails) would block the calling
@@ -394,6 +448,7 @@ def _child_init():
     take a thread lock of their own instead."""
     import sys
 
+    gc.freeze()
     os.environ["CONTOURMESH_THREADS"] = "1"
     std = sys.modules.get("tqdm.std")
     if std is not None:
@@ -410,9 +465,11 @@ def _child_init():
 
 def _piece(j: int) -> dict:
     """Slab ``j`` of the job: its own joins' and caps' units with their rings' points, the digests
-    of the units next to its seams, its own slices' component counts and its meta counts."""
+    of the units next to its seams, its own slices' component counts and its meta counts; written
+    to the slab's file where the job has files (:func:`_slab_files`; then only ``{"j": j, "in_file":
+    True}`` is returned, :func:`_received` reads the rest)."""
     c0 = time.process_time()
-    mask, zs, (dy, dx), (ox, oy), cuts, method = _JOB
+    mask, zs, (dy, dx), (ox, oy), cuts, method, files = _JOB
     nz = len(zs)
     a = max(cuts[j] - HALO, 0)
     b = min(cuts[j + 1] + HALO, nz - 1) + 1
@@ -428,4 +485,12 @@ def _piece(j: int) -> dict:
         out.update(units=info["units"], rings=info["rings"], hashes=info["hashes"])
         out["n_comp"].update(info["n_comp"])
     out["cpu"] = time.process_time() - c0
-    return out
+    if files is None:
+        return out
+    from multiprocessing.reduction import ForkingPickler
+
+    with open(files[j], "wb", closefd=False) as f:
+        f.seek(0)
+        f.truncate()
+        ForkingPickler(f).dump(out)  # (as the pool pickles a result for its pipe: the same arrays back)
+    return {"j": j, "in_file": True}
