@@ -2774,6 +2774,47 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
 # ------------------------------------------------------------------------------------------------
 # Python API
 # ------------------------------------------------------------------------------------------------
+@njit(cache=True, **_OPTIONS)
+def _sectioned(V, ws, F, lev):
+    """1 where :func:`_slab_pairs` over the whole mesh (``k0, k1 = 0, nlev``) gets past its first
+    loop, 0 where that loop gives the mesh up as not sectioned (its ``ok == 0``): the same count of
+    the slabs its faces span (faces with two equal vertex indices, and exactly collinear ones by
+    :func:`_o2`, left out), against the same limit ``4 m + 1000``.  The count only grows, so
+    ``_slab_pairs`` stopping at the first prefix over the limit and this count of all faces agree.
+    First an upper bound without the collinearity test (every face's span): below the limit the
+    mesh is sectioned without an exact predicate.  For the ``auto`` route of :func:`_pairs`: a
+    mesh that is not sectioned (the lobster's repaired mesh, 396k faces) goes to the grid without
+    loading the slab phase's compiled code (some 10 MiB of a process's first call) for nothing."""
+    m = len(F)
+    limit = 4 * m + 1000
+    total = m - m
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        if a == b or b == c or a == c:
+            continue
+        total += max(lev[a], max(lev[b], lev[c])) - min(lev[a], min(lev[b], lev[c]))
+    if total <= limit:
+        return np.int64(1)
+    ax0 = np.int64(0)
+    ax1 = np.int64(1)
+    ax2 = np.int64(2)
+    total = m - m
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        if a == b or b == c or a == c:
+            continue
+        if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
+            continue  # collinear (exactly)
+        total += max(lev[a], max(lev[b], lev[c])) - min(lev[a], min(lev[b], lev[c]))
+        if total > limit:
+            return np.int64(0)
+    return np.int64(1)
+
+
 def _as_mesh_arrays(vertices, faces):
     V = np.ascontiguousarray(vertices, dtype=np.float64)
     F = np.ascontiguousarray(faces, dtype=np.int64)
@@ -3173,8 +3214,10 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     if method == "slabs" or (method == "auto" and not on_grid):
         # a box test is cheap next to the grid's cost per face: on the liver's whole mesh a budget
         # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
-        pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
-                                 np.int64(_SLAB_BUDGET), np.int64(stop), np.int64(0), np.int64(nlev), cg)
+        # ("auto": a mesh that is not sectioned goes to the grid unasked, see _sectioned)
+        if method == "slabs" or _sectioned(V, ws, Fc, lev) == 1:
+            pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
+                                     np.int64(_SLAB_BUDGET), np.int64(stop), np.int64(0), np.int64(nlev), cg)
         if ok == 0 and method == "slabs":
             raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
                              "than four slabs between consecutive vertex heights per face on average")
