@@ -3014,7 +3014,8 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
         if groups.shape != (len(F),) or not (groups.dtype.kind in "iu" or groups.dtype == bool):
             raise ValueError(f"groups must be one integer per face ({len(F)}); got an array of shape "
                              f"{groups.shape} and dtype {groups.dtype}")
-        groups = np.ascontiguousarray(groups, dtype=np.int64)
+        # (made int64 where _pairs uses it: a copy of the volume mesher's int32 tags is not held
+        # through the broad phase)
     if 3 * len(F) < len(V):  # a few faces of a large mesh: only the vertices they use
         used = np.unique(F)
         V, F = V[used], np.searchsorted(used, F)
@@ -3172,7 +3173,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     ``stop > 0``: only until that many pairs are found (see :func:`any_intersecting`).
     ``quick=False``: every candidate pair gets the general test, none is decided by a vertex's
     star (:func:`_star_certified`) or in the plane where the boxes touch (:func:`_touching_boxes`):
-    the same pairs, for the tests that compare the two.  ``groups`` (int64 per face, -1 none; with
+    the same pairs, for the tests that compare the two.  ``groups`` (an integer per face, -1 none; with
     ``quick`` and no ``stop`` only): the pairs of two faces certified in one group
     (:func:`_lattice_cells`) are not tested; the same pairs."""
     V = _exact_range(V)
@@ -3182,6 +3183,8 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
         Fc = F  # no two vertices share coordinates (as after the volume mesher's repair): no copy
     else:
         Fc = canon[F]
+    # (the caller's canon, handed over as a temporary, goes here: not held through the broad phase)
+    del canon
     ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
     # the vertices' stars (filled in the kernels once they test enough pairs)
@@ -3190,7 +3193,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     qk = np.int64(1 if quick else 0)
     cg = np.zeros(0, np.int64)
     if groups is not None and quick and stop == 0:
-        cg = _lattice_cells(V, Fc, groups)
+        cg = _lattice_cells(V, Fc, np.ascontiguousarray(groups, dtype=np.int64))
     ok = 0
     # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces whose
     # vertices lie on other than two heights (see there), else the slab phase (the grid where it
