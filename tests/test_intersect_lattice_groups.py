@@ -284,3 +284,16 @@ def test_a_liver_label(shared_data):
         W[np.random.default_rng(85).integers(len(W), size=5)] += 2.0  # crossings put in
         want = _same_with_tags(W, F, T)[0]
         assert len(want) > 0
+
+
+def test_groups_of_any_integer_dtype_give_the_same_pairs():
+    """``groups`` is made int64 where the broad phase's certificate is computed (not held through
+    the broad phase): int32 tags (the general mesher's), int64 and a strided view give the same
+    pairs, with the groups and without."""
+    V, F, G = _lattice_mesh(np.random.default_rng(41), 3000, 3, 20)
+    want = intersecting_pairs(V, F)
+    assert len(want) > 0
+    G64 = np.asarray(G, dtype=np.int64)
+    strided = np.repeat(G64, 2)[::2]
+    for g in (G64, G64.astype(np.int32), strided):
+        np.testing.assert_array_equal(intersecting_pairs(V, F, groups=g), want)

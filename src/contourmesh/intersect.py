@@ -2774,6 +2774,47 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
 # ------------------------------------------------------------------------------------------------
 # Python API
 # ------------------------------------------------------------------------------------------------
+@njit(cache=True, **_OPTIONS)
+def _sectioned(V, ws, F, lev):
+    """1 where :func:`_slab_pairs` over the whole mesh (``k0, k1 = 0, nlev``) gets past its first
+    loop, 0 where that loop gives the mesh up as not sectioned (its ``ok == 0``): the same count of
+    the slabs its faces span (faces with two equal vertex indices, and exactly collinear ones by
+    :func:`_o2`, left out), against the same limit ``4 m + 1000``.  The count only grows, so
+    ``_slab_pairs`` stopping at the first prefix over the limit and this count of all faces agree.
+    First an upper bound without the collinearity test (every face's span): below the limit the
+    mesh is sectioned without an exact predicate.  For the ``auto`` route of :func:`_pairs`: a
+    mesh that is not sectioned (the lobster's repaired mesh, 396k faces) goes to the grid without
+    loading the slab phase's compiled code (some 10 MiB of a process's first call) for nothing."""
+    m = len(F)
+    limit = 4 * m + 1000
+    total = m - m
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        if a == b or b == c or a == c:
+            continue
+        total += max(lev[a], max(lev[b], lev[c])) - min(lev[a], min(lev[b], lev[c]))
+    if total <= limit:
+        return np.int64(1)
+    ax0 = np.int64(0)
+    ax1 = np.int64(1)
+    ax2 = np.int64(2)
+    total = m - m
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        if a == b or b == c or a == c:
+            continue
+        if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
+            continue  # collinear (exactly)
+        total += max(lev[a], max(lev[b], lev[c])) - min(lev[a], min(lev[b], lev[c]))
+        if total > limit:
+            return np.int64(0)
+    return np.int64(1)
+
+
 def _as_mesh_arrays(vertices, faces):
     V = np.ascontiguousarray(vertices, dtype=np.float64)
     F = np.ascontiguousarray(faces, dtype=np.int64)
@@ -2973,7 +3014,8 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
         if groups.shape != (len(F),) or not (groups.dtype.kind in "iu" or groups.dtype == bool):
             raise ValueError(f"groups must be one integer per face ({len(F)}); got an array of shape "
                              f"{groups.shape} and dtype {groups.dtype}")
-        groups = np.ascontiguousarray(groups, dtype=np.int64)
+        # (made int64 where _pairs uses it: a copy of the volume mesher's int32 tags is not held
+        # through the broad phase)
     if 3 * len(F) < len(V):  # a few faces of a large mesh: only the vertices they use
         used = np.unique(F)
         V, F = V[used], np.searchsorted(used, F)
@@ -3131,7 +3173,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     ``stop > 0``: only until that many pairs are found (see :func:`any_intersecting`).
     ``quick=False``: every candidate pair gets the general test, none is decided by a vertex's
     star (:func:`_star_certified`) or in the plane where the boxes touch (:func:`_touching_boxes`):
-    the same pairs, for the tests that compare the two.  ``groups`` (int64 per face, -1 none; with
+    the same pairs, for the tests that compare the two.  ``groups`` (an integer per face, -1 none; with
     ``quick`` and no ``stop`` only): the pairs of two faces certified in one group
     (:func:`_lattice_cells`) are not tested; the same pairs."""
     V = _exact_range(V)
@@ -3141,6 +3183,8 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
         Fc = F  # no two vertices share coordinates (as after the volume mesher's repair): no copy
     else:
         Fc = canon[F]
+    # (the caller's canon, handed over as a temporary, goes here: not held through the broad phase)
+    del canon
     ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _on_small_dyadic_grid(V) else 0.0
     # the vertices' stars (filled in the kernels once they test enough pairs)
@@ -3149,7 +3193,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     qk = np.int64(1 if quick else 0)
     cg = np.zeros(0, np.int64)
     if groups is not None and quick and stop == 0:
-        cg = _lattice_cells(V, Fc, groups)
+        cg = _lattice_cells(V, Fc, np.ascontiguousarray(groups, dtype=np.int64))
     ok = 0
     # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces whose
     # vertices lie on other than two heights (see there), else the slab phase (the grid where it
@@ -3173,8 +3217,10 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     if method == "slabs" or (method == "auto" and not on_grid):
         # a box test is cheap next to the grid's cost per face: on the liver's whole mesh a budget
         # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
-        pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
-                                 np.int64(_SLAB_BUDGET), np.int64(stop), np.int64(0), np.int64(nlev), cg)
+        # ("auto": a mesh that is not sectioned goes to the grid unasked, see _sectioned)
+        if method == "slabs" or _sectioned(V, ws, Fc, lev) == 1:
+            pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
+                                     np.int64(_SLAB_BUDGET), np.int64(stop), np.int64(0), np.int64(nlev), cg)
         if ok == 0 and method == "slabs":
             raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
                              "than four slabs between consecutive vertex heights per face on average")
