@@ -2009,7 +2009,7 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     (two per face), ``nxt`` (one per face), ``head`` and ``hstamp`` (one per vertex, ``hstamp``
     never equal to ``k + 1`` on entry for a vertex of these faces)."""
     n = len(faces)
-    if n < 2:
+    if n < 2 or len(V) > 2147483647:  # (a rung's key packs its two corners in 32 bits each)
         return False
     xlo = np.inf
     xhi = -np.inf
@@ -2026,7 +2026,6 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     cx = 0.5 * (xlo + xhi)
     cy = 0.5 * (ylo + yhi)
     sigma = 0.0
-    nv = np.int64(len(V))
     wind = 0
     for t in range(n):
         i = faces[t]
@@ -2054,15 +2053,15 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
         if nb == 2:  # a = b1, b = b2, c = u
             X = ax * by - ay * bx
             Y = (ax * uy - ay * ux) + (ux * by - uy * bx)
-            start = a * nv + c
-            end = b * nv + c
+            start = (a << 32) | c
+            end = (b << 32) | c
         else:  # a = b, b = u1, c = u2
             if ax == 0.0 and ay == 0.0:
                 return False  # its arc would not shrink to nothing at the lower plane
             X = ux * by - uy * bx
             Y = (ax * by - ay * bx) + (ux * ay - uy * ax)
-            start = a * nv + c
-            end = a * nv + b
+            start = (a << 32) | c
+            end = (a << 32) | b
         if sigma == 0.0:
             sigma = 1.0 if X > 0.0 else -1.0
         if not sigma * X > 0.0 or sigma * Y < 0.0:
@@ -2083,7 +2082,7 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     tag = k + 1
     for t in range(n):
         e = keys[2 * t + 1]
-        b = e // nv
+        b = e >> 32
         if hstamp[b] != tag:
             hstamp[b] = tag
             head[b] = -1
@@ -2096,7 +2095,7 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
         head[b] = t
     for t in range(n):
         st = keys[2 * t]
-        b = st // nv
+        b = st >> 32
         if hstamp[b] != tag:
             return False
         r = head[b]
