@@ -815,3 +815,34 @@ def test_stack_candidates_are_the_grid_kernels():
             assert not on.any() and not bg.any()
             done += colour
     assert done > 200
+
+
+def test_runs_of_long_word_aligned_rows():
+    # slices whose rows are whole words (widths multiples of 8, as the 512^3 ball's): the word
+    # skip reads eight words at a time with unsigned word indices, then single words, then a
+    # boundary word's bits; rows all 0, all 1, one run, runs ending on word and cache-line edges,
+    # and bytes other than 0 and 1 among them, against the runs numpy finds
+    from contourmesh.fastpath import _scan_runs_py, _words
+
+    rng = np.random.default_rng(11)
+    for w in (8, 64, 72, 512, 520):
+        h = 24
+        img = np.zeros((h, w), np.uint8)
+        img[1] = 1
+        for y in range(2, h):
+            a, b = sorted(int(v) for v in rng.integers(0, w + 1, 2))
+            if y % 4 == 0:  # ends on word / cache-line edges
+                a, b = (a // 8) * 8, min(w, (b // 64) * 64 + 64 * (y % 8 == 0))
+            img[y, a:b] = 1
+            if y % 5 == 0:
+                img[y, rng.integers(0, w)] = rng.integers(2, 256)
+        for k in range(3):  # the slice as the k-th of a volume: its rows start k * h * w bytes in
+            buf = np.zeros((k + 1) * h * w, np.uint8)
+            buf[k * h * w:] = img.reshape(-1)
+            b64, aligned = _words(buf)
+            assert aligned
+            ry, rx0, rx1, rs, bad = _scan_runs_py(buf, b64, k * h * w, h, w, aligned)
+            got = [(int(y), int(a), int(b)) for y, a, b in zip(ry, rx0, rx1)]
+            assert got == _runs_reference(img), (w, k)
+            assert bad == int(np.count_nonzero(img > 1))
+            assert [int(np.count_nonzero(ry == y)) for y in range(h)] == np.diff(rs).tolist()

@@ -1829,6 +1829,77 @@ def _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, nee
 
 
 @_kernel
+def _plane_convex_ring(V, ws, pu, pw, ne, k, stamp, d1, d2):
+    """A certificate for :func:`_plane_embedded` (entries ``0 .. ne-1``, segments ``pu - pw`` and
+    points ``pu == pw``) without its sweep: True when the segments, a common edge once, form one
+    closed polygon, strictly convex and winding once, and every point ends a segment.  False means
+    "not shown" (the caller then runs :func:`_plane_embedded`).
+
+    Then the parts form an embedded planar graph: a closed polygon that turns the same strict way
+    at every corner and whose edge directions go round exactly once is convex and simple, so two
+    distinct edges meet only where consecutive, in their common corner, and there not along one ray
+    (the turn is not zero); a point part is a corner.  (The bands between two rings of a convex
+    section, as the slices of a ball: one ring per plane, and a sweep over it saved.)  Exact: the
+    turns are :func:`_o2`, and the half-plane of an edge direction reads the signs of coordinate
+    differences, which floating-point subtraction keeps.  ``stamp``, ``d1``, ``d2`` are
+    :func:`_plane_embedded`'s workspaces (the two neighbours of each corner), marked with ``-(k +
+    2)``, a value :func:`_plane_embedded`'s marks (``k``) and its untouched ones (-1) never take."""
+    tag = -(k + 2)
+    nseg = 0
+    v0 = -1
+    for e in range(ne):
+        u = pu[e]
+        w = pw[e]
+        if u == w:
+            continue
+        if stamp[u] == tag and (d1[u] == w or d2[u] == w):
+            continue  # the edge again (from the face on the other side of the plane)
+        for q in range(2):
+            a = u if q == 0 else w
+            b = w if q == 0 else u
+            if stamp[a] != tag:
+                stamp[a] = tag
+                d1[a] = b
+                d2[a] = -1
+            elif d2[a] < 0:
+                d2[a] = b
+            else:
+                return False  # a corner of three edges
+        nseg += 1
+        v0 = u
+    if nseg < 3:
+        return False
+    for e in range(ne):
+        if pu[e] == pw[e] and stamp[pu[e]] != tag:
+            return False  # a point that ends no segment
+    ax = np.int64(0)
+    ay = np.int64(1)
+    sign = 0
+    wraps = 0
+    a = v0
+    b = np.int64(d1[v0])
+    for t in range(nseg):
+        if d2[b] < 0:
+            return False  # an open end
+        c = np.int64(d1[b]) if d1[b] != a else np.int64(d2[b])
+        turn = _o2(V, ws, a, b, c, ax, ay)
+        if turn == 0 or (sign != 0 and turn != sign):
+            return False
+        sign = turn
+        # the half-plane of each direction (0: y > 0 or y == 0 < x; 1: the rest): turning left
+        # the directions pass +x going from half 1 to half 0, turning right from 0 to 1
+        h1 = 0 if (V[b, 1] > V[a, 1] or (V[b, 1] == V[a, 1] and V[b, 0] > V[a, 0])) else 1
+        h2 = 0 if (V[c, 1] > V[b, 1] or (V[c, 1] == V[b, 1] and V[c, 0] > V[b, 0])) else 1
+        if (turn > 0 and h1 == 1 and h2 == 0) or (turn < 0 and h1 == 0 and h2 == 1):
+            wraps += 1
+        a = b
+        b = c
+        if a == v0 and t + 1 < nseg:
+            return False  # closed before every edge was met: more than one polygon
+    return a == v0 and b == d1[v0] and wraps == 1
+
+
+@_kernel
 def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cert, all2, ci, cj, work, limit):
     """The parts at one height of the faces below and above it (entries ``0 .. ne-1``: a segment
     ``pu - pw`` or a point ``pu == pw``, canonical vertex indices) form an embedded planar graph:
@@ -1938,7 +2009,7 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     (two per face), ``nxt`` (one per face), ``head`` and ``hstamp`` (one per vertex, ``hstamp``
     never equal to ``k + 1`` on entry for a vertex of these faces)."""
     n = len(faces)
-    if n < 2:
+    if n < 2 or len(V) > 2147483647:  # (a rung's key packs its two corners in 32 bits each)
         return False
     xlo = np.inf
     xhi = -np.inf
@@ -1955,7 +2026,6 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     cx = 0.5 * (xlo + xhi)
     cy = 0.5 * (ylo + yhi)
     sigma = 0.0
-    nv = np.int64(len(V))
     wind = 0
     for t in range(n):
         i = faces[t]
@@ -1983,15 +2053,15 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
         if nb == 2:  # a = b1, b = b2, c = u
             X = ax * by - ay * bx
             Y = (ax * uy - ay * ux) + (ux * by - uy * bx)
-            start = a * nv + c
-            end = b * nv + c
+            start = (a << 32) | c
+            end = (b << 32) | c
         else:  # a = b, b = u1, c = u2
             if ax == 0.0 and ay == 0.0:
                 return False  # its arc would not shrink to nothing at the lower plane
             X = ux * by - uy * bx
             Y = (ax * by - ay * bx) + (ux * ay - uy * ax)
-            start = a * nv + c
-            end = a * nv + b
+            start = (a << 32) | c
+            end = (a << 32) | b
         if sigma == 0.0:
             sigma = 1.0 if X > 0.0 else -1.0
         if not sigma * X > 0.0 or sigma * Y < 0.0:
@@ -2012,7 +2082,7 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
     tag = k + 1
     for t in range(n):
         e = keys[2 * t + 1]
-        b = e // nv
+        b = e >> 32
         if hstamp[b] != tag:
             hstamp[b] = tag
             head[b] = -1
@@ -2025,7 +2095,7 @@ def _slab_embedded(V, F, lev, faces, k, keys, head, hstamp, nxt):
         head[b] = t
     for t in range(n):
         st = keys[2 * t]
-        b = st // nv
+        b = st >> 32
         if hstamp[b] != tag:
             return False
         r = head[b]
@@ -2725,8 +2795,9 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
         # (unchecked, True: no parts here, or the parts of one side only and no certified slab beside)
         emb = True
         if n0 + n1 > 0 and ((n0 > 0 and n1 > 0) or (k > 0 and scert[k - 1] == 1) or (k < nslab and scert[k] == 1)):
-            emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01), np.int64(k),
-                                                stamp, d1, d2, cert, all2, ci, cj, work, limit)
+            if not (ws[0] == 1.0 and _plane_convex_ring(V, ws, pu, pw, np.int64(ne01), np.int64(k), stamp, d1, d2)):
+                emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01),
+                                                    np.int64(k), stamp, d1, d2, cert, all2, ci, cj, work, limit)
         pemb[k] = 1 if emb else 0
         if k < k0:
             continue  # (plane k0 - 1: its pairs are another range's)

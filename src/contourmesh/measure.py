@@ -133,20 +133,32 @@ def _corner_box_centre(v, f):
 
 @njit(cache=True, nogil=True)
 def _lex_less(v, i, j):
-    for t in range(3):
-        if v[i, t] != v[j, t]:
-            return v[i, t] < v[j, t]
-    return False
+    """Vertex ``i`` before vertex ``j`` in the lexicographic order of their coordinates: the first
+    coordinate that differs decides.  Written without branches (bitwise on the comparisons: the
+    order of a face's corners is as good as random, and branches on it were mispredicted); the
+    same answer for every input, NaNs included (a NaN compares neither less nor equal, and ends
+    the comparison as a differing coordinate would, with False)."""
+    a0 = v[i, 0]
+    b0 = v[j, 0]
+    a1 = v[i, 1]
+    b1 = v[j, 1]
+    return (a0 < b0) | ((a0 == b0) & ((a1 < b1) | ((a1 == b1) & (v[i, 2] < v[j, 2]))))
 
 
 @njit(cache=True, nogil=True)
 def _lex_first(v, p, q, r):
-    """The face ``(p, q, r)`` rotated (orientation kept) to start at its lexicographically smallest corner."""
-    if _lex_less(v, q, p) and not _lex_less(v, r, q):
-        return q, r, p
-    if _lex_less(v, r, p) and _lex_less(v, r, q):
-        return r, p, q
-    return p, q, r
+    """The face ``(p, q, r)`` rotated (orientation kept) to start at its lexicographically smallest
+    corner: ``(q, r, p)`` when q is before p and r is not before q, else ``(r, p, q)`` when r is
+    before both, else unchanged (the three comparisons made first, the rotation selected)."""
+    qp = _lex_less(v, q, p)
+    rq = _lex_less(v, r, q)
+    rp = _lex_less(v, r, p)
+    c1 = qp & (not rq)
+    c2 = rp & rq
+    a = q if c1 else (r if c2 else p)
+    b = r if c1 else (p if c2 else q)
+    c = p if c1 else (q if c2 else r)
+    return a, b, c
 
 
 @njit(cache=True, nogil=True)
