@@ -13,7 +13,7 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "contourmesh"
 
 LAYERS = {
-    0: ["errors", "_optional", "_files", "_heap", "_cache_guard", "_kernels", "_workers", "geometry", "measure", "meshes", "types", "intersect", "topology"],
+    0: ["errors", "_optional", "_files", "_heap", "_recent", "_cache_guard", "_kernels", "_workers", "geometry", "measure", "meshes", "types", "intersect", "topology"],
     1: ["shapes", "tracing", "polygons", "bands", "digitize", "rasterize", "repair", "stacks", "volume_input",
         "voxelize", "datasets", "cells"],
     2: ["surface", "fastpath", "volumes", "sections", "refine", "drawn"],
