@@ -846,3 +846,103 @@ def test_runs_of_long_word_aligned_rows():
             assert got == _runs_reference(img), (w, k)
             assert bad == int(np.count_nonzero(img > 1))
             assert [int(np.count_nonzero(ry == y)) for y in range(h)] == np.diff(rs).tolist()
+
+
+def _slab_inputs(vol):
+    from contourmesh.fastpath import _scratch, _words
+
+    vol = np.ascontiguousarray(vol, dtype=bool)
+    nz, h, w = vol.shape
+    b8 = vol.reshape(-1).view(np.uint8)
+    b64, aligned = _words(b8)
+    seen, on, bg = _scratch(h, w)
+    zs = 0.5 + 1.25 * np.arange(nz, dtype=np.float64)
+    return (b8, b64, 0, nz, h, w, aligned, seen, on, bg, -2.0, 3.0, 0.75, 1.5, zs)
+
+
+def test_packs_in_kept_room_are_the_packs_in_new_arrays():
+    # _slab_polygons and _slab_pairs write their packs in the room they are handed (a view of it
+    # returned) or, where it is too small, in new arrays: the values must be the same bit for bit,
+    # whatever the room held before (filled with junk here) and whether it holds all, part or none
+    from contourmesh import fastpath
+    from contourmesh.fastpath import INITIAL_EDGE_WINDOW, _slab_pairs, _slab_polygons
+
+    rng = np.random.default_rng(23)
+    vols = [ball(33, 14.6), ball(20, 7.3, c=(9.3, 10.1, 8.7)), ellipsoid((14, 30, 41), (7, 15, 19), (6, 11, 17))]
+    for _ in range(4):  # several components per slice, degenerate MLPs
+        vols.append(ndimage.binary_opening(rng.random((int(rng.integers(3, 12)), 24, 37)) < 0.55))
+    vols.append(ball(30, 8.2, c=(14, 15, 9), shape=(30, 30, 44)) | ball(30, 7.1, c=(15, 14, 31), shape=(30, 30, 44)))
+    ring = ball(24, 10.5) & ~ball(24, 4.2, shape=(24, 24, 24))
+    vols.append(ring)  # slices with a hole (status 1)
+    for vol in vols:
+        args = _slab_inputs(vol)
+        nz, h = args[3], args[4]
+        none = (np.empty(0, np.int32), np.empty(0, np.int64), np.empty(0, np.float64))
+        want = _slab_polygons(*args, *none)
+        nr, npv = int(want[0][-1, 3]), int(want[0][-1, 5])
+        rooms = {
+            "all": (nz * (h + 1) + 4 * nr, 2 * npv, 3 * npv),
+            "more": (nz * (h + 1) + 4 * (nr + 300), 2 * npv + 200, 3 * npv + 50),
+            "part": (nz * (h + 1) + 4 * 64, 2 * 64, 3 * npv - 1),  # runs and vertices grow out of it
+            "row starts only": (nz * (h + 1), 0, 0),
+        }
+        for name, (n32, n64, nf) in rooms.items():
+            room = (np.full(n32, -7, np.int32), np.full(n64, -7, np.int64), np.full(nf, np.nan))
+            got = _slab_polygons(*args, *room)
+            for i in range(11):
+                assert got[i].dtype == want[i].dtype and np.array_equal(got[i], want[i], equal_nan=True), (name, i)
+            if name in ("all", "more") and nr >= 64:
+                assert np.shares_memory(got[1], room[0]) and np.shares_memory(got[10], room[2]), name
+            assert np.shares_memory(got[5], room[0]) or nz == 0, name
+        meta, RY, RX0, RX1, LAB, RS, BBOX, POLY, PST, DEG, XYZ = want
+        if meta[:-1, 1:3].any() or DEG.any() or nz < 2:
+            continue  # (the pairs are asked for slices of status 0 only)
+        soff = meta[:, 5].copy()
+        ref = None
+        for n in (0, 5, 6 * int(soff[-1]), 6 * int(soff[-1]) + 9):
+            pa, pb = np.full(len(DEG), -1, np.int64), np.full(len(DEG), -1, np.int64)
+            room = np.full(n, -7, np.int64)
+            out = _slab_pairs(0, nz - 1, h, RY, RX0, RX1, LAB, meta, RS, XYZ, soff, PST, INITIAL_EDGE_WINDOW,
+                              pa, pb, room)
+            out = (out[0], out[1].copy(), out[2].copy(), pa, pb)
+            if ref is None:
+                ref = out
+                continue
+            assert out[0] == ref[0]
+            for a, b in zip(out[1:], ref[1:]):
+                assert np.array_equal(a, b)
+    # the room a thread keeps: grown on demand, none above the limit
+    assert len(fastpath._room("test", 10, np.int64)) >= 10
+    assert fastpath._room("test", 100, np.int64) is fastpath._room("test", 50, np.int64)
+    assert len(fastpath._room("test", fastpath._ROOM_BYTES // 8 + 1, np.int64)) == 0
+
+
+def test_meshes_with_kept_room_from_other_volumes():
+    # the fast path keeps its room between calls on one thread: a mesh after meshes of larger and
+    # smaller volumes (room filled with their packs) is the mesh made with fresh room, on one
+    # thread and on two (the slabs of several threads make their own arrays)
+    import threading
+
+    from contourmesh import fastpath
+
+    vols = [ball(48, 21.0), ball(20, 7.3), ellipsoid((26, 31, 40), (13, 15, 20), (9, 12, 16)), ball(33, 14.6)]
+    fresh, errors = {}, []
+
+    def alone():
+        try:
+            fresh.update({i: fast_volume_to_mesh(v, threads=1) for i, v in enumerate(vols)})  # room kept in turn
+            for i, v in enumerate(vols):
+                fastpath._TLS.__dict__.pop("rooms", None)
+                assert_same(fast_volume_to_mesh(v, threads=1), fresh[i])
+        except BaseException as e:  # (handed to the test's thread)
+            errors.append(e)
+
+    t = threading.Thread(target=alone)  # (a thread of its own: its room starts empty)
+    t.start()
+    t.join()
+    if errors:
+        raise errors[0]
+    assert len(fresh) == len(vols)
+    for i, v in enumerate(vols):
+        assert_same(fast_volume_to_mesh(v, threads=1), fresh[i])
+        assert_same(fast_volume_to_mesh(v, threads=2), fresh[i])

@@ -955,7 +955,7 @@ def _slice_polygons(b8, b64, base, h, w, aligned, seen, on, bg):
 
 
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
-def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, dy, zs):
+def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, dy, zs, r32, p64, f64):
     """Steps 1-4 for the ``nk`` slices starting at byte ``base`` in one call, their outputs packed (no Python, no call and no boxed arrays per slice).
 
     Returns ``(meta, ry, rx0, rx1, lab, row_start, bbox, poly, poly_start, degenerate, xyz)``:
@@ -964,29 +964,53 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     concatenated (``row_start`` as ``(nk, h + 1)``, ``poly_start`` with ``n + 1`` entries per
     slice; the runs, their labels and ``row_start`` as ``int32``, the rest ``int64``), and ``xyz`` the polygon vertices in physical coordinates ``(ox + x dx, oy + y dy,
     zs[k])``: the rings of the slices without degenerate MLPs.
+
+    ``r32``, ``p64`` and ``f64`` are the room the packed arrays are written in (:func:`_pack_room`:
+    kept by the calling thread from call to call), so the returned arrays may be views of them:
+    ``row_start`` and then the runs, their labels in four equal parts of the rest of ``r32``, the
+    polygon vertices in ``p64`` (two per vertex) and ``xyz`` in ``f64`` (three per vertex).
+    Where a part is too small, that array is a new one (grown as before).  The values written are
+    the same either way; only the pages differ: a page of a new array costs its fault when first
+    written, every call, while the kept room's pages are mapped once (for the 512^3 ball some
+    1100 faults, 3-4 ms of the call).
     """
     meta = np.empty((nk + 1, 6), np.int64)
-    row_start = np.empty((nk, h + 1), np.int32)
-    # Room for two runs per row and 256 polygon vertices per slice from the start: np.empty only
-    # maps the pages, and a page costs its fault when first written, so room that is never used
-    # costs nothing, while each growth (a new array, the old contents copied in) touches the
-    # pages of the old contents once more.  The runs are int32 (the caller keeps h * w below
-    # 2^31): for the 512^3 ball the packed runs, written anew every call, are half the pages.
-    rcap = 2 * nk * h
-    if rcap < 64:
-        rcap = 64
+    nrs = nk * (h + 1)
+    if len(r32) >= nrs:
+        row_start = r32[:nrs].reshape((nk, h + 1))
+    else:
+        row_start = np.empty((nk, h + 1), np.int32)
+    # Room for two runs per row and 256 polygon vertices per slice from the start (or all that
+    # the kept room holds, when more): np.empty only maps the pages, and a page costs its fault
+    # when first written, so room that is never used costs nothing, while each growth (a new
+    # array, the old contents copied in) touches the pages of the old contents once more.  The
+    # runs are int32 (the caller keeps h * w below 2^31).
+    rcap = (len(r32) - nrs) // 4 if len(r32) >= nrs else 0
+    if rcap >= 64:
+        ry = r32[nrs: nrs + rcap]
+        rx0 = r32[nrs + rcap: nrs + 2 * rcap]
+        rx1 = r32[nrs + 2 * rcap: nrs + 3 * rcap]
+        lab = r32[nrs + 3 * rcap: nrs + 4 * rcap]
+    else:
+        rcap = 2 * nk * h
+        if rcap < 64:
+            rcap = 64
+        ry = np.empty(rcap, np.int32)
+        rx0 = np.empty(rcap, np.int32)
+        rx1 = np.empty(rcap, np.int32)
+        lab = np.empty(rcap, np.int32)
     ccap = 8
-    pcap = 256 * nk
-    if pcap < 64:
-        pcap = 64
-    ry = np.empty(rcap, np.int32)
-    rx0 = np.empty(rcap, np.int32)
-    rx1 = np.empty(rcap, np.int32)
-    lab = np.empty(rcap, np.int32)
+    pcap = len(p64) // 2
+    if pcap >= 64:
+        poly = p64[: 2 * pcap].reshape((pcap, 2))
+    else:
+        pcap = 256 * nk
+        if pcap < 64:
+            pcap = 64
+        poly = np.empty((pcap, 2), np.int64)
     bbox = np.empty(4 * ccap, np.int64)
     deg = np.empty(ccap, np.int64)
     pst = np.empty(ccap + nk, np.int64)
-    poly = np.empty((pcap, 2), np.int64)
     nr = 0
     nc = 0
     npv = 0
@@ -1044,7 +1068,10 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     meta[nk, 3] = nr
     meta[nk, 4] = nc
     meta[nk, 5] = npv
-    xyz = np.empty((npv, 3), np.float64)
+    if len(f64) >= 3 * npv:
+        xyz = f64[: 3 * npv].reshape((npv, 3))
+    else:
+        xyz = np.empty((npv, 3), np.float64)
     for k in range(nk):
         for i in range(meta[k, 5], meta[k + 1, 5]):
             xyz[i, 0] = ox + np.float64(poly[i, 0]) * dx
@@ -1630,7 +1657,7 @@ def _pair_bands_k(ringA, startA, ringB, startB, pa, window):
 
 
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
-def _slab_pairs(k0, k1, h, ry, rx0, rx1, lab, meta, rs, xyz, soff, rst, window, pa_all, pb_all):
+def _slab_pairs(k0, k1, h, ry, rx0, rx1, lab, meta, rs, xyz, soff, rst, window, pa_all, pb_all, room):
     """Steps 5-6 for the slice pairs ``(k, k + 1)``, ``k0 <= k < k1``, in one call, on the packed
     slices (``meta``, runs and ``row_start`` as :func:`_slab_polygons` packs them, for the whole
     volume) and rings (``xyz[soff[k]:soff[k + 1]]`` holds slice k's rings, ring c starting at
@@ -1640,11 +1667,18 @@ def _slab_pairs(k0, k1, h, ry, rx0, rx1, lab, meta, rs, xyz, soff, rst, window, 
     the slices k0 .. k1 - 1 and ``pb_all`` (the partner below) for k0 + 1 .. k1; returns ``(ok,
     bands, faces)``: ``ok`` False when a pair is not a simple band join (the caller declines),
     ``bands (nb, 5)`` = ``(k, a, b, first face, status)`` in the order of k then a, and the bands'
-    faces (local indices as :func:`_pair_bands_k` gives them) concatenated.
+    faces (local indices as :func:`_pair_bands_k` gives them) concatenated.  The faces are written
+    in ``room`` (``int64``, three per face: a view of it is returned) where it holds them all,
+    else in a new array: the same values, ``room`` kept by the caller so that its pages are not
+    faulted in again every call (see :func:`_slab_polygons`).
     """
     # at most one band per component of the lower slices, of n + m faces: room for all of them
     bands = np.empty((meta[k1, 4] - meta[k0, 4], 5), np.int64)
-    faces = np.empty((2 * (soff[k1 + 1] - soff[k0]), 3), np.int64)
+    nfc = 2 * (soff[k1 + 1] - soff[k0])
+    if len(room) >= 3 * nfc:
+        faces = room[: 3 * nfc].reshape((nfc, 3))
+    else:
+        faces = np.empty((nfc, 3), np.int64)
     nb = 0
     nf = 0
     for k in range(k0, k1):
@@ -1812,6 +1846,28 @@ def _scratch(h, w):
         g = np.zeros(2 * (h + 6) * (w + 6), np.uint8)
         _TLS.grids = g[: (h + 6) * (w + 6)], g[(h + 6) * (w + 6):]
     return s, _TLS.grids[0], _TLS.grids[1]
+
+
+_ROOM_BYTES = 16 << 20  # the most a kept room (_room) may take, per array and thread
+
+
+def _room(name, n, dtype):
+    """This thread's kept array ``name`` (``dtype``) of ``n`` items or more, made anew when the kept
+    one is smaller; an empty array where ``n`` items would take more than :data:`_ROOM_BYTES` (the
+    kernels then make their own).  The fast path's kernels write their packed outputs in it
+    (:func:`_slab_polygons`, :func:`_slab_pairs`): its pages are faulted in by the first call
+    only, while new arrays of that size (mapped anew by malloc) are faulted in every call.  The
+    contents are the caller's only during one call (:func:`_fast` lets none of it out)."""
+    n = int(n)
+    if n * np.dtype(dtype).itemsize > _ROOM_BYTES:
+        return np.empty(0, dtype)
+    rooms = getattr(_TLS, "rooms", None)
+    if rooms is None:
+        rooms = _TLS.rooms = {}
+    a = rooms.get(name)
+    if a is None or len(a) < n or a.dtype != dtype:
+        a = rooms[name] = np.empty(n, dtype)
+    return a
 
 
 class _OutOfScope(Exception):
@@ -2038,10 +2094,23 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, ban
     def per_slab(k0, k1):
         b8, b64, aligned = direct
         seen, on, bg = _scratch(h, w)
-        pack = _slab_polygons(b8, b64, k0 * h * w, k1 - k0, h, w, aligned, seen, on, bg, ox, oy, dx, dy,
-                              zs[k0:k1])
+        nk, nrs = k1 - k0, (k1 - k0) * (h + 1)
+        if nk == nz:
+            # one slab (one thread): the packs are written in this thread's kept room, read by the
+            # steps below only; several slabs per thread each need their own arrays until joined
+            r32 = _room("runs", nrs + 4 * max(2 * nk * h, 64), np.int32)
+            p64 = _room("poly", 2 * max(256 * nk, 64), np.int64)
+            f64 = _room("xyz", 3 * max(256 * nk, 64), np.float64)
+        else:
+            r32, p64, f64 = np.empty(0, np.int32), np.empty(0, np.int64), np.empty(0, np.float64)
+        pack = _slab_polygons(b8, b64, k0 * h * w, nk, h, w, aligned, seen, on, bg, ox, oy, dx, dy,
+                              zs[k0:k1], r32, p64, f64)
         if pack[0][:-1, 1:3].any():  # values other than 0/1, a hole, shared positions
             raise _OutOfScope
+        if nk == nz:  # room for as many runs and vertices next time (kept if not too large)
+            _room("runs", nrs + 4 * int(pack[0][-1, 3]), np.int32)
+            _room("poly", 2 * int(pack[0][-1, 5]), np.int64)
+            _room("xyz", 3 * int(pack[0][-1, 5]), np.float64)
         return [pack]
 
     def per_slice(k):
@@ -2120,8 +2189,11 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, ban
     flat_caps = {}  # component -> its flat cap's faces (local), made in the slab tasks
 
     def pair_slab(k0, k1):
+        # one slab: the faces in this thread's kept room (read by _assemble only); else new arrays
+        one = k1 - k0 == nz - 1
+        room = _room("faces", 6 * (soff[k1 + 1] - soff[k0]), np.int64) if one else np.empty(0, np.int64)
         ok, bands, bfaces = _slab_pairs(k0, k1, h, RY, RX0, RX1, LAB, meta, RS, RXYZ, soff, RST, INITIAL_EDGE_WINDOW,
-                                        PA, PB)
+                                        PA, PB, room)
         if not ok:
             raise _OutOfScope
         if caps == "flat":
