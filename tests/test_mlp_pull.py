@@ -4,6 +4,11 @@ The kernel keeps VL's coordinates and the crawlers' offsets from VL in variables
 them from ``cand`` for every candidate; the reference below is that earlier form, and both must
 give the same candidates and polygons on outer contours and holes of random masks, on stacks
 (the fast path's candidates) and on the slices of a ball.
+
+The kernel also drops a last W that repeats the first by moving the candidates before the first W
+up one place (and returning the list from one place later), where the reference moves the ones after
+it down one place: the candidates returned must be the same, which the tests below check on lists
+where the first W comes after zero, one or several other candidates.
 """
 
 import numpy as np
@@ -284,3 +289,57 @@ def test_pull_equals_the_reference_on_stacks():
         _same(cc, cand, kind, 1)
         done += 1
     assert done > 200, done
+
+
+def test_pull_equals_the_reference_where_the_first_w_is_dropped():
+    # the candidates of random contours and of the ball's slices started at other places of the
+    # contour (rotated lists) with the first W repeated at the end (as the candidates of a contour
+    # whose walk starts before that W are made), the first W after t = 0, 1 or more B/C
+    # candidates: the dropped W and the moved candidates must give the same lists and polygons
+    rng = np.random.default_rng(1390)
+    lists = []
+    for m in _random_masks(rng, 300):
+        if not m.any():
+            continue
+        contours, parents = trace_contours(m)
+        for c, parent in zip(contours, parents):
+            cand, kind = mlp_candidates(c)
+            if (kind == 1).sum() > 1:
+                lists.append((c, cand, kind, 1 if parent < 0 else -1))
+    for m in list(_ball_slices(61, 28.7))[::3]:
+        ry, rx0, rx1, _ = slice_runs(m)
+        cc, cand, kind = _stack(ry, rx0, rx1)
+        if len(cc):
+            lists.append((cc, cand[:-1], kind[:-1], 1))  # (the repeated W at the end left off)
+    made = {}
+    for c, cand, kind, colour in lists:
+        n = len(kind)
+        w = np.flatnonzero(kind == 1)
+        for j in rng.choice(w, size=min(3, len(w)), replace=False):
+            gap = 0  # the B/C candidates just before W j (cyclically)
+            while kind[(j - gap - 1) % n] != 1:
+                gap += 1
+            t = int(rng.integers(0, gap + 1))
+            rc, rk = np.roll(cand, t - j, axis=0), np.roll(kind, t - j)
+            assert rk[t] == 1 and not (rk[:t] == 1).any()
+            rc, rk = np.vstack([rc, rc[t:t + 1]]), np.append(rk, 1)
+            made[min(t, 2)] = made.get(min(t, 2), 0) + 1
+            for col in (colour, -colour, 0):
+                _same(c, rc, rk, col)
+    assert min(made.get(key, 0) for key in (0, 1, 2)) > 20, made
+
+
+def test_pull_leaves_the_candidates_it_returns_equal_to_the_reference_on_the_stacks_of_a_ball():
+    # every slice of a ball repeats its first W at the end (the case the kernel now handles by
+    # moving the candidates before it): candidates and polygons as the reference gives them
+    done = 0
+    for m in _ball_slices(81, 38.2):
+        ry, rx0, rx1, _ = slice_runs(m)
+        cc, cand, kind = _stack(ry, rx0, rx1)
+        if len(cc) == 0:
+            continue
+        w = np.flatnonzero(kind == 1)
+        done += len(w) > 1 and bool((cand[w[-1]] == cand[w[0]]).all())
+        for col in (1, -1, 0):
+            _same(cc, cand, kind, col)
+    assert done > 50, done
