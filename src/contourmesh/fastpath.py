@@ -145,19 +145,20 @@ _U2, _U3, _U4, _U5, _U6, _U7 = (np.uint64(q) for q in range(2, 8))  # word offse
 # 1. runs
 # ------------------------------------------------------------------------------------------------
 @_kernel
-def _scan_runs(b8, b64, base, h, w, aligned):
+def _scan_runs(b8, b64, base, h, w, aligned, row_start):
     """Runs of non-zero bytes of the ``h x w`` slice starting at byte ``base`` of ``b8``.
 
     ``b64`` is the ``uint64`` view of ``b8`` (used when ``aligned``).  Returns ``(ry, rx0, rx1,
-    row_start, bad)`` (all ``int64``): run ``r`` covers pixels ``rx0[r] <= x < rx1[r]`` of row
-    ``ry[r]``; runs of row ``y`` are ``row_start[y]:row_start[y + 1]``; ``bad`` counts bytes other
-    than 0 and 1.
+    row_start, bad)``: run ``r`` covers pixels ``rx0[r] <= x < rx1[r]`` of row ``ry[r]`` (``int64``);
+    runs of row ``y`` are ``row_start[y]:row_start[y + 1]``; ``bad`` counts bytes other than 0 and
+    1.  ``row_start`` is the caller's ``int32`` array of ``h + 1`` items, written here and returned:
+    :func:`_slab_polygons` hands it the slice's row of its packed row starts, so they are written
+    in place, not made per slice and copied there (the 512^3 ball: some 1.5 ms a call).
     """
     cap = 64
     ry = np.empty(cap, np.int64)
     rx0 = np.empty(cap, np.int64)
     rx1 = np.empty(cap, np.int64)
-    row_start = np.empty(h + 1, np.int64)
     n = 0
     bad = 0
     room = w // 2 + 1  # (a division once, not per row)
@@ -244,7 +245,12 @@ def _scan_runs(b8, b64, base, h, w, aligned):
 
 @_entry
 def _scan_runs_py(b8, b64, base, h, w, aligned):
-    return _scan_runs(b8, b64, base, h, w, aligned)
+    """:func:`_scan_runs` with its row starts as ``int64`` (the Python-level helpers' arrays)."""
+    ry, rx0, rx1, rs, bad = _scan_runs(b8, b64, base, h, w, aligned, np.empty(h + 1, np.int32))
+    rs64 = np.empty(h + 1, np.int64)
+    for y in range(h + 1):
+        rs64[y] = rs[y]
+    return ry, rx0, rx1, rs64, bad
 
 
 @_kernel
@@ -464,7 +470,8 @@ class FortranRuns:
 @_kernel
 def _components(ry, rx0, rx1, row_start, h):
     """4-components of the runs: ``(label per run, n, holes per component, bbox (n, 4) =
-    (xmin, ymin, xmax, ymax) inclusive, first run per component)``.
+    (xmin, ymin, xmax, ymax) inclusive, first run per component)``.  ``row_start`` is ``int32``
+    (:func:`_scan_runs`; one signature for every caller).
 
     Labels follow the raster order of each component's first pixel (as ``ndimage.label``).
     Holes (8-connected background components enclosed) = ``1 - chi`` with ``chi = #runs -
@@ -563,7 +570,11 @@ def _components(ry, rx0, rx1, row_start, h):
 
 @_entry
 def _components_py(ry, rx0, rx1, row_start, h):
-    return _components(ry, rx0, rx1, row_start, h)
+    """:func:`_components` of runs whose row starts are ``int64`` (:func:`slice_runs`, :class:`FortranRuns`)."""
+    rs = np.empty(h + 1, np.int32)
+    for y in range(h + 1):
+        rs[y] = row_start[y]
+    return _components(ry, rx0, rx1, rs, h)
 
 
 def slice_components(mask2d):
@@ -951,7 +962,7 @@ def outer_jordan_contour(mask2d) -> np.ndarray:
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
 def _slice_polygons(b8, b64, base, h, w, aligned, seen, on, bg):
     """Steps 1-4 for one slice (:func:`_slice_polygons_k`), callable from Python."""
-    return _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg)
+    return _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg, np.empty(h + 1, np.int32))
 
 
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
@@ -969,7 +980,8 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     kept by the calling thread from call to call), so the returned arrays may be views of them:
     ``row_start`` and then the runs, their labels in four equal parts of the rest of ``r32``, the
     polygon vertices in ``p64`` (two per vertex) and ``xyz`` in ``f64`` (three per vertex).
-    Where a part is too small, that array is a new one (grown as before).  The values written are
+    Where a part is too small, that array is a new one (grown as before).  Each slice's row starts
+    are written by its scan straight into its row of ``row_start`` (no per-slice array to copy).  The values written are
     the same either way; only the pages differ: a page of a new array costs its fault when first
     written, every call, while the kept room's pages are mapped once (for the 512^3 ball some
     1100 faults, 3-4 ms of the call).
@@ -1015,16 +1027,15 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     nc = 0
     npv = 0
     for k in range(nk):
-        out = _slice_polygons_k(b8, b64, base + k * h * w, h, w, aligned, seen, on, bg)
-        sry, srx0, srx1, srs, slab_, n, status, sbbox, spoly, sps, sdeg, bad = out
+        # (the slice's row starts written straight into its row of the packed ones)
+        out = _slice_polygons_k(b8, b64, base + k * h * w, h, w, aligned, seen, on, bg, row_start[k])
+        sry, srx0, srx1, _, slab_, n, status, sbbox, spoly, sps, sdeg, bad = out
         meta[k, 0] = n
         meta[k, 1] = status
         meta[k, 2] = bad
         meta[k, 3] = nr
         meta[k, 4] = nc
         meta[k, 5] = npv
-        for y in range(h + 1):
-            row_start[k, y] = srs[y]
         m = len(sry)
         if nr + m > rcap:
             rcap = 2 * rcap + m
@@ -1082,7 +1093,7 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
 
 
 @_kernel
-def _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg):
+def _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg, row_start):
     """Steps 1-4 for one slice.
 
     Returns ``(ry, rx0, rx1, row_start, lab, n, status, bbox, poly, poly_start, degenerate, bad)``:
@@ -1093,9 +1104,10 @@ def _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg):
     again on return, reused across slices) detects shared positions: a bit map of 33 KiB for a
     512 x 512 slice stays in the cache, where the ``int64`` stamp image this replaced (2 MiB, a
     stamp id per slice) cost a cache miss per MLP vertex (9 ms of the 512^3 ball's 65).  ``on`` and
-    ``bg`` (``(h + 6) * (w + 6)`` uint8, zero, reused across slices) are the MLP's grids.
+    ``bg`` (``(h + 6) * (w + 6)`` uint8, zero, reused across slices) are the MLP's grids;
+    ``row_start`` (``int32``, ``h + 1`` items) is where the row starts are written (:func:`_scan_runs`).
     """
-    ry, rx0, rx1, row_start, bad = _scan_runs(b8, b64, base, h, w, aligned)
+    ry, rx0, rx1, row_start, bad = _scan_runs(b8, b64, base, h, w, aligned, row_start)
     lab, n, holes, bbox, first = _components(ry, rx0, rx1, row_start, h)
     poly_start = np.empty(n + 1, np.int64)
     degenerate = np.empty(n, np.uint8)
@@ -1392,7 +1404,7 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
     o0 = np.empty(cap, np.int64)
     o1 = np.empty(cap, np.int64)
     oc = np.empty(cap, np.int64)
-    ors = np.empty(h + 1, np.int64)
+    ors = np.empty(h + 1, np.int32)  # (int32 as the slices' row starts: _components' one signature)
     no = 0
     ok = True
     for y in range(h):
