@@ -302,7 +302,7 @@ def _grow32(a, cap):
 
 
 def slice_runs(mask2d) -> tuple:
-    """Runs of a 2D boolean mask: ``(ry, rx0, rx1, row_start)`` (see :func:`_scan_runs`)."""
+    """Runs of a 2D boolean mask: ``(ry, rx0, rx1, row_start)``, ``int64`` (see :func:`_scan_runs`)."""
     m = np.ascontiguousarray(mask2d, dtype=bool)
     if m.ndim != 2:
         raise ValueError(f"mask must be a 2D array indexed [y, x]; got shape {m.shape}")
