@@ -917,6 +917,48 @@ def test_packs_in_kept_room_are_the_packs_in_new_arrays():
     assert len(fastpath._room("test", fastpath._ROOM_BYTES // 8 + 1, np.int64)) == 0
 
 
+def test_runs_scanned_in_place_are_the_per_slice_packs():
+    # _slab_polygons scans each slice's runs and row starts straight into its packed arrays at the
+    # slice's offset and has _components write the labels there (the slices once made their own
+    # arrays, copied in): the packs must be, bit for bit, the pack of the per-slice route (each
+    # slice in new arrays by _slice_polygons, concatenated by _pack_slices), the runs numpy finds
+    # and the labels of ndimage.label, whether the room holds all runs, ends inside a slice (that
+    # slice scanned again into grown arrays) or holds none
+    from contourmesh.fastpath import _pack_slices, _slab_polygons, _slice_polygons
+
+    rng = np.random.default_rng(41)
+    vols = [ball(33, 14.6), ball(20, 7.3, c=(9.3, 10.1, 8.7)), ellipsoid((14, 30, 41), (7, 15, 19), (6, 11, 17))]
+    for _ in range(4):  # several components per slice, degenerate MLPs
+        vols.append(ndimage.binary_opening(rng.random((int(rng.integers(3, 12)), 24, 37)) < 0.55))
+    vols.append(rng.random((5, 19, 70)) < 0.5)  # many runs per row
+    vols.append(ball(30, 8.2, c=(14, 15, 9), shape=(30, 30, 44)) | ball(30, 7.1, c=(15, 14, 31), shape=(30, 30, 44)))
+    vols.append(ball(24, 10.5) & ~ball(24, 4.2, shape=(24, 24, 24)))  # slices with a hole
+    for vol in vols:
+        args = _slab_inputs(vol)
+        b8, b64, _, nz, h, w, aligned, seen, on, bg, ox, oy, dx, dy, zs = args
+        outs = [_slice_polygons(b8, b64, k * h * w, h, w, aligned, seen, on, bg) for k in range(nz)]
+        ref = list(_pack_slices(outs, h, ox, oy, dx, dy, zs))
+        ref[6] = ref[6].reshape(-1)
+        nr = int(ref[0][-1, 3])
+        # the runs and labels against numpy and scipy
+        want_runs, want_lab, want_rs = [], [], []
+        for k in range(nz):
+            runs = _runs_reference(vol[k].astype(np.uint8))
+            labels, _ = ndimage.label(vol[k])
+            want_runs += runs
+            want_lab += [int(labels[y, a]) - 1 for y, a, _ in runs]
+            want_rs.append(np.searchsorted([y for y, _, _ in runs], np.arange(h + 1)))
+        got_runs = list(zip(ref[1].tolist(), ref[2].tolist(), ref[3].tolist()))
+        assert got_runs == want_runs and ref[4].tolist() == want_lab
+        assert np.array_equal(ref[5], np.array(want_rs).reshape(nz, h + 1))
+        rooms = {"none": 0, "all": 4 * nr, "ends in the last slice": 4 * max(nr - 3, 64), "64 runs": 4 * 64}
+        for name, n in rooms.items():
+            r32 = np.full(nz * (h + 1) + n, -7, np.int32)
+            got = _slab_polygons(*args, r32, np.empty(0, np.int64), np.empty(0, np.float64))
+            for i in range(11):
+                assert got[i].dtype == ref[i].dtype and np.array_equal(got[i], ref[i]), (name, i)
+
+
 def test_meshes_with_kept_room_from_other_volumes():
     # the fast path keeps its room between calls on one thread: a mesh after meshes of larger and
     # smaller volumes (room filled with their packs) is the mesh made with fresh room, on one

@@ -145,30 +145,23 @@ _U2, _U3, _U4, _U5, _U6, _U7 = (np.uint64(q) for q in range(2, 8))  # word offse
 # 1. runs
 # ------------------------------------------------------------------------------------------------
 @_kernel
-def _scan_runs(b8, b64, base, h, w, aligned):
-    """Runs of non-zero bytes of the ``h x w`` slice starting at byte ``base`` of ``b8``.
+def _scan_runs(b8, b64, base, h, w, aligned, row_start, ry, rx0, rx1):
+    """Runs of non-zero bytes of the ``h x w`` slice starting at byte ``base`` of ``b8``, written in
+    the caller's ``int32`` arrays: returns ``(n, bad)``.
 
-    ``b64`` is the ``uint64`` view of ``b8`` (used when ``aligned``).  Returns ``(ry, rx0, rx1,
-    row_start, bad)`` (all ``int64``): run ``r`` covers pixels ``rx0[r] <= x < rx1[r]`` of row
-    ``ry[r]``; runs of row ``y`` are ``row_start[y]:row_start[y + 1]``; ``bad`` counts bytes other
-    than 0 and 1.
+    ``b64`` is the ``uint64`` view of ``b8`` (used when ``aligned``).  Run ``r < n`` covers pixels
+    ``rx0[r] <= x < rx1[r]`` of row ``ry[r]``; runs of row ``y`` are ``row_start[y]:row_start[y +
+    1]`` (``h + 1`` items); ``bad`` counts bytes other than 0 and 1.  ``n`` is -1 when ``ry``,
+    ``rx0`` and ``rx1`` (of equal length) hold fewer runs than the slice has: the caller gives
+    larger arrays and scans again (the runs written are the same whatever room they get).
+    :func:`_slab_polygons` hands it views of its packed arrays at the slice's offset, so the runs
+    and row starts are written in place once, not made per slice and copied there.
     """
-    cap = 64
-    ry = np.empty(cap, np.int64)
-    rx0 = np.empty(cap, np.int64)
-    rx1 = np.empty(cap, np.int64)
-    row_start = np.empty(h + 1, np.int64)
+    cap = len(ry)
     n = 0
     bad = 0
-    room = w // 2 + 1  # (a division once, not per row)
     for y in range(h):
         row_start[y] = n
-        if cap - n < room:
-            # grow between rows only: rebinding arrays inside the hot loop costs numba 5-10x
-            cap = 2 * cap + w
-            ry = _grow(ry, cap)
-            rx0 = _grow(rx0, cap)
-            rx1 = _grow(rx1, cap)
         start = base + y * w
         end = start + w
         i = start
@@ -209,6 +202,8 @@ def _scan_runs(b8, b64, base, h, w, aligned):
                             low = t & (~t + _ONE)
                             j = np.int64((low * _BYTE_INDEX) >> _FIFTYSIX)  # index of low's byte
                             if inside:
+                                if n >= cap:
+                                    return np.int64(-1), bad
                                 ry[n] = y
                                 rx0[n] = x0
                                 rx1[n] = i + j - start
@@ -227,6 +222,8 @@ def _scan_runs(b8, b64, base, h, w, aligned):
                 if on:
                     x0 = i - start
                 else:
+                    if n >= cap:
+                        return np.int64(-1), bad
                     ry[n] = y
                     rx0[n] = x0
                     rx1[n] = i - start
@@ -234,17 +231,55 @@ def _scan_runs(b8, b64, base, h, w, aligned):
                 inside = on
             i += 1
         if inside:
+            if n >= cap:
+                return np.int64(-1), bad
             ry[n] = y
             rx0[n] = x0
             rx1[n] = w
             n += 1
     row_start[h] = n
-    return ry[:n], rx0[:n], rx1[:n], row_start, bad
+    return np.int64(n), bad
+
+
+@_kernel
+def _scan_new(b8, b64, base, h, w, aligned):
+    """:func:`_scan_runs` into new arrays (grown until the slice's runs fit): ``(ry, rx0, rx1,
+    row_start, bad)``, ``int32``."""
+    row_start = np.empty(h + 1, np.int32)
+    cap = 2 * h + 64
+    while True:
+        ry = np.empty(cap, np.int32)
+        rx0 = np.empty(cap, np.int32)
+        rx1 = np.empty(cap, np.int32)
+        n, bad = _scan_runs(b8, b64, base, h, w, aligned, row_start, ry, rx0, rx1)
+        if n >= 0:
+            return ry[:n], rx0[:n], rx1[:n], row_start, bad
+        cap = 4 * cap
+
+
+@_kernel
+def _wide(a):
+    """``a`` as a new ``int64`` array."""
+    b = np.empty(len(a), np.int64)
+    for i in range(len(a)):
+        b[i] = a[i]
+    return b
+
+
+@_kernel
+def _narrow(a):
+    """``a`` (``int64``, values below 2^31) as a new ``int32`` array."""
+    b = np.empty(len(a), np.int32)
+    for i in range(len(a)):
+        b[i] = a[i]
+    return b
 
 
 @_entry
 def _scan_runs_py(b8, b64, base, h, w, aligned):
-    return _scan_runs(b8, b64, base, h, w, aligned)
+    """:func:`_scan_runs` into new arrays, as ``int64`` (the Python-level helpers' arrays)."""
+    ry, rx0, rx1, rs, bad = _scan_new(b8, b64, base, h, w, aligned)
+    return _wide(ry), _wide(rx0), _wide(rx1), _wide(rs), bad
 
 
 @_kernel
@@ -267,7 +302,7 @@ def _grow32(a, cap):
 
 
 def slice_runs(mask2d) -> tuple:
-    """Runs of a 2D boolean mask: ``(ry, rx0, rx1, row_start)`` (see :func:`_scan_runs`)."""
+    """Runs of a 2D boolean mask: ``(ry, rx0, rx1, row_start)``, ``int64`` (see :func:`_scan_runs`)."""
     m = np.ascontiguousarray(mask2d, dtype=bool)
     if m.ndim != 2:
         raise ValueError(f"mask must be a 2D array indexed [y, x]; got shape {m.shape}")
@@ -462,9 +497,12 @@ class FortranRuns:
 # 2. components (4-connected) of the runs
 # ------------------------------------------------------------------------------------------------
 @_kernel
-def _components(ry, rx0, rx1, row_start, h):
+def _components(ry, rx0, rx1, row_start, h, lab):
     """4-components of the runs: ``(label per run, n, holes per component, bbox (n, 4) =
-    (xmin, ymin, xmax, ymax) inclusive, first run per component)``.
+    (xmin, ymin, xmax, ymax) inclusive, first run per component)``.  The runs and ``row_start``
+    are ``int32`` (:func:`_scan_runs`; one signature for every caller), and the labels are written
+    in the caller's ``int32`` array ``lab`` (``len(ry)`` items or more; returned as its first
+    ``len(ry)``): :func:`_slab_polygons` hands it a view of its packed labels.
 
     Labels follow the raster order of each component's first pixel (as ``ndimage.label``).
     Holes (8-connected background components enclosed) = ``1 - chi`` with ``chi = #runs -
@@ -484,8 +522,8 @@ def _components(ry, rx0, rx1, row_start, h):
             xmin = rx0[r]
         if rx1[r] > xmax:
             xmax = rx1[r]
+    lab = lab[:nr]
     if stack:
-        lab = np.empty(nr, np.int64)
         for r in range(nr):
             lab[r] = 0
         holes = np.empty(1, np.int64)
@@ -502,8 +540,8 @@ def _components(ry, rx0, rx1, row_start, h):
     for r in range(nr):
         parent[r] = r
     for y in range(1, h):
-        i, i1 = row_start[y - 1], row_start[y]
-        j, j1 = row_start[y], row_start[y + 1]
+        i, i1 = np.int64(row_start[y - 1]), np.int64(row_start[y])  # (int64: _root's one signature)
+        j, j1 = np.int64(row_start[y]), np.int64(row_start[y + 1])
         while i < i1 and j < j1:
             if rx0[i] < rx1[j] and rx0[j] < rx1[i]:
                 a, b = _root(parent, i), _root(parent, j)
@@ -516,7 +554,6 @@ def _components(ry, rx0, rx1, row_start, h):
                 i += 1
             else:
                 j += 1
-    lab = np.empty(nr, np.int64)
     root_lab = np.empty(nr, np.int64)
     for r in range(nr):
         root_lab[r] = -1
@@ -549,8 +586,8 @@ def _components(ry, rx0, rx1, row_start, h):
                 bbox[c, 2] = rx1[r] - 1
             bbox[c, 3] = ry[r]  # runs come in row order
     for y in range(1, h):
-        i, i1 = row_start[y - 1], row_start[y]
-        j, j1 = row_start[y], row_start[y + 1]
+        i, i1 = np.int64(row_start[y - 1]), np.int64(row_start[y])  # (int64: _root's one signature)
+        j, j1 = np.int64(row_start[y]), np.int64(row_start[y + 1])
         while i < i1 and j < j1:
             if rx0[i] < rx1[j] and rx0[j] < rx1[i]:
                 holes[lab[i]] += 1
@@ -563,7 +600,10 @@ def _components(ry, rx0, rx1, row_start, h):
 
 @_entry
 def _components_py(ry, rx0, rx1, row_start, h):
-    return _components(ry, rx0, rx1, row_start, h)
+    """:func:`_components` of ``int64`` runs (:func:`slice_runs`, :class:`FortranRuns`), labels ``int64``."""
+    lab = np.empty(len(ry), np.int32)
+    lab, n, holes, bbox, first = _components(_narrow(ry), _narrow(rx0), _narrow(rx1), _narrow(row_start), h, lab)
+    return _wide(lab), n, holes, bbox, first
 
 
 def slice_components(mask2d):
@@ -805,7 +845,7 @@ def _trace_runs(ry, rx0, rx1, order, t0, t1):
 
 @_entry
 def _trace_runs_py(ry, rx0, rx1, order, t0, t1):
-    return _trace_runs(ry, rx0, rx1, order, t0, t1)
+    return _trace_runs(_narrow(ry), _narrow(rx0), _narrow(rx1), order, t0, t1)
 
 
 @_kernel
@@ -950,8 +990,9 @@ def outer_jordan_contour(mask2d) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
 def _slice_polygons(b8, b64, base, h, w, aligned, seen, on, bg):
-    """Steps 1-4 for one slice (:func:`_slice_polygons_k`), callable from Python."""
-    return _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg)
+    """Steps 1-4 for one slice (:func:`_slice_polygons_k`) in new arrays, callable from Python."""
+    ry, rx0, rx1, rs, bad = _scan_new(b8, b64, base, h, w, aligned)
+    return _slice_polygons_k(b8, base, h, w, seen, on, bg, ry, rx0, rx1, rs, bad, np.empty(len(ry), np.int32))
 
 
 @njit(cache=True, no_cfunc_wrapper=True, **_OPTIONS)
@@ -969,7 +1010,10 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     kept by the calling thread from call to call), so the returned arrays may be views of them:
     ``row_start`` and then the runs, their labels in four equal parts of the rest of ``r32``, the
     polygon vertices in ``p64`` (two per vertex) and ``xyz`` in ``f64`` (three per vertex).
-    Where a part is too small, that array is a new one (grown as before).  The values written are
+    Where a part is too small, that array is a new one (grown as before).  Each slice's runs and row
+    starts are written by its scan (:func:`_scan_runs`) straight into the packed arrays at its
+    offset, and its labels by :func:`_components`, so no per-slice array is made and copied in (a
+    slice whose runs do not fit is scanned again into grown arrays: the same values).  The values written are
     the same either way; only the pages differ: a page of a new array costs its fault when first
     written, every call, while the kept room's pages are mapped once (for the 512^3 ball some
     1100 faults, 3-4 ms of the call).
@@ -1015,28 +1059,27 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
     nc = 0
     npv = 0
     for k in range(nk):
-        out = _slice_polygons_k(b8, b64, base + k * h * w, h, w, aligned, seen, on, bg)
-        sry, srx0, srx1, srs, slab_, n, status, sbbox, spoly, sps, sdeg, bad = out
+        # the slice's runs and row starts scanned straight into the packed arrays at its offset,
+        # its labels written after them (grown, the runs so far copied, where the room ends)
+        sb = base + k * h * w
+        while True:
+            m, bad = _scan_runs(b8, b64, sb, h, w, aligned, row_start[k], ry[nr:], rx0[nr:], rx1[nr:])
+            if m >= 0:
+                break
+            rcap = 2 * rcap + w
+            ry = _grow32(ry[:nr], rcap)
+            rx0 = _grow32(rx0[:nr], rcap)
+            rx1 = _grow32(rx1[:nr], rcap)
+            lab = _grow32(lab[:nr], rcap)
+        out = _slice_polygons_k(b8, sb, h, w, seen, on, bg, ry[nr: nr + m], rx0[nr: nr + m], rx1[nr: nr + m],
+                                row_start[k], bad, lab[nr:])
+        n, status, sbbox, spoly, sps, sdeg = out[5], out[6], out[7], out[8], out[9], out[10]
         meta[k, 0] = n
         meta[k, 1] = status
         meta[k, 2] = bad
         meta[k, 3] = nr
         meta[k, 4] = nc
         meta[k, 5] = npv
-        for y in range(h + 1):
-            row_start[k, y] = srs[y]
-        m = len(sry)
-        if nr + m > rcap:
-            rcap = 2 * rcap + m
-            ry = _grow32(ry, rcap)
-            rx0 = _grow32(rx0, rcap)
-            rx1 = _grow32(rx1, rcap)
-            lab = _grow32(lab, rcap)
-        for r in range(m):
-            ry[nr + r] = sry[r]
-            rx0[nr + r] = srx0[r]
-            rx1[nr + r] = srx1[r]
-            lab[nr + r] = slab_[r]
         nr += m
         if nc + n > ccap:
             ccap = 2 * ccap + n
@@ -1082,10 +1125,12 @@ def _slab_polygons(b8, b64, base, nk, h, w, aligned, seen, on, bg, ox, oy, dx, d
 
 
 @_kernel
-def _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg):
-    """Steps 1-4 for one slice.
+def _slice_polygons_k(b8, base, h, w, seen, on, bg, ry, rx0, rx1, row_start, bad, lab):
+    """Steps 2-4 for one slice whose runs ``ry, rx0, rx1, row_start`` (``int32``) and count of other
+    bytes ``bad`` :func:`_scan_runs` found in the slice at byte ``base`` of ``b8``.
 
-    Returns ``(ry, rx0, rx1, row_start, lab, n, status, bbox, poly, poly_start, degenerate, bad)``:
+    Returns ``(ry, rx0, rx1, row_start, lab, n, status, bbox, poly, poly_start, degenerate, bad)``
+    (the labels written in ``lab``'s first ``len(ry)`` items: :func:`_components`):
     ``status`` is 0 in scope, 1 when a component has a hole, 2 when two MLP vertices of the
     slice share a position.  ``poly[poly_start[c]:poly_start[c + 1]]`` is component ``c``'s MLP
     (pixel-centre coordinates); ``degenerate[c]`` marks MLPs without area (crack contour instead).
@@ -1095,8 +1140,7 @@ def _slice_polygons_k(b8, b64, base, h, w, aligned, seen, on, bg):
     stamp id per slice) cost a cache miss per MLP vertex (9 ms of the 512^3 ball's 65).  ``on`` and
     ``bg`` (``(h + 6) * (w + 6)`` uint8, zero, reused across slices) are the MLP's grids.
     """
-    ry, rx0, rx1, row_start, bad = _scan_runs(b8, b64, base, h, w, aligned)
-    lab, n, holes, bbox, first = _components(ry, rx0, rx1, row_start, h)
+    lab, n, holes, bbox, first = _components(ry, rx0, rx1, row_start, h, lab)
     poly_start = np.empty(n + 1, np.int64)
     degenerate = np.empty(n, np.uint8)
     poly_start[0] = 0
@@ -1388,11 +1432,11 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
     for b in range(nb):
         pb[b] = -1
     cap = 64
-    oy = np.empty(cap, np.int64)
-    o0 = np.empty(cap, np.int64)
-    o1 = np.empty(cap, np.int64)
+    oy = np.empty(cap, np.int32)  # (int32 as the slices' runs: _components' one signature)
+    o0 = np.empty(cap, np.int32)
+    o1 = np.empty(cap, np.int32)
     oc = np.empty(cap, np.int64)
-    ors = np.empty(h + 1, np.int64)
+    ors = np.empty(h + 1, np.int32)  # (int32 as the slices' row starts: _components' one signature)
     no = 0
     ok = True
     for y in range(h):
@@ -1401,9 +1445,9 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
         j, j1 = brs[y], brs[y + 1]
         if cap - no < (i1 - i) + (j1 - j):
             cap = 2 * cap + (i1 - i) + (j1 - j)
-            oy = _grow(oy, cap)
-            o0 = _grow(o0, cap)
-            o1 = _grow(o1, cap)
+            oy = _grow32(oy, cap)
+            o0 = _grow32(o0, cap)
+            o1 = _grow32(o1, cap)
             oc = _grow(oc, cap)
         while i < i1 and j < j1:
             lo = ax0[i] if ax0[i] > bx0[j] else bx0[j]
@@ -1433,7 +1477,7 @@ def _pair_joins(ary, ax0, ax1, ars, alab, na, bry, bx0, bx1, brs, blab, nb, h):
     ors[h] = no
     # the overlap of each pair: its 4-components and their holes, as for a slice (step 2); each
     # overlap component lies in one component a, which must get exactly one, without holes
-    _, nc, oholes, _, ofirst = _components(oy[:no], o0[:no], o1[:no], ors, h)
+    _, nc, oholes, _, ofirst = _components(oy[:no], o0[:no], o1[:no], ors, h, np.empty(no, np.int32))
     count = np.empty(na, np.int64)
     for a in range(na):
         count[a] = 0
