@@ -764,6 +764,8 @@ def test_stack_candidates_are_the_grid_kernels():
 
     @njit
     def both(ry, rx0, rx1, order, colour, on, bg, w):
+        # (int32 runs, as the fast path packs them: one signature per kernel, see above)
+        ry, rx0, rx1 = ry.astype(np.int32), rx0.astype(np.int32), rx1.astype(np.int32)
         t0, t1 = np.int64(0), np.int64(len(order))
         cc = _trace_runs(ry, rx0, rx1, order, t0, t1)
         start, cand, kind, m = _stack_candidates(ry, rx0, rx1, order, t0, t1)

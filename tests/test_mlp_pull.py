@@ -255,6 +255,10 @@ def _ball_slices(n, r):
 @njit(cache=False)
 def _stack(ry, rx0, rx1):
     """The contour and candidates the fast path makes for a stack (empty if not a stack)."""
+    # (runs in int32, as the fast path packs them: int64 runs would compile the fast path's
+    # kernels a second time in this process, which tests/test_fastpath.py's one-signature check
+    # then finds, whichever file runs first)
+    ry, rx0, rx1 = ry.astype(np.int32), rx0.astype(np.int32), rx1.astype(np.int32)
     order = np.arange(len(ry))
     t0, t1 = np.int64(0), np.int64(len(ry))
     cc = _trace_runs(ry, rx0, rx1, order, t0, t1)

@@ -257,29 +257,11 @@ def _scan_new(b8, b64, base, h, w, aligned):
         cap = 4 * cap
 
 
-@_kernel
-def _wide(a):
-    """``a`` as a new ``int64`` array."""
-    b = np.empty(len(a), np.int64)
-    for i in range(len(a)):
-        b[i] = a[i]
-    return b
-
-
-@_kernel
-def _narrow(a):
-    """``a`` (``int64``, values below 2^31) as a new ``int32`` array."""
-    b = np.empty(len(a), np.int32)
-    for i in range(len(a)):
-        b[i] = a[i]
-    return b
-
-
 @_entry
 def _scan_runs_py(b8, b64, base, h, w, aligned):
     """:func:`_scan_runs` into new arrays, as ``int64`` (the Python-level helpers' arrays)."""
     ry, rx0, rx1, rs, bad = _scan_new(b8, b64, base, h, w, aligned)
-    return _wide(ry), _wide(rx0), _wide(rx1), _wide(rs), bad
+    return ry.astype(np.int64), rx0.astype(np.int64), rx1.astype(np.int64), rs.astype(np.int64), bad
 
 
 @_kernel
@@ -602,8 +584,9 @@ def _components(ry, rx0, rx1, row_start, h, lab):
 def _components_py(ry, rx0, rx1, row_start, h):
     """:func:`_components` of ``int64`` runs (:func:`slice_runs`, :class:`FortranRuns`), labels ``int64``."""
     lab = np.empty(len(ry), np.int32)
-    lab, n, holes, bbox, first = _components(_narrow(ry), _narrow(rx0), _narrow(rx1), _narrow(row_start), h, lab)
-    return _wide(lab), n, holes, bbox, first
+    lab, n, holes, bbox, first = _components(ry.astype(np.int32), rx0.astype(np.int32), rx1.astype(np.int32),
+                                             row_start.astype(np.int32), h, lab)
+    return lab.astype(np.int64), n, holes, bbox, first
 
 
 def slice_components(mask2d):
@@ -845,7 +828,7 @@ def _trace_runs(ry, rx0, rx1, order, t0, t1):
 
 @_entry
 def _trace_runs_py(ry, rx0, rx1, order, t0, t1):
-    return _trace_runs(_narrow(ry), _narrow(rx0), _narrow(rx1), order, t0, t1)
+    return _trace_runs(ry.astype(np.int32), rx0.astype(np.int32), rx1.astype(np.int32), order, t0, t1)
 
 
 @_kernel
