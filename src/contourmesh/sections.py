@@ -63,7 +63,10 @@ def _sdf(m: np.ndarray, sampling, need=None) -> np.ndarray:
     that no square underflows or overflows) and a region with a pixel, compiled
     (:func:`_sdf_square`): every squared distance is then an exact integer times the pixel area, so
     it is the same number whichever nearest pixel is found, and the same bits as the reference
-    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the reference.
+    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels (any sides, the two may differ)
+    take a compiled port of scipy's transform (:func:`_sdf_any`: the same feature pixel for every
+    pixel, so the same bits) where their sides are in its range (:func:`_any_pixel_ok`), else the
+    reference itself.
 
     ``need`` (a boolean mask of the same shape, or None: every pixel): the pixels whose distance is
     wanted; the others get ``-inf`` on the region and ``+inf`` off it (only the sign is right).  A
@@ -545,11 +548,13 @@ def _euler2_kernel(m):
 def warm_rare_kernels() -> None:
     """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
     numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps), the signed
-    distances of wanted pixels (:func:`_sdf`) and the edge check of an assembled join
+    distances of wanted pixels (:func:`_sdf`, on square pixels of a power-of-two side and on
+    others) and the edge check of an assembled join
     (:func:`_edges_close`)."""
     m = np.eye(3, dtype=bool)
     _euler2(m)
     _sdf(m, (1.0, 1.0), need=m)
+    _sdf(m, (0.75, 0.75), need=m)
     _edges_close(np.array([[0, 1, 2]], dtype=np.int64), 3, [(0, 3)])
 
 
