@@ -63,7 +63,10 @@ def _sdf(m: np.ndarray, sampling, need=None) -> np.ndarray:
     that no square underflows or overflows) and a region with a pixel, compiled
     (:func:`_sdf_square`): every squared distance is then an exact integer times the pixel area, so
     it is the same number whichever nearest pixel is found, and the same bits as the reference
-    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels take the reference.
+    (:func:`_sdf_reference`, scipy's exact transform).  Other pixels (any sides, the two may differ)
+    take a compiled port of scipy's transform (:func:`_sdf_any`: the same feature pixel for every
+    pixel, so the same bits) where their sides are in its range (:func:`_any_pixel_ok`), else the
+    reference itself.
 
     ``need`` (a boolean mask of the same shape, or None: every pixel): the pixels whose distance is
     wanted; the others get ``-inf`` on the region and ``+inf`` off it (only the sign is right).  A
@@ -75,6 +78,10 @@ def _sdf(m: np.ndarray, sampling, need=None) -> np.ndarray:
         want = _ALL if need is None else np.ascontiguousarray(need, dtype=bool).view(np.uint8)
         return _sdf_square(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * min(s0, s1), *_column_buffers(*m.shape),
                            want)
+    if m.ndim == 2 and _any_pixel_ok(s0, s1, *m.shape) and m.any():
+        want = _ALL if need is None else np.ascontiguousarray(need, dtype=bool).view(np.uint8)
+        return _sdf_any(np.ascontiguousarray(m).view(np.uint8), s0, s1, 0.5 * min(s0, s1), *_column_buffers(*m.shape),
+                        want)
     out = _sdf_reference(m, sampling)
     if need is not None:
         out[~np.asarray(need, dtype=bool)] = np.where(m, -np.inf, np.inf)[~np.asarray(need, dtype=bool)]
@@ -305,6 +312,170 @@ def _wanted_in_run(o, g, need, inside, left, right, h, area, v, zn, zd):
         xr += 1
 
 
+def _any_pixel_ok(s0, s1, H, W) -> bool:
+    """Whether :func:`_sdf_any` gives the reference's bits on an ``H x W`` mask with pixel sides
+    ``s0`` (rows) and ``s1`` (columns): no side below ``2^-500`` and no distance across the padded
+    image above ``2^511`` (so both are finite and positive).  There the column pass's float
+    distances ``((r - y) * s0)^2`` are normal numbers that grow strictly with ``|r - y|``, which
+    :func:`_column_features` relies on."""
+    lo, hi = 2.0 ** -500, 2.0 ** 511
+    return lo <= s0 and lo <= s1 and max(s0, s1) * (max(H, W) + 2) <= hi
+
+
+@njit(cache=True, nogil=True)
+def _column_features(m, fi, fo):
+    """The first (column) pass of scipy's exact feature transform of the image ``m`` padded by one
+    empty pixel, for both of :func:`_sdf_any`'s transforms at once: ``fi[y, x]`` (``(H + 2, W + 2)``)
+    the row of the nearest empty pixel of the padded image in column ``x`` (every column has some:
+    the padding), ``fo[y, x]`` that of the nearest object pixel (-1 where the column has none); of
+    two at the same distance, the upper one.
+
+    scipy's pass along a column keeps every feature of the column (its test whether a feature hides
+    the one before reduces there to ``-a * b * c <= 0`` with ``a``, ``b``, ``c`` positive: always
+    true) and walks each pixel to the first feature whose float distance ``((r - y) * s0)^2`` is no
+    larger than the next one's.  Where those floats are normal and finite (see
+    :func:`_any_pixel_ok`) they grow strictly with ``|r - y|``, so that walk stops at the nearest
+    feature, the upper one of a tie: the integer choice made here."""
+    H, W = m.shape
+    Hp, Wp = H + 2, W + 2
+    for x in range(Wp):  # row 0: padding (empty)
+        fi[0, x] = 0
+        fo[0, x] = -1
+    for y in range(1, Hp):  # the nearest feature above (or the pixel itself)
+        inner = y < Hp - 1
+        for x in range(Wp):
+            if inner and 0 < x < Wp - 1 and m[y - 1, x - 1] != 0:
+                fi[y, x] = fi[y - 1, x]
+                fo[y, x] = y
+            else:
+                fi[y, x] = y
+                fo[y, x] = fo[y - 1, x]
+    # then the nearest below, where it is strictly nearer (the last row is padding: only fo there)
+    for y in range(Hp - 2, -1, -1):
+        for x in range(Wp):
+            a = fi[y, x]
+            b = fi[y + 1, x]
+            if a != y and b - y < y - a:
+                fi[y, x] = b
+            a = fo[y, x]
+            b = fo[y + 1, x]
+            if a != y and b >= 0 and (a < 0 or b - y < y - a):
+                fo[y, x] = b
+
+
+@njit(cache=True, nogil=True)
+def _row_features(fr, y, s0, s1, g, pick, hv, upto):
+    """The second (row) pass of scipy's exact feature transform (``_VoronoiFT`` of
+    ``ni_morphology.c`` along one row), with its float operations in its order: ``fr`` the padded
+    row ``y``'s column features (:func:`_column_features`; -1: none); ``pick[x]`` gets the column
+    of pixel ``x``'s feature (its row is ``fr[pick[x]]``) for ``x < upto``.  ``g`` and ``hv``:
+    scratch of the row's length (``hv[x]``: ``((fr[x] - y) * s0)^2``, the one float scipy computes
+    anew at each use).  Returns False where the row has no feature (nothing picked).
+
+    Two shortcuts give scipy's picks: the pixels are picked left to right, each from where the one
+    before stopped, so stopping at ``upto`` changes none before it; and a feature on the row itself
+    (``hv`` 0) on top of the stack is never removed: scipy's test is then
+    ``c * 0 - b * uR - a * wR - a * b * c <= 0`` with ``a``, ``b``, ``c`` positive and finite
+    (:func:`_any_pixel_ok`), true, so it is not computed."""
+    n = fr.shape[0]
+    for ii in range(n):
+        r = fr[ii]
+        if r >= 0:
+            t = float(r - y) * s0
+            hv[ii] = t * t
+    l = -1
+    for ii in range(n):
+        if fr[ii] < 0:
+            continue
+        fd = float(ii)
+        wr = hv[ii]
+        while l >= 1:
+            i1 = g[l]
+            vr = hv[i1]
+            if vr == 0.0:
+                break
+            i2 = g[l - 1]
+            f1 = float(i1)
+            a = (f1 - float(i2)) * s1
+            b = (fd - f1) * s1
+            c = a + b
+            if c * vr - b * hv[i2] - a * wr - a * b * c <= 0.0:
+                break
+            l -= 1
+        l += 1
+        g[l] = ii
+    maxl = l
+    if maxl < 0:
+        return False
+    l = 0
+    for ii in range(upto):
+        p = g[l]
+        t1 = float(p - ii) * s1
+        d1 = hv[p] + t1 * t1
+        while l < maxl:
+            q = g[l + 1]
+            t1 = float(q - ii) * s1
+            d2 = hv[q] + t1 * t1
+            if d1 <= d2:
+                break
+            d1 = d2
+            l += 1
+        pick[ii] = g[l]
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _sdf_any(m, s0, s1, h, fi, fo, need):
+    """:func:`_sdf` of a non-empty mask (uint8) on pixels of sides ``s0`` (between rows) and ``s1``
+    (between columns) accepted by :func:`_any_pixel_ok`, ``h`` half the shorter side: the same bits
+    as :func:`_sdf_reference`.  ``fi`` and ``fo``: :func:`_column_distances`-shaped integer arrays
+    (their contents do not matter); ``need`` as :func:`_sdf_square`'s.
+
+    Each of the reference's two transforms (of the padded mask and of its complement) is scipy's
+    exact feature transform followed by the distance to the feature; here both share the column
+    pass (:func:`_column_features`, the same features as scipy's), the row pass
+    (:func:`_row_features`, scipy's own float comparisons in its order, so the same feature even
+    where two lie at one distance) runs only on rows with a wanted pixel of its kind, up to the
+    last one, and the distance ``sqrt(((r - y) * s0)^2 + ((c - x) * s1)^2)`` (numpy's operations in
+    numpy's order) only at the wanted pixels.  A row's pass reads only that row's column features,
+    so the rows left out change nothing.  The padding shifts every coordinate by one: only
+    differences are used."""
+    H, W = m.shape
+    Wp = W + 2
+    every = need.shape[0] == 0
+    _column_features(m, fi, fo)
+    out = np.empty((H, W), np.float64)
+    g = np.empty(Wp, np.int64)
+    pick = np.empty(Wp, np.int64)
+    hv = np.empty(Wp, np.float64)
+    for y in range(H):
+        row = m[y]
+        last_in, last_out = -1, -1  # the last wanted pixel of the region / off it
+        for x in range(W):
+            if every or need[y, x] != 0:
+                if row[x] != 0:
+                    last_in = x
+                else:
+                    last_out = x
+        for x in range(W):
+            out[y, x] = -np.inf if row[x] != 0 else np.inf
+        for inside in (True, False):
+            last = last_in if inside else last_out
+            if last < 0:
+                continue
+            fr = fi[y + 1] if inside else fo[y + 1]
+            _row_features(fr, y + 1, s0, s1, g, pick, hv, last + 2)  # (a row with a wanted pixel has a feature)
+            for x in range(last + 1):
+                if (row[x] != 0) != inside or not (every or need[y, x] != 0):
+                    continue
+                c = pick[x + 1]
+                t0 = float(fr[c] - (y + 1)) * s0
+                t1 = float(c - (x + 1)) * s1
+                d = math.sqrt(t0 * t0 + t1 * t1)
+                out[y, x] = h - d if inside else d - h
+    return out
+
+
 def _sdf_reference(m: np.ndarray, sampling) -> np.ndarray:
     """:func:`_sdf` by scipy's exact Euclidean distance transform of the padded mask and of its
     complement (any pixel shape): the reference."""
@@ -377,11 +548,13 @@ def _euler2_kernel(m):
 def warm_rare_kernels() -> None:
     """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
     numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps), the signed
-    distances of wanted pixels (:func:`_sdf`) and the edge check of an assembled join
+    distances of wanted pixels (:func:`_sdf`, on square pixels of a power-of-two side and on
+    others) and the edge check of an assembled join
     (:func:`_edges_close`)."""
     m = np.eye(3, dtype=bool)
     _euler2(m)
     _sdf(m, (1.0, 1.0), need=m)
+    _sdf(m, (0.75, 0.75), need=m)
     _edges_close(np.array([[0, 1, 2]], dtype=np.int64), 3, [(0, 3)])
 
 
