@@ -2067,14 +2067,16 @@ def _pack_slices(outs, h, ox, oy, dx, dy, zs):
 
 
 def _join_packs(packs, threads=1, rooms=None):
-    """Packs of consecutive slabs (:func:`_slab_polygons`) as one pack of the whole volume (on two
-    threads where ``threads > 1``: numpy copies without the GIL, and the 512^3 ball's runs and row
-    starts, 8 MB, took 3-5 ms on one thread, a tenth of its call on two).
+    """Packs of consecutive slabs (:func:`_slab_polygons`) as one pack of the whole volume.
 
     With ``rooms`` (:func:`_rooms`), the runs, labels and row starts, the polygon vertices and
     their coordinates are joined into the kept rooms ``runs``, ``poly`` and ``xyz`` (laid out as
     :func:`_slab_polygons` lays out one slab's), not into new arrays: the same values, in pages
-    faulted in once rather than at every call (where a room would pass its limit, new arrays)."""
+    faulted in once rather than at every call, on the calling thread (the 512^3 ball's 6.6 MB in
+    0.55 ms, where handing half to a worker took 1.9 ms of wall time with other processes on the
+    cores).  Where a room would pass its limit, the arrays are new, and joined on two threads
+    where ``threads > 1`` (numpy copies without the GIL; new pages of the ball's runs and row
+    starts, 8 MB, took 3-5 ms on one thread)."""
     if len(packs) == 1:
         meta, ry, rx0, rx1, lab, rs, bbox, poly, pst, deg, xyz = packs[0]
         return meta, ry, rx0, rx1, lab, rs, bbox.reshape(-1, 4), poly, pst, deg, xyz
@@ -2104,7 +2106,7 @@ def _join_packs(packs, threads=1, rooms=None):
     def join(fields):
         return [np.concatenate([p[i] for p in packs], out=outs.get(i)) for i in fields]
 
-    if threads > 1:
+    if threads > 1 and len(outs) < 6:  # (new arrays: their pages faulted in on two threads)
         runs, rest = run_all(join, [((1, 2, 3),), (range(4, 11),)], threads)  # (ry, rx0, rx1; the rest)
         cat = runs + rest
     else:
