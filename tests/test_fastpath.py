@@ -962,14 +962,16 @@ def test_runs_scanned_in_place_are_the_per_slice_packs():
 
 
 def test_meshes_with_kept_room_from_other_volumes():
-    # the fast path keeps its room between calls on one thread: a mesh after meshes of larger and
-    # smaller volumes (room filled with their packs) is the mesh made with fresh room, on one
-    # thread and on two (the slabs of several threads make their own arrays)
+    # the fast path keeps its room between calls, in the calling thread: the whole volume's on one
+    # thread, one per slab (handed to the workers) and the joined packs' on several; a mesh after
+    # meshes of larger and smaller volumes (rooms filled with their packs, slabs cut elsewhere) is
+    # the mesh made with fresh rooms, on one, two and three threads
     import threading
 
     from contourmesh import fastpath
 
-    vols = [ball(48, 21.0), ball(20, 7.3), ellipsoid((26, 31, 40), (13, 15, 20), (9, 12, 16)), ball(33, 14.6)]
+    vols = [ball(48, 21.0), ball(20, 7.3), ellipsoid((26, 31, 40), (13, 15, 20), (9, 12, 16)), ball(33, 14.6),
+            ball(5, 2.2, shape=(5, 9, 9))]
     fresh, errors = {}, []
 
     def alone():
@@ -978,6 +980,10 @@ def test_meshes_with_kept_room_from_other_volumes():
             for i, v in enumerate(vols):
                 fastpath._TLS.__dict__.pop("rooms", None)
                 assert_same(fast_volume_to_mesh(v, threads=1), fresh[i])
+            for th in (2, 3):
+                for i, v in enumerate(vols):
+                    fastpath._TLS.__dict__.pop("rooms", None)
+                    assert_same(fast_volume_to_mesh(v, threads=th), fresh[i])
         except BaseException as e:  # (handed to the test's thread)
             errors.append(e)
 
@@ -987,6 +993,83 @@ def test_meshes_with_kept_room_from_other_volumes():
     if errors:
         raise errors[0]
     assert len(fresh) == len(vols)
-    for i, v in enumerate(vols):
-        assert_same(fast_volume_to_mesh(v, threads=1), fresh[i])
-        assert_same(fast_volume_to_mesh(v, threads=2), fresh[i])
+    for _ in range(2):
+        for i, v in enumerate(vols):
+            for th in (1, 2, 3, 2):
+                assert_same(fast_volume_to_mesh(v, threads=th), fresh[i])
+    # the slabs' rooms are the calling thread's (keyed by the slab's index), not the workers'
+    rooms = fastpath._rooms()
+    assert {("runs", i) for i in range(8)} <= set(rooms) and {("faces", i) for i in range(8)} <= set(rooms)
+
+
+def test_slab_rooms_of_two_calling_threads_and_past_their_limit(monkeypatch):
+    # two threads meshing at once on two worker threads each (one pool) keep their own rooms: the
+    # meshes are the one-thread meshes; and with the slabs' rooms too small for any slab (their
+    # kernels make new arrays) or the joined rooms past their limit, the meshes are the same
+    import threading
+
+    from contourmesh import fastpath
+
+    vols = [ball(48, 21.0), ellipsoid((26, 31, 40), (13, 15, 20), (9, 12, 16)), ball(33, 14.6)]
+    want = [fast_volume_to_mesh(v, threads=1) for v in vols]
+    errors = []
+
+    def run(order):
+        try:
+            for _ in range(3):
+                for i in order:
+                    assert_same(fast_volume_to_mesh(vols[i], threads=2), want[i])
+        except BaseException as e:  # (handed to the test's thread)
+            errors.append(e)
+
+    ts = [threading.Thread(target=run, args=(o,)) for o in ([0, 1, 2], [2, 0, 1])]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    if errors:
+        raise errors[0]
+    for slab_cap, cap in ((64, fastpath._ROOM_BYTES), (fastpath._SLAB_ROOM_BYTES, 64), (64, 64)):
+        monkeypatch.setattr(fastpath, "_SLAB_ROOM_BYTES", slab_cap)
+        monkeypatch.setattr(fastpath, "_ROOM_BYTES", cap)
+        for i, v in enumerate(vols):
+            assert_same(fast_volume_to_mesh(v, threads=2), want[i])
+
+
+def test_packs_joined_in_kept_room_are_the_packs_joined_anew():
+    # _join_packs with the calling thread's rooms writes the joined packs into them: the arrays
+    # are those joined into new arrays, bit for bit, on one thread and on two, with rooms larger
+    # than the packs (filled with other values), exactly their size or too small to be kept
+    from contourmesh import fastpath
+    from contourmesh.fastpath import _join_packs, _slab_polygons
+
+    rng = np.random.default_rng(7)
+    vols = [ball(33, 14.6), ellipsoid((26, 31, 40), (13, 15, 20), (9, 12, 16)),
+            ndimage.binary_opening(rng.random((9, 24, 37)) < 0.55)]
+    for vol in vols:
+        args = _slab_inputs(vol)
+        b8, b64, _, nz, h, w, aligned, seen, on, bg, ox, oy, dx, dy, zs = args
+        e32, e64, ef = np.empty(0, np.int32), np.empty(0, np.int64), np.empty(0, np.float64)
+        bounds = np.linspace(0, nz, 5).astype(int)
+        packs = [_slab_polygons(b8, b64, int(a) * h * w, int(b - a), h, w, aligned, seen, on, bg, ox, oy, dx, dy,
+                                zs[a:b], e32, e64, ef) for a, b in zip(bounds[:-1], bounds[1:])]
+        ref = _join_packs(packs, 1)
+        nr, npv = int(ref[0][-1, 3]), int(ref[0][-1, 5])
+        for extra in (0, 50):
+            for threads in (1, 2):
+                rooms = {"runs": np.full(nz * (h + 1) + 4 * nr + extra, -7, np.int32),
+                         "poly": np.full(2 * npv + extra, -7, np.int64), "xyz": np.full(3 * npv + extra, -7.0)}
+                got = _join_packs(packs, threads, rooms)
+                assert np.shares_memory(got[1], rooms["runs"]) and np.shares_memory(got[10], rooms["xyz"])
+                for a, b in zip(got, ref):
+                    assert a.dtype == b.dtype and np.array_equal(a, b)
+        old = fastpath._ROOM_BYTES
+        try:
+            fastpath._ROOM_BYTES = 8
+            rooms = {}
+            got = _join_packs(packs, 2, rooms)
+            assert not rooms
+            for a, b in zip(got, ref):
+                assert a.dtype == b.dtype and np.array_equal(a, b)
+        finally:
+            fastpath._ROOM_BYTES = old

@@ -1878,19 +1878,30 @@ def _scratch(h, w):
 _ROOM_BYTES = 16 << 20  # the most a kept room (_room) may take, per array and thread
 
 
-def _room(name, n, dtype):
+def _rooms():
+    """This thread's kept rooms (:func:`_room`), a dict made at its first call."""
+    rooms = getattr(_TLS, "rooms", None)
+    if rooms is None:
+        rooms = _TLS.rooms = {}
+    return rooms
+
+
+def _room(name, n, dtype, rooms=None, cap=None):
     """This thread's kept array ``name`` (``dtype``) of ``n`` items or more, made anew when the kept
     one is smaller; an empty array where ``n`` items would take more than :data:`_ROOM_BYTES` (the
     kernels then make their own).  The fast path's kernels write their packed outputs in it
     (:func:`_slab_polygons`, :func:`_slab_pairs`): its pages are faulted in by the first call
     only, while new arrays of that size (mapped anew by malloc) are faulted in every call.  The
-    contents are the caller's only during one call (:func:`_fast` lets none of it out)."""
+    contents are the caller's only during one call (:func:`_fast` lets none of it out).
+
+    ``rooms`` (a dict from :func:`_rooms`) is another thread's: the calling thread of a call on
+    several threads hands its own to the slabs its workers run, so the rooms follow the call, not
+    the worker that happens to take a slab; ``cap`` replaces :data:`_ROOM_BYTES` as the limit."""
     n = int(n)
-    if n * np.dtype(dtype).itemsize > _ROOM_BYTES:
+    if n * np.dtype(dtype).itemsize > (_ROOM_BYTES if cap is None else cap):
         return np.empty(0, dtype)
-    rooms = getattr(_TLS, "rooms", None)
     if rooms is None:
-        rooms = _TLS.rooms = {}
+        rooms = _rooms()
     a = rooms.get(name)
     if a is None or len(a) < n or a.dtype != dtype:
         a = rooms[name] = np.empty(n, dtype)
@@ -2055,10 +2066,17 @@ def _pack_slices(outs, h, ox, oy, dx, dy, zs):
     return (meta, cat[0], cat[1], cat[2], cat[3], rs, bbox, poly, pst, deg, xyz)
 
 
-def _join_packs(packs, threads=1):
-    """Packs of consecutive slabs (:func:`_slab_polygons`) as one pack of the whole volume (on two
-    threads where ``threads > 1``: numpy copies without the GIL, and the 512^3 ball's runs and row
-    starts, 8 MB, took 3-5 ms on one thread, a tenth of its call on two)."""
+def _join_packs(packs, threads=1, rooms=None):
+    """Packs of consecutive slabs (:func:`_slab_polygons`) as one pack of the whole volume.
+
+    With ``rooms`` (:func:`_rooms`), the runs, labels and row starts, the polygon vertices and
+    their coordinates are joined into the kept rooms ``runs``, ``poly`` and ``xyz`` (laid out as
+    :func:`_slab_polygons` lays out one slab's), not into new arrays: the same values, in pages
+    faulted in once rather than at every call, on the calling thread (the 512^3 ball's 6.6 MB in
+    0.55 ms, where handing half to a worker took 1.9 ms of wall time with other processes on the
+    cores).  Where a room would pass its limit, the arrays are new, and joined on two threads
+    where ``threads > 1`` (numpy copies without the GIL; new pages of the ball's runs and row
+    starts, 8 MB, took 3-5 ms on one thread)."""
     if len(packs) == 1:
         meta, ry, rx0, rx1, lab, rs, bbox, poly, pst, deg, xyz = packs[0]
         return meta, ry, rx0, rx1, lab, rs, bbox.reshape(-1, 4), poly, pst, deg, xyz
@@ -2069,11 +2087,26 @@ def _join_packs(packs, threads=1):
         metas.append(m[:-1])
         base = m[-1]
     meta = np.concatenate(metas + [base[None]])
+    outs = {}
+    if rooms is not None:
+        nr, npv = int(base[3]), int(base[5])
+        nrs = sum(p[5].shape[0] for p in packs) * packs[0][5].shape[1]
+        r32 = _room("runs", nrs + 4 * nr, np.int32, rooms)
+        if len(r32):
+            outs[5] = r32[:nrs].reshape(-1, packs[0][5].shape[1])
+            for j in range(4):  # ry, rx0, rx1, lab after the row starts
+                outs[1 + j] = r32[nrs + j * nr: nrs + (j + 1) * nr]
+        p64 = _room("poly", 2 * npv, np.int64, rooms)
+        if len(p64):
+            outs[7] = p64[: 2 * npv].reshape(npv, 2)
+        f64 = _room("xyz", 3 * npv, np.float64, rooms)
+        if len(f64):
+            outs[10] = f64[: 3 * npv].reshape(npv, 3)
 
     def join(fields):
-        return [np.concatenate([p[i] for p in packs]) for i in fields]
+        return [np.concatenate([p[i] for p in packs], out=outs.get(i)) for i in fields]
 
-    if threads > 1:
+    if threads > 1 and len(outs) < 6:  # (new arrays: their pages faulted in on two threads)
         runs, rest = run_all(join, [((1, 2, 3),), (range(4, 11),)], threads)  # (ry, rx0, rx1; the rest)
         cat = runs + rest
     else:
@@ -2083,13 +2116,19 @@ def _join_packs(packs, threads=1):
 
 
 def _map_slabs(fn, n, threads):
-    """``fn(k0, k1)`` (a list of ``k1 - k0`` results) over slabs covering ``0 .. n - 1``, joined:
-    one slab on one thread, a few per thread (:data:`SLABS_PER_THREAD`) on a thread pool."""
+    """``fn(k0, k1, i)`` (a list of ``k1 - k0`` results) over slabs covering ``0 .. n - 1`` (``i``
+    the slab's index), joined: one slab on one thread, a few per thread (:data:`SLABS_PER_THREAD`)
+    on a thread pool."""
     if threads <= 1 or n < 4:
-        return fn(0, n)
+        return fn(0, n, 0)
     bounds = np.linspace(0, n, min(n, threads * SLABS_PER_THREAD) + 1).astype(int).tolist()
     slabs = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-    return [r for part in run_all(fn, slabs, threads) for r in part]
+    return [r for part in run_all(fn, [(a, b, i) for i, (a, b) in enumerate(slabs)], threads) for r in part]
+
+
+#: The most a slab's kept room (one of several slabs of a call, :func:`_fast`) may take, per
+#: array: the slabs of one kind together keep about :data:`_ROOM_BYTES` per thread.
+_SLAB_ROOM_BYTES = _ROOM_BYTES // SLABS_PER_THREAD
 
 
 def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, bands_out=None):
@@ -2118,26 +2157,30 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, ban
 
     # steps 1-4: the slices of each slab packed by one kernel call, then joined into arrays over
     # the whole volume (no Python per slice)
-    def per_slab(k0, k1):
+    # The packs are written in kept rooms (_room), the calling thread's even where its workers run
+    # the slabs: the whole volume's (one slab) or the slab's own, keyed by its index (slabs are
+    # the same cuts of the same volume from call to call, so each slab's room fits it next time)
+    rooms = _rooms()
+
+    def per_slab(k0, k1, i):
         b8, b64, aligned = direct
         seen, on, bg = _scratch(h, w)
         nk, nrs = k1 - k0, (k1 - k0) * (h + 1)
         if nk == nz:
-            # one slab (one thread): the packs are written in this thread's kept room, read by the
-            # steps below only; several slabs per thread each need their own arrays until joined
-            r32 = _room("runs", nrs + 4 * max(2 * nk * h, 64), np.int32)
-            p64 = _room("poly", 2 * max(256 * nk, 64), np.int64)
-            f64 = _room("xyz", 3 * max(256 * nk, 64), np.float64)
-        else:
-            r32, p64, f64 = np.empty(0, np.int32), np.empty(0, np.int64), np.empty(0, np.float64)
+            names, cap = ("runs", "poly", "xyz"), _ROOM_BYTES
+        else:  # (the slabs' packs are joined into the rooms of the whole volume: _join_packs)
+            names, cap = (("runs", i), ("poly", i), ("xyz", i)), _SLAB_ROOM_BYTES
+        r32 = _room(names[0], nrs + 4 * max(2 * nk * h, 64), np.int32, rooms, cap)
+        p64 = _room(names[1], 2 * max(256 * nk, 64), np.int64, rooms, cap)
+        f64 = _room(names[2], 3 * max(256 * nk, 64), np.float64, rooms, cap)
         pack = _slab_polygons(b8, b64, k0 * h * w, nk, h, w, aligned, seen, on, bg, ox, oy, dx, dy,
                               zs[k0:k1], r32, p64, f64)
         if pack[0][:-1, 1:3].any():  # values other than 0/1, a hole, shared positions
             raise _OutOfScope
-        if nk == nz:  # room for as many runs and vertices next time (kept if not too large)
-            _room("runs", nrs + 4 * int(pack[0][-1, 3]), np.int32)
-            _room("poly", 2 * int(pack[0][-1, 5]), np.int64)
-            _room("xyz", 3 * int(pack[0][-1, 5]), np.float64)
+        # room for as many runs and vertices next time (kept if not too large)
+        _room(names[0], nrs + 4 * int(pack[0][-1, 3]), np.int32, rooms, cap)
+        _room(names[1], 2 * int(pack[0][-1, 5]), np.int64, rooms, cap)
+        _room(names[2], 3 * int(pack[0][-1, 5]), np.float64, rooms, cap)
         return [pack]
 
     def per_slice(k):
@@ -2152,7 +2195,7 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, ban
         packs = _map_slabs(per_slab, nz, threads)
     else:
         packs = [_pack_slices(_map(per_slice, list(range(nz)), threads), h, ox, oy, dx, dy, zs)]
-    meta, RY, RX0, RX1, LAB, RS, BBOX, POLY, PST, DEG, XYZ = _join_packs(packs, threads)
+    meta, RY, RX0, RX1, LAB, RS, BBOX, POLY, PST, DEG, XYZ = _join_packs(packs, threads, rooms)
     ncomp = meta[:-1, 0]
     if not ncomp.any():
         raise _OutOfScope  # no foreground: the full mesher raises the error
@@ -2215,10 +2258,12 @@ def _fast(volume, spacing, z, axis, label, threshold, origin, caps, threads, ban
 
     flat_caps = {}  # component -> its flat cap's faces (local), made in the slab tasks
 
-    def pair_slab(k0, k1):
-        # one slab: the faces in this thread's kept room (read by _assemble only); else new arrays
+    def pair_slab(k0, k1, i):
+        # the faces in a kept room of the calling thread (read by _assemble, or copied into the
+        # mesh's faces, only): the whole volume's, or the slab's own
         one = k1 - k0 == nz - 1
-        room = _room("faces", 6 * (soff[k1 + 1] - soff[k0]), np.int64) if one else np.empty(0, np.int64)
+        room = _room("faces" if one else ("faces", i), 6 * (soff[k1 + 1] - soff[k0]), np.int64, rooms,
+                     _ROOM_BYTES if one else _SLAB_ROOM_BYTES)
         ok, bands, bfaces = _slab_pairs(k0, k1, h, RY, RX0, RX1, LAB, meta, RS, RXYZ, soff, RST, INITIAL_EDGE_WINDOW,
                                         PA, PB, room)
         if not ok:
