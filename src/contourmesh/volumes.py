@@ -126,6 +126,7 @@ from .repair import (
 from .tracing import (
     _contour4_ok,
     _hole_parts,
+    _hole_spans,
     label_mask,
     missing_corners,
     overlap_groups,
@@ -658,7 +659,8 @@ def _slice_holes(lab, boxes, pts, starts, area2, first, sx, sy, mlp):  # pragma:
       area); ``hole_at[hole_start[c]: hole_start[c + 1]]``: its hole contours (negative area), in
       order;
     * hole ``j``'s pixels (:func:`contourmesh.tracing._hole_parts` from the pixel right of its
-      contour's first edge, :meth:`_Slice._hole_seed`): ``flat[o: o + h * w]`` as ``(h, w)`` with
+      contour's first edge, :meth:`_Slice._hole_seed`; found by its run-at-a-time form
+      :func:`contourmesh.tracing._hole_spans`, the same bytes): ``flat[o: o + h * w]`` as ``(h, w)`` with
       ``meta[j] = (y, x, h, w, o)``, ``(y, x)`` its first row and column in the component's box;
     * with ``mlp``: hole ``j``'s MLP (:func:`contourmesh.fastpath._pixels_mlp` of those pixels, as
       :func:`contourmesh.fastpath.pixels_mlp` reads them) moved to the slice (by the box's corner and
@@ -720,15 +722,13 @@ def _slice_holes(lab, boxes, pts, starts, area2, first, sx, sy, mlp):  # pragma:
                 seeds[j - h0, 0], seeds[j - h0, 1] = py, px
             else:
                 seeds[j - h0, 0], seeds[j - h0, 1] = py - 1, px - 1
-        m, f = _hole_parts(lab, c + one, boxes[c], seeds)
+        m, f = _hole_spans(lab, c + one, boxes[c], seeds)
         if fused + f.shape[0] > fcap:
             fcap = max(2 * fcap, fused + f.shape[0])
             f2 = np.empty(fcap, np.uint8)
-            for t in range(fused):
-                f2[t] = flat[t]
+            f2[:fused] = flat[:fused]
             flat = f2
-        for t in range(f.shape[0]):
-            flat[fused + t] = f[t]
+        flat[fused: fused + f.shape[0]] = f  # (block copies: the same bytes as a loop over them)
         for j in range(h0, h1):
             hy, hx, hh, hw = m[j - h0, 0], m[j - h0, 1], m[j - h0, 2], m[j - h0, 3]
             if hh <= 0:
