@@ -2,7 +2,9 @@
 ``_Slice._components``) against the per-component loop it replaces (``_Slice._components_plain``),
 and the band-join test's hole pairing (:func:`volumes._simple_join`) against its numpy form (the
 overlap's background labelled by ``ndimage.label``, each hole's first pixel from ``np.nonzero`` of
-its whole mask): bit for bit, on random masks and on slices of the shared volumes."""
+its whole mask), and the overlap's components and holes counted from the two slices' runs
+(:func:`volumes._overlap_topology`) against the labeller's on its mask: bit for bit, on random
+masks and on slices of the shared volumes."""
 
 import numpy as np
 import pytest
@@ -141,20 +143,105 @@ def _simple_join_reference(A, B, a, b):
 
 
 def _check_joins(stack):
-    """Every overlapping component pair of consecutive slices: the two forms agree; returns how many
-    pairs had holes on both sides and were paired."""
-    to_center, to_corner = grid_to_xy(0.0, 0.0, 1.0, 1.0)
-    slices = [volumes._Slice(m, "mlp", to_corner, to_center) for m in stack]
+    """Every overlapping component pair of consecutive slices: the two forms agree, for slices that
+    keep their label images (the overlap counted from its mask) and for slices that keep their runs
+    or were labelled in a box (the overlap counted from the runs, as for the mesher's slices and
+    the sections'); returns how many pairs had holes on both sides and were paired."""
     paired = 0
-    for A, B in zip(slices, slices[1:]):
+    for kind in ("labels", "runs", "box"):
+        slices = _kept_slices(stack, kind, "mlp")
+        for A, B in zip(slices, slices[1:]):
+            assert (A.kept_runs() is None) == (kind == "labels")
+            la, lb = A.labels.astype(np.int64), B.labels.astype(np.int64)
+            both = (la > 0) & (lb > 0)
+            for key in np.unique(la[both] * (B.n + 1) + lb[both]).tolist():
+                a, b = key // (B.n + 1) - 1, key % (B.n + 1) - 1
+                got, want = volumes._simple_join(A, B, a, b), _simple_join_reference(A, B, a, b)
+                assert got == want
+                paired += bool(got) and kind == "runs"
+    return paired
+
+
+def _kept_slices(stack, kind, polygon):
+    """The slices of ``stack``: keeping their label images ("labels"), their runs ("runs", with a
+    :class:`volumes._RecentLabels`, as the mesher makes them) or labelled in a box ("box", the
+    masks padded by two, as sections make them)."""
+    to_center, to_corner = grid_to_xy(0.0, 0.0, 1.0, 1.0)
+    if kind == "box":
+        h, w = stack.shape[1:]
+        return [volumes._Slice(np.pad(m, 2), polygon, to_corner, to_center, box=np.s_[1: h + 3, 2: w + 3])
+                for m in stack]
+    recent = volumes._RecentLabels() if kind == "runs" else None
+    return [volumes._Slice(m, polygon, to_corner, to_center, recent) for m in stack]
+
+
+def _check_overlap_topology(stack, every=False):
+    """The overlap's ``(components, holes)`` from the slices' runs against the labeller's on its
+    mask, for every overlapping component pair of consecutive slices (``every``: every pair of
+    components, overlapping or not); returns how many overlaps had one component and holes, and
+    how many had several components."""
+    holed = split = 0
+    pairs = []
+    for kind in ("runs", "box"):
+        slices = _kept_slices(stack, kind, "none")
+        pairs += zip(slices, slices[1:])
+    for A, B in pairs:
         la, lb = A.labels.astype(np.int64), B.labels.astype(np.int64)
         both = (la > 0) & (lb > 0)
-        for key in np.unique(la[both] * (B.n + 1) + lb[both]).tolist():
+        if every:
+            keys = [(a + 1) * (B.n + 1) + b + 1 for a in range(A.n) for b in range(B.n)]
+        else:
+            keys = np.unique(la[both] * (B.n + 1) + lb[both]).tolist()
+        for key in keys:
             a, b = key // (B.n + 1) - 1, key % (B.n + 1) - 1
-            got, want = volumes._simple_join(A, B, a, b), _simple_join_reference(A, B, a, b)
-            assert got == want
-            paired += bool(got)
-    return paired
+            sa, sb = A.objects[a], B.objects[b]
+            o = volumes._overlap_mask(A, B, a, b, 0, A.labels.shape[0], 0, A.labels.shape[1])
+            want = volumes._overlap_topology_of_mask(o)
+            got = volumes._overlap_topology(A.kept_runs(), np.int64(a), B.kept_runs(), np.int64(b),
+                                            np.int64(max(sa[0].start, sb[0].start)),
+                                            np.int64(min(sa[0].stop, sb[0].stop)))
+            assert (int(got[0]), int(got[1])) == want
+            holed += want[0] == 1 and want[1] > 0
+            split += want[0] > 1
+    return holed, split
+
+
+def test_overlap_topology_from_runs_equals_the_labellers_on_random_stacks():
+    rng = np.random.default_rng(11)
+    holed = split = 0
+    for _ in range(30):
+        got = _check_overlap_topology(_holed_stack(rng))
+        holed, split = holed + got[0], split + got[1]
+    for seed in range(4):  # (salt: specks, diagonal touches, overlaps of many parts; every pair)
+        for h, w in [(17, 29), (31, 8), (1, 12)]:
+            r = np.random.default_rng(seed)
+            stack = r.random((6, h, w)) < r.uniform(0.3, 0.8)
+            got = _check_overlap_topology(stack, every=True)
+            holed, split = holed + got[0], split + got[1]
+    assert holed > 0 and split > 0
+
+
+@pytest.mark.slow
+def test_overlap_topology_from_runs_equals_the_labellers_on_the_shared_volumes(shared_data):
+    import zlib
+
+    from scipy.spatial.transform import Rotation
+
+    from contourmesh.compare.inputs import load_closed_mesh
+    from contourmesh.io import read_volume
+    from contourmesh.voxelize import voxelize_mesh
+
+    vol, _, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz")
+    liver = np.asarray(z["volume"] if "volume" in z.files else z["mask"]) > 0
+    v, f = load_closed_mesh(shared_data / "meshes" / "cgogn" / "socket.off")
+    rot = Rotation.random(random_state=np.random.default_rng([20261204, zlib.crc32(b"socket")])).as_matrix()
+    socket, _, _ = voxelize_mesh(v @ rot.T, f, 160)
+    holed = split = 0
+    for stack in (np.pad(vol, 1), np.pad(liver, 1)[::2], np.pad(socket, 1)):
+        got = _check_overlap_topology(stack)
+        holed, split = holed + got[0], split + got[1]
+    assert holed > 0 and split > 0
 
 
 def _holed_stack(rng, n=6, h=40, w=44):

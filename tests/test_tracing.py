@@ -264,3 +264,32 @@ def test_cells_of_matches_the_numpy_reference():
     assert not view.flags.c_contiguous
     got = _cells_of(view)
     assert got.dtype == np.bool_ and np.array_equal(got, _cells_of_reference(view))
+
+
+def test_corner_tables_equal_the_per_direction_tests():
+    """``_slice_cracks`` reads a corner's boundary edges and a walk's turns from tables of the four
+    pixels round the corner: the same as ``_is_label_edge`` and ``_label_turn`` (which it used
+    before), for every four pixels and every direction, the corner inside the image and on each of
+    its borders."""
+    from contourmesh import tracing
+
+    for m in range(16):
+        lab = np.array([[m & 1, (m >> 1) & 1], [(m >> 2) & 1, (m >> 3) & 1]], dtype=np.int32) * 3
+        # the corner (1, 1) of the 2 x 2 image, and the same pixels cut to a border corner
+        cases = [(lab, 1, 1, m)]
+        if m & 0b0011 == 0:  # (the top row empty: a corner of the image's first pixel row)
+            cases.append((lab[1:], 1, 0, m))
+        if m & 0b1100 == 0:
+            cases.append((lab[:1], 1, 1, m))
+        if m & 0b0101 == 0:
+            cases.append((lab[:, 1:], 0, 1, m))
+        if m & 0b1010 == 0:
+            cases.append((lab[:, :1], 1, 1, m))
+        for img, vx, vy, mm in cases:
+            img = np.ascontiguousarray(img)
+            assert tracing._corner_mask(img, vx, vy, 3, img.shape[0], img.shape[1]) == mm
+            for d in range(4):
+                edge = bool(tracing._is_label_edge(img, np.int64(vx), np.int64(vy), np.int64(d), 3))
+                assert edge == bool((tracing._CORNER_EDGES[mm] >> d) & 1)
+                want = tracing._label_turn(img, np.int64(vx), np.int64(vy), np.int64(d), 3)
+                assert tracing._CORNER_TURN[16 * d + mm] == want

@@ -367,6 +367,43 @@ def _label_turn(lab, vx, vy, d, v):
     return d  # pragma: no cover - a closed walk always has a way on
 
 
+def _corner_tables():
+    """Tables of the four pixels round a corner ``(vx, vy)``, as a 4-bit mask ``m`` (bit 0 pixel
+    ``[vy - 1, vx - 1]``, bit 1 ``[vy - 1, vx]``, bit 2 ``[vy, vx - 1]``, bit 3 ``[vy, vx]`` in the
+    component): ``edges[m]``, bit ``d`` set where the step from the corner in direction ``d`` is a
+    boundary edge (:func:`_is_label_edge`, which reads only those four pixels), and ``turn[16 * d +
+    m]``, the direction a walk entered in direction ``d`` leaves by (:func:`_label_turn`: of turn
+    left, go straight, turn right the first boundary edge).  Built once with numpy at import."""
+    edges = np.zeros(16, np.int64)
+    turn = np.empty(64, np.int64)
+    for m in range(16):
+        a, b, c, e = bool(m & 1), bool(m & 2), bool(m & 4), bool(m & 8)
+        on = [e and not b, c and not e, a and not c, b and not a]
+        edges[m] = sum(1 << d for d in range(4) if on[d])
+        for d in range(4):
+            turn[16 * d + m] = next(((d + t) % 4 for t in (1, 0, 3) if on[(d + t) % 4]), d)
+    return edges, turn
+
+
+_CORNER_EDGES, _CORNER_TURN = _corner_tables()
+#: The row and column offsets, from a corner, of the pixel on the left of its step in direction d.
+_LEFT_DY = np.array([0, 0, -1, -1], dtype=np.int64)
+_LEFT_DX = np.array([0, -1, -1, 0], dtype=np.int64)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _corner_mask(lab, vx, vy, v, h, w):
+    """The 4-bit mask of the pixels of component ``v`` round corner ``(vx, vy)`` of ``lab`` (``h``
+    rows, ``w`` columns; pixels outside it are not in the component), as :func:`_corner_tables`
+    reads it."""
+    a = vy - 1 >= 0 and vx - 1 >= 0 and lab[vy - 1, vx - 1] == v
+    b = vy - 1 >= 0 and vx < w and lab[vy - 1, vx] == v
+    c = vy < h and vx - 1 >= 0 and lab[vy, vx - 1] == v
+    e = vy < h and vx < w and lab[vy, vx] == v
+    # (the bits or-ed from the four tests: a chain of conditional ors took the walk longer)
+    return np.int64(a) | (np.int64(b) << 1) | (np.int64(c) << 2) | (np.int64(e) << 3)
+
+
 @njit(cache=True, nogil=True)
 def _label_runs(lab):
     """The runs of equal non-zero labels of a label image, in raster order: ``(ry, rx0, rx1,
@@ -472,7 +509,6 @@ def _slice_cracks(lab, boxes, ry, rx0, rx1, rlab):
         q0, q1 = rstart[v], rstart[v + 1]
         p = q0  # (the component's first run in row vy0 - 1 or later)
         for vy0 in range(y0, y1 + 1):
-            lo, hi = vy0 - 1 >= 0, vy0 < h
             while p < q1 and ry[order[p]] < vy0 - 1:
                 p += 1
             pe = p
@@ -494,34 +530,16 @@ def _slice_cracks(lab, boxes, ry, rx0, rx1, rlab):
                     k += 1
             for t in range(k):
                 vx0 = merged[t]
-                # the four pixels around corner (vx0, vy0): a = [vy0 - 1, vx0 - 1], b = [vy0 - 1, vx0],
-                # c = [vy0, vx0 - 1], e = [vy0, vx0] (in component v)
-                a = lo and vx0 - 1 >= 0 and lab[vy0 - 1, vx0 - 1] == v
-                b = lo and vx0 < w and lab[vy0 - 1, vx0] == v
-                c = hi and vx0 - 1 >= 0 and lab[vy0, vx0 - 1] == v
-                e = hi and vx0 < w and lab[vy0, vx0] == v
-                if a == b and a == c and a == e:
+                # the four pixels around corner (vx0, vy0) in component v, and its boundary edges
+                # (from tables: the same tests as _is_label_edge)
+                bits = _CORNER_EDGES[_corner_mask(lab, vx0, vy0, v, h, w)]
+                if bits == 0:
                     continue  # no boundary edge at this corner
                 for d0 in range(4):
-                    if d0 == 0:
-                        edge = e and not b
-                    elif d0 == 1:
-                        edge = c and not e
-                    elif d0 == 2:
-                        edge = a and not c
-                    else:
-                        edge = b and not a
-                    if not edge:
+                    if not (bits >> d0) & 1:
                         continue
                     # the edge's left pixel
-                    if d0 == 0:
-                        ly, lx = vy0, vx0
-                    elif d0 == 1:
-                        ly, lx = vy0, vx0 - 1
-                    elif d0 == 2:
-                        ly, lx = vy0 - 1, vx0 - 1
-                    else:
-                        ly, lx = vy0 - 1, vx0
+                    ly, lx = vy0 + _LEFT_DY[d0], vx0 + _LEFT_DX[d0]
                     if visited[ly, lx] & (1 << d0):
                         continue
                     if n_cont == cs:
@@ -553,7 +571,7 @@ def _slice_cracks(lab, boxes, ry, rx0, rx1, rlab):
                         pts[pos, 1] = vy
                         pos += 1
                         vx, vy, a2 = _crack_step(vx, vy, d, a2)
-                        d = _label_turn(lab, vx, vy, d, v)
+                        d = _CORNER_TURN[16 * d + _corner_mask(lab, vx, vy, v, h, w)]  # (_label_turn)
                         if vx == vx0 and vy == vy0 and d == d0:
                             break
                     area2[n_cont] = a2

@@ -386,7 +386,7 @@ class _Slice:
     def __init__(self, mask2d, polygon, to_xy_corner, to_xy_center, recent=None, box=None, scanned=None):
         # ndimage.label(mask2d, structure=_CROSS) and find_objects, from the runs (compiled)
         self._recent, self._shape = recent, tuple(mask2d.shape)
-        self._mask = self._runs = None
+        self._mask = self._runs = self._box_runs = None
         # every component's crack contours in one compiled pass over the int32 labels (slice corner
         # coordinates; component c's contours are first[c]: first[c + 1], outer and holes in the
         # order _crack_contours gives them for the component's cropped mask), and with "mlp" every
@@ -404,6 +404,11 @@ class _Slice:
             sy, sx = box[0].start or 0, box[1].start or 0
             if recent is not None:  # (labelled whole it gives the same labels)
                 self._mask = mask2d
+            # (its runs in the whole image, as _runs holds them, for _simple_join: the runs the whole
+            # mask has, as it has no pixel outside the box)
+            self._box_runs = np.empty((4, len(runs[0])), np.int32)
+            self._box_runs[0], self._box_runs[1] = runs[0] + sy, runs[1] + sx
+            self._box_runs[2], self._box_runs[3] = runs[2] + sx, runs[3] - 1
         boxes = slice_boxes(self.objects if box is None else objects)
         pts, starts, area2, first = slice_cracks(lab32, boxes, runs)
         mlp = polygon not in ("dss", "none")
@@ -602,6 +607,12 @@ class _Slice:
         if self._recent is not None:
             self._recent.hold(self)
         return self._labels
+
+    def kept_runs(self):
+        """The slice's runs (int32 ``[row, first column, end column, component]``, raster order,
+        whole-image coordinates) where it keeps them: with a :class:`_RecentLabels` (in place of
+        its label image) or labelled in a box; None for a slice made without either."""
+        return self._runs if self._runs is not None else self._box_runs
 
     @staticmethod
     def _moved(p, x, y):
@@ -2241,6 +2252,113 @@ def _dense_rings(mask, slices, k, c, grid, step, total=False) -> list:
     return out
 
 
+def _overlap_mask(A: _Slice, B: _Slice, a: int, b: int, y0, y1, x0, x1) -> np.ndarray:
+    """The overlap of component a of slice A and b of slice B in the box ``[y0:y1, x0:x1]``."""
+    return (A.labels[y0:y1, x0:x1] == a + 1) & (B.labels[y0:y1, x0:x1] == b + 1)
+
+
+def _overlap_topology_of_mask(o) -> tuple:
+    """``(components, holes)`` of a 2D mask: its 4-connected components, and the holes of them
+    all (8-connected background components enclosed, ``components - chi``), by the labeller
+    (:func:`contourmesh.fastpath.slice_components`; the reference of :func:`_overlap_topology`)."""
+    _, _, no, holes_o, _ = slice_components(o)
+    return int(no), int(holes_o.sum())
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _overlap_topology(ra, a, rb, b, ylo, yhi):  # pragma: no cover (compiled)
+    """``(components, holes)`` of the overlap of component ``a`` of one slice and ``b`` of the next,
+    as :func:`_overlap_topology_of_mask` gives them for the overlap's mask, from the slices' runs
+    alone (``ra``, ``rb``: :meth:`_Slice.kept_runs`, rows ``[row, first column, end column,
+    component]`` in raster order), looking at rows ``ylo <= y < yhi`` (where both components have
+    pixels).
+
+    The overlap's runs are the intersections, row by row, of a's runs and b's runs (each
+    row's runs are disjoint and in column order, so one merge per row gives them in column
+    order); they are the runs the labeller finds in the overlap's mask.  From them the same
+    counts: components by union-find over runs of adjacent rows that share a column, and holes
+    ``components - chi`` with ``chi = runs - such pairs`` (4-connected foreground, 8-connected
+    background), as :func:`contourmesh.fastpath._components` counts them per component."""
+    if yhi <= ylo:  # (no row in common: nothing overlaps)
+        return np.int64(0), np.int64(0)
+    ia0 = np.searchsorted(ra[0], ylo)
+    ia1 = np.searchsorted(ra[0], yhi)
+    ib0 = np.searchsorted(rb[0], ylo)
+    ib1 = np.searchsorted(rb[0], yhi)
+    cap = (ia1 - ia0) + (ib1 - ib0)
+    oy = np.empty(cap, np.int64)
+    ox0 = np.empty(cap, np.int64)
+    ox1 = np.empty(cap, np.int64)
+    n = 0
+    i, j = ia0, ib0
+    while i < ia1 and j < ib1:
+        if ra[3, i] != a:
+            i += 1
+            continue
+        if rb[3, j] != b:
+            j += 1
+            continue
+        ya, yb = ra[0, i], rb[0, j]
+        if ya < yb:
+            i += 1
+            continue
+        if yb < ya:
+            j += 1
+            continue
+        lo = max(ra[1, i], rb[1, j])
+        hi = min(ra[2, i], rb[2, j])
+        if lo < hi:
+            oy[n] = ya
+            ox0[n] = lo
+            ox1[n] = hi
+            n += 1
+        if ra[2, i] <= rb[2, j]:
+            i += 1
+        else:
+            j += 1
+    if n == 0:
+        return np.int64(0), np.int64(0)
+    parent = np.empty(n, np.int64)
+    for r in range(n):
+        parent[r] = r
+    comps = n
+    pairs = np.int64(0)
+    # the runs of one row are p0 <= r < p1, those of the next row (where it is the next) p1 <= r < p2
+    p0 = np.int64(0)
+    while p0 < n:
+        p1 = p0
+        while p1 < n and oy[p1] == oy[p0]:
+            p1 += 1
+        if p1 < n and oy[p1] == oy[p0] + 1:
+            p2 = p1
+            while p2 < n and oy[p2] == oy[p1]:
+                p2 += 1
+            u, v = p0, p1
+            while u < p1 and v < p2:
+                if ox0[u] < ox1[v] and ox0[v] < ox1[u]:
+                    pairs += 1
+                    ru = u
+                    while parent[ru] != ru:
+                        parent[ru] = parent[parent[ru]]
+                        ru = parent[ru]
+                    rv = v
+                    while parent[rv] != rv:
+                        parent[rv] = parent[parent[rv]]
+                        rv = parent[rv]
+                    if ru != rv:
+                        if ru < rv:
+                            parent[rv] = ru
+                        else:
+                            parent[ru] = rv
+                        comps -= 1
+                if ox1[u] <= ox1[v]:
+                    u += 1
+                else:
+                    v += 1
+        p0 = p1
+    return np.int64(comps), np.int64(comps - (n - pairs))
+
+
 def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     """Hole pairs ``[(ha, hb), ...]`` if components a (below) and b (above) join as a band, else None.
 
@@ -2250,23 +2368,29 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     slices has the topology of ``a`` times an interval (Mayer-Vietoris).
     """
     sa, sb = A.objects[a], B.objects[b]
-    y0 = min(sa[0].start, sb[0].start)
-    y1 = max(sa[0].stop, sb[0].stop)
-    x0 = min(sa[1].start, sb[1].start)
-    x1 = max(sa[1].stop, sb[1].stop)
-    ma = A.labels[y0:y1, x0:x1] == a + 1
-    mb = B.labels[y0:y1, x0:x1] == b + 1
-    o = ma & mb
-    # components of O and its holes from its runs (compiled; the Euler number counts the holes)
-    _, _, no, holes_o, _ = slice_components(o)
+    ya, yb = sa[0], sb[0]
+    y0, y1 = min(ya.start, yb.start), max(ya.stop, yb.stop)
+    x0, x1 = min(sa[1].start, sb[1].start), max(sa[1].stop, sb[1].stop)
+    # components of O and its holes, from the two slices' runs where both keep them (compiled: no
+    # mask of O is made unless O has holes), else from O's mask (the same two numbers)
+    ra, rb = A.kept_runs(), B.kept_runs()
+    if ra is not None and rb is not None:
+        no, holes = _overlap_topology(ra, np.int64(a), rb, np.int64(b), np.int64(max(ya.start, yb.start)),
+                                      np.int64(min(ya.stop, yb.stop)))
+        o = None
+    else:
+        o = _overlap_mask(A, B, a, b, y0, y1, x0, x1)
+        no, holes = _overlap_topology_of_mask(o)
     if no != 1:
         return None
     ha = A.hole_masks[a][1]
     hb = B.hole_masks[b][1]
-    if len(ha) != len(hb) or int(holes_o[0]) != len(ha):
+    if len(ha) != len(hb) or holes != len(ha):
         return None
     if not ha:
         return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
+    if o is None:
+        o = _overlap_mask(A, B, a, b, y0, y1, x0, x1)
     # (the padded background of O labelled 8-connected in compiled code: ndimage.label's labels)
     _, olab, nol, _ = overlap_holes(o)
     ext = olab[0, 0]
