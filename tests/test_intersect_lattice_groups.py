@@ -150,6 +150,7 @@ def test_certificate_equals_its_plain_form():
         got = I._lattice_cells(np.ascontiguousarray(V), Fc, G)
         want = _cells_reference(V, Fc, G)
         np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(I._lattice_cells(np.ascontiguousarray(V), Fc, G.astype(np.int32)), want)
         certified += int((got >= 0).sum())
         planted += int(((got < 0) & (G >= 0)).sum())
     assert certified > 1000 and planted > 100  # (both outcomes met)
@@ -237,6 +238,8 @@ def _same_with_tags(V, F, T, reference=False):
     np.testing.assert_array_equal(intersecting_pairs(V, F, groups=T), want)
     Fc = _canon(V, F)
     cg = I._lattice_cells(np.ascontiguousarray(V), Fc, np.ascontiguousarray(T, dtype=np.int64))
+    # (int32 groups, as the volume mesher's tags, are taken as they are: the same cells)
+    np.testing.assert_array_equal(I._lattice_cells(np.ascontiguousarray(V), Fc, np.ascontiguousarray(T, dtype=np.int32)), cg)
     if reference:
         np.testing.assert_array_equal(cg, _cells_reference(V, Fc, T))
     return want, int((cg >= 0).sum())
