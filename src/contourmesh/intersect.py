@@ -3341,7 +3341,8 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     star (:func:`_star_certified`) or in the plane where the boxes touch (:func:`_touching_boxes`):
     the same pairs, for the tests that compare the two.  ``groups`` (an integer per face, -1 none; with
     ``quick`` and no ``stop`` only): the pairs of two faces certified in one group
-    (:func:`_lattice_cells`) are not tested; the same pairs."""
+    (:func:`_lattice_cells`) are not tested, and the slab phase certifies no stars
+    (:data:`_SLAB_STARS`); the same pairs."""
     V = _exact_range(V)
     if not V.flags.writeable:  # one compiled signature: writable C arrays
         V = V.copy()
@@ -3358,7 +3359,9 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     sst = np.array([0 if quick else -1, len(Fc) // 8 + _STAR_DELAY], np.int64)
     qk = np.int64(1 if quick else 0)
     cg = np.zeros(0, np.int64)
+    sst_slabs = sst  # (the slab phase's: see _SLAB_STARS)
     if groups is not None and quick and stop == 0:
+        sst_slabs = np.array([sst[0] if _SLAB_STARS else -1, sst[1]], np.int64)
         # (int32 groups, as the volume mesher's face tags, as they are: no int64 copy of one per face)
         groups = np.asarray(groups)
         cg = _lattice_cells(V, Fc, np.ascontiguousarray(groups, dtype=np.int32 if groups.dtype == np.int32
@@ -3380,7 +3383,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
             levels, lev = np.unique(V[:, 2], return_inverse=True)
             lev, nlev = lev.astype(np.int64).reshape(-1), len(levels)
         if split and nlev > 8:
-            got = _split_slab_pairs(V, ws, Fc, sst, qk, lev, nlev, _threads(), cg)
+            got = _split_slab_pairs(V, ws, Fc, sst_slabs, qk, lev, nlev, _threads(), cg)
             if got is not None:
                 return got
     if method == "slabs" or (method == "auto" and not on_grid):
@@ -3388,7 +3391,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
         # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
         # ("auto": a mesh that is not sectioned goes to the grid unasked, see _sectioned)
         if method == "slabs" or _sectioned(V, ws, Fc, lev) == 1:
-            pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
+            pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst_slabs, qk, lev, np.int64(nlev),
                                      np.int64(_SLAB_BUDGET), np.int64(stop), np.int64(0), np.int64(nlev), cg)
         if ok == 0 and method == "slabs":
             raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
@@ -3406,6 +3409,17 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
 #: faces have reached the tests (the 512^3 ball's slab phase decides its pairs without them: its
 #: 117k faces take 14 ms, the stars 17 ms more; the lobster's and the liver's meshes need them).
 _STAR_DELAY = 100
+
+#: Whether the slab phase of a mesh with face groups (the volume mesher's whole-mesh test) certifies
+#: the vertices' stars: it does not.  Its pairs are mostly decided by coordinates in the sweeps
+#: (:func:`_single_sweep`) and by the groups (:func:`_lattice_cells`), and the stars (a pass over
+#: every vertex's fan) cost more than the pair tests they spare (issue 16's twentieth round, the
+#: dumped first builds with their tags, one thread, CPU-s with / without: the liver 0.222 / 0.195,
+#: liver x2 0.603 / 0.491, the socket rotated at 256 voxels 0.056 / 0.045, at 512 0.186 / 0.144).
+#: The grid keeps them (where the slab phase gives up, and for the lobster's mesh, the 128^3
+#: bunny's and Al.100's: with them 0.239, 0.0084, 0.0050 CPU-s, without 0.254, 0.0115, 0.0064).
+#: The same pairs either way: a certified star only spares tests whose answer is no.
+_SLAB_STARS = False
 
 #: Meshes off the small dyadic grid (:func:`_on_small_dyadic_grid`; as the repaired meshes of real
 #: volumes and many of the mesher's bands and joins) of fewer faces than this are tested by the grid
