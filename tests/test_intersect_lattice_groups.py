@@ -150,6 +150,7 @@ def test_certificate_equals_its_plain_form():
         got = I._lattice_cells(np.ascontiguousarray(V), Fc, G)
         want = _cells_reference(V, Fc, G)
         np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(I._lattice_cells(np.ascontiguousarray(V), Fc, G.astype(np.int32)), want)
         certified += int((got >= 0).sum())
         planted += int(((got < 0) & (G >= 0)).sum())
     assert certified > 1000 and planted > 100  # (both outcomes met)
@@ -237,6 +238,8 @@ def _same_with_tags(V, F, T, reference=False):
     np.testing.assert_array_equal(intersecting_pairs(V, F, groups=T), want)
     Fc = _canon(V, F)
     cg = I._lattice_cells(np.ascontiguousarray(V), Fc, np.ascontiguousarray(T, dtype=np.int64))
+    # (int32 groups, as the volume mesher's tags, are taken as they are: the same cells)
+    np.testing.assert_array_equal(I._lattice_cells(np.ascontiguousarray(V), Fc, np.ascontiguousarray(T, dtype=np.int32)), cg)
     if reference:
         np.testing.assert_array_equal(cg, _cells_reference(V, Fc, T))
     return want, int((cg >= 0).sum())
@@ -287,9 +290,9 @@ def test_a_liver_label(shared_data):
 
 
 def test_groups_of_any_integer_dtype_give_the_same_pairs():
-    """``groups`` is made int64 where the broad phase's certificate is computed (not held through
-    the broad phase): int32 tags (the general mesher's), int64 and a strided view give the same
-    pairs, with the groups and without."""
+    """``groups`` is taken as it is where int32 (the general mesher's tags), else made int64, where
+    the broad phase's certificate is computed (not held through the broad phase): int32 tags, int64
+    and a strided view give the same pairs, with the groups and without."""
     V, F, G = _lattice_mesh(np.random.default_rng(41), 3000, 3, 20)
     want = intersecting_pairs(V, F)
     assert len(want) > 0
@@ -297,3 +300,45 @@ def test_groups_of_any_integer_dtype_give_the_same_pairs():
     strided = np.repeat(G64, 2)[::2]
     for g in (G64, G64.astype(np.int32), strided):
         np.testing.assert_array_equal(intersecting_pairs(V, F, groups=g), want)
+
+
+def test_the_slab_phase_with_groups_certifies_no_stars(monkeypatch):
+    """With groups the slab phase gets a star count that never comes due (``_SLAB_STARS``), and
+    certifies no star; the pairs are those with the stars certified and those without groups, on
+    the general mesher's meshes (tested by slabs) with crossings put in."""
+    rng = np.random.default_rng(146)
+    meshes = []  # (made first: the mesher's compiled kernels read the names patched below)
+    for t in range(8):
+        v = _volume(rng, t)
+        if v.any():
+            meshes += _whole_tests(v)
+    monkeypatch.setattr(I, "_GRID_FACES", 0)  # (every mesh by slabs where sectioned)
+    real = I._slab_pairs
+    seen = []
+
+    def spy(V, ws, F, star, sst, *rest):
+        due = int(sst[0])
+        out = real(V, ws, F, star, sst, *rest)
+        seen.append((due, int(star.sum())))
+        return out
+
+    monkeypatch.setattr(I, "_slab_pairs", spy)
+    met = found = 0
+    for V, F, T in meshes:
+        W = V.copy()
+        W[rng.integers(len(W), size=3)] += rng.uniform(-1.5, 1.5, (3, 3))
+        for X in (V, W):
+            want = intersecting_pairs(X, F)
+            seen.clear()
+            got = intersecting_pairs(X, F, groups=T)
+            np.testing.assert_array_equal(got, want)
+            assert all(due == -1 and n == 0 for due, n in seen)
+            by_slabs = len(seen) > 0  # (else not sectioned: the grid)
+            monkeypatch.setattr(I, "_SLAB_STARS", True)
+            seen.clear()
+            np.testing.assert_array_equal(intersecting_pairs(X, F, groups=T), want)
+            assert all(due == 0 for due, _ in seen) and (len(seen) > 0) == by_slabs
+            monkeypatch.setattr(I, "_SLAB_STARS", False)
+            met += by_slabs
+            found += by_slabs and len(want) > 0
+    assert met >= 6 and found >= 2, (met, found)

@@ -891,7 +891,8 @@ def _star_fill_levels(V, F, star, lev, l0, l1):
     faces in the order of their numbers)."""
     nv = len(V)
     m = len(F)
-    start = np.zeros(nv + 1, np.int64)
+    # (offsets in int32 as the entries below: a mesh of 2^29 faces would not fit in memory here)
+    start = np.zeros(nv + 1, np.int32)
     for i in range(m):
         for t in range(3):
             v = F[i, t]
@@ -922,11 +923,11 @@ def _star_fill_levels(V, F, star, lev, l0, l1):
     stamp = np.full(nv, -1, np.int32)
     most = 0
     for p in range(nv):
-        most = max(most, start[p + 1] - start[p])
+        most = max(most, np.int64(start[p + 1]) - np.int64(start[p]))
     nrm = np.empty((most, 3), np.float64)  # the fan's face normals (float: to choose directions)
     for p in range(nv):
-        s0 = start[p]
-        s1 = start[p + 1]
+        s0 = np.int64(start[p])
+        s1 = np.int64(start[p + 1])
         n = s1 - s0
         if n < 3:
             continue
@@ -1114,7 +1115,9 @@ def _lattice_cells(V, F, grp):
                 break
     for g in range(ng):
         cnt[g + 1] += cnt[g]
-    order = np.empty(cnt[ng], np.int64)  # the candidates by group
+    # (face numbers and table slots per face in int32, and no copy of V for its values' bits: on
+    # the liver's whole mesh these were some 10 MiB at the peak of the general mesher's crossing test)
+    order = np.empty(cnt[ng], np.int32)  # the candidates by group
     fill = cnt[:ng].copy()
     most = np.int64(0)
     for i in range(m):
@@ -1140,13 +1143,14 @@ def _lattice_cells(V, F, grp):
     hbits = np.empty(vcap, np.int64)
     hst = np.full(vcap, -1, np.int64)
     hrank = np.empty(vcap, np.int64)
-    Vb = (V + 0.0).view(np.int64)  # (-0.0 + 0.0 == +0.0: one bit pattern per value)
+    gb = np.empty(3 * most + 1, np.float64)  # a group's values along one axis, + 0.0 ...
+    gbb = gb.view(np.int64)  # ... and their bits (-0.0 + 0.0 == +0.0: one bit pattern per value)
     sid = np.int64(-1)
     tkey = np.empty(cap, np.int64)
     tface = np.empty(cap, np.int64)  # the cell's first face, or -1: a cell not certified
     tcnt = np.empty(cap, np.int64)
     tstamp = np.full(cap, -1, np.int64)
-    slot = np.empty(m, np.int64)
+    slot = np.empty(m, np.int32)
     dim = np.empty(3, np.int64)
     for g in range(ng):
         c0 = cnt[g]
@@ -1167,7 +1171,9 @@ def _lattice_cells(V, F, grp):
             sid += 1
             nd = 0
             for t in range(nv):
-                b = Vb[verts[t], k]
+                gb[t] = V[verts[t], k] + 0.0
+            for t in range(nv):
+                b = gbb[t]
                 h = b ^ (b >> 29)
                 h *= np.int64(-7046029254386353131)  # (0x9E3779B97F4A7C15, wrapped)
                 h ^= h >> 32
@@ -1251,7 +1257,8 @@ def _fill_stars(V, F, star, lev, l0, l1, cg):
         _star_fill_levels(V, F, star, lev, l0, l1)
         return
     nv = len(V)
-    mark = np.full(nv, -1, np.int64)  # -1 no face yet, -2 a star needed, else the one group
+    # -1 no face yet, -2 a star needed, else the one group (int32: groups are below 8 m + 16)
+    mark = np.full(nv, -1, np.int32)
     for i in range(len(F)):
         g = cg[i]
         for t in range(3):
@@ -2597,6 +2604,86 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, sW, so
     return ci, cj, npairs, pi, pj, work
 
 
+@_kernel
+def _first_plane(lo, hi, nlev, kr0, act):
+    """The start of :func:`_slab_pairs`' walk over the planes from ``kr0``: the live faces
+    (``lo >= 0``) whose lowest level is above ``kr0``, by that level and then by number
+    (``bylo``, level ``k``'s from ``cnt_l[k]`` to ``cnt_l[k + 1]``: the ``new`` of
+    :func:`_next_plane`), and plane ``kr0``'s faces (``lo <= kr0 <= hi``) in the order of their
+    numbers into ``act``.  Returns ``(bylo, cnt_l, nact)``."""
+    m = len(lo)
+    cnt_l = np.zeros(nlev + 1, np.int64)
+    nact = np.int64(0)
+    for i in range(m):
+        if lo[i] > kr0:
+            cnt_l[lo[i] + 1] += 1
+        elif lo[i] >= 0 and kr0 <= hi[i]:
+            act[nact] = i
+            nact += 1
+    for k in range(nlev):
+        cnt_l[k + 1] += cnt_l[k]
+    bylo = np.empty(cnt_l[nlev], np.int32)
+    fl = cnt_l[:nlev].copy()
+    for i in range(m):
+        if lo[i] > kr0:
+            bylo[fl[lo[i]]] = i
+            fl[lo[i]] += 1
+    return bylo, cnt_l, nact
+
+
+@njit(cache=True, **_OPTIONS)
+def _plane_walk(lo, hi, nlev, kr0, mp):
+    """Every plane's faces from plane ``kr0`` on as :func:`_slab_pairs` meets them
+    (:func:`_first_plane`, then :func:`_next_plane`), one plane after another, and how many each
+    (``mp``: the most on one plane): for the tests that compare them with each plane's faces
+    listed face by face."""
+    act = np.empty(max(mp, 1), np.int32)
+    mrg = np.empty(max(mp, 1), np.int32)
+    counts = np.zeros(max(nlev - kr0, 0), np.int64)
+    out = np.empty(0, np.int32)
+    for rep in range(2):  # (counted, then listed)
+        bylo, cnt_l, nact = _first_plane(lo, hi, nlev, kr0, act)
+        at = np.int64(0)
+        for k in range(kr0, nlev):
+            if k > kr0:
+                nact = _next_plane(lo, hi, bylo[cnt_l[k]:cnt_l[k + 1]], act, nact, mrg, k)
+            counts[k - kr0] = nact
+            if rep == 1:
+                out[at:at + nact] = act[:nact]
+            at += nact
+        if rep == 0:
+            out = np.empty(at, np.int32)
+    return out, counts
+
+
+@_kernel
+def _next_plane(lo, hi, new, act, nact, mrg, k):
+    """Plane ``k``'s faces from plane ``k - 1``'s: the faces ``act[:nact]`` (in the order of their
+    numbers) that reach plane ``k`` (``hi >= k``), merged with ``new``, the faces whose lowest level
+    is ``k`` (in that order too), into ``act``; returns their number.  Every face of plane ``k``
+    with a lower level is on plane ``k - 1`` as well (its levels span ``lo .. hi``), so these are
+    the faces ``lo <= k <= hi``, in the order of their numbers, as a list of every plane's faces
+    filled face by face would hold them.  ``mrg``: a workspace as long as ``act``."""
+    n = np.int64(0)
+    a = np.int64(0)
+    b = np.int64(0)
+    nn = len(new)
+    while a < nact or b < nn:
+        if a < nact and hi[act[a]] < k:
+            a += 1
+            continue
+        if b >= nn or (a < nact and act[a] < new[b]):
+            mrg[n] = act[a]
+            a += 1
+        else:
+            mrg[n] = new[b]
+            b += 1
+        n += 1
+    for t in range(n):
+        act[t] = mrg[t]
+    return n
+
+
 @njit(cache=True, **_OPTIONS)
 def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg):
     """The pairs of :func:`_intersecting_pairs` for a mesh whose vertex heights have level indices
@@ -2628,8 +2715,11 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
     ax1 = np.int64(1)
     ax2 = np.int64(2)
     nslab = max(nlev - 1, 1)
-    cnt_s = np.zeros(nslab + 1, np.int64)  # slab memberships
-    cnt_p = np.zeros(nlev + 1, np.int64)  # plane memberships
+    # (no lists of every plane's and slab's faces, some 10 MiB on the liver's whole mesh: each
+    # plane's faces are kept as the planes are met, by _next_plane, from the faces sorted by their
+    # lowest level; the counts give the fullest plane and slab for the workspaces)
+    dif_s = np.zeros(nslab + 1, np.int64)  # slab memberships, as differences
+    dif_p = np.zeros(nlev + 1, np.int64)  # plane memberships, as differences
     total = 0
     for i in range(m):
         a = F[i, 0]
@@ -2648,27 +2738,11 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
         total += ha - la
         if total > 4 * m + 1000:
             return pi[:0], pj[:0], np.int64(0)
-        for k in range(la, ha):
-            cnt_s[k + 1] += 1
-        for k in range(la, ha + 1):
-            cnt_p[k + 1] += 1
-    for k in range(nslab):
-        cnt_s[k + 1] += cnt_s[k]
-    for k in range(nlev):
-        cnt_p[k + 1] += cnt_p[k]
-    slab_faces = np.empty(cnt_s[nslab], np.int32)
-    plane_faces = np.empty(cnt_p[nlev], np.int32)
-    fs = cnt_s[:nslab].copy()
-    fp = cnt_p[:nlev].copy()
-    for i in range(m):
-        if lo[i] < 0:
-            continue
-        for k in range(lo[i], hi[i]):
-            slab_faces[fs[k]] = i
-            fs[k] += 1
-        for k in range(lo[i], hi[i] + 1):
-            plane_faces[fp[k]] = i
-            fp[k] += 1
+        if ha > la:
+            dif_s[la] += 1
+            dif_s[ha] -= 1
+        dif_p[la] += 1
+        dif_p[ha + 1] -= 1
     limit = budget * m + 1000000
     work = np.int64(0)
     n_out = np.int64(0)
@@ -2678,11 +2752,22 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
     # the workspaces per plane and per slab hold one entry per face of the fullest plane or slab
     # (a face at most once in each), not one per face of the mesh
     mp = np.int64(1)
+    run = np.int64(0)
     for k in range(nlev):
-        mp = max(mp, cnt_p[k + 1] - cnt_p[k])
+        run += dif_p[k]
+        mp = max(mp, run)
     ms = np.int64(1)
+    run = np.int64(0)
     for k in range(nslab):
-        ms = max(ms, cnt_s[k + 1] - cnt_s[k])
+        run += dif_s[k]
+        ms = max(ms, run)
+    # the current plane's faces (act, in the order of their numbers), a merge buffer, and the
+    # faces of the slabs below and above it
+    act = np.empty(mp, np.int32)
+    mrg = np.empty(mp, np.int32)
+    sbelow = np.empty(ms, np.int32)
+    sabove = np.empty(ms, np.int32)
+    bylo, cnt_l, nact = _first_plane(lo, hi, nlev, kr0, act)
     # plane entries (reused per plane).  Their xy boxes are columns of one array, as the slabs'
     # are columns of box, and entries are numbered in int32 as the slabs' faces are: the sweeps
     # get one signature
@@ -2711,19 +2796,30 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
     d2 = np.empty(len(V), np.int32)
     pemb = np.zeros(nlev, np.int64)
     keys = np.empty(2 * ms + 2, np.int64)
-    head = np.empty(len(V), np.int32)
-    hstamp = np.full(len(V), -1, np.int32)
+    nvh = len(V) if ws[0] == 1.0 else 0  # (_slab_embedded's, on the dyadic grid only)
+    head = np.empty(nvh, np.int32)
+    hstamp = np.full(nvh, -1, np.int32)
     nxt = np.empty(ms + 1, np.int64)
     # the slabs' certificates first (_slab_embedded: cheap, and on the dyadic grid only): a plane
     # that holds only parts of faces ending there or only of faces starting there has no pairs of
     # its own to decide, and its embedded graph (the costlier check) matters only to a certified
     # slab beside it (the mesher's bands between two rings: most slabs fail the certificate)
+    # (each slab's, ``kr0 .. k1 - 2``, is found at the plane below it, before that plane needs it)
     scert = np.zeros(nslab, np.int8)
-    if ws[0] == 1.0:
-        for k in range(max(k0 - 1, 0), min(k1 - 1, nslab)):
-            faces = slab_faces[cnt_s[k]:cnt_s[k + 1]]
-            if len(faces) < 2:
-                continue
+    nabove = np.int64(0)
+    for k in range(kr0, k1):
+        if k > kr0:
+            nact = _next_plane(lo, hi, bylo[cnt_l[k]:cnt_l[k + 1]], act, nact, mrg, np.int64(k))
+        # the slab below (k - 1: the faces of plane k - 1 reaching plane k), then the one above
+        nbelow = nabove
+        sbelow, sabove = sabove, sbelow
+        nabove = np.int64(0)
+        for t in range(nact):
+            if hi[act[t]] > k:
+                sabove[nabove] = act[t]
+                nabove += 1
+        if ws[0] == 1.0 and k < min(k1 - 1, nslab) and nabove >= 2:
+            faces = sabove[:nabove]
             single = True
             for t in range(len(faces)):
                 if lo[faces[t]] != k or hi[faces[t]] != k + 1:
@@ -2731,15 +2827,14 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
                     break
             if single and _slab_embedded(V, F, lev, faces, np.int64(k), keys, head, hstamp, nxt):
                 scert[k] = 1
-    for k in range(kr0, k1):
         # plane k: the parts at z_k of the faces ending there (group 0) and starting there (group
         # 1), first; then the flat faces there (group 2) and the faces through it (group 3: they
         # meet the others in a slab, only flat faces here)
         ne = 0
         n0 = 0
         n1 = 0
-        for t in range(cnt_p[k], cnt_p[k + 1]):
-            i = plane_faces[t]
+        for t in range(nact):
+            i = act[t]
             if lo[i] == hi[i] or (lo[i] < k and k < hi[i]):
                 continue
             e = ne
@@ -2772,8 +2867,8 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
             ne += 1
         ne01 = ne
         nflat = 0
-        for t in range(cnt_p[k], cnt_p[k + 1]):
-            i = plane_faces[t]
+        for t in range(nact):
+            i = act[t]
             if lo[i] == hi[i]:
                 pgrp[ne] = 2
                 nflat += 1
@@ -2804,7 +2899,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
         if k > 0:
             ci, cj, npairs, pi, pj, work = _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids,
                                                       sW, sord, sbk, sstart,
-                                                      slab_faces[cnt_s[k - 1]:cnt_s[k]], np.int64(k - 1), pemb, scert,
+                                                      sbelow[:nbelow], np.int64(k - 1), pemb, scert,
                                                       ci, cj, npairs, pi, pj, work, limit, stop, kr0, k1 - 1, cg)
             if npairs < 0:
                 return pi[:0], pj[:0], np.int64(-1)
@@ -3246,7 +3341,8 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     star (:func:`_star_certified`) or in the plane where the boxes touch (:func:`_touching_boxes`):
     the same pairs, for the tests that compare the two.  ``groups`` (an integer per face, -1 none; with
     ``quick`` and no ``stop`` only): the pairs of two faces certified in one group
-    (:func:`_lattice_cells`) are not tested; the same pairs."""
+    (:func:`_lattice_cells`) are not tested, and the slab phase certifies no stars
+    (:data:`_SLAB_STARS`); the same pairs."""
     V = _exact_range(V)
     if not V.flags.writeable:  # one compiled signature: writable C arrays
         V = V.copy()
@@ -3263,8 +3359,13 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
     sst = np.array([0 if quick else -1, len(Fc) // 8 + _STAR_DELAY], np.int64)
     qk = np.int64(1 if quick else 0)
     cg = np.zeros(0, np.int64)
+    sst_slabs = sst  # (the slab phase's: see _SLAB_STARS)
     if groups is not None and quick and stop == 0:
-        cg = _lattice_cells(V, Fc, np.ascontiguousarray(groups, dtype=np.int64))
+        sst_slabs = np.array([sst[0] if _SLAB_STARS else -1, sst[1]], np.int64)
+        # (int32 groups, as the volume mesher's face tags, as they are: no int64 copy of one per face)
+        groups = np.asarray(groups)
+        cg = _lattice_cells(V, Fc, np.ascontiguousarray(groups, dtype=np.int32 if groups.dtype == np.int32
+                                                         else np.int64))
     ok = 0
     # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces whose
     # vertices lie on other than two heights (see there), else the slab phase (the grid where it
@@ -3282,7 +3383,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
             levels, lev = np.unique(V[:, 2], return_inverse=True)
             lev, nlev = lev.astype(np.int64).reshape(-1), len(levels)
         if split and nlev > 8:
-            got = _split_slab_pairs(V, ws, Fc, sst, qk, lev, nlev, _threads(), cg)
+            got = _split_slab_pairs(V, ws, Fc, sst_slabs, qk, lev, nlev, _threads(), cg)
             if got is not None:
                 return got
     if method == "slabs" or (method == "auto" and not on_grid):
@@ -3290,7 +3391,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
         # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
         # ("auto": a mesh that is not sectioned goes to the grid unasked, see _sectioned)
         if method == "slabs" or _sectioned(V, ws, Fc, lev) == 1:
-            pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, qk, lev, np.int64(nlev),
+            pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst_slabs, qk, lev, np.int64(nlev),
                                      np.int64(_SLAB_BUDGET), np.int64(stop), np.int64(0), np.int64(nlev), cg)
         if ok == 0 and method == "slabs":
             raise ValueError("method='slabs' needs a mesh made from sections; this one's faces span more "
@@ -3308,6 +3409,17 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
 #: faces have reached the tests (the 512^3 ball's slab phase decides its pairs without them: its
 #: 117k faces take 14 ms, the stars 17 ms more; the lobster's and the liver's meshes need them).
 _STAR_DELAY = 100
+
+#: Whether the slab phase of a mesh with face groups (the volume mesher's whole-mesh test) certifies
+#: the vertices' stars: it does not.  Its pairs are mostly decided by coordinates in the sweeps
+#: (:func:`_single_sweep`) and by the groups (:func:`_lattice_cells`), and the stars (a pass over
+#: every vertex's fan) cost more than the pair tests they spare (issue 16's twentieth round, the
+#: dumped first builds with their tags, one thread, CPU-s with / without: the liver 0.222 / 0.195,
+#: liver x2 0.603 / 0.491, the socket rotated at 256 voxels 0.056 / 0.045, at 512 0.186 / 0.144).
+#: The grid keeps them (where the slab phase gives up, and for the lobster's mesh, the 128^3
+#: bunny's and Al.100's: with them 0.239, 0.0084, 0.0050 CPU-s, without 0.254, 0.0115, 0.0064).
+#: The same pairs either way: a certified star only spares tests whose answer is no.
+_SLAB_STARS = False
 
 #: Meshes off the small dyadic grid (:func:`_on_small_dyadic_grid`; as the repaired meshes of real
 #: volumes and many of the mesher's bands and joins) of fewer faces than this are tested by the grid
