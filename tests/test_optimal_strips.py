@@ -160,7 +160,7 @@ def _strips_giving_up(A1, A2, a, k):
     lo = np.zeros(n + 1, dtype=np.int64)
     hi = np.full(n + 1, m, dtype=np.int64)
     for t in (0, k - 1):
-        _strip_dp(A1, A2, a + t, lo, hi, D, move)
+        _strip_dp_branching(A1, A2, a + t, lo, hi, D, move)
         _strip_path(move, n, m, first[t])
     todo = [(0, k - 1)]
     while todo:
@@ -171,7 +171,7 @@ def _strips_giving_up(A1, A2, a, k):
         for i in range(n + 1):
             hi[i] = m if t + i - t0 >= n else first[t0, t + i - t0 + 1]
             lo[i] = first[t1, t + i - t1] if t + i - t1 >= 0 else 0
-        if _strip_dp(A1, A2, a + t, lo, hi, D, move) == np.inf:
+        if _strip_dp_branching(A1, A2, a + t, lo, hi, D, move) == np.inf:
             return False
         _strip_path(move, n, m, first[t])
         todo += [(t0, t), (t, t1)]
@@ -198,9 +198,9 @@ def test_crossing_paths_widen_the_strip():
         assert ok
         crossed += not _strips_giving_up(A1, A2, a, k)
         D = np.empty((2, m + 1))
-        move = np.zeros((n + 1, m + 1), dtype=np.int8)
+        ent, base = np.empty(n * (m + 1), np.int32), np.empty(n + 1, np.int64)
         for t in range(k):
-            whole = _strip_dp(A1, A2, a + t, np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64), D, move)
+            whole = _strip_dp(A1, A2, a + t, np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64), D, ent, base)
             assert costs[t] == pytest.approx(whole, rel=1e-12, abs=1e-12)
         each, strips = _both(A1, A2, starts)
         assert each == strips
@@ -252,7 +252,7 @@ def test_strip_programme_equals_its_first_form_bit_for_bit():
     same cost and the same moves as its first form, on random strips (some empty rows, some that
     end short of the last column, coarse-grid rings with tied areas); and so do the two
     programmes that run side by side on the whole grid."""
-    from contourmesh.bands.optimal import _grid_dp_pair, _strip_dp
+    from contourmesh.bands.optimal import _grid_dp_pair, _strip_cells, _strip_dp, _strip_entries_path
 
     rs = np.random.default_rng(12)
     finite = 0
@@ -274,20 +274,26 @@ def test_strip_programme_equals_its_first_form_bit_for_bit():
             hi[:] = m  # the whole grid
         s = int(rs.integers(0, n))
         D1, D2 = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
-        M1, M2 = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
+        M1 = np.zeros((n + 1, m + 1), np.int8)
+        ent, base = np.empty(_strip_cells(lo, hi), np.int32), np.empty(n + 1, np.int64)
         c_ref = _strip_dp_reference(A1, A2, s, lo, hi, D1, M1)
-        c_new = _strip_dp(A1, A2, s, lo, hi, D2, M2)
-        assert (c_ref == c_new or (np.isinf(c_ref) and np.isinf(c_new))) and np.array_equal(M1, M2)
+        c_new = _strip_dp(A1, A2, s, lo, hi, D2, ent, base)
+        assert c_ref == c_new or (np.isinf(c_ref) and np.isinf(c_new))
         assert np.array_equal(D1, D2)
+        if np.isfinite(c_ref):  # the same path
+            f1, f2 = np.empty(n + 1, np.int32), np.empty(n + 1, np.int32)
+            _strip_path(M1, n, m, f1)
+            _strip_entries_path(ent, base, n, m, f2)
+            assert np.array_equal(f1, f2)
         finite += bool(np.isfinite(c_ref))
         # the first and last start points' programmes side by side (_strip_costs' _grid_dp_pair):
-        # each the cost, moves and rows of _strip_dp over the whole grid
+        # each the cost, moves and rows of the branching strip programme over the whole grid
         u = int(rs.integers(0, 2 * n))
         full_lo, full_hi = np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64)
         ref = []
         for v in (s, u):
             D, M = np.full((2, m + 1), 7.0), np.zeros((n + 1, m + 1), np.int8)
-            ref.append((_strip_dp(A1, A2, v, full_lo, full_hi, D, M), D, M))
+            ref.append((_strip_dp_branching(A1, A2, v, full_lo, full_hi, D, M), D, M))
         D, E = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
         M, N = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
         got = _grid_dp_pair(A1, A2, s, u, D, E, M, N)
@@ -535,41 +541,43 @@ def _strip_case(rs, t):
     if t % 7 == 0:
         lo[:] = 0
         hi[:] = m
+    if t % 6 == 1 and n > 2:  # a row with no cell (crossing paths)
+        i = int(rs.integers(1, n))
+        hi[i] = lo[i] - 1 if lo[i] > 0 else hi[i]
+        lo[i] = hi[i] + 1
     return A1, A2, lo, hi
 
 
 def test_strip_programme_in_one_pass_equals_the_branching_form():
-    """The strip programme in one branch-free pass per row gives the branching form's cost and
-    rows bit for bit, and from zeroed moves the same moves; from moves left by other strips, the
-    same path traced back (the cells it differs at are ones no offer reaches).  The same for the
-    two ends' programmes side by side."""
-    from contourmesh.bands.optimal import _grid_dp_pair, _strip_dp
+    """The strip programme in one branch-free pass per row, its path read back from each row's
+    entry columns, gives the branching form's cost, rows and path bit for bit (from moves left by
+    other strips too); and the two ends' programmes side by side give its costs, rows and, from
+    zeroed moves, its moves."""
+    from contourmesh.bands.optimal import _grid_dp_pair, _strip_cells, _strip_dp, _strip_entries_path
 
     rs = np.random.default_rng(41)
-    seen = {"finite": 0, "bad costs": 0, "signed": 0}
+    seen = {"finite": 0, "bad costs": 0, "signed": 0, "empty rows": 0}
     for t in range(600):
         A1, A2, lo, hi = _strip_case(rs, t)
         n, m = A1.shape
         s = int(rs.integers(0, 2 * n))
         D1, D2 = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
-        M1, M2 = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
+        M1 = rs.integers(0, 2, (n + 1, m + 1)).astype(np.int8)  # (moves of another strip)
+        ent = rs.integers(-9, 9, _strip_cells(lo, hi) + int(rs.integers(0, 5))).astype(np.int32)
+        base = np.zeros(n + 1, np.int64)
         c_ref = _strip_dp_branching(A1, A2, s, lo, hi, D1, M1)
-        c_new = _strip_dp(A1, A2, s, lo, hi, D2, M2)
+        c_new = _strip_dp(A1, A2, s, lo, hi, D2, ent, base)
         assert np.float64(c_ref).tobytes() == np.float64(c_new).tobytes()
-        assert D1.tobytes() == D2.tobytes() and np.array_equal(M1, M2)
-        # moves left by another strip: the same path where there is one
-        M3 = rs.integers(0, 2, (n + 1, m + 1)).astype(np.int8)
-        M4 = M3.copy()
-        _strip_dp_branching(A1, A2, s, lo, hi, D1, M3)
-        _strip_dp(A1, A2, s, lo, hi, D2, M4)
+        assert D1.tobytes() == D2.tobytes()
         if np.isfinite(c_ref):
             f1, f2 = np.empty(n + 1, np.int32), np.empty(n + 1, np.int32)
-            _strip_path(M3, n, m, f1)
-            _strip_path(M4, n, m, f2)
+            _strip_path(M1, n, m, f1)
+            _strip_entries_path(ent, base, n, m, f2)
             assert np.array_equal(f1, f2)
             seen["finite"] += 1
         seen["bad costs"] += not (np.isfinite(A1).all() and np.isfinite(A2).all())
         seen["signed"] += bool((A1 < 0).any() or (A2 < 0).any())
+        seen["empty rows"] += bool((hi < lo).any())
         # the two ends' programmes side by side
         u = int(rs.integers(0, 2 * n))
         got, want = [], []
