@@ -584,8 +584,8 @@ def _strip_dp(A1, A2, s, lo, hi, D, ent, base):
     costs and paths: a sum from an infinite cell (infinity or NaN) wins no comparison, as that
     form's skipped offers.  With the rows' step costs taken in turn (no modulo per row), no branch
     on which step wins (a least path's turns are not predictable) and the path read back one row
-    at a time, the strip search takes about 0.6 of the branching form's time on the bridged
-    rings of the liver, the lobster and the rotated socket."""
+    at a time, the strip search takes 0.6 to 0.7 of the branching form's time on the least-area
+    bands of the liver, the lobster and the rotated socket."""
     n, m = A1.shape
     inf = np.inf
     for j in range(m + 1):
