@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numba import njit
 
 from contourmesh.bands.fidelity import _costs
 from contourmesh.bands.optimal import (
@@ -159,7 +160,7 @@ def _strips_giving_up(A1, A2, a, k):
     lo = np.zeros(n + 1, dtype=np.int64)
     hi = np.full(n + 1, m, dtype=np.int64)
     for t in (0, k - 1):
-        _strip_dp(A1, A2, a + t, lo, hi, D, move)
+        _strip_dp_branching(A1, A2, a + t, lo, hi, D, move)
         _strip_path(move, n, m, first[t])
     todo = [(0, k - 1)]
     while todo:
@@ -170,7 +171,7 @@ def _strips_giving_up(A1, A2, a, k):
         for i in range(n + 1):
             hi[i] = m if t + i - t0 >= n else first[t0, t + i - t0 + 1]
             lo[i] = first[t1, t + i - t1] if t + i - t1 >= 0 else 0
-        if _strip_dp(A1, A2, a + t, lo, hi, D, move) == np.inf:
+        if _strip_dp_branching(A1, A2, a + t, lo, hi, D, move) == np.inf:
             return False
         _strip_path(move, n, m, first[t])
         todo += [(t0, t), (t, t1)]
@@ -197,9 +198,9 @@ def test_crossing_paths_widen_the_strip():
         assert ok
         crossed += not _strips_giving_up(A1, A2, a, k)
         D = np.empty((2, m + 1))
-        move = np.zeros((n + 1, m + 1), dtype=np.int8)
+        ent, base = np.empty(n * (m + 1), np.int32), np.empty(n + 1, np.int64)
         for t in range(k):
-            whole = _strip_dp(A1, A2, a + t, np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64), D, move)
+            whole = _strip_dp(A1, A2, a + t, np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64), D, ent, base)
             assert costs[t] == pytest.approx(whole, rel=1e-12, abs=1e-12)
         each, strips = _both(A1, A2, starts)
         assert each == strips
@@ -251,7 +252,7 @@ def test_strip_programme_equals_its_first_form_bit_for_bit():
     same cost and the same moves as its first form, on random strips (some empty rows, some that
     end short of the last column, coarse-grid rings with tied areas); and so do the two
     programmes that run side by side on the whole grid."""
-    from contourmesh.bands.optimal import _grid_dp_pair, _strip_dp
+    from contourmesh.bands.optimal import _grid_dp_pair, _strip_cells, _strip_dp, _strip_entries_path
 
     rs = np.random.default_rng(12)
     finite = 0
@@ -273,20 +274,26 @@ def test_strip_programme_equals_its_first_form_bit_for_bit():
             hi[:] = m  # the whole grid
         s = int(rs.integers(0, n))
         D1, D2 = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
-        M1, M2 = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
+        M1 = np.zeros((n + 1, m + 1), np.int8)
+        ent, base = np.empty(_strip_cells(lo, hi), np.int32), np.empty(n + 1, np.int64)
         c_ref = _strip_dp_reference(A1, A2, s, lo, hi, D1, M1)
-        c_new = _strip_dp(A1, A2, s, lo, hi, D2, M2)
-        assert (c_ref == c_new or (np.isinf(c_ref) and np.isinf(c_new))) and np.array_equal(M1, M2)
+        c_new = _strip_dp(A1, A2, s, lo, hi, D2, ent, base)
+        assert c_ref == c_new or (np.isinf(c_ref) and np.isinf(c_new))
         assert np.array_equal(D1, D2)
+        if np.isfinite(c_ref):  # the same path
+            f1, f2 = np.empty(n + 1, np.int32), np.empty(n + 1, np.int32)
+            _strip_path(M1, n, m, f1)
+            _strip_entries_path(ent, base, n, m, f2)
+            assert np.array_equal(f1, f2)
         finite += bool(np.isfinite(c_ref))
         # the first and last start points' programmes side by side (_strip_costs' _grid_dp_pair):
-        # each the cost, moves and rows of _strip_dp over the whole grid
+        # each the cost, moves and rows of the branching strip programme over the whole grid
         u = int(rs.integers(0, 2 * n))
         full_lo, full_hi = np.zeros(n + 1, np.int64), np.full(n + 1, m, np.int64)
         ref = []
         for v in (s, u):
             D, M = np.full((2, m + 1), 7.0), np.zeros((n + 1, m + 1), np.int8)
-            ref.append((_strip_dp(A1, A2, v, full_lo, full_hi, D, M), D, M))
+            ref.append((_strip_dp_branching(A1, A2, v, full_lo, full_hi, D, M), D, M))
         D, E = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
         M, N = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
         got = _grid_dp_pair(A1, A2, s, u, D, E, M, N)
@@ -338,3 +345,267 @@ def test_one_near_start_records_its_tables_once_and_the_band_is_unchanged(grid):
                       else "several"] += 1
     assert kinds["one"] >= 10 and kinds["several"] >= 3, kinds  # both routes are taken
 
+
+# The strip programme and the two ends' programmes before each row became one pass without
+# branches (the reference the compiled kernels are held to, bit for bit).
+
+@njit
+def _strip_dp_branching(A1, A2, s, lo, hi, D, move):
+    """``_strip_dp`` as it was before one pass per row: a C(2)-pass and a C(1)-pass per row, each
+    offer taken by a branch, the row's step costs found by a modulo."""
+    n, m = A1.shape
+    inf = np.inf
+    for j in range(m + 1):
+        D[0, j] = inf
+    D[0, 0] = 0.0
+    for i in range(n + 1):
+        r = i % 2
+        ib = (s + i) % n
+        a2row = A2[ib]
+        if lo[i] < hi[i]:
+            d = D[r, lo[i]]  # the cell's final cost, carried to the next cell in a register
+            for j in range(lo[i], hi[i]):  # j < hi[i] <= m: the column itself (no modulo)
+                nxt = D[r, j + 1]
+                if d != inf:
+                    c = d + a2row[j]
+                    if c < nxt:
+                        nxt = c
+                        D[r, j + 1] = c
+                        move[i, j + 1] = 1
+                d = nxt
+        if i == n:
+            break
+        rn = (i + 1) % 2
+        for j in range(lo[i + 1], hi[i + 1] + 1):
+            D[rn, j] = inf
+        a1row = A1[ib]
+        for j in range(max(lo[i], lo[i + 1]), min(hi[i], hi[i + 1]) + 1):
+            d = D[r, j]
+            if d != inf:
+                c = d + (a1row[0] if j == m else a1row[j])  # A1[ib, j % m], 0 <= j <= m
+                if c < D[rn, j]:
+                    D[rn, j] = c
+                    move[i + 1, j] = 0
+    return D[n % 2, m] if hi[n] == m else inf
+
+
+@njit
+def _grid_dp_pair_branching(A1, A2, s, u, D, E, move, move_u):
+    """``_grid_dp_pair`` as it was before one pass per row (two passes per row, with branches)."""
+    n, m = A1.shape
+    inf = np.inf
+    for j in range(m + 1):
+        D[0, j] = inf
+        E[0, j] = inf
+    D[0, 0] = 0.0
+    E[0, 0] = 0.0
+    for i in range(n + 1):
+        r = i % 2
+        a2s = A2[(s + i) % n]
+        a2u = A2[(u + i) % n]
+        d = D[r, 0]
+        e = E[r, 0]
+        for j in range(m):
+            nxt = D[r, j + 1]
+            if d != inf:
+                c = d + a2s[j]
+                if c < nxt:
+                    nxt = c
+                    D[r, j + 1] = c
+                    move[i, j + 1] = 1
+            d = nxt
+            nxt = E[r, j + 1]
+            if e != inf:
+                c = e + a2u[j]
+                if c < nxt:
+                    nxt = c
+                    E[r, j + 1] = c
+                    move_u[i, j + 1] = 1
+            e = nxt
+        if i == n:
+            break
+        rn = (i + 1) % 2
+        a1s = A1[(s + i) % n]
+        a1u = A1[(u + i) % n]
+        for j in range(m + 1):
+            D[rn, j] = inf
+            E[rn, j] = inf
+            jj = 0 if j == m else j  # A1[ib, j % m], 0 <= j <= m
+            d = D[r, j]
+            if d != inf:
+                c = d + a1s[jj]
+                if c < inf:
+                    D[rn, j] = c
+                    move[i + 1, j] = 0
+            e = E[r, j]
+            if e != inf:
+                c = e + a1u[jj]
+                if c < inf:
+                    E[rn, j] = c
+                    move_u[i + 1, j] = 0
+    return D[n % 2, m], E[n % 2, m]
+
+
+
+@njit
+def _strip_costs_branching(A1, A2, a, k):
+    """``_strip_costs`` with the branching programmes in it."""
+    n, m = A1.shape
+    D = np.empty((2, m + 1))
+    move = np.zeros((n + 1, m + 1), dtype=np.int8)
+    cost = np.full(k, np.inf)
+    first = np.empty((k, n + 1), dtype=np.int32)   # per start, per row of its own: entry column
+    lo = np.zeros(n + 1, dtype=np.int64)
+    hi = np.full(n + 1, m, dtype=np.int64)
+    # the two ends' programmes over the whole grid, side by side (_grid_dp_pair)
+    move_b = np.zeros((n + 1, m + 1), dtype=np.int8)
+    c0, c1 = _grid_dp_pair_branching(A1, A2, a, a + k - 1, D, np.empty((2, m + 1)), move, move_b)
+    if c0 == np.inf:
+        return cost, False
+    cost[0] = c0
+    _strip_path(move, n, m, first[0])
+    if c1 == np.inf:
+        return cost, False
+    cost[k - 1] = c1
+    _strip_path(move_b, n, m, first[k - 1])
+    stack = np.empty((2 * k + 2, 2), dtype=np.int64)
+    stack[0, 0] = 0
+    stack[0, 1] = k - 1
+    top = 1
+    while top > 0:
+        top -= 1
+        t0 = stack[top, 0]
+        t1 = stack[top, 1]
+        if t1 - t0 <= 1:
+            continue
+        t = (t0 + t1) // 2
+        for i in range(n + 1):
+            u = t + i - t0          # this row among the rows of start t0: the path above
+            hi[i] = m if u >= n else first[t0, u + 1]
+            v = t + i - t1          # ... and of start t1: the path below
+            lo[i] = first[t1, v] if v >= 0 else 0
+        c = _strip_dp_branching(A1, A2, a + t, lo, hi, D, move)
+        if c == np.inf:
+            # no path fits: the two paths cross (least paths that tie, as on the liver's bridged
+            # rings, whose repeated bridge ends give triangles of no area).  Exchanging their
+            # pieces where they cross gives two least paths of the same two start points that do
+            # not: the rightmost and the leftmost of the two in each row, between which a least
+            # path of this start point lies
+            for i in range(n + 1):
+                v = t + i - t1
+                if v >= 0:
+                    hi[i] = max(hi[i], m if v >= n else first[t1, v + 1])  # (t1's, rightmost)
+                u = t + i - t0
+                if u <= n:
+                    lo[i] = min(lo[i], first[t0, u])  # (t0's, leftmost)
+            c = _strip_dp_branching(A1, A2, a + t, lo, hi, D, move)
+            if c == np.inf:
+                return cost, False
+        cost[t] = c
+        _strip_path(move, n, m, first[t])
+        stack[top, 0] = t0
+        stack[top, 1] = t
+        stack[top + 1, 0] = t
+        stack[top + 1, 1] = t1
+        top += 2
+    return cost, True
+
+
+def _strip_case(rs, t):
+    """Step costs (areas of random or coarse-grid rings, the mesher's kind of bridged rings,
+    signed fidelity costs, some with infinite or NaN costs) and a strip between two monotone
+    paths (some rows empty or short of the last column, or the whole grid)."""
+    kind = t % 4
+    if kind == 3:
+        c1, c2 = _bridged_pair(rs)
+        c1, c2 = c1[:int(rs.integers(3, 20))], c2[:int(rs.integers(20, 45))]
+    else:
+        n = int(rs.integers(2, 25))
+        m = int(rs.integers(n, 40))
+        c1 = _ring(rs, n, rs.uniform(0.2, 2), 0.0, 0.2, grid=3 if kind else None)
+        c2 = _ring(rs, m, rs.uniform(0.2, 2), 1.0, 0.2, rs.uniform(0, 6), grid=3 if kind else None)
+    if kind == 2:
+        A1, A2 = _costs(c1, c2, rs.uniform(0, 3), 1.0 if rs.random() < 0.5 else -1.0)
+    else:
+        A1, A2 = _step_areas(c1, c2)
+    n, m = A1.shape
+    if t % 5 == 0:  # a few infinite or NaN steps (coordinates past the safe range)
+        for A in (A1, A2):
+            A.ravel()[rs.integers(0, n * m, 3)] = rs.choice([np.inf, np.nan, -np.inf], 3)
+    hi = np.sort(rs.integers(0, m + 1, n + 1)).astype(np.int64)
+    lo = np.minimum(np.sort(rs.integers(0, m + 1, n + 1)), hi).astype(np.int64)
+    lo[0] = 0
+    lo[1:] = np.minimum(lo[1:], hi[:-1])
+    if t % 3:
+        hi[n] = m
+    if t % 7 == 0:
+        lo[:] = 0
+        hi[:] = m
+    if t % 6 == 1 and n > 2:  # a row with no cell (crossing paths)
+        i = int(rs.integers(1, n))
+        hi[i] = lo[i] - 1 if lo[i] > 0 else hi[i]
+        lo[i] = hi[i] + 1
+    return A1, A2, lo, hi
+
+
+def test_strip_programme_in_one_pass_equals_the_branching_form():
+    """The strip programme in one branch-free pass per row, its path read back from each row's
+    entry columns, gives the branching form's cost, rows and path bit for bit (from moves left by
+    other strips too); and the two ends' programmes side by side give its costs, rows and, from
+    zeroed moves, its moves."""
+    from contourmesh.bands.optimal import _grid_dp_pair, _strip_cells, _strip_dp, _strip_entries_path
+
+    rs = np.random.default_rng(41)
+    seen = {"finite": 0, "bad costs": 0, "signed": 0, "empty rows": 0}
+    for t in range(600):
+        A1, A2, lo, hi = _strip_case(rs, t)
+        n, m = A1.shape
+        s = int(rs.integers(0, 2 * n))
+        D1, D2 = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
+        M1 = rs.integers(0, 2, (n + 1, m + 1)).astype(np.int8)  # (moves of another strip)
+        ent = rs.integers(-9, 9, _strip_cells(lo, hi) + int(rs.integers(0, 5))).astype(np.int32)
+        base = np.zeros(n + 1, np.int64)
+        c_ref = _strip_dp_branching(A1, A2, s, lo, hi, D1, M1)
+        c_new = _strip_dp(A1, A2, s, lo, hi, D2, ent, base)
+        assert np.float64(c_ref).tobytes() == np.float64(c_new).tobytes()
+        assert D1.tobytes() == D2.tobytes()
+        if np.isfinite(c_ref):
+            f1, f2 = np.empty(n + 1, np.int32), np.empty(n + 1, np.int32)
+            _strip_path(M1, n, m, f1)
+            _strip_entries_path(ent, base, n, m, f2)
+            assert np.array_equal(f1, f2)
+            seen["finite"] += 1
+        seen["bad costs"] += not (np.isfinite(A1).all() and np.isfinite(A2).all())
+        seen["signed"] += bool((A1 < 0).any() or (A2 < 0).any())
+        seen["empty rows"] += bool((hi < lo).any())
+        # the two ends' programmes side by side
+        u = int(rs.integers(0, 2 * n))
+        got, want = [], []
+        for f, out in ((_grid_dp_pair_branching, want), (_grid_dp_pair, got)):
+            D, E = np.full((2, m + 1), 7.0), np.full((2, m + 1), 7.0)
+            M, N = np.zeros((n + 1, m + 1), np.int8), np.zeros((n + 1, m + 1), np.int8)
+            c = f(A1, A2, s, u, D, E, M, N)
+            out.append((np.array(c).tobytes(), D.tobytes(), E.tobytes(), M.tobytes(), N.tobytes()))
+        assert got == want
+    assert min(seen.values()) > 50, seen
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_strip_search_with_the_branching_programmes_is_unchanged(seed):
+    """The whole strip search (every start point's cost, on the mesher's kind of bridged rings and
+    on random rings) is the same bit for bit as with the branching programmes in it."""
+    rs = np.random.default_rng(70 + seed)
+    for t in range(60):
+        if t % 2:
+            c1, c2 = _bridged_pair(rs)
+        else:
+            n = int(rs.integers(4, 40))
+            c1 = _ring(rs, n, rs.uniform(0.2, 2), 0.0, 0.2, grid=3 if t % 4 else None)
+            c2 = _ring(rs, int(rs.integers(n, 60)), rs.uniform(0.2, 2), 1.0, 0.2, rs.uniform(0, 6))
+        A1, A2 = _step_areas(c1, c2)
+        n = len(c1)
+        k = int(rs.integers(4, n + 1))
+        a = int(rs.integers(0, n))
+        got = _strip_costs(A1, A2, a, k)
+        want = _strip_costs_branching(A1, A2, a, k)
+        assert got[1] == want[1] and got[0].tobytes() == want[0].tobytes()

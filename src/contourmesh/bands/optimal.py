@@ -42,7 +42,8 @@ from .wiederhold import edges_to_faces, oriented_pair, validate_band_polygons
 
 __all__ = ["triangulate_band_optimal", "optimal_edges", "MAX_OPTIMAL_CELLS", "MAX_OPTIMAL_WORK"]
 
-#: Largest ``n * m`` the optimal band accepts: its tables take 19 bytes per cell (about 290 MiB).
+#: Largest ``n * m`` the optimal band accepts: its tables take 19 bytes per cell (about 290 MiB),
+#: and the strip search 4 bytes per cell of its strips (:func:`_strip_dp`; narrow but for ties).
 MAX_OPTIMAL_CELLS = 16_000_000
 #: Largest ``min(n, m)^2 * max(n, m)`` it accepts (about 8 ns each here: about a minute).
 MAX_OPTIMAL_WORK = 8_000_000_000
@@ -567,112 +568,208 @@ def _cyclic_run(starts, n):
 
 
 @njit(cache=True)
-def _strip_dp(A1, A2, s, lo, hi, D, move):
+def _strip_dp(A1, A2, s, lo, hi, D, ent, base):
     """Least cost of a monotone path (annulus or not) from start ``s`` over the cells
-    ``lo[i] <= j <= hi[i]`` of each row ``i`` only; records the moves for :func:`_strip_path`.
-    ``D`` is two rolling rows."""
+    ``lo[i] <= j <= hi[i]`` of each row ``i`` only.  ``D`` is two rolling rows.  For the path
+    (:func:`_strip_entries_path`), each cell ``(i, j)`` of a row ``i >= 1`` gets in
+    ``ent[base[i] + j]`` the column where its least path entered row ``i`` (its own column where
+    the C(1)-step wins); ``base`` (``n + 1`` integers) is filled here, the rows' cells one after
+    another in ``ent``, which must hold :func:`_strip_cells` of ``lo``, ``hi`` integers.
+
+    Each row after the first is one pass over its cells: a cell takes the C(1)-step from the row
+    before (where that row's strip holds its column), then the C(2)-step from the cell before it
+    (carried in a register), the later winning only where strictly less, chosen without branches.
+    The same sums as the branching form (a C(2)-pass and a C(1)-pass per row, each cell's move
+    recorded and the path traced back step by step, ``tests/test_optimal_strips.py``), so the same
+    costs and paths: a sum from an infinite cell (infinity or NaN) wins no comparison, as that
+    form's skipped offers.  With the rows' step costs taken in turn (no modulo per row), no branch
+    on which step wins (a least path's turns are not predictable) and the path read back one row
+    at a time, the strip search takes 0.6 to 0.7 of the branching form's time on the least-area
+    bands of the liver, the lobster and the rotated socket."""
     n, m = A1.shape
     inf = np.inf
     for j in range(m + 1):
         D[0, j] = inf
     D[0, 0] = 0.0
-    for i in range(n + 1):
-        r = i % 2
-        ib = (s + i) % n
-        a2row = A2[ib]
-        if lo[i] < hi[i]:
-            d = D[r, lo[i]]  # the cell's final cost, carried to the next cell in a register
-            for j in range(lo[i], hi[i]):  # j < hi[i] <= m: the column itself (no modulo)
-                nxt = D[r, j + 1]
-                if d != inf:
-                    c = d + a2row[j]
-                    if c < nxt:
-                        nxt = c
-                        D[r, j + 1] = c
-                        move[i, j + 1] = 1
-                d = nxt
-        if i == n:
-            break
-        rn = (i + 1) % 2
-        for j in range(lo[i + 1], hi[i + 1] + 1):
-            D[rn, j] = inf
-        a1row = A1[ib]
-        for j in range(max(lo[i], lo[i + 1]), min(hi[i], hi[i + 1]) + 1):
-            d = D[r, j]
+    a2row = A2[s % n]
+    if lo[0] < hi[0]:
+        d = D[0, lo[0]]
+        for j in range(lo[0], hi[0]):
+            nxt = D[0, j + 1]
             if d != inf:
-                c = d + (a1row[0] if j == m else a1row[j])  # A1[ib, j % m], 0 <= j <= m
-                if c < D[rn, j]:
-                    D[rn, j] = c
-                    move[i + 1, j] = 0
+                c = d + a2row[j]
+                if c < nxt:
+                    nxt = c
+                    D[0, j + 1] = c
+            d = nxt
+    ib = s % n  # the C(1) point of the row before
+    off = np.int64(0)
+    for i in range(1, n + 1):
+        r = i % 2
+        q = 1 - r
+        a1row = A1[ib]  # the C(1)-steps into row i
+        ib = ib + 1 if ib < n - 1 else 0
+        a2row = A2[ib]
+        plo = lo[i - 1]  # the row before's strip
+        phi = hi[i - 1]
+        j0 = lo[i]
+        j1 = hi[i]
+        b = off - j0
+        base[i] = b
+        if j1 < j0:
+            continue  # (an empty row: no path)
+        off += j1 - j0 + 1
+        # the strip's first cell: its C(1)-step only
+        d = inf
+        if plo <= j0 and j0 <= phi:
+            c = D[q, j0] + (a1row[0] if j0 == m else a1row[j0])
+            d = c if c < inf else inf
+        D[r, j0] = d
+        e = j0  # the column where the least path to the cell entered the row
+        ent[b + j0] = e
+        # the others: C(2)-steps only before plo and after phi, both steps between (column m
+        # taking a1row[0])
+        ja = max(j0 + 1, plo)
+        jb = min(j1, phi)
+        jm = min(jb, m - 1)
+        for j in range(j0 + 1, min(ja, j1 + 1)):
+            c = d + a2row[j - 1]
+            t = c < inf
+            d = c if t else inf
+            e = e if t else j
+            D[r, j] = d
+            ent[b + j] = e
+        for j in range(ja, jm + 1):
+            c = D[q, j] + a1row[j]
+            v = c if c < inf else inf
+            c = d + a2row[j - 1]
+            t = c < v
+            d = c if t else v
+            e = e if t else j
+            D[r, j] = d
+            ent[b + j] = e
+        for j in range(max(ja, jm + 1), jb + 1):  # (j == m)
+            c = D[q, j] + a1row[0]
+            v = c if c < inf else inf
+            c = d + a2row[j - 1]
+            t = c < v
+            d = c if t else v
+            e = e if t else j
+            D[r, j] = d
+            ent[b + j] = e
+        for j in range(max(ja, jb + 1), j1 + 1):
+            c = d + a2row[j - 1]
+            t = c < inf
+            d = c if t else inf
+            e = e if t else j
+            D[r, j] = d
+            ent[b + j] = e
     return D[n % 2, m] if hi[n] == m else inf
 
 
 @njit(cache=True)
+def _strip_cells(lo, hi):
+    """The cells of the rows ``1 .. n`` of a strip (:func:`_strip_dp`'s ``ent``)."""
+    k = np.int64(0)
+    for i in range(1, lo.shape[0]):
+        if hi[i] >= lo[i]:
+            k += hi[i] - lo[i] + 1
+    return k
+
+
+@njit(cache=True)
+def _strip_entries_path(ent, base, n, m, first):
+    """:func:`_strip_path` of a path that :func:`_strip_dp` found to ``(n, m)``: ``first[i]`` the
+    column where it enters row ``i`` (0 for row 0, where it starts), one read per row."""
+    j = m
+    for i in range(n, 0, -1):
+        j = ent[base[i] + j]
+        first[i] = j
+    first[0] = 0
+
+
+@njit(cache=True)
 def _grid_dp_pair(A1, A2, s, u, D, E, move, move_u):
-    """:func:`_strip_dp` over the whole grid (``lo = 0``, ``hi = m`` in every row) for the start
-    points ``s`` and ``u`` at once: the same offers for each, in the same order (``D``, ``move``
-    for ``s``; ``E``, ``move_u`` for ``u``), in one loop, so that the processor runs the two
-    programmes' chains of additions side by side: on the liver's bridged rings the two ends'
-    programmes take 0.65 ms where one after the other took 1.4 ms.  (Written out: the same
-    offers as small compiled functions, inlined or not, made both programmes ten times slower.)
-    Returns the two costs."""
+    """The costs of :func:`_strip_dp` over the whole grid (``lo = 0``, ``hi = m`` in every row) for
+    the start points ``s`` and ``u`` at once, each cell's move recorded for :func:`_strip_path`
+    (1 where its C(2)-step wins, else 0): the same sums for each (``D``, ``move`` for ``s``;
+    ``E``, ``move_u`` for ``u``), in one loop, so that the processor runs the two programmes'
+    chains of additions side by side (on the liver's bridged rings the two ends' programmes took
+    0.65 ms where one after the other took 1.4 ms).  Each row is one pass, the winning step chosen
+    without branches, as in :func:`_strip_dp` (the same costs and, from zeroed ``move`` and
+    ``move_u``, the same moves as the branching form with a C(2)-pass and a C(1)-pass per row:
+    ``tests/test_optimal_strips.py``); about a third faster than that form.  Returns the two
+    costs."""
     n, m = A1.shape
     inf = np.inf
-    for j in range(m + 1):
-        D[0, j] = inf
-        E[0, j] = inf
-    D[0, 0] = 0.0
-    E[0, 0] = 0.0
-    for i in range(n + 1):
+    # row 0: C(2)-steps only, from (0, 0)
+    a2s = A2[s % n]
+    a2u = A2[u % n]
+    d = 0.0
+    e = 0.0
+    D[0, 0] = d
+    E[0, 0] = e
+    for j in range(1, m + 1):
+        c = d + a2s[j - 1]
+        t = c < inf
+        d = c if t else inf
+        D[0, j] = d
+        move[0, j] = np.int8(t)
+        c = e + a2u[j - 1]
+        t = c < inf
+        e = c if t else inf
+        E[0, j] = e
+        move_u[0, j] = np.int8(t)
+    for i in range(1, n + 1):
         r = i % 2
+        q = 1 - r
         a2s = A2[(s + i) % n]
         a2u = A2[(u + i) % n]
-        d = D[r, 0]
-        e = E[r, 0]
-        for j in range(m):
-            nxt = D[r, j + 1]
-            if d != inf:
-                c = d + a2s[j]
-                if c < nxt:
-                    nxt = c
-                    D[r, j + 1] = c
-                    move[i, j + 1] = 1
-            d = nxt
-            nxt = E[r, j + 1]
-            if e != inf:
-                c = e + a2u[j]
-                if c < nxt:
-                    nxt = c
-                    E[r, j + 1] = c
-                    move_u[i, j + 1] = 1
-            e = nxt
-        if i == n:
-            break
-        rn = (i + 1) % 2
-        a1s = A1[(s + i) % n]
-        a1u = A1[(u + i) % n]
-        for j in range(m + 1):
-            D[rn, j] = inf
-            E[rn, j] = inf
-            jj = 0 if j == m else j  # A1[ib, j % m], 0 <= j <= m
-            d = D[r, j]
-            if d != inf:
-                c = d + a1s[jj]
-                if c < inf:
-                    D[rn, j] = c
-                    move[i + 1, j] = 0
-            e = E[r, j]
-            if e != inf:
-                c = e + a1u[jj]
-                if c < inf:
-                    E[rn, j] = c
-                    move_u[i + 1, j] = 0
+        a1s = A1[(s + i - 1) % n]
+        a1u = A1[(u + i - 1) % n]
+        c = D[q, 0] + a1s[0]
+        d = c if c < inf else inf
+        c = E[q, 0] + a1u[0]
+        e = c if c < inf else inf
+        D[r, 0] = d
+        E[r, 0] = e
+        move[i, 0] = 0
+        move_u[i, 0] = 0
+        for j in range(1, m):
+            c = D[q, j] + a1s[j]
+            v = c if c < inf else inf
+            c = d + a2s[j - 1]
+            t = c < v
+            d = c if t else v
+            D[r, j] = d
+            move[i, j] = np.int8(t)
+            c = E[q, j] + a1u[j]
+            v = c if c < inf else inf
+            c = e + a2u[j - 1]
+            t = c < v
+            e = c if t else v
+            E[r, j] = e
+            move_u[i, j] = np.int8(t)
+        # column m: its C(1)-steps are A1[., 0]
+        c = D[q, m] + a1s[0]
+        v = c if c < inf else inf
+        c = d + a2s[m - 1]
+        t = c < v
+        D[r, m] = c if t else v
+        move[i, m] = np.int8(t)
+        c = E[q, m] + a1u[0]
+        v = c if c < inf else inf
+        c = e + a2u[m - 1]
+        t = c < v
+        E[r, m] = c if t else v
+        move_u[i, m] = np.int8(t)
     return D[n % 2, m], E[n % 2, m]
 
 
 @njit(cache=True)
 def _strip_path(move, n, m, first):
-    """Column where the traced path enters each row ``i`` (``first[i]``, the row's smallest column)."""
+    """Column where the path traced back through ``move`` (:func:`_grid_dp_pair`'s) enters each row
+    ``i`` (``first[i]``, the row's smallest column)."""
     i = n
     j = m
     first[n] = m
@@ -694,6 +791,8 @@ def _strip_costs(A1, A2, a, k):
     n, m = A1.shape
     D = np.empty((2, m + 1))
     move = np.zeros((n + 1, m + 1), dtype=np.int8)
+    ent = np.empty(4 * (n + m + 2), dtype=np.int32)  # the strips' entries (_strip_dp), grown as needed
+    base = np.empty(n + 1, dtype=np.int64)
     cost = np.full(k, np.inf)
     first = np.empty((k, n + 1), dtype=np.int32)   # per start, per row of its own: entry column
     lo = np.zeros(n + 1, dtype=np.int64)
@@ -725,7 +824,9 @@ def _strip_costs(A1, A2, a, k):
             hi[i] = m if u >= n else first[t0, u + 1]
             v = t + i - t1          # ... and of start t1: the path below
             lo[i] = first[t1, v] if v >= 0 else 0
-        c = _strip_dp(A1, A2, a + t, lo, hi, D, move)
+        if _strip_cells(lo, hi) > ent.shape[0]:
+            ent = np.empty(max(_strip_cells(lo, hi), 2 * ent.shape[0]), dtype=np.int32)
+        c = _strip_dp(A1, A2, a + t, lo, hi, D, ent, base)
         if c == np.inf:
             # no path fits: the two paths cross (least paths that tie, as on the liver's bridged
             # rings, whose repeated bridge ends give triangles of no area).  Exchanging their
@@ -739,11 +840,13 @@ def _strip_costs(A1, A2, a, k):
                 u = t + i - t0
                 if u <= n:
                     lo[i] = min(lo[i], first[t0, u])  # (t0's, leftmost)
-            c = _strip_dp(A1, A2, a + t, lo, hi, D, move)
+            if _strip_cells(lo, hi) > ent.shape[0]:
+                ent = np.empty(max(_strip_cells(lo, hi), 2 * ent.shape[0]), dtype=np.int32)
+            c = _strip_dp(A1, A2, a + t, lo, hi, D, ent, base)
             if c == np.inf:
                 return cost, False
         cost[t] = c
-        _strip_path(move, n, m, first[t])
+        _strip_entries_path(ent, base, n, m, first[t])
         stack[top, 0] = t0
         stack[top, 1] = t
         stack[top + 1, 0] = t
