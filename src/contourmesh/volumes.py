@@ -122,6 +122,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
+from .topology import _root  # the compiled union-find root (path halving), shared
 from .tracing import (
     _contour4_ok,
     _hole_parts,
@@ -2336,19 +2337,12 @@ def _overlap_topology(ra, a, rb, b, ylo, yhi):  # pragma: no cover (compiled)
             while u < p1 and v < p2:
                 if ox0[u] < ox1[v] and ox0[v] < ox1[u]:
                     pairs += 1
-                    ru = u
-                    while parent[ru] != ru:
-                        parent[ru] = parent[parent[ru]]
-                        ru = parent[ru]
-                    rv = v
-                    while parent[rv] != rv:
-                        parent[rv] = parent[parent[rv]]
-                        rv = parent[rv]
+                    # (topology's union-find: its root with path halving; the larger root joins
+                    # the smaller, as topology._union links them)
+                    ru = _root(parent, u)
+                    rv = _root(parent, v)
                     if ru != rv:
-                        if ru < rv:
-                            parent[rv] = ru
-                        else:
-                            parent[ru] = rv
+                        parent[max(ru, rv)] = min(ru, rv)
                         comps -= 1
                 if ox1[u] <= ox1[v]:
                     u += 1
