@@ -210,3 +210,80 @@ def test_overlap_pairs_and_one_side_count_equal_the_label_masks():
         assert only == int(np.count_nonzero(ma ^ mb))
         empty.add(only == 0)
     assert counts == {0, 1, 2, 3, 4, 5} and empty == {True, False}
+
+
+def _tour_ids_reference(tables, tour_r, tour_v):
+    """The bridged ring's vertex ids as :func:`volumes._bridge_join` made them before: every table
+    (a ring's ids, then each bridge's interior points' ids, empty for a straight bridge) made,
+    concatenated, and indexed at each table's start plus the tour's vertex."""
+    tables = [np.asarray(t, dtype=np.int64) for t in tables]
+    start = np.cumsum([0] + [len(t) for t in tables[:-1]]).astype(np.int64)
+    return np.concatenate(tables)[start[tour_r] + tour_v]
+
+
+def _tables(lengths, bridges, first):
+    """The tables of ids that :func:`volumes._bridge_join` numbers as runs: ring ``r``'s ``lengths[r]``
+    ids from ``first[r]``, then each bridge's interior points' from its own ``first`` (none for a
+    straight bridge)."""
+    n = len(lengths)
+    return [np.arange(first[r], first[r] + lengths[r]) for r in range(n)] + \
+        [np.arange(first[n + b], first[n + b] + (len(br[4]) if len(br) > 4 else 0)) for b, br in enumerate(bridges)]
+
+
+def test_tour_ids_equal_the_concatenated_tables_on_random_tours():
+    rng = np.random.default_rng(149)
+    seen = 0
+    for _trial in range(300):
+        n = int(rng.integers(2, 7))
+        lengths = rng.integers(1, 12, n).tolist()
+        bridges, used = [], set()
+        for j in range(1, n):  # a random tree, each bridge at unused vertices
+            i = int(rng.integers(0, j))
+            vi, vj = int(rng.integers(0, lengths[i])), int(rng.integers(0, lengths[j]))
+            if (i, vi) in used or (j, vj) in used:
+                break
+            used.update([(i, vi), (j, vj)])
+            bridges.append((i, vi, j, vj) + ((rng.normal(size=(int(rng.integers(1, 4)), 2)),) if rng.random() < 0.3
+                                             else ()))
+        else:
+            first = np.cumsum([int(rng.integers(0, 3))] + lengths).tolist()[:n]
+            base = first[-1] + lengths[-1] + int(rng.integers(0, 5))
+            for br in bridges:
+                first.append(base if len(br) > 4 else 0)
+                base += len(br[4]) if len(br) > 4 else 0
+            tour_r, tour_v = B.bridged_ring_arrays(lengths, bridges)
+            got = volumes._tour_ids(first, tour_r, tour_v)
+            want = _tour_ids_reference(_tables(lengths, bridges, first), tour_r, tour_v)
+            assert got.dtype == want.dtype and np.array_equal(got, want)
+            seen += 1
+    assert seen > 100
+
+
+def test_tour_ids_equal_the_concatenated_tables_on_the_lobsters_joins(shared_data, monkeypatch):
+    """Every bridged ring of the lobster's joins (the tour and the first ids that _bridge_join hands
+    :func:`volumes._tour_ids`): the same ids as the tables it made before, concatenated."""
+    import contourmesh
+    from contourmesh.io import read_volume
+
+    vol, spacing, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    vol, spacing = np.pad(vol, 1), tuple(spacing)
+    tours, real_tour, real_ids = [], volumes.bridged_ring_arrays, volumes._tour_ids
+    seen = {"calls": 0, "polyline": 0}
+
+    def tour(lengths, bridges, *a):
+        tours.append((list(lengths), list(bridges)))
+        return real_tour(lengths, bridges, *a)
+
+    def ids(first, tour_r, tour_v):
+        lengths, bridges = tours.pop()
+        got = real_ids(first, tour_r, tour_v)
+        want = _tour_ids_reference(_tables(lengths, bridges, first), tour_r, tour_v)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
+        seen["calls"] += 1
+        seen["polyline"] += any(len(br) > 4 for br in bridges)
+        return got
+
+    monkeypatch.setattr(volumes, "bridged_ring_arrays", tour)
+    monkeypatch.setattr(volumes, "_tour_ids", ids)
+    contourmesh.mesh(vol, spacing=spacing)
+    assert seen["calls"] > 100 and seen["polyline"] > 0, seen

@@ -82,7 +82,6 @@ import logging
 from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import accumulate
 
 import numpy as np
 
@@ -123,6 +122,7 @@ from .repair import (
     resolve_crossings,
     split_nonmanifold_vertices,
 )
+from .topology import _root  # the compiled union-find root (path halving), shared
 from .tracing import (
     _contour4_ok,
     _hole_parts,
@@ -2337,19 +2337,12 @@ def _overlap_topology(ra, a, rb, b, ylo, yhi):  # pragma: no cover (compiled)
             while u < p1 and v < p2:
                 if ox0[u] < ox1[v] and ox0[v] < ox1[u]:
                     pairs += 1
-                    ru = u
-                    while parent[ru] != ru:
-                        parent[ru] = parent[parent[ru]]
-                        ru = parent[ru]
-                    rv = v
-                    while parent[rv] != rv:
-                        parent[rv] = parent[parent[rv]]
-                        rv = parent[rv]
+                    # (topology's union-find: its root with path halving; the larger root joins
+                    # the smaller, as topology._union links them)
+                    ru = _root(parent, u)
+                    rv = _root(parent, v)
                     if ru != rv:
-                        if ru < rv:
-                            parent[rv] = ru
-                        else:
-                            parent[ru] = rv
+                        parent[max(ru, rv)] = min(ru, rv)
                         comps -= 1
                 if ox1[u] <= ox1[v]:
                     u += 1
@@ -3011,18 +3004,17 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
                          prefer=PreferCovered(cover, 0.5))
         if br is None:
             return None
-        ids_of = {}
-        for b, bridge in enumerate(br):
+        # the first id of each table of the tour: ring r's (its ids run from r[0]), then each
+        # polyline bridge's interior points (new vertices, numbered on from base; 0 for a straight
+        # bridge, which the tour does not visit)
+        first = [int(r[0]) if len(r) else 0 for r in multi]
+        for bridge in br:
+            first.append(0)
             if len(bridge) > 4:
-                base = n_ring + sum(len(p) for p in path_pts)
+                first[-1] = n_ring + sum(len(p) for p in path_pts)
                 path_pts.append(_with_z(bridge[4], zs[plane]))
-                ids_of[len(rs) + b] = base + np.arange(len(bridge[4]))
-        # the tour's (ring, vertex) pairs as vertex ids: ring r's ids, then each polyline bridge's
-        tables = [np.asarray(multi[r], dtype=np.int64) for r in range(len(rs))] + \
-            [ids_of.get(len(rs) + b, np.zeros(0, dtype=np.int64)).astype(np.int64) for b in range(len(br))]
-        start = np.array(list(accumulate([len(t) for t in tables[:-1]], initial=0)), dtype=np.int64)
         tour_r, tour_v = bridged_ring_arrays([len(r) for r in rs], br)
-        seq = np.concatenate(tables)[start[tour_r] + tour_v]
+        seq = _tour_ids(first, tour_r, tour_v)
         for bridge in br:
             i, vi, j, vj = bridge[:4]
             line = [rs[i][vi]] + (list(bridge[4]) if len(bridge) > 4 else []) + [rs[j][vj]]
@@ -3103,6 +3095,15 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
     return out
+
+
+def _tour_ids(first, tour_r, tour_v):
+    """The vertex ids of a bridged ring's tour (:func:`contourmesh.bands.bridges.bridged_ring_arrays`'
+    ``(ring, vertex)`` pairs ``tour_r``, ``tour_v``) where each table of ids (a ring's, then each
+    polyline bridge's interior points) is a run of consecutive ids from ``first[t]``, as
+    :func:`_bridge_join` numbers them (``np.arange`` runs): ``first[tour_r] + tour_v``, the
+    entries ``tables[tour_r][tour_v]`` of the tables concatenated, without making them."""
+    return np.array(first, dtype=np.int64)[tour_r] + tour_v
 
 
 def _bridged_band(P, na, ids, rule):
