@@ -343,3 +343,33 @@ def test_budget_changes_nothing(budget):
     V, F = _stack(rng, 3)
     assert np.array_equal(I.intersecting_pairs(V, F, budget=budget, method="grid"),
                           I.intersecting_pairs(V, F, method="grid"))
+
+
+def test_cell_sizes_from_a_sample_change_nothing():
+    """A mesh of at least ``2 * _MEDIAN_SAMPLE`` live faces takes its cell sizes from a sample of
+    its faces (issue 16's twenty-first round): its pairs are still those of the one-table
+    reference (cell sizes from every face), and those of its parts tested alone (far apart, each
+    small enough for every face to count)."""
+    rng = np.random.default_rng(21)
+    V0, F0 = _stack(rng, 3)
+    Vs, Fs, want = [], [], []
+    n = 0
+    k = 0
+    while n < 2 * I._MEDIAN_SAMPLE + 1000:
+        # copies far apart along x, at three scales (so that the faces' extents vary along the list)
+        V = V0 * (1.0 + k % 3) + (40.0 * k, 0.0, 0.0)
+        part = I.intersecting_pairs(V, F0, method="grid")
+        want.append(part + n)
+        Vs.append(V)
+        Fs.append(F0 + len(V0) * k)
+        n += len(F0)
+        k += 1
+    V, F = np.concatenate(Vs), np.concatenate(Fs)
+    want = np.concatenate(want)
+    assert len(want) > 100
+    got = I.intersecting_pairs(V, F, method="grid")
+    assert np.array_equal(got, want)
+    Va, Fc, ws = _inputs(V, F)
+    assert _layers(Va, Fc)[1] >= 2 * I._MEDIAN_SAMPLE  # (the sampled path)
+    ref = _run(_one_table_pairs, Va, Fc, ws, quick=True, delay=I._STAR_DELAY)
+    assert ref == sorted(map(tuple, want.tolist()))
