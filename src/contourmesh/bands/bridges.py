@@ -31,7 +31,7 @@ from .._kernels import njit
 from .._recent import MISSING, Recent
 from ..topology import _root  # the compiled union-find root (path halving), shared
 
-__all__ = ["OverlapFree", "PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
+__all__ = ["OverlapFree", "PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "bridged_ring_ids", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
 #: Candidate vertex pairs tried per pair of contours (nearest first).
 CANDIDATES = 12
@@ -442,7 +442,7 @@ def _keyhole_test_arrays(allowed):
     return allowed.lab, allowed._ids64, allowed._grid64
 
 
-def _candidate_columns(rings, pairs, owners, prefer, straight=None):
+def _candidate_columns(rings, pairs, owners, prefer, straight=None, packed=None):
     """:func:`_candidate_arrays` of the candidates of ``pairs`` (rings to bridge, in order) as
     :func:`bridge_tree`'s loop makes them, for ``prefer`` None or a :class:`PreferCovered`: in one
     compiled call (:func:`_candidate_kernel`).  None where some pair is left to Python (rings
@@ -453,10 +453,13 @@ def _candidate_columns(rings, pairs, owners, prefer, straight=None):
     :func:`bridge_tree`: then the result is ``(columns, chosen)``, with ``chosen`` the straight
     bridges of :func:`_straight_bridges` made in the same compiled call (:func:`_tree_kernel`)
     where ``allowed`` is None or a :func:`keyhole_uncovered` test, else None (still None overall
-    where the candidates are left to Python)."""
+    where the candidates are left to Python).
+
+    ``packed``, where given, is :func:`_packed_rings` of ``rings`` as the caller already holds it
+    (the same arrays: the kernels read those numbers only)."""
     if not pairs or any(len(r) == 0 for r in rings):
         return None
-    pts, off, lens = _packed_rings(rings)
+    pts, off, lens = _packed_rings(rings) if packed is None else packed
     sizes = lens.tolist()  # (Python ints: the products as int(lens[i]) * int(lens[j]))
     if max(sizes[i] * sizes[j] for i, j in pairs) > _BRUTE_PAIRS:
         return None
@@ -612,7 +615,7 @@ def _key_less(x, y, lt, d, tie, i, vi, j, vj):
 
 
 def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None, waypoints=None,
-                step=1.0, prefer=None):
+                step=1.0, prefer=None, packed=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
 
     Parameters
@@ -649,6 +652,10 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         empty space (the mouth of a C whose two arms part above it) would make the band fold
         across the whole opening.  A :class:`PreferCovered` test is run in compiled code with the
         candidates (:func:`_candidate_kernel`); any other callable in Python.
+    packed : (pts, off, lens), optional
+        The rings packed as the compiled kernels take them (:func:`_packed_rings`: ring ``r`` in
+        ``pts[off[r]: off[r] + lens[r]]``, one C array of float64), where the caller holds them so
+        (the mesher's rings are runs of one vertex array): not packed again.  The same bridges.
 
     Returns
     -------
@@ -669,7 +676,8 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     if prefer is None or isinstance(prefer, PreferCovered):
         # the candidates and, where the keyhole test is compiled too, the straight bridges in one
         # compiled call (:func:`_tree_kernel`)
-        got = _candidate_columns(rings, pairs, owners, prefer, straight=(obstacles_a, obstacles_b, avoid, allowed))
+        got = _candidate_columns(rings, pairs, owners, prefer, straight=(obstacles_a, obstacles_b, avoid, allowed),
+                                 packed=packed)
         if got is not None:
             cols, chosen = got
     if cols is None:
@@ -1519,6 +1527,35 @@ def bridged_ring_arrays(lengths, bridges, root: int = 0):
         if ok:
             return rr, vv
     return _bridged_ring_arrays_py(lengths, bridges, root)
+
+
+def bridged_ring_ids(lengths, bridges, first, root: int = 0):
+    """The vertex ids of the bridged ring's tour (:func:`bridged_ring_arrays`' ``(ring, vertex)``
+    pairs) where each table of ids, ring ``r``'s and then each bridge's interior points', is a run of
+    consecutive ids from ``first[t]`` (``first[len(lengths) + b]`` for bridge ``b``): ``first[ring] +
+    vertex``, int64.  Tour and ids in one compiled call (:func:`_tour_ids_kernel`) where
+    :func:`bridged_ring_arrays` takes its compiled tour; else its Python tour, then the same sums."""
+    n = len(lengths)
+    if n and min(lengths) > 0 and 0 <= root < n:
+        br = np.array([tuple(b[:4]) + (len(b[4]) if len(b) > 4 else 0,) for b in bridges],
+                      dtype=np.int64).reshape(-1, 5)
+        ids, ok = _tour_ids_kernel(np.array(lengths, dtype=np.int64), br, np.int64(root),
+                                   np.array(first, dtype=np.int64))
+        if ok:
+            return ids
+    rr, vv = _bridged_ring_arrays_py(lengths, bridges, root)
+    return np.array(first, dtype=np.int64)[rr] + vv
+
+
+@njit(cache=True, nogil=True)
+def _tour_ids_kernel(lengths, br, root, first):  # pragma: no cover (compiled)
+    """:func:`_tour_kernel` and each tour entry's id ``first[ring] + vertex`` in one call: the ids
+    (int64, the sums numpy's ``first[rr] + vv`` gives) and the tour kernel's flag."""
+    rr, vv, ok = _tour_kernel(lengths, br, root)
+    ids = np.empty(rr.shape[0], np.int64)
+    for t in range(rr.shape[0]):
+        ids[t] = first[rr[t]] + vv[t]
+    return ids, ok
 
 
 @njit(cache=True, nogil=True)
