@@ -60,6 +60,40 @@ def test_nearest_kernel_equals_the_sorted_pool():
     assert min(seen.values()) > 20, seen
 
 
+def _same_nearest(a, b):
+    """Two answers of the nearest-pair kernels are the same, bit for bit (ok flags included)."""
+    return a[3] == b[3] and all(x.dtype == y.dtype and x.tobytes() == y.tobytes() for x, y in zip(a[:3], b[:3]))
+
+
+def test_nearest_kernel_equals_measuring_every_pair():
+    # _nearest_kernel (squares kept, roots only near the cut, one pass out) against _nearest_all (every
+    # root, the table of all distances, the form it replaced): random rings, half-pixel grids (many
+    # ties, refusals), tiny and huge scales (no pruning), NaN and infinite coordinates
+    rng = np.random.default_rng(151)
+    seen = {"ok": 0, "refused": 0, "nan": 0, "scaled": 0}
+    for trial in range(1500):
+        ni, nj = int(rng.integers(1, 60)), int(rng.integers(1, 60))
+        if trial % 3 == 0:
+            ri = rng.integers(-5, 6, (ni, 2)) / 2.0
+            rj = rng.integers(-5, 6, (nj, 2)) / 2.0 + (rng.integers(0, 6) / 2.0, 0.0)
+        else:
+            ri = rng.normal(size=(ni, 2)) * 5.1
+            rj = rng.normal(size=(nj, 2)) * 5.1 + rng.normal(size=2) * 6
+        if trial % 7 == 1:
+            scale = float(rng.choice([1e-160, 1e-101, 1e-99, 1e99, 1e101, 1e155, 1e160]))
+            ri, rj = ri * scale, rj * scale
+            seen["scaled"] += 1
+        if trial % 11 == 2:
+            (ri if trial % 2 else rj)[int(rng.integers(0, min(ni, nj)))] = rng.choice([np.nan, np.inf, -np.inf])
+            seen["nan"] += 1
+        k = int(rng.choice([1, 2, 5, 12]))
+        ri, rj = np.ascontiguousarray(ri), np.ascontiguousarray(rj)
+        got = B._nearest_kernel(ri, rj, np.int64(k))
+        assert _same_nearest(got, B._nearest_all(ri, rj, np.int64(k)))
+        seen["ok" if got[3] else "refused"] += 1
+    assert min(seen.values()) > 20, seen
+
+
 def test_tree_kernel_equals_candidates_then_straight_bridges():
     # _candidate_columns with ``straight`` (one compiled call, _tree_kernel) against the two calls
     # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test
@@ -280,16 +314,17 @@ def test_tour_ids_equal_the_concatenated_tables_on_random_tours():
 
 def test_tour_ids_and_packed_rings_on_the_lobsters_joins(shared_data, monkeypatch):
     """Every bridged ring of the lobster's joins: the ids :func:`B.bridged_ring_ids` gives equal
-    the tables _bridge_join made before, concatenated, indexed by the tour; and the rings it packs
+    the tables _bridge_join made before, concatenated, indexed by the tour; the rings it packs
     from its vertex array equal :func:`B._packed_rings` of the rings, with the same bridges as
-    :func:`B.bridge_tree` without them."""
+    :func:`B.bridge_tree` without them; and every pair of its rings gets the same nearest pairs
+    from :func:`B._nearest_kernel` as from :func:`B._nearest_all`."""
     import contourmesh
     from contourmesh.io import read_volume
 
     vol, spacing, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
     vol, spacing = np.pad(vol, 1), tuple(spacing)
     real_ids, real_tree = volumes.bridged_ring_ids, volumes.bridge_tree
-    seen = {"calls": 0, "polyline": 0, "packed": 0}
+    seen = {"calls": 0, "polyline": 0, "packed": 0, "pairs": 0}
 
     def ids(lengths, bridges, first, *a):
         got = real_ids(lengths, bridges, first, *a)
@@ -303,6 +338,11 @@ def test_tour_ids_and_packed_rings_on_the_lobsters_joins(shared_data, monkeypatc
 
     def tree(rings, oa, ob, *, packed=None, **kw):
         got = real_tree(rings, oa, ob, packed=packed, **kw)
+        for i, j in B._near_pairs(rings):  # (the nearest pairs of every two rings, as measured before)
+            ri, rj = np.ascontiguousarray(rings[i]), np.ascontiguousarray(rings[j])
+            if len(ri) * len(rj) <= B._BRUTE_PAIRS:
+                assert _same_nearest(B._nearest_kernel(ri, rj, np.int64(12)), B._nearest_all(ri, rj, np.int64(12)))
+                seen["pairs"] += 1
         if packed is not None:
             for a, b in zip(packed, B._packed_rings(rings)):
                 assert a.dtype == b.dtype and a.flags.c_contiguous and a.tobytes() == b.tobytes()
@@ -316,4 +356,4 @@ def test_tour_ids_and_packed_rings_on_the_lobsters_joins(shared_data, monkeypatc
     monkeypatch.setattr(volumes, "bridged_ring_ids", ids)
     monkeypatch.setattr(volumes, "bridge_tree", tree)
     contourmesh.mesh(vol, spacing=spacing)
-    assert seen["calls"] > 100 and seen["polyline"] > 0 and seen["packed"] > 100, seen
+    assert seen["calls"] > 100 and seen["polyline"] > 0 and seen["packed"] > 100 and seen["pairs"] > 1000, seen

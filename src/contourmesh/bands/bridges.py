@@ -237,7 +237,70 @@ def _tie_kernel(ri, rj, vi, vj):
 
 
 @njit(cache=True, nogil=True)
-def _nearest_kernel(ri, rj, k):
+def _nearest_kernel(ri, rj, k):  # pragma: no cover (compiled)
+    """:func:`_nearest_all` without the square root of every pair and without the table of all
+    the distances: the same ``(vi, vj, d, ok)``, bit for bit.
+
+    The ``q`` smallest squared distances ``dx * dx + dy * dy`` are kept instead of their roots: the
+    root is monotone, so the root of the ``q``-th smallest square is the ``q``-th smallest root (the
+    same cut).  The pairs are then measured again, the same arithmetic, and the root taken only
+    where the square is within ``cut * cut`` (plus a margin far above the roots' rounding): a pair
+    further out has a root above the cut.  The pairs come out in the same order (``j``, then
+    ``i``); a NaN distance leaves everything to :func:`_nearest_all`."""
+    ni, nj = ri.shape[0], rj.shape[0]
+    kk = min(k, ni)
+    q = min(k, nj * kk)
+    best = np.empty(q)
+    nb = 0
+    for j in range(nj):
+        for i in range(ni):
+            dx = ri[i, 0] - rj[j, 0]
+            dy = ri[i, 1] - rj[j, 1]
+            v = dx * dx + dy * dy
+            if v != v:
+                return _nearest_all(ri, rj, k)
+            # the q smallest so far, ascending (insertion)
+            if nb < q:
+                t = nb
+                nb += 1
+            elif v < best[q - 1]:
+                t = q - 1
+            else:
+                continue
+            while t > 0 and best[t - 1] > v:
+                best[t] = best[t - 1]
+                t -= 1
+            best[t] = v
+    cut = np.sqrt(best[q - 1]) * (1 + 1e-12)
+    # squares above lim have roots above the cut (no pruning where cut * cut could under- or overflow)
+    lim = cut * cut * (1 + 1e-9) if 1e-100 < cut < 1e100 else np.inf
+    cap = nj * kk
+    vi = np.empty(cap, np.int64)
+    vj = np.empty(cap, np.int64)
+    d = np.empty(cap)
+    t = 0
+    for j in range(nj):
+        c = 0
+        for i in range(ni):
+            dx = ri[i, 0] - rj[j, 0]
+            dy = ri[i, 1] - rj[j, 1]
+            v = dx * dx + dy * dy
+            if v > lim:
+                continue
+            v = np.sqrt(v)
+            if v <= cut:
+                c += 1
+                if c > kk:
+                    return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0), False
+                vi[t] = i
+                vj[t] = j
+                d[t] = v
+                t += 1
+    return vi[:t].copy(), vj[:t].copy(), d[:t].copy(), True
+
+
+@njit(cache=True, nogil=True)
+def _nearest_all(ri, rj, k):  # pragma: no cover (compiled)
     """:func:`_candidates`' pairs by measuring every pair: ``(vi, vj, d, ok)``, ``ok`` False where
     a vertex of ``rj`` has more than ``min(k, len(ri))`` vertices within the cut (then the k-d
     tree's choice among equal distances would decide, see :func:`_candidates_reference`).
