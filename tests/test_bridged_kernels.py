@@ -94,6 +94,32 @@ def test_nearest_kernel_equals_measuring_every_pair():
     assert min(seen.values()) > 20, seen
 
 
+def test_later_kernel_equals_the_covered_share():
+    # a candidate's preference sampled until decided (_later_kernel) against the covered share of
+    # all its samples (_coverage_kernel, then count / n >= share, the form it replaced): random
+    # label images (uint8 and int32), segments short and long, inside and beyond the image,
+    # shares at the ends and between
+    rng = np.random.default_rng(1151)
+    seen = {0: 0, 1: 0, "early": 0}
+    for trial in range(3000):
+        lab = rng.integers(0, 4, (int(rng.integers(1, 30)), int(rng.integers(1, 30))))
+        lab = lab.astype(np.uint8 if trial % 2 else np.int32)
+        if trial % 5 == 0:  # large blocks of one label: long runs covered or not
+            lab = np.kron(lab[:4, :4], np.ones((8, 8), lab.dtype))
+        ids = np.array(sorted(set(rng.integers(1, 4, int(rng.integers(1, 3))).tolist())), np.int64)
+        grid = (float(rng.normal()), float(rng.normal()), float(rng.uniform(0.3, 2)), float(rng.uniform(0.3, 2)))
+        P = rng.uniform(-5, 40, (1, 2))
+        Q = P + rng.normal(size=(1, 2)) * float(rng.choice([0.2, 3.0, 20.0]))
+        share = float(rng.choice([0.0, 0.25, 0.5, 0.5, 0.75, 1.0]))
+        count, n = B._coverage_kernel(P, Q, lab, ids, *grid)
+        want = 0 if count[0] / n[0] >= share else 1
+        got = B._later_kernel(P[0, 0], P[0, 1], Q[0, 0], Q[0, 1], lab, ids, *grid, share)
+        assert got == want
+        seen[want] += 1
+        seen["early"] += n[0] >= 16
+    assert min(seen.values()) > 300, seen
+
+
 def test_tree_kernel_equals_candidates_then_straight_bridges():
     # _candidate_columns with ``straight`` (one compiled call, _tree_kernel) against the two calls
     # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test

@@ -113,6 +113,35 @@ def _coverage_kernel(P, Q, lab, ids, ox, oy, dx, dy):
     return count, total
 
 
+@njit(cache=True, nogil=True)
+def _later_kernel(px, py, qx, qy, lab, ids, ox, oy, dx, dy, share):  # pragma: no cover (compiled)
+    """1 where less than ``share`` of segment ``p q``'s samples are covered, else 0: ``0 if count / n
+    >= share else 1`` of :func:`_coverage_kernel`'s ``count, n`` for the segment, the same samples,
+    but the sampling stops (at the end of each pixel's eight) once the answer is decided: where
+    ``count / n`` so far already reaches ``share``, or where even every sample left covered would
+    not (``x / n`` never decreases as ``x`` grows, in floating point too: the same answer)."""
+    ny, nx = lab.shape
+    steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
+    n = steps - 1
+    c = 0
+    for u in range(1, steps):
+        t = u / steps
+        i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
+        j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
+        if i >= 0 and i < nx and j >= 0 and j < ny:
+            v = lab[j, i]
+            for w in range(ids.shape[0]):
+                if v == ids[w]:
+                    c += 1
+                    break
+        if u % 8 == 0:
+            if c / n >= share:
+                return np.int64(0)
+            if (c + n - u) / n < share:
+                return np.int64(1)
+    return np.int64(0) if c / n >= share else np.int64(1)
+
+
 def keyhole_uncovered(lab, comps, grid):
     """The test ``ok(p, q)`` that a straight keyhole from ``p`` to ``q`` runs where the label image
     ``lab`` (of the other slice) has none of the components ``comps`` (0-based): there the material
@@ -608,15 +637,10 @@ def _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, 
         for t in range(m):
             c_d[total + t], c_tie[total + t] = d[t], tie[t]
             c_i[total + t], c_vi[total + t], c_j[total + t], c_vj[total + t] = i, vi[t], j, vj[t]
-        if ask[p]:
-            P = np.empty((m, 2))
-            Q = np.empty((m, 2))
+        if ask[p]:  # (the preference of each candidate: _later_kernel)
             for t in range(m):
-                P[t, 0], P[t, 1] = ri[vi[t], 0], ri[vi[t], 1]
-                Q[t, 0], Q[t, 1] = rj[vj[t], 0], rj[vj[t], 1]
-            count, n = _coverage_kernel(P, Q, lab, cids, ox, oy, dx, dy)
-            for t in range(m):
-                c_lt[total + t] = 0 if count[t] / n[t] >= share else 1
+                c_lt[total + t] = _later_kernel(ri[vi[t], 0], ri[vi[t], 1], rj[vj[t], 0], rj[vj[t], 1], lab, cids,
+                                                ox, oy, dx, dy, share)
         total += m
     c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj = c_lt[:total], c_d[:total], c_tie[:total], c_i[:total], \
         c_vi[:total], c_j[:total], c_vj[:total]
