@@ -60,6 +60,66 @@ def test_nearest_kernel_equals_the_sorted_pool():
     assert min(seen.values()) > 20, seen
 
 
+def _same_nearest(a, b):
+    """Two answers of the nearest-pair kernels are the same, bit for bit (ok flags included)."""
+    return a[3] == b[3] and all(x.dtype == y.dtype and x.tobytes() == y.tobytes() for x, y in zip(a[:3], b[:3]))
+
+
+def test_nearest_kernel_equals_measuring_every_pair():
+    # _nearest_kernel (squares kept, roots only near the cut, one pass out) against _nearest_all (every
+    # root, the table of all distances, the form it replaced): random rings, half-pixel grids (many
+    # ties, refusals), tiny and huge scales (no pruning), NaN and infinite coordinates
+    rng = np.random.default_rng(151)
+    seen = {"ok": 0, "refused": 0, "nan": 0, "scaled": 0}
+    for trial in range(1500):
+        ni, nj = int(rng.integers(1, 60)), int(rng.integers(1, 60))
+        if trial % 3 == 0:
+            ri = rng.integers(-5, 6, (ni, 2)) / 2.0
+            rj = rng.integers(-5, 6, (nj, 2)) / 2.0 + (rng.integers(0, 6) / 2.0, 0.0)
+        else:
+            ri = rng.normal(size=(ni, 2)) * 5.1
+            rj = rng.normal(size=(nj, 2)) * 5.1 + rng.normal(size=2) * 6
+        if trial % 7 == 1:
+            scale = float(rng.choice([1e-160, 1e-101, 1e-99, 1e99, 1e101, 1e155, 1e160]))
+            ri, rj = ri * scale, rj * scale
+            seen["scaled"] += 1
+        if trial % 11 == 2:
+            (ri if trial % 2 else rj)[int(rng.integers(0, min(ni, nj)))] = rng.choice([np.nan, np.inf, -np.inf])
+            seen["nan"] += 1
+        k = int(rng.choice([1, 2, 5, 12]))
+        ri, rj = np.ascontiguousarray(ri), np.ascontiguousarray(rj)
+        got = B._nearest_kernel(ri, rj, np.int64(k))
+        assert _same_nearest(got, B._nearest_all(ri, rj, np.int64(k)))
+        seen["ok" if got[3] else "refused"] += 1
+    assert min(seen.values()) > 20, seen
+
+
+def test_later_kernel_equals_the_covered_share():
+    # a candidate's preference sampled until decided (_later_kernel) against the covered share of
+    # all its samples (_coverage_kernel, then count / n >= share, the form it replaced): random
+    # label images (uint8 and int32), segments short and long, inside and beyond the image,
+    # shares at the ends and between
+    rng = np.random.default_rng(1151)
+    seen = {0: 0, 1: 0, "early": 0}
+    for trial in range(3000):
+        lab = rng.integers(0, 4, (int(rng.integers(1, 30)), int(rng.integers(1, 30))))
+        lab = lab.astype(np.uint8 if trial % 2 else np.int32)
+        if trial % 5 == 0:  # large blocks of one label: long runs covered or not
+            lab = np.kron(lab[:4, :4], np.ones((8, 8), lab.dtype))
+        ids = np.array(sorted(set(rng.integers(1, 4, int(rng.integers(1, 3))).tolist())), np.int64)
+        grid = (float(rng.normal()), float(rng.normal()), float(rng.uniform(0.3, 2)), float(rng.uniform(0.3, 2)))
+        P = rng.uniform(-5, 40, (1, 2))
+        Q = P + rng.normal(size=(1, 2)) * float(rng.choice([0.2, 3.0, 20.0]))
+        share = float(rng.choice([0.0, 0.25, 0.5, 0.5, 0.75, 1.0]))
+        count, n = B._coverage_kernel(P, Q, lab, ids, *grid)
+        want = 0 if count[0] / n[0] >= share else 1
+        got = B._later_kernel(P[0, 0], P[0, 1], Q[0, 0], Q[0, 1], lab, ids, *grid, share)
+        assert got == want
+        seen[want] += 1
+        seen["early"] += n[0] >= 16
+    assert min(seen.values()) > 300, seen
+
+
 def test_tree_kernel_equals_candidates_then_straight_bridges():
     # _candidate_columns with ``straight`` (one compiled call, _tree_kernel) against the two calls
     # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test
@@ -230,60 +290,96 @@ def _tables(lengths, bridges, first):
         [np.arange(first[n + b], first[n + b] + (len(br[4]) if len(br) > 4 else 0)) for b, br in enumerate(bridges)]
 
 
+def _tour_ids_old(first, tour_r, tour_v):
+    """The ids as :func:`volumes._bridge_join` took them from the tour before :func:`B.bridged_ring_ids`:
+    ``first`` as an int64 array indexed by the tour's rings, plus its vertices."""
+    return np.array(first, dtype=np.int64)[tour_r] + tour_v
+
+
+def _random_tree(rng, n, lengths, shared=False):
+    """Random bridges over ``n`` rings (a tree, or None where a drawn bridge end is taken); with
+    ``shared`` two bridge ends may meet at one vertex (the compiled tour hands those to Python)."""
+    bridges, used = [], set()
+    for j in range(1, n):  # a random tree, each bridge at unused vertices
+        i = int(rng.integers(0, j))
+        vi, vj = int(rng.integers(0, lengths[i])), int(rng.integers(0, lengths[j]))
+        if not shared and ((i, vi) in used or (j, vj) in used):
+            return None
+        used.update([(i, vi), (j, vj)])
+        bridges.append((i, vi, j, vj) + ((rng.normal(size=(int(rng.integers(1, 4)), 2)),) if rng.random() < 0.3
+                                         else ()))
+    return bridges
+
+
 def test_tour_ids_equal_the_concatenated_tables_on_random_tours():
+    # bridged_ring_ids (tour and ids in one compiled call) against the tour's pairs indexed into the
+    # tables (and first[ring] + vertex, the form it replaced), also where the tour is Python's
     rng = np.random.default_rng(149)
-    seen = 0
-    for _trial in range(300):
+    seen = {"compiled": 0, "python": 0}
+    for trial in range(400):
         n = int(rng.integers(2, 7))
         lengths = rng.integers(1, 12, n).tolist()
-        bridges, used = [], set()
-        for j in range(1, n):  # a random tree, each bridge at unused vertices
-            i = int(rng.integers(0, j))
-            vi, vj = int(rng.integers(0, lengths[i])), int(rng.integers(0, lengths[j]))
-            if (i, vi) in used or (j, vj) in used:
-                break
-            used.update([(i, vi), (j, vj)])
-            bridges.append((i, vi, j, vj) + ((rng.normal(size=(int(rng.integers(1, 4)), 2)),) if rng.random() < 0.3
-                                             else ()))
-        else:
-            first = np.cumsum([int(rng.integers(0, 3))] + lengths).tolist()[:n]
-            base = first[-1] + lengths[-1] + int(rng.integers(0, 5))
-            for br in bridges:
-                first.append(base if len(br) > 4 else 0)
-                base += len(br[4]) if len(br) > 4 else 0
-            tour_r, tour_v = B.bridged_ring_arrays(lengths, bridges)
-            got = volumes._tour_ids(first, tour_r, tour_v)
-            want = _tour_ids_reference(_tables(lengths, bridges, first), tour_r, tour_v)
-            assert got.dtype == want.dtype and np.array_equal(got, want)
-            seen += 1
-    assert seen > 100
+        bridges = _random_tree(rng, n, lengths, shared=trial % 4 == 3)
+        if bridges is None:
+            continue
+        first = np.cumsum([int(rng.integers(0, 3))] + lengths).tolist()[:n]
+        base = first[-1] + lengths[-1] + int(rng.integers(0, 5))
+        for br in bridges:
+            first.append(base if len(br) > 4 else 0)
+            base += len(br[4]) if len(br) > 4 else 0
+        root = int(rng.integers(0, n)) if trial % 2 else 0
+        tour_r, tour_v = B.bridged_ring_arrays(lengths, bridges, root)
+        got = B.bridged_ring_ids(lengths, bridges, first, root)
+        want = _tour_ids_reference(_tables(lengths, bridges, first), tour_r, tour_v)
+        old = _tour_ids_old(first, tour_r, tour_v)
+        assert got.dtype == want.dtype == old.dtype and np.array_equal(got, want) and np.array_equal(got, old)
+        br = np.array([tuple(b[:4]) + (len(b[4]) if len(b) > 4 else 0,) for b in bridges], np.int64).reshape(-1, 5)
+        seen["compiled" if B._tour_kernel(np.array(lengths, np.int64), br, np.int64(root))[2] else "python"] += 1
+    assert seen["compiled"] > 100 and seen["python"] > 10, seen
 
 
-def test_tour_ids_equal_the_concatenated_tables_on_the_lobsters_joins(shared_data, monkeypatch):
-    """Every bridged ring of the lobster's joins (the tour and the first ids that _bridge_join hands
-    :func:`volumes._tour_ids`): the same ids as the tables it made before, concatenated."""
+def test_tour_ids_and_packed_rings_on_the_lobsters_joins(shared_data, monkeypatch):
+    """Every bridged ring of the lobster's joins: the ids :func:`B.bridged_ring_ids` gives equal
+    the tables _bridge_join made before, concatenated, indexed by the tour; the rings it packs
+    from its vertex array equal :func:`B._packed_rings` of the rings, with the same bridges as
+    :func:`B.bridge_tree` without them; and every pair of its rings gets the same nearest pairs
+    from :func:`B._nearest_kernel` as from :func:`B._nearest_all`."""
     import contourmesh
     from contourmesh.io import read_volume
 
     vol, spacing, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
     vol, spacing = np.pad(vol, 1), tuple(spacing)
-    tours, real_tour, real_ids = [], volumes.bridged_ring_arrays, volumes._tour_ids
-    seen = {"calls": 0, "polyline": 0}
+    real_ids, real_tree = volumes.bridged_ring_ids, volumes.bridge_tree
+    seen = {"calls": 0, "polyline": 0, "packed": 0, "pairs": 0}
 
-    def tour(lengths, bridges, *a):
-        tours.append((list(lengths), list(bridges)))
-        return real_tour(lengths, bridges, *a)
-
-    def ids(first, tour_r, tour_v):
-        lengths, bridges = tours.pop()
-        got = real_ids(first, tour_r, tour_v)
+    def ids(lengths, bridges, first, *a):
+        got = real_ids(lengths, bridges, first, *a)
+        tour_r, tour_v = B.bridged_ring_arrays(lengths, bridges, *a)
         want = _tour_ids_reference(_tables(lengths, bridges, first), tour_r, tour_v)
         assert got.dtype == want.dtype and np.array_equal(got, want)
+        assert np.array_equal(got, _tour_ids_old(first, tour_r, tour_v))
         seen["calls"] += 1
         seen["polyline"] += any(len(br) > 4 for br in bridges)
         return got
 
-    monkeypatch.setattr(volumes, "bridged_ring_arrays", tour)
-    monkeypatch.setattr(volumes, "_tour_ids", ids)
+    def tree(rings, oa, ob, *, packed=None, **kw):
+        got = real_tree(rings, oa, ob, packed=packed, **kw)
+        for i, j in B._near_pairs(rings):  # (the nearest pairs of every two rings, as measured before)
+            ri, rj = np.ascontiguousarray(rings[i]), np.ascontiguousarray(rings[j])
+            if len(ri) * len(rj) <= B._BRUTE_PAIRS:
+                assert _same_nearest(B._nearest_kernel(ri, rj, np.int64(12)), B._nearest_all(ri, rj, np.int64(12)))
+                seen["pairs"] += 1
+        if packed is not None:
+            for a, b in zip(packed, B._packed_rings(rings)):
+                assert a.dtype == b.dtype and a.flags.c_contiguous and a.tobytes() == b.tobytes()
+            want = real_tree(rings, oa, ob, **kw)
+            assert (got is None) == (want is None) and len(got or []) == len(want or [])
+            for a, b in zip(got or [], want or []):
+                assert a[:4] == b[:4] and len(a) == len(b) and (len(a) == 4 or a[4].tobytes() == b[4].tobytes())
+            seen["packed"] += 1
+        return got
+
+    monkeypatch.setattr(volumes, "bridged_ring_ids", ids)
+    monkeypatch.setattr(volumes, "bridge_tree", tree)
     contourmesh.mesh(vol, spacing=spacing)
-    assert seen["calls"] > 100 and seen["polyline"] > 0, seen
+    assert seen["calls"] > 100 and seen["polyline"] > 0 and seen["packed"] > 100 and seen["pairs"] > 1000, seen

@@ -89,7 +89,7 @@ from ._heap import release_free_heap
 from ._kernels import KERNEL_OPTIONS, internal_kernel, njit
 from ._recent import MISSING, Recent
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
-from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_arrays, segments_cross
+from .bands.bridges import PreferCovered, bridge_tree, bridged_ring_ids, segments_cross
 from .bands.caps import cap_faces
 from .bands.ends import _SmoothEnds
 from .bands.optimal import triangulate_band_optimal
@@ -2997,11 +2997,19 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             continue
         # (each ring's ids are a run: its rows of V, as a view, are V[r][:, :2])
         rs = [V[r[0]:r[0] + len(r), :2] if len(r) else V[r][:, :2] for r in multi]
+        lengths = [len(r) for r in multi]
+        # the plane's rings follow each other in V: packed for the compiled kernels in one copy
+        # (the numbers _packed_rings would concatenate); an empty ring leaves them to bridge_tree
+        packed = None
+        if min(lengths) > 0:
+            s0 = int(multi[0][0])
+            packed = (np.ascontiguousarray(V[s0:int(multi[-1][-1]) + 1, :2]),
+                      np.array([int(r[0]) - s0 for r in multi], dtype=np.int64), np.array(lengths, dtype=np.int64))
         oa, ob = edges_of(plane)
         step, points_of = (1.0, None) if waypoints is None else waypoints(plane, other, comps)
         cover = uncovered(other, comps)
         br = bridge_tree(rs, oa, ob, owners=owners, allowed=cover, waypoints=points_of, step=step,
-                         prefer=PreferCovered(cover, 0.5))
+                         prefer=PreferCovered(cover, 0.5), packed=packed)
         if br is None:
             return None
         # the first id of each table of the tour: ring r's (its ids run from r[0]), then each
@@ -3013,8 +3021,7 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
             if len(bridge) > 4:
                 first[-1] = n_ring + sum(len(p) for p in path_pts)
                 path_pts.append(_with_z(bridge[4], zs[plane]))
-        tour_r, tour_v = bridged_ring_arrays([len(r) for r in rs], br)
-        seq = _tour_ids(first, tour_r, tour_v)
+        seq = bridged_ring_ids(lengths, br, first)  # (the tour's ids, in one compiled call)
         for bridge in br:
             i, vi, j, vj = bridge[:4]
             line = [rs[i][vi]] + (list(bridge[4]) if len(bridge) > 4 else []) + [rs[j][vj]]
@@ -3095,15 +3102,6 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
     out = _Bridged(V, F, rings, n_ring, replaced, nb, segments, polyline=bool(path_pts))
     out.least_area = least_area
     return out
-
-
-def _tour_ids(first, tour_r, tour_v):
-    """The vertex ids of a bridged ring's tour (:func:`contourmesh.bands.bridges.bridged_ring_arrays`'
-    ``(ring, vertex)`` pairs ``tour_r``, ``tour_v``) where each table of ids (a ring's, then each
-    polyline bridge's interior points) is a run of consecutive ids from ``first[t]``, as
-    :func:`_bridge_join` numbers them (``np.arange`` runs): ``first[tour_r] + tour_v``, the
-    entries ``tables[tour_r][tour_v]`` of the tables concatenated, without making them."""
-    return np.array(first, dtype=np.int64)[tour_r] + tour_v
 
 
 def _bridged_band(P, na, ids, rule):

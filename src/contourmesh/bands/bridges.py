@@ -31,7 +31,7 @@ from .._kernels import njit
 from .._recent import MISSING, Recent
 from ..topology import _root  # the compiled union-find root (path halving), shared
 
-__all__ = ["OverlapFree", "PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "keyhole_path", "keyhole_uncovered", "segments_cross"]
+__all__ = ["OverlapFree", "PreferCovered", "bridge_tree", "bridged_ring", "bridged_ring_arrays", "bridged_ring_ids", "keyhole_path", "keyhole_uncovered", "segments_cross"]
 
 #: Candidate vertex pairs tried per pair of contours (nearest first).
 CANDIDATES = 12
@@ -111,6 +111,35 @@ def _coverage_kernel(P, Q, lab, ids, ox, oy, dx, dy):
         count[s] = c
         total[s] = steps - 1
     return count, total
+
+
+@njit(cache=True, nogil=True)
+def _later_kernel(px, py, qx, qy, lab, ids, ox, oy, dx, dy, share):  # pragma: no cover (compiled)
+    """1 where less than ``share`` of segment ``p q``'s samples are covered, else 0: ``0 if count / n
+    >= share else 1`` of :func:`_coverage_kernel`'s ``count, n`` for the segment, the same samples,
+    but the sampling stops (at the end of each pixel's eight) once the answer is decided: where
+    ``count / n`` so far already reaches ``share``, or where even every sample left covered would
+    not (``x / n`` never decreases as ``x`` grows, in floating point too: the same answer)."""
+    ny, nx = lab.shape
+    steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
+    n = steps - 1
+    c = 0
+    for u in range(1, steps):
+        t = u / steps
+        i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
+        j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
+        if i >= 0 and i < nx and j >= 0 and j < ny:
+            v = lab[j, i]
+            for w in range(ids.shape[0]):
+                if v == ids[w]:
+                    c += 1
+                    break
+        if u % 8 == 0:
+            if c / n >= share:
+                return np.int64(0)
+            if (c + n - u) / n < share:
+                return np.int64(1)
+    return np.int64(0) if c / n >= share else np.int64(1)
 
 
 def keyhole_uncovered(lab, comps, grid):
@@ -237,7 +266,70 @@ def _tie_kernel(ri, rj, vi, vj):
 
 
 @njit(cache=True, nogil=True)
-def _nearest_kernel(ri, rj, k):
+def _nearest_kernel(ri, rj, k):  # pragma: no cover (compiled)
+    """:func:`_nearest_all` without the square root of every pair and without the table of all
+    the distances: the same ``(vi, vj, d, ok)``, bit for bit.
+
+    The ``q`` smallest squared distances ``dx * dx + dy * dy`` are kept instead of their roots: the
+    root is monotone, so the root of the ``q``-th smallest square is the ``q``-th smallest root (the
+    same cut).  The pairs are then measured again, the same arithmetic, and the root taken only
+    where the square is within ``cut * cut`` (plus a margin far above the roots' rounding): a pair
+    further out has a root above the cut.  The pairs come out in the same order (``j``, then
+    ``i``); a NaN distance leaves everything to :func:`_nearest_all`."""
+    ni, nj = ri.shape[0], rj.shape[0]
+    kk = min(k, ni)
+    q = min(k, nj * kk)
+    best = np.empty(q)
+    nb = 0
+    for j in range(nj):
+        for i in range(ni):
+            dx = ri[i, 0] - rj[j, 0]
+            dy = ri[i, 1] - rj[j, 1]
+            v = dx * dx + dy * dy
+            if v != v:
+                return _nearest_all(ri, rj, k)
+            # the q smallest so far, ascending (insertion)
+            if nb < q:
+                t = nb
+                nb += 1
+            elif v < best[q - 1]:
+                t = q - 1
+            else:
+                continue
+            while t > 0 and best[t - 1] > v:
+                best[t] = best[t - 1]
+                t -= 1
+            best[t] = v
+    cut = np.sqrt(best[q - 1]) * (1 + 1e-12)
+    # squares above lim have roots above the cut (no pruning where cut * cut could under- or overflow)
+    lim = cut * cut * (1 + 1e-9) if 1e-100 < cut < 1e100 else np.inf
+    cap = nj * kk
+    vi = np.empty(cap, np.int64)
+    vj = np.empty(cap, np.int64)
+    d = np.empty(cap)
+    t = 0
+    for j in range(nj):
+        c = 0
+        for i in range(ni):
+            dx = ri[i, 0] - rj[j, 0]
+            dy = ri[i, 1] - rj[j, 1]
+            v = dx * dx + dy * dy
+            if v > lim:
+                continue
+            v = np.sqrt(v)
+            if v <= cut:
+                c += 1
+                if c > kk:
+                    return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0), False
+                vi[t] = i
+                vj[t] = j
+                d[t] = v
+                t += 1
+    return vi[:t].copy(), vj[:t].copy(), d[:t].copy(), True
+
+
+@njit(cache=True, nogil=True)
+def _nearest_all(ri, rj, k):  # pragma: no cover (compiled)
     """:func:`_candidates`' pairs by measuring every pair: ``(vi, vj, d, ok)``, ``ok`` False where
     a vertex of ``rj`` has more than ``min(k, len(ri))`` vertices within the cut (then the k-d
     tree's choice among equal distances would decide, see :func:`_candidates_reference`).
@@ -442,7 +534,7 @@ def _keyhole_test_arrays(allowed):
     return allowed.lab, allowed._ids64, allowed._grid64
 
 
-def _candidate_columns(rings, pairs, owners, prefer, straight=None):
+def _candidate_columns(rings, pairs, owners, prefer, straight=None, packed=None):
     """:func:`_candidate_arrays` of the candidates of ``pairs`` (rings to bridge, in order) as
     :func:`bridge_tree`'s loop makes them, for ``prefer`` None or a :class:`PreferCovered`: in one
     compiled call (:func:`_candidate_kernel`).  None where some pair is left to Python (rings
@@ -453,10 +545,13 @@ def _candidate_columns(rings, pairs, owners, prefer, straight=None):
     :func:`bridge_tree`: then the result is ``(columns, chosen)``, with ``chosen`` the straight
     bridges of :func:`_straight_bridges` made in the same compiled call (:func:`_tree_kernel`)
     where ``allowed`` is None or a :func:`keyhole_uncovered` test, else None (still None overall
-    where the candidates are left to Python)."""
+    where the candidates are left to Python).
+
+    ``packed``, where given, is :func:`_packed_rings` of ``rings`` as the caller already holds it
+    (the same arrays: the kernels read those numbers only)."""
     if not pairs or any(len(r) == 0 for r in rings):
         return None
-    pts, off, lens = _packed_rings(rings)
+    pts, off, lens = _packed_rings(rings) if packed is None else packed
     sizes = lens.tolist()  # (Python ints: the products as int(lens[i]) * int(lens[j]))
     if max(sizes[i] * sizes[j] for i, j in pairs) > _BRUTE_PAIRS:
         return None
@@ -542,15 +637,10 @@ def _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, 
         for t in range(m):
             c_d[total + t], c_tie[total + t] = d[t], tie[t]
             c_i[total + t], c_vi[total + t], c_j[total + t], c_vj[total + t] = i, vi[t], j, vj[t]
-        if ask[p]:
-            P = np.empty((m, 2))
-            Q = np.empty((m, 2))
+        if ask[p]:  # (the preference of each candidate: _later_kernel)
             for t in range(m):
-                P[t, 0], P[t, 1] = ri[vi[t], 0], ri[vi[t], 1]
-                Q[t, 0], Q[t, 1] = rj[vj[t], 0], rj[vj[t], 1]
-            count, n = _coverage_kernel(P, Q, lab, cids, ox, oy, dx, dy)
-            for t in range(m):
-                c_lt[total + t] = 0 if count[t] / n[t] >= share else 1
+                c_lt[total + t] = _later_kernel(ri[vi[t], 0], ri[vi[t], 1], rj[vj[t], 0], rj[vj[t], 1], lab, cids,
+                                                ox, oy, dx, dy, share)
         total += m
     c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj = c_lt[:total], c_d[:total], c_tie[:total], c_i[:total], \
         c_vi[:total], c_j[:total], c_vj[:total]
@@ -612,7 +702,7 @@ def _key_less(x, y, lt, d, tie, i, vi, j, vj):
 
 
 def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, allowed=None, waypoints=None,
-                step=1.0, prefer=None):
+                step=1.0, prefer=None, packed=None):
     """Bridges joining ``rings`` into one tree, or None where none keeps clear of everything.
 
     Parameters
@@ -649,6 +739,10 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
         empty space (the mouth of a C whose two arms part above it) would make the band fold
         across the whole opening.  A :class:`PreferCovered` test is run in compiled code with the
         candidates (:func:`_candidate_kernel`); any other callable in Python.
+    packed : (pts, off, lens), optional
+        The rings packed as the compiled kernels take them (:func:`_packed_rings`: ring ``r`` in
+        ``pts[off[r]: off[r] + lens[r]]``, one C array of float64), where the caller holds them so
+        (the mesher's rings are runs of one vertex array): not packed again.  The same bridges.
 
     Returns
     -------
@@ -669,7 +763,8 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
     if prefer is None or isinstance(prefer, PreferCovered):
         # the candidates and, where the keyhole test is compiled too, the straight bridges in one
         # compiled call (:func:`_tree_kernel`)
-        got = _candidate_columns(rings, pairs, owners, prefer, straight=(obstacles_a, obstacles_b, avoid, allowed))
+        got = _candidate_columns(rings, pairs, owners, prefer, straight=(obstacles_a, obstacles_b, avoid, allowed),
+                                 packed=packed)
         if got is not None:
             cols, chosen = got
     if cols is None:
@@ -1519,6 +1614,35 @@ def bridged_ring_arrays(lengths, bridges, root: int = 0):
         if ok:
             return rr, vv
     return _bridged_ring_arrays_py(lengths, bridges, root)
+
+
+def bridged_ring_ids(lengths, bridges, first, root: int = 0):
+    """The vertex ids of the bridged ring's tour (:func:`bridged_ring_arrays`' ``(ring, vertex)``
+    pairs) where each table of ids, ring ``r``'s and then each bridge's interior points', is a run of
+    consecutive ids from ``first[t]`` (``first[len(lengths) + b]`` for bridge ``b``): ``first[ring] +
+    vertex``, int64.  Tour and ids in one compiled call (:func:`_tour_ids_kernel`) where
+    :func:`bridged_ring_arrays` takes its compiled tour; else its Python tour, then the same sums."""
+    n = len(lengths)
+    if n and min(lengths) > 0 and 0 <= root < n:
+        br = np.array([tuple(b[:4]) + (len(b[4]) if len(b) > 4 else 0,) for b in bridges],
+                      dtype=np.int64).reshape(-1, 5)
+        ids, ok = _tour_ids_kernel(np.array(lengths, dtype=np.int64), br, np.int64(root),
+                                   np.array(first, dtype=np.int64))
+        if ok:
+            return ids
+    rr, vv = _bridged_ring_arrays_py(lengths, bridges, root)
+    return np.array(first, dtype=np.int64)[rr] + vv
+
+
+@njit(cache=True, nogil=True)
+def _tour_ids_kernel(lengths, br, root, first):  # pragma: no cover (compiled)
+    """:func:`_tour_kernel` and each tour entry's id ``first[ring] + vertex`` in one call: the ids
+    (int64, the sums numpy's ``first[rr] + vv`` gives) and the tour kernel's flag."""
+    rr, vv, ok = _tour_kernel(lengths, br, root)
+    ids = np.empty(rr.shape[0], np.int64)
+    for t in range(rr.shape[0]):
+        ids[t] = first[rr[t]] + vv[t]
+    return ids, ok
 
 
 @njit(cache=True, nogil=True)
