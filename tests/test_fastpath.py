@@ -106,6 +106,29 @@ def test_runs_of_unaligned_rows_and_words():
         assert [(int(y), int(a), int(b)) for y, a, b in zip(ry, rx0, rx1)] == [(1, w // 3, w), (2, 0, 1)]
 
 
+def test_runs_of_volume_slices_off_word_boundaries():
+    # slices of a C-ordered volume whose slices are 2 mod 8 bytes start off a word boundary 3
+    # times in 4 (the rotated socket's 441 x 514): slice_runs reads them a word at a time from
+    # their first boundary on, the same runs as the byte-by-byte scan and the numpy reference
+    from contourmesh.fastpath import _scan_runs_py, _words_from
+
+    rng = np.random.default_rng(8)
+    vol = ndimage.uniform_filter(rng.random((8, 21, 34)), 5) > 0.5
+    vol[:, 3, 5:30] = True  # (long stretches of whole words of 1 too)
+    offs = set()
+    for k in range(len(vol)):
+        m = vol[k]
+        b8 = m.reshape(-1).view(np.uint8)
+        b64, woff, aligned = _words_from(b8)
+        offs.add(int(woff))
+        want = _scan_runs_py(b8, np.zeros(1, np.uint64), 0, 21, 34, False, np.int64(0))
+        got = slice_runs(m)
+        for a, b in zip(got, want):
+            np.testing.assert_array_equal(a, b)
+        assert [(int(y), int(a), int(b)) for y, a, b in zip(*got[:3])] == _runs_reference(m.astype(np.uint8))
+    assert len(offs) == 4  # (each offset 0, 2, 4, 6 taken)
+
+
 def _runs_reference(img):
     """Runs of the non-zero bytes of a 2D uint8 image, row by row, in numpy."""
     out = []
@@ -119,7 +142,7 @@ def test_runs_of_words_with_boundaries_and_other_values():
     # _scan_runs reads 0/1 words a cache line and a word at a time and takes a boundary word's
     # transitions from its bits; bytes other than 0 and 1 go byte by byte and are counted.  Rows
     # of every width and offset into the buffer, dense stretches, isolated pixels, other values.
-    from contourmesh.fastpath import _scan_runs_py, _words
+    from contourmesh.fastpath import _scan_runs_py, _words, _words_from
 
     rng = np.random.default_rng(5)
     for trial in range(60):
@@ -132,17 +155,27 @@ def test_runs_of_words_with_boundaries_and_other_values():
         else:  # some bytes neither 0 nor 1
             img = (rng.random((h, w)) < 0.6).astype(np.uint8)
             img[rng.random((h, w)) < 0.03] = rng.integers(2, 256)
-        for lead in (0, 3, 8):  # the slice starts `lead` bytes into the (aligned) buffer
+        for lead in (0, 3, 6, 8, 13):  # the slice starts `lead` bytes into the (aligned) buffer
             buf = np.zeros(lead + h * w + 16, np.uint8)
             buf[lead: lead + h * w] = img.reshape(-1)
             b64, aligned = _words(buf)
             assert aligned
-            ry, rx0, rx1, rs, bad = _scan_runs_py(buf, b64, lead, h, w, aligned)
+            ry, rx0, rx1, rs, bad = _scan_runs_py(buf, b64, lead, h, w, aligned, np.int64(0))
             got = [(int(y), int(a), int(b)) for y, a, b in zip(ry, rx0, rx1)]
             assert got == _runs_reference(img), (trial, lead)
             assert bad == int(np.count_nonzero(img > 1))
             assert rs[0] == 0 and rs[-1] == len(ry)
             assert [int(np.count_nonzero(ry == y)) for y in range(h)] == np.diff(rs).tolist()
+            # the buffer from byte `lead` on (off a word boundary of memory for lead 3): read a word
+            # at a time from its first word boundary on (_words_from), the same runs and count as
+            # the byte-by-byte scan (not aligned: the form _words left such a slice to)
+            part = buf[lead:]
+            p64, woff, p_aligned = _words_from(part)
+            assert p_aligned and woff == (8 - lead % 8) % 8
+            want = _scan_runs_py(part, np.zeros(1, np.uint64), 0, h, w, False, np.int64(0))
+            got = _scan_runs_py(part, p64, 0, h, w, True, woff)
+            for a, b in zip(got, want):
+                np.testing.assert_array_equal(a, b)
 
 
 def test_outer_contour_and_mlp_match_trace_contours():
@@ -843,7 +876,7 @@ def test_runs_of_long_word_aligned_rows():
             buf[k * h * w:] = img.reshape(-1)
             b64, aligned = _words(buf)
             assert aligned
-            ry, rx0, rx1, rs, bad = _scan_runs_py(buf, b64, k * h * w, h, w, aligned)
+            ry, rx0, rx1, rs, bad = _scan_runs_py(buf, b64, k * h * w, h, w, aligned, np.int64(0))
             got = [(int(y), int(a), int(b)) for y, a, b in zip(ry, rx0, rx1)]
             assert got == _runs_reference(img), (w, k)
             assert bad == int(np.count_nonzero(img > 1))

@@ -324,3 +324,67 @@ def test_mlps_from_the_runs_equal_the_mlps_from_the_labels():
 @pytest.mark.slow
 def test_mlps_from_the_runs_on_the_shared_volumes(shared_data):
     assert _mlps_both_ways(_slices_of_volumes(shared_data)) > 100
+
+
+def _check_overlap_groups(stack):
+    """:func:`tracing.overlap_groups_runs` on the kept runs of each pair of consecutive slices
+    (kept runs, or labelled in a box) against :func:`tracing.overlap_groups` on
+    their label images: the same pairs and groups, in the same order; returns how many pairs of
+    slices overlapped in several groups."""
+    from contourmesh.tracing import overlap_groups, overlap_groups_runs
+
+    several = 0
+    runs, box = _kept_slices(stack, "runs", "none"), _kept_slices(stack, "box", "none")
+    for A, B in list(zip(runs, runs[1:])) + list(zip(box, box[1:])):
+        got = overlap_groups_runs(A.kept_runs(), B.kept_runs(), A.n, B.n)
+        want = overlap_groups(A.labels, B.labels, A.n, B.n)
+        assert got[0].dtype == np.int64
+        np.testing.assert_array_equal(got[0], want[0])
+        assert got[1] == want[1]  # the same sets in the same order
+        several += len(want[1]) > 1
+    return several
+
+
+def test_overlap_groups_from_runs_equal_the_pixel_scan_on_random_stacks():
+    rng = np.random.default_rng(23)
+    several = 0
+    for _ in range(20):
+        several += _check_overlap_groups(_holed_stack(rng))
+    for seed in range(6):  # (salt: many components and pairs; a row, a column, an empty slice)
+        for h, w in [(17, 29), (31, 8), (1, 12), (9, 1)]:
+            r = np.random.default_rng(seed)
+            stack = r.random((6, h, w)) < r.uniform(0.1, 0.8)
+            stack[seed % 6] = False
+            several += _check_overlap_groups(stack)
+    assert several > 20
+
+
+def test_overlap_groups_from_runs_refuse_a_table_too_large():
+    from contourmesh.tracing import _PAIR_TABLE_MAX, overlap_groups_runs
+
+    r = np.zeros((4, 0), np.int32)
+    assert overlap_groups_runs(r, r, _PAIR_TABLE_MAX, 1) is None  # (the caller reads the label images)
+    got = overlap_groups_runs(r, r, 3, 4)
+    assert got[0].shape == (0, 2) and got[1] == []
+
+
+@pytest.mark.slow
+def test_overlap_groups_from_runs_on_the_shared_volumes(shared_data):
+    import zlib
+
+    from scipy.spatial.transform import Rotation
+
+    from contourmesh.compare.inputs import load_closed_mesh
+    from contourmesh.io import read_volume
+    from contourmesh.voxelize import voxelize_mesh
+
+    vol, _, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz")
+    liver = np.asarray(z["volume"] if "volume" in z.files else z["mask"]) > 0
+    v, f = load_closed_mesh(shared_data / "meshes" / "cgogn" / "socket.off")
+    rot = Rotation.random(random_state=np.random.default_rng([20261204, zlib.crc32(b"socket")])).as_matrix()
+    socket, _, _ = voxelize_mesh(v @ rot.T, f, 160)
+    several = 0
+    for stack in (np.pad(vol, 1), np.pad(liver, 1)[::2], np.pad(socket, 1)):
+        several += _check_overlap_groups(stack)
+    assert several > 0

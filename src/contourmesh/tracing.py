@@ -834,6 +834,34 @@ def _pair_table(la, lb, nbk, size):
     return seen
 
 
+@njit(cache=True, nogil=True)
+def _pair_table_runs(ra, rb, nbk, size):
+    """:func:`_pair_table` from the two slices' runs rather than their pixels: ``ra``, ``rb`` are
+    ``(4, n)`` int32 runs ``[row, first column, end column, component]`` (component ``c`` labelled
+    ``c + 1``) in raster order, each row's runs apart and increasing.  Two runs of one row share a
+    pixel exactly where their column ranges meet, and every pixel where both labels are set lies
+    in one run of each, so the keys marked are those of the pixel scan: the same table.  The rows'
+    runs are met in one merged sweep (as interval lists are intersected), a step per run."""
+    seen = np.zeros(size, np.bool_)
+    i, j = 0, 0
+    n, m = ra.shape[1], rb.shape[1]
+    while i < n and j < m:
+        ya, yb = ra[0, i], rb[0, j]
+        if ya < yb:
+            i += 1
+            continue
+        if yb < ya:
+            j += 1
+            continue
+        if ra[1, i] < rb[2, j] and rb[1, j] < ra[2, i]:
+            seen[(np.int64(ra[3, i]) + 1) * nbk + np.int64(rb[3, j]) + 1] = True
+        if ra[2, i] <= rb[2, j]:
+            i += 1
+        else:
+            j += 1
+    return seen
+
+
 def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
     """The overlap groups of two slices' components: ``la``, ``lb`` are their label images (0 the
     background, component ``c`` labelled ``c + 1``; ``na``, ``nb`` components).  Two components
@@ -848,6 +876,26 @@ def overlap_groups(la: np.ndarray, lb: np.ndarray, na: int, nb: int):
     else:
         both = (la > 0) & (lb > 0)
         keys = unique_keys(la[both].astype(np.int64) * nbk + lb[both], (na + 1) * (nb + 1))
+    return _groups_of_keys(keys, nbk, na, nb)
+
+
+def overlap_groups_runs(ra: np.ndarray, rb: np.ndarray, na: int, nb: int):
+    """:func:`overlap_groups` of two slices given by their runs (``(4, n)`` int32 ``[row, first
+    column, end column, component]``, raster order: what ``_Slice.kept_runs`` gives) rather than
+    their label images, which are then not read: the same ``(pairs, groups)``, from one sweep over
+    the runs (:func:`_pair_table_runs`).  None where the pairs' table would be larger than
+    :data:`_PAIR_TABLE_MAX` (the caller then takes the label images)."""
+    size = (na + 1) * (nb + 1)
+    if size > _PAIR_TABLE_MAX:
+        return None
+    nbk = np.int64(nb + 1)
+    keys = np.flatnonzero(_pair_table_runs(ra, rb, nbk, np.int64(size)))
+    return _groups_of_keys(keys, nbk, na, nb)
+
+
+def _groups_of_keys(keys, nbk, na, nb):
+    """:func:`overlap_groups`' pairs and groups from the sorted keys ``a * nbk + b`` of the label
+    pairs found."""
     pairs = np.empty((len(keys), 2), dtype=np.int64)  # (np.c_[keys // nbk, keys % nbk] - 1, without np.c_'s cost)
     pairs[:, 0] = keys // nbk - 1
     pairs[:, 1] = keys % nbk - 1

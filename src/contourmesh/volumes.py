@@ -130,6 +130,7 @@ from .tracing import (
     label_mask,
     missing_corners,
     overlap_groups,
+    overlap_groups_runs,
     overlap_holes,
     slice_boxes,
     slice_cracks,
@@ -1195,10 +1196,17 @@ def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, la
         A, B = slices[k], slices[k + 1]
         if A is None or B is None:
             continue
-        both = (A.labels > 0) & (B.labels > 0)
-        if not both.any():
+        # (from the slices' runs where both keep them: the same pairs, their label images not read)
+        ra, rb = A.kept_runs(), B.kept_runs()
+        found = None if ra is None or rb is None else overlap_groups_runs(ra, rb, A.n, B.n)
+        if found is None:
+            both = (A.labels > 0) & (B.labels > 0)
+            if not both.any():
+                continue
+            found = overlap_groups(A.labels, B.labels, A.n, B.n)
+        elif not len(found[0]):  # (no overlap)
             continue
-        _, groups = overlap_groups(A.labels, B.labels, A.n, B.n)
+        _, groups = found
         for ga, gb in groups:
             has_above.update((k, a) for a in ga)
             has_below.update((k + 1, b) for b in gb)
