@@ -85,6 +85,22 @@ class _Coverage:
         return count / n
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _sample_covered(px, py, qx, qy, t, lab, ids, ox, oy, dx, dy):  # pragma: no cover (compiled)
+    """1 where the point ``t`` of the way from ``p`` to ``q`` falls on a pixel of ``lab`` whose label
+    is in ``ids`` (the pixel whose centre is nearest, inside the image), else 0: one sample of
+    :func:`_coverage_kernel` and :func:`_later_kernel`, which share it."""
+    ny, nx = lab.shape
+    i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
+    j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
+    if i >= 0 and i < nx and j >= 0 and j < ny:
+        v = lab[j, i]
+        for w in range(ids.shape[0]):
+            if v == ids[w]:
+                return np.int64(1)
+    return np.int64(0)
+
+
 @njit(cache=True, nogil=True)
 def _coverage_kernel(P, Q, lab, ids, ox, oy, dx, dy):
     """Per segment ``P[s] Q[s]``: how many of its samples (8 per pixel, ends left out) fall on a
@@ -93,21 +109,12 @@ def _coverage_kernel(P, Q, lab, ids, ox, oy, dx, dy):
     m = P.shape[0]
     count = np.zeros(m, np.int64)
     total = np.zeros(m, np.int64)
-    ny, nx = lab.shape
     for s in range(m):
         px, py, qx, qy = P[s, 0], P[s, 1], Q[s, 0], Q[s, 1]
         steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
         c = 0
         for u in range(1, steps):
-            t = u / steps
-            i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
-            j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
-            if i >= 0 and i < nx and j >= 0 and j < ny:
-                v = lab[j, i]
-                for w in range(ids.shape[0]):
-                    if v == ids[w]:
-                        c += 1
-                        break
+            c += _sample_covered(px, py, qx, qy, u / steps, lab, ids, ox, oy, dx, dy)
         count[s] = c
         total[s] = steps - 1
     return count, total
@@ -120,20 +127,11 @@ def _later_kernel(px, py, qx, qy, lab, ids, ox, oy, dx, dy, share):  # pragma: n
     but the sampling stops (at the end of each pixel's eight) once the answer is decided: where
     ``count / n`` so far already reaches ``share``, or where even every sample left covered would
     not (``x / n`` never decreases as ``x`` grows, in floating point too: the same answer)."""
-    ny, nx = lab.shape
     steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
     n = steps - 1
     c = 0
     for u in range(1, steps):
-        t = u / steps
-        i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
-        j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
-        if i >= 0 and i < nx and j >= 0 and j < ny:
-            v = lab[j, i]
-            for w in range(ids.shape[0]):
-                if v == ids[w]:
-                    c += 1
-                    break
+        c += _sample_covered(px, py, qx, qy, u / steps, lab, ids, ox, oy, dx, dy)
         if u % 8 == 0:
             if c / n >= share:
                 return np.int64(0)
