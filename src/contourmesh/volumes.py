@@ -3068,6 +3068,11 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         faces.append(ids[f])
         bands.append((a_ids, b_ids, rule, f))
         replaced += r
+        if crosses and any_intersecting(V, np.concatenate(faces)):
+            # a band kept crosses itself, so the join is given up wherever its faces cross (below,
+            # without a retry); the faces so far already cross, and so do the join's, which hold
+            # them: the same None without the bands and lids after it
+            return None
     extra = []
     for ids, below, collar in lid_ids:
         # a hole of the lower slice covered from above: its lid faces down (and the other way)
