@@ -31,6 +31,7 @@ import threading
 import numpy as np
 
 from ._kernels import njit
+from ._recent import MISSING
 from .bands.bridges import keyhole_uncovered, segments_cross
 from .bands.caps import cap_faces
 from .geometry import grid_to_xy
@@ -44,6 +45,10 @@ MAX_DEPTH = 2
 #: keeps the Euler characteristic (see :func:`sectioned_join`'s ``topology_first``); False builds its
 #: pieces until they fail or the final test does (the same joins, more work: the tests' reference).
 GIVE_UP_EARLY = True
+#: Before the pieces below a section are built, ask whether the pair above it is ruled out by its
+#: labels alone (:func:`sectioned_join`'s ``doomed``): then the join gives None without building
+#: them.  False builds them first (the same joins, more work: the tests' reference).
+DOOMED_FIRST = True
 
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
 
@@ -848,9 +853,43 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         if early and not may_keep_topology():
             raise _NoTopology
 
+    made = {}  # pair path -> its section's layer (None where the section is empty), made once
+
+    def section_at(path, P, Q):
+        """Pair ``path``'s section between its layers P and Q, as a layer (None where empty)."""
+        if path not in made:
+            # mid_section of the two layers' regions (a section's region is its mask)
+            M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid, section_mask(path))
+            made[path] = M
+            if M is not None:
+                masks[id(M)] = (M, m)
+                layer_at[path] = M
+                if path in node_sdf:
+                    sdfs[id(M)] = (M, node_sdf.pop(path))
+        return made[path]
+
+    kinds_at = {}  # pair path -> _piece_kinds of its two layers, made once
+
+    def kinds_of(path, P, Q):
+        if path not in kinds_at:
+            kinds_at[path] = _piece_kinds(ops, P, Q)
+        return kinds_at[path]
+
+    def doomed(P, Q, depth, path):
+        """Whether pair ``path`` (layers P and Q, ``depth`` splits left) surely gives None, from the
+        labels alone: its pieces are None whatever is built (:func:`_piece_kinds`), and it has no
+        splits left, an empty section, or a half that is doomed in turn.  Then :func:`split` of it
+        gives None too (or the join is given up before it), so nothing need be built for it."""
+        if kinds_of(path, P, Q) is not None:
+            return False
+        if depth == 0:
+            return True
+        M = section_at(path, P, Q)
+        return M is None or doomed(P, M, depth - 1, path + (0,)) or doomed(M, Q, depth - 1, path + (1,))
+
     def split(P, Q, depth, first, path):
         """The layers strictly between P and Q (pair ``path``) and the pieces joining them, or None."""
-        pieces = None if first else _pieces(ops, P, Q, caps, triangulation, grid)
+        pieces = None if first else _pieces(ops, P, Q, caps, triangulation, grid, kinds_of(path, P, Q))
         if pieces is not None:
             decide(path, False)
             keep(pieces)
@@ -859,14 +898,14 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             return None
         if not first:
             decide(path, True)
-        # mid_section of the two layers' regions (a section's region is its mask)
-        M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid, section_mask(path))
+        M = section_at(path, P, Q)
         if M is None:
             return None
-        masks[id(M)] = (M, m)
-        layer_at[path] = M
-        if path in node_sdf:
-            sdfs[id(M)] = (M, node_sdf.pop(path))
+        # the pair above is joined after the one below, which it needs (the bridges taken in M);
+        # where its labels alone rule it out, the join gives None and the pieces below are not
+        # built in vain
+        if DOOMED_FIRST and doomed(M, Q, depth - 1, path + (1,)):
+            return None
         below = split(P, M, depth - 1, False, path + (0,))
         if below is None:
             return None
@@ -888,7 +927,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         # sdf_at with section_mask) hold their own closure cells: reference cycles that would leave
         # the join's sections, masks and layers to the cyclic garbage collector; clearing the cells
         # frees them by reference counting when the join returns
-        split = ends = stacks = sdf_at = None
+        split = ends = stacks = sdf_at = doomed = None
     if got is None:
         return None
     layers, pieces = got
@@ -993,17 +1032,18 @@ def _edges_meeting(edges, box):
 JOIN_MEMORY = 32
 
 
-def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
+def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid, kinds=MISSING):
     """The joins between two adjacent layers, each ``("band", P, Q, a, b, matched)``, ``("bridged",
     P, Q, built)`` or ``("cap", layer, c, upward)``; None where some group is neither a band join
-    nor a bridged join that builds, or where a slice's component would have no partner."""
-    _bridge_join, _bridge_plan, _simple_join = ops.bridge_join, ops.bridge_plan, ops.simple_join
+    nor a bridged join that builds, or where a slice's component would have no partner.
 
-    groups, lone_p, lone_q = _groups(P, Q)
-    if (P.main is not None and lone_p) or (Q.main is not None and lone_q):
-        return None  # a slice's component without a partner in the section
-    out = [("cap", P, c, True) for c in lone_p] + [("cap", Q, c, False) for c in lone_q]
-    capped_p, capped_q = set(lone_p), set(lone_q)
+    ``kinds``: :func:`_piece_kinds` of the two layers, where the caller has it (the same)."""
+    _bridge_join = ops.bridge_join
+    if kinds is MISSING:
+        kinds = _piece_kinds(ops, P, Q)
+    if kinds is None:
+        return None
+    out, kinds = list(kinds[0]), kinds[1]
     pair = (P, Q)
     zs = np.array([P.z, Q.z])
 
@@ -1017,9 +1057,34 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
         return keyhole_uncovered(pair[other].S.labels, comps, grid)
 
     dbl = {(0, c, h) for c, h in P.double} | {(1, c, h) for c, h in Q.double}
-    # every group's kind first (cheap), the bridged joins after: a group that is neither a band nor
-    # a bridged join gives None whatever the others build, and each build depends only on its own
-    # group and the two layers, so none is built in vain (the same answer as group by group)
+    for kind in kinds:
+        if kind[0] == "band":
+            out.append(kind)
+            continue
+        _, gp, gq, plan = kind
+        b = _bridge_join(0, gp, gq, plan, poly, zs, edges_of, uncovered, triangulation, caps, dbl)
+        if b is None:
+            return None
+        out.append(("bridged", P, Q, b, plan))
+    return out
+
+
+def _piece_kinds(ops, P: _Layer, Q: _Layer):
+    """What :func:`_pieces` learns of two adjacent layers before it builds a bridged join, from
+    their labels alone: ``(caps, kinds)``, the caps of the components without a partner and per
+    group ``("band", P, Q, a, b, matched)`` or ``("plan", gp, gq, plan)``; None where the pieces
+    are None whatever the bridged joins build (a slice's component without a partner, a group
+    that is neither a band join nor has a bridge plan, a keyhole in a capped component)."""
+    _bridge_plan, _simple_join = ops.bridge_plan, ops.simple_join
+
+    groups, lone_p, lone_q = _groups(P, Q)
+    if (P.main is not None and lone_p) or (Q.main is not None and lone_q):
+        return None  # a slice's component without a partner in the section
+    out = [("cap", P, c, True) for c in lone_p] + [("cap", Q, c, False) for c in lone_q]
+    capped_p, capped_q = set(lone_p), set(lone_q)
+    # every group's kind first (cheap), the bridged joins after (_pieces): a group that is neither a
+    # band nor a bridged join gives None whatever the others build, and each build depends only on
+    # its own group and the two layers, so none is built in vain (the same answer as group by group)
     kinds = []
     for gp, gq in groups:
         if len(gp) == 1 and len(gq) == 1:
@@ -1034,16 +1099,7 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid):
         if any(a in capped_p for a, _ in plan[3]) or any(b in capped_q for b, _ in plan[4]):
             return None
         kinds.append(("plan", gp, gq, plan))
-    for kind in kinds:
-        if kind[0] == "band":
-            out.append(kind)
-            continue
-        _, gp, gq, plan = kind
-        b = _bridge_join(0, gp, gq, plan, poly, zs, edges_of, uncovered, triangulation, caps, dbl)
-        if b is None:
-            return None
-        out.append(("bridged", P, Q, b, plan))
-    return out
+    return out, kinds
 
 
 def _assemble_pieces(ops, pieces, layers, triangulation, max_area=None):

@@ -2944,6 +2944,10 @@ _BRIDGED_ALTERNATIVES = ("optimal", "arclength", "wiederhold", "greedy")
 #: twisted across the slits: elephant rotated #0 at 64 across took an arc-length band 4.5 times
 #: the area, +15 % on the whole mesh).
 _BRIDGED_AREA_SLACK = 1.25
+#: Where a band of a bridged join kept crosses itself, test the join's faces made so far at once
+#: (the join is given up where they cross, without the bands and lids after them); False tests
+#: only the whole join (the same joins, more work: the tests' reference).
+_BRIDGED_CROSSING_FIRST = True
 
 
 def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, caps, double, waypoints=None,
@@ -3068,6 +3072,11 @@ def _bridge_join(k, ga, gb, plan, poly, zs, edges_of, uncovered, triangulation, 
         faces.append(ids[f])
         bands.append((a_ids, b_ids, rule, f))
         replaced += r
+        if crosses and _BRIDGED_CROSSING_FIRST and any_intersecting(V, np.concatenate(faces)):
+            # a band kept crosses itself, so the join is given up wherever its faces cross (below,
+            # without a retry); the faces so far already cross, and so do the join's, which hold
+            # them: the same None without the bands and lids after it
+            return None
     extra = []
     for ids, below, collar in lid_ids:
         # a hole of the lower slice covered from above: its lid faces down (and the other way)
