@@ -597,10 +597,12 @@ class _Slice:
         self.fallbacks += len(thin)
         # (called where no component is thin too: every slice compiles it, so a warm-up does)
         tp, ts, ok = _thin_part_polygons(pts, starts, outer_at[thin]) if made is None else made
+        mps = mps.tolist()
+        if not thin:  # (most slices: every MLP encloses area)
+            return [xy[mps[c]: mps[c + 1]] for c in range(n)]
         txy = to_xy_corner(tp)
         ok, ts = ok.tolist(), ts.tolist()
         out = []
-        mps = mps.tolist()
         j = 0
         for c in range(n):
             if has[c]:
@@ -1607,6 +1609,10 @@ def _cap_key(slices, i):
     raise IndexError(i)  # pragma: no cover
 
 
+#: The ring pairs of a band join without holes (:func:`_assemble`): the outer contours alone.
+_OUTER_PAIR = ((-1, -1),)
+
+
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
               to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None, owned=None, keep=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
@@ -1717,8 +1723,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         k, kind, data = joins[idx]
         if kind == "band":
             a, b, matched = data
-
-            mixed = is_crack(k, a) != is_crack(k + 1, b)
+            crack_a, crack_b = is_crack(k, a), is_crack(k + 1, b)
+            mixed = crack_a != crack_b
 
             def added(kk, c, h):  # a densified polygon's added points (see _densify_branching)
                 return None if mixed or is_crack(kk, c) else slices[kk].dense.get((c, h))
@@ -1733,26 +1739,36 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                 """The band join's unit made without a mesher (its rings in order, each pair's band
                 numbering them as they are): what ``make`` records, where no hook, guard or densified
                 ring takes part; None otherwise."""
-                pairs = [(-1, -1)] + list(matched)
-                if band_maker is not None or band_guard is not None or \
-                        any(added(k, a, ha) is not None or added(k + 1, b, hb) is not None for ha, hb in pairs):
+                if band_maker is not None or band_guard is not None:
                     return None
+                pairs = [(-1, -1)] + list(matched) if matched else _OUTER_PAIR
+                A, B = slices[k], slices[k + 1]
+                # (added() and polygon_of() with the two components' kinds found once: the same answers)
+                if not mixed and ((not crack_a and A.dense and any(A.dense.get((a, ha)) is not None for ha, _ in pairs))
+                                  or (not crack_b and B.dense and
+                                      any(B.dense.get((b, hb)) is not None for _, hb in pairs))):
+                    return None
+                outer_a, holes_a = (A.crack_outer, A.crack_holes) if crack_a else (A.outer, A.holes)
+                outer_b, holes_b = (B.crack_outer, B.crack_holes) if crack_b else (B.outer, B.holes)
+                za, zb = zs[k], zs[k + 1]
                 keys, sizes, faces = [], [], []
                 at = replaced = least_area = 0
                 for ha, hb in pairs:
-                    lo, hi = _with_z(polygon_of(k, a, ha), zs[k]), _with_z(polygon_of(k + 1, b, hb), zs[k + 1])
+                    lo = _with_z(outer_a[a] if ha < 0 else holes_a[a][ha], za)
+                    hi = _with_z(outer_b[b] if hb < 0 else holes_b[b][hb], zb)
                     f, r = _band_faces(lo, hi, triangulation, mixed=mixed)
                     if mixed and _dissimilar_rule(len(lo), len(hi), triangulation, _MIXED_OPTIMAL_BUDGET) != triangulation:
                         least_area += 1
                     replaced += r
-                    faces.append(np.arange(at, at + len(lo) + len(hi))[f])
+                    # (f + at: the numbers np.arange(at, at + len(lo) + len(hi))[f] picks)
+                    faces.append(f if at == 0 else np.asarray(f, dtype=np.int64) + at)
                     keys += [(k, a, ha), (k + 1, b, hb)]
                     sizes += [len(lo), len(hi)]
                     at += len(lo) + len(hi)
                 return _Unit.flat(keys, sizes, np.concatenate(faces) if len(faces) > 1 else faces[0],
                                   replaced, least_area)
 
-            return ("band", is_crack(k, a), is_crack(k + 1, b)), make, direct
+            return ("band", crack_a, crack_b), make, direct
         if kind == "bridge":
             b_ = built[k, tuple(data[0]), tuple(data[1])]
 
