@@ -33,7 +33,9 @@ def _one_by_one(m, mlp):
         mlps = (np.empty((0, 2), np.int64), np.zeros(n + 1, np.int64), np.empty(0, np.int64))
         which = np.zeros(0, np.int64)
     thin = volumes._thin_part_polygons(pts, starts, np.ascontiguousarray(which, dtype=np.int64))
-    return labels, n, boxes, kept, pts, starts, area2, first, found, mlps, thin
+    off = np.array([(x0, y0) for y0, _, x0, _ in boxes.tolist()], dtype=np.int64).reshape(-1, 2)
+    moved = mlps[0] + np.repeat(off, np.diff(mlps[1]), axis=0)  # (as _outer_polygons moves them)
+    return labels, n, boxes, kept, pts, starts, area2, first, found, mlps, thin, moved
 
 
 def _pass(m, mlp):

@@ -398,7 +398,7 @@ class _Slice:
         # order _crack_contours gives them for the component's cropped mask), and with "mlp" every
         # component's MLP in another (what _mlp_of_pixels gives for its cropped mask)
         mlp = polygon not in ("dss", "none")
-        thin = None
+        thin = moved = None
         if box is None and scanned is None:
             # (the whole mask: labels, boxes, cracks, holes and MLPs in one compiled call, _slice_pass)
             m = np.ascontiguousarray(mask2d, dtype=bool)
@@ -406,7 +406,7 @@ class _Slice:
                 raise ValueError(f"mask must be a 2D array indexed [y, x]; got shape {m.shape}")
             b8 = m.reshape(-1).view(np.uint8)
             b64, woff, aligned = _words_from(b8)
-            labels, n, boxes, runs32, pts, starts, area2, first, found, mlps, thin = _slice_pass(
+            labels, n, boxes, runs32, pts, starts, area2, first, found, mlps, thin, moved = _slice_pass(
                 b8, b64, np.int64(m.shape[0]), np.int64(m.shape[1]), aligned, woff, np.int64(mlp))
             self.n = int(n)
             self.objects = [(slice(y0, y1), slice(x0, x1)) for y0, y1, x0, x1 in boxes.tolist()]
@@ -416,7 +416,7 @@ class _Slice:
             if not mlp:
                 mlps = None
             if found[0] != 0:  # pragma: no cover - (see _slice_holes)
-                thin = None
+                thin = moved = None
         elif box is None:
             labels, self.n, self.objects, runs = runs_labels(scanned, self._shape, runs=True)
             lab32, sx, sy = labels, 0, 0
@@ -466,7 +466,7 @@ class _Slice:
         self.crack_outer = _CrackXY(self.crack_outer_c, to_xy_corner, False)
         self.crack_holes = _CrackXY(self.crack_holes_c, to_xy_corner, True)
         if mlps is not None:
-            self.outer = self._outer_polygons(mlps, pts, starts, outer_at, to_xy_corner, to_xy_center, thin)
+            self.outer = self._outer_polygons(mlps, pts, starts, outer_at, to_xy_corner, to_xy_center, thin, moved)
         if recent is not None:
             recent.hold(self)
 
@@ -577,22 +577,25 @@ class _Slice:
             ])
         return np.array(outer_at, dtype=np.int64)
 
-    def _outer_polygons(self, mlps, pts, starts, outer_at, to_xy_corner, to_xy_center, made=None):
+    def _outer_polygons(self, mlps, pts, starts, outer_at, to_xy_corner, to_xy_center, made=None, moved=None):
         """The components' outer polygons by "mlp", as :meth:`_polygon` makes each (``hole=False``),
         made for the whole slice at once: the MLPs (``mlps``: :func:`contourmesh.fastpath.slice_mlps_flat`)
         moved to the slice and mapped in one call; the components whose MLP encloses no area (parts
         one pixel wide) by :func:`_thin_part_polygons` on their crack contours (``pts[starts[i]:
         starts[i + 1]]`` for ``i`` in ``outer_at``), mapped in another.  The same numbers (integer
         sums and maps of each row alone), each polygon a view of one of the two arrays.  ``made``:
-        the thin contours' ``_thin_part_polygons`` made already (by :func:`_slice_pass`), or None."""
+        the thin contours' ``_thin_part_polygons`` made already (by :func:`_slice_pass`), or None;
+        ``moved``: the MLPs moved to the slice already (the same integers), or None."""
         mp, mps, ma2 = mlps
         n = self.n
         if n == 0:
             return []
-        cnt = np.diff(mps)
+        cnt = mps[1:] - mps[:-1]  # (np.diff)
         has = ((cnt >= 3) & (ma2 != 0)).tolist()
-        off = np.array([(sl[1].start, sl[0].start) for sl in self.objects], dtype=np.int64).reshape(-1, 2)
-        xy = to_xy_center(mp + np.repeat(off, cnt, axis=0)) if len(mp) else None
+        if moved is None:
+            off = np.array([(sl[1].start, sl[0].start) for sl in self.objects], dtype=np.int64).reshape(-1, 2)
+            moved = mp + np.repeat(off, cnt, axis=0)
+        xy = to_xy_center(moved) if len(mp) else None
         thin = [c for c in range(n) if not has[c]]
         self.fallbacks += len(thin)
         # (called where no component is thin too: every slice compiles it, so a warm-up does)
@@ -811,12 +814,13 @@ def _slice_pass(b8, b64, h, w, aligned, woff, mlp):  # pragma: no cover (compile
     boxed and unboxed between them and in the wrappers round them than in the kernels: some
     30 of the 90 us of a bunny-128 slice.
 
-    Returns ``(labels, n, boxes, runs, pts, starts, area2, first, found, mlps, thin)``: ``labels``
+    Returns ``(labels, n, boxes, runs, pts, starts, area2, first, found, mlps, thin, moved)``: ``labels``
     int32, ``boxes`` as :func:`contourmesh.tracing.slice_boxes`, ``runs`` the int32 ``(4, runs)``
     rows ``(row, first column, end column, component)`` that :class:`_Slice` keeps, ``found``
     :func:`_slice_holes`' tuple, ``mlps`` the MLPs' ``(pts, ps, a2s)`` (empty without ``mlp``) and
     ``thin`` the ``(out, ostarts, ok)`` of the components whose MLP encloses no area (empty without
-    ``mlp`` or where ``found`` is a fault)."""
+    ``mlp`` or where ``found`` is a fault) and ``moved`` the MLPs' points moved to the slice (each
+    component's by its box's lower-left corner)."""
     ry32, rx032, rx132, rs32, _ = _scan_new(b8, b64, np.int64(0), h, w, aligned, woff)
     nr = len(ry32)
     lab32 = np.empty(nr, np.int32)
@@ -860,7 +864,14 @@ def _slice_pass(b8, b64, h, w, aligned, woff, mlp):  # pragma: no cover (compile
                 which[nt] = found[1][c]
                 nt += 1
     thin = _thin_part_polygons(pts, starts, which)
-    return labels, n, boxes, runs, pts, starts, area2, first, found, mlps, thin
+    # the MLPs moved to the slice (each by its box's corner: the integers _outer_polygons adds)
+    mp, ps = mlps[0], mlps[1]
+    moved = np.empty((len(mp), 2), np.int64)
+    for c in range(n):
+        for i in range(ps[c], ps[c + 1]):
+            moved[i, 0] = mp[i, 0] + boxes[c, 2]
+            moved[i, 1] = mp[i, 1] + boxes[c, 0]
+    return labels, n, boxes, runs, pts, starts, area2, first, found, mlps, thin, moved
 
 
 @njit(cache=True, **KERNEL_OPTIONS)
