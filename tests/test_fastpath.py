@@ -913,7 +913,7 @@ def test_packs_in_kept_room_are_the_packs_in_new_arrays():
         args = _slab_inputs(vol)
         nz, h = args[3], args[4]
         none = (np.empty(0, np.int32), np.empty(0, np.int64), np.empty(0, np.float64))
-        want = _slab_polygons(*args, *none)
+        want = _slab_polygons(*args, *none, False)
         nr, npv = int(want[0][-1, 3]), int(want[0][-1, 5])
         rooms = {
             "all": (nz * (h + 1) + 4 * nr, 2 * npv, 3 * npv),
@@ -923,7 +923,7 @@ def test_packs_in_kept_room_are_the_packs_in_new_arrays():
         }
         for name, (n32, n64, nf) in rooms.items():
             room = (np.full(n32, -7, np.int32), np.full(n64, -7, np.int64), np.full(nf, np.nan))
-            got = _slab_polygons(*args, *room)
+            got = _slab_polygons(*args, *room, False)
             for i in range(11):
                 assert got[i].dtype == want[i].dtype and np.array_equal(got[i], want[i], equal_nan=True), (name, i)
             if name in ("all", "more") and nr >= 64:
@@ -989,9 +989,60 @@ def test_runs_scanned_in_place_are_the_per_slice_packs():
         rooms = {"none": 0, "all": 4 * nr, "ends in the last slice": 4 * max(nr - 3, 64), "64 runs": 4 * 64}
         for name, n in rooms.items():
             r32 = np.full(nz * (h + 1) + n, -7, np.int32)
-            got = _slab_polygons(*args, r32, np.empty(0, np.int64), np.empty(0, np.float64))
+            got = _slab_polygons(*args, r32, np.empty(0, np.int64), np.empty(0, np.float64), False)
             for i in range(11):
                 assert got[i].dtype == ref[i].dtype and np.array_equal(got[i], ref[i]), (name, i)
+
+
+
+def test_pass_stopped_at_the_first_slice_out_of_scope():
+    # with stop, _slab_polygons ends at the first slice with a hole (or other bytes): that slice's
+    # meta row and everything before it are the whole pass's, bit for bit; the later slices are
+    # empty (no run, component or vertex, zero row starts), and a volume with no such slice is
+    # packed exactly as without stop
+    from contourmesh.fastpath import _slab_polygons
+
+    rng = np.random.default_rng(5)
+    ring = ball(24, 10.5) & ~ball(24, 4.2, shape=(24, 24, 24))  # holes in the middle slices
+    late = ball(24, 10.5) & ~ball(24, 3.2, c=(17.2, 11.6, 12.3), shape=(24, 24, 24))  # holes late
+    onebyte = ball(20, 7.3, c=(9.3, 10.1, 8.7)).astype(np.uint8)
+    onebyte[12, 9, 9] = 2  # another value: bad
+    vols = [ball(33, 14.6), ndimage.binary_opening(rng.random((9, 24, 37)) < 0.55), ring, late, onebyte]
+    stopped = 0
+    for vol in vols:
+        args = _slab_inputs(vol)
+        nz, h = args[3], args[4]
+        if vol.dtype == np.uint8:  # (its own bytes, the 2 among them)
+            from contourmesh.fastpath import _words
+
+            b8 = np.ascontiguousarray(vol).reshape(-1)
+            args = (b8, *_words(b8)[:1], *args[2:6], _words(b8)[1], *args[7:])
+        none = (np.empty(0, np.int32), np.empty(0, np.int64), np.empty(0, np.float64))
+        want = _slab_polygons(*args, *none, False)
+        room = (np.full(nz * (h + 1) + 4 * 64, -7, np.int32), np.full(0, -7, np.int64), np.full(0, np.nan))
+        for rooms in (none, room):
+            got = _slab_polygons(*args, *rooms, True)
+            out = np.flatnonzero(want[0][:-1, 1:3].any(axis=1))
+            if not len(out):
+                for i in range(11):
+                    assert got[i].dtype == want[i].dtype and np.array_equal(got[i], want[i]), i
+                continue
+            stopped += 1
+            k = int(out[0])
+            meta, wmeta = got[0], want[0]
+            assert np.array_equal(meta[: k + 1], wmeta[: k + 1])
+            assert meta[k, 1] == wmeta[k, 1] and meta[k, 2] == wmeta[k, 2] and (meta[k, 1] or meta[k, 2])
+            assert not meta[k + 1: nz, :3].any()
+            assert (meta[k + 1:, 3:] == meta[k + 1, 3:]).all()  # (nothing after slice k)
+            nr, nc, npv = (int(x) for x in meta[-1, 3:])
+            assert (nr, nc, npv) == tuple(int(x) for x in wmeta[k + 1, 3:])
+            assert np.array_equal(got[5][: k + 1], want[5][: k + 1]) and not got[5][k + 1:].any()
+            for i in (1, 2, 3, 4):
+                assert np.array_equal(got[i], want[i][:nr]), i
+            assert np.array_equal(got[6], want[6][: 4 * nc]) and np.array_equal(got[9], want[9][:nc])
+            assert np.array_equal(got[7], want[7][:npv]) and np.array_equal(got[10], want[10][:npv])
+            assert np.array_equal(got[8][: nc + k + 1], want[8][: nc + k + 1]) and not got[8][nc + k + 1:].any()
+    assert stopped == 6  # (the ring, the late holes and the other byte, each in both rooms)
 
 
 def test_meshes_with_kept_room_from_other_volumes():
@@ -1085,7 +1136,7 @@ def test_packs_joined_in_kept_room_are_the_packs_joined_anew():
         e32, e64, ef = np.empty(0, np.int32), np.empty(0, np.int64), np.empty(0, np.float64)
         bounds = np.linspace(0, nz, 5).astype(int)
         packs = [_slab_polygons(b8, b64, int(a) * h * w, int(b - a), h, w, aligned, seen, on, bg, ox, oy, dx, dy,
-                                zs[a:b], e32, e64, ef) for a, b in zip(bounds[:-1], bounds[1:])]
+                                zs[a:b], e32, e64, ef, False) for a, b in zip(bounds[:-1], bounds[1:])]
         ref = _join_packs(packs, 1)
         nr, npv = int(ref[0][-1, 3]), int(ref[0][-1, 5])
         for extra in (0, 50):

@@ -888,9 +888,35 @@ def overlap_groups_runs(ra: np.ndarray, rb: np.ndarray, na: int, nb: int):
     size = (na + 1) * (nb + 1)
     if size > _PAIR_TABLE_MAX:
         return None
-    nbk = np.int64(nb + 1)
-    keys = np.flatnonzero(_pair_table_runs(ra, rb, nbk, np.int64(size)))
-    return _groups_of_keys(keys, nbk, na, nb)
+    # (the table, its keys, the pairs and their groups in one compiled call, _pairs_of_runs: what
+    # _groups_of_keys makes of np.flatnonzero of the table)
+    pairs, group, ng = _pairs_of_runs(ra, rb, np.int64(nb + 1), np.int64(size), np.int64(na), np.int64(nb))
+    return pairs, _groups_of_pairs(pairs, group, ng)
+
+
+@njit(cache=True, nogil=True)
+def _pairs_of_runs(ra, rb, nbk, size, na, nb):
+    """:func:`overlap_groups_runs`' compiled part: the table of :func:`_pair_table_runs`, its keys
+    in increasing order (``np.flatnonzero``), the pairs ``(key // nbk - 1, key % nbk - 1)`` and
+    their groups (:func:`_pair_groups`): ``(pairs, group, ng)``, as :func:`_groups_of_keys` has them."""
+    seen = _pair_table_runs(ra, rb, nbk, size)
+    n = 0
+    for i in range(size):
+        if seen[i]:
+            n += 1
+    pairs = np.empty((n, 2), np.int64)
+    pa = np.empty(n, np.int64)
+    pb = np.empty(n, np.int64)
+    n = 0
+    for i in range(size):
+        if seen[i]:
+            pa[n] = i // nbk - 1
+            pb[n] = i % nbk - 1
+            pairs[n, 0] = pa[n]
+            pairs[n, 1] = pb[n]
+            n += 1
+    group, ng = _pair_groups(pa, pb, na, nb)
+    return pairs, group, ng
 
 
 def _groups_of_keys(keys, nbk, na, nb):
@@ -901,11 +927,16 @@ def _groups_of_keys(keys, nbk, na, nb):
     pairs[:, 1] = keys % nbk - 1
     group, ng = _pair_groups(np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1]),
                              np.int64(na), np.int64(nb))
+    return pairs, _groups_of_pairs(pairs, group, ng)
+
+
+def _groups_of_pairs(pairs, group, ng):
+    """The groups ``(set of a, set of b)`` of the pairs, ``group`` the group of each (of ``ng``)."""
     groups = [(set(), set()) for _ in range(ng)]
     for (a, b), g in zip(pairs.tolist(), group.tolist()):
         groups[g][0].add(a)
         groups[g][1].add(b)
-    return pairs, groups
+    return groups
 
 
 @internal_kernel

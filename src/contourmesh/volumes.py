@@ -96,10 +96,14 @@ from .bands.optimal import triangulate_band_optimal
 from .fastpath import (
     CONNECTIVITY,
     FortranRuns,
+    _components,
     _fast_volume_to_mesh,
     _one_band,
     _paint_labels,
     _pixels_mlp,
+    _scan_new,
+    _slice_mlps_runs,
+    _words_from,
     pixels_mlp,
     redo_self_crossing_bands,
     runs_labels,
@@ -127,6 +131,7 @@ from .tracing import (
     _contour4_ok,
     _hole_parts,
     _hole_spans,
+    _slice_cracks,
     label_mask,
     missing_corners,
     overlap_groups,
@@ -392,9 +397,28 @@ class _Slice:
         # coordinates; component c's contours are first[c]: first[c + 1], outer and holes in the
         # order _crack_contours gives them for the component's cropped mask), and with "mlp" every
         # component's MLP in another (what _mlp_of_pixels gives for its cropped mask)
-        if box is None:
-            labels, self.n, self.objects, runs = slice_labels(mask2d, runs=True) if scanned is None else \
-                runs_labels(scanned, self._shape, runs=True)
+        mlp = polygon not in ("dss", "none")
+        thin = moved = None
+        if box is None and scanned is None:
+            # (the whole mask: labels, boxes, cracks, holes and MLPs in one compiled call, _slice_pass)
+            m = np.ascontiguousarray(mask2d, dtype=bool)
+            if m.ndim != 2:
+                raise ValueError(f"mask must be a 2D array indexed [y, x]; got shape {m.shape}")
+            b8 = m.reshape(-1).view(np.uint8)
+            b64, woff, aligned = _words_from(b8)
+            labels, n, boxes, runs32, pts, starts, area2, first, found, mlps, thin, moved = _slice_pass(
+                b8, b64, np.int64(m.shape[0]), np.int64(m.shape[1]), aligned, woff, np.int64(mlp))
+            self.n = int(n)
+            self.objects = [(slice(y0, y1), slice(x0, x1)) for y0, y1, x0, x1 in boxes.tolist()]
+            lab32 = labels
+            if recent is not None:
+                self._runs = runs32
+            if not mlp:
+                mlps = None
+            if found[0] != 0:  # pragma: no cover - (see _slice_holes)
+                thin = moved = None
+        elif box is None:
+            labels, self.n, self.objects, runs = runs_labels(scanned, self._shape, runs=True)
             lab32, sx, sy = labels, 0, 0
             if recent is not None:  # (row, first and end column, component: a copy, not views of the labeller's
                 # buffers, in int32: half the bytes, for a volume of many slices held to the end)
@@ -410,13 +434,16 @@ class _Slice:
             self._box_runs = np.empty((4, len(runs[0])), np.int32)
             self._box_runs[0], self._box_runs[1] = runs[0] + sy, runs[1] + sx
             self._box_runs[2], self._box_runs[3] = runs[2] + sx, runs[3] - 1
-        boxes = slice_boxes(self.objects if box is None else objects)
-        pts, starts, area2, first = slice_cracks(lab32, boxes, runs)
-        mlp = polygon not in ("dss", "none")
-        # every component's outer contour, its holes' pixel sets and (with "mlp") its holes' MLPs in
-        # one compiled pass (_slice_holes; the loop it replaces is _components_plain, which also names
-        # a fault the pass refuses)
-        found = _slice_holes(lab32, boxes, pts, starts, area2, first, np.int64(sx), np.int64(sy), np.int64(mlp))
+        if box is not None or scanned is not None:
+            boxes = slice_boxes(self.objects if box is None else objects)
+            pts, starts, area2, first = slice_cracks(lab32, boxes, runs)
+            # every component's outer contour, its holes' pixel sets and (with "mlp") its holes' MLPs in
+            # one compiled pass (_slice_holes; the loop it replaces is _components_plain, which also names
+            # a fault the pass refuses)
+            found = _slice_holes(lab32, boxes, pts, starts, area2, first, np.int64(sx), np.int64(sy), np.int64(mlp))
+            # with "mlp", every component's MLP (one compiled pass) and the outer polygons made after the
+            # loop, all at once (_outer_polygons)
+            mlps = slice_mlps_flat(lab32, boxes, runs) if mlp else None
         if box is None:
             # the labels in the smallest dtype that holds them
             self._labels = self._small(labels)
@@ -430,9 +457,6 @@ class _Slice:
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
         self.dense_gen = {}  # component -> how many times its polygons were densified (see _retry_dense)
         self.fallbacks = 0
-        # with "mlp", every component's MLP (one compiled pass) and the outer polygons made after the
-        # loop, all at once (_outer_polygons)
-        mlps = slice_mlps_flat(lab32, boxes, runs) if mlp else None
         if found[0] == 0:
             outer_at = self._components(found, boxes, pts, starts, polygon, to_xy_corner, to_xy_center)
         else:  # pragma: no cover - (the plain loop raises the fault the compiled pass found)
@@ -442,7 +466,7 @@ class _Slice:
         self.crack_outer = _CrackXY(self.crack_outer_c, to_xy_corner, False)
         self.crack_holes = _CrackXY(self.crack_holes_c, to_xy_corner, True)
         if mlps is not None:
-            self.outer = self._outer_polygons(mlps, pts, starts, outer_at, to_xy_corner, to_xy_center)
+            self.outer = self._outer_polygons(mlps, pts, starts, outer_at, to_xy_corner, to_xy_center, thin, moved)
         if recent is not None:
             recent.hold(self)
 
@@ -553,29 +577,35 @@ class _Slice:
             ])
         return np.array(outer_at, dtype=np.int64)
 
-    def _outer_polygons(self, mlps, pts, starts, outer_at, to_xy_corner, to_xy_center):
+    def _outer_polygons(self, mlps, pts, starts, outer_at, to_xy_corner, to_xy_center, made=None, moved=None):
         """The components' outer polygons by "mlp", as :meth:`_polygon` makes each (``hole=False``),
         made for the whole slice at once: the MLPs (``mlps``: :func:`contourmesh.fastpath.slice_mlps_flat`)
         moved to the slice and mapped in one call; the components whose MLP encloses no area (parts
         one pixel wide) by :func:`_thin_part_polygons` on their crack contours (``pts[starts[i]:
         starts[i + 1]]`` for ``i`` in ``outer_at``), mapped in another.  The same numbers (integer
-        sums and maps of each row alone), each polygon a view of one of the two arrays."""
+        sums and maps of each row alone), each polygon a view of one of the two arrays.  ``made``:
+        the thin contours' ``_thin_part_polygons`` made already (by :func:`_slice_pass`), or None;
+        ``moved``: the MLPs moved to the slice already (the same integers), or None."""
         mp, mps, ma2 = mlps
         n = self.n
         if n == 0:
             return []
-        cnt = np.diff(mps)
+        cnt = mps[1:] - mps[:-1]  # (np.diff)
         has = ((cnt >= 3) & (ma2 != 0)).tolist()
-        off = np.array([(sl[1].start, sl[0].start) for sl in self.objects], dtype=np.int64).reshape(-1, 2)
-        xy = to_xy_center(mp + np.repeat(off, cnt, axis=0)) if len(mp) else None
+        if moved is None:
+            off = np.array([(sl[1].start, sl[0].start) for sl in self.objects], dtype=np.int64).reshape(-1, 2)
+            moved = mp + np.repeat(off, cnt, axis=0)
+        xy = to_xy_center(moved) if len(mp) else None
         thin = [c for c in range(n) if not has[c]]
         self.fallbacks += len(thin)
         # (called where no component is thin too: every slice compiles it, so a warm-up does)
-        tp, ts, ok = _thin_part_polygons(pts, starts, outer_at[thin])
+        tp, ts, ok = _thin_part_polygons(pts, starts, outer_at[thin]) if made is None else made
+        mps = mps.tolist()
+        if not thin:  # (most slices: every MLP encloses area)
+            return [xy[mps[c]: mps[c + 1]] for c in range(n)]
         txy = to_xy_corner(tp)
         ok, ts = ok.tolist(), ts.tolist()
         out = []
-        mps = mps.tolist()
         j = 0
         for c in range(n):
             if has[c]:
@@ -768,6 +798,80 @@ def _slice_holes(lab, boxes, pts, starts, area2, first, sx, sy, mlp):  # pragma:
             hps[j + 1] = pos
         fused += f.shape[0]
     return np.int64(0), outer_at, hole_at[:nh], hole_start, meta, flat[:fused], hp[:pos], hps, ok
+
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _slice_pass(b8, b64, h, w, aligned, woff, mlp):  # pragma: no cover (compiled)
+    """What :class:`_Slice` reads of a whole mask (``b8``: its ``h * w`` bytes, ``b64``, ``woff``,
+    ``aligned`` as :func:`contourmesh.fastpath._words_from` gives them), in one compiled call: the
+    labeller's runs and labels (:func:`contourmesh.fastpath.slice_labels` with ``runs``), the boxes,
+    the crack contours (:func:`contourmesh.tracing.slice_cracks`), the holes
+    (:func:`_slice_holes`), with ``mlp`` the MLPs (:func:`contourmesh.fastpath.slice_mlps_flat`)
+    and the thin outer parts' polygons (:meth:`_Slice._outer_polygons`' call of
+    :func:`_thin_part_polygons`).  The same kernels on the same values as the calls one by one
+    (``tests/test_volumes_slice_pass.py``), which cost a small slice more in Python, in arrays
+    boxed and unboxed between them and in the wrappers round them than in the kernels: some
+    30 of the 90 us of a bunny-128 slice.
+
+    Returns ``(labels, n, boxes, runs, pts, starts, area2, first, found, mlps, thin, moved)``: ``labels``
+    int32, ``boxes`` as :func:`contourmesh.tracing.slice_boxes`, ``runs`` the int32 ``(4, runs)``
+    rows ``(row, first column, end column, component)`` that :class:`_Slice` keeps, ``found``
+    :func:`_slice_holes`' tuple, ``mlps`` the MLPs' ``(pts, ps, a2s)`` (empty without ``mlp``) and
+    ``thin`` the ``(out, ostarts, ok)`` of the components whose MLP encloses no area (empty without
+    ``mlp`` or where ``found`` is a fault) and ``moved`` the MLPs' points moved to the slice (each
+    component's by its box's lower-left corner)."""
+    ry32, rx032, rx132, rs32, _ = _scan_new(b8, b64, np.int64(0), h, w, aligned, woff)
+    nr = len(ry32)
+    lab32 = np.empty(nr, np.int32)
+    lab32, n, _, bbox, _ = _components(ry32, rx032, rx132, rs32, h, lab32)
+    ry = ry32.astype(np.int64)
+    rx0 = rx032.astype(np.int64)
+    rx1 = rx132.astype(np.int64)
+    lab = lab32.astype(np.int64)
+    labels = _paint_labels(ry, rx0, rx1, lab, h, w)
+    rlab = lab + 1
+    runs = np.empty((4, nr), np.int32)
+    for r in range(nr):
+        runs[0, r] = ry[r]
+        runs[1, r] = rx0[r]
+        runs[2, r] = rx1[r]
+        runs[3, r] = lab[r]
+    boxes = np.empty((n, 4), np.int64)
+    for c in range(n):
+        boxes[c, 0] = bbox[c, 1]
+        boxes[c, 1] = bbox[c, 3] + 1
+        boxes[c, 2] = bbox[c, 0]
+        boxes[c, 3] = bbox[c, 2] + 1
+    pts, starts, area2, first = _slice_cracks(labels, boxes, ry, rx0, rx1, rlab)
+    zero = np.int64(0)
+    found = _slice_holes(labels, boxes, pts, starts, area2, first, zero, zero, mlp)
+    if mlp:
+        mlps = _slice_mlps_runs(boxes, ry, rx0, rx1, rlab)
+    else:
+        mlps = (np.empty((0, 2), np.int64), np.zeros(n + 1, np.int64), np.empty(0, np.int64))
+    which = np.empty(0, np.int64)
+    if mlp and found[0] == 0:
+        ps, a2s = mlps[1], mlps[2]
+        nt = 0
+        for c in range(n):
+            if not (ps[c + 1] - ps[c] >= 3 and a2s[c] != 0):
+                nt += 1
+        which = np.empty(nt, np.int64)
+        nt = 0
+        for c in range(n):
+            if not (ps[c + 1] - ps[c] >= 3 and a2s[c] != 0):
+                which[nt] = found[1][c]
+                nt += 1
+    thin = _thin_part_polygons(pts, starts, which)
+    # the MLPs moved to the slice (each by its box's corner: the integers _outer_polygons adds)
+    mp, ps = mlps[0], mlps[1]
+    moved = np.empty((len(mp), 2), np.int64)
+    for c in range(n):
+        for i in range(ps[c], ps[c + 1]):
+            moved[i, 0] = mp[i, 0] + boxes[c, 2]
+            moved[i, 1] = mp[i, 1] + boxes[c, 0]
+    return labels, n, boxes, runs, pts, starts, area2, first, found, mlps, thin, moved
 
 
 @njit(cache=True, **KERNEL_OPTIONS)
@@ -1516,6 +1620,10 @@ def _cap_key(slices, i):
     raise IndexError(i)  # pragma: no cover
 
 
+#: The ring pairs of a band join without holes (:func:`_assemble`): the outer contours alone.
+_OUTER_PAIR = ((-1, -1),)
+
+
 def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, zs, triangulation, caps, grid,
               to_xy_corner, band_guard=None, end_cap=None, cache=None, tube_cache=None, owned=None, keep=None):
     """Pass 3 of the general mesher: the vertices and faces of every join and cap, made a
@@ -1626,8 +1734,8 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
         k, kind, data = joins[idx]
         if kind == "band":
             a, b, matched = data
-
-            mixed = is_crack(k, a) != is_crack(k + 1, b)
+            crack_a, crack_b = is_crack(k, a), is_crack(k + 1, b)
+            mixed = crack_a != crack_b
 
             def added(kk, c, h):  # a densified polygon's added points (see _densify_branching)
                 return None if mixed or is_crack(kk, c) else slices[kk].dense.get((c, h))
@@ -1642,26 +1750,36 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
                 """The band join's unit made without a mesher (its rings in order, each pair's band
                 numbering them as they are): what ``make`` records, where no hook, guard or densified
                 ring takes part; None otherwise."""
-                pairs = [(-1, -1)] + list(matched)
-                if band_maker is not None or band_guard is not None or \
-                        any(added(k, a, ha) is not None or added(k + 1, b, hb) is not None for ha, hb in pairs):
+                if band_maker is not None or band_guard is not None:
                     return None
+                pairs = [(-1, -1)] + list(matched) if matched else _OUTER_PAIR
+                A, B = slices[k], slices[k + 1]
+                # (added() and polygon_of() with the two components' kinds found once: the same answers)
+                if not mixed and ((not crack_a and A.dense and any(A.dense.get((a, ha)) is not None for ha, _ in pairs))
+                                  or (not crack_b and B.dense and
+                                      any(B.dense.get((b, hb)) is not None for _, hb in pairs))):
+                    return None
+                outer_a, holes_a = (A.crack_outer, A.crack_holes) if crack_a else (A.outer, A.holes)
+                outer_b, holes_b = (B.crack_outer, B.crack_holes) if crack_b else (B.outer, B.holes)
+                za, zb = zs[k], zs[k + 1]
                 keys, sizes, faces = [], [], []
                 at = replaced = least_area = 0
                 for ha, hb in pairs:
-                    lo, hi = _with_z(polygon_of(k, a, ha), zs[k]), _with_z(polygon_of(k + 1, b, hb), zs[k + 1])
+                    lo = _with_z(outer_a[a] if ha < 0 else holes_a[a][ha], za)
+                    hi = _with_z(outer_b[b] if hb < 0 else holes_b[b][hb], zb)
                     f, r = _band_faces(lo, hi, triangulation, mixed=mixed)
                     if mixed and _dissimilar_rule(len(lo), len(hi), triangulation, _MIXED_OPTIMAL_BUDGET) != triangulation:
                         least_area += 1
                     replaced += r
-                    faces.append(np.arange(at, at + len(lo) + len(hi))[f])
+                    # (f + at: the numbers np.arange(at, at + len(lo) + len(hi))[f] picks)
+                    faces.append(f if at == 0 else np.asarray(f, dtype=np.int64) + at)
                     keys += [(k, a, ha), (k + 1, b, hb)]
                     sizes += [len(lo), len(hi)]
                     at += len(lo) + len(hi)
                 return _Unit.flat(keys, sizes, np.concatenate(faces) if len(faces) > 1 else faces[0],
                                   replaced, least_area)
 
-            return ("band", is_crack(k, a), is_crack(k + 1, b)), make, direct
+            return ("band", crack_a, crack_b), make, direct
         if kind == "bridge":
             b_ = built[k, tuple(data[0]), tuple(data[1])]
 
