@@ -75,11 +75,11 @@ def main(argv=None) -> int:
                 cpu[t] += got["cpu"]
                 hashes[t].add(got["hash"])
         med = {t: statistics.median(v) for t, v in cpu.items()}
-        print(f"{name}: base {med['base']:.2f} CPU s, this {med['this']:.2f} CPU s, "
+        print(f"{name}: base {med['base']:.3g} CPU s, this {med['this']:.3g} CPU s, "
               f"{med['base'] / med['this']:.2f}x ({len(cpu['this'])} calls each); "
               f"hashes base {sorted(hashes['base'])}, this {sorted(hashes['this'])}")
-        print("  base: " + " ".join(f"{x:.2f}" for x in cpu["base"]))
-        print("  this: " + " ".join(f"{x:.2f}" for x in cpu["this"]))
+        print("  base: " + " ".join(f"{x:.3g}" for x in cpu["base"]))
+        print("  this: " + " ".join(f"{x:.3g}" for x in cpu["this"]))
     return 0
 
 
