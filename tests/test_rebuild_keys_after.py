@@ -1,14 +1,15 @@
 """Issue 16 (round 22): the rebuild's re-test (``repair.crossing_pairs_after_change``) matches the
 second mesh's vertices and faces against the first mesh's next ones before it looks them up
 (``_row_ids_after``, ``_face_groups_after``), and skips the faces away from the changed faces' layers
-of cells (``_near_cells``).  The forms they replace stay as the references: ``_row_ids`` on both
-meshes' rows (the same numbers), ``_face_groups`` (the same groups) and the cells of every face
+of cells (``_near_cells``).  The forms they replace are the references (tests/repair_reference.py): ``row_ids`` on both
+meshes' rows (the same numbers), ``face_groups`` (the same groups) and the cells of every face
 looked up in the table (the same faces)."""
 
 import numpy as np
 import pytest
 
 import contourmesh
+import repair_reference
 from contourmesh import repair
 
 
@@ -56,7 +57,7 @@ def test_row_ids_after_equal_the_hashed_rows(seed):
     B0 = np.ascontiguousarray(R0).view(np.int64)
     B1 = np.ascontiguousarray(R1).view(np.int64)
     got = repair._row_ids_after(B0, B1)
-    want = repair._row_ids(np.concatenate([B0, B1]), False)
+    want = repair_reference.row_ids(np.concatenate([B0, B1]), False)
     assert got.dtype == want.dtype
     np.testing.assert_array_equal(got, want)
     if n0 > 20:
@@ -84,7 +85,7 @@ def test_face_groups_after_group_as_before(seed):
         F1[rot] = F1[rot][:, ::-1]
     F1 = np.ascontiguousarray(F1, dtype=np.int64)
     got = repair._face_groups_after(pos, F0, F1, np.int64(n0))
-    want = repair._face_groups(pos, F0, F1, np.int64(n0))
+    want = repair_reference.face_groups(pos, F0, F1, np.int64(n0))
     assert got.dtype == np.int32 and len(got) == len(F0) + len(F1)
     assert _same_partition(got, want)
     assert len(np.unique(want)) < len(want)  # (some faces share their corners)
@@ -140,7 +141,7 @@ def test_boxes_near_the_same_faces(seed):
 
 def test_rebuilds_keep_their_keys_and_pairs(monkeypatch):
     """The re-tests of real rebuilds (random volumes of the digest that rebuild): the new keys group
-    the faces as the old pipeline (``_row_ids`` over both meshes' rows, ``_face_groups``) does."""
+    the faces as the old pipeline (``row_ids`` over both meshes' rows, ``face_groups``) does."""
     seen = []
     orig = repair.crossing_pairs_after_change
 
@@ -159,6 +160,6 @@ def test_rebuilds_keep_their_keys_and_pairs(monkeypatch):
     for V0, F0, V1, F1 in seen:
         k0, k1 = repair._face_position_keys(V0, F0, V1, F1)
         bits = np.concatenate([V0, V1]) + 0.0
-        pos = repair._row_ids(bits.view(np.int64), False)
-        want = repair._face_groups(pos, np.ascontiguousarray(F0), np.ascontiguousarray(F1), np.int64(len(V0)))
+        pos = repair_reference.row_ids(bits.view(np.int64), False)
+        want = repair_reference.face_groups(pos, np.ascontiguousarray(F0), np.ascontiguousarray(F1), np.int64(len(V0)))
         assert _same_partition(np.concatenate([k0, k1]), want)

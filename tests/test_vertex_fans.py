@@ -236,12 +236,12 @@ def test_repair_with_the_new_kernels_meshes_as_before(monkeypatch, threads):
 
 
 def _separate_before(V, F, nudge):
-    """_separate_coincident as it was: the ids of every position (_row_ids), counted."""
+    """_separate_coincident as it was: the ids of every position (row_ids), counted."""
     V = np.asarray(V, dtype=np.float64)
     if len(V) == 0:
         return V
     F = np.asarray(F, dtype=np.int64)
-    inv = repair._row_ids(np.ascontiguousarray(V + 0.0).view(np.int64), False)
+    inv = repair_reference.row_ids(np.ascontiguousarray(V + 0.0).view(np.int64), False)
     cnt = np.bincount(inv)
     dup = np.flatnonzero(cnt[inv] > 1)
     if len(dup) == 0:
@@ -284,7 +284,7 @@ def test_shared_rows_and_separate_coincident_equal_the_ids_of_every_row():
         if trial % 4 == 1:
             V[:3] = np.nan  # (NaN rows: grouped by their bits, as the ids group them)
         R = np.ascontiguousarray(V + 0.0).view(np.int64)
-        ids = repair._row_ids(R, False)
+        ids = repair_reference.row_ids(R, False)
         want = np.flatnonzero(np.bincount(ids)[ids] > 1)
         dup, group, mark = repair._shared_rows(V)
         assert np.array_equal(dup, want) and np.array_equal(np.flatnonzero(mark), want)
@@ -307,7 +307,7 @@ def test_shared_rows_and_separate_coincident_equal_the_ids_of_every_row():
         V = np.concatenate([rng.integers(-20, 20, (n // 2, 3)) / 4.0, rng.normal(size=(n - n // 2, 3))])
         V = V[rng.permutation(n)]
         R = np.ascontiguousarray(V + 0.0).view(np.int64)
-        ids = repair._row_ids(R, False)
+        ids = repair_reference.row_ids(R, False)
         want = np.flatnonzero(np.bincount(ids)[ids] > 1)
         dup, group, mark = repair._shared_rows(V)
         assert np.array_equal(dup, want) and np.array_equal(np.flatnonzero(mark), want)

@@ -2177,7 +2177,8 @@ def _separate_coincident(V, F, nudge, overwrite: bool = False):
 @njit(cache=True, nogil=True, inline="always")
 def _row_hash(V, i, buf, R):
     """The hash of row ``i`` of ``V`` by the bits of its values + 0.0 (left in ``buf``, whose int64
-    view is ``R``), mixed as :func:`_row_ids` mixes a row."""
+    view is ``R``), mixed as the tests' reference ``row_ids`` (tests/repair_reference.py) mixes a
+    row."""
     h = np.uint64(0x9E3779B97F4A7C15)
     for c in range(V.shape[1]):
         buf[c] = V[i, c] + 0.0
@@ -2192,7 +2193,8 @@ def _shared_rows(V):
     """The rows of the float64 array ``V`` whose values another row has too, as the bits of
     ``V + 0.0`` tell (0.0 and -0.0 alike, a NaN like a NaN of the same bits): ``(dup, group,
     mark)``, their numbers (increasing), per such row the first row with its values, and a mark
-    per row.  The groups of :func:`_row_ids` on ``(V + 0.0).view(np.int64)`` (``np.bincount(ids)[ids]
+    per row.  The groups of the reference ``row_ids`` (tests/repair_reference.py) on
+    ``(V + 0.0).view(np.int64)`` (``np.bincount(ids)[ids]
     > 1`` there), without that copy of ``V`` or the ids of every row: the rows' hashes are first
     marked in a bitmap of about 8 bits per row (small enough to stay in cache), once and twice;
     the rows whose hash was met twice (every row that shares its values, and a few others) are
@@ -2584,58 +2586,6 @@ def _in_cells(keys, used, x0, x1, y0, y1, z0, z1):
     return False
 
 
-@njit(cache=True, nogil=True)
-def _row_ids(R, sort_rows, overwrite=False):
-    """A group number per row of the int64 array ``R`` (rows with equal values share it; with
-    ``sort_rows``, rows equal up to the order of their values: sorted in ``R`` itself where
-    ``overwrite``), numbered in order of first occurrence; an open-addressing hash table, linear in
-    the number of rows."""
-    n, k = R.shape
-    if sort_rows:  # (insertion sort of each short row)
-        if not overwrite:
-            R = R.copy()
-        for i in range(n):
-            for c in range(1, k):
-                x = R[i, c]
-                j = c - 1
-                while j >= 0 and R[i, j] > x:
-                    R[i, j + 1] = R[i, j]
-                    j -= 1
-                R[i, j + 1] = x
-    size = 1
-    while size < 2 * n + 2:
-        size *= 2
-    # the first row of each group in this slot (int32: 2^31 rows would not fit in memory here
-    # anyway); that row's id is its group's
-    table = np.full(size, -1, np.int32)
-    ids = np.empty(n, np.int64)
-    count = 0
-    for i in range(n):
-        h = np.uint64(0x9E3779B97F4A7C15)
-        for c in range(k):
-            h ^= np.uint64(R[i, c]) + np.uint64(0x9E3779B97F4A7C15) + (h << np.uint64(6)) + (h >> np.uint64(2))
-            h *= np.uint64(0xBF58476D1CE4E5B9)
-            h ^= h >> np.uint64(31)
-        slot = np.int64(h & np.uint64(size - 1))
-        while True:
-            j = table[slot]
-            if j < 0:
-                table[slot] = i
-                ids[i] = count
-                count += 1
-                break
-            same = True
-            for c in range(k):
-                if R[j, c] != R[i, c]:
-                    same = False
-                    break
-            if same:
-                ids[i] = ids[j]
-                break
-            slot = (slot + 1) & (size - 1)
-    return ids
-
-
 def _face_position_keys(V0, F0, V1, F1):
     """One integer per face of two meshes such that two faces (of either mesh) get the same
     number exactly when they have the same three corner positions (in any order; positions equal
@@ -2645,8 +2595,8 @@ def _face_position_keys(V0, F0, V1, F1):
     runs left out, put in or changed (a rebuild remakes a few joins and caps): its rows are
     matched against the first mesh's next row first, and looked up only where that fails
     (:func:`_row_ids_after`, :func:`_face_groups_after`).  The positions' numbers are those of
-    :func:`_row_ids` on both meshes' rows; the faces' numbers group them as :func:`_face_groups`
-    does (the same groups, in another order)."""
+    the tests' reference ``row_ids`` on both meshes' rows; the faces' numbers group them as its
+    ``face_groups`` does (the same groups, in another order; both in tests/repair_reference.py)."""
     b0 = np.asarray(V0, dtype=np.float64) + 0.0  # (-0.0 + 0.0 == +0.0: one bit pattern per number)
     b1 = np.asarray(V1, dtype=np.float64) + 0.0
     pos = _row_ids_after(np.ascontiguousarray(b0).view(np.int64), np.ascontiguousarray(b1).view(np.int64))
@@ -2657,7 +2607,7 @@ def _face_position_keys(V0, F0, V1, F1):
 
 @njit(cache=True, nogil=True)
 def _row_key_hash(R, i, k):
-    """:func:`_row_ids`' hash of row ``i`` of ``R`` (``k`` columns)."""
+    """The reference ``row_ids``' hash of row ``i`` of ``R`` (``k`` columns)."""
     h = np.uint64(0x9E3779B97F4A7C15)
     for c in range(k):
         h ^= np.uint64(R[i, c]) + np.uint64(0x9E3779B97F4A7C15) + (h << np.uint64(6)) + (h >> np.uint64(2))
@@ -2668,19 +2618,20 @@ def _row_key_hash(R, i, k):
 
 @njit(cache=True, nogil=True)
 def _row_ids_after(R0, R1):
-    """``_row_ids(np.concatenate([R0, R1]), False)``, the same numbers, for a second array ``R1``
-    whose rows mostly follow the rows of ``R0`` in their order (a rebuilt mesh's vertices after
-    the first build's): a row of ``R1`` equal to the row of ``R0`` after the one its previous row
-    matched takes that row's number without a look-up in the hash table; the others are looked up
-    (and put in) as :func:`_row_ids` does.  On the lobster's rebuild (2 x 0.2 M vertices) 99 % of
-    the second mesh's rows match so."""
+    """``row_ids(np.concatenate([R0, R1]), False)`` (the tests' reference, in
+    tests/repair_reference.py): the same numbers, for a second array ``R1`` whose rows mostly
+    follow the rows of ``R0`` in their order (a rebuilt mesh's vertices after the first build's):
+    a row of ``R1`` equal to the row of ``R0`` after the one its previous row matched takes that
+    row's number without a look-up in the hash table; the others are looked up (and put in) as
+    the reference does.  On the lobster's rebuild (2 x 0.2 M vertices) 99 % of the second mesh's
+    rows match so."""
     n0, k = R0.shape
     n1 = R1.shape[0]
     n = n0 + n1
     size = 1
     while size < 2 * n + 2:
         size *= 2
-    # (the table as _row_ids', by row number over both arrays: R0's rows, then R1's from n0)
+    # (the table as row_ids', by row number over both arrays: R0's rows, then R1's from n0)
     table = np.full(size, -1, np.int32)
     ids = np.empty(n, np.int64)
     count = 0
@@ -2729,8 +2680,9 @@ def _row_ids_after(R0, R1):
 @njit(cache=True, nogil=True)
 def _face_groups_after(pos, F0, F1, off):
     """A group number per face of ``F0`` then ``F1`` (corners ``pos[v]`` and ``pos[off + v]``):
-    faces share one exactly when their sets of three corner numbers are equal, as in
-    :func:`_face_groups` (the same groups; int32 numbers in another order).  For a second mesh
+    faces share one exactly when their sets of three corner numbers are equal, as in the tests'
+    reference ``face_groups`` (tests/repair_reference.py; the same groups, int32 numbers in
+    another order).  For a second mesh
     ``F1`` whose faces mostly follow the first one's in their order (a rebuild's): the faces of
     ``F0`` are grouped as there (by smallest corner and edge); a face of ``F1`` whose corners are
     those of the face of ``F0`` after the one its previous face matched takes that face's number;
@@ -2858,81 +2810,6 @@ def _face_groups_after(pos, F0, F1, off):
                 ids[m0 + g] = count
                 count += 1
                 nxt1[g] = head[b]
-                head[b] = g
-    return ids
-
-
-@njit(cache=True, nogil=True)
-def _face_groups(pos, F0, F1, off):
-    """A group number per face of ``F0`` then ``F1`` (corners ``pos[v]`` and ``pos[off + v]``):
-    faces share one exactly when their sets of three corner numbers are equal.  int32 numbers,
-    in order of first occurrence in the order below.
-
-    The faces are sorted by their smallest corner (a counting sort), and within one smallest
-    corner matched through lists by the middle one, stamped per smallest corner: a face is compared
-    only with the faces that share its two smallest corners (an edge), not looked up in a hash
-    table of all faces as :func:`_row_ids` would (on the lobster's rebuild, 0.79 M faces of two
-    meshes: 42 ms there, the table's and the rows' random reads).  The work arrays and the
-    numbers are int32: in int64 they took some 44 MiB on that rebuild, where the general mesher's
-    memory peaks on the lobster, 22 MiB in int32 (12 MiB with each face's sorted corners read
-    again where needed instead of kept in ``T``, but then 0.065 s instead of 0.03 s)."""
-    m0 = len(F0)
-    m = m0 + len(F1)
-    npos = np.int64(0)
-    for v in range(len(pos)):
-        npos = max(npos, pos[v] + 1)
-    if m >= 2**31 - 1 or npos >= 2**31 - 1:
-        raise MemoryError("too many faces or corner positions for the int32 work arrays")
-    T = np.empty((m, 3), np.int32)  # each face's corner numbers, sorted
-    start = np.zeros(npos + 1, np.int32)
-    for g in range(m):
-        if g < m0:
-            a = pos[F0[g, 0]]
-            b = pos[F0[g, 1]]
-            c = pos[F0[g, 2]]
-        else:
-            a = pos[off + F1[g - m0, 0]]
-            b = pos[off + F1[g - m0, 1]]
-            c = pos[off + F1[g - m0, 2]]
-        if a > b:
-            a, b = b, a
-        if b > c:
-            b, c = c, b
-        if a > b:
-            a, b = b, a
-        T[g, 0] = a
-        T[g, 1] = b
-        T[g, 2] = c
-        start[a + 1] += 1
-    for q in range(npos):
-        start[q + 1] += start[q]
-    order = np.empty(m, np.int32)
-    fill = start[:npos].copy()
-    for g in range(m):
-        order[fill[T[g, 0]]] = g
-        fill[T[g, 0]] += 1
-    head = np.empty(npos, np.int32)  # per middle corner: the first face of its list (stamped)
-    stamp = np.full(npos, -1, np.int32)
-    nxt = np.empty(m, np.int32)
-    ids = np.empty(m, np.int32)
-    count = 0
-    for a in range(npos):
-        for r in range(start[a], start[a + 1]):
-            g = order[r]
-            b = T[g, 1]
-            c = T[g, 2]
-            if stamp[b] != a:
-                stamp[b] = a
-                head[b] = -1
-            h = head[b]
-            while h >= 0 and T[h, 2] != c:
-                h = nxt[h]
-            if h >= 0:
-                ids[g] = ids[h]
-            else:
-                ids[g] = count
-                count += 1
-                nxt[g] = head[b]
                 head[b] = g
     return ids
 
