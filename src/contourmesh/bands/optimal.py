@@ -570,26 +570,33 @@ def _cyclic_run(starts, n):
 @njit(cache=True)
 def _strip_dp(A1, A2, s, lo, hi, D, ent, base):
     """Least cost of a monotone path (annulus or not) from start ``s`` over the cells
-    ``lo[i] <= j <= hi[i]`` of each row ``i`` only.  ``D`` is two rolling rows.  For the path
+    ``lo[i] <= j <= hi[i]`` of each row ``i`` only, ``lo`` and ``hi`` not decreasing (a strip
+    between two monotone paths).  ``D`` is two rolling rows.  For the path
     (:func:`_strip_entries_path`), each cell ``(i, j)`` of a row ``i >= 1`` gets in
     ``ent[base[i] + j]`` the column where its least path entered row ``i`` (its own column where
     the C(1)-step wins); ``base`` (``n + 1`` integers) is filled here, the rows' cells one after
-    another in ``ent``, which must hold :func:`_strip_cells` of ``lo``, ``hi`` integers.
+    another in ``ent``, which must hold :func:`_strip_cells` of ``lo``, ``hi`` integers.  A row
+    with no cell leaves no path: infinity at once (``ent`` and ``base`` then filled only so far).
 
-    Each row after the first is one pass over its cells: a cell takes the C(1)-step from the row
-    before (where that row's strip holds its column), then the C(2)-step from the cell before it
-    (carried in a register), the later winning only where strictly less, chosen without branches.
-    The same sums as the branching form (a C(2)-pass and a C(1)-pass per row, each cell's move
-    recorded and the path traced back step by step, ``tests/test_optimal_strips.py``), so the same
-    costs and paths: a sum from an infinite cell (infinity or NaN) wins no comparison, as that
-    form's skipped offers.  With the rows' step costs taken in turn (no modulo per row), no branch
-    on which step wins (a least path's turns are not predictable) and the path read back one row
-    at a time, the strip search takes 0.6 to 0.7 of the branching form's time on the least-area
-    bands of the liver, the lobster and the rotated socket."""
+    Each row after the first is one pass over its cells in one loop: a cell takes the C(1)-step
+    from the row before, then the C(2)-step from the cell before it (carried in a register), the
+    later winning only where strictly less, chosen without branches.  Both rows of ``D`` are set
+    to infinity first, so a cell of the row before outside its strip reads infinity: such a cell
+    is right of that strip (``lo`` does not decrease), where the row before wrote nothing (its
+    own row of ``D`` was last written two rows up, left of its strip's end, as ``hi`` does not
+    decrease either), and an offer from infinity (infinity, or NaN for a cost of minus infinity)
+    wins no comparison, as the offers that the branching form skips (``tests/test_optimal_strips.py``
+    holds it to that form and to the form with a loop per kind of cell, bit for bit).  Narrow
+    strips are most of the search's (on the liver's bridged bands half of them are at most
+    three cells wide), and there a loop per kind of cell (C(2)-steps only before the row
+    before's strip and after it, both between, the last column apart) cost about three times
+    one loop per row: its branches on each loop's length are not predictable (the liver's and
+    the lobster's strip searches 53 -> 37 and 31 -> 22 ms)."""
     n, m = A1.shape
     inf = np.inf
     for j in range(m + 1):
         D[0, j] = inf
+        D[1, j] = inf
     D[0, 0] = 0.0
     a2row = A2[s % n]
     if lo[0] < hi[0]:
@@ -605,64 +612,32 @@ def _strip_dp(A1, A2, s, lo, hi, D, ent, base):
     ib = s % n  # the C(1) point of the row before
     off = np.int64(0)
     for i in range(1, n + 1):
-        r = i % 2
-        q = 1 - r
+        q = 1 - i % 2
+        dq = D[q]  # the row before
+        dr = D[1 - q]
         a1row = A1[ib]  # the C(1)-steps into row i
         ib = ib + 1 if ib < n - 1 else 0
         a2row = A2[ib]
-        plo = lo[i - 1]  # the row before's strip
-        phi = hi[i - 1]
         j0 = lo[i]
         j1 = hi[i]
         b = off - j0
         base[i] = b
         if j1 < j0:
-            continue  # (an empty row: no path)
+            return inf  # (an empty row: no path)
         off += j1 - j0 + 1
-        # the strip's first cell: its C(1)-step only
+        # (the first cell: its C(2)-offer is from infinity, whatever cost it reads (column 0's
+        # reads a2row[-1]), so it takes the C(1)-step, or infinity, and enters the row itself;
+        # column m's C(1)-step is a1row[0])
         d = inf
-        if plo <= j0 and j0 <= phi:
-            c = D[q, j0] + (a1row[0] if j0 == m else a1row[j0])
-            d = c if c < inf else inf
-        D[r, j0] = d
         e = j0  # the column where the least path to the cell entered the row
-        ent[b + j0] = e
-        # the others: C(2)-steps only before plo and after phi, both steps between (column m
-        # taking a1row[0])
-        ja = max(j0 + 1, plo)
-        jb = min(j1, phi)
-        jm = min(jb, m - 1)
-        for j in range(j0 + 1, min(ja, j1 + 1)):
-            c = d + a2row[j - 1]
-            t = c < inf
-            d = c if t else inf
-            e = e if t else j
-            D[r, j] = d
-            ent[b + j] = e
-        for j in range(ja, jm + 1):
-            c = D[q, j] + a1row[j]
+        for j in range(j0, j1 + 1):
+            c = dq[j] + a1row[j if j < m else 0]
             v = c if c < inf else inf
             c = d + a2row[j - 1]
             t = c < v
             d = c if t else v
             e = e if t else j
-            D[r, j] = d
-            ent[b + j] = e
-        for j in range(max(ja, jm + 1), jb + 1):  # (j == m)
-            c = D[q, j] + a1row[0]
-            v = c if c < inf else inf
-            c = d + a2row[j - 1]
-            t = c < v
-            d = c if t else v
-            e = e if t else j
-            D[r, j] = d
-            ent[b + j] = e
-        for j in range(max(ja, jb + 1), j1 + 1):
-            c = d + a2row[j - 1]
-            t = c < inf
-            d = c if t else inf
-            e = e if t else j
-            D[r, j] = d
+            dr[j] = d
             ent[b + j] = e
     return D[n % 2, m] if hi[n] == m else inf
 
@@ -819,13 +794,16 @@ def _strip_costs(A1, A2, a, k):
         if t1 - t0 <= 1:
             continue
         t = (t0 + t1) // 2
+        cells = np.int64(0)  # (_strip_cells of the strip, counted as it is made)
         for i in range(n + 1):
             u = t + i - t0          # this row among the rows of start t0: the path above
             hi[i] = m if u >= n else first[t0, u + 1]
             v = t + i - t1          # ... and of start t1: the path below
             lo[i] = first[t1, v] if v >= 0 else 0
-        if _strip_cells(lo, hi) > ent.shape[0]:
-            ent = np.empty(max(_strip_cells(lo, hi), 2 * ent.shape[0]), dtype=np.int32)
+            if i > 0 and hi[i] >= lo[i]:
+                cells += hi[i] - lo[i] + 1
+        if cells > ent.shape[0]:
+            ent = np.empty(max(cells, 2 * ent.shape[0]), dtype=np.int32)
         c = _strip_dp(A1, A2, a + t, lo, hi, D, ent, base)
         if c == np.inf:
             # no path fits: the two paths cross (least paths that tie, as on the liver's bridged
