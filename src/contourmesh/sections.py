@@ -607,22 +607,34 @@ class _Layer:
                 np.concatenate([b, np.array([q for _, q in self.taken], dtype=np.float64)]))
 
 
-def _section_layer(ops, shape, box, z, polygon, grid, m):
+def _section_layer(ops, shape, box, z, polygon, grid, m, memory=None):
     """The intermediate section whose pixels in ``box`` (a pair of slices of an image of
     ``shape``) are ``m`` (:func:`mid_section` of the two layers' regions there), as a
-    :class:`_Layer` of a new :class:`_Slice`."""
+    :class:`_Layer` of a new :class:`_Slice`.
+
+    ``memory`` (a :class:`SectionSlices`, or None): the build's sections made already.  A section
+    with the same box and pixels (and polygon method and grid) takes the slice made for it before:
+    a slice depends on those alone, and a join only reads a section's slice (its labels and rings;
+    the bridges it takes are its layer's, made anew)."""
     if not m.any():
         return None, None
-    full = np.zeros(shape, dtype=bool)
-    full[box] = m
-    ox, oy, dx, dy = grid
-    to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
-    S = ops.Slice(full, polygon, to_corner, to_center, box=box)
+    key = got = None
+    if memory is not None:
+        key = (shape, tuple((b.start, b.stop) for b in box), polygon, tuple(float(g) for g in grid), m.shape,
+               m.tobytes())
+        got = memory.get(key)
+    if got is None:
+        full = np.zeros(shape, dtype=bool)
+        full[box] = m
+        ox, oy, dx, dy = grid
+        to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
+        got = (ops.Slice(full, polygon, to_corner, to_center, box=box), [])
+        if memory is not None:
+            memory.put(key, got)
+    S, made = got  # (made: the section's edges, made once: its polygons do not change)
 
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]
-
-    made = []  # the section's edges, made once (its polygons do not change)
 
     def edges():
         if not made:
@@ -631,6 +643,35 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
         return made[0]
 
     return _Layer(S, z, range(S.n), poly, edges, box=box), m
+
+
+class SectionSlices:
+    """The slices of the last few intermediate sections one build made (:func:`_section_layer`),
+    by their box and pixels: a sectioned join asked for again (a restart whose key changed, or
+    the same join with another area bound) makes the same sections, and the halves of a gap
+    often repeat their pair's section (on the lobster about one section in five is made
+    again).  :data:`SECTION_MEMORY` are kept (each holds a label image of the slice's size)."""
+
+    def __init__(self, keep=None):
+        self.keep = SECTION_MEMORY if keep is None else keep
+        self.seen = {}
+
+    def get(self, key):
+        got = self.seen.pop(key, None)
+        if got is not None:
+            self.seen[key] = got  # (the most recent now)
+        return got
+
+    def put(self, key, value):
+        while len(self.seen) >= self.keep > 0:
+            del self.seen[next(iter(self.seen))]  # (the oldest: dicts keep insertion order)
+        if self.keep > 0:
+            self.seen[key] = value
+
+
+#: How many section slices a :class:`SectionSlices` keeps (the lobster's repeats come within
+#: some twenty sections but for a few).
+SECTION_MEMORY = 24
 
 
 def _groups(P: _Layer, Q: _Layer):
@@ -695,7 +736,7 @@ _AREA_MARGIN = 1e-9
 
 
 def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
-                   topology_first=False, max_area=None):
+                   topology_first=False, max_area=None, memory=None):
     """Join components ``ga`` of slice ``k`` and ``gb`` of slice ``k + 1`` through intermediate
     sections (see the module docstring).  Returns a :class:`contourmesh.volumes._Bridged` (its
     ``sections`` counts the sections made) or None where no sectioning keeps every rule.
@@ -718,7 +759,10 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     F).sum())``) is at most this; any other join is given up (None: the caller's answer is the
     same).  The finished join is measured before its costlier tests (edges, crossings, topology),
     and the join is given up as soon as the bridged pieces it keeps have more area than that with
-    a margin (:data:`_AREA_MARGIN`): each of their faces is a face of the join, the same numbers."""
+    a margin (:data:`_AREA_MARGIN`): each of their faces is a face of the join, the same numbers.
+
+    ``memory``: the build's :class:`SectionSlices` (sections made already, by their pixels), or
+    None (every section made here)."""
     A, B = slices[k], slices[k + 1]
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     ny, nx = A.labels.shape
@@ -859,7 +903,8 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         """Pair ``path``'s section between its layers P and Q, as a layer (None where empty)."""
         if path not in made:
             # mid_section of the two layers' regions (a section's region is its mask)
-            M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid, section_mask(path))
+            M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid, section_mask(path),
+                                  memory)
             made[path] = M
             if M is not None:
                 masks[id(M)] = (M, m)
@@ -964,6 +1009,7 @@ class JoinMemory:
     def __init__(self, keep=None):
         self.keep = JOIN_MEMORY if keep is None else keep
         self.seen = {}  # key -> (answer, {plane: edges as read}, {plane: near edges' bytes, when made})
+        self.sections = SectionSlices()  # (the sections' slices the joins built here made)
 
     def join(self, ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
              topology_first=False, max_area=None):
@@ -992,7 +1038,7 @@ class JoinMemory:
             return e
 
         answer = sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_read, double, caps, triangulation, polygon,
-                                grid, topology_first=topology_first, max_area=max_area)
+                                grid, topology_first=topology_first, max_area=max_area, memory=self.sections)
         self.seen.pop(key, None)
         while len(self.seen) >= self.keep > 0:
             del self.seen[next(iter(self.seen))]  # the oldest (dicts keep insertion order)
