@@ -83,7 +83,7 @@ class _Stub:
         self.calls, self.reads = 0, reads
 
     def __call__(self, ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
-                 topology_first=False, max_area=None):
+                 topology_first=False, max_area=None, memory=None):
         self.calls += 1
         for kk in self.reads:
             edges_of(k + kk)
@@ -149,3 +149,56 @@ def test_a_remembered_join_is_built_again_where_what_it_reads_changed(monkeypatc
     join(max_area=2.0)
     join(max_area=2.0)
     assert stub.calls == 7
+
+
+@pytest.mark.parametrize("sparse", [True, False])
+def test_remembered_section_slices_give_the_same_meshes(monkeypatch, sparse):
+    """With the build's memory of section slices (the default) and without it (``SECTION_MEMORY =
+    0``; the joins' memory off too, so that joins asked for again make their sections again): the
+    same meshes, and some sections taken from memory with it, none without."""
+    if sparse:
+        _sparse_rings(monkeypatch)
+    monkeypatch.setattr(sections, "JOIN_MEMORY", 0)
+    hits = [0]
+    get = sections.SectionSlices.get
+
+    def counted(self, key):
+        got = get(self, key)
+        hits[0] += got is not None
+        return got
+
+    monkeypatch.setattr(sections.SectionSlices, "get", counted)
+    vols = _volumes()
+    meshes, found = {}, {}
+    for keep in (0, sections.SECTION_MEMORY):
+        monkeypatch.setattr(sections, "SECTION_MEMORY", keep)
+        hits[0] = 0
+        meshes[keep] = [volume_to_mesh(v) for v in vols]
+        found[keep] = hits[0]
+    for a, b in zip(meshes[0], meshes[sections.SECTION_MEMORY]):
+        _same(a, b)
+    assert found[0] == 0 and found[sections.SECTION_MEMORY] > 0
+
+
+def test_the_lobster_takes_section_slices_from_memory(monkeypatch, shared_data):
+    """The lobster's sectioned joins make some sections that a join made before (or its own other
+    half): taken from memory, the same mesh bit for bit."""
+    from contourmesh.io import read_volume
+
+    vol, _, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    hits = [0]
+    get = sections.SectionSlices.get
+
+    def counted(self, key):
+        got = get(self, key)
+        hits[0] += got is not None
+        return got
+
+    monkeypatch.setattr(sections.SectionSlices, "get", counted)
+    monkeypatch.setattr(sections, "SECTION_MEMORY", 0)
+    ref = volume_to_mesh(vol)
+    assert hits[0] == 0
+    monkeypatch.setattr(sections, "SECTION_MEMORY", 24)
+    got = volume_to_mesh(vol)
+    _same(got, ref)
+    assert hits[0] > 0

@@ -212,7 +212,10 @@ def _sdf_square(m, area, h, gi, go, need):
     distance 0: every column farther is farther), so each envelope has only those columns (about
     half as many parabolas as two envelopes of the whole row).  The pixels beyond a run at the
     padding of an outside run are no region pixels, but there the run reaches the padding: no
-    column lies beyond it.  A run with no wanted pixel gets no envelope.  Where some pixels are
+    column lies beyond it.  A run with no wanted pixel gets no envelope, nor is it walked: a row
+    gets its signs first, then only its runs that hold a wanted pixel, each found from its first
+    wanted pixel (on the lobster and the liver most runs of a row with a wanted pixel have none;
+    walking them took a quarter of the signed distances' time).  Where some pixels are
     wanted (:func:`_wanted_in_run`), each wanted pixel's nearest column lies no farther from it than
     a column beyond the run (whose distance is 0), so the run's envelope is made only over the
     columns within that reach of its wanted pixels: the lowest parabola there is as low as over the
@@ -227,16 +230,30 @@ def _sdf_square(m, area, h, gi, go, need):
     zd = np.empty(Wp, np.int64)
     for y in range(H):
         row = m[y]
-        if not every:  # a row with no wanted pixel is only signs (a loop the compiler vectorizes)
-            wanted = False
+        if not every:
+            # the signs first (a loop the compiler vectorizes), then the runs that hold a wanted
+            # pixel, each found from its first wanted pixel: the other runs are only signs
+            nrow = need[y]
             for x in range(W):
-                if need[y, x] != 0:
-                    wanted = True
+                out[y, x] = -np.inf if row[x] != 0 else np.inf
+            x = 0
+            while True:
+                while x < W and nrow[x] == 0:
+                    x += 1
+                if x >= W:
                     break
-            if not wanted:
-                for x in range(W):
-                    out[y, x] = -np.inf if row[x] != 0 else np.inf
-                continue
+                inside = row[x] != 0
+                a = x
+                while a > 0 and (row[a - 1] != 0) == inside:
+                    a -= 1
+                b = x + 1
+                while b < W and (row[b] != 0) == inside:
+                    b += 1
+                # (an outside run's column beyond it at the padding has no distance: no bound there)
+                g = gi[y + 1, a:b + 2] if inside else go[y + 1, a:b + 2]
+                _wanted_in_run(out[y, a:b], g, nrow[a:b], inside, inside or a > 0, inside or b < W, h, area, v, zn, zd)
+                x = b
+            continue
         x = 0
         while x < W:
             inside = row[x] != 0
@@ -247,11 +264,6 @@ def _sdf_square(m, area, h, gi, go, need):
             # the run is image columns x .. b - 1, padded x + 1 .. b; with the pixels beyond it,
             # padded columns x .. b + 1 (relative columns 0 .. b - x + 1)
             g = gi[y + 1, x:b + 2] if inside else go[y + 1, x:b + 2]
-            if not every:
-                # (an outside run's column beyond it at the padding has no distance: no bound there)
-                _wanted_in_run(o, g, need[y, x:b], inside, inside or x > 0, inside or b < W, h, area, v, zn, zd)
-                x = b
-                continue
             k = _envelope(g, v, zn, zd)
             # parabola v[t] is the lowest on the columns past zn[t] / zd[t] (zd > 0; increasing
             # in t) up to the next one's: the integer columns from floor(zn / zd) + 1 on
@@ -607,22 +619,34 @@ class _Layer:
                 np.concatenate([b, np.array([q for _, q in self.taken], dtype=np.float64)]))
 
 
-def _section_layer(ops, shape, box, z, polygon, grid, m):
+def _section_layer(ops, shape, box, z, polygon, grid, m, memory=None):
     """The intermediate section whose pixels in ``box`` (a pair of slices of an image of
     ``shape``) are ``m`` (:func:`mid_section` of the two layers' regions there), as a
-    :class:`_Layer` of a new :class:`_Slice`."""
+    :class:`_Layer` of a new :class:`_Slice`.
+
+    ``memory`` (a :class:`SectionSlices`, or None): the build's sections made already.  A section
+    with the same box and pixels (and polygon method and grid) takes the slice made for it before:
+    a slice depends on those alone, and a join only reads a section's slice (its labels and rings;
+    the bridges it takes are its layer's, made anew)."""
     if not m.any():
         return None, None
-    full = np.zeros(shape, dtype=bool)
-    full[box] = m
-    ox, oy, dx, dy = grid
-    to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
-    S = ops.Slice(full, polygon, to_corner, to_center, box=box)
+    key = got = None
+    if memory is not None:
+        key = (shape, tuple((b.start, b.stop) for b in box), polygon, tuple(float(g) for g in grid), m.shape,
+               m.tobytes())
+        got = memory.get(key)
+    if got is None:
+        full = np.zeros(shape, dtype=bool)
+        full[box] = m
+        ox, oy, dx, dy = grid
+        to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
+        got = (ops.Slice(full, polygon, to_corner, to_center, box=box), [])
+        if memory is not None:
+            memory.put(key, got)
+    S, made = got  # (made: the section's edges, made once: its polygons do not change)
 
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]
-
-    made = []  # the section's edges, made once (its polygons do not change)
 
     def edges():
         if not made:
@@ -631,6 +655,35 @@ def _section_layer(ops, shape, box, z, polygon, grid, m):
         return made[0]
 
     return _Layer(S, z, range(S.n), poly, edges, box=box), m
+
+
+class SectionSlices:
+    """The slices of the last few intermediate sections one build made (:func:`_section_layer`),
+    by their box and pixels: a sectioned join asked for again (a restart whose key changed, or
+    the same join with another area bound) makes the same sections, and the halves of a gap
+    often repeat their pair's section (on the lobster about one section in five is made
+    again).  :data:`SECTION_MEMORY` are kept (each holds a label image of the slice's size)."""
+
+    def __init__(self, keep=None):
+        self.keep = SECTION_MEMORY if keep is None else keep
+        self.seen = {}
+
+    def get(self, key):
+        got = self.seen.pop(key, None)
+        if got is not None:
+            self.seen[key] = got  # (the most recent now)
+        return got
+
+    def put(self, key, value):
+        while len(self.seen) >= self.keep > 0:
+            del self.seen[next(iter(self.seen))]  # (the oldest: dicts keep insertion order)
+        if self.keep > 0:
+            self.seen[key] = value
+
+
+#: How many section slices a :class:`SectionSlices` keeps (the lobster's repeats come within
+#: some twenty sections but for a few).
+SECTION_MEMORY = 24
 
 
 def _groups(P: _Layer, Q: _Layer):
@@ -695,7 +748,7 @@ _AREA_MARGIN = 1e-9
 
 
 def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
-                   topology_first=False, max_area=None):
+                   topology_first=False, max_area=None, memory=None):
     """Join components ``ga`` of slice ``k`` and ``gb`` of slice ``k + 1`` through intermediate
     sections (see the module docstring).  Returns a :class:`contourmesh.volumes._Bridged` (its
     ``sections`` counts the sections made) or None where no sectioning keeps every rule.
@@ -718,7 +771,10 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     F).sum())``) is at most this; any other join is given up (None: the caller's answer is the
     same).  The finished join is measured before its costlier tests (edges, crossings, topology),
     and the join is given up as soon as the bridged pieces it keeps have more area than that with
-    a margin (:data:`_AREA_MARGIN`): each of their faces is a face of the join, the same numbers."""
+    a margin (:data:`_AREA_MARGIN`): each of their faces is a face of the join, the same numbers.
+
+    ``memory``: the build's :class:`SectionSlices` (sections made already, by their pixels), or
+    None (every section made here)."""
     A, B = slices[k], slices[k + 1]
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     ny, nx = A.labels.shape
@@ -859,7 +915,8 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         """Pair ``path``'s section between its layers P and Q, as a layer (None where empty)."""
         if path not in made:
             # mid_section of the two layers' regions (a section's region is its mask)
-            M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid, section_mask(path))
+            M, m = _section_layer(ops, A.labels.shape, box, 0.5 * (P.z + Q.z), polygon, grid, section_mask(path),
+                                  memory)
             made[path] = M
             if M is not None:
                 masks[id(M)] = (M, m)
@@ -964,6 +1021,7 @@ class JoinMemory:
     def __init__(self, keep=None):
         self.keep = JOIN_MEMORY if keep is None else keep
         self.seen = {}  # key -> (answer, {plane: edges as read}, {plane: near edges' bytes, when made})
+        self.sections = SectionSlices()  # (the sections' slices the joins built here made)
 
     def join(self, ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, triangulation, polygon, grid,
              topology_first=False, max_area=None):
@@ -992,7 +1050,7 @@ class JoinMemory:
             return e
 
         answer = sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_read, double, caps, triangulation, polygon,
-                                grid, topology_first=topology_first, max_area=max_area)
+                                grid, topology_first=topology_first, max_area=max_area, memory=self.sections)
         self.seen.pop(key, None)
         while len(self.seen) >= self.keep > 0:
             del self.seen[next(iter(self.seen))]  # the oldest (dicts keep insertion order)
@@ -1244,22 +1302,19 @@ def _edges_close(F, nv, spans) -> bool:
 @njit(cache=True, nogil=True)
 def _edges_close_kernel(F, nv, spans):
     """:func:`_edges_close` of int64 faces ``F`` (at least one) and rings ``spans`` (``(offset,
-    size)`` rows): the directed edge keys sorted (no two equal), the undirected ones sorted (no
-    run longer than two), and the keys of the runs of one equal to the rings' keys, sorted and
-    without repeats (a ring of one or two vertices repeats its keys)."""
+    size)`` rows), in one sort: each edge's key is its undirected key ``min * nv + max`` times two,
+    plus one where it runs from the larger end, so that the sorted keys hold each undirected edge's
+    uses side by side.  A run of more than two uses, or of two the same way, fails (what the
+    directed keys' repeats and the undirected counts tell); the runs of one use, in order, must be
+    the rings' keys, sorted and without repeats (a ring of one or two vertices repeats its keys).
+    The same verdicts as the sorts of directed and undirected keys apart (half the sorting)."""
     m = F.shape[0]
-    d = np.empty(3 * m, np.int64)
-    u = np.empty(3 * m, np.int64)
+    k = np.empty(3 * m, np.int64)
     for i in range(m):
         for j in range(3):
             a, b = F[i, j], F[i, (j + 1) % 3]
-            d[3 * i + j] = a * nv + b
-            u[3 * i + j] = min(a, b) * nv + max(a, b)
-    d.sort()
-    for i in range(1, 3 * m):
-        if d[i] == d[i - 1]:
-            return False
-    u.sort()
+            k[3 * i + j] = 2 * (a * nv + b) if a < b else 2 * (b * nv + a) + 1
+    k.sort()
     nr = 0
     for r in range(spans.shape[0]):
         nr += spans[r, 1]
@@ -1276,16 +1331,16 @@ def _edges_close_kernel(F, nv, spans):
     j = 0  # next distinct ring key
     i = 0
     while i < 3 * m:
+        u = k[i] >> 1
         e = i + 1
-        while e < 3 * m and u[e] == u[i]:
+        while e < 3 * m and (k[e] >> 1) == u:
             e += 1
-        if e - i > 2:
+        if e - i > 2 or (e - i == 2 and k[i] == k[i + 1]):
             return False
         if e - i == 1:
-            if j >= nr or ring[j] != u[i]:
+            if j >= nr or ring[j] != u:
                 return False
-            key = ring[j]
-            while j < nr and ring[j] == key:
+            while j < nr and ring[j] == u:
                 j += 1
         i = e
     return j == nr

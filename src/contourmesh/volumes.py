@@ -399,9 +399,10 @@ class _Slice:
         # component's MLP in another (what _mlp_of_pixels gives for its cropped mask)
         mlp = polygon not in ("dss", "none")
         thin = moved = None
-        if box is None and scanned is None:
-            # (the whole mask: labels, boxes, cracks, holes and MLPs in one compiled call, _slice_pass)
-            m = np.ascontiguousarray(mask2d, dtype=bool)
+        if scanned is None:
+            # (the whole mask, or its box: labels, boxes, cracks, holes and MLPs in one compiled call,
+            # _slice_pass; a box's numbers are moved to the whole image below)
+            m = np.ascontiguousarray(mask2d if box is None else mask2d[box], dtype=bool)
             if m.ndim != 2:
                 raise ValueError(f"mask must be a 2D array indexed [y, x]; got shape {m.shape}")
             b8 = m.reshape(-1).view(np.uint8)
@@ -411,31 +412,38 @@ class _Slice:
             self.n = int(n)
             self.objects = [(slice(y0, y1), slice(x0, x1)) for y0, y1, x0, x1 in boxes.tolist()]
             lab32 = labels
-            if recent is not None:
+            if recent is not None and box is None:
                 self._runs = runs32
             if not mlp:
                 mlps = None
             if found[0] != 0:  # pragma: no cover - (see _slice_holes)
                 thin = moved = None
-        elif box is None:
+            if box is not None:
+                sy, sx = box[0].start or 0, box[1].start or 0
+                objects, shift = self.objects, np.array([sx, sy], dtype=np.int64)
+                if recent is not None:  # (labelled whole it gives the same labels)
+                    self._mask = mask2d
+                # (its runs in the whole image, as _runs holds them, for _simple_join: the runs the whole
+                # mask has, as it has no pixel outside the box)
+                self._box_runs = runs32
+                runs32[0] += sy
+                runs32[1] += sx
+                runs32[2] += sx
+                # (the holes' MLPs, the thin parts' polygons and the MLPs in the whole image: the
+                # same integers as made there, moved before they are mapped)
+                found = found[:6] + (found[6] + shift,) + found[7:]
+                if thin is not None:
+                    thin = (thin[0] + shift,) + thin[1:]
+                if moved is not None:
+                    moved += shift
+        else:
             labels, self.n, self.objects, runs = runs_labels(scanned, self._shape, runs=True)
             lab32, sx, sy = labels, 0, 0
             if recent is not None:  # (row, first and end column, component: a copy, not views of the labeller's
                 # buffers, in int32: half the bytes, for a volume of many slices held to the end)
                 self._runs = np.empty((4, len(runs[0])), np.int32)
                 self._runs[0], self._runs[1], self._runs[2], self._runs[3] = runs[0], runs[1], runs[2], runs[3] - 1
-        else:
-            lab32, self.n, objects, runs = slice_labels(mask2d[box], runs=True)
-            sy, sx = box[0].start or 0, box[1].start or 0
-            if recent is not None:  # (labelled whole it gives the same labels)
-                self._mask = mask2d
-            # (its runs in the whole image, as _runs holds them, for _simple_join: the runs the whole
-            # mask has, as it has no pixel outside the box)
-            self._box_runs = np.empty((4, len(runs[0])), np.int32)
-            self._box_runs[0], self._box_runs[1] = runs[0] + sy, runs[1] + sx
-            self._box_runs[2], self._box_runs[3] = runs[2] + sx, runs[3] - 1
-        if box is not None or scanned is not None:
-            boxes = slice_boxes(self.objects if box is None else objects)
+            boxes = slice_boxes(self.objects)
             pts, starts, area2, first = slice_cracks(lab32, boxes, runs)
             # every component's outer contour, its holes' pixel sets and (with "mlp") its holes' MLPs in
             # one compiled pass (_slice_holes; the loop it replaces is _components_plain, which also names
@@ -452,7 +460,7 @@ class _Slice:
             labels = np.zeros(mask2d.shape, dtype=part.dtype)
             labels[box] = part
             self._labels = labels
-            pts += np.array([sx, sy], dtype=np.int64)
+            pts += shift
             self.objects = [(slice(a.start + sy, a.stop + sy), slice(b.start + sx, b.stop + sx)) for a, b in objects]
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
         self.dense_gen = {}  # component -> how many times its polygons were densified (see _retry_dense)
