@@ -131,6 +131,7 @@ from .tracing import (
     _contour4_ok,
     _hole_parts,
     _hole_spans,
+    _runs_hole_labels,
     _slice_cracks,
     label_mask,
     missing_corners,
@@ -2965,32 +2966,33 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    # the overlap and how many pairs of components overlap, in one compiled pass
-    o, npairs = _overlap_pairs(A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], _group_lut(A.n, ga), _group_lut(B.n, gb),
-                               np.int64(len(ga)), np.int64(len(gb)))
-    if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
-        return None
-    # the overlap's 4-components, its padded background's 8-components (ndimage.label's numbers)
-    # and the overlaps that reach the outside, in one compiled pass
-    no, blab, nbl, n_out = overlap_holes(o)
-    if no != npairs:  # some pair overlaps in more than one piece: a handle
-        return None
-    ext = blab[0, 0]
-    if n_out != no:  # an overlap inside a hole of another
-        return None
-    holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
-
-    def where(S, comps):
-        at = {}
+    # each hole of the group's components by its first pixel (raster order) in the padded box: the
+    # background label there says which hole of the overlap holds it
+    held, qy, qx = [], [], []
+    for side, S, comps in ((0, A, ga), (1, B, gb)):
         for c in comps:
             csl, masks = S.hole_masks[c]
             for h in range(len(masks)):
-                y, x = masks.first_pixel(h)  # its first pixel (raster order)
-                lab = int(blab[y + csl[0].start - y0 + 1, x + csl[1].start - x0 + 1])
-                at.setdefault(lab, []).append((c, h))
-        return at
-
-    wa, wb = where(A, ga), where(B, gb)
+                y, x = masks.first_pixel(h)
+                held.append((side, c, h))
+                qy.append(y + csl[0].start - y0 + 1)
+                qx.append(x + csl[1].start - x0 + 1)
+    # in one compiled pass: how many pairs of components overlap, the overlap's 4-components, its
+    # padded background's 8-components (ndimage.label's numbers, read at the holes' pixels) and the
+    # overlaps that reach the outside
+    npairs, no, labs, nbl, n_out, ext = _overlap_plan(
+        A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], _group_lut(A.n, ga), _group_lut(B.n, gb),
+        np.int64(len(ga)), np.int64(len(gb)), np.array(qy, dtype=np.int64), np.array(qx, dtype=np.int64), np.int64(1))
+    if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
+        return None
+    if no != npairs:  # some pair overlaps in more than one piece: a handle
+        return None
+    if n_out != no:  # an overlap inside a hole of another
+        return None
+    holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
+    wa, wb = {}, {}
+    for (side, c, h), lab in zip(held, labs.tolist()):
+        (wb if side else wa).setdefault(lab, []).append((c, h))
     # holes open to the outside of the overlap (a handle ends between the slices): keyholes
     open_a, open_b = wa.pop(ext, []), wb.pop(ext, [])
     if any(len(v) > 1 for v in wa.values()) or any(len(v) > 1 for v in wb.values()):
@@ -3035,6 +3037,51 @@ def _overlap_pairs(la, lb, lut_a, lut_b, na, nb):  # pragma: no cover (compiled)
                 seen[a, b] = True
                 npairs += 1
     return o, npairs
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _overlap_plan(la, lb, lut_a, lut_b, na, nb, ys, xs, one):  # pragma: no cover (compiled)
+    """What :func:`_bridge_plan` reads of a group's overlap, in one pass over its box (``la``,
+    ``lb``, ``lut_a``, ``lut_b``, ``na``, ``nb`` as for :func:`_overlap_pairs`; ``one`` is 1):
+    ``(npairs, n, labels, nb, n_out, ext)``, the number of pairs of components that overlap and,
+    where they form no loop (``npairs == na + nb - 1``; else ``n`` is -1 and the rest empty or 0),
+    :func:`contourmesh.tracing.overlap_hole_labels` of the overlap at the padded pixels
+    ``(ys[i], xs[i])``.  The overlap's runs are taken as its pixels are found, so no mask of it
+    is made, nor its background's labels painted: the same numbers as ``_overlap_pairs`` and
+    ``overlap_holes`` of its mask (as the tests check)."""
+    h, w = la.shape
+    seen = np.zeros((na, nb), np.bool_)
+    npairs = 0
+    cap = h * ((w + 1) // 2)
+    ox0 = np.empty(cap, np.int64)
+    ox1 = np.empty(cap, np.int64)
+    ors = np.empty(h + 1, np.int64)
+    nr = 0
+    for y in range(h):
+        ors[y] = nr
+        open_ = False
+        for x in range(w):
+            a = lut_a[la[y, x]]
+            b = lut_b[lb[y, x]]
+            if a >= 0 and b >= 0:
+                if not seen[a, b]:
+                    seen[a, b] = True
+                    npairs += 1
+                if not open_:
+                    ox0[nr] = x
+                    open_ = True
+            elif open_:
+                ox1[nr] = x
+                nr += 1
+                open_ = False
+        if open_:
+            ox1[nr] = w
+            nr += 1
+    ors[h] = nr
+    if npairs != na + nb - 1:
+        return npairs, one - 2, np.empty(0, np.int64), one - one, one - one, one - one
+    no, labels, nbl, n_out, ext = _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one)
+    return npairs, no, labels, nbl, n_out, ext
 
 
 #: Largest ``n^2 m`` for which a twisted bridged band is replaced by the optimal band (else by the
