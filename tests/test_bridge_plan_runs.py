@@ -113,6 +113,60 @@ def test_overlap_plan_equals_the_mask_and_its_painted_labels():
     assert 0 < loops < 600 and len(kinds) >= 4
 
 
+def _runs_of(labels):
+    """The runs of a label image as ``_Slice.kept_runs`` holds them: int32 ``(4, n)`` ``[row, first
+    column, end column, component]`` (0-based), in raster order."""
+    out = []
+    for y, row in enumerate(labels.tolist()):
+        x = 0
+        while x < len(row):
+            if row[x]:
+                s = x
+                while x < len(row) and row[x] == row[s]:
+                    x += 1
+                out.append((y, s, x, row[s] - 1))
+            else:
+                x += 1
+    return np.array(out, dtype=np.int32).reshape(-1, 4).T.copy()
+
+
+def test_overlap_plan_from_runs_equals_the_label_images():
+    rng = np.random.default_rng(1593)
+    loops, kinds = 0, set()
+    for trial in range(600):
+        H, W = int(rng.integers(1, 36)), int(rng.integers(1, 36))
+        na, nb = int(rng.integers(1, 6)), int(rng.integers(1, 6))
+        # blobs of labels in a whole image (runs of different labels touch), a box within it
+        la = rng.integers(0, na + 1, (H // 3 + 2, W // 3 + 2)).repeat(3, 0).repeat(3, 1)[:H, :W].astype(np.int32)
+        lb = rng.integers(0, nb + 1, (H // 2 + 2, W // 2 + 2)).repeat(2, 0).repeat(2, 1)[1:H + 1, :W].astype(np.int32)
+        if trial % 5 == 0:  # a ring below around a blob, all covered above
+            yy, xx = np.mgrid[:H, :W]
+            r = np.maximum(abs(yy - H // 2), abs(xx - W // 2))
+            la = np.where(r == 0, 2, np.where((r >= 2) & (r <= 3), 1, 0)).astype(np.int32)
+            lb, na, nb = np.ones((H, W), np.int32), max(na, 2), max(nb, 1)
+        ga = sorted(rng.choice(na, int(rng.integers(1, na + 1)), replace=False).tolist())
+        gb = sorted(rng.choice(nb, int(rng.integers(1, nb + 1)), replace=False).tolist())
+        y0, x0 = int(rng.integers(0, H)), int(rng.integers(0, W))
+        y1, x1 = int(rng.integers(y0 + 1, H + 1)), int(rng.integers(x0 + 1, W + 1))
+        if trial % 3 == 0:
+            y0, x0, y1, x1 = 0, 0, H, W
+        h, w = y1 - y0, x1 - x0
+        lut_a, lut_b = volumes._group_lut(na, ga), volumes._group_lut(nb, gb)
+        ys, xs = np.nonzero(rng.random((h + 2, w + 2)) < 0.4)
+        ys, xs = ys.astype(np.int64), xs.astype(np.int64)
+        args = (lut_a, lut_b, np.int64(len(ga)), np.int64(len(gb)), ys, xs, np.int64(1))
+        want = volumes._overlap_plan(la[y0:y1, x0:x1], lb[y0:y1, x0:x1], *args)
+        got = volumes._overlap_plan_runs(_runs_of(la), _runs_of(lb), np.int64(y0), np.int64(y1), np.int64(x0),
+                                         np.int64(x1), *args)
+        assert [int(v) for v in (got[0], got[1], got[3], got[4], got[5])] == \
+            [int(v) for v in (want[0], want[1], want[3], want[4], want[5])], trial
+        assert got[2].dtype == np.int64 and np.array_equal(got[2], want[2]), trial
+        loops += int(want[1]) == -1
+        if int(want[1]) >= 0:
+            kinds.add((int(want[1]) == int(want[0]), int(want[4]) == int(want[1]), int(want[3]) > 1))
+    assert 0 < loops < 600 and len(kinds) >= 4
+
+
 def test_the_meshers_plans_equal_the_reference(shared_data, monkeypatch):
     """Every group the general mesher plans (its pass over the slices and the sectioned joins)
     while meshing parts of the shared volumes."""
@@ -124,7 +178,7 @@ def test_the_meshers_plans_equal_the_reference(shared_data, monkeypatch):
 
     def spy(A, B, ga, gb):
         got = real(A, B, ga, gb)
-        seen.append((got, _bridge_plan_reference(A, B, ga, gb)))
+        seen.append((got, _bridge_plan_reference(A, B, ga, gb), A.kept_runs() is not None and B.kept_runs() is not None))
         return got
 
     monkeypatch.setattr(volumes, "_bridge_plan", spy)
@@ -134,6 +188,7 @@ def test_the_meshers_plans_equal_the_reference(shared_data, monkeypatch):
     for vol in (lobster[15:40], liver[200:230]):
         contourmesh.mesh(vol)
     assert len(seen) > 20
-    assert any(got is None for got, _ in seen) and any(got is not None and got[0] for got, _ in seen)
-    for got, want in seen:
+    assert any(got is None for got, _, _ in seen) and any(got is not None and got[0] for got, _, _ in seen)
+    assert any(runs for _, _, runs in seen)
+    for got, want, _ in seen:
         assert _same_plan(got, want)

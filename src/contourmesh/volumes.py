@@ -2980,9 +2980,18 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     # in one compiled pass: how many pairs of components overlap, the overlap's 4-components, its
     # padded background's 8-components (ndimage.label's numbers, read at the holes' pixels) and the
     # overlaps that reach the outside
-    npairs, no, labs, nbl, n_out, ext = _overlap_plan(
-        A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], _group_lut(A.n, ga), _group_lut(B.n, gb),
-        np.int64(len(ga)), np.int64(len(gb)), np.array(qy, dtype=np.int64), np.array(qx, dtype=np.int64), np.int64(1))
+    # (from the two slices' runs in the box's rows where both keep them: the same numbers, the label
+    # images not read)
+    ra, rb = A.kept_runs(), B.kept_runs()
+    lut_a, lut_b, qy, qx = _group_lut(A.n, ga), _group_lut(B.n, gb), np.array(qy, np.int64), np.array(qx, np.int64)
+    if ra is not None and rb is not None:
+        npairs, no, labs, nbl, n_out, ext = _overlap_plan_runs(
+            ra, rb, np.int64(y0), np.int64(y1), np.int64(x0), np.int64(x1), lut_a, lut_b, np.int64(len(ga)),
+            np.int64(len(gb)), qy, qx, np.int64(1))
+    else:
+        npairs, no, labs, nbl, n_out, ext = _overlap_plan(
+            A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], lut_a, lut_b, np.int64(len(ga)), np.int64(len(gb)), qy, qx,
+            np.int64(1))
     if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
         return None
     if no != npairs:  # some pair overlaps in more than one piece: a handle
@@ -3082,6 +3091,71 @@ def _overlap_plan(la, lb, lut_a, lut_b, na, nb, ys, xs, one):  # pragma: no cove
         return npairs, one - 2, np.empty(0, np.int64), one - one, one - one, one - one
     no, labels, nbl, n_out, ext = _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one)
     return npairs, no, labels, nbl, n_out, ext
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _overlap_plan_runs(ra, rb, y0, y1, x0, x1, lut_a, lut_b, na, nb, ys, xs, one):  # pragma: no cover (compiled)
+    """:func:`_overlap_plan` of the box ``y0 .. y1 - 1``, ``x0 .. x1 - 1`` from the two slices' runs
+    (``(4, n)`` ``[row, first column, end column, component]``, raster order, whole-image
+    coordinates: ``_Slice.kept_runs``; the luts indexed by component + 1) rather than their label
+    images: the overlap's runs in a row are where a run of the group below meets one of the group
+    above (the runs of a row taken in increasing order from both sides, each step past the one
+    that ends first), two that touch made one; the same numbers."""
+    n_a, n_b = ra.shape[1], rb.shape[1]
+    i, j = _first_row_run(ra, y0), _first_row_run(rb, y0)
+    i1, j1 = _first_row_run(ra, y1), _first_row_run(rb, y1)
+    h, w = y1 - y0, x1 - x0
+    seen = np.zeros((na, nb), np.bool_)
+    npairs = 0
+    cap = (i1 - i) + (j1 - j) + 1
+    ox0 = np.empty(cap, np.int64)
+    ox1 = np.empty(cap, np.int64)
+    ors = np.empty(h + 1, np.int64)
+    nr = 0
+    for y in range(h):
+        ors[y] = nr
+        yy = y0 + y
+        while i < n_a and j < n_b and ra[0, i] == yy and rb[0, j] == yy:
+            a = lut_a[np.int64(ra[3, i]) + 1]
+            b = lut_b[np.int64(rb[3, j]) + 1]
+            lo = max(max(np.int64(ra[1, i]), np.int64(rb[1, j])), x0)
+            hi = min(min(np.int64(ra[2, i]), np.int64(rb[2, j])), x1)
+            if a >= 0 and b >= 0 and lo < hi:
+                if not seen[a, b]:
+                    seen[a, b] = True
+                    npairs += 1
+                if nr > ors[y] and ox1[nr - 1] == lo - x0:
+                    ox1[nr - 1] = hi - x0
+                else:
+                    ox0[nr] = lo - x0
+                    ox1[nr] = hi - x0
+                    nr += 1
+            if ra[2, i] <= rb[2, j]:
+                i += 1
+            else:
+                j += 1
+        while i < n_a and ra[0, i] == yy:
+            i += 1
+        while j < n_b and rb[0, j] == yy:
+            j += 1
+    ors[h] = nr
+    if npairs != na + nb - 1:
+        return npairs, one - 2, np.empty(0, np.int64), one - one, one - one, one - one
+    no, labels, nbl, n_out, ext = _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one)
+    return npairs, no, labels, nbl, n_out, ext
+
+
+@njit(cache=True, inline="always", **KERNEL_OPTIONS)
+def _first_row_run(r, y):  # pragma: no cover (compiled)
+    """The first of the runs ``r`` (raster order) in row ``y`` or after it."""
+    lo, hi = 0, r.shape[1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if r[0, mid] < y:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 #: Largest ``n^2 m`` for which a twisted bridged band is replaced by the optimal band (else by the
