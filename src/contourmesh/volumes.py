@@ -3675,7 +3675,8 @@ def _ring_boxes(s):
     """Per component of slice ``s``, the box ``(lo, hi)`` (two ``(n, 2)`` arrays) of all its rings:
     its polygons and its crack rings in physical xy.  The crack rings' corners are integers and
     ``to_xy`` is increasing in each coordinate, so their box is that of their integer corners' box,
-    converted (no crack ring is made): the same numbers as :func:`_ring_boxes_reference`."""
+    converted (no crack ring is made), and that box is the corners of the component's pixel box: the
+    same numbers as :func:`_ring_boxes_reference`."""
     def per_component(rings_of):
         per = [rings_of(c) for c in range(s.n)]  # (each component's rings, asked for once)
         rs = [r for rings in per for r in rings]
@@ -3690,7 +3691,10 @@ def _ring_boxes(s):
 
     if s.n == 0:
         return np.zeros((0, 2)), np.zeros((0, 2))
-    clo, chi = per_component(lambda c: [s.crack_outer_c[c]] + list(s.crack_holes_c[c]))
+    # a component's outer crack ring runs round its pixels' box, corner to corner, and its holes lie
+    # inside: the box of its crack rings' corners is that of its pixels (s.objects), read off it
+    corners = np.array([(sl[1].start, sl[0].start, sl[1].stop, sl[0].stop) for sl in s.objects], dtype=np.int64)
+    clo, chi = np.ascontiguousarray(corners[:, :2]), np.ascontiguousarray(corners[:, 2:])
     plo, phi = per_component(lambda c: [np.asarray(s.outer[c], dtype=np.float64)] + list(s.holes[c]))
     to_xy = s.crack_outer.to_xy
     return np.minimum(to_xy(clo), plo), np.maximum(to_xy(chi), phi)
