@@ -169,7 +169,7 @@ def test_overlap_plan_from_runs_equals_the_label_images():
 
 def test_the_meshers_plans_equal_the_reference(shared_data, monkeypatch):
     """Every group the general mesher plans (its pass over the slices and the sectioned joins)
-    while meshing parts of the shared volumes."""
+    while meshing parts of the shared volumes, and every group whose exact join's area it takes."""
     import contourmesh
     from contourmesh.io import read_volume
 
@@ -181,7 +181,15 @@ def test_the_meshers_plans_equal_the_reference(shared_data, monkeypatch):
         seen.append((got, _bridge_plan_reference(A, B, ga, gb), A.kept_runs() is not None and B.kept_runs() is not None))
         return got
 
+    real_area = volumes._exact_area
+    groups = []
+
+    def spy_area(slices, zs, k, ga, gb, *args):
+        groups.append((slices[k], slices[k + 1], list(ga), list(gb)))
+        return real_area(slices, zs, k, ga, gb, *args)
+
     monkeypatch.setattr(volumes, "_bridge_plan", spy)
+    monkeypatch.setattr(volumes, "_exact_area", spy_area)
     lobster, _, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
     z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz")
     liver = np.asarray(z["volume"] if "volume" in z.files else z["mask"]) > 0
@@ -192,3 +200,40 @@ def test_the_meshers_plans_equal_the_reference(shared_data, monkeypatch):
     assert any(runs for _, _, runs in seen)
     for got, want, _ in seen:
         assert _same_plan(got, want)
+    # and _exact_area's pixels of one group only, from the runs, against the label images
+    assert len(groups) > 5 and all(A.kept_runs() is not None and B.kept_runs() is not None for A, B, _, _ in groups)
+    for A, B, ga, gb in groups:
+        sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
+        y0, y1 = min(s[0].start for s in sl), max(s[0].stop for s in sl)
+        x0, x1 = min(s[1].start for s in sl), max(s[1].stop for s in sl)
+        want = np.count_nonzero(tracing.label_mask(A.labels[y0:y1, x0:x1], A.n, ga)
+                                ^ tracing.label_mask(B.labels[y0:y1, x0:x1], B.n, gb))
+        got = volumes._count_one_side_runs(A.kept_runs(), B.kept_runs(), np.int64(y0), np.int64(y1), np.int64(x0),
+                                           np.int64(x1), volumes._group_lut(A.n, ga), volumes._group_lut(B.n, gb))
+        assert int(got) == int(want)
+
+
+def test_one_side_count_from_runs_equals_the_label_images():
+    # _exact_area's pixels of one group only, from the slices' runs in a box's rows
+    rng = np.random.default_rng(1594)
+    counts = set()
+    for trial in range(500):
+        H, W = int(rng.integers(1, 36)), int(rng.integers(1, 36))
+        na, nb = int(rng.integers(1, 6)), int(rng.integers(1, 6))
+        la = rng.integers(0, na + 1, (H // 3 + 2, W // 3 + 2)).repeat(3, 0).repeat(3, 1)[:H, :W].astype(np.int32)
+        lb = rng.integers(0, nb + 1, (H // 2 + 2, W // 2 + 2)).repeat(2, 0).repeat(2, 1)[1:H + 1, :W].astype(np.int32)
+        if trial % 10 == 0:  # the same pixels on both sides
+            lb, nb = la.copy(), na
+        ga = sorted(rng.choice(na, int(rng.integers(1, na + 1)), replace=False).tolist())
+        gb = ga if trial % 10 == 0 else sorted(rng.choice(nb, int(rng.integers(1, nb + 1)), replace=False).tolist())
+        y0, x0 = int(rng.integers(0, H)), int(rng.integers(0, W))
+        y1, x1 = int(rng.integers(y0 + 1, H + 1)), int(rng.integers(x0 + 1, W + 1))
+        if trial % 3 == 0:
+            y0, x0, y1, x1 = 0, 0, H, W
+        lut_a, lut_b = volumes._group_lut(na, ga), volumes._group_lut(nb, gb)
+        want = volumes._count_one_side(la[y0:y1, x0:x1], lb[y0:y1, x0:x1], lut_a, lut_b)
+        got = volumes._count_one_side_runs(_runs_of(la), _runs_of(lb), np.int64(y0), np.int64(y1), np.int64(x0),
+                                           np.int64(x1), lut_a, lut_b)
+        assert int(got) == int(want), trial
+        counts.add(min(int(want), 3))
+    assert counts == {0, 1, 2, 3}

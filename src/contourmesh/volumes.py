@@ -3542,8 +3542,14 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
                 min(s[1].start for s in sl):max(s[1].stop for s in sl)]
-    # (np.count_nonzero(label_mask(A's box, ga) ^ label_mask(B's box, gb)), compiled)
-    only = _count_one_side(A.labels[box], B.labels[box], _group_lut(A.n, ga), _group_lut(B.n, gb))
+    # (np.count_nonzero(label_mask(A's box, ga) ^ label_mask(B's box, gb)), compiled: from the two
+    # slices' runs in the box's rows where both keep them, else from the box's label pixels)
+    ra, rb = A.kept_runs(), B.kept_runs()
+    if ra is not None and rb is not None:
+        only = _count_one_side_runs(ra, rb, np.int64(box[0].start), np.int64(box[0].stop), np.int64(box[1].start),
+                                    np.int64(box[1].stop), _group_lut(A.n, ga), _group_lut(B.n, gb))
+    else:
+        only = _count_one_side(A.labels[box], B.labels[box], _group_lut(A.n, ga), _group_lut(B.n, gb))
     return collars * h + float(only) * pixel_area
 
 
@@ -3609,6 +3615,39 @@ def _count_one_side(la, lb, lut_a, lut_b):  # pragma: no cover (compiled)
         for x in range(w):
             if (lut_a[la[y, x]] >= 0) != (lut_b[lb[y, x]] >= 0):
                 count += 1
+    return count
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _count_one_side_runs(ra, rb, y0, y1, x0, x1, lut_a, lut_b):  # pragma: no cover (compiled)
+    """:func:`_count_one_side` of the box ``y0 .. y1 - 1``, ``x0 .. x1 - 1`` from the two slices'
+    runs (``_Slice.kept_runs``; the luts indexed by component + 1): the pixels of the group below
+    and of the group above in the box, less twice those of both (where a run of one meets a run of
+    the other, the runs of a row taken in increasing order from both sides)."""
+    count = 0
+    i, i1 = _first_row_run(ra, y0), _first_row_run(ra, y1)
+    for r in range(i, i1):
+        if lut_a[np.int64(ra[3, r]) + 1] >= 0:
+            count += max(min(np.int64(ra[2, r]), x1) - max(np.int64(ra[1, r]), x0), 0)
+    j, j1 = _first_row_run(rb, y0), _first_row_run(rb, y1)
+    for r in range(j, j1):
+        if lut_b[np.int64(rb[3, r]) + 1] >= 0:
+            count += max(min(np.int64(rb[2, r]), x1) - max(np.int64(rb[1, r]), x0), 0)
+    while i < i1 and j < j1:
+        if ra[0, i] < rb[0, j]:
+            i += 1
+        elif rb[0, j] < ra[0, i]:
+            j += 1
+        else:
+            if lut_a[np.int64(ra[3, i]) + 1] >= 0 and lut_b[np.int64(rb[3, j]) + 1] >= 0:
+                lo = max(max(np.int64(ra[1, i]), np.int64(rb[1, j])), x0)
+                hi = min(min(np.int64(ra[2, i]), np.int64(rb[2, j])), x1)
+                if lo < hi:
+                    count -= 2 * (hi - lo)
+            if ra[2, i] <= rb[2, j]:
+                i += 1
+            else:
+                j += 1
     return count
 
 
