@@ -137,7 +137,7 @@ from .tracing import (
     missing_corners,
     overlap_groups,
     overlap_groups_runs,
-    overlap_holes,
+    overlap_hole_labels,
     slice_boxes,
     slice_cracks,
     unique_keys,
@@ -2511,20 +2511,19 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
         return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
     if o is None:
         o = _overlap_mask(A, B, a, b, y0, y1, x0, x1)
-    # (the padded background of O labelled 8-connected in compiled code: ndimage.label's labels)
-    _, olab, nol, _ = overlap_holes(o)
-    ext = olab[0, 0]
+    # (the padded background of O labelled 8-connected in compiled code, ndimage.label's labels, read
+    # at each hole's first pixel of its whole mask, in raster order)
+    qy, qx = [], []
+    for holes, sl in ((ha, sa), (hb, sb)):
+        for i in range(len(holes)):
+            hy, hx = holes.first_pixel(i)
+            qy.append(hy + sl[0].start - y0 + 1)
+            qx.append(hx + sl[1].start - x0 + 1)
+    _, labs, nol, _, ext = overlap_hole_labels(o, qy, qx)
     if nol - 1 != len(ha):
         return None
-
-    def where(holes, sl):
-        out = []
-        for i in range(len(holes)):
-            hy, hx = holes.first_pixel(i)  # (the first pixel of its whole mask, in raster order)
-            out.append(int(olab[hy + sl[0].start - y0 + 1, hx + sl[1].start - x0 + 1]))
-        return out
-
-    wa, wb = where(ha, sa), where(hb, sb)
+    labs = labs.tolist()
+    wa, wb = labs[:len(ha)], labs[len(ha):]
     if ext in wa or ext in wb:
         return None
     if len(set(wa)) != len(wa) or len(set(wb)) != len(wb) or set(wa) != set(wb):
