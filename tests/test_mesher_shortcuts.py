@@ -477,3 +477,29 @@ def test_a_holes_first_pixel_is_the_first_of_its_whole_mask():
                     assert hm.first_pixel(h) == divmod(int(np.argmax(whole)), whole.shape[1])
                     n += 1
     assert n > 10
+
+
+def test_ring_boxes_of_the_meshers_slices_equal_the_reference(shared_data, monkeypatch):
+    """Every slice whose ring boxes the bridged joins read while meshing parts of the shared volumes
+    (the crack rings' boxes read off the components' pixel boxes), against the rings made."""
+    import contourmesh
+    from contourmesh.io import read_volume
+
+    real = volumes._ring_boxes
+    seen = []
+
+    def spy(s):
+        got = real(s)
+        seen.append((got, volumes._ring_boxes_reference(s)))
+        return got
+
+    monkeypatch.setattr(volumes, "_ring_boxes", spy)
+    lobster, _, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz")
+    liver = np.asarray(z["volume"] if "volume" in z.files else z["mask"]) > 0
+    for vol in (lobster[15:40], liver[200:230]):
+        contourmesh.mesh(vol)
+    assert len(seen) > 5
+    for (lo, hi), (rlo, rhi) in seen:
+        assert lo.dtype == rlo.dtype == np.float64 and lo.shape == rlo.shape
+        assert np.array_equal(lo, rlo) and np.array_equal(hi, rhi)

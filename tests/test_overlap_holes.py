@@ -145,19 +145,30 @@ def test_lines_rings_and_diagonals_equal_the_pixel_form():
 
 
 def test_the_meshers_overlaps_equal_the_pixel_form(shared_data, monkeypatch):
-    """Every overlap the general mesher tests while meshing parts of the shared volumes."""
+    """Every overlap the general mesher tests while meshing parts of the shared volumes (those its
+    bridge plans read from runs made as masks), and the labels read off its runs at every pixel."""
     import contourmesh
     from contourmesh import volumes
     from contourmesh.io import read_volume
 
     seen = []
-    real = tracing.overlap_holes
+    real = tracing.overlap_hole_labels
 
-    def spy(o):
+    def spy(o, ys, xs):  # (the band joins' overlaps with holes, read at the holes' pixels)
         seen.append(np.array(o, dtype=bool))
-        return real(o)
+        return real(o, ys, xs)
 
-    monkeypatch.setattr(volumes, "overlap_holes", spy)
+    real_plan = volumes._bridge_plan
+
+    def spy_plan(A, B, ga, gb):  # (the plans read the overlap from runs: its mask made here)
+        sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
+        box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
+                    min(s[1].start for s in sl):max(s[1].stop for s in sl)]
+        seen.append(tracing.label_mask(A.labels[box], A.n, ga) & tracing.label_mask(B.labels[box], B.n, gb))
+        return real_plan(A, B, ga, gb)
+
+    monkeypatch.setattr(volumes, "overlap_hole_labels", spy)
+    monkeypatch.setattr(volumes, "_bridge_plan", spy_plan)
     lobster, _, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
     z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz")
     liver = np.asarray(z["volume"] if "volume" in z.files else z["mask"]) > 0
@@ -165,4 +176,8 @@ def test_the_meshers_overlaps_equal_the_pixel_form(shared_data, monkeypatch):
         contourmesh.mesh(vol)
     assert len(seen) > 20
     for o in seen:
-        _check(o)
+        n, blab, nb, n_out = _check(o)
+        ys, xs = np.nonzero(np.ones(blab.shape, bool))
+        got = tracing.overlap_hole_labels(o, ys, xs)  # (and read at every pixel: the painted labels)
+        assert (int(got[0]), int(got[2]), int(got[3]), int(got[4])) == (int(n), int(nb), int(n_out), int(blab[0, 0]))
+        assert np.array_equal(got[1], blab[ys, xs])

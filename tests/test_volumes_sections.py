@@ -259,11 +259,28 @@ def _groups_reference(P, Q):
     return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
 
 
+def _runs_of(labels):
+    """The runs of a label image as ``_Slice.kept_runs`` holds them: int32 ``(4, n)`` ``[row, first
+    column, end column, component]`` (0-based), in raster order."""
+    out = []
+    for y, row in enumerate(labels.tolist()):
+        x = 0
+        while x < len(row):
+            if row[x]:
+                s = x
+                while x < len(row) and row[x] == row[s]:
+                    x += 1
+                out.append((y, s, x, row[s] - 1))
+            else:
+                x += 1
+    return np.array(out, dtype=np.int32).reshape(-1, 4).T.copy()
+
+
 def test_layer_groups_equal_the_reference():
     """A sectioned join's overlap groups of two layers (one compiled pass over the box) are those
     of the label images with the other components cleared: the same groups in the same order,
     the same lone components; with or without a shared box, some or all components, uint8 and
-    uint16 labels."""
+    uint16 labels, from the label images or from the slices' runs."""
     from types import SimpleNamespace
 
     from contourmesh.fastpath import slice_labels
@@ -291,6 +308,9 @@ def test_layer_groups_equal_the_reference():
             Ls[1].box = np.s_[0:h, 0:w]  # (boxes that differ: the whole images)
         got = sections._groups(*Ls)
         assert got == _groups_reference(*Ls), t
+        for S in layers:  # the slices keep their runs (as _Slice.kept_runs gives them): the sweep over runs
+            S.kept_runs = lambda runs=_runs_of(S.labels): runs
+        assert sections._groups(*Ls) == got, t
         kinds.add((len(got[0]) > 1, bool(got[1] or got[2])))
     assert kinds == {(False, False), (False, True), (True, False), (True, True)}
 
@@ -649,3 +669,29 @@ def test_signed_distance_column_arrays_of_either_width_and_dirty():
             got = sections._sdf_square(u8, 0.25, 0.25, gi, go, sections._ALL)
             assert got.tobytes() == ref.tobytes()
         assert sections._sdf(m, (0.5, 0.5)).tobytes() == ref.tobytes()  # (the thread's kept arrays, dirty)
+
+
+def test_the_meshers_layer_groups_equal_the_reference(shared_data, monkeypatch):
+    """Every pair of layers whose groups the sectioned joins take (from the slices' runs) while
+    meshing parts of the shared volumes, against the label images with the other components
+    cleared."""
+    import contourmesh
+    from contourmesh.io import read_volume
+
+    real = sections._groups
+    seen = []
+
+    def spy(P, Q):
+        got = real(P, Q)
+        seen.append((got, _groups_reference(P, Q), P.S.kept_runs() is not None and Q.S.kept_runs() is not None))
+        return got
+
+    monkeypatch.setattr(sections, "_groups", spy)
+    lobster, _, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz")
+    liver = np.asarray(z["volume"] if "volume" in z.files else z["mask"]) > 0
+    for vol in (lobster[15:40], liver[200:230]):
+        contourmesh.mesh(vol)
+    assert len(seen) > 10 and any(runs for _, _, runs in seen)
+    for got, want, _ in seen:
+        assert got == want

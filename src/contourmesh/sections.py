@@ -692,7 +692,9 @@ def _groups(P: _Layer, Q: _Layer):
 
     Within the box that holds both layers' components (the groups do not depend on where the
     pixels lie, only on which labels overlap), one compiled pass marks the pairs of the two
-    layers' components that share a pixel (:func:`_overlap_table`); the groups are the connected
+    layers' components that share a pixel: a sweep over the two slices' runs in the box's rows
+    where both keep them (:func:`_run_groups`, which also groups the pairs and finds the lone
+    components), else over the box's pixels (:func:`_overlap_table`); the groups are the connected
     sets of those pairs, in the order of their first pair, each side sorted: what
     :func:`contourmesh.tracing.overlap_groups` gives for the two label images with every other
     component cleared (as the tests check)."""
@@ -705,6 +707,17 @@ def _groups(P: _Layer, Q: _Layer):
     inp, inq = np.zeros(na + 1, np.bool_), np.zeros(nb + 1, np.bool_)
     inp[np.asarray(list(P.comps), dtype=np.int64) + 1] = True
     inq[np.asarray(list(Q.comps), dtype=np.int64) + 1] = True
+    rp = getattr(P.S, "kept_runs", None)
+    rq = getattr(Q.S, "kept_runs", None)
+    rp, rq = (rp(), rq()) if rp is not None and rq is not None else (None, None)
+    if rp is not None and rq is not None:
+        pa, pb, group, ng, lone_p, lone_q = _run_groups(rp, rq, np.int64(y0), np.int64(y1), np.int64(x0),
+                                                         np.int64(x1), inp, inq)
+        groups = [(set(), set()) for _ in range(ng)]
+        for a, b, g in zip(pa.tolist(), pb.tolist(), group.tolist()):
+            groups[g][0].add(a)
+            groups[g][1].add(b)
+        return [(sorted(a), sorted(b)) for a, b in groups], lone_p.tolist(), lone_q.tolist()
     nbk = np.int64(nb + 1)
     keys = np.flatnonzero(_overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk))
     pa, pb = keys // nbk - 1, keys % nbk - 1
@@ -717,6 +730,92 @@ def _groups(P: _Layer, Q: _Layer):
     lone_p = sorted(set(P.comps).difference(la))
     lone_q = sorted(set(Q.comps).difference(lb))
     return [(sorted(a), sorted(b)) for a, b in groups], lone_p, lone_q
+
+
+@njit(cache=True, nogil=True)
+def _first_run_of_row(r, y):
+    """The first of the runs ``r`` (``(4, n)``, raster order, row first) in row ``y`` or after."""
+    lo, hi = 0, r.shape[1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if r[0, mid] < y:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, nogil=True)
+def _run_groups(rp, rq, y0, y1, x0, x1, inp, inq):
+    """:func:`_groups` from the two slices' runs (``(4, n)`` ``[row, first column, end column,
+    component]``, raster order: ``_Slice.kept_runs``): the pairs ``(a, b)`` (0-based, ``inp[a +
+    1]`` and ``inq[b + 1]``) of components that share a pixel of rows ``y0 .. y1 - 1``, columns
+    ``x0 .. x1 - 1``, in increasing order of ``a * len(inq) + b`` (:func:`_overlap_table`'s keys),
+    their groups (:func:`contourmesh.tracing._pair_groups`), how many, and the components of
+    each side in ``inp`` / ``inq`` without a pair, in increasing order.  Two runs of a row share a
+    pixel of the box where their column ranges clipped to it meet; the runs of a row are taken in
+    increasing order from both sides, each step past the one that ends first."""
+    nbk = inq.shape[0]
+    seen = np.zeros(inp.shape[0] * nbk, np.bool_)
+    i, j = _first_run_of_row(rp, y0), _first_run_of_row(rq, y0)
+    n_p, n_q = rp.shape[1], rq.shape[1]
+    while i < n_p and j < n_q and rp[0, i] < y1 and rq[0, j] < y1:
+        yi, yj = rp[0, i], rq[0, j]
+        if yi < yj:
+            i += 1
+            continue
+        if yj < yi:
+            j += 1
+            continue
+        lo = max(max(rp[1, i], rq[1, j]), x0)
+        hi = min(min(rp[2, i], rq[2, j]), x1)
+        if lo < hi:
+            a = np.int64(rp[3, i]) + 1
+            b = np.int64(rq[3, j]) + 1
+            if inp[a] and inq[b]:
+                seen[a * nbk + b] = True
+        if rp[2, i] <= rq[2, j]:
+            i += 1
+        else:
+            j += 1
+    n = 0
+    for k in range(seen.shape[0]):
+        if seen[k]:
+            n += 1
+    pa = np.empty(n, np.int64)
+    pb = np.empty(n, np.int64)
+    used_p = np.zeros(inp.shape[0], np.bool_)
+    used_q = np.zeros(nbk, np.bool_)
+    n = 0
+    for k in range(seen.shape[0]):
+        if seen[k]:
+            pa[n] = k // nbk - 1
+            pb[n] = k % nbk - 1
+            used_p[k // nbk] = True
+            used_q[k % nbk] = True
+            n += 1
+    group, ng = _pair_groups(pa, pb, np.int64(inp.shape[0] - 1), np.int64(nbk - 1))
+    m = 0
+    for a in range(1, inp.shape[0]):
+        if inp[a] and not used_p[a]:
+            m += 1
+    lone_p = np.empty(m, np.int64)
+    m = 0
+    for a in range(1, inp.shape[0]):
+        if inp[a] and not used_p[a]:
+            lone_p[m] = a - 1
+            m += 1
+    m = 0
+    for b in range(1, nbk):
+        if inq[b] and not used_q[b]:
+            m += 1
+    lone_q = np.empty(m, np.int64)
+    m = 0
+    for b in range(1, nbk):
+        if inq[b] and not used_q[b]:
+            lone_q[m] = b - 1
+            m += 1
+    return pa, pb, group, ng, lone_p, lone_q
 
 
 @njit(cache=True, nogil=True)

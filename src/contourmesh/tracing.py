@@ -1116,6 +1116,146 @@ def overlap_holes(o: np.ndarray):
     return _overlap_holes(np.ascontiguousarray(o, dtype=np.bool_), np.int64(1))
 
 
+def overlap_hole_labels(o: np.ndarray, ys, xs):
+    """:func:`overlap_holes` of ``o`` read where it is needed: ``(n, labels, nb, n_out, ext)``
+    with ``labels`` the padded background's labels at the pixels ``(ys[i], xs[i])`` of the padded
+    mask (``blab[ys, xs]``, each in range) and ``ext`` its label at ``(0, 0)``, the outside.  The
+    joins read the background's labels only there, so the labels are read off the background's
+    runs and never painted (a box of int64 per overlap, most of the cost on large groups): the
+    same numbers as ``overlap_holes`` (as the tests check)."""
+    return _overlap_hole_labels(np.ascontiguousarray(o, dtype=np.bool_), np.asarray(ys, dtype=np.int64),
+                                np.asarray(xs, dtype=np.int64), np.int64(1))
+
+
+@njit(cache=True, nogil=True)
+def _overlap_hole_labels(o, ys, xs, one):
+    """:func:`overlap_hole_labels` compiled (``one`` is 1): the runs of ``o``, row by row, handed to
+    :func:`_runs_hole_labels`."""
+    h, w = o.shape
+    cap = h * ((w + 1) // 2)
+    ox0 = np.empty(cap, np.int64)
+    ox1 = np.empty(cap, np.int64)
+    ors = np.empty(h + 1, np.int64)
+    nr = 0
+    for y in range(h):
+        ors[y] = nr
+        x = 0
+        while x < w:
+            if o[y, x]:
+                s = x
+                while x < w and o[y, x]:
+                    x += 1
+                ox0[nr] = s
+                ox1[nr] = x
+                nr += 1
+            else:
+                x += 1
+    ors[h] = nr
+    return _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one)
+
+
+@internal_kernel
+def _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one):
+    """The structure :func:`overlap_hole_labels` gives, from the runs ``[ox0[r], ox1[r])`` of an
+    ``h`` x ``w`` mask (row ``y``: runs ``ors[y] .. ors[y + 1] - 1``, in increasing x).
+
+    As :func:`_overlap_holes`: the padded background's runs are the gaps between the mask's runs
+    (its first and last rows whole), its components those of the runs 8-connected, numbered by
+    their first run in raster order (``ndimage.label``'s numbers).  A pixel's label is that of the
+    background run holding it (found by bisection in its row; 0 on the mask), and a component of
+    the mask meets the outside where a run of the outside's label meets the 3 x 3 neighbourhoods
+    of one of its runs (padded rows ``y .. y + 2``, columns ``x0 .. x1 + 1``): the pixel test of
+    :func:`_overlap_holes`, run by run."""
+    hp, wp = h + 2, w + 2
+    nr = ors[h]
+    nb = nr + hp
+    bx0 = np.empty(nb, np.int64)
+    bx1 = np.empty(nb, np.int64)
+    brs = np.empty(hp + 1, np.int64)
+    brs[0] = 0
+    bx0[0] = 0
+    bx1[0] = wp
+    m = one
+    for y in range(h):
+        brs[y + 1] = m
+        gap = 0
+        for r in range(ors[y], ors[y + 1]):
+            if ox0[r] + 1 > gap:
+                bx0[m] = gap
+                bx1[m] = ox0[r] + 1
+                m += 1
+            gap = ox1[r] + 1
+        bx0[m] = gap
+        bx1[m] = wp
+        m += 1
+    brs[h + 1] = m
+    bx0[m] = 0
+    bx1[m] = wp
+    m += 1
+    brs[hp] = m
+    po = _run_union(ors, ox0, ox1, h, one - one)
+    comp = np.empty(nr, np.int64)
+    no = 0
+    for r in range(nr):
+        t = _root(po, r)
+        if t == r:
+            comp[r] = no
+            no += 1
+        else:
+            comp[r] = comp[t]
+    pb = _run_union(brs, bx0, bx1, hp, one)
+    blab_r = np.empty(m, np.int64)
+    nbl = 0
+    for r in range(m):
+        t = _root(pb, r)
+        if t == r:
+            nbl += 1
+            blab_r[r] = nbl
+        else:
+            blab_r[r] = blab_r[t]
+    ext = blab_r[0]  # (padded row 0 is one run, holding pixel (0, 0))
+    labels = np.empty(ys.shape[0], np.int64)
+    for i in range(ys.shape[0]):
+        y, x = ys[i], xs[i]
+        lo, hi = brs[y], brs[y + 1]  # the last run of row y starting at or before x
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if bx0[mid] <= x:
+                lo = mid
+            else:
+                hi = mid
+        labels[i] = blab_r[lo] if lo < brs[y + 1] and bx0[lo] <= x < bx1[lo] else 0
+    seen = np.zeros(no, np.bool_)
+    n_seen = 0
+    for y in range(h):
+        for r in range(ors[y], ors[y + 1]):
+            c = comp[r]
+            if seen[c]:
+                continue
+            near = False
+            for yy in range(y, y + 3):
+                # the background runs of padded row yy meeting columns ox0[r] .. ox1[r] + 1
+                lo, hi = brs[yy], brs[yy + 1]  # (the first run ending after ox0[r])
+                while lo < hi:
+                    mid = (lo + hi) // 2
+                    if bx1[mid] <= ox0[r]:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                j = lo
+                while j < brs[yy + 1] and bx0[j] <= ox1[r] + 1:
+                    if blab_r[j] == ext:
+                        near = True
+                        break
+                    j += 1
+                if near:
+                    break
+            if near:
+                seen[c] = True
+                n_seen += 1
+    return no, labels, nbl, n_seen, ext
+
+
 def label_mask(labels: np.ndarray, n: int, comps) -> np.ndarray:
     """``np.isin(labels, [c + 1 for c in comps])`` for a label image with labels ``0 .. n``: the
     pixels of components ``comps`` (0-based): one component or all of them by a comparison, others

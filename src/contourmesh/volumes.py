@@ -131,12 +131,13 @@ from .tracing import (
     _contour4_ok,
     _hole_parts,
     _hole_spans,
+    _runs_hole_labels,
     _slice_cracks,
     label_mask,
     missing_corners,
     overlap_groups,
     overlap_groups_runs,
-    overlap_holes,
+    overlap_hole_labels,
     slice_boxes,
     slice_cracks,
     unique_keys,
@@ -2518,20 +2519,19 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
         return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
     if o is None:
         o = _overlap_mask(A, B, a, b, y0, y1, x0, x1)
-    # (the padded background of O labelled 8-connected in compiled code: ndimage.label's labels)
-    _, olab, nol, _ = overlap_holes(o)
-    ext = olab[0, 0]
+    # (the padded background of O labelled 8-connected in compiled code, ndimage.label's labels, read
+    # at each hole's first pixel of its whole mask, in raster order)
+    qy, qx = [], []
+    for holes, sl in ((ha, sa), (hb, sb)):
+        for i in range(len(holes)):
+            hy, hx = holes.first_pixel(i)
+            qy.append(hy + sl[0].start - y0 + 1)
+            qx.append(hx + sl[1].start - x0 + 1)
+    _, labs, nol, _, ext = overlap_hole_labels(o, qy, qx)
     if nol - 1 != len(ha):
         return None
-
-    def where(holes, sl):
-        out = []
-        for i in range(len(holes)):
-            hy, hx = holes.first_pixel(i)  # (the first pixel of its whole mask, in raster order)
-            out.append(int(olab[hy + sl[0].start - y0 + 1, hx + sl[1].start - x0 + 1]))
-        return out
-
-    wa, wb = where(ha, sa), where(hb, sb)
+    labs = labs.tolist()
+    wa, wb = labs[:len(ha)], labs[len(ha):]
     if ext in wa or ext in wb:
         return None
     if len(set(wa)) != len(wa) or len(set(wb)) != len(wb) or set(wa) != set(wb):
@@ -2973,32 +2973,42 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     y1 = max(s[0].stop for s in sl)
     x0 = min(s[1].start for s in sl)
     x1 = max(s[1].stop for s in sl)
-    # the overlap and how many pairs of components overlap, in one compiled pass
-    o, npairs = _overlap_pairs(A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], _group_lut(A.n, ga), _group_lut(B.n, gb),
-                               np.int64(len(ga)), np.int64(len(gb)))
-    if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
-        return None
-    # the overlap's 4-components, its padded background's 8-components (ndimage.label's numbers)
-    # and the overlaps that reach the outside, in one compiled pass
-    no, blab, nbl, n_out = overlap_holes(o)
-    if no != npairs:  # some pair overlaps in more than one piece: a handle
-        return None
-    ext = blab[0, 0]
-    if n_out != no:  # an overlap inside a hole of another
-        return None
-    holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
-
-    def where(S, comps):
-        at = {}
+    # each hole of the group's components by its first pixel (raster order) in the padded box: the
+    # background label there says which hole of the overlap holds it
+    held, qy, qx = [], [], []
+    for side, S, comps in ((0, A, ga), (1, B, gb)):
         for c in comps:
             csl, masks = S.hole_masks[c]
             for h in range(len(masks)):
-                y, x = masks.first_pixel(h)  # its first pixel (raster order)
-                lab = int(blab[y + csl[0].start - y0 + 1, x + csl[1].start - x0 + 1])
-                at.setdefault(lab, []).append((c, h))
-        return at
-
-    wa, wb = where(A, ga), where(B, gb)
+                y, x = masks.first_pixel(h)
+                held.append((side, c, h))
+                qy.append(y + csl[0].start - y0 + 1)
+                qx.append(x + csl[1].start - x0 + 1)
+    # in one compiled pass: how many pairs of components overlap, the overlap's 4-components, its
+    # padded background's 8-components (ndimage.label's numbers, read at the holes' pixels) and the
+    # overlaps that reach the outside
+    # (from the two slices' runs in the box's rows where both keep them: the same numbers, the label
+    # images not read)
+    ra, rb = A.kept_runs(), B.kept_runs()
+    lut_a, lut_b, qy, qx = _group_lut(A.n, ga), _group_lut(B.n, gb), np.array(qy, np.int64), np.array(qx, np.int64)
+    if ra is not None and rb is not None:
+        npairs, no, labs, nbl, n_out, ext = _overlap_plan_runs(
+            ra, rb, np.int64(y0), np.int64(y1), np.int64(x0), np.int64(x1), lut_a, lut_b, np.int64(len(ga)),
+            np.int64(len(gb)), qy, qx, np.int64(1))
+    else:
+        npairs, no, labs, nbl, n_out, ext = _overlap_plan(
+            A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], lut_a, lut_b, np.int64(len(ga)), np.int64(len(gb)), qy, qx,
+            np.int64(1))
+    if npairs != len(ga) + len(gb) - 1:  # the overlaps close a loop: a handle forms here
+        return None
+    if no != npairs:  # some pair overlaps in more than one piece: a handle
+        return None
+    if n_out != no:  # an overlap inside a hole of another
+        return None
+    holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
+    wa, wb = {}, {}
+    for (side, c, h), lab in zip(held, labs.tolist()):
+        (wb if side else wa).setdefault(lab, []).append((c, h))
     # holes open to the outside of the overlap (a handle ends between the slices): keyholes
     open_a, open_b = wa.pop(ext, []), wb.pop(ext, [])
     if any(len(v) > 1 for v in wa.values()) or any(len(v) > 1 for v in wb.values()):
@@ -3043,6 +3053,116 @@ def _overlap_pairs(la, lb, lut_a, lut_b, na, nb):  # pragma: no cover (compiled)
                 seen[a, b] = True
                 npairs += 1
     return o, npairs
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _overlap_plan(la, lb, lut_a, lut_b, na, nb, ys, xs, one):  # pragma: no cover (compiled)
+    """What :func:`_bridge_plan` reads of a group's overlap, in one pass over its box (``la``,
+    ``lb``, ``lut_a``, ``lut_b``, ``na``, ``nb`` as for :func:`_overlap_pairs`; ``one`` is 1):
+    ``(npairs, n, labels, nb, n_out, ext)``, the number of pairs of components that overlap and,
+    where they form no loop (``npairs == na + nb - 1``; else ``n`` is -1 and the rest empty or 0),
+    :func:`contourmesh.tracing.overlap_hole_labels` of the overlap at the padded pixels
+    ``(ys[i], xs[i])``.  The overlap's runs are taken as its pixels are found, so no mask of it
+    is made, nor its background's labels painted: the same numbers as ``_overlap_pairs`` and
+    ``overlap_holes`` of its mask (as the tests check)."""
+    h, w = la.shape
+    seen = np.zeros((na, nb), np.bool_)
+    npairs = 0
+    cap = h * ((w + 1) // 2)
+    ox0 = np.empty(cap, np.int64)
+    ox1 = np.empty(cap, np.int64)
+    ors = np.empty(h + 1, np.int64)
+    nr = 0
+    for y in range(h):
+        ors[y] = nr
+        open_ = False
+        for x in range(w):
+            a = lut_a[la[y, x]]
+            b = lut_b[lb[y, x]]
+            if a >= 0 and b >= 0:
+                if not seen[a, b]:
+                    seen[a, b] = True
+                    npairs += 1
+                if not open_:
+                    ox0[nr] = x
+                    open_ = True
+            elif open_:
+                ox1[nr] = x
+                nr += 1
+                open_ = False
+        if open_:
+            ox1[nr] = w
+            nr += 1
+    ors[h] = nr
+    if npairs != na + nb - 1:
+        return npairs, one - 2, np.empty(0, np.int64), one - one, one - one, one - one
+    no, labels, nbl, n_out, ext = _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one)
+    return npairs, no, labels, nbl, n_out, ext
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _overlap_plan_runs(ra, rb, y0, y1, x0, x1, lut_a, lut_b, na, nb, ys, xs, one):  # pragma: no cover (compiled)
+    """:func:`_overlap_plan` of the box ``y0 .. y1 - 1``, ``x0 .. x1 - 1`` from the two slices' runs
+    (``(4, n)`` ``[row, first column, end column, component]``, raster order, whole-image
+    coordinates: ``_Slice.kept_runs``; the luts indexed by component + 1) rather than their label
+    images: the overlap's runs in a row are where a run of the group below meets one of the group
+    above (the runs of a row taken in increasing order from both sides, each step past the one
+    that ends first), two that touch made one; the same numbers."""
+    n_a, n_b = ra.shape[1], rb.shape[1]
+    i, j = _first_row_run(ra, y0), _first_row_run(rb, y0)
+    i1, j1 = _first_row_run(ra, y1), _first_row_run(rb, y1)
+    h, w = y1 - y0, x1 - x0
+    seen = np.zeros((na, nb), np.bool_)
+    npairs = 0
+    cap = (i1 - i) + (j1 - j) + 1
+    ox0 = np.empty(cap, np.int64)
+    ox1 = np.empty(cap, np.int64)
+    ors = np.empty(h + 1, np.int64)
+    nr = 0
+    for y in range(h):
+        ors[y] = nr
+        yy = y0 + y
+        while i < n_a and j < n_b and ra[0, i] == yy and rb[0, j] == yy:
+            a = lut_a[np.int64(ra[3, i]) + 1]
+            b = lut_b[np.int64(rb[3, j]) + 1]
+            lo = max(max(np.int64(ra[1, i]), np.int64(rb[1, j])), x0)
+            hi = min(min(np.int64(ra[2, i]), np.int64(rb[2, j])), x1)
+            if a >= 0 and b >= 0 and lo < hi:
+                if not seen[a, b]:
+                    seen[a, b] = True
+                    npairs += 1
+                if nr > ors[y] and ox1[nr - 1] == lo - x0:
+                    ox1[nr - 1] = hi - x0
+                else:
+                    ox0[nr] = lo - x0
+                    ox1[nr] = hi - x0
+                    nr += 1
+            if ra[2, i] <= rb[2, j]:
+                i += 1
+            else:
+                j += 1
+        while i < n_a and ra[0, i] == yy:
+            i += 1
+        while j < n_b and rb[0, j] == yy:
+            j += 1
+    ors[h] = nr
+    if npairs != na + nb - 1:
+        return npairs, one - 2, np.empty(0, np.int64), one - one, one - one, one - one
+    no, labels, nbl, n_out, ext = _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one)
+    return npairs, no, labels, nbl, n_out, ext
+
+
+@njit(cache=True, inline="always", **KERNEL_OPTIONS)
+def _first_row_run(r, y):  # pragma: no cover (compiled)
+    """The first of the runs ``r`` (raster order) in row ``y`` or after it."""
+    lo, hi = 0, r.shape[1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if r[0, mid] < y:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 #: Largest ``n^2 m`` for which a twisted bridged band is replaced by the optimal band (else by the
@@ -3429,8 +3549,14 @@ def _exact_area(slices, zs, k, ga, gb, pixel_area, perimeters=None):
     sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
     box = np.s_[min(s[0].start for s in sl):max(s[0].stop for s in sl),
                 min(s[1].start for s in sl):max(s[1].stop for s in sl)]
-    # (np.count_nonzero(label_mask(A's box, ga) ^ label_mask(B's box, gb)), compiled)
-    only = _count_one_side(A.labels[box], B.labels[box], _group_lut(A.n, ga), _group_lut(B.n, gb))
+    # (np.count_nonzero(label_mask(A's box, ga) ^ label_mask(B's box, gb)), compiled: from the two
+    # slices' runs in the box's rows where both keep them, else from the box's label pixels)
+    ra, rb = A.kept_runs(), B.kept_runs()
+    if ra is not None and rb is not None:
+        only = _count_one_side_runs(ra, rb, np.int64(box[0].start), np.int64(box[0].stop), np.int64(box[1].start),
+                                    np.int64(box[1].stop), _group_lut(A.n, ga), _group_lut(B.n, gb))
+    else:
+        only = _count_one_side(A.labels[box], B.labels[box], _group_lut(A.n, ga), _group_lut(B.n, gb))
     return collars * h + float(only) * pixel_area
 
 
@@ -3499,6 +3625,39 @@ def _count_one_side(la, lb, lut_a, lut_b):  # pragma: no cover (compiled)
     return count
 
 
+@njit(cache=True, **KERNEL_OPTIONS)
+def _count_one_side_runs(ra, rb, y0, y1, x0, x1, lut_a, lut_b):  # pragma: no cover (compiled)
+    """:func:`_count_one_side` of the box ``y0 .. y1 - 1``, ``x0 .. x1 - 1`` from the two slices'
+    runs (``_Slice.kept_runs``; the luts indexed by component + 1): the pixels of the group below
+    and of the group above in the box, less twice those of both (where a run of one meets a run of
+    the other, the runs of a row taken in increasing order from both sides)."""
+    count = 0
+    i, i1 = _first_row_run(ra, y0), _first_row_run(ra, y1)
+    for r in range(i, i1):
+        if lut_a[np.int64(ra[3, r]) + 1] >= 0:
+            count += max(min(np.int64(ra[2, r]), x1) - max(np.int64(ra[1, r]), x0), 0)
+    j, j1 = _first_row_run(rb, y0), _first_row_run(rb, y1)
+    for r in range(j, j1):
+        if lut_b[np.int64(rb[3, r]) + 1] >= 0:
+            count += max(min(np.int64(rb[2, r]), x1) - max(np.int64(rb[1, r]), x0), 0)
+    while i < i1 and j < j1:
+        if ra[0, i] < rb[0, j]:
+            i += 1
+        elif rb[0, j] < ra[0, i]:
+            j += 1
+        else:
+            if lut_a[np.int64(ra[3, i]) + 1] >= 0 and lut_b[np.int64(rb[3, j]) + 1] >= 0:
+                lo = max(max(np.int64(ra[1, i]), np.int64(rb[1, j])), x0)
+                hi = min(min(np.int64(ra[2, i]), np.int64(rb[2, j])), x1)
+                if lo < hi:
+                    count -= 2 * (hi - lo)
+            if ra[2, i] <= rb[2, j]:
+                i += 1
+            else:
+                j += 1
+    return count
+
+
 def _ring_edges(s, poly):
     """Every edge of slice ``s``'s rings ``poly(c, h)`` (each component's outer ring, then its
     holes), as two ``(e, 2)`` arrays of end points: ``np.concatenate`` of the rings and of their
@@ -3562,7 +3721,8 @@ def _ring_boxes(s):
     """Per component of slice ``s``, the box ``(lo, hi)`` (two ``(n, 2)`` arrays) of all its rings:
     its polygons and its crack rings in physical xy.  The crack rings' corners are integers and
     ``to_xy`` is increasing in each coordinate, so their box is that of their integer corners' box,
-    converted (no crack ring is made): the same numbers as :func:`_ring_boxes_reference`."""
+    converted (no crack ring is made), and that box is the corners of the component's pixel box: the
+    same numbers as :func:`_ring_boxes_reference`."""
     def per_component(rings_of):
         per = [rings_of(c) for c in range(s.n)]  # (each component's rings, asked for once)
         rs = [r for rings in per for r in rings]
@@ -3577,7 +3737,10 @@ def _ring_boxes(s):
 
     if s.n == 0:
         return np.zeros((0, 2)), np.zeros((0, 2))
-    clo, chi = per_component(lambda c: [s.crack_outer_c[c]] + list(s.crack_holes_c[c]))
+    # a component's outer crack ring runs round its pixels' box, corner to corner, and its holes lie
+    # inside: the box of its crack rings' corners is that of its pixels (s.objects), read off it
+    corners = np.array([(sl[1].start, sl[0].start, sl[1].stop, sl[0].stop) for sl in s.objects], dtype=np.int64)
+    clo, chi = np.ascontiguousarray(corners[:, :2]), np.ascontiguousarray(corners[:, 2:])
     plo, phi = per_component(lambda c: [np.asarray(s.outer[c], dtype=np.float64)] + list(s.holes[c]))
     to_xy = s.crack_outer.to_xy
     return np.minimum(to_xy(clo), plo), np.maximum(to_xy(chi), phi)
