@@ -3,9 +3,11 @@ between two rings (the cut found as the q smallest distances of all pairs, not b
 vertex's k nearest), bridge_tree's candidates and straight bridges in one compiled call, and a
 slice's ring edges by one gather.  Random inputs, bit for bit, each comparison seeing both answers."""
 
+import os
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from contourmesh import volumes
 from contourmesh.bands import bridges as B
@@ -125,7 +127,7 @@ def test_tree_kernel_equals_candidates_then_straight_bridges():
     # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test
     # that is not compiled leaves the bridges to the caller
     rng = np.random.default_rng(1120)
-    seen = {"compiled": 0, "python": 0, "whole": 0, "part": 0, "callable": 0}
+    seen = {"compiled": 0, "python": 0, "whole": 0, "part": 0, "callable": 0, "preferred": 0}
     for trial in range(300):
         grid = trial % 2 == 0
         nr = int(rng.integers(2, 8))
@@ -148,16 +150,23 @@ def test_tree_kernel_equals_candidates_then_straight_bridges():
             seen["python"] += 1
             continue
         seen["compiled"] += 1
-        for a, b in zip(got[0], cols):
-            assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
         if allowed is not None and not isinstance(allowed, B._Coverage):
             assert got[1] is None
+            for a, b in zip(got[0], cols):
+                assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
             seen["callable"] += 1
             continue
         want = B._straight_bridges(rings, np.stack(cols[3:], axis=1), owners, oa, ob, avoid, allowed)
         assert got[1] == want
         assert all(type(v) is int for t in got[1] for v in t)
         seen["whole" if len(want) == nr - 1 else "part"] += 1
+        # (some trees with candidates of both kinds: the preference measured only as far as needed)
+        seen["preferred"] += bool(len(cols[0]) and cols[0][0] == 0 and cols[0][-1] == 1)
+        if len(want) == nr - 1:  # the columns, which bridge_tree then does not read, are not made
+            assert got[0] is None
+        else:
+            for a, b in zip(got[0], cols):
+                assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
         # and bridge_tree as a whole, which takes the fused call
         tree = B.bridge_tree(rings, oa, ob, avoid=avoid, owners=owners, allowed=allowed, prefer=prefer)
         assert tree == (want if len(want) == nr - 1 else None)
@@ -383,3 +392,50 @@ def test_tour_ids_and_packed_rings_on_the_lobsters_joins(shared_data, monkeypatc
     monkeypatch.setattr(volumes, "bridge_tree", tree)
     contourmesh.mesh(vol, spacing=spacing)
     assert seen["calls"] > 100 and seen["polyline"] > 0 and seen["packed"] > 100 and seen["pairs"] > 1000, seen
+
+
+@pytest.mark.skipif(not os.environ.get("CONTOURMESH_DATA"), reason="needs the real volumes (CONTOURMESH_DATA)")
+def test_real_trees_equal_candidates_then_straight_bridges(monkeypatch):
+    """Every fused call (_tree_kernel) of a lobster build, which measures a candidate's preference
+    only where the straight loop reaches it, against the two calls it replaces (every preference
+    measured, all seven columns sorted, then the straight loop): the same bridges, and the same
+    columns where the bridges do not join all the rings."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    try:
+        import volume_speed as vs
+
+        vol, sp = vs.make_input("lobster")
+    except Exception as exc:  # pragma: no cover - data missing
+        pytest.skip(f"lobster not available: {exc}")
+    import contourmesh
+
+    calls = []
+    orig = B._tree_kernel
+
+    def wrap(*args):
+        got = orig(*args)
+        calls.append((args, got))
+        return got
+
+    monkeypatch.setattr(B, "_tree_kernel", wrap)
+    contourmesh.mesh(vol, spacing=sp)
+    monkeypatch.setattr(B, "_tree_kernel", orig)
+    seen = {"whole": 0, "part": 0, "preferred": 0}
+    for args, got in calls:
+        cols = B._candidate_kernel(*args[:13])
+        assert got[7] == cols[7]
+        if not cols[7]:
+            continue
+        want = B._straight_kernel(np.stack(cols[3:7], axis=1), *args[:3], *args[13:])
+        assert np.array_equal(got[8], want)
+        whole = len(want) == args[-1] - 1
+        assert got[9] == whole
+        if not whole:
+            for a, b in zip(got[:7], cols[:7]):
+                assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+        seen["whole" if whole else "part"] += 1
+        seen["preferred"] += bool(len(cols[0]) and cols[0][0] == 0 and cols[0][-1] == 1)
+    assert seen["whole"] > 300 and seen["part"] > 10 and seen["preferred"] > 50, seen
