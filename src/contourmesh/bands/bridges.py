@@ -1083,7 +1083,7 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
     if got is MISSING:
         # (the obstacles near the points: the search keeps them all, the same edges in order)
         got = _keyhole_path(ri, rj, W, step, oa, ob, segs, allowed=allowed, used_i=used_i, used_j=used_j,
-                            max_nodes=max_nodes)
+                            max_nodes=max_nodes, near=(oa, ob))
         if got is not None:
             pts = np.array(got[2], dtype=np.float64)
             pts.flags.writeable = False
@@ -1104,7 +1104,7 @@ def _edges_near(points, step, obstacles_a, obstacles_b):
 
 
 def _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, allowed=None,
-                  used_i=(), used_j=(), max_nodes=KEYHOLE_MAX_NODES):
+                  used_i=(), used_j=(), max_nodes=KEYHOLE_MAX_NODES, near=None):
     """The shortest polyline keyhole from ring ``ri`` to ring ``rj`` through ``waypoints``, or None.
 
     Both rings bound the same material, which lies on their left (an outer ring counter-clockwise
@@ -1122,6 +1122,9 @@ def _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *,
     Returns ``(vi, vj, points)``: the end vertices and the ``(m, 2)`` interior points, ``m >= 1``
     (a keyhole that straightens to one segment is returned with its nearest waypoint kept, since
     the straight bridges were tried first).
+
+    ``near``, where given, is :func:`_edges_near` of the rings, the waypoints and the obstacles, as
+    the caller already holds it (:func:`keyhole_path`, whose key it is): not filtered again.
     """
     import heapq
 
@@ -1132,7 +1135,7 @@ def _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *,
     W = np.asarray(waypoints, dtype=np.float64).reshape(-1, 2)
     if len(W) == 0:
         return None
-    oa, ob = _edges_near(np.concatenate([ri, rj, W]), step, obstacles_a, obstacles_b)
+    oa, ob = _edges_near(np.concatenate([ri, rj, W]), step, obstacles_a, obstacles_b) if near is None else near
     segs = _segment_arrays(list(segs))
     m, ni = len(W), len(ri)
     # nodes: waypoints [0, m), ri's vertices [m, m + ni), rj's vertices [m + ni, ...)
