@@ -96,6 +96,27 @@ def test_nearest_kernel_equals_measuring_every_pair():
     assert min(seen.values()) > 20, seen
 
 
+def test_large_ring_pairs_equal_the_kd_tree_query():
+    # the compiled search now takes pairs of rings up to _BRUTE_PAIRS (200 000 pairs of vertices):
+    # rings of hundreds of points, random and on a grid of halves, give the k-d tree's pairs and
+    # distances, bit for bit (the ties the tree decides are the small rings' tests')
+    rng = np.random.default_rng(1160)
+    compiled = 0
+    for trial in range(24):
+        ni, nj = int(rng.integers(150, 700)), int(rng.integers(20, 400))
+        t = np.sort(rng.uniform(0, 2 * np.pi, ni)), np.sort(rng.uniform(0, 2 * np.pi, nj))
+        ri = np.c_[np.cos(t[0]), np.sin(t[0])] * 30.0
+        rj = np.c_[np.cos(t[1]), np.sin(t[1])] * 20.0 + (rng.uniform(45, 60), rng.uniform(-5, 5))
+        if trial % 2:
+            ri, rj = np.round(ri * 2) / 2, np.round(rj * 2) / 2
+        got = B._candidates(ri, rj, B.CANDIDATES)
+        want = B._candidates_reference(ri, rj, B.CANDIDATES)
+        as_set = lambda c: sorted(zip(*(a.tolist() for a in c)))  # noqa: E731
+        assert as_set(got) == as_set(want)
+        compiled += ni * nj > 40000 and ni * nj <= B._BRUTE_PAIRS and B._nearest_kernel(ri, rj, np.int64(12))[3]
+    assert compiled >= 10, compiled
+
+
 def test_later_kernel_equals_the_covered_share():
     # a candidate's preference sampled until decided (_later_kernel) against the covered share of
     # all its samples (_coverage_kernel, then count / n >= share, the form it replaced): random

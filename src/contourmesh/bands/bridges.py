@@ -216,8 +216,10 @@ def _segments_cross_reference(p, q, a, b) -> np.ndarray:
 
 
 #: Largest ``len(ri) * len(rj)`` for which :func:`_candidates` measures every pair in compiled code
-#: (:func:`_nearest_kernel`) rather than querying a k-d tree (faster for such small pairs of rings).
-_BRUTE_PAIRS = 40000
+#: (:func:`_nearest_kernel`) rather than querying a k-d tree: faster up to some 400 000 pairs (two
+#: rings of 400 and 1000 points: 0.56 ms each way), and the whole tree is then searched in one
+#: compiled call (:func:`_candidate_columns`) instead of the Python loop.
+_BRUTE_PAIRS = 200000
 
 
 def _candidates(ri: np.ndarray, rj: np.ndarray, k: int):
