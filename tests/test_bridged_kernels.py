@@ -460,3 +460,42 @@ def test_real_trees_equal_candidates_then_straight_bridges(monkeypatch):
         seen["whole" if whole else "part"] += 1
         seen["preferred"] += bool(len(cols[0]) and cols[0][0] == 0 and cols[0][-1] == 1)
     assert seen["whole"] > 300 and seen["part"] > 10 and seen["preferred"] > 50, seen
+
+
+def _edges_near_reference(points, step, obstacles_a, obstacles_b):
+    """The obstacle edges near the points as the keyhole search filtered them, in numpy (the form
+    :func:`contourmesh.bands.bridges._edges_near` replaced)."""
+    lo, hi = points.min(axis=0) - step, points.max(axis=0) + step
+    oa = np.asarray(obstacles_a, dtype=np.float64)
+    ob = np.asarray(obstacles_b, dtype=np.float64)
+    keep = ((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
+            & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
+    return oa[keep], ob[keep]
+
+
+def test_edges_near_equal_the_numpy_masks():
+    # the keyhole search's obstacles near its points (compiled) against the numpy masks: random
+    # points and edges, on a grid of halves (edges touching the box exactly), signed zeros, NaN and
+    # infinite coordinates in the points and in the edges, no edges at all
+    rng = np.random.default_rng(11603)
+    seen = {"some": 0, "none": 0, "all": 0, "nan": 0}
+    for trial in range(1500):
+        pts = rng.normal(size=(int(rng.integers(1, 30)), 2)) * 3
+        e = int(rng.integers(0, 60)) if trial % 50 else 0
+        oa = rng.normal(size=(e, 2)) * 8
+        ob = oa + rng.normal(size=(e, 2)) * float(rng.choice([0.5, 3.0]))
+        if trial % 3 == 0:
+            pts, oa, ob = np.round(pts * 2) / 2, np.round(oa * 2) / 2, np.round(ob * 2) / 2
+            oa[oa == 0] = -0.0
+        step = float(rng.choice([0.0, 0.5, 1.0, 1.5]))
+        if trial % 7 == 1 and e:
+            (oa if trial % 2 else ob)[int(rng.integers(0, e)), int(rng.integers(0, 2))] = rng.choice([np.nan, np.inf, -np.inf])
+        if trial % 11 == 2:
+            pts[int(rng.integers(0, len(pts))), int(rng.integers(0, 2))] = rng.choice([np.nan, np.inf, -np.inf])
+            seen["nan"] += 1
+        got = B._edges_near(pts, step, oa, ob)
+        want = _edges_near_reference(pts, step, oa, ob)
+        for g, w in zip(got, want):
+            assert g.dtype == w.dtype and g.shape == w.shape and g.tobytes() == w.tobytes()
+        seen["none" if len(want[0]) == 0 else "all" if len(want[0]) == e else "some"] += 1
+    assert min(seen.values()) >= 10, seen

@@ -1096,13 +1096,48 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
 
 def _edges_near(points, step, obstacles_a, obstacles_b):
     """The obstacle edges (as two float64 arrays, in order) whose box meets the box of ``points``
-    grown by ``step`` on every side: those :func:`_keyhole_path` tests."""
-    lo, hi = points.min(axis=0) - step, points.max(axis=0) + step
-    oa = np.asarray(obstacles_a, dtype=np.float64)
-    ob = np.asarray(obstacles_b, dtype=np.float64)
-    keep = ((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
-            & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
-    return oa[keep], ob[keep]
+    grown by ``step`` on every side: those :func:`_keyhole_path` tests.  In compiled code
+    (:func:`_edges_near_kernel`)."""
+    return _edges_near_kernel(np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2), float(step),
+                              np.ascontiguousarray(obstacles_a, dtype=np.float64).reshape(-1, 2),
+                              np.ascontiguousarray(obstacles_b, dtype=np.float64).reshape(-1, 2))
+
+
+@njit(cache=True, nogil=True)
+def _edges_near_kernel(points, step, oa, ob):  # pragma: no cover (compiled)
+    """:func:`_edges_near` edge by edge, as numpy found them: ``lo, hi = points.min(axis=0) - step,
+    points.max(axis=0) + step`` and the edges with ``np.maximum(a, b) >= lo`` and ``np.minimum(a, b)
+    <= hi`` in both coordinates.  A NaN is taken on as numpy takes it: a NaN point leaves no edge,
+    an edge with a NaN end is left out (its maximum and minimum are NaN); a zero's sign does not
+    change a comparison."""
+    m = oa.shape[0]
+    keep = np.empty(m, np.int64)
+    k = 0
+    if points.shape[0] == 0:  # (numpy's min of nothing raises)
+        raise ValueError("zero-size array to reduction operation minimum which has no identity")
+    lo0, lo1, hi0, hi1 = np.inf, np.inf, -np.inf, -np.inf
+    nan = False
+    for t in range(points.shape[0]):
+        x, y = points[t, 0], points[t, 1]
+        if x != x or y != y:
+            nan = True
+            break
+        lo0, hi0 = min(lo0, x), max(hi0, x)
+        lo1, hi1 = min(lo1, y), max(hi1, y)
+    if not nan:
+        lo0, lo1, hi0, hi1 = lo0 - step, lo1 - step, hi0 + step, hi1 + step
+        for e in range(m):
+            ax, ay, bx, by = oa[e, 0], oa[e, 1], ob[e, 0], ob[e, 1]
+            if ax != ax or ay != ay or bx != bx or by != by:
+                continue
+            if max(ax, bx) >= lo0 and min(ax, bx) <= hi0 and max(ay, by) >= lo1 and min(ay, by) <= hi1:
+                keep[k] = e
+                k += 1
+    a = np.empty((k, 2))
+    b = np.empty((k, 2))
+    for t in range(k):
+        a[t, 0], a[t, 1], b[t, 0], b[t, 1] = oa[keep[t], 0], oa[keep[t], 1], ob[keep[t], 0], ob[keep[t], 1]
+    return a, b
 
 
 def _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, allowed=None,
