@@ -1627,6 +1627,22 @@ def _clear_kernel(px, py, qx, qy, corners, has_p, has_q, oa, ob, sa, sb, left):
     lox, hix = min(px, qx), max(px, qx)
     loy, hiy = min(py, qy), max(py, qy)
     has = (has_p, has_q)
+    # leave each ring outward: the direction must not lie inside the ring's interior angle (tested
+    # first: it reads the two corners only, and a candidate it refuses needs no scan of the edges)
+    for t in range(2):
+        if has[t] == 0:
+            continue
+        if t == 0:
+            dx, dy = qx - px, qy - py
+        else:
+            dx, dy = px - qx, py - qy
+        a0, a1 = corners[t, 0, 0], corners[t, 0, 1]
+        c0, c1 = corners[t, 1, 0], corners[t, 1, 1]
+        b0, b1 = corners[t, 2, 0], corners[t, 2, 1]
+        if left:  # the left of a ring is the right of the reversed ring
+            a0, a1, b0, b1 = b0, b1, a0, a1
+        if not _outside_corner_k(a0, a1, c0, c1, b0, b1, dx, dy):
+            return False
     for e in range(oa.shape[0]):
         ax, ay, bx, by = oa[e, 0], oa[e, 1], ob[e, 0], ob[e, 1]
         if not (max(ax, bx) >= lox and min(ax, bx) <= hix and max(ay, by) >= loy and min(ay, by) <= hiy):
@@ -1649,21 +1665,6 @@ def _clear_kernel(px, py, qx, qy, corners, has_p, has_q, oa, ob, sa, sb, left):
         # another edge may pass through p or q only as one of the incident edges
         if _same_point(ax, ay, px, py) or _same_point(bx, by, px, py) or _same_point(ax, ay, qx, qy) \
                 or _same_point(bx, by, qx, qy):
-            return False
-    # leave each ring outward: the direction must not lie inside the ring's interior angle
-    for t in range(2):
-        if has[t] == 0:
-            continue
-        if t == 0:
-            dx, dy = qx - px, qy - py
-        else:
-            dx, dy = px - qx, py - qy
-        a0, a1 = corners[t, 0, 0], corners[t, 0, 1]
-        c0, c1 = corners[t, 1, 0], corners[t, 1, 1]
-        b0, b1 = corners[t, 2, 0], corners[t, 2, 1]
-        if left:  # the left of a ring is the right of the reversed ring
-            a0, a1, b0, b1 = b0, b1, a0, a1
-        if not _outside_corner_k(a0, a1, c0, c1, b0, b1, dx, dy):
             return False
     for e in range(sa.shape[0]):
         if _cross1(px, py, qx, qy, sa[e, 0], sa[e, 1], sb[e, 0], sb[e, 1]):
