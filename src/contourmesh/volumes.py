@@ -3541,9 +3541,12 @@ class _RingBlocks:
         s = self.s
         for c in self.crack.symmetric_difference(crack):
             if c in crack:
-                self.a[c], self.b[c] = _rings_and_next(
-                    [np.asarray(r, dtype=np.float64).reshape(-1, 2)
-                     for r in [s.crack_outer[c]] + [s.crack_holes[c][h] for h in range(len(s.holes[c]))]])
+                rs = [np.asarray(r, dtype=np.float64).reshape(-1, 2)
+                      for r in [s.crack_outer[c]] + [s.crack_holes[c][h] for h in range(len(s.holes[c]))]]
+                # (each ring's successors: the ring from its second point on, then its first; the
+                # block is copied into the slice's edges, so one ring is used as it is)
+                self.a[c] = rs[0] if len(rs) == 1 else np.concatenate(rs)
+                self.b[c] = np.concatenate([x for r in rs for x in (r[1:], r[:1])])
             else:
                 self.a[c], self.b[c] = self.poly_a[c], self.poly_b[c]
         self.crack = set(crack)
