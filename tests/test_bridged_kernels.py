@@ -3,9 +3,11 @@ between two rings (the cut found as the q smallest distances of all pairs, not b
 vertex's k nearest), bridge_tree's candidates and straight bridges in one compiled call, and a
 slice's ring edges by one gather.  Random inputs, bit for bit, each comparison seeing both answers."""
 
+import os
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from contourmesh import volumes
 from contourmesh.bands import bridges as B
@@ -94,6 +96,27 @@ def test_nearest_kernel_equals_measuring_every_pair():
     assert min(seen.values()) > 20, seen
 
 
+def test_large_ring_pairs_equal_the_kd_tree_query():
+    # the compiled search now takes pairs of rings up to _BRUTE_PAIRS (200 000 pairs of vertices):
+    # rings of hundreds of points, random and on a grid of halves, give the k-d tree's pairs and
+    # distances, bit for bit (the ties the tree decides are the small rings' tests')
+    rng = np.random.default_rng(1160)
+    compiled = 0
+    for trial in range(24):
+        ni, nj = int(rng.integers(150, 700)), int(rng.integers(20, 400))
+        t = np.sort(rng.uniform(0, 2 * np.pi, ni)), np.sort(rng.uniform(0, 2 * np.pi, nj))
+        ri = np.c_[np.cos(t[0]), np.sin(t[0])] * 30.0
+        rj = np.c_[np.cos(t[1]), np.sin(t[1])] * 20.0 + (rng.uniform(45, 60), rng.uniform(-5, 5))
+        if trial % 2:
+            ri, rj = np.round(ri * 2) / 2, np.round(rj * 2) / 2
+        got = B._candidates(ri, rj, B.CANDIDATES)
+        want = B._candidates_reference(ri, rj, B.CANDIDATES)
+        as_set = lambda c: sorted(zip(*(a.tolist() for a in c)))  # noqa: E731
+        assert as_set(got) == as_set(want)
+        compiled += ni * nj > 40000 and ni * nj <= B._BRUTE_PAIRS and B._nearest_kernel(ri, rj, np.int64(12))[3]
+    assert compiled >= 10, compiled
+
+
 def test_later_kernel_equals_the_covered_share():
     # a candidate's preference sampled until decided (_later_kernel) against the covered share of
     # all its samples (_coverage_kernel, then count / n >= share, the form it replaced): random
@@ -125,7 +148,7 @@ def test_tree_kernel_equals_candidates_then_straight_bridges():
     # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test
     # that is not compiled leaves the bridges to the caller
     rng = np.random.default_rng(1120)
-    seen = {"compiled": 0, "python": 0, "whole": 0, "part": 0, "callable": 0}
+    seen = {"compiled": 0, "python": 0, "whole": 0, "part": 0, "callable": 0, "preferred": 0}
     for trial in range(300):
         grid = trial % 2 == 0
         nr = int(rng.integers(2, 8))
@@ -148,16 +171,23 @@ def test_tree_kernel_equals_candidates_then_straight_bridges():
             seen["python"] += 1
             continue
         seen["compiled"] += 1
-        for a, b in zip(got[0], cols):
-            assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
         if allowed is not None and not isinstance(allowed, B._Coverage):
             assert got[1] is None
+            for a, b in zip(got[0], cols):
+                assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
             seen["callable"] += 1
             continue
         want = B._straight_bridges(rings, np.stack(cols[3:], axis=1), owners, oa, ob, avoid, allowed)
         assert got[1] == want
         assert all(type(v) is int for t in got[1] for v in t)
         seen["whole" if len(want) == nr - 1 else "part"] += 1
+        # (some trees with candidates of both kinds: the preference measured only as far as needed)
+        seen["preferred"] += bool(len(cols[0]) and cols[0][0] == 0 and cols[0][-1] == 1)
+        if len(want) == nr - 1:  # the columns, which bridge_tree then does not read, are not made
+            assert got[0] is None
+        else:
+            for a, b in zip(got[0], cols):
+                assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
         # and bridge_tree as a whole, which takes the fused call
         tree = B.bridge_tree(rings, oa, ob, avoid=avoid, owners=owners, allowed=allowed, prefer=prefer)
         assert tree == (want if len(want) == nr - 1 else None)
@@ -383,3 +413,89 @@ def test_tour_ids_and_packed_rings_on_the_lobsters_joins(shared_data, monkeypatc
     monkeypatch.setattr(volumes, "bridge_tree", tree)
     contourmesh.mesh(vol, spacing=spacing)
     assert seen["calls"] > 100 and seen["polyline"] > 0 and seen["packed"] > 100 and seen["pairs"] > 1000, seen
+
+
+@pytest.mark.skipif(not os.environ.get("CONTOURMESH_DATA"), reason="needs the real volumes (CONTOURMESH_DATA)")
+def test_real_trees_equal_candidates_then_straight_bridges(monkeypatch):
+    """Every fused call (_tree_kernel) of a lobster build, which measures a candidate's preference
+    only where the straight loop reaches it, against the two calls it replaces (every preference
+    measured, all seven columns sorted, then the straight loop): the same bridges, and the same
+    columns where the bridges do not join all the rings."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    try:
+        import volume_speed as vs
+
+        vol, sp = vs.make_input("lobster")
+    except Exception as exc:  # pragma: no cover - data missing
+        pytest.skip(f"lobster not available: {exc}")
+    import contourmesh
+
+    calls = []
+    orig = B._tree_kernel
+
+    def wrap(*args):
+        got = orig(*args)
+        calls.append((args, got))
+        return got
+
+    monkeypatch.setattr(B, "_tree_kernel", wrap)
+    contourmesh.mesh(vol, spacing=sp)
+    monkeypatch.setattr(B, "_tree_kernel", orig)
+    seen = {"whole": 0, "part": 0, "preferred": 0}
+    for args, got in calls:
+        cols = B._candidate_kernel(*args[:13])
+        assert got[7] == cols[7]
+        if not cols[7]:
+            continue
+        want = B._straight_kernel(np.stack(cols[3:7], axis=1), *args[:3], *args[13:])
+        assert np.array_equal(got[8], want)
+        whole = len(want) == args[-1] - 1
+        assert got[9] == whole
+        if not whole:
+            for a, b in zip(got[:7], cols[:7]):
+                assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+        seen["whole" if whole else "part"] += 1
+        seen["preferred"] += bool(len(cols[0]) and cols[0][0] == 0 and cols[0][-1] == 1)
+    assert seen["whole"] > 300 and seen["part"] > 10 and seen["preferred"] > 50, seen
+
+
+def _edges_near_reference(points, step, obstacles_a, obstacles_b):
+    """The obstacle edges near the points as the keyhole search filtered them, in numpy (the form
+    :func:`contourmesh.bands.bridges._edges_near` replaced)."""
+    lo, hi = points.min(axis=0) - step, points.max(axis=0) + step
+    oa = np.asarray(obstacles_a, dtype=np.float64)
+    ob = np.asarray(obstacles_b, dtype=np.float64)
+    keep = ((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
+            & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
+    return oa[keep], ob[keep]
+
+
+def test_edges_near_equal_the_numpy_masks():
+    # the keyhole search's obstacles near its points (compiled) against the numpy masks: random
+    # points and edges, on a grid of halves (edges touching the box exactly), signed zeros, NaN and
+    # infinite coordinates in the points and in the edges, no edges at all
+    rng = np.random.default_rng(11603)
+    seen = {"some": 0, "none": 0, "all": 0, "nan": 0}
+    for trial in range(1500):
+        pts = rng.normal(size=(int(rng.integers(1, 30)), 2)) * 3
+        e = int(rng.integers(0, 60)) if trial % 50 else 0
+        oa = rng.normal(size=(e, 2)) * 8
+        ob = oa + rng.normal(size=(e, 2)) * float(rng.choice([0.5, 3.0]))
+        if trial % 3 == 0:
+            pts, oa, ob = np.round(pts * 2) / 2, np.round(oa * 2) / 2, np.round(ob * 2) / 2
+            oa[oa == 0] = -0.0
+        step = float(rng.choice([0.0, 0.5, 1.0, 1.5]))
+        if trial % 7 == 1 and e:
+            (oa if trial % 2 else ob)[int(rng.integers(0, e)), int(rng.integers(0, 2))] = rng.choice([np.nan, np.inf, -np.inf])
+        if trial % 11 == 2:
+            pts[int(rng.integers(0, len(pts))), int(rng.integers(0, 2))] = rng.choice([np.nan, np.inf, -np.inf])
+            seen["nan"] += 1
+        got = B._edges_near(pts, step, oa, ob)
+        want = _edges_near_reference(pts, step, oa, ob)
+        for g, w in zip(got, want):
+            assert g.dtype == w.dtype and g.shape == w.shape and g.tobytes() == w.tobytes()
+        seen["none" if len(want[0]) == 0 else "all" if len(want[0]) == e else "some"] += 1
+    assert min(seen.values()) >= 10, seen

@@ -281,13 +281,13 @@ def _star(rng, c, r, k, grid):
 
 def random_rings(rng, nr, grid, big=False):
     """``nr`` star-shaped rings and their owners ``(component, is_hole)``: outer rings, and holes
-    (reversed) of an earlier ring's component; with ``big`` the first two have 250 points (beyond
+    (reversed) of an earlier ring's component; with ``big`` the first two have 500 points (beyond
     the compiled candidate search)."""
     rings, owners = [], []
     for r in range(nr):
         hole = r > 0 and rng.random() < 0.4
         comp = owners[int(rng.integers(0, r))][0] if hole else r
-        k = 250 if big and r < 2 else int(rng.integers(3, 14))
+        k = 500 if big and r < 2 else int(rng.integers(3, 14))
         ring = _star(rng, rng.uniform(-6, 6, 2), rng.uniform(0.5, 3), k, grid)
         if len(np.unique(ring, axis=0)) < 3:
             ring = _star(rng, rng.uniform(-6, 6, 2), 2.0, 6, False)

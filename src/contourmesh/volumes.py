@@ -82,6 +82,7 @@ import logging
 from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import accumulate
 
 import numpy as np
 
@@ -3662,8 +3663,13 @@ def _ring_edges(s, poly):
     """Every edge of slice ``s``'s rings ``poly(c, h)`` (each component's outer ring, then its
     holes), as two ``(e, 2)`` arrays of end points: ``np.concatenate`` of the rings and of their
     :func:`_next`, by one gather."""
-    rs = [np.asarray(poly(c, h), dtype=np.float64).reshape(-1, 2) for c in range(s.n)
-          for h in range(-1, len(s.holes[c]))]
+    return _rings_and_next([np.asarray(poly(c, h), dtype=np.float64).reshape(-1, 2) for c in range(s.n)
+                            for h in range(-1, len(s.holes[c]))])
+
+
+def _rings_and_next(rs):
+    """The rings ``rs`` (float64 ``(n_i, 2)`` arrays) concatenated, and each point's successor on its
+    ring (a ring's last point is followed by its first), by one gather."""
     a = np.concatenate(rs) if rs else np.zeros((0, 2))
     lens = np.array([len(r) for r in rs], dtype=np.int64)
     ends = np.cumsum(lens)
@@ -3674,47 +3680,46 @@ def _ring_edges(s, poly):
 
 
 class _RingBlocks:
-    """Per component of a slice, the points of its rings (its outer ring, then its holes)
-    concatenated as float64, and their lengths: its polygons', or its crack rings' once it is
-    crack-only (:meth:`edges`).  The driver's crack-only components only grow within a build, so
-    each component's block is made once or twice, not once per set of crack-only components."""
+    """Per component of a slice, the edges of its rings (its outer ring, then its holes): their
+    points and their successors, as two float64 arrays, of its polygons or of its crack rings once
+    it is crack-only (:meth:`edges`).  The driver's crack-only components only grow within a build,
+    so each component's crack block is made once or twice, not once per set of crack-only
+    components.  The polygons' blocks are made for the whole slice at once (views of its edges,
+    which :meth:`edges` gives where no component is crack-only)."""
 
-    __slots__ = ("s", "pts", "lens", "crack")
+    __slots__ = ("s", "a", "b", "poly_a", "poly_b", "whole", "crack")
 
     def __init__(self, s):
         self.s = s
-        self.pts, self.lens = [], []
-        for c in range(s.n):
-            p, n = self._block([s.outer[c]] + [s.holes[c][h] for h in range(len(s.holes[c]))])
-            self.pts.append(p)
-            self.lens.append(n)
+        rs = [[np.asarray(r, dtype=np.float64).reshape(-1, 2) for r in [s.outer[c]] + [s.holes[c][h]
+               for h in range(len(s.holes[c]))]] for c in range(s.n)]
+        a, b = self.whole = _rings_and_next([r for rings in rs for r in rings])
+        ends = list(accumulate(sum(len(r) for r in rings) for rings in rs))
+        cuts = list(zip([0] + ends[:-1], ends))
+        self.poly_a = [a[i:j] for i, j in cuts]
+        self.poly_b = [b[i:j] for i, j in cuts]
+        self.a, self.b = list(self.poly_a), list(self.poly_b)
         self.crack = set()
-
-    @staticmethod
-    def _block(rings):
-        rs = [np.asarray(r, dtype=np.float64).reshape(-1, 2) for r in rings]
-        return np.concatenate(rs), np.array([len(r) for r in rs], dtype=np.int64)
 
     def edges(self, crack):
         """:func:`_ring_edges` of the slice with the components ``crack`` on their crack rings and
-        the others on their polygons: the same points and ring lengths, concatenated per component
-        (the same arrays, bit for bit)."""
+        the others on their polygons: the same points and successors, concatenated per component
+        (the same arrays, bit for bit; with no crack ring, the slice's edges as first made)."""
         s = self.s
         for c in self.crack.symmetric_difference(crack):
             if c in crack:
-                rings = [s.crack_outer[c]] + [s.crack_holes[c][h] for h in range(len(s.holes[c]))]
+                rs = [np.asarray(r, dtype=np.float64).reshape(-1, 2)
+                      for r in [s.crack_outer[c]] + [s.crack_holes[c][h] for h in range(len(s.holes[c]))]]
+                # (each ring's successors: the ring from its second point on, then its first; the
+                # block is copied into the slice's edges, so one ring is used as it is)
+                self.a[c] = rs[0] if len(rs) == 1 else np.concatenate(rs)
+                self.b[c] = np.concatenate([x for r in rs for x in (r[1:], r[:1])])
             else:
-                rings = [s.outer[c]] + [s.holes[c][h] for h in range(len(s.holes[c]))]
-            self.pts[c], self.lens[c] = self._block(rings)
+                self.a[c], self.b[c] = self.poly_a[c], self.poly_b[c]
         self.crack = set(crack)
-        if not self.pts:
-            return np.zeros((0, 2)), np.zeros((0, 2))
-        a, lens = np.concatenate(self.pts), np.concatenate(self.lens)
-        ends = np.cumsum(lens)
-        nxt = np.arange(1, len(a) + 1)
-        full = lens > 0
-        nxt[ends[full] - 1] = (ends - lens)[full]  # each ring's last point is followed by its first
-        return a, a[nxt]
+        if not self.crack or not self.a:
+            return self.whole
+        return np.concatenate(self.a), np.concatenate(self.b)
 
 
 def _ring_boxes(s):

@@ -216,8 +216,10 @@ def _segments_cross_reference(p, q, a, b) -> np.ndarray:
 
 
 #: Largest ``len(ri) * len(rj)`` for which :func:`_candidates` measures every pair in compiled code
-#: (:func:`_nearest_kernel`) rather than querying a k-d tree (faster for such small pairs of rings).
-_BRUTE_PAIRS = 40000
+#: (:func:`_nearest_kernel`) rather than querying a k-d tree: faster up to some 400 000 pairs (two
+#: rings of 400 and 1000 points: 0.56 ms each way), and the whole tree is then searched in one
+#: compiled call (:func:`_candidate_columns`) instead of the Python loop.
+_BRUTE_PAIRS = 200000
 
 
 def _candidates(ri: np.ndarray, rj: np.ndarray, k: int):
@@ -543,7 +545,8 @@ def _candidate_columns(rings, pairs, owners, prefer, straight=None, packed=None)
     :func:`bridge_tree`: then the result is ``(columns, chosen)``, with ``chosen`` the straight
     bridges of :func:`_straight_bridges` made in the same compiled call (:func:`_tree_kernel`)
     where ``allowed`` is None or a :func:`keyhole_uncovered` test, else None (still None overall
-    where the candidates are left to Python).
+    where the candidates are left to Python).  The columns are None where ``chosen`` joins all
+    the rings (:func:`bridge_tree` then reads no more; the kernel does not make them).
 
     ``packed``, where given, is :func:`_packed_rings` of ``rings`` as the caller already holds it
     (the same arrays: the kernels read those numbers only)."""
@@ -577,7 +580,7 @@ def _candidate_columns(rings, pairs, owners, prefer, straight=None, packed=None)
                        alab, acids, *agrid, allowed is not None, np.int64(len(rings)))
     if not got[7]:
         return None
-    return got[:7], [tuple(row) for row in got[8].tolist()]
+    return (None if got[9] else got[:7]), [tuple(row) for row in got[8].tolist()]
 
 
 @njit(cache=True, nogil=True)
@@ -586,40 +589,121 @@ def _tree_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share
     """:func:`_candidate_kernel` and, where its candidates are all compiled (its eighth value),
     :func:`_straight_kernel` on them, in one call: :func:`bridge_tree`'s candidates and straight
     bridges without the trip through Python between the two.  Returns the candidate kernel's eight
-    values and the straight bridges (rows ``i, vi, j, vj``; none where the eighth value is False)."""
-    lt, d, tie, ci, cvi, cj, cvj, ok = _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy,
-                                                         share)
+    values and the straight bridges (rows ``i, vi, j, vj``; none where the eighth value is False),
+    and whether those join all ``n`` rings: then the seven columns are not made (empty; nothing
+    reads them).
+
+    A candidate's preference (:func:`_later_kernel`, the costly part: it samples the label image
+    along the bridge) is measured only where the straight loop reaches it.  The loop takes the
+    preferred candidates in order, then the others: the rows sorted without the preference (the
+    same order within each kind, as a stable sort keeps it) are walked twice, the preferred ones
+    the first time, the others the second.  A row whose rings are already joined, or whose end
+    is taken, is passed over unmeasured: it would be at its own turn too (the forest only merges,
+    the ends only get taken).  Where the bridges do not join all the rings every preference is
+    measured and the columns made as :func:`_candidate_kernel` makes them."""
+    c_d, c_tie, c_i, c_vi, c_j, c_vj, c_p, ok = _pair_rows(pts, off, lens, pairs, k)
+    total = c_d.shape[0]
+    c_lt = np.zeros(total, np.int64)
     if not ok:
-        return lt, d, tie, ci, cvi, cj, cvj, ok, np.empty((0, 4), np.int64)
-    m = ci.shape[0]
-    c = np.empty((m, 4), np.int64)
-    for t in range(m):
-        c[t, 0], c[t, 1], c[t, 2], c[t, 3] = ci[t], cvi[t], cj[t], cvj[t]
-    chosen = _straight_kernel(c, pts, off, lens, comp, oa, ob, sa0, sb0, alab, acids, aox, aoy, adx, ady,
-                              use_allowed, n)
-    return lt, d, tie, ci, cvi, cj, cvj, ok, chosen
+        for t in range(total):
+            if ask[c_p[t]]:
+                c_lt[t] = _row_later(t, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share)
+        return c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj, ok, np.empty((0, 4), np.int64), False
+    for t in range(total):
+        if ask[c_p[t]]:
+            c_lt[t] = -1  # (not measured yet)
+    order = _lexsort_order(np.zeros(total, np.int64), c_d, c_tie, c_i, c_vi, c_j, c_vj)
+    parent = np.arange(n)
+    used = np.zeros(pts.shape[0], np.bool_)
+    out = np.empty((max(n - 1, 0), 4), np.int64)
+    got = 0
+    ns = sa0.shape[0]
+    sa = np.empty((ns + n, 2))
+    sb = np.empty((ns + n, 2))
+    sa[:ns] = sa0
+    sb[:ns] = sb0
+    corners = np.empty((2, 3, 2))
+    P1 = np.empty((1, 2))
+    Q1 = np.empty((1, 2))
+    for kind in range(2):  # the preferred candidates (c_lt 0), then the others
+        for t in range(total):
+            if got == n - 1:
+                break
+            r = order[t]
+            i, vi, j, vj = c_i[r], c_vi[r], c_j[r], c_vj[r]
+            if _root(parent, i) == _root(parent, j) or used[off[i] + vi] or used[off[j] + vj]:
+                continue
+            if c_lt[r] < 0:
+                c_lt[r] = _row_later(r, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share)
+            if c_lt[r] != kind:
+                continue
+            if not _straight_ok(i, vi, j, vj, pts, off, lens, comp, oa, ob, sa[:ns], sb[:ns], corners, P1, Q1,
+                                alab, acids, aox, aoy, adx, ady, use_allowed):
+                continue
+            parent[_root(parent, i)] = _root(parent, j)
+            used[off[i] + vi] = True
+            used[off[j] + vj] = True
+            out[got, 0], out[got, 1], out[got, 2], out[got, 3] = i, vi, j, vj
+            got += 1
+            sa[ns, 0], sa[ns, 1] = pts[off[i] + vi, 0], pts[off[i] + vi, 1]
+            sb[ns, 0], sb[ns, 1] = pts[off[j] + vj, 0], pts[off[j] + vj, 1]
+            ns += 1
+    if got == n - 1:
+        e = np.empty(0, np.int64)
+        return e, np.empty(0), np.empty(0), e, e, e, e, ok, out[:got], True
+    # the columns as _candidate_kernel makes them: every preference measured; the order sorted by
+    # the preference first, the rest as before (a stable partition of the order without it)
+    for t in range(total):
+        if c_lt[t] < 0:
+            c_lt[t] = _row_later(t, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share)
+    full = np.empty(total, np.int64)
+    m = 0
+    for kind in range(2):
+        for t in range(total):
+            if c_lt[order[t]] == kind:
+                full[m] = order[t]
+                m += 1
+    return (c_lt[full], c_d[full], c_tie[full], c_i[full], c_vi[full], c_j[full], c_vj[full], ok, out[:got],
+            False)
 
 
 @njit(cache=True, nogil=True)
 def _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share):
     """The loop of :func:`bridge_tree` over the pairs of rings (``pts[off[r]: off[r] + lens[r]]``)
-    and :func:`_candidate_arrays` in one: per pair :func:`_nearest_kernel` and :func:`_tie_kernel`,
-    the preference where ``ask`` (:func:`_coverage_kernel`'s covered share at least ``share``),
-    lengths and tie-breaks rounded (:func:`_round9_kernel`), and the rows sorted as ``np.lexsort``
-    sorts them (a stable sort per key, the last key first).  The eighth value is False where
+    and :func:`_candidate_arrays` in one: per pair :func:`_nearest_kernel` and :func:`_tie_kernel`
+    (:func:`_pair_rows`), the preference where ``ask`` (:func:`_coverage_kernel`'s covered share at
+    least ``share``), lengths and tie-breaks rounded (:func:`_round9_kernel`), and the rows sorted
+    as ``np.lexsort`` sorts them (:func:`_lexsort_order`).  The eighth value is False where
     :func:`_candidates` or :func:`_round9` would hand something to Python: the caller then takes
     the Python loop."""
+    c_d, c_tie, c_i, c_vi, c_j, c_vj, c_p, ok = _pair_rows(pts, off, lens, pairs, k)
+    total = c_d.shape[0]
+    c_lt = np.zeros(total, np.int64)
+    for t in range(total):
+        if ask[c_p[t]]:  # (the preference of each candidate: _later_kernel)
+            c_lt[t] = _row_later(t, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share)
+    order = _lexsort_order(c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj) if ok else np.arange(total)
+    return (c_lt[order], c_d[order], c_tie[order], c_i[order], c_vi[order], c_j[order], c_vj[order], ok)
+
+
+@njit(cache=True, nogil=True)
+def _pair_rows(pts, off, lens, pairs, k):  # pragma: no cover (compiled)
+    """The candidates of :func:`_candidate_kernel` before their preference and their order: per
+    pair of rings (rows of ``pairs``) :func:`_nearest_kernel` and :func:`_tie_kernel`, as columns
+    ``d, tie, i, vi, j, vj`` and the pair of each row, lengths and tie-breaks rounded
+    (:func:`_round9_kernel`); the last value False where :func:`_candidates` or :func:`_round9`
+    would hand something to Python (then the rows stop at that pair, nothing rounded)."""
     np_ = pairs.shape[0]
     cap = 0  # (a pair has at most min(k, len(ri)) candidates per vertex of rj)
     for p in range(np_):
         cap += lens[pairs[p, 1]] * min(k, lens[pairs[p, 0]])
-    c_lt = np.zeros(cap, np.int64)
     c_d = np.empty(cap)
     c_tie = np.empty(cap)
     c_i = np.empty(cap, np.int64)
     c_vi = np.empty(cap, np.int64)
     c_j = np.empty(cap, np.int64)
     c_vj = np.empty(cap, np.int64)
+    c_p = np.empty(cap, np.int64)
     total = 0
     ok = True
     for p in range(np_):
@@ -635,13 +719,10 @@ def _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, 
         for t in range(m):
             c_d[total + t], c_tie[total + t] = d[t], tie[t]
             c_i[total + t], c_vi[total + t], c_j[total + t], c_vj[total + t] = i, vi[t], j, vj[t]
-        if ask[p]:  # (the preference of each candidate: _later_kernel)
-            for t in range(m):
-                c_lt[total + t] = _later_kernel(ri[vi[t], 0], ri[vi[t], 1], rj[vj[t], 0], rj[vj[t], 1], lab, cids,
-                                                ox, oy, dx, dy, share)
+            c_p[total + t] = p
         total += m
-    c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj = c_lt[:total], c_d[:total], c_tie[:total], c_i[:total], \
-        c_vi[:total], c_j[:total], c_vj[:total]
+    c_d, c_tie, c_i, c_vi, c_j, c_vj, c_p = c_d[:total], c_tie[:total], c_i[:total], c_vi[:total], \
+        c_j[:total], c_vj[:total], c_p[:total]
     for t in range(total):
         if np.isnan(c_d[t]) or np.isnan(c_tie[t]):
             ok = False
@@ -649,36 +730,49 @@ def _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, 
         c_d, bad_d = _round9_kernel(c_d)
         c_tie, bad_tie = _round9_kernel(c_tie)
         ok = bad_d.shape[0] == 0 and bad_tie.shape[0] == 0
-    # the order of np.lexsort((vj, j, vi, i, tie, d, lt)): a stable merge sort on the seven keys
+    return c_d, c_tie, c_i, c_vi, c_j, c_vj, c_p, ok
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _row_later(t, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share):  # pragma: no cover
+    """:func:`_later_kernel` of candidate row ``t`` (its ends ``pts[off[i] + vi]``, ``pts[off[j] + vj]``)."""
+    a, b = off[c_i[t]] + c_vi[t], off[c_j[t]] + c_vj[t]
+    return _later_kernel(pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1], lab, cids, ox, oy, dx, dy, share)
+
+
+@njit(cache=True, nogil=True)
+def _lexsort_order(c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj):  # pragma: no cover (compiled)
+    """The order of ``np.lexsort((vj, j, vi, i, tie, d, lt))`` (no NaN): a stable merge sort on the
+    seven keys."""
+    total = c_d.shape[0]
     order = np.arange(total)
-    if ok:
-        tmp = np.empty(total, np.int64)
-        width = 1
-        while width < total:
-            for lo in range(0, total, 2 * width):
-                mid, hi = min(lo + width, total), min(lo + 2 * width, total)
-                a, b, t = lo, mid, lo
-                while a < mid and b < hi:
-                    x, y = order[a], order[b]
-                    # y before x only where its keys are smaller (equal keys keep their order)
-                    if _key_less(y, x, c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj):
-                        tmp[t] = y
-                        b += 1
-                    else:
-                        tmp[t] = x
-                        a += 1
-                    t += 1
-                while a < mid:
-                    tmp[t] = order[a]
-                    a += 1
-                    t += 1
-                while b < hi:
-                    tmp[t] = order[b]
+    tmp = np.empty(total, np.int64)
+    width = 1
+    while width < total:
+        for lo in range(0, total, 2 * width):
+            mid, hi = min(lo + width, total), min(lo + 2 * width, total)
+            a, b, t = lo, mid, lo
+            while a < mid and b < hi:
+                x, y = order[a], order[b]
+                # y before x only where its keys are smaller (equal keys keep their order)
+                if _key_less(y, x, c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj):
+                    tmp[t] = y
                     b += 1
-                    t += 1
-            order, tmp = tmp, order
-            width *= 2
-    return (c_lt[order], c_d[order], c_tie[order], c_i[order], c_vi[order], c_j[order], c_vj[order], ok)
+                else:
+                    tmp[t] = x
+                    a += 1
+                t += 1
+            while a < mid:
+                tmp[t] = order[a]
+                a += 1
+                t += 1
+            while b < hi:
+                tmp[t] = order[b]
+                b += 1
+                t += 1
+        order, tmp = tmp, order
+        width *= 2
+    return order
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -765,6 +859,8 @@ def bridge_tree(rings, obstacles_a, obstacles_b, *, avoid=None, owners=None, all
                                  packed=packed)
         if got is not None:
             cols, chosen = got
+            if cols is None:  # (the straight bridges join them all)
+                return chosen
     if cols is None:
         parts = []  # per pair of rings: (not preferred, length, tie-break, i, vi, j, vj) as arrays
         for i, j in pairs:
@@ -906,31 +1002,45 @@ def _straight_kernel(c, pts, off, lens, comp, oa, ob, sa0, sb0, lab, cids, ox, o
         i, vi, j, vj = c[t, 0], c[t, 1], c[t, 2], c[t, 3]
         if _root(parent, i) == _root(parent, j) or used[off[i] + vi] or used[off[j] + vj]:
             continue
-        for e in range(2):
-            r, v = (i, vi) if e == 0 else (j, vj)
-            m = lens[r]
-            for u in range(3):
-                w = off[r] + (v - 1 + u) % m
-                corners[e, u, 0] = pts[w, 0]
-                corners[e, u, 1] = pts[w, 1]
-        px, py = pts[off[i] + vi, 0], pts[off[i] + vi, 1]
-        qx, qy = pts[off[j] + vj, 0], pts[off[j] + vj, 1]
-        through = comp[i] == comp[j]
-        if not _clear_kernel(px, py, qx, qy, corners, np.int64(1), np.int64(1), oa, ob, sa[:ns], sb[:ns], through):
+        if not _straight_ok(i, vi, j, vj, pts, off, lens, comp, oa, ob, sa[:ns], sb[:ns], corners, P1, Q1,
+                            lab, cids, ox, oy, dx, dy, use_allowed):
             continue
-        if through and use_allowed:
-            P1[0, 0], P1[0, 1], Q1[0, 0], Q1[0, 1] = px, py, qx, qy
-            count, _ = _coverage_kernel(P1, Q1, lab, cids, ox, oy, dx, dy)
-            if count[0] != 0:
-                continue
         parent[_root(parent, i)] = _root(parent, j)
         used[off[i] + vi] = True
         used[off[j] + vj] = True
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = i, vi, j, vj
         k += 1
-        sa[ns, 0], sa[ns, 1], sb[ns, 0], sb[ns, 1] = px, py, qx, qy
+        sa[ns, 0], sa[ns, 1] = pts[off[i] + vi, 0], pts[off[i] + vi, 1]
+        sb[ns, 0], sb[ns, 1] = pts[off[j] + vj, 0], pts[off[j] + vj, 1]
         ns += 1
     return out[:k]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _straight_ok(i, vi, j, vj, pts, off, lens, comp, oa, ob, sa, sb, corners, P1, Q1, lab, cids, ox, oy, dx, dy,
+                 use_allowed):  # pragma: no cover (compiled)
+    """Whether the candidate from ring ``i``'s vertex ``vi`` to ring ``j``'s ``vj`` keeps clear
+    (:func:`_clear_kernel`, the other bridges ``sa, sb``) and, through the material, passes the
+    keyhole test where ``use_allowed``: :func:`_straight_bridges_reference`'s test of a candidate.
+    ``corners``, ``P1``, ``Q1``: scratch arrays ((2, 3, 2), (1, 2), (1, 2))."""
+    for e in range(2):
+        r, v = (i, vi) if e == 0 else (j, vj)
+        m = lens[r]
+        for u in range(3):
+            w = off[r] + (v - 1 + u) % m
+            corners[e, u, 0] = pts[w, 0]
+            corners[e, u, 1] = pts[w, 1]
+    px, py = pts[off[i] + vi, 0], pts[off[i] + vi, 1]
+    qx, qy = pts[off[j] + vj, 0], pts[off[j] + vj, 1]
+    through = comp[i] == comp[j]
+    if not _clear_kernel(px, py, qx, qy, corners, np.int64(1), np.int64(1), oa, ob, sa, sb, through):
+        return False
+    if through and use_allowed:
+        P1[0, 0], P1[0, 1], Q1[0, 0], Q1[0, 1] = px, py, qx, qy
+        count, _ = _coverage_kernel(P1, Q1, lab, cids, ox, oy, dx, dy)
+        if count[0] != 0:
+            return False
+    return True
 
 
 #: Largest number of waypoints a polyline keyhole search settles before it gives up.
@@ -975,7 +1085,7 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
     if got is MISSING:
         # (the obstacles near the points: the search keeps them all, the same edges in order)
         got = _keyhole_path(ri, rj, W, step, oa, ob, segs, allowed=allowed, used_i=used_i, used_j=used_j,
-                            max_nodes=max_nodes)
+                            max_nodes=max_nodes, near=(oa, ob))
         if got is not None:
             pts = np.array(got[2], dtype=np.float64)
             pts.flags.writeable = False
@@ -986,17 +1096,52 @@ def keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, 
 
 def _edges_near(points, step, obstacles_a, obstacles_b):
     """The obstacle edges (as two float64 arrays, in order) whose box meets the box of ``points``
-    grown by ``step`` on every side: those :func:`_keyhole_path` tests."""
-    lo, hi = points.min(axis=0) - step, points.max(axis=0) + step
-    oa = np.asarray(obstacles_a, dtype=np.float64)
-    ob = np.asarray(obstacles_b, dtype=np.float64)
-    keep = ((np.maximum(oa[:, 0], ob[:, 0]) >= lo[0]) & (np.minimum(oa[:, 0], ob[:, 0]) <= hi[0])
-            & (np.maximum(oa[:, 1], ob[:, 1]) >= lo[1]) & (np.minimum(oa[:, 1], ob[:, 1]) <= hi[1]))
-    return oa[keep], ob[keep]
+    grown by ``step`` on every side: those :func:`_keyhole_path` tests.  In compiled code
+    (:func:`_edges_near_kernel`)."""
+    return _edges_near_kernel(np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2), float(step),
+                              np.ascontiguousarray(obstacles_a, dtype=np.float64).reshape(-1, 2),
+                              np.ascontiguousarray(obstacles_b, dtype=np.float64).reshape(-1, 2))
+
+
+@njit(cache=True, nogil=True)
+def _edges_near_kernel(points, step, oa, ob):  # pragma: no cover (compiled)
+    """:func:`_edges_near` edge by edge, as numpy found them: ``lo, hi = points.min(axis=0) - step,
+    points.max(axis=0) + step`` and the edges with ``np.maximum(a, b) >= lo`` and ``np.minimum(a, b)
+    <= hi`` in both coordinates.  A NaN is taken on as numpy takes it: a NaN point leaves no edge,
+    an edge with a NaN end is left out (its maximum and minimum are NaN); a zero's sign does not
+    change a comparison."""
+    m = oa.shape[0]
+    keep = np.empty(m, np.int64)
+    k = 0
+    if points.shape[0] == 0:  # (numpy's min of nothing raises)
+        raise ValueError("zero-size array to reduction operation minimum which has no identity")
+    lo0, lo1, hi0, hi1 = np.inf, np.inf, -np.inf, -np.inf
+    nan = False
+    for t in range(points.shape[0]):
+        x, y = points[t, 0], points[t, 1]
+        if x != x or y != y:
+            nan = True
+            break
+        lo0, hi0 = min(lo0, x), max(hi0, x)
+        lo1, hi1 = min(lo1, y), max(hi1, y)
+    if not nan:
+        lo0, lo1, hi0, hi1 = lo0 - step, lo1 - step, hi0 + step, hi1 + step
+        for e in range(m):
+            ax, ay, bx, by = oa[e, 0], oa[e, 1], ob[e, 0], ob[e, 1]
+            if ax != ax or ay != ay or bx != bx or by != by:
+                continue
+            if max(ax, bx) >= lo0 and min(ax, bx) <= hi0 and max(ay, by) >= lo1 and min(ay, by) <= hi1:
+                keep[k] = e
+                k += 1
+    a = np.empty((k, 2))
+    b = np.empty((k, 2))
+    for t in range(k):
+        a[t, 0], a[t, 1], b[t, 0], b[t, 1] = oa[keep[t], 0], oa[keep[t], 1], ob[keep[t], 0], ob[keep[t], 1]
+    return a, b
 
 
 def _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *, allowed=None,
-                  used_i=(), used_j=(), max_nodes=KEYHOLE_MAX_NODES):
+                  used_i=(), used_j=(), max_nodes=KEYHOLE_MAX_NODES, near=None):
     """The shortest polyline keyhole from ring ``ri`` to ring ``rj`` through ``waypoints``, or None.
 
     Both rings bound the same material, which lies on their left (an outer ring counter-clockwise
@@ -1014,6 +1159,9 @@ def _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *,
     Returns ``(vi, vj, points)``: the end vertices and the ``(m, 2)`` interior points, ``m >= 1``
     (a keyhole that straightens to one segment is returned with its nearest waypoint kept, since
     the straight bridges were tried first).
+
+    ``near``, where given, is :func:`_edges_near` of the rings, the waypoints and the obstacles, as
+    the caller already holds it (:func:`keyhole_path`, whose key it is): not filtered again.
     """
     import heapq
 
@@ -1024,7 +1172,7 @@ def _keyhole_path(ri, rj, waypoints, step, obstacles_a, obstacles_b, segs=(), *,
     W = np.asarray(waypoints, dtype=np.float64).reshape(-1, 2)
     if len(W) == 0:
         return None
-    oa, ob = _edges_near(np.concatenate([ri, rj, W]), step, obstacles_a, obstacles_b)
+    oa, ob = _edges_near(np.concatenate([ri, rj, W]), step, obstacles_a, obstacles_b) if near is None else near
     segs = _segment_arrays(list(segs))
     m, ni = len(W), len(ri)
     # nodes: waypoints [0, m), ri's vertices [m, m + ni), rj's vertices [m + ni, ...)
@@ -1479,6 +1627,22 @@ def _clear_kernel(px, py, qx, qy, corners, has_p, has_q, oa, ob, sa, sb, left):
     lox, hix = min(px, qx), max(px, qx)
     loy, hiy = min(py, qy), max(py, qy)
     has = (has_p, has_q)
+    # leave each ring outward: the direction must not lie inside the ring's interior angle (tested
+    # first: it reads the two corners only, and a candidate it refuses needs no scan of the edges)
+    for t in range(2):
+        if has[t] == 0:
+            continue
+        if t == 0:
+            dx, dy = qx - px, qy - py
+        else:
+            dx, dy = px - qx, py - qy
+        a0, a1 = corners[t, 0, 0], corners[t, 0, 1]
+        c0, c1 = corners[t, 1, 0], corners[t, 1, 1]
+        b0, b1 = corners[t, 2, 0], corners[t, 2, 1]
+        if left:  # the left of a ring is the right of the reversed ring
+            a0, a1, b0, b1 = b0, b1, a0, a1
+        if not _outside_corner_k(a0, a1, c0, c1, b0, b1, dx, dy):
+            return False
     for e in range(oa.shape[0]):
         ax, ay, bx, by = oa[e, 0], oa[e, 1], ob[e, 0], ob[e, 1]
         if not (max(ax, bx) >= lox and min(ax, bx) <= hix and max(ay, by) >= loy and min(ay, by) <= hiy):
@@ -1501,21 +1665,6 @@ def _clear_kernel(px, py, qx, qy, corners, has_p, has_q, oa, ob, sa, sb, left):
         # another edge may pass through p or q only as one of the incident edges
         if _same_point(ax, ay, px, py) or _same_point(bx, by, px, py) or _same_point(ax, ay, qx, qy) \
                 or _same_point(bx, by, qx, qy):
-            return False
-    # leave each ring outward: the direction must not lie inside the ring's interior angle
-    for t in range(2):
-        if has[t] == 0:
-            continue
-        if t == 0:
-            dx, dy = qx - px, qy - py
-        else:
-            dx, dy = px - qx, py - qy
-        a0, a1 = corners[t, 0, 0], corners[t, 0, 1]
-        c0, c1 = corners[t, 1, 0], corners[t, 1, 1]
-        b0, b1 = corners[t, 2, 0], corners[t, 2, 1]
-        if left:  # the left of a ring is the right of the reversed ring
-            a0, a1, b0, b1 = b0, b1, a0, a1
-        if not _outside_corner_k(a0, a1, c0, c1, b0, b1, dx, dy):
             return False
     for e in range(sa.shape[0]):
         if _cross1(px, py, qx, qy, sa[e, 0], sa[e, 1], sb[e, 0], sb[e, 1]):
