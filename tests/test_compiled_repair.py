@@ -745,9 +745,9 @@ def test_overlap_holes_equals_ndimage_label():
     assert inside == {True, False}
     # one signature per kernel, no literal argument (typed again uncached: the cached entry brings
     # its callees' code without typing them in this process)
-    for sig in tracing._overlap_holes.signatures:
-        njit(nogil=True)(tracing._overlap_holes.py_func).compile(sig)
-    for d in (tracing._overlap_holes, tracing._join):
+    for sig in tracing._overlap_hole_labels.signatures:
+        njit(nogil=True)(tracing._overlap_hole_labels.py_func).compile(sig)
+    for d in (tracing._overlap_hole_labels, tracing._join):
         assert len(d.signatures) == 1
         assert not any(isinstance(t, types.Literal) for t in d.signatures[0])
 

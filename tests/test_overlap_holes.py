@@ -82,7 +82,7 @@ def _label_raster(m, conn8, lab):
 
 @njit(nogil=True)
 def _pixel_form(o, one):
-    """``tracing._overlap_holes`` as it was: both labellings pixel by pixel (:func:`_label_raster`)."""
+    """:func:`tracing.overlap_holes` pixel by pixel: both labellings by a raster union-find (:func:`_label_raster`)."""
     h, w = o.shape
     olab = np.empty((h, w), np.int64)
     no = _label_raster(o, one - one, olab)

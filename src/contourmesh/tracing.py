@@ -982,138 +982,21 @@ def _run_union(starts, x0, x1, h, corner):
     return parent
 
 
-@njit(cache=True, nogil=True)
-def _overlap_holes(o, one):
-    """:func:`overlap_holes` compiled (``one`` is 1: no literal argument), from the runs of ``o``
-    and of its padded background rather than pixel by pixel.
-
-    The components are those of the runs: two runs of ``o`` in neighbouring rows are 4-connected
-    where they share a column, two background runs where they share or touch at a corner (8);
-    each background component is numbered by its first run in raster order, the run holding its
-    first pixel, so by ``ndimage.label``'s numbers (raster order of first pixels), and painted back.
-    A component of ``o`` meets the outside where one of its runs does: the 3 x 3 neighbourhoods
-    of a run ``[x0, x1)`` of row ``y`` are padded rows ``y .. y + 2``, columns ``x0 .. x1 + 1``.
-    The same four values as the pixel form it replaces (a raster union-find over every pixel, kept
-    in tests/test_overlap_holes.py), bit for bit."""
-    h, w = o.shape
-    hp, wp = h + 2, w + 2
-    # the runs of o, row by row (at most (w + 1) // 2 a row)
-    cap = h * ((w + 1) // 2)
-    ory = np.empty(cap, np.int64)
-    ox0 = np.empty(cap, np.int64)
-    ox1 = np.empty(cap, np.int64)
-    ors = np.empty(h + 1, np.int64)
-    nr = 0
-    for y in range(h):
-        ors[y] = nr
-        x = 0
-        while x < w:
-            if o[y, x]:
-                s = x
-                while x < w and o[y, x]:
-                    x += 1
-                ory[nr] = y
-                ox0[nr] = s
-                ox1[nr] = x
-                nr += 1
-            else:
-                x += 1
-    ors[h] = nr
-    # the background runs of the padded mask: its first and last rows whole, row y + 1 the gaps
-    # between the runs of row y of o (padded columns: one more)
-    nb = nr + hp
-    bx0 = np.empty(nb, np.int64)
-    bx1 = np.empty(nb, np.int64)
-    brs = np.empty(hp + 1, np.int64)
-    brs[0] = 0
-    bx0[0] = 0
-    bx1[0] = wp
-    m = one
-    for y in range(h):
-        brs[y + 1] = m
-        gap = 0
-        for r in range(ors[y], ors[y + 1]):
-            if ox0[r] + 1 > gap:
-                bx0[m] = gap
-                bx1[m] = ox0[r] + 1
-                m += 1
-            gap = ox1[r] + 1
-        bx0[m] = gap
-        bx1[m] = wp
-        m += 1
-    brs[h + 1] = m
-    bx0[m] = 0
-    bx1[m] = wp
-    m += 1
-    brs[hp] = m
-    # 4-components of o's runs
-    po = _run_union(ors, ox0, ox1, h, one - one)
-    comp = np.empty(nr, np.int64)
-    no = 0
-    for r in range(nr):
-        t = _root(po, r)
-        if t == r:
-            comp[r] = no
-            no += 1
-        else:
-            comp[r] = comp[t]
-    # 8-components of the background runs, numbered from 1 in raster order of their first run
-    pb = _run_union(brs, bx0, bx1, hp, one)
-    blab_r = np.empty(m, np.int64)
-    nbl = 0
-    for r in range(m):
-        t = _root(pb, r)
-        if t == r:
-            nbl += 1
-            blab_r[r] = nbl
-        else:
-            blab_r[r] = blab_r[t]
-    blab = np.empty((hp, wp), np.int64)
-    for y in range(hp):
-        x = 0
-        for r in range(brs[y], brs[y + 1]):
-            while x < bx0[r]:
-                blab[y, x] = 0
-                x += 1
-            v = blab_r[r]
-            while x < bx1[r]:
-                blab[y, x] = v
-                x += 1
-        while x < wp:
-            blab[y, x] = 0
-            x += 1
-    ext = blab[0, 0]
-    # the components of o with a run whose neighbourhood meets the outside
-    seen = np.empty(no, np.bool_)
-    for c in range(no):
-        seen[c] = False
-    n_seen = 0
-    for r in range(nr):
-        c = comp[r]
-        if seen[c]:
-            continue
-        near = False
-        for yy in range(ory[r], ory[r] + 3):
-            for xx in range(ox0[r], ox1[r] + 2):
-                if blab[yy, xx] == ext:
-                    near = True
-                    break
-            if near:
-                break
-        if near:
-            seen[c] = True
-            n_seen += 1
-    return no, blab, nbl, n_seen
-
-
 def overlap_holes(o: np.ndarray):
     """The structure of an overlap mask ``o`` (2D boolean) that a bridged join needs: ``(n, blab,
     nb, n_out)``: ``n`` its 4-components (``ndimage.label(o, structure=_CROSS)``); ``blab``, ``nb``
     the 8-components of the background of ``o`` padded by one pixel of background
     (``ndimage.label(np.pad(~o, 1, constant_values=True), structure=_SQUARE)``, int64, the
     same labels); ``n_out`` how many of the ``n`` components have a pixel whose 3 x 3
-    neighbourhood meets the padded background's first component (the outside)."""
-    return _overlap_holes(np.ascontiguousarray(o, dtype=np.bool_), np.int64(1))
+    neighbourhood meets the padded background's first component (the outside).
+
+    The joins read the labels only at a few pixels (:func:`overlap_hole_labels`); this is that
+    read at every pixel of the padded mask, the whole image, for callers that want it."""
+    o = np.ascontiguousarray(o, dtype=np.bool_)
+    hp, wp = o.shape[0] + 2, o.shape[1] + 2
+    ys, xs = np.divmod(np.arange(hp * wp, dtype=np.int64), wp)
+    n, labels, nb, n_out, _ext = overlap_hole_labels(o, ys, xs)
+    return n, labels.reshape(hp, wp), nb, n_out
 
 
 def overlap_hole_labels(o: np.ndarray, ys, xs):
@@ -1122,9 +1005,10 @@ def overlap_hole_labels(o: np.ndarray, ys, xs):
     mask (``blab[ys, xs]``, each in range) and ``ext`` its label at ``(0, 0)``, the outside.  The
     joins read the background's labels only there, so the labels are read off the background's
     runs and never painted (a box of int64 per overlap, most of the cost on large groups): the
-    same numbers as ``overlap_holes`` (as the tests check)."""
-    return _overlap_hole_labels(np.ascontiguousarray(o, dtype=np.bool_), np.asarray(ys, dtype=np.int64),
-                                np.asarray(xs, dtype=np.int64), np.int64(1))
+    same numbers as ``ndimage.label`` gives (as the tests check).  ``ys``, ``xs`` are made
+    contiguous: one compiled signature whatever the caller hands in."""
+    return _overlap_hole_labels(np.ascontiguousarray(o, dtype=np.bool_), np.ascontiguousarray(ys, dtype=np.int64),
+                                np.ascontiguousarray(xs, dtype=np.int64), np.int64(1))
 
 
 @njit(cache=True, nogil=True)
@@ -1159,13 +1043,13 @@ def _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one):
     """The structure :func:`overlap_hole_labels` gives, from the runs ``[ox0[r], ox1[r])`` of an
     ``h`` x ``w`` mask (row ``y``: runs ``ors[y] .. ors[y + 1] - 1``, in increasing x).
 
-    As :func:`_overlap_holes`: the padded background's runs are the gaps between the mask's runs
+    The padded background's runs are the gaps between the mask's runs
     (its first and last rows whole), its components those of the runs 8-connected, numbered by
     their first run in raster order (``ndimage.label``'s numbers).  A pixel's label is that of the
     background run holding it (found by bisection in its row; 0 on the mask), and a component of
     the mask meets the outside where a run of the outside's label meets the 3 x 3 neighbourhoods
-    of one of its runs (padded rows ``y .. y + 2``, columns ``x0 .. x1 + 1``): the pixel test of
-    :func:`_overlap_holes`, run by run."""
+    of one of its runs (padded rows ``y .. y + 2``, columns ``x0 .. x1 + 1``): the pixel test
+    (does a pixel's 3 x 3 neighbourhood meet the outside) run by run."""
     hp, wp = h + 2, w + 2
     nr = ors[h]
     nb = nr + hp
