@@ -815,6 +815,10 @@ def test_compact_renumbers_in_place_and_leaves_a_mesh_using_every_vertex_alone()
     assert got_F is G and np.array_equal(G, want_F) and np.array_equal(got_V, want_V)
     W, H = repair._compact(want_V, want_F)  # every vertex used
     assert W is want_V and H is want_F
+    # the kept rows (taken along the rows) of a vertex array in any layout are V[used]'s
+    for U in (np.asfortranarray(V), V[:, ::-1], V.astype(np.float32)):
+        got_V, got_F = repair._compact(U, F.copy())
+        assert got_V.dtype == U.dtype and np.array_equal(got_V, U[used]) and np.array_equal(got_F, want_F)
 
 
 def test_kept_and_added_equals_the_concatenation():

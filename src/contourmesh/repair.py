@@ -2196,7 +2196,8 @@ def _shared_rows(V):
     per row.  The groups of the reference ``row_ids`` (tests/repair_reference.py) on
     ``(V + 0.0).view(np.int64)`` (``np.bincount(ids)[ids]
     > 1`` there), without that copy of ``V`` or the ids of every row: the rows' hashes are first
-    marked in a bitmap of about 8 bits per row (small enough to stay in cache), once and twice;
+    marked in a bitmap of about 8 bits per row (small enough to stay in cache), once and twice
+    (each row's bit kept, so that the rows are hashed once: 2.6 -> 1.9 ms on the lobster's mesh);
     the rows whose hash was met twice (every row that shares its values, and a few others) are
     then grouped exactly in an open-addressing table of each group's first row, in row order."""
     n, k = V.shape
@@ -2209,8 +2210,12 @@ def _shared_rows(V):
         bits *= 2
     once = np.zeros(bits // 8, np.uint8)
     twice = np.zeros(bits // 8, np.uint8)
+    kept = bits <= 2**31  # (each row's bit kept for the second pass, where it fits in int32: hashed once)
+    slots = np.empty(n if kept else 0, np.int32)
     for i in range(n):
         s = np.int64(_row_hash(V, i, buf, R) >> np.uint64(20)) & (bits - 1)
+        if kept:
+            slots[i] = s
         b = np.uint8(1 << (s & 7))
         if once[s >> 3] & b:
             twice[s >> 3] |= b
@@ -2219,7 +2224,7 @@ def _shared_rows(V):
     cand = np.empty(n, np.int32)  # (row numbers: 2^31 rows would not fit in memory here)
     nc = 0
     for i in range(n):
-        s = np.int64(_row_hash(V, i, buf, R) >> np.uint64(20)) & (bits - 1)
+        s = np.int64(slots[i]) if kept else np.int64(_row_hash(V, i, buf, R) >> np.uint64(20)) & (bits - 1)
         if twice[s >> 3] & np.uint8(1 << (s & 7)):
             cand[nc] = i
             nc += 1
@@ -2352,10 +2357,12 @@ def _compact(V, F, overwrite: bool = False):
             return V, F
         remap = np.full(len(V), -1, dtype=np.int64)
         remap[used] = np.arange(len(used))
+    # (np.take along the rows: the same rows as V[used], some four times faster on a mesh's
+    # vertices: 1.4 -> 0.35 ms on the lobster's)
     if overwrite and F.dtype == np.int64 and F.flags.c_contiguous and F.flags.writeable:
         _renumber(F.reshape(-1), remap)
-        return V[used], F
-    return V[used], remap[F]
+        return np.take(V, used, axis=0), F
+    return np.take(V, used, axis=0), remap[F]
 
 
 @njit(cache=True, nogil=True)
