@@ -425,7 +425,12 @@ class _Slice:
             labels, n, boxes, runs32, pts, starts, area2, first, found, mlps, thin, moved = _slice_pass(
                 b8, b64, np.int64(m.shape[0]), np.int64(m.shape[1]), aligned, woff, np.int64(mlp))
             self.n = int(n)
-            self.objects = [(slice(y0, y1), slice(x0, x1)) for y0, y1, x0, x1 in boxes.tolist()]
+            if box is None:
+                self.objects = [(slice(y0, y1), slice(x0, x1)) for y0, y1, x0, x1 in boxes.tolist()]
+            else:  # (the boxes moved to the whole image: the same slices as moving each one after)
+                sy, sx = box[0].start or 0, box[1].start or 0
+                self.objects = [(slice(y0 + sy, y1 + sy), slice(x0 + sx, x1 + sx))
+                                for y0, y1, x0, x1 in boxes.tolist()]
             lab32 = labels
             if recent is not None and box is None:
                 self._runs = runs32
@@ -434,8 +439,7 @@ class _Slice:
             if found[0] != 0:  # pragma: no cover - (see _slice_holes)
                 thin = moved = None
             if box is not None:
-                sy, sx = box[0].start or 0, box[1].start or 0
-                objects, shift = self.objects, np.array([sx, sy], dtype=np.int64)
+                shift = np.array([sx, sy], dtype=np.int64)
                 if recent is not None:  # (labelled whole it gives the same labels)
                     self._mask = mask2d
                 # (its runs in the whole image, as _runs holds them, for _simple_join: the runs the whole
@@ -476,7 +480,6 @@ class _Slice:
             labels[box] = part
             self._labels = labels
             pts += shift
-            self.objects = [(slice(a.start + sy, a.stop + sy), slice(b.start + sx, b.stop + sx)) for a, b in objects]
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
         self.dense_gen = {}  # component -> how many times its polygons were densified (see _retry_dense)
         self.fallbacks = 0
@@ -613,6 +616,11 @@ class _Slice:
         n = self.n
         if n == 0:
             return []
+        if made is not None and moved is not None and not len(made[2]):
+            # (most slices: _slice_pass found no thin component, so every MLP encloses area and
+            # has three points or more; the same views as below, without the test of each)
+            xy, mps = to_xy_center(moved), mps.tolist()
+            return [xy[a: b] for a, b in zip(mps, mps[1:])]
         cnt = mps[1:] - mps[:-1]  # (np.diff)
         has = ((cnt >= 3) & (ma2 != 0)).tolist()
         if moved is None:
