@@ -218,6 +218,19 @@ def _mlp_of_pixels(pix: np.ndarray) -> np.ndarray | None:
     return None if poly is None else poly.astype(np.float64)
 
 
+def _dilated_square(m: np.ndarray) -> np.ndarray:
+    """``ndimage.binary_dilation(m, structure=_SQUARE)`` of a 2D bool mask (outside it: background),
+    as the dilation by a column of three and then by a row of three, each two shifted ORs: the same
+    pixels, without ndimage's set-up (most of its cost on a component's box)."""
+    d = m.copy()
+    d[1:] |= m[:-1]
+    d[:-1] |= m[1:]
+    out = d.copy()
+    out[:, 1:] |= d[:, :-1]
+    out[:, :-1] |= d[:, 1:]
+    return out
+
+
 class _RecentLabels:
     """The label images of the last few slices used (:attr:`_Slice.labels`); the others are
     dropped and made again from their masks when next asked for.  The joins go up the stack, each
@@ -335,7 +348,7 @@ class _HoleMasks(Sequence):
         """``divmod(int(np.argmax(self[i])), width)``: hole ``i``'s first pixel in raster order, read
         from its cropped mask (whose first row holds a pixel) without making the whole one."""
         y0, x0, part = self.parts[i]
-        return y0, x0 + int(np.argmax(part[0]))
+        return y0, x0 + int(part[0].argmax())
 
     def __getitem__(self, i):
         if isinstance(i, slice):
@@ -412,7 +425,12 @@ class _Slice:
             labels, n, boxes, runs32, pts, starts, area2, first, found, mlps, thin, moved = _slice_pass(
                 b8, b64, np.int64(m.shape[0]), np.int64(m.shape[1]), aligned, woff, np.int64(mlp))
             self.n = int(n)
-            self.objects = [(slice(y0, y1), slice(x0, x1)) for y0, y1, x0, x1 in boxes.tolist()]
+            if box is None:
+                self.objects = [(slice(y0, y1), slice(x0, x1)) for y0, y1, x0, x1 in boxes.tolist()]
+            else:  # (the boxes moved to the whole image: the same slices as moving each one after)
+                sy, sx = box[0].start or 0, box[1].start or 0
+                self.objects = [(slice(y0 + sy, y1 + sy), slice(x0 + sx, x1 + sx))
+                                for y0, y1, x0, x1 in boxes.tolist()]
             lab32 = labels
             if recent is not None and box is None:
                 self._runs = runs32
@@ -421,8 +439,7 @@ class _Slice:
             if found[0] != 0:  # pragma: no cover - (see _slice_holes)
                 thin = moved = None
             if box is not None:
-                sy, sx = box[0].start or 0, box[1].start or 0
-                objects, shift = self.objects, np.array([sx, sy], dtype=np.int64)
+                shift = np.array([sx, sy], dtype=np.int64)
                 if recent is not None:  # (labelled whole it gives the same labels)
                     self._mask = mask2d
                 # (its runs in the whole image, as _runs holds them, for _simple_join: the runs the whole
@@ -463,7 +480,6 @@ class _Slice:
             labels[box] = part
             self._labels = labels
             pts += shift
-            self.objects = [(slice(a.start + sy, a.stop + sy), slice(b.start + sx, b.stop + sx)) for a, b in objects]
         self.dense = {}   # (component, hole or -1) -> which points of a densified polygon were added
         self.dense_gen = {}  # component -> how many times its polygons were densified (see _retry_dense)
         self.fallbacks = 0
@@ -600,6 +616,11 @@ class _Slice:
         n = self.n
         if n == 0:
             return []
+        if made is not None and moved is not None and not len(made[2]):
+            # (most slices: _slice_pass found no thin component, so every MLP encloses area and
+            # has three points or more; the same views as below, without the test of each)
+            xy, mps = to_xy_center(moved), mps.tolist()
+            return [xy[a: b] for a, b in zip(mps, mps[1:])]
         cnt = mps[1:] - mps[:-1]  # (np.diff)
         has = ((cnt >= 3) & (ma2 != 0)).tolist()
         if moved is None:
@@ -3955,8 +3976,6 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         the other slice's components ``comps`` (see :func:`_bridge_join`).  A straight keyhole
         keeps out of every pixel those components cover (``uncovered``); a polyline one only out
         of the overlap, so it may cut through a notch the other slice covers."""
-        from scipy import ndimage
-
         s, lab, n_other = slices[plane], slices[other].labels, slices[other].n
 
         def points_of(c):
@@ -3965,7 +3984,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             box = np.s_[y0: sl[0].stop + 1, x0: sl[1].stop + 1]
             own = s.labels[box] == c + 1
             over = own & label_mask(lab[box], n_other, comps)
-            j, i = np.nonzero(ndimage.binary_dilation(own, structure=_SQUARE) & ~over)
+            j, i = np.nonzero(_dilated_square(own) & ~over)
             pts = np.c_[ox + (i + x0) * dx, oy + (j + y0) * dy]
             # (samples taken to their nearest pixel with halves up, as in uncovered)
             return pts, OverlapFree(over, x0, y0, (ox, oy, dx, dy))
