@@ -37,7 +37,7 @@ from .bands.caps import cap_faces
 from .geometry import grid_to_xy
 from .intersect import any_intersecting
 from .measure import triangle_areas
-from .tracing import _pair_groups, label_mask
+from .tracing import _first_row_run, _pair_groups, label_mask
 
 #: How many times a join is split (1: one section at mid-gap; 2: also at quarters where needed).
 MAX_DEPTH = 2
@@ -733,19 +733,6 @@ def _groups(P: _Layer, Q: _Layer):
 
 
 @njit(cache=True, nogil=True)
-def _first_run_of_row(r, y):
-    """The first of the runs ``r`` (``(4, n)``, raster order, row first) in row ``y`` or after."""
-    lo, hi = 0, r.shape[1]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if r[0, mid] < y:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-@njit(cache=True, nogil=True)
 def _run_groups(rp, rq, y0, y1, x0, x1, inp, inq):
     """:func:`_groups` from the two slices' runs (``(4, n)`` ``[row, first column, end column,
     component]``, raster order: ``_Slice.kept_runs``): the pairs ``(a, b)`` (0-based, ``inp[a +
@@ -757,7 +744,7 @@ def _run_groups(rp, rq, y0, y1, x0, x1, inp, inq):
     increasing order from both sides, each step past the one that ends first."""
     nbk = inq.shape[0]
     seen = np.zeros(inp.shape[0] * nbk, np.bool_)
-    i, j = _first_run_of_row(rp, y0), _first_run_of_row(rq, y0)
+    i, j = _first_row_run(rp, y0), _first_row_run(rq, y0)
     n_p, n_q = rp.shape[1], rq.shape[1]
     while i < n_p and j < n_q and rp[0, i] < y1 and rq[0, j] < y1:
         yi, yj = rp[0, i], rq[0, j]

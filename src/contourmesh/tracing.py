@@ -959,6 +959,20 @@ def _join(parent, a, b):
     return s
 
 
+@njit(cache=True, inline="always", nogil=True, no_rewrites=True)
+def _first_row_run(r, y):  # pragma: no cover (compiled)
+    """The first of the runs ``r`` (``(4, n)`` or more rows, raster order, the row first) in row
+    ``y`` or after it: the joins' reads of two slices' kept runs in a box's rows."""
+    lo, hi = 0, r.shape[1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if r[0, mid] < y:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
 @internal_kernel
 def _run_union(starts, x0, x1, h, corner):
     """The union-find parents of the runs ``[x0[r], x1[r])`` of ``h`` rows (row ``y``: runs

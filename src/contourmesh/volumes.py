@@ -130,6 +130,7 @@ from .repair import (
 from .topology import _root  # the compiled union-find root (path halving), shared
 from .tracing import (
     _contour4_ok,
+    _first_row_run,
     _hole_parts,
     _hole_spans,
     _runs_hole_labels,
@@ -3172,19 +3173,6 @@ def _overlap_plan_runs(ra, rb, y0, y1, x0, x1, lut_a, lut_b, na, nb, ys, xs, one
         return npairs, one - 2, np.empty(0, np.int64), one - one, one - one, one - one
     no, labels, nbl, n_out, ext = _runs_hole_labels(ox0, ox1, ors, h, w, ys, xs, one)
     return npairs, no, labels, nbl, n_out, ext
-
-
-@njit(cache=True, inline="always", **KERNEL_OPTIONS)
-def _first_row_run(r, y):  # pragma: no cover (compiled)
-    """The first of the runs ``r`` (raster order) in row ``y`` or after it."""
-    lo, hi = 0, r.shape[1]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if r[0, mid] < y:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
 
 
 #: Largest ``n^2 m`` for which a twisted bridged band is replaced by the optimal band (else by the
