@@ -2684,6 +2684,22 @@ def _row_ids_after(R0, R1):
     return ids
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _face_key(pos, F, off, g):
+    """Face ``g`` of ``F`` as its corners' positions ``pos[off + F[g]]``, sorted (a face's key in
+    :func:`_face_groups_after`, for either mesh)."""
+    a = pos[off + F[g, 0]]
+    b = pos[off + F[g, 1]]
+    c = pos[off + F[g, 2]]
+    if a > b:
+        a, b = b, a
+    if b > c:
+        b, c = c, b
+    if a > b:
+        a, b = b, a
+    return a, b, c
+
+
 @njit(cache=True, nogil=True)
 def _face_groups_after(pos, F0, F1, off):
     """A group number per face of ``F0`` then ``F1`` (corners ``pos[v]`` and ``pos[off + v]``):
@@ -2708,15 +2724,7 @@ def _face_groups_after(pos, F0, F1, off):
     T = np.empty((m0, 3), np.int32)  # each face of F0's corner numbers, sorted
     start = np.zeros(npos + 1, np.int32)
     for g in range(m0):
-        a = pos[F0[g, 0]]
-        b = pos[F0[g, 1]]
-        c = pos[F0[g, 2]]
-        if a > b:
-            a, b = b, a
-        if b > c:
-            b, c = c, b
-        if a > b:
-            a, b = b, a
+        a, b, c = _face_key(pos, F0, 0, g)
         T[g, 0] = a
         T[g, 1] = b
         T[g, 2] = c
@@ -2757,15 +2765,7 @@ def _face_groups_after(pos, F0, F1, off):
     nnew = 0
     cur = np.int64(-1)
     for g in range(m1):
-        a = pos[off + F1[g, 0]]
-        b = pos[off + F1[g, 1]]
-        c = pos[off + F1[g, 2]]
-        if a > b:
-            a, b = b, a
-        if b > c:
-            b, c = c, b
-        if a > b:
-            a, b = b, a
+        a, b, c = _face_key(pos, F1, off, g)
         T1[g, 0] = a
         T1[g, 1] = b
         T1[g, 2] = c
