@@ -160,3 +160,16 @@ def test_every_real_crossing_test_answers_as_the_reference(name, monkeypatch):
     for k in sorted(set(hits + big)):
         V, F, delay, got = calls[k]
         assert got == int(_plain(V, F)), k
+
+
+def test_bands_with_a_far_point():
+    """One point far off along x: the counting sort of the sweep then puts nearly every face in one
+    bucket and the sweep's order comes from ``np.argsort`` instead (the same answers)."""
+    rng = np.random.default_rng(24169)
+    seen = [0, 0]
+    for t in range(80):
+        V, F = _band(rng, step=0.5, tidy=t % 2 == 0)
+        V = V.copy()
+        V[int(rng.integers(len(V))), 0] += 1e4 * (1 if t % 4 < 2 else -1)
+        seen[_answers(V, F)] += 1
+    assert min(seen) > 2  # (mostly crossing: the far point's faces reach over the rings)
