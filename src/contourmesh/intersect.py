@@ -3293,13 +3293,305 @@ def any_intersecting(vertices, faces) -> bool:
     return bool(got)
 
 
-@njit(cache=True, **_OPTIONS)
-def _any_kernel(V, F, delay):
-    """:func:`any_intersecting` on C arrays of shapes (n, 3) and (m, 3): the steps of
-    :func:`_pairs` with ``method="auto"``, ``stop=1`` and the shortcuts, one thread; 1 where a pair
-    is found, 0 where none, -1 where the arrays need :func:`_as_mesh_arrays`' errors or
-    :func:`_exact_range`'s scaling (a face index out of range, a coordinate not finite, or
-    magnitudes out of the exact predicates' range): then nothing is done."""
+# ------------------------------------------------------------------------------------------------
+# the crossing test of a band between two heights
+# ------------------------------------------------------------------------------------------------
+# Most of the mesher's crossing tests (:func:`any_intersecting`) ask it of a band or a join whose
+# vertices lie on two heights, every face reaching from one to the other.  :func:`_slab_pairs` then
+# meets one slab and its two planes, and the slab's sweep (:func:`_x_sweep`) is most of the cost:
+# each pair of faces whose boxes overlap calls the rules of :func:`_apart_in_slab`, out of line,
+# with its rows of corner ranges some 136 bytes apart (liver's 792 such calls of a build: 1.75 M
+# such pairs, nine in ten decided by "ends apart").  :func:`_two_level_any` answers the same
+# question for such a mesh with the same certificates and exact tests, its sweep over the faces
+# sorted by their lowest x, the boxes in columns of their own, "ends apart" inline and the rest
+# (a common corner, the exact tests) out of line, stopping at the first pair that intersects.
+# Every test is exact, so the order in which the pairs are met does not change the answer.
+
+
+@_kernel
+def _two_level_plane(V, ws, F, lev, faces, k, pbox, pu, pw, stamp, d1, d2, cert, all2, ci, cj, limit):
+    """Plane ``k`` (0 or 1) of a two-level mesh as :func:`_slab_pairs` checks it: the parts there
+    of ``faces`` (each with corners on both heights), in the order of their numbers, form an
+    embedded planar graph (:func:`_plane_convex_ring` on the dyadic grid, else
+    :func:`_plane_embedded`).  Returns ``(embedded, ci, cj)``."""
+    ne = len(faces)
+    for e in range(ne):
+        i = faces[e]
+        pu[e] = -1
+        for q in range(3):
+            v = F[i, q]
+            if lev[v] != k:
+                continue
+            if pu[e] < 0:
+                pu[e] = v
+                pw[e] = v
+                pbox[e, 0] = V[v, 0]
+                pbox[e, 1] = V[v, 0]
+                pbox[e, 2] = V[v, 1]
+                pbox[e, 3] = V[v, 1]
+            else:
+                pu[e] = min(pu[e], v)
+                pw[e] = max(pw[e], v)
+                pbox[e, 0] = min(pbox[e, 0], V[v, 0])
+                pbox[e, 1] = max(pbox[e, 1], V[v, 0])
+                pbox[e, 2] = min(pbox[e, 2], V[v, 1])
+                pbox[e, 3] = max(pbox[e, 3], V[v, 1])
+    if ws[0] == 1.0 and _plane_convex_ring(V, ws, pu, pw, np.int64(ne), k, stamp, d1, d2):
+        return True, ci, cj
+    emb, work, ci, cj = _plane_embedded(V, ws, pbox[:, 0], pbox[:, 1], pbox[:, 2], pbox[:, 3], pu, pw, np.int64(ne),
+                                        k, stamp, d1, d2, cert, all2, ci, cj, np.int64(0), limit)
+    return emb, ci, cj
+
+
+@_pure
+def _rung_apart(V, F, lev, i, j):
+    """Faces i and j, with their corners on levels 0 and 1 only and a common edge from level 0 to
+    level 1 (a rung, ``p`` below, ``q`` above), meet along the rung only, shown by the signs of
+    coordinate differences (exact in floating point); False means "not shown".
+
+    At a height ``t`` of the way up (``0 <= t <= 1``) face i's section is the segment from the
+    rung's point ``r = (1 - t) p + t q`` to the point of its third corner's edge there: for a
+    corner ``a`` on level 0 that is ``(1 - t) a + t q``, ``r + (1 - t)(a - p)``; for one on level 1
+    ``(1 - t) p + t a``, ``r + t (a - q)``.  So both sections run from ``r`` along the xy
+    directions ``d_i`` (``a - p`` or ``a - q``) and ``d_j`` (the same with j's corner ``b``), or are
+    the point ``r`` alone (at ``t = 0`` or ``1``), and they meet beyond ``r`` only where the two
+    directions point the same way.  Two directions that do have equal signs on each axis; where the
+    signs of ``d_i`` and ``d_j`` differ on x or on y the faces meet along the rung only."""
+    a = np.int64(-1)
+    b = np.int64(-1)
+    p = np.int64(-1)
+    q = np.int64(-1)
+    for c in range(3):
+        v = F[i, c]
+        if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
+            if lev[v] == 0:
+                p = v
+            else:
+                q = v
+        else:
+            a = v
+        w = F[j, c]
+        if w != F[i, 0] and w != F[i, 1] and w != F[i, 2]:
+            b = w
+    if p < 0 or q < 0:
+        return False  # (an edge on one level: not a rung)
+    ra = p if lev[a] == 0 else q
+    rb = p if lev[b] == 0 else q
+    for c in range(2):
+        di = V[a, c] - V[ra, c]
+        dj = V[b, c] - V[rb, c]
+        if (di > 0.0) != (dj > 0.0) or (di < 0.0) != (dj < 0.0):
+            return True
+    return False
+
+
+@_kernel
+def _x_order(x0):
+    """The indices that sort ``x0`` (finite) ascending, ties in any order: a counting sort into
+    ``len(x0)`` buckets of equal width, then insertion sort, which has little to do after it (a
+    band's lowest x spread over its range); where it would move entries more than ``8 n`` places
+    in all, ``np.argsort``.  (On the liver's bands ``np.argsort`` was some 10 % of the crossing test.)"""
+    n = len(x0)
+    lo = np.inf
+    hi = -np.inf
+    for t in range(n):
+        lo = min(lo, x0[t])
+        hi = max(hi, x0[t])
+    h = (hi - lo) / n
+    if not h > 0.0:
+        h = 1.0
+    start = np.zeros(n + 1, np.int64)
+    bk = np.empty(n, np.int64)
+    for t in range(n):
+        q = min(np.int64((x0[t] - lo) / h), n - 1)
+        bk[t] = q
+        start[q + 1] += 1
+    for q in range(n):
+        start[q + 1] += start[q]
+    order = np.empty(n, np.int64)
+    for t in range(n):
+        order[start[bk[t]]] = t
+        start[bk[t]] += 1
+    moves = 0
+    for t in range(1, n):
+        v = order[t]
+        x = x0[v]
+        r = t
+        while r > 0 and x0[order[r - 1]] > x:
+            order[r] = order[r - 1]
+            r -= 1
+        order[r] = v
+        moves += t - r
+        if moves > 8 * n:
+            return np.argsort(x0)
+    return order
+
+
+@_kernel
+def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit):
+    """Whether two of ``faces`` (each with its corners on levels 0 and 1 of a two-level mesh)
+    intersect, as :func:`_x_sweep` decides slab 0's pairs: every pair whose closed xy boxes
+    overlap, less those the rules "ends apart" and "apart but at a corner" decide (the note before
+    :func:`_slab_hit`) and those on one rung that :func:`_rung_apart` decides, tested by
+    :func:`_slab_hit`, the stars as :func:`_slab_step` fills them.  1 at the first pair that
+    intersects, 0 where none does, -1 where more than ``limit`` pairs of boxes overlapping along x
+    were met (then nothing is decided here).
+
+    The faces are swept in the order of their lowest x (:func:`_x_order`, so each face meets only
+    the faces that follow it up to the first past its own highest x); a row per face in that order
+    holds its xy box (columns 0-3), the x and y ranges of its corners on level 0 (4-7) and on level
+    1 (8-11) and the number of its corners on level 0 (12), as the rows of :func:`_x_sweep`, and
+    its corners are copied in that order too (the common corners of a pair read from two nearby
+    rows, not from two faces' places in ``F``)."""
+    n = len(faces)
+    x0 = np.empty(n)
+    for t in range(n):
+        i = faces[t]
+        x0[t] = min(V[F[i, 0], 0], min(V[F[i, 1], 0], V[F[i, 2], 0]))
+    order = _x_order(x0)
+    W = np.empty((n, 13))
+    fid = np.empty(n, np.int64)
+    cs = np.empty((n, 3), np.int64)
+    xs = np.empty(n)
+    x1s = np.empty(n)
+    y0s = np.empty(n)
+    y1s = np.empty(n)
+    zero = np.int64(0)
+    for s in range(n):
+        i = np.int64(faces[order[s]])
+        fid[s] = i
+        cs[s, 0] = F[i, 0]
+        cs[s, 1] = F[i, 1]
+        cs[s, 2] = F[i, 2]
+        bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, zero)
+        W[s, 0] = min(bx0, tx0)
+        W[s, 1] = max(bx1, tx1)
+        W[s, 2] = min(by0, ty0)
+        W[s, 3] = max(by1, ty1)
+        W[s, 4] = bx0
+        W[s, 5] = bx1
+        W[s, 6] = by0
+        W[s, 7] = by1
+        W[s, 8] = tx0
+        W[s, 9] = tx1
+        W[s, 10] = ty0
+        W[s, 11] = ty1
+        W[s, 12] = 1.0 * ((lev[F[i, 0]] == 0) + (lev[F[i, 1]] == 0) + (lev[F[i, 2]] == 0))
+        xs[s] = W[s, 0]
+        x1s[s] = W[s, 1]
+        y0s[s] = W[s, 2]
+        y1s[s] = W[s, 3]
+    cg = np.zeros(0, np.int64)  # (no groups)
+    work = np.int64(0)
+    for s in range(n):
+        xa = x1s[s]
+        ya0 = y0s[s]
+        ya1 = y1s[s]
+        a0 = cs[s, 0]
+        a1 = cs[s, 1]
+        a2 = cs[s, 2]
+        for u in range(s + 1, n):
+            if xs[u] > xa:
+                break  # (the faces after u start further along x still)
+            work += 1
+            if y0s[u] > ya1 or ya0 > y1s[u]:
+                continue
+            # ends apart (the boxes overlap, so this is the rule's whole content here), without
+            # branches: most pairs get here and most are apart, by no one rule of the four
+            if (((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
+                    | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
+                continue
+            b0 = cs[u, 0]
+            b1 = cs[u, 1]
+            b2 = cs[u, 2]
+            s0 = (a0 == b0) | (a0 == b1) | (a0 == b2)
+            s1 = (a1 == b0) | (a1 == b1) | (a1 == b2)
+            s2 = (a2 == b0) | (a2 == b1) | (a2 == b2)
+            ns = np.int64(s0) + np.int64(s1) + np.int64(s2)
+            i = fid[s]
+            j = fid[u]
+            if ns == 1:
+                p = a0 if s0 else (a1 if s1 else a2)
+                if _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == 0):
+                    continue
+            elif ns == 2 and _rung_apart(V, F, lev, i, j):
+                continue
+            if i > j:
+                i, j = j, i
+            if _star_due(sst):
+                _fill_stars(V, F, star, lev, zero, zero + 1, cg)
+            if _slab_hit(V, ws, F, star, np.int64(1), i, j):
+                return np.int64(1)
+        if work > limit:
+            return np.int64(-1)
+    return np.int64(0)
+
+
+@_kernel
+def _two_level_any(V, ws, F, star, sst, lev):
+    """:func:`_slab_pairs`' answer (a pair found or not) for a mesh whose vertices lie on two
+    heights (levels 0 and 1), where it applies: 1 where two faces intersect, 0 where none do, -1
+    where the mesh is not such a band (a live face with its three corners on one height) or the
+    sweep went over its budget (then the caller takes the general path; the answer is the same).
+
+    The same steps: the live faces (no two equal corners, not exactly collinear), the slab's
+    certificate (:func:`_slab_embedded`, on the dyadic grid) with the two planes' embedded graphs,
+    which decide every pair at once, else the sweep (:func:`_two_level_sweep`)."""
+    m = len(F)
+    ax0 = np.int64(0)
+    ax1 = np.int64(1)
+    ax2 = np.int64(2)
+    faces = np.empty(m, np.int32)
+    n = 0
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        if a == b or b == c or a == c:
+            continue
+        if lev[a] == lev[b] and lev[b] == lev[c]:
+            if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
+                continue  # collinear (exactly): not live, as in _slab_pairs
+            return np.int64(-1)  # a flat face: pairs in a plane too
+        # (a face with corners on both heights is never collinear: its two corners on one height
+        # are distinct points, and the line through them stays at that height)
+        faces[n] = i
+        n += 1
+    if n < 2:
+        return np.int64(0)
+    faces = faces[:n]
+    if ws[0] == 1.0:
+        nv = len(V)
+        keys = np.empty(2 * n + 2, np.int64)
+        head = np.empty(nv, np.int32)
+        hstamp = np.full(nv, -1, np.int32)
+        nxt = np.empty(n + 1, np.int64)
+        if _slab_embedded(V, F, lev, faces, np.int64(0), keys, head, hstamp, nxt):
+            pbox = np.empty((n, 4), np.float64)
+            pu = np.empty(n, np.int64)
+            pw = np.empty(n, np.int64)
+            stamp = np.full(nv, -1, np.int32)
+            d1 = np.empty(nv, np.int32)
+            d2 = np.empty(nv, np.int32)
+            cert = np.empty(n, np.int32)
+            all2 = np.full(n, 2, np.int8)
+            ci = np.empty(64, np.int64)
+            cj = np.empty(64, np.int64)
+            limit = np.int64(_SLAB_BUDGET) * m + 1000000
+            emb, ci, cj = _two_level_plane(V, ws, F, lev, faces, ax0, pbox, pu, pw, stamp, d1, d2, cert, all2, ci, cj,
+                                           limit)
+            if emb:
+                emb, ci, cj = _two_level_plane(V, ws, F, lev, faces, ax1, pbox, pu, pw, stamp, d1, d2, cert, all2, ci,
+                                               cj, limit)
+                if emb:
+                    return np.int64(0)
+    return _two_level_sweep(V, ws, F, star, sst, lev, faces, np.int64(_SLAB_BUDGET) * m + 1000000)
+
+
+@_kernel
+def _any_steps(V, F, delay, two):
+    """:func:`_any_kernel`; ``two == 1``: a mesh on two heights by :func:`_two_level_any` where it
+    applies, ``0``: by the general steps only (the reference the tests compare it with)."""
     n = V.shape[0]
     for i in range(F.shape[0]):
         for t in range(3):
@@ -3348,12 +3640,32 @@ def _any_kernel(V, F, delay):
     one = m - m + 1  # (int64 values, not literals: the signatures of the Python calls)
     ok = one - one
     lev, nlev = _levels(V[:, 2].copy())
+    if two == 1 and nlev == 2:  # a band between two heights (most of the mesher's calls)
+        got = _two_level_any(V, ws, Fc, star, sst, lev)
+        if got >= 0:
+            return got
     cg = np.zeros(0, np.int64)  # (no groups)
     if ws[0] == 1.0 or m >= _GRID_FACES or nlev == 2:  # (the route of _pairs)
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one, one - one, nlev, cg)
     if ok != 1:
         pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one, one * _GRID_CHUNK, cg)
     return 1 if len(pi) > 0 else 0
+
+@njit(cache=True, **_OPTIONS)
+def _any_kernel(V, F, delay):
+    """:func:`any_intersecting` on C arrays of shapes (n, 3) and (m, 3): the steps of
+    :func:`_pairs` with ``method="auto"``, ``stop=1`` and the shortcuts, one thread, a mesh on two
+    heights by :func:`_two_level_any`; 1 where a pair is found, 0 where none, -1 where the arrays
+    need :func:`_as_mesh_arrays`' errors or :func:`_exact_range`'s scaling (a face index out of
+    range, a coordinate not finite, or magnitudes out of the exact predicates' range): then
+    nothing is done."""
+    return _any_steps(V, F, delay, np.int64(1))
+
+
+@njit(cache=True, **_OPTIONS)
+def _any_kernel_reference(V, F, delay):
+    """:func:`_any_kernel` by the general steps only, a mesh on two heights too (for the tests)."""
+    return _any_steps(V, F, delay, np.int64(0))
 
 
 def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
