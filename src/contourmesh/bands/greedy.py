@@ -107,5 +107,6 @@ def band_from_edge_rule(lower, upper, rule, *, window: int = INITIAL_EDGE_WINDOW
     if len(c1) == 1:
         edges = np.stack([np.zeros(len(c2), np.int64), np.arange(len(c2), dtype=np.int64)], axis=1)
     else:
-        edges = rule(c1, np.ascontiguousarray(np.roll(c2, -j0, axis=0)))
+        # (np.roll(c2, -j0, axis=0) as one concatenation: the same contiguous copy, cheaper)
+        edges = rule(c1, np.concatenate((c2[j0:], c2[:j0])))
     return edges_to_faces(edges, len(c1), len(c2), 0, j0, len(lo), swapped)

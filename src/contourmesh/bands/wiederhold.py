@@ -464,7 +464,7 @@ def triangulate_band_wiederhold(lower, upper, *, window: int = INITIAL_EDGE_WIND
         return _pole_pair_faces()
     c1, c2, swapped = oriented_pair(lo, up)
     j0 = initial_edge(c1, c2, window=window, radius=radius)
-    r2 = np.roll(c2, -j0, axis=0)
+    r2 = np.concatenate((c2[j0:], c2[:j0]))  # (np.roll(c2, -j0, axis=0), cheaper)
     edges = wiederhold_edges(
         np.ascontiguousarray(c1[:, 0]), np.ascontiguousarray(c1[:, 1]),
         np.ascontiguousarray(r2[:, 0]), np.ascontiguousarray(r2[:, 1]),
