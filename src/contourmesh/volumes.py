@@ -3399,16 +3399,19 @@ def _bridged_band_crossing(P, na, ids, rule):
     # optimal band is bounded here (bridged rings are long; see triangulate_band_optimal)
     n_, m_ = sorted((na, len(P) - na))
     made = {}  # the rules' bands made below for this pair, by name (_made_band)
+    # (each band is tested once: a band not made again keeps its answer)
+    folded = band_is_folded(ids[f])
     for method in ("optimal", "arclength"):
-        if not band_is_folded(ids[f]):
+        if not folded:
             break
         # (where _band_faces kept the least-area band of a pair within the budget, the bounded
         # one is that band: it is not made again)
         if method != "optimal" or rule != "optimal" or r != 0 or n_ * n_ * m_ > _BRIDGED_OPTIMAL_BUDGET:
             f = triangulate_band_optimal(Va, Vb, max_work=_BRIDGED_OPTIMAL_BUDGET) \
                 if method == "optimal" else _made_band(made, Va, Vb, method)
+            folded = band_is_folded(ids[f])
         r += 1
-    if band_is_folded(ids[f]):
+    if folded:
         return None
     # a bridged ring is far from convex (its slits): the chosen band may cross itself where
     # another strategy does not; take the first embedded one that is not twisted (its area at
