@@ -342,3 +342,49 @@ def test_the_slab_phase_with_groups_certifies_no_stars(monkeypatch):
             met += by_slabs
             found += by_slabs and len(want) > 0
     assert met >= 6 and found >= 2, (met, found)
+
+
+def _collinear(V, f):
+    """Face ``f``'s corners on one line (exactly: the cross product in rationals)."""
+    from fractions import Fraction
+
+    p, q, r = ([Fraction(float(x)) for x in V[v]] for v in f)
+    u = [q[k] - p[k] for k in range(3)]
+    w = [r[k] - p[k] for k in range(3)]
+    return all(u[(k + 1) % 3] * w[(k + 2) % 3] == u[(k + 2) % 3] * w[(k + 1) % 3] for k in range(3))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_certified_faces_are_never_collinear(seed):
+    """The grid's first pass takes a certified face as not collinear without the orientation tests
+    (issue 16, round 24): the property it rests on, on lattice meshes with collinear faces put into
+    the groups (three grid points along a line, corners repeated by position), and the pairs with
+    groups on the grid equal to those without (every pair tested in full)."""
+    rng = np.random.default_rng(2400 + seed)
+    certified = collinear = 0
+    for trial in range(20):
+        V, F, G = _lattice_mesh(rng, int(rng.integers(20, 150)), int(rng.integers(1, 4)), int(rng.integers(0, 8)))
+        # faces along a line of the lattice: a corner pair or the three points of an axis line
+        extra, groups = [], []
+        m = len(F)
+        for _ in range(int(rng.integers(1, 8))):
+            a, b = rng.choice(m, 2, replace=False)
+            p, q = V[F[a, 0]], V[F[b, 1]]
+            k = int(rng.integers(3))
+            r = p.copy()
+            r[k] = q[k]
+            s = (p + r) / 2.0
+            base = len(V) + 3 * len(extra)
+            extra.append(np.stack([p, r, s]))
+            groups.append(int(G[a]) if rng.random() < 0.8 else -1)
+            F = np.vstack([F, [[base, base + 1, base + 2]]])
+        V = np.vstack([V] + extra)
+        G = np.concatenate([G, np.array(groups, np.int64)])
+        Fc = _canon(V, F)
+        cg = I._lattice_cells(np.ascontiguousarray(V), Fc, G)
+        for i in np.flatnonzero(cg >= 0):
+            assert not _collinear(V, F[i]), "a certified face is collinear"
+        certified += int((cg >= 0).sum())
+        collinear += sum(_collinear(V, f) for f in F[G >= 0])
+        np.testing.assert_array_equal(intersecting_pairs(V, F, method="grid", groups=G), _reference_pairs(V, F))
+    assert certified > 500 and collinear > 20  # (both kinds of face met)

@@ -1428,7 +1428,11 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
         live[i] = 0
         if a == b or b == c or a == c:
             continue
-        if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
+        # (a face certified in a group (_lattice_cells) is half of a rectangle, its two legs along two
+        # axes from the right-angle corner, each of nonzero length: not collinear, no test needed; on
+        # the lobster's mesh 84 % of the faces, some 3 % of this call)
+        if ((len(cg) == 0 or cg[i] < 0) and _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0
+                and _o2(V, ws, a, b, c, ax0, ax1) == 0):
             continue  # collinear (exactly)
         live[i] = 1
         nlive += 1
