@@ -660,11 +660,12 @@ def warm_rare_kernels() -> None:
     """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
     numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps), the signed
     distances of wanted pixels (:func:`_sdf`, on square pixels of a power-of-two side and on
-    others) and the edge check of an assembled join
-    (:func:`_edges_close`)."""
+    others, and the search round each wanted pixel, :func:`_sdf_near`) and the edge check of an
+    assembled join (:func:`_edges_close`)."""
     m = np.eye(3, dtype=bool)
     _euler2(m)
     _sdf(m, (1.0, 1.0), need=m)
+    _sdf_wanted(m, (1.0, 1.0), m, np.flatnonzero(m))
     _sdf(m, (0.75, 0.75), need=m)
     _edges_close(np.array([[0, 1, 2]], dtype=np.int64), 3, [(0, 3)])
 
