@@ -118,7 +118,7 @@ def _record(monkeypatch):
         return wanted(m, sampling, need, at)
 
     monkeypatch.setattr(sections, "_sdf_wanted", recorded)
-    return calls
+    return calls, wanted
 
 
 @pytest.mark.parametrize("name", ["lobster", "liver"])
@@ -132,12 +132,12 @@ def test_the_real_sections_distances(monkeypatch, shared_data, name):
     else:
         z = np.load(shared_data / "volumes" / "cgogn" / "liver.npz")
         vol = np.asarray(z["volume"] if "volume" in z.files else z["mask"]) > 0
-    calls = _record(monkeypatch)
+    calls, wanted = _record(monkeypatch)
     volume_to_mesh(vol)
     assert len(calls) > 50
     for m, sampling, need, at in calls:
         assert np.array_equal(np.flatnonzero(need), at)
-        got = sections._sdf_wanted(m, sampling, need, at)
+        got = wanted(m, sampling, need, at)
         assert got.tobytes() == _full(m, sampling, need, at).tobytes()
 
 
