@@ -18,11 +18,13 @@ def _bits(segments):
 
 
 def _checked_calls(monkeypatch):
-    """Wrap sectioned_join, _sdf and _edges_close so that each call is compared with the reference:
-    the join without its area bound (the same join where that one is within the bound, else None),
-    scipy's signed distance on the wanted pixels (signs elsewhere), and the numpy edge check."""
+    """Wrap sectioned_join, _sdf, _sdf_wanted and _edges_close so that each call is compared with
+    the reference: the join without its area bound (the same join where that one is within the
+    bound, else None), scipy's signed distance on the wanted pixels (signs elsewhere), and the
+    numpy edge check."""
     seen = {"joins": 0, "bounded_none": 0, "built": 0, "sdf": 0, "edges": 0}
     join, sdf, edges = sections.sectioned_join, sections._sdf, sections._edges_close
+    wanted = sections._sdf_wanted
 
     def checked_join(*a, **kw):
         got = join(*a, **kw)
@@ -54,6 +56,13 @@ def _checked_calls(monkeypatch):
         seen["sdf"] += 1
         return got
 
+    def checked_wanted(m, sampling, need, at):
+        got = wanted(m, sampling, need, at)
+        ref = sections._sdf_reference(np.asarray(m, dtype=bool), sampling).ravel()[at]
+        assert np.array_equal(np.flatnonzero(need), at) and got.tobytes() == ref.tobytes()
+        seen["sdf"] += 1
+        return got
+
     def checked_edges(F, nv, spans):
         got = edges(F, nv, spans)
         assert got == sections._edges_close_numpy(np.asarray(F, dtype=np.int64), nv, spans)
@@ -62,6 +71,7 @@ def _checked_calls(monkeypatch):
 
     monkeypatch.setattr(sections, "sectioned_join", checked_join)
     monkeypatch.setattr(sections, "_sdf", checked_sdf)
+    monkeypatch.setattr(sections, "_sdf_wanted", checked_wanted)
     monkeypatch.setattr(sections, "_edges_close", checked_edges)
     return seen
 

@@ -97,6 +97,100 @@ def _sdf(m: np.ndarray, sampling, need=None) -> np.ndarray:
 _ALL = np.zeros((0, 0), np.uint8)
 
 
+def _sdf_wanted(m: np.ndarray, sampling, need: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """``_sdf(m, sampling, need=need).ravel()[at]``: the signed distances of the wanted pixels
+    alone, ``at`` the flat indices of ``need``'s pixels in raster order (the same floats).
+
+    On square pixels whose side is a power of two (where :func:`_sdf` takes :func:`_sdf_square`)
+    and a region with a pixel they are measured by a search round each wanted pixel
+    (:func:`_sdf_near`), which falls back to the whole transform where the search grows long
+    (with :data:`NEAR_FIRST`): a sectioned join wants the pixels where its two slices differ, a
+    few in its box (on the liver one in a hundred), and the whole transform and its output of the
+    box's size (mapped anew at every call) cost more than the search."""
+    m = np.asarray(m, dtype=bool)
+    s0, s1 = (float(x) for x in sampling)
+    if NEAR_FIRST and s0 == s1 and 2.0 ** -200 <= s0 <= 2.0 ** 200 and math.frexp(s0)[0] == 0.5 and m.ndim == 2 \
+            and m.any():
+        out, done = _sdf_near(np.ascontiguousarray(m).view(np.uint8), s0 * s0, 0.5 * s0,
+                              np.ascontiguousarray(at, dtype=np.int64), np.int64(_NEAR_WORK * m.size))
+        if done:
+            return out
+    return _sdf(m, sampling, need=need).ravel()[at]
+
+
+#: :func:`_sdf_wanted` measures on square pixels by :func:`_sdf_near` first; False: by the whole
+#: transform always (the same numbers: the tests' reference).
+NEAR_FIRST = True
+#: :func:`_sdf_near` gives up once it has looked at this many pixels per pixel of the mask (the
+#: whole transform passes over each pixel of the padded mask a few times).
+_NEAR_WORK = 8
+
+
+@njit(cache=True, nogil=True)
+def _ring_feature(m, yy, xx, inside):
+    """Whether pixel ``(yy, xx)`` of the padded mask (``-1 .. H``, ``-1 .. W``; the padding is
+    empty) is a feature of :func:`_sdf_near`'s search: empty for a pixel of the region (``inside``),
+    of the region for one off it."""
+    H, W = m.shape
+    if yy < 0 or yy >= H or xx < 0 or xx >= W:
+        return inside
+    return (m[yy, xx] == 0) == inside
+
+
+@njit(cache=True, nogil=True)
+def _sdf_near(m, area, h, at, budget):
+    """:func:`_sdf_square`'s signed distances of a non-empty mask (uint8) on square pixels of area
+    ``area`` (``h`` half the side) at the pixels of flat indices ``at``, by a search round each:
+    ``(out, True)`` with ``out[i]`` pixel ``at[i]``'s distance (the same float), or ``(out,
+    False)`` (unfinished) once the search has looked at more than ``budget`` pixels.
+
+    The search looks at the square rings round the pixel, radius 1, 2, ... (pixels of the padded
+    mask only), and keeps the least squared distance (an integer number of pixel steps) to a
+    feature (:func:`_ring_feature`: an empty pixel of the padded mask for a pixel of the region, a
+    pixel of the region for one off it, as the transform's).  Every pixel of ring ``r`` is at least
+    ``r`` steps away, so once ``r^2`` is no less than the least found no farther ring holds a
+    nearer feature: that least is the transform's squared distance, the same integer, and the
+    distance (``h - inside`` on the region, ``outside - h`` off it, each the square root of the
+    integer times ``area``) the same float."""
+    H, W = m.shape
+    out = np.empty(at.shape[0], np.float64)
+    work = 0
+    big = np.int64(1) << 62
+    for i in range(at.shape[0]):
+        y, x = at[i] // W, at[i] % W
+        inside = m[y, x] != 0
+        best = big
+        r = 1
+        while r * r < best:
+            c0, c1 = max(x - r, -1), min(x + r, W)
+            r0, r1 = max(y - r + 1, -1), min(y + r - 1, H)
+            for side in range(2):
+                yy = y - r if side == 0 else y + r
+                if -1 <= yy <= H:  # (a row of the ring)
+                    work += c1 - c0 + 1
+                    for xx in range(c0, c1 + 1):
+                        if _ring_feature(m, yy, xx, inside):
+                            d = r * r + (xx - x) * (xx - x)
+                            if d < best:
+                                best = d
+                xx = x - r if side == 0 else x + r
+                if -1 <= xx <= W:  # (a column of the ring, less its corners)
+                    work += r1 - r0 + 1
+                    for yy in range(r0, r1 + 1):
+                        if _ring_feature(m, yy, xx, inside):
+                            d = r * r + (yy - y) * (yy - y)
+                            if d < best:
+                                best = d
+            if work > budget:
+                return out, False
+            r += 1
+        if inside:
+            out[i] = h - math.sqrt(float(best) * area)
+        else:
+            out[i] = -h + math.sqrt(float(best) * area)
+    return out, True
+
+
 #: Largest padded image (pixels) whose column-distance arrays a thread keeps for the next one.
 _KEPT_PIXELS = 1 << 20
 _LOCAL = threading.local()
@@ -566,11 +660,12 @@ def warm_rare_kernels() -> None:
     """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
     numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps), the signed
     distances of wanted pixels (:func:`_sdf`, on square pixels of a power-of-two side and on
-    others) and the edge check of an assembled join
-    (:func:`_edges_close`)."""
+    others, and the search round each wanted pixel, :func:`_sdf_near`) and the edge check of an
+    assembled join (:func:`_edges_close`)."""
     m = np.eye(3, dtype=bool)
     _euler2(m)
     _sdf(m, (1.0, 1.0), need=m)
+    _sdf_wanted(m, (1.0, 1.0), m, np.flatnonzero(m))
     _sdf(m, (0.75, 0.75), need=m)
     _edges_close(np.array([[0, 1, 2]], dtype=np.int64), 3, [(0, 3)])
 
@@ -886,17 +981,21 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     # Every layer agrees with lo and hi where those two agree (inside both: inside all, a section
     # being where the mean of its two ends' signed distances is negative; outside both: outside
     # all), so a section's sign is decided by distances only where lo and hi differ: the signed
-    # distances are measured there alone (the same numbers there; only their sign elsewhere).
+    # distances are measured there alone (_sdf_wanted: the same numbers there, in raster order),
+    # and a section is lo's mask with those pixels set by the sign of the sum (the same mask as
+    # the sum's sign over the box, where the other pixels' distances were -inf or +inf as lo's).
     differ = []
 
     def sdf_of(L):
         if id(L) not in sdfs:
-            sdfs[id(L)] = (L, _sdf(mask_of(L), sampling, need=where_differ()))
+            sdfs[id(L)] = (L, _sdf_wanted(mask_of(L), sampling, *where_differ()))
         return sdfs[id(L)][1]
 
     def where_differ():
+        """The pixels where lo and hi differ (a mask of the box) and their flat indices."""
         if not differ:
-            differ.append(mask_of(lo) ^ mask_of(hi))
+            d = mask_of(lo) ^ mask_of(hi)
+            differ.append((d, np.flatnonzero(d)))
         return differ[0]
 
     # The sections a join may get form a tree: pair () is (lo, hi), its section splits it into the
@@ -934,7 +1033,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         if node in layer_at:
             return sdf_of(layer_at[node])
         if node not in node_sdf:
-            node_sdf[node] = _sdf(section_mask(node), sampling, need=where_differ())
+            node_sdf[node] = _sdf_wanted(section_mask(node), sampling, *where_differ())
         return node_sdf[node]
 
     section_masks = {}  # pair path -> its section's mask, made once (the same array whenever asked)
@@ -944,7 +1043,10 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         got = section_masks.get(path)
         if got is None:
             a, b = ends(path)
-            got = section_masks[path] = sdf_at(a) + sdf_at(b) < 0
+            below, above = sdf_at(a), sdf_at(b)
+            got = mask_of(lo).copy()
+            got.ravel()[where_differ()[1]] = below + above < 0
+            section_masks[path] = got
         return got
 
     def has_pixel(path, m):
