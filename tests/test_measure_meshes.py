@@ -212,3 +212,67 @@ def test_size_sums_kernel_is_exact_per_range():
         assert math.fsum(parts[:n].tolist() + [-x for x in size[a:b]]) == 0.0
         assert math.fsum(wparts[:nw].tolist() + [-x for x in size[a:b][wall[a:b]]]) == 0.0
         assert math.fsum(parts[:n].tolist()) == math.fsum(size[a:b])
+
+
+def test_binned_size_sums_equal_the_expansion_form():
+    """measure._size_sums (sizes of normal exponents added as integers in per-exponent bins, the
+    rest to the expansion) against the form that adds every size to the expansion
+    (_size_sums_expansion, kept): parts whose fsums are the same floats, the same ok, on meshes
+    from tiny to huge scales (hundreds of exponents, several in one mesh), many equal sizes (bins
+    carried up), and NaN, infinite and overflowing sizes (the expansion's, refused)."""
+    import math
+
+    from contourmesh import measure
+
+    def same(v, f, a, b):
+        got = measure._size_sums(v, f, a, b)
+        want = measure._size_sums_expansion(v, f, a, b)
+        assert got[0] == want[0]
+        if want[0]:
+            for k in (1, 3):
+                assert math.fsum(got[k][:got[k + 1]].tolist()) == math.fsum(want[k][:want[k + 1]].tolist())
+        return got[0]
+
+    rng = np.random.default_rng(21)
+    exponents = set()
+    for t in range(200):
+        n, m = int(rng.integers(3, 60)), int(rng.integers(1, 500))
+        v = rng.normal(size=(n, 3))
+        if t % 3 == 0:
+            v = np.round(v * 4) / 4  # (walls and degenerate faces)
+        if t % 4 == 1:  # (two scales in one mesh)
+            v[: n // 2] *= 10.0 ** int(rng.integers(-40, -20))
+        v *= 10.0 ** int(rng.integers(-140, 76))  # (squares of the cross products below 1e308)
+        f = rng.integers(0, n, size=(m, 3))
+        size = measure.face_terms(v, f)[0]
+        exponents.update(np.unique((size[size > 0].view(np.int64) >> 52) & 0x7FF).tolist())
+        a = int(rng.integers(0, m))
+        assert same(v, f, 0, m) and same(v, f, a, m)
+    assert len(exponents) > 600 and min(exponents) < 500 and max(exponents) > 1400
+    # one face repeated: 2^20 equal sizes carry up through the bins
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0 - 2**-40]])
+    assert same(v, np.zeros((1 << 20, 3), np.int64) + np.array([0, 1, 2]), 0, 1 << 20)
+    # NaN, infinite and overflowing sizes, faces outside: refused by both
+    w = rng.normal(size=(30, 3)) * 1e160
+    f = rng.integers(0, 30, size=(300, 3))
+    for bad in (w, np.where(rng.random(w.shape) < 0.02, np.nan, w / 1e160), np.where(rng.random(w.shape) < 0.02, np.inf, w / 1e160)):
+        assert not same(bad, f, 0, 300)
+    assert not same(w / 1e160, f + 30, 0, 300)
+
+
+def test_binned_size_sums_equal_the_expansion_form_on_the_lobster(shared_data):
+    """As above, on the lobster's mesh (the volume mesher's sizes; skipped without the shared data)."""
+    import math
+
+    import contourmesh
+    from contourmesh import measure
+    from contourmesh.io import read_volume
+
+    vol, spacing, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    m = contourmesh.mesh(np.pad(vol, 1), spacing=tuple(spacing))
+    v, f = np.ascontiguousarray(m.vertices), np.ascontiguousarray(m.faces, dtype=np.int64)
+    got = measure._size_sums(v, f, 0, len(f))
+    want = measure._size_sums_expansion(v, f, 0, len(f))
+    assert got[0] and want[0]
+    for k in (1, 3):
+        assert math.fsum(got[k][:got[k + 1]].tolist()) == math.fsum(want[k][:want[k + 1]].tolist())

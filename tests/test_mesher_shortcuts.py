@@ -463,6 +463,11 @@ def test_necks_met_again_are_opened_as_the_first_time(monkeypatch):
     at_once = repair._open_necks(V, F, S, N, nudge, tube_seen=kept)
     for out in (first, again, at_once):
         assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(plain, out))
+    # the faces at the necks found by the compiled pass (int64 C faces, as the mesher's) and by the
+    # mask of every corner (the form before, kept for other faces: here Fortran-ordered ones)
+    assert F.dtype == np.int64 and F.flags.c_contiguous
+    by_mask = repair._open_necks_loop(V, np.asfortranarray(F), S, N, nudge)
+    assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(plain, by_mask))
 
 
 def test_a_holes_first_pixel_is_the_first_of_its_whole_mask():

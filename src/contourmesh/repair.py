@@ -1911,7 +1911,12 @@ def _open_necks_loop(V, F, S, necks, nudge, tube_seen=None):
     # faces (old and new, by index into `faces`) around each neck vertex, kept up to date
     is_neck = np.zeros(len(V), dtype=bool)  # (np.isin(F, neck_ids), by a lookup table)
     is_neck[neck_ids] = True
-    old_index = np.flatnonzero(is_neck[F].any(axis=1))  # their rows in F
+    # their rows in F: np.flatnonzero(is_neck[F].any(axis=1)), in one compiled pass where F is the
+    # volume mesher's int64 array (the mask of every corner cost 4.5 of the liver's 6.3 ms)
+    if isinstance(F, np.ndarray) and F.dtype == np.int64 and F.ndim == 2 and F.shape[1] == 3 and F.flags.c_contiguous:
+        old_index = _rows_touching(F, is_neck)
+    else:
+        old_index = np.flatnonzero(is_neck[F].any(axis=1))
     faces = [tuple(f) for f in F[old_index].tolist()]
     n_old = len(faces)
     star_of = {int(c): [] for c in neck_ids}
