@@ -2173,6 +2173,26 @@ def _corner_ranges(V, F, lev, i, k):
     return bx0, bx1, by0, by1, tx0, tx1, ty0, ty1
 
 
+@_pure
+def _box_row(W, s, V, F, lev, i, k):
+    """Row ``s`` of a sweep's rows for face i (:func:`_x_sweep`, :func:`_two_level_sweep`): its xy box
+    (columns 0-3), the x and y ranges of its corners on level k (4-7) and of its other corners
+    (8-11), from :func:`_corner_ranges`."""
+    bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, k)
+    W[s, 0] = min(bx0, tx0)
+    W[s, 1] = max(bx1, tx1)
+    W[s, 2] = min(by0, ty0)
+    W[s, 3] = max(by1, ty1)
+    W[s, 4] = bx0
+    W[s, 5] = bx1
+    W[s, 6] = by0
+    W[s, 7] = by1
+    W[s, 8] = tx0
+    W[s, 9] = tx1
+    W[s, 10] = ty0
+    W[s, 11] = ty1
+
+
 # Two rules decide most candidate pairs of a slab by comparisons of coordinates alone (exact);
 # the slab sweep (:func:`_single_sweep`) applies them to its rows of corner ranges, and the tests
 # keep them in their plain form.  Both hold for two faces whose corners lie on the same two
@@ -2536,19 +2556,7 @@ def _x_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, order, bk, start, 
         i = faces[order[s]]
         kl = lo_[i]
         kh = hi_[i]
-        bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, kl)
-        W[s, 0] = min(bx0, tx0)
-        W[s, 1] = max(bx1, tx1)
-        W[s, 2] = min(by0, ty0)
-        W[s, 3] = max(by1, ty1)
-        W[s, 4] = bx0
-        W[s, 5] = bx1
-        W[s, 6] = by0
-        W[s, 7] = by1
-        W[s, 8] = tx0
-        W[s, 9] = tx1
-        W[s, 10] = ty0
-        W[s, 11] = ty1
+        _box_row(W, s, V, F, lev, i, kl)
         nl = (lev[F[i, 0]] == kl) + (lev[F[i, 1]] == kl) + (lev[F[i, 2]] == kl)
         nh = (lev[F[i, 0]] == kh) + (lev[F[i, 1]] == kh) + (lev[F[i, 2]] == kh)
         W[s, 12] = 1.0 * nl
@@ -3467,19 +3475,7 @@ def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit):
         cs[s, 0] = F[i, 0]
         cs[s, 1] = F[i, 1]
         cs[s, 2] = F[i, 2]
-        bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, zero)
-        W[s, 0] = min(bx0, tx0)
-        W[s, 1] = max(bx1, tx1)
-        W[s, 2] = min(by0, ty0)
-        W[s, 3] = max(by1, ty1)
-        W[s, 4] = bx0
-        W[s, 5] = bx1
-        W[s, 6] = by0
-        W[s, 7] = by1
-        W[s, 8] = tx0
-        W[s, 9] = tx1
-        W[s, 10] = ty0
-        W[s, 11] = ty1
+        _box_row(W, s, V, F, lev, i, zero)
         W[s, 12] = 1.0 * ((lev[F[i, 0]] == 0) + (lev[F[i, 1]] == 0) + (lev[F[i, 2]] == 0))
         xs[s] = W[s, 0]
         x1s[s] = W[s, 1]
