@@ -2175,9 +2175,9 @@ def _corner_ranges(V, F, lev, i, k):
 
 @_pure
 def _box_row(W, s, V, F, lev, i, k):
-    """Row ``s`` of a sweep's rows for face i (:func:`_x_sweep`, :func:`_two_level_sweep`): its xy box
-    (columns 0-3), the x and y ranges of its corners on level k (4-7) and of its other corners
-    (8-11), from :func:`_corner_ranges`."""
+    """Row ``s`` of a sweep's rows for face i (:func:`_x_sweep`, :func:`_cell_sweep`,
+    :func:`_two_level_sweep`): its xy box (columns 0-3), the x and y ranges of its corners on
+    level k (4-7) and of its other corners (8-11), from :func:`_corner_ranges`."""
     bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, k)
     W[s, 0] = min(bx0, tx0)
     W[s, 1] = max(bx1, tx1)
@@ -2334,19 +2334,7 @@ def _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, cx0, cy0, start
         i = faces[t]
         kl = lo_[i]
         kh = hi_[i]
-        bx0, bx1, by0, by1, tx0, tx1, ty0, ty1 = _corner_ranges(V, F, lev, i, kl)
-        W[t, 0] = min(bx0, tx0)
-        W[t, 1] = max(bx1, tx1)
-        W[t, 2] = min(by0, ty0)
-        W[t, 3] = max(by1, ty1)
-        W[t, 4] = bx0
-        W[t, 5] = bx1
-        W[t, 6] = by0
-        W[t, 7] = by1
-        W[t, 8] = tx0
-        W[t, 9] = tx1
-        W[t, 10] = ty0
-        W[t, 11] = ty1
+        _box_row(W, t, V, F, lev, i, kl)
         nl = (lev[F[i, 0]] == kl) + (lev[F[i, 1]] == kl) + (lev[F[i, 2]] == kl)
         nh = (lev[F[i, 0]] == kh) + (lev[F[i, 1]] == kh) + (lev[F[i, 2]] == kh)
         W[t, 12] = 1.0 * nl
