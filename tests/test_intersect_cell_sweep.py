@@ -119,8 +119,11 @@ def test_plane_candidates_by_cells_equal_the_sweep_over_x(seed):
     """The planes' candidate pairs (``_sweep``: entries of groups 0 .. 3, closed xy boxes that
     overlap or touch, with and without ``need2``) by the grid of cells (whose cells list the entries
     of group 2 first, and with ``need2`` let only those start pairs) and by the sweep over x: the
-    same pairs, each once; boxes on a coarse lattice (many touching), points, long and thin ones."""
+    same pairs, each once; boxes on a coarse lattice (many touching), points, long and thin ones.
+    With the entries' certified groups (``eg``): the same pairs less those of two entries of one
+    group, by both."""
     rng = np.random.default_rng(seed)
+    left = 0
     for trial in range(12):
         n = int(rng.integers(1, 3000))
         lo = rng.integers(0, 80, (n, 2)) * 0.5
@@ -132,11 +135,19 @@ def test_plane_candidates_by_cells_equal_the_sweep_over_x(seed):
         box = np.c_[lo[:, 0], lo[:, 0] + size[:, 0], lo[:, 1], lo[:, 1] + size[:, 1]]
         grp = rng.integers(0, 4, n).astype(np.int8)
         ids = rng.permutation(n)[: max(1, n - int(rng.integers(0, 5)))].astype(np.int32)
+        # the entries' certified groups (a few groups, many entries in none): a pair of one group
+        # is no candidate, the others are those without groups
+        eg = np.where(rng.random(n) < 0.6, rng.integers(0, 3, n), -1).astype(np.int64)
         for need2 in (0, 1):
             got = []
             for cells in (0, 1):
-                a, b, _ = I._plane_candidates(*(np.ascontiguousarray(box[:, c]) for c in range(4)), grp, ids,
-                                              np.int64(need2), np.int64(cells))
-                got.append(sorted((min(x, y), max(x, y)) for x, y in zip(a.tolist(), b.tolist())))
-            assert got[0] == got[1], (trial, need2, len(got[0]), len(got[1]))
-            assert len(set(got[1])) == len(got[1])
+                for groups in (np.zeros(0, np.int64), eg):
+                    a, b, _ = I._plane_candidates(*(np.ascontiguousarray(box[:, c]) for c in range(4)), grp, ids,
+                                                  np.int64(need2), np.int64(cells), groups)
+                    got.append(sorted((min(x, y), max(x, y)) for x, y in zip(a.tolist(), b.tolist())))
+            assert got[0] == got[2], (trial, need2, len(got[0]), len(got[2]))
+            assert got[1] == got[3], (trial, need2, len(got[1]), len(got[3]))
+            assert len(set(got[2])) == len(got[2])
+            assert got[1] == [(x, y) for x, y in got[0] if not (eg[x] >= 0 and eg[x] == eg[y])]
+            left += len(got[0]) - len(got[1])
+    assert left > 0  # (the groups left some pairs out)

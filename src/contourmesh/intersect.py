@@ -1675,14 +1675,14 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
 # and lie apart beside it (the two rules before _slab_hit: comparisons of coordinates), do not meet
 # (the bands between two rings: most of their candidates).
 @_kernel
-def _sweep(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
+def _sweep(xlo, xhi, ylo, yhi, grp, eg, ids, out_i, out_j, n_out, work, limit, need2):
     """The candidate pairs of :func:`_x_pairs` (arguments and result as there), from
     :func:`_cell_pairs` for at least :data:`_CELL_SWEEP` entries (the same pairs, in another order
     and with less work: on the liver's whole mesh the planes' sweeps over x met some 21 M pairs of
     boxes)."""
     if len(ids) >= _CELL_SWEEP:
-        return _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2)
-    return _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2)
+        return _cell_pairs(xlo, xhi, ylo, yhi, grp, eg, ids, out_i, out_j, n_out, work, limit, need2)
+    return _x_pairs(xlo, xhi, ylo, yhi, grp, eg, ids, out_i, out_j, n_out, work, limit, need2)
 
 
 @_pure
@@ -1696,7 +1696,7 @@ def _group_pair(ga, gb, need2):
 
 
 @_kernel
-def _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
+def _cell_pairs(xlo, xhi, ylo, yhi, grp, eg, ids, out_i, out_j, n_out, work, limit, need2):
     """:func:`_x_pairs`' candidate pairs (each once, in another order) from a grid of about
     ``len(ids)`` cells over the entries' xy box, fewer where the entries would take more than four
     cells each on average: two entries whose closed boxes overlap share the cell of the low corner
@@ -1783,6 +1783,8 @@ def _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, 
                 u = ent[v]
                 b = ids[u]
                 work += 1
+                if len(eg) > 0 and eg[a] >= 0 and eg[a] == eg[b]:
+                    continue  # (two faces certified in one group: no candidate, see _x_pairs)
                 if xlo[b] > xhi[a] or xlo[a] > xhi[b] or ylo[a] > yhi[b] or ylo[b] > yhi[a]:
                     continue
                 if max(cy0[s], cy0[u]) * gx + max(cx0[s], cx0[u]) != q:
@@ -1801,10 +1803,12 @@ def _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, 
 
 
 @_kernel
-def _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, need2):
+def _x_pairs(xlo, xhi, ylo, yhi, grp, eg, ids, out_i, out_j, n_out, work, limit, need2):
     """Candidate pairs among the entries ``ids``: closed xy boxes overlapping, not two entries of
     one group unless the group is 2, an entry of group 3 only with one of group 2 (with
-    ``need2``: only pairs with an entry of group 2),
+    ``need2``: only pairs with an entry of group 2), and not two entries of faces certified in one
+    group (``eg``, per entry, the face's group of :func:`_lattice_cells` or -1; empty: none; such a
+    pair needs no test, and on the liver's whole mesh 600k of the planes' 618k candidates were such),
     appended to out_i/out_j from ``n_out``.  Returns the new count and the work done (box
     tests), or ``-1`` as count when ``work`` exceeds ``limit``.
 
@@ -1844,6 +1848,8 @@ def _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, n_out, work, limit, nee
             for u in range(s + 1, start[qh + 1]):
                 b = order[u]
                 work += 1
+                if len(eg) > 0 and eg[a] >= 0 and eg[a] == eg[b]:
+                    continue
                 if xlo[b] > xa or xlo[a] > xhi[b] or ylo[a] > yhi[b] or ylo[b] > yhi[a]:
                     continue
                 if grp[a] == grp[b] and grp[a] != 2:
@@ -1974,8 +1980,8 @@ def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cer
             stamp[pu[e]] = k
             cert[n] = e
             n += 1
-    ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, all2, cert[:n], ci, cj, np.int64(0), work, limit,
-                                 np.int64(0))
+    ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, all2, np.zeros(0, np.int64), cert[:n], ci, cj, np.int64(0),
+                                 work, limit, np.int64(0))
     if n_out < 0:
         return False, work, ci, cj
     ax = np.int64(0)
@@ -2474,18 +2480,18 @@ def _slab_sweep_pairs(V, ws, F, star, sst, lev, lo_, hi_, faces, k, cells):
 
 
 @njit(cache=True, **_OPTIONS)
-def _plane_candidates(xlo, xhi, ylo, yhi, grp, ids, need2, cells):
+def _plane_candidates(xlo, xhi, ylo, yhi, grp, ids, need2, cells, eg):
     """The candidate pairs of the entries ``ids`` by :func:`_cell_pairs` (``cells == 1``) or
     :func:`_x_pairs` (``0``), whatever their number, without a budget: ``(out_i, out_j, work)``,
-    for the tests that compare the two."""
+    for the tests that compare the two (``eg``: the entries' certified groups, or empty)."""
     zero = need2 - need2
     out_i = np.empty(16, np.int64)
     out_j = np.empty(16, np.int64)
     limit = zero + 2 ** 62
     if cells == 1:
-        out_i, out_j, n_out, work = _cell_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, zero, zero, limit, need2)
+        out_i, out_j, n_out, work = _cell_pairs(xlo, xhi, ylo, yhi, grp, eg, ids, out_i, out_j, zero, zero, limit, need2)
     else:
-        out_i, out_j, n_out, work = _x_pairs(xlo, xhi, ylo, yhi, grp, ids, out_i, out_j, zero, zero, limit, need2)
+        out_i, out_j, n_out, work = _x_pairs(xlo, xhi, ylo, yhi, grp, eg, ids, out_i, out_j, zero, zero, limit, need2)
     return out_i[:n_out], out_j[:n_out], work
 
 
@@ -2608,7 +2614,7 @@ def _slab_step(V, ws, F, star, sst, quick, lev, lo, hi, sbox, sgrp, sids, sW, so
         sbox[t, 1] = max(V[a, 0], max(V[b, 0], V[c, 0]))
         sbox[t, 2] = min(V[a, 1], min(V[b, 1], V[c, 1]))
         sbox[t, 3] = max(V[a, 1], max(V[b, 1], V[c, 1]))
-    ci, cj, n_out, work = _sweep(sbox[:, 0], sbox[:, 1], sbox[:, 2], sbox[:, 3], sgrp, sids[:ns], ci, cj,
+    ci, cj, n_out, work = _sweep(sbox[:, 0], sbox[:, 1], sbox[:, 2], sbox[:, 3], sgrp, cg[:0], sids[:ns], ci, cj,
                                  np.int64(0), work, limit, np.int64(1))
     if n_out < 0:
         return ci, cj, np.int64(-1), pi, pj, work
@@ -2807,6 +2813,7 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
     pyhi = pbox[:, 3]
     pgrp = np.zeros(mp, np.int8)
     pface = np.empty(mp, np.int64)
+    peg = np.empty(mp if len(cg) > 0 else 0, np.int64)  # (the entries' faces' groups, cg)
     ids = np.arange(mp).astype(np.int32)
     pu = np.empty(mp, np.int64)
     pw = np.empty(mp, np.int64)
@@ -2930,7 +2937,10 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
         if nflat == 0 and (n0 == 0 or n1 == 0 or emb):
             continue
         need2 = np.int64(1) if emb else np.int64(0)
-        ci, cj, n_out, work = _sweep(pxlo, pxhi, pylo, pyhi, pgrp, ids[:ne], ci, cj, np.int64(0), work, limit,
+        if len(peg) > 0:
+            for e in range(ne):
+                peg[e] = cg[pface[e]]
+        ci, cj, n_out, work = _sweep(pxlo, pxhi, pylo, pyhi, pgrp, peg, ids[:ne], ci, cj, np.int64(0), work, limit,
                                      need2)
         if n_out < 0:
             return pi[:0], pj[:0], np.int64(-1)
