@@ -1940,6 +1940,13 @@ def _plane_convex_ring(V, ws, pu, pw, ne, k, stamp, d1, d2):
 
 @_kernel
 def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cert, all2, ci, cj, work, limit):
+    """:func:`_plane_embedded_g` with no groups (every pair of parts whose boxes meet checked)."""
+    return _plane_embedded_g(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cert, all2, np.zeros(0, np.int64),
+                             ci, cj, work, limit)
+
+
+@_kernel
+def _plane_embedded_g(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cert, all2, eg, ci, cj, work, limit):
     """The parts at one height of the faces below and above it (entries ``0 .. ne-1``: a segment
     ``pu - pw`` or a point ``pu == pw``, canonical vertex indices) form an embedded planar graph:
     two distinct segments meet at most in a common endpoint (not along a common ray from it), and
@@ -1952,7 +1959,18 @@ def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cer
     segment beyond a common endpoint, or along its ray, which the test sees.  ``stamp`` (per
     vertex, with ``d1``, ``d2``: the segments seen from a lower end), ``cert``, ``ci``, ``cj`` are
     workspaces (``all2`` all 2s); more than ``limit`` box
-    tests in all: not embedded.  Returns ``(embedded, work, ci, cj)``."""
+    tests in all: not embedded.  Returns ``(embedded, work, ci, cj)``.
+
+    ``eg`` (per entry, or empty): the group of :func:`_lattice_cells` of the entry's face, or -1.
+    Two parts of faces certified in one group are not checked: they never fail the checks.  The
+    faces, halves of distinct cells of one product grid (two halves of one cell give a segment and
+    its own endpoint), meet at most in a common corner or along a common side that both hold
+    whole, and a part is a side of its face or a corner of it, at the height of the plane.  Two
+    parts without a common endpoint that touch would meet in a common corner, an endpoint of both
+    (and so their common vertex, canonical indices), or at a point inside a common side, which
+    only that side itself holds of either face's sides and corners: the same segment in both.  Two
+    with a common endpoint along one ray would overlap in a segment, inside a common side: again
+    the same segment twice, checked once."""
     n = 0
     for e in range(ne):  # the segments, a common edge once (up to two per lower end are remembered)
         u = pu[e]
@@ -1980,8 +1998,8 @@ def _plane_embedded(V, ws, xlo, xhi, ylo, yhi, pu, pw, ne, k, stamp, d1, d2, cer
             stamp[pu[e]] = k
             cert[n] = e
             n += 1
-    ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, all2, np.zeros(0, np.int64), cert[:n], ci, cj, np.int64(0),
-                                 work, limit, np.int64(0))
+    ci, cj, n_out, work = _sweep(xlo, xhi, ylo, yhi, all2, eg, cert[:n], ci, cj, np.int64(0), work, limit,
+                                 np.int64(0))
     if n_out < 0:
         return False, work, ci, cj
     ax = np.int64(0)
@@ -2920,8 +2938,12 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
         emb = True
         if n0 + n1 > 0 and ((n0 > 0 and n1 > 0) or (k > 0 and scert[k - 1] == 1) or (k < nslab and scert[k] == 1)):
             if not (ws[0] == 1.0 and _plane_convex_ring(V, ws, pu, pw, np.int64(ne01), np.int64(k), stamp, d1, d2)):
-                emb, work, ci, cj = _plane_embedded(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01),
-                                                    np.int64(k), stamp, d1, d2, cert, all2, ci, cj, work, limit)
+                if len(peg) > 0:
+                    for e in range(ne01):
+                        peg[e] = cg[pface[e]]
+                emb, work, ci, cj = _plane_embedded_g(V, ws, pxlo, pxhi, pylo, pyhi, pu, pw, np.int64(ne01),
+                                                      np.int64(k), stamp, d1, d2, cert, all2, peg, ci, cj, work,
+                                                      limit)
         pemb[k] = 1 if emb else 0
         if k < k0:
             continue  # (plane k0 - 1: its pairs are another range's)
