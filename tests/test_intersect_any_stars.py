@@ -94,18 +94,35 @@ def test_real_joins_answer_as_the_plain_test(monkeypatch):
     except Exception as exc:  # pragma: no cover - data missing
         pytest.skip(f"lobster not available: {exc}")
     import contourmesh
+    from contourmesh import bands
 
     calls = []
-    orig = intersect._any_kernel
+    orig, orig_seen, orig_band = intersect._any_kernel, intersect._any_kernel_seen, bands._band_any
 
     def wrap(V, F, delay):
         got = orig(V, F, delay)
         calls.append((V.copy(), F.copy(), got))
         return got
 
+    def wrap_seen(V, F, delay, mem):  # (any_intersecting's entry, with the memory of the last pair)
+        got = orig_seen(V, F, delay, mem)
+        calls.append((V.copy(), F.copy(), got))
+        return got
+
+    def wrap_band(P, f, delay, mem):  # (a band's test: its points with the pinches split)
+        got = orig_band(P, f, delay, mem)
+        Q, status = bands._pinch_split(P, f)
+        if status < 2:
+            calls.append((Q.copy(), f.copy(), got))
+        return got
+
     monkeypatch.setattr(intersect, "_any_kernel", wrap)
+    monkeypatch.setattr(intersect, "_any_kernel_seen", wrap_seen)
+    monkeypatch.setattr(bands, "_band_any", wrap_band)
     contourmesh.mesh(vol, spacing=sp)
     monkeypatch.setattr(intersect, "_any_kernel", orig)
+    monkeypatch.setattr(intersect, "_any_kernel_seen", orig_seen)
+    monkeypatch.setattr(bands, "_band_any", orig_band)
     assert len(calls) > 500
     big = sorted(range(len(calls)), key=lambda k: -len(calls[k][1]))[:40]
     hits = [k for k in range(len(calls)) if calls[k][2] == 1][:40]

@@ -356,8 +356,8 @@ def test_any_intersecting_in_one_call_on_any_arrays():
     from numba.core.registry import CPUDispatcher
 
     from contourmesh import intersect
-    assert len(intersect._any_kernel.signatures) == 1
-    assert isinstance(intersect._any_kernel, CPUDispatcher)
+    assert len(intersect._any_kernel_seen.signatures) == 1  # (any_intersecting's entry)
+    assert isinstance(intersect._any_kernel_seen, CPUDispatcher)
 
 
 def test_range_stars_are_the_whole_meshs_stars_and_the_split_pairs_the_one_calls(monkeypatch):

@@ -127,17 +127,31 @@ def _build_calls(name, monkeypatch):
     except Exception as exc:  # pragma: no cover - data missing
         pytest.skip(f"{name} not available: {exc}")
     import contourmesh
-    from contourmesh import repair
+    from contourmesh import bands, repair
 
     calls = []
-    orig = intersect._any_kernel
+    orig, orig_seen, orig_band = intersect._any_kernel, intersect._any_kernel_seen, bands._band_any
 
     def wrap(V, F, delay):
         got = orig(V, F, delay)
         calls.append((V.copy(), F.copy(), delay, got))
         return got
 
+    def wrap_seen(V, F, delay, mem):  # (any_intersecting's entry, with the memory of the last pair)
+        got = orig_seen(V, F, delay, mem)
+        calls.append((V.copy(), F.copy(), delay, got))
+        return got
+
+    def wrap_band(P, f, delay, mem):  # (a band's test: its points with the pinches split)
+        got = orig_band(P, f, delay, mem)
+        Q, status = bands._pinch_split(P, f)
+        if status < 2:
+            calls.append((Q.copy(), f.copy(), delay, got))
+        return got
+
     monkeypatch.setattr(intersect, "_any_kernel", wrap)
+    monkeypatch.setattr(intersect, "_any_kernel_seen", wrap_seen)
+    monkeypatch.setattr(bands, "_band_any", wrap_band)
     monkeypatch.setattr(repair, "_any_kernel", wrap)
     contourmesh.mesh(vol, spacing=sp)
     return calls

@@ -3291,6 +3291,12 @@ def _exact_range(V):
     return np.ldexp(V, (s_min + s_max) // 2)
 
 
+#: The corners of the last pair of faces that :func:`any_intersecting` found to intersect (and
+#: 1.0 at the end once it holds one): tested first on the next call (:func:`_seen_pair`).  Only
+#: time depends on it: a pair it names is tested exactly on the call's own arrays.
+_PAIR_SEEN = np.zeros(19)
+
+
 def any_intersecting(vertices, faces) -> bool:
     """``len(intersecting_pairs(vertices, faces)) > 0``, stopping at the first pair found.
 
@@ -3304,7 +3310,7 @@ def any_intersecting(vertices, faces) -> bool:
     F = np.ascontiguousarray(faces, dtype=np.int64)
     if (V.ndim == 2 and V.shape[1] == 3 and F.ndim == 2 and F.shape[1] == 3 and len(F) >= 2
             and 3 * len(F) >= len(V) and V.flags.writeable and F.flags.writeable):
-        got = _any_kernel(V, F, np.int64(_STAR_DELAY))
+        got = _any_kernel_seen(V, F, np.int64(_STAR_DELAY), _PAIR_SEEN)
         if got >= 0:
             return bool(got)
     V, F = _as_mesh_arrays(vertices, faces)
@@ -3460,9 +3466,9 @@ def _x_order(x0):
 
 
 @_kernel
-def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit):
+def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit, hit):
     """Whether two of ``faces`` (each with its corners on levels 0 and 1 of a two-level mesh)
-    intersect, as :func:`_x_sweep` decides slab 0's pairs: every pair whose closed xy boxes
+    intersect (that pair in ``hit``), as :func:`_x_sweep` decides slab 0's pairs: every pair whose closed xy boxes
     overlap, less those the rules "ends apart" and "apart but at a corner" decide (the note before
     :func:`_slab_hit`) and those on one rung that :func:`_rung_apart` decides, tested by
     :func:`_slab_hit`, the stars as :func:`_slab_step` fills them.  1 at the first pair that
@@ -3541,6 +3547,8 @@ def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit):
             if _star_due(sst):
                 _fill_stars(V, F, star, lev, zero, zero + 1, cg)
             if _slab_hit(V, ws, F, star, np.int64(1), i, j):
+                hit[0] = i
+                hit[1] = j
                 return np.int64(1)
         if work > limit:
             return np.int64(-1)
@@ -3548,11 +3556,12 @@ def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit):
 
 
 @_kernel
-def _two_level_any(V, ws, F, star, sst, lev):
+def _two_level_any(V, ws, F, star, sst, lev, hit):
     """:func:`_slab_pairs`' answer (a pair found or not) for a mesh whose vertices lie on two
     heights (levels 0 and 1), where it applies: 1 where two faces intersect, 0 where none do, -1
     where the mesh is not such a band (a live face with its three corners on one height) or the
     sweep went over its budget (then the caller takes the general path; the answer is the same).
+    The pair found goes in ``hit``.
 
     The same steps: the live faces (no two equal corners, not exactly collinear), the slab's
     certificate (:func:`_slab_embedded`, on the dyadic grid) with the two planes' embedded graphs,
@@ -3605,13 +3614,18 @@ def _two_level_any(V, ws, F, star, sst, lev):
                                                cj, limit)
                 if emb:
                     return np.int64(0)
-    return _two_level_sweep(V, ws, F, star, sst, lev, faces, np.int64(_SLAB_BUDGET) * m + 1000000)
+    return _two_level_sweep(V, ws, F, star, sst, lev, faces, np.int64(_SLAB_BUDGET) * m + 1000000, hit)
 
 
 @_kernel
-def _any_steps(V, F, delay, two):
+def _any_steps(V, F, delay, two, distinct, mem):
     """:func:`_any_kernel`; ``two == 1``: a mesh on two heights by :func:`_two_level_any` where it
-    applies, ``0``: by the general steps only (the reference the tests compare it with)."""
+    applies, ``0``: by the general steps only (the reference the tests compare it with).
+    ``distinct == 1``: the caller has found no two vertices at one position (as
+    :func:`canonical_vertices` compares them, as :func:`contourmesh.bands._pinch_split` does), so
+    every vertex is its own canonical vertex and ``F`` is used as it is, without the table and the
+    copy (``F`` is only read).  ``mem``: the corners of the last pair found (:func:`_seen_pair`),
+    tested first where both faces are here, and set to the pair found here."""
     n = V.shape[0]
     for i in range(F.shape[0]):
         for t in range(3):
@@ -3629,13 +3643,18 @@ def _any_steps(V, F, delay, two):
                 lo = a
     if not (hi <= _EXACT_HI and lo >= _EXACT_LO):
         return -1
-    canon = _canonical_kernel((V + 0.0).view(np.uint64))  # (-0.0 + 0.0 == +0.0)
     m = F.shape[0]
-    Fc = np.empty((m, 3), np.int64)
-    for i in range(m):
-        for t in range(3):
-            Fc[i, t] = canon[F[i, t]]
-    ws = np.zeros(1 + 3 * _EXP_LEN, dtype=np.float64)
+    if distinct == 1:
+        Fc = F
+    else:
+        canon = _canonical_kernel((V + 0.0).view(np.uint64))  # (-0.0 + 0.0 == +0.0)
+        Fc = np.empty((m, 3), np.int64)
+        for i in range(m):
+            for t in range(3):
+                Fc[i, t] = canon[F[i, t]]
+    # (the exact predicates' scratch: each of its entries is written before it is read, so it is
+    # not zeroed, some 6 kB a call less to clear)
+    ws = np.empty(1 + 3 * _EXP_LEN, dtype=np.float64)
     ws[0] = 1.0 if _dyadic_kernel(V) == 1 else 0.0
     star = np.zeros(len(V), np.int8)
     sst = np.zeros(2, np.int64)
@@ -3657,19 +3676,93 @@ def _any_steps(V, F, delay, two):
                 nv += 1
     if 4 * m < 5 * nv:
         sst[0] = -1
+    if mem[18] == 1.0 and _seen_pair(V, ws, Fc, mem):
+        return 1
+    hit = np.full(2, -1, np.int64)
     one = m - m + 1  # (int64 values, not literals: the signatures of the Python calls)
     ok = one - one
     lev, nlev = _levels(V[:, 2].copy())
     if two == 1 and nlev == 2:  # a band between two heights (most of the mesher's calls)
-        got = _two_level_any(V, ws, Fc, star, sst, lev)
+        got = _two_level_any(V, ws, Fc, star, sst, lev, hit)
         if got >= 0:
+            if got == 1:
+                _remember_pair(V, Fc, hit[0], hit[1], mem)
             return got
     cg = np.zeros(0, np.int64)  # (no groups)
     if ws[0] == 1.0 or m >= _GRID_FACES or nlev == 2:  # (the route of _pairs)
         pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst, one, lev, nlev, one * _SLAB_BUDGET, one, one - one, nlev, cg)
     if ok != 1:
         pi, pj = _intersecting_pairs(V, ws, Fc, star, sst, one, one * 8, one, one * _GRID_CHUNK, cg)
-    return 1 if len(pi) > 0 else 0
+    if len(pi) > 0:
+        _remember_pair(V, Fc, pi[0], pj[0], mem)
+        return 1
+    return 0
+
+
+@_kernel
+def _remember_pair(V, F, i, j, mem):
+    """Keep the corners of faces i and j (a pair that intersects) in ``mem``: face i's three
+    points in entries 0-8, face j's in 9-17, and 1.0 in entry 18 (the memory holds a pair)."""
+    for t in range(3):
+        for c in range(3):
+            mem[3 * t + c] = V[F[i, t], c]
+            mem[9 + 3 * t + c] = V[F[j, t], c]
+    mem[18] = 1.0
+
+
+@_kernel
+def _face_at(V, F, mem, o):
+    """The first face of ``F`` whose three corners are the three points ``mem[o:o + 9]`` (in any
+    order; equal as numbers), or -1."""
+    for i in range(F.shape[0]):
+        ok = True
+        for t in range(3):
+            v = F[i, t]
+            x = V[v, 0]
+            y = V[v, 1]
+            z = V[v, 2]
+            found = False
+            for q in range(3):
+                if x == mem[o + 3 * q] and y == mem[o + 3 * q + 1] and z == mem[o + 3 * q + 2]:
+                    found = True
+                    break
+            if not found:
+                ok = False
+                break
+        if ok:
+            return np.int64(i)
+    return np.int64(-1)
+
+
+@_kernel
+def _seen_pair(V, ws, F, mem):
+    """Whether the pair of faces kept in ``mem`` (:func:`_remember_pair`) is here, both faces live
+    (three distinct corners, not exactly collinear), and intersects by the exact test
+    (:func:`_pair_intersects`): then the mesh has a pair that intersects, whatever else it holds.
+    The mesher asks again of a band or join that differs little from one that crossed (a bridged
+    join's first band, then the join; a band and the other rules' bands of the same rings): where
+    the faces that crossed are still there, one exact test answers (liver: some 46 of its 138 calls
+    that answer "crossing").  False proves nothing (the caller runs the whole test)."""
+    i = _face_at(V, F, mem, np.int64(0))
+    if i < 0:
+        return False
+    j = _face_at(V, F, mem, np.int64(9))
+    if j < 0 or j == i:
+        return False
+    ax0 = np.int64(0)
+    ax1 = np.int64(1)
+    ax2 = np.int64(2)
+    for k in (i, j):
+        a = F[k, 0]
+        b = F[k, 1]
+        c = F[k, 2]
+        if a == b or b == c or a == c:
+            return False
+        if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
+            return False
+    if i > j:
+        i, j = j, i
+    return _pair_intersects(V, ws, F, i, j)
 
 @njit(cache=True, **_OPTIONS)
 def _any_kernel(V, F, delay):
@@ -3679,13 +3772,20 @@ def _any_kernel(V, F, delay):
     need :func:`_as_mesh_arrays`' errors or :func:`_exact_range`'s scaling (a face index out of
     range, a coordinate not finite, or magnitudes out of the exact predicates' range): then
     nothing is done."""
-    return _any_steps(V, F, delay, np.int64(1))
+    return _any_steps(V, F, delay, np.int64(1), np.int64(0), np.zeros(19))
+
+
+@njit(cache=True, **_OPTIONS)
+def _any_kernel_seen(V, F, delay, mem):
+    """:func:`_any_kernel` with the memory of the last pair found (``mem``, 19 float64: see
+    :func:`_seen_pair`), which only saves time: the same answers."""
+    return _any_steps(V, F, delay, np.int64(1), np.int64(0), mem)
 
 
 @njit(cache=True, **_OPTIONS)
 def _any_kernel_reference(V, F, delay):
     """:func:`_any_kernel` by the general steps only, a mesh on two heights too (for the tests)."""
-    return _any_steps(V, F, delay, np.int64(0))
+    return _any_steps(V, F, delay, np.int64(0), np.int64(0), np.zeros(19))
 
 
 def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
