@@ -132,6 +132,35 @@ def test_the_search_within_bounds_is_the_search_with_whole_programmes(kind):
         assert out[0][:2] == out[1][:2] and np.array_equal(out[0][2], out[1][2])
 
 
+@pytest.mark.parametrize("kind", ["plain", "grid", "repeats"])
+def test_the_band_either_side_of_the_bounded_size_is_the_band_of_both_searches(kind):
+    """``_optimal_edges_in`` runs bounded programmes from ``_BOUNDED_MIN_CELLS`` cells on and whole
+    ones below (whole ones are quicker on small grids): on grids just below and above that size,
+    its edges, start point and total are those of the search with whole programmes and of the
+    search within bounds alike."""
+    rs = np.random.default_rng({"plain": 51, "grid": 52, "repeats": 53}[kind])
+    cells = optimal._BOUNDED_MIN_CELLS
+    assert 100 < cells < 10**6
+    sides = {False: 0, True: 0}
+    for t in range(24):
+        n = int(rs.integers(20, 90))
+        m = max(n, int(round(cells / n)) + int(rs.integers(-3, 4)))
+        grid = {"plain": None, "grid": 2, "repeats": None}[kind]
+        rep = 2 if kind == "repeats" else 0
+        c1, c2 = _ring(rs, n, 0.0, grid, rep), _ring(rs, m, rs.uniform(0.2, 2), grid, rep)
+        k = [3, 5, n][t % 3]
+        a = int(rs.integers(n))
+        starts = np.sort((a + np.arange(min(k, n))) % n).astype(np.int64)
+        edges, s, total = optimal._optimal_edges_in(c1, c2, starts, np.empty(2 * n * m), np.empty((n + 1) * (m + 1), np.int8))
+        A1, A2 = _step_areas(c1, c2)
+        for bounded in (False, True):
+            steps = np.full((n + 1, m + 1), 5, np.int8)
+            got = _best_band(A1, A2, starts, np.empty((2, N_LAYERS, m + 1)), steps, np.bool_(bounded))
+            assert got == (s, total) and np.array_equal(_trace_back(steps, n, m), edges)
+        sides[n * m >= cells] += 1
+    assert min(sides.values()) > 3, sides
+
+
 def test_huge_coordinates_take_the_whole_programmes():
     """Coordinates whose products could overflow (a NaN area) are not bounded: there a NaN offer
     would stop cheaper ones, which a bounded programme does not see."""
