@@ -694,8 +694,11 @@ class _Layer:
     """One plane of a sectioned join: a slice of the mesh (``main``: its rings are the mesh's) or an
     intermediate section (its rings are the join's own vertices)."""
 
-    def __init__(self, S, z, comps, poly, edges, main=None, double=frozenset(), box=None):
+    def __init__(self, S, z, comps, poly, edges, main=None, double=frozenset(), box=None, kinds=None):
         self.S, self.z, self.comps = S, float(z), list(comps)
+        # (a section's: its pairs' piece kinds by the other layer, kept with its slice: see
+        # _pair_kinds; None for a slice's layer)
+        self.kinds = kinds
         self.box = box  # a box (a pair of slices) holding every pixel of its components, or None
         self._poly, self._edges = poly, edges
         self.main = main  # the slice index, or None for a section
@@ -735,10 +738,12 @@ def _section_layer(ops, shape, box, z, polygon, grid, m, memory=None):
         full[box] = m
         ox, oy, dx, dy = grid
         to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
-        got = (ops.Slice(full, polygon, to_corner, to_center, box=box), [])
+        got = (ops.Slice(full, polygon, to_corner, to_center, box=box), [], {})
         if memory is not None:
             memory.put(key, got)
-    S, made = got  # (made: the section's edges, made once: its polygons do not change)
+    # (made: the section's edges, made once: its polygons do not change; kinds: its pairs' piece
+    # kinds, made once per other layer, see _pair_kinds)
+    S, made, kinds = got
 
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]
@@ -749,7 +754,7 @@ def _section_layer(ops, shape, box, z, polygon, grid, m, memory=None):
             made.append((np.concatenate(rs), np.concatenate([np.concatenate([r[1:], r[:1]]) for r in rs])))
         return made[0]
 
-    return _Layer(S, z, range(S.n), poly, edges, box=box), m
+    return _Layer(S, z, range(S.n), poly, edges, box=box, kinds=kinds), m
 
 
 class SectionSlices:
@@ -916,6 +921,43 @@ def _overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk):
     return seen
 
 
+def _stacks_reference(split_at, path, depth):
+    """The section stacks (tuples of pair paths, bottom up) strictly inside pair ``path`` that the
+    splits decided so far (``split_at``: pair path -> whether it is split) allow, ``depth`` splits
+    left: what :func:`_stack_table` gives filtered (kept as its reference for the tests)."""
+    out = []
+    if split_at.get(path) is not True:
+        out.append(())
+    if split_at.get(path) is not False and depth > 0:
+        out.extend(a + (path,) + b for a in _stacks_reference(split_at, path + (0,), depth - 1)
+                   for b in _stacks_reference(split_at, path + (1,), depth - 1))
+    return out
+
+
+_STACK_TABLES = {}
+
+
+def _stack_table(depth):
+    """Every section stack a sectioned join of ``depth`` splits may get, sorted by its number of
+    sections (stable), each as ``(stack, unsplit, order)``: its pair paths bottom up (the pairs
+    split), the pairs it leaves unsplit (those it reaches that are not split: the root where it is
+    empty, else the halves of its split pairs that are not in it) and its paths by length (a
+    section before those made from it).  A stack is allowed where none of its pairs is decided
+    unsplit and none of its unsplit pairs decided split: the stacks :func:`_stacks_reference`
+    gives, in the same order (filtering keeps the order of a list built by concatenation and
+    products), made once per depth rather than at every topology test."""
+    got = _STACK_TABLES.get(depth)
+    if got is None:
+        every = sorted(_stacks_reference({}, (), depth), key=len)
+        got = []
+        for st in every:
+            splits = set(st)
+            unsplit = [()] if not st else [p + (i,) for p in st for i in (0, 1) if p + (i,) not in splits]
+            got.append((st, tuple(unsplit), tuple(sorted(st, key=len))))
+        got = _STACK_TABLES[depth] = tuple(got)
+    return got
+
+
 class _NoTopology(Exception):
     """No stack of sections that a sectioned join can still get keeps the topology (or keeps within
     the caller's area)."""
@@ -1057,15 +1099,6 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             got = filled[path] = bool(m.any())
         return got
 
-    def stacks(path, depth):
-        """The section stacks (tuples of pair paths, bottom up) strictly inside pair ``path``."""
-        out = []
-        if split_at.get(path) is not True:
-            out.append(())
-        if split_at.get(path) is not False and depth > 0:
-            out.extend(a + (path,) + b for a in stacks(path + (0,), depth - 1) for b in stacks(path + (1,), depth - 1))
-        return out
-
     def stack_euler(nodes, ms):
         """The Euler characteristic of the stack of ``nodes`` (masks ``ms``), from its layers'
         and their overlaps' (see :func:`_euler2`): most stacks that do not keep the topology
@@ -1078,10 +1111,14 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         return sum(euler_of[u] for u in nodes) - sum(euler_of[u, v] for u, v in zip(nodes[:-1], nodes[1:]))
 
     def may_keep_topology():
-        for st in sorted(stacks((), MAX_DEPTH), key=len):  # (the fewest sections first: the least to make)
+        # the stacks the splits decided so far allow (_stack_table: every stack with the splits it
+        # needs, the fewest sections first: the least to make)
+        for st, unsplit, order in _stack_table(MAX_DEPTH):
+            if any(split_at.get(p) is False for p in st) or any(split_at.get(p) is True for p in unsplit):
+                continue
             if st not in euler_kept:
                 ms = {}
-                for p in sorted(st, key=len):  # (a section before those made from it)
+                for p in order:  # (a section before those made from it)
                     ms[p] = mask_of(layer_at[p]) if p in layer_at else section_mask(p)
                     if not has_pixel(p, ms[p]):
                         break
@@ -1117,7 +1154,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
 
     def kinds_of(path, P, Q):
         if path not in kinds_at:
-            kinds_at[path] = _piece_kinds(ops, P, Q)
+            kinds_at[path] = _pair_kinds(ops, P, Q)
         return kinds_at[path]
 
     def doomed(P, Q, depth, path):
@@ -1168,11 +1205,11 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     except _NoTopology:
         return None
     finally:
-        # the nested functions that call themselves or each other (split, ends, stacks, and
-        # sdf_at with section_mask) hold their own closure cells: reference cycles that would leave
+        # the nested functions that call themselves or each other (split, ends, and sdf_at with
+        # section_mask) hold their own closure cells: reference cycles that would leave
         # the join's sections, masks and layers to the cyclic garbage collector; clearing the cells
         # frees them by reference counting when the join returns
-        split = ends = stacks = sdf_at = doomed = None
+        split = ends = sdf_at = doomed = None
     if got is None:
         return None
     layers, pieces = got
@@ -1313,6 +1350,52 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid, kinds=MISSING)
             return None
         out.append(("bridged", P, Q, b, plan))
     return out
+
+
+def _pair_kinds(ops, P: _Layer, Q: _Layer):
+    """:func:`_piece_kinds` of two adjacent layers (the same kinds), from the section's memory where
+    the same pair was asked for before.
+
+    A pair's kinds are read from its two slices' labels, runs, boxes and holes, the components of
+    each layer and whether each is a slice's layer (the boxes of the two are the join's box, which
+    is part of a remembered section's key): a section's layer taken again from the build's memory
+    (:class:`SectionSlices`) with the same other layer's slice and components has the same kinds,
+    the layers' own places in them aside.  They are kept with the section's slice (its layer's
+    ``kinds``) without the layers (:func:`_unbound_kinds`) and bound to the two layers asked for
+    (:func:`_bound_kinds`)."""
+    if Q.kinds is not None:
+        memo, other, key = Q.kinds, P.S, (0, id(P.S), P.main is None, tuple(P.comps))
+    elif P.kinds is not None:
+        memo, other, key = P.kinds, Q.S, (1, id(Q.S), Q.main is None, tuple(Q.comps))
+    else:
+        return _piece_kinds(ops, P, Q)
+    got = memo.get(key)
+    if got is not None and got[0] is other:  # (the slice itself kept with them: no other can take its id)
+        return _bound_kinds(got[1], P, Q)
+    kinds = _piece_kinds(ops, P, Q)
+    memo[key] = (other, _unbound_kinds(kinds))
+    return kinds
+
+
+def _unbound_kinds(kinds):
+    """:func:`_piece_kinds`' answer without its layers (kept by a section without making a cycle of
+    references through its layer): None, or ``(caps, kinds)`` with each cap ``(c, upward)`` and
+    each band ``("band", a, b, matched)``."""
+    if kinds is None:
+        return None
+    caps, ks = kinds
+    return ([(c, up) for _, _, c, up in caps],
+            [("band",) + k[3:] if k[0] == "band" else k for k in ks])
+
+
+def _bound_kinds(kinds, P, Q):
+    """:func:`_unbound_kinds`' form bound to the layers ``P`` (below) and ``Q`` (above) again: the
+    caps upward are P's, the others Q's."""
+    if kinds is None:
+        return None
+    caps, ks = kinds
+    return ([("cap", P if up else Q, c, up) for c, up in caps],
+            [("band", P, Q) + k[1:] if k[0] == "band" else k for k in ks])
 
 
 def _piece_kinds(ops, P: _Layer, Q: _Layer):
