@@ -37,3 +37,50 @@ def test_the_stack_table_filtered_is_the_recursive_stacks(depth):
     assert len(seen) > 1  # (some choices allow fewer stacks than others)
     for st, _, order in sections._stack_table(depth):
         assert list(order) == sorted(st, key=len)
+
+
+def _groups_from_pairs(pa, pb, group, ng):
+    """The groups of :func:`sections._run_groups`' pairs as :func:`sections._groups` listed them
+    before :func:`sections._run_group_lists` (sets per group, each sorted): the reference."""
+    groups = [(set(), set()) for _ in range(ng)]
+    for a, b, g in zip(pa.tolist(), pb.tolist(), group.tolist()):
+        groups[g][0].add(a)
+        groups[g][1].add(b)
+    return [(sorted(a), sorted(b)) for a, b in groups]
+
+
+def test_group_lists_from_runs_equal_the_pairs_grouped_in_python():
+    import numpy as np
+    from scipy import ndimage
+
+    from contourmesh.fastpath import slice_labels
+    from test_volumes_sections import _runs_of
+
+    rng = np.random.default_rng(173)
+    many = 0
+    for t in range(200):
+        h, w = int(rng.integers(2, 40)), int(rng.integers(2, 40))
+        runs, ns = [], []
+        for _ in range(2):
+            m = ndimage.gaussian_filter(rng.random((h, w)), rng.uniform(0.5, 2.0)) > rng.uniform(0.4, 0.6)
+            labels, n, _ = slice_labels(m)
+            runs.append(_runs_of(labels))
+            ns.append(n)
+        comps = [np.arange(n, dtype=np.int64) if t % 3 == 0 or n == 0 else
+                 np.sort(rng.choice(n, size=int(rng.integers(1, n + 1)), replace=False)).astype(np.int64)
+                 for n in ns]
+        y0, x0 = int(rng.integers(0, h // 2 + 1)), int(rng.integers(0, w // 2 + 1))
+        y1, x1 = int(rng.integers(y0 + 1, h + 1)), int(rng.integers(x0 + 1, w + 1))
+        inp, inq = np.zeros(ns[0] + 1, np.bool_), np.zeros(ns[1] + 1, np.bool_)
+        inp[comps[0] + 1] = True
+        inq[comps[1] + 1] = True
+        pa, pb, group, ng, lone_p, lone_q = sections._run_groups(runs[0], runs[1], np.int64(y0), np.int64(y1),
+                                                                  np.int64(x0), np.int64(x1), inp, inq)
+        af, ast, bf, bst, lp, lq = sections._run_group_lists(runs[0], runs[1], y0, y1, x0, x1, ns[0], ns[1],
+                                                              comps[0], comps[1])
+        af, ast, bf, bst = af.tolist(), ast.tolist(), bf.tolist(), bst.tolist()
+        got = [(af[ast[g]: ast[g + 1]], bf[bst[g]: bst[g + 1]]) for g in range(len(ast) - 1)]
+        assert got == _groups_from_pairs(pa, pb, group, ng), t
+        assert lp.tolist() == lone_p.tolist() and lq.tolist() == lone_q.tolist(), t
+        many += any(len(a) > 1 or len(b) > 1 for a, b in got)
+    assert many > 10  # (forks and merges among them, not only one-to-one groups)

@@ -660,14 +660,17 @@ def warm_rare_kernels() -> None:
     """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
     numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps), the signed
     distances of wanted pixels (:func:`_sdf`, on square pixels of a power-of-two side and on
-    others, and the search round each wanted pixel, :func:`_sdf_near`) and the edge check of an
-    assembled join (:func:`_edges_close`)."""
+    others, and the search round each wanted pixel, :func:`_sdf_near`), the edge check of an
+    assembled join (:func:`_edges_close`) and the layers' overlap groups (:func:`_run_group_lists`)."""
     m = np.eye(3, dtype=bool)
     _euler2(m)
     _sdf(m, (1.0, 1.0), need=m)
     _sdf_wanted(m, (1.0, 1.0), m, np.flatnonzero(m))
     _sdf(m, (0.75, 0.75), need=m)
     _edges_close(np.array([[0, 1, 2]], dtype=np.int64), 3, [(0, 3)])
+    # (the overlap groups of two layers from their runs, as _groups takes them)
+    runs = np.array([[0], [0], [2], [0]], dtype=np.int32)
+    _run_group_lists(runs, runs, 0, 1, 0, 2, 1, 1, np.zeros(1, np.int64), np.zeros(1, np.int64))
 
 
 def euler6(v) -> int:
@@ -798,26 +801,27 @@ def _groups(P: _Layer, Q: _Layer):
     sets of those pairs, in the order of their first pair, each side sorted: what
     :func:`contourmesh.tracing.overlap_groups` gives for the two label images with every other
     component cleared (as the tests check)."""
-    lp, lq = P.S.labels, Q.S.labels
+    SP, SQ = P.S, Q.S
+    lp, lq = SP.labels, SQ.labels
     if P.box is not None and P.box == Q.box:
         (y0, y1, _), (x0, x1, _) = (b.indices(n) for b, n in zip(P.box, lp.shape))
     else:
         y0, y1, x0, x1 = 0, lp.shape[0], 0, lp.shape[1]
-    na, nb = P.S.n, Q.S.n
+    na, nb = SP.n, SQ.n
+    rp = getattr(SP, "kept_runs", None)
+    rq = getattr(SQ, "kept_runs", None)
+    rp, rq = (rp(), rq()) if rp is not None and rq is not None else (None, None)
+    if rp is not None and rq is not None:
+        # (the groups' members and the lone components listed in the same compiled call:
+        # _run_group_lists; the components' marks made there too)
+        af, ast, bf, bst, lone_p, lone_q = _run_group_lists(
+            rp, rq, y0, y1, x0, x1, na, nb, np.array(P.comps, dtype=np.int64), np.array(Q.comps, dtype=np.int64))
+        af, ast, bf, bst = af.tolist(), ast.tolist(), bf.tolist(), bst.tolist()
+        return ([(af[ast[g]: ast[g + 1]], bf[bst[g]: bst[g + 1]]) for g in range(len(ast) - 1)], lone_p.tolist(),
+                lone_q.tolist())
     inp, inq = np.zeros(na + 1, np.bool_), np.zeros(nb + 1, np.bool_)
     inp[np.asarray(list(P.comps), dtype=np.int64) + 1] = True
     inq[np.asarray(list(Q.comps), dtype=np.int64) + 1] = True
-    rp = getattr(P.S, "kept_runs", None)
-    rq = getattr(Q.S, "kept_runs", None)
-    rp, rq = (rp(), rq()) if rp is not None and rq is not None else (None, None)
-    if rp is not None and rq is not None:
-        pa, pb, group, ng, lone_p, lone_q = _run_groups(rp, rq, np.int64(y0), np.int64(y1), np.int64(x0),
-                                                         np.int64(x1), inp, inq)
-        groups = [(set(), set()) for _ in range(ng)]
-        for a, b, g in zip(pa.tolist(), pb.tolist(), group.tolist()):
-            groups[g][0].add(a)
-            groups[g][1].add(b)
-        return [(sorted(a), sorted(b)) for a, b in groups], lone_p.tolist(), lone_q.tolist()
     nbk = np.int64(nb + 1)
     keys = np.flatnonzero(_overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk))
     pa, pb = keys // nbk - 1, keys % nbk - 1
@@ -903,6 +907,53 @@ def _run_groups(rp, rq, y0, y1, x0, x1, inp, inq):
             lone_q[m] = b - 1
             m += 1
     return pa, pb, group, ng, lone_p, lone_q
+
+
+@njit(cache=True, nogil=True)
+def _run_group_lists(rp, rq, y0, y1, x0, x1, na, nb, cp, cq):
+    """:func:`_groups` from the two slices' runs in one call: :func:`_run_groups` with the marks of
+    the components ``cp`` of ``na`` below and ``cq`` of ``nb`` above (0-based), its groups listed
+    as :func:`_groups` gives them (each side's members in increasing order, the groups in the
+    order of their first pair): the members below of group ``g`` are ``af[ast[g]: ast[g + 1]]``,
+    those above ``bf[bst[g]: bst[g + 1]]``; and the lone components of each side.  A component
+    of a pair is in exactly one group (the groups are connected sets of pairs), so each side's
+    members are its paired components in increasing order, placed by their group (a counting sort,
+    stable)."""
+    inp = np.zeros(na + 1, np.bool_)
+    inq = np.zeros(nb + 1, np.bool_)
+    for c in cp:
+        inp[c + 1] = True
+    for c in cq:
+        inq[c + 1] = True
+    pa, pb, group, ng, lone_p, lone_q = _run_groups(rp, rq, np.int64(y0), np.int64(y1), np.int64(x0), np.int64(x1),
+                                                     inp, inq)
+    ga = np.full(na, -1, np.int64)
+    gb = np.full(nb, -1, np.int64)
+    for i in range(pa.shape[0]):
+        ga[pa[i]] = group[i]
+        gb[pb[i]] = group[i]
+    af, ast = _members_by_group(ga, ng)
+    bf, bst = _members_by_group(gb, ng)
+    return af, ast, bf, bst, lone_p, lone_q
+
+
+@njit(cache=True, nogil=True)
+def _members_by_group(g, ng):
+    """The indices ``i`` with ``g[i] >= 0``, by group ``g[i]`` (``0 .. ng - 1``) and in increasing
+    order within each: ``(flat, starts)``, group ``k``'s at ``flat[starts[k]: starts[k + 1]]``."""
+    starts = np.zeros(ng + 1, np.int64)
+    for i in range(g.shape[0]):
+        if g[i] >= 0:
+            starts[g[i] + 1] += 1
+    for k in range(ng):
+        starts[k + 1] += starts[k]
+    at = starts[:ng].copy()
+    flat = np.empty(starts[ng], np.int64)
+    for i in range(g.shape[0]):
+        if g[i] >= 0:
+            flat[at[g[i]]] = i
+            at[g[i]] += 1
+    return flat, starts
 
 
 @njit(cache=True, nogil=True)
