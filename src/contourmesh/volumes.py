@@ -2520,17 +2520,16 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     """
     sa, sb = A.objects[a], B.objects[b]
     ya, yb = sa[0], sb[0]
-    y0, y1 = min(ya.start, yb.start), max(ya.stop, yb.stop)
-    x0, x1 = min(sa[1].start, sb[1].start), max(sa[1].stop, sb[1].stop)
     # components of O and its holes, from the two slices' runs where both keep them (compiled: no
     # mask of O is made unless O has holes), else from O's mask (the same two numbers)
     ra, rb = A.kept_runs(), B.kept_runs()
     if ra is not None and rb is not None:
-        no, holes = _overlap_topology(ra, np.int64(a), rb, np.int64(b), np.int64(max(ya.start, yb.start)),
-                                      np.int64(min(ya.stop, yb.stop)))
+        # (Python ints: the compiled pass takes them as int64, as it took np.int64)
+        no, holes = _overlap_topology(ra, int(a), rb, int(b), max(ya.start, yb.start), min(ya.stop, yb.stop))
         o = None
     else:
-        o = _overlap_mask(A, B, a, b, y0, y1, x0, x1)
+        o = _overlap_mask(A, B, a, b, min(ya.start, yb.start), max(ya.stop, yb.stop), min(sa[1].start, sb[1].start),
+                          max(sa[1].stop, sb[1].stop))
         no, holes = _overlap_topology_of_mask(o)
     if no != 1:
         return None
@@ -2540,6 +2539,8 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
         return None
     if not ha:
         return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
+    y0, y1 = min(ya.start, yb.start), max(ya.stop, yb.stop)
+    x0, x1 = min(sa[1].start, sb[1].start), max(sa[1].stop, sb[1].stop)
     if o is None:
         o = _overlap_mask(A, B, a, b, y0, y1, x0, x1)
     # (the padded background of O labelled 8-connected in compiled code, ndimage.label's labels, read
