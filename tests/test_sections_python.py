@@ -84,3 +84,38 @@ def test_group_lists_from_runs_equal_the_pairs_grouped_in_python():
         assert lp.tolist() == lone_p.tolist() and lq.tolist() == lone_q.tolist(), t
         many += any(len(a) > 1 or len(b) > 1 for a, b in got)
     assert many > 10  # (forks and merges among them, not only one-to-one groups)
+
+
+def test_piece_kinds_kept_with_a_section_are_those_made_anew(monkeypatch):
+    """A pair's piece kinds taken from its section's memory (:func:`sections._pair_kinds`) are
+    those :func:`sections._piece_kinds` makes for the two layers, the layers themselves in their
+    places; on volumes whose joins take sections from the build's memory, some are taken so."""
+    from contourmesh.volumes import volume_to_mesh
+    from test_sections_memory import _volumes
+
+    pair_kinds, piece_kinds = sections._pair_kinds, sections._piece_kinds
+    calls, made, kept = [0], [0], [0]
+
+    def counted(ops, P, Q):
+        made[0] += 1
+        return piece_kinds(ops, P, Q)
+
+    def checked(ops, P, Q):
+        before = made[0]
+        got = pair_kinds(ops, P, Q)
+        kept[0] += made[0] == before  # (taken from memory: none made)
+        want = piece_kinds(ops, P, Q)
+        assert got == want
+        if want is not None:
+            for caps_or_kinds in want:
+                for kind in caps_or_kinds:
+                    assert all(x is P or x is Q for x in kind if isinstance(x, sections._Layer))
+        calls[0] += 1
+        return got
+
+    monkeypatch.setattr(sections, "_piece_kinds", counted)
+    monkeypatch.setattr(sections, "_pair_kinds", checked)
+    monkeypatch.setattr(sections, "JOIN_MEMORY", 0)  # (joins asked for again are built again: their sections repeat)
+    for v in _volumes():
+        volume_to_mesh(v)
+    assert calls[0] > kept[0] > 0
