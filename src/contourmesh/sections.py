@@ -1410,15 +1410,17 @@ def _pair_kinds(ops, P: _Layer, Q: _Layer):
     A pair's kinds are read from its two slices' labels, runs, boxes and holes, the components of
     each layer and whether each is a slice's layer (the boxes of the two are the join's box, which
     is part of a remembered section's key): a section's layer taken again from the build's memory
-    (:class:`SectionSlices`) with the same other layer's slice and components has the same kinds,
-    the layers' own places in them aside.  They are kept with the section's slice (its layer's
-    ``kinds``) without the layers (:func:`_unbound_kinds`) and bound to the two layers asked for
-    (:func:`_bound_kinds`)."""
-    if Q.kinds is not None:
-        memo, other, key = Q.kinds, P.S, (0, id(P.S), P.main is None, tuple(P.comps))
-    elif P.kinds is not None:
-        memo, other, key = P.kinds, Q.S, (1, id(Q.S), Q.main is None, tuple(Q.comps))
-    else:
+    (:class:`SectionSlices`) with the same slice's layer on its other side (slice and components)
+    has the same kinds, the layers' own places in them aside.  They are kept with the section's
+    slice (its layer's ``kinds``) without the layers (:func:`_unbound_kinds`) and bound to the two
+    layers asked for (:func:`_bound_kinds`).  (On the lobster about one pair in seven is taken so;
+    a pair of two sections, fewer, is made anew: its kinds kept would keep the other section's
+    slice, label image and all, past its time in the memory.)"""
+    if Q.kinds is not None and P.main is not None:
+        memo, other, key = Q.kinds, P.S, (0, id(P.S), tuple(P.comps))
+    elif P.kinds is not None and Q.main is not None:
+        memo, other, key = P.kinds, Q.S, (1, id(Q.S), tuple(Q.comps))
+    else:  # (two sections: not kept, so that a section's memory holds no other section's slice)
         return _piece_kinds(ops, P, Q)
     got = memo.get(key)
     if got is not None and got[0] is other:  # (the slice itself kept with them: no other can take its id)
