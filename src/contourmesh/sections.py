@@ -660,14 +660,17 @@ def warm_rare_kernels() -> None:
     """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
     numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps), the signed
     distances of wanted pixels (:func:`_sdf`, on square pixels of a power-of-two side and on
-    others, and the search round each wanted pixel, :func:`_sdf_near`) and the edge check of an
-    assembled join (:func:`_edges_close`)."""
+    others, and the search round each wanted pixel, :func:`_sdf_near`), the edge check of an
+    assembled join (:func:`_edges_close`) and the layers' overlap groups (:func:`_run_group_lists`)."""
     m = np.eye(3, dtype=bool)
     _euler2(m)
     _sdf(m, (1.0, 1.0), need=m)
     _sdf_wanted(m, (1.0, 1.0), m, np.flatnonzero(m))
     _sdf(m, (0.75, 0.75), need=m)
     _edges_close(np.array([[0, 1, 2]], dtype=np.int64), 3, [(0, 3)])
+    # (the overlap groups of two layers from their runs, as _groups takes them)
+    runs = np.array([[0], [0], [2], [0]], dtype=np.int32)
+    _run_group_lists(runs, runs, 0, 1, 0, 2, 1, 1, np.zeros(1, np.int64), np.zeros(1, np.int64))
 
 
 def euler6(v) -> int:
@@ -694,8 +697,11 @@ class _Layer:
     """One plane of a sectioned join: a slice of the mesh (``main``: its rings are the mesh's) or an
     intermediate section (its rings are the join's own vertices)."""
 
-    def __init__(self, S, z, comps, poly, edges, main=None, double=frozenset(), box=None):
+    def __init__(self, S, z, comps, poly, edges, main=None, double=frozenset(), box=None, kinds=None):
         self.S, self.z, self.comps = S, float(z), list(comps)
+        # (a section's: its pairs' piece kinds by the other layer, kept with its slice: see
+        # _pair_kinds; None for a slice's layer)
+        self.kinds = kinds
         self.box = box  # a box (a pair of slices) holding every pixel of its components, or None
         self._poly, self._edges = poly, edges
         self.main = main  # the slice index, or None for a section
@@ -735,10 +741,12 @@ def _section_layer(ops, shape, box, z, polygon, grid, m, memory=None):
         full[box] = m
         ox, oy, dx, dy = grid
         to_center, to_corner = grid_to_xy(ox, oy, dx, dy)
-        got = (ops.Slice(full, polygon, to_corner, to_center, box=box), [])
+        got = (ops.Slice(full, polygon, to_corner, to_center, box=box), [], {})
         if memory is not None:
             memory.put(key, got)
-    S, made = got  # (made: the section's edges, made once: its polygons do not change)
+    # (made: the section's edges, made once: its polygons do not change; kinds: its pairs' piece
+    # kinds, made once per other layer, see _pair_kinds)
+    S, made, kinds = got
 
     def poly(c, h):
         return S.outer[c] if h < 0 else S.holes[c][h]
@@ -749,7 +757,7 @@ def _section_layer(ops, shape, box, z, polygon, grid, m, memory=None):
             made.append((np.concatenate(rs), np.concatenate([np.concatenate([r[1:], r[:1]]) for r in rs])))
         return made[0]
 
-    return _Layer(S, z, range(S.n), poly, edges, box=box), m
+    return _Layer(S, z, range(S.n), poly, edges, box=box, kinds=kinds), m
 
 
 class SectionSlices:
@@ -793,26 +801,27 @@ def _groups(P: _Layer, Q: _Layer):
     sets of those pairs, in the order of their first pair, each side sorted: what
     :func:`contourmesh.tracing.overlap_groups` gives for the two label images with every other
     component cleared (as the tests check)."""
-    lp, lq = P.S.labels, Q.S.labels
+    SP, SQ = P.S, Q.S
+    lp, lq = SP.labels, SQ.labels
     if P.box is not None and P.box == Q.box:
         (y0, y1, _), (x0, x1, _) = (b.indices(n) for b, n in zip(P.box, lp.shape))
     else:
         y0, y1, x0, x1 = 0, lp.shape[0], 0, lp.shape[1]
-    na, nb = P.S.n, Q.S.n
+    na, nb = SP.n, SQ.n
+    rp = getattr(SP, "kept_runs", None)
+    rq = getattr(SQ, "kept_runs", None)
+    rp, rq = (rp(), rq()) if rp is not None and rq is not None else (None, None)
+    if rp is not None and rq is not None:
+        # (the groups' members and the lone components listed in the same compiled call:
+        # _run_group_lists; the components' marks made there too)
+        af, ast, bf, bst, lone_p, lone_q = _run_group_lists(
+            rp, rq, y0, y1, x0, x1, na, nb, np.array(P.comps, dtype=np.int64), np.array(Q.comps, dtype=np.int64))
+        af, ast, bf, bst = af.tolist(), ast.tolist(), bf.tolist(), bst.tolist()
+        return ([(af[ast[g]: ast[g + 1]], bf[bst[g]: bst[g + 1]]) for g in range(len(ast) - 1)], lone_p.tolist(),
+                lone_q.tolist())
     inp, inq = np.zeros(na + 1, np.bool_), np.zeros(nb + 1, np.bool_)
     inp[np.asarray(list(P.comps), dtype=np.int64) + 1] = True
     inq[np.asarray(list(Q.comps), dtype=np.int64) + 1] = True
-    rp = getattr(P.S, "kept_runs", None)
-    rq = getattr(Q.S, "kept_runs", None)
-    rp, rq = (rp(), rq()) if rp is not None and rq is not None else (None, None)
-    if rp is not None and rq is not None:
-        pa, pb, group, ng, lone_p, lone_q = _run_groups(rp, rq, np.int64(y0), np.int64(y1), np.int64(x0),
-                                                         np.int64(x1), inp, inq)
-        groups = [(set(), set()) for _ in range(ng)]
-        for a, b, g in zip(pa.tolist(), pb.tolist(), group.tolist()):
-            groups[g][0].add(a)
-            groups[g][1].add(b)
-        return [(sorted(a), sorted(b)) for a, b in groups], lone_p.tolist(), lone_q.tolist()
     nbk = np.int64(nb + 1)
     keys = np.flatnonzero(_overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk))
     pa, pb = keys // nbk - 1, keys % nbk - 1
@@ -901,6 +910,53 @@ def _run_groups(rp, rq, y0, y1, x0, x1, inp, inq):
 
 
 @njit(cache=True, nogil=True)
+def _run_group_lists(rp, rq, y0, y1, x0, x1, na, nb, cp, cq):
+    """:func:`_groups` from the two slices' runs in one call: :func:`_run_groups` with the marks of
+    the components ``cp`` of ``na`` below and ``cq`` of ``nb`` above (0-based), its groups listed
+    as :func:`_groups` gives them (each side's members in increasing order, the groups in the
+    order of their first pair): the members below of group ``g`` are ``af[ast[g]: ast[g + 1]]``,
+    those above ``bf[bst[g]: bst[g + 1]]``; and the lone components of each side.  A component
+    of a pair is in exactly one group (the groups are connected sets of pairs), so each side's
+    members are its paired components in increasing order, placed by their group (a counting sort,
+    stable)."""
+    inp = np.zeros(na + 1, np.bool_)
+    inq = np.zeros(nb + 1, np.bool_)
+    for c in cp:
+        inp[c + 1] = True
+    for c in cq:
+        inq[c + 1] = True
+    pa, pb, group, ng, lone_p, lone_q = _run_groups(rp, rq, np.int64(y0), np.int64(y1), np.int64(x0), np.int64(x1),
+                                                     inp, inq)
+    ga = np.full(na, -1, np.int64)
+    gb = np.full(nb, -1, np.int64)
+    for i in range(pa.shape[0]):
+        ga[pa[i]] = group[i]
+        gb[pb[i]] = group[i]
+    af, ast = _members_by_group(ga, ng)
+    bf, bst = _members_by_group(gb, ng)
+    return af, ast, bf, bst, lone_p, lone_q
+
+
+@njit(cache=True, nogil=True)
+def _members_by_group(g, ng):
+    """The indices ``i`` with ``g[i] >= 0``, by group ``g[i]`` (``0 .. ng - 1``) and in increasing
+    order within each: ``(flat, starts)``, group ``k``'s at ``flat[starts[k]: starts[k + 1]]``."""
+    starts = np.zeros(ng + 1, np.int64)
+    for i in range(g.shape[0]):
+        if g[i] >= 0:
+            starts[g[i] + 1] += 1
+    for k in range(ng):
+        starts[k + 1] += starts[k]
+    at = starts[:ng].copy()
+    flat = np.empty(starts[ng], np.int64)
+    for i in range(g.shape[0]):
+        if g[i] >= 0:
+            flat[at[g[i]]] = i
+            at[g[i]] += 1
+    return flat, starts
+
+
+@njit(cache=True, nogil=True)
 def _overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk):
     """Which pairs of labels ``a`` of ``lp`` and ``b`` of ``lq`` (both with ``inp[a]``, ``inq[b]``)
     share a pixel of rows ``y0 .. y1 - 1``, columns ``x0 .. x1 - 1``: a table of ``len(inp) *
@@ -914,6 +970,43 @@ def _overlap_table(lp, lq, y0, y1, x0, x1, inp, inq, nbk):
                 if b > 0 and inq[b]:
                     seen[a * nbk + b] = True
     return seen
+
+
+def _stacks_reference(split_at, path, depth):
+    """The section stacks (tuples of pair paths, bottom up) strictly inside pair ``path`` that the
+    splits decided so far (``split_at``: pair path -> whether it is split) allow, ``depth`` splits
+    left: what :func:`_stack_table` gives filtered (kept as its reference for the tests)."""
+    out = []
+    if split_at.get(path) is not True:
+        out.append(())
+    if split_at.get(path) is not False and depth > 0:
+        out.extend(a + (path,) + b for a in _stacks_reference(split_at, path + (0,), depth - 1)
+                   for b in _stacks_reference(split_at, path + (1,), depth - 1))
+    return out
+
+
+_STACK_TABLES = {}
+
+
+def _stack_table(depth):
+    """Every section stack a sectioned join of ``depth`` splits may get, sorted by its number of
+    sections (stable), each as ``(stack, unsplit, order)``: its pair paths bottom up (the pairs
+    split), the pairs it leaves unsplit (those it reaches that are not split: the root where it is
+    empty, else the halves of its split pairs that are not in it) and its paths by length (a
+    section before those made from it).  A stack is allowed where none of its pairs is decided
+    unsplit and none of its unsplit pairs decided split: the stacks :func:`_stacks_reference`
+    gives, in the same order (filtering keeps the order of a list built by concatenation and
+    products), made once per depth rather than at every topology test."""
+    got = _STACK_TABLES.get(depth)
+    if got is None:
+        every = sorted(_stacks_reference({}, (), depth), key=len)
+        got = []
+        for st in every:
+            splits = set(st)
+            unsplit = [()] if not st else [p + (i,) for p in st for i in (0, 1) if p + (i,) not in splits]
+            got.append((st, tuple(unsplit), tuple(sorted(st, key=len))))
+        got = _STACK_TABLES[depth] = tuple(got)
+    return got
 
 
 class _NoTopology(Exception):
@@ -1057,15 +1150,6 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
             got = filled[path] = bool(m.any())
         return got
 
-    def stacks(path, depth):
-        """The section stacks (tuples of pair paths, bottom up) strictly inside pair ``path``."""
-        out = []
-        if split_at.get(path) is not True:
-            out.append(())
-        if split_at.get(path) is not False and depth > 0:
-            out.extend(a + (path,) + b for a in stacks(path + (0,), depth - 1) for b in stacks(path + (1,), depth - 1))
-        return out
-
     def stack_euler(nodes, ms):
         """The Euler characteristic of the stack of ``nodes`` (masks ``ms``), from its layers'
         and their overlaps' (see :func:`_euler2`): most stacks that do not keep the topology
@@ -1078,10 +1162,14 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
         return sum(euler_of[u] for u in nodes) - sum(euler_of[u, v] for u, v in zip(nodes[:-1], nodes[1:]))
 
     def may_keep_topology():
-        for st in sorted(stacks((), MAX_DEPTH), key=len):  # (the fewest sections first: the least to make)
+        # the stacks the splits decided so far allow (_stack_table: every stack with the splits it
+        # needs, the fewest sections first: the least to make)
+        for st, unsplit, order in _stack_table(MAX_DEPTH):
+            if any(split_at.get(p) is False for p in st) or any(split_at.get(p) is True for p in unsplit):
+                continue
             if st not in euler_kept:
                 ms = {}
-                for p in sorted(st, key=len):  # (a section before those made from it)
+                for p in order:  # (a section before those made from it)
                     ms[p] = mask_of(layer_at[p]) if p in layer_at else section_mask(p)
                     if not has_pixel(p, ms[p]):
                         break
@@ -1117,7 +1205,7 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
 
     def kinds_of(path, P, Q):
         if path not in kinds_at:
-            kinds_at[path] = _piece_kinds(ops, P, Q)
+            kinds_at[path] = _pair_kinds(ops, P, Q)
         return kinds_at[path]
 
     def doomed(P, Q, depth, path):
@@ -1168,11 +1256,11 @@ def sectioned_join(ops, k, ga, gb, slices, zs, poly, edges_of, double, caps, tri
     except _NoTopology:
         return None
     finally:
-        # the nested functions that call themselves or each other (split, ends, stacks, and
-        # sdf_at with section_mask) hold their own closure cells: reference cycles that would leave
+        # the nested functions that call themselves or each other (split, ends, and sdf_at with
+        # section_mask) hold their own closure cells: reference cycles that would leave
         # the join's sections, masks and layers to the cyclic garbage collector; clearing the cells
         # frees them by reference counting when the join returns
-        split = ends = stacks = sdf_at = doomed = None
+        split = ends = sdf_at = doomed = None
     if got is None:
         return None
     layers, pieces = got
@@ -1313,6 +1401,54 @@ def _pieces(ops, P: _Layer, Q: _Layer, caps, triangulation, grid, kinds=MISSING)
             return None
         out.append(("bridged", P, Q, b, plan))
     return out
+
+
+def _pair_kinds(ops, P: _Layer, Q: _Layer):
+    """:func:`_piece_kinds` of two adjacent layers (the same kinds), from the section's memory where
+    the same pair was asked for before.
+
+    A pair's kinds are read from its two slices' labels, runs, boxes and holes, the components of
+    each layer and whether each is a slice's layer (the boxes of the two are the join's box, which
+    is part of a remembered section's key): a section's layer taken again from the build's memory
+    (:class:`SectionSlices`) with the same slice's layer on its other side (slice and components)
+    has the same kinds, the layers' own places in them aside.  They are kept with the section's
+    slice (its layer's ``kinds``) without the layers (:func:`_unbound_kinds`) and bound to the two
+    layers asked for (:func:`_bound_kinds`).  (On the lobster about one pair in seven is taken so;
+    a pair of two sections, fewer, is made anew: its kinds kept would keep the other section's
+    slice, label image and all, past its time in the memory.)"""
+    if Q.kinds is not None and P.main is not None:
+        memo, other, key = Q.kinds, P.S, (0, id(P.S), tuple(P.comps))
+    elif P.kinds is not None and Q.main is not None:
+        memo, other, key = P.kinds, Q.S, (1, id(Q.S), tuple(Q.comps))
+    else:  # (two sections: not kept, so that a section's memory holds no other section's slice)
+        return _piece_kinds(ops, P, Q)
+    got = memo.get(key)
+    if got is not None and got[0] is other:  # (the slice itself kept with them: no other can take its id)
+        return _bound_kinds(got[1], P, Q)
+    kinds = _piece_kinds(ops, P, Q)
+    memo[key] = (other, _unbound_kinds(kinds))
+    return kinds
+
+
+def _unbound_kinds(kinds):
+    """:func:`_piece_kinds`' answer without its layers (kept by a section without making a cycle of
+    references through its layer): None, or ``(caps, kinds)`` with each cap ``(c, upward)`` and
+    each band ``("band", a, b, matched)``."""
+    if kinds is None:
+        return None
+    caps, ks = kinds
+    return ([(c, up) for _, _, c, up in caps],
+            [("band",) + k[3:] if k[0] == "band" else k for k in ks])
+
+
+def _bound_kinds(kinds, P, Q):
+    """:func:`_unbound_kinds`' form bound to the layers ``P`` (below) and ``Q`` (above) again: the
+    caps upward are P's, the others Q's."""
+    if kinds is None:
+        return None
+    caps, ks = kinds
+    return ([("cap", P if up else Q, c, up) for c, up in caps],
+            [("band", P, Q) + k[1:] if k[0] == "band" else k for k in ks])
 
 
 def _piece_kinds(ops, P: _Layer, Q: _Layer):

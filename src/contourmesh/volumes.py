@@ -2520,17 +2520,16 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
     """
     sa, sb = A.objects[a], B.objects[b]
     ya, yb = sa[0], sb[0]
-    y0, y1 = min(ya.start, yb.start), max(ya.stop, yb.stop)
-    x0, x1 = min(sa[1].start, sb[1].start), max(sa[1].stop, sb[1].stop)
     # components of O and its holes, from the two slices' runs where both keep them (compiled: no
     # mask of O is made unless O has holes), else from O's mask (the same two numbers)
     ra, rb = A.kept_runs(), B.kept_runs()
     if ra is not None and rb is not None:
-        no, holes = _overlap_topology(ra, np.int64(a), rb, np.int64(b), np.int64(max(ya.start, yb.start)),
-                                      np.int64(min(ya.stop, yb.stop)))
+        # (Python ints: the compiled pass takes them as int64, as it took np.int64)
+        no, holes = _overlap_topology(ra, int(a), rb, int(b), max(ya.start, yb.start), min(ya.stop, yb.stop))
         o = None
     else:
-        o = _overlap_mask(A, B, a, b, y0, y1, x0, x1)
+        o = _overlap_mask(A, B, a, b, min(ya.start, yb.start), max(ya.stop, yb.stop), min(sa[1].start, sb[1].start),
+                          max(sa[1].stop, sb[1].stop))
         no, holes = _overlap_topology_of_mask(o)
     if no != 1:
         return None
@@ -2540,6 +2539,8 @@ def _simple_join(A: _Slice, B: _Slice, a: int, b: int):
         return None
     if not ha:
         return []  # no hole anywhere: nothing to pair, and O's background need not be labelled
+    y0, y1 = min(ya.start, yb.start), max(ya.stop, yb.stop)
+    x0, x1 = min(sa[1].start, sb[1].start), max(sa[1].stop, sb[1].stop)
     if o is None:
         o = _overlap_mask(A, B, a, b, y0, y1, x0, x1)
     # (the padded background of O labelled 8-connected in compiled code, ndimage.label's labels, read
@@ -2991,22 +2992,35 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     them; and holes that open to the outside of the overlap (a handle that ends), which join
     their component's ring through a keyhole.
     """
-    sl = [A.objects[a] for a in ga] + [B.objects[b] for b in gb]
-    y0 = min(s[0].start for s in sl)
-    y1 = max(s[0].stop for s in sl)
-    x0 = min(s[1].start for s in sl)
-    x1 = max(s[1].stop for s in sl)
+    # (the group's box, its holes' pixels and the kernel's arguments made in plain loops: a group
+    # has a few components, most without holes, and this runs for every fork and merge tried)
+    y0 = x0 = 1 << 62
+    y1 = x1 = -(1 << 62)
+    for objects, comps in ((A.objects, ga), (B.objects, gb)):
+        for c in comps:
+            sy, sx = objects[c]
+            if sy.start < y0:
+                y0 = sy.start
+            if sy.stop > y1:
+                y1 = sy.stop
+            if sx.start < x0:
+                x0 = sx.start
+            if sx.stop > x1:
+                x1 = sx.stop
     # each hole of the group's components by its first pixel (raster order) in the padded box: the
-    # background label there says which hole of the overlap holds it
+    # background label there says which hole of the overlap holds it (_HoleMasks.first_pixel, read
+    # from the parts: each part's first row holds a pixel)
     held, qy, qx = [], [], []
     for side, S, comps in ((0, A, ga), (1, B, gb)):
         for c in comps:
             csl, masks = S.hole_masks[c]
-            for h in range(len(masks)):
-                y, x = masks.first_pixel(h)
+            if not masks.parts:
+                continue
+            dy, dx = csl[0].start - y0 + 1, csl[1].start - x0 + 1
+            for h, (py, px, part) in enumerate(masks.parts):
                 held.append((side, c, h))
-                qy.append(y + csl[0].start - y0 + 1)
-                qx.append(x + csl[1].start - x0 + 1)
+                qy.append(py + dy)
+                qx.append(px + int(part[0].argmax()) + dx)
     # in one compiled pass: how many pairs of components overlap, the overlap's 4-components, its
     # padded background's 8-components (ndimage.label's numbers, read at the holes' pixels) and the
     # overlaps that reach the outside
@@ -3016,8 +3030,7 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
     lut_a, lut_b, qy, qx = _group_lut(A.n, ga), _group_lut(B.n, gb), np.array(qy, np.int64), np.array(qx, np.int64)
     if ra is not None and rb is not None:
         npairs, no, labs, nbl, n_out, ext = _overlap_plan_runs(
-            ra, rb, np.int64(y0), np.int64(y1), np.int64(x0), np.int64(x1), lut_a, lut_b, np.int64(len(ga)),
-            np.int64(len(gb)), qy, qx, np.int64(1))
+            ra, rb, y0, y1, x0, x1, lut_a, lut_b, len(ga), len(gb), qy, qx, 1)
     else:
         npairs, no, labs, nbl, n_out, ext = _overlap_plan(
             A.labels[y0:y1, x0:x1], B.labels[y0:y1, x0:x1], lut_a, lut_b, np.int64(len(ga)), np.int64(len(gb)), qy, qx,
@@ -3028,6 +3041,10 @@ def _bridge_plan(A: _Slice, B: _Slice, ga, gb):
         return None
     if n_out != no:  # an overlap inside a hole of another
         return None
+    if not held:  # (no hole in the group: nothing to pair; the overlap has none but the outside)
+        if nbl - (1 <= ext <= nbl):  # pragma: no cover - a hole of O without a hole inside
+            return None
+        return [], [], [], [], []
     holes_o = set(range(1, nbl + 1)) - {ext}  # (the labels are 1 .. nbl, 0 the overlap)
     wa, wb = {}, {}
     for (side, c, h), lab in zip(held, labs.tolist()):
