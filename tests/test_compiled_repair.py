@@ -701,7 +701,7 @@ def test_split_four_face_edges_equals_the_reference_on_voxel_meshes(monkeypatch)
 
     seen = {"edges": 0, "chained": 0}
 
-    def both(V, F, side, nudge):
+    def both(V, F, side, nudge, overwrite=False):  # (the mesher gives its own arrays over)
         got = repair._split_four_face_edges(V, F, side, nudge)
         want = split_four_face_edges_reference(V, F, side, nudge)
         assert all(np.array_equal(g, w) and g.dtype == w.dtype for g, w in zip(got, want))
@@ -833,6 +833,18 @@ def test_kept_and_added_equals_the_concatenation():
                 got_F, got_S = repair._kept_and_added(F, side, keep, added, sides)
                 assert got_F.dtype == np.int64 and got_S.dtype == side.dtype
                 assert np.array_equal(got_F, want_F) and np.array_equal(got_S, want_S)
+                # (overwrite: the caller's own arrays, the kept rows moved down and resized in place)
+                F_own, side_own = F.copy(), side.copy()
+                got_F, got_S = repair._kept_and_added(F_own, side_own, keep, added, sides, overwrite=True)
+                assert got_F is F_own and got_S is side_own
+                assert got_F.dtype == np.int64 and got_S.dtype == side.dtype
+                assert np.array_equal(got_F, want_F) and np.array_equal(got_S, want_S)
+    # (a view, or an array of other dtypes, is not resized: the copy as without overwrite)
+    side = np.arange(1000, dtype=np.int32)
+    view = F[::2]
+    got_F, got_S = repair._kept_and_added(view, side[::2], np.ones(500, bool), [[1, 2, 3]], [9], overwrite=True)
+    assert got_F is not view and np.array_equal(got_F, np.concatenate([view, [[1, 2, 3]]]))
+    assert np.array_equal(got_S, np.r_[side[::2], 9]) and np.array_equal(view, F[::2])
 
 
 def test_fan_numbers_equal_the_stable_sort_by_vertex():
@@ -1268,7 +1280,7 @@ def _four_face_inputs(rng, trials=6):
     seen = []
     real = volumes._split_four_face_edges
 
-    def keep(V, F, side, nudge):
+    def keep(V, F, side, nudge, overwrite=False):  # (the mesher gives its own arrays over)
         seen.append((V.copy(), F.copy(), side.copy(), nudge))
         return real(V, F, side, nudge)
 
@@ -1308,6 +1320,12 @@ def test_compiled_split_loop_equals_the_python_loop(monkeypatch):
             assert all(np.array_equal(g, w) and g.dtype == w.dtype for g, w in zip(got, want))
             assert np.array_equal(got[0].view(np.int64), want[0].view(np.int64))
             runs += len(got[1]) > len(F)
+            # (with the caller's own faces and sides given over: the same arrays, F's buffer resized)
+            F_own, sd_own = F.copy(), np.array(sd)
+            own = repair._split_four_face_edges(V, F_own, sd_own, nudge, overwrite=True)
+            assert own[1] is F_own and own[2] is sd_own
+            assert all(np.array_equal(g, w) and g.dtype == w.dtype for g, w in zip(own, want))
+            assert np.array_equal(own[0].view(np.int64), want[0].view(np.int64))
     assert runs >= 6
     # a four-face edge whose faces do not pair by side, and one whose set lost a face: reported
     # by the compiled loop, named by the Python loop

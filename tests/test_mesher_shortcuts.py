@@ -385,7 +385,7 @@ def _neck_inputs(monkeypatch, cases):
     seen = []
     real = volumes._open_necks
 
-    def keep(V, F, S, N, nudge, tube_seen=None):
+    def keep(V, F, S, N, nudge, tube_seen=None, overwrite=False):  # (the mesher gives its own arrays over)
         seen.append((V.copy(), F.copy(), S.copy(), np.array(N).copy(), nudge))
         return real(V, F, S, N, nudge, tube_seen=tube_seen)
 
@@ -432,6 +432,12 @@ def test_open_necks_at_once_equals_the_loop(monkeypatch):
             for a, b in zip(got, want):
                 assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
         assert sum(1 for k in kept if k[0] == "tube at once") == len(ids)
+        # (with the caller's own faces and sides given over: the same arrays, their buffers resized)
+        F_own, S_own = F.copy(), S.copy()
+        got = repair._open_necks(V, F_own, S_own, N, nudge, tube_seen=kept, overwrite=True)
+        assert got[1] is F_own and got[2] is S_own
+        for a, b in zip(got, want):
+            assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
         assert runs[0] == runs[1] >= len(ids) and runs[2] == runs[0] - len(ids)
         mark = np.zeros(len(V), dtype=bool)
         mark[ids] = True

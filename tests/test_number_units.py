@@ -5,7 +5,7 @@ after their rings, rings shared by several units, units without faces or with ne
 
 import numpy as np
 
-from contourmesh.volumes import _number_units, _Unit
+from contourmesh.volumes import _number_units, _stacked_rows, _Unit
 
 
 def _number_units_reference(units, tags, ring_points):
@@ -117,6 +117,41 @@ def test_number_units_equals_the_per_unit_reference():
         shared += len(used) > len(set(used))
         necks += len(want[3]) > 0
     assert shared > 50 and necks > 50  # (both paths seen often)
+
+
+def test_number_units_from_polygons_equals_the_reference():
+    # the rings' points written from their polygons and heights (the volume mesher's form) are
+    # the reference's points made by ring_points, bit for bit
+    rng = np.random.default_rng(127)
+    rings = 0
+    for trial in range(300):
+        units, tags, points = _random_units(rng, int(rng.integers(0, 12)), int(rng.integers(1, 6)))
+        zs = rng.normal(size=8)
+        polygons = {rk: np.ascontiguousarray(p[:, :2]) for rk, p in points.items()}
+
+        def ring_points(rk):
+            p = polygons[rk]
+            return np.c_[p, np.full(len(p), zs[rk[0]])]
+
+        def polygon_of(k, c, hole):
+            return polygons[(k, c, hole)]
+
+        want = _number_units_reference(units, tags, ring_points)
+        got = _number_units(units, tags, ring_points, polygon_of, zs)
+        for w, g in zip(want, got):
+            assert g.dtype == w.dtype and g.shape == w.shape and np.array_equal(g, w)
+        rings += sum(len(u.rings) for u in units)
+    assert rings > 500
+
+
+def test_stacked_rows_of_any_parts():
+    parts = [np.arange(6.0).reshape(3, 2), np.zeros((0, 2)), [[7, 8]]]
+    want = np.concatenate([np.asarray(x, dtype=np.float64).reshape(-1, 2) for x in parts])
+    for ps in (parts, parts[:2], [np.arange(4.0), np.arange(2.0)], [np.arange(6, dtype=np.float32).reshape(3, 2)]):
+        want = np.concatenate([np.asarray(x, dtype=np.float64).reshape(-1, 2) for x in ps])
+        got = _stacked_rows(ps, 2)
+        assert got.dtype == np.float64 and np.array_equal(got, want)
+    assert _stacked_rows([], 3).shape == (0, 3)
 
 
 def test_number_units_of_no_units():

@@ -88,7 +88,7 @@ def _mesher_inputs(monkeypatch, rng, trials=4):
         fans.append((V.copy(), F.copy()))
         return real_split(V, F, **k)
 
-    def split_four(V, F, side, nudge):
+    def split_four(V, F, side, nudge, overwrite=False):  # (the mesher gives its own arrays over)
         four.append((V.copy(), F.copy()))
         return real_four(V, F, side, nudge)
 

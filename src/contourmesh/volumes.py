@@ -1898,25 +1898,29 @@ def _assemble(slices, occupied, joins, built, crack_only, has_above, has_below, 
     counts = (exact_joins, band_joins, bridged_joins, n_bridges, band_fallbacks, pixel_caps, n_sections, least_area)
     if keep is not None and keep.get("units_only"):
         return None, None, None, counts  # (a slab's units alone: see SlabPart)
-    V, F, T = _join_units(units, tags, ring_points, px, tube_cache, nf)
+    V, F, T = _join_units(units, tags, ring_points, px, tube_cache, nf, polygon_of, zs)
     return V, F, T, counts
 
 
-def _join_units(units, tags, ring_points, px, tube_cache=None, nf=0):
+def _join_units(units, tags, ring_points, px, tube_cache=None, nf=0, polygon_of=None, zs=None):
     """The units numbered into one mesh (:func:`_number_units`) and made a manifold: ``(V, F,
     tags)``, the tag of each face's unit (-1 for faces the repair made).  The general mesher's
     last step of every build, and the slab driver's (:mod:`contourmesh.parallel`) on the units of
-    all slabs, so that both make the same mesh in the same order."""
-    V, F, S, N, T = _number_units(units, tags, ring_points)
+    all slabs, so that both make the same mesh in the same order.  ``polygon_of``, ``zs``: the
+    rings' polygons and heights that ``ring_points`` makes its points of, where the caller has
+    them (the numbering then writes them in place)."""
+    V, F, S, N, T = _number_units(units, tags, ring_points, polygon_of, zs)
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     # (in int32, as the tags: there are far fewer joins and caps than 2^29)
     S = S.astype(np.int32) + 4 * (T + 1)
     del T
     release_free_heap(nf)
-    V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px)
+    # (F and S are this function's own, and no view of them is made: each step may resize them
+    # into its result)
+    V, F, S = _split_four_face_edges(V, F, S, 1e-3 * px, overwrite=True)
     release_free_heap(nf)
-    V, F, S = _open_necks(V, F, S, N, 1e-2 * px, tube_seen=tube_cache)
+    V, F, S = _open_necks(V, F, S, N, 1e-2 * px, tube_seen=tube_cache, overwrite=True)
     V, F = _compact(V, F, overwrite=True)  # (F is this function's own)
     release_free_heap(nf)
     V, F = split_nonmanifold_vertices(V, F, nudge=1e-3 * px, four_face=False, overwrite=True)
@@ -1993,51 +1997,50 @@ class _Unit:
         return u
 
 
-def _number_units(units, tags, ring_points):
+def _number_units(units, tags, ring_points, polygon_of=None, zs=None):
     """The units' vertices and faces numbered into one mesh, in order: a ring gets its vertices
-    where it is first used (``ring_points((k, comp, hole))``: its points, as the unit made them),
-    a unit's own vertices where the unit makes them.  Returns ``(V, F, S, N, T)``: vertices,
-    faces, side per face, neck vertices, and per face the tag of its unit (int32).
+    where it is first used (``ring_points((k, comp, hole))``: its points, as the unit made them;
+    or, given ``polygon_of`` and ``zs``, the points ``polygon_of(k, comp, hole)`` at height
+    ``zs[k]``, the same), a unit's own vertices where the unit makes them.  Returns ``(V, F, S,
+    N, T)``: vertices, faces, side per face, neck vertices, and per face the tag of its unit
+    (int32).
 
     The loop over the units handles Python integers and collects array pieces alone: each unit's
     local vertices as runs of consecutive mesh numbers (``seg_g``, ``seg_len``: its own vertices'
-    runs and its rings', in local order), each piece of vertices written into ``V`` as it comes
-    (``V`` is counted first, so a ring's points, which ``ring_points`` makes anew, are not all held
-    at once); the units' faces are then concatenated straight into the results, and the faces and
-    necks renumbered in one compiled pass (:func:`_unit_numbering`).  Every array is written at
-    its final size.  The per-unit form it replaces is kept in ``tests/test_number_units.py``."""
-    seen = set()
-    nv = 0
-    for u in units:
-        nv += u.nv
-        for rk, a, b in u.rings:
-            if rk in seen:
-                nv -= b - a
-            seen.add(rk)
-    del seen
-    V = np.empty((nv, 3))
+    runs and its rings', in local order), and the vertices' pieces in mesh order (``pieces``: a
+    run of own vertices as its length, a ring's first use as minus its length), with the units'
+    own vertices and the rings' points (or their polygons and heights) beside them; the vertices
+    are then written in one compiled pass (:func:`_unit_vertices`; a slice assignment per piece
+    and a new array per ring, the form before, cost the lobster some 5 ms a build), the units'
+    faces concatenated straight into the results, and the faces and necks renumbered in another
+    (:func:`_unit_numbering`).  The per-unit form it replaces is kept in
+    ``tests/test_number_units.py``."""
+    xy_only = polygon_of is not None
     ring_at = {}  # (ring key -> the mesh number of its first point)
-    seg_g, seg_len = [], []
+    seg_g, seg_len, pieces = [], [], []
+    owns, rps, rzs = [], [], []
     fs, ss, face_end, face_base, face_tag = [], [], [], [], []
     ns, neck_end, neck_base = [], [], []
     n = nl_all = nf = nn = 0  # (mesh vertices, local vertices of the units so far, faces, necks)
     for u, t in zip(units, tags):
         nl = u.nv
-        pos = own = 0  # (local vertex; row of u.V)
+        pos = 0  # (local vertex)
         for rk, a, b in u.rings:
             if a > pos:
                 seg_g.append(n)
                 seg_len.append(a - pos)
-                V[n: n + a - pos] = u.V[own: own + a - pos]
-                own += a - pos
+                pieces.append(a - pos)
                 n += a - pos
             r = ring_at.get(rk)
             if r is None:
                 r = ring_at[rk] = n
-                xyz = ring_points(rk)
+                xyz = polygon_of(*rk) if xy_only else ring_points(rk)
                 if len(xyz) != b - a:  # pragma: no cover - the key holds the ring's polygon
                     raise RuntimeError(f"internal error: ring {rk} changed under a kept unit")
-                V[n: n + b - a] = xyz
+                rps.append(xyz)
+                if xy_only:
+                    rzs.append(zs[rk[0]])
+                pieces.append(a - b)
                 n += b - a
             seg_g.append(r)
             seg_len.append(b - a)
@@ -2045,8 +2048,9 @@ def _number_units(units, tags, ring_points):
         if nl > pos:
             seg_g.append(n)
             seg_len.append(nl - pos)
-            V[n: n + nl - pos] = u.V[own:]
+            pieces.append(nl - pos)
             n += nl - pos
+        owns.append(u.V)
         if len(u.F):
             fs.append(u.F)
             ss.append(u.S)
@@ -2060,8 +2064,17 @@ def _number_units(units, tags, ring_points):
             neck_end.append(nn)
             neck_base.append(nl_all)
         nl_all += nl
-    if n != nv:  # pragma: no cover - the count above walks the same rings
-        raise RuntimeError(f"internal error: {n} vertices numbered, {nv} counted")
+    i64 = functools.partial(np.array, dtype=np.int64)
+    V = np.empty((n, 3))
+    if n:
+        cols = 2 if xy_only else 3
+        own = np.concatenate(owns, dtype=np.float64)
+        del owns
+        rp = _stacked_rows(rps, cols)
+        del rps
+        if _unit_vertices(V, own, rp, np.array(rzs, dtype=np.float64), i64(pieces)) != n:  # pragma: no cover
+            raise RuntimeError(f"internal error: the vertices' pieces do not add up to {n}")
+        del own, rp
     F = np.empty((nf, 3), dtype=np.int64)
     S = np.empty(nf, dtype=np.int8)
     if fs:
@@ -2070,9 +2083,54 @@ def _number_units(units, tags, ring_points):
     del fs, ss
     T = np.repeat(np.array(face_tag, dtype=np.int32), np.diff(np.array([0] + face_end, dtype=np.int64)))
     N = np.concatenate(ns).astype(np.int64) if ns else np.zeros(0, dtype=np.int64)
-    i64 = functools.partial(np.array, dtype=np.int64)
     _unit_numbering(i64(seg_g), i64(seg_len), F, i64(face_end), i64(face_base), N, i64(neck_end), i64(neck_base))
     return V, F, S, N, T
+
+
+def _stacked_rows(parts, cols) -> np.ndarray:
+    """The arrays ``parts`` (each of ``cols`` columns once read as float64 rows, as
+    ``np.asarray(x, dtype=np.float64).reshape(-1, cols)``) stacked into one float64 array; in one
+    concatenation where they are all such arrays already (the rings' polygons are)."""
+    if not parts:
+        return np.zeros((0, cols))
+    try:
+        got = np.concatenate(parts, dtype=np.float64)
+        if got.ndim == 2 and got.shape[1] == cols:
+            return got
+    except ValueError:
+        pass
+    return np.concatenate([np.asarray(x, dtype=np.float64).reshape(-1, cols) for x in parts])
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _unit_vertices(V, own, rp, rz, pieces):  # pragma: no cover (compiled)
+    """:func:`_number_units`' vertices, written into ``V`` in order, piece by piece: a piece
+    ``p > 0`` is the next ``p`` rows of ``own`` (the units' own vertices, concatenated), ``p < 0``
+    the next ``-p`` rows of ``rp`` (the rings' points, concatenated), with their ring's height
+    from ``rz`` where ``rp`` has two columns (x, y); returns the rows written."""
+    n = 0
+    o = 0
+    r = 0
+    j = 0
+    xy = rp.shape[1] == 2
+    for q in range(pieces.shape[0]):
+        p = pieces[q]
+        if p > 0:
+            for i in range(p):
+                V[n + i, 0] = own[o + i, 0]
+                V[n + i, 1] = own[o + i, 1]
+                V[n + i, 2] = own[o + i, 2]
+            o += p
+            n += p
+        else:
+            for i in range(-p):
+                V[n + i, 0] = rp[r + i, 0]
+                V[n + i, 1] = rp[r + i, 1]
+                V[n + i, 2] = rz[j] if xy else rp[r + i, 2]
+            j += 1
+            r -= p
+            n -= p
+    return n
 
 
 @njit(cache=True, **KERNEL_OPTIONS)
