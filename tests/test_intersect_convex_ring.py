@@ -7,6 +7,7 @@ import numpy as np
 
 from contourmesh._kernels import njit
 from contourmesh.intersect import _plane_convex_ring, _plane_embedded, intersecting_pairs
+from plane_parts import part_boxes
 
 
 @njit(cache=False)
@@ -18,15 +19,7 @@ def _both(V, ws, pu, pw, k):
     d1 = np.empty(n, np.int32)
     d2 = np.empty(n, np.int32)
     ring = _plane_convex_ring(V, ws, pu, pw, np.int64(ne), np.int64(k), stamp, d1, d2)
-    xlo = np.empty(ne)
-    xhi = np.empty(ne)
-    ylo = np.empty(ne)
-    yhi = np.empty(ne)
-    for e in range(ne):
-        xlo[e] = min(V[pu[e], 0], V[pw[e], 0])
-        xhi[e] = max(V[pu[e], 0], V[pw[e], 0])
-        ylo[e] = min(V[pu[e], 1], V[pw[e], 1])
-        yhi[e] = max(V[pu[e], 1], V[pw[e], 1])
+    xlo, xhi, ylo, yhi = part_boxes(V, pu, pw)
     cert = np.empty(ne, np.int32)
     all2 = np.full(ne, 2, np.int8)
     ci = np.empty(16, np.int64)

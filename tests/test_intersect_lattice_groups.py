@@ -15,6 +15,7 @@ from contourmesh import intersect as I
 from contourmesh import volumes
 from contourmesh._kernels import njit
 from contourmesh.intersect import canonical_vertices, intersecting_pairs
+from plane_parts import part_boxes
 from test_intersect_quick import _volume
 
 
@@ -402,15 +403,7 @@ def _plane_answers(V, ws, pu, pw, eg, k):
         stamp = np.full(len(V), -1, np.int32)
         d1 = np.empty(len(V), np.int32)
         d2 = np.empty(len(V), np.int32)
-        xlo = np.empty(ne)
-        xhi = np.empty(ne)
-        ylo = np.empty(ne)
-        yhi = np.empty(ne)
-        for e in range(ne):
-            xlo[e] = min(V[pu[e], 0], V[pw[e], 0])
-            xhi[e] = max(V[pu[e], 0], V[pw[e], 0])
-            ylo[e] = min(V[pu[e], 1], V[pw[e], 1])
-            yhi[e] = max(V[pu[e], 1], V[pw[e], 1])
+        xlo, xhi, ylo, yhi = part_boxes(V, pu, pw)
         cert = np.empty(ne, np.int32)
         all2 = np.full(ne, 2, np.int8)
         ci = np.empty(16, np.int64)
