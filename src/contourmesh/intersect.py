@@ -622,6 +622,38 @@ def _plane_part(F, V, i, c):
     return n, u, w
 
 
+@_inlined
+def _level_part(V, F, lev, i, k):
+    """Face i's part on level ``k``: its lowest and highest vertex numbers there (-1 for both where
+    no corner lies on it) and their xy box ``(xlo, xhi, ylo, yhi)`` (zeros where none), as the
+    slab phase's planes and the two-level test's planes lay their parts out."""
+    u = np.int64(-1)
+    w = np.int64(-1)
+    x0 = 0.0
+    x1 = 0.0
+    y0 = 0.0
+    y1 = 0.0
+    for q in range(3):
+        v = F[i, q]
+        if lev[v] != k:
+            continue
+        if u < 0:
+            u = v
+            w = v
+            x0 = V[v, 0]
+            x1 = V[v, 0]
+            y0 = V[v, 1]
+            y1 = V[v, 1]
+        else:
+            u = min(u, v)
+            w = max(w, v)
+            x0 = min(x0, V[v, 0])
+            x1 = max(x1, V[v, 0])
+            y0 = min(y0, V[v, 1])
+            y1 = max(y1, V[v, 1])
+    return u, w, x0, x1, y0, y1
+
+
 @_pure
 def _z_range(V, F, i):
     """The lowest and highest corner heights of face i (its box's z-range)."""
@@ -2885,25 +2917,14 @@ def _slab_pairs(V, ws, F, star, sst, quick, lev, nlev, budget, stop, k0, k1, cg)
             if lo[i] == hi[i] or (lo[i] < k and k < hi[i]):
                 continue
             e = ne
-            pu[e] = -1
-            for q in range(3):
-                v = F[i, q]
-                if lev[v] != k:
-                    continue
-                if pu[e] < 0:
-                    pu[e] = v
-                    pw[e] = v
-                    pxlo[e] = V[v, 0]
-                    pxhi[e] = V[v, 0]
-                    pylo[e] = V[v, 1]
-                    pyhi[e] = V[v, 1]
-                else:
-                    pu[e] = min(pu[e], v)
-                    pw[e] = max(pw[e], v)
-                    pxlo[e] = min(pxlo[e], V[v, 0])
-                    pxhi[e] = max(pxhi[e], V[v, 0])
-                    pylo[e] = min(pylo[e], V[v, 1])
-                    pyhi[e] = max(pyhi[e], V[v, 1])
+            u, w, x0, x1, y0, y1 = _level_part(V, F, lev, i, k)
+            pu[e] = u
+            if u >= 0:
+                pw[e] = w
+                pxlo[e] = x0
+                pxhi[e] = x1
+                pylo[e] = y0
+                pyhi[e] = y1
             if hi[i] == k:
                 pgrp[e] = 0
                 n0 += 1
@@ -3354,26 +3375,14 @@ def _two_level_plane(V, ws, F, lev, faces, k, pbox, pu, pw, stamp, d1, d2, cert,
     :func:`_plane_embedded`).  Returns ``(embedded, ci, cj)``."""
     ne = len(faces)
     for e in range(ne):
-        i = faces[e]
-        pu[e] = -1
-        for q in range(3):
-            v = F[i, q]
-            if lev[v] != k:
-                continue
-            if pu[e] < 0:
-                pu[e] = v
-                pw[e] = v
-                pbox[e, 0] = V[v, 0]
-                pbox[e, 1] = V[v, 0]
-                pbox[e, 2] = V[v, 1]
-                pbox[e, 3] = V[v, 1]
-            else:
-                pu[e] = min(pu[e], v)
-                pw[e] = max(pw[e], v)
-                pbox[e, 0] = min(pbox[e, 0], V[v, 0])
-                pbox[e, 1] = max(pbox[e, 1], V[v, 0])
-                pbox[e, 2] = min(pbox[e, 2], V[v, 1])
-                pbox[e, 3] = max(pbox[e, 3], V[v, 1])
+        u, w, x0, x1, y0, y1 = _level_part(V, F, lev, faces[e], k)
+        pu[e] = u
+        if u >= 0:
+            pw[e] = w
+            pbox[e, 0] = x0
+            pbox[e, 1] = x1
+            pbox[e, 2] = y0
+            pbox[e, 3] = y1
     if ws[0] == 1.0 and _plane_convex_ring(V, ws, pu, pw, np.int64(ne), k, stamp, d1, d2):
         return True, ci, cj
     emb, work, ci, cj = _plane_embedded(V, ws, pbox[:, 0], pbox[:, 1], pbox[:, 2], pbox[:, 3], pu, pw, np.int64(ne),

@@ -299,13 +299,20 @@ def _size_sums(v, f, i0, i1):
     nw = _fold_bins(wbins, wparts, nw)
     if n < 0 or nw < 0:
         return False, parts, np.int64(0), wparts, np.int64(0)
+    return _finite_parts(parts, n, wparts, nw), parts, n, wparts, nw
+
+
+@njit(cache=True, nogil=True)
+def _finite_parts(parts, n, wparts, nw):
+    """Whether the first ``n`` parts of ``parts`` and ``nw`` of ``wparts`` are all finite (the size
+    sums' last check: a NaN or infinite vertex, or an overflow, shows there)."""
     for j in range(n):
         if not math.isfinite(parts[j]):
-            return False, parts, n, wparts, nw
+            return False
     for j in range(nw):
         if not math.isfinite(wparts[j]):
-            return False, parts, n, wparts, nw
-    return True, parts, n, wparts, nw
+            return False
+    return True
 
 
 @njit(cache=True, nogil=True)
@@ -332,13 +339,7 @@ def _size_sums_expansion(v, f, i0, i1):
                 nw = _add_exact(wparts, nw, s)
         if n >= _PARTS - 1 or nw >= _PARTS - 1:
             return False, parts, n, wparts, nw
-    for j in range(n):
-        if not math.isfinite(parts[j]):
-            return False, parts, n, wparts, nw
-    for j in range(nw):
-        if not math.isfinite(wparts[j]):
-            return False, parts, n, wparts, nw
-    return True, parts, n, wparts, nw
+    return _finite_parts(parts, n, wparts, nw), parts, n, wparts, nw
 
 
 
