@@ -5,6 +5,7 @@ or a different id pattern (which bridge ends are one vertex) is another key."""
 
 import numpy as np
 
+from bridged_rings import bridged_band, circle
 from contourmesh import volumes
 
 
@@ -14,29 +15,15 @@ def _ring(rs, n, z, r0=1.0):
     return np.c_[r * np.cos(t), r * np.sin(t), np.full(n, z)]
 
 
-def _circle(rs, n, cx, r0, z):
-    t = np.sort(rs.uniform(0, 2 * np.pi, n))
-    r = r0 * (1 + 0.1 * rs.standard_normal(n))
-    return np.c_[cx + r * np.cos(t), r * np.sin(t), np.full(n, z)]
-
-
 def _cases(rs, count):
     """Bands as a bridged join has them: below, two rings bridged into one (the bridge's ends
     visited twice, each one vertex), or one ring; above, one ring round them."""
     for _ in range(count):
         n1, n2, nb = (int(x) for x in rs.integers(4, 40, size=3))
-        A, B = _circle(rs, n1, -1.5, 1.0, 0.0), _circle(rs, n2, 1.5, 1.0, 0.0)
-        up = _circle(rs, nb + 8, 0.0, rs.uniform(2.5, 3.5), 1.0)
+        A, B = circle(rs, n1, -1.5, 1.0, 0.0), circle(rs, n2, 1.5, 1.0, 0.0)
+        up = circle(rs, nb + 8, 0.0, rs.uniform(2.5, 3.5), 1.0)
         up[:, 0] *= 1.2
-        V = np.concatenate([A, B, up])
-        if rs.random() < 0.7:
-            a, b = int(np.argmax(A[:, 0])), int(np.argmin(B[:, 0]))  # (the bridge: A's rightmost to B's leftmost)
-            tour = np.r_[np.arange(a + 1), n1 + (b + np.arange(n2 + 1)) % n2, a + np.arange(n1 - a) % n1]
-        else:
-            tour = np.arange(n1)
-        top = n1 + n2 + np.arange(len(up))
-        ids = np.r_[tour, top].astype(np.int64)
-        yield V[ids], len(tour), ids
+        yield bridged_band(rs, A, B, up)
 
 
 def test_the_remembered_band_is_the_band_made_afresh():

@@ -5,6 +5,7 @@ the upper ring rolled by one concatenation in the linear band rules (``np.roll``
 
 import numpy as np
 
+from bridged_rings import bridged_band, circle
 from contourmesh import volumes
 from contourmesh.bands import (
     TRIANGULATORS,
@@ -22,30 +23,16 @@ from contourmesh.bands.wiederhold import (
 )
 
 
-def _circle(rs, n, cx, r0, z):
-    t = np.sort(rs.uniform(0, 2 * np.pi, n))
-    r = r0 * (1 + 0.1 * rs.standard_normal(n))
-    return np.c_[cx + r * np.cos(t), r * np.sin(t), np.full(n, z)]
-
-
 def _cases(rs, count):
     """Bands as a bridged join has them (as tests/test_bridged_band_memory.py makes them): below,
     two rings bridged into one (the bridge's ends visited twice, each one vertex), or one ring;
     above, one ring round them."""
     for _ in range(count):
         n1, n2, nb = (int(x) for x in rs.integers(3, 40, size=3))
-        A, B = _circle(rs, n1, -1.5, 1.0, 0.0), _circle(rs, n2, 1.5, 1.0, 0.0)
-        up = _circle(rs, nb + 3, 0.0, rs.uniform(1.0, 3.5), rs.choice([1.0, 0.2]))
+        A, B = circle(rs, n1, -1.5, 1.0, 0.0), circle(rs, n2, 1.5, 1.0, 0.0)
+        up = circle(rs, nb + 3, 0.0, rs.uniform(1.0, 3.5), rs.choice([1.0, 0.2]))
         up[:, 0] *= rs.uniform(0.3, 1.5)
-        V = np.concatenate([A, B, up])
-        if rs.random() < 0.7:
-            a, b = int(np.argmax(A[:, 0])), int(np.argmin(B[:, 0]))
-            tour = np.r_[np.arange(a + 1), n1 + (b + np.arange(n2 + 1)) % n2, a + np.arange(n1 - a) % n1]
-        else:
-            tour = np.arange(n1)
-        top = n1 + n2 + np.arange(len(up))
-        ids = np.r_[tour, top].astype(np.int64)
-        yield V[ids], len(tour), ids
+        yield bridged_band(rs, A, B, up)
 
 
 def _crossing_reference(P, na, ids, rule):
@@ -120,8 +107,8 @@ def test_linear_rules_roll_the_upper_ring_as_np_roll():
     starts = set()
     for _ in range(300):
         n, m = (int(x) for x in rs.integers(2, 60, size=2))
-        lo = _circle(rs, n, rs.uniform(-0.5, 0.5), 1.0, 0.0)
-        up = _circle(rs, m, rs.uniform(-0.5, 0.5), rs.uniform(0.5, 2.0), 1.0)
+        lo = circle(rs, n, rs.uniform(-0.5, 0.5), 1.0, 0.0)
+        up = circle(rs, m, rs.uniform(-0.5, 0.5), rs.uniform(0.5, 2.0), 1.0)
         up = np.roll(up, int(rs.integers(0, m)), axis=0)  # (the nearest point anywhere on the ring)
         c1, c2, _ = oriented_pair(lo, up)
         starts.add(initial_edge(c1, c2) > 0)
