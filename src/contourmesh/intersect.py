@@ -1564,6 +1564,8 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
     start = np.empty(nb + 1, np.int32)
     ent_slot = np.empty(most, np.int32)
     ent_key = np.empty(most, np.int64)
+    # per entry, which of its cell's coordinates are the face's lowest (bit k: along axis k)
+    ent_low = np.empty(most, np.int8)
     # the chunk's faces (slots): box, cells (lowest and highest per axis), face
     abox = np.empty((cap, 6), np.float64)
     acell = np.empty((cap, 6), np.int64)
@@ -1625,6 +1627,8 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
                                 r = start[q]
                                 ent_slot[r] = s
                                 ent_key[r] = key
+                                ent_low[r] = ((1 if cx == acell[s, 0] else 0) | (2 if cy == acell[s, 1] else 0)
+                                              | (4 if cz == acell[s, 2] else 0))
                                 start[q] = r + 1
             if store == 0:
                 acc = 0
@@ -1642,21 +1646,20 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
             for r in range(s0, s1):
                 a = ent_slot[r]
                 key = ent_key[r]
+                low = ent_low[r]
                 for t in range(r + 1, s1):
-                    if ent_key[t] != key:
+                    # test the pair only in the cell of the low corner of the boxes' overlap (the
+                    # cell of a larger coordinate is never lower: the larger of the two cells): both
+                    # faces reach this cell, so along each axis it is the larger of their lowest
+                    # cells where it is the lowest of one of them (ent_low), which two bytes say
+                    # without the faces' rows
+                    if ent_key[t] != key or (low | ent_low[t]) != 7:
                         continue
                     b = ent_slot[t]
                     if acg[a] >= 0 and acg[a] == acg[b]:
                         continue  # (two faces certified in one group: the pair needs nothing)
                     if (abox[a, 0] > abox[b, 3] or abox[b, 0] > abox[a, 3] or abox[a, 1] > abox[b, 4]
                             or abox[b, 1] > abox[a, 4] or abox[a, 2] > abox[b, 5] or abox[b, 2] > abox[a, 5]):
-                        continue
-                    # test the pair only in the cell of the low corner of the boxes' overlap (the
-                    # cell of a larger coordinate is never lower: the larger of the two cells)
-                    cx = max(acell[a, 0], acell[b, 0])
-                    cy = max(acell[a, 1], acell[b, 1])
-                    cz = max(acell[a, 2], acell[b, 2])
-                    if (cz * ny + cy) * nx + cx != key:
                         continue
                     i = min(aface[a], aface[b])
                     j = max(aface[a], aface[b])
