@@ -5,6 +5,7 @@ after their rings, rings shared by several units, units without faces or with ne
 
 import numpy as np
 
+from contourmesh.repair import _own_buffer
 from contourmesh.volumes import _number_units, _stacked_rows, _tagged_sides, _Unit
 
 
@@ -170,7 +171,9 @@ def test_tagged_sides_equal_the_whole_array_form():
         S = rng.integers(0, 3, n).astype(np.int8)
         T = rng.integers(-1, top + 1, n).astype(np.int32)
         want = S.astype(np.int32) + 4 * (T + 1)
-        got = _tagged_sides(S, T)
+        out = np.empty(len(S), dtype=np.int32)
+        got = _tagged_sides(S, T, out)
+        assert got is out and _own_buffer(got)  # (the repair may resize it in place)
         assert got.dtype == want.dtype == np.int32 and np.array_equal(got, want)
         assert np.array_equal(got // 4 - 1, T) and np.array_equal(got % 4, S)
     # what _join_units hands over: the numbering's arrays of random units
@@ -185,4 +188,4 @@ def test_tagged_sides_equal_the_whole_array_form():
         tags.append(t if t % 7 else -1)
     _, _, S, _, T = _number_units(units, tags, None)
     assert S.dtype == np.int8 and T.dtype == np.int32 and len(S) == len(T) > 0
-    assert np.array_equal(_tagged_sides(S, T), S.astype(np.int32) + 4 * (T + 1))
+    assert np.array_equal(_tagged_sides(S, T, np.empty(len(S), dtype=np.int32)), S.astype(np.int32) + 4 * (T + 1))

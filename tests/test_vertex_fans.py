@@ -366,9 +366,9 @@ def _repair_arrays(monkeypatch, volumes_and_spacings):
     tagged, coincident = [], []
     real_tagged, real_sep = volumes._tagged_sides, volumes._separate_coincident
 
-    def tag(S, T):
+    def tag(S, T, out):
         tagged.append((S.copy(), T.copy()))
-        return real_tagged(S, T)
+        return real_tagged(S, T, out)
 
     def sep(V, F, nudge, overwrite=False):
         coincident.append((V.copy(), np.array(F, dtype=np.int64)))
@@ -390,7 +390,7 @@ def _check_repair_arrays(tagged, coincident):
     assert tagged and coincident
     for S, T in tagged:
         assert S.dtype == np.int8 and T.dtype == np.int32
-        assert _bits(volumes._tagged_sides(S, T)) == _bits(S.astype(np.int32) + 4 * (T + 1))
+        assert _bits(volumes._tagged_sides(S, T, np.empty(len(S), dtype=np.int32))) == _bits(S.astype(np.int32) + 4 * (T + 1))
     shared = 0
     for V, F in coincident:
         dup, _, mark = repair._shared_rows(V)
