@@ -5,7 +5,8 @@ after their rings, rings shared by several units, units without faces or with ne
 
 import numpy as np
 
-from contourmesh.volumes import _number_units, _stacked_rows, _Unit
+from contourmesh.repair import _own_buffer
+from contourmesh.volumes import _number_units, _stacked_rows, _tagged_sides, _Unit
 
 
 def _number_units_reference(units, tags, ring_points):
@@ -158,3 +159,33 @@ def test_number_units_of_no_units():
     V, F, S, N, T = _number_units([], [], None)
     assert V.shape == (0, 3) and F.shape == (0, 3) and S.shape == (0,) and N.shape == (0,) and T.shape == (0,)
     assert (F.dtype, S.dtype, N.dtype, T.dtype) == (np.int64, np.int8, np.int64, np.int32)
+
+
+def test_tagged_sides_equal_the_whole_array_form():
+    """The repair's side-and-tag numbers (:func:`contourmesh.volumes._tagged_sides`, compiled) are
+    ``S.astype(np.int32) + 4 * (T + 1)`` of the numbering's int8 sides and int32 tags, the form
+    before: the same numbers and dtype, on random sides and tags (-1 and up, some near the top of
+    the range) and on no faces."""
+    rng = np.random.default_rng(7)
+    for n, top in ((0, 5), (1, 0), (257, 3), (5000, 2000), (3000, 2**29 - 2)):
+        S = rng.integers(0, 3, n).astype(np.int8)
+        T = rng.integers(-1, top + 1, n).astype(np.int32)
+        want = S.astype(np.int32) + 4 * (T + 1)
+        out = np.empty(len(S), dtype=np.int32)
+        got = _tagged_sides(S, T, out)
+        assert got is out and _own_buffer(got)  # (the repair may resize it in place)
+        assert got.dtype == want.dtype == np.int32 and np.array_equal(got, want)
+        assert np.array_equal(got // 4 - 1, T) and np.array_equal(got % 4, S)
+    # what _join_units hands over: the numbering's arrays of random units
+    units, tags = [], []
+    for t in range(40):
+        u = _Unit.flat([], [], np.zeros((0, 3), dtype=np.int64))
+        k = int(rng.integers(0, 6))
+        u.nv, u.F = 3, rng.integers(0, 3, (k, 3)).astype(np.int32)
+        u.S = rng.integers(0, 3, k).astype(np.int8)
+        u.V = rng.random((3, 3))
+        units.append(u)
+        tags.append(t if t % 7 else -1)
+    _, _, S, _, T = _number_units(units, tags, None)
+    assert S.dtype == np.int8 and T.dtype == np.int32 and len(S) == len(T) > 0
+    assert np.array_equal(_tagged_sides(S, T, np.empty(len(S), dtype=np.int32)), S.astype(np.int32) + 4 * (T + 1))

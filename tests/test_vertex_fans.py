@@ -267,6 +267,19 @@ def _separate_before(V, F, nudge):
     return V
 
 
+def _shared_sums_before(V, F, mark, dup):
+    """_separate_coincident's sums as numpy made them: the corners at shared positions in face
+    order, their faces' centroids (``mean(axis=1)``) added at each vertex's place in ``dup`` by
+    ``np.add.at`` from zero, the counts by ``np.bincount``."""
+    corner_v = F.reshape(-1)
+    corners = np.flatnonzero(mark[corner_v])
+    cen = V[F[corners // 3]].mean(axis=1)
+    at = np.searchsorted(dup, corner_v[corners])
+    acc = np.zeros((len(dup), 3))
+    np.add.at(acc, at, cen)
+    return acc, np.bincount(at, minlength=len(dup)).astype(np.float64)
+
+
 def test_shared_rows_and_separate_coincident_equal_the_ids_of_every_row():
     rng = np.random.default_rng(59)
     s = trimesh.creation.icosphere(subdivisions=3)
@@ -289,7 +302,9 @@ def test_shared_rows_and_separate_coincident_equal_the_ids_of_every_row():
         dup, group, mark = repair._shared_rows(V)
         assert np.array_equal(dup, want) and np.array_equal(np.flatnonzero(mark), want)
         assert np.array_equal(repair._copy_rank(group), repair._copy_rank(ids[want]))
-        assert np.array_equal(repair._marked_entries(F.reshape(-1), mark), np.flatnonzero(mark[F.reshape(-1)]))
+        acc, deg = repair._shared_centroid_sums(V, np.ascontiguousarray(F.reshape(-1)), mark, dup)
+        want_acc, want_deg = _shared_sums_before(V, F, mark, dup)
+        assert _bits(acc) == _bits(want_acc) and _bits(deg) == _bits(want_deg)
         got = repair._separate_coincident(V, F, 1e-3)
         exp = _separate_before(V, F, 1e-3)
         assert _bits(got) == _bits(exp)
@@ -341,3 +356,64 @@ def test_compact_in_one_pass_equals_the_counts():
         repair._compact(V, np.array([[0, 1, -1]], dtype=np.int64))
     with pytest.raises(IndexError):
         repair._compact(V, np.array([[0, 1, 9]], dtype=np.int64))
+
+
+def _repair_arrays(monkeypatch, volumes_and_spacings):
+    """The volume mesher's arrays at two steps of its repair: the numbering's sides and tags handed
+    to :func:`contourmesh.volumes._tagged_sides`, and the mesh handed to ``_separate_coincident``."""
+    from contourmesh import volumes
+
+    tagged, coincident = [], []
+    real_tagged, real_sep = volumes._tagged_sides, volumes._separate_coincident
+
+    def tag(S, T, out):
+        tagged.append((S.copy(), T.copy()))
+        return real_tagged(S, T, out)
+
+    def sep(V, F, nudge, overwrite=False):
+        coincident.append((V.copy(), np.array(F, dtype=np.int64)))
+        return real_sep(V, F, nudge, overwrite=overwrite)
+
+    monkeypatch.setattr(volumes, "_tagged_sides", tag)
+    monkeypatch.setattr(volumes, "_separate_coincident", sep)
+    for vol, spacing in volumes_and_spacings:
+        volumes.volume_to_mesh(vol, spacing=spacing)
+    monkeypatch.undo()
+    return tagged, coincident
+
+
+def _check_repair_arrays(tagged, coincident):
+    """Both compiled steps against their numpy forms before, bit for bit; returns how many vertices
+    shared a position."""
+    from contourmesh import volumes
+
+    assert tagged and coincident
+    for S, T in tagged:
+        assert S.dtype == np.int8 and T.dtype == np.int32
+        assert _bits(volumes._tagged_sides(S, T, np.empty(len(S), dtype=np.int32))) == _bits(S.astype(np.int32) + 4 * (T + 1))
+    shared = 0
+    for V, F in coincident:
+        dup, _, mark = repair._shared_rows(V)
+        acc, deg = repair._shared_centroid_sums(V, np.ascontiguousarray(F.reshape(-1)), mark, dup)
+        want_acc, want_deg = _shared_sums_before(V, F, mark, dup)
+        assert _bits(acc) == _bits(want_acc) and _bits(deg) == _bits(want_deg)
+        shared += len(dup)
+    return shared
+
+
+def test_repair_sums_and_tagged_sides_on_mesher_meshes(monkeypatch):
+    """The centroid sums of the coincident vertices and the tagged sides as numpy made them, on the
+    volume mesher's own arrays (noisy volumes: many shared positions)."""
+    rng = np.random.default_rng(43)
+    vols = [(np.pad(rng.random((6 + t, 14, 13)) < 0.45, 1), (1.0, 1.0, 1.0)) for t in range(3)]
+    assert _check_repair_arrays(*_repair_arrays(monkeypatch, vols)) > 0
+
+
+def test_repair_sums_and_tagged_sides_on_the_lobster(monkeypatch, shared_data):
+    """The same on the lobster's two builds (skipped without the shared data)."""
+    from contourmesh.io import read_volume
+
+    vol, spacing, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    tagged, coincident = _repair_arrays(monkeypatch, [(np.pad(vol, 1), tuple(spacing))])
+    assert len(tagged) == len(coincident) == 2  # (a crossing fallback: built twice)
+    assert _check_repair_arrays(tagged, coincident) > 1000

@@ -1913,7 +1913,7 @@ def _join_units(units, tags, ring_points, px, tube_cache=None, nf=0, polygon_of=
     # the tag rides along with the side through the manifold repair (a side is 0, 1 or 2; faces
     # the repair adds get side 0 and tag -1)
     # (in int32, as the tags: there are far fewer joins and caps than 2^29)
-    S = S.astype(np.int32) + 4 * (T + 1)
+    S = _tagged_sides(S, T, np.empty(len(S), dtype=np.int32))
     del T
     release_free_heap(nf)
     # (F and S are this function's own, and no view of them is made: each step may resize them
@@ -4230,3 +4230,21 @@ def _section_ops():
 
     return SimpleNamespace(Slice=_Slice, simple_join=_simple_join, bridge_plan=_bridge_plan,
                            bridge_join=_bridge_join, band_faces=_band_faces, Bridged=_Bridged)
+
+
+def _tagged_sides(S, T, out):
+    """:func:`_join_units`' side and tag of each face in one int32, ``S + 4 * (T + 1)`` (``S`` the
+    int8 sides, 0 to 2; ``T`` the int32 tags, -1 and up), written into ``out`` (int32, as long) in
+    one compiled pass and returned: the same numbers as ``S.astype(np.int32) + 4 * (T + 1)``,
+    without its three whole-mesh temporaries (1.2 -> 0.05 ms on the lobster's 0.38 M faces, once
+    per build).  ``out`` is the caller's numpy array: the repair resizes its buffer in place
+    (:func:`contourmesh.repair._kept_and_added`), which an array made in the kernel does not allow."""
+    _tagged_sides_into(S, T, out)
+    return out
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _tagged_sides_into(S, T, out):  # pragma: no cover (compiled)
+    """:func:`_tagged_sides`' pass."""
+    for i in range(S.shape[0]):
+        out[i] = np.int32(S[i]) + np.int32(4) * (T[i] + np.int32(1))
