@@ -4007,10 +4007,19 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         if not gen:
             return ()
         key = (kk, tuple(comps))
-        _near_sig(kk, key)
-        return tuple(sorted((c, gen[c]) for c in near[key] if c in gen))
+        return tuple(sorted((c, gen[c]) for c in _near(kk, key) if c in gen))
 
     def _near_sig(kk, key):
+        if not by_slice[kk]:
+            # (no crack-only component in the slice: none can be near, whatever the boxes; they are
+            # not made for it, most slices of a volume with few exact joins)
+            if not key[1]:
+                raise ValueError("a join without components on one side")
+            return ()
+        return tuple(sorted(_near(kk, key) & by_slice[kk]))
+
+    def _near(kk, key):
+        """The components of slice kk whose boxes meet the box of ``key[1]``'s (made once)."""
         comps = key[1]
         if key not in near:
             if kk not in boxes:
@@ -4019,7 +4028,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             if not comps:
                 raise ValueError("a join without components on one side")
             near[key] = frozenset(_boxes_meeting(blo, bhi, np.array(comps, dtype=np.int64)).tolist())
-        return tuple(sorted(near[key] & by_slice[kk]))
+        return near[key]
 
     edge_cache = {}
     ox, oy, dx, dy = grid
