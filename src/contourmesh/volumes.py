@@ -3814,7 +3814,58 @@ def _ring_boxes(s):
     its polygons and its crack rings in physical xy.  The crack rings' corners are integers and
     ``to_xy`` is increasing in each coordinate, so their box is that of their integer corners' box,
     converted (no crack ring is made), and that box is the corners of the component's pixel box: the
-    same numbers as :func:`_ring_boxes_reference`."""
+    same numbers as :func:`_ring_boxes_reference`.  The polygons' points are taken into those boxes
+    in one compiled pass (:func:`_ring_boxes_kernel`); :func:`_ring_boxes_numpy` is the form it
+    replaces (per ring, then per component, by ``reduceat``), kept for a slice with an empty ring."""
+    if s.n == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    # a component's outer crack ring runs round its pixels' box, corner to corner, and its holes lie
+    # inside: the box of its crack rings' corners is that of its pixels (s.objects), read off it
+    corners = np.array([(sl[1].start, sl[0].start, sl[1].stop, sl[0].stop) for sl in s.objects], dtype=np.int64)
+    # (both corners of every box mapped in one call, rows (x0, y0), (x1, y1) of each box in turn:
+    # the map takes each point alone, so the same numbers as mapping the lower and upper corners apart)
+    cxy = np.ascontiguousarray(s.crack_outer.to_xy(corners.reshape(-1, 2)), dtype=np.float64)
+    rs, counts = [], []
+    for c in range(s.n):
+        outer, holes = np.asarray(s.outer[c], dtype=np.float64), s.holes[c]
+        rs.append(outer)
+        m = len(outer)
+        for h in holes:
+            rs.append(h)
+            m += len(h)
+        counts.append(m)
+    if any(len(r) == 0 for r in rs):  # pragma: no cover - (a polygon has three points or more)
+        return _ring_boxes_numpy(s)
+    cat = np.ascontiguousarray(np.concatenate(rs), dtype=np.float64).reshape(-1, 2)
+    return _ring_boxes_kernel(cat, np.array(counts, dtype=np.int64), cxy)
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _ring_boxes_kernel(cat, counts, cxy):  # pragma: no cover (compiled)
+    """:func:`_ring_boxes`' boxes: component ``c``'s crack box, from ``cxy[2 c]`` to ``cxy[2 c + 1]``
+    (physical xy), grown by its rings' points, the next ``counts[c]`` rows of ``cat``;
+    ``np.minimum`` and ``np.maximum`` one by one (a NaN taken on as they take it; the order of a
+    minimum of numbers does not change it)."""
+    n = counts.shape[0]
+    lo = np.empty((n, 2))
+    hi = np.empty((n, 2))
+    t = 0
+    for c in range(n):
+        lo0, lo1, hi0, hi1 = cxy[2 * c, 0], cxy[2 * c, 1], cxy[2 * c + 1, 0], cxy[2 * c + 1, 1]
+        for u in range(t, t + counts[c]):
+            x, y = cat[u, 0], cat[u, 1]
+            lo0 = _min_nan(lo0, x)
+            lo1 = _min_nan(lo1, y)
+            hi0 = _max_nan(hi0, x)
+            hi1 = _max_nan(hi1, y)
+        t += counts[c]
+        lo[c, 0], lo[c, 1], hi[c, 0], hi[c, 1] = lo0, lo1, hi0, hi1
+    return lo, hi
+
+
+def _ring_boxes_numpy(s):
+    """:func:`_ring_boxes` by numpy's ``reduceat``, per ring and then per component (the form the
+    compiled pass replaced; the tests compare the two)."""
     def per_component(rings_of):
         per = [rings_of(c) for c in range(s.n)]  # (each component's rings, asked for once)
         rs = [r for rings in per for r in rings]
@@ -3829,8 +3880,6 @@ def _ring_boxes(s):
 
     if s.n == 0:
         return np.zeros((0, 2)), np.zeros((0, 2))
-    # a component's outer crack ring runs round its pixels' box, corner to corner, and its holes lie
-    # inside: the box of its crack rings' corners is that of its pixels (s.objects), read off it
     corners = np.array([(sl[1].start, sl[0].start, sl[1].stop, sl[0].stop) for sl in s.objects], dtype=np.int64)
     clo, chi = np.ascontiguousarray(corners[:, :2]), np.ascontiguousarray(corners[:, 2:])
     plo, phi = per_component(lambda c: [np.asarray(s.outer[c], dtype=np.float64)] + list(s.holes[c]))
