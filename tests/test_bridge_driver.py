@@ -239,8 +239,16 @@ def test_distinct_rows_is_the_unique_rows_test_of_the_lids():
         xy = rng.integers(-6, 7, (n, 2)) * rng.choice([0.5, -0.5, 1.0]) if trial % 3 else rng.normal(size=(n, 2))
         if trial % 5 == 0 and n > 2:
             xy[int(rng.integers(0, n))] = xy[int(rng.integers(0, n))]
+        if trial % 13 == 1 and n > 1:  # (NaN and infinite coordinates: a NaN row equals no row)
+            xy = xy.astype(np.float64)
+            xy[int(rng.integers(0, n)), int(rng.integers(0, 2))] = rng.choice([np.nan, np.inf, -np.inf])
+        if trial % 4 == 2:  # (a lid's rows: the first two columns of rows picked from a 3-column array)
+            V = np.c_[xy, rng.normal(size=n)]
+            xy = V[np.arange(n)][:, :2]
         got = volumes._distinct_rows(xy)
         assert got == (len(np.unique(xy, axis=0)) == len(xy))
+        # the compiled test against the numpy sort it replaced
+        assert got == volumes._distinct_rows_numpy(xy)
         seen[got] += 1
     assert min(seen.values()) > 100, seen
 

@@ -112,6 +112,7 @@ from .fastpath import (
     slice_labels,
     slice_mlps_flat,
 )
+from .geometry import _distinct_rows as _count_distinct_rows  # (compiled: called in _rows_distinct_kernel)
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import any_intersecting, intersecting_pairs
 from .measure import triangle_areas
@@ -2166,7 +2167,29 @@ def _unit_numbering(seg_g, seg_len, F, face_end, face_base, N, neck_end, neck_ba
 
 
 def _distinct_rows(xy) -> bool:
-    """No two rows of ``xy`` are equal (``len(np.unique(xy, axis=0)) == len(xy)``, sorted faster)."""
+    """No two rows of ``xy`` are equal (``len(np.unique(xy, axis=0)) == len(xy)``), in compiled
+    code (:func:`_rows_distinct_kernel`): two rows are equal where both coordinates compare equal,
+    whatever sorts them; rows with a NaN (which a sort may place anywhere) go to
+    :func:`_distinct_rows_numpy`, the form it replaces."""
+    if len(xy) < 2:
+        return True
+    got = _rows_distinct_kernel(np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2))
+    return _distinct_rows_numpy(xy) if got < 0 else bool(got)
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _rows_distinct_kernel(p):  # pragma: no cover (compiled)
+    """1 where no two rows of ``p`` are equal (:func:`contourmesh.geometry.distinct_rows`' count
+    is its length), 0 where two are, -1 where a coordinate is NaN."""
+    n = p.shape[0]
+    for i in range(n):
+        if p[i, 0] != p[i, 0] or p[i, 1] != p[i, 1]:
+            return -1
+    return 1 if _count_distinct_rows(p) == n else 0
+
+
+def _distinct_rows_numpy(xy) -> bool:
+    """:func:`_distinct_rows` by numpy's lexicographic sort (the tests' reference)."""
     if len(xy) < 2:
         return True
     s = xy[np.lexsort(xy.T[::-1])]
