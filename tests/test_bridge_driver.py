@@ -208,6 +208,27 @@ def test_crack_perimeter_equals_ring_by_ring(grid):
     assert min(seen.values()) > 2, seen
 
 
+def test_ring_lengths_compiled_are_numpys_sums():
+    # the compiled steps and pairwise sums against the numpy form, bit for bit: rings of every size
+    # around numpy's blocks (7, 8, 128, 129, thousands), empty ones, magnitudes far apart, on grids
+    # whose steps do not add up exactly; and the pairwise sum alone against ndarray.sum
+    rng = np.random.default_rng(1179)
+    for grid in [(0.0, 0.0, 1.0, 1.0), (-3.7, 12.25, 0.3, 0.7), (1e3, -1e3, 2.5, 0.125)]:
+        _, to_corner = grid_to_xy(*grid)
+        for _ in range(60):
+            sizes = rng.choice([0, 1, 2, 7, 8, 9, 127, 128, 129, 300, 1000, 4099], size=int(rng.integers(1, 6)))
+            rings = [rng.integers(-50, 5000, size=(int(m), 2)) for m in sizes]
+            got, want = volumes._ring_lengths(to_corner, rings), volumes._ring_lengths_numpy(to_corner, rings)
+            assert len(got) == len(rings) and all(type(g) is float for g in got)
+            assert np.array(got).tobytes() == np.array(want).tobytes()
+    for _ in range(400):
+        n = int(rng.integers(0, 3000))
+        a = rng.random(n + 9) * 10.0 ** float(rng.integers(-4, 5))
+        lo = int(rng.integers(0, 9))
+        got, want = volumes._pairwise_sum(a, lo, n), a[lo: lo + n].sum()
+        assert np.float64(got).tobytes() == np.float64(want).tobytes()
+
+
 def test_distinct_rows_is_the_unique_rows_test_of_the_lids():
     # a lid's ring is refused where two of its points coincide: the sorted test gives numpy's
     # answer (points on a grid of halves, repeats, -0.0 beside 0.0, one point, none)
@@ -218,8 +239,16 @@ def test_distinct_rows_is_the_unique_rows_test_of_the_lids():
         xy = rng.integers(-6, 7, (n, 2)) * rng.choice([0.5, -0.5, 1.0]) if trial % 3 else rng.normal(size=(n, 2))
         if trial % 5 == 0 and n > 2:
             xy[int(rng.integers(0, n))] = xy[int(rng.integers(0, n))]
+        if trial % 13 == 1 and n > 1:  # (NaN and infinite coordinates: a NaN row equals no row)
+            xy = xy.astype(np.float64)
+            xy[int(rng.integers(0, n)), int(rng.integers(0, 2))] = rng.choice([np.nan, np.inf, -np.inf])
+        if trial % 4 == 2:  # (a lid's rows: the first two columns of rows picked from a 3-column array)
+            V = np.c_[xy, rng.normal(size=n)]
+            xy = V[np.arange(n)][:, :2]
         got = volumes._distinct_rows(xy)
         assert got == (len(np.unique(xy, axis=0)) == len(xy))
+        # the compiled test against the numpy sort it replaced
+        assert got == volumes._distinct_rows_numpy(xy)
         seen[got] += 1
     assert min(seen.values()) > 100, seen
 

@@ -112,6 +112,7 @@ from .fastpath import (
     slice_labels,
     slice_mlps_flat,
 )
+from .geometry import _distinct_rows as _count_distinct_rows  # (compiled: called in _rows_distinct_kernel)
 from .geometry import deepest_pixel, grid_to_xy, shoelace_area, slice_gap
 from .intersect import any_intersecting, intersecting_pairs
 from .measure import triangle_areas
@@ -2166,7 +2167,29 @@ def _unit_numbering(seg_g, seg_len, F, face_end, face_base, N, neck_end, neck_ba
 
 
 def _distinct_rows(xy) -> bool:
-    """No two rows of ``xy`` are equal (``len(np.unique(xy, axis=0)) == len(xy)``, sorted faster)."""
+    """No two rows of ``xy`` are equal (``len(np.unique(xy, axis=0)) == len(xy)``), in compiled
+    code (:func:`_rows_distinct_kernel`): two rows are equal where both coordinates compare equal,
+    whatever sorts them; rows with a NaN (which a sort may place anywhere) go to
+    :func:`_distinct_rows_numpy`, the form it replaces."""
+    if len(xy) < 2:
+        return True
+    got = _rows_distinct_kernel(np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2))
+    return _distinct_rows_numpy(xy) if got < 0 else bool(got)
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _rows_distinct_kernel(p):  # pragma: no cover (compiled)
+    """1 where no two rows of ``p`` are equal (:func:`contourmesh.geometry.distinct_rows`' count
+    is its length), 0 where two are, -1 where a coordinate is NaN."""
+    n = p.shape[0]
+    for i in range(n):
+        if p[i, 0] != p[i, 0] or p[i, 1] != p[i, 1]:
+            return -1
+    return 1 if _count_distinct_rows(p) == n else 0
+
+
+def _distinct_rows_numpy(xy) -> bool:
+    """:func:`_distinct_rows` by numpy's lexicographic sort (the tests' reference)."""
     if len(xy) < 2:
         return True
     s = xy[np.lexsort(xy.T[::-1])]
@@ -3663,8 +3686,75 @@ def _crack_perimeter(S, c):
 
 def _ring_lengths(to_xy, rings) -> list:
     """The length of each crack ring of ``rings`` (corner coordinates) in physical xy, in order:
-    their xy, steps and step lengths made for all the rings at once (elementwise: the same numbers
-    as ring by ring) and each ring's step lengths summed by numpy as its slice of them."""
+    their xy made for all the rings at once (elementwise: the same numbers as ring by ring), then
+    each ring's steps, their lengths and their sum in one compiled pass
+    (:func:`_ring_lengths_kernel`, numpy's pairwise sum written out: the same floats as
+    :func:`_ring_lengths_numpy`, the form it replaces)."""
+    lens = np.array([len(r) for r in rings], dtype=np.int64)
+    xy = np.ascontiguousarray(to_xy(np.concatenate(rings)), dtype=np.float64).reshape(-1, 2)
+    return _ring_lengths_kernel(xy, lens).tolist()
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _ring_lengths_kernel(xy, lens):  # pragma: no cover (compiled)
+    """Per ring (the next ``lens[r]`` rows of ``xy``), the sum of its steps' lengths
+    ``np.hypot(dx, dy)`` (a ring's last point followed by its first), summed as numpy sums a
+    contiguous float64 array (:func:`_pairwise_sum`)."""
+    steps = np.empty(xy.shape[0])
+    out = np.empty(lens.shape[0])
+    t = 0
+    for r in range(lens.shape[0]):
+        n = lens[r]
+        for u in range(n):
+            a = t + u
+            b = a + 1 if u + 1 < n else t
+            steps[a] = np.hypot(xy[b, 0] - xy[a, 0], xy[b, 1] - xy[a, 1])
+        out[r] = _pairwise_sum(steps, t, n)
+        t += n
+    return out
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _pairwise_sum(a, lo, n):  # pragma: no cover (compiled)
+    """``a[lo: lo + n].sum()`` as numpy sums a contiguous float64 array, bit for bit: fewer than 8
+    values added in order from 0.0; up to 128 in eight running sums (every eighth value), joined
+    as ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))``, then the rest added in order; more
+    split in two (the first part's length halved down to a multiple of 8) and the halves' sums
+    added."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+        m = n - n % 8
+        i = 8
+        while i < m:
+            r0 += a[lo + i]
+            r1 += a[lo + i + 1]
+            r2 += a[lo + i + 2]
+            r3 += a[lo + i + 3]
+            r4 += a[lo + i + 4]
+            r5 += a[lo + i + 5]
+            r6 += a[lo + i + 6]
+            r7 += a[lo + i + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += a[lo + i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _pairwise_sum(a, lo, n2) + _pairwise_sum(a, lo + n2, n - n2)
+
+
+def _ring_lengths_numpy(to_xy, rings) -> list:
+    """:func:`_ring_lengths` in numpy (the form the compiled pass replaced; the tests compare them):
+    the steps and their lengths for all the rings at once, each ring's summed by numpy as its slice
+    of them."""
     lens = np.array([len(r) for r in rings], dtype=np.int64)
     xy = to_xy(np.concatenate(rings))
     ends = np.cumsum(lens)
@@ -3814,7 +3904,58 @@ def _ring_boxes(s):
     its polygons and its crack rings in physical xy.  The crack rings' corners are integers and
     ``to_xy`` is increasing in each coordinate, so their box is that of their integer corners' box,
     converted (no crack ring is made), and that box is the corners of the component's pixel box: the
-    same numbers as :func:`_ring_boxes_reference`."""
+    same numbers as :func:`_ring_boxes_reference`.  The polygons' points are taken into those boxes
+    in one compiled pass (:func:`_ring_boxes_kernel`); :func:`_ring_boxes_numpy` is the form it
+    replaces (per ring, then per component, by ``reduceat``), kept for a slice with an empty ring."""
+    if s.n == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    # a component's outer crack ring runs round its pixels' box, corner to corner, and its holes lie
+    # inside: the box of its crack rings' corners is that of its pixels (s.objects), read off it
+    corners = np.array([(sl[1].start, sl[0].start, sl[1].stop, sl[0].stop) for sl in s.objects], dtype=np.int64)
+    # (both corners of every box mapped in one call, rows (x0, y0), (x1, y1) of each box in turn:
+    # the map takes each point alone, so the same numbers as mapping the lower and upper corners apart)
+    cxy = np.ascontiguousarray(s.crack_outer.to_xy(corners.reshape(-1, 2)), dtype=np.float64)
+    rs, counts = [], []
+    for c in range(s.n):
+        outer, holes = np.asarray(s.outer[c], dtype=np.float64), s.holes[c]
+        rs.append(outer)
+        m = len(outer)
+        for h in holes:
+            rs.append(h)
+            m += len(h)
+        counts.append(m)
+    if any(len(r) == 0 for r in rs):  # pragma: no cover - (a polygon has three points or more)
+        return _ring_boxes_numpy(s)
+    cat = np.ascontiguousarray(np.concatenate(rs), dtype=np.float64).reshape(-1, 2)
+    return _ring_boxes_kernel(cat, np.array(counts, dtype=np.int64), cxy)
+
+
+@njit(cache=True, **KERNEL_OPTIONS)
+def _ring_boxes_kernel(cat, counts, cxy):  # pragma: no cover (compiled)
+    """:func:`_ring_boxes`' boxes: component ``c``'s crack box, from ``cxy[2 c]`` to ``cxy[2 c + 1]``
+    (physical xy), grown by its rings' points, the next ``counts[c]`` rows of ``cat``;
+    ``np.minimum`` and ``np.maximum`` one by one (a NaN taken on as they take it; the order of a
+    minimum of numbers does not change it)."""
+    n = counts.shape[0]
+    lo = np.empty((n, 2))
+    hi = np.empty((n, 2))
+    t = 0
+    for c in range(n):
+        lo0, lo1, hi0, hi1 = cxy[2 * c, 0], cxy[2 * c, 1], cxy[2 * c + 1, 0], cxy[2 * c + 1, 1]
+        for u in range(t, t + counts[c]):
+            x, y = cat[u, 0], cat[u, 1]
+            lo0 = _min_nan(lo0, x)
+            lo1 = _min_nan(lo1, y)
+            hi0 = _max_nan(hi0, x)
+            hi1 = _max_nan(hi1, y)
+        t += counts[c]
+        lo[c, 0], lo[c, 1], hi[c, 0], hi[c, 1] = lo0, lo1, hi0, hi1
+    return lo, hi
+
+
+def _ring_boxes_numpy(s):
+    """:func:`_ring_boxes` by numpy's ``reduceat``, per ring and then per component (the form the
+    compiled pass replaced; the tests compare the two)."""
     def per_component(rings_of):
         per = [rings_of(c) for c in range(s.n)]  # (each component's rings, asked for once)
         rs = [r for rings in per for r in rings]
@@ -3829,8 +3970,6 @@ def _ring_boxes(s):
 
     if s.n == 0:
         return np.zeros((0, 2)), np.zeros((0, 2))
-    # a component's outer crack ring runs round its pixels' box, corner to corner, and its holes lie
-    # inside: the box of its crack rings' corners is that of its pixels (s.objects), read off it
     corners = np.array([(sl[1].start, sl[0].start, sl[1].stop, sl[0].stop) for sl in s.objects], dtype=np.int64)
     clo, chi = np.ascontiguousarray(corners[:, :2]), np.ascontiguousarray(corners[:, 2:])
     plo, phi = per_component(lambda c: [np.asarray(s.outer[c], dtype=np.float64)] + list(s.holes[c]))
@@ -4007,10 +4146,19 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
         if not gen:
             return ()
         key = (kk, tuple(comps))
-        _near_sig(kk, key)
-        return tuple(sorted((c, gen[c]) for c in near[key] if c in gen))
+        return tuple(sorted((c, gen[c]) for c in _near(kk, key) if c in gen))
 
     def _near_sig(kk, key):
+        if not by_slice[kk]:
+            # (no crack-only component in the slice: none can be near, whatever the boxes; they are
+            # not made for it, most slices of a volume with few exact joins)
+            if not key[1]:
+                raise ValueError("a join without components on one side")
+            return ()
+        return tuple(sorted(_near(kk, key) & by_slice[kk]))
+
+    def _near(kk, key):
+        """The components of slice kk whose boxes meet the box of ``key[1]``'s (made once)."""
         comps = key[1]
         if key not in near:
             if kk not in boxes:
@@ -4019,7 +4167,7 @@ def _build_bridges(joins, slices, zs, crack_only, triangulation, caps, grid, has
             if not comps:
                 raise ValueError("a join without components on one side")
             near[key] = frozenset(_boxes_meeting(blo, bhi, np.array(comps, dtype=np.int64)).tolist())
-        return tuple(sorted(near[key] & by_slice[kk]))
+        return near[key]
 
     edge_cache = {}
     ox, oy, dx, dy = grid
