@@ -3394,9 +3394,9 @@ def _two_level_plane(V, ws, F, lev, faces, k, pbox, pu, pw, stamp, d1, d2, cert,
 
 
 @_pure
-def _rung_apart(V, F, lev, i, j):
-    """Faces i and j, with their corners on levels 0 and 1 only and a common edge from level 0 to
-    level 1 (a rung, ``p`` below, ``q`` above), meet along the rung only, shown by the signs of
+def _rung_apart(V, F, lev, i, j, k):
+    """Faces i and j, with their corners on levels k and one level above only and a common edge
+    between the two (a rung, ``p`` below, ``q`` above), meet along the rung only, shown by the signs of
     coordinate differences (exact in floating point); False means "not shown".
 
     At a height ``t`` of the way up (``0 <= t <= 1``) face i's section is the segment from the
@@ -3414,7 +3414,7 @@ def _rung_apart(V, F, lev, i, j):
     for c in range(3):
         v = F[i, c]
         if v == F[j, 0] or v == F[j, 1] or v == F[j, 2]:
-            if lev[v] == 0:
+            if lev[v] == k:
                 p = v
             else:
                 q = v
@@ -3425,8 +3425,8 @@ def _rung_apart(V, F, lev, i, j):
             b = w
     if p < 0 or q < 0:
         return False  # (an edge on one level: not a rung)
-    ra = p if lev[a] == 0 else q
-    rb = p if lev[b] == 0 else q
+    ra = p if lev[a] == k else q
+    rb = p if lev[b] == k else q
     for c in range(2):
         di = V[a, c] - V[ra, c]
         dj = V[b, c] - V[rb, c]
@@ -3552,7 +3552,7 @@ def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit, hit):
                 p = a0 if s0 else (a1 if s1 else a2)
                 if _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == 0):
                     continue
-            elif ns == 2 and _rung_apart(V, F, lev, i, j):
+            elif ns == 2 and _rung_apart(V, F, lev, i, j, zero):
                 continue
             if i > j:
                 i, j = j, i
@@ -3629,10 +3629,190 @@ def _two_level_any(V, ws, F, star, sst, lev, hit):
     return _two_level_sweep(V, ws, F, star, sst, lev, faces, np.int64(_SLAB_BUDGET) * m + 1000000, hit)
 
 
+# ------------------------------------------------------------------------------------------------
+# the crossing test of a join on a few heights
+# ------------------------------------------------------------------------------------------------
+# The joins on more than two heights (a bridged join whose band spans two rings with a few faces at
+# a mid-height, a sectioned join's bands stacked on three or four rings) and the bands with a few
+# flat faces went through the general slab phase (:func:`_slab_pairs`): its planes, its slabs'
+# sweeps with the rules out of line, some 2-2.5 times the cost per face of :func:`_two_level_any`'s
+# sweep (the liver's 56 joins on more than two heights and 35 bands with flat faces of a build:
+# some 26 ms of its 38 ms of crossing tests).  :func:`_few_levels_any` answers them by one sweep
+# over all their faces in the manner of :func:`_two_level_sweep`: two faces with their corners on
+# the same two heights (a band, as the rules need) by the rules "ends apart", "apart but at a
+# corner" and the rung's; any other two by their heights (apart, or meeting in one plane only:
+# :func:`_across_plane`) and else the exact test.  Every decision is exact, so the answer is the
+# general steps' answer.
+
+#: :func:`_any_steps` takes a mesh on at most this many heights (all its vertices', used or not),
+#: of fewer than :data:`_GRID_FACES` faces, to :func:`_few_levels_any` where the general steps would
+#: take it to the slab phase (on the small dyadic grid, or on two heights).
+_FEW_LEVELS = 16
+
+
+@_kernel
+def _few_levels_sweep(V, ws, F, star, sst, lev, nlev, faces, limit, hit):
+    """Whether two of ``faces`` (live: no two equal corners, not exactly collinear) intersect (that
+    pair in ``hit``): 1 at the first pair that intersects, 0 where none does, -1 where more than
+    ``limit`` pairs of boxes overlapping along x were met (then nothing is decided here).
+
+    The faces are swept in the order of their lowest x (:func:`_x_order`) with rows as
+    :func:`_two_level_sweep`'s: the xy box (columns 0-3), for a face with its corners on two levels
+    only (``lo < hi``) the x and y ranges of its corners on ``lo`` (4-7) and on ``hi`` (8-11), the
+    number of its corners on ``lo`` (12) and the band's key ``lo * nlev + hi`` (13); for any other
+    face -1 and a key of its own, below -1 (13); then the face's z-range (14, 15).  Each pair whose
+    xy boxes overlap: of one band (one key), decided by the rules "ends apart" and "apart but at a
+    corner" (the note before :func:`_slab_hit`) and :func:`_rung_apart`, which hold between any two
+    heights, else tested by :func:`_slab_hit`; of two bands or with another face, apart where the
+    z-ranges are, decided by :func:`_across_plane` where they meet in one plane only (neither face
+    flat), else tested by :func:`_slab_hit`."""
+    n = len(faces)
+    x0 = np.empty(n)
+    for t in range(n):
+        i = faces[t]
+        x0[t] = min(V[F[i, 0], 0], min(V[F[i, 1], 0], V[F[i, 2], 0]))
+    order = _x_order(x0)
+    W = np.empty((n, 16))
+    fid = np.empty(n, np.int64)
+    klo = np.empty(n, np.int64)
+    cs = np.empty((n, 3), np.int64)
+    xs = np.empty(n)
+    x1s = np.empty(n)
+    y0s = np.empty(n)
+    y1s = np.empty(n)
+    for s in range(n):
+        i = np.int64(faces[order[s]])
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        fid[s] = i
+        cs[s, 0] = a
+        cs[s, 1] = b
+        cs[s, 2] = c
+        la = min(lev[a], min(lev[b], lev[c]))
+        ha = max(lev[a], max(lev[b], lev[c]))
+        klo[s] = la
+        if la < ha and (lev[a] == la or lev[a] == ha) and (lev[b] == la or lev[b] == ha) and (
+                lev[c] == la or lev[c] == ha):
+            _box_row(W, s, V, F, lev, i, la)
+            W[s, 12] = 1.0 * ((lev[a] == la) + (lev[b] == la) + (lev[c] == la))
+            W[s, 13] = 1.0 * (la * nlev + ha)
+        else:
+            W[s, 0] = min(V[a, 0], min(V[b, 0], V[c, 0]))
+            W[s, 1] = max(V[a, 0], max(V[b, 0], V[c, 0]))
+            W[s, 2] = min(V[a, 1], min(V[b, 1], V[c, 1]))
+            W[s, 3] = max(V[a, 1], max(V[b, 1], V[c, 1]))
+            W[s, 12] = -1.0
+            W[s, 13] = -2.0 - s
+        W[s, 14] = min(V[a, 2], min(V[b, 2], V[c, 2]))
+        W[s, 15] = max(V[a, 2], max(V[b, 2], V[c, 2]))
+        xs[s] = W[s, 0]
+        x1s[s] = W[s, 1]
+        y0s[s] = W[s, 2]
+        y1s[s] = W[s, 3]
+    cg = np.zeros(0, np.int64)  # (no groups)
+    zero = np.int64(0)
+    top = nlev - 1
+    work = np.int64(0)
+    for s in range(n):
+        xa = x1s[s]
+        ya0 = y0s[s]
+        ya1 = y1s[s]
+        a0 = cs[s, 0]
+        a1 = cs[s, 1]
+        a2 = cs[s, 2]
+        for u in range(s + 1, n):
+            if xs[u] > xa:
+                break  # (the faces after u start further along x still)
+            work += 1
+            if y0s[u] > ya1 or ya0 > y1s[u]:
+                continue
+            i = fid[s]
+            j = fid[u]
+            if W[s, 13] == W[u, 13]:  # one band: the rules
+                if (((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
+                        | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
+                    continue
+                b0 = cs[u, 0]
+                b1 = cs[u, 1]
+                b2 = cs[u, 2]
+                s0 = (a0 == b0) | (a0 == b1) | (a0 == b2)
+                s1 = (a1 == b0) | (a1 == b1) | (a1 == b2)
+                s2 = (a2 == b0) | (a2 == b1) | (a2 == b2)
+                ns = np.int64(s0) + np.int64(s1) + np.int64(s2)
+                if ns == 1:
+                    p = a0 if s0 else (a1 if s1 else a2)
+                    if _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == klo[s]):
+                        continue
+                elif ns == 2 and _rung_apart(V, F, lev, i, j, klo[s]):
+                    continue
+            else:
+                zs0 = W[s, 14]
+                zs1 = W[s, 15]
+                zu0 = W[u, 14]
+                zu1 = W[u, 15]
+                if zs1 < zu0 or zu1 < zs0:
+                    continue
+                if (zs1 == zu0 or zu1 == zs0) and zs0 < zs1 and zu0 < zu1:
+                    got = _across_plane(V, ws, F, i, j)
+                    if got == 0:
+                        continue
+                    if got == 1:
+                        hit[0] = min(i, j)
+                        hit[1] = max(i, j)
+                        return np.int64(1)
+            if i > j:
+                i, j = j, i
+            if _star_due(sst):
+                _fill_stars(V, F, star, lev, zero, top, cg)
+            if _slab_hit(V, ws, F, star, np.int64(1), i, j):
+                hit[0] = i
+                hit[1] = j
+                return np.int64(1)
+        if work > limit:
+            return np.int64(-1)
+    return np.int64(0)
+
+
+@_kernel
+def _few_levels_any(V, ws, F, star, sst, lev, nlev, hit):
+    """:func:`_slab_pairs`' answer (a pair found or not) for a mesh on a few heights, by
+    :func:`_few_levels_sweep` over its live faces (as :func:`_slab_pairs` takes them: no two equal
+    corners, not exactly collinear; a face with its corners on two heights never is): 1 where two
+    faces intersect (the pair in ``hit``), 0 where none do, -1 where the sweep went over its budget
+    (then the caller takes the general path; the answer is the same)."""
+    m = len(F)
+    ax0 = np.int64(0)
+    ax1 = np.int64(1)
+    ax2 = np.int64(2)
+    faces = np.empty(m, np.int64)
+    n = 0
+    for i in range(m):
+        a = F[i, 0]
+        b = F[i, 1]
+        c = F[i, 2]
+        if a == b or b == c or a == c:
+            continue
+        la = min(lev[a], min(lev[b], lev[c]))
+        ha = max(lev[a], max(lev[b], lev[c]))
+        if la == ha or (lev[a] != la and lev[a] != ha) or (lev[b] != la and lev[b] != ha) or (
+                lev[c] != la and lev[c] != ha):
+            if _o2(V, ws, a, b, c, ax1, ax2) == 0 and _o2(V, ws, a, b, c, ax2, ax0) == 0 and _o2(V, ws, a, b, c, ax0, ax1) == 0:
+                continue  # collinear (exactly): not live, as in _slab_pairs
+        faces[n] = i
+        n += 1
+    if n < 2:
+        return np.int64(0)
+    return _few_levels_sweep(V, ws, F, star, sst, lev, np.int64(nlev), faces[:n], np.int64(_SLAB_BUDGET) * m + 1000000,
+                             hit)
+
+
 @_kernel
 def _any_steps(V, F, delay, two, distinct, mem):
     """:func:`_any_kernel`; ``two == 1``: a mesh on two heights by :func:`_two_level_any` where it
-    applies, ``0``: by the general steps only (the reference the tests compare it with).
+    applies, one on a few heights (or on two with flat faces) by :func:`_few_levels_any` where the
+    general steps would take the slab phase, ``0``: by the general steps only (the reference the
+    tests compare it with).
     ``distinct == 1``: the caller has found no two vertices at one position (as
     :func:`canonical_vertices` compares them, as :func:`contourmesh.bands._pinch_split` does), so
     every vertex is its own canonical vertex and ``F`` is used as it is, without the table and the
@@ -3696,6 +3876,13 @@ def _any_steps(V, F, delay, two, distinct, mem):
     lev, nlev = _levels(V[:, 2].copy())
     if two == 1 and nlev == 2:  # a band between two heights (most of the mesher's calls)
         got = _two_level_any(V, ws, Fc, star, sst, lev, hit)
+        if got >= 0:
+            if got == 1:
+                _remember_pair(V, Fc, hit[0], hit[1], mem)
+            return got
+    if two == 1 and (ws[0] == 1.0 or nlev == 2) and nlev <= _FEW_LEVELS and m < _GRID_FACES:
+        # (a join on a few heights, or a band with flat faces: where the general steps take the slab phase)
+        got = _few_levels_any(V, ws, Fc, star, sst, lev, nlev, hit)
         if got >= 0:
             if got == 1:
                 _remember_pair(V, Fc, hit[0], hit[1], mem)
