@@ -208,6 +208,18 @@ def test_four_face_edges_equal_the_rows_of_the_edge_counts(monkeypatch, threads)
     assert {(True, True, True), (False, False, True), (False, False, False)} <= kinds
 
 
+def test_four_face_edges_count_past_a_byte():
+    """The per-bucket counts stop at 255 (bytes): an edge in 300 faces (and one in 255, one in 256)
+    still gives the largest count and the first odd count that the edge counts give."""
+    F = [[0, 1, 2 + k] for k in range(300)] + [[3, 4, 400 + k] for k in range(255)]
+    F += [[5, 6, 700 + k] for k in range(256)]
+    F = np.array(F, dtype=np.int64)
+    nv = int(F.max()) + 1
+    want = _four_before(F, nv)
+    assert want[1] == 300
+    assert _four_now(repair._four_face_edges(F, nv)) == want
+
+
 @pytest.mark.parametrize("threads", ["1", "2"])
 def test_repair_with_the_new_kernels_meshes_as_before(monkeypatch, threads):
     """The general mesher's repair with the twins' path and the edge counts in place of the new
