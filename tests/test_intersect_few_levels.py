@@ -12,22 +12,9 @@ import os
 import numpy as np
 import pytest
 
-from contourmesh import intersect
-from contourmesh.intersect import _any_kernel, _any_kernel_reference
+from contourmesh.intersect import _any_kernel_reference
 from test_intersect_bands import _band, _ring
-from test_intersect_two_level import _build_calls, _plain
-
-DELAY = np.int64(intersect._STAR_DELAY)
-
-
-def _answers(V, F, delay=DELAY):
-    """The new path's answer, checked against the reference path's and the plain test's."""
-    V = np.ascontiguousarray(V, dtype=np.float64)
-    F = np.ascontiguousarray(F, dtype=np.int64)
-    got = _any_kernel(V, F, delay)
-    assert got == _any_kernel_reference(V, F, delay)
-    assert got == int(_plain(V, F))
-    return got
+from test_intersect_two_level import _answers, _build_calls, _plain
 
 
 def _fan(V, F, rng, z, step):

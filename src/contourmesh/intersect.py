@@ -3477,6 +3477,33 @@ def _x_order(x0):
     return order
 
 
+@_inlined
+def _band_pair_apart(V, F, lev, W, cs, s, u, i, j, lo):
+    """Whether the faces of sweep rows ``s`` and ``u`` (faces ``i`` and ``j``, corners ``cs``), both
+    with their corners on levels ``lo`` and one level above only and with overlapping xy boxes, are
+    shown apart by the one band's rules: "ends apart" (the boxes overlap, so this is the rule's
+    whole content here; without branches, since most pairs get here and most are apart by no one
+    rule of the four), "apart but at a corner" for one common corner, :func:`_rung_apart` for a
+    common rung.  The rows are those of :func:`_two_level_sweep` and :func:`_few_levels_sweep`."""
+    if (((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
+            | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
+        return True
+    a0 = cs[s, 0]
+    a1 = cs[s, 1]
+    a2 = cs[s, 2]
+    b0 = cs[u, 0]
+    b1 = cs[u, 1]
+    b2 = cs[u, 2]
+    s0 = (a0 == b0) | (a0 == b1) | (a0 == b2)
+    s1 = (a1 == b0) | (a1 == b1) | (a1 == b2)
+    s2 = (a2 == b0) | (a2 == b1) | (a2 == b2)
+    ns = np.int64(s0) + np.int64(s1) + np.int64(s2)
+    if ns == 1:
+        p = a0 if s0 else (a1 if s1 else a2)
+        return _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo)
+    return ns == 2 and _rung_apart(V, F, lev, i, j, lo)
+
+
 @_kernel
 def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit, hit):
     """Whether two of ``faces`` (each with its corners on levels 0 and 1 of a two-level mesh)
@@ -3525,34 +3552,15 @@ def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit, hit):
         xa = x1s[s]
         ya0 = y0s[s]
         ya1 = y1s[s]
-        a0 = cs[s, 0]
-        a1 = cs[s, 1]
-        a2 = cs[s, 2]
         for u in range(s + 1, n):
             if xs[u] > xa:
                 break  # (the faces after u start further along x still)
             work += 1
             if y0s[u] > ya1 or ya0 > y1s[u]:
                 continue
-            # ends apart (the boxes overlap, so this is the rule's whole content here), without
-            # branches: most pairs get here and most are apart, by no one rule of the four
-            if (((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
-                    | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
-                continue
-            b0 = cs[u, 0]
-            b1 = cs[u, 1]
-            b2 = cs[u, 2]
-            s0 = (a0 == b0) | (a0 == b1) | (a0 == b2)
-            s1 = (a1 == b0) | (a1 == b1) | (a1 == b2)
-            s2 = (a2 == b0) | (a2 == b1) | (a2 == b2)
-            ns = np.int64(s0) + np.int64(s1) + np.int64(s2)
             i = fid[s]
             j = fid[u]
-            if ns == 1:
-                p = a0 if s0 else (a1 if s1 else a2)
-                if _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == 0):
-                    continue
-            elif ns == 2 and _rung_apart(V, F, lev, i, j, zero):
+            if _band_pair_apart(V, F, lev, W, cs, s, u, i, j, zero):
                 continue
             if i > j:
                 i, j = j, i
@@ -3718,9 +3726,6 @@ def _few_levels_sweep(V, ws, F, star, sst, lev, nlev, faces, limit, hit):
         xa = x1s[s]
         ya0 = y0s[s]
         ya1 = y1s[s]
-        a0 = cs[s, 0]
-        a1 = cs[s, 1]
-        a2 = cs[s, 2]
         for u in range(s + 1, n):
             if xs[u] > xa:
                 break  # (the faces after u start further along x still)
@@ -3730,21 +3735,7 @@ def _few_levels_sweep(V, ws, F, star, sst, lev, nlev, faces, limit, hit):
             i = fid[s]
             j = fid[u]
             if W[s, 13] == W[u, 13]:  # one band: the rules
-                if (((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
-                        | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
-                    continue
-                b0 = cs[u, 0]
-                b1 = cs[u, 1]
-                b2 = cs[u, 2]
-                s0 = (a0 == b0) | (a0 == b1) | (a0 == b2)
-                s1 = (a1 == b0) | (a1 == b1) | (a1 == b2)
-                s2 = (a2 == b0) | (a2 == b1) | (a2 == b2)
-                ns = np.int64(s0) + np.int64(s1) + np.int64(s2)
-                if ns == 1:
-                    p = a0 if s0 else (a1 if s1 else a2)
-                    if _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == klo[s]):
-                        continue
-                elif ns == 2 and _rung_apart(V, F, lev, i, j, klo[s]):
+                if _band_pair_apart(V, F, lev, W, cs, s, u, i, j, klo[s]):
                     continue
             else:
                 zs0 = W[s, 14]
