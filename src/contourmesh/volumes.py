@@ -86,7 +86,7 @@ from itertools import accumulate
 
 import numpy as np
 
-from ._heap import release_free_heap
+from ._heap import collector_paused, release_free_heap
 from ._kernels import KERNEL_OPTIONS, internal_kernel, njit
 from ._recent import MISSING, Recent
 from .bands import TRIANGULATORS, _band_crosses, band_is_folded, triangulate_band, twist_guarded_band
@@ -1201,6 +1201,7 @@ class _Mesher:
         return V, F, S, N
 
 
+@collector_paused()
 def volume_to_mesh(volume, *, spacing=(1.0, 1.0, 1.0), z=None, axis: int = 0, label=None, threshold=None,
                    origin=(0.0, 0.0, 0.0), polygon: str = "mlp", triangulation: str = "wiederhold",
                    caps: str = "flat", refine: str | None = None, progress: bool = False,
