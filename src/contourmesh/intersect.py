@@ -4082,7 +4082,9 @@ _SLAB_STARS = False
 #: is sectioned: its sweeps decide by coordinates most of the pairs the grid sends to the stars
 #: (issue 16's twenty-seventh round, the first builds' meshes with their tags, one thread, CPU ms
 #: by the grid / by slabs: cat10 1.01 / 0.46, the 32^3 bunny 0.64 / 0.36, 64^3 3.03 / 1.60, Al.100
-#: 3.60 / 2.75, the 128^3 bunny 7.74 / 5.87).
+#: 3.60 / 2.75, the 128^3 bunny 7.74 / 5.87).  A process that meshes only small volumes then loads
+#: the slab phase's compiled code as well (Al.100 in a fresh process: some +16 MiB at the peak and
+#: 0.04-0.07 CPU-s more on the first call; the calls after it some 1 ms faster).
 _GRID_FACES = 20_000
 
 #: Meshes of at least this many faces are tested in two ranges of heights on two threads (where
