@@ -451,3 +451,42 @@ def test_plane_parts_of_one_group_never_fail_the_plane(seed):
             failed += int(got[0] == 0)
             grouped += int(np.bincount(eg[eg >= 0]).max(initial=0) >= 2)
     assert planes > 100 and failed > 0 and grouped > 50
+
+
+def test_small_meshes_with_groups_take_the_slab_phase(monkeypatch):
+    """``auto`` with groups sends a small sectioned mesh off the dyadic grid (fewer than
+    ``_GRID_FACES`` faces: the grid's without groups) to the slab phase; the pairs are the grid's,
+    with the groups and without, also with crossings put in; a mesh that is not sectioned still
+    goes to the grid."""
+    rng = np.random.default_rng(182)
+    meshes = []  # (made first: the mesher's compiled kernels read the names patched below)
+    for t in range(8):
+        v = _volume(rng, t)
+        if v.any():
+            meshes += _whole_tests(v)
+    calls = []
+    real = I._slab_pairs
+    monkeypatch.setattr(I, "_slab_pairs", lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setenv("CONTOURMESH_THREADS", "1")
+    by_slabs = found = 0
+    for V, F, T in meshes:
+        W = V.copy()
+        W[rng.integers(len(W), size=3)] += rng.uniform(-1.5, 1.5, (3, 3))
+        for X in (V, W):
+            if I._on_small_dyadic_grid(X) or len(F) >= I._GRID_FACES:
+                continue
+            want = intersecting_pairs(X, F, method="grid")
+            calls.clear()
+            assert len(intersecting_pairs(X, F)) == len(want) and not calls  # (without groups: the grid)
+            got = intersecting_pairs(X, F, groups=T)
+            np.testing.assert_array_equal(got, want)
+            np.testing.assert_array_equal(intersecting_pairs(X, F, groups=T, method="grid"), want)
+            by_slabs += len(calls) > 0
+            found += len(calls) > 0 and len(want) > 0
+    assert by_slabs >= 6 and found >= 2, (by_slabs, found)
+    # a mesh whose faces span many slabs (heights spread out): the grid, the same pairs
+    V, F, T = meshes[0]
+    X = V + rng.uniform(-0.3, 0.3, V.shape)
+    calls.clear()
+    np.testing.assert_array_equal(intersecting_pairs(X, F, groups=T), intersecting_pairs(X, F, method="grid"))
+    assert not calls

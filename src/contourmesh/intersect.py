@@ -3234,7 +3234,7 @@ def intersecting_pairs(vertices, faces, *, budget: int = 8, method: str = "auto"
     without that structure; where a sweep would test too many boxes, the grid takes over),
     ``"auto"`` slabs where the mesh has that structure, else the grid (and the grid for a mesh
     of fewer than ``_GRID_FACES`` faces off the small dyadic grid, where it is as fast or faster,
-    unless its vertices lie on two heights: a band between two rings).
+    unless its vertices lie on two heights, a band between two rings, or ``groups`` are given).
     The pairs are the same whichever method decides them.
     ``groups`` (optional, an integer per face, -1 for none): the parts the mesh was built from (as
     the volume mesher's joins and caps).  It only saves work: within a group, the faces that are
@@ -4012,9 +4012,9 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
                                                          else np.int64))
     ok = 0
     # "auto": the grid for a mesh off the small dyadic grid of fewer than _GRID_FACES faces whose
-    # vertices lie on other than two heights (see there), else the slab phase (the grid where it
-    # gives up)
-    on_grid = ws[0] == 0.0 and len(Fc) < _GRID_FACES
+    # vertices lie on other than two heights (see there) and without groups, else the slab phase
+    # (the grid where it gives up)
+    on_grid = ws[0] == 0.0 and len(Fc) < _GRID_FACES and len(cg) == 0
     lev = None
     if method == "auto" and on_grid:
         lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
@@ -4077,6 +4077,14 @@ _SLAB_STARS = False
 #: 16's seventh round, the dumped calls off the dyadic grid: the liver's 198 such bands 0.048 s by
 #: slabs vs 0.175 s by the grid, the lobster's 792 0.026 s vs 0.057 s).  Larger meshes stay on the slab phase all the same: the grid's tables (some 150 bytes
 #: per face) then set the general mesher's peak memory (the liver's +56 MiB, 80 -> 136 MiB).
+#: A whole mesh with groups (the volume mesher's whole-mesh test, whose groups certify the pairs of
+#: one join's or cap's grid cells, :func:`_lattice_cells`) takes the slab phase at any size where it
+#: is sectioned: its sweeps decide by coordinates most of the pairs the grid sends to the stars
+#: (issue 16's twenty-seventh round, the first builds' meshes with their tags, one thread, CPU ms
+#: by the grid / by slabs: cat10 1.01 / 0.46, the 32^3 bunny 0.64 / 0.36, 64^3 3.03 / 1.60, Al.100
+#: 3.60 / 2.75, the 128^3 bunny 7.74 / 5.87).  A process that meshes only small volumes then loads
+#: the slab phase's compiled code as well (Al.100 in a fresh process: some +16 MiB at the peak and
+#: 0.04-0.07 CPU-s more on the first call; the calls after it some 1 ms faster).
 _GRID_FACES = 20_000
 
 #: Meshes of at least this many faces are tested in two ranges of heights on two threads (where
