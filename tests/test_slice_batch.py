@@ -104,6 +104,26 @@ def test_slice_cracks_of_an_empty_slice():
     assert slice_mlps(labels, slice_boxes(objects)) == []
 
 
+def test_slice_cracks_where_contours_meet_at_corners():
+    """The scan tries only the run ends of the row above each corner row (``_slice_cracks``): on
+    masks where contours meet at corners and holes nest (salt of every density, checkerboards,
+    diagonal staircases with holes), the contours, their starts and their order are still those
+    of the per-component tracer, which tries every corner."""
+    rng = np.random.default_rng(16)
+    masks = []
+    for p in np.linspace(0.05, 0.95, 19):
+        h, w = (int(v) for v in rng.integers(2, 30, 2))
+        masks.append(rng.random((h, w)) < p)
+    yy, xx = np.mgrid[:17, :23]
+    masks.append((yy + xx) % 2 == 0)  # (every pixel meets its neighbours at corners only)
+    masks.append(((yy + xx) % 2 == 0) | (yy % 4 == 0))  # (rows joining them: holes one pixel wide)
+    masks.append((yy - xx) % 5 < 2)  # (diagonal staircases)
+    stairs = (yy + 2 * xx) % 7 < 4
+    stairs[3:14, 5:18] &= ~(((yy - 3) % 3 == 1) & ((xx - 5) % 3 == 1))[3:14, 5:18]  # (holes in them)
+    masks.append(stairs)
+    assert _check_cracks_and_mlps(masks) > 0  # (holes were met)
+
+
 def _match_holes(crack_h, hmasks, off):
     """The old loop's pairing of hole contours with hole pixel sets: each contour takes the set that
     holds the pixel right of its first edge."""
