@@ -149,3 +149,80 @@ def test_the_same_meshes_without_the_search(monkeypatch):
     for v, r in zip(vols, ref):
         got = volume_to_mesh(v)
         assert got.vertices.tobytes() == r.vertices.tobytes() and got.faces.tobytes() == r.faces.tobytes()
+
+
+#: Square pixels whose side is no power of two (the rotated sockets' 0.93 mm among them): there
+#: the search is _sdf_near_any, measured in the whole transform's float operations.
+NOT_POWER = [(0.7, 0.7), (0.9300629462322155, 0.9300629462322155), (1.3, 1.3), (3.0, 3.0), (0.1, 0.1)]
+
+
+@pytest.mark.parametrize("sampling", NOT_POWER)
+def test_the_any_search_is_the_transform_or_gives_up(sampling):
+    """_sdf_near_any against _sdf_any read at the wanted pixels (scipy's numbers, see
+    test_sdf_any_pixel.py), bit for bit wherever it finishes; it gives up on its budget and where
+    the nearest pixels' floats differ (a tie it cannot settle), and _sdf_wanted then gives the whole
+    transform's numbers."""
+    rng = np.random.default_rng(185)
+    s = sampling[0]
+    done_n = ties = gave_up = 0
+    for m, need in _pairs(rng, 150, 60):
+        at = np.flatnonzero(need)
+        u8 = np.ascontiguousarray(m).view(np.uint8)
+        ref = _full(m, sampling, need, at)
+        got, done = sections._sdf_near_any(u8, s, 0.5 * s, at, np.int64(1 << 60))
+        if done:
+            assert got.tobytes() == ref.tobytes(), (m.shape, sampling)
+            done_n += 1
+        else:
+            ties += 1
+        _, done = sections._sdf_near_any(u8, s, 0.5 * s, at, np.int64(3))
+        gave_up += not done
+        assert sections._sdf_wanted(m, sampling, need, at).tobytes() == ref.tobytes()
+    assert done_n > 100 and gave_up > 10
+    if sampling == (0.7, 0.7):
+        assert ties > 0  # (the fallback on a tie is exercised)
+
+
+def test_the_any_search_finds_ties_on_the_last_ring():
+    """A pixel whose nearest features lie at one integer distance along an axis and off it
+    (``25 = 5^2 + 0^2 = 3^2 + 4^2``): the search looks at the ring of radius 5 too, and either
+    gives the transform's float or gives up."""
+    for s in (0.7, 1.3, 0.9300629462322155):
+        for feats in ([(5, 0)], [(3, 4)], [(5, 0), (3, 4)], [(0, 5), (4, 3)], [(5, 0), (0, -5)]):
+            m = np.zeros((13, 13), bool)
+            for dy, dx in feats:
+                m[6 + dy, 6 + dx] = True
+            need = np.zeros_like(m)
+            need[6, 6] = True
+            at = np.flatnonzero(need)
+            ref = _full(m, (s, s), need, at)
+            got, done = sections._sdf_near_any(np.ascontiguousarray(m).view(np.uint8), s, 0.5 * s, at,
+                                               np.int64(1 << 60))
+            assert not done or got.tobytes() == ref.tobytes()
+            assert sections._sdf_wanted(m, (s, s), need, at).tobytes() == ref.tobytes()
+
+
+def test_the_real_sections_distances_off_power_pixels(monkeypatch, shared_data):
+    """The lobster's sectioned joins on 0.93 mm voxels (no power of two: _sdf_near_any): every
+    signed distance they ask for against the whole transform's, bit for bit."""
+    from contourmesh.io import read_volume
+
+    vol, _, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
+    calls, wanted = _record(monkeypatch)
+    volume_to_mesh(vol, spacing=(0.9300629462322155,) * 3)
+    assert len(calls) > 50
+    for m, sampling, need, at in calls:
+        assert sampling[0] == sampling[1] == 0.9300629462322155
+        got = wanted(m, sampling, need, at)
+        assert got.tobytes() == _full(m, sampling, need, at).tobytes()
+
+
+def test_the_same_meshes_without_the_search_off_power_pixels(monkeypatch):
+    vols = [_blobs(), _blobs(seed=3, shape=(6, 18, 18)), _two_cs()]
+    sp = (0.7, 0.7, 0.7)
+    monkeypatch.setattr(sections, "NEAR_FIRST", False)
+    ref = [volume_to_mesh(v, spacing=sp) for v in vols]
+    monkeypatch.setattr(sections, "NEAR_FIRST", True)
+    for v, r in zip(vols, ref):
+        got = volume_to_mesh(v, spacing=sp)
+        assert got.vertices.tobytes() == r.vertices.tobytes() and got.faces.tobytes() == r.faces.tobytes()

@@ -106,7 +106,10 @@ def _sdf_wanted(m: np.ndarray, sampling, need: np.ndarray, at: np.ndarray) -> np
     (:func:`_sdf_near`), which falls back to the whole transform where the search grows long
     (with :data:`NEAR_FIRST`): a sectioned join wants the pixels where its two slices differ, a
     few in its box (on the liver one in a hundred), and the whole transform and its output of the
-    box's size (mapped anew at every call) cost more than the search."""
+    box's size (mapped anew at every call) cost more than the search.  On other square pixels (in
+    :func:`_any_pixel_ok`'s range) the search is :func:`_sdf_near_any`, which also gives up where
+    the nearest pixels of one pixel's search lie at distances whose floats differ (the whole
+    transform then decides which it takes)."""
     m = np.asarray(m, dtype=bool)
     s0, s1 = (float(x) for x in sampling)
     if NEAR_FIRST and s0 == s1 and 2.0 ** -200 <= s0 <= 2.0 ** 200 and math.frexp(s0)[0] == 0.5 and m.ndim == 2 \
@@ -115,11 +118,16 @@ def _sdf_wanted(m: np.ndarray, sampling, need: np.ndarray, at: np.ndarray) -> np
                               np.ascontiguousarray(at, dtype=np.int64), np.int64(_NEAR_WORK * m.size))
         if done:
             return out
+    elif NEAR_FIRST and s0 == s1 and m.ndim == 2 and _any_pixel_ok(s0, s1, *m.shape) and m.any():
+        out, done = _sdf_near_any(np.ascontiguousarray(m).view(np.uint8), s0, 0.5 * s0,
+                                  np.ascontiguousarray(at, dtype=np.int64), np.int64(_NEAR_WORK * m.size))
+        if done:
+            return out
     return _sdf(m, sampling, need=need).ravel()[at]
 
 
-#: :func:`_sdf_wanted` measures on square pixels by :func:`_sdf_near` first; False: by the whole
-#: transform always (the same numbers: the tests' reference).
+#: :func:`_sdf_wanted` measures on square pixels by :func:`_sdf_near` (or :func:`_sdf_near_any`)
+#: first; False: by the whole transform always (the same numbers: the tests' reference).
 NEAR_FIRST = True
 #: :func:`_sdf_near` gives up once it has looked at this many pixels per pixel of the mask (the
 #: whole transform passes over each pixel of the padded mask a few times).
@@ -188,6 +196,72 @@ def _sdf_near(m, area, h, at, budget):
             out[i] = h - math.sqrt(float(best) * area)
         else:
             out[i] = -h + math.sqrt(float(best) * area)
+    return out, True
+
+
+@njit(cache=True, nogil=True)
+def _sdf_near_any(m, s, h, at, budget):
+    """:func:`_sdf_any`'s signed distances of a non-empty mask (uint8) on square pixels of side
+    ``s`` (any, in :func:`_any_pixel_ok`'s range; ``h`` half of it) at the pixels of flat indices
+    ``at``, by :func:`_sdf_near`'s search round each: ``(out, True)`` with the same floats, or
+    ``(out, False)`` where it gives up (over ``budget`` pixels looked at, or a tie it cannot settle).
+
+    The transform takes a nearest feature (the least integer squared distance in pixel steps:
+    where distances differ its float comparisons order them as the integers, the gaps being of the
+    order of the pixel area) and measures ``sqrt((dy * s)^2 + (dx * s)^2)`` to it; of features at
+    one integer distance it picks by comparisons of rounded floats, which the search does not
+    repeat.  So the search finds every feature at the least integer distance (it goes on through
+    the ring whose radius squared equals that distance: an axis pixel of it may be one), measures
+    each in the transform's operations and order, and gives up where two of those floats differ
+    (``25 = 5^2 + 0^2 = 3^2 + 4^2`` may round apart): where they agree it is the transform's
+    distance whichever it picks, and the signed distance (``h - d`` on the region, ``d - h`` off
+    it) the same float."""
+    H, W = m.shape
+    out = np.empty(at.shape[0], np.float64)
+    work = 0
+    big = np.int64(1) << 62
+    for i in range(at.shape[0]):
+        y, x = at[i] // W, at[i] % W
+        inside = m[y, x] != 0
+        best = big
+        dist = 0.0
+        r = 1
+        while r * r <= best:
+            c0, c1 = max(x - r, -1), min(x + r, W)
+            r0, r1 = max(y - r + 1, -1), min(y + r - 1, H)
+            for side in range(2):
+                yy = y - r if side == 0 else y + r
+                if -1 <= yy <= H:  # (a row of the ring)
+                    work += c1 - c0 + 1
+                    for xx in range(c0, c1 + 1):
+                        if _ring_feature(m, yy, xx, inside):
+                            d = r * r + (xx - x) * (xx - x)
+                            if d <= best:
+                                t0 = float(yy - y) * s
+                                t1 = float(xx - x) * s
+                                f = math.sqrt(t0 * t0 + t1 * t1)
+                                if d < best:
+                                    best, dist = d, f
+                                elif f != dist:
+                                    return out, False
+                xx = x - r if side == 0 else x + r
+                if -1 <= xx <= W:  # (a column of the ring, less its corners)
+                    work += r1 - r0 + 1
+                    for yy in range(r0, r1 + 1):
+                        if _ring_feature(m, yy, xx, inside):
+                            d = r * r + (yy - y) * (yy - y)
+                            if d <= best:
+                                t0 = float(yy - y) * s
+                                t1 = float(xx - x) * s
+                                f = math.sqrt(t0 * t0 + t1 * t1)
+                                if d < best:
+                                    best, dist = d, f
+                                elif f != dist:
+                                    return out, False
+            if work > budget:
+                return out, False
+            r += 1
+        out[i] = h - dist if inside else dist - h
     return out, True
 
 
@@ -660,13 +734,14 @@ def warm_rare_kernels() -> None:
     """Compile (or load) the kernels of sectioned joins that small volumes rarely reach: the Euler
     numbers of the early topology test (:func:`_euler2`, only on a loop of overlaps), the signed
     distances of wanted pixels (:func:`_sdf`, on square pixels of a power-of-two side and on
-    others, and the search round each wanted pixel, :func:`_sdf_near`), the edge check of an
+    others, and the searches round each wanted pixel, :func:`_sdf_near` and :func:`_sdf_near_any`), the edge check of an
     assembled join (:func:`_edges_close`) and the layers' overlap groups (:func:`_run_group_lists`)."""
     m = np.eye(3, dtype=bool)
     _euler2(m)
     _sdf(m, (1.0, 1.0), need=m)
     _sdf_wanted(m, (1.0, 1.0), m, np.flatnonzero(m))
     _sdf(m, (0.75, 0.75), need=m)
+    _sdf_wanted(m, (0.75, 0.75), m, np.flatnonzero(m))
     _edges_close(np.array([[0, 1, 2]], dtype=np.int64), 3, [(0, 3)])
     # (the overlap groups of two layers from their runs, as _groups takes them)
     runs = np.array([[0], [0], [2], [0]], dtype=np.int32)
