@@ -50,7 +50,12 @@ def main(name: str) -> None:
     sectioned = sections.sectioned_join
 
     def sectioned_join(*a, **k):
-        caller = sys._getframe(1).f_locals  # (its area and limit: see _build_bridges)
+        # (the area and limit of the _build_bridges call that asked: the nearest frame up that
+        # holds them, as JoinMemory.join stands between the two)
+        frame = sys._getframe(1)
+        while frame is not None and "limit" not in frame.f_locals:
+            frame = frame.f_back
+        caller = frame.f_locals if frame is not None else {}
         reason = "fallback" if "topology_first" in k else "alt"
         t = time.process_time()
         got = sectioned(*a, **k)
