@@ -237,9 +237,9 @@ def test_kept_faces_equal_the_numpy_form_on_rebuilds(monkeypatch):
     seen = []
     orig = repair.crossing_pairs_after_change
 
-    def recorded(V0, F0, pairs0, V1, F1):  # (the keys of each rebuild's re-test, found here)
+    def recorded(V0, F0, pairs0, V1, F1, **kw):  # (the keys of each rebuild's re-test, found here)
         seen.append(repair._face_position_keys(V0, F0, V1, F1))
-        return orig(V0, F0, pairs0, V1, F1)
+        return orig(V0, F0, pairs0, V1, F1, **kw)
 
     monkeypatch.setattr(repair, "crossing_pairs_after_change", recorded)
     monkeypatch.setattr(volumes, "crossing_pairs_after_change", recorded)

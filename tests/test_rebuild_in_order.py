@@ -149,8 +149,8 @@ def _rebuild_calls(monkeypatch, vols):
     seen = []
     orig = repair.crossing_pairs_after_change
 
-    def recorded(V0, F0, pairs0, V1, F1):
-        got = orig(V0, F0, pairs0, V1, F1)
+    def recorded(V0, F0, pairs0, V1, F1, **kw):
+        got = orig(V0, F0, pairs0, V1, F1, **kw)
         seen.append((V0.copy(), F0.copy(), V1.copy(), F1.copy(), got))
         return got
 
@@ -186,3 +186,43 @@ def test_lobster_rebuild_gives_the_whole_checks_pairs(shared_data, monkeypatch):
     seen = _rebuild_calls(monkeypatch, [lobster])
     assert seen and len(seen[0][3]) > 100000
     _check_rebuilds(seen)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_changed_faces_near_hold_every_face_whose_box_meets_a_chosen_one(seed):
+    # boxes from points to long faces, a few chosen (one, many; tiny ones): every face whose closed
+    # box meets a chosen face's box is found, with any sample of faces for the cells' size
+    rng = np.random.default_rng(seed)
+    nv = 400
+    V = np.c_[rng.random((nv, 2)) * 10.0, rng.integers(0, 30, nv) * 0.5]
+    if seed % 2:
+        V = V * 0.37 - 1.3
+    F = rng.integers(0, nv, (700, 3)).astype(np.int64)
+    order = np.argsort(V[:, 2] + rng.random(nv) * 0.1)
+    rank = np.empty(nv, np.int64)
+    rank[order] = np.arange(nv)
+    near = rng.random(len(F)) < 0.9
+    F[near] = order[np.clip(rank[F[near, :1]] + rng.integers(-3, 4, (int(near.sum()), 3)), 0, nv - 1)]
+    lo, hi = V[F].min(axis=1), V[F].max(axis=1)
+    for k in (1, 7, 80):
+        chosen = np.sort(rng.choice(len(F), k, replace=False)).astype(np.int64)
+        meet = ((lo[:, None] <= hi[chosen][None]) & (lo[chosen][None] <= hi[:, None])).all(axis=2).any(axis=1)
+        for sample in (1, 16, 4096):
+            got = repair._changed_faces_near(V, F, chosen, np.int64(sample))
+            assert np.all(np.diff(got) > 0)
+            assert np.isin(np.flatnonzero(meet), got).all()
+            if k == 1:
+                assert len(got) < len(F)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_groups_give_the_same_pairs(seed):
+    rng = np.random.default_rng(seed)
+    V0, F0 = _spheres()
+    p0 = intersecting_pairs(V0, F0)
+    V1, F1 = _edit(rng, V0, F0, gap=60)
+    want = intersecting_pairs(V1, F1)
+    for groups in (np.arange(len(F1)) // 50, np.zeros(len(F1), np.int64), np.full(len(F1), -1)):
+        np.testing.assert_array_equal(crossing_pairs_after_change(V0, F0, p0, V1, F1, groups=groups), want)
+    with pytest.raises(ValueError, match="one integer per face"):
+        crossing_pairs_after_change(V0, F0, p0, V1, F1, groups=np.zeros(3, np.int64))

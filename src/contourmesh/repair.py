@@ -2885,6 +2885,46 @@ def _boxes_near(V, F, chosen):
     return np.flatnonzero(_near_cells(V, V, F, glo, h, chosen, np.bool_(False)))
 
 
+
+#: How many faces' box sides (spread evenly over the mesh) :func:`_changed_faces_near` takes the
+#: median of for its cells' size.
+_NEAR_SAMPLE = 4096
+
+
+@njit(cache=True, nogil=True)
+def _changed_faces_near(V, F, chosen, sample):
+    """:func:`_boxes_near` for the rebuild's re-test: the faces sharing a cell of a grid with a
+    face in ``chosen`` (a superset of the faces whose boxes meet a chosen face's box), without a
+    pass over every face's box first: the cells are as large as the chosen faces and no smaller
+    than the median side of ``sample`` faces spread over the mesh, and the grid starts at the
+    chosen faces' low corner.  The pairs of the faces found are tested and those with a chosen
+    face kept, so any such superset gives the same pairs; the whole mesh's boxes and their median
+    were a third of :func:`_boxes_near` on the lobster's rebuild.  (Where the chosen faces' boxes
+    are not finite, none: the caller then uses :func:`_boxes_near`.)"""
+    n = F.shape[0]
+    step = max(np.int64(1), n // max(np.int64(1), sample))
+    ext = np.empty((n + step - 1) // step)
+    for t in range(len(ext)):
+        e = 0.0
+        for d in range(3):
+            a, b = _face_box(V, V, F, t * step, d, False)
+            e = max(e, b - a)
+        ext[t] = e
+    h = max(np.median(ext), 1e-12)
+    glo = np.full(3, np.inf)
+    for t in range(len(chosen)):
+        for d in range(3):
+            a, b = _face_box(V, V, F, chosen[t], d, False)
+            glo[d] = min(glo[d], a)
+            h = max(h, b - a)
+    for d in range(3):
+        if not np.isfinite(glo[d]):
+            return np.zeros(0, np.int64)
+    if not np.isfinite(h):
+        return np.zeros(0, np.int64)
+    return np.flatnonzero(_near_cells(V, V, F, glo, h, chosen, np.bool_(False)))
+
+
 @njit(cache=True, nogil=True)
 def _kept_faces(k0, k1, nk):
     """``(kept, new_of_old)`` from the face keys ``k0`` of the old mesh and ``k1`` of the new one
@@ -3049,7 +3089,7 @@ def _kept_faces_after(V0, F0, V1, F1):
     return _kept_faces(k0, k1, np.int64(nk))
 
 
-def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):
+def crossing_pairs_after_change(V0, F0, pairs0, V1, F1, *, groups=None):
     """The crossing face pairs of a mesh ``(V1, F1)`` that is a changed copy of ``(V0, F0)``, whose
     crossing pairs ``pairs0`` (:func:`contourmesh.intersect.intersecting_pairs`) are known.
 
@@ -3058,21 +3098,30 @@ def crossing_pairs_after_change(V0, F0, pairs0, V1, F1):
     same corners (no old face given twice: :func:`_kept_faces_after`) crosses exactly when the old
     pair did; only pairs with a face given none (new, or repeated: a face that occurs twice overlaps
     itself) are tested, against the faces whose boxes may meet them.  The result equals
-    ``intersecting_pairs(V1, F1)``: ``(k, 2)`` face indices ``i < j``, sorted."""
+    ``intersecting_pairs(V1, F1)``: ``(k, 2)`` face indices ``i < j``, sorted.  ``groups``
+    (optional, an integer per face of ``F1``): the parts the new mesh was built from, passed on to
+    the test of the changed faces (:func:`contourmesh.intersect.intersecting_pairs`: it only saves
+    work, the pairs are the same)."""
     from .intersect import intersecting_pairs as _pairs
 
     V0 = np.asarray(V0, dtype=np.float64)
     V1 = np.asarray(V1, dtype=np.float64)
     F0 = np.asarray(F0, dtype=np.int64).reshape(-1, 3)
     F1 = np.asarray(F1, dtype=np.int64).reshape(-1, 3)
+    if groups is not None:
+        groups = np.asarray(groups)
+        if groups.shape != (len(F1),):
+            raise ValueError(f"groups must be one integer per face ({len(F1)}); got shape {groups.shape}")
     kept, new_of_old = _kept_faces_after(V0, F0, V1, F1)
     p0 = np.asarray(pairs0, dtype=np.int64).reshape(-1, 2)
     q = new_of_old[p0] if len(p0) else np.zeros((0, 2), dtype=np.int64)
     out = [q[(q >= 0).all(axis=1)]]
     changed = np.flatnonzero(~kept)
     if len(changed) and len(F1) > 1:
-        sub = _boxes_near(V1, F1, changed)
-        r = _pairs(V1, F1[sub])
+        sub = _changed_faces_near(V1, F1, changed, np.int64(_NEAR_SAMPLE))
+        if len(sub) == 0:
+            sub = _boxes_near(V1, F1, changed)
+        r = _pairs(V1, F1[sub], groups=None if groups is None else groups[sub])
         if len(r):
             r = sub[r]
             out.append(r[(~kept[r]).any(axis=1)])
