@@ -235,14 +235,14 @@ def test_kept_faces_equal_the_numpy_form_on_rebuilds(monkeypatch):
     from contourmesh import repair
 
     seen = []
-    keys = repair._face_position_keys
+    orig = repair.crossing_pairs_after_change
 
-    def recorded(V0, F0, V1, F1):
-        k0, k1 = keys(V0, F0, V1, F1)
-        seen.append((k0.copy(), k1.copy()))
-        return k0, k1
+    def recorded(V0, F0, pairs0, V1, F1, **kw):  # (the keys of each rebuild's re-test, found here)
+        seen.append(repair._face_position_keys(V0, F0, V1, F1))
+        return orig(V0, F0, pairs0, V1, F1, **kw)
 
-    monkeypatch.setattr(repair, "_face_position_keys", recorded)
+    monkeypatch.setattr(repair, "crossing_pairs_after_change", recorded)
+    monkeypatch.setattr(volumes, "crossing_pairs_after_change", recorded)
     rng = np.random.default_rng(7)
     vols = [np.pad(rng.random((12, 14, 13)) < 0.35, 1) for _ in range(2)]
     for v in vols:

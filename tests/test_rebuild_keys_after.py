@@ -145,9 +145,9 @@ def test_rebuilds_keep_their_keys_and_pairs(monkeypatch):
     seen = []
     orig = repair.crossing_pairs_after_change
 
-    def recorded(V0, F0, pairs0, V1, F1):
+    def recorded(V0, F0, pairs0, V1, F1, **kw):
         seen.append((V0.copy(), F0.copy(), V1.copy(), F1.copy()))
-        return orig(V0, F0, pairs0, V1, F1)
+        return orig(V0, F0, pairs0, V1, F1, **kw)
 
     monkeypatch.setattr(repair, "crossing_pairs_after_change", recorded)
     from contourmesh import volumes

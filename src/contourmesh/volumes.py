@@ -1605,10 +1605,11 @@ def _crossing_pairs(V, F, previous, tags=None):
     """The crossing face pairs of a built mesh: checked whole, or from the ``previous`` build's
     ``(V, F, pairs)`` where there is one (:func:`contourmesh.repair.crossing_pairs_after_change`).
     ``tags`` (:func:`_assemble`'s, a join or cap per face) group the faces for the whole test: the
-    voxel-exact faces of one join or cap need not be tested against each other (the same pairs)."""
+    voxel-exact faces of one join or cap need not be tested against each other (the same pairs);
+    on a rebuild, those of the changed faces' test."""
     if previous is None:
         return intersecting_pairs(V, F, groups=tags)
-    return crossing_pairs_after_change(*previous, V, F)
+    return crossing_pairs_after_change(*previous, V, F, groups=tags)
 
 
 #: How many times the general mesher rebuilds a mesh whose faces cross after the repair, with the

@@ -359,6 +359,7 @@ def _warm_rare() -> None:
     V2 = V1.copy()
     V2[len(cube.vertices):] += 0.1
     crossing_pairs_after_change(V1, F, info["pairs"], V2, F)
+    crossing_pairs_after_change(V1, F, info["pairs"], V1, F)  # (the faces matched in their order)
     # the bridged joins' rare paths (a polyline keyhole; bridge_tree's Python loop)
     from ..bands.bridges import warm_rare_paths
     from ..sections import warm_rare_kernels
