@@ -199,6 +199,23 @@ def _sdf_near(m, area, h, at, budget):
     return out, True
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _nearer(best, dist, dy, dx, s):  # pragma: no cover (compiled)
+    """One feature of :func:`_sdf_near_any`'s ring at ``(dy, dx)`` pixel steps against the least
+    integer squared distance ``best`` so far (measured ``dist``): ``(best, dist, tie)``, the
+    feature's where it is nearer, as they were where it is farther, and ``tie`` where it is as
+    near and measures another float (the transform's operations: ``sqrt((dy * s)^2 + (dx * s)^2)``)."""
+    d = dy * dy + dx * dx
+    if d > best:
+        return best, dist, False
+    t0 = float(dy) * s
+    t1 = float(dx) * s
+    f = math.sqrt(t0 * t0 + t1 * t1)
+    if d < best:
+        return d, f, False
+    return best, dist, f != dist
+
+
 @njit(cache=True, nogil=True)
 def _sdf_near_any(m, s, h, at, budget):
     """:func:`_sdf_any`'s signed distances of a non-empty mask (uint8) on square pixels of side
@@ -235,29 +252,17 @@ def _sdf_near_any(m, s, h, at, budget):
                     work += c1 - c0 + 1
                     for xx in range(c0, c1 + 1):
                         if _ring_feature(m, yy, xx, inside):
-                            d = r * r + (xx - x) * (xx - x)
-                            if d <= best:
-                                t0 = float(yy - y) * s
-                                t1 = float(xx - x) * s
-                                f = math.sqrt(t0 * t0 + t1 * t1)
-                                if d < best:
-                                    best, dist = d, f
-                                elif f != dist:
-                                    return out, False
+                            best, dist, tie = _nearer(best, dist, yy - y, xx - x, s)
+                            if tie:
+                                return out, False
                 xx = x - r if side == 0 else x + r
                 if -1 <= xx <= W:  # (a column of the ring, less its corners)
                     work += r1 - r0 + 1
                     for yy in range(r0, r1 + 1):
                         if _ring_feature(m, yy, xx, inside):
-                            d = r * r + (yy - y) * (yy - y)
-                            if d <= best:
-                                t0 = float(yy - y) * s
-                                t1 = float(xx - x) * s
-                                f = math.sqrt(t0 * t0 + t1 * t1)
-                                if d < best:
-                                    best, dist = d, f
-                                elif f != dist:
-                                    return out, False
+                            best, dist, tie = _nearer(best, dist, yy - y, xx - x, s)
+                            if tie:
+                                return out, False
             if work > budget:
                 return out, False
             r += 1
