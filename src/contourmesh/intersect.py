@@ -3477,6 +3477,46 @@ def _x_order(x0):
     return order
 
 
+@_kernel
+def _sweep_order(V, F, faces):
+    """The set-up the sweeps of :func:`_two_level_sweep` and :func:`_few_levels_sweep` share:
+    ``faces`` in the order of their lowest x (:func:`_x_order`), as ``(fid, cs)``: each row's face
+    and its three corners (copied so that the corners of two nearby rows are read from nearby
+    places, not from two faces' places in ``F``).  The caller fills its rows in this order."""
+    n = len(faces)
+    x0 = np.empty(n)
+    for t in range(n):
+        i = faces[t]
+        x0[t] = min(V[F[i, 0], 0], min(V[F[i, 1], 0], V[F[i, 2], 0]))
+    order = _x_order(x0)
+    fid = np.empty(n, np.int64)
+    cs = np.empty((n, 3), np.int64)
+    for s in range(n):
+        i = np.int64(faces[order[s]])
+        fid[s] = i
+        cs[s, 0] = F[i, 0]
+        cs[s, 1] = F[i, 1]
+        cs[s, 2] = F[i, 2]
+    return fid, cs
+
+
+@_kernel
+def _sweep_boxes(W):
+    """Columns 0-3 of a sweep's rows ``W`` (each face's xy box) as four arrays ``(xs, x1s, y0s,
+    y1s)``: the sweep's inner loop reads only these for most pairs, from contiguous memory."""
+    n = len(W)
+    xs = np.empty(n)
+    x1s = np.empty(n)
+    y0s = np.empty(n)
+    y1s = np.empty(n)
+    for s in range(n):
+        xs[s] = W[s, 0]
+        x1s[s] = W[s, 1]
+        y0s[s] = W[s, 2]
+        y1s[s] = W[s, 3]
+    return xs, x1s, y0s, y1s
+
+
 @_inlined
 def _band_pair_apart(V, F, lev, W, cs, s, u, i, j, lo):
     """Whether the faces of sweep rows ``s`` and ``u`` (faces ``i`` and ``j``, corners ``cs``), both
@@ -3521,31 +3561,14 @@ def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit, hit):
     its corners are copied in that order too (the common corners of a pair read from two nearby
     rows, not from two faces' places in ``F``)."""
     n = len(faces)
-    x0 = np.empty(n)
-    for t in range(n):
-        i = faces[t]
-        x0[t] = min(V[F[i, 0], 0], min(V[F[i, 1], 0], V[F[i, 2], 0]))
-    order = _x_order(x0)
+    fid, cs = _sweep_order(V, F, faces)
     W = np.empty((n, 13))
-    fid = np.empty(n, np.int64)
-    cs = np.empty((n, 3), np.int64)
-    xs = np.empty(n)
-    x1s = np.empty(n)
-    y0s = np.empty(n)
-    y1s = np.empty(n)
     zero = np.int64(0)
     for s in range(n):
-        i = np.int64(faces[order[s]])
-        fid[s] = i
-        cs[s, 0] = F[i, 0]
-        cs[s, 1] = F[i, 1]
-        cs[s, 2] = F[i, 2]
+        i = fid[s]
         _box_row(W, s, V, F, lev, i, zero)
         W[s, 12] = 1.0 * ((lev[F[i, 0]] == 0) + (lev[F[i, 1]] == 0) + (lev[F[i, 2]] == 0))
-        xs[s] = W[s, 0]
-        x1s[s] = W[s, 1]
-        y0s[s] = W[s, 2]
-        y1s[s] = W[s, 3]
+    xs, x1s, y0s, y1s = _sweep_boxes(W)
     cg = np.zeros(0, np.int64)  # (no groups)
     work = np.int64(0)
     for s in range(n):
@@ -3675,28 +3698,14 @@ def _few_levels_sweep(V, ws, F, star, sst, lev, nlev, faces, limit, hit):
     z-ranges are, decided by :func:`_across_plane` where they meet in one plane only (neither face
     flat), else tested by :func:`_slab_hit`."""
     n = len(faces)
-    x0 = np.empty(n)
-    for t in range(n):
-        i = faces[t]
-        x0[t] = min(V[F[i, 0], 0], min(V[F[i, 1], 0], V[F[i, 2], 0]))
-    order = _x_order(x0)
+    fid, cs = _sweep_order(V, F, faces)
     W = np.empty((n, 16))
-    fid = np.empty(n, np.int64)
     klo = np.empty(n, np.int64)
-    cs = np.empty((n, 3), np.int64)
-    xs = np.empty(n)
-    x1s = np.empty(n)
-    y0s = np.empty(n)
-    y1s = np.empty(n)
     for s in range(n):
-        i = np.int64(faces[order[s]])
-        a = F[i, 0]
-        b = F[i, 1]
-        c = F[i, 2]
-        fid[s] = i
-        cs[s, 0] = a
-        cs[s, 1] = b
-        cs[s, 2] = c
+        i = fid[s]
+        a = cs[s, 0]
+        b = cs[s, 1]
+        c = cs[s, 2]
         la = min(lev[a], min(lev[b], lev[c]))
         ha = max(lev[a], max(lev[b], lev[c]))
         klo[s] = la
@@ -3714,10 +3723,7 @@ def _few_levels_sweep(V, ws, F, star, sst, lev, nlev, faces, limit, hit):
             W[s, 13] = -2.0 - s
         W[s, 14] = min(V[a, 2], min(V[b, 2], V[c, 2]))
         W[s, 15] = max(V[a, 2], max(V[b, 2], V[c, 2]))
-        xs[s] = W[s, 0]
-        x1s[s] = W[s, 1]
-        y0s[s] = W[s, 2]
-        y1s[s] = W[s, 3]
+    xs, x1s, y0s, y1s = _sweep_boxes(W)
     cg = np.zeros(0, np.int64)  # (no groups)
     zero = np.int64(0)
     top = nlev - 1
