@@ -121,3 +121,24 @@ def test_auto_sends_a_mesh_not_sectioned_to_the_grid_without_the_slab_phase(monk
     V2, F2 = _mesh_near_the_limit(rng, 600, 1.0, 0, False)
     assert np.array_equal(intersecting_pairs(V2, F2), intersecting_pairs(V2, F2, method="grid"))
     assert calls == [1, 1]
+
+
+def test_a_mesh_not_sectioned_is_not_split_over_threads(monkeypatch):
+    """On two threads, "auto" asks :func:`_sectioned` before the split: a mesh that is not
+    sectioned goes to the grid without its ranges' slab phases (the same pairs), and a sectioned
+    one is still split."""
+    rng = np.random.default_rng(5)
+    V, F = _mesh_near_the_limit(rng, 600, 12.0, 0, False)
+    V[:, :2] += rng.uniform(0, 0.5, (len(V), 2))  # (crossings among them)
+    want = intersecting_pairs(V, F, method="grid")
+    assert len(want) > 0
+    split = []
+    real_split = I._split_slab_pairs
+    monkeypatch.setattr(I, "_split_slab_pairs", lambda *a: split.append(1) or real_split(*a))
+    monkeypatch.setattr(I, "_GRID_FACES", 10)
+    monkeypatch.setattr(I, "_SPLIT_FACES", 10)
+    monkeypatch.setenv("CONTOURMESH_THREADS", "2")
+    assert np.array_equal(intersecting_pairs(V, F), want) and split == []
+    V2, F2 = _mesh_near_the_limit(rng, 600, 1.0, 0, False)
+    assert np.array_equal(intersecting_pairs(V2, F2), intersecting_pairs(V2, F2, method="grid"))
+    assert split == [1]

@@ -4026,6 +4026,7 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
         lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
         on_grid = nlev != 2  # (a band between two rings: slabs all the same, see _GRID_FACES)
     split = stop == 0 and method == "auto" and len(Fc) >= _SPLIT_FACES and _threads() > 1
+    sectioned = None  # (_sectioned's answer, once asked)
     if method == "slabs" or (method == "auto" and (not on_grid or split)):
         if lev is None:
             lev, nlev = _levels(np.ascontiguousarray(V[:, 2]))
@@ -4033,14 +4034,22 @@ def _pairs(V, F, canon, budget, method, stop=0, quick=True, groups=None):
             levels, lev = np.unique(V[:, 2], return_inverse=True)
             lev, nlev = lev.astype(np.int64).reshape(-1), len(levels)
         if split and nlev > 8:
-            got = _split_slab_pairs(V, ws, Fc, sst_slabs, qk, lev, nlev, _threads(), cg)
-            if got is not None:
-                return got
+            # (a mesh that is not sectioned goes to the grid without the split first: its ranges
+            # mostly give up after their first loops over every face, the lobster's repaired mesh
+            # on two threads some 10 ms of CPU for nothing; where they would all finish, the grid
+            # finds the same pairs)
+            sectioned = _sectioned(V, ws, Fc, lev) == 1
+            if sectioned:
+                got = _split_slab_pairs(V, ws, Fc, sst_slabs, qk, lev, nlev, _threads(), cg)
+                if got is not None:
+                    return got
     if method == "slabs" or (method == "auto" and not on_grid):
         # a box test is cheap next to the grid's cost per face: on the liver's whole mesh a budget
         # of 64 gave up after 1.3 s of sweeping (the grid then took 2.1 s more); 256 finishes in 1.9 s
         # ("auto": a mesh that is not sectioned goes to the grid unasked, see _sectioned)
-        if method == "slabs" or _sectioned(V, ws, Fc, lev) == 1:
+        if sectioned is None:
+            sectioned = method == "slabs" or _sectioned(V, ws, Fc, lev) == 1
+        if method == "slabs" or sectioned:
             pi, pj, ok = _slab_pairs(V, ws, Fc, star, sst_slabs, qk, lev, np.int64(nlev),
                                      np.int64(_SLAB_BUDGET), np.int64(stop), np.int64(0), np.int64(nlev), cg)
         if ok == 0 and method == "slabs":
