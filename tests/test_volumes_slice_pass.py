@@ -95,3 +95,40 @@ def test_slice_pass_on_the_shared_volumes(shared_data):
     holes, _ = _check_pass(masks)
     assert holes > 0
     _check_slices(masks[::2], "mlp")
+
+
+def _moved_after(m, mlp, sx, sy):
+    """``_slice_pass`` with its box's numbers moved by ``(sx, sy)`` in numpy after the call, as
+    ``_Slice`` moved them before ``_slice_pass_at``."""
+    got = list(_pass(m, mlp))
+    shift = np.array([sx, sy], dtype=np.int64)
+    got[3][0] += sy
+    got[3][1] += sx
+    got[3][2] += sx
+    got[4] = got[4] + shift
+    got[8] = got[8][:6] + (got[8][6] + shift,) + got[8][7:]
+    got[10] = (got[10][0] + shift,) + got[10][1:]
+    got[11] = got[11] + shift
+    return tuple(got)
+
+
+def test_slice_pass_at_moves_what_the_slice_moved():
+    rng = np.random.default_rng(41)
+    moved = 0
+    for m in _random_masks(43, count=40) + [np.zeros((3, 5), bool)]:
+        sx, sy = (int(v) for v in rng.integers(0, 300, 2))
+        for mlp in (1, 0):
+            c = np.ascontiguousarray(m, dtype=bool)
+            b8 = c.reshape(-1).view(np.uint8)
+            b64, woff, aligned = _words_from(b8)
+            got = volumes._slice_pass_at(b8, b64, np.int64(c.shape[0]), np.int64(c.shape[1]), aligned, woff,
+                                         np.int64(mlp), np.int64(sx), np.int64(sy))
+            got, want = _flat(got), _flat(_moved_after(m, mlp, sx, sy))
+            assert len(got) == len(want)
+            for i, (a, b) in enumerate(zip(got, want)):
+                if isinstance(b, np.ndarray):
+                    assert _same(a, b), (i, mlp)
+                else:
+                    assert int(a) == int(b), (i, mlp)
+            moved += len(want[3][0]) > 0 and len(want[4]) > 0
+    assert moved > 20
