@@ -3651,6 +3651,12 @@ def _two_level_any(V, ws, F, star, sst, lev, hit):
 #: of fewer than :data:`_GRID_FACES` faces, to :func:`_few_levels_any` where the general steps would
 #: take it to the slab phase (on the small dyadic grid, or on two heights).
 _FEW_LEVELS = 16
+#: Off the small dyadic grid, a mesh on a few heights of at most this many faces goes to
+#: :func:`_few_levels_any` too, where the general steps would take it to the grid of
+#: :func:`_intersecting_pairs` (whose set-up is most of the cost of a small mesh): the repair's neck
+#: tubes (some 30 faces on 7 heights; the lobster's 546 of a build 11 -> 9 ms).  The sweep's
+#: decisions are exact on any coordinates; larger meshes keep the grid, which bounds their work.
+_FEW_LEVELS_OFF_GRID = 256
 
 
 @_kernel
@@ -3885,8 +3891,9 @@ def _any_steps(V, F, delay, two, distinct, mem):
             if got == 1:
                 _remember_pair(V, Fc, hit[0], hit[1], mem)
             return got
-    if two == 1 and (ws[0] == 1.0 or nlev == 2) and nlev <= _FEW_LEVELS and m < _GRID_FACES:
-        # (a join on a few heights, or a band with flat faces: where the general steps take the slab phase)
+    if two == 1 and (ws[0] == 1.0 or nlev == 2 or m <= _FEW_LEVELS_OFF_GRID) and nlev <= _FEW_LEVELS and m < _GRID_FACES:
+        # (a join on a few heights, or a band with flat faces: where the general steps take the slab phase;
+        # a small mesh off the grid on a few heights, where they take the grid)
         got = _few_levels_any(V, ws, Fc, star, sst, lev, nlev, hit)
         if got >= 0:
             if got == 1:
