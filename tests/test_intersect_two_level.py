@@ -187,3 +187,51 @@ def test_bands_with_a_far_point():
         V[int(rng.integers(len(V))), 0] += 1e4 * (1 if t % 4 < 2 else -1)
         seen[_answers(V, F)] += 1
     assert min(seen) > 2  # (mostly crossing: the far point's faces reach over the rings)
+
+
+def _remembered_pair_crosses(V, F, delay=DELAY):
+    """The answer of ``_any_kernel_seen`` from an empty memory, checked against the reference path's;
+    where it finds a crossing, the pair it remembers (two faces' corners) crosses by the plain test
+    of those two faces alone, and is two faces of ``F``."""
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    mem = np.zeros(19)
+    got = intersect._any_kernel_seen(V, F, delay, mem)
+    assert got == _any_kernel_reference(V, F, delay)
+    if got == 1:
+        assert mem[18] == 1.0
+        pair = mem[:18].reshape(6, 3)
+        corners = {tuple(p) for p in V[F].reshape(-1, 3)}
+        assert all(tuple(p) in corners for p in pair)
+        assert _plain(pair, np.array([[0, 1, 2], [3, 4, 5]], dtype=np.int64))
+    else:
+        assert mem[18] == 0.0
+    return got
+
+
+def test_the_pair_the_sweeps_find_crosses():
+    """The pair that the two-level and few-level sweeps report (their rules written out in the sweep,
+    issue 16 round 28) is one that crosses: on random bands, on and off the dyadic grid, and on
+    bands stacked on three rings (the few-level sweep)."""
+    rng = np.random.default_rng(24170)
+    seen = [0, 0]
+    for t in range(160):
+        V, F = _band(rng, step=0.5 if t % 3 else 1.0, tidy=t % 2 == 0)
+        V = V.copy()
+        if t % 4 == 1:
+            V[:, :2] += rng.uniform(-1e-3, 1e-3, (len(V), 2))
+        if t % 4 == 3:  # the band again one height up (three heights; its lower ring in the plane of the upper)
+            V = np.vstack([V, V + [0.0, 0.0, V[:, 2].max() - V[:, 2].min()]])
+            F = np.vstack([F, F + len(V) // 2])
+        seen[_remembered_pair_crosses(V, F)] += 1
+    assert min(seen) > 15
+
+
+@pytest.mark.skipif(not os.environ.get("CONTOURMESH_DATA"), reason="needs the real volumes (CONTOURMESH_DATA)")
+def test_the_pair_real_sweeps_find_crosses(monkeypatch):
+    """Every crossing test of a lobster build that crosses: the pair remembered crosses."""
+    calls = _build_calls("lobster", monkeypatch)
+    hits = [c for c in calls if c[3] == 1]
+    assert len(hits) > 100
+    for V, F, delay, got in hits:
+        assert _remembered_pair_crosses(V, F, delay) == 1

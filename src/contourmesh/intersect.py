@@ -3517,33 +3517,6 @@ def _sweep_boxes(W):
     return xs, x1s, y0s, y1s
 
 
-@_inlined
-def _band_pair_apart(V, F, lev, W, cs, s, u, i, j, lo):
-    """Whether the faces of sweep rows ``s`` and ``u`` (faces ``i`` and ``j``, corners ``cs``), both
-    with their corners on levels ``lo`` and one level above only and with overlapping xy boxes, are
-    shown apart by the one band's rules: "ends apart" (the boxes overlap, so this is the rule's
-    whole content here; without branches, since most pairs get here and most are apart by no one
-    rule of the four), "apart but at a corner" for one common corner, :func:`_rung_apart` for a
-    common rung.  The rows are those of :func:`_two_level_sweep` and :func:`_few_levels_sweep`."""
-    if (((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
-            | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
-        return True
-    a0 = cs[s, 0]
-    a1 = cs[s, 1]
-    a2 = cs[s, 2]
-    b0 = cs[u, 0]
-    b1 = cs[u, 1]
-    b2 = cs[u, 2]
-    s0 = (a0 == b0) | (a0 == b1) | (a0 == b2)
-    s1 = (a1 == b0) | (a1 == b1) | (a1 == b2)
-    s2 = (a2 == b0) | (a2 == b1) | (a2 == b2)
-    ns = np.int64(s0) + np.int64(s1) + np.int64(s2)
-    if ns == 1:
-        p = a0 if s0 else (a1 if s1 else a2)
-        return _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo)
-    return ns == 2 and _rung_apart(V, F, lev, i, j, lo)
-
-
 @_kernel
 def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit, hit):
     """Whether two of ``faces`` (each with its corners on levels 0 and 1 of a two-level mesh)
@@ -3583,7 +3556,29 @@ def _two_level_sweep(V, ws, F, star, sst, lev, faces, limit, hit):
                 continue
             i = fid[s]
             j = fid[u]
-            if _band_pair_apart(V, F, lev, W, cs, s, u, i, j, zero):
+            # the one band's rules, written out here (as a helper inlined by numba its array
+            # arguments were counted in and out for every pair: the liver's band tests of a build
+            # 128 -> 51 ms): "ends apart" (the boxes overlap, so this is the rule's whole content
+            # here; without branches, since most pairs are apart by no one rule of the four),
+            # "apart but at a corner" for one common corner, _rung_apart for a common rung
+            if (((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
+                    | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10])) | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
+                continue
+            a0 = cs[s, 0]
+            a1 = cs[s, 1]
+            a2 = cs[s, 2]
+            b0 = cs[u, 0]
+            b1 = cs[u, 1]
+            b2 = cs[u, 2]
+            s0 = (a0 == b0) | (a0 == b1) | (a0 == b2)
+            s1 = (a1 == b0) | (a1 == b1) | (a1 == b2)
+            s2 = (a2 == b0) | (a2 == b1) | (a2 == b2)
+            ns = np.int64(s0) + np.int64(s1) + np.int64(s2)
+            if ns == 1:
+                p = a0 if s0 else (a1 if s1 else a2)
+                if _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == 0):
+                    continue
+            elif ns == 2 and _rung_apart(V, F, lev, i, j, zero):
                 continue
             if i > j:
                 i, j = j, i
@@ -3679,6 +3674,12 @@ def _two_level_any(V, ws, F, star, sst, lev, hit):
 #: of fewer than :data:`_GRID_FACES` faces, to :func:`_few_levels_any` where the general steps would
 #: take it to the slab phase (on the small dyadic grid, or on two heights).
 _FEW_LEVELS = 16
+#: Off the small dyadic grid, a mesh on a few heights of at most this many faces goes to
+#: :func:`_few_levels_any` too, where the general steps would take it to the grid of
+#: :func:`_intersecting_pairs` (whose set-up is most of the cost of a small mesh): the repair's neck
+#: tubes (some 30 faces on 7 heights; the lobster's 546 of a build 11 -> 9 ms).  The sweep's
+#: decisions are exact on any coordinates; larger meshes keep the grid, which bounds their work.
+_FEW_LEVELS_OFF_GRID = 256
 
 
 @_kernel
@@ -3740,8 +3741,27 @@ def _few_levels_sweep(V, ws, F, star, sst, lev, nlev, faces, limit, hit):
                 continue
             i = fid[s]
             j = fid[u]
-            if W[s, 13] == W[u, 13]:  # one band: the rules
-                if _band_pair_apart(V, F, lev, W, cs, s, u, i, j, klo[s]):
+            if W[s, 13] == W[u, 13]:  # one band: the rules, as in _two_level_sweep
+                if (((W[s, 5] < W[u, 4]) & (W[s, 9] < W[u, 8])) | ((W[u, 5] < W[s, 4]) & (W[u, 9] < W[s, 8]))
+                        | ((W[s, 7] < W[u, 6]) & (W[s, 11] < W[u, 10]))
+                        | ((W[u, 7] < W[s, 6]) & (W[u, 11] < W[s, 10]))):
+                    continue
+                a0 = cs[s, 0]
+                a1 = cs[s, 1]
+                a2 = cs[s, 2]
+                b0 = cs[u, 0]
+                b1 = cs[u, 1]
+                b2 = cs[u, 2]
+                s0 = (a0 == b0) | (a0 == b1) | (a0 == b2)
+                s1 = (a1 == b0) | (a1 == b1) | (a1 == b2)
+                s2 = (a2 == b0) | (a2 == b1) | (a2 == b2)
+                ns = np.int64(s0) + np.int64(s1) + np.int64(s2)
+                lo = klo[s]
+                if ns == 1:
+                    p = a0 if s0 else (a1 if s1 else a2)
+                    if _apart_but_corner_w(W, s, u, V[p, 0], V[p, 1], lev[p] == lo):
+                        continue
+                elif ns == 2 and _rung_apart(V, F, lev, i, j, lo):
                     continue
             else:
                 zs0 = W[s, 14]
@@ -3877,8 +3897,9 @@ def _any_steps(V, F, delay, two, distinct, mem):
             if got == 1:
                 _remember_pair(V, Fc, hit[0], hit[1], mem)
             return got
-    if two == 1 and (ws[0] == 1.0 or nlev == 2) and nlev <= _FEW_LEVELS and m < _GRID_FACES:
-        # (a join on a few heights, or a band with flat faces: where the general steps take the slab phase)
+    if two == 1 and (ws[0] == 1.0 or nlev == 2 or m <= _FEW_LEVELS_OFF_GRID) and nlev <= _FEW_LEVELS and m < _GRID_FACES:
+        # (a join on a few heights, or a band with flat faces: where the general steps take the slab phase;
+        # a small mesh off the grid on a few heights, where they take the grid)
         got = _few_levels_any(V, ws, Fc, star, sst, lev, nlev, hit)
         if got >= 0:
             if got == 1:
