@@ -91,9 +91,13 @@ def _pure(fn):
 
 def _inlined(fn):
     """A predicate as :func:`_pure` that is also inlined into its callers by numba (``inline=
-    "always"``), for the few called many times per vertex in the stars' certificates
-    (:func:`_fan_winds_once`, :func:`_dir_sign`): the same operations on the same numbers, without
-    a call that passes every array's fields.  Callable from compiled code only."""
+    "always"``), for the few called many times per call of their caller (:func:`_dir_sign` in
+    :func:`_fan_winds_once`, :func:`_o2_in` in :func:`_seg_seg_2d`): the same operations on the
+    same numbers, without a call that passes every array's fields.  Callable from compiled code
+    only, and best from a :func:`_pure` caller: inlined into a kernel with reference counting,
+    numba counts each array argument in and out (atomic) per inlined call, which can cost more
+    than the call saves (:func:`_fan_winds_once` inlined into :func:`_star_fill_levels` did so,
+    three arrays per vertex and direction tried)."""
     return njit(inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True, _nrt=False, **_OPTIONS)(fn)
 
 
@@ -342,6 +346,33 @@ def _o2(V, ws, a, b, c, ax, ay):
     return _exact_sign(V, ws, a, b, c, c, ax, ay, np.int64(2))
 
 
+@_inlined
+def _o2_in(V, ws, a, b, c, ax, ay):
+    """:func:`_o2` inlined into its caller (:func:`_seg_seg_2d`, four per call, on most pairs that the
+    whole-mesh test decides in a plane): the same operations, without a call per orientation."""
+    acx = V[a, ax] - V[c, ax]
+    bcx = V[b, ax] - V[c, ax]
+    acy = V[a, ay] - V[c, ay]
+    bcy = V[b, ay] - V[c, ay]
+    l = acx * bcy
+    r = acy * bcx
+    det = l - r
+    if ws[0] == 1.0:
+        if det > 0.0:
+            return 1
+        if det < 0.0:
+            return -1
+        return 0
+    err = _O2_BOUND * (abs(l) + abs(r))
+    if det > err:
+        return 1
+    if det < -err:
+        return -1
+    if l == 0.0 and r == 0.0:
+        return 0
+    return _exact_sign(V, ws, a, b, c, c, ax, ay, np.int64(2))
+
+
 @_pure
 def _drop_axis(V, ws, a, b, c):
     """A coordinate axis along which the normal of the (non-degenerate) triangle a, b, c is
@@ -370,10 +401,10 @@ def _drop_axis(V, ws, a, b, c):
 @_pure
 def _seg_seg_2d(V, ws, p1, p2, q1, q2, ax, ay):
     """Closed segments p1p2 and q1q2 (in one plane, projected) have a common point."""
-    d1 = _o2(V, ws, q1, q2, p1, ax, ay)
-    d2 = _o2(V, ws, q1, q2, p2, ax, ay)
-    d3 = _o2(V, ws, p1, p2, q1, ax, ay)
-    d4 = _o2(V, ws, p1, p2, q2, ax, ay)
+    d1 = _o2_in(V, ws, q1, q2, p1, ax, ay)
+    d2 = _o2_in(V, ws, q1, q2, p2, ax, ay)
+    d3 = _o2_in(V, ws, p1, p2, q1, ax, ay)
+    d4 = _o2_in(V, ws, p1, p2, q2, ax, ay)
     if d1 * d2 > 0 or d3 * d4 > 0:
         return False
     if (d1 == 0 and d2 == 0) or (d3 == 0 and d4 == 0):
@@ -864,7 +895,7 @@ def _dir_sign(V, grid, p, a, b, d0, d1, d2):
     return 2
 
 
-@_inlined
+@_pure
 def _fan_winds_once(V, grid, nxt, r, n, p, d0, d1, d2):
     """The ``n`` faces around p (one fan, see :func:`_star_certified`), seen along d: every one of
     one strict orientation, and the sectors at p cover the direction of the link vertex r exactly
@@ -880,7 +911,12 @@ def _fan_winds_once(V, grid, nxt, r, n, p, d0, d1, d2):
     (:func:`_dir_sign` forms the same products and subtracts them the other way round, and
     rounding to nearest is symmetric; an uncertified 2 stays 2): each sign that the test of
     every sector in turn needs is the same number, computed once, and the outcome (which does
-    not depend on the order of the sectors) is the same."""
+    not depend on the order of the sectors) is the same.
+
+    A call, not inlined into :func:`_star_fill_levels` (which counts references): inlined there,
+    each try counted ``V``, ``grid`` and ``nxt`` in and out; as a call without reference counting,
+    the stars of every vertex of the lobster's whole mesh took some 42 ms instead of 47 (liver 34
+    instead of 37; CPU medians of one kernel in alternating processes)."""
     sgn = 0
     a = r
     for t in range(n):
