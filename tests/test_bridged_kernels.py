@@ -143,6 +143,32 @@ def test_later_kernel_equals_the_covered_share():
     assert min(seen.values()) > 300, seen
 
 
+def test_coverage_kernel_equals_its_samples_one_by_one():
+    # the coverage kernel and the preference kernel write the sample out in their loops: the
+    # count of covered samples against _sample_covered (the rule of one sample) summed sample by
+    # sample, and the preference against that count; random images, grids, segments and labels
+    rng = np.random.default_rng(1195)
+    seen = {0: 0, 1: 0}
+    for trial in range(1500):
+        lab = rng.integers(0, 4, (int(rng.integers(1, 25)), int(rng.integers(1, 25))))
+        lab = lab.astype(np.uint8 if trial % 2 else np.int32)
+        ids = np.array(sorted(set(rng.integers(0, 4, int(rng.integers(1, 4))).tolist())), np.int64)
+        grid = (float(rng.normal()), float(rng.normal()), float(rng.uniform(0.3, 2)), float(rng.uniform(0.3, 2)))
+        P = rng.uniform(-5, 35, (3, 2))
+        Q = P + rng.normal(size=(3, 2)) * float(rng.choice([0.2, 3.0, 20.0]))
+        count, n = B._coverage_kernel(P, Q, lab, ids, *grid)
+        for s in range(3):
+            steps = n[s] + 1
+            want = sum(int(B._sample_covered(P[s, 0], P[s, 1], Q[s, 0], Q[s, 1], u / steps, lab, ids, *grid))
+                       for u in range(1, steps))
+            assert count[s] == want
+            seen[int(0 < want < n[s])] += 1
+        share = float(rng.choice([0.25, 0.5, 1.0]))
+        later = B._later_kernel(P[0, 0], P[0, 1], Q[0, 0], Q[0, 1], lab, ids, *grid, share)
+        assert later == (0 if count[0] / n[0] >= share else 1)
+    assert min(seen.values()) > 300, seen
+
+
 def test_tree_kernel_equals_candidates_then_straight_bridges():
     # _candidate_columns with ``straight`` (one compiled call, _tree_kernel) against the two calls
     # it fuses: the same seven columns and the same straight bridges (Python ints); a keyhole test

@@ -2527,13 +2527,21 @@ def _face_box(V, W, F, i, d, both):
 @njit(cache=True, nogil=True)
 def _box_extents(V, W, F, both):
     """``(glo, ext)``: the low corner of all the faces' boxes (corners in ``V``, and ``W`` with
-    ``both``), and per face the longest side of its box."""
+    ``both``), and per face the longest side of its box.  :func:`_face_box` written out (the same
+    comparisons in the same order): inlined, it counted its three arrays in and out on each of its
+    three calls a face (the lobster's two calls 9.6 -> 8.5 ms CPU, replayed)."""
     glo = np.full(3, np.inf)
     ext = np.empty(F.shape[0])
     for i in range(F.shape[0]):
         e = 0.0
+        f0, f1, f2 = F[i, 0], F[i, 1], F[i, 2]
         for d in range(3):
-            a, b = _face_box(V, W, F, i, d, both)
+            x0, x1, x2 = V[f0, d], V[f1, d], V[f2, d]
+            if not both:
+                a, b = min(x0, x1, x2), max(x0, x1, x2)
+            else:
+                w0, w1, w2 = W[f0, d], W[f1, d], W[f2, d]
+                a, b = min(x0, x1, x2, w0, w1, w2), max(x0, x1, x2, w0, w1, w2)
             glo[d] = min(glo[d], a)
             e = max(e, b - a)
         ext[i] = e

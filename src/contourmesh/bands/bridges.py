@@ -85,11 +85,13 @@ class _Coverage:
         return count / n
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _sample_covered(px, py, qx, qy, t, lab, ids, ox, oy, dx, dy):  # pragma: no cover (compiled)
     """1 where the point ``t`` of the way from ``p`` to ``q`` falls on a pixel of ``lab`` whose label
     is in ``ids`` (the pixel whose centre is nearest, inside the image), else 0: one sample of
-    :func:`_coverage_kernel` and :func:`_later_kernel`, which share it."""
+    :func:`_coverage_kernel` and :func:`_later_kernel`, which write it out in their loops (a helper
+    with the arrays ``lab`` and ``ids`` as arguments counted both in and out on every sample, the
+    larger part of a sample's cost).  Kept as the rule of one sample (the tests compare)."""
     ny, nx = lab.shape
     i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
     j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
@@ -109,12 +111,22 @@ def _coverage_kernel(P, Q, lab, ids, ox, oy, dx, dy):
     m = P.shape[0]
     count = np.zeros(m, np.int64)
     total = np.zeros(m, np.int64)
+    ny, nx = lab.shape
+    nid = ids.shape[0]
     for s in range(m):
         px, py, qx, qy = P[s, 0], P[s, 1], Q[s, 0], Q[s, 1]
         steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
         c = 0
-        for u in range(1, steps):
-            c += _sample_covered(px, py, qx, qy, u / steps, lab, ids, ox, oy, dx, dy)
+        for u in range(1, steps):  # (_sample_covered written out)
+            t = u / steps
+            i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
+            j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
+            if i >= 0 and i < nx and j >= 0 and j < ny:
+                v = lab[j, i]
+                for w in range(nid):
+                    if v == ids[w]:
+                        c += 1
+                        break
         count[s] = c
         total[s] = steps - 1
     return count, total
@@ -129,9 +141,19 @@ def _later_kernel(px, py, qx, qy, lab, ids, ox, oy, dx, dy, share):  # pragma: n
     not (``x / n`` never decreases as ``x`` grows, in floating point too: the same answer)."""
     steps = max(2, int(np.ceil(8 * max(abs(qx - px) / dx, abs(qy - py) / dy))))
     n = steps - 1
+    ny, nx = lab.shape
+    nid = ids.shape[0]
     c = 0
-    for u in range(1, steps):
-        c += _sample_covered(px, py, qx, qy, u / steps, lab, ids, ox, oy, dx, dy)
+    for u in range(1, steps):  # (_sample_covered written out)
+        t = u / steps
+        i = np.int64(np.floor((px + t * (qx - px) - ox) / dx + 0.5))
+        j = np.int64(np.floor((py + t * (qy - py) - oy) / dy + 0.5))
+        if i >= 0 and i < nx and j >= 0 and j < ny:
+            v = lab[j, i]
+            for w in range(nid):
+                if v == ids[w]:
+                    c += 1
+                    break
         if u % 8 == 0:
             if c / n >= share:
                 return np.int64(0)
@@ -607,7 +629,8 @@ def _tree_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share
     if not ok:
         for t in range(total):
             if ask[c_p[t]]:
-                c_lt[t] = _row_later(t, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share)
+                a, b = off[c_i[t]] + c_vi[t], off[c_j[t]] + c_vj[t]  # (_row_later written out)
+                c_lt[t] = _later_kernel(pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1], lab, cids, ox, oy, dx, dy, share)
         return c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj, ok, np.empty((0, 4), np.int64), False
     for t in range(total):
         if ask[c_p[t]]:
@@ -634,7 +657,8 @@ def _tree_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share
             if _root(parent, i) == _root(parent, j) or used[off[i] + vi] or used[off[j] + vj]:
                 continue
             if c_lt[r] < 0:
-                c_lt[r] = _row_later(r, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share)
+                a, b = off[c_i[r]] + c_vi[r], off[c_j[r]] + c_vj[r]  # (_row_later written out)
+                c_lt[r] = _later_kernel(pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1], lab, cids, ox, oy, dx, dy, share)
             if c_lt[r] != kind:
                 continue
             if not _straight_ok(i, vi, j, vj, pts, off, lens, comp, oa, ob, sa[:ns], sb[:ns], corners, P1, Q1,
@@ -655,7 +679,8 @@ def _tree_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share
     # the preference first, the rest as before (a stable partition of the order without it)
     for t in range(total):
         if c_lt[t] < 0:
-            c_lt[t] = _row_later(t, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share)
+            a, b = off[c_i[t]] + c_vi[t], off[c_j[t]] + c_vj[t]  # (_row_later written out)
+            c_lt[t] = _later_kernel(pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1], lab, cids, ox, oy, dx, dy, share)
     full = np.empty(total, np.int64)
     m = 0
     for kind in range(2):
@@ -681,7 +706,8 @@ def _candidate_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, 
     c_lt = np.zeros(total, np.int64)
     for t in range(total):
         if ask[c_p[t]]:  # (the preference of each candidate: _later_kernel)
-            c_lt[t] = _row_later(t, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share)
+            a, b = off[c_i[t]] + c_vi[t], off[c_j[t]] + c_vj[t]  # (_row_later written out)
+            c_lt[t] = _later_kernel(pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1], lab, cids, ox, oy, dx, dy, share)
     order = _lexsort_order(c_lt, c_d, c_tie, c_i, c_vi, c_j, c_vj) if ok else np.arange(total)
     return (c_lt[order], c_d[order], c_tie[order], c_i[order], c_vi[order], c_j[order], c_vj[order], ok)
 
@@ -731,13 +757,6 @@ def _pair_rows(pts, off, lens, pairs, k):  # pragma: no cover (compiled)
         c_tie, bad_tie = _round9_kernel(c_tie)
         ok = bad_d.shape[0] == 0 and bad_tie.shape[0] == 0
     return c_d, c_tie, c_i, c_vi, c_j, c_vj, c_p, ok
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _row_later(t, c_i, c_vi, c_j, c_vj, pts, off, lab, cids, ox, oy, dx, dy, share):  # pragma: no cover
-    """:func:`_later_kernel` of candidate row ``t`` (its ends ``pts[off[i] + vi]``, ``pts[off[j] + vj]``)."""
-    a, b = off[c_i[t]] + c_vi[t], off[c_j[t]] + c_vj[t]
-    return _later_kernel(pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1], lab, cids, ox, oy, dx, dy, share)
 
 
 @njit(cache=True, nogil=True)
