@@ -320,8 +320,7 @@ def _o3(V, ws, a, b, c, d):
     return _exact_sign(V, ws, a, b, c, d, a, a, np.int64(3))
 
 
-@_pure
-def _o2(V, ws, a, b, c, ax, ay):
+def _o2_sign(V, ws, a, b, c, ax, ay):
     """Exact sign of the 2D orientation of a, b, c projected on the axes ``ax``, ``ay``."""
     acx = V[a, ax] - V[c, ax]
     bcx = V[b, ax] - V[c, ax]
@@ -346,31 +345,11 @@ def _o2(V, ws, a, b, c, ax, ay):
     return _exact_sign(V, ws, a, b, c, c, ax, ay, np.int64(2))
 
 
-@_inlined
-def _o2_in(V, ws, a, b, c, ax, ay):
-    """:func:`_o2` inlined into its caller (:func:`_seg_seg_2d`, four per call, on most pairs that the
-    whole-mesh test decides in a plane): the same operations, without a call per orientation."""
-    acx = V[a, ax] - V[c, ax]
-    bcx = V[b, ax] - V[c, ax]
-    acy = V[a, ay] - V[c, ay]
-    bcy = V[b, ay] - V[c, ay]
-    l = acx * bcy
-    r = acy * bcx
-    det = l - r
-    if ws[0] == 1.0:
-        if det > 0.0:
-            return 1
-        if det < 0.0:
-            return -1
-        return 0
-    err = _O2_BOUND * (abs(l) + abs(r))
-    if det > err:
-        return 1
-    if det < -err:
-        return -1
-    if l == 0.0 and r == 0.0:
-        return 0
-    return _exact_sign(V, ws, a, b, c, c, ax, ay, np.int64(2))
+_o2 = _pure(_o2_sign)
+#: :func:`_o2` inlined into its caller (:func:`_seg_seg_2d`, four per call, on most pairs that the
+#: whole-mesh test decides in a plane): the same function compiled inlined, without a call per
+#: orientation.
+_o2_in = _inlined(_o2_sign)
 
 
 @_pure
