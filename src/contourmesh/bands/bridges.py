@@ -661,9 +661,24 @@ def _tree_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share
                 c_lt[r] = _later_kernel(pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1], lab, cids, ox, oy, dx, dy, share)
             if c_lt[r] != kind:
                 continue
-            if not _straight_ok(i, vi, j, vj, pts, off, lens, comp, oa, ob, sa[:ns], sb[:ns], corners, P1, Q1,
-                                alab, acids, aox, aoy, adx, ady, use_allowed):
+            # (_straight_ok written out: the helper, inlined, counted its arrays in and out per candidate)
+            for end in range(2):
+                rr, vv = (i, vi) if end == 0 else (j, vj)
+                mr = lens[rr]
+                for u in range(3):
+                    w = off[rr] + (vv - 1 + u) % mr
+                    corners[end, u, 0] = pts[w, 0]
+                    corners[end, u, 1] = pts[w, 1]
+            px, py = pts[off[i] + vi, 0], pts[off[i] + vi, 1]
+            qx, qy = pts[off[j] + vj, 0], pts[off[j] + vj, 1]
+            through = comp[i] == comp[j]
+            if not _clear_kernel(px, py, qx, qy, corners, np.int64(1), np.int64(1), oa, ob, sa[:ns], sb[:ns], through):
                 continue
+            if through and use_allowed:
+                P1[0, 0], P1[0, 1], Q1[0, 0], Q1[0, 1] = px, py, qx, qy
+                count, _ = _coverage_kernel(P1, Q1, alab, acids, aox, aoy, adx, ady)
+                if count[0] != 0:
+                    continue
             parent[_root(parent, i)] = _root(parent, j)
             used[off[i] + vi] = True
             used[off[j] + vj] = True
@@ -1041,7 +1056,9 @@ def _straight_ok(i, vi, j, vj, pts, off, lens, comp, oa, ob, sa, sb, corners, P1
     """Whether the candidate from ring ``i``'s vertex ``vi`` to ring ``j``'s ``vj`` keeps clear
     (:func:`_clear_kernel`, the other bridges ``sa, sb``) and, through the material, passes the
     keyhole test where ``use_allowed``: :func:`_straight_bridges_reference`'s test of a candidate.
-    ``corners``, ``P1``, ``Q1``: scratch arrays ((2, 3, 2), (1, 2), (1, 2))."""
+    ``corners``, ``P1``, ``Q1``: scratch arrays ((2, 3, 2), (1, 2), (1, 2)).  :func:`_tree_kernel`
+    writes it out in its loop (inlined, the helper counted each of its array arguments in and out
+    on every candidate tested)."""
     for e in range(2):
         r, v = (i, vi) if e == 0 else (j, vj)
         m = lens[r]
