@@ -1408,38 +1408,6 @@ def _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j,
 _KEYHOLE_ASKS = 16
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _heap_less(hf, hg, hv, hu, a, b):
-    """Whether heap entry ``a``'s tuple ``(f, g, node, from)`` is smaller than entry ``b``'s."""
-    if hf[a] != hf[b]:
-        return hf[a] < hf[b]
-    if hg[a] != hg[b]:
-        return hg[a] < hg[b]
-    if hv[a] != hv[b]:
-        return hv[a] < hv[b]
-    return hu[a] < hu[b]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _heap_swap(hf, hg, hv, hu, a, b):
-    """Swaps the heap's entries ``a`` and ``b`` (one field of every entry in each array)."""
-    hf[a], hf[b] = hf[b], hf[a]
-    hg[a], hg[b] = hg[b], hg[a]
-    hv[a], hv[b] = hv[b], hv[a]
-    hu[a], hu[b] = hu[b], hu[a]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _sift_up(hf, hg, hv, hu, c):
-    """Moves the heap's entry ``c`` up to its place (the four arrays hold one field of every entry)."""
-    while c > 0:
-        p = (c - 1) // 2
-        if not _heap_less(hf, hg, hv, hu, c, p):
-            return
-        _heap_swap(hf, hg, hv, hu, c, p)
-        c = p
-
-
 @njit(cache=True, nogil=True)
 def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, dy, use, corners):
     """``ok(u, v)`` of :func:`keyhole_path`: the piece between nodes ``u`` and ``v`` keeps clear
@@ -1484,7 +1452,10 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
     radius, ``(-1, [u])``: the caller asks the k-d tree for node ``u``'s neighbours and searches
     again with them (``ov_at[u]``: their row in ``ov_ptr`` / ``ov_idx``, or -1).  Returns ``(1,
     path)``, or ``(0, ..)`` where there is no path (or the search settles more than
-    ``max_nodes`` nodes)."""
+    ``max_nodes`` nodes).
+
+    The heap's comparisons and swaps are written out where they are made: as inlined helpers
+    taking the heap's four arrays, they counted each array in and out on every comparison."""
     n = P.shape[0]
     corners = np.zeros((2, 3, 2))
     came = np.full(n, -2, np.int64)
@@ -1503,7 +1474,24 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
         if free_i[v]:
             hf[size], hg[size], hv[size], hu[size] = dist_j[m + v], 0.0, m + v, -1
             size += 1
-            _sift_up(hf, hg, hv, hu, size - 1)
+            c = size - 1  # (sift up)
+            while c > 0:
+                p = (c - 1) // 2
+                if hf[c] != hf[p]:
+                    less = hf[c] < hf[p]
+                elif hg[c] != hg[p]:
+                    less = hg[c] < hg[p]
+                elif hv[c] != hv[p]:
+                    less = hv[c] < hv[p]
+                else:
+                    less = hu[c] < hu[p]
+                if not less:
+                    break
+                hf[c], hf[p] = hf[p], hf[c]
+                hg[c], hg[p] = hg[p], hg[c]
+                hv[c], hv[p] = hv[p], hv[c]
+                hu[c], hu[p] = hu[p], hu[c]
+                c = p
     settled = 0
     goal = -1
     while size > 0:
@@ -1512,15 +1500,26 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
         size -= 1
         hf[0], hg[0], hv[0], hu[0] = hf[size], hg[size], hv[size], hu[size]
         c = 0
-        while True:
+        while True:  # (sift down)
             a, b, s_ = 2 * c + 1, 2 * c + 2, c
-            if a < size and _heap_less(hf, hg, hv, hu, a, s_):
-                s_ = a
-            if b < size and _heap_less(hf, hg, hv, hu, b, s_):
-                s_ = b
+            for w in (a, b):
+                if w < size:
+                    if hf[w] != hf[s_]:
+                        less = hf[w] < hf[s_]
+                    elif hg[w] != hg[s_]:
+                        less = hg[w] < hg[s_]
+                    elif hv[w] != hv[s_]:
+                        less = hv[w] < hv[s_]
+                    else:
+                        less = hu[w] < hu[s_]
+                    if less:
+                        s_ = w
             if s_ == c:
                 break
-            _heap_swap(hf, hg, hv, hu, c, s_)
+            hf[c], hf[s_] = hf[s_], hf[c]
+            hg[c], hg[s_] = hg[s_], hg[c]
+            hv[c], hv[s_] = hv[s_], hv[c]
+            hu[c], hu[s_] = hu[s_], hu[c]
             c = s_
         if came[u] != -2:
             continue
@@ -1576,7 +1575,24 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
                 hf, hg, hv, hu = hf2, hg2, hv2, hu2
             hf[size], hg[size], hv[size], hu[size] = gv + dist_j[v], gv, v, u
             size += 1
-            _sift_up(hf, hg, hv, hu, size - 1)
+            c = size - 1  # (sift up)
+            while c > 0:
+                p = (c - 1) // 2
+                if hf[c] != hf[p]:
+                    less = hf[c] < hf[p]
+                elif hg[c] != hg[p]:
+                    less = hg[c] < hg[p]
+                elif hv[c] != hv[p]:
+                    less = hv[c] < hv[p]
+                else:
+                    less = hu[c] < hu[p]
+                if not less:
+                    break
+                hf[c], hf[p] = hf[p], hf[c]
+                hg[c], hg[p] = hg[p], hg[c]
+                hv[c], hv[p] = hv[p], hv[c]
+                hu[c], hu[p] = hu[p], hu[c]
+                c = p
     if goal < 0:
         return 0, none
     L = 1
