@@ -1413,7 +1413,7 @@ def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, 
     """``ok(u, v)`` of :func:`keyhole_path`: the piece between nodes ``u`` and ``v`` keeps clear
     (:func:`_clear_kernel`, leaving the rings on their left) and, more than a step from a ring's
     vertex, passes the overlap test where ``use``."""
-    has = np.zeros(2, np.int64)
+    has0, has1 = np.int64(0), np.int64(0)  # (scalars, not an array made on every call)
     for t in range(2):
         node = u if t == 0 else v
         if node >= m:
@@ -1426,15 +1426,18 @@ def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, 
                 x = o + (w - 1 + c) % n_r  # (r[v - 1] wraps to the ring's last vertex)
                 corners[t, c, 0] = P[x, 0]
                 corners[t, c, 1] = P[x, 1]
-            has[t] = 1
+            if t == 0:
+                has0 = np.int64(1)
+            else:
+                has1 = np.int64(1)
     px, py, qx, qy = P[u, 0], P[u, 1], P[v, 0], P[v, 1]
-    if not _clear_kernel(px, py, qx, qy, corners, has[0], has[1], oa, ob, sa, sb, np.bool_(True)):
+    if not _clear_kernel(px, py, qx, qy, corners, has0, has1, oa, ob, sa, sb, np.bool_(True)):
         return False
     if not use:
         return True
     d = np.hypot(qx - px, qy - py)
-    t0 = step / d if has[0] else 0.0
-    t1 = 1.0 - step / d if has[1] else 1.0
+    t0 = step / d if has0 else 0.0
+    t1 = 1.0 - step / d if has1 else 1.0
     if t0 >= t1:
         return True
     return _overlap_free_kernel(px + t0 * (qx - px), py + t0 * (qy - py), px + t1 * (qx - px), py + t1 * (qy - py),
