@@ -1408,11 +1408,13 @@ def _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j,
 _KEYHOLE_ASKS = 16
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, dy, use, corners):
     """``ok(u, v)`` of :func:`keyhole_path`: the piece between nodes ``u`` and ``v`` keeps clear
     (:func:`_clear_kernel`, leaving the rings on their left) and, more than a step from a ring's
-    vertex, passes the overlap test where ``use``."""
+    vertex, passes the overlap test where ``use``.  It allocates nothing, and is compiled without
+    reference counting (``_nrt=False``): its calls of the two kernels then pass their arrays
+    without counting them in and out, once per piece the search tests."""
     has0, has1 = np.int64(0), np.int64(0)  # (scalars, not an array made on every call)
     for t in range(2):
         node = u if t == 0 else v
