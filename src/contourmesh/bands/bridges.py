@@ -661,9 +661,24 @@ def _tree_kernel(pts, off, lens, pairs, ask, k, lab, cids, ox, oy, dx, dy, share
                 c_lt[r] = _later_kernel(pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1], lab, cids, ox, oy, dx, dy, share)
             if c_lt[r] != kind:
                 continue
-            if not _straight_ok(i, vi, j, vj, pts, off, lens, comp, oa, ob, sa[:ns], sb[:ns], corners, P1, Q1,
-                                alab, acids, aox, aoy, adx, ady, use_allowed):
+            # (_straight_ok written out: the helper, inlined, counted its arrays in and out per candidate)
+            for end in range(2):
+                rr, vv = (i, vi) if end == 0 else (j, vj)
+                mr = lens[rr]
+                for u in range(3):
+                    w = off[rr] + (vv - 1 + u) % mr
+                    corners[end, u, 0] = pts[w, 0]
+                    corners[end, u, 1] = pts[w, 1]
+            px, py = pts[off[i] + vi, 0], pts[off[i] + vi, 1]
+            qx, qy = pts[off[j] + vj, 0], pts[off[j] + vj, 1]
+            through = comp[i] == comp[j]
+            if not _clear_kernel(px, py, qx, qy, corners, np.int64(1), np.int64(1), oa, ob, sa[:ns], sb[:ns], through):
                 continue
+            if through and use_allowed:
+                P1[0, 0], P1[0, 1], Q1[0, 0], Q1[0, 1] = px, py, qx, qy
+                count, _ = _coverage_kernel(P1, Q1, alab, acids, aox, aoy, adx, ady)
+                if count[0] != 0:
+                    continue
             parent[_root(parent, i)] = _root(parent, j)
             used[off[i] + vi] = True
             used[off[j] + vj] = True
@@ -1041,7 +1056,9 @@ def _straight_ok(i, vi, j, vj, pts, off, lens, comp, oa, ob, sa, sb, corners, P1
     """Whether the candidate from ring ``i``'s vertex ``vi`` to ring ``j``'s ``vj`` keeps clear
     (:func:`_clear_kernel`, the other bridges ``sa, sb``) and, through the material, passes the
     keyhole test where ``use_allowed``: :func:`_straight_bridges_reference`'s test of a candidate.
-    ``corners``, ``P1``, ``Q1``: scratch arrays ((2, 3, 2), (1, 2), (1, 2))."""
+    ``corners``, ``P1``, ``Q1``: scratch arrays ((2, 3, 2), (1, 2), (1, 2)).  :func:`_tree_kernel`
+    writes it out in its loop (inlined, the helper counted each of its array arguments in and out
+    on every candidate tested)."""
     for e in range(2):
         r, v = (i, vi) if e == 0 else (j, vj)
         m = lens[r]
@@ -1391,44 +1408,14 @@ def _keyhole_compiled(P, m, ri, rj, step, oa, ob, segs, allowed, used_i, used_j,
 _KEYHOLE_ASKS = 16
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _heap_less(hf, hg, hv, hu, a, b):
-    """Whether heap entry ``a``'s tuple ``(f, g, node, from)`` is smaller than entry ``b``'s."""
-    if hf[a] != hf[b]:
-        return hf[a] < hf[b]
-    if hg[a] != hg[b]:
-        return hg[a] < hg[b]
-    if hv[a] != hv[b]:
-        return hv[a] < hv[b]
-    return hu[a] < hu[b]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _heap_swap(hf, hg, hv, hu, a, b):
-    """Swaps the heap's entries ``a`` and ``b`` (one field of every entry in each array)."""
-    hf[a], hf[b] = hf[b], hf[a]
-    hg[a], hg[b] = hg[b], hg[a]
-    hv[a], hv[b] = hv[b], hv[a]
-    hu[a], hu[b] = hu[b], hu[a]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _sift_up(hf, hg, hv, hu, c):
-    """Moves the heap's entry ``c`` up to its place (the four arrays hold one field of every entry)."""
-    while c > 0:
-        p = (c - 1) // 2
-        if not _heap_less(hf, hg, hv, hu, c, p):
-            return
-        _heap_swap(hf, hg, hv, hu, c, p)
-        c = p
-
-
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, dy, use, corners):
     """``ok(u, v)`` of :func:`keyhole_path`: the piece between nodes ``u`` and ``v`` keeps clear
     (:func:`_clear_kernel`, leaving the rings on their left) and, more than a step from a ring's
-    vertex, passes the overlap test where ``use``."""
-    has = np.zeros(2, np.int64)
+    vertex, passes the overlap test where ``use``.  It allocates nothing, and is compiled without
+    reference counting (``_nrt=False``): its calls of the two kernels then pass their arrays
+    without counting them in and out, once per piece the search tests."""
+    has0, has1 = np.int64(0), np.int64(0)  # (scalars, not an array made on every call)
     for t in range(2):
         node = u if t == 0 else v
         if node >= m:
@@ -1441,15 +1428,18 @@ def _keyhole_ok(P, u, v, m, ni, step, oa, ob, sa, sb, over, x0, y0, ox, oy, dx, 
                 x = o + (w - 1 + c) % n_r  # (r[v - 1] wraps to the ring's last vertex)
                 corners[t, c, 0] = P[x, 0]
                 corners[t, c, 1] = P[x, 1]
-            has[t] = 1
+            if t == 0:
+                has0 = np.int64(1)
+            else:
+                has1 = np.int64(1)
     px, py, qx, qy = P[u, 0], P[u, 1], P[v, 0], P[v, 1]
-    if not _clear_kernel(px, py, qx, qy, corners, has[0], has[1], oa, ob, sa, sb, np.bool_(True)):
+    if not _clear_kernel(px, py, qx, qy, corners, has0, has1, oa, ob, sa, sb, np.bool_(True)):
         return False
     if not use:
         return True
     d = np.hypot(qx - px, qy - py)
-    t0 = step / d if has[0] else 0.0
-    t1 = 1.0 - step / d if has[1] else 1.0
+    t0 = step / d if has0 else 0.0
+    t1 = 1.0 - step / d if has1 else 1.0
     if t0 >= t1:
         return True
     return _overlap_free_kernel(px + t0 * (qx - px), py + t0 * (qy - py), px + t1 * (qx - px), py + t1 * (qy - py),
@@ -1467,7 +1457,10 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
     radius, ``(-1, [u])``: the caller asks the k-d tree for node ``u``'s neighbours and searches
     again with them (``ov_at[u]``: their row in ``ov_ptr`` / ``ov_idx``, or -1).  Returns ``(1,
     path)``, or ``(0, ..)`` where there is no path (or the search settles more than
-    ``max_nodes`` nodes)."""
+    ``max_nodes`` nodes).
+
+    The heap's comparisons and swaps are written out where they are made: as inlined helpers
+    taking the heap's four arrays, they counted each array in and out on every comparison."""
     n = P.shape[0]
     corners = np.zeros((2, 3, 2))
     came = np.full(n, -2, np.int64)
@@ -1486,7 +1479,24 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
         if free_i[v]:
             hf[size], hg[size], hv[size], hu[size] = dist_j[m + v], 0.0, m + v, -1
             size += 1
-            _sift_up(hf, hg, hv, hu, size - 1)
+            c = size - 1  # (sift up)
+            while c > 0:
+                p = (c - 1) // 2
+                if hf[c] != hf[p]:
+                    less = hf[c] < hf[p]
+                elif hg[c] != hg[p]:
+                    less = hg[c] < hg[p]
+                elif hv[c] != hv[p]:
+                    less = hv[c] < hv[p]
+                else:
+                    less = hu[c] < hu[p]
+                if not less:
+                    break
+                hf[c], hf[p] = hf[p], hf[c]
+                hg[c], hg[p] = hg[p], hg[c]
+                hv[c], hv[p] = hv[p], hv[c]
+                hu[c], hu[p] = hu[p], hu[c]
+                c = p
     settled = 0
     goal = -1
     while size > 0:
@@ -1495,15 +1505,26 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
         size -= 1
         hf[0], hg[0], hv[0], hu[0] = hf[size], hg[size], hv[size], hu[size]
         c = 0
-        while True:
+        while True:  # (sift down)
             a, b, s_ = 2 * c + 1, 2 * c + 2, c
-            if a < size and _heap_less(hf, hg, hv, hu, a, s_):
-                s_ = a
-            if b < size and _heap_less(hf, hg, hv, hu, b, s_):
-                s_ = b
+            for w in (a, b):
+                if w < size:
+                    if hf[w] != hf[s_]:
+                        less = hf[w] < hf[s_]
+                    elif hg[w] != hg[s_]:
+                        less = hg[w] < hg[s_]
+                    elif hv[w] != hv[s_]:
+                        less = hv[w] < hv[s_]
+                    else:
+                        less = hu[w] < hu[s_]
+                    if less:
+                        s_ = w
             if s_ == c:
                 break
-            _heap_swap(hf, hg, hv, hu, c, s_)
+            hf[c], hf[s_] = hf[s_], hf[c]
+            hg[c], hg[s_] = hg[s_], hg[c]
+            hv[c], hv[s_] = hv[s_], hv[c]
+            hu[c], hu[s_] = hu[s_], hu[c]
             c = s_
         if came[u] != -2:
             continue
@@ -1559,7 +1580,24 @@ def _keyhole_kernel(P, m, ni, step, oa, ob, sa, sb, free_i, free_j, dist_j, over
                 hf, hg, hv, hu = hf2, hg2, hv2, hu2
             hf[size], hg[size], hv[size], hu[size] = gv + dist_j[v], gv, v, u
             size += 1
-            _sift_up(hf, hg, hv, hu, size - 1)
+            c = size - 1  # (sift up)
+            while c > 0:
+                p = (c - 1) // 2
+                if hf[c] != hf[p]:
+                    less = hf[c] < hf[p]
+                elif hg[c] != hg[p]:
+                    less = hg[c] < hg[p]
+                elif hv[c] != hv[p]:
+                    less = hv[c] < hv[p]
+                else:
+                    less = hu[c] < hu[p]
+                if not less:
+                    break
+                hf[c], hf[p] = hf[p], hf[c]
+                hg[c], hg[p] = hg[p], hg[c]
+                hv[c], hv[p] = hv[p], hv[c]
+                hu[c], hu[p] = hu[p], hu[c]
+                c = p
     if goal < 0:
         return 0, none
     L = 1
