@@ -204,12 +204,12 @@ def test_neck_cycles_equal_their_former_form_on_cones():
 
 @pytest.fixture(scope="module")
 def lobster_inputs(shared_data):
-    """The inputs of ``_neck_steps`` in the lobster's build (threshold 60,
+    """The inputs of ``_neck_steps`` and ``_split_faces`` in the lobster's build (threshold 60,
     padded, as the benchmarks mesh it)."""
     from contourmesh.io import read_volume
 
     vol, sp, _ = read_volume(shared_data / "volumes" / "dgtal" / "lobster.vol", threshold=60)
-    seen = {"_neck_steps": []}
+    seen = {"_neck_steps": [], "_split_faces": []}
 
     def keeper(name):
         real = getattr(repair, name)
@@ -236,3 +236,15 @@ def test_neck_cycles_equal_their_former_form_on_the_lobster(lobster_inputs):
         mark[necks] = True
         Fo = np.ascontiguousarray(F[repair._rows_touching(F, mark)])
         assert len(necks) > 100 and _same_cycles(Fo, necks, n_v) == 0
+
+
+def test_split_faces_equal_the_python_loop_on_the_lobster(lobster_inputs):
+    """``_split_faces`` (its set additions and edge look-ups plain calls that count no
+    references) against the Python loop it stands for, on the lobster's four-face edges."""
+    assert lobster_inputs["_split_faces"]
+    for Fw, sw, work, hit, m, nv, base in lobster_inputs["_split_faces"]:
+        done, added, sides, made = repair._split_faces(Fw, sw, work, hit, m, nv, base)
+        want = repair._split_faces_py(Fw, sw, work, hit, int(m), int(nv), int(base))
+        assert done and len(made) > 100
+        for a, b in zip((added, sides, made), want):
+            assert a.dtype == b.dtype and np.array_equal(a, b)
