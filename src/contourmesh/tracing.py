@@ -536,7 +536,15 @@ def _slice_cracks(lab, boxes, ry, rx0, rx1, rlab):
                         pts[pos, 1] = vy
                         pos += 1
                         vx, vy, a2 = _crack_step(vx, vy, d, a2)
-                        d = _CORNER_TURN[16 * d + _corner_mask(lab, vx, vy, v, h, w)]  # (_label_turn)
+                        # (_corner_mask written out: inlined, it counted lab in and out at every
+                        # step; the rotated socket's 233 slice passes 25.9 -> 23.7 ms, the lobster's
+                        # 323 boxed ones 12.8 -> 11.9 ms)
+                        ca = vy - 1 >= 0 and vx - 1 >= 0 and lab[vy - 1, vx - 1] == v
+                        cb = vy - 1 >= 0 and vx < w and lab[vy - 1, vx] == v
+                        cc = vy < h and vx - 1 >= 0 and lab[vy, vx - 1] == v
+                        ce = vy < h and vx < w and lab[vy, vx] == v
+                        cm = np.int64(ca) | (np.int64(cb) << 1) | (np.int64(cc) << 2) | (np.int64(ce) << 3)
+                        d = _CORNER_TURN[16 * d + cm]  # (_label_turn)
                         if vx == vx0 and vy == vy0 and d == d0:
                             break
                     area2[n_cont] = a2

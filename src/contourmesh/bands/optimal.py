@@ -285,7 +285,13 @@ def _annulus_dp_within(A1, A2, s, D, steps, keep, B):
     above ``B`` wins no cell whose cost is at most ``B`` (it is larger than that cost; ties go to
     the first offer of the least cost either way), so such a cell gets the same cost and the same
     step from the same offers in the same order.  On the liver's bridged bands about a seventh of
-    the cells have a cost within the band's total."""
+    the cells have a cost within the band's total.
+
+    The rolling rows are read and written as ``D[r, layer, t]`` and ``A2[ib, t - 1]``, not through
+    a view of each layer's row taken at every row as :func:`_annulus_dp` does: here the row loop's
+    exits left each view counted in and out (an atomic count and release) at every row, nine a row,
+    a cost beside the few cells a row that lie within the bound (the lobster's least-area bands
+    37.2 -> 35.5 ms, the liver's 62.2 -> 60.3, CPU; the same sums in the same order)."""
     n, m = A1.shape
     inf = np.inf
     none_row = np.zeros(m)
@@ -295,16 +301,8 @@ def _annulus_dp_within(A1, A2, s, D, steps, keep, B):
     for i in range(n + 1):
         r = i % 2
         ib = (s + i) % n
-        a2row = A2[ib]
         a1row = none_row if i == 0 else A1[(ib + n - 1) % n]
-        p1 = D[1 - r, ROW0]
-        p2 = D[1 - r, ROW_HERE]
-        p3 = D[1 - r, ROW_PAST]
-        p4 = D[1 - r, TWO_ROWS]
-        d1 = D[r, ROW0]
-        d2 = D[r, ROW_HERE]
-        d3 = D[r, ROW_PAST]
-        d4 = D[r, TWO_ROWS]
+        rb = 1 - r  # (the row before: D is indexed whole, see the docstring's last paragraph)
         row0 = i == 0 or i == n
         x0 = 0.0 if i == 0 else D[1 - r, NONE, 0] + a1row[0]
         D[r, NONE, 0] = x0
@@ -321,11 +319,11 @@ def _annulus_dp_within(A1, A2, s, D, steps, keep, B):
         while t <= m:
             if plo <= t and t <= phi:
                 a1 = a1row[t] if t < m else a1row[0]
-                y1 = p1[t] + a1
-                ch = p2[t] + a1
-                cp = p3[t] + a1
+                y1 = D[rb, ROW0, t] + a1
+                ch = D[rb, ROW_HERE, t] + a1
+                cp = D[rb, ROW_PAST, t] + a1
                 y3 = cp if cp < ch else ch
-                y4 = p4[t] + a1
+                y4 = D[rb, TWO_ROWS, t] + a1
             else:
                 if t > 0 and x0 > B and x1 > B and x2 > B and x3 > B and x4 > B:
                     if t > phi:
@@ -333,10 +331,10 @@ def _annulus_dp_within(A1, A2, s, D, steps, keep, B):
                     # (t < plo: a C(2)-run from column 0 that left B) on at plo; the cells
                     # passed over are above B, as infinity for the row after (which may read them)
                     for q in range(t, plo):
-                        d1[q] = inf
-                        d2[q] = inf
-                        d3[q] = inf
-                        d4[q] = inf
+                        D[r, ROW0, q] = inf
+                        D[r, ROW_HERE, q] = inf
+                        D[r, ROW_PAST, q] = inf
+                        D[r, TWO_ROWS, q] = inf
                     t = plo
                     x0 = x1 = x2 = x3 = x4 = inf
                     continue
@@ -346,15 +344,15 @@ def _annulus_dp_within(A1, A2, s, D, steps, keep, B):
             k2 = 0
             k4 = 0
             if t > 0:
-                y1, y2, y4, k1, k2, k4 = _c2_offers(row0, a2row[t - 1], x0, x1, x2, x3, x4, y1, y2, y4, k1, k2, k4)
+                y1, y2, y4, k1, k2, k4 = _c2_offers(row0, A2[ib, t - 1], x0, x1, x2, x3, x4, y1, y2, y4, k1, k2, k4)
                 x0 = inf
             if keep:
                 steps[i, t] = (k1 << _ROW0_BITS) | (k2 << _HERE_BITS) | \
                     (0 if cp < ch else _FROM_ROW_HERE) << _PAST_BITS | k4
-            d1[t] = y1
-            d2[t] = y2
-            d3[t] = y3
-            d4[t] = y4
+            D[r, ROW0, t] = y1
+            D[r, ROW_HERE, t] = y2
+            D[r, ROW_PAST, t] = y3
+            D[r, TWO_ROWS, t] = y4
             x1 = y1
             x2 = y2
             x3 = y3
