@@ -92,10 +92,9 @@ def _pure(fn):
 def _inlined(fn):
     """A predicate as :func:`_pure` that is also inlined into its callers by numba (``inline=
     "always"``), for the few called many times per call of their caller (:func:`_dir_sign` in
-    :func:`_fan_winds_once`, :func:`_o2_in` in :func:`_seg_seg_2d`, :func:`_o3_in` in the exact
-    tests in 3D): the same operations on the same numbers, without a call that passes every
-    array's fields.  Callable from compiled code only, and best from a :func:`_pure` caller:
-    inlined into a kernel with reference counting,
+    :func:`_fan_winds_once`, :func:`_o2_in` in :func:`_seg_seg_2d`): the same operations on the
+    same numbers, without a call that passes every array's fields.  Callable from compiled code
+    only, and best from a :func:`_pure` caller: inlined into a kernel with reference counting,
     numba counts each array argument in and out (atomic) per inlined call, which can cost more
     than the call saves (:func:`_fan_winds_once` inlined into :func:`_star_fill_levels` did so,
     three arrays per vertex and direction tried)."""
@@ -283,7 +282,8 @@ def _exact_sign(V, ws, a, b, c, d, ax, ay, dim):
     return -1
 
 
-def _o3_sign(V, ws, a, b, c, d):
+@_pure
+def _o3(V, ws, a, b, c, d):
     """Exact sign of det[a - d, b - d, c - d] (positive when d is below the plane of a, b, c seen
     with a, b, c counter-clockwise): float64 with Shewchuk's error bound, exact arithmetic when
     the bound does not certify the sign."""
@@ -318,14 +318,6 @@ def _o3_sign(V, ws, a, b, c, d):
     if perm == 0.0:
         return 0
     return _exact_sign(V, ws, a, b, c, d, a, a, np.int64(3))
-
-
-_o3 = _pure(_o3_sign)
-#: :func:`_o3` inlined into its callers (:func:`_tri_tri_3d`, :func:`_edge_tri_3d`,
-#: :func:`_shared_vertex`, :func:`_shared_edge`: up to six per call, on most pairs that reach the
-#: exact test): the same function compiled inlined, without a call that passes both arrays' fields
-#: per orientation.
-_o3_in = _inlined(_o3_sign)
 
 
 def _o2_sign(V, ws, a, b, c, ax, ay):
@@ -458,11 +450,11 @@ def _edge_tri_3d(V, ws, u, v, su, sv, a, b, c):
     if su == 0 and sv == 0:
         k = _drop_axis(V, ws, a, b, c)
         return _seg_tri_2d(V, ws, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
-    w1 = _o3_in(V, ws, u, v, a, b)
-    w2 = _o3_in(V, ws, u, v, b, c)
+    w1 = _o3(V, ws, u, v, a, b)
+    w2 = _o3(V, ws, u, v, b, c)
     if w1 * w2 < 0:
         return False
-    w3 = _o3_in(V, ws, u, v, c, a)
+    w3 = _o3(V, ws, u, v, c, a)
     if w1 == 0 and w2 == 0 and w3 == 0:  # uncertain: the line looks coplanar with the triangle
         k = _drop_axis(V, ws, a, b, c)
         return _seg_tri_2d(V, ws, u, v, a, b, c, (k + 1) % 3, (k + 2) % 3)
@@ -474,14 +466,14 @@ def _edge_tri_3d(V, ws, u, v, su, sv, a, b, c):
 @_pure
 def _tri_tri_3d(V, ws, a, b, c, d, e, f):
     """Closed triangles abc and def (no common vertex) have a common point."""
-    s1 = _o3_in(V, ws, a, b, c, d)
-    s2 = _o3_in(V, ws, a, b, c, e)
-    s3 = _o3_in(V, ws, a, b, c, f)
+    s1 = _o3(V, ws, a, b, c, d)
+    s2 = _o3(V, ws, a, b, c, e)
+    s3 = _o3(V, ws, a, b, c, f)
     if (s1 > 0 and s2 > 0 and s3 > 0) or (s1 < 0 and s2 < 0 and s3 < 0):
         return False
-    r1 = _o3_in(V, ws, d, e, f, a)
-    r2 = _o3_in(V, ws, d, e, f, b)
-    r3 = _o3_in(V, ws, d, e, f, c)
+    r1 = _o3(V, ws, d, e, f, a)
+    r2 = _o3(V, ws, d, e, f, b)
+    r3 = _o3(V, ws, d, e, f, c)
     if (r1 > 0 and r2 > 0 and r3 > 0) or (r1 < 0 and r2 < 0 and r3 < 0):
         return False
     if (s1 == 0 and s2 == 0 and s3 == 0) or (r1 == 0 and r2 == 0 and r3 == 0):
@@ -512,12 +504,12 @@ def _shared_vertex(V, ws, p, a, b, c, d):
 
     Such a point exists if and only if the opposite edge of one meets the other triangle, or an
     edge from p of one lies in the other's plane and points into its corner at p."""
-    sa = _o3_in(V, ws, p, c, d, a)
-    sb = _o3_in(V, ws, p, c, d, b)
+    sa = _o3(V, ws, p, c, d, a)
+    sb = _o3(V, ws, p, c, d, b)
     if sa * sb > 0:  # p, a, b strictly on one side of the plane of p, c, d (but for p)
         return False
-    sc = _o3_in(V, ws, p, a, b, c)
-    sd = _o3_in(V, ws, p, a, b, d)
+    sc = _o3(V, ws, p, a, b, c)
+    sd = _o3(V, ws, p, a, b, d)
     if sc * sd > 0:
         return False
     if sa == 0 and sb == 0 and sc == 0 and sd == 0:
@@ -541,7 +533,7 @@ def _shared_vertex(V, ws, p, a, b, c, d):
 @_pure
 def _shared_edge(V, ws, p, q, a, b):
     """Triangles p, q, a and p, q, b (common edge pq) overlap: coplanar, a and b on one side."""
-    if _o3_in(V, ws, p, q, a, b) != 0:
+    if _o3(V, ws, p, q, a, b) != 0:
         return False
     k = _drop_axis(V, ws, p, q, a)
     ax = (k + 1) % 3
