@@ -2530,54 +2530,13 @@ def _cell_sweep(V, ws, F, star, sst, lev, lo_, hi_, faces, k, W, cx0, cy0, start
     for q in range(nc, 0, -1):
         start[q] = start[q - 1]
     start[0] = 0
-    # the pairs (_cell_scan), stopping at each pair that intersects and once where the stars fall
-    # due (both allocate here, which the scan cannot)
-    at = np.zeros(6, np.int64)
-    at[5] = work
-    while True:
-        got = _cell_scan(V, ws, F, star, sst, lev, lo_, faces, k, W, cx0, cy0, start, ent, nc, gx, limit, at)
-        if got == 2:
-            _fill_stars(V, F, star, lev, l0, l1, cg)
-        elif got == 1:
-            pi, pj, npairs = _push(pi, pj, npairs, at[3], at[4])
-            if npairs == stop:
-                return npairs, pi, pj, at[5]
-        elif got == 3:
-            return np.int64(-1), pi, pj, at[5]
-        else:
-            return npairs, pi, pj, at[5]
-
-
-@_pure
-def _cell_scan(V, ws, F, star, sst, lev, lo_, faces, k, W, cx0, cy0, start, ent, nc, gx, limit, at):
-    """The pair loop of :func:`_cell_sweep` (its cells ``start``, entries ``ent`` and rows ``W``,
-    ``cx0``, ``cy0``; ``nc`` cells, ``gx`` along x) from the place ``at[0:3]`` (cell, entry, second
-    entry; zeros at first), with the work so far in ``at[5]``: each pair tested as there.  Returns
-    1 at a pair that intersects (faces ``at[3] < at[4]``; ``at`` then holds the place after it), 2
-    where the vertices' stars fall due before the pair at ``at`` is tested (the caller fills them
-    and calls again: the pair is taken again from its start, its work not counted twice), 3 where
-    the work passed ``limit``, 0 at the end.
-
-    The loop that the caller would run (the same pairs, tests, order and work), in a kernel
-    without reference counting (:func:`_pure`): in the caller, which allocates, the pair lists were
-    counted in and out (atomic operations) for every pair that reached :func:`_slab_hit`."""
-    q = at[0]
-    r = at[1]
-    v0 = at[2]
-    work = at[5]
-    while q < nc:
-        s1 = start[q + 1]
-        if r < start[q]:
-            r = start[q]
-        while r < s1:
+    for q in range(nc):
+        for r in range(start[q], start[q + 1]):
             s = ent[r]
             if W[s, 13] != k:
                 break  # (the faces from a lower slab: every pair of theirs is a lower slab's)
-            v = max(v0, r + 1)
-            v0 = 0
-            while v < s1:
+            for v in range(r + 1, start[q + 1]):
                 u = ent[v]
-                v += 1
                 work += 1
                 if max(W[s, 13], W[u, 13]) != k:
                     continue  # (a pair of a lower slab)
@@ -2594,28 +2553,14 @@ def _cell_scan(V, ws, F, star, sst, lev, lo_, faces, k, W, cx0, cy0, start, ent,
                 if i > j:
                     i, j = j, i
                 if _star_due(sst):
-                    at[0] = q
-                    at[1] = r
-                    at[2] = v - 1
-                    at[5] = work - 1
-                    return 2
+                    _fill_stars(V, F, star, lev, l0, l1, cg)
                 if _slab_hit(V, ws, F, star, np.int64(1), i, j):
-                    at[0] = q
-                    at[1] = r
-                    at[2] = v
-                    at[3] = i
-                    at[4] = j
-                    at[5] = work
-                    return 1
+                    pi, pj, npairs = _push(pi, pj, npairs, i, j)
+                    if npairs == stop:
+                        return npairs, pi, pj, work
             if work > limit:
-                at[5] = work
-                return 3
-            r += 1
-        q += 1
-        r = s1
-    at[0] = q
-    at[5] = work
-    return 0
+                return np.int64(-1), pi, pj, work
+    return npairs, pi, pj, work
 
 
 @_kernel
