@@ -1439,6 +1439,83 @@ def _box_gates(abox, a, b):
     return gate
 
 
+@_pure
+def _grid_scan(V, ws, F, star, sst, quick, start, ent_slot, ent_key, ent_low, abox, aface, acg, nbc, at):
+    """The pair loop of one chunk of :func:`_intersecting_pairs`' grid: the pairs of entries of one
+    bucket (``start``, the ``nbc`` buckets' entries ``ent_*`` of slots ``abox``, ``aface``, ``acg``)
+    from the place ``at[0:3]`` (bucket, entry, second entry; zeros at first), each tested as there.
+    Returns 1 at a pair that intersects (faces ``at[3] < at[4]``; ``at`` then holds the place after
+    it), 2 where the vertices' stars fall due before the pair at ``at`` is tested (the caller fills
+    them and calls again: the pair is taken again from its start, and its tests repeat the same
+    comparisons), 0 at the chunk's end.
+
+    The loop that the caller would run (the same pairs, tests and order), in a kernel without
+    reference counting (:func:`_pure`): in the caller, which allocates, each call of a test counted
+    its array arguments in and out (atomic operations) once per pair."""
+    q = at[0]
+    r = at[1]
+    t0 = at[2]
+    while q < nbc:
+        s1 = start[q + 1]
+        if r < start[q]:
+            r = start[q]
+        while r < s1:
+            a = ent_slot[r]
+            key = ent_key[r]
+            low = ent_low[r]
+            t = max(t0, r + 1)
+            t0 = 0
+            while t < s1:
+                # test the pair only in the cell of the low corner of the boxes' overlap (the cell
+                # of a larger coordinate is never lower: the larger of the two cells): both faces
+                # reach this cell, so along each axis it is the larger of their lowest cells where
+                # it is the lowest of one of them (ent_low), which two bytes say without the faces'
+                # rows
+                if ent_key[t] != key or (low | ent_low[t]) != 7:
+                    t += 1
+                    continue
+                b = ent_slot[t]
+                if acg[a] >= 0 and acg[a] == acg[b]:
+                    t += 1
+                    continue  # (two faces certified in one group: the pair needs nothing)
+                if (abox[a, 0] > abox[b, 3] or abox[b, 0] > abox[a, 3] or abox[a, 1] > abox[b, 4]
+                        or abox[b, 1] > abox[a, 4] or abox[a, 2] > abox[b, 5] or abox[b, 2] > abox[a, 5]):
+                    t += 1
+                    continue
+                i = min(aface[a], aface[b])
+                j = max(aface[a], aface[b])
+                if _star_due(sst):
+                    at[0] = q
+                    at[1] = r
+                    at[2] = t
+                    return 2
+                if _shares_certified(F, star, i, j):
+                    t += 1
+                    continue
+                # the in-plane tests only where the boxes say they decide (_box_gates): the same
+                # outcome as calling them, without reading the faces' corners again
+                gate = _box_gates(abox, a, b)
+                hit = np.int64(-1)
+                if gate & 1:
+                    hit = _across_plane(V, ws, F, i, j)
+                if hit < 0 and quick == 1 and gate & 2:
+                    hit = _touching_boxes(V, ws, F, i, j)
+                if hit < 0:
+                    hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
+                if hit == 1:
+                    at[0] = q
+                    at[1] = r
+                    at[2] = t + 1
+                    at[3] = i
+                    at[4] = j
+                    return 1
+                t += 1
+            r += 1
+        q += 1
+    at[0] = q
+    return 0
+
+
 @njit(cache=True, **_OPTIONS)
 def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
     """Pairs ``(i, j)``, ``i < j``, of faces that intersect (see the module docstring);
@@ -1586,6 +1663,7 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
     acell = np.empty((cap, 6), np.int64)
     aface = np.empty(cap, np.int64)
     acg = np.empty(cap, np.int64)  # (its group where certified, else -1: see _lattice_cells)
+    at = np.zeros(5, np.int64)  # (_grid_scan's place and pair)
     nact = 0
     nxt = 0
     z0 = np.int64(0)
@@ -1655,47 +1733,22 @@ def _intersecting_pairs(V, ws, F, star, sst, quick, budget, stop, chunk, cg):
         for q in range(nbc, 0, -1):
             start[q] = start[q - 1]
         start[0] = 0
-        for q in range(nbc):
-            s0 = start[q]
-            s1 = start[q + 1]
-            for r in range(s0, s1):
-                a = ent_slot[r]
-                key = ent_key[r]
-                low = ent_low[r]
-                for t in range(r + 1, s1):
-                    # test the pair only in the cell of the low corner of the boxes' overlap (the
-                    # cell of a larger coordinate is never lower: the larger of the two cells): both
-                    # faces reach this cell, so along each axis it is the larger of their lowest
-                    # cells where it is the lowest of one of them (ent_low), which two bytes say
-                    # without the faces' rows
-                    if ent_key[t] != key or (low | ent_low[t]) != 7:
-                        continue
-                    b = ent_slot[t]
-                    if acg[a] >= 0 and acg[a] == acg[b]:
-                        continue  # (two faces certified in one group: the pair needs nothing)
-                    if (abox[a, 0] > abox[b, 3] or abox[b, 0] > abox[a, 3] or abox[a, 1] > abox[b, 4]
-                            or abox[b, 1] > abox[a, 4] or abox[a, 2] > abox[b, 5] or abox[b, 2] > abox[a, 5]):
-                        continue
-                    i = min(aface[a], aface[b])
-                    j = max(aface[a], aface[b])
-                    if _star_due(sst):
-                        _fill_stars(V, F, star, np.zeros(len(V), np.int64), ax0, ax0, cg)
-                    if _shares_certified(F, star, i, j):
-                        continue
-                    # the in-plane tests only where the boxes say they decide (_box_gates): the
-                    # same outcome as calling them, without reading the faces' corners again
-                    gate = _box_gates(abox, a, b)
-                    hit = np.int64(-1)
-                    if gate & 1:
-                        hit = _across_plane(V, ws, F, i, j)
-                    if hit < 0 and quick == 1 and gate & 2:
-                        hit = _touching_boxes(V, ws, F, i, j)
-                    if hit < 0:
-                        hit = 1 if _pair_intersects(V, ws, F, i, j) else 0
-                    if hit == 1:
-                        pi, pj, npairs = _push(pi, pj, npairs, i, j)
-                        if npairs == stop:
-                            return pi[:npairs], pj[:npairs]
+        # the chunk's pairs (_grid_scan), stopping at each pair that intersects and once where the
+        # stars fall due (both allocate here, which the scan cannot)
+        at[0] = 0
+        at[1] = 0
+        at[2] = 0
+        while True:
+            got = _grid_scan(V, ws, F, star, sst, quick, start, ent_slot, ent_key, ent_low, abox, aface, acg,
+                             nbc, at)
+            if got == 0:
+                break
+            if got == 2:
+                _fill_stars(V, F, star, np.zeros(len(V), np.int64), ax0, ax0, cg)
+                continue
+            pi, pj, npairs = _push(pi, pj, npairs, at[3], at[4])
+            if npairs == stop:
+                return pi[:npairs], pj[:npairs]
         z0 = z1
     return pi[:npairs], pj[:npairs]
 
