@@ -48,7 +48,7 @@ if [ -n "$extras" ] && ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; th
 fi
 # compile the numba kernels that the README's commands use, once (cached on disk), so that the
 # first reproduce, contour-file mesh, --refine band and volume do not stop to compile
-say "compiling the numba kernels once (about 45 s the first time, cached on disk) ..."
+say "compiling the numba kernels once (about 3 minutes the first time on 2 cores, cached on disk) ..."
 .venv/bin/python scripts/warm_kernels.py \
   || say "warming some kernels failed (see above); those first calls will compile instead"
 done_step
